@@ -1,0 +1,76 @@
+/*
+ * Reference firmware: shared constants and the measurement / command records.
+ * Numbering follows docs/architecture.md (the DBC value tables are the source).
+ */
+#ifndef HIL_FW_TYPES_H
+#define HIL_FW_TYPES_H
+
+#include <stdint.h>
+
+#define HIL_FW_MAX_PHASES 6
+#define HIL_FW_MAX_SUBSTATES 3
+
+/* Return codes of the configuration calls (0 ok, negative error). */
+#define HIL_FW_OK 0
+#define HIL_FW_E_PARAM_ID (-1)        /* unknown param_id */
+#define HIL_FW_E_PARAM_VALUE (-2)     /* value not finite or outside its physical range */
+#define HIL_FW_E_CONTROLLER_ID (-3)   /* unknown controller_id */
+#define HIL_FW_E_NOT_IMPLEMENTED (-4) /* known controller_id, not implemented in this firmware */
+#define HIL_FW_E_MODE (-5)            /* unknown setpoint mode */
+#define HIL_FW_E_REFERENCE (-6)       /* setpoint reference not finite */
+#define HIL_FW_E_NULL (-7)            /* null state pointer */
+
+/* Status / fault codes carried in the command. */
+#define HIL_FW_STATUS_OK 0
+#define HIL_FW_STATUS_OVERCURRENT 1
+#define HIL_FW_STATUS_OVERSPEED 2
+#define HIL_FW_STATUS_WATCHDOG 3
+#define HIL_FW_STATUS_BAD_FRAME 4
+#define HIL_FW_STATUS_INVALID_CONFIG 5
+#define HIL_FW_STATUS_NOT_IMPLEMENTED 6
+
+/* Controller ids. */
+#define HIL_FW_CTRL_OFF 0
+#define HIL_FW_CTRL_MPCC 1
+#define HIL_FW_CTRL_FCS_MPC_1 2
+#define HIL_FW_CTRL_FCS_MPC_2 3
+#define HIL_FW_CTRL_DSVM_20 4
+#define HIL_FW_CTRL_DBCC_MPC 5
+#define HIL_FW_CTRL_FOC 6
+#define HIL_FW_CTRL_MPTC1 7
+#define HIL_FW_CTRL_MPTC2 8
+#define HIL_FW_CTRL_MPTC3 9
+#define HIL_FW_CTRL_3VMPC 10
+#define HIL_FW_CTRL_HV_MPFC 11
+#define HIL_FW_CTRL_COUNT 12
+
+/* Setpoint modes. */
+#define HIL_FW_MODE_SPEED 0  /* reference: mechanical speed [rad/s] */
+#define HIL_FW_MODE_TORQUE 1 /* reference: torque [N*m] */
+
+/* One sampled measurement (instant k = t_ns / Ts). */
+typedef struct {
+    uint16_t seq;                    /* frame sequence number, echoed in the command */
+    uint8_t n_phases;                /* 3 (three-phase) or 6 */
+    uint8_t status;                  /* plant status code (recorded, not acted on) */
+    float i_abc[HIL_FW_MAX_PHASES];  /* phase currents [A]; first n_phases used */
+    float theta_e;                   /* rotor electrical angle [rad] */
+    float omega_m;                   /* rotor mechanical speed [rad/s] */
+    float vdc;                       /* measured DC-link voltage [V]; <= 0: use param vdc */
+} hil_fw_meas_t;
+
+/* Command k, applied by the plant over [(k+1)Ts, (k+2)Ts). */
+typedef struct {
+    uint16_t seq;                                /* echo of the measurement seq */
+    uint8_t n_states;                            /* sub-intervals used, 1..3 */
+    uint8_t vector_id;                           /* controller-specific vector index (MPCC: 0..7) */
+    uint8_t candidates;                          /* candidate vectors evaluated this step */
+    uint8_t status;                              /* HIL_FW_STATUS_* */
+    uint8_t states[HIL_FW_MAX_SUBSTATES];        /* switching codes 4*Sa + 2*Sb + Sc */
+    uint32_t durations_ns[HIL_FW_MAX_SUBSTATES]; /* sub-interval lengths [ns]; sum = Ts [ns] */
+    float torque_ref;                            /* debug: torque reference [N*m] */
+    float id_ref;                                /* debug: d-axis current reference [A] */
+    float iq_ref;                                /* debug: q-axis current reference [A] */
+} hil_fw_cmd_t;
+
+#endif

@@ -1,0 +1,100 @@
+/* Configuration: parameter validation, controller selection, setpoint validation, defaults. */
+#include "fw_check.h"
+#include "hil_fw.h"
+
+static void test_param_validation(void)
+{
+    hil_fw_state_t s;
+    float v = 0.0f;
+    hil_fw_init(&s);
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_LD, -0.001f) == HIL_FW_E_PARAM_VALUE, "negative Ld rejected");
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_LQ, 0.0f) == HIL_FW_E_PARAM_VALUE, "zero Lq rejected");
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_TS, 0.0f) == HIL_FW_E_PARAM_VALUE, "zero Ts rejected");
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_TS, -1e-4f) == HIL_FW_E_PARAM_VALUE, "negative Ts rejected");
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_RS, -1.0f) == HIL_FW_E_PARAM_VALUE, "negative Rs rejected");
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_VDC, 0.0f) == HIL_FW_E_PARAM_VALUE, "zero Vdc rejected");
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_POLE_PAIRS, 2.5f) == HIL_FW_E_PARAM_VALUE, "fractional p rejected");
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_POLE_PAIRS, 0.0f) == HIL_FW_E_PARAM_VALUE, "zero p rejected");
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_TORQUE_LIMIT, 0.0f) == HIL_FW_E_PARAM_VALUE, "zero limit rejected");
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_CURRENT_LIMIT, -2.0f) == HIL_FW_E_PARAM_VALUE,
+          "negative current limit rejected");
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_SPEED_KP, NAN) == HIL_FW_E_PARAM_VALUE, "NaN rejected");
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_PSI_F, INFINITY) == HIL_FW_E_PARAM_VALUE, "inf rejected");
+    CHECK(hil_fw_set_param(&s, 0u, 1.0f) == HIL_FW_E_PARAM_ID, "param id 0 rejected");
+    CHECK(hil_fw_set_param(&s, 23u, 1.0f) == HIL_FW_E_PARAM_ID, "param id 23 rejected");
+    CHECK(hil_fw_set_param(&s, 255u, 1.0f) == HIL_FW_E_PARAM_ID, "param id 255 rejected");
+    CHECK(hil_fw_set_param(NULL, HIL_FW_P_RS, 1.0f) == HIL_FW_E_NULL, "null state rejected");
+    /* Rejected values leave the state unchanged. */
+    CHECK(hil_fw_get_param(&s, HIL_FW_P_LD, &v) == 0 && v == 0.012f, "Ld unchanged after rejection");
+    CHECK(s.params.model.ts_ns == 100000u, "Ts unchanged after rejection, got %u ns", s.params.model.ts_ns);
+    /* Accepted values update the derived model. */
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_TS, 50e-6f) == 0, "Ts 50 us accepted");
+    CHECK(s.params.model.ts_ns == 50000u, "Ts 50 us -> %u ns", s.params.model.ts_ns);
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_LQ, 0.02f) == 0, "Lq accepted");
+    CHECK_NEAR(s.params.model.kq, 50e-6f / 0.02f, 1e-9f, "Ts/Lq derived");
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_ID_REF, -3.0f) == 0, "negative id_ref accepted");
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_TORQUE_INTEGRATOR_INIT, -2.0f) == 0, "negative preset accepted");
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_SPEED_KP, 1.2f) == 0 && s.speed_pi.kp == 1.2f, "kp reaches the PI");
+}
+
+static void test_defaults(void)
+{
+    hil_fw_state_t s;
+    float v = 0.0f;
+    hil_fw_init(&s);
+    CHECK(hil_fw_get_param(&s, HIL_FW_P_SPEED_KP, &v) == 0 && v == 0.8f, "default kp 0.8 (paper)");
+    CHECK(hil_fw_get_param(&s, HIL_FW_P_SPEED_KI, &v) == 0 && v == 0.35f, "default ki 0.35 (paper)");
+    CHECK(hil_fw_get_param(&s, HIL_FW_P_POLE_PAIRS, &v) == 0 && v == 3.0f, "default p 3 (Table 3)");
+    CHECK(hil_fw_get_param(&s, HIL_FW_P_RS, &v) == 0 && v == 4.5f, "default Rs 4.5 (Table 3)");
+    CHECK(hil_fw_get_param(&s, 99u, &v) == HIL_FW_E_PARAM_ID, "get of unknown id rejected");
+    CHECK(s.controller_id == HIL_FW_CTRL_OFF && s.enable == 0u, "starts off and disabled");
+    CHECK(s.params.model.ts_ns == 100000u, "default Ts 100 us");
+}
+
+static void test_controller_selection(void)
+{
+    hil_fw_state_t s;
+    uint8_t id;
+    hil_fw_init(&s);
+    CHECK(hil_fw_select_controller(&s, HIL_FW_CTRL_MPCC) == 0, "mpcc selectable");
+    CHECK(s.controller_id == HIL_FW_CTRL_MPCC, "mpcc selected");
+    CHECK(hil_fw_select_controller(&s, 12u) == HIL_FW_E_CONTROLLER_ID, "id 12 unknown");
+    CHECK(hil_fw_select_controller(&s, 200u) == HIL_FW_E_CONTROLLER_ID, "id 200 unknown");
+    for (id = 2u; id < HIL_FW_CTRL_COUNT; ++id) {
+        CHECK(hil_fw_select_controller(&s, id) == HIL_FW_E_NOT_IMPLEMENTED, "id %u not implemented", id);
+    }
+    CHECK(s.controller_id == HIL_FW_CTRL_MPCC, "failed selections keep mpcc");
+    CHECK(hil_fw_select_controller(&s, HIL_FW_CTRL_OFF) == 0, "off selectable");
+    CHECK(hil_fw_controller_implemented(HIL_FW_CTRL_MPCC) == 1, "mpcc implemented");
+    CHECK(hil_fw_controller_implemented(HIL_FW_CTRL_FOC) == 0, "foc not implemented yet");
+    CHECK(hil_fw_controller_name(HIL_FW_CTRL_3VMPC)[0] == '3', "name of id 10 is 3vmpc");
+    CHECK(hil_fw_controller_name(77u)[0] == '?', "name of an unknown id is ?");
+}
+
+static void test_setpoint(void)
+{
+    hil_fw_state_t s;
+    hil_fw_init(&s);
+    CHECK(hil_fw_set_setpoint(&s, 1u, 2u, 1.0f) == HIL_FW_E_MODE, "mode 2 rejected");
+    CHECK(hil_fw_set_setpoint(&s, 1u, 0u, NAN) == HIL_FW_E_REFERENCE, "NaN reference rejected");
+    CHECK(s.enable == 0u, "rejected setpoints do not enable");
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_TORQUE_INTEGRATOR_INIT, 3.0f) == 0, "preset accepted");
+    CHECK(hil_fw_set_setpoint(&s, 1u, HIL_FW_MODE_SPEED, 100.0f) == 0, "speed setpoint accepted");
+    CHECK_NEAR(s.speed_pi.integ, 3.0f, 0.0f, "rising enable presets the integrator");
+    s.speed_pi.integ = 5.0f;
+    CHECK(hil_fw_set_setpoint(&s, 1u, HIL_FW_MODE_SPEED, 120.0f) == 0, "reference change accepted");
+    CHECK_NEAR(s.speed_pi.integ, 5.0f, 0.0f, "reference change while running keeps the integrator");
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_TORQUE_INTEGRATOR_INIT, 50.0f) == 0, "large preset accepted");
+    CHECK(hil_fw_set_setpoint(&s, 0u, HIL_FW_MODE_SPEED, 0.0f) == 0, "disable accepted");
+    CHECK(hil_fw_set_setpoint(&s, 1u, HIL_FW_MODE_SPEED, 0.0f) == 0, "re-enable accepted");
+    CHECK_NEAR(s.speed_pi.integ, 10.5f, 0.0f, "preset clamped to the torque limit");
+}
+
+int main(void)
+{
+    test_param_validation();
+    test_defaults();
+    test_controller_selection();
+    test_setpoint();
+    return FW_REPORT("test_config");
+}

@@ -1,0 +1,1 @@
+"""pmsm_hil.hil"""

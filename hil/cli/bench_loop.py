@@ -1,0 +1,92 @@
+"""`hil bench loop`: closed-loop periods per second (lockstep, logging off/on, cross-process) and
+real-time lateness; medians over repeats because this machine is shared and noisy."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import tempfile
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+from pmsm_hil.hil.cli.parsing import non_negative_int, positive_float
+from pmsm_hil.hil.presets_loader import load_motor
+from pmsm_hil.hil.runner.run import run_closed_loop
+from pmsm_hil.hil.runner.run_config import RunConfig
+from pmsm_hil.hil.runner.scenario import load_scenario
+
+
+def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Register `hil bench loop`."""
+    p = subparsers.add_parser("loop", help="closed-loop periods per second and real-time lateness")
+    p.add_argument("--duration", type=positive_float("--duration"), default=0.5,
+                   help="simulated seconds per measurement (default 0.5)")
+    p.add_argument("--repeats", type=non_negative_int("--repeats"), default=3, help="repeats (median)")
+    p.add_argument("--cross-process", default="udp,serial",
+                   help="comma list of cross-process links to measure (udp, serial; empty: none)")
+    p.add_argument("--no-realtime", action="store_true", help="skip the real-time lateness measurement")
+    p.add_argument("--json", type=Path, help="write the figures as JSON")
+    p.set_defaults(func=run)
+
+
+def _base(duration: float) -> RunConfig:
+    scenario = load_scenario("steady").with_overrides(settle_s=0.0, duration_s=duration)
+    return RunConfig(motor=load_motor("niu2020-ipmsm"), scenario=scenario, controller="mpcc")
+
+
+def _median_rate(make: Callable[[], RunConfig], repeats: int) -> dict[str, Any]:
+    rates: list[float] = []
+    extra: dict[str, Any] = {}
+    for _ in range(max(repeats, 1)):
+        res = run_closed_loop(make())
+        rates.append(res.outcome.completed_periods / res.outcome.wall_time_s)
+        extra = res.metrics
+    return {"periods_per_s": statistics.median(rates), "runs": rates, "last_metrics": extra}
+
+
+def measure(duration: float, repeats: int, cross: list[str], realtime: bool) -> dict[str, Any]:
+    """All loop figures; keys documented in docs/benchmarks.md."""
+    base = _base(duration)
+    out: dict[str, Any] = {"duration_s": duration, "repeats": repeats}
+    off = _median_rate(lambda: base, repeats)
+    with tempfile.TemporaryDirectory() as tmp:
+        counter = iter(range(1000))
+        on = _median_rate(lambda: replace(base, out_dir=Path(tmp) / f"run{next(counter)}"), repeats)
+    out["lockstep_inproc_log_off_hz"] = off["periods_per_s"]
+    out["lockstep_inproc_log_on_hz"] = on["periods_per_s"]
+    out["logging_cost_pct"] = 100.0 * (1.0 - on["periods_per_s"] / off["periods_per_s"])
+    for name in cross:
+        spec = {"udp": "udp", "serial": "serial:pty"}.get(name, name)
+        def make(spec: str = spec) -> RunConfig:
+            return replace(base, link=spec, target="spawn")
+
+        try:
+            res = _median_rate(make, repeats)
+            out[f"lockstep_{name}_process_hz"] = res["periods_per_s"]
+        except Exception as exc:
+            out[f"lockstep_{name}_process_error"] = str(exc)
+    if realtime:
+        rt = run_closed_loop(replace(base, mode="realtime"))
+        out["realtime_inproc_10khz_lateness_us"] = rt.metrics.get("lateness_us")
+        out["realtime_inproc_10khz_deadline_misses"] = rt.metrics.get("deadline_misses")
+    return out
+
+
+def run(args: argparse.Namespace) -> int:
+    """Execute `hil bench loop`."""
+    cross = [c.strip() for c in args.cross_process.split(",") if c.strip()]
+    figures = measure(args.duration, args.repeats, cross, not args.no_realtime)
+    print(f"closed loop, niu2020 IPMSM, MPCC, Ts = 100 µs, {args.duration} s simulated, median of {args.repeats}")
+    for key, value in figures.items():
+        if key.endswith("_hz"):
+            print(f"  {key:<40} {value:>10.0f} periods/s  ({value * 1e-4:.2f}× real time at 10 kHz)")
+        elif key == "logging_cost_pct":
+            print(f"  {key:<40} {value:>10.1f} %")
+        elif key not in ("duration_s", "repeats"):
+            print(f"  {key:<40} {value}")
+    if args.json is not None:
+        args.json.write_text(json.dumps(figures, indent=2, default=str) + "\n", encoding="utf-8")
+    return 0

@@ -1,0 +1,77 @@
+"""`hil link-budget`: worst-case frames, bits and wire time per control period on a link."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from pmsm_hil.protocol.budget import (
+    DEFAULT_BAUD,
+    DEFAULT_BITRATE,
+    DEFAULT_DATA_BITRATE,
+    LINK_KINDS,
+    LinkBudget,
+    link_budget,
+)
+from pmsm_hil.protocol.errors import BudgetError
+
+DEFAULT_RATE_HZ = 10_000.0
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """Register the `link-budget` subcommand."""
+    p = subparsers.add_parser(
+        "link-budget",
+        help="worst-case link budget of one control period",
+        description="Frames, worst-case bits (bit stuffing) and wire time per control "
+        "period; bus load at --rate and the maximum closed-loop rate.",
+    )
+    p.add_argument("--link", choices=LINK_KINDS, default="can", help="link type (default: %(default)s)")
+    p.add_argument("--bitrate", type=int, default=DEFAULT_BITRATE, help="CAN (nominal) bit rate, bit/s")
+    p.add_argument("--data-bitrate", type=int, default=DEFAULT_DATA_BITRATE, help="CAN FD data bit rate, bit/s")
+    p.add_argument("--baud", type=int, default=DEFAULT_BAUD, help="serial baud rate (8N1)")
+    p.add_argument("--phases", type=int, choices=(3, 6), default=3, help="machine phases (default: %(default)s)")
+    p.add_argument("--rate", type=float, default=DEFAULT_RATE_HZ, help="control rate, Hz (default: %(default)s)")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(func=run)
+
+
+def format_budget(b: LinkBudget) -> str:
+    """Human-readable table."""
+    rate = f"{b.rate_hz:.0f} Hz" if b.rate_hz is not None else "-"
+    load = f"{b.bus_load_pct:.1f} %" if b.bus_load_pct is not None else "-"
+    if b.link == "can":
+        speed = f"{b.bitrate} bit/s"
+    elif b.link == "canfd":
+        speed = f"{b.bitrate} / {b.data_bitrate} bit/s"
+    else:
+        speed = f"{b.baud} Bd 8N1"
+    lines = [
+        f"link {b.link} ({speed}), {b.phases} phases",
+        f"  up   (measurement): {b.frames_per_period_up} frame(s), payload {list(b.payloads_up)} B, "
+        f"{b.bits_up_worst} bits worst, {b.wire_time_up_us:.1f} µs",
+        f"  down (command):     {b.frames_per_period_down} frame(s), payload {list(b.payloads_down)} B, "
+        f"{b.bits_down_worst} bits worst, {b.wire_time_down_us:.1f} µs",
+        f"  per period: {b.bits_per_period_worst} bits, {b.wire_time_per_period_us:.1f} µs on the wire",
+        f"  bus load at {rate}: {load}" + ("" if b.feasible is None else "  (fits)" if b.feasible else "  (TOO SLOW)"),
+        f"  max closed-loop rate (compute time excluded): {b.max_rate_hz:.0f} Hz",
+    ]
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Print the budget; returns 0, or 2 on invalid arguments."""
+    try:
+        b = link_budget(
+            args.link,
+            args.phases,
+            bitrate=args.bitrate,
+            data_bitrate=args.data_bitrate,
+            baud=args.baud,
+            rate_hz=args.rate,
+        )
+    except BudgetError as exc:
+        print(f"hil link-budget: {exc}")
+        return 2
+    print(json.dumps(b.as_dict(), indent=1) if args.json else format_budget(b))
+    return 0

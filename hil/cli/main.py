@@ -1,0 +1,93 @@
+"""Entry point of the `hil` command: builds the parser from one module per subcommand."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from types import ModuleType
+
+from pmsm_hil.hil.errors import HilError
+from pmsm_hil.hil.metrics.errors import MetricsError
+from pmsm_hil.hil.runlog.errors import RunLogError
+from pmsm_hil.protocol.errors import ProtocolError
+
+# (group or None, module): each module exposes add_parser(subparsers) that sets func=run.
+_TOP_LEVEL = ("run", "target", "link_budget", "mcap_repair", "compare", "replay_mcap", "report")
+_GROUPS = {
+    "plant": ("plant_replay",),
+    "bench": ("bench_plant", "bench_loop", "bench_controllers", "bench_link"),
+}
+_GROUP_HELP = {"plant": "offline plant tools", "bench": "benchmarks that print figures"}
+
+
+def _user_errors() -> tuple[type[Exception], ...]:
+    """Exception bases that mean bad input or a failed run: reported as one line, no traceback."""
+    errors: list[type[Exception]] = [HilError, ProtocolError, MetricsError, RunLogError]
+    try:
+        from pmsm_hil.sim_target.firmware import FirmwareError
+    except ImportError:
+        return tuple(errors)
+    return (*errors, FirmwareError)
+
+
+def _load(name: str) -> ModuleType | None:
+    full = f"pmsm_hil.hil.cli.{name}"
+    try:
+        return importlib.import_module(full)
+    except ModuleNotFoundError as exc:
+        if exc.name == full:
+            return None  # subcommand not shipped in this build
+        raise
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The complete `hil` argument parser."""
+    parser = argparse.ArgumentParser(prog="hil", description="PMSM drive hardware-in-the-loop tester")
+    parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in _TOP_LEVEL:
+        module = _load(name)
+        if module is not None:
+            module.add_parser(sub)
+    for group, names in _GROUPS.items():
+        group_parser = sub.add_parser(group, help=_GROUP_HELP[group])
+        group_sub = group_parser.add_subparsers(dest=f"{group}_command", metavar="COMMAND")
+        for name in names:
+            module = _load(name)
+            if module is not None:
+                module.add_parser(group_sub)
+        group_parser.set_defaults(func=lambda args, p=group_parser: _usage(p))
+    return parser
+
+
+def _usage(parser: argparse.ArgumentParser) -> int:
+    parser.print_help()
+    return 2
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the `hil` command line; returns the process exit code."""
+    argv = sys.argv[1:] if argv is None else argv
+    if not argv or (argv[0] == "--debug" and len(argv) == 1):
+        argv = [*argv, "run"]  # `hil` alone runs the embedded default
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    func = getattr(args, "func", None)
+    if func is None:
+        parser.print_help()
+        return 2
+    try:
+        return int(func(args))
+    except _user_errors() as exc:
+        if args.debug:
+            raise
+        print(f"hil: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("hil: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,46 @@
+"""`hil mcap-repair IN.mcap [-o OUT.mcap]`: recover the valid prefix of a cut MCAP run log."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from pmsm_hil.hil.runlog.errors import RunLogError
+from pmsm_hil.hil.runlog.repair import repair_mcap
+
+
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+    """Register the `mcap-repair` sub-command on an argparse sub-parser collection."""
+    parser: argparse.ArgumentParser = subparsers.add_parser(
+        "mcap-repair",
+        help="rewrite the valid prefix of a cut MCAP run log as a complete file",
+        description="Read IN.mcap chunk by chunk up to the first incomplete or corrupt record and "
+        "write a complete, indexed MCAP file (default OUT: IN.repaired.mcap).",
+    )
+    parser.add_argument("input", type=Path, metavar="IN.mcap", help="MCAP file to repair")
+    parser.add_argument("-o", "--output", type=Path, metavar="OUT.mcap", default=None, help="output file")
+    parser.set_defaults(func=run)
+    return parser
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the repair; prints a one-paragraph report. Returns 0 on success, 2 on error."""
+    src: Path = args.input
+    dst: Path = args.output if args.output is not None else src.with_suffix(".repaired.mcap")
+    if not src.is_file():
+        print(f"hil mcap-repair: input: {src} is not a file", file=sys.stderr)
+        return 2
+    try:
+        report = repair_mcap(src, dst)
+    except RunLogError as exc:
+        print(f"hil mcap-repair: {exc}", file=sys.stderr)
+        return 2
+    state = "complete" if report.source_complete else f"cut ({report.stop_reason})"
+    topics = ", ".join(f"{t}: {n}" for t, n in sorted(report.messages_per_topic.items())) or "none"
+    print(
+        f"{src}: {state}; kept {report.valid_bytes} of {report.src_bytes} bytes, {report.chunks} chunk(s), "
+        f"{report.messages} message(s) [{topics}], {report.metadata_records} metadata record(s) -> {dst}"
+    )
+    return 0

@@ -1,0 +1,24 @@
+"""Shared motor arguments (--motor, --set) of every command that takes a motor."""
+
+from __future__ import annotations
+
+import argparse
+
+from pmsm_hil.hil.motor_params import SETTABLE_UNITS, PmsmParams, parse_set_options
+from pmsm_hil.hil.presets_loader import load_motor
+
+_SET_HELP = "override a motor parameter (SI units): " + ", ".join(
+    f"{k} [{u}]" if u else k for k, u in SETTABLE_UNITS.items())
+
+
+def add_motor_arguments(parser: argparse.ArgumentParser, default: str | None = "niu2020-ipmsm") -> None:
+    """Add --motor PRESET|FILE and repeatable --set NAME=VALUE."""
+    parser.add_argument("--motor", default=default, metavar="PRESET|FILE",
+                        help="bundled preset name or a TOML motor file (default: %(default)s)")
+    parser.add_argument("--set", dest="set_params", action="append", default=[], metavar="NAME=VALUE",
+                        help=_SET_HELP)
+
+
+def motor_from_args(args: argparse.Namespace) -> PmsmParams:
+    """Load the motor named by --motor with the --set overrides applied."""
+    return load_motor(args.motor, parse_set_options(args.set_params))

@@ -1,0 +1,45 @@
+"""argparse value parsers that reject non-finite and out-of-range numbers with the option's name."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Callable
+
+
+def finite_float(name: str) -> Callable[[str], float]:
+    """Parser for a finite float option."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
+        if not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"{name} must be finite, got {text!r}")
+        return value
+    return parse
+
+
+def positive_float(name: str) -> Callable[[str], float]:
+    """Parser for a finite float > 0."""
+    base = finite_float(name)
+
+    def parse(text: str) -> float:
+        value = base(text)
+        if value <= 0:
+            raise argparse.ArgumentTypeError(f"{name} must be > 0, got {text!r}")
+        return value
+    return parse
+
+
+def non_negative_int(name: str) -> Callable[[str], int]:
+    """Parser for an integer ≥ 0."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be an integer, got {text!r}") from None
+        if value < 0:
+            raise argparse.ArgumentTypeError(f"{name} must be ≥ 0, got {text!r}")
+        return value
+    return parse

@@ -1,0 +1,87 @@
+"""Mechanical side of the plant: dyno mode (speed held) or inertia mode with a load torque profile."""
+
+from __future__ import annotations
+
+import bisect
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+from pmsm_hil.hil.errors import ParameterError
+
+RPM_TO_RAD_S = 2.0 * math.pi / 60.0
+
+
+@dataclass(frozen=True, slots=True)
+class LoadProfile:
+    """Piecewise-linear load torque [N·m] over time [s]: constant, steps and ramps.
+
+    ``points`` are (time [s], torque [N·m]) breakpoints in non-decreasing time; the torque is
+    linearly interpolated between them and held after the last. Two points at the same time make
+    a step. A single point is a constant load.
+    """
+
+    points: tuple[tuple[float, float], ...] = ((0.0, 0.0),)
+    _times: tuple[float, ...] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        if not self.points:
+            raise ParameterError("load profile needs at least one (time, torque) point")
+        for idx, (t, tq) in enumerate(self.points):
+            if not (math.isfinite(t) and math.isfinite(tq)):
+                raise ParameterError(f"load profile point {idx}: time and torque must be finite")
+            if idx and t < self.points[idx - 1][0]:
+                raise ParameterError(f"load profile point {idx}: time {t} s is before the previous point")
+        object.__setattr__(self, "_times", tuple(p[0] for p in self.points))
+
+    @classmethod
+    def constant(cls, torque_nm: float) -> LoadProfile:
+        """A constant load torque [N·m]."""
+        return cls(((0.0, torque_nm),))
+
+    @classmethod
+    def steps(cls, initial_nm: float, steps: Sequence[tuple[float, float]]) -> LoadProfile:
+        """Load steps: start at ``initial_nm``; at each (time [s], torque [N·m]) jump to the torque."""
+        pts: list[tuple[float, float]] = [(0.0, initial_nm)]
+        level = initial_nm
+        for t, tq in steps:
+            pts += [(t, level), (t, tq)]
+            level = tq
+        return cls(tuple(pts))
+
+    def value_and_slope(self, t: float) -> tuple[float, float]:
+        """Load torque [N·m] at time t [s] (right-continuous at steps) and its slope [N·m/s]."""
+        pts = self.points
+        idx = bisect.bisect_right(self._times, t)
+        if idx == 0:
+            return pts[0][1], 0.0
+        if idx >= len(pts):
+            return pts[-1][1], 0.0
+        (t0, v0), (t1, v1) = pts[idx - 1], pts[idx]
+        if t1 == t0:
+            return v1, 0.0
+        slope = (v1 - v0) / (t1 - t0)
+        return v0 + slope * (t - t0), slope
+
+
+@dataclass(frozen=True, slots=True)
+class DynoMechanics:
+    """Dyno mode: the load machine holds the shaft at ``speed_rpm`` [rpm] whatever the torque."""
+
+    speed_rpm: float
+
+    @property
+    def omega_m(self) -> float:
+        """Held mechanical speed [rad/s]."""
+        return self.speed_rpm * RPM_TO_RAD_S
+
+
+@dataclass(frozen=True, slots=True)
+class InertiaMechanics:
+    """Inertia mode: J·dω/dt = Te − T_load(t) − B·ω, starting at ``initial_speed_rpm`` [rpm]."""
+
+    load: LoadProfile
+    initial_speed_rpm: float = 0.0
+
+
+Mechanics = DynoMechanics | InertiaMechanics

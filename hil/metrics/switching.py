@@ -1,0 +1,50 @@
+"""Average switching frequency f_av = leg transitions / (2 · legs · time).
+
+One switching period of a leg has two transitions (on and off), hence the factor 2. The total figure
+counts every real gate transition in the window (including those at period boundaries); the intra-period
+figure excludes the transitions that fall exactly on a period start (`boundary_transitions`).
+Example: a three-vector symmetric sequence with 4 transitions per period at Ts = 100 µs on 3 legs gives
+4 / (2 · 3 · 100 µs) = 6.67 kHz.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from pmsm_hil.hil.metrics._validate import require_fields, require_int, require_nonempty, require_positive
+from pmsm_hil.hil.metrics.errors import MetricsError
+
+
+@dataclass(frozen=True)
+class SwitchingStats:
+    """Average switching frequency per leg (kHz) and the transition counts behind it."""
+
+    freq_khz: float
+    freq_intra_khz: float
+    transitions: int
+    boundary_transitions: int
+    narrow_pulses: int
+
+
+def switching_stats(periods: np.ndarray, *, ts_s: float, legs: int = 3) -> SwitchingStats:
+    """f_av (kHz) over `periods` (control period `ts_s`, s) for an inverter with `legs` legs."""
+    require_fields(periods, ("leg_transitions", "boundary_transitions", "narrow_pulses"), "periods")
+    require_nonempty(periods, "periods")
+    ts = require_positive(ts_s, "ts_s")
+    n_legs = require_int(legs, "legs", 1)
+    total = int(np.sum(periods["leg_transitions"], dtype=np.int64))
+    boundary = int(np.sum(periods["boundary_transitions"], dtype=np.int64))
+    if boundary > total:
+        raise MetricsError(
+            f"periods.boundary_transitions: {boundary} exceeds periods.leg_transitions {total}"
+        )
+    duration = periods.shape[0] * ts
+    scale = 1e-3 / (2.0 * n_legs * duration)
+    return SwitchingStats(
+        freq_khz=total * scale,
+        freq_intra_khz=(total - boundary) * scale,
+        transitions=total,
+        boundary_transitions=boundary,
+        narrow_pulses=int(np.sum(periods["narrow_pulses"], dtype=np.int64)),
+    )

@@ -1,0 +1,55 @@
+"""Torque metrics from the high-rate trace: mean, ripple RMS (eq. (20) of the MPTC paper) and peak-to-peak.
+
+Eq. (20): T_ripple = sqrt( (1/n) Σ_j (T_j − T_av)² ), T_av the mean over the window. The trace may be
+sampled non-uniformly, so each sample is weighted by its share of the window (trapezoidal weights); for
+a uniformly sampled trace this is eq. (20) up to the half weight of the two end samples.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from pmsm_hil.hil.metrics._validate import require_fields, require_nonempty, trace_times
+
+
+@dataclass(frozen=True)
+class TorqueStats:
+    """Torque statistics over the window (N·m)."""
+
+    mean_nm: float
+    ripple_rms_nm: float
+    ripple_pp_nm: float
+
+
+def sample_weights(t: np.ndarray) -> np.ndarray:
+    """Trapezoidal weights of samples at times `t` (s), normalised to sum 1; equal weights if one sample."""
+    n = t.shape[0]
+    if n < 2:
+        ones: np.ndarray = np.ones(n, dtype=np.float64) / max(n, 1)
+        return ones
+    dt = np.diff(t)
+    w = np.empty(n, dtype=np.float64)
+    w[0] = dt[0] / 2.0
+    w[-1] = dt[-1] / 2.0
+    w[1:-1] = (dt[:-1] + dt[1:]) / 2.0
+    total = float(w.sum())
+    normalised: np.ndarray = w / total
+    return normalised
+
+
+def weighted_mean(t: np.ndarray, x: np.ndarray) -> float:
+    """Time-weighted mean of `x` sampled at `t`."""
+    return float(np.dot(sample_weights(t), x))
+
+
+def torque_stats(trace: np.ndarray) -> TorqueStats:
+    """Mean, ripple RMS (deviation from the mean, eq. (20)) and peak-to-peak of `trace['torque']` (N·m)."""
+    require_fields(trace, ("t", "torque"), "trace")
+    require_nonempty(trace, "trace")
+    t = trace_times(trace["t"])
+    torque = np.asarray(trace["torque"], dtype=np.float64)
+    w = sample_weights(t)
+    mean = float(np.dot(w, torque))
+    rms = float(np.sqrt(np.dot(w, (torque - mean) ** 2)))
+    return TorqueStats(mean_nm=mean, ripple_rms_nm=rms, ripple_pp_nm=float(torque.max() - torque.min()))

@@ -1,0 +1,121 @@
+"""Typed, validated parameters of a three-phase PMSM and its two-level inverter."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, replace
+from typing import Any
+
+from pmsm_hil.hil.errors import ParameterError
+
+#: Names accepted by ``--set NAME=VALUE`` on every command that takes a motor, with their units.
+SETTABLE_UNITS: dict[str, str] = {
+    "rs": "Ω",
+    "ld": "H",
+    "lq": "H",
+    "psi_f": "Wb",
+    "pole_pairs": "",
+    "vdc": "V",
+    "j": "kg·m²",
+    "b": "N·m·s/rad",
+    "t_dead": "s",
+    "t_mpw": "s",
+    "i_trip": "A",
+    "speed_trip_rpm": "rpm",
+}
+
+
+@dataclass(frozen=True, slots=True)
+class PmsmParams:
+    """Three-phase PMSM in the rotor dq frame (d on the magnet) fed by a two-level inverter.
+
+    Attributes:
+        rs: stator resistance per phase [Ω], > 0.
+        ld: d-axis inductance [H], > 0.
+        lq: q-axis inductance [H], > 0 (ld == lq: SPMSM).
+        psi_f: permanent-magnet flux linkage [Wb], ≥ 0.
+        pole_pairs: number of pole pairs, integer ≥ 1.
+        vdc: DC-link voltage [V], > 0.
+        j: rotor + load inertia [kg·m²], > 0 (inertia mode).
+        b: viscous friction [N·m·s/rad], ≥ 0.
+        t_dead: inverter dead time per leg [s], ≥ 0.
+        t_mpw: minimum gate pulse width [s], ≥ 0.
+        i_trip: overcurrent trip threshold on any phase current magnitude [A], > 0.
+        speed_trip_rpm: overspeed trip threshold [rpm], > 0.
+        rated_speed_rpm: rated speed [rpm] (informational, for scenarios).
+        rated_torque_nm: rated torque [N·m] (informational, for scenarios).
+        name: preset name or a label.
+    """
+
+    rs: float
+    ld: float
+    lq: float
+    psi_f: float
+    pole_pairs: int
+    vdc: float
+    j: float
+    b: float = 0.0
+    t_dead: float = 0.0
+    t_mpw: float = 0.0
+    i_trip: float = 30.0
+    speed_trip_rpm: float = 6000.0
+    rated_speed_rpm: float = 0.0
+    rated_torque_nm: float = 0.0
+    name: str = "custom"
+
+    def __post_init__(self) -> None:
+        positive = ("rs", "ld", "lq", "vdc", "j", "i_trip", "speed_trip_rpm")
+        non_negative = ("psi_f", "b", "t_dead", "t_mpw", "rated_speed_rpm", "rated_torque_nm")
+        for name in positive + non_negative:
+            value = getattr(self, name)
+            if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
+                raise ParameterError(f"motor parameter '{name}' must be a finite number, got {value!r}")
+            if name in positive and value <= 0:
+                raise ParameterError(
+                    f"motor parameter '{name}' must be > 0 {SETTABLE_UNITS.get(name, '')}, got {value}"
+                )
+            if name in non_negative and value < 0:
+                raise ParameterError(f"motor parameter '{name}' must be ≥ 0, got {value}")
+        if isinstance(self.pole_pairs, bool) or not isinstance(self.pole_pairs, int) or self.pole_pairs < 1:
+            raise ParameterError(f"motor parameter 'pole_pairs' must be an integer ≥ 1, got {self.pole_pairs!r}")
+        if self.t_dead > 1e-3 or self.t_mpw > 1e-3:
+            raise ParameterError("motor parameters 't_dead'/'t_mpw' are in seconds and must be < 1 ms")
+
+    @property
+    def is_salient(self) -> bool:
+        """True for an interior PMSM (Ld ≠ Lq)."""
+        return self.ld != self.lq
+
+    def with_overrides(self, overrides: dict[str, Any]) -> PmsmParams:
+        """Return a copy with ``--set`` style overrides applied (values already parsed)."""
+        valid = {f.name for f in fields(self)} - {"name"}
+        clean: dict[str, Any] = {}
+        for key, value in overrides.items():
+            if key not in valid:
+                raise ParameterError(f"unknown motor parameter '{key}' (known: {', '.join(sorted(valid))})")
+            clean[key] = int(value) if key == "pole_pairs" else float(value)
+            if key == "pole_pairs" and float(value) != int(value):
+                raise ParameterError(f"motor parameter 'pole_pairs' must be an integer, got {value!r}")
+        return replace(self, **clean)
+
+    def torque_nm(self, i_d: float, i_q: float) -> float:
+        """Electromagnetic torque 1.5·p·(ψf·iq + (Ld−Lq)·id·iq) [N·m] for currents [A]."""
+        return 1.5 * self.pole_pairs * (self.psi_f * i_q + (self.ld - self.lq) * i_d * i_q)
+
+
+def parse_set_options(items: list[str] | None) -> dict[str, float]:
+    """Parse ``NAME=VALUE`` strings into a dict; errors name the offending item."""
+    result: dict[str, float] = {}
+    for item in items or []:
+        name, sep, text = item.partition("=")
+        name = name.strip()
+        if not sep or not name:
+            raise ParameterError(f"--set expects NAME=VALUE, got {item!r}")
+        try:
+            value = float(text)
+        except ValueError:
+            raise ParameterError(f"--set {name}: value {text!r} is not a number") from None
+        if not math.isfinite(value):
+            raise ParameterError(f"--set {name}: value must be finite, got {text!r}")
+        result[name] = value
+    return result

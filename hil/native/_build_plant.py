@@ -1,0 +1,51 @@
+"""cffi (API mode) builder for the plant kernel: extension `pmsm_hil.hil._plant_native`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from cffi import FFI
+
+_HERE = Path(__file__).resolve().parent
+
+CDEF = """
+typedef struct {
+    double rs, ld, lq, psi_f, vdc, j, b, t_dead, t_mpw, max_piece;
+    int32_t pole_pairs;
+    int32_t inertia_mode;
+} pl_params_t;
+typedef struct {
+    uint64_t t_ns;
+    uint64_t trace_k;
+    double i_d, i_q, theta_e, omega_m;
+    double last_edge_t[3];
+    double dead_until[3];
+    int32_t gate;
+    int32_t dead_level[3];
+} pl_state_t;
+typedef struct {
+    uint32_t leg_transitions, boundary_transitions, narrow_pulses, suppressed_pulses;
+    int32_t trace_n;
+    int32_t error;
+} pl_period_stats_t;
+int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const int64_t *durations_ns,
+               int32_t n, double t_load0, double t_load_slope, double trace_dt, double *trace,
+               int32_t trace_cap, pl_period_stats_t *stats);
+double pl_torque(const pl_params_t *p, double i_d, double i_q);
+void pl_phase_currents(double i_d, double i_q, double theta_e, double *i_a, double *i_b, double *i_c);
+"""
+
+ffibuilder = FFI()
+ffibuilder.cdef(CDEF)
+ffibuilder.set_source(
+    "pmsm_hil.hil._plant_native",
+    '#include "plant.h"',
+    sources=[str((_HERE / "plant.c").relative_to(Path.cwd())) if _HERE.is_relative_to(Path.cwd())
+             else str(_HERE / "plant.c")],
+    include_dirs=[str(_HERE)],
+    extra_compile_args=["-std=c99", "-O2", "-Wall", "-Wextra", "-Wdouble-promotion"],
+    libraries=["m"],
+)
+
+if __name__ == "__main__":
+    ffibuilder.compile(verbose=True)

@@ -1,0 +1,70 @@
+/*
+ * Exact three-phase PMSM + two-level inverter plant kernel (host side, double precision).
+ *
+ * Within each sub-interval the inverter applies a voltage that is constant in the STATOR frame;
+ * with the rotor speed constant over the sub-interval (dyno mode: exactly) the rotor-frame
+ * current equations are linear time-invariant with a sinusoidal input, solved in closed form:
+ * matrix exponential of the 2x2 system matrix plus a constant and a rotating particular solution.
+ */
+#ifndef HIL_PLANT_H
+#define HIL_PLANT_H
+
+#include <stdint.h>
+
+#define PL_MAX_SUBINTERVALS 8
+#define PL_TRACE_COLUMNS 6 /* t [s], i_a, i_b, i_c [A], torque [N*m], omega_m [rad/s] */
+
+typedef struct {
+    double rs;        /* stator resistance [Ohm], > 0 */
+    double ld;        /* d-axis inductance [H] */
+    double lq;        /* q-axis inductance [H] */
+    double psi_f;     /* permanent-magnet flux linkage [Wb] */
+    double vdc;       /* DC-link voltage [V] */
+    double j;         /* inertia [kg*m^2] (inertia mode) */
+    double b;         /* viscous friction [N*m*s/rad] (inertia mode) */
+    double t_dead;    /* dead time per leg [s] */
+    double t_mpw;     /* minimum pulse width [s]; shorter pulses never reach the gate */
+    double max_piece; /* inertia mode: longest electrical piece between speed updates [s] */
+    int32_t pole_pairs;
+    int32_t inertia_mode; /* 0: dyno (speed held), 1: inertia (J, B, load torque) */
+} pl_params_t;
+
+typedef struct {
+    uint64_t t_ns;        /* plant time [ns] */
+    uint64_t trace_k;     /* index of the next trace sample (t = trace_k * trace_dt) */
+    double i_d, i_q;      /* rotor-frame currents [A] */
+    double theta_e;       /* electrical angle [rad], wrapped to [0, 2*pi) */
+    double omega_m;       /* mechanical speed [rad/s] */
+    double last_edge_t[3];/* time of the last gate edge per leg [s] (absolute) */
+    double dead_until[3]; /* leg in dead time until this absolute time [s] */
+    int32_t gate;         /* commanded gate code currently applied, 4*Sa + 2*Sb + Sc */
+    int32_t dead_level[3];/* leg output level during its dead time (0: low rail, 1: high rail) */
+} pl_state_t;
+
+typedef struct {
+    uint32_t leg_transitions;      /* gate transitions that reached the legs (after T_mpw) */
+    uint32_t boundary_transitions; /* of which at the period start */
+    uint32_t narrow_pulses;        /* pulses shorter than 2*t_dead + t_mpw (counted when they end) */
+    uint32_t suppressed_pulses;    /* pulses shorter than t_mpw removed before the gate */
+    int32_t trace_n;               /* trace rows written */
+    int32_t error;                 /* 0 ok, negative: see PL_E_* */
+} pl_period_stats_t;
+
+#define PL_OK 0
+#define PL_E_ARGS (-1)
+#define PL_E_TRACE_FULL (-2)
+
+/* Advance the plant over one control period made of n sub-intervals (state codes, durations [ns]).
+ * Load torque in inertia mode: t_load0 [N*m] at the period start plus t_load_slope [N*m/s].
+ * Trace rows (PL_TRACE_COLUMNS doubles each) are written at t = k * trace_dt (trace_dt <= 0: none). */
+int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const int64_t *durations_ns,
+               int32_t n, double t_load0, double t_load_slope, double trace_dt, double *trace,
+               int32_t trace_cap, pl_period_stats_t *stats);
+
+/* Electromagnetic torque [N*m] for rotor-frame currents [A]. */
+double pl_torque(const pl_params_t *p, double i_d, double i_q);
+
+/* Phase currents [A] (amplitude-invariant inverse Park + Clarke). */
+void pl_phase_currents(double i_d, double i_q, double theta_e, double *i_a, double *i_b, double *i_c);
+
+#endif

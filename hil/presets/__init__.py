@@ -1,0 +1,1 @@
+"""Motor preset files (TOML): every parameter with its value, unit and source."""

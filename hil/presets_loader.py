@@ -1,0 +1,67 @@
+"""Load motor presets (bundled names or TOML files) and apply ``--set`` overrides."""
+
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import tomllib
+from pmsm_hil.hil.errors import InputFileError, ParameterError
+from pmsm_hil.hil.motor_params import PmsmParams
+
+_PRESET_PACKAGE = "pmsm_hil.hil.presets"
+
+
+def preset_names() -> list[str]:
+    """Names of the bundled motor presets."""
+    root = resources.files(_PRESET_PACKAGE)
+    return sorted(p.name.removesuffix(".toml") for p in root.iterdir() if p.name.endswith(".toml"))
+
+
+def _read_preset_text(name_or_path: str) -> tuple[str, str]:
+    path = Path(name_or_path)
+    if path.suffix == ".toml" or path.exists():
+        try:
+            return path.read_text(encoding="utf-8"), str(path)
+        except OSError as exc:
+            raise InputFileError(f"motor file {path}: {exc.strerror}") from None
+    resource = resources.files(_PRESET_PACKAGE) / f"{name_or_path}.toml"
+    if not resource.is_file():
+        raise ParameterError(f"unknown motor preset '{name_or_path}' (bundled: {', '.join(preset_names())})")
+    return resource.read_text(encoding="utf-8"), name_or_path
+
+
+def load_motor(name_or_path: str, overrides: dict[str, float] | None = None) -> PmsmParams:
+    """Load a bundled preset by name or a TOML file, then apply overrides (SI units)."""
+    text, origin = _read_preset_text(name_or_path)
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputFileError(f"motor file {origin}: {exc}") from None
+    table = doc.get("parameters")
+    if not isinstance(table, dict):
+        raise InputFileError(f"motor file {origin}: missing [parameters] table")
+    values: dict[str, Any] = {}
+    for key, entry in table.items():
+        value = entry.get("value") if isinstance(entry, dict) else entry
+        if not isinstance(value, (int, float)) or isinstance(value, bool):
+            raise InputFileError(f"motor file {origin}: parameter '{key}' needs a numeric value")
+        values[key] = value
+    if "pole_pairs" in values:
+        if float(values["pole_pairs"]) != int(values["pole_pairs"]):
+            raise InputFileError(f"motor file {origin}: 'pole_pairs' must be an integer")
+        values["pole_pairs"] = int(values["pole_pairs"])
+    known = set(PmsmParams.__dataclass_fields__) - {"name"}
+    unknown = set(values) - known
+    if unknown:
+        raise InputFileError(f"motor file {origin}: unknown parameter(s) {', '.join(sorted(unknown))}")
+    missing = {"rs", "ld", "lq", "psi_f", "pole_pairs", "vdc", "j"} - set(values)
+    if missing:
+        raise InputFileError(f"motor file {origin}: missing parameter(s) {', '.join(sorted(missing))}")
+    floats: dict[str, Any] = {k: (v if k == "pole_pairs" else float(v)) for k, v in values.items()}
+    try:
+        params = PmsmParams(name=str(doc.get("name", origin)), **floats)
+    except ParameterError as exc:
+        raise InputFileError(f"motor file {origin}: {exc}") from None
+    return params.with_overrides(overrides) if overrides else params

@@ -1,0 +1,79 @@
+"""Record layouts exchanged between the runner, the run logger and the metrics (numpy structured dtypes).
+
+Units are SI: time s, current A, torque N·m, speed rad/s (mechanical), angle rad (electrical).
+
+`PERIOD_DTYPE`: one record per control period. `t` is the period start; the samples are measured at the
+period start; `states`/`durations_ns` are the switching sequence applied during the period (the first
+`n_states` entries are valid); `leg_transitions` counts the real gate transitions of all legs during the
+period including the one at its start boundary, `boundary_transitions` those exactly at the period
+start; `exec_time_ns` is the controller execution time, `exec_split_ns` its measure/reference/predict
+split; `late`/`missed` are the real-time deadline flags.
+
+`TRACE_DTYPE`: the plant's high-rate trace (one sample every ≤ 2 µs).
+
+`FRAME_DTYPE`: one raw link frame; `direction` 0 = host→target, 1 = target→host; the first `length`
+bytes of `data` are valid.
+"""
+
+from __future__ import annotations
+
+from typing import Final
+
+import numpy as np
+
+PERIOD_DTYPE: Final = np.dtype(
+    [
+        ("t", "f8"),
+        ("seq", "u4"),
+        ("i_a", "f8"),
+        ("i_b", "f8"),
+        ("i_c", "f8"),
+        ("i_d", "f8"),
+        ("i_q", "f8"),
+        ("torque", "f8"),
+        ("omega_m", "f8"),
+        ("theta_e", "f8"),
+        ("torque_ref", "f8"),
+        ("speed_ref", "f8"),
+        ("load_torque", "f8"),
+        ("n_states", "u1"),
+        ("states", "u1", (3,)),
+        ("durations_ns", "u4", (3,)),
+        ("vector_id", "u1"),
+        ("candidates", "u1"),
+        ("exec_time_ns", "u4"),
+        ("exec_split_ns", "u4", (3,)),
+        ("leg_transitions", "u2"),
+        ("boundary_transitions", "u2"),
+        ("narrow_pulses", "u2"),
+        ("late", "u1"),
+        ("missed", "u1"),
+    ]
+)
+
+TRACE_DTYPE: Final = np.dtype(
+    [("t", "f8"), ("i_a", "f8"), ("i_b", "f8"), ("i_c", "f8"), ("torque", "f8"), ("omega_m", "f8")]
+)
+
+FRAME_DTYPE: Final = np.dtype(
+    [
+        ("t", "f8"),
+        ("seq", "u4"),
+        ("direction", "u1"),
+        ("arbitration_id", "u4"),
+        ("is_fd", "u1"),
+        ("length", "u1"),
+        ("data", "u1", (64,)),
+    ]
+)
+
+DIRECTION_HOST_TO_TARGET: Final = 0
+DIRECTION_TARGET_TO_HOST: Final = 1
+
+__all__ = [
+    "DIRECTION_HOST_TO_TARGET",
+    "DIRECTION_TARGET_TO_HOST",
+    "FRAME_DTYPE",
+    "PERIOD_DTYPE",
+    "TRACE_DTYPE",
+]

@@ -1,0 +1,128 @@
+"""Offline replay: drive the plant (dyno mode) with switching commands read from a CSV file."""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+from pmsm_hil.hil.errors import InputFileError, SequenceError
+from pmsm_hil.hil.mechanics import DynoMechanics
+from pmsm_hil.hil.motor_params import PmsmParams
+from pmsm_hil.hil.plant import MAX_SUBINTERVALS, Plant
+
+OUTPUT_COLUMNS = ("t", "i_a", "i_b", "i_c", "i_d", "i_q", "torque", "theta_e", "omega_m")
+_LEG_COLUMNS = ("sa", "sb", "sc")
+
+
+@dataclass(frozen=True, slots=True)
+class ReplayCommand:
+    """One control period of the input: state codes and durations [ns]."""
+
+    states: tuple[int, ...]
+    durations_ns: tuple[int, ...]
+
+
+def _parse_bit(text: str, row: int, column: str) -> int:
+    if text.strip() not in ("0", "1"):
+        raise InputFileError(f"row {row}, column '{column}': expected 0 or 1, got {text!r}")
+    return int(text)
+
+
+def read_commands(path: Path, ts_ns: int) -> Iterator[ReplayCommand]:
+    """Yield the commands of a replay CSV (header required; rows numbered from 1 after the header).
+
+    Forms: ``sa,sb,sc`` (one state for the whole period) or ``s0,t0,s1,t1,s2,t2`` (state codes and
+    durations [s] summing to Ts; unused slots empty).
+    """
+    try:
+        handle = path.open(newline="", encoding="utf-8", errors="replace")
+    except OSError as exc:
+        raise InputFileError(f"input file {path}: {exc.strerror}") from None
+    with handle:
+        reader = csv.reader(handle)
+        header = [h.strip() for h in next(reader, [])]
+        if not header:
+            raise InputFileError(f"input file {path}: empty (a header row is required)")
+        if header[:3] == list(_LEG_COLUMNS):
+            form = "legs"
+        elif header[:2] == ["s0", "t0"]:
+            form = "sequence"
+            slots = len(header) // 2
+            expected = [f"{p}{k}" for k in range(slots) for p in ("s", "t")]
+            if header != expected or slots > MAX_SUBINTERVALS:
+                raise InputFileError(
+                    f"input file {path}: sequence header must be s0,t0,s1,t1,... (≤ {MAX_SUBINTERVALS} slots), "
+                    f"got {','.join(header)}")
+        else:
+            raise InputFileError(f"input file {path}: header must be 'sa,sb,sc' or 's0,t0,s1,t1,...', "
+                                 f"got {','.join(header)}")
+        for row_no, row in enumerate(reader, start=1):
+            if not row or all(not c.strip() for c in row):
+                continue
+            if len(row) != len(header):
+                raise InputFileError(f"row {row_no}: expected {len(header)} columns, got {len(row)}")
+            if form == "legs":
+                sa, sb, sc = (_parse_bit(row[k], row_no, _LEG_COLUMNS[k]) for k in range(3))
+                yield ReplayCommand((4 * sa + 2 * sb + sc,), (ts_ns,))
+            else:
+                yield _parse_sequence_row(row, header, row_no, ts_ns)
+
+
+def _parse_sequence_row(row: list[str], header: list[str], row_no: int, ts_ns: int) -> ReplayCommand:
+    states: list[int] = []
+    durs: list[int] = []
+    for k in range(0, len(header), 2):
+        s_text, t_text = row[k].strip(), row[k + 1].strip()
+        if not s_text and not t_text:
+            continue
+        if not s_text or not t_text:
+            missing = header[k] if not s_text else header[k + 1]
+            raise InputFileError(f"row {row_no}, column '{missing}': empty while its pair is set")
+        if not (s_text.isascii() and s_text.isdigit()) or not 0 <= int(s_text) <= 7:
+            raise InputFileError(f"row {row_no}, column '{header[k]}': state code must be 0..7, got {s_text!r}")
+        try:
+            t_val = float(t_text)
+        except ValueError:
+            raise InputFileError(f"row {row_no}, column '{header[k + 1]}': not a number: {t_text!r}") from None
+        if not math.isfinite(t_val) or t_val < 0:
+            raise InputFileError(f"row {row_no}, column '{header[k + 1]}': duration must be ≥ 0 s, got {t_text}")
+        states.append(int(s_text))
+        durs.append(round(t_val * 1e9))
+    if not states:
+        raise InputFileError(f"row {row_no}: no state in any slot")
+    total = sum(durs)
+    if abs(total - ts_ns) > 1:
+        raise InputFileError(f"row {row_no}: durations sum to {total * 1e-9:.9g} s, expected Ts = {ts_ns * 1e-9:.9g} s")
+    durs[-1] += ts_ns - total  # absorb sub-ns rounding of the decimal durations
+    return ReplayCommand(tuple(states), tuple(durs))
+
+
+def replay(params: PmsmParams, *, rpm: float, ts_s: float, input_path: Path, output_path: Path,
+           theta0_rad: float = 0.0) -> int:
+    """Replay the input CSV through the plant in dyno mode; writes N+1 rows; returns N."""
+    plant = Plant(params, ts_s, DynoMechanics(rpm), theta0_rad=theta0_rad, trace_dt_s=None)
+    commands = list(read_commands(input_path, plant.ts_ns))
+    rows = [_row(plant)]
+    for idx, cmd in enumerate(commands, start=1):
+        try:
+            plant.advance(cmd.states, cmd.durations_ns)
+        except SequenceError as exc:
+            raise InputFileError(f"row {idx}: {exc}") from None
+        rows.append(_row(plant))
+    try:
+        with output_path.open("w", newline="", encoding="utf-8") as out:
+            writer = csv.writer(out)
+            writer.writerow(OUTPUT_COLUMNS)
+            writer.writerows(rows)
+    except OSError as exc:
+        raise InputFileError(f"output file {output_path}: {exc.strerror}") from None
+    return len(commands)
+
+
+def _row(plant: Plant) -> list[str]:
+    s = plant.sample()
+    values = (s.t, s.i_a, s.i_b, s.i_c, s.i_d, s.i_q, s.torque, s.theta_e, s.omega_m)
+    return [repr(float(v)) for v in values]

@@ -1,0 +1,223 @@
+"""`RunLogger`: the runner-side handle of the MCAP logger process.
+
+Each submit copies the block into a shared-memory ring (one memcpy) and sends a 17-byte notice over a
+pipe, so the caller's cost is a few µs per 1000-period block plus the copy, and no Python objects are
+pickled. The logger process (spawn context) encodes and writes MCAP; see docs/logging.md.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import multiprocessing
+import time
+from collections.abc import Mapping
+from multiprocessing.process import BaseProcess
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+import numpy as np
+from pmsm_hil.hil.records import FRAME_DTYPE, PERIOD_DTYPE, TRACE_DTYPE
+from pmsm_hil.hil.runlog import topics
+from pmsm_hil.hil.runlog.errors import LoggerDiedError, RunLogError
+from pmsm_hil.hil.runlog.ring import RingProducer
+from pmsm_hil.hil.runlog.sink import COMPRESSIONS
+from pmsm_hil.hil.runlog.worker import NOTICE, run_worker
+
+DEFAULT_RING_BYTES = 64 * 1024 * 1024
+
+
+class RunLogger:
+    """Context manager writing period, frame and trace blocks to an MCAP file from a separate process.
+
+    `flush_interval_s` (s): the logger ends its chunk and fsyncs at least this often, so a kill loses
+    at most that much. `ring_bytes`: shared buffer between the processes; a submit waits (counted in
+    `stall_s`) only if the logger falls this far behind, and raises after `stall_timeout_s`.
+    """
+
+    def __init__(
+        self,
+        path: Path,
+        *,
+        metadata: Mapping[str, str],
+        flush_interval_s: float = 1.0,
+        compression: str = "lz4",
+        ring_bytes: int = DEFAULT_RING_BYTES,
+        start_method: str = "spawn",
+        start_timeout_s: float = 60.0,
+        stall_timeout_s: float = 10.0,
+    ) -> None:
+        self._closed = True
+        self.final_stats: dict[str, Any] | None = None
+        self._error: str | None = None
+        path = Path(path)
+        if not path.parent.is_dir():
+            raise RunLogError(f"path: directory {path.parent} does not exist")
+        meta = self._check_metadata(metadata)
+        if not (isinstance(flush_interval_s, (int, float)) and 0.0 < flush_interval_s <= 3600.0):
+            raise RunLogError(f"flush_interval_s: expected 0 < value ≤ 3600 s, got {flush_interval_s!r}")
+        if compression not in COMPRESSIONS:
+            raise RunLogError(f"compression: expected one of {sorted(COMPRESSIONS)}, got {compression!r}")
+        if start_method not in ("spawn", "forkserver"):
+            raise RunLogError(f"start_method: expected 'spawn' or 'forkserver', got {start_method!r}")
+        self.path = path
+        self._stall_timeout_s = stall_timeout_s
+        self._ring = RingProducer(ring_bytes)
+        ctx = multiprocessing.get_context(start_method)
+        notice_r, self._notices = ctx.Pipe(duplex=False)
+        self._status, status_w = ctx.Pipe(duplex=False)
+        self._proc: BaseProcess = ctx.Process(  # type: ignore[attr-defined]
+            target=run_worker,
+            name="hil-runlog",
+            args=(
+                notice_r,
+                status_w,
+                str(path),
+                meta,
+                float(flush_interval_s),
+                str(self._ring.path),
+                ring_bytes,
+                compression,
+            ),
+            daemon=True,
+        )
+        try:
+            self._proc.start()
+        except OSError as exc:
+            self._ring.close()
+            raise RunLogError(f"run logger: cannot start the logger process ({exc})") from None
+        finally:
+            notice_r.close()
+            status_w.close()
+        self._closed = False
+        self._await_ready(start_timeout_s)
+        self._ring.unlink()
+
+    @staticmethod
+    def _check_metadata(metadata: Mapping[str, str]) -> dict[str, str]:
+        if not isinstance(metadata, Mapping):
+            raise RunLogError(f"metadata: expected a mapping of str to str, got {type(metadata).__name__}")
+        for key, value in metadata.items():
+            if not isinstance(key, str) or not isinstance(value, str):
+                raise RunLogError(f"metadata[{key!r}]: keys and values must be str, got {value!r}")
+        return dict(metadata)
+
+    def _await_ready(self, timeout_s: float) -> None:
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if self._status.poll(0.05):
+                msg = self._read_status()
+                if msg == b"R":
+                    return
+                break
+            if not self._proc.is_alive():
+                break
+        self._abort()
+        raise LoggerDiedError(self._error or f"run logger: process did not start within {timeout_s} s")
+
+    def _read_status(self) -> bytes | None:
+        try:
+            msg = self._status.recv_bytes()
+        except (EOFError, OSError):
+            return None
+        if msg[:1] == b"E":
+            self._error = msg[1:].decode(errors="replace")
+        elif msg[:1] == b"D":
+            self.final_stats = dict(json.loads(msg[1:]))
+        return msg[:1]
+
+    def _alive(self) -> bool:
+        return self._proc.is_alive()
+
+    def _died(self) -> LoggerDiedError:
+        while self._status.poll(0):
+            if self._read_status() is None:
+                break
+        self._proc.join(0.5)
+        detail = f": {self._error}" if self._error else ""
+        return LoggerDiedError(f"run logger: logger process died (exit code {self._proc.exitcode}){detail}")
+
+    def _submit(self, kind: int, block: np.ndarray, dtype: np.dtype, field: str) -> None:
+        if self._closed:
+            raise RunLogError(f"{field}: logger is closed")
+        if not isinstance(block, np.ndarray) or block.dtype != dtype or block.ndim != 1:
+            got = getattr(block, "dtype", type(block).__name__)
+            raise RunLogError(f"{field}: expected a 1-D array of the record dtype, got {got}")
+        if block.shape[0] == 0:
+            return
+        if self._error is not None or self._status.poll(0):
+            raise self._died()
+        payload = np.ascontiguousarray(block).view(np.uint8)
+        step = max(1, self._ring.capacity // (4 * dtype.itemsize)) * dtype.itemsize
+        for start in range(0, payload.shape[0], step):
+            piece = payload[start : start + step]
+            pos = self._ring.put(piece, self._alive, self._stall_timeout_s)
+            try:
+                self._notices.send_bytes(NOTICE.pack(kind, pos, piece.shape[0]))
+            except OSError:
+                raise self._died() from None
+
+    def submit_periods(self, block: np.ndarray) -> None:
+        """Queue a PERIOD_DTYPE block (one MCAP message per period on /periods)."""
+        self._submit(topics.KIND_PERIODS, block, PERIOD_DTYPE, "periods")
+
+    def submit_frames(self, block: np.ndarray) -> None:
+        """Queue a FRAME_DTYPE block (one MCAP message per frame on /frames)."""
+        self._submit(topics.KIND_FRAMES, block, FRAME_DTYPE, "frames")
+
+    def submit_trace(self, block: np.ndarray) -> None:
+        """Queue a TRACE_DTYPE block (one CDR message per block on /trace)."""
+        self._submit(topics.KIND_TRACE, block, TRACE_DTYPE, "trace")
+
+    @property
+    def pid(self) -> int | None:
+        """Process id of the logger process."""
+        return self._proc.pid
+
+    @property
+    def stall_s(self) -> float:
+        """Total time (s) submits waited for ring space because the logger was behind."""
+        return float(self._ring.stall_s)
+
+    def close(self, timeout_s: float = 60.0) -> None:
+        """Finalise the file (summary, footer) and stop the logger process; idempotent.
+
+        Raises LoggerDiedError (once) if the logger reported an error or did not end cleanly."""
+        if self._closed:
+            return
+        self._closed = True
+        with contextlib.suppress(OSError):
+            self._notices.send_bytes(NOTICE.pack(topics.KIND_CLOSE, 0, 0))
+        self._proc.join(timeout_s)
+        if self._proc.is_alive():
+            self._error = self._error or f"run logger: logger did not finish within {timeout_s} s"
+        self._abort()
+        if self._error is not None:
+            raise LoggerDiedError(self._error)
+        if self._proc.exitcode != 0:
+            raise LoggerDiedError(f"run logger: logger process exit code {self._proc.exitcode}")
+
+    def _abort(self) -> None:
+        """Collect the last status messages, stop the process if needed and release the pipes and ring."""
+        self._closed = True
+        while self._status.poll(0):
+            if self._read_status() is None:
+                break
+        if self._proc.is_alive():
+            self._proc.terminate()
+            self._proc.join(5.0)
+        if self._proc.is_alive():
+            self._proc.kill()
+            self._proc.join(5.0)
+        self._notices.close()
+        self._status.close()
+        self._ring.close()
+
+    def __enter__(self) -> RunLogger:
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.close()

@@ -1,0 +1,160 @@
+"""Tolerant MCAP reading: scan the valid prefix record by record (whole chunks only) and decode topics.
+
+A file cut by a kill has no summary/footer and may end inside a chunk; the scanner stops at the first
+incomplete or corrupt record (chunk CRCs are checked), so everything up to the last complete chunk is
+recovered. Complete files are read the same way.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import struct
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from mcap.data_stream import ReadDataStream
+from mcap.exceptions import McapError
+from mcap.opcode import Opcode
+from mcap.records import Channel, Chunk, McapRecord, Message, Metadata, Schema
+from mcap.stream_reader import breakup_chunk
+from pmsm_hil.hil.records import FRAME_DTYPE, PERIOD_DTYPE, TRACE_DTYPE
+from pmsm_hil.hil.runlog import encoding, topics
+from pmsm_hil.hil.runlog.errors import McapFormatError
+
+MAGIC = b"\x89MCAP0\r\n"
+_HEAD = struct.Struct("<BQ")
+
+
+@dataclass
+class ScanState:
+    """What a scan found: bytes of valid prefix, whether the data section ended properly, chunks read."""
+
+    file_bytes: int = 0
+    valid_bytes: int = 0
+    complete: bool = False
+    chunks: int = 0
+    stop_reason: str = ""
+    skipped_opcodes: dict[int, int] = field(default_factory=dict)
+
+
+def _parse(opcode: int, body: bytes) -> McapRecord | None:
+    stream = ReadDataStream(io.BytesIO(body))
+    record: McapRecord | None = None
+    if opcode == Opcode.SCHEMA:
+        record = Schema.read(stream)
+    elif opcode == Opcode.CHANNEL:
+        record = Channel.read(stream)
+    elif opcode == Opcode.MESSAGE:
+        record = Message.read(stream, len(body))
+    elif opcode == Opcode.METADATA:
+        record = Metadata.read(stream)
+    elif opcode == Opcode.CHUNK:
+        record = Chunk.read(stream)
+    return record
+
+
+def scan_records(path: Path, state: ScanState) -> Iterator[McapRecord]:
+    """Yield the Schema, Channel, Message and Metadata records of the valid prefix of `path`.
+
+    Updates `state` as it goes; raises McapFormatError if `path` is not an MCAP file."""
+    try:
+        f = open(path, "rb")  # noqa: SIM115 - closed in finally (generator)
+    except OSError as exc:
+        raise McapFormatError(f"path: cannot open {path} ({exc})") from None
+    try:
+        f.seek(0, io.SEEK_END)
+        state.file_bytes = f.tell()
+        f.seek(0)
+        if f.read(len(MAGIC)) != MAGIC:
+            raise McapFormatError(f"path: {path} is not an MCAP file (bad magic)")
+        state.valid_bytes = len(MAGIC)
+        while True:
+            head = f.read(_HEAD.size)
+            if len(head) < _HEAD.size:
+                state.stop_reason = "end of file" if not head else "cut inside a record header"
+                return
+            opcode, length = _HEAD.unpack(head)
+            if length > state.file_bytes - f.tell():
+                state.stop_reason = f"cut inside a record (opcode 0x{opcode:02x})"
+                return
+            body = f.read(length)
+            if opcode == Opcode.DATA_END:
+                state.valid_bytes = f.tell()
+                state.complete = True
+                state.stop_reason = "data end"
+                return
+            try:
+                record = _parse(opcode, body)
+                inner = breakup_chunk(record, validate_crc=True) if isinstance(record, Chunk) else None
+            except (McapError, ValueError, struct.error, RuntimeError) as exc:
+                state.stop_reason = f"corrupt record (opcode 0x{opcode:02x}): {exc}"
+                return
+            if inner is not None:
+                state.chunks += 1
+                yield from inner
+            elif record is not None:
+                yield record
+            else:
+                state.skipped_opcodes[opcode] = state.skipped_opcodes.get(opcode, 0) + 1
+            state.valid_bytes = f.tell()
+    finally:
+        f.close()
+
+
+def read_topic_messages(path: Path, topic: str) -> list[Message]:
+    """All messages of `topic` in the valid prefix of `path`, in file order."""
+    channels: set[int] = set()
+    out: list[Message] = []
+    for record in scan_records(Path(path), ScanState()):
+        if isinstance(record, Channel) and record.topic == topic:
+            channels.add(record.id)
+        elif isinstance(record, Message) and record.channel_id in channels:
+            out.append(record)
+    return out
+
+
+def read_periods(path: Path) -> np.ndarray:
+    """PERIOD_DTYPE array of all /periods messages (truncated files: the valid prefix)."""
+    msgs = read_topic_messages(path, topics.TOPIC_PERIODS)
+    out: np.ndarray = encoding.decode_json_records([m.data for m in msgs], PERIOD_DTYPE, topics.TOPIC_PERIODS)
+    return out
+
+
+def read_frames(path: Path) -> np.ndarray:
+    """FRAME_DTYPE array of all /frames messages (hex payload decoded, padded with zeros)."""
+    msgs = read_topic_messages(path, topics.TOPIC_FRAMES)
+    out = np.zeros(len(msgs), dtype=FRAME_DTYPE)
+    try:
+        for i, m in enumerate(msgs):
+            d = json.loads(m.data)
+            payload = bytes.fromhex(d["data"])
+            out[i] = (
+                np.nan if d["t"] is None else d["t"],
+                d["seq"],
+                d["dir"],
+                d["id"],
+                bool(d["fd"]),
+                len(payload),
+                np.frombuffer(payload.ljust(64, b"\0"), dtype=np.uint8),
+            )
+    except (ValueError, KeyError, TypeError) as exc:
+        raise McapFormatError(f"{topics.TOPIC_FRAMES}: cannot decode message ({exc})") from None
+    return out
+
+
+def read_trace(path: Path) -> np.ndarray:
+    """TRACE_DTYPE array: all /trace blocks concatenated."""
+    blocks = [encoding.decode_trace_cdr(m.data) for m in read_topic_messages(path, topics.TOPIC_TRACE)]
+    out: np.ndarray = np.concatenate(blocks) if blocks else np.zeros(0, dtype=TRACE_DTYPE)
+    return out
+
+
+def read_metadata(path: Path) -> dict[str, str]:
+    """The run metadata record (empty if absent)."""
+    for record in scan_records(Path(path), ScanState()):
+        if isinstance(record, Metadata) and record.name == topics.TOPIC_METADATA:
+            return dict(record.metadata)
+    return {}

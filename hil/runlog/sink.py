@@ -1,0 +1,105 @@
+"""`McapSink`: owns the MCAP writer in the logger process (channels, encoders, periodic flush, finish)."""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import BinaryIO
+
+import numpy as np
+from mcap.well_known import MessageEncoding, SchemaEncoding
+from mcap.writer import CompressionType, Writer
+from pmsm_hil.hil.records import FRAME_DTYPE, PERIOD_DTYPE, TRACE_DTYPE
+from pmsm_hil.hil.runlog import encoding, topics
+from pmsm_hil.hil.runlog.errors import RunLogError
+
+COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
+CHUNK_BYTES = 8 * 1024 * 1024
+LIBRARY = "pmsm-hil runlog"
+
+
+class McapSink:
+    """Writes period, frame and trace blocks to an MCAP file (see docs/logging.md for the layout)."""
+
+    def __init__(self, path: Path, metadata: Mapping[str, str], compression: str = "lz4") -> None:
+        if compression not in COMPRESSIONS:
+            raise RunLogError(f"compression: expected one of {sorted(COMPRESSIONS)}, got {compression!r}")
+        self._file: BinaryIO = open(path, "wb", buffering=1024 * 1024)  # noqa: SIM115 - closed in close()
+        self._writer = Writer(self._file, chunk_size=CHUNK_BYTES, compression=COMPRESSIONS[compression])
+        self._writer.start(profile="", library=LIBRARY)
+        w = self._writer
+        json_enc = SchemaEncoding.JSONSchema
+        self._ch_periods = w.register_channel(
+            topics.TOPIC_PERIODS,
+            MessageEncoding.JSON,
+            w.register_schema(topics.SCHEMA_PERIODS, json_enc, encoding.json_schema(PERIOD_DTYPE, "period")),
+        )
+        self._ch_frames = w.register_channel(
+            topics.TOPIC_FRAMES,
+            MessageEncoding.JSON,
+            w.register_schema(topics.SCHEMA_FRAMES, json_enc, encoding.FRAME_JSON_SCHEMA),
+        )
+        self._ch_trace = w.register_channel(
+            topics.TOPIC_TRACE,
+            MessageEncoding.CDR,
+            w.register_schema(topics.SCHEMA_TRACE, SchemaEncoding.ROS2, encoding.ros2msg_schema(TRACE_DTYPE)),
+        )
+        ch_meta = w.register_channel(
+            topics.TOPIC_METADATA,
+            MessageEncoding.JSON,
+            w.register_schema(topics.SCHEMA_METADATA, json_enc, encoding.METADATA_JSON_SCHEMA),
+        )
+        meta = dict(metadata)
+        w.add_metadata(topics.TOPIC_METADATA, meta)
+        w.add_message(ch_meta, 0, json.dumps(meta).encode(), 0)
+        self.counts = {"periods": 0, "frames": 0, "trace_blocks": 0, "trace_samples": 0}
+        self._closed = False
+
+    def write_periods(self, raw: bytes) -> None:
+        """Write one message per period of the PERIOD_DTYPE block `raw`."""
+        block = np.frombuffer(raw, dtype=PERIOD_DTYPE)
+        times = encoding.periods_log_times_ns(block)
+        add, ch = self._writer.add_message, self._ch_periods
+        for t_ns, msg, seq in zip(times, encoding.encode_periods(block), block["seq"].tolist(), strict=True):
+            add(ch, t_ns, msg, t_ns, seq)
+        self.counts["periods"] += block.shape[0]
+
+    def write_frames(self, raw: bytes) -> None:
+        """Write one message per frame of the FRAME_DTYPE block `raw`."""
+        block = np.frombuffer(raw, dtype=FRAME_DTYPE)
+        times = encoding.periods_log_times_ns(block)
+        add, ch = self._writer.add_message, self._ch_frames
+        for t_ns, msg, seq in zip(times, encoding.encode_frames(block), block["seq"].tolist(), strict=True):
+            add(ch, t_ns, msg, t_ns, seq)
+        self.counts["frames"] += block.shape[0]
+
+    def write_trace(self, raw: bytes) -> None:
+        """Write the TRACE_DTYPE block `raw` as one CDR message stamped with its first sample time."""
+        block = np.frombuffer(raw, dtype=TRACE_DTYPE)
+        if block.shape[0] == 0:
+            return
+        t_ns = encoding.periods_log_times_ns(block[:1])[0]
+        self._writer.add_message(
+            self._ch_trace, t_ns, encoding.encode_trace_cdr(block), t_ns, self.counts["trace_blocks"]
+        )
+        self.counts["trace_blocks"] += 1
+        self.counts["trace_samples"] += block.shape[0]
+
+    def flush(self) -> None:
+        """End the current chunk, flush the file buffer and fsync: everything so far survives a kill."""
+        self._writer.flush()  # type: ignore[no-untyped-call]
+        os.fsync(self._file.fileno())
+
+    def close(self) -> None:
+        """Write the summary and footer, fsync and close the file (idempotent)."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self._writer.finish()  # type: ignore[no-untyped-call]
+            self._file.flush()
+            os.fsync(self._file.fileno())
+        finally:
+            self._file.close()

@@ -1,0 +1,21 @@
+"""Topic names, schema names and the wire tags between the runner and the logger process."""
+
+from __future__ import annotations
+
+from typing import Final
+
+TOPIC_PERIODS: Final = "/periods"
+TOPIC_FRAMES: Final = "/frames"
+TOPIC_TRACE: Final = "/trace"
+TOPIC_METADATA: Final = "/run/metadata"
+
+SCHEMA_PERIODS: Final = "pmsm_hil.Period"
+SCHEMA_FRAMES: Final = "pmsm_hil.Frame"
+SCHEMA_TRACE: Final = "pmsm_hil/msg/TraceBlock"
+SCHEMA_METADATA: Final = "pmsm_hil.RunMetadata"
+
+# Notice kinds sent from the runner to the logger process (first byte of a notice).
+KIND_PERIODS: Final = 1
+KIND_FRAMES: Final = 2
+KIND_TRACE: Final = 3
+KIND_CLOSE: Final = 9

@@ -1,0 +1,102 @@
+"""Main function of the logger process: take notices from the runner, write MCAP, flush periodically.
+
+Ends on a close notice, on EOF of the notice pipe or a change of parent process (the runner died: the
+file is finalised anyway) or on SIGTERM. SIGINT is ignored: the runner owns Ctrl-C and calls
+`RunLogger.close()`.
+Status messages to the runner: b"R" ready, b"E" + text fatal error, b"D" + JSON final statistics.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import signal
+import struct
+import time
+from multiprocessing.connection import Connection
+from pathlib import Path
+from types import FrameType
+from typing import Any, Final
+
+from pmsm_hil.hil.runlog import topics
+from pmsm_hil.hil.runlog.ring import RingConsumer
+from pmsm_hil.hil.runlog.sink import McapSink
+
+NOTICE: Final = struct.Struct("<BQQ")
+MAX_POLL_S: Final = 0.2
+
+
+def _send(conn: Connection, payload: bytes) -> None:
+    with contextlib.suppress(OSError):  # the runner may be gone; nothing to tell then
+        conn.send_bytes(payload)
+
+
+def run_worker(
+    notices: Connection,
+    status: Connection,
+    path: str,
+    metadata: dict[str, str],
+    flush_interval_s: float,
+    ring_path: str,
+    ring_bytes: int,
+    compression: str,
+) -> None:
+    """Logger process entry point (see module docstring)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    stop: list[str] = []
+
+    def on_term(signum: int, frame: FrameType | None) -> None:
+        stop.append("sigterm")
+
+    signal.signal(signal.SIGTERM, on_term)
+    try:
+        ring = RingConsumer(Path(ring_path), ring_bytes)
+        sink = McapSink(Path(path), metadata, compression)
+    except Exception as exc:  # report any setup failure to the runner instead of a traceback
+        _send(status, b"E" + f"run logger: cannot open {path}: {exc}".encode())
+        return
+    _send(status, b"R")
+    stats: dict[str, Any] = {"reason": "close", "busy_s": 0.0, "flushes": 0}
+    writers = {
+        topics.KIND_PERIODS: sink.write_periods,
+        topics.KIND_FRAMES: sink.write_frames,
+        topics.KIND_TRACE: sink.write_trace,
+    }
+    next_flush = time.monotonic() + flush_interval_s
+    parent = os.getppid()
+    try:
+        while not stop:
+            timeout = min(max(next_flush - time.monotonic(), 0.0), MAX_POLL_S)
+            if not notices.poll(timeout):
+                if os.getppid() != parent:  # runner gone but a forked process still holds the pipe
+                    stats["reason"] = "parent gone"
+                    break
+            else:
+                try:
+                    raw = notices.recv_bytes()
+                except (EOFError, OSError):
+                    stats["reason"] = "eof"
+                    break
+                kind, pos, nbytes = NOTICE.unpack(raw)
+                if kind == topics.KIND_CLOSE:
+                    break
+                start = time.perf_counter()
+                writers[kind](ring.take(pos, nbytes))
+                stats["busy_s"] += time.perf_counter() - start
+            if time.monotonic() >= next_flush:
+                sink.flush()
+                stats["flushes"] += 1
+                next_flush = time.monotonic() + flush_interval_s
+        if stop:
+            stats["reason"] = stop[0]
+    except Exception as exc:  # keep the data written so far; tell the runner
+        stats["reason"] = "error"
+        _send(status, b"E" + f"run logger: {type(exc).__name__}: {exc}".encode())
+    finally:
+        try:
+            sink.close()
+        finally:
+            ring.close()
+    stats.update(sink.counts)
+    _send(status, b"D" + json.dumps(stats).encode())

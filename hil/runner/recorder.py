@@ -1,0 +1,98 @@
+"""Per-period records packed straight into PERIOD_DTYPE / FRAME_DTYPE bytes (cheap in the loop)."""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Sequence
+from typing import Any, Final
+
+import numpy as np
+import numpy.typing as npt
+from pmsm_hil.hil.records import FRAME_DTYPE, PERIOD_DTYPE
+from pmsm_hil.protocol.frame import Frame
+
+#: struct layout identical to PERIOD_DTYPE (numpy packs unaligned by default).
+PERIOD_STRUCT: Final = struct.Struct("<dI11dB3B3IBBI3I3H2B")
+#: struct layout identical to FRAME_DTYPE.
+FRAME_STRUCT: Final = struct.Struct("<dIBIBB64s")
+
+if PERIOD_STRUCT.size != PERIOD_DTYPE.itemsize or FRAME_STRUCT.size != FRAME_DTYPE.itemsize:
+    raise ImportError("recorder struct layouts are out of step with hil/records.py dtypes")
+
+
+class ByteRecords:
+    """Append-only packed records; `take()` returns the new block as a structured array."""
+
+    def __init__(self, dtype: np.dtype, fmt: struct.Struct) -> None:
+        self.dtype = dtype
+        self.pack = fmt.pack
+        self.buf = bytearray()
+        self._taken = 0
+
+    def append_packed(self, packed: bytes) -> None:
+        """Append one record already packed with the matching struct."""
+        self.buf += packed
+
+    def __len__(self) -> int:
+        return len(self.buf) // self.dtype.itemsize
+
+    def take(self) -> npt.NDArray[np.void]:
+        """Records appended since the last take (a copy)."""
+        start = self._taken
+        self._taken = len(self.buf)
+        return np.frombuffer(bytes(self.buf[start:]), dtype=self.dtype)
+
+    def all(self) -> npt.NDArray[np.void]:
+        """Every record so far (a copy)."""
+        return np.frombuffer(bytes(self.buf), dtype=self.dtype)
+
+
+def period_records() -> ByteRecords:
+    """Empty period record store."""
+    return ByteRecords(PERIOD_DTYPE, PERIOD_STRUCT)
+
+
+def frame_records() -> ByteRecords:
+    """Empty raw-frame record store."""
+    return ByteRecords(FRAME_DTYPE, FRAME_STRUCT)
+
+
+class FrameTap:
+    """Wraps the host's link and records every frame sent and received (no re-encoding).
+
+    The loop sets `t` [s] and `seq` (period index) each period; records use FRAME_DTYPE layout.
+    """
+
+    def __init__(self, link: Any, records: ByteRecords) -> None:
+        self.link = link
+        self.stats = link.stats
+        self.fd: bool = bool(getattr(link, "fd", False))
+        self.records = records
+        self.t = 0.0
+        self.seq = 0
+        self._pack = records.pack
+        self._buf = records.buf
+
+    def send(self, frames: Sequence[Frame]) -> None:
+        """Record then send frames host → target."""
+        for fr in frames:
+            self._buf += self._pack(self.t, self.seq, 0, fr.arbitration_id, fr.is_fd, len(fr.data), fr.data)
+        self.link.send(frames)
+
+    def poll(self) -> Frame | None:
+        """Poll one frame target → host and record it."""
+        fr: Frame | None = self.link.poll()
+        if fr is not None:
+            self._buf += self._pack(self.t, self.seq, 1, fr.arbitration_id, fr.is_fd, len(fr.data), fr.data)
+        return fr
+
+    def recv(self, timeout_s: float) -> Frame | None:
+        """Blocking receive with recording."""
+        fr: Frame | None = self.link.recv(timeout_s)
+        if fr is not None:
+            self._buf += self._pack(self.t, self.seq, 1, fr.arbitration_id, fr.is_fd, len(fr.data), fr.data)
+        return fr
+
+    def close(self) -> None:
+        """Close the wrapped link."""
+        self.link.close()

@@ -1,0 +1,101 @@
+"""Everything a closed-loop run needs, validated once."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from pmsm_hil.hil.errors import ParameterError
+from pmsm_hil.hil.motor_params import PmsmParams
+from pmsm_hil.hil.runner.scenario import Scenario
+from pmsm_hil.hil.sensors import SensorConfig
+from pmsm_hil.protocol.ids import CONTROLLER_NAMES, ParamId
+
+MODES = ("lockstep", "realtime")
+MISS_POLICIES = ("hold", "zero")
+TARGET_KINDS = ("auto", "inproc", "spawn", "external")
+
+#: Speed PI gains of 000_81a00a8e308450c6.txt (Section IV): N·m/(rad/s) and N·m/rad.
+PAPER_SPEED_KP = 0.8
+PAPER_SPEED_KI = 0.35
+#: The paper limits the starting torque to ~10 N·m for its 7 N·m machine: 10/7 of rated.
+TORQUE_LIMIT_PER_RATED = 10.0 / 7.0
+
+
+def controller_id(name: str) -> int:
+    """Controller id for a CLI name; clear error listing the names."""
+    for cid, cname in CONTROLLER_NAMES.items():
+        if cname == name:
+            return int(cid)
+    raise ParameterError(f"unknown controller '{name}' (known: {', '.join(CONTROLLER_NAMES.values())})")
+
+
+def param_id(name: str) -> ParamId:
+    """Config parameter id for a --param name."""
+    try:
+        return ParamId[name.upper()]
+    except KeyError:
+        known = ", ".join(p.name.lower() for p in ParamId)
+        raise ParameterError(f"unknown controller parameter '{name}' (known: {known})") from None
+
+
+@dataclass(frozen=True, slots=True)
+class RunConfig:
+    """A closed-loop run: motor, controller, scenario, period Ts [s], link and mode, outputs."""
+
+    motor: PmsmParams
+    scenario: Scenario
+    controller: str = "mpcc"
+    ts_s: float = 100e-6
+    link: str = "virtual"
+    mode: str = "lockstep"
+    target: str = "auto"
+    seed: int = 0
+    controller_params: dict[str, float] = field(default_factory=dict)
+    sensors: SensorConfig = field(default_factory=SensorConfig)
+    out_dir: Path | None = None
+    log_trace: bool = False
+    trace_dt_s: float = 2e-6
+    miss_policy: str = "hold"
+    watchdog_periods: int = 10
+    lockstep_timeout_s: float = 0.5
+
+    def __post_init__(self) -> None:
+        controller_id(self.controller)
+        if not (math.isfinite(self.ts_s) and 5e-6 <= self.ts_s <= 1e-2):
+            raise ParameterError(f"--ts must be between 5 µs and 10 ms, got {self.ts_s} s")
+        if abs(round(self.ts_s * 1e9) - self.ts_s * 1e9) > 1e-3:
+            raise ParameterError(f"--ts must be a whole number of ns, got {self.ts_s} s")
+        if self.mode not in MODES:
+            raise ParameterError(f"--mode must be one of {', '.join(MODES)}, got {self.mode!r}")
+        if self.miss_policy not in MISS_POLICIES:
+            raise ParameterError(f"miss policy must be one of {', '.join(MISS_POLICIES)}, got {self.miss_policy!r}")
+        if self.target not in TARGET_KINDS:
+            raise ParameterError(f"--target must be one of {', '.join(TARGET_KINDS)}, got {self.target!r}")
+        if self.watchdog_periods < 1:
+            raise ParameterError(f"watchdog periods must be ≥ 1, got {self.watchdog_periods}")
+        for name in self.controller_params:
+            param_id(name)
+
+    @property
+    def ts_ns(self) -> int:
+        """Control period [ns]."""
+        return round(self.ts_s * 1e9)
+
+    def target_parameters(self) -> dict[ParamId, float]:
+        """Parameters written to the target before enabling: its model of the motor, the speed PI
+        and limits, then the user's --param values (which may deliberately mismatch the plant)."""
+        m, sc = self.motor, self.scenario
+        rated = m.rated_torque_nm if m.rated_torque_nm > 0 else m.psi_f * 1.5 * m.pole_pairs * 0.5 * m.i_trip
+        params: dict[ParamId, float] = {
+            ParamId.RS: m.rs, ParamId.LD: m.ld, ParamId.LQ: m.lq, ParamId.PSI_F: m.psi_f,
+            ParamId.POLE_PAIRS: float(m.pole_pairs), ParamId.TS: self.ts_s, ParamId.VDC: m.vdc,
+            ParamId.SPEED_KP: PAPER_SPEED_KP, ParamId.SPEED_KI: PAPER_SPEED_KI,
+            ParamId.TORQUE_LIMIT: TORQUE_LIMIT_PER_RATED * rated,
+            ParamId.TORQUE_INTEGRATOR_INIT: sc.start_load_nm if sc.preset_integrator else 0.0,
+            ParamId.CURRENT_LIMIT: 0.8 * m.i_trip,
+        }
+        for name, value in self.controller_params.items():
+            params[param_id(name)] = value
+        return params

@@ -1,0 +1,129 @@
+"""Scenarios: operating point, reference and load profiles, settling time and metrics window."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, replace
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import tomllib
+from pmsm_hil.hil.errors import InputFileError, ParameterError
+from pmsm_hil.hil.mechanics import LoadProfile
+
+_PACKAGE = "pmsm_hil.hil.scenarios"
+
+
+@dataclass(frozen=True, slots=True)
+class Scenario:
+    """A closed-loop test. Times [s] count from the run start; the metrics window is
+    [settle_s, settle_s + duration_s). Speeds in rpm, torques in N·m.
+
+    mechanics: "inertia" (J, B, load profile) or "dyno" (speed held at the reference profile).
+    speed_rpm / load_nm: final speed reference and load; initial_* (default: the final value) apply
+    before speed_step_s / load_step_s. preset_integrator: start the speed PI integrator at the
+    initial load (bumpless start at the operating point).
+    """
+
+    name: str
+    mechanics: str = "inertia"
+    speed_rpm: float = 1500.0
+    load_nm: float = 0.0
+    initial_speed_rpm: float | None = None
+    initial_load_nm: float | None = None
+    speed_step_s: float | None = None
+    load_step_s: float | None = None
+    settle_s: float = 0.2
+    duration_s: float = 0.2
+    preset_integrator: bool = True
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        if self.mechanics not in ("inertia", "dyno"):
+            raise ParameterError(
+                f"scenario '{self.name}': mechanics must be 'inertia' or 'dyno', got {self.mechanics!r}")
+        for name in ("speed_rpm", "load_nm", "settle_s", "duration_s"):
+            if not math.isfinite(getattr(self, name)):
+                raise ParameterError(f"scenario '{self.name}': {name} must be finite")
+        if self.duration_s <= 0:
+            raise ParameterError(f"scenario '{self.name}': duration must be > 0 s, got {self.duration_s}")
+        if self.settle_s < 0:
+            raise ParameterError(f"scenario '{self.name}': settle_s must be ≥ 0 s, got {self.settle_s}")
+
+    @property
+    def start_speed_rpm(self) -> float:
+        """Speed at t = 0 [rpm]."""
+        return self.speed_rpm if self.initial_speed_rpm is None else self.initial_speed_rpm
+
+    @property
+    def start_load_nm(self) -> float:
+        """Load at t = 0 [N·m]."""
+        return self.load_nm if self.initial_load_nm is None else self.initial_load_nm
+
+    @property
+    def total_s(self) -> float:
+        """Settling plus metrics window [s]."""
+        return self.settle_s + self.duration_s
+
+    def speed_reference_rpm(self, t: float) -> float:
+        """Speed reference [rpm] at time t [s]."""
+        if self.speed_step_s is None or t >= self.speed_step_s:
+            return self.speed_rpm
+        return self.start_speed_rpm
+
+    def load_profile(self) -> LoadProfile:
+        """Load torque profile [N·m] over time [s]."""
+        if self.load_step_s is None:
+            return LoadProfile.constant(self.load_nm)
+        return LoadProfile.steps(self.start_load_nm, [(self.load_step_s, self.load_nm)])
+
+    def with_overrides(self, **overrides: Any) -> Scenario:
+        """Copy with CLI overrides (None values ignored)."""
+        clean = {k: v for k, v in overrides.items() if v is not None}
+        return replace(self, **clean)
+
+
+def scenario_names() -> list[str]:
+    """Bundled scenario names."""
+    root = resources.files(_PACKAGE)
+    return sorted(p.name.removesuffix(".toml") for p in root.iterdir() if p.name.endswith(".toml"))
+
+
+def load_scenario(name_or_path: str) -> Scenario:
+    """Load a bundled scenario by name or a TOML scenario file; errors name the key."""
+    path = Path(name_or_path)
+    if path.suffix == ".toml" or path.exists():
+        try:
+            text, origin = path.read_text(encoding="utf-8"), str(path)
+        except OSError as exc:
+            raise InputFileError(f"scenario file {path}: {exc.strerror}") from None
+    else:
+        res = resources.files(_PACKAGE) / f"{name_or_path}.toml"
+        if not res.is_file():
+            raise ParameterError(f"unknown scenario '{name_or_path}' (bundled: {', '.join(scenario_names())})")
+        text, origin = res.read_text(encoding="utf-8"), name_or_path
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputFileError(f"scenario file {origin}: {exc}") from None
+    known = {f.name for f in fields(Scenario)}
+    unknown = set(doc) - known
+    if unknown:
+        raise InputFileError(f"scenario file {origin}: unknown key(s) {', '.join(sorted(unknown))}")
+    for key, value in doc.items():
+        if key in ("name", "mechanics", "description"):
+            if not isinstance(value, str):
+                raise InputFileError(f"scenario file {origin}: '{key}' must be a string")
+        elif key == "preset_integrator":
+            if not isinstance(value, bool):
+                raise InputFileError(f"scenario file {origin}: '{key}' must be true or false")
+        elif not isinstance(value, (int, float)) or isinstance(value, bool):
+            raise InputFileError(f"scenario file {origin}: '{key}' must be a number")
+    doc.setdefault("name", path.stem if path.suffix else name_or_path)
+    try:
+        values: dict[str, Any] = {k: (float(v) if isinstance(v, int) and not isinstance(v, bool) else v)
+                                  for k, v in doc.items()}
+        return Scenario(**values)
+    except ParameterError as exc:
+        raise InputFileError(f"scenario file {origin}: {exc}") from None

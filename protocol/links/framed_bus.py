@@ -1,0 +1,137 @@
+"""Common base of the UDP and serial python-can plugins: header framing, link sequence numbers,
+statistics, and a fast path (`send_frame` / `poll_frame`) that skips can.Message construction."""
+
+from __future__ import annotations
+
+import select
+import time
+from collections import deque
+from typing import Any
+
+import can
+from can import CanProtocol
+from pmsm_hil.protocol.frame import Frame
+from pmsm_hil.protocol.links.stats import LinkStats, SeqTracker
+from pmsm_hil.protocol.links.wire import (
+    FLAG_BRS,
+    FLAG_ESI,
+    FLAG_EXTENDED,
+    FLAG_FD,
+    FLAG_REMOTE,
+    HEADER,
+    HEADER_SIZE,
+    pack_frame,
+    valid_payload_length,
+)
+
+
+class FramedBus(can.BusABC):
+    """python-can bus moving header-framed frames; subclasses implement `_transmit`, `_pump`, `fileno`."""
+
+    def __init__(self, channel: Any, *, fd: bool = True, **kwargs: Any) -> None:
+        super().__init__(channel=channel, **kwargs)
+        self.link_stats = LinkStats()
+        self.fd = bool(fd)
+        self._can_protocol = CanProtocol.CAN_FD if self.fd else CanProtocol.CAN_20
+        self._tx_seq = 0
+        self._rx: deque[tuple[int, bytes, int]] = deque()
+        self._tracker = SeqTracker(self.link_stats)
+
+    # -- subclass primitives --
+    def _transmit(self, packet: bytes) -> None:
+        raise NotImplementedError
+
+    def _pump(self) -> None:
+        """Read everything available without blocking; call `_accept` per received frame body."""
+        raise NotImplementedError
+
+    def _encode(self, body: bytes) -> bytes:
+        return body
+
+    # -- shared --
+    def _accept(self, body: bytes) -> None:
+        """A framing-valid header+payload arrived."""
+        arb, flags, seq, _length = HEADER.unpack_from(body)
+        if self._tracker.accept(seq):
+            self.link_stats.frames_rx += 1
+            self._rx.append((arb, body[HEADER_SIZE:], flags))
+
+    def send_frame(self, arbitration_id: int, data: bytes, is_fd: bool, flags: int = 0) -> None:
+        """Fast path send; raises can.CanOperationError on an invalid length or an I/O error."""
+        if not valid_payload_length(len(data), is_fd) or (is_fd and not self.fd):
+            self.link_stats.send_errors += 1
+            raise can.CanOperationError(f"payload length {len(data)} invalid for {'FD' if is_fd else 'classic'} frame")
+        if is_fd:
+            flags |= FLAG_FD | FLAG_BRS
+        body = pack_frame(arbitration_id, data, flags, self._tx_seq)
+        self._tx_seq = (self._tx_seq + 1) & 0xFF
+        try:
+            self._transmit(self._encode(body))
+        except OSError as exc:
+            self.link_stats.send_errors += 1
+            raise can.CanOperationError(f"{type(self).__name__} send failed: {exc}") from exc
+        self.link_stats.frames_tx += 1
+
+    def poll_raw(self) -> tuple[int, bytes, int] | None:
+        """Fast path receive: (id, payload, flags) or None, never blocks."""
+        if not self._rx:
+            self._pump()
+            if not self._rx:
+                return None
+        return self._rx.popleft()
+
+    def poll_frame(self) -> Frame | None:
+        """Fast path receive of an 11-bit data frame; other frames are counted as ignored."""
+        while True:
+            item = self.poll_raw()
+            if item is None:
+                return None
+            arb, data, flags = item
+            if flags & (FLAG_EXTENDED | FLAG_REMOTE):
+                self.link_stats.ignored += 1
+                continue
+            return Frame(arb, data, bool(flags & FLAG_FD))
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        """python-can API."""
+        flags = (FLAG_EXTENDED if msg.is_extended_id else 0) | (FLAG_REMOTE if msg.is_remote_frame else 0)
+        flags |= FLAG_ESI if msg.error_state_indicator else 0
+        data = bytes(msg.data) if not msg.is_remote_frame else b""
+        if msg.is_fd and not msg.bitrate_switch:
+            flags &= ~FLAG_BRS
+        self.send_frame(msg.arbitration_id, data, msg.is_fd, flags)
+
+    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        item = self.poll_raw()
+        if item is None and timeout != 0:
+            deadline = None if timeout is None else time.monotonic() + timeout
+            while item is None:
+                left = None if deadline is None else max(0.0, deadline - time.monotonic())
+                self._wait_readable(left)
+                item = self.poll_raw()
+                if left == 0.0:
+                    break
+        if item is None:
+            return None, False
+        arb, data, flags = item
+        msg = can.Message(
+            timestamp=time.time(),
+            arbitration_id=arb,
+            data=data,
+            is_fd=bool(flags & FLAG_FD),
+            bitrate_switch=bool(flags & FLAG_BRS),
+            error_state_indicator=bool(flags & FLAG_ESI),
+            is_extended_id=bool(flags & FLAG_EXTENDED),
+            is_remote_frame=bool(flags & FLAG_REMOTE),
+            dlc=len(data),
+            channel=self.channel_info,
+            is_rx=True,
+        )
+        return msg, False
+
+    def _wait_readable(self, timeout: float | None) -> None:
+        """Blocking wait for tools (python-can recv with a timeout); the Link fast path never calls it."""
+        try:
+            select.select([self.fileno()], [], [], timeout)
+        except (OSError, NotImplementedError, ValueError):
+            time.sleep(min(timeout, 0.001) if timeout is not None else 0.001)

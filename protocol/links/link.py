@@ -1,0 +1,231 @@
+"""Links: move frames between host and target over any python-can bus or our UDP / serial plugins.
+
+`open_link(spec, role)` parses a SPEC string (docs/protocol.md, "Link specs"):
+    virtual[:CHANNEL]                 python-can virtual bus, in-process (default channel "pmsm_hil")
+    can[,opt=val...]                  python-can config file + environment (can.util.load_config)
+    udp[:LOCALPORT:REMOTEPORT[@HOST]] UDP unicast plugin (hiludp); ports default by role
+    serial:PORT_OR_URL[,baudrate=N]   COBS serial plugin (hilserial); PORT may be fd:N
+    NAME:CHANNEL[,opt=val...]         any python-can interface (socketcan:can0, pcan:PCAN_USBBUS1,
+                                      kvaser:0, slcan:/dev/ttyACM0, gs_usb:0, udp_multicast:239.74.163.2)
+Options are passed to can.Bus (bitrate=1000000,fd=true,data_bitrate=5000000, ...).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any, Literal, Protocol, runtime_checkable
+
+import can
+from can import CanProtocol
+from pmsm_hil.protocol.errors import LinkError, LinkSpecError
+from pmsm_hil.protocol.frame import Frame
+from pmsm_hil.protocol.links.framed_bus import FramedBus
+from pmsm_hil.protocol.links.serial_bus import CobsSerialBus
+from pmsm_hil.protocol.links.stats import LinkStats
+from pmsm_hil.protocol.links.udp_bus import UdpUnicastBus, parse_udp_channel
+
+Role = Literal["host", "target"]
+DEFAULT_VIRTUAL_CHANNEL = "pmsm_hil"
+DEFAULT_UDP_PORTS = {"host": (47310, 47311), "target": (47311, 47310)}
+_perf = time.perf_counter
+
+
+@runtime_checkable
+class Link(Protocol):
+    """A bidirectional frame pipe; `poll` and `recv` busy-poll (no sleeps, no blocking syscalls)."""
+
+    stats: LinkStats
+    fd: bool
+
+    def send(self, frames: Sequence[Frame]) -> None:
+        """Send frames in order; raises LinkError if the transport refuses one."""
+        ...
+
+    def poll(self) -> Frame | None:
+        """The next received frame, or None at once."""
+        ...
+
+    def recv(self, timeout_s: float) -> Frame | None:
+        """Busy-poll up to `timeout_s` seconds for a frame."""
+        ...
+
+    def close(self) -> None:
+        """Release the transport (idempotent)."""
+        ...
+
+
+@dataclass(frozen=True, slots=True)
+class LinkSpec:
+    """Parsed SPEC string: kind (interface name), channel, options for can.Bus."""
+
+    kind: str
+    channel: str | None
+    options: dict[str, Any] = field(default_factory=dict)
+
+
+def _option_value(text: str) -> Any:
+    low = text.lower()
+    if low in ("true", "yes", "on"):
+        return True
+    if low in ("false", "no", "off"):
+        return False
+    for conv in (int, float):
+        try:
+            return conv(text)
+        except ValueError:
+            pass
+    return text
+
+
+def parse_spec(spec: str) -> LinkSpec:
+    """Split "NAME[:CHANNEL][,key=value...]"; raises LinkSpecError naming the bad part."""
+    if not isinstance(spec, str) or not spec.strip():
+        raise LinkSpecError(f"link spec {spec!r} is empty")
+    head, *opts = spec.strip().split(",")
+    name, sep, channel = head.partition(":")
+    name = name.strip()
+    if not name:
+        raise LinkSpecError(f"link spec {spec!r}: missing interface name before ':'")
+    if sep and not channel:
+        raise LinkSpecError(f"link spec {spec!r}: empty channel after '{name}:'")
+    options: dict[str, Any] = {}
+    for opt in opts:
+        key, eq, value = opt.partition("=")
+        if not eq or not key.strip():
+            raise LinkSpecError(f"link spec {spec!r}: option {opt!r} is not key=value")
+        options[key.strip()] = _option_value(value.strip())
+    return LinkSpec(name, channel or None, options)
+
+
+class BusLink:
+    """Link over a python-can bus; uses the plugins' fast path (no can.Message) when available."""
+
+    def __init__(self, bus: can.BusABC, description: str) -> None:
+        self.bus = bus
+        self.description = description
+        self._fast: FramedBus | None = bus if isinstance(bus, FramedBus) else None
+        self.stats: LinkStats = self._fast.link_stats if self._fast is not None else LinkStats()
+        self.fd = bus.protocol in (CanProtocol.CAN_FD, CanProtocol.CAN_FD_NON_ISO) or bool(getattr(bus, "fd", False))
+        self._closed = False
+
+    def send(self, frames: Sequence[Frame]) -> None:
+        """Send frames in order; raises LinkError (naming the frame id) if the transport refuses one."""
+        fast = self._fast
+        for fr in frames:
+            try:
+                if fast is not None:
+                    fast.send_frame(fr.arbitration_id, fr.data, fr.is_fd)
+                else:
+                    self.bus.send(
+                        can.Message(
+                            arbitration_id=fr.arbitration_id,
+                            data=fr.data,
+                            is_fd=fr.is_fd,
+                            bitrate_switch=fr.is_fd,
+                            is_extended_id=False,
+                        )
+                    )
+                    self.stats.frames_tx += 1
+            except (can.CanError, ValueError, TypeError) as exc:
+                if fast is None:
+                    self.stats.send_errors += 1
+                raise LinkError(f"{self.description}: cannot send frame 0x{fr.arbitration_id:03X}: {exc}") from exc
+
+    def poll(self) -> Frame | None:
+        """The next received 11-bit data frame, or None at once."""
+        if self._fast is not None:
+            return self._fast.poll_frame()
+        while True:
+            try:
+                msg = self.bus.recv(0.0)
+            except can.CanError:
+                self.stats.framing_errors += 1
+                return None
+            if msg is None:
+                return None
+            if msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id:
+                self.stats.ignored += 1
+                continue
+            self.stats.frames_rx += 1
+            return Frame(msg.arbitration_id, bytes(msg.data), msg.is_fd)
+
+    def recv(self, timeout_s: float) -> Frame | None:
+        """Busy-poll up to `timeout_s` seconds."""
+        poll = self.poll
+        fr = poll()
+        if fr is not None:
+            return fr
+        deadline = _perf() + timeout_s
+        while _perf() < deadline:
+            fr = poll()
+            if fr is not None:
+                return fr
+        return None
+
+    def close(self) -> None:
+        """Shut the bus down (idempotent)."""
+        if not self._closed:
+            self._closed = True
+            self.bus.shutdown()
+
+    def __enter__(self) -> BusLink:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _make_bus(ls: LinkSpec, role: Role) -> tuple[can.BusABC, str]:
+    opts = dict(ls.options)
+    if ls.kind == "virtual":
+        fd = bool(opts.pop("fd", True))
+        opts.setdefault("receive_own_messages", False)
+        channel = ls.channel or DEFAULT_VIRTUAL_CHANNEL
+        proto = CanProtocol.CAN_FD if fd else CanProtocol.CAN_20
+        return can.Bus(interface="virtual", channel=channel, protocol=proto, **opts), f"virtual:{channel}"
+    if ls.kind == "udp":
+        if ls.channel is None:
+            local, remote = DEFAULT_UDP_PORTS[role]
+            channel = f"{local}:{remote}"
+        else:
+            channel = ls.channel
+            try:
+                parse_udp_channel(channel)
+            except ValueError as exc:
+                raise LinkSpecError(str(exc)) from exc
+        return UdpUnicastBus(channel=channel, **opts), f"udp:{channel}"
+    if ls.kind == "serial":
+        if ls.channel is None:
+            raise LinkSpecError("link spec serial: needs a port, e.g. serial:/dev/ttyACM0,baudrate=3000000")
+        return CobsSerialBus(channel=ls.channel, **opts), f"serial:{ls.channel}"
+    if ls.kind == "can":
+        if ls.channel is not None:
+            opts["channel"] = ls.channel
+        return can.Bus(**opts), "can (python-can configuration)"
+    if ls.channel is not None:
+        opts["channel"] = ls.channel
+    return can.Bus(interface=ls.kind, **opts), f"{ls.kind}:{ls.channel or ''}"
+
+
+def open_link(spec: str = "virtual", role: Role = "host") -> BusLink:
+    """Open a link end from a SPEC string; raises LinkSpecError / LinkError naming the spec."""
+    if role not in ("host", "target"):
+        raise LinkSpecError(f"role={role!r} (expected 'host' or 'target')")
+    ls = parse_spec(spec)
+    try:
+        bus, description = _make_bus(ls, role)
+    except LinkError:
+        raise
+    except (
+        can.CanError,
+        can.CanInterfaceNotImplementedError,
+        OSError,
+        ValueError,
+        TypeError,
+        ImportError,
+        KeyError,
+    ) as exc:
+        raise LinkError(f"cannot open link {spec!r}: {exc}") from exc
+    return BusLink(bus, description)

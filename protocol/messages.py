@@ -1,0 +1,91 @@
+"""Logical messages exchanged between host (plant, node 0) and target (controller, node 1).
+
+Physical units: currents A, angle rad (electrical), speed rad/s (mechanical), voltage V,
+durations and execution time ns. The frame layouts live in `hil.dbc`; see docs/protocol.md.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True, slots=True)
+class Measurement:
+    """Plant -> target sample k: phase currents [A], electrical angle [rad], mechanical speed [rad/s],
+    DC-link voltage [V]. `seq` wraps at 65536; `theta_e` wraps into [0, 2π)."""
+
+    seq: int
+    i_a: float
+    i_b: float
+    i_c: float
+    theta_e: float
+    omega_m: float
+    vdc: float
+    status: int = 0
+
+
+@dataclass(frozen=True, slots=True)
+class Command:
+    """Target -> plant switching sequence for the period after next.
+
+    `states[j]` (6-bit switching state code) is applied for `durations_ns[j]` ns; the durations sum
+    to Ts. `seq` echoes the measurement's; `exec_time_ns` is clamped to 2^32 - 1 on encode."""
+
+    seq: int
+    states: tuple[int, ...]
+    durations_ns: tuple[int, ...]
+    vector_id: int = 0
+    candidates: int = 0
+    exec_time_ns: int = 0
+    status: int = 0
+
+
+@dataclass(frozen=True, slots=True)
+class Setpoint:
+    """Host -> target: enable, mode (0 speed [rad/s mechanical], 1 torque [N·m]), reference (float32)
+    and the controller to run (`ControllerId`)."""
+
+    enable: bool
+    mode: int
+    reference: float
+    controller_id: int
+
+
+@dataclass(frozen=True, slots=True)
+class ConfigParam:
+    """Host -> target parameter write; `value` float32 in SI units (see `ParamId`)."""
+
+    param_id: int
+    value: float
+
+
+@dataclass(frozen=True, slots=True)
+class ConfigAck:
+    """Target -> host acknowledge of a ConfigParam: value echoed, status 0 ok or 5 invalid."""
+
+    param_id: int
+    value: float
+    status: int
+
+
+@dataclass(frozen=True, slots=True)
+class Heartbeat:
+    """Liveness frame, both ways; `node` 0 host, 1 target; `state` a `NodeState`; `counter` wraps at 256."""
+
+    node: int
+    state: int
+    counter: int
+
+
+@dataclass(frozen=True, slots=True)
+class Fault:
+    """Fault report, both ways; `code` a `Status` code, `detail` free u32 (e.g. offending id)."""
+
+    node: int
+    code: int
+    detail: int = 0
+
+
+Message = Measurement | Command | Setpoint | ConfigParam | ConfigAck | Heartbeat | Fault
+
+MESSAGE_TYPES: tuple[type, ...] = (Measurement, Command, Setpoint, ConfigParam, ConfigAck, Heartbeat, Fault)

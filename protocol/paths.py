@@ -1,0 +1,10 @@
+"""Repository paths of generated artefacts (valid in a source checkout / editable install)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+GENERATED_C_DIR = REPO_ROOT / "firmware_stub" / "generated"
+GOLDEN_JSON = REPO_ROOT / "tests" / "golden" / "frames.json"
+GOLDEN_C_HEADER = REPO_ROOT / "firmware_stub" / "tests" / "golden_frames.h"

@@ -1,0 +1,25 @@
+"""Build hook: package list from the mapped folders, and the C kernels compiled by cffi (API mode)."""
+
+from pathlib import Path
+
+from setuptools import setup
+
+_BUILDERS = ["hil/native/_build_plant.py:ffibuilder", "sim_target/_build_firmware.py:ffibuilder"]
+_FOLDERS = ("hil", "protocol", "sim_target", "dashboards")
+
+
+def _packages() -> list[str]:
+    """pmsm_hil plus every package below the mapped folders (see [tool.setuptools] package-dir)."""
+    packages = ["pmsm_hil"]
+    for folder in _FOLDERS:
+        for init in sorted(Path(folder).rglob("__init__.py")):
+            packages.append(".".join(("pmsm_hil", folder, *init.parent.relative_to(folder).parts)))
+    return packages
+
+
+setup(
+    packages=_packages(),
+    package_data={"pmsm_hil.hil.presets": ["*.toml"], "pmsm_hil.hil.scenarios": ["*.toml"],
+                  "pmsm_hil.protocol": ["*.dbc"]},
+    cffi_modules=[b for b in _BUILDERS if Path(b.split(":")[0]).exists()],
+)

@@ -1,0 +1,238 @@
+"""Python wrapper of the C reference firmware (cffi extension `pmsm_hil.sim_target._firmware`).
+
+One `Firmware` owns one fixed-size C state record. Units are SI: currents A, angle rad (electrical),
+speed rad/s (mechanical), voltage V, torque N·m, time ns.
+"""
+from __future__ import annotations
+
+import struct
+from collections.abc import Sequence
+from typing import Any, NamedTuple
+
+__all__ = [
+    "CONTROLLER_IDS",
+    "MODE_SPEED",
+    "MODE_TORQUE",
+    "PARAM_IDS",
+    "Firmware",
+    "FirmwareBuildError",
+    "FirmwareCommand",
+    "FirmwareConfigError",
+    "FirmwareError",
+    "FirmwareInputError",
+]
+
+# Shared numbering (docs/architecture.md).
+PARAM_IDS: dict[str, int] = {
+    "rs": 1, "ld": 2, "lq": 3, "psi_f": 4, "pole_pairs": 5, "ts": 6, "vdc": 7, "speed_kp": 8,
+    "speed_ki": 9, "torque_limit": 10, "torque_integrator_init": 11, "id_ref": 12, "lambda": 13,
+    "t_thr": 14, "t_dead": 15, "t_mpw": 16, "flux_ref": 17, "current_kp": 18, "current_ki": 19,
+    "lls": 20, "torque_band": 21, "current_limit": 22,
+}
+PARAM_NAMES: dict[int, str] = {v: k for k, v in PARAM_IDS.items()}
+CONTROLLER_IDS: dict[str, int] = {
+    "off": 0, "mpcc": 1, "fcs-mpc-1": 2, "fcs-mpc-2": 3, "dsvm-20": 4, "dbcc-mpc": 5, "foc": 6,
+    "mptc1": 7, "mptc2": 8, "mptc3": 9, "3vmpc": 10, "hv-mpfc": 11,
+}
+MODE_SPEED = 0
+MODE_TORQUE = 1
+
+
+class FirmwareError(Exception):
+    """Base of the firmware wrapper's errors."""
+
+
+class FirmwareBuildError(FirmwareError):
+    """The cffi extension is missing (not built)."""
+
+
+class FirmwareConfigError(FirmwareError):
+    """A parameter, controller or setpoint was rejected; the message names the field."""
+
+
+class FirmwareInputError(FirmwareError):
+    """A step input is malformed (wrong phase count, out-of-range seq or time)."""
+
+
+class FirmwareCommand(NamedTuple):
+    """Command k of the firmware, applied over [(k+1)Ts, (k+2)Ts).
+
+    states: switching codes 4·Sa+2·Sb+Sc, one per used sub-interval; durations_ns: their lengths
+    (sum = Ts); exec_time_ns: C-side step time (sum of split_ns = measurement, reference,
+    prediction stages); torque_ref N·m, id_ref/iq_ref A: debug outputs of the outer loop.
+    """
+
+    seq: int
+    states: tuple[int, ...]
+    durations_ns: tuple[int, ...]
+    vector_id: int
+    candidates: int
+    status: int
+    exec_time_ns: int
+    split_ns: tuple[int, int, int]
+    torque_ref: float
+    id_ref: float
+    iq_ref: float
+
+
+def _load() -> tuple[Any, Any]:
+    try:
+        from pmsm_hil.sim_target import _firmware  # type: ignore[attr-defined]
+    except ImportError as exc:  # pragma: no cover - depends on the install
+        raise FirmwareBuildError(
+            "firmware extension pmsm_hil.sim_target._firmware is not built; "
+            "run `.venv/bin/pip install --no-build-isolation -e .`"
+        ) from exc
+    return _firmware.ffi, _firmware.lib
+
+
+_ERRORS = {
+    -1: "unknown id",
+    -2: "value not finite or outside its physical range",
+    -3: "unknown controller id",
+    -4: "controller not implemented in this firmware",
+    -5: "unknown setpoint mode",
+    -6: "reference not finite",
+}
+
+# hil_fw_py_out_t: cmd {seq, n_states, vector_id, candidates, status, states[3], durations_ns[3],
+# torque_ref, id_ref, iq_ref} then split_ns[3]; native alignment, checked against cffi offsets.
+_OUT = struct.Struct("@HBBBB3B3I3f3I")
+
+
+def _check_layout(ffi: Any) -> None:
+    ok = (
+        ffi.sizeof("hil_fw_py_out_t") == _OUT.size
+        and ffi.offsetof("hil_fw_py_out_t", "split_ns") == _OUT.size - 12
+        and ffi.offsetof("hil_fw_cmd_t", "durations_ns") == 12
+        and ffi.offsetof("hil_fw_cmd_t", "torque_ref") == 24
+    )
+    if not ok:  # pragma: no cover - only on an exotic ABI
+        raise FirmwareBuildError("hil_fw_py_out_t layout differs from the wrapper's struct format")
+
+
+class Firmware:
+    """One instance of the C reference firmware (controller off and disabled after construction)."""
+
+    def __init__(self) -> None:
+        ffi, lib = _load()
+        _check_layout(ffi)
+        self._ffi = ffi
+        self._lib = lib
+        self._state = ffi.new("hil_fw_state_t *")
+        self._meas = ffi.new("hil_fw_meas_t *")
+        self._out = ffi.new("hil_fw_py_out_t *")
+        self._out_buf = ffi.buffer(self._out)
+        self._unpack = _OUT.unpack_from
+        self._py_step = lib.hil_fw_py_step
+        lib.hil_fw_init(self._state)
+
+    def set_param(self, param_id: int, value: float) -> None:
+        """Set parameter `param_id` (ids of docs/architecture.md) to `value` in SI units."""
+        name = PARAM_NAMES.get(param_id, f"param_id {param_id}")
+        try:
+            fval = float(value)
+            rc = self._lib.hil_fw_set_param(self._state, param_id, fval)
+        except (TypeError, ValueError, OverflowError) as exc:
+            raise FirmwareConfigError(f"{name}: cannot set to {value!r} ({exc})") from None
+        if rc != 0:
+            raise FirmwareConfigError(f"{name}: {_ERRORS.get(rc, f'error {rc}')} (value {value!r})")
+
+    def get_param(self, param_id: int) -> float:
+        """Current value of parameter `param_id` (float32 as stored by the firmware)."""
+        out = self._ffi.new("float *")
+        try:
+            rc = self._lib.hil_fw_get_param(self._state, param_id, out)
+        except (TypeError, OverflowError):
+            rc = -1
+        if rc != 0:
+            raise FirmwareConfigError(f"param_id {param_id!r}: unknown id")
+        return float(out[0])
+
+    def select_controller(self, controller_id: int) -> None:
+        """Select the control law; unknown or unimplemented ids keep the previous one."""
+        try:
+            rc = self._lib.hil_fw_select_controller(self._state, controller_id)
+        except (TypeError, OverflowError):
+            rc = -3
+        if rc != 0:
+            raise FirmwareConfigError(f"controller_id {controller_id!r}: {_ERRORS.get(rc, f'error {rc}')}")
+
+    def set_setpoint(self, enable: bool, mode: int, reference: float) -> None:
+        """Enable/disable; mode 0: speed reference in rad/s (mechanical), 1: torque in N·m."""
+        try:
+            rc = self._lib.hil_fw_set_setpoint(self._state, 1 if enable else 0, mode, float(reference))
+        except (TypeError, ValueError, OverflowError):
+            rc = -5
+        if rc == -6:
+            raise FirmwareConfigError(f"reference {reference!r}: not finite")
+        if rc != 0:
+            raise FirmwareConfigError(f"mode {mode!r} / reference {reference!r}: {_ERRORS.get(rc, rc)}")
+
+    @property
+    def controller_id(self) -> int:
+        """Selected controller id."""
+        return int(self._state.controller_id)
+
+    @property
+    def enabled(self) -> bool:
+        """True while the closed loop runs."""
+        return bool(self._state.enable)
+
+    @staticmethod
+    def controller_implemented(controller_id: int) -> bool:
+        """True if this firmware build implements `controller_id` (0 `off` included)."""
+        _, lib = _load()
+        if not 0 <= controller_id <= 255:
+            return False
+        return bool(lib.hil_fw_controller_implemented(controller_id))
+
+    def step(
+        self,
+        seq: int,
+        i_abc: Sequence[float],
+        theta_e: float,
+        omega_m: float,
+        vdc: float,
+        t_ns: int,
+    ) -> FirmwareCommand:
+        """Run one profiled control step on measurement k (phase currents A, angle rad electrical,
+        speed rad/s mechanical, DC link V (<= 0: use the vdc param), sample time ns)."""
+        n = len(i_abc)
+        try:
+            if n == 3:
+                self._py_step(self._state, self._meas, self._out, seq, 3, i_abc[0], i_abc[1], i_abc[2],
+                              0.0, 0.0, 0.0, theta_e, omega_m, vdc, t_ns)
+            elif n == 6:
+                self._py_step(self._state, self._meas, self._out, seq, 6, *i_abc, theta_e, omega_m, vdc,
+                              t_ns)
+            else:
+                raise FirmwareInputError(f"i_abc: expected 3 or 6 phase currents, got {n}")
+        except (TypeError, OverflowError) as exc:
+            detail = _describe_bad_input(seq, i_abc, theta_e, omega_m, vdc, t_ns, exc)
+            raise FirmwareInputError(detail) from None
+        u = self._unpack(self._out_buf)
+        ns = u[1]
+        return FirmwareCommand(
+            u[0], u[5:5 + ns], u[8:8 + ns], u[2], u[3], u[4], u[14] + u[15] + u[16], (u[14], u[15], u[16]),
+            u[11], u[12], u[13],
+        )
+
+
+def _describe_bad_input(
+    seq: object, i_abc: Sequence[object], theta_e: object, omega_m: object, vdc: object, t_ns: object,
+    exc: Exception,
+) -> str:
+    """Name the first step argument cffi could not convert."""
+    checks: list[tuple[str, object, int]] = [("seq", seq, 16), ("t_ns", t_ns, 64)]
+    for name, value, bits in checks:
+        if not isinstance(value, int) or not 0 <= value < (1 << bits):
+            return f"{name}: expected an integer in [0, 2**{bits}), got {value!r}"
+    named: list[tuple[str, object]] = [(f"i_abc[{k}]", v) for k, v in enumerate(i_abc)]
+    named += [("theta_e", theta_e), ("omega_m", omega_m), ("vdc", vdc)]
+    for name, value in named:
+        try:
+            float(value)  # type: ignore[arg-type]
+        except (TypeError, ValueError):
+            return f"{name}: expected a number, got {value!r}"
+    return f"step input rejected: {exc}"

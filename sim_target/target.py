@@ -1,0 +1,146 @@
+"""The virtual target: runs the C reference firmware behind any link, speaking the frame protocol."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from pmsm_hil.protocol.codec import FrameCodec
+from pmsm_hil.protocol.ids import ControllerId, ParamId, Status
+from pmsm_hil.protocol.links import Link
+from pmsm_hil.protocol.messages import (
+    Command,
+    ConfigAck,
+    ConfigParam,
+    Fault,
+    Heartbeat,
+    Measurement,
+    Setpoint,
+)
+from pmsm_hil.sim_target.firmware import Firmware, FirmwareCommand, FirmwareConfigError
+
+TARGET_NODE = 1
+_IDLE_STATE = 0  # zero vector (all lower switches on) while disabled
+
+
+@dataclass(slots=True)
+class TargetCounters:
+    """What the target saw: measurements, commands sent, config writes, faults raised."""
+
+    measurements: int = 0
+    commands: int = 0
+    config_writes: int = 0
+    config_rejected: int = 0
+    faults: int = 0
+
+
+class SimTarget:
+    """Firmware stub + protocol endpoint. Call `service()` to process every pending frame (non-blocking).
+
+    Time for the control law is the measurement count times the configured Ts (virtual time), so
+    lockstep runs are bit-identical; the controller's execution time is measured around the C step.
+    """
+
+    def __init__(self, link: Link, codec: FrameCodec, *, silent_after: int | None = None) -> None:
+        self.link = link
+        self.codec = codec
+        self.decoder = codec.decoder()
+        self.firmware = Firmware()
+        self.counters = TargetCounters()
+        self.enabled = False
+        self.controller_id = int(ControllerId.OFF)
+        self.ts_ns = 100_000
+        self.last_result: FirmwareCommand | None = None
+        self._silent_after = silent_after
+        self._k = 0
+
+    def service(self) -> int:
+        """Process all frames waiting on the link; returns the number of frames handled."""
+        handled = 0
+        poll = self.link.poll
+        feed = self.decoder.feed
+        while True:
+            frame = poll()
+            if frame is None:
+                return handled
+            handled += 1
+            msg = feed(frame)
+            if msg is not None:
+                self._dispatch(msg)
+
+    def _dispatch(self, msg: object) -> None:
+        if isinstance(msg, Measurement):
+            self._on_measurement(msg)
+        elif isinstance(msg, ConfigParam):
+            self._on_config(msg)
+        elif isinstance(msg, Setpoint):
+            self._on_setpoint(msg)
+        elif isinstance(msg, Heartbeat) and msg.node != TARGET_NODE:
+            self._send(Heartbeat(node=TARGET_NODE, state=1 if self.enabled else 0, counter=msg.counter))
+
+    def _send(self, msg: Command | ConfigAck | Fault | Heartbeat) -> None:
+        self.link.send(self.codec.encode(msg))
+
+    def _on_measurement(self, m: Measurement) -> None:
+        self.counters.measurements += 1
+        if self._silent_after is not None and self.counters.measurements > self._silent_after:
+            return  # fault injection: a target that stopped answering
+        t_ns = self._k * self.ts_ns
+        self._k += 1
+        if not self.enabled:
+            cmd = Command(seq=m.seq, states=(_IDLE_STATE,), durations_ns=(self.ts_ns,))
+        else:
+            res = self.firmware.step(m.seq, (m.i_a, m.i_b, m.i_c), m.theta_e, m.omega_m, m.vdc, t_ns)
+            self.last_result = res
+            cmd = Command(seq=m.seq, states=res.states, durations_ns=res.durations_ns, vector_id=res.vector_id,
+                          candidates=res.candidates, exec_time_ns=min(res.exec_time_ns, 0xFFFFFFFF),
+                          status=res.status)
+        self.counters.commands += 1
+        self._send(cmd)
+
+    def _on_config(self, c: ConfigParam) -> None:
+        self.counters.config_writes += 1
+        try:
+            self.firmware.set_param(c.param_id, c.value)
+            status = int(Status.OK)
+            if c.param_id == int(ParamId.TS):
+                self.ts_ns = round(c.value * 1e9)
+        except FirmwareConfigError:
+            self.counters.config_rejected += 1
+            status = int(Status.INVALID_CONFIG)
+        self._send(ConfigAck(param_id=c.param_id, value=c.value, status=status))
+
+    def _on_setpoint(self, s: Setpoint) -> None:
+        if s.controller_id != self.controller_id:
+            try:
+                self.firmware.select_controller(s.controller_id)
+            except FirmwareConfigError:
+                self.counters.faults += 1
+                self.enabled = False
+                self._send(Fault(node=TARGET_NODE, code=int(Status.NOT_IMPLEMENTED), detail=s.controller_id))
+                return
+            self.controller_id = s.controller_id
+        try:
+            self.firmware.set_setpoint(s.enable, s.mode, s.reference)
+        except FirmwareConfigError:
+            self.counters.faults += 1
+            self.enabled = False
+            self._send(Fault(node=TARGET_NODE, code=int(Status.INVALID_CONFIG), detail=s.mode))
+            return
+        self.enabled = s.enable
+
+    def run_forever(self, should_stop: Callable[[], bool], idle_sleep_s: float = 0.0) -> None:
+        """Busy-poll the link until should_stop() is true (checked every ~1000 empty polls)."""
+        spins = 0
+        while True:
+            if self.service():
+                spins = 0
+                continue
+            spins += 1
+            if spins >= 1000:
+                spins = 0
+                if should_stop():
+                    return
+                if idle_sleep_s:
+                    time.sleep(idle_sleep_s)

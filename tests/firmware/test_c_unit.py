@@ -1,0 +1,48 @@
+"""Build the C firmware with CMake into tmp_path and run its unit tests through ctest."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+FIRMWARE = Path(__file__).resolve().parents[2] / "firmware_stub"
+OWN_TESTS = {"test_config", "test_mpcc", "test_speed_pi", "test_step", "test_transforms"}
+
+pytestmark = pytest.mark.skipif(shutil.which("cmake") is None, reason="cmake not installed")
+
+
+@pytest.fixture(scope="module")
+def build_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    build = tmp_path_factory.mktemp("fw_build")
+    cfg = subprocess.run(["cmake", "-S", str(FIRMWARE), "-B", str(build)], capture_output=True, text=True,
+                         timeout=300)
+    assert cfg.returncode == 0, cfg.stdout + cfg.stderr
+    out = subprocess.run(["cmake", "--build", str(build), "-j", "2"], capture_output=True, text=True,
+                         timeout=600)
+    assert out.returncode == 0, out.stdout + out.stderr
+    return build
+
+
+def test_every_c_test_is_registered(build_dir: Path) -> None:
+    listed = subprocess.run(["ctest", "-N"], cwd=build_dir, capture_output=True, text=True, timeout=60)
+    names = {line.split(":")[1].strip() for line in listed.stdout.splitlines() if "Test #" in line}
+    expected = {p.stem for p in (FIRMWARE / "tests").glob("test_*.c")}
+    assert expected >= OWN_TESTS
+    assert names == expected
+
+
+def test_ctest_passes(build_dir: Path) -> None:
+    run = subprocess.run(["ctest", "--output-on-failure"], cwd=build_dir, capture_output=True, text=True,
+                         timeout=600)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "100% tests passed" in run.stdout
+
+
+def test_firmware_built_with_strict_flags(build_dir: Path) -> None:
+    flags = (build_dir / "CMakeFiles" / "hil_fw.dir" / "flags.make").read_text(encoding="utf-8")
+    for flag in ("-std=c99", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion",
+                 "-fsingle-precision-constant", "-O2"):
+        assert flag in flags, flag

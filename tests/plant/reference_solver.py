@@ -1,0 +1,39 @@
+"""High-accuracy reference: the same PMSM equations integrated by scipy with stator-frame voltage."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from pmsm_hil.hil.motor_params import PmsmParams
+from scipy.integrate import solve_ivp
+
+
+def stator_voltage(state: int, vdc: float) -> tuple[float, float]:
+    """(vα, vβ) [V] of a three-phase state code 4·Sa + 2·Sb + Sc."""
+    sa, sb, sc = (state >> 2) & 1, (state >> 1) & 1, state & 1
+    return vdc / 3.0 * (2 * sa - sb - sc), vdc / math.sqrt(3.0) * (sb - sc)
+
+
+def solve_period(p: PmsmParams, omega_m: float, theta0: float, i_dq: tuple[float, float],
+                 states: list[int], durations_s: list[float]) -> tuple[float, float, float]:
+    """Integrate one period in dyno mode; returns (i_d, i_q, theta_e) at its end."""
+    w = p.pole_pairs * omega_m
+    x = np.array(i_dq, dtype=float)
+    t0 = 0.0
+    for st, du in zip(states, durations_s, strict=True):
+        if du <= 0:
+            continue
+        va, vb = stator_voltage(st, p.vdc)
+
+        def rhs(t: float, y: np.ndarray, va: float = va, vb: float = vb) -> list[float]:
+            th = theta0 + w * t
+            vd = va * math.cos(th) + vb * math.sin(th)
+            vq = -va * math.sin(th) + vb * math.cos(th)
+            return [(vd - p.rs * y[0] + w * p.lq * y[1]) / p.ld,
+                    (vq - p.rs * y[1] - w * p.ld * y[0] - w * p.psi_f) / p.lq]
+
+        sol = solve_ivp(rhs, (t0, t0 + du), x, method="DOP853", rtol=1e-11, atol=1e-12)
+        x = sol.y[:, -1]
+        t0 += du
+    return float(x[0]), float(x[1]), theta0 + w * t0

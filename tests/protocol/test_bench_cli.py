@@ -1,0 +1,31 @@
+"""`hil bench link` runs and reports plausible numbers (small counts; timings not asserted tightly)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import pytest
+from pmsm_hil.hil.cli import bench_link
+
+
+def test_bench_link_json(capsys: pytest.CaptureFixture[str]) -> None:
+    p = argparse.ArgumentParser()
+    bench_link.add_parser(p.add_subparsers())
+    args = p.parse_args(["link", "--count", "50", "--repeats", "2", "--links", "virtual,udp,serial", "--json"])
+    assert args.func(args) == 0
+    d = json.loads(capsys.readouterr().out)
+    for profile in ("can", "canfd"):
+        costs = d["codec"][profile]
+        assert all(v > 0 for v in costs.values())
+        assert costs["python_encode_ns_per_frame"] < costs["cantools_encode_ns_per_frame"]
+    assert set(d["round_trip"]) == {"virtual (one thread)", "udp (peer process)", "serial pty (peer process)"}
+    assert all(0 < r["median_us"] <= r["p99_us"] for r in d["round_trip"].values())
+
+
+def test_bench_link_bad_args(capsys: pytest.CaptureFixture[str]) -> None:
+    p = argparse.ArgumentParser()
+    bench_link.add_parser(p.add_subparsers())
+    args = p.parse_args(["link", "--links", "carrier-pigeon"])
+    assert args.func(args) == 2
+    assert "carrier-pigeon" in capsys.readouterr().out

@@ -1,0 +1,135 @@
+"""Kills: the loop process (logger finalises on EOF), both processes (repair path), the logger alone."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pmsm_hil.hil.runlog import LoggerDiedError, RunLogger, read_periods, repair_mcap
+from pmsm_hil.hil.runlog.reader import MAGIC
+
+from tests.runlog._blocks import period_block
+
+CHILD = Path(__file__).with_name("_loop_child.py")
+REPO = Path(__file__).resolve().parents[2]
+
+
+def _progress(path: Path) -> tuple[int, list[tuple[float, int]]]:
+    lines = path.read_text().splitlines()
+    logger_pid = int(lines[0].split()[1])
+    rows = [(float(a), int(b)) for a, b in (line.split() for line in lines[1:] if len(line.split()) == 2)]
+    return logger_pid, rows
+
+
+def _run_and_kill(
+    tmp_path: Path, flush_s: float, run_s: float, kill_logger_first: bool = False
+) -> tuple[Path, int, float, list[tuple[float, int]]]:
+    out, prog = tmp_path / "run.mcap", tmp_path / "progress.txt"
+    child = subprocess.Popen([sys.executable, str(CHILD), str(out), str(prog), str(flush_s)], cwd=REPO)
+    try:
+        deadline = time.monotonic() + 60.0
+        started = None
+        while time.monotonic() < deadline:
+            if prog.exists() and len(prog.read_text().splitlines()) > 1:
+                started = started or time.monotonic()
+                if time.monotonic() - started >= run_s:
+                    break
+            if child.poll() is not None:
+                pytest.fail(f"loop child exited early with code {child.returncode}")
+            time.sleep(0.05)
+        kill_time = time.monotonic()
+        if kill_logger_first:  # both die: the logger cannot finalise the file
+            os.kill(_progress(prog)[0], signal.SIGKILL)
+        child.send_signal(signal.SIGKILL)
+        child.wait(10)
+    finally:
+        if child.poll() is None:
+            child.kill()
+    logger_pid, rows = _progress(prog)
+    return out, logger_pid, kill_time, rows
+
+
+def _wait_gone(pid: int, timeout_s: float) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        try:
+            state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+        except (FileNotFoundError, ProcessLookupError):
+            return True
+        if state == "Z":  # exited, not yet reaped by its new parent
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def test_sigkill_of_loop_logger_finalises_file(tmp_path: Path) -> None:
+    out, logger_pid, _kill_time, rows = _run_and_kill(tmp_path, flush_s=1.0, run_s=2.5)
+    assert _wait_gone(logger_pid, 30.0), "logger did not exit after the loop was killed"
+    assert out.read_bytes()[-len(MAGIC) :] == MAGIC  # footer magic: finalised by the logger
+    periods = read_periods(out)
+    submitted = rows[-1][1] + 1  # every completed submit reached the logger before the kill
+    assert periods.shape[0] >= submitted
+    np.testing.assert_array_equal(periods["seq"], np.arange(periods.shape[0]))
+    np.testing.assert_array_equal(periods[:submitted]["i_a"], _expected(submitted)["i_a"])
+
+
+def _expected(n: int) -> np.ndarray:
+    return np.concatenate([period_block(k, 200) for k in range(0, n, 200)])[:n]
+
+
+def test_sigkill_of_loop_and_logger_keeps_all_but_last_second(tmp_path: Path) -> None:
+    out, logger_pid, kill_time, rows = _run_and_kill(tmp_path, flush_s=0.5, run_s=2.5, kill_logger_first=True)
+    assert _wait_gone(logger_pid, 10.0)
+    assert out.read_bytes()[-len(MAGIC) :] != MAGIC  # cut: no footer
+    older = [seq for t, seq in rows if t <= kill_time - 1.0]
+    assert older, "no block was submitted more than 1 s before the kill"
+    periods = read_periods(out)  # tolerant reader (valid prefix)
+    assert periods.shape[0] >= older[-1] + 1
+    repaired = tmp_path / "repaired.mcap"
+    report = repair_mcap(out, repaired)
+    assert not report.source_complete and report.chunks >= 2
+    assert report.messages_per_topic["/periods"] == periods.shape[0]
+    assert repaired.read_bytes()[-len(MAGIC) :] == MAGIC
+    np.testing.assert_array_equal(read_periods(repaired)["seq"], periods["seq"])
+
+
+def test_logger_death_is_reported_on_next_submit(tmp_path: Path) -> None:
+    lg = RunLogger(tmp_path / "run.mcap", metadata={})
+    lg.submit_periods(period_block(0, 100))
+    assert lg.pid is not None
+    os.kill(lg.pid, signal.SIGKILL)
+    start = time.monotonic()
+    with pytest.raises(LoggerDiedError, match=r"died \(exit code -9\)"):
+        for k in range(1000):
+            lg.submit_periods(period_block(k, 100))
+            time.sleep(0.01)
+    assert time.monotonic() - start < 10.0
+    with pytest.raises(LoggerDiedError):
+        lg.close()
+    lg.close()  # idempotent after the error
+
+
+def test_sigterm_to_logger_finalises(tmp_path: Path) -> None:
+    path = tmp_path / "run.mcap"
+    lg = RunLogger(path, metadata={})
+    lg.submit_periods(period_block(0, 300))
+    time.sleep(0.3)
+    assert lg.pid is not None
+    os.kill(lg.pid, signal.SIGTERM)
+    assert _wait_gone_child(lg, 10.0)
+    assert path.read_bytes()[-len(MAGIC) :] == MAGIC
+    assert read_periods(path).shape[0] == 300
+    lg.close()
+    assert lg.final_stats is not None and lg.final_stats["reason"] == "sigterm"
+
+
+def _wait_gone_child(lg: RunLogger, timeout_s: float) -> bool:
+    proc = lg._proc
+    proc.join(timeout_s)
+    return not proc.is_alive()
