@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import subprocess
 import sys
@@ -56,9 +57,6 @@ class TargetConnection:
 
     def close(self) -> None:
         """Close links and stop a spawned target."""
-        for link in (self.host_link, self.target_link):
-            if link is not None:
-                link.close()
         if self.process is not None:
             self.process.terminate()
             try:
@@ -66,6 +64,13 @@ class TargetConnection:
             except subprocess.TimeoutExpired:
                 self.process.kill()
                 self.process.wait()
+        for link in (self.host_link, self.target_link):
+            if link is not None:
+                link.close()
+        for item in self.extra:
+            if isinstance(item, int):
+                with contextlib.suppress(OSError):
+                    os.close(item)
 
 
 def _slots(obj: object) -> list[tuple[str, object]]:
@@ -75,12 +80,29 @@ def _slots(obj: object) -> list[tuple[str, object]]:
     return [(n, getattr(obj, n)) for n in names if hasattr(obj, n)]
 
 
+def _spawn_specs(spec: str) -> tuple[str, str, list[int]]:
+    """Host and target link specs for a spawned target. ``serial:pty`` makes a pseudo-terminal pair:
+    the host takes the master descriptor, the target process opens the slave by its path."""
+    head, sep, opts = spec.partition(",")
+    if head.strip().lower() != "serial:pty":
+        return spec, spec, []
+    master, slave = os.openpty()
+    tail = sep + opts
+    # the host link owns the master descriptor; we keep the slave open until the run ends
+    return f"serial:fd:{master}{tail}", f"serial:{os.ttyname(slave)}{tail}", [slave]
+
+
 def connect_target(cfg: RunConfig, *, silent_after: int | None = None) -> TargetConnection:
     """Open the link(s) and, for in-process or spawned targets, start the target."""
     kind = cfg.target
     iface = link_interface(cfg.link)
     if kind == "auto":
-        kind = "inproc" if iface == "virtual" else "external"
+        if iface == "virtual":
+            kind = "inproc"
+        elif cfg.link.split(",", 1)[0].strip().lower() == "serial:pty":
+            kind = "spawn"
+        else:
+            kind = "external"
     codec = FrameCodec(link_profile(cfg.link))  # type: ignore[arg-type]
     if kind == "inproc":
         from pmsm_hil.sim_target.target import SimTarget
@@ -92,11 +114,13 @@ def connect_target(cfg: RunConfig, *, silent_after: int | None = None) -> Target
         return TargetConnection(client, host_link, target_link=target_link,
                                 inproc_result=lambda: target.last_result, extra=[target])
     if kind == "spawn":
-        host_link = open_link(cfg.link, "host")
-        env = dict(os.environ)
-        cmd = [sys.executable, "-m", "pmsm_hil.hil.cli.main", "target", "--link", cfg.link, "--role", "target"]
-        proc = subprocess.Popen(cmd, env=env)
+        host_spec, target_spec, fds = _spawn_specs(cfg.link)
+        host_link = open_link(host_spec, "host")
+        cmd = [sys.executable, "-m", "pmsm_hil.hil.cli.main", "target", "--link", target_spec, "--role", "target"]
+        proc = subprocess.Popen(cmd, env=dict(os.environ), stdout=subprocess.DEVNULL)
         client = TargetClient(host_link, codec)
-        return TargetConnection(client, host_link, process=proc)
+        conn = TargetConnection(client, host_link, process=proc)
+        conn.extra.extend(fds)
+        return conn
     host_link = open_link(cfg.link, "host")
     return TargetConnection(TargetClient(host_link, codec), host_link)

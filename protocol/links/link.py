@@ -12,6 +12,7 @@ Options are passed to can.Bus (bitrate=1000000,fd=true,data_bitrate=5000000, ...
 
 from __future__ import annotations
 
+import queue
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -19,6 +20,7 @@ from typing import Any, Literal, Protocol, runtime_checkable
 
 import can
 from can import CanProtocol
+from can.interfaces.virtual import VirtualBus
 from pmsm_hil.protocol.errors import LinkError, LinkSpecError
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.links.framed_bus import FramedBus
@@ -109,6 +111,19 @@ class BusLink:
         self.stats: LinkStats = self._fast.link_stats if self._fast is not None else LinkStats()
         self.fd = bus.protocol in (CanProtocol.CAN_FD, CanProtocol.CAN_FD_NON_ISO) or bool(getattr(bus, "fd", False))
         self._closed = False
+        # python-can's virtual bus deep-copies every Message per receiver (~10 µs); in-process we hand each
+        # receiver queue its own freshly built Message instead: same semantics, a fraction of the cost.
+        self._virtual: VirtualBus | None = bus if type(bus) is VirtualBus else None
+
+    def _send_virtual(self, bus: VirtualBus, fr: Frame) -> None:
+        now = time.time()
+        for q in bus.channel:
+            if q is bus.queue and not bus.receive_own_messages:
+                continue
+            q.put_nowait(can.Message(timestamp=now, arbitration_id=fr.arbitration_id, data=fr.data,
+                                     is_fd=fr.is_fd, bitrate_switch=fr.is_fd, is_extended_id=False,
+                                     channel=bus.channel_id, is_rx=q is not bus.queue))
+        self.stats.frames_tx += 1
 
     def send(self, frames: Sequence[Frame]) -> None:
         """Send frames in order; raises LinkError (naming the frame id) if the transport refuses one."""
@@ -117,6 +132,8 @@ class BusLink:
             try:
                 if fast is not None:
                     fast.send_frame(fr.arbitration_id, fr.data, fr.is_fd)
+                elif self._virtual is not None:
+                    self._send_virtual(self._virtual, fr)
                 else:
                     self.bus.send(
                         can.Message(
@@ -137,6 +154,17 @@ class BusLink:
         """The next received 11-bit data frame, or None at once."""
         if self._fast is not None:
             return self._fast.poll_frame()
+        virtual = self._virtual
+        while virtual is not None:
+            try:
+                msg = virtual.queue.get_nowait()
+            except queue.Empty:
+                return None
+            if msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id:
+                self.stats.ignored += 1
+                continue
+            self.stats.frames_rx += 1
+            return Frame(msg.arbitration_id, bytes(msg.data), msg.is_fd)
         while True:
             try:
                 msg = self.bus.recv(0.0)
