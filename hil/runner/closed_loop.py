@@ -92,6 +92,8 @@ class ClosedLoop:
         sensors = self.sensors
         ideal_sensors = cfg.sensors.ideal
         vdc = cfg.motor.vdc
+        i_trip = cfg.motor.i_trip
+        w_trip = cfg.motor.speed_trip_rpm * RPM_TO_RAD_S
         send_measurement, poll_command = client.send_measurement, client.poll_command
         inproc = self.inproc_result
         timeout_ns = int(cfg.lockstep_timeout_s * 1e9)
@@ -189,7 +191,13 @@ class ClosedLoop:
                 out.end_reason = f"target fault code {f.code} (detail {f.detail}); inverter put in the safe state"
                 self._safe_state(out)
                 break
-            trip = plant.check_trips()
+            if (abs(smp.i_a) > i_trip or abs(smp.i_b) > i_trip or abs(smp.i_c) > i_trip
+                    or abs(smp.omega_m) > w_trip):
+                trip = plant.check_trips() or "trip"
+                out.end_reason = f"plant trip: {trip}; inverter put in the safe state (zero vector)"
+                self._safe_state(out)
+                break
+            trip = plant.check_trips() if k == n_total - 1 else None
             if trip is not None:
                 out.end_reason = f"plant trip: {trip}; inverter put in the safe state (zero vector)"
                 self._safe_state(out)

@@ -157,14 +157,14 @@ class BusLink:
         virtual = self._virtual
         while virtual is not None:
             try:
-                msg = virtual.queue.get_nowait()
+                vmsg: can.Message = virtual.queue.get_nowait()
             except queue.Empty:
                 return None
-            if msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id:
+            if vmsg.is_error_frame or vmsg.is_remote_frame or vmsg.is_extended_id:
                 self.stats.ignored += 1
                 continue
             self.stats.frames_rx += 1
-            return Frame(msg.arbitration_id, bytes(msg.data), msg.is_fd)
+            return Frame(vmsg.arbitration_id, bytes(vmsg.data), vmsg.is_fd)
         while True:
             try:
                 msg = self.bus.recv(0.0)
