@@ -206,9 +206,9 @@ class Plant:
         """High-rate trace rows of the last period: columns TRACE_COLUMNS (view, copy to keep)."""
         return self._trace_np[: int(self._stats.trace_n)]
 
-    def check_trips(self) -> str | None:
-        """Return a trip reason ('overcurrent ...' / 'overspeed ...') or None."""
-        smp = self.sample()
+    def check_trips(self, smp: PlantSample | None = None) -> str | None:
+        """Trip reason ('overcurrent ...' / 'overspeed ...') for a sample (default: now), or None."""
+        smp = self.sample() if smp is None else smp
         peak = max(abs(smp.i_a), abs(smp.i_b), abs(smp.i_c))
         if peak > self.params.i_trip:
             return f"overcurrent: |i| = {peak:.2f} A > i_trip = {self.params.i_trip:.2f} A"

@@ -193,8 +193,8 @@ class ClosedLoop:
                 break
             if (abs(smp.i_a) > i_trip or abs(smp.i_b) > i_trip or abs(smp.i_c) > i_trip
                     or abs(smp.omega_m) > w_trip):
-                trip = plant.check_trips() or "trip"
-                out.end_reason = f"plant trip: {trip}; inverter put in the safe state (zero vector)"
+                out.end_reason = (f"plant trip: {plant.check_trips(smp)}; "
+                                  "inverter put in the safe state (zero vector)")
                 self._safe_state(out)
                 break
             trip = plant.check_trips() if k == n_total - 1 else None
