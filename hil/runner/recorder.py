@@ -21,30 +21,47 @@ if PERIOD_STRUCT.size != PERIOD_DTYPE.itemsize or FRAME_STRUCT.size != FRAME_DTY
 
 
 class ByteRecords:
-    """Append-only packed records; `take()` returns the new block as a structured array."""
+    """Packed records in a buffer; `take()` returns the new block as a structured array.
+
+    `reserve(n)` pre-allocates (and touches) room for n records so a paced loop never waits on a
+    reallocation or a page fault; `append_packed` then writes in place.
+    """
 
     def __init__(self, dtype: np.dtype, fmt: struct.Struct) -> None:
         self.dtype = dtype
         self.pack = fmt.pack
+        self.pack_into = fmt.pack_into
+        self.size = fmt.size
         self.buf = bytearray()
+        self.end = 0  # bytes in use
         self._taken = 0
+
+    def reserve(self, records: int) -> None:
+        """Make room for `records` more records without reallocating."""
+        need = self.end + records * self.size
+        if need > len(self.buf):
+            self.buf.extend(bytes(need - len(self.buf)))
 
     def append_packed(self, packed: bytes) -> None:
         """Append one record already packed with the matching struct."""
-        self.buf += packed
+        end = self.end + len(packed)
+        if end > len(self.buf):
+            self.buf.extend(bytes(max(end - len(self.buf), 1 << 16)))
+        self.buf[self.end:end] = packed
+        self.end = end
 
     def __len__(self) -> int:
-        return len(self.buf) // self.dtype.itemsize
+        return self.end // self.dtype.itemsize
 
     def take(self) -> npt.NDArray[np.void]:
         """Records appended since the last take (a copy)."""
         start = self._taken
-        self._taken = len(self.buf)
-        return np.frombuffer(bytes(self.buf[start:]), dtype=self.dtype)
+        self._taken = self.end
+        return np.frombuffer(bytes(self.buf[start:self.end]), dtype=self.dtype)
 
     def all(self) -> npt.NDArray[np.void]:
         """Every record so far (a copy)."""
-        return np.frombuffer(bytes(self.buf), dtype=self.dtype)
+        return np.frombuffer(bytes(self.buf[: self.end]), dtype=self.dtype)
 
 
 def period_records() -> ByteRecords:
@@ -71,26 +88,26 @@ class FrameTap:
         self.t = 0.0
         self.seq = 0
         self._pack = records.pack
-        self._buf = records.buf
+        self._append = records.append_packed
 
     def send(self, frames: Sequence[Frame]) -> None:
         """Record then send frames host → target."""
         for fr in frames:
-            self._buf += self._pack(self.t, self.seq, 0, fr.arbitration_id, fr.is_fd, len(fr.data), fr.data)
+            self._append(self._pack(self.t, self.seq, 0, fr.arbitration_id, fr.is_fd, len(fr.data), fr.data))
         self.link.send(frames)
 
     def poll(self) -> Frame | None:
         """Poll one frame target → host and record it."""
         fr: Frame | None = self.link.poll()
         if fr is not None:
-            self._buf += self._pack(self.t, self.seq, 1, fr.arbitration_id, fr.is_fd, len(fr.data), fr.data)
+            self._append(self._pack(self.t, self.seq, 1, fr.arbitration_id, fr.is_fd, len(fr.data), fr.data))
         return fr
 
     def recv(self, timeout_s: float) -> Frame | None:
         """Blocking receive with recording."""
         fr: Frame | None = self.link.recv(timeout_s)
         if fr is not None:
-            self._buf += self._pack(self.t, self.seq, 1, fr.arbitration_id, fr.is_fd, len(fr.data), fr.data)
+            self._append(self._pack(self.t, self.seq, 1, fr.arbitration_id, fr.is_fd, len(fr.data), fr.data))
         return fr
 
     def close(self) -> None:

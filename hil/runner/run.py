@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import math
 import signal
-import statistics
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -15,13 +14,14 @@ from typing import Any
 
 import numpy as np
 from pmsm_hil.hil.errors import HilError
-from pmsm_hil.hil.mechanics import RPM_TO_RAD_S, DynoMechanics, InertiaMechanics
+from pmsm_hil.hil.mechanics import DynoMechanics, InertiaMechanics
 from pmsm_hil.hil.metrics.summary import compute_run_metrics
 from pmsm_hil.hil.plant import Plant
+from pmsm_hil.hil.runner.budget_check import check_realtime_budget
 from pmsm_hil.hil.runner.closed_loop import ClosedLoop, LoopOutcome
 from pmsm_hil.hil.runner.recorder import ByteRecords
 from pmsm_hil.hil.runner.run_config import RunConfig, controller_id
-from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target
+from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target, link_profile
 
 
 @dataclass(slots=True)
@@ -77,6 +77,8 @@ def _open_logger(cfg: RunConfig) -> tuple[Any, Path | None]:
 def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None) -> RunResult:
     """Run the scenario against the target named by cfg.link/cfg.target; returns metrics."""
     cid = controller_id(cfg.controller)
+    if cfg.mode == "realtime":
+        check_realtime_budget(cfg.link, link_profile(cfg.link), cfg.ts_s)
     logger, mcap_path = _open_logger(cfg)
     conn: TargetConnection | None = None
     try:
@@ -141,5 +143,4 @@ def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection) -> dict[
                                   "max": float(lat.max())}
     speed_err = metrics.get("speed_mean_rpm", math.nan) - cfg.scenario.speed_rpm
     metrics["speed_error_pct"] = 100.0 * speed_err / cfg.scenario.speed_rpm if cfg.scenario.speed_rpm else None
-    _ = RPM_TO_RAD_S, statistics
     return metrics

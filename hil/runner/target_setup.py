@@ -81,9 +81,15 @@ def _slots(obj: object) -> list[tuple[str, object]]:
 
 
 def _spawn_specs(spec: str) -> tuple[str, str, list[int]]:
-    """Host and target link specs for a spawned target. ``serial:pty`` makes a pseudo-terminal pair:
-    the host takes the master descriptor, the target process opens the slave by its path."""
+    """Host and target link specs for a spawned target. ``udp:L:R`` gives the target ``udp:R:L``;
+    ``serial:pty`` makes a pseudo-terminal pair: the host takes the master descriptor, the target
+    process opens the slave by its path."""
     head, sep, opts = spec.partition(",")
+    name, _, channel = head.strip().partition(":")
+    if name.lower() == "udp" and channel:
+        ports, at, host = channel.partition("@")
+        local, _, remote = ports.partition(":")
+        return spec, f"udp:{remote}:{local}{at}{host}{sep}{opts}", []
     if head.strip().lower() != "serial:pty":
         return spec, spec, []
     master, slave = os.openpty()

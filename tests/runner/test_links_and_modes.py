@@ -1,0 +1,88 @@
+"""Cross-process targets (UDP, pty serial), real-time mode, link-budget refusal, SIGKILL durability."""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+from pmsm_hil.hil.errors import ParameterError
+from pmsm_hil.hil.presets_loader import load_motor
+from pmsm_hil.hil.runlog.reader import read_periods
+from pmsm_hil.hil.runner.run import run_closed_loop
+from pmsm_hil.hil.runner.run_config import RunConfig
+from pmsm_hil.hil.runner.scenario import load_scenario
+
+
+def _free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _cfg(**kw: object) -> RunConfig:
+    sc = load_scenario("steady").with_overrides(settle_s=0.1, duration_s=0.1)
+    return replace(RunConfig(motor=load_motor("niu2020-ipmsm"), scenario=sc), **kw)  # type: ignore[arg-type]
+
+
+def _assert_holds_operating_point(metrics: dict[str, object]) -> None:
+    assert metrics["end_reason"] == "completed"
+    assert abs(float(metrics["speed_mean_rpm"]) - 1500.0) <= 15.0  # type: ignore[arg-type]
+    assert abs(float(metrics["torque_mean_nm"]) - 7.0) <= 0.14  # type: ignore[arg-type]
+
+
+def test_same_scenario_with_target_process_over_udp() -> None:
+    a, b = _free_udp_port(), _free_udp_port()
+    host = f"udp:{a}:{b}"
+    inproc = run_closed_loop(_cfg()).metrics
+    # the spawned target takes the mirrored channel: the runner passes the same spec with role=target
+    res = run_closed_loop(_cfg(link=host, target="spawn"))
+    _assert_holds_operating_point(res.metrics)
+    assert res.metrics["link"]["lost"] == 0
+    # the firmware is the same C code fed the same quantised frames: identical control decisions
+    assert res.metrics["torque_mean_nm"] == pytest.approx(inproc["torque_mean_nm"], abs=1e-9)
+
+
+def test_same_scenario_with_target_process_over_pty_serial() -> None:
+    res = run_closed_loop(_cfg(link="serial:pty"))
+    _assert_holds_operating_point(res.metrics)
+    assert res.metrics["link"]["crc_errors"] == 0
+
+
+def test_realtime_mode_in_process_reports_lateness() -> None:
+    res = run_closed_loop(_cfg(mode="realtime"))
+    _assert_holds_operating_point(res.metrics)
+    lat = res.metrics["lateness_us"]
+    assert set(lat) == {"median", "p99", "max"} and lat["median"] >= 0.0
+    # pacing: the wall time is the simulated time (within start-up slack)
+    assert res.outcome.wall_time_s == pytest.approx(0.2, rel=0.1)
+
+
+def test_realtime_refuses_a_link_that_cannot_carry_the_rate() -> None:
+    with pytest.raises(ParameterError, match="at most 1504 Hz"):
+        run_closed_loop(_cfg(mode="realtime", link="socketcan:can0,bitrate=1000000"))
+
+
+def test_sigkill_of_a_run_leaves_a_readable_mcap(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pmsm_hil.hil.cli.main", "run", "--duration", "30", "--settle", "0",
+         "--out", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    mcap = out / "run.mcap"
+    deadline = time.monotonic() + 60
+    while (not mcap.exists() or mcap.stat().st_size < 200_000) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    time.sleep(1.5)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    time.sleep(1.0)  # the logger process notices its parent died and finalises the file
+    periods = read_periods(mcap)
+    assert len(periods) > 5000
+    assert (periods["seq"][:100] == range(100)).all()
+    assert abs(periods["omega_m"][-1] * 60 / (2 * 3.14159265) - 1500) < 15
