@@ -86,3 +86,22 @@ def test_sigkill_of_a_run_leaves_a_readable_mcap(tmp_path: Path) -> None:
     assert len(periods) > 5000
     assert (periods["seq"][:100] == range(100)).all()
     assert abs(periods["omega_m"][-1] * 60 / (2 * 3.14159265) - 1500) < 15
+
+
+def test_sigterm_finalises_the_mcap(tmp_path: Path) -> None:
+    from mcap.reader import make_reader
+
+    out = tmp_path / "run"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pmsm_hil.hil.cli.main", "run", "--duration", "30", "--settle", "0",
+         "--out", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    mcap = out / "run.mcap"
+    deadline = time.monotonic() + 60
+    while (not mcap.exists() or mcap.stat().st_size < 100_000) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    proc.send_signal(signal.SIGTERM)
+    assert proc.wait(timeout=60) == 130
+    with mcap.open("rb") as f:
+        summary = make_reader(f).get_summary()  # needs the footer: only a finalised file has one
+    assert summary is not None and summary.statistics is not None
+    assert summary.statistics.message_count > 1000
