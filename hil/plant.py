@@ -46,6 +46,7 @@ class PeriodStats:
     narrow_pulses: int
     suppressed_pulses: int
     trace_rows: int
+    open_phase_events: int = 0
 
 
 class Plant:
@@ -133,8 +134,12 @@ class Plant:
             raise ParameterError(f"unknown mechanics mode {mechanics!r}")
 
     def set_state(self, *, i_d: float | None = None, i_q: float | None = None,
-                  theta_e: float | None = None, omega_m: float | None = None) -> None:
-        """Overwrite parts of the state: currents [A], angle [rad], speed [rad/s]."""
+                  theta_e: float | None = None, omega_m: float | None = None, gate: int | None = None) -> None:
+        """Overwrite parts of the state: currents [A], angle [rad], speed [rad/s], applied gate code."""
+        if gate is not None:
+            if not 0 <= gate <= 7:
+                raise SequenceError(f"gate code {gate} outside 0..7")
+            self._s.gate = gate
         if i_d is not None:
             self._s.i_d = i_d
         if i_q is not None:
@@ -199,7 +204,7 @@ class Plant:
         if rc != 0:
             raise PlantFaultError(f"plant kernel rejected the period (code {rc})")
         return PeriodStats(int(st.leg_transitions), int(st.boundary_transitions), int(st.narrow_pulses),
-                           int(st.suppressed_pulses), int(st.trace_n))
+                           int(st.suppressed_pulses), int(st.trace_n), int(st.open_phase_events))
 
     @property
     def last_trace(self) -> npt.NDArray[np.float64]:

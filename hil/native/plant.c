@@ -139,80 +139,265 @@ static double phase_current(const pl_state_t *s, int leg)
     return leg == 0 ? ia : (leg == 1 ? ib : ic);
 }
 
-/* Integrate from the state's time over h seconds with constant leg levels; writes trace rows. */
-static int integrate(const pl_params_t *p, pl_state_t *s, double t_abs, double h, int levels, double t_load0,
-                     double t_load_slope, double t_period0, double trace_dt, double *trace, int32_t trace_cap,
-                     pl_period_stats_t *stats)
+#define PL_LEVEL_OPEN 2     /* dead_level value: diode blocked, phase open */
+#define PL_OPEN_STEP 25e-9  /* RK4 step while a phase is open [s] */
+
+static const double PL_EX[3] = {1.0, -0.5, -0.5};
+static const double PL_EY[3] = {0.0, 0.8660254037844386, -0.8660254037844386};
+
+static int emit_row(const pl_params_t *p, pl_state_t *s, double tk, double i_d, double i_q, double theta,
+                    double *trace, int32_t trace_cap, pl_period_stats_t *stats)
 {
-    double v_alpha, v_beta;
-    double done = 0.0;
-    leg_voltage(p->vdc, levels, &v_alpha, &v_beta);
-    while (done < h) {
-        double piece = h - done;
-        double omega_e = (double)p->pole_pairs * s->omega_m;
-        double t0 = t_abs + done;
-        pl_segment_t g;
-        double i_d1, i_q1;
-        if (p->inertia_mode && p->max_piece > 0.0 && piece > p->max_piece) {
-            piece = p->max_piece;
-        }
-        segment_setup(p, omega_e, s->theta_e, v_alpha, v_beta, s->i_d, s->i_q, &g);
-        if (trace_dt > 0.0 && trace != NULL) {
-            for (;;) {
-                double tk = (double)s->trace_k * trace_dt;
-                double tau = tk - t0;
-                double id, iq, th, ia, ib, ic;
-                double *row;
-                if (tau >= piece - 0.5e-9) { /* grid and edges are ns-aligned */
-                    break;
-                }
-                if (stats->trace_n >= trace_cap) {
-                    return PL_E_TRACE_FULL;
-                }
-                if (tau < 0.0) {
-                    tau = 0.0;
-                }
-                segment_eval(&g, tau, &id, &iq);
-                th = s->theta_e + omega_e * tau;
-                pl_phase_currents(id, iq, th, &ia, &ib, &ic);
-                row = trace + (ptrdiff_t)stats->trace_n * PL_TRACE_COLUMNS;
-                row[0] = tk;
-                row[1] = ia;
-                row[2] = ib;
-                row[3] = ic;
-                row[4] = pl_torque(p, id, iq);
-                row[5] = s->omega_m;
-                stats->trace_n++;
-                s->trace_k++;
-            }
-        }
-        segment_eval(&g, piece, &i_d1, &i_q1);
-        if (p->inertia_mode) {
-            double te0 = pl_torque(p, s->i_d, s->i_q), te1 = pl_torque(p, i_d1, i_q1);
-            double t_mid = t0 + 0.5 * piece - t_period0;
-            double t_load = t_load0 + t_load_slope * t_mid;
-            double k = 0.5 * piece * p->b / p->j;
-            double w1 = (s->omega_m * (1.0 - k) + piece * (0.5 * (te0 + te1) - t_load) / p->j) / (1.0 + k);
-            s->theta_e = wrap_angle(s->theta_e + omega_e * piece);
-            s->omega_m = w1;
-        } else {
-            s->theta_e = wrap_angle(s->theta_e + omega_e * piece);
-        }
-        s->i_d = i_d1;
-        s->i_q = i_q1;
-        done += piece;
+    double ia, ib, ic, *row;
+    if (stats->trace_n >= trace_cap) {
+        return PL_E_TRACE_FULL;
     }
+    pl_phase_currents(i_d, i_q, theta, &ia, &ib, &ic);
+    row = trace + (ptrdiff_t)stats->trace_n * PL_TRACE_COLUMNS;
+    row[0] = tk;
+    row[1] = ia;
+    row[2] = ib;
+    row[3] = ic;
+    row[4] = pl_torque(p, i_d, i_q);
+    row[5] = s->omega_m;
+    stats->trace_n++;
+    s->trace_k++;
     return PL_OK;
 }
 
-static int current_levels(const pl_state_t *s, const int *gate_level, double t)
+static double leg_current(double i_d, double i_q, double theta, int leg)
 {
-    int levels = 0;
-    for (int leg = 0; leg < 3; leg++) {
-        int lvl = (t < s->dead_until[leg]) ? s->dead_level[leg] : gate_level[leg];
-        levels |= lvl << (2 - leg);
+    double ia, ib, ic;
+    pl_phase_currents(i_d, i_q, theta, &ia, &ib, &ic);
+    return leg == 0 ? ia : (leg == 1 ? ib : ic);
+}
+
+/* Rotor-frame direction h = R(-theta) (e_y - e_z) of the current loop through phases y -> z. */
+static void loop_direction(int y, int z, double theta, double *h_d, double *h_q)
+{
+    double dx = PL_EX[y] - PL_EX[z], dy = PL_EY[y] - PL_EY[z];
+    double c = cos(theta), sn = sin(theta);
+    *h_d = c * dx + sn * dy;
+    *h_q = -sn * dx + c * dy;
+}
+
+/* d i / dt of the loop current i (into phase y, out of phase z) with the third phase open. */
+static double open_didt(const pl_params_t *p, int y, int z, double v_yz, double omega_e, double theta, double i)
+{
+    double h_d, h_q;
+    double psi_d, psi_q, hlh, hljh, hjpsi;
+    loop_direction(y, z, theta, &h_d, &h_q);
+    psi_d = p->ld * (2.0 / 3.0) * h_d * i + p->psi_f;
+    psi_q = p->lq * (2.0 / 3.0) * h_q * i;
+    hlh = p->ld * h_d * h_d + p->lq * h_q * h_q;
+    hljh = h_d * (-p->ld * h_q) + h_q * (p->lq * h_d); /* h . L J h */
+    hjpsi = h_d * (-psi_q) + h_q * psi_d;               /* h . J psi */
+    return (v_yz - 2.0 * p->rs * i + (2.0 / 3.0) * omega_e * i * hljh - omega_e * hjpsi) / ((2.0 / 3.0) * hlh);
+}
+
+/* One phase open: integrate the loop current of the two connected phases by RK4 (steps <= 25 ns). */
+static int integrate_open(const pl_params_t *p, pl_state_t *s, double t0, double piece, int levels, int open_leg,
+                          int cond_mask, double trace_dt, double *trace, int32_t trace_cap, pl_period_stats_t *stats,
+                          int *newly_open)
+{
+    int y = (open_leg + 1) % 3, z = (open_leg + 2) % 3;
+    double v_yz = p->vdc * (double)(((levels >> (2 - y)) & 1) - ((levels >> (2 - z)) & 1));
+    double omega_e = (double)p->pole_pairs * s->omega_m;
+    double theta = s->theta_e, tau = 0.0, h_d, h_q, i;
+    loop_direction(y, z, theta, &h_d, &h_q);
+    i = 0.5 * (h_d * s->i_d + h_q * s->i_q); /* project onto the loop (|h|^2 = 3) */
+    *newly_open = -1;
+    while (tau < piece - 0.5e-9) {
+        double stop = piece, hstep, k1, k2, k3, k4;
+        int n_sub;
+        if (trace_dt > 0.0 && trace != NULL) {
+            double tk = (double)s->trace_k * trace_dt;
+            if (tk - (t0 + tau) < 0.5e-9) {
+                int rc;
+                loop_direction(y, z, theta, &h_d, &h_q);
+                rc = emit_row(p, s, tk, (2.0 / 3.0) * h_d * i, (2.0 / 3.0) * h_q * i, theta, trace, trace_cap, stats);
+                if (rc != PL_OK) {
+                    return rc;
+                }
+                tk = (double)s->trace_k * trace_dt;
+            }
+            if (tk - t0 < stop) {
+                stop = tk - t0;
+            }
+        }
+        n_sub = (int)ceil((stop - tau) / PL_OPEN_STEP - 1e-9);
+        if (n_sub < 1) {
+            n_sub = 1;
+        }
+        hstep = (stop - tau) / (double)n_sub;
+        for (int k = 0; k < n_sub; k++) {
+            double i_prev = i;
+            k1 = open_didt(p, y, z, v_yz, omega_e, theta, i);
+            k2 = open_didt(p, y, z, v_yz, omega_e, theta + 0.5 * omega_e * hstep, i + 0.5 * hstep * k1);
+            k3 = open_didt(p, y, z, v_yz, omega_e, theta + 0.5 * omega_e * hstep, i + 0.5 * hstep * k2);
+            k4 = open_didt(p, y, z, v_yz, omega_e, theta + omega_e * hstep, i + hstep * k3);
+            i += hstep / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+            theta += omega_e * hstep;
+            /* a connected leg conducting through its diode blocks when its current crosses zero */
+            if ((i_prev > 0.0 && i <= 0.0) || (i_prev < 0.0 && i >= 0.0)) {
+                int leg_y_cond = (cond_mask >> y) & 1, leg_z_cond = (cond_mask >> z) & 1;
+                if (leg_y_cond || leg_z_cond) {
+                    i = 0.0;
+                    *newly_open = leg_y_cond ? y : z;
+                }
+            }
+        }
+        tau = stop;
     }
-    return levels;
+    loop_direction(y, z, theta, &h_d, &h_q);
+    s->i_d = (2.0 / 3.0) * h_d * i;
+    s->i_q = (2.0 / 3.0) * h_q * i;
+    s->theta_e = wrap_angle(theta);
+    return PL_OK;
+}
+
+/* Earliest zero crossing in (0, piece] of the current of a leg conducting through a diode, or piece. */
+static double first_blocking(const pl_segment_t *g, double theta0, double omega_e, double piece, int cond_mask,
+                             const int32_t *dead_level, int *leg_out)
+{
+    double best = piece;
+    *leg_out = -1;
+    for (int leg = 0; leg < 3; leg++) {
+        double sign, lo = 0.0, hi = -1.0;
+        if (!((cond_mask >> leg) & 1)) {
+            continue;
+        }
+        sign = dead_level[leg] == 0 ? 1.0 : -1.0; /* low rail: current out of the leg (> 0) */
+        for (int q = 1; q <= 8; q++) {
+            double tau = piece * (double)q / 8.0, id, iq;
+            segment_eval(g, tau, &id, &iq);
+            if (sign * leg_current(id, iq, theta0 + omega_e * tau, leg) <= 0.0) {
+                hi = tau;
+                break;
+            }
+            lo = tau;
+        }
+        if (hi < 0.0) {
+            continue;
+        }
+        for (int it = 0; it < 60 && hi - lo > 1e-13; it++) {
+            double mid = 0.5 * (lo + hi), id, iq;
+            segment_eval(g, mid, &id, &iq);
+            if (sign * leg_current(id, iq, theta0 + omega_e * mid, leg) <= 0.0) {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        if (hi < best || *leg_out < 0) {
+            if (hi <= best) {
+                best = hi;
+                *leg_out = leg;
+            }
+        }
+    }
+    return best;
+}
+
+/* Integrate from the state's time over h seconds with constant leg levels (open legs float);
+ * legs in dead time conduct through a diode until their current reaches zero, then open. */
+static int integrate(const pl_params_t *p, pl_state_t *s, double t_abs, double h, double t_load0,
+                     double t_load_slope, double t_period0, double trace_dt, double *trace, int32_t trace_cap,
+                     pl_period_stats_t *stats, const int *gate_level)
+{
+    double done = 0.0;
+    while (done < h - 0.5e-9) {
+        double piece = h - done;
+        double omega_e = (double)p->pole_pairs * s->omega_m;
+        double t0 = t_abs + done;
+        double te0 = pl_torque(p, s->i_d, s->i_q);
+        int levels = 0, open_mask = 0, cond_mask = 0, n_open = 0, open_leg = -1, blocked = -1;
+        for (int leg = 0; leg < 3; leg++) {
+            int lvl = gate_level[leg];
+            if (t0 < s->dead_until[leg] - 0.5e-9) {
+                lvl = s->dead_level[leg];
+                if (lvl == PL_LEVEL_OPEN) {
+                    open_mask |= 1 << leg;
+                    n_open++;
+                    open_leg = leg;
+                    lvl = 0;
+                } else {
+                    cond_mask |= 1 << leg;
+                }
+            }
+            levels |= lvl << (2 - leg);
+        }
+        if (p->inertia_mode && p->max_piece > 0.0 && piece > p->max_piece) {
+            piece = p->max_piece;
+        }
+        if (n_open == 0) {
+            pl_segment_t g;
+            double v_alpha, v_beta, i_d1, i_q1;
+            leg_voltage(p->vdc, levels, &v_alpha, &v_beta);
+            segment_setup(p, omega_e, s->theta_e, v_alpha, v_beta, s->i_d, s->i_q, &g);
+            if (cond_mask) {
+                piece = first_blocking(&g, s->theta_e, omega_e, piece, cond_mask, s->dead_level, &blocked);
+            }
+            if (trace_dt > 0.0 && trace != NULL) {
+                for (;;) {
+                    double tk = (double)s->trace_k * trace_dt;
+                    double tau = tk - t0, id, iq;
+                    int rc;
+                    if (tau >= piece - 0.5e-9) { /* grid and edges are ns-aligned */
+                        break;
+                    }
+                    if (tau < 0.0) {
+                        tau = 0.0;
+                    }
+                    segment_eval(&g, tau, &id, &iq);
+                    rc = emit_row(p, s, tk, id, iq, s->theta_e + omega_e * tau, trace, trace_cap, stats);
+                    if (rc != PL_OK) {
+                        return rc;
+                    }
+                }
+            }
+            segment_eval(&g, piece, &i_d1, &i_q1);
+            s->theta_e = wrap_angle(s->theta_e + omega_e * piece);
+            s->i_d = i_d1;
+            s->i_q = i_q1;
+        } else if (n_open == 1) {
+            int rc = integrate_open(p, s, t0, piece, levels, open_leg, cond_mask, trace_dt, trace, trace_cap, stats,
+                                    &blocked);
+            if (rc != PL_OK) {
+                return rc;
+            }
+        } else {
+            /* two or three phases open: no current can flow */
+            s->i_d = 0.0;
+            s->i_q = 0.0;
+            while (trace_dt > 0.0 && trace != NULL) {
+                double tk = (double)s->trace_k * trace_dt;
+                int rc;
+                if (tk - t0 >= piece - 0.5e-9) {
+                    break;
+                }
+                rc = emit_row(p, s, tk, 0.0, 0.0, s->theta_e + omega_e * (tk - t0 > 0.0 ? tk - t0 : 0.0), trace,
+                              trace_cap, stats);
+                if (rc != PL_OK) {
+                    return rc;
+                }
+            }
+            s->theta_e = wrap_angle(s->theta_e + omega_e * piece);
+        }
+        if (blocked >= 0) {
+            s->dead_level[blocked] = PL_LEVEL_OPEN;
+            stats->open_phase_events++;
+        }
+        if (p->inertia_mode) {
+            double te1 = pl_torque(p, s->i_d, s->i_q);
+            double t_mid = t0 + 0.5 * piece - t_period0;
+            double t_load = t_load0 + t_load_slope * t_mid;
+            double k = 0.5 * piece * p->b / p->j;
+            s->omega_m = (s->omega_m * (1.0 - k) + piece * (0.5 * (te0 + te1) - t_load) / p->j) / (1.0 + k);
+        }
+        done += piece;
+    }
+    return PL_OK;
 }
 
 int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const int64_t *durations_ns,
@@ -233,6 +418,7 @@ int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const
     stats->boundary_transitions = 0;
     stats->narrow_pulses = 0;
     stats->suppressed_pulses = 0;
+    stats->open_phase_events = 0;
     stats->trace_n = 0;
     stats->error = PL_OK;
     if (n < 1 || n > PL_MAX_SUBINTERVALS) {
@@ -303,8 +489,8 @@ int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const
         for (int k = 0; k <= n_ev; k++) {
             double t_next = (k < n_ev) ? ev[k].t : t_end;
             if (t_next > t) {
-                int rc = integrate(p, s, t, t_next - t, current_levels(s, gate_level, t), t_load0, t_load_slope,
-                                   t_start, trace_dt, trace, trace_cap, stats);
+                int rc = integrate(p, s, t, t_next - t, t_load0, t_load_slope, t_start, trace_dt, trace, trace_cap,
+                                   stats, gate_level);
                 if (rc != PL_OK) {
                     stats->error = rc;
                     return rc;
@@ -325,7 +511,7 @@ int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const
                     } else if (i_x < 0.0) {
                         lvl = 1; /* current into the leg: upper diode, positive rail */
                     } else {
-                        lvl = ev[k].level; /* no current: no dead-time error (open phase not modelled) */
+                        lvl = PL_LEVEL_OPEN; /* no current: no diode conducts, the phase is open */
                     }
                     s->dead_level[leg] = lvl;
                     s->dead_until[leg] = ev[k].t + p->t_dead;

@@ -38,7 +38,7 @@ typedef struct {
     double last_edge_t[3];/* time of the last gate edge per leg [s] (absolute) */
     double dead_until[3]; /* leg in dead time until this absolute time [s] */
     int32_t gate;         /* commanded gate code currently applied, 4*Sa + 2*Sb + Sc */
-    int32_t dead_level[3];/* leg output level during its dead time (0: low rail, 1: high rail) */
+    int32_t dead_level[3];/* leg level during its dead time (0: low rail, 1: high rail, 2: open) */
 } pl_state_t;
 
 typedef struct {
@@ -46,6 +46,7 @@ typedef struct {
     uint32_t boundary_transitions; /* of which at the period start */
     uint32_t narrow_pulses;        /* pulses shorter than 2*t_dead + t_mpw (counted when they end) */
     uint32_t suppressed_pulses;    /* pulses shorter than t_mpw removed before the gate */
+    uint32_t open_phase_events;    /* dead-time diode currents that reached zero (phase left open) */
     int32_t trace_n;               /* trace rows written */
     int32_t error;                 /* 0 ok, negative: see PL_E_* */
 } pl_period_stats_t;

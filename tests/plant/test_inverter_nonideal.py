@@ -73,3 +73,50 @@ def test_dead_time_does_not_delay_falling_edge_for_positive_current() -> None:
 def test_bad_sequences_raise_clear_errors(states: list[int], durations: list[int], field: str) -> None:
     with pytest.raises(SequenceError, match=field):
         _plant().advance(states, durations)
+
+
+def test_dead_time_delays_falling_edge_for_negative_current() -> None:
+    """Current into leg a (i_a < 0): the upper diode holds a at +Vdc for t_dead after a 1→0 command:
+    the pulse is widened by t_dead (hand calculation: +Vdc·t_dead volt-seconds on leg a)."""
+    deadtime = _plant(t_dead=2.5e-6)
+    deadtime.set_state(i_d=-3.0, gate=4)
+    deadtime.advance([4, 0], [40_000, 60_000])
+    widened = _plant()
+    widened.set_state(i_d=-3.0, gate=4)
+    widened.advance([4, 0], [42_500, 57_500])
+    assert deadtime.sample().i_d == pytest.approx(widened.sample().i_d, abs=1e-9)
+
+
+def test_current_reaching_zero_in_dead_time_leaves_the_phase_open() -> None:
+    """i_a < 0 and leg a commanded 1→0: the upper diode conducts, +Vdc drives i_a up to zero within the
+    dead time; then the diode blocks and phase a stays open (i_a = 0, i_b = −i_c) until t_dead ends."""
+    params = load_motor("xiao2023-spmsm", {"t_dead": 2.5e-6, "t_mpw": 0.0})
+    plant = Plant(params, 1e-4, DynoMechanics(0.0), trace_dt_s=0.25e-6)
+    plant.set_state(i_d=-0.27, i_q=0.2, gate=4)  # i_b ≠ i_c: a loop current b→c remains when a opens
+    stats = plant.advance([4, 0], [10_000, 90_000])
+    tr = plant.last_trace
+    assert stats.open_phase_events == 1
+    t = tr[:, 0]
+    open_rows = tr[(t >= 11.75e-6) & (t < 12.5e-6)]
+    assert len(open_rows) >= 3
+    assert abs(open_rows[:, 1]).max() < 1e-9  # i_a held at zero, no chattering
+    assert abs(open_rows[:, 2] + open_rows[:, 3]).max() < 1e-9
+    assert abs(open_rows[:, 2]).min() > 0.1
+    before = tr[(t >= 10.0e-6) & (t < 10.5e-6)]
+    assert (before[:, 1] < 0).all()
+    # leg a low after the dead time with b, c low: zero vector at standstill, i_a stays at zero
+    after = tr[(t > 13e-6) & (t < 20e-6)]
+    assert abs(after[:, 1]).max() < 1e-9
+
+
+def test_uncompensated_dead_time_costs_voltage_seconds_with_the_sign_of_the_current() -> None:
+    """Average leg-a voltage error over many PWM periods ≈ −sign(i_a)·Vdc·t_dead/Ts (hand calculation)."""
+    out: dict[str, float] = {}
+    for label, t_dead in (("ideal", 0.0), ("dead", 2.5e-6)):
+        plant = _plant(t_dead=t_dead)
+        plant.set_state(i_d=5.0)  # large positive i_a: never reaches zero in 2.5 µs
+        for _ in range(3):
+            plant.advance([0, 4, 0], [25_000, 50_000, 25_000])
+        out[label] = plant.sample().i_d
+    # leg a high 50 µs per period in the ideal case, 47.5 µs with dead time (rising edges delayed)
+    assert out["dead"] < out["ideal"]
