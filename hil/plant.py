@@ -47,6 +47,7 @@ class PeriodStats:
     suppressed_pulses: int
     trace_rows: int
     open_phase_events: int = 0
+    narrow_pulses_gated: int = 0
 
 
 class Plant:
@@ -204,7 +205,8 @@ class Plant:
         if rc != 0:
             raise PlantFaultError(f"plant kernel rejected the period (code {rc})")
         return PeriodStats(int(st.leg_transitions), int(st.boundary_transitions), int(st.narrow_pulses),
-                           int(st.suppressed_pulses), int(st.trace_n), int(st.open_phase_events))
+                           int(st.suppressed_pulses), int(st.trace_n), int(st.open_phase_events),
+                           int(st.narrow_pulses_gated))
 
     @property
     def last_trace(self) -> npt.NDArray[np.float64]:

@@ -24,7 +24,8 @@ typedef struct {
     int32_t dead_level[3];
 } pl_state_t;
 typedef struct {
-    uint32_t leg_transitions, boundary_transitions, narrow_pulses, suppressed_pulses, open_phase_events;
+    uint32_t leg_transitions, boundary_transitions, narrow_pulses, suppressed_pulses, open_phase_events,
+        narrow_pulses_gated;
     int32_t trace_n;
     int32_t error;
 } pl_period_stats_t;

@@ -419,6 +419,7 @@ int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const
     stats->narrow_pulses = 0;
     stats->suppressed_pulses = 0;
     stats->open_phase_events = 0;
+    stats->narrow_pulses_gated = 0;
     stats->trace_n = 0;
     stats->error = PL_OK;
     if (n < 1 || n > PL_MAX_SUBINTERVALS) {
@@ -470,6 +471,9 @@ int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const
         for (int e = 0; e < n_edge[leg]; e++) {
             n_ev = add_event(ev, n_ev, edge_t[leg][e], leg, 0, edge_lvl[leg][e]);
             stats->leg_transitions++;
+            if (edge_t[leg][e] - s->last_edge_t[leg] < t_lim) {
+                stats->narrow_pulses_gated++; /* a narrow pulse that reached the gate */
+            }
             if (edge_t[leg][e] == t_start) {
                 stats->boundary_transitions++;
             }

@@ -44,9 +44,10 @@ typedef struct {
 typedef struct {
     uint32_t leg_transitions;      /* gate transitions that reached the legs (after T_mpw) */
     uint32_t boundary_transitions; /* of which at the period start */
-    uint32_t narrow_pulses;        /* pulses shorter than 2*t_dead + t_mpw (counted when they end) */
+    uint32_t narrow_pulses;        /* requested pulses shorter than 2*t_dead + t_mpw (counted when they end) */
     uint32_t suppressed_pulses;    /* pulses shorter than t_mpw removed before the gate */
     uint32_t open_phase_events;    /* dead-time diode currents that reached zero (phase left open) */
+    uint32_t narrow_pulses_gated;  /* narrow pulses that reached the gate (not suppressed by t_mpw) */
     int32_t trace_n;               /* trace rows written */
     int32_t error;                 /* 0 ok, negative: see PL_E_* */
 } pl_period_stats_t;

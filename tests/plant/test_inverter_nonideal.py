@@ -120,3 +120,11 @@ def test_uncompensated_dead_time_costs_voltage_seconds_with_the_sign_of_the_curr
         out[label] = plant.sample().i_d
     # leg a high 50 µs per period in the ideal case, 47.5 µs with dead time (rising edges delayed)
     assert out["dead"] < out["ideal"]
+
+
+def test_gated_narrow_pulses_exclude_suppressed_ones() -> None:
+    plant = _plant(t_dead=2.5e-6, t_mpw=3e-6)  # T_lim = 8 µs
+    stats = plant.advance([0, 4, 0, 4, 0], [20_000, 2_000, 30_000, 5_000, 43_000])
+    assert stats.narrow_pulses == 2  # the 2 µs and the 5 µs pulse were requested
+    assert stats.suppressed_pulses == 1  # the 2 µs one never reaches the gate
+    assert stats.narrow_pulses_gated == 1
