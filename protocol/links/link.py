@@ -150,27 +150,27 @@ class BusLink:
                     self.stats.send_errors += 1
                 raise LinkError(f"{self.description}: cannot send frame 0x{fr.arbitration_id:03X}: {exc}") from exc
 
+    def _next_message(self) -> can.Message | None:
+        """The next raw message, or None at once (virtual: straight from its queue, no BusABC layers)."""
+        virtual = self._virtual
+        if virtual is not None:
+            try:
+                msg: can.Message = virtual.queue.get_nowait()
+            except queue.Empty:
+                return None
+            return msg
+        try:
+            return self.bus.recv(0.0)
+        except can.CanError:
+            self.stats.framing_errors += 1
+            return None
+
     def poll(self) -> Frame | None:
         """The next received 11-bit data frame, or None at once."""
         if self._fast is not None:
             return self._fast.poll_frame()
-        virtual = self._virtual
-        while virtual is not None:
-            try:
-                vmsg: can.Message = virtual.queue.get_nowait()
-            except queue.Empty:
-                return None
-            if vmsg.is_error_frame or vmsg.is_remote_frame or vmsg.is_extended_id:
-                self.stats.ignored += 1
-                continue
-            self.stats.frames_rx += 1
-            return Frame(vmsg.arbitration_id, bytes(vmsg.data), vmsg.is_fd)
         while True:
-            try:
-                msg = self.bus.recv(0.0)
-            except can.CanError:
-                self.stats.framing_errors += 1
-                return None
+            msg = self._next_message()
             if msg is None:
                 return None
             if msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id:

@@ -69,15 +69,20 @@ def test_realtime_refuses_a_link_that_cannot_carry_the_rate() -> None:
         run_closed_loop(_cfg(mode="realtime", link="socketcan:can0,bitrate=1000000"))
 
 
-def test_sigkill_of_a_run_leaves_a_readable_mcap(tmp_path: Path) -> None:
-    out = tmp_path / "run"
+def _start_logged_run(out: Path, min_bytes: int) -> tuple[subprocess.Popen[bytes], Path]:
+    """A long `hil run` in a child process, returned once its MCAP holds min_bytes."""
     proc = subprocess.Popen(
         [sys.executable, "-m", "pmsm_hil.hil.cli.main", "run", "--duration", "30", "--settle", "0",
          "--out", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     mcap = out / "run.mcap"
     deadline = time.monotonic() + 60
-    while (not mcap.exists() or mcap.stat().st_size < 200_000) and time.monotonic() < deadline:
+    while (not mcap.exists() or mcap.stat().st_size < min_bytes) and time.monotonic() < deadline:
         time.sleep(0.1)
+    return proc, mcap
+
+
+def test_sigkill_of_a_run_leaves_a_readable_mcap(tmp_path: Path) -> None:
+    proc, mcap = _start_logged_run(tmp_path / "run", 200_000)
     time.sleep(1.5)
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
@@ -91,14 +96,7 @@ def test_sigkill_of_a_run_leaves_a_readable_mcap(tmp_path: Path) -> None:
 def test_sigterm_finalises_the_mcap(tmp_path: Path) -> None:
     from mcap.reader import make_reader
 
-    out = tmp_path / "run"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "pmsm_hil.hil.cli.main", "run", "--duration", "30", "--settle", "0",
-         "--out", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    mcap = out / "run.mcap"
-    deadline = time.monotonic() + 60
-    while (not mcap.exists() or mcap.stat().st_size < 100_000) and time.monotonic() < deadline:
-        time.sleep(0.1)
+    proc, mcap = _start_logged_run(tmp_path / "run", 100_000)
     proc.send_signal(signal.SIGTERM)
     assert proc.wait(timeout=60) == 130
     with mcap.open("rb") as f:
