@@ -20,6 +20,7 @@ def _packages() -> list[str]:
 setup(
     packages=_packages(),
     package_data={"pmsm_hil.hil.presets": ["*.toml"], "pmsm_hil.hil.scenarios": ["*.toml"],
+                  "pmsm_hil.hil.compare.presets": ["*.toml"],
                   "pmsm_hil.protocol": ["*.dbc"]},
     cffi_modules=[b for b in _BUILDERS if Path(b.split(":")[0]).exists()],
 )

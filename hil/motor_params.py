@@ -1,4 +1,4 @@
-"""Typed, validated parameters of a three-phase PMSM and its two-level inverter."""
+"""Typed, validated parameters of a three-phase (or dual three-phase) PMSM and its two-level inverter."""
 
 from __future__ import annotations
 
@@ -22,6 +22,7 @@ SETTABLE_UNITS: dict[str, str] = {
     "t_mpw": "s",
     "i_trip": "A",
     "speed_trip_rpm": "rpm",
+    "lls": "H",
 }
 
 
@@ -45,6 +46,8 @@ class PmsmParams:
         rated_speed_rpm: rated speed [rpm] (informational, for scenarios).
         rated_torque_nm: rated torque [N·m] (informational, for scenarios).
         name: preset name or a label.
+        lls: leakage inductance of the x-y subspace of a dual three-phase machine [H], ≥ 0; 0 (the
+            default) for a three-phase machine. `pmsm_hil.hil.plant6.Plant6` requires lls > 0.
     """
 
     rs: float
@@ -62,10 +65,11 @@ class PmsmParams:
     rated_speed_rpm: float = 0.0
     rated_torque_nm: float = 0.0
     name: str = "custom"
+    lls: float = 0.0
 
     def __post_init__(self) -> None:
         positive = ("rs", "ld", "lq", "vdc", "j", "i_trip", "speed_trip_rpm")
-        non_negative = ("psi_f", "b", "t_dead", "t_mpw", "rated_speed_rpm", "rated_torque_nm")
+        non_negative = ("psi_f", "b", "t_dead", "t_mpw", "rated_speed_rpm", "rated_torque_nm", "lls")
         for name in positive + non_negative:
             value = getattr(self, name)
             if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
@@ -80,6 +84,11 @@ class PmsmParams:
             raise ParameterError(f"motor parameter 'pole_pairs' must be an integer ≥ 1, got {self.pole_pairs!r}")
         if self.t_dead > 1e-3 or self.t_mpw > 1e-3:
             raise ParameterError("motor parameters 't_dead'/'t_mpw' are in seconds and must be < 1 ms")
+
+    @property
+    def is_six_phase(self) -> bool:
+        """True for a dual three-phase machine (lls > 0)."""
+        return self.lls > 0.0
 
     @property
     def is_salient(self) -> bool:

@@ -1,4 +1,8 @@
-"""Offline replay: drive the plant (dyno mode) with switching commands read from a CSV file."""
+"""Offline replay: drive the plant (dyno mode) with switching commands read from a CSV file.
+
+A motor with ``lls > 0`` is dual three-phase: the input then has the columns ``sa1,sb1,sc1,sa2,sb2,sc2``
+(set 1 A, B, C and set 2 U, V, W) or the sequence form with 6-bit codes [S_A S_B S_C S_U S_V S_W]
+(0..63), and the output has `OUTPUT_COLUMNS6`."""
 
 from __future__ import annotations
 
@@ -12,9 +16,13 @@ from pmsm_hil.hil.errors import InputFileError, SequenceError
 from pmsm_hil.hil.mechanics import DynoMechanics
 from pmsm_hil.hil.motor_params import PmsmParams
 from pmsm_hil.hil.plant import MAX_SUBINTERVALS, Plant
+from pmsm_hil.hil.plant6 import Plant6
 
 OUTPUT_COLUMNS = ("t", "i_a", "i_b", "i_c", "i_d", "i_q", "torque", "theta_e", "omega_m")
 _LEG_COLUMNS = ("sa", "sb", "sc")
+OUTPUT_COLUMNS6 = ("t", "i_a1", "i_b1", "i_c1", "i_a2", "i_b2", "i_c2", "i_d", "i_q", "i_x", "i_y", "torque",
+                   "theta_e", "omega_m")
+_LEG_COLUMNS6 = ("sa1", "sb1", "sc1", "sa2", "sb2", "sc2")
 
 
 @dataclass(frozen=True, slots=True)
@@ -31,12 +39,15 @@ def _parse_bit(text: str, row: int, column: str) -> int:
     return int(text)
 
 
-def read_commands(path: Path, ts_ns: int) -> Iterator[ReplayCommand]:
+def read_commands(path: Path, ts_ns: int, *, six_phase: bool = False) -> Iterator[ReplayCommand]:
     """Yield the commands of a replay CSV (header required; rows numbered from 1 after the header).
 
     Forms: ``sa,sb,sc`` (one state for the whole period) or ``s0,t0,s1,t1,s2,t2`` (state codes and
-    durations [s] summing to Ts; unused slots empty).
+    durations [s] summing to Ts; unused slots empty). Six phases: ``sa1,sb1,sc1,sa2,sb2,sc2`` or the
+    sequence form with codes 0..63.
     """
+    legs = _LEG_COLUMNS6 if six_phase else _LEG_COLUMNS
+    max_code = 63 if six_phase else 7
     try:
         handle = path.open(newline="", encoding="utf-8", errors="replace")
     except OSError as exc:
@@ -46,7 +57,7 @@ def read_commands(path: Path, ts_ns: int) -> Iterator[ReplayCommand]:
         header = [h.strip() for h in next(reader, [])]
         if not header:
             raise InputFileError(f"input file {path}: empty (a header row is required)")
-        if header[:3] == list(_LEG_COLUMNS):
+        if header[:len(legs)] == list(legs):
             form = "legs"
         elif header[:2] == ["s0", "t0"]:
             form = "sequence"
@@ -57,21 +68,24 @@ def read_commands(path: Path, ts_ns: int) -> Iterator[ReplayCommand]:
                     f"input file {path}: sequence header must be s0,t0,s1,t1,... (≤ {MAX_SUBINTERVALS} slots), "
                     f"got {','.join(header)}")
         else:
-            raise InputFileError(f"input file {path}: header must be 'sa,sb,sc' or 's0,t0,s1,t1,...', "
-                                 f"got {','.join(header)}")
+            raise InputFileError(f"input file {path}: header must be '{','.join(legs)}' or 's0,t0,s1,t1,...' "
+                                 f"({'six' if six_phase else 'three'}-phase motor), got {','.join(header)}")
         for row_no, row in enumerate(reader, start=1):
             if not row or all(not c.strip() for c in row):
                 continue
             if len(row) != len(header):
                 raise InputFileError(f"row {row_no}: expected {len(header)} columns, got {len(row)}")
             if form == "legs":
-                sa, sb, sc = (_parse_bit(row[k], row_no, _LEG_COLUMNS[k]) for k in range(3))
-                yield ReplayCommand((4 * sa + 2 * sb + sc,), (ts_ns,))
+                code = 0
+                for k, column in enumerate(legs):
+                    code = 2 * code + _parse_bit(row[k], row_no, column)
+                yield ReplayCommand((code,), (ts_ns,))
             else:
-                yield _parse_sequence_row(row, header, row_no, ts_ns)
+                yield _parse_sequence_row(row, header, row_no, ts_ns, max_code)
 
 
-def _parse_sequence_row(row: list[str], header: list[str], row_no: int, ts_ns: int) -> ReplayCommand:
+def _parse_sequence_row(row: list[str], header: list[str], row_no: int, ts_ns: int,
+                        max_code: int = 7) -> ReplayCommand:
     states: list[int] = []
     durs: list[int] = []
     for k in range(0, len(header), 2):
@@ -81,8 +95,9 @@ def _parse_sequence_row(row: list[str], header: list[str], row_no: int, ts_ns: i
         if not s_text or not t_text:
             missing = header[k] if not s_text else header[k + 1]
             raise InputFileError(f"row {row_no}, column '{missing}': empty while its pair is set")
-        if not (s_text.isascii() and s_text.isdigit()) or not 0 <= int(s_text) <= 7:
-            raise InputFileError(f"row {row_no}, column '{header[k]}': state code must be 0..7, got {s_text!r}")
+        if not (s_text.isascii() and s_text.isdigit()) or not 0 <= int(s_text) <= max_code:
+            raise InputFileError(
+                f"row {row_no}, column '{header[k]}': state code must be 0..{max_code}, got {s_text!r}")
         try:
             t_val = float(t_text)
         except ValueError:
@@ -102,9 +117,16 @@ def _parse_sequence_row(row: list[str], header: list[str], row_no: int, ts_ns: i
 
 def replay(params: PmsmParams, *, rpm: float, ts_s: float, input_path: Path, output_path: Path,
            theta0_rad: float = 0.0) -> int:
-    """Replay the input CSV through the plant in dyno mode; writes N+1 rows; returns N."""
-    plant = Plant(params, ts_s, DynoMechanics(rpm), theta0_rad=theta0_rad, trace_dt_s=None)
-    commands = list(read_commands(input_path, plant.ts_ns))
+    """Replay the input CSV through the plant in dyno mode; writes N+1 rows; returns N.
+
+    A motor with lls > 0 runs the dual three-phase plant (`Plant6`) and writes `OUTPUT_COLUMNS6`."""
+    six = params.is_six_phase
+    plant: Plant | Plant6
+    if six:
+        plant = Plant6(params, ts_s, DynoMechanics(rpm), theta0_rad=theta0_rad, trace_dt_s=None)
+    else:
+        plant = Plant(params, ts_s, DynoMechanics(rpm), theta0_rad=theta0_rad, trace_dt_s=None)
+    commands = list(read_commands(input_path, plant.ts_ns, six_phase=six))
     rows = [_row(plant)]
     for idx, cmd in enumerate(commands, start=1):
         try:
@@ -115,14 +137,18 @@ def replay(params: PmsmParams, *, rpm: float, ts_s: float, input_path: Path, out
     try:
         with output_path.open("w", newline="", encoding="utf-8") as out:
             writer = csv.writer(out)
-            writer.writerow(OUTPUT_COLUMNS)
+            writer.writerow(OUTPUT_COLUMNS6 if six else OUTPUT_COLUMNS)
             writer.writerows(rows)
     except OSError as exc:
         raise InputFileError(f"output file {output_path}: {exc.strerror}") from None
     return len(commands)
 
 
-def _row(plant: Plant) -> list[str]:
+def _row(plant: Plant | Plant6) -> list[str]:
+    if isinstance(plant, Plant6):
+        q = plant.sample()
+        return [repr(float(v)) for v in (q.t, q.i_a, q.i_b, q.i_c, q.i_u, q.i_v, q.i_w, q.i_d, q.i_q, q.i_x,
+                                          q.i_y, q.torque, q.theta_e, q.omega_m)]
     s = plant.sample()
     values = (s.t, s.i_a, s.i_b, s.i_c, s.i_d, s.i_q, s.torque, s.theta_e, s.omega_m)
     return [repr(float(v)) for v in values]

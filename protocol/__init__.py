@@ -12,6 +12,7 @@ from pmsm_hil.protocol.messages import (
     Fault,
     Heartbeat,
     Measurement,
+    Measurement6,
     Message,
     Setpoint,
 )
@@ -31,6 +32,7 @@ __all__ = [
     "LinkError",
     "LinkSpecError",
     "Measurement",
+    "Measurement6",
     "Message",
     "Profile",
     "ProtocolError",

@@ -17,6 +17,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any, Literal, TypeVar
 
+from pmsm_hil.protocol import codec6
 from pmsm_hil.protocol.assembler import Assembler, DecodeStats
 from pmsm_hil.protocol.errors import DatabaseError, DecodeError, EncodeError
 from pmsm_hil.protocol.frame import Frame
@@ -28,6 +29,7 @@ from pmsm_hil.protocol.messages import (
     Fault,
     Heartbeat,
     Measurement,
+    Measurement6,
     Message,
     Setpoint,
 )
@@ -142,6 +144,7 @@ class FrameCodec:
         fd = profile == "canfd"
         self._encoders: dict[type, Callable[[Any], list[Frame]]] = {
             Measurement: self._enc_meas_fd if fd else self._enc_meas_can,
+            Measurement6: self._enc_meas6_fd if fd else self._enc_meas6_can,
             Command: self._enc_cmd_fd if fd else self._enc_cmd_can,
             Setpoint: _enc_setpoint,
             ConfigParam: _enc_config,
@@ -227,6 +230,13 @@ class FrameCodec:
 
     def _enc_meas_fd(self, m: Measurement) -> list[Frame]:
         return [Frame(L_MEAS_FD.frame_id, L_MEAS_FD.pack(*self._meas_raw(m)), True)]
+
+    def _enc_meas6_can(self, m: Measurement6) -> list[Frame]:
+        return [Frame(i, d, False) for i, d in codec6.meas6_frames_can(codec6.meas6_raw(m, self._sat))]
+
+    def _enc_meas6_fd(self, m: Measurement6) -> list[Frame]:
+        lay = codec6.L_MEAS_FD6
+        return [Frame(lay.frame_id, lay.pack(*codec6.meas6_raw(m, self._sat)), True)]
 
     # -- command (strict) --
     def _enc_cmd_can(self, c: Command) -> list[Frame]:
@@ -416,6 +426,8 @@ class FrameDecoder:
         self._meas_fd = Assembler(1, st)
         self._cmd = Assembler(3, st)
         self._cmd_fd = Assembler(1, st)
+        self._meas6 = Assembler(3, st)
+        self._meas6_fd = Assembler(1, st)
         h: dict[int, tuple[int, Callable[[bytes], Message | None]]] = {
             L_MEAS_A.frame_id: (L_MEAS_A.length, self._meas_a),
             L_MEAS_B.frame_id: (L_MEAS_B.length, self._meas_b),
@@ -424,6 +436,10 @@ class FrameDecoder:
             L_CMD_B.frame_id: (L_CMD_B.length, self._cmd_b),
             L_CMD_C.frame_id: (L_CMD_C.length, self._cmd_c),
             L_CMD_FD.frame_id: (L_CMD_FD.length, self._cmd_fd1),
+            codec6.L_MEAS6_A.frame_id: (codec6.L_MEAS6_A.length, self._meas6_a),
+            codec6.L_MEAS6_C.frame_id: (codec6.L_MEAS6_C.length, self._meas6_c),
+            codec6.L_MEAS6_B.frame_id: (codec6.L_MEAS6_B.length, self._meas6_b),
+            codec6.L_MEAS_FD6.frame_id: (codec6.L_MEAS_FD6.length, self._meas6_fd1),
         }
         for lay, simple in _SIMPLE.items():
             h[lay.frame_id] = (lay.length, _simple(lay, simple))
@@ -469,6 +485,24 @@ class FrameDecoder:
     def _meas_fd1(self, data: bytes) -> Message | None:
         raw = L_MEAS_FD.unpack(data)
         return None if self._meas_fd.add(0, raw[0], 0xFFFF, raw) is None else _meas(*raw)
+
+    def _meas6_part(self, part: int, layout: FrameLayout, mask: int, data: bytes) -> Message | None:
+        raw = layout.unpack(data)
+        parts = self._meas6.add(part, raw[0], mask, raw)
+        return None if parts is None else codec6.meas6_from_parts(parts[0], parts[1], parts[2])
+
+    def _meas6_a(self, data: bytes) -> Message | None:
+        return self._meas6_part(0, codec6.L_MEAS6_A, 0xFFFF, data)
+
+    def _meas6_c(self, data: bytes) -> Message | None:
+        return self._meas6_part(1, codec6.L_MEAS6_C, 0xFFFF, data)
+
+    def _meas6_b(self, data: bytes) -> Message | None:
+        return self._meas6_part(2, codec6.L_MEAS6_B, 0xFF, data)
+
+    def _meas6_fd1(self, data: bytes) -> Message | None:
+        raw = codec6.L_MEAS_FD6.unpack(data)
+        return None if self._meas6_fd.add(0, raw[0], 0xFFFF, raw) is None else codec6.meas6_from_raw(raw)
 
     def _cmd_part(self, part: int, layout: FrameLayout, data: bytes) -> Message | None:
         raw = layout.unpack(data)

@@ -26,6 +26,7 @@ from pmsm_hil.protocol.messages import (
     Fault,
     Heartbeat,
     Measurement,
+    Measurement6,
     Message,
     Setpoint,
 )
@@ -35,6 +36,9 @@ CASES: tuple[tuple[str, Message], ...] = (
     ("meas_nominal", Measurement(1, 1.234, -0.617, -0.617, 1.0, 104.72, 48.0, 0)),
     ("meas_limits", Measurement(65535, -32.768, 32.767, 0.0, 6.2831, -655.36, 655.35, 1)),
     ("meas_saturated_wrapped", Measurement(70000, 40.0, -40.0, 0.0005, -0.5, 700.0, -3.0, 2)),
+    ("meas6_nominal", Measurement6(2, 66.7, -33.35, -33.35, 57.76, -57.76, 0.0, 0.5, 157.08, 300.0, 0)),
+    ("meas6_saturated_wrapped", Measurement6(65537, 400.0, -400.0, 0.004, 327.67, -327.68, 1.0, 7.0, 1.0, 48.0, 1)),
+    ("cmd_six_phase_v3", Command(3, (27, 10), (73205, 26795), 7, 13, 2100, 0)),
     ("cmd_three_states", Command(1, (4, 6, 7), (30000, 20000, 50000), 12, 27, 1234, 0)),
     ("cmd_two_states_limits", Command(65535, (1, 63), (1048575, 0), 255, 255, 2**32 - 1, 6)),
     ("cmd_one_state_clamped", Command(42, (0,), (100000,), 0, 1, 5_000_000_000, 0)),

@@ -25,6 +25,25 @@ class Measurement:
 
 
 @dataclass(frozen=True, slots=True)
+class Measurement6:
+    """Plant -> target sample k of a dual three-phase machine: currents of set 1 (i_a, i_b, i_c) and set 2
+    (i_u, i_v, i_w) [A] (frames: int16 × 0.01 A, ±327.67 A), electrical angle [rad], mechanical speed
+    [rad/s], DC-link voltage [V]. Same wrapping and saturation rules as `Measurement`."""
+
+    seq: int
+    i_a: float
+    i_b: float
+    i_c: float
+    i_u: float
+    i_v: float
+    i_w: float
+    theta_e: float
+    omega_m: float
+    vdc: float
+    status: int = 0
+
+
+@dataclass(frozen=True, slots=True)
 class Command:
     """Target -> plant switching sequence for the period after next.
 
@@ -86,6 +105,8 @@ class Fault:
     detail: int = 0
 
 
-Message = Measurement | Command | Setpoint | ConfigParam | ConfigAck | Heartbeat | Fault
+Message = Measurement | Measurement6 | Command | Setpoint | ConfigParam | ConfigAck | Heartbeat | Fault
 
-MESSAGE_TYPES: tuple[type, ...] = (Measurement, Command, Setpoint, ConfigParam, ConfigAck, Heartbeat, Fault)
+MESSAGE_TYPES: tuple[type, ...] = (
+    Measurement, Measurement6, Command, Setpoint, ConfigParam, ConfigAck, Heartbeat, Fault,
+)

@@ -56,6 +56,7 @@ typedef struct {
     uint8_t candidates;
     uint8_t status;
     uint8_t states[3];
+    uint8_t full_miss;
     uint32_t durations_ns[3];
     float torque_ref;
     float id_ref;
@@ -99,6 +100,7 @@ void hil_fw_py_step(hil_fw_state_t *s, hil_fw_meas_t *m, hil_fw_py_out_t *out, u
 # runs the profiled step (cheaper than setting struct fields one by one from Python).
 PREAMBLE = """
 #include "hil_fw.h"
+#include "hil_fw_dsvm.h"
 
 typedef struct {
     hil_fw_cmd_t cmd;
@@ -122,6 +124,8 @@ static void hil_fw_py_step(hil_fw_state_t *s, hil_fw_meas_t *m, hil_fw_py_out_t 
     m->omega_m = omega_m;
     m->vdc = vdc;
     hil_fw_step_profiled(s, m, t_ns, &out->cmd, out->split_ns);
+    /* diagnostics outside the timed stages: restricted set vs the full DSVM set */
+    out->cmd.full_miss = hil_fw_dsvm_full_miss(s);
 }
 """
 

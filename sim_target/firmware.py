@@ -59,7 +59,10 @@ class FirmwareCommand(NamedTuple):
 
     states: switching codes 4·Sa+2·Sb+Sc, one per used sub-interval; durations_ns: their lengths
     (sum = Ts); exec_time_ns: C-side step time (sum of split_ns = measurement, reference,
-    prediction stages); torque_ref N·m, id_ref/iq_ref A: debug outputs of the outer loop.
+    prediction stages); torque_ref N·m, id_ref/iq_ref A: debug outputs of the outer loop;
+    full_miss: diagnostics of the restricted-candidate controllers (fcs-mpc-1/2, dbcc-mpc), computed
+    outside the timed stages: 1 if the full 19-vector DSVM set had a lower cost than the restricted
+    set's choice this step, 0 if not, 255 not applicable.
     """
 
     seq: int
@@ -73,6 +76,7 @@ class FirmwareCommand(NamedTuple):
     torque_ref: float
     id_ref: float
     iq_ref: float
+    full_miss: int = 255
 
 
 def _load() -> tuple[Any, Any]:
@@ -95,9 +99,10 @@ _ERRORS = {
     -6: "reference not finite",
 }
 
-# hil_fw_py_out_t: cmd {seq, n_states, vector_id, candidates, status, states[3], durations_ns[3],
-# torque_ref, id_ref, iq_ref} then split_ns[3]; native alignment, checked against cffi offsets.
-_OUT = struct.Struct("@HBBBB3B3I3f3I")
+# hil_fw_py_out_t: cmd {seq, n_states, vector_id, candidates, status, states[3], full_miss,
+# durations_ns[3], torque_ref, id_ref, iq_ref} then split_ns[3]; native alignment, checked against
+# cffi offsets.
+_OUT = struct.Struct("@HBBBB3BB3I3f3I")
 
 
 def _check_layout(ffi: Any) -> None:
@@ -106,6 +111,7 @@ def _check_layout(ffi: Any) -> None:
         and ffi.offsetof("hil_fw_py_out_t", "split_ns") == _OUT.size - 12
         and ffi.offsetof("hil_fw_cmd_t", "durations_ns") == 12
         and ffi.offsetof("hil_fw_cmd_t", "torque_ref") == 24
+        and ffi.offsetof("hil_fw_cmd_t", "full_miss") == 9
     )
     if not ok:  # pragma: no cover - only on an exotic ABI
         raise FirmwareBuildError("hil_fw_py_out_t layout differs from the wrapper's struct format")
@@ -214,8 +220,8 @@ class Firmware:
         u = self._unpack(self._out_buf)
         ns = u[1]
         return FirmwareCommand(
-            u[0], u[5:5 + ns], u[8:8 + ns], u[2], u[3], u[4], u[14] + u[15] + u[16], (u[14], u[15], u[16]),
-            u[11], u[12], u[13],
+            u[0], u[5:5 + ns], u[9:9 + ns], u[2], u[3], u[4], u[15] + u[16] + u[17], (u[15], u[16], u[17]),
+            u[12], u[13], u[14], u[8],
         )
 
 

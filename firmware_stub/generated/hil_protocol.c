@@ -693,6 +693,485 @@ bool hil_protocol_meas_b_status_is_in_phys_range(float value)
     return ((value >= 0.0f) && (value <= 255.0f));
 }
 
+int hil_protocol_meas6_a_pack(
+    uint8_t *dst_p,
+    const struct hil_protocol_meas6_a_t *src_p,
+    size_t size)
+{
+    uint16_t i_a;
+    uint16_t i_b;
+    uint16_t i_c;
+
+    if (size < 8u) {
+        return (-EINVAL);
+    }
+
+    memset(&dst_p[0], 0, 8);
+
+    dst_p[0] |= pack_left_shift_u16(src_p->seq, 0u, 0xffu);
+    dst_p[1] |= pack_right_shift_u16(src_p->seq, 8u, 0xffu);
+    i_a = (uint16_t)src_p->i_a;
+    dst_p[2] |= pack_left_shift_u16(i_a, 0u, 0xffu);
+    dst_p[3] |= pack_right_shift_u16(i_a, 8u, 0xffu);
+    i_b = (uint16_t)src_p->i_b;
+    dst_p[4] |= pack_left_shift_u16(i_b, 0u, 0xffu);
+    dst_p[5] |= pack_right_shift_u16(i_b, 8u, 0xffu);
+    i_c = (uint16_t)src_p->i_c;
+    dst_p[6] |= pack_left_shift_u16(i_c, 0u, 0xffu);
+    dst_p[7] |= pack_right_shift_u16(i_c, 8u, 0xffu);
+
+    return (8);
+}
+
+int hil_protocol_meas6_a_unpack(
+    struct hil_protocol_meas6_a_t *dst_p,
+    const uint8_t *src_p,
+    size_t size)
+{
+    uint16_t i_a;
+    uint16_t i_b;
+    uint16_t i_c;
+
+    if (size < 8u) {
+        return (-EINVAL);
+    }
+
+    dst_p->seq = unpack_right_shift_u16(src_p[0], 0u, 0xffu);
+    dst_p->seq |= unpack_left_shift_u16(src_p[1], 8u, 0xffu);
+    i_a = unpack_right_shift_u16(src_p[2], 0u, 0xffu);
+    i_a |= unpack_left_shift_u16(src_p[3], 8u, 0xffu);
+    dst_p->i_a = (int16_t)i_a;
+    i_b = unpack_right_shift_u16(src_p[4], 0u, 0xffu);
+    i_b |= unpack_left_shift_u16(src_p[5], 8u, 0xffu);
+    dst_p->i_b = (int16_t)i_b;
+    i_c = unpack_right_shift_u16(src_p[6], 0u, 0xffu);
+    i_c |= unpack_left_shift_u16(src_p[7], 8u, 0xffu);
+    dst_p->i_c = (int16_t)i_c;
+
+    return (0);
+}
+
+int hil_protocol_meas6_a_init(struct hil_protocol_meas6_a_t *msg_p)
+{
+    if (msg_p == NULL) return -1;
+
+    memset(msg_p, 0, sizeof(struct hil_protocol_meas6_a_t));
+
+    return 0;
+}
+
+uint16_t hil_protocol_meas6_a_seq_encode(float value)
+{
+    return (uint16_t)(cantools_unsigned_from_double(roundf(value)));
+}
+
+float hil_protocol_meas6_a_seq_decode(uint16_t value)
+{
+    return ((float)value);
+}
+
+bool hil_protocol_meas6_a_seq_is_in_range(uint16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_meas6_a_seq_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 65535.0f));
+}
+
+int16_t hil_protocol_meas6_a_i_a_encode(float value)
+{
+    return (int16_t)(roundf(value / 0.01f));
+}
+
+float hil_protocol_meas6_a_i_a_decode(int16_t value)
+{
+    return ((float)value * 0.01f);
+}
+
+bool hil_protocol_meas6_a_i_a_is_in_range(int16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_meas6_a_i_a_is_in_phys_range(float value)
+{
+    return ((value >= -327.68f) && (value <= 327.67f));
+}
+
+int16_t hil_protocol_meas6_a_i_b_encode(float value)
+{
+    return (int16_t)(roundf(value / 0.01f));
+}
+
+float hil_protocol_meas6_a_i_b_decode(int16_t value)
+{
+    return ((float)value * 0.01f);
+}
+
+bool hil_protocol_meas6_a_i_b_is_in_range(int16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_meas6_a_i_b_is_in_phys_range(float value)
+{
+    return ((value >= -327.68f) && (value <= 327.67f));
+}
+
+int16_t hil_protocol_meas6_a_i_c_encode(float value)
+{
+    return (int16_t)(roundf(value / 0.01f));
+}
+
+float hil_protocol_meas6_a_i_c_decode(int16_t value)
+{
+    return ((float)value * 0.01f);
+}
+
+bool hil_protocol_meas6_a_i_c_is_in_range(int16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_meas6_a_i_c_is_in_phys_range(float value)
+{
+    return ((value >= -327.68f) && (value <= 327.67f));
+}
+
+int hil_protocol_meas6_c_pack(
+    uint8_t *dst_p,
+    const struct hil_protocol_meas6_c_t *src_p,
+    size_t size)
+{
+    uint16_t i_u;
+    uint16_t i_v;
+    uint16_t i_w;
+
+    if (size < 8u) {
+        return (-EINVAL);
+    }
+
+    memset(&dst_p[0], 0, 8);
+
+    dst_p[0] |= pack_left_shift_u16(src_p->seq, 0u, 0xffu);
+    dst_p[1] |= pack_right_shift_u16(src_p->seq, 8u, 0xffu);
+    i_u = (uint16_t)src_p->i_u;
+    dst_p[2] |= pack_left_shift_u16(i_u, 0u, 0xffu);
+    dst_p[3] |= pack_right_shift_u16(i_u, 8u, 0xffu);
+    i_v = (uint16_t)src_p->i_v;
+    dst_p[4] |= pack_left_shift_u16(i_v, 0u, 0xffu);
+    dst_p[5] |= pack_right_shift_u16(i_v, 8u, 0xffu);
+    i_w = (uint16_t)src_p->i_w;
+    dst_p[6] |= pack_left_shift_u16(i_w, 0u, 0xffu);
+    dst_p[7] |= pack_right_shift_u16(i_w, 8u, 0xffu);
+
+    return (8);
+}
+
+int hil_protocol_meas6_c_unpack(
+    struct hil_protocol_meas6_c_t *dst_p,
+    const uint8_t *src_p,
+    size_t size)
+{
+    uint16_t i_u;
+    uint16_t i_v;
+    uint16_t i_w;
+
+    if (size < 8u) {
+        return (-EINVAL);
+    }
+
+    dst_p->seq = unpack_right_shift_u16(src_p[0], 0u, 0xffu);
+    dst_p->seq |= unpack_left_shift_u16(src_p[1], 8u, 0xffu);
+    i_u = unpack_right_shift_u16(src_p[2], 0u, 0xffu);
+    i_u |= unpack_left_shift_u16(src_p[3], 8u, 0xffu);
+    dst_p->i_u = (int16_t)i_u;
+    i_v = unpack_right_shift_u16(src_p[4], 0u, 0xffu);
+    i_v |= unpack_left_shift_u16(src_p[5], 8u, 0xffu);
+    dst_p->i_v = (int16_t)i_v;
+    i_w = unpack_right_shift_u16(src_p[6], 0u, 0xffu);
+    i_w |= unpack_left_shift_u16(src_p[7], 8u, 0xffu);
+    dst_p->i_w = (int16_t)i_w;
+
+    return (0);
+}
+
+int hil_protocol_meas6_c_init(struct hil_protocol_meas6_c_t *msg_p)
+{
+    if (msg_p == NULL) return -1;
+
+    memset(msg_p, 0, sizeof(struct hil_protocol_meas6_c_t));
+
+    return 0;
+}
+
+uint16_t hil_protocol_meas6_c_seq_encode(float value)
+{
+    return (uint16_t)(cantools_unsigned_from_double(roundf(value)));
+}
+
+float hil_protocol_meas6_c_seq_decode(uint16_t value)
+{
+    return ((float)value);
+}
+
+bool hil_protocol_meas6_c_seq_is_in_range(uint16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_meas6_c_seq_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 65535.0f));
+}
+
+int16_t hil_protocol_meas6_c_i_u_encode(float value)
+{
+    return (int16_t)(roundf(value / 0.01f));
+}
+
+float hil_protocol_meas6_c_i_u_decode(int16_t value)
+{
+    return ((float)value * 0.01f);
+}
+
+bool hil_protocol_meas6_c_i_u_is_in_range(int16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_meas6_c_i_u_is_in_phys_range(float value)
+{
+    return ((value >= -327.68f) && (value <= 327.67f));
+}
+
+int16_t hil_protocol_meas6_c_i_v_encode(float value)
+{
+    return (int16_t)(roundf(value / 0.01f));
+}
+
+float hil_protocol_meas6_c_i_v_decode(int16_t value)
+{
+    return ((float)value * 0.01f);
+}
+
+bool hil_protocol_meas6_c_i_v_is_in_range(int16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_meas6_c_i_v_is_in_phys_range(float value)
+{
+    return ((value >= -327.68f) && (value <= 327.67f));
+}
+
+int16_t hil_protocol_meas6_c_i_w_encode(float value)
+{
+    return (int16_t)(roundf(value / 0.01f));
+}
+
+float hil_protocol_meas6_c_i_w_decode(int16_t value)
+{
+    return ((float)value * 0.01f);
+}
+
+bool hil_protocol_meas6_c_i_w_is_in_range(int16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_meas6_c_i_w_is_in_phys_range(float value)
+{
+    return ((value >= -327.68f) && (value <= 327.67f));
+}
+
+int hil_protocol_meas6_b_pack(
+    uint8_t *dst_p,
+    const struct hil_protocol_meas6_b_t *src_p,
+    size_t size)
+{
+    uint16_t omega_m;
+
+    if (size < 8u) {
+        return (-EINVAL);
+    }
+
+    memset(&dst_p[0], 0, 8);
+
+    dst_p[0] |= pack_left_shift_u8(src_p->seq_lo, 0u, 0xffu);
+    dst_p[1] |= pack_left_shift_u16(src_p->theta_e, 0u, 0xffu);
+    dst_p[2] |= pack_right_shift_u16(src_p->theta_e, 8u, 0xffu);
+    omega_m = (uint16_t)src_p->omega_m;
+    dst_p[3] |= pack_left_shift_u16(omega_m, 0u, 0xffu);
+    dst_p[4] |= pack_right_shift_u16(omega_m, 8u, 0xffu);
+    dst_p[5] |= pack_left_shift_u16(src_p->vdc, 0u, 0xffu);
+    dst_p[6] |= pack_right_shift_u16(src_p->vdc, 8u, 0xffu);
+    dst_p[7] |= pack_left_shift_u8(src_p->status, 0u, 0xffu);
+
+    return (8);
+}
+
+int hil_protocol_meas6_b_unpack(
+    struct hil_protocol_meas6_b_t *dst_p,
+    const uint8_t *src_p,
+    size_t size)
+{
+    uint16_t omega_m;
+
+    if (size < 8u) {
+        return (-EINVAL);
+    }
+
+    dst_p->seq_lo = unpack_right_shift_u8(src_p[0], 0u, 0xffu);
+    dst_p->theta_e = unpack_right_shift_u16(src_p[1], 0u, 0xffu);
+    dst_p->theta_e |= unpack_left_shift_u16(src_p[2], 8u, 0xffu);
+    omega_m = unpack_right_shift_u16(src_p[3], 0u, 0xffu);
+    omega_m |= unpack_left_shift_u16(src_p[4], 8u, 0xffu);
+    dst_p->omega_m = (int16_t)omega_m;
+    dst_p->vdc = unpack_right_shift_u16(src_p[5], 0u, 0xffu);
+    dst_p->vdc |= unpack_left_shift_u16(src_p[6], 8u, 0xffu);
+    dst_p->status = unpack_right_shift_u8(src_p[7], 0u, 0xffu);
+
+    return (0);
+}
+
+int hil_protocol_meas6_b_init(struct hil_protocol_meas6_b_t *msg_p)
+{
+    if (msg_p == NULL) return -1;
+
+    memset(msg_p, 0, sizeof(struct hil_protocol_meas6_b_t));
+
+    return 0;
+}
+
+uint8_t hil_protocol_meas6_b_seq_lo_encode(float value)
+{
+    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+}
+
+float hil_protocol_meas6_b_seq_lo_decode(uint8_t value)
+{
+    return ((float)value);
+}
+
+bool hil_protocol_meas6_b_seq_lo_is_in_range(uint8_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_meas6_b_seq_lo_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 255.0f));
+}
+
+uint16_t hil_protocol_meas6_b_theta_e_encode(float value)
+{
+    return (uint16_t)(cantools_unsigned_from_double(roundf(value / 9.587379924285257e-05f)));
+}
+
+float hil_protocol_meas6_b_theta_e_decode(uint16_t value)
+{
+    return ((float)value * 9.587379924285257e-05f);
+}
+
+bool hil_protocol_meas6_b_theta_e_is_in_range(uint16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_meas6_b_theta_e_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 6.283089f));
+}
+
+int16_t hil_protocol_meas6_b_omega_m_encode(float value)
+{
+    return (int16_t)(roundf(value / 0.02f));
+}
+
+float hil_protocol_meas6_b_omega_m_decode(int16_t value)
+{
+    return ((float)value * 0.02f);
+}
+
+bool hil_protocol_meas6_b_omega_m_is_in_range(int16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_meas6_b_omega_m_is_in_phys_range(float value)
+{
+    return ((value >= -655.36f) && (value <= 655.34f));
+}
+
+uint16_t hil_protocol_meas6_b_vdc_encode(float value)
+{
+    return (uint16_t)(cantools_unsigned_from_double(roundf(value / 0.01f)));
+}
+
+float hil_protocol_meas6_b_vdc_decode(uint16_t value)
+{
+    return ((float)value * 0.01f);
+}
+
+bool hil_protocol_meas6_b_vdc_is_in_range(uint16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_meas6_b_vdc_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 655.35f));
+}
+
+uint8_t hil_protocol_meas6_b_status_encode(float value)
+{
+    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+}
+
+float hil_protocol_meas6_b_status_decode(uint8_t value)
+{
+    return ((float)value);
+}
+
+bool hil_protocol_meas6_b_status_is_in_range(uint8_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_meas6_b_status_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 255.0f));
+}
+
 int hil_protocol_meas_fd_pack(
     uint8_t *dst_p,
     const struct hil_protocol_meas_fd_t *src_p,
@@ -950,6 +1429,357 @@ bool hil_protocol_meas_fd_status_is_in_range(uint8_t value)
 }
 
 bool hil_protocol_meas_fd_status_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 255.0f));
+}
+
+int hil_protocol_meas_fd6_pack(
+    uint8_t *dst_p,
+    const struct hil_protocol_meas_fd6_t *src_p,
+    size_t size)
+{
+    uint16_t i_a;
+    uint16_t i_b;
+    uint16_t i_c;
+    uint16_t i_u;
+    uint16_t i_v;
+    uint16_t i_w;
+    uint16_t omega_m;
+
+    if (size < 24u) {
+        return (-EINVAL);
+    }
+
+    memset(&dst_p[0], 0, 24);
+
+    dst_p[0] |= pack_left_shift_u16(src_p->seq, 0u, 0xffu);
+    dst_p[1] |= pack_right_shift_u16(src_p->seq, 8u, 0xffu);
+    i_a = (uint16_t)src_p->i_a;
+    dst_p[2] |= pack_left_shift_u16(i_a, 0u, 0xffu);
+    dst_p[3] |= pack_right_shift_u16(i_a, 8u, 0xffu);
+    i_b = (uint16_t)src_p->i_b;
+    dst_p[4] |= pack_left_shift_u16(i_b, 0u, 0xffu);
+    dst_p[5] |= pack_right_shift_u16(i_b, 8u, 0xffu);
+    i_c = (uint16_t)src_p->i_c;
+    dst_p[6] |= pack_left_shift_u16(i_c, 0u, 0xffu);
+    dst_p[7] |= pack_right_shift_u16(i_c, 8u, 0xffu);
+    i_u = (uint16_t)src_p->i_u;
+    dst_p[8] |= pack_left_shift_u16(i_u, 0u, 0xffu);
+    dst_p[9] |= pack_right_shift_u16(i_u, 8u, 0xffu);
+    i_v = (uint16_t)src_p->i_v;
+    dst_p[10] |= pack_left_shift_u16(i_v, 0u, 0xffu);
+    dst_p[11] |= pack_right_shift_u16(i_v, 8u, 0xffu);
+    i_w = (uint16_t)src_p->i_w;
+    dst_p[12] |= pack_left_shift_u16(i_w, 0u, 0xffu);
+    dst_p[13] |= pack_right_shift_u16(i_w, 8u, 0xffu);
+    dst_p[14] |= pack_left_shift_u16(src_p->theta_e, 0u, 0xffu);
+    dst_p[15] |= pack_right_shift_u16(src_p->theta_e, 8u, 0xffu);
+    omega_m = (uint16_t)src_p->omega_m;
+    dst_p[16] |= pack_left_shift_u16(omega_m, 0u, 0xffu);
+    dst_p[17] |= pack_right_shift_u16(omega_m, 8u, 0xffu);
+    dst_p[18] |= pack_left_shift_u16(src_p->vdc, 0u, 0xffu);
+    dst_p[19] |= pack_right_shift_u16(src_p->vdc, 8u, 0xffu);
+    dst_p[20] |= pack_left_shift_u8(src_p->status, 0u, 0xffu);
+
+    return (24);
+}
+
+int hil_protocol_meas_fd6_unpack(
+    struct hil_protocol_meas_fd6_t *dst_p,
+    const uint8_t *src_p,
+    size_t size)
+{
+    uint16_t i_a;
+    uint16_t i_b;
+    uint16_t i_c;
+    uint16_t i_u;
+    uint16_t i_v;
+    uint16_t i_w;
+    uint16_t omega_m;
+
+    if (size < 24u) {
+        return (-EINVAL);
+    }
+
+    dst_p->seq = unpack_right_shift_u16(src_p[0], 0u, 0xffu);
+    dst_p->seq |= unpack_left_shift_u16(src_p[1], 8u, 0xffu);
+    i_a = unpack_right_shift_u16(src_p[2], 0u, 0xffu);
+    i_a |= unpack_left_shift_u16(src_p[3], 8u, 0xffu);
+    dst_p->i_a = (int16_t)i_a;
+    i_b = unpack_right_shift_u16(src_p[4], 0u, 0xffu);
+    i_b |= unpack_left_shift_u16(src_p[5], 8u, 0xffu);
+    dst_p->i_b = (int16_t)i_b;
+    i_c = unpack_right_shift_u16(src_p[6], 0u, 0xffu);
+    i_c |= unpack_left_shift_u16(src_p[7], 8u, 0xffu);
+    dst_p->i_c = (int16_t)i_c;
+    i_u = unpack_right_shift_u16(src_p[8], 0u, 0xffu);
+    i_u |= unpack_left_shift_u16(src_p[9], 8u, 0xffu);
+    dst_p->i_u = (int16_t)i_u;
+    i_v = unpack_right_shift_u16(src_p[10], 0u, 0xffu);
+    i_v |= unpack_left_shift_u16(src_p[11], 8u, 0xffu);
+    dst_p->i_v = (int16_t)i_v;
+    i_w = unpack_right_shift_u16(src_p[12], 0u, 0xffu);
+    i_w |= unpack_left_shift_u16(src_p[13], 8u, 0xffu);
+    dst_p->i_w = (int16_t)i_w;
+    dst_p->theta_e = unpack_right_shift_u16(src_p[14], 0u, 0xffu);
+    dst_p->theta_e |= unpack_left_shift_u16(src_p[15], 8u, 0xffu);
+    omega_m = unpack_right_shift_u16(src_p[16], 0u, 0xffu);
+    omega_m |= unpack_left_shift_u16(src_p[17], 8u, 0xffu);
+    dst_p->omega_m = (int16_t)omega_m;
+    dst_p->vdc = unpack_right_shift_u16(src_p[18], 0u, 0xffu);
+    dst_p->vdc |= unpack_left_shift_u16(src_p[19], 8u, 0xffu);
+    dst_p->status = unpack_right_shift_u8(src_p[20], 0u, 0xffu);
+
+    return (0);
+}
+
+int hil_protocol_meas_fd6_init(struct hil_protocol_meas_fd6_t *msg_p)
+{
+    if (msg_p == NULL) return -1;
+
+    memset(msg_p, 0, sizeof(struct hil_protocol_meas_fd6_t));
+
+    return 0;
+}
+
+uint16_t hil_protocol_meas_fd6_seq_encode(float value)
+{
+    return (uint16_t)(cantools_unsigned_from_double(roundf(value)));
+}
+
+float hil_protocol_meas_fd6_seq_decode(uint16_t value)
+{
+    return ((float)value);
+}
+
+bool hil_protocol_meas_fd6_seq_is_in_range(uint16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_meas_fd6_seq_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 65535.0f));
+}
+
+int16_t hil_protocol_meas_fd6_i_a_encode(float value)
+{
+    return (int16_t)(roundf(value / 0.01f));
+}
+
+float hil_protocol_meas_fd6_i_a_decode(int16_t value)
+{
+    return ((float)value * 0.01f);
+}
+
+bool hil_protocol_meas_fd6_i_a_is_in_range(int16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_meas_fd6_i_a_is_in_phys_range(float value)
+{
+    return ((value >= -327.68f) && (value <= 327.67f));
+}
+
+int16_t hil_protocol_meas_fd6_i_b_encode(float value)
+{
+    return (int16_t)(roundf(value / 0.01f));
+}
+
+float hil_protocol_meas_fd6_i_b_decode(int16_t value)
+{
+    return ((float)value * 0.01f);
+}
+
+bool hil_protocol_meas_fd6_i_b_is_in_range(int16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_meas_fd6_i_b_is_in_phys_range(float value)
+{
+    return ((value >= -327.68f) && (value <= 327.67f));
+}
+
+int16_t hil_protocol_meas_fd6_i_c_encode(float value)
+{
+    return (int16_t)(roundf(value / 0.01f));
+}
+
+float hil_protocol_meas_fd6_i_c_decode(int16_t value)
+{
+    return ((float)value * 0.01f);
+}
+
+bool hil_protocol_meas_fd6_i_c_is_in_range(int16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_meas_fd6_i_c_is_in_phys_range(float value)
+{
+    return ((value >= -327.68f) && (value <= 327.67f));
+}
+
+int16_t hil_protocol_meas_fd6_i_u_encode(float value)
+{
+    return (int16_t)(roundf(value / 0.01f));
+}
+
+float hil_protocol_meas_fd6_i_u_decode(int16_t value)
+{
+    return ((float)value * 0.01f);
+}
+
+bool hil_protocol_meas_fd6_i_u_is_in_range(int16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_meas_fd6_i_u_is_in_phys_range(float value)
+{
+    return ((value >= -327.68f) && (value <= 327.67f));
+}
+
+int16_t hil_protocol_meas_fd6_i_v_encode(float value)
+{
+    return (int16_t)(roundf(value / 0.01f));
+}
+
+float hil_protocol_meas_fd6_i_v_decode(int16_t value)
+{
+    return ((float)value * 0.01f);
+}
+
+bool hil_protocol_meas_fd6_i_v_is_in_range(int16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_meas_fd6_i_v_is_in_phys_range(float value)
+{
+    return ((value >= -327.68f) && (value <= 327.67f));
+}
+
+int16_t hil_protocol_meas_fd6_i_w_encode(float value)
+{
+    return (int16_t)(roundf(value / 0.01f));
+}
+
+float hil_protocol_meas_fd6_i_w_decode(int16_t value)
+{
+    return ((float)value * 0.01f);
+}
+
+bool hil_protocol_meas_fd6_i_w_is_in_range(int16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_meas_fd6_i_w_is_in_phys_range(float value)
+{
+    return ((value >= -327.68f) && (value <= 327.67f));
+}
+
+uint16_t hil_protocol_meas_fd6_theta_e_encode(float value)
+{
+    return (uint16_t)(cantools_unsigned_from_double(roundf(value / 9.587379924285257e-05f)));
+}
+
+float hil_protocol_meas_fd6_theta_e_decode(uint16_t value)
+{
+    return ((float)value * 9.587379924285257e-05f);
+}
+
+bool hil_protocol_meas_fd6_theta_e_is_in_range(uint16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_meas_fd6_theta_e_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 6.283089f));
+}
+
+int16_t hil_protocol_meas_fd6_omega_m_encode(float value)
+{
+    return (int16_t)(roundf(value / 0.02f));
+}
+
+float hil_protocol_meas_fd6_omega_m_decode(int16_t value)
+{
+    return ((float)value * 0.02f);
+}
+
+bool hil_protocol_meas_fd6_omega_m_is_in_range(int16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_meas_fd6_omega_m_is_in_phys_range(float value)
+{
+    return ((value >= -655.36f) && (value <= 655.34f));
+}
+
+uint16_t hil_protocol_meas_fd6_vdc_encode(float value)
+{
+    return (uint16_t)(cantools_unsigned_from_double(roundf(value / 0.01f)));
+}
+
+float hil_protocol_meas_fd6_vdc_decode(uint16_t value)
+{
+    return ((float)value * 0.01f);
+}
+
+bool hil_protocol_meas_fd6_vdc_is_in_range(uint16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_meas_fd6_vdc_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 655.35f));
+}
+
+uint8_t hil_protocol_meas_fd6_status_encode(float value)
+{
+    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+}
+
+float hil_protocol_meas_fd6_status_decode(uint8_t value)
+{
+    return ((float)value);
+}
+
+bool hil_protocol_meas_fd6_status_is_in_range(uint8_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_meas_fd6_status_is_in_phys_range(float value)
 {
     return ((value >= 0.0f) && (value <= 255.0f));
 }

@@ -49,7 +49,11 @@ extern "C" {
 #define HIL_PROTOCOL_FAULT_TARGET_FRAME_ID (0x11u)
 #define HIL_PROTOCOL_MEAS_A_FRAME_ID (0x100u)
 #define HIL_PROTOCOL_MEAS_B_FRAME_ID (0x101u)
+#define HIL_PROTOCOL_MEAS6_A_FRAME_ID (0x102u)
+#define HIL_PROTOCOL_MEAS6_C_FRAME_ID (0x103u)
+#define HIL_PROTOCOL_MEAS6_B_FRAME_ID (0x104u)
 #define HIL_PROTOCOL_MEAS_FD_FRAME_ID (0x108u)
+#define HIL_PROTOCOL_MEAS_FD6_FRAME_ID (0x109u)
 #define HIL_PROTOCOL_CMD_A_FRAME_ID (0x110u)
 #define HIL_PROTOCOL_CMD_B_FRAME_ID (0x111u)
 #define HIL_PROTOCOL_CMD_C_FRAME_ID (0x112u)
@@ -65,7 +69,11 @@ extern "C" {
 #define HIL_PROTOCOL_FAULT_TARGET_LENGTH (6u)
 #define HIL_PROTOCOL_MEAS_A_LENGTH (8u)
 #define HIL_PROTOCOL_MEAS_B_LENGTH (8u)
+#define HIL_PROTOCOL_MEAS6_A_LENGTH (8u)
+#define HIL_PROTOCOL_MEAS6_C_LENGTH (8u)
+#define HIL_PROTOCOL_MEAS6_B_LENGTH (8u)
 #define HIL_PROTOCOL_MEAS_FD_LENGTH (16u)
+#define HIL_PROTOCOL_MEAS_FD6_LENGTH (24u)
 #define HIL_PROTOCOL_CMD_A_LENGTH (8u)
 #define HIL_PROTOCOL_CMD_B_LENGTH (8u)
 #define HIL_PROTOCOL_CMD_C_LENGTH (7u)
@@ -81,7 +89,11 @@ extern "C" {
 #define HIL_PROTOCOL_FAULT_TARGET_IS_EXTENDED (0)
 #define HIL_PROTOCOL_MEAS_A_IS_EXTENDED (0)
 #define HIL_PROTOCOL_MEAS_B_IS_EXTENDED (0)
+#define HIL_PROTOCOL_MEAS6_A_IS_EXTENDED (0)
+#define HIL_PROTOCOL_MEAS6_C_IS_EXTENDED (0)
+#define HIL_PROTOCOL_MEAS6_B_IS_EXTENDED (0)
 #define HIL_PROTOCOL_MEAS_FD_IS_EXTENDED (0)
+#define HIL_PROTOCOL_MEAS_FD6_IS_EXTENDED (0)
 #define HIL_PROTOCOL_CMD_A_IS_EXTENDED (0)
 #define HIL_PROTOCOL_CMD_B_IS_EXTENDED (0)
 #define HIL_PROTOCOL_CMD_C_IS_EXTENDED (0)
@@ -126,6 +138,14 @@ extern "C" {
 #define HIL_PROTOCOL_MEAS_B_STATUS_INVALID_CONFIG_CHOICE (5u)
 #define HIL_PROTOCOL_MEAS_B_STATUS_NOT_IMPLEMENTED_CHOICE (6u)
 
+#define HIL_PROTOCOL_MEAS6_B_STATUS_OK_CHOICE (0u)
+#define HIL_PROTOCOL_MEAS6_B_STATUS_OVERCURRENT_CHOICE (1u)
+#define HIL_PROTOCOL_MEAS6_B_STATUS_OVERSPEED_CHOICE (2u)
+#define HIL_PROTOCOL_MEAS6_B_STATUS_WATCHDOG_CHOICE (3u)
+#define HIL_PROTOCOL_MEAS6_B_STATUS_BAD_FRAME_CHOICE (4u)
+#define HIL_PROTOCOL_MEAS6_B_STATUS_INVALID_CONFIG_CHOICE (5u)
+#define HIL_PROTOCOL_MEAS6_B_STATUS_NOT_IMPLEMENTED_CHOICE (6u)
+
 #define HIL_PROTOCOL_MEAS_FD_STATUS_OK_CHOICE (0u)
 #define HIL_PROTOCOL_MEAS_FD_STATUS_OVERCURRENT_CHOICE (1u)
 #define HIL_PROTOCOL_MEAS_FD_STATUS_OVERSPEED_CHOICE (2u)
@@ -133,6 +153,14 @@ extern "C" {
 #define HIL_PROTOCOL_MEAS_FD_STATUS_BAD_FRAME_CHOICE (4u)
 #define HIL_PROTOCOL_MEAS_FD_STATUS_INVALID_CONFIG_CHOICE (5u)
 #define HIL_PROTOCOL_MEAS_FD_STATUS_NOT_IMPLEMENTED_CHOICE (6u)
+
+#define HIL_PROTOCOL_MEAS_FD6_STATUS_OK_CHOICE (0u)
+#define HIL_PROTOCOL_MEAS_FD6_STATUS_OVERCURRENT_CHOICE (1u)
+#define HIL_PROTOCOL_MEAS_FD6_STATUS_OVERSPEED_CHOICE (2u)
+#define HIL_PROTOCOL_MEAS_FD6_STATUS_WATCHDOG_CHOICE (3u)
+#define HIL_PROTOCOL_MEAS_FD6_STATUS_BAD_FRAME_CHOICE (4u)
+#define HIL_PROTOCOL_MEAS_FD6_STATUS_INVALID_CONFIG_CHOICE (5u)
+#define HIL_PROTOCOL_MEAS_FD6_STATUS_NOT_IMPLEMENTED_CHOICE (6u)
 
 #define HIL_PROTOCOL_CMD_C_STATUS_OK_CHOICE (0u)
 #define HIL_PROTOCOL_CMD_C_STATUS_OVERCURRENT_CHOICE (1u)
@@ -241,7 +269,11 @@ extern "C" {
 #define HIL_PROTOCOL_FAULT_TARGET_NAME "FaultTarget"
 #define HIL_PROTOCOL_MEAS_A_NAME "MeasA"
 #define HIL_PROTOCOL_MEAS_B_NAME "MeasB"
+#define HIL_PROTOCOL_MEAS6_A_NAME "Meas6A"
+#define HIL_PROTOCOL_MEAS6_C_NAME "Meas6C"
+#define HIL_PROTOCOL_MEAS6_B_NAME "Meas6B"
 #define HIL_PROTOCOL_MEAS_FD_NAME "MeasFd"
+#define HIL_PROTOCOL_MEAS_FD6_NAME "MeasFd6"
 #define HIL_PROTOCOL_CMD_A_NAME "CmdA"
 #define HIL_PROTOCOL_CMD_B_NAME "CmdB"
 #define HIL_PROTOCOL_CMD_C_NAME "CmdC"
@@ -268,6 +300,19 @@ extern "C" {
 #define HIL_PROTOCOL_MEAS_B_OMEGA_M_NAME "omega_m"
 #define HIL_PROTOCOL_MEAS_B_VDC_NAME "vdc"
 #define HIL_PROTOCOL_MEAS_B_STATUS_NAME "status"
+#define HIL_PROTOCOL_MEAS6_A_SEQ_NAME "seq"
+#define HIL_PROTOCOL_MEAS6_A_I_A_NAME "i_a"
+#define HIL_PROTOCOL_MEAS6_A_I_B_NAME "i_b"
+#define HIL_PROTOCOL_MEAS6_A_I_C_NAME "i_c"
+#define HIL_PROTOCOL_MEAS6_C_SEQ_NAME "seq"
+#define HIL_PROTOCOL_MEAS6_C_I_U_NAME "i_u"
+#define HIL_PROTOCOL_MEAS6_C_I_V_NAME "i_v"
+#define HIL_PROTOCOL_MEAS6_C_I_W_NAME "i_w"
+#define HIL_PROTOCOL_MEAS6_B_SEQ_LO_NAME "seq_lo"
+#define HIL_PROTOCOL_MEAS6_B_THETA_E_NAME "theta_e"
+#define HIL_PROTOCOL_MEAS6_B_OMEGA_M_NAME "omega_m"
+#define HIL_PROTOCOL_MEAS6_B_VDC_NAME "vdc"
+#define HIL_PROTOCOL_MEAS6_B_STATUS_NAME "status"
 #define HIL_PROTOCOL_MEAS_FD_SEQ_NAME "seq"
 #define HIL_PROTOCOL_MEAS_FD_I_A_NAME "i_a"
 #define HIL_PROTOCOL_MEAS_FD_I_B_NAME "i_b"
@@ -276,6 +321,17 @@ extern "C" {
 #define HIL_PROTOCOL_MEAS_FD_OMEGA_M_NAME "omega_m"
 #define HIL_PROTOCOL_MEAS_FD_VDC_NAME "vdc"
 #define HIL_PROTOCOL_MEAS_FD_STATUS_NAME "status"
+#define HIL_PROTOCOL_MEAS_FD6_SEQ_NAME "seq"
+#define HIL_PROTOCOL_MEAS_FD6_I_A_NAME "i_a"
+#define HIL_PROTOCOL_MEAS_FD6_I_B_NAME "i_b"
+#define HIL_PROTOCOL_MEAS_FD6_I_C_NAME "i_c"
+#define HIL_PROTOCOL_MEAS_FD6_I_U_NAME "i_u"
+#define HIL_PROTOCOL_MEAS_FD6_I_V_NAME "i_v"
+#define HIL_PROTOCOL_MEAS_FD6_I_W_NAME "i_w"
+#define HIL_PROTOCOL_MEAS_FD6_THETA_E_NAME "theta_e"
+#define HIL_PROTOCOL_MEAS_FD6_OMEGA_M_NAME "omega_m"
+#define HIL_PROTOCOL_MEAS_FD6_VDC_NAME "vdc"
+#define HIL_PROTOCOL_MEAS_FD6_STATUS_NAME "status"
 #define HIL_PROTOCOL_CMD_A_SEQ_NAME "seq"
 #define HIL_PROTOCOL_CMD_A_STATE0_NAME "state0"
 #define HIL_PROTOCOL_CMD_A_STATE1_NAME "state1"
@@ -468,6 +524,124 @@ struct hil_protocol_meas_b_t {
 };
 
 /**
+ * Signals in message Meas6A.
+ *
+ * Six-phase measurement part A (classic CAN): set 1 currents A, B, C, 0.01 A.
+ *
+ * All signal values are as on the CAN bus.
+ */
+struct hil_protocol_meas6_a_t {
+    /**
+     * Range: 0..65535 (0..65535 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint16_t seq;
+
+    /**
+     * Range: -32768..32767 (-327.68..327.67 A)
+     * Scale: 0.01
+     * Offset: 0
+     */
+    int16_t i_a;
+
+    /**
+     * Range: -32768..32767 (-327.68..327.67 A)
+     * Scale: 0.01
+     * Offset: 0
+     */
+    int16_t i_b;
+
+    /**
+     * Range: -32768..32767 (-327.68..327.67 A)
+     * Scale: 0.01
+     * Offset: 0
+     */
+    int16_t i_c;
+};
+
+/**
+ * Signals in message Meas6C.
+ *
+ * Six-phase measurement part C (classic CAN): set 2 currents U, V, W, 0.01 A.
+ *
+ * All signal values are as on the CAN bus.
+ */
+struct hil_protocol_meas6_c_t {
+    /**
+     * Range: 0..65535 (0..65535 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint16_t seq;
+
+    /**
+     * Range: -32768..32767 (-327.68..327.67 A)
+     * Scale: 0.01
+     * Offset: 0
+     */
+    int16_t i_u;
+
+    /**
+     * Range: -32768..32767 (-327.68..327.67 A)
+     * Scale: 0.01
+     * Offset: 0
+     */
+    int16_t i_v;
+
+    /**
+     * Range: -32768..32767 (-327.68..327.67 A)
+     * Scale: 0.01
+     * Offset: 0
+     */
+    int16_t i_w;
+};
+
+/**
+ * Signals in message Meas6B.
+ *
+ * Six-phase measurement part B (classic CAN), layout of MeasB; seq_lo = seq mod 256.
+ *
+ * All signal values are as on the CAN bus.
+ */
+struct hil_protocol_meas6_b_t {
+    /**
+     * Range: 0..255 (0..255 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t seq_lo;
+
+    /**
+     * Range: 0..65535 (0..6.28309 rad)
+     * Scale: 9.587379924285257e-05
+     * Offset: 0
+     */
+    uint16_t theta_e;
+
+    /**
+     * Range: -32768..32767 (-655.36..655.34 rad/s)
+     * Scale: 0.02
+     * Offset: 0
+     */
+    int16_t omega_m;
+
+    /**
+     * Range: 0..65535 (0..655.35 V)
+     * Scale: 0.01
+     * Offset: 0
+     */
+    uint16_t vdc;
+
+    /**
+     * Range: 0..255 (0..255 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t status;
+};
+
+/**
  * Signals in message MeasFd.
  *
  * Measurement, CAN FD profile (one frame, byte 15 reserved).
@@ -502,6 +676,92 @@ struct hil_protocol_meas_fd_t {
      * Offset: 0
      */
     int16_t i_c;
+
+    /**
+     * Range: 0..65535 (0..6.28309 rad)
+     * Scale: 9.587379924285257e-05
+     * Offset: 0
+     */
+    uint16_t theta_e;
+
+    /**
+     * Range: -32768..32767 (-655.36..655.34 rad/s)
+     * Scale: 0.02
+     * Offset: 0
+     */
+    int16_t omega_m;
+
+    /**
+     * Range: 0..65535 (0..655.35 V)
+     * Scale: 0.01
+     * Offset: 0
+     */
+    uint16_t vdc;
+
+    /**
+     * Range: 0..255 (0..255 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t status;
+};
+
+/**
+ * Signals in message MeasFd6.
+ *
+ * Six-phase measurement, CAN FD profile (one frame, bytes 21-23 reserved).
+ *
+ * All signal values are as on the CAN bus.
+ */
+struct hil_protocol_meas_fd6_t {
+    /**
+     * Range: 0..65535 (0..65535 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint16_t seq;
+
+    /**
+     * Range: -32768..32767 (-327.68..327.67 A)
+     * Scale: 0.01
+     * Offset: 0
+     */
+    int16_t i_a;
+
+    /**
+     * Range: -32768..32767 (-327.68..327.67 A)
+     * Scale: 0.01
+     * Offset: 0
+     */
+    int16_t i_b;
+
+    /**
+     * Range: -32768..32767 (-327.68..327.67 A)
+     * Scale: 0.01
+     * Offset: 0
+     */
+    int16_t i_c;
+
+    /**
+     * Range: -32768..32767 (-327.68..327.67 A)
+     * Scale: 0.01
+     * Offset: 0
+     */
+    int16_t i_u;
+
+    /**
+     * Range: -32768..32767 (-327.68..327.67 A)
+     * Scale: 0.01
+     * Offset: 0
+     */
+    int16_t i_v;
+
+    /**
+     * Range: -32768..32767 (-327.68..327.67 A)
+     * Scale: 0.01
+     * Offset: 0
+     */
+    int16_t i_w;
 
     /**
      * Range: 0..65535 (0..6.28309 rad)
@@ -1655,6 +1915,637 @@ bool hil_protocol_meas_b_status_is_in_range(uint8_t value);
 bool hil_protocol_meas_b_status_is_in_phys_range(float value);
 
 /**
+ * Pack message Meas6A.
+ *
+ * @param[out] dst_p Buffer to pack the message into.
+ * @param[in] src_p Data to pack.
+ * @param[in] size Size of dst_p.
+ *
+ * @return Size of packed data, or negative error code.
+ */
+int hil_protocol_meas6_a_pack(
+    uint8_t *dst_p,
+    const struct hil_protocol_meas6_a_t *src_p,
+    size_t size);
+
+/**
+ * Unpack message Meas6A.
+ *
+ * @param[out] dst_p Object to unpack the message into.
+ * @param[in] src_p Message to unpack.
+ * @param[in] size Size of src_p.
+ *
+ * @return zero(0) or negative error code.
+ */
+int hil_protocol_meas6_a_unpack(
+    struct hil_protocol_meas6_a_t *dst_p,
+    const uint8_t *src_p,
+    size_t size);
+
+/**
+ * Init message fields to default values from Meas6A.
+ *
+ * @param[in] msg_p Message to init.
+ *
+ * @return zero(0) on success or (-1) in case of nullptr argument.
+ */
+int hil_protocol_meas6_a_init(struct hil_protocol_meas6_a_t *msg_p);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint16_t hil_protocol_meas6_a_seq_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_meas6_a_seq_decode(uint16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas6_a_seq_is_in_range(uint16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas6_a_seq_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+int16_t hil_protocol_meas6_a_i_a_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_meas6_a_i_a_decode(int16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas6_a_i_a_is_in_range(int16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas6_a_i_a_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+int16_t hil_protocol_meas6_a_i_b_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_meas6_a_i_b_decode(int16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas6_a_i_b_is_in_range(int16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas6_a_i_b_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+int16_t hil_protocol_meas6_a_i_c_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_meas6_a_i_c_decode(int16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas6_a_i_c_is_in_range(int16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas6_a_i_c_is_in_phys_range(float value);
+
+/**
+ * Pack message Meas6C.
+ *
+ * @param[out] dst_p Buffer to pack the message into.
+ * @param[in] src_p Data to pack.
+ * @param[in] size Size of dst_p.
+ *
+ * @return Size of packed data, or negative error code.
+ */
+int hil_protocol_meas6_c_pack(
+    uint8_t *dst_p,
+    const struct hil_protocol_meas6_c_t *src_p,
+    size_t size);
+
+/**
+ * Unpack message Meas6C.
+ *
+ * @param[out] dst_p Object to unpack the message into.
+ * @param[in] src_p Message to unpack.
+ * @param[in] size Size of src_p.
+ *
+ * @return zero(0) or negative error code.
+ */
+int hil_protocol_meas6_c_unpack(
+    struct hil_protocol_meas6_c_t *dst_p,
+    const uint8_t *src_p,
+    size_t size);
+
+/**
+ * Init message fields to default values from Meas6C.
+ *
+ * @param[in] msg_p Message to init.
+ *
+ * @return zero(0) on success or (-1) in case of nullptr argument.
+ */
+int hil_protocol_meas6_c_init(struct hil_protocol_meas6_c_t *msg_p);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint16_t hil_protocol_meas6_c_seq_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_meas6_c_seq_decode(uint16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas6_c_seq_is_in_range(uint16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas6_c_seq_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+int16_t hil_protocol_meas6_c_i_u_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_meas6_c_i_u_decode(int16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas6_c_i_u_is_in_range(int16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas6_c_i_u_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+int16_t hil_protocol_meas6_c_i_v_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_meas6_c_i_v_decode(int16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas6_c_i_v_is_in_range(int16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas6_c_i_v_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+int16_t hil_protocol_meas6_c_i_w_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_meas6_c_i_w_decode(int16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas6_c_i_w_is_in_range(int16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas6_c_i_w_is_in_phys_range(float value);
+
+/**
+ * Pack message Meas6B.
+ *
+ * @param[out] dst_p Buffer to pack the message into.
+ * @param[in] src_p Data to pack.
+ * @param[in] size Size of dst_p.
+ *
+ * @return Size of packed data, or negative error code.
+ */
+int hil_protocol_meas6_b_pack(
+    uint8_t *dst_p,
+    const struct hil_protocol_meas6_b_t *src_p,
+    size_t size);
+
+/**
+ * Unpack message Meas6B.
+ *
+ * @param[out] dst_p Object to unpack the message into.
+ * @param[in] src_p Message to unpack.
+ * @param[in] size Size of src_p.
+ *
+ * @return zero(0) or negative error code.
+ */
+int hil_protocol_meas6_b_unpack(
+    struct hil_protocol_meas6_b_t *dst_p,
+    const uint8_t *src_p,
+    size_t size);
+
+/**
+ * Init message fields to default values from Meas6B.
+ *
+ * @param[in] msg_p Message to init.
+ *
+ * @return zero(0) on success or (-1) in case of nullptr argument.
+ */
+int hil_protocol_meas6_b_init(struct hil_protocol_meas6_b_t *msg_p);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint8_t hil_protocol_meas6_b_seq_lo_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_meas6_b_seq_lo_decode(uint8_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas6_b_seq_lo_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas6_b_seq_lo_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint16_t hil_protocol_meas6_b_theta_e_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_meas6_b_theta_e_decode(uint16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas6_b_theta_e_is_in_range(uint16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas6_b_theta_e_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+int16_t hil_protocol_meas6_b_omega_m_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_meas6_b_omega_m_decode(int16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas6_b_omega_m_is_in_range(int16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas6_b_omega_m_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint16_t hil_protocol_meas6_b_vdc_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_meas6_b_vdc_decode(uint16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas6_b_vdc_is_in_range(uint16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas6_b_vdc_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint8_t hil_protocol_meas6_b_status_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_meas6_b_status_decode(uint8_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas6_b_status_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas6_b_status_is_in_phys_range(float value);
+
+/**
  * Pack message MeasFd.
  *
  * @param[out] dst_p Buffer to pack the message into.
@@ -2010,6 +2901,483 @@ bool hil_protocol_meas_fd_status_is_in_range(uint8_t value);
  * @return true if in range, false otherwise.
  */
 bool hil_protocol_meas_fd_status_is_in_phys_range(float value);
+
+/**
+ * Pack message MeasFd6.
+ *
+ * @param[out] dst_p Buffer to pack the message into.
+ * @param[in] src_p Data to pack.
+ * @param[in] size Size of dst_p.
+ *
+ * @return Size of packed data, or negative error code.
+ */
+int hil_protocol_meas_fd6_pack(
+    uint8_t *dst_p,
+    const struct hil_protocol_meas_fd6_t *src_p,
+    size_t size);
+
+/**
+ * Unpack message MeasFd6.
+ *
+ * @param[out] dst_p Object to unpack the message into.
+ * @param[in] src_p Message to unpack.
+ * @param[in] size Size of src_p.
+ *
+ * @return zero(0) or negative error code.
+ */
+int hil_protocol_meas_fd6_unpack(
+    struct hil_protocol_meas_fd6_t *dst_p,
+    const uint8_t *src_p,
+    size_t size);
+
+/**
+ * Init message fields to default values from MeasFd6.
+ *
+ * @param[in] msg_p Message to init.
+ *
+ * @return zero(0) on success or (-1) in case of nullptr argument.
+ */
+int hil_protocol_meas_fd6_init(struct hil_protocol_meas_fd6_t *msg_p);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint16_t hil_protocol_meas_fd6_seq_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_meas_fd6_seq_decode(uint16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas_fd6_seq_is_in_range(uint16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas_fd6_seq_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+int16_t hil_protocol_meas_fd6_i_a_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_meas_fd6_i_a_decode(int16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas_fd6_i_a_is_in_range(int16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas_fd6_i_a_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+int16_t hil_protocol_meas_fd6_i_b_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_meas_fd6_i_b_decode(int16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas_fd6_i_b_is_in_range(int16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas_fd6_i_b_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+int16_t hil_protocol_meas_fd6_i_c_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_meas_fd6_i_c_decode(int16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas_fd6_i_c_is_in_range(int16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas_fd6_i_c_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+int16_t hil_protocol_meas_fd6_i_u_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_meas_fd6_i_u_decode(int16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas_fd6_i_u_is_in_range(int16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas_fd6_i_u_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+int16_t hil_protocol_meas_fd6_i_v_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_meas_fd6_i_v_decode(int16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas_fd6_i_v_is_in_range(int16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas_fd6_i_v_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+int16_t hil_protocol_meas_fd6_i_w_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_meas_fd6_i_w_decode(int16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas_fd6_i_w_is_in_range(int16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas_fd6_i_w_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint16_t hil_protocol_meas_fd6_theta_e_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_meas_fd6_theta_e_decode(uint16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas_fd6_theta_e_is_in_range(uint16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas_fd6_theta_e_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+int16_t hil_protocol_meas_fd6_omega_m_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_meas_fd6_omega_m_decode(int16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas_fd6_omega_m_is_in_range(int16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas_fd6_omega_m_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint16_t hil_protocol_meas_fd6_vdc_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_meas_fd6_vdc_decode(uint16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas_fd6_vdc_is_in_range(uint16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas_fd6_vdc_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint8_t hil_protocol_meas_fd6_status_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_meas_fd6_status_decode(uint8_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas_fd6_status_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_meas_fd6_status_is_in_phys_range(float value);
 
 /**
  * Pack message CmdA.

@@ -7,7 +7,11 @@
 #include <stdint.h>
 
 #include "hil_fw_config.h"
+#include "hil_fw_dsvm.h"
+#include "hil_fw_foc.h"
+#include "hil_fw_hv_mpfc.h"
 #include "hil_fw_mpcc.h"
+#include "hil_fw_mptc.h"
 #include "hil_fw_speed_pi.h"
 #include "hil_fw_types.h"
 
@@ -31,6 +35,8 @@ typedef struct {
     float omega_m;       /* mechanical speed [rad/s] */
     float omega_e;       /* electrical speed [rad/s] */
     float vdc;           /* DC-link voltage used by the model [V] */
+    float i_x;           /* six phases: stationary x-y current [A] (0 for three phases) */
+    float i_y;
 } hil_fw_measured_t;
 
 /* References produced by the outer loop. */
@@ -62,6 +68,10 @@ typedef struct hil_fw_state {
     hil_fw_applied_t applied;
     union {
         hil_fw_mpcc_state_t mpcc;
+        hil_fw_mptc_state_t mptc; /* mptc1, mptc2, mptc3 */
+        hil_fw_dsvm_state_t dsvm; /* dsvm-20, fcs-mpc-1, fcs-mpc-2, dbcc-mpc */
+        hil_fw_foc_state_t foc;
+        hil_fw_hv_state_t hv; /* 3vmpc, hv-mpfc */
     } ctrl;
 } hil_fw_state_t;
 

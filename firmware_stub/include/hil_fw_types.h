@@ -67,6 +67,9 @@ typedef struct {
     uint8_t candidates;                          /* candidate vectors evaluated this step */
     uint8_t status;                              /* HIL_FW_STATUS_* */
     uint8_t states[HIL_FW_MAX_SUBSTATES];        /* switching codes 4*Sa + 2*Sb + Sc */
+    uint8_t full_miss;                           /* diagnostics (sim target only, untimed): 1 if the
+                                                    full DSVM set beat the restricted set, 0 if not,
+                                                    255 not computed */
     uint32_t durations_ns[HIL_FW_MAX_SUBSTATES]; /* sub-interval lengths [ns]; sum = Ts [ns] */
     float torque_ref;                            /* debug: torque reference [N*m] */
     float id_ref;                                /* debug: d-axis current reference [A] */

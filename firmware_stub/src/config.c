@@ -35,6 +35,8 @@ static const param_rule_t rules[HIL_FW_P_COUNT] = {
     [HIL_FW_P_LLS] = {0.0f, 10.0f, 0, 0},
     [HIL_FW_P_TORQUE_BAND] = {0.0f, 1.0e6f, 0, 0},
     [HIL_FW_P_CURRENT_LIMIT] = {0.0f, 1.0e6f, 1, 0},
+    [HIL_FW_P_ZERO_SELECT] = {0.0f, 1.0f, 0, 1},
+    [HIL_FW_P_DT_COMP] = {0.0f, 1.0f, 0, 1},
 };
 
 void hil_fw_params_defaults(hil_fw_params_t *p)

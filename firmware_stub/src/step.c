@@ -4,6 +4,7 @@
 
 #include "hil_fw_controllers.h"
 #include "hil_fw_inverter.h"
+#include "hil_fw_six.h"
 #include "hil_fw_step.h"
 #include "hil_fw_transforms.h"
 
@@ -24,13 +25,27 @@ static int speed_due(hil_fw_state_t *s, uint64_t t_ns, uint64_t period_ns)
     return 0;
 }
 
-static uint8_t check_frame(const hil_fw_meas_t *m)
+/* Phases the selected controller expects: 6 for the dual three-phase MPTCs, 3 otherwise (off: either). */
+static int phases_match(uint8_t controller_id, uint8_t n_phases)
 {
-    if (m->n_phases != 3u) {
-        return HIL_FW_STATUS_INVALID_CONFIG; /* only three-phase controllers exist */
+    const int six = controller_id == HIL_FW_CTRL_MPTC1 || controller_id == HIL_FW_CTRL_MPTC2 ||
+                    controller_id == HIL_FW_CTRL_MPTC3;
+    if (controller_id == HIL_FW_CTRL_OFF) {
+        return n_phases == 3u || n_phases == 6u;
+    }
+    return n_phases == (six ? 6u : 3u);
+}
+
+static uint8_t check_frame(const hil_fw_meas_t *m, uint8_t controller_id)
+{
+    if (!phases_match(controller_id, m->n_phases)) {
+        return HIL_FW_STATUS_INVALID_CONFIG;
     }
     if (!isfinite(m->i_abc[0]) || !isfinite(m->i_abc[1]) || !isfinite(m->i_abc[2]) ||
         !isfinite(m->theta_e) || !isfinite(m->omega_m) || !isfinite(m->vdc)) {
+        return HIL_FW_STATUS_BAD_FRAME;
+    }
+    if (m->n_phases == 6u && (!isfinite(m->i_abc[3]) || !isfinite(m->i_abc[4]) || !isfinite(m->i_abc[5]))) {
         return HIL_FW_STATUS_BAD_FRAME;
     }
     return HIL_FW_STATUS_OK;
@@ -42,7 +57,8 @@ static void torque_to_currents(hil_fw_state_t *s, float torque)
     const float *v = s->params.value;
     const float imax = v[HIL_FW_P_CURRENT_LIMIT];
     const float id = clampf(v[HIL_FW_P_ID_REF], imax);
-    const float den = s->params.model.torque_k * (v[HIL_FW_P_PSI_F] + (v[HIL_FW_P_LD] - v[HIL_FW_P_LQ]) * id);
+    const float tk = s->params.model.torque_k * (s->meas.n_phases == 6u ? 2.0f : 1.0f); /* six: 3 p */
+    const float den = tk * (v[HIL_FW_P_PSI_F] + (v[HIL_FW_P_LD] - v[HIL_FW_P_LQ]) * id);
     const float iq_max = sqrtf(imax * imax - id * id);
     s->ref.torque = torque;
     s->ref.i_d = id;
@@ -57,12 +73,18 @@ void hil_fw_stage_measure(hil_fw_state_t *s, const hil_fw_meas_t *m, uint64_t t_
     me->seq = m->seq;
     me->n_phases = m->n_phases;
     me->plant_status = m->status;
-    me->fault = check_frame(m);
+    me->fault = check_frame(m, s->controller_id);
     if (me->fault == HIL_FW_STATUS_OK) {
         me->theta_e = m->theta_e;
         me->cos_th = cosf(m->theta_e);
         me->sin_th = sinf(m->theta_e);
-        hil_fw_clarke(m->i_abc[0], m->i_abc[1], m->i_abc[2], &me->i_alpha, &me->i_beta);
+        if (m->n_phases == 6u) {
+            hil_fw_vsd(m->i_abc, &me->i_alpha, &me->i_beta, &me->i_x, &me->i_y);
+        } else {
+            hil_fw_clarke(m->i_abc[0], m->i_abc[1], m->i_abc[2], &me->i_alpha, &me->i_beta);
+            me->i_x = 0.0f;
+            me->i_y = 0.0f;
+        }
         hil_fw_park(me->i_alpha, me->i_beta, me->cos_th, me->sin_th, &me->i_d, &me->i_q);
         me->omega_m = m->omega_m;
         me->omega_e = s->params.value[HIL_FW_P_POLE_PAIRS] * m->omega_m;
@@ -101,13 +123,13 @@ static void safe_command(const hil_fw_state_t *s, hil_fw_cmd_t *cmd, uint8_t sta
     const uint8_t n = s->applied.n_states;
     const uint8_t last = s->applied.states[n > 0u ? n - 1u : 0u];
     cmd->n_states = 1u;
-    cmd->states[0] = hil_fw_zero_state_for(last);
+    cmd->states[0] = s->meas.n_phases == 6u ? hil_fw_six_zero_for(last) : hil_fw_zero_state_for(last);
     cmd->states[1] = 0u;
     cmd->states[2] = 0u;
     cmd->durations_ns[0] = s->params.model.ts_ns;
     cmd->durations_ns[1] = 0u;
     cmd->durations_ns[2] = 0u;
-    cmd->vector_id = hil_fw_state_vector[cmd->states[0]];
+    cmd->vector_id = s->meas.n_phases == 6u ? 0u : hil_fw_state_vector[cmd->states[0]];
     cmd->candidates = 0u;
     cmd->status = status;
 }

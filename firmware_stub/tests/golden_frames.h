@@ -190,15 +190,253 @@ static int golden_check_5(void)
     return fails;
 }
 
-/* can/cmd_three_states: CmdA 0x110 */
+/* can/meas6_nominal: Meas6A 0x102 */
 static int golden_check_6(void)
+{
+    static const uint8_t data[8] = {0x02, 0x00, 0x0e, 0x1a, 0xf9, 0xf2, 0xf9, 0xf2};
+    uint8_t out[8];
+    struct hil_protocol_meas6_a_t m;
+    int fails = 0;
+    if (hil_protocol_meas6_a_unpack(&m, data, sizeof data) != 0) {
+        printf("golden 6 can/meas6_nominal: Meas6A unpack failed\n");
+        return 1;
+    }
+    GOLDEN_EXPECT_EQ("can/meas6_nominal", "Meas6A.seq", (long long)m.seq, (long long)2u);
+    GOLDEN_EXPECT_EQ("can/meas6_nominal", "Meas6A.i_a", (long long)m.i_a, (long long)6670u);
+    GOLDEN_EXPECT_NEAR("can/meas6_nominal", "Meas6A.i_a", hil_protocol_meas6_a_i_a_decode(m.i_a), 0x1.0accccccccccdp+6f, 7.670e-05f);
+    GOLDEN_EXPECT_EQ("can/meas6_nominal", "Meas6A.i_a encode", (long long)hil_protocol_meas6_a_i_a_encode(0x1.0accccccccccdp+6f), (long long)6670u);
+    GOLDEN_EXPECT_EQ("can/meas6_nominal", "Meas6A.i_b", (long long)m.i_b, (long long)-3335);
+    GOLDEN_EXPECT_NEAR("can/meas6_nominal", "Meas6A.i_b", hil_protocol_meas6_a_i_b_decode(m.i_b), -0x1.0accccccccccdp+5f, 4.335e-05f);
+    GOLDEN_EXPECT_EQ("can/meas6_nominal", "Meas6A.i_b encode", (long long)hil_protocol_meas6_a_i_b_encode(-0x1.0accccccccccdp+5f), (long long)-3335);
+    GOLDEN_EXPECT_EQ("can/meas6_nominal", "Meas6A.i_c", (long long)m.i_c, (long long)-3335);
+    GOLDEN_EXPECT_NEAR("can/meas6_nominal", "Meas6A.i_c", hil_protocol_meas6_a_i_c_decode(m.i_c), -0x1.0accccccccccdp+5f, 4.335e-05f);
+    GOLDEN_EXPECT_EQ("can/meas6_nominal", "Meas6A.i_c encode", (long long)hil_protocol_meas6_a_i_c_encode(-0x1.0accccccccccdp+5f), (long long)-3335);
+    if (hil_protocol_meas6_a_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
+        printf("golden 6 can/meas6_nominal: Meas6A pack differs\n");
+        fails++;
+    }
+    return fails;
+}
+
+/* can/meas6_nominal: Meas6C 0x103 */
+static int golden_check_7(void)
+{
+    static const uint8_t data[8] = {0x02, 0x00, 0x90, 0x16, 0x70, 0xe9, 0x00, 0x00};
+    uint8_t out[8];
+    struct hil_protocol_meas6_c_t m;
+    int fails = 0;
+    if (hil_protocol_meas6_c_unpack(&m, data, sizeof data) != 0) {
+        printf("golden 7 can/meas6_nominal: Meas6C unpack failed\n");
+        return 1;
+    }
+    GOLDEN_EXPECT_EQ("can/meas6_nominal", "Meas6C.seq", (long long)m.seq, (long long)2u);
+    GOLDEN_EXPECT_EQ("can/meas6_nominal", "Meas6C.i_u", (long long)m.i_u, (long long)5776u);
+    GOLDEN_EXPECT_NEAR("can/meas6_nominal", "Meas6C.i_u", hil_protocol_meas6_c_i_u_decode(m.i_u), 0x1.ce147ae147ae1p+5f, 6.776e-05f);
+    GOLDEN_EXPECT_EQ("can/meas6_nominal", "Meas6C.i_u encode", (long long)hil_protocol_meas6_c_i_u_encode(0x1.ce147ae147ae1p+5f), (long long)5776u);
+    GOLDEN_EXPECT_EQ("can/meas6_nominal", "Meas6C.i_v", (long long)m.i_v, (long long)-5776);
+    GOLDEN_EXPECT_NEAR("can/meas6_nominal", "Meas6C.i_v", hil_protocol_meas6_c_i_v_decode(m.i_v), -0x1.ce147ae147ae1p+5f, 6.776e-05f);
+    GOLDEN_EXPECT_EQ("can/meas6_nominal", "Meas6C.i_v encode", (long long)hil_protocol_meas6_c_i_v_encode(-0x1.ce147ae147ae1p+5f), (long long)-5776);
+    GOLDEN_EXPECT_EQ("can/meas6_nominal", "Meas6C.i_w", (long long)m.i_w, (long long)0u);
+    GOLDEN_EXPECT_NEAR("can/meas6_nominal", "Meas6C.i_w", hil_protocol_meas6_c_i_w_decode(m.i_w), 0x0.0p+0f, 1.000e-05f);
+    GOLDEN_EXPECT_EQ("can/meas6_nominal", "Meas6C.i_w encode", (long long)hil_protocol_meas6_c_i_w_encode(0x0.0p+0f), (long long)0u);
+    if (hil_protocol_meas6_c_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
+        printf("golden 7 can/meas6_nominal: Meas6C pack differs\n");
+        fails++;
+    }
+    return fails;
+}
+
+/* can/meas6_nominal: Meas6B 0x104 */
+static int golden_check_8(void)
+{
+    static const uint8_t data[8] = {0x02, 0x5f, 0x14, 0xae, 0x1e, 0x30, 0x75, 0x00};
+    uint8_t out[8];
+    struct hil_protocol_meas6_b_t m;
+    int fails = 0;
+    if (hil_protocol_meas6_b_unpack(&m, data, sizeof data) != 0) {
+        printf("golden 8 can/meas6_nominal: Meas6B unpack failed\n");
+        return 1;
+    }
+    GOLDEN_EXPECT_EQ("can/meas6_nominal", "Meas6B.seq_lo", (long long)m.seq_lo, (long long)2u);
+    GOLDEN_EXPECT_EQ("can/meas6_nominal", "Meas6B.theta_e", (long long)m.theta_e, (long long)5215u);
+    GOLDEN_EXPECT_NEAR("can/meas6_nominal", "Meas6B.theta_e", hil_protocol_meas6_b_theta_e_decode(m.theta_e), 0x1.fffb3ed998d2ap-2f, 5.959e-07f);
+    GOLDEN_EXPECT_EQ("can/meas6_nominal", "Meas6B.theta_e encode", (long long)hil_protocol_meas6_b_theta_e_encode(0x1.fffb3ed998d2ap-2f), (long long)5215u);
+    GOLDEN_EXPECT_EQ("can/meas6_nominal", "Meas6B.omega_m", (long long)m.omega_m, (long long)7854u);
+    GOLDEN_EXPECT_NEAR("can/meas6_nominal", "Meas6B.omega_m", hil_protocol_meas6_b_omega_m_decode(m.omega_m), 0x1.3a28f5c28f5c3p+7f, 1.771e-04f);
+    GOLDEN_EXPECT_EQ("can/meas6_nominal", "Meas6B.omega_m encode", (long long)hil_protocol_meas6_b_omega_m_encode(0x1.3a28f5c28f5c3p+7f), (long long)7854u);
+    GOLDEN_EXPECT_EQ("can/meas6_nominal", "Meas6B.vdc", (long long)m.vdc, (long long)30000u);
+    GOLDEN_EXPECT_NEAR("can/meas6_nominal", "Meas6B.vdc", hil_protocol_meas6_b_vdc_decode(m.vdc), 0x1.2c00000000000p+8f, 3.100e-04f);
+    GOLDEN_EXPECT_EQ("can/meas6_nominal", "Meas6B.vdc encode", (long long)hil_protocol_meas6_b_vdc_encode(0x1.2c00000000000p+8f), (long long)30000u);
+    GOLDEN_EXPECT_EQ("can/meas6_nominal", "Meas6B.status", (long long)m.status, (long long)0u);
+    if (hil_protocol_meas6_b_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
+        printf("golden 8 can/meas6_nominal: Meas6B pack differs\n");
+        fails++;
+    }
+    return fails;
+}
+
+/* can/meas6_saturated_wrapped: Meas6A 0x102 */
+static int golden_check_9(void)
+{
+    static const uint8_t data[8] = {0x01, 0x00, 0xff, 0x7f, 0x00, 0x80, 0x00, 0x00};
+    uint8_t out[8];
+    struct hil_protocol_meas6_a_t m;
+    int fails = 0;
+    if (hil_protocol_meas6_a_unpack(&m, data, sizeof data) != 0) {
+        printf("golden 9 can/meas6_saturated_wrapped: Meas6A unpack failed\n");
+        return 1;
+    }
+    GOLDEN_EXPECT_EQ("can/meas6_saturated_wrapped", "Meas6A.seq", (long long)m.seq, (long long)1u);
+    GOLDEN_EXPECT_EQ("can/meas6_saturated_wrapped", "Meas6A.i_a", (long long)m.i_a, (long long)32767u);
+    GOLDEN_EXPECT_NEAR("can/meas6_saturated_wrapped", "Meas6A.i_a", hil_protocol_meas6_a_i_a_decode(m.i_a), 0x1.47ab851eb851fp+8f, 3.377e-04f);
+    GOLDEN_EXPECT_EQ("can/meas6_saturated_wrapped", "Meas6A.i_a encode", (long long)hil_protocol_meas6_a_i_a_encode(0x1.47ab851eb851fp+8f), (long long)32767u);
+    GOLDEN_EXPECT_EQ("can/meas6_saturated_wrapped", "Meas6A.i_b", (long long)m.i_b, (long long)-32768);
+    GOLDEN_EXPECT_NEAR("can/meas6_saturated_wrapped", "Meas6A.i_b", hil_protocol_meas6_a_i_b_decode(m.i_b), -0x1.47ae147ae147bp+8f, 3.377e-04f);
+    GOLDEN_EXPECT_EQ("can/meas6_saturated_wrapped", "Meas6A.i_b encode", (long long)hil_protocol_meas6_a_i_b_encode(-0x1.47ae147ae147bp+8f), (long long)-32768);
+    GOLDEN_EXPECT_EQ("can/meas6_saturated_wrapped", "Meas6A.i_c", (long long)m.i_c, (long long)0u);
+    GOLDEN_EXPECT_NEAR("can/meas6_saturated_wrapped", "Meas6A.i_c", hil_protocol_meas6_a_i_c_decode(m.i_c), 0x0.0p+0f, 1.000e-05f);
+    GOLDEN_EXPECT_EQ("can/meas6_saturated_wrapped", "Meas6A.i_c encode", (long long)hil_protocol_meas6_a_i_c_encode(0x0.0p+0f), (long long)0u);
+    if (hil_protocol_meas6_a_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
+        printf("golden 9 can/meas6_saturated_wrapped: Meas6A pack differs\n");
+        fails++;
+    }
+    return fails;
+}
+
+/* can/meas6_saturated_wrapped: Meas6C 0x103 */
+static int golden_check_10(void)
+{
+    static const uint8_t data[8] = {0x01, 0x00, 0xff, 0x7f, 0x00, 0x80, 0x64, 0x00};
+    uint8_t out[8];
+    struct hil_protocol_meas6_c_t m;
+    int fails = 0;
+    if (hil_protocol_meas6_c_unpack(&m, data, sizeof data) != 0) {
+        printf("golden 10 can/meas6_saturated_wrapped: Meas6C unpack failed\n");
+        return 1;
+    }
+    GOLDEN_EXPECT_EQ("can/meas6_saturated_wrapped", "Meas6C.seq", (long long)m.seq, (long long)1u);
+    GOLDEN_EXPECT_EQ("can/meas6_saturated_wrapped", "Meas6C.i_u", (long long)m.i_u, (long long)32767u);
+    GOLDEN_EXPECT_NEAR("can/meas6_saturated_wrapped", "Meas6C.i_u", hil_protocol_meas6_c_i_u_decode(m.i_u), 0x1.47ab851eb851fp+8f, 3.377e-04f);
+    GOLDEN_EXPECT_EQ("can/meas6_saturated_wrapped", "Meas6C.i_u encode", (long long)hil_protocol_meas6_c_i_u_encode(0x1.47ab851eb851fp+8f), (long long)32767u);
+    GOLDEN_EXPECT_EQ("can/meas6_saturated_wrapped", "Meas6C.i_v", (long long)m.i_v, (long long)-32768);
+    GOLDEN_EXPECT_NEAR("can/meas6_saturated_wrapped", "Meas6C.i_v", hil_protocol_meas6_c_i_v_decode(m.i_v), -0x1.47ae147ae147bp+8f, 3.377e-04f);
+    GOLDEN_EXPECT_EQ("can/meas6_saturated_wrapped", "Meas6C.i_v encode", (long long)hil_protocol_meas6_c_i_v_encode(-0x1.47ae147ae147bp+8f), (long long)-32768);
+    GOLDEN_EXPECT_EQ("can/meas6_saturated_wrapped", "Meas6C.i_w", (long long)m.i_w, (long long)100u);
+    GOLDEN_EXPECT_NEAR("can/meas6_saturated_wrapped", "Meas6C.i_w", hil_protocol_meas6_c_i_w_decode(m.i_w), 0x1.0000000000000p+0f, 1.100e-05f);
+    GOLDEN_EXPECT_EQ("can/meas6_saturated_wrapped", "Meas6C.i_w encode", (long long)hil_protocol_meas6_c_i_w_encode(0x1.0000000000000p+0f), (long long)100u);
+    if (hil_protocol_meas6_c_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
+        printf("golden 10 can/meas6_saturated_wrapped: Meas6C pack differs\n");
+        fails++;
+    }
+    return fails;
+}
+
+/* can/meas6_saturated_wrapped: Meas6B 0x104 */
+static int golden_check_11(void)
+{
+    static const uint8_t data[8] = {0x01, 0x35, 0x1d, 0x32, 0x00, 0xc0, 0x12, 0x01};
+    uint8_t out[8];
+    struct hil_protocol_meas6_b_t m;
+    int fails = 0;
+    if (hil_protocol_meas6_b_unpack(&m, data, sizeof data) != 0) {
+        printf("golden 11 can/meas6_saturated_wrapped: Meas6B unpack failed\n");
+        return 1;
+    }
+    GOLDEN_EXPECT_EQ("can/meas6_saturated_wrapped", "Meas6B.seq_lo", (long long)m.seq_lo, (long long)1u);
+    GOLDEN_EXPECT_EQ("can/meas6_saturated_wrapped", "Meas6B.theta_e", (long long)m.theta_e, (long long)7477u);
+    GOLDEN_EXPECT_NEAR("can/meas6_saturated_wrapped", "Meas6B.theta_e", hil_protocol_meas6_b_theta_e_decode(m.theta_e), 0x1.6f06c0ca159c8p-1f, 8.127e-07f);
+    GOLDEN_EXPECT_EQ("can/meas6_saturated_wrapped", "Meas6B.theta_e encode", (long long)hil_protocol_meas6_b_theta_e_encode(0x1.6f06c0ca159c8p-1f), (long long)7477u);
+    GOLDEN_EXPECT_EQ("can/meas6_saturated_wrapped", "Meas6B.omega_m", (long long)m.omega_m, (long long)50u);
+    GOLDEN_EXPECT_NEAR("can/meas6_saturated_wrapped", "Meas6B.omega_m", hil_protocol_meas6_b_omega_m_decode(m.omega_m), 0x1.0000000000000p+0f, 2.100e-05f);
+    GOLDEN_EXPECT_EQ("can/meas6_saturated_wrapped", "Meas6B.omega_m encode", (long long)hil_protocol_meas6_b_omega_m_encode(0x1.0000000000000p+0f), (long long)50u);
+    GOLDEN_EXPECT_EQ("can/meas6_saturated_wrapped", "Meas6B.vdc", (long long)m.vdc, (long long)4800u);
+    GOLDEN_EXPECT_NEAR("can/meas6_saturated_wrapped", "Meas6B.vdc", hil_protocol_meas6_b_vdc_decode(m.vdc), 0x1.8000000000000p+5f, 5.800e-05f);
+    GOLDEN_EXPECT_EQ("can/meas6_saturated_wrapped", "Meas6B.vdc encode", (long long)hil_protocol_meas6_b_vdc_encode(0x1.8000000000000p+5f), (long long)4800u);
+    GOLDEN_EXPECT_EQ("can/meas6_saturated_wrapped", "Meas6B.status", (long long)m.status, (long long)1u);
+    if (hil_protocol_meas6_b_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
+        printf("golden 11 can/meas6_saturated_wrapped: Meas6B pack differs\n");
+        fails++;
+    }
+    return fails;
+}
+
+/* can/cmd_six_phase_v3: CmdA 0x110 */
+static int golden_check_12(void)
+{
+    static const uint8_t data[8] = {0x03, 0x00, 0x9b, 0x02, 0x58, 0xdf, 0x11, 0x07};
+    uint8_t out[8];
+    struct hil_protocol_cmd_a_t m;
+    int fails = 0;
+    if (hil_protocol_cmd_a_unpack(&m, data, sizeof data) != 0) {
+        printf("golden 12 can/cmd_six_phase_v3: CmdA unpack failed\n");
+        return 1;
+    }
+    GOLDEN_EXPECT_EQ("can/cmd_six_phase_v3", "CmdA.seq", (long long)m.seq, (long long)3u);
+    GOLDEN_EXPECT_EQ("can/cmd_six_phase_v3", "CmdA.state0", (long long)m.state0, (long long)27u);
+    GOLDEN_EXPECT_EQ("can/cmd_six_phase_v3", "CmdA.state1", (long long)m.state1, (long long)10u);
+    GOLDEN_EXPECT_EQ("can/cmd_six_phase_v3", "CmdA.state2", (long long)m.state2, (long long)0u);
+    GOLDEN_EXPECT_EQ("can/cmd_six_phase_v3", "CmdA.n_states", (long long)m.n_states, (long long)2u);
+    GOLDEN_EXPECT_EQ("can/cmd_six_phase_v3", "CmdA.duration0", (long long)m.duration0, (long long)73205u);
+    GOLDEN_EXPECT_EQ("can/cmd_six_phase_v3", "CmdA.vector_id", (long long)m.vector_id, (long long)7u);
+    if (hil_protocol_cmd_a_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
+        printf("golden 12 can/cmd_six_phase_v3: CmdA pack differs\n");
+        fails++;
+    }
+    return fails;
+}
+
+/* can/cmd_six_phase_v3: CmdB 0x111 */
+static int golden_check_13(void)
+{
+    static const uint8_t data[8] = {0x03, 0x00, 0xab, 0x68, 0x00, 0x00, 0x00, 0x0d};
+    uint8_t out[8];
+    struct hil_protocol_cmd_b_t m;
+    int fails = 0;
+    if (hil_protocol_cmd_b_unpack(&m, data, sizeof data) != 0) {
+        printf("golden 13 can/cmd_six_phase_v3: CmdB unpack failed\n");
+        return 1;
+    }
+    GOLDEN_EXPECT_EQ("can/cmd_six_phase_v3", "CmdB.seq", (long long)m.seq, (long long)3u);
+    GOLDEN_EXPECT_EQ("can/cmd_six_phase_v3", "CmdB.duration1", (long long)m.duration1, (long long)26795u);
+    GOLDEN_EXPECT_EQ("can/cmd_six_phase_v3", "CmdB.duration2", (long long)m.duration2, (long long)0u);
+    GOLDEN_EXPECT_EQ("can/cmd_six_phase_v3", "CmdB.candidates", (long long)m.candidates, (long long)13u);
+    if (hil_protocol_cmd_b_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
+        printf("golden 13 can/cmd_six_phase_v3: CmdB pack differs\n");
+        fails++;
+    }
+    return fails;
+}
+
+/* can/cmd_six_phase_v3: CmdC 0x112 */
+static int golden_check_14(void)
+{
+    static const uint8_t data[7] = {0x03, 0x00, 0x34, 0x08, 0x00, 0x00, 0x00};
+    uint8_t out[7];
+    struct hil_protocol_cmd_c_t m;
+    int fails = 0;
+    if (hil_protocol_cmd_c_unpack(&m, data, sizeof data) != 0) {
+        printf("golden 14 can/cmd_six_phase_v3: CmdC unpack failed\n");
+        return 1;
+    }
+    GOLDEN_EXPECT_EQ("can/cmd_six_phase_v3", "CmdC.seq", (long long)m.seq, (long long)3u);
+    GOLDEN_EXPECT_EQ("can/cmd_six_phase_v3", "CmdC.exec_time_ns", (long long)m.exec_time_ns, (long long)2100u);
+    GOLDEN_EXPECT_EQ("can/cmd_six_phase_v3", "CmdC.status", (long long)m.status, (long long)0u);
+    if (hil_protocol_cmd_c_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
+        printf("golden 14 can/cmd_six_phase_v3: CmdC pack differs\n");
+        fails++;
+    }
+    return fails;
+}
+
+/* can/cmd_three_states: CmdA 0x110 */
+static int golden_check_15(void)
 {
     static const uint8_t data[8] = {0x01, 0x00, 0x84, 0x71, 0x0c, 0x53, 0x07, 0x0c};
     uint8_t out[8];
     struct hil_protocol_cmd_a_t m;
     int fails = 0;
     if (hil_protocol_cmd_a_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 6 can/cmd_three_states: CmdA unpack failed\n");
+        printf("golden 15 can/cmd_three_states: CmdA unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("can/cmd_three_states", "CmdA.seq", (long long)m.seq, (long long)1u);
@@ -209,21 +447,21 @@ static int golden_check_6(void)
     GOLDEN_EXPECT_EQ("can/cmd_three_states", "CmdA.duration0", (long long)m.duration0, (long long)30000u);
     GOLDEN_EXPECT_EQ("can/cmd_three_states", "CmdA.vector_id", (long long)m.vector_id, (long long)12u);
     if (hil_protocol_cmd_a_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 6 can/cmd_three_states: CmdA pack differs\n");
+        printf("golden 15 can/cmd_three_states: CmdA pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* can/cmd_three_states: CmdB 0x111 */
-static int golden_check_7(void)
+static int golden_check_16(void)
 {
     static const uint8_t data[8] = {0x01, 0x00, 0x20, 0x4e, 0x00, 0x35, 0x0c, 0x1b};
     uint8_t out[8];
     struct hil_protocol_cmd_b_t m;
     int fails = 0;
     if (hil_protocol_cmd_b_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 7 can/cmd_three_states: CmdB unpack failed\n");
+        printf("golden 16 can/cmd_three_states: CmdB unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("can/cmd_three_states", "CmdB.seq", (long long)m.seq, (long long)1u);
@@ -231,42 +469,42 @@ static int golden_check_7(void)
     GOLDEN_EXPECT_EQ("can/cmd_three_states", "CmdB.duration2", (long long)m.duration2, (long long)50000u);
     GOLDEN_EXPECT_EQ("can/cmd_three_states", "CmdB.candidates", (long long)m.candidates, (long long)27u);
     if (hil_protocol_cmd_b_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 7 can/cmd_three_states: CmdB pack differs\n");
+        printf("golden 16 can/cmd_three_states: CmdB pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* can/cmd_three_states: CmdC 0x112 */
-static int golden_check_8(void)
+static int golden_check_17(void)
 {
     static const uint8_t data[7] = {0x01, 0x00, 0xd2, 0x04, 0x00, 0x00, 0x00};
     uint8_t out[7];
     struct hil_protocol_cmd_c_t m;
     int fails = 0;
     if (hil_protocol_cmd_c_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 8 can/cmd_three_states: CmdC unpack failed\n");
+        printf("golden 17 can/cmd_three_states: CmdC unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("can/cmd_three_states", "CmdC.seq", (long long)m.seq, (long long)1u);
     GOLDEN_EXPECT_EQ("can/cmd_three_states", "CmdC.exec_time_ns", (long long)m.exec_time_ns, (long long)1234u);
     GOLDEN_EXPECT_EQ("can/cmd_three_states", "CmdC.status", (long long)m.status, (long long)0u);
     if (hil_protocol_cmd_c_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 8 can/cmd_three_states: CmdC pack differs\n");
+        printf("golden 17 can/cmd_three_states: CmdC pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* can/cmd_two_states_limits: CmdA 0x110 */
-static int golden_check_9(void)
+static int golden_check_18(void)
 {
     static const uint8_t data[8] = {0xff, 0xff, 0xc1, 0x0f, 0xf8, 0xff, 0xff, 0xff};
     uint8_t out[8];
     struct hil_protocol_cmd_a_t m;
     int fails = 0;
     if (hil_protocol_cmd_a_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 9 can/cmd_two_states_limits: CmdA unpack failed\n");
+        printf("golden 18 can/cmd_two_states_limits: CmdA unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("can/cmd_two_states_limits", "CmdA.seq", (long long)m.seq, (long long)65535u);
@@ -277,21 +515,21 @@ static int golden_check_9(void)
     GOLDEN_EXPECT_EQ("can/cmd_two_states_limits", "CmdA.duration0", (long long)m.duration0, (long long)1048575u);
     GOLDEN_EXPECT_EQ("can/cmd_two_states_limits", "CmdA.vector_id", (long long)m.vector_id, (long long)255u);
     if (hil_protocol_cmd_a_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 9 can/cmd_two_states_limits: CmdA pack differs\n");
+        printf("golden 18 can/cmd_two_states_limits: CmdA pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* can/cmd_two_states_limits: CmdB 0x111 */
-static int golden_check_10(void)
+static int golden_check_19(void)
 {
     static const uint8_t data[8] = {0xff, 0xff, 0x00, 0x00, 0x00, 0x00, 0x00, 0xff};
     uint8_t out[8];
     struct hil_protocol_cmd_b_t m;
     int fails = 0;
     if (hil_protocol_cmd_b_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 10 can/cmd_two_states_limits: CmdB unpack failed\n");
+        printf("golden 19 can/cmd_two_states_limits: CmdB unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("can/cmd_two_states_limits", "CmdB.seq", (long long)m.seq, (long long)65535u);
@@ -299,42 +537,42 @@ static int golden_check_10(void)
     GOLDEN_EXPECT_EQ("can/cmd_two_states_limits", "CmdB.duration2", (long long)m.duration2, (long long)0u);
     GOLDEN_EXPECT_EQ("can/cmd_two_states_limits", "CmdB.candidates", (long long)m.candidates, (long long)255u);
     if (hil_protocol_cmd_b_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 10 can/cmd_two_states_limits: CmdB pack differs\n");
+        printf("golden 19 can/cmd_two_states_limits: CmdB pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* can/cmd_two_states_limits: CmdC 0x112 */
-static int golden_check_11(void)
+static int golden_check_20(void)
 {
     static const uint8_t data[7] = {0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0x06};
     uint8_t out[7];
     struct hil_protocol_cmd_c_t m;
     int fails = 0;
     if (hil_protocol_cmd_c_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 11 can/cmd_two_states_limits: CmdC unpack failed\n");
+        printf("golden 20 can/cmd_two_states_limits: CmdC unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("can/cmd_two_states_limits", "CmdC.seq", (long long)m.seq, (long long)65535u);
     GOLDEN_EXPECT_EQ("can/cmd_two_states_limits", "CmdC.exec_time_ns", (long long)m.exec_time_ns, (long long)4294967295u);
     GOLDEN_EXPECT_EQ("can/cmd_two_states_limits", "CmdC.status", (long long)m.status, (long long)6u);
     if (hil_protocol_cmd_c_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 11 can/cmd_two_states_limits: CmdC pack differs\n");
+        printf("golden 20 can/cmd_two_states_limits: CmdC pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* can/cmd_one_state_clamped: CmdA 0x110 */
-static int golden_check_12(void)
+static int golden_check_21(void)
 {
     static const uint8_t data[8] = {0x2a, 0x00, 0x00, 0x00, 0x04, 0x6a, 0x18, 0x00};
     uint8_t out[8];
     struct hil_protocol_cmd_a_t m;
     int fails = 0;
     if (hil_protocol_cmd_a_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 12 can/cmd_one_state_clamped: CmdA unpack failed\n");
+        printf("golden 21 can/cmd_one_state_clamped: CmdA unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("can/cmd_one_state_clamped", "CmdA.seq", (long long)m.seq, (long long)42u);
@@ -345,21 +583,21 @@ static int golden_check_12(void)
     GOLDEN_EXPECT_EQ("can/cmd_one_state_clamped", "CmdA.duration0", (long long)m.duration0, (long long)100000u);
     GOLDEN_EXPECT_EQ("can/cmd_one_state_clamped", "CmdA.vector_id", (long long)m.vector_id, (long long)0u);
     if (hil_protocol_cmd_a_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 12 can/cmd_one_state_clamped: CmdA pack differs\n");
+        printf("golden 21 can/cmd_one_state_clamped: CmdA pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* can/cmd_one_state_clamped: CmdB 0x111 */
-static int golden_check_13(void)
+static int golden_check_22(void)
 {
     static const uint8_t data[8] = {0x2a, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x01};
     uint8_t out[8];
     struct hil_protocol_cmd_b_t m;
     int fails = 0;
     if (hil_protocol_cmd_b_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 13 can/cmd_one_state_clamped: CmdB unpack failed\n");
+        printf("golden 22 can/cmd_one_state_clamped: CmdB unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("can/cmd_one_state_clamped", "CmdB.seq", (long long)m.seq, (long long)42u);
@@ -367,42 +605,42 @@ static int golden_check_13(void)
     GOLDEN_EXPECT_EQ("can/cmd_one_state_clamped", "CmdB.duration2", (long long)m.duration2, (long long)0u);
     GOLDEN_EXPECT_EQ("can/cmd_one_state_clamped", "CmdB.candidates", (long long)m.candidates, (long long)1u);
     if (hil_protocol_cmd_b_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 13 can/cmd_one_state_clamped: CmdB pack differs\n");
+        printf("golden 22 can/cmd_one_state_clamped: CmdB pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* can/cmd_one_state_clamped: CmdC 0x112 */
-static int golden_check_14(void)
+static int golden_check_23(void)
 {
     static const uint8_t data[7] = {0x2a, 0x00, 0xff, 0xff, 0xff, 0xff, 0x00};
     uint8_t out[7];
     struct hil_protocol_cmd_c_t m;
     int fails = 0;
     if (hil_protocol_cmd_c_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 14 can/cmd_one_state_clamped: CmdC unpack failed\n");
+        printf("golden 23 can/cmd_one_state_clamped: CmdC unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("can/cmd_one_state_clamped", "CmdC.seq", (long long)m.seq, (long long)42u);
     GOLDEN_EXPECT_EQ("can/cmd_one_state_clamped", "CmdC.exec_time_ns", (long long)m.exec_time_ns, (long long)4294967295u);
     GOLDEN_EXPECT_EQ("can/cmd_one_state_clamped", "CmdC.status", (long long)m.status, (long long)0u);
     if (hil_protocol_cmd_c_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 14 can/cmd_one_state_clamped: CmdC pack differs\n");
+        printf("golden 23 can/cmd_one_state_clamped: CmdC pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* can/setpoint_speed: Setpoint 0x200 */
-static int golden_check_15(void)
+static int golden_check_24(void)
 {
     static const uint8_t data[7] = {0x01, 0x00, 0x00, 0x00, 0xd1, 0x42, 0x01};
     uint8_t out[7];
     struct hil_protocol_setpoint_t m;
     int fails = 0;
     if (hil_protocol_setpoint_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 15 can/setpoint_speed: Setpoint unpack failed\n");
+        printf("golden 24 can/setpoint_speed: Setpoint unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("can/setpoint_speed", "Setpoint.enable", (long long)m.enable, (long long)1u);
@@ -410,21 +648,21 @@ static int golden_check_15(void)
     GOLDEN_EXPECT_EQ("can/setpoint_speed", "Setpoint.reference", (double)m.reference, (double)0x1.a200000000000p+6f);
     GOLDEN_EXPECT_EQ("can/setpoint_speed", "Setpoint.controller_id", (long long)m.controller_id, (long long)1u);
     if (hil_protocol_setpoint_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 15 can/setpoint_speed: Setpoint pack differs\n");
+        printf("golden 24 can/setpoint_speed: Setpoint pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* can/setpoint_torque: Setpoint 0x200 */
-static int golden_check_16(void)
+static int golden_check_25(void)
 {
     static const uint8_t data[7] = {0x00, 0x01, 0x00, 0x00, 0x10, 0xc0, 0x0b};
     uint8_t out[7];
     struct hil_protocol_setpoint_t m;
     int fails = 0;
     if (hil_protocol_setpoint_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 16 can/setpoint_torque: Setpoint unpack failed\n");
+        printf("golden 25 can/setpoint_torque: Setpoint unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("can/setpoint_torque", "Setpoint.enable", (long long)m.enable, (long long)0u);
@@ -432,187 +670,187 @@ static int golden_check_16(void)
     GOLDEN_EXPECT_EQ("can/setpoint_torque", "Setpoint.reference", (double)m.reference, (double)-0x1.2000000000000p+1f);
     GOLDEN_EXPECT_EQ("can/setpoint_torque", "Setpoint.controller_id", (long long)m.controller_id, (long long)11u);
     if (hil_protocol_setpoint_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 16 can/setpoint_torque: Setpoint pack differs\n");
+        printf("golden 25 can/setpoint_torque: Setpoint pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* can/config_rs: ConfigParam 0x210 */
-static int golden_check_17(void)
+static int golden_check_26(void)
 {
     static const uint8_t data[5] = {0x01, 0xcd, 0xcc, 0x4c, 0x3c};
     uint8_t out[5];
     struct hil_protocol_config_param_t m;
     int fails = 0;
     if (hil_protocol_config_param_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 17 can/config_rs: ConfigParam unpack failed\n");
+        printf("golden 26 can/config_rs: ConfigParam unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("can/config_rs", "ConfigParam.param_id", (long long)m.param_id, (long long)1u);
     GOLDEN_EXPECT_EQ("can/config_rs", "ConfigParam.value", (double)m.value, (double)0x1.99999a0000000p-7f);
     if (hil_protocol_config_param_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 17 can/config_rs: ConfigParam pack differs\n");
+        printf("golden 26 can/config_rs: ConfigParam pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* can/config_current_limit: ConfigParam 0x210 */
-static int golden_check_18(void)
+static int golden_check_27(void)
 {
     static const uint8_t data[5] = {0x16, 0x00, 0x00, 0xf0, 0x41};
     uint8_t out[5];
     struct hil_protocol_config_param_t m;
     int fails = 0;
     if (hil_protocol_config_param_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 18 can/config_current_limit: ConfigParam unpack failed\n");
+        printf("golden 27 can/config_current_limit: ConfigParam unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("can/config_current_limit", "ConfigParam.param_id", (long long)m.param_id, (long long)22u);
     GOLDEN_EXPECT_EQ("can/config_current_limit", "ConfigParam.value", (double)m.value, (double)0x1.e000000000000p+4f);
     if (hil_protocol_config_param_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 18 can/config_current_limit: ConfigParam pack differs\n");
+        printf("golden 27 can/config_current_limit: ConfigParam pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* can/config_ack_ok: ConfigAck 0x211 */
-static int golden_check_19(void)
+static int golden_check_28(void)
 {
     static const uint8_t data[6] = {0x05, 0x00, 0x00, 0x80, 0x40, 0x00};
     uint8_t out[6];
     struct hil_protocol_config_ack_t m;
     int fails = 0;
     if (hil_protocol_config_ack_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 19 can/config_ack_ok: ConfigAck unpack failed\n");
+        printf("golden 28 can/config_ack_ok: ConfigAck unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("can/config_ack_ok", "ConfigAck.param_id", (long long)m.param_id, (long long)5u);
     GOLDEN_EXPECT_EQ("can/config_ack_ok", "ConfigAck.value", (double)m.value, (double)0x1.0000000000000p+2f);
     GOLDEN_EXPECT_EQ("can/config_ack_ok", "ConfigAck.status", (long long)m.status, (long long)0u);
     if (hil_protocol_config_ack_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 19 can/config_ack_ok: ConfigAck pack differs\n");
+        printf("golden 28 can/config_ack_ok: ConfigAck pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* can/config_ack_invalid: ConfigAck 0x211 */
-static int golden_check_20(void)
+static int golden_check_29(void)
 {
     static const uint8_t data[6] = {0xc8, 0x00, 0x00, 0xc0, 0xbf, 0x05};
     uint8_t out[6];
     struct hil_protocol_config_ack_t m;
     int fails = 0;
     if (hil_protocol_config_ack_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 20 can/config_ack_invalid: ConfigAck unpack failed\n");
+        printf("golden 29 can/config_ack_invalid: ConfigAck unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("can/config_ack_invalid", "ConfigAck.param_id", (long long)m.param_id, (long long)200u);
     GOLDEN_EXPECT_EQ("can/config_ack_invalid", "ConfigAck.value", (double)m.value, (double)-0x1.8000000000000p+0f);
     GOLDEN_EXPECT_EQ("can/config_ack_invalid", "ConfigAck.status", (long long)m.status, (long long)5u);
     if (hil_protocol_config_ack_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 20 can/config_ack_invalid: ConfigAck pack differs\n");
+        printf("golden 29 can/config_ack_invalid: ConfigAck pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* can/heartbeat_host: HeartbeatHost 0x700 */
-static int golden_check_21(void)
+static int golden_check_30(void)
 {
     static const uint8_t data[3] = {0x00, 0x02, 0x11};
     uint8_t out[3];
     struct hil_protocol_heartbeat_host_t m;
     int fails = 0;
     if (hil_protocol_heartbeat_host_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 21 can/heartbeat_host: HeartbeatHost unpack failed\n");
+        printf("golden 30 can/heartbeat_host: HeartbeatHost unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("can/heartbeat_host", "HeartbeatHost.node", (long long)m.node, (long long)0u);
     GOLDEN_EXPECT_EQ("can/heartbeat_host", "HeartbeatHost.state", (long long)m.state, (long long)2u);
     GOLDEN_EXPECT_EQ("can/heartbeat_host", "HeartbeatHost.counter", (long long)m.counter, (long long)17u);
     if (hil_protocol_heartbeat_host_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 21 can/heartbeat_host: HeartbeatHost pack differs\n");
+        printf("golden 30 can/heartbeat_host: HeartbeatHost pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* can/heartbeat_target: HeartbeatTarget 0x701 */
-static int golden_check_22(void)
+static int golden_check_31(void)
 {
     static const uint8_t data[3] = {0x01, 0x01, 0xff};
     uint8_t out[3];
     struct hil_protocol_heartbeat_target_t m;
     int fails = 0;
     if (hil_protocol_heartbeat_target_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 22 can/heartbeat_target: HeartbeatTarget unpack failed\n");
+        printf("golden 31 can/heartbeat_target: HeartbeatTarget unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("can/heartbeat_target", "HeartbeatTarget.node", (long long)m.node, (long long)1u);
     GOLDEN_EXPECT_EQ("can/heartbeat_target", "HeartbeatTarget.state", (long long)m.state, (long long)1u);
     GOLDEN_EXPECT_EQ("can/heartbeat_target", "HeartbeatTarget.counter", (long long)m.counter, (long long)255u);
     if (hil_protocol_heartbeat_target_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 22 can/heartbeat_target: HeartbeatTarget pack differs\n");
+        printf("golden 31 can/heartbeat_target: HeartbeatTarget pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* can/fault_host: FaultHost 0x010 */
-static int golden_check_23(void)
+static int golden_check_32(void)
 {
     static const uint8_t data[6] = {0x00, 0x03, 0x01, 0x01, 0x00, 0x00};
     uint8_t out[6];
     struct hil_protocol_fault_host_t m;
     int fails = 0;
     if (hil_protocol_fault_host_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 23 can/fault_host: FaultHost unpack failed\n");
+        printf("golden 32 can/fault_host: FaultHost unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("can/fault_host", "FaultHost.node", (long long)m.node, (long long)0u);
     GOLDEN_EXPECT_EQ("can/fault_host", "FaultHost.code", (long long)m.code, (long long)3u);
     GOLDEN_EXPECT_EQ("can/fault_host", "FaultHost.detail", (long long)m.detail, (long long)257u);
     if (hil_protocol_fault_host_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 23 can/fault_host: FaultHost pack differs\n");
+        printf("golden 32 can/fault_host: FaultHost pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* can/fault_target: FaultTarget 0x011 */
-static int golden_check_24(void)
+static int golden_check_33(void)
 {
     static const uint8_t data[6] = {0x01, 0x01, 0xef, 0xbe, 0xad, 0xde};
     uint8_t out[6];
     struct hil_protocol_fault_target_t m;
     int fails = 0;
     if (hil_protocol_fault_target_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 24 can/fault_target: FaultTarget unpack failed\n");
+        printf("golden 33 can/fault_target: FaultTarget unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("can/fault_target", "FaultTarget.node", (long long)m.node, (long long)1u);
     GOLDEN_EXPECT_EQ("can/fault_target", "FaultTarget.code", (long long)m.code, (long long)1u);
     GOLDEN_EXPECT_EQ("can/fault_target", "FaultTarget.detail", (long long)m.detail, (long long)3735928559u);
     if (hil_protocol_fault_target_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 24 can/fault_target: FaultTarget pack differs\n");
+        printf("golden 33 can/fault_target: FaultTarget pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* canfd/meas_nominal: MeasFd 0x108 */
-static int golden_check_25(void)
+static int golden_check_34(void)
 {
     static const uint8_t data[16] = {0x01, 0x00, 0xd2, 0x04, 0x97, 0xfd, 0x97, 0xfd, 0xbe, 0x28, 0x74, 0x14, 0xc0, 0x12, 0x00, 0x00};
     uint8_t out[16];
     struct hil_protocol_meas_fd_t m;
     int fails = 0;
     if (hil_protocol_meas_fd_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 25 canfd/meas_nominal: MeasFd unpack failed\n");
+        printf("golden 34 canfd/meas_nominal: MeasFd unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("canfd/meas_nominal", "MeasFd.seq", (long long)m.seq, (long long)1u);
@@ -636,21 +874,21 @@ static int golden_check_25(void)
     GOLDEN_EXPECT_EQ("canfd/meas_nominal", "MeasFd.vdc encode", (long long)hil_protocol_meas_fd_vdc_encode(0x1.8000000000000p+5f), (long long)4800u);
     GOLDEN_EXPECT_EQ("canfd/meas_nominal", "MeasFd.status", (long long)m.status, (long long)0u);
     if (hil_protocol_meas_fd_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 25 canfd/meas_nominal: MeasFd pack differs\n");
+        printf("golden 34 canfd/meas_nominal: MeasFd pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* canfd/meas_limits: MeasFd 0x108 */
-static int golden_check_26(void)
+static int golden_check_35(void)
 {
     static const uint8_t data[16] = {0xff, 0xff, 0x00, 0x80, 0xff, 0x7f, 0x00, 0x00, 0xff, 0xff, 0x00, 0x80, 0xff, 0xff, 0x01, 0x00};
     uint8_t out[16];
     struct hil_protocol_meas_fd_t m;
     int fails = 0;
     if (hil_protocol_meas_fd_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 26 canfd/meas_limits: MeasFd unpack failed\n");
+        printf("golden 35 canfd/meas_limits: MeasFd unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("canfd/meas_limits", "MeasFd.seq", (long long)m.seq, (long long)65535u);
@@ -674,21 +912,21 @@ static int golden_check_26(void)
     GOLDEN_EXPECT_EQ("canfd/meas_limits", "MeasFd.vdc encode", (long long)hil_protocol_meas_fd_vdc_encode(0x1.47acccccccccdp+9f), (long long)65535u);
     GOLDEN_EXPECT_EQ("canfd/meas_limits", "MeasFd.status", (long long)m.status, (long long)1u);
     if (hil_protocol_meas_fd_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 26 canfd/meas_limits: MeasFd pack differs\n");
+        printf("golden 35 canfd/meas_limits: MeasFd pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* canfd/meas_saturated_wrapped: MeasFd 0x108 */
-static int golden_check_27(void)
+static int golden_check_36(void)
 {
     static const uint8_t data[16] = {0x70, 0x11, 0xff, 0x7f, 0x00, 0x80, 0x00, 0x00, 0xa1, 0xeb, 0xff, 0x7f, 0x00, 0x00, 0x02, 0x00};
     uint8_t out[16];
     struct hil_protocol_meas_fd_t m;
     int fails = 0;
     if (hil_protocol_meas_fd_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 27 canfd/meas_saturated_wrapped: MeasFd unpack failed\n");
+        printf("golden 36 canfd/meas_saturated_wrapped: MeasFd unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("canfd/meas_saturated_wrapped", "MeasFd.seq", (long long)m.seq, (long long)4464u);
@@ -712,21 +950,145 @@ static int golden_check_27(void)
     GOLDEN_EXPECT_EQ("canfd/meas_saturated_wrapped", "MeasFd.vdc encode", (long long)hil_protocol_meas_fd_vdc_encode(0x0.0p+0f), (long long)0u);
     GOLDEN_EXPECT_EQ("canfd/meas_saturated_wrapped", "MeasFd.status", (long long)m.status, (long long)2u);
     if (hil_protocol_meas_fd_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 27 canfd/meas_saturated_wrapped: MeasFd pack differs\n");
+        printf("golden 36 canfd/meas_saturated_wrapped: MeasFd pack differs\n");
+        fails++;
+    }
+    return fails;
+}
+
+/* canfd/meas6_nominal: MeasFd6 0x109 */
+static int golden_check_37(void)
+{
+    static const uint8_t data[24] = {0x02, 0x00, 0x0e, 0x1a, 0xf9, 0xf2, 0xf9, 0xf2, 0x90, 0x16, 0x70, 0xe9, 0x00, 0x00, 0x5f, 0x14, 0xae, 0x1e, 0x30, 0x75, 0x00, 0x00, 0x00, 0x00};
+    uint8_t out[24];
+    struct hil_protocol_meas_fd6_t m;
+    int fails = 0;
+    if (hil_protocol_meas_fd6_unpack(&m, data, sizeof data) != 0) {
+        printf("golden 37 canfd/meas6_nominal: MeasFd6 unpack failed\n");
+        return 1;
+    }
+    GOLDEN_EXPECT_EQ("canfd/meas6_nominal", "MeasFd6.seq", (long long)m.seq, (long long)2u);
+    GOLDEN_EXPECT_EQ("canfd/meas6_nominal", "MeasFd6.i_a", (long long)m.i_a, (long long)6670u);
+    GOLDEN_EXPECT_NEAR("canfd/meas6_nominal", "MeasFd6.i_a", hil_protocol_meas_fd6_i_a_decode(m.i_a), 0x1.0accccccccccdp+6f, 7.670e-05f);
+    GOLDEN_EXPECT_EQ("canfd/meas6_nominal", "MeasFd6.i_a encode", (long long)hil_protocol_meas_fd6_i_a_encode(0x1.0accccccccccdp+6f), (long long)6670u);
+    GOLDEN_EXPECT_EQ("canfd/meas6_nominal", "MeasFd6.i_b", (long long)m.i_b, (long long)-3335);
+    GOLDEN_EXPECT_NEAR("canfd/meas6_nominal", "MeasFd6.i_b", hil_protocol_meas_fd6_i_b_decode(m.i_b), -0x1.0accccccccccdp+5f, 4.335e-05f);
+    GOLDEN_EXPECT_EQ("canfd/meas6_nominal", "MeasFd6.i_b encode", (long long)hil_protocol_meas_fd6_i_b_encode(-0x1.0accccccccccdp+5f), (long long)-3335);
+    GOLDEN_EXPECT_EQ("canfd/meas6_nominal", "MeasFd6.i_c", (long long)m.i_c, (long long)-3335);
+    GOLDEN_EXPECT_NEAR("canfd/meas6_nominal", "MeasFd6.i_c", hil_protocol_meas_fd6_i_c_decode(m.i_c), -0x1.0accccccccccdp+5f, 4.335e-05f);
+    GOLDEN_EXPECT_EQ("canfd/meas6_nominal", "MeasFd6.i_c encode", (long long)hil_protocol_meas_fd6_i_c_encode(-0x1.0accccccccccdp+5f), (long long)-3335);
+    GOLDEN_EXPECT_EQ("canfd/meas6_nominal", "MeasFd6.i_u", (long long)m.i_u, (long long)5776u);
+    GOLDEN_EXPECT_NEAR("canfd/meas6_nominal", "MeasFd6.i_u", hil_protocol_meas_fd6_i_u_decode(m.i_u), 0x1.ce147ae147ae1p+5f, 6.776e-05f);
+    GOLDEN_EXPECT_EQ("canfd/meas6_nominal", "MeasFd6.i_u encode", (long long)hil_protocol_meas_fd6_i_u_encode(0x1.ce147ae147ae1p+5f), (long long)5776u);
+    GOLDEN_EXPECT_EQ("canfd/meas6_nominal", "MeasFd6.i_v", (long long)m.i_v, (long long)-5776);
+    GOLDEN_EXPECT_NEAR("canfd/meas6_nominal", "MeasFd6.i_v", hil_protocol_meas_fd6_i_v_decode(m.i_v), -0x1.ce147ae147ae1p+5f, 6.776e-05f);
+    GOLDEN_EXPECT_EQ("canfd/meas6_nominal", "MeasFd6.i_v encode", (long long)hil_protocol_meas_fd6_i_v_encode(-0x1.ce147ae147ae1p+5f), (long long)-5776);
+    GOLDEN_EXPECT_EQ("canfd/meas6_nominal", "MeasFd6.i_w", (long long)m.i_w, (long long)0u);
+    GOLDEN_EXPECT_NEAR("canfd/meas6_nominal", "MeasFd6.i_w", hil_protocol_meas_fd6_i_w_decode(m.i_w), 0x0.0p+0f, 1.000e-05f);
+    GOLDEN_EXPECT_EQ("canfd/meas6_nominal", "MeasFd6.i_w encode", (long long)hil_protocol_meas_fd6_i_w_encode(0x0.0p+0f), (long long)0u);
+    GOLDEN_EXPECT_EQ("canfd/meas6_nominal", "MeasFd6.theta_e", (long long)m.theta_e, (long long)5215u);
+    GOLDEN_EXPECT_NEAR("canfd/meas6_nominal", "MeasFd6.theta_e", hil_protocol_meas_fd6_theta_e_decode(m.theta_e), 0x1.fffb3ed998d2ap-2f, 5.959e-07f);
+    GOLDEN_EXPECT_EQ("canfd/meas6_nominal", "MeasFd6.theta_e encode", (long long)hil_protocol_meas_fd6_theta_e_encode(0x1.fffb3ed998d2ap-2f), (long long)5215u);
+    GOLDEN_EXPECT_EQ("canfd/meas6_nominal", "MeasFd6.omega_m", (long long)m.omega_m, (long long)7854u);
+    GOLDEN_EXPECT_NEAR("canfd/meas6_nominal", "MeasFd6.omega_m", hil_protocol_meas_fd6_omega_m_decode(m.omega_m), 0x1.3a28f5c28f5c3p+7f, 1.771e-04f);
+    GOLDEN_EXPECT_EQ("canfd/meas6_nominal", "MeasFd6.omega_m encode", (long long)hil_protocol_meas_fd6_omega_m_encode(0x1.3a28f5c28f5c3p+7f), (long long)7854u);
+    GOLDEN_EXPECT_EQ("canfd/meas6_nominal", "MeasFd6.vdc", (long long)m.vdc, (long long)30000u);
+    GOLDEN_EXPECT_NEAR("canfd/meas6_nominal", "MeasFd6.vdc", hil_protocol_meas_fd6_vdc_decode(m.vdc), 0x1.2c00000000000p+8f, 3.100e-04f);
+    GOLDEN_EXPECT_EQ("canfd/meas6_nominal", "MeasFd6.vdc encode", (long long)hil_protocol_meas_fd6_vdc_encode(0x1.2c00000000000p+8f), (long long)30000u);
+    GOLDEN_EXPECT_EQ("canfd/meas6_nominal", "MeasFd6.status", (long long)m.status, (long long)0u);
+    if (hil_protocol_meas_fd6_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
+        printf("golden 37 canfd/meas6_nominal: MeasFd6 pack differs\n");
+        fails++;
+    }
+    return fails;
+}
+
+/* canfd/meas6_saturated_wrapped: MeasFd6 0x109 */
+static int golden_check_38(void)
+{
+    static const uint8_t data[24] = {0x01, 0x00, 0xff, 0x7f, 0x00, 0x80, 0x00, 0x00, 0xff, 0x7f, 0x00, 0x80, 0x64, 0x00, 0x35, 0x1d, 0x32, 0x00, 0xc0, 0x12, 0x01, 0x00, 0x00, 0x00};
+    uint8_t out[24];
+    struct hil_protocol_meas_fd6_t m;
+    int fails = 0;
+    if (hil_protocol_meas_fd6_unpack(&m, data, sizeof data) != 0) {
+        printf("golden 38 canfd/meas6_saturated_wrapped: MeasFd6 unpack failed\n");
+        return 1;
+    }
+    GOLDEN_EXPECT_EQ("canfd/meas6_saturated_wrapped", "MeasFd6.seq", (long long)m.seq, (long long)1u);
+    GOLDEN_EXPECT_EQ("canfd/meas6_saturated_wrapped", "MeasFd6.i_a", (long long)m.i_a, (long long)32767u);
+    GOLDEN_EXPECT_NEAR("canfd/meas6_saturated_wrapped", "MeasFd6.i_a", hil_protocol_meas_fd6_i_a_decode(m.i_a), 0x1.47ab851eb851fp+8f, 3.377e-04f);
+    GOLDEN_EXPECT_EQ("canfd/meas6_saturated_wrapped", "MeasFd6.i_a encode", (long long)hil_protocol_meas_fd6_i_a_encode(0x1.47ab851eb851fp+8f), (long long)32767u);
+    GOLDEN_EXPECT_EQ("canfd/meas6_saturated_wrapped", "MeasFd6.i_b", (long long)m.i_b, (long long)-32768);
+    GOLDEN_EXPECT_NEAR("canfd/meas6_saturated_wrapped", "MeasFd6.i_b", hil_protocol_meas_fd6_i_b_decode(m.i_b), -0x1.47ae147ae147bp+8f, 3.377e-04f);
+    GOLDEN_EXPECT_EQ("canfd/meas6_saturated_wrapped", "MeasFd6.i_b encode", (long long)hil_protocol_meas_fd6_i_b_encode(-0x1.47ae147ae147bp+8f), (long long)-32768);
+    GOLDEN_EXPECT_EQ("canfd/meas6_saturated_wrapped", "MeasFd6.i_c", (long long)m.i_c, (long long)0u);
+    GOLDEN_EXPECT_NEAR("canfd/meas6_saturated_wrapped", "MeasFd6.i_c", hil_protocol_meas_fd6_i_c_decode(m.i_c), 0x0.0p+0f, 1.000e-05f);
+    GOLDEN_EXPECT_EQ("canfd/meas6_saturated_wrapped", "MeasFd6.i_c encode", (long long)hil_protocol_meas_fd6_i_c_encode(0x0.0p+0f), (long long)0u);
+    GOLDEN_EXPECT_EQ("canfd/meas6_saturated_wrapped", "MeasFd6.i_u", (long long)m.i_u, (long long)32767u);
+    GOLDEN_EXPECT_NEAR("canfd/meas6_saturated_wrapped", "MeasFd6.i_u", hil_protocol_meas_fd6_i_u_decode(m.i_u), 0x1.47ab851eb851fp+8f, 3.377e-04f);
+    GOLDEN_EXPECT_EQ("canfd/meas6_saturated_wrapped", "MeasFd6.i_u encode", (long long)hil_protocol_meas_fd6_i_u_encode(0x1.47ab851eb851fp+8f), (long long)32767u);
+    GOLDEN_EXPECT_EQ("canfd/meas6_saturated_wrapped", "MeasFd6.i_v", (long long)m.i_v, (long long)-32768);
+    GOLDEN_EXPECT_NEAR("canfd/meas6_saturated_wrapped", "MeasFd6.i_v", hil_protocol_meas_fd6_i_v_decode(m.i_v), -0x1.47ae147ae147bp+8f, 3.377e-04f);
+    GOLDEN_EXPECT_EQ("canfd/meas6_saturated_wrapped", "MeasFd6.i_v encode", (long long)hil_protocol_meas_fd6_i_v_encode(-0x1.47ae147ae147bp+8f), (long long)-32768);
+    GOLDEN_EXPECT_EQ("canfd/meas6_saturated_wrapped", "MeasFd6.i_w", (long long)m.i_w, (long long)100u);
+    GOLDEN_EXPECT_NEAR("canfd/meas6_saturated_wrapped", "MeasFd6.i_w", hil_protocol_meas_fd6_i_w_decode(m.i_w), 0x1.0000000000000p+0f, 1.100e-05f);
+    GOLDEN_EXPECT_EQ("canfd/meas6_saturated_wrapped", "MeasFd6.i_w encode", (long long)hil_protocol_meas_fd6_i_w_encode(0x1.0000000000000p+0f), (long long)100u);
+    GOLDEN_EXPECT_EQ("canfd/meas6_saturated_wrapped", "MeasFd6.theta_e", (long long)m.theta_e, (long long)7477u);
+    GOLDEN_EXPECT_NEAR("canfd/meas6_saturated_wrapped", "MeasFd6.theta_e", hil_protocol_meas_fd6_theta_e_decode(m.theta_e), 0x1.6f06c0ca159c8p-1f, 8.127e-07f);
+    GOLDEN_EXPECT_EQ("canfd/meas6_saturated_wrapped", "MeasFd6.theta_e encode", (long long)hil_protocol_meas_fd6_theta_e_encode(0x1.6f06c0ca159c8p-1f), (long long)7477u);
+    GOLDEN_EXPECT_EQ("canfd/meas6_saturated_wrapped", "MeasFd6.omega_m", (long long)m.omega_m, (long long)50u);
+    GOLDEN_EXPECT_NEAR("canfd/meas6_saturated_wrapped", "MeasFd6.omega_m", hil_protocol_meas_fd6_omega_m_decode(m.omega_m), 0x1.0000000000000p+0f, 2.100e-05f);
+    GOLDEN_EXPECT_EQ("canfd/meas6_saturated_wrapped", "MeasFd6.omega_m encode", (long long)hil_protocol_meas_fd6_omega_m_encode(0x1.0000000000000p+0f), (long long)50u);
+    GOLDEN_EXPECT_EQ("canfd/meas6_saturated_wrapped", "MeasFd6.vdc", (long long)m.vdc, (long long)4800u);
+    GOLDEN_EXPECT_NEAR("canfd/meas6_saturated_wrapped", "MeasFd6.vdc", hil_protocol_meas_fd6_vdc_decode(m.vdc), 0x1.8000000000000p+5f, 5.800e-05f);
+    GOLDEN_EXPECT_EQ("canfd/meas6_saturated_wrapped", "MeasFd6.vdc encode", (long long)hil_protocol_meas_fd6_vdc_encode(0x1.8000000000000p+5f), (long long)4800u);
+    GOLDEN_EXPECT_EQ("canfd/meas6_saturated_wrapped", "MeasFd6.status", (long long)m.status, (long long)1u);
+    if (hil_protocol_meas_fd6_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
+        printf("golden 38 canfd/meas6_saturated_wrapped: MeasFd6 pack differs\n");
+        fails++;
+    }
+    return fails;
+}
+
+/* canfd/cmd_six_phase_v3: CmdFd 0x118 */
+static int golden_check_39(void)
+{
+    static const uint8_t data[20] = {0x03, 0x00, 0x9b, 0x02, 0x58, 0xdf, 0x11, 0xab, 0x68, 0x00, 0x00, 0x00, 0x07, 0x0d, 0x34, 0x08, 0x00, 0x00, 0x00, 0x00};
+    uint8_t out[20];
+    struct hil_protocol_cmd_fd_t m;
+    int fails = 0;
+    if (hil_protocol_cmd_fd_unpack(&m, data, sizeof data) != 0) {
+        printf("golden 39 canfd/cmd_six_phase_v3: CmdFd unpack failed\n");
+        return 1;
+    }
+    GOLDEN_EXPECT_EQ("canfd/cmd_six_phase_v3", "CmdFd.seq", (long long)m.seq, (long long)3u);
+    GOLDEN_EXPECT_EQ("canfd/cmd_six_phase_v3", "CmdFd.state0", (long long)m.state0, (long long)27u);
+    GOLDEN_EXPECT_EQ("canfd/cmd_six_phase_v3", "CmdFd.state1", (long long)m.state1, (long long)10u);
+    GOLDEN_EXPECT_EQ("canfd/cmd_six_phase_v3", "CmdFd.state2", (long long)m.state2, (long long)0u);
+    GOLDEN_EXPECT_EQ("canfd/cmd_six_phase_v3", "CmdFd.n_states", (long long)m.n_states, (long long)2u);
+    GOLDEN_EXPECT_EQ("canfd/cmd_six_phase_v3", "CmdFd.duration0", (long long)m.duration0, (long long)73205u);
+    GOLDEN_EXPECT_EQ("canfd/cmd_six_phase_v3", "CmdFd.duration1", (long long)m.duration1, (long long)26795u);
+    GOLDEN_EXPECT_EQ("canfd/cmd_six_phase_v3", "CmdFd.duration2", (long long)m.duration2, (long long)0u);
+    GOLDEN_EXPECT_EQ("canfd/cmd_six_phase_v3", "CmdFd.vector_id", (long long)m.vector_id, (long long)7u);
+    GOLDEN_EXPECT_EQ("canfd/cmd_six_phase_v3", "CmdFd.candidates", (long long)m.candidates, (long long)13u);
+    GOLDEN_EXPECT_EQ("canfd/cmd_six_phase_v3", "CmdFd.exec_time_ns", (long long)m.exec_time_ns, (long long)2100u);
+    GOLDEN_EXPECT_EQ("canfd/cmd_six_phase_v3", "CmdFd.status", (long long)m.status, (long long)0u);
+    if (hil_protocol_cmd_fd_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
+        printf("golden 39 canfd/cmd_six_phase_v3: CmdFd pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* canfd/cmd_three_states: CmdFd 0x118 */
-static int golden_check_28(void)
+static int golden_check_40(void)
 {
     static const uint8_t data[20] = {0x01, 0x00, 0x84, 0x71, 0x0c, 0x53, 0x07, 0x20, 0x4e, 0x00, 0x35, 0x0c, 0x0c, 0x1b, 0xd2, 0x04, 0x00, 0x00, 0x00, 0x00};
     uint8_t out[20];
     struct hil_protocol_cmd_fd_t m;
     int fails = 0;
     if (hil_protocol_cmd_fd_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 28 canfd/cmd_three_states: CmdFd unpack failed\n");
+        printf("golden 40 canfd/cmd_three_states: CmdFd unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("canfd/cmd_three_states", "CmdFd.seq", (long long)m.seq, (long long)1u);
@@ -742,21 +1104,21 @@ static int golden_check_28(void)
     GOLDEN_EXPECT_EQ("canfd/cmd_three_states", "CmdFd.exec_time_ns", (long long)m.exec_time_ns, (long long)1234u);
     GOLDEN_EXPECT_EQ("canfd/cmd_three_states", "CmdFd.status", (long long)m.status, (long long)0u);
     if (hil_protocol_cmd_fd_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 28 canfd/cmd_three_states: CmdFd pack differs\n");
+        printf("golden 40 canfd/cmd_three_states: CmdFd pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* canfd/cmd_two_states_limits: CmdFd 0x118 */
-static int golden_check_29(void)
+static int golden_check_41(void)
 {
     static const uint8_t data[20] = {0xff, 0xff, 0xc1, 0x0f, 0xf8, 0xff, 0xff, 0x00, 0x00, 0x00, 0x00, 0x00, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0x06, 0x00};
     uint8_t out[20];
     struct hil_protocol_cmd_fd_t m;
     int fails = 0;
     if (hil_protocol_cmd_fd_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 29 canfd/cmd_two_states_limits: CmdFd unpack failed\n");
+        printf("golden 41 canfd/cmd_two_states_limits: CmdFd unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("canfd/cmd_two_states_limits", "CmdFd.seq", (long long)m.seq, (long long)65535u);
@@ -772,21 +1134,21 @@ static int golden_check_29(void)
     GOLDEN_EXPECT_EQ("canfd/cmd_two_states_limits", "CmdFd.exec_time_ns", (long long)m.exec_time_ns, (long long)4294967295u);
     GOLDEN_EXPECT_EQ("canfd/cmd_two_states_limits", "CmdFd.status", (long long)m.status, (long long)6u);
     if (hil_protocol_cmd_fd_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 29 canfd/cmd_two_states_limits: CmdFd pack differs\n");
+        printf("golden 41 canfd/cmd_two_states_limits: CmdFd pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* canfd/cmd_one_state_clamped: CmdFd 0x118 */
-static int golden_check_30(void)
+static int golden_check_42(void)
 {
     static const uint8_t data[20] = {0x2a, 0x00, 0x00, 0x00, 0x04, 0x6a, 0x18, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x01, 0xff, 0xff, 0xff, 0xff, 0x00, 0x00};
     uint8_t out[20];
     struct hil_protocol_cmd_fd_t m;
     int fails = 0;
     if (hil_protocol_cmd_fd_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 30 canfd/cmd_one_state_clamped: CmdFd unpack failed\n");
+        printf("golden 42 canfd/cmd_one_state_clamped: CmdFd unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("canfd/cmd_one_state_clamped", "CmdFd.seq", (long long)m.seq, (long long)42u);
@@ -802,7 +1164,7 @@ static int golden_check_30(void)
     GOLDEN_EXPECT_EQ("canfd/cmd_one_state_clamped", "CmdFd.exec_time_ns", (long long)m.exec_time_ns, (long long)4294967295u);
     GOLDEN_EXPECT_EQ("canfd/cmd_one_state_clamped", "CmdFd.status", (long long)m.status, (long long)0u);
     if (hil_protocol_cmd_fd_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 30 canfd/cmd_one_state_clamped: CmdFd pack differs\n");
+        printf("golden 42 canfd/cmd_one_state_clamped: CmdFd pack differs\n");
         fails++;
     }
     return fails;
@@ -816,32 +1178,44 @@ static const struct { const char *name; golden_check_fn fn; } golden_checks[] = 
     {"can/meas_limits MeasB", golden_check_3},
     {"can/meas_saturated_wrapped MeasA", golden_check_4},
     {"can/meas_saturated_wrapped MeasB", golden_check_5},
-    {"can/cmd_three_states CmdA", golden_check_6},
-    {"can/cmd_three_states CmdB", golden_check_7},
-    {"can/cmd_three_states CmdC", golden_check_8},
-    {"can/cmd_two_states_limits CmdA", golden_check_9},
-    {"can/cmd_two_states_limits CmdB", golden_check_10},
-    {"can/cmd_two_states_limits CmdC", golden_check_11},
-    {"can/cmd_one_state_clamped CmdA", golden_check_12},
-    {"can/cmd_one_state_clamped CmdB", golden_check_13},
-    {"can/cmd_one_state_clamped CmdC", golden_check_14},
-    {"can/setpoint_speed Setpoint", golden_check_15},
-    {"can/setpoint_torque Setpoint", golden_check_16},
-    {"can/config_rs ConfigParam", golden_check_17},
-    {"can/config_current_limit ConfigParam", golden_check_18},
-    {"can/config_ack_ok ConfigAck", golden_check_19},
-    {"can/config_ack_invalid ConfigAck", golden_check_20},
-    {"can/heartbeat_host HeartbeatHost", golden_check_21},
-    {"can/heartbeat_target HeartbeatTarget", golden_check_22},
-    {"can/fault_host FaultHost", golden_check_23},
-    {"can/fault_target FaultTarget", golden_check_24},
-    {"canfd/meas_nominal MeasFd", golden_check_25},
-    {"canfd/meas_limits MeasFd", golden_check_26},
-    {"canfd/meas_saturated_wrapped MeasFd", golden_check_27},
-    {"canfd/cmd_three_states CmdFd", golden_check_28},
-    {"canfd/cmd_two_states_limits CmdFd", golden_check_29},
-    {"canfd/cmd_one_state_clamped CmdFd", golden_check_30},
+    {"can/meas6_nominal Meas6A", golden_check_6},
+    {"can/meas6_nominal Meas6C", golden_check_7},
+    {"can/meas6_nominal Meas6B", golden_check_8},
+    {"can/meas6_saturated_wrapped Meas6A", golden_check_9},
+    {"can/meas6_saturated_wrapped Meas6C", golden_check_10},
+    {"can/meas6_saturated_wrapped Meas6B", golden_check_11},
+    {"can/cmd_six_phase_v3 CmdA", golden_check_12},
+    {"can/cmd_six_phase_v3 CmdB", golden_check_13},
+    {"can/cmd_six_phase_v3 CmdC", golden_check_14},
+    {"can/cmd_three_states CmdA", golden_check_15},
+    {"can/cmd_three_states CmdB", golden_check_16},
+    {"can/cmd_three_states CmdC", golden_check_17},
+    {"can/cmd_two_states_limits CmdA", golden_check_18},
+    {"can/cmd_two_states_limits CmdB", golden_check_19},
+    {"can/cmd_two_states_limits CmdC", golden_check_20},
+    {"can/cmd_one_state_clamped CmdA", golden_check_21},
+    {"can/cmd_one_state_clamped CmdB", golden_check_22},
+    {"can/cmd_one_state_clamped CmdC", golden_check_23},
+    {"can/setpoint_speed Setpoint", golden_check_24},
+    {"can/setpoint_torque Setpoint", golden_check_25},
+    {"can/config_rs ConfigParam", golden_check_26},
+    {"can/config_current_limit ConfigParam", golden_check_27},
+    {"can/config_ack_ok ConfigAck", golden_check_28},
+    {"can/config_ack_invalid ConfigAck", golden_check_29},
+    {"can/heartbeat_host HeartbeatHost", golden_check_30},
+    {"can/heartbeat_target HeartbeatTarget", golden_check_31},
+    {"can/fault_host FaultHost", golden_check_32},
+    {"can/fault_target FaultTarget", golden_check_33},
+    {"canfd/meas_nominal MeasFd", golden_check_34},
+    {"canfd/meas_limits MeasFd", golden_check_35},
+    {"canfd/meas_saturated_wrapped MeasFd", golden_check_36},
+    {"canfd/meas6_nominal MeasFd6", golden_check_37},
+    {"canfd/meas6_saturated_wrapped MeasFd6", golden_check_38},
+    {"canfd/cmd_six_phase_v3 CmdFd", golden_check_39},
+    {"canfd/cmd_three_states CmdFd", golden_check_40},
+    {"canfd/cmd_two_states_limits CmdFd", golden_check_41},
+    {"canfd/cmd_one_state_clamped CmdFd", golden_check_42},
 };
-#define GOLDEN_CHECK_COUNT 31
+#define GOLDEN_CHECK_COUNT 43
 
 #endif /* GOLDEN_FRAMES_H */

@@ -27,6 +27,11 @@ OMEGA_M = 1500.0 * 2.0 * math.pi / 60.0  # rated speed [rad/s]
 POLE_PAIRS = 3
 TS = 100e-6  # [s]
 I_AMP = 7.4  # rated q current [A]
+#: Table 4 of 000_81a00a8e308450c6.txt (dSPACE 1103), µs: measurement, reference vector, prediction, total.
+PAPER_TABLE4_US: dict[str, tuple[float | None, float | None, float | None, float]] = {
+    "mpcc": (7.32, 0.0, 48.51, 55.83), "fcs-mpc-1": (7.25, 5.62, 39.36, 52.23),
+    "fcs-mpc-2": (7.31, 5.45, 37.43, 50.19), "dbcc-mpc": (7.29, 7.38, 36.78, 51.45), "foc": (None, None, None, 13.2),
+}
 
 # Driver for the instruction counts: same rotating input as the timing loop, plain hil_fw_step.
 DRIVER_C = r"""
@@ -229,8 +234,13 @@ def format_figures(figures: list[ControllerFigures], note: str) -> list[str]:
             f"{f.controller_id:>2} {f.name:<10}{f.ns_per_step:9.0f}  {f.ns_per_step_min_repeat:9.0f}  "
             f"{f.split_ns[0]:8.0f}  {f.split_ns[1]:9.0f}  {f.split_ns[2]:8.0f} {instr}{detail}"
         )
-    lines.append("stage times include one CLOCK_MONOTONIC read each (~20-30 ns); the paper's Table 4 "
-                 "(dSPACE 1103) lists 55.83 µs for conventional MPC.")
+    paper = [f for f in figures if f.name in PAPER_TABLE4_US]
+    if paper:
+        lines.append("paper Table 4 (dSPACE 1103, µs: measure / reference / predict / total):")
+        for f in paper:
+            parts = " / ".join("-" if v is None else f"{v:.2f}" for v in PAPER_TABLE4_US[f.name])
+            lines.append(f"   {f.name:<10} {parts}")
+    lines.append("stage times include one CLOCK_MONOTONIC read each (~20-30 ns).")
     if note:
         lines.append(note)
     return lines

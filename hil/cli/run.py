@@ -16,7 +16,7 @@ from pmsm_hil.hil.errors import InputFileError, ParameterError
 from pmsm_hil.hil.motor_params import parse_set_options
 from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runner.run import run_closed_loop
-from pmsm_hil.hil.runner.run_config import RunConfig
+from pmsm_hil.hil.runner.run_config import RunConfig, parse_param_options
 from pmsm_hil.hil.runner.scenario import load_scenario
 from pmsm_hil.hil.sensors import SensorConfig
 
@@ -105,7 +105,7 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
     motor = load_motor(str(pick("motor")), parse_set_options([*cfg.get("set", []), *args.set_params]))
     scenario = load_scenario(str(pick("scenario"))).with_overrides(
         speed_rpm=pick("speed"), load_nm=pick("load"), duration_s=pick("duration"), settle_s=pick("settle"))
-    controller_params = parse_set_options([*cfg.get("param", []), *args.param])
+    controller_params = parse_param_options([*cfg.get("param", []), *args.param])
     out = pick("out")
     no_log = bool(pick("no_log"))
     controller = str(pick("controller"))

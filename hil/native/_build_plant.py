@@ -36,13 +36,48 @@ double pl_torque(const pl_params_t *p, double i_d, double i_q);
 void pl_phase_currents(double i_d, double i_q, double theta_e, double *i_a, double *i_b, double *i_c);
 """
 
+#: Second set of functions: the dual three-phase kernel (plant6.c), same extension module.
+CDEF6 = """
+typedef struct {
+    double rs, ld, lq, lls, psi_f, vdc, j, b, t_dead, t_mpw, max_piece;
+    int32_t pole_pairs;
+    int32_t inertia_mode;
+} p6_params_t;
+typedef struct {
+    uint64_t t_ns;
+    uint64_t trace_k;
+    double i_d, i_q, i_x, i_y, theta_e, omega_m;
+    double last_edge_t[6];
+    double dead_until[6];
+    int32_t gate;
+    int32_t dead_level[6];
+} p6_state_t;
+typedef struct {
+    uint32_t leg_transitions, boundary_transitions, narrow_pulses, suppressed_pulses, narrow_pulses_gated;
+    int32_t trace_n;
+    int32_t error;
+} p6_period_stats_t;
+int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const int64_t *durations_ns,
+               int32_t n, double t_load0, double t_load_slope, double trace_dt, double *trace,
+               int32_t trace_cap, p6_period_stats_t *stats);
+double p6_torque(const p6_params_t *p, double i_d, double i_q);
+void p6_phase_currents(double i_d, double i_q, double theta_e, double i_x, double i_y, double *i_phase);
+void p6_code_voltage(double vdc, int32_t code, double *v4);
+"""
+
+
+def _source(name: str) -> str:
+    """Source path, relative to the working directory when possible (setuptools wants that)."""
+    path = _HERE / name
+    return str(path.relative_to(Path.cwd())) if path.is_relative_to(Path.cwd()) else str(path)
+
+
 ffibuilder = FFI()
-ffibuilder.cdef(CDEF)
+ffibuilder.cdef(CDEF + CDEF6)
 ffibuilder.set_source(
     "pmsm_hil.hil._plant_native",
-    '#include "plant.h"',
-    sources=[str((_HERE / "plant.c").relative_to(Path.cwd())) if _HERE.is_relative_to(Path.cwd())
-             else str(_HERE / "plant.c")],
+    '#include "plant.h"\n#include "plant6.h"',
+    sources=[_source(name) for name in ("plant.c", "plant6.c")],
     include_dirs=[str(_HERE)],
     extra_compile_args=["-std=c99", "-O2", "-Wall", "-Wextra", "-Wdouble-promotion"],
     libraries=["m"],

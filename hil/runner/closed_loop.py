@@ -40,6 +40,10 @@ class LoopOutcome:
     lateness_ns: list[int] = field(default_factory=list)
     end_reason: str = "completed"
     safe_state: bool = False
+    #: metrics-window periods with a restricted-vs-full candidate diagnostic, and those where the
+    #: restricted set missed the full-set optimum (in-process targets that report `full_miss`)
+    candidate_checked: int = 0
+    candidate_misses: int = 0
 
 
 BlockSink = Callable[[ByteRecords, ByteRecords, "npt.NDArray[np.void] | None"], None]
@@ -194,6 +198,10 @@ class ClosedLoop:
                 if res is not None:
                     next_split = res.split_ns  # type: ignore[attr-defined]
                     next_tref = res.torque_ref  # type: ignore[attr-defined]
+                    full_miss = getattr(res, "full_miss", 255)
+                    if full_miss != 255 and k >= n_settle:
+                        out.candidate_checked += 1
+                        out.candidate_misses += full_miss
                 else:
                     next_split, next_tref = (0, 0, 0), _NAN
             periods_pack_into(

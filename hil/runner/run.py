@@ -143,4 +143,6 @@ def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection) -> dict[
                                   "max": float(lat.max())}
     speed_err = metrics.get("speed_mean_rpm", math.nan) - cfg.scenario.speed_rpm
     metrics["speed_error_pct"] = 100.0 * speed_err / cfg.scenario.speed_rpm if cfg.scenario.speed_rpm else None
+    metrics["candidate_miss_rate"] = (out.candidate_misses / out.candidate_checked
+                                      if out.candidate_checked else None)
     return metrics

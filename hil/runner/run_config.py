@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from pmsm_hil.hil.errors import ParameterError
-from pmsm_hil.hil.motor_params import PmsmParams
+from pmsm_hil.hil.motor_params import PmsmParams, parse_set_options
 from pmsm_hil.hil.runner.scenario import Scenario
 from pmsm_hil.hil.sensors import SensorConfig
 from pmsm_hil.protocol.ids import CONTROLLER_NAMES, ParamId
@@ -29,6 +29,33 @@ def controller_id(name: str) -> int:
         if cname == name:
             return int(cid)
     raise ParameterError(f"unknown controller '{name}' (known: {', '.join(CONTROLLER_NAMES.values())})")
+
+
+#: Controllers for the dual three-phase machine (everything else drives three phases).
+SIX_PHASE_CONTROLLERS = ("mptc1", "mptc2", "mptc3")
+
+#: Named values accepted by --param for enumerated controller parameters.
+PARAM_VALUE_NAMES: dict[str, dict[str, float]] = {
+    "zero_select": {"paper": 0.0, "min_transitions": 1.0},
+}
+
+
+def parse_param_options(items: list[str] | None) -> dict[str, float]:
+    """Parse ``--param NAME=VALUE`` items: numbers, or a named value (e.g. zero_select=min_transitions)."""
+    result: dict[str, float] = {}
+    numeric: list[str] = []
+    for item in items or []:
+        name, sep, text = item.partition("=")
+        names = PARAM_VALUE_NAMES.get(name.strip().lower())
+        if sep and names is not None and text.strip() in names:
+            result[name.strip()] = names[text.strip()]
+        else:
+            numeric.append(item)
+    try:
+        parsed = parse_set_options(numeric)
+    except ParameterError as exc:
+        raise ParameterError(str(exc).replace("--set", "--param")) from None
+    return {**parsed, **result}
 
 
 def param_id(name: str) -> ParamId:
@@ -63,6 +90,12 @@ class RunConfig:
 
     def __post_init__(self) -> None:
         controller_id(self.controller)
+        six = self.controller in SIX_PHASE_CONTROLLERS
+        if six != self.motor.is_six_phase:
+            raise ParameterError(
+                f"controller '{self.controller}' needs a {'six' if six else 'three'}-phase motor, but "
+                f"'{self.motor.name}' is {'six' if self.motor.is_six_phase else 'three'}-phase "
+                f"(six-phase motors have lls > 0)")
         if not (math.isfinite(self.ts_s) and 5e-6 <= self.ts_s <= 1e-2):
             raise ParameterError(f"--ts must be between 5 µs and 10 ms, got {self.ts_s} s")
         if abs(round(self.ts_s * 1e9) - self.ts_s * 1e9) > 1e-3:
@@ -95,6 +128,8 @@ class RunConfig:
             ParamId.TORQUE_LIMIT: TORQUE_LIMIT_PER_RATED * rated,
             ParamId.TORQUE_INTEGRATOR_INIT: sc.start_load_nm if sc.preset_integrator else 0.0,
             ParamId.CURRENT_LIMIT: 0.8 * m.i_trip,
+            # the firmware is told the inverter's dead time and minimum pulse (for compensation)
+            ParamId.T_DEAD: m.t_dead, ParamId.T_MPW: m.t_mpw,
         }
         for name, value in self.controller_params.items():
             params[param_id(name)] = value

@@ -53,14 +53,17 @@ def test_param_errors_name_the_param() -> None:
 def test_controller_selection_errors() -> None:
     fw = Firmware()
     fw.select_controller(CONTROLLER_IDS["mpcc"])
-    with pytest.raises(FirmwareConfigError, match="not implemented"):
-        fw.select_controller(CONTROLLER_IDS["foc"])
+    missing = [i for i in CONTROLLER_IDS.values() if not Firmware.controller_implemented(i)]
+    for cid in missing:
+        with pytest.raises(FirmwareConfigError, match="not implemented"):
+            fw.select_controller(cid)
     with pytest.raises(FirmwareConfigError, match="unknown controller"):
         fw.select_controller(12)
     with pytest.raises(FirmwareConfigError, match="controller_id -1"):
         fw.select_controller(-1)
     assert fw.controller_id == CONTROLLER_IDS["mpcc"]
-    assert Firmware.controller_implemented(1) and not Firmware.controller_implemented(6)
+    assert Firmware.controller_implemented(1) and Firmware.controller_implemented(6)
+    assert not Firmware.controller_implemented(200)
 
 
 def test_setpoint_errors() -> None:

@@ -54,10 +54,12 @@ def test_modes_params_status_nodes() -> None:
 def test_priority_order_of_ids() -> None:
     ids = {m.name: m.frame_id for m in DB.messages}
     fault = max(ids["FaultHost"], ids["FaultTarget"])
-    hot = [ids[n] for n in ("MeasA", "MeasB", "MeasFd", "CmdA", "CmdB", "CmdC", "CmdFd")]
+    hot = [ids[n] for n in ("MeasA", "MeasB", "MeasFd", "CmdA", "CmdB", "CmdC", "CmdFd", "Meas6A", "Meas6C",
+                            "Meas6B", "MeasFd6")]
     slow = [ids[n] for n in ("Setpoint", "ConfigParam", "ConfigAck")]
     beat = min(ids["HeartbeatHost"], ids["HeartbeatTarget"])
     assert fault < min(hot) and max(hot) < min(slow) and max(slow) < beat
     assert all(i < 0x800 for i in ids.values())
-    reserved = {0x102, 0x109}
-    assert not reserved & set(ids.values())
+    # six-phase measurement on the ids reserved for it, below the commands
+    assert (ids["Meas6A"], ids["Meas6C"], ids["Meas6B"], ids["MeasFd6"]) == (0x102, 0x103, 0x104, 0x109)
+    assert max(ids[n] for n in ("Meas6A", "Meas6C", "Meas6B", "MeasFd6")) < ids["CmdA"]

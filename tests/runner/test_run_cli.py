@@ -56,7 +56,8 @@ def test_config_file_is_used_and_cli_wins(tmp_path: Path) -> None:
         (["--motor", "nope"], "unknown motor preset 'nope'"),
         (["--ts", "3e-6"], "--ts must be between"),
         (["--link", "nosuchbus:0"], "nosuchbus"),
-        (["--controller", "dsvm-20"], "target fault: not_implemented"),
+        (["--controller", "mptc1"], "controller 'mptc1' needs a six-phase motor"),
+        (["--motor", "zhang2021-dtpmsm", "--controller", "mpcc"], "controller 'mpcc' needs a three-phase motor"),
     ],
 )
 def test_bad_input_gives_one_line_error(argv: list[str], needle: str, capsys: pytest.CaptureFixture[str]) -> None:

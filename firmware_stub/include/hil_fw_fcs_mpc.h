@@ -1,0 +1,35 @@
+/*
+ * Reference firmware: reference-vector stage of the proposed FCS-MPC I and II (Section III-B/C):
+ * stator flux from eq. (10) in the stator frame, torque from eq. (11), two two-level comparators
+ * without band, flux sector S (S = 1 centred on u1, [-30, 30) deg), Tables 1 and 2, then the
+ * region of Fig. 6 (I, 6 candidates) or Fig. 8 (II, 5 candidates) of the chosen reference vector.
+ * Flux and torque are compared at k+1 (delay-compensated, as the two-step prediction).
+ * See docs/algorithms/fcs_mpc_regions.md.
+ */
+#ifndef HIL_FW_FCS_MPC_H
+#define HIL_FW_FCS_MPC_H
+
+#include <stdint.h>
+
+struct hil_fw_state;
+
+#define HIL_FW_FCS_TABLE_VIRTUAL 1 /* Table 1: reference among u12..u61 */
+#define HIL_FW_FCS_TABLE_REAL 2    /* Table 2: reference among u1..u6 */
+
+/* Tables 1 and 2 as printed: rows (h_psi, h_te) = (1,1), (1,0), (0,1), (0,0); columns S = 1..6;
+ * entries are DSVM vector indices (hil_fw_dsvm.h). */
+extern const uint8_t hil_fw_fcs_table1[4][6];
+extern const uint8_t hil_fw_fcs_table2[4][6];
+
+/* Sector S (1..6) of a stator-frame vector: S = 1 for angles in [-30, 30) deg. */
+uint8_t hil_fw_fcs_sector(float alpha, float beta);
+
+/* Reference vector (DSVM index) of table 1 or 2 for comparator outputs and sector S (1..6);
+ * 255 for a bad argument. */
+uint8_t hil_fw_fcs_lookup(int table, uint8_t h_psi, uint8_t h_te, uint8_t sector);
+
+/* Reference stages of fcs-mpc-1 and fcs-mpc-2: fill the candidate list of the DSVM state. */
+void hil_fw_fcs_mpc1_reference(struct hil_fw_state *s);
+void hil_fw_fcs_mpc2_reference(struct hil_fw_state *s);
+
+#endif

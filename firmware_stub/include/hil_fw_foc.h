@@ -1,0 +1,38 @@
+/*
+ * Reference firmware: field-oriented control, the classic baseline of Fig. 15: PI current loops in
+ * dq (current_kp, current_ki) with back-EMF/cross-coupling feed-forward, the voltage rotated to
+ * the middle of its application interval, and center-aligned SVPWM. The 7-segment pattern
+ * 0-a-b-7-b-a-0 spans two control periods: even periods send (a, b, 7), odd periods (b, a, 0),
+ * each with the dwell times of the whole voltage (ta, tb, t0), so every period's mean voltage is
+ * the reference and every leg switches once per period. See docs/algorithms/dsvm.md.
+ */
+#ifndef HIL_FW_FOC_H
+#define HIL_FW_FOC_H
+
+#include <stdint.h>
+
+#include "hil_fw_types.h"
+
+struct hil_fw_state;
+
+typedef struct {
+    uint32_t magic;     /* set once initialised for this run */
+    uint8_t parity;     /* 0: up-counting half (a, b, 7), 1: down-counting half (b, a, 0) */
+    uint8_t sector;     /* SVPWM sector 1..6 of the last voltage */
+    uint64_t next_t_ns; /* expected sample time of the next step [ns] */
+    float x_d;          /* integrator states [V] */
+    float x_q;
+    float v_d;          /* last dq voltage reference after limiting [V] */
+    float v_q;
+} hil_fw_foc_state_t;
+
+/* SVPWM of a stator-frame voltage [V] at DC link vdc [V] over ts_ns: sector (1..6) and the dwell
+ * times of the odd vector a (V1/V3/V5), the even vector b (V2/V4/V6) and the zero vectors;
+ * over-modulation is scaled back onto the hexagon. ta + tb + t0 = ts_ns. */
+uint8_t hil_fw_svpwm(float u_alpha, float u_beta, float vdc, uint32_t ts_ns, uint8_t *a, uint8_t *b,
+                     uint32_t times_ns[3]);
+
+/* Prediction stage of foc (PI + SVPWM). */
+void hil_fw_foc_predict(struct hil_fw_state *s, hil_fw_cmd_t *cmd);
+
+#endif

@@ -1,0 +1,140 @@
+/* Reference firmware: reference-vector stage of FCS-MPC I and II (Tables 1 and 2). */
+#include <math.h>
+
+#include "hil_fw_dsvm.h"
+#include "hil_fw_fcs_mpc.h"
+#include "hil_fw_inverter.h"
+#include "hil_fw_state.h"
+#include "hil_fw_transforms.h"
+
+#define FCS_MAGIC 0x46435331u
+
+/* DSVM indices: u12..u61 = 7..12, u1..u6 = 1..6. Rows as printed in the paper. */
+const uint8_t hil_fw_fcs_table1[4][6] = {
+    {7u, 8u, 9u, 10u, 11u, 12u},  /* h_psi 1, h_te 1: u12 u23 u34 u45 u56 u61 */
+    {11u, 12u, 7u, 8u, 9u, 10u},  /* h_psi 1, h_te 0: u56 u61 u12 u23 u34 u45 */
+    {8u, 9u, 10u, 11u, 12u, 7u},  /* h_psi 0, h_te 1: u23 u34 u45 u56 u61 u12 */
+    {10u, 11u, 12u, 7u, 8u, 9u},  /* h_psi 0, h_te 0: u45 u56 u61 u12 u23 u34 */
+};
+const uint8_t hil_fw_fcs_table2[4][6] = {
+    {2u, 3u, 4u, 5u, 6u, 1u}, /* h_psi 1, h_te 1 */
+    {6u, 1u, 2u, 3u, 4u, 5u}, /* h_psi 1, h_te 0 */
+    {3u, 4u, 5u, 6u, 1u, 2u}, /* h_psi 0, h_te 1 */
+    {5u, 6u, 1u, 2u, 3u, 4u}, /* h_psi 0, h_te 0 */
+};
+
+uint8_t hil_fw_fcs_sector(float alpha, float beta)
+{
+    /* shift by +30 deg so that sector boundaries fall on multiples of 60 deg */
+    const float ang = atan2f(beta, alpha) + HIL_FW_PI_F / 6.0f; /* (-150, 210] deg */
+    int k = (int)floorf(ang * (3.0f / HIL_FW_PI_F));            /* -3..3 */
+    if (k < 0) {
+        k += 6;
+    }
+    return (uint8_t)(k % 6 + 1);
+}
+
+uint8_t hil_fw_fcs_lookup(int table, uint8_t h_psi, uint8_t h_te, uint8_t sector)
+{
+    const int row = (h_psi ? 0 : 2) + (h_te ? 0 : 1);
+    if (sector < 1u || sector > 6u) {
+        return 255u;
+    }
+    if (table == HIL_FW_FCS_TABLE_VIRTUAL) {
+        return hil_fw_fcs_table1[row][sector - 1u];
+    }
+    if (table == HIL_FW_FCS_TABLE_REAL) {
+        return hil_fw_fcs_table2[row][sector - 1u];
+    }
+    return 255u;
+}
+
+/* Flux observer eq. (10) (trapezoidal in the current), estimates at k+1, comparators, sector. */
+static void dtc_state(struct hil_fw_state *s)
+{
+    hil_fw_dsvm_state_t *st = &s->ctrl.dsvm;
+    const hil_fw_measured_t *me = &s->meas;
+    const float *p = s->params.value;
+    const float ts = s->params.model.ts;
+    const float rs = p[HIL_FW_P_RS];
+    const float wts = me->omega_e * ts;
+    const float cw = cosf(wts);
+    const float sw = sinf(wts);
+    float ua;
+    float ub;
+    float ia1;
+    float ib1;
+    float pa1;
+    float pb1;
+    float dpsi;
+    float dte;
+    if (st->magic != FCS_MAGIC || st->owner != s->controller_id || st->next_t_ns != me->t_ns) {
+        /* (re)start: flux from the current model at k, eq. (2) */
+        hil_fw_park_inv(p[HIL_FW_P_LD] * me->i_d + p[HIL_FW_P_PSI_F], p[HIL_FW_P_LQ] * me->i_q, me->cos_th,
+                        me->sin_th, &st->psi_a, &st->psi_b);
+        st->magic = FCS_MAGIC;
+        st->owner = s->controller_id;
+        st->h_psi = 1u;
+        st->h_te = 1u;
+    } else {
+        st->psi_a += ts * (st->u_a_prev - rs * 0.5f * (st->i_a_prev + me->i_alpha));
+        st->psi_b += ts * (st->u_b_prev - rs * 0.5f * (st->i_b_prev + me->i_beta));
+    }
+    st->next_t_ns = me->t_ns + s->params.model.ts_ns;
+    hil_fw_dsvm_prepare(s);
+    /* i(k+1) in the stator frame at the angle theta + wts */
+    hil_fw_park_inv(st->id1, st->iq1, me->cos_th * cw - me->sin_th * sw, me->sin_th * cw + me->cos_th * sw,
+                    &ia1, &ib1);
+    hil_fw_cmd_mean_voltage_ab(s->applied.states, s->applied.durations_ns, s->applied.n_states, me->vdc, &ua,
+                               &ub);
+    pa1 = st->psi_a + ts * (ua - rs * 0.5f * (me->i_alpha + ia1));
+    pb1 = st->psi_b + ts * (ub - rs * 0.5f * (me->i_beta + ib1));
+    st->u_a_prev = ua;
+    st->u_b_prev = ub;
+    st->i_a_prev = me->i_alpha;
+    st->i_b_prev = me->i_beta;
+    st->psi_mag1 = sqrtf(pa1 * pa1 + pb1 * pb1);
+    st->te1 = s->params.model.torque_k * (pa1 * ib1 - pb1 * ia1); /* eq. (11) */
+    {
+        const float fd = p[HIL_FW_P_LD] * s->ref.i_d + p[HIL_FW_P_PSI_F];
+        const float fq = p[HIL_FW_P_LQ] * s->ref.i_q;
+        st->psi_ref = sqrtf(fd * fd + fq * fq); /* flux of the current references */
+    }
+    dpsi = st->psi_ref - st->psi_mag1;
+    dte = s->ref.torque - st->te1;
+    if (dpsi > 0.0f) {
+        st->h_psi = 1u;
+    } else if (dpsi < 0.0f) {
+        st->h_psi = 0u;
+    }
+    if (dte > 0.0f) {
+        st->h_te = 1u;
+    } else if (dte < 0.0f) {
+        st->h_te = 0u;
+    }
+    st->sector = hil_fw_fcs_sector(pa1, pb1);
+}
+
+void hil_fw_fcs_mpc1_reference(struct hil_fw_state *s)
+{
+    hil_fw_dsvm_state_t *st = &s->ctrl.dsvm;
+    uint8_t i;
+    dtc_state(s);
+    st->ref_vector = hil_fw_fcs_lookup(HIL_FW_FCS_TABLE_VIRTUAL, st->h_psi, st->h_te, st->sector);
+    for (i = 0u; i < 6u; ++i) {
+        st->cand[i] = hil_fw_dsvm_triangle[st->ref_vector - 7u][i];
+    }
+    st->n_cand = 6u;
+}
+
+void hil_fw_fcs_mpc2_reference(struct hil_fw_state *s)
+{
+    hil_fw_dsvm_state_t *st = &s->ctrl.dsvm;
+    uint8_t i;
+    dtc_state(s);
+    st->ref_vector = hil_fw_fcs_lookup(HIL_FW_FCS_TABLE_REAL, st->h_psi, st->h_te, st->sector);
+    for (i = 0u; i < 5u; ++i) {
+        st->cand[i] = hil_fw_dsvm_kite[st->ref_vector - 1u][i];
+    }
+    st->n_cand = 5u;
+}

@@ -1,0 +1,144 @@
+/* Reference firmware: FOC with dq PI current loops and center-aligned SVPWM in three slots. */
+#include <math.h>
+
+#include "hil_fw_foc.h"
+#include "hil_fw_inverter.h"
+#include "hil_fw_state.h"
+#include "hil_fw_transforms.h"
+
+#define FOC_MAGIC 0x464F4331u
+
+uint8_t hil_fw_svpwm(float u_alpha, float u_beta, float vdc, uint32_t ts_ns, uint8_t *a, uint8_t *b,
+                     uint32_t times_ns[3])
+{
+    /* dwell fractions of Vj (angle (j-1)*60 deg) and V(j+1) in sector j */
+    const float ang = atan2f(u_beta, u_alpha);
+    const float mag = sqrtf(u_alpha * u_alpha + u_beta * u_beta);
+    float pos = ang < 0.0f ? ang + 2.0f * HIL_FW_PI_F : ang;
+    int k = (int)(pos * (3.0f / HIL_FW_PI_F));
+    float phi;
+    float f1;
+    float f2;
+    float sum;
+    uint32_t t1;
+    uint32_t t2;
+    if (k > 5) {
+        k = 5;
+    }
+    if (k < 0) {
+        k = 0;
+    }
+    phi = pos - (float)k * (HIL_FW_PI_F / 3.0f);
+    f1 = HIL_FW_SQRT3_F * mag / vdc * sinf(HIL_FW_PI_F / 3.0f - phi);
+    f2 = HIL_FW_SQRT3_F * mag / vdc * sinf(phi);
+    f1 = f1 > 0.0f ? f1 : 0.0f;
+    f2 = f2 > 0.0f ? f2 : 0.0f;
+    sum = f1 + f2;
+    if (sum > 1.0f) {
+        f1 /= sum;
+        f2 /= sum;
+    }
+    t1 = (uint32_t)(f1 * (float)ts_ns + 0.5f);
+    t2 = (uint32_t)(f2 * (float)ts_ns + 0.5f);
+    if (t1 + t2 > ts_ns) {
+        t2 = ts_ns - t1;
+    }
+    /* sector k+1 lies between V(k+1) and V(k+2); the odd-index vector has one upper switch on */
+    if ((k & 1) == 0) {
+        *a = hil_fw_vector_state[k + 1];
+        *b = hil_fw_vector_state[k + 2];
+        times_ns[0] = t1;
+        times_ns[1] = t2;
+    } else {
+        *a = hil_fw_vector_state[k + 2 > 6 ? 1 : k + 2];
+        *b = hil_fw_vector_state[k + 1];
+        times_ns[0] = t2;
+        times_ns[1] = t1;
+    }
+    times_ns[2] = ts_ns - times_ns[0] - times_ns[1];
+    return (uint8_t)(k + 1);
+}
+
+void hil_fw_foc_predict(struct hil_fw_state *s, hil_fw_cmd_t *cmd)
+{
+    hil_fw_foc_state_t *st = &s->ctrl.foc;
+    const hil_fw_measured_t *me = &s->meas;
+    const float *p = s->params.value;
+    const float ts = s->params.model.ts;
+    const float kp = p[HIL_FW_P_CURRENT_KP];
+    const float ki = p[HIL_FW_P_CURRENT_KI];
+    const float we = me->omega_e;
+    const float vmax = me->vdc / HIL_FW_SQRT3_F; /* linear range of SVPWM */
+    const float ed = s->ref.i_d - me->i_d;
+    const float eq = s->ref.i_q - me->i_q;
+    const float ff_d = -we * p[HIL_FW_P_LQ] * me->i_q;
+    const float ff_q = we * (p[HIL_FW_P_LD] * me->i_d + p[HIL_FW_P_PSI_F]);
+    const float th = 1.5f * we * ts; /* middle of [k+1, k+2) */
+    const float c = cosf(th);
+    const float sn = sinf(th);
+    float vd;
+    float vq;
+    float mag;
+    float ua;
+    float ub;
+    uint8_t a;
+    uint8_t b;
+    uint32_t t[3];
+    uint8_t states[3];
+    uint32_t durs[3];
+    uint8_t i;
+    uint8_t n = 0u;
+    if (st->magic != FOC_MAGIC || st->next_t_ns != me->t_ns) {
+        st->magic = FOC_MAGIC;
+        st->parity = 0u;
+        st->x_d = 0.0f;
+        st->x_q = 0.0f;
+    }
+    st->next_t_ns = me->t_ns + s->params.model.ts_ns;
+    vd = kp * ed + st->x_d + ff_d;
+    vq = kp * eq + st->x_q + ff_q;
+    mag = sqrtf(vd * vd + vq * vq);
+    if (mag > vmax) {
+        const float k = vmax / mag;
+        vd *= k;
+        vq *= k;
+    } else {
+        st->x_d += ki * ts * ed; /* conditional integration: no wind-up in saturation */
+        st->x_q += ki * ts * eq;
+    }
+    st->v_d = vd;
+    st->v_q = vq;
+    hil_fw_park_inv(vd, vq, me->cos_th * c - me->sin_th * sn, me->sin_th * c + me->cos_th * sn, &ua, &ub);
+    st->sector = hil_fw_svpwm(ua, ub, me->vdc, s->params.model.ts_ns, &a, &b, t);
+    if (st->parity == 0u) {
+        states[0] = a;
+        states[1] = b;
+        states[2] = 7u;
+        durs[0] = t[0];
+        durs[1] = t[1];
+        durs[2] = t[2];
+    } else {
+        states[0] = b;
+        states[1] = a;
+        states[2] = 0u;
+        durs[0] = t[1];
+        durs[1] = t[0];
+        durs[2] = t[2];
+    }
+    st->parity ^= 1u;
+    for (i = 0u; i < 3u; ++i) { /* drop empty slots */
+        if (durs[i] > 0u) {
+            cmd->states[n] = states[i];
+            cmd->durations_ns[n] = durs[i];
+            ++n;
+        }
+    }
+    for (i = n; i < 3u; ++i) {
+        cmd->states[i] = 0u;
+        cmd->durations_ns[i] = 0u;
+    }
+    cmd->n_states = n;
+    cmd->vector_id = st->sector;
+    cmd->candidates = 0u;
+    cmd->status = HIL_FW_STATUS_OK;
+}

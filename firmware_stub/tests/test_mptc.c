@@ -1,0 +1,269 @@
+/* Dual three-phase helpers and the mptc1/mptc2/mptc3 controllers (docs/algorithms/mptc.md). */
+#include <math.h>
+
+#include "fw_check.h"
+#include "hil_fw.h"
+#include "hil_fw_mptc.h"
+#include "hil_fw_six.h"
+
+#define TS_NS 100000u
+
+/* Zhang et al. Table 4 machine with the preset's chosen psi_f, Vdc, L_ls (hil/presets/zhang2021-dtpmsm.toml). */
+static void setup(hil_fw_state_t *s, uint8_t controller, float torque)
+{
+    hil_fw_init(s);
+    (void)hil_fw_set_param(s, HIL_FW_P_RS, 0.002f);
+    (void)hil_fw_set_param(s, HIL_FW_P_LD, 0.0004f);
+    (void)hil_fw_set_param(s, HIL_FW_P_LQ, 0.0004f);
+    (void)hil_fw_set_param(s, HIL_FW_P_PSI_F, 0.1f);
+    (void)hil_fw_set_param(s, HIL_FW_P_POLE_PAIRS, 4.0f);
+    (void)hil_fw_set_param(s, HIL_FW_P_VDC, 300.0f);
+    (void)hil_fw_set_param(s, HIL_FW_P_LLS, 0.00008f);
+    (void)hil_fw_set_param(s, HIL_FW_P_TORQUE_LIMIT, 120.0f);
+    (void)hil_fw_set_param(s, HIL_FW_P_CURRENT_LIMIT, 300.0f);
+    (void)hil_fw_set_param(s, HIL_FW_P_LAMBDA, 800.0f);
+    (void)hil_fw_set_param(s, HIL_FW_P_TORQUE_BAND, 2.0f);
+    (void)hil_fw_select_controller(s, controller);
+    (void)hil_fw_set_setpoint(s, 1u, HIL_FW_MODE_TORQUE, torque);
+}
+
+/* Six-phase measurement from dq (x-y zero) at angle theta [rad]: inverse VSD. */
+static hil_fw_meas_t meas6(float id, float iq, float theta, float omega_m)
+{
+    static const float ang[6] = {0.0f, 2.0943951f, 4.1887902f, 0.52359878f, 2.6179939f, 4.712389f};
+    hil_fw_meas_t m;
+    const float al = id * cosf(theta) - iq * sinf(theta);
+    const float be = id * sinf(theta) + iq * cosf(theta);
+    int k;
+    m.seq = 1u;
+    m.n_phases = 6u;
+    m.status = 0u;
+    for (k = 0; k < 6; ++k) {
+        m.i_abc[k] = al * cosf(ang[k]) + be * sinf(ang[k]);
+    }
+    m.theta_e = theta;
+    m.omega_m = omega_m;
+    m.vdc = 300.0f;
+    return m;
+}
+
+static void set_applied_zero(hil_fw_state_t *s)
+{
+    s->applied.n_states = 1u;
+    s->applied.states[0] = 0u;
+    s->applied.durations_ns[0] = TS_NS;
+}
+
+static void test_group_amplitudes(void)
+{
+    int counts[5] = {0, 0, 0, 0, 0};
+    static const float amp[5] = {0.0f, 0.1725f, 0.3333f, 0.4714f, 0.6440f};
+    int code;
+    for (code = 0; code < 64; ++code) {
+        float v[4];
+        float mag;
+        int g;
+        hil_fw_six_code_voltage((uint8_t)code, 1.0f, v);
+        mag = sqrtf(v[0] * v[0] + v[1] * v[1]);
+        for (g = 0; g < 5; ++g) {
+            if (fabsf(mag - amp[g]) < 1e-3f) {
+                counts[g]++;
+            }
+        }
+    }
+    CHECK(counts[0] == 4 && counts[1] == 12 && counts[2] == 24 && counts[3] == 12 && counts[4] == 12,
+          "group sizes %d %d %d %d %d (zero, G4 0.173, G3 0.333, G2 0.471, G1 0.644)", counts[0], counts[1],
+          counts[2], counts[3], counts[4]);
+}
+
+static void test_v3_cancels_xy(void)
+{
+    int j;
+    for (j = 0; j < 12; ++j) {
+        float g1[4];
+        float g2[4];
+        float a;
+        float b;
+        hil_fw_six_code_voltage(hil_fw_six_g1[j], 1.0f, g1);
+        hil_fw_six_code_voltage(hil_fw_six_g2[j], 1.0f, g2);
+        CHECK_NEAR(HIL_FW_SIX_ETA_G1 * g1[2] + HIL_FW_SIX_ETA_G2 * g2[2], 0.0f, 1e-6f, "V3 x");
+        CHECK_NEAR(HIL_FW_SIX_ETA_G1 * g1[3] + HIL_FW_SIX_ETA_G2 * g2[3], 0.0f, 1e-6f, "V3 y");
+        a = HIL_FW_SIX_ETA_G1 * g1[0] + HIL_FW_SIX_ETA_G2 * g2[0];
+        b = HIL_FW_SIX_ETA_G1 * g1[1] + HIL_FW_SIX_ETA_G2 * g2[1];
+        CHECK_NEAR(sqrtf(a * a + b * b), 0.5977f, 1e-3f, "V3 amplitude / Vdc");
+        CHECK_NEAR(a, 0.5977f * hil_fw_mptc_dir_c[j], 1e-3f, "V3 alpha direction");
+        CHECK_NEAR(b, 0.5977f * hil_fw_mptc_dir_s[j], 1e-3f, "V3 beta direction");
+        CHECK_NEAR(sqrtf(g1[0] * g1[0] + g1[1] * g1[1]), HIL_FW_SIX_G1_AMP, 1e-5f, "G1 amplitude");
+        CHECK_NEAR(sqrtf(g2[0] * g2[0] + g2[1] * g2[1]), HIL_FW_SIX_G2_AMP, 1e-5f, "G2 amplitude");
+    }
+}
+
+static void test_vsd_round_trip(void)
+{
+    static const float ang[6] = {0.0f, 2.0943951f, 4.1887902f, 0.52359878f, 2.6179939f, 4.712389f};
+    const float al = 3.0f, be = -7.0f, x = 2.5f, y = 1.25f;
+    float i6[6];
+    float a2, b2, x2, y2;
+    int k;
+    for (k = 0; k < 6; ++k) {
+        i6[k] = al * cosf(ang[k]) + be * sinf(ang[k]) + x * cosf(5.0f * ang[k]) + y * sinf(5.0f * ang[k]);
+    }
+    hil_fw_vsd(i6, &a2, &b2, &x2, &y2);
+    CHECK_NEAR(a2, al, 1e-5f, "alpha");
+    CHECK_NEAR(b2, be, 1e-5f, "beta");
+    CHECK_NEAR(x2, x, 1e-5f, "x");
+    CHECK_NEAR(y2, y, 1e-5f, "y");
+}
+
+/* Reference plant: RK4 (2000 steps per sub-interval) of the dq equations with stator-frame voltage. */
+static void ref_plant(float *id, float *iq, float *th, float w, float ua, float ub, float h)
+{
+    const float R = 0.002f, L = 0.0004f, psi = 0.1f;
+    const int n = 2000;
+    const float dt = h / (float)n;
+    int k;
+    for (k = 0; k < n; ++k) {
+        float kd[4], kq[4];
+        int st;
+        for (st = 0; st < 4; ++st) {
+            const float f = st == 0 ? 0.0f : (st == 3 ? 1.0f : 0.5f);
+            const float dd = st == 0 ? 0.0f : kd[st - 1] * f * dt;
+            const float dq = st == 0 ? 0.0f : kq[st - 1] * f * dt;
+            const float t = *th + w * f * dt;
+            const float vd = ua * cosf(t) + ub * sinf(t);
+            const float vq = -ua * sinf(t) + ub * cosf(t);
+            kd[st] = (vd - R * (*id + dd) + w * L * (*iq + dq)) / L;
+            kq[st] = (vq - R * (*iq + dq) - w * L * (*id + dd) - w * psi) / L;
+        }
+        *id += dt / 6.0f * (kd[0] + 2.0f * kd[1] + 2.0f * kd[2] + kd[3]);
+        *iq += dt / 6.0f * (kq[0] + 2.0f * kq[1] + 2.0f * kq[2] + kq[3]);
+        *th += w * dt;
+    }
+}
+
+/* Torque predicted at k+2 for the chosen vector against the reference plant over [k, k+2). */
+static void check_prediction(uint8_t controller, float tol, const char *what)
+{
+    hil_fw_state_t s;
+    hil_fw_cmd_t cmd;
+    const float omega_m = 1500.0f * 3.14159265f / 30.0f;
+    const float w = 4.0f * omega_m;
+    hil_fw_meas_t m = meas6(-5.0f, 30.0f, 0.7f, omega_m);
+    float id = -5.0f, iq = 30.0f, th = 0.7f;
+    uint8_t i;
+    setup(&s, controller, 60.0f);
+    set_applied_zero(&s);
+    hil_fw_step(&s, &m, 0u, &cmd);
+    CHECK(cmd.status == HIL_FW_STATUS_OK, "%s: status %u", what, cmd.status);
+    ref_plant(&id, &iq, &th, w, 0.0f, 0.0f, 1e-4f); /* zero vector applied during [k, k+1) */
+    CHECK_NEAR(s.ctrl.mptc.i_q1, iq, 0.1f, "delay-compensated i_q");
+    for (i = 0u; i < cmd.n_states; ++i) {
+        float v[4];
+        hil_fw_six_code_voltage(cmd.states[i], 300.0f, v);
+        ref_plant(&id, &iq, &th, w, v[0], v[1], (float)cmd.durations_ns[i] * 1e-9f);
+    }
+    {
+        const float te = 12.0f * 0.1f * iq; /* SPMSM: 3 p psi_f i_q */
+        CHECK_NEAR(s.ctrl.mptc.te2, te, tol, what);
+        printf("%s: predicted %.4f N*m, reference %.4f N*m\n", what, (double)s.ctrl.mptc.te2, (double)te);
+    }
+}
+
+static void test_state_machine_cases(void)
+{
+    CHECK(hil_fw_mptc3_case(5.0f, 1.0f, 2.0f) == HIL_FW_MPTC_DYN_TO_STEADY, "dynamic -> steady");
+    CHECK(hil_fw_mptc3_case(5.0f, 3.0f, 2.0f) == HIL_FW_MPTC_DYNAMIC, "dynamic");
+    CHECK(hil_fw_mptc3_case(1.0f, 1.5f, 2.0f) == HIL_FW_MPTC_STEADY, "steady");
+    CHECK(hil_fw_mptc3_case(1.0f, 3.0f, 2.0f) == HIL_FW_MPTC_STEADY_TO_DYN, "steady -> dynamic");
+}
+
+/* Candidate index j (0..11) relative to the flux sector, modulo 12. */
+static int offset_of(const hil_fw_state_t *s)
+{
+    return ((int)s->ctrl.mptc.best - (int)s->ctrl.mptc.flux_sector + 24) % 12;
+}
+
+static int in_set(int off, const int8_t *set)
+{
+    int k;
+    for (k = 0; k < HIL_FW_MPTC3_CANDIDATES; ++k) {
+        if ((set[k] + 12) % 12 == off) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
+static void test_mptc3_sets_and_costs(void)
+{
+    hil_fw_state_t s;
+    hil_fw_cmd_t cmd;
+    const float omega_m = 1500.0f * 3.14159265f / 30.0f;
+    hil_fw_meas_t m = meas6(0.0f, 33.3f, 1.0f, omega_m); /* ~40 N*m */
+    /* steady: T* = 40 N*m, error below the 2 N*m band at k and k+1 -> J1 and the parallel set */
+    setup(&s, HIL_FW_CTRL_MPTC3, 40.0f);
+    set_applied_zero(&s);
+    s.applied.states[0] = 36u; /* G1 along 15 deg keeps the torque up during [k, k+1) */
+    hil_fw_step(&s, &m, 0u, &cmd);
+    CHECK(cmd.candidates == 6u, "mptc3 candidates %u", cmd.candidates);
+    CHECK(s.ctrl.mptc.sys_case == HIL_FW_MPTC_STEADY || s.ctrl.mptc.sys_case == HIL_FW_MPTC_STEADY_TO_DYN,
+          "steady start: case %u", s.ctrl.mptc.sys_case);
+    CHECK(s.ctrl.mptc.use_j1 == (s.ctrl.mptc.sys_case == HIL_FW_MPTC_STEADY), "J1 iff steady");
+    CHECK(in_set(offset_of(&s), s.ctrl.mptc.use_j1 ? hil_fw_mptc3_set_j1 : hil_fw_mptc3_set_j2),
+          "chosen vector in its set (offset %d)", offset_of(&s));
+    /* dynamic: T* = 100 N*m -> J2, perpendicular set, and the chosen vector raises the torque */
+    setup(&s, HIL_FW_CTRL_MPTC3, 100.0f);
+    set_applied_zero(&s);
+    hil_fw_step(&s, &m, 0u, &cmd);
+    CHECK(s.ctrl.mptc.sys_case == HIL_FW_MPTC_DYNAMIC, "dynamic: case %u", s.ctrl.mptc.sys_case);
+    CHECK(s.ctrl.mptc.use_j1 == 0u, "dynamic uses J2");
+    CHECK(in_set(offset_of(&s), hil_fw_mptc3_set_j2), "J2 set (offset %d)", offset_of(&s));
+    CHECK(s.ctrl.mptc.te2 > s.ctrl.mptc.te1 + 5.0f, "torque raised: %g -> %g", (double)s.ctrl.mptc.te1,
+          (double)s.ctrl.mptc.te2);
+    CHECK(cmd.n_states == 2u && cmd.durations_ns[0] + cmd.durations_ns[1] == TS_NS, "V3: two sub-intervals");
+    CHECK(cmd.states[0] == hil_fw_six_g1[cmd.vector_id - 1] && cmd.states[1] == hil_fw_six_g2[cmd.vector_id - 1],
+          "V3 pair of vector %u", cmd.vector_id);
+}
+
+static void test_commands_and_phase_check(void)
+{
+    hil_fw_state_t s;
+    hil_fw_cmd_t cmd;
+    hil_fw_meas_t m = meas6(0.0f, 10.0f, 0.3f, 100.0f);
+    hil_fw_meas_t m3;
+    setup(&s, HIL_FW_CTRL_MPTC1, 80.0f);
+    set_applied_zero(&s);
+    hil_fw_step(&s, &m, 0u, &cmd);
+    CHECK(cmd.n_states == 1u && cmd.durations_ns[0] == TS_NS, "mptc1: one vector");
+    CHECK(cmd.vector_id >= 1u && cmd.states[0] == hil_fw_six_g1[cmd.vector_id - 1], "mptc1: G1 code");
+    CHECK(cmd.candidates == 13u, "mptc1 candidates %u", cmd.candidates);
+    CHECK(s.ctrl.mptc.te2 > s.ctrl.mptc.te1, "mptc1 raises torque towards 80 N*m");
+    setup(&s, HIL_FW_CTRL_MPTC2, 80.0f);
+    set_applied_zero(&s);
+    hil_fw_step(&s, &m, 0u, &cmd);
+    CHECK(cmd.n_states == 2u && cmd.candidates == 13u, "mptc2: V3 with 13 candidates");
+    CHECK(cmd.durations_ns[0] == 73205u && cmd.durations_ns[1] == 26795u, "eta split %u/%u",
+          (unsigned)cmd.durations_ns[0], (unsigned)cmd.durations_ns[1]);
+    m3 = m;
+    m3.n_phases = 3u;
+    hil_fw_step(&s, &m3, 100000u, &cmd);
+    CHECK(cmd.status == HIL_FW_STATUS_INVALID_CONFIG && cmd.states[0] == 0u, "three-phase frame rejected");
+    m.i_abc[4] = NAN;
+    hil_fw_step(&s, &m, 200000u, &cmd);
+    CHECK(cmd.status == HIL_FW_STATUS_BAD_FRAME && (cmd.states[0] == 0u || cmd.states[0] == 63u),
+          "non-finite i_v: bad frame, six-phase zero vector");
+}
+
+int main(void)
+{
+    test_group_amplitudes();
+    test_v3_cancels_xy();
+    test_vsd_round_trip();
+    check_prediction(HIL_FW_CTRL_MPTC1, 0.3f, "mptc1 torque at k+2 (eq. 8)");
+    check_prediction(HIL_FW_CTRL_MPTC2, 0.3f, "mptc2 torque at k+2 (eq. 13)");
+    check_prediction(HIL_FW_CTRL_MPTC3, 0.3f, "mptc3 torque at k+2 (eqs. 15-16)");
+    test_state_machine_cases();
+    test_mptc3_sets_and_costs();
+    test_commands_and_phase_check();
+    return FW_REPORT("test_mptc");
+}

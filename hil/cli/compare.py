@@ -1,0 +1,60 @@
+"""`hil compare --preset NAME`: a paper experiment run closed loop per controller; table, JSON, CSV, PNG."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from pmsm_hil.hil.errors import InputFileError
+
+
+def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Register `compare`."""
+    from pmsm_hil.hil.compare.preset import preset_names
+
+    p = subparsers.add_parser(
+        "compare", help="run a paper comparison preset (all its controllers) and print the table",
+        description="Run every controller of a preset closed loop (in-process target, lockstep) and print "
+                    "the comparison table with the paper's figures beside ours; writes NAME.json, NAME.csv "
+                    "and NAME.png (where the paper has a figure) to --out. Presets: "
+                    + ", ".join(preset_names()))
+    p.add_argument("--preset", required=True, metavar="NAME", help="bundled preset name or a TOML file")
+    p.add_argument("--out", type=Path, default=Path("compare"), metavar="DIR", help="output folder (%(default)s)")
+    p.add_argument("--controllers", metavar="A,B", help="only these controllers (comma-separated)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Execute `hil compare`."""
+    from pmsm_hil.hil.compare.plot import write_png
+    from pmsm_hil.hil.compare.preset import load_preset
+    from pmsm_hil.hil.compare.runs import run_preset
+    from pmsm_hil.hil.compare.table import format_table, write_csv, write_json
+    from pmsm_hil.hil.runner.run_config import controller_id
+
+    preset = load_preset(args.preset)
+    names = [c.strip() for c in args.controllers.split(",") if c.strip()] if args.controllers else None
+    for name in names or preset.controllers:
+        controller_id(name)
+    try:
+        args.out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputFileError(f"--out {args.out}: {exc.strerror}") from None
+
+    def progress(msg: str) -> None:
+        if not args.quiet:
+            print(msg, file=sys.stderr, flush=True)
+
+    result = run_preset(preset, controllers=names, progress=progress)
+    for line in format_table(result):
+        print(line)
+    base = args.out / preset.name
+    write_json(result, base.with_suffix(".json"))
+    write_csv(result, base.with_suffix(".csv"))
+    written = [base.with_suffix(".json"), base.with_suffix(".csv")]
+    if write_png(result, base.with_suffix(".png")):
+        written.append(base.with_suffix(".png"))
+    print("written: " + ", ".join(str(p) for p in written))
+    return 0

@@ -1,0 +1,1 @@
+"""Bundled `hil compare` presets (TOML)."""

@@ -1,0 +1,368 @@
+/* Exact dual three-phase PMSM + six-leg inverter plant kernel; see plant6.h.
+ *
+ * The dq closed form is the three-phase kernel's (plant.c, docs/plant.md), restated here with p6_
+ * names so that plant.c stays untouched. Dead time: the sign rule per leg (the diode chosen by the
+ * phase current sign at the gate edge conducts for the whole dead time); the three-phase kernel's
+ * open-phase logic (diode blocking at a current zero crossing) is not modelled for six phases. */
+#include "plant6.h"
+
+#include <complex.h>
+#include <math.h>
+#include <stddef.h>
+
+#define P6_TWO_PI 6.283185307179586476925286766559
+#define P6_MAX_EVENTS 128
+#define P6_J ((double complex)I)
+#define P6_H3 0.86602540378443864676372317075294 /* sqrt(3)/2 */
+
+/* Rows of the VSD matrix without its 1/3 factor: alpha, beta, x, y over phases A B C U V W. */
+static const double P6_VSD[4][P6_LEGS] = {
+    {1.0, -0.5, -0.5, P6_H3, -P6_H3, 0.0},
+    {0.0, P6_H3, -P6_H3, 0.5, 0.5, -1.0},
+    {1.0, -0.5, -0.5, -P6_H3, P6_H3, 0.0},
+    {0.0, -P6_H3, P6_H3, 0.5, 0.5, -1.0},
+};
+
+typedef struct {
+    double m, delta;
+    double M00, M01, M10, M11;
+    double x0_const[2];
+    double complex z[2];
+    double a0, omega_e;
+    double h0[2];
+} p6_segment_t;
+
+double p6_torque(const p6_params_t *p, double i_d, double i_q)
+{
+    return 3.0 * (double)p->pole_pairs * (p->psi_f * i_q + (p->ld - p->lq) * i_d * i_q);
+}
+
+void p6_phase_currents(double i_d, double i_q, double theta_e, double i_x, double i_y, double *i_phase)
+{
+    double c = cos(theta_e), s = sin(theta_e);
+    double v[4];
+    v[0] = i_d * c - i_q * s;
+    v[1] = i_d * s + i_q * c;
+    v[2] = i_x;
+    v[3] = i_y;
+    for (int k = 0; k < P6_LEGS; k++) {
+        i_phase[k] = P6_VSD[0][k] * v[0] + P6_VSD[1][k] * v[1] + P6_VSD[2][k] * v[2] + P6_VSD[3][k] * v[3];
+    }
+}
+
+void p6_code_voltage(double vdc, int32_t code, double *v4)
+{
+    for (int r = 0; r < 4; r++) {
+        double acc = 0.0;
+        for (int k = 0; k < P6_LEGS; k++) {
+            acc += P6_VSD[r][k] * (double)((code >> (P6_LEGS - 1 - k)) & 1);
+        }
+        v4[r] = vdc / 3.0 * acc; /* per-group common mode drops out: each row sums to 0 per group */
+    }
+}
+
+static double wrap_angle(double theta)
+{
+    theta = fmod(theta, P6_TWO_PI);
+    if (theta < 0.0) {
+        theta += P6_TWO_PI;
+    }
+    return theta;
+}
+
+static void segment_setup(const p6_params_t *p, double omega_e, double theta0, double v_alpha, double v_beta,
+                          double i_d0, double i_q0, p6_segment_t *g)
+{
+    double a00 = -p->rs / p->ld, a01 = omega_e * p->lq / p->ld;
+    double a10 = -omega_e * p->ld / p->lq, a11 = -p->rs / p->lq;
+    double det = a00 * a11 - a01 * a10;
+    double c1 = -omega_e * p->psi_f / p->lq;
+    double vmag = hypot(v_alpha, v_beta);
+    double complex w0 = vmag / p->ld, w1 = P6_J * (vmag / p->lq);
+    double complex b00 = P6_J * omega_e - a00, b01 = -a01, b10 = -a10, b11 = P6_J * omega_e - a11;
+    double complex bdet = b00 * b11 - b01 * b10;
+    double complex e;
+
+    g->m = 0.5 * (a00 + a11);
+    g->M00 = a00 - g->m;
+    g->M01 = a01;
+    g->M10 = a10;
+    g->M11 = a11 - g->m;
+    g->delta = g->M00 * g->M00 + g->M01 * g->M10;
+    g->x0_const[0] = (a01 * c1) / det;
+    g->x0_const[1] = -(a00 * c1) / det;
+    g->z[0] = (b11 * w0 - b01 * w1) / bdet;
+    g->z[1] = (b00 * w1 - b10 * w0) / bdet;
+    g->a0 = theta0 - atan2(v_beta, v_alpha);
+    g->omega_e = omega_e;
+    e = cexp(P6_J * g->a0);
+    g->h0[0] = i_d0 - (g->x0_const[0] + creal(g->z[0] * e));
+    g->h0[1] = i_q0 - (g->x0_const[1] + creal(g->z[1] * e));
+}
+
+static void segment_eval(const p6_segment_t *g, double tau, double *i_d, double *i_q)
+{
+    double c, s, em = exp(g->m * tau);
+    double dt2 = g->delta * tau * tau;
+    double complex e = cexp(P6_J * (g->a0 + g->omega_e * tau));
+    if (fabs(dt2) < 1e-4) {
+        c = 1.0 + dt2 / 2.0 + dt2 * dt2 / 24.0;
+        s = tau * (1.0 + dt2 / 6.0 + dt2 * dt2 / 120.0);
+    } else if (g->delta > 0.0) {
+        double r = sqrt(g->delta);
+        c = cosh(r * tau);
+        s = sinh(r * tau) / r;
+    } else {
+        double r = sqrt(-g->delta);
+        c = cos(r * tau);
+        s = sin(r * tau) / r;
+    }
+    *i_d = em * (c * g->h0[0] + s * (g->M00 * g->h0[0] + g->M01 * g->h0[1])) + g->x0_const[0] +
+           creal(g->z[0] * e);
+    *i_q = em * (c * g->h0[1] + s * (g->M10 * g->h0[0] + g->M11 * g->h0[1])) + g->x0_const[1] +
+           creal(g->z[1] * e);
+}
+
+typedef struct {
+    double t;
+    int32_t leg;
+    int32_t kind; /* 0: gate edge to `level`, 1: end of dead time */
+    int32_t level;
+} p6_event_t;
+
+static int add_event(p6_event_t *ev, int n, double t, int leg, int kind, int level)
+{
+    int k = n;
+    if (n >= P6_MAX_EVENTS) {
+        return n;
+    }
+    while (k > 0 && (ev[k - 1].t > t || (ev[k - 1].t == t && ev[k - 1].kind > kind))) {
+        ev[k] = ev[k - 1];
+        k--;
+    }
+    ev[k].t = t;
+    ev[k].leg = leg;
+    ev[k].kind = kind;
+    ev[k].level = level;
+    return n + 1;
+}
+
+static int emit_row(const p6_params_t *p, p6_state_t *s, double tk, double i_d, double i_q, double theta,
+                    double i_x, double i_y, double *trace, int32_t trace_cap, p6_period_stats_t *stats)
+{
+    double *row;
+    if (stats->trace_n >= trace_cap) {
+        return P6_E_TRACE_FULL;
+    }
+    row = trace + (ptrdiff_t)stats->trace_n * P6_TRACE_COLUMNS;
+    row[0] = tk;
+    p6_phase_currents(i_d, i_q, theta, i_x, i_y, row + 1);
+    row[7] = p6_torque(p, i_d, i_q);
+    row[8] = s->omega_m;
+    row[9] = i_x;
+    row[10] = i_y;
+    stats->trace_n++;
+    s->trace_k++;
+    return P6_OK;
+}
+
+/* Integrate h seconds from t_abs with constant gate levels (legs in dead time at their diode level). */
+static int integrate(const p6_params_t *p, p6_state_t *s, double t_abs, double h, double t_load0,
+                     double t_load_slope, double t_period0, double trace_dt, double *trace, int32_t trace_cap,
+                     p6_period_stats_t *stats, const int *gate_level)
+{
+    double done = 0.0;
+    while (done < h - 0.5e-9) {
+        double piece = h - done;
+        double omega_e = (double)p->pole_pairs * s->omega_m;
+        double t0 = t_abs + done;
+        double te0 = p6_torque(p, s->i_d, s->i_q);
+        double v[4], ix_inf, iy_inf, kxy, i_d1, i_q1;
+        int levels = 0;
+        p6_segment_t g;
+        for (int leg = 0; leg < P6_LEGS; leg++) {
+            int lvl = gate_level[leg];
+            if (t0 < s->dead_until[leg] - 0.5e-9) {
+                lvl = s->dead_level[leg];
+            }
+            levels |= lvl << (P6_LEGS - 1 - leg);
+        }
+        if (p->inertia_mode && p->max_piece > 0.0 && piece > p->max_piece) {
+            piece = p->max_piece;
+        }
+        p6_code_voltage(p->vdc, levels, v);
+        segment_setup(p, omega_e, s->theta_e, v[0], v[1], s->i_d, s->i_q, &g);
+        ix_inf = v[2] / p->rs;
+        iy_inf = v[3] / p->rs;
+        kxy = -p->rs / p->lls;
+        if (trace_dt > 0.0 && trace != NULL) {
+            for (;;) {
+                double tk = (double)s->trace_k * trace_dt;
+                double tau = tk - t0, id, iq, ex;
+                int rc;
+                if (tau >= piece - 0.5e-9) {
+                    break;
+                }
+                if (tau < 0.0) {
+                    tau = 0.0;
+                }
+                segment_eval(&g, tau, &id, &iq);
+                ex = exp(kxy * tau);
+                rc = emit_row(p, s, tk, id, iq, s->theta_e + omega_e * tau, ix_inf + (s->i_x - ix_inf) * ex,
+                              iy_inf + (s->i_y - iy_inf) * ex, trace, trace_cap, stats);
+                if (rc != P6_OK) {
+                    return rc;
+                }
+            }
+        }
+        segment_eval(&g, piece, &i_d1, &i_q1);
+        {
+            double ex = exp(kxy * piece);
+            s->i_x = ix_inf + (s->i_x - ix_inf) * ex;
+            s->i_y = iy_inf + (s->i_y - iy_inf) * ex;
+        }
+        s->theta_e = wrap_angle(s->theta_e + omega_e * piece);
+        s->i_d = i_d1;
+        s->i_q = i_q1;
+        if (p->inertia_mode) {
+            double te1 = p6_torque(p, s->i_d, s->i_q);
+            double t_load = t_load0 + t_load_slope * (t0 + 0.5 * piece - t_period0);
+            double k = 0.5 * piece * p->b / p->j;
+            s->omega_m = (s->omega_m * (1.0 - k) + piece * (0.5 * (te0 + te1) - t_load) / p->j) / (1.0 + k);
+        }
+        done += piece;
+    }
+    return P6_OK;
+}
+
+static double phase_current(const p6_state_t *s, int leg)
+{
+    double ip[P6_LEGS];
+    p6_phase_currents(s->i_d, s->i_q, s->theta_e, s->i_x, s->i_y, ip);
+    return ip[leg];
+}
+
+int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const int64_t *durations_ns,
+               int32_t n, double t_load0, double t_load_slope, double trace_dt, double *trace,
+               int32_t trace_cap, p6_period_stats_t *stats)
+{
+    p6_event_t ev[P6_MAX_EVENTS];
+    int n_ev = 0;
+    int gate_level[P6_LEGS];
+    double edge_t[P6_LEGS][P6_MAX_SUBINTERVALS + 2];
+    int edge_lvl[P6_LEGS][P6_MAX_SUBINTERVALS + 2];
+    int n_edge[P6_LEGS] = {0, 0, 0, 0, 0, 0};
+    double t_start = (double)s->t_ns * 1e-9;
+    int64_t total_ns = 0;
+    double t_lim = 2.0 * p->t_dead + p->t_mpw;
+
+    stats->leg_transitions = 0;
+    stats->boundary_transitions = 0;
+    stats->narrow_pulses = 0;
+    stats->suppressed_pulses = 0;
+    stats->narrow_pulses_gated = 0;
+    stats->trace_n = 0;
+    stats->error = P6_OK;
+    if (n < 1 || n > P6_MAX_SUBINTERVALS || !(p->lls > 0.0) || !(p->rs > 0.0)) {
+        stats->error = P6_E_ARGS;
+        return P6_E_ARGS;
+    }
+    for (int k = 0; k < n; k++) {
+        if (durations_ns[k] < 0 || states[k] < 0 || states[k] > 63) {
+            stats->error = P6_E_ARGS;
+            return P6_E_ARGS;
+        }
+    }
+    /* Commanded gate edges per leg with minimum-pulse-width suppression (as the three-phase kernel). */
+    {
+        int prev = s->gate;
+        int64_t acc = 0;
+        for (int k = 0; k < n; k++) {
+            int st = states[k];
+            if (durations_ns[k] == 0) {
+                continue;
+            }
+            for (int leg = 0; leg < P6_LEGS; leg++) {
+                int bit = P6_LEGS - 1 - leg;
+                int old_l = (prev >> bit) & 1, new_l = (st >> bit) & 1;
+                if (old_l != new_l) {
+                    double te = t_start + (double)acc * 1e-9;
+                    double prev_edge = n_edge[leg] > 0 ? edge_t[leg][n_edge[leg] - 1] : s->last_edge_t[leg];
+                    double width = te - prev_edge;
+                    if (width < t_lim) {
+                        stats->narrow_pulses++;
+                    }
+                    if (n_edge[leg] > 0 && width < p->t_mpw) {
+                        n_edge[leg]--;
+                        stats->suppressed_pulses++;
+                    } else {
+                        edge_t[leg][n_edge[leg]] = te;
+                        edge_lvl[leg][n_edge[leg]] = new_l;
+                        n_edge[leg]++;
+                    }
+                }
+            }
+            prev = st;
+            acc += durations_ns[k];
+        }
+        total_ns = acc;
+    }
+    for (int leg = 0; leg < P6_LEGS; leg++) {
+        gate_level[leg] = (s->gate >> (P6_LEGS - 1 - leg)) & 1;
+        for (int e = 0; e < n_edge[leg]; e++) {
+            n_ev = add_event(ev, n_ev, edge_t[leg][e], leg, 0, edge_lvl[leg][e]);
+            stats->leg_transitions++;
+            if (edge_t[leg][e] - s->last_edge_t[leg] < t_lim) {
+                stats->narrow_pulses_gated++; /* a narrow pulse that reached the gate */
+            }
+            if (edge_t[leg][e] == t_start) {
+                stats->boundary_transitions++;
+            }
+            s->last_edge_t[leg] = edge_t[leg][e];
+        }
+    }
+    {
+        double t_end = t_start + (double)total_ns * 1e-9;
+        double t = t_start;
+        int gate = s->gate;
+        for (int leg = 0; leg < P6_LEGS; leg++) {
+            if (s->dead_until[leg] > t && s->dead_until[leg] < t_end) {
+                n_ev = add_event(ev, n_ev, s->dead_until[leg], leg, 1, 0);
+            }
+        }
+        for (int k = 0; k <= n_ev; k++) {
+            double t_next = (k < n_ev) ? ev[k].t : t_end;
+            if (t_next > t) {
+                int rc = integrate(p, s, t, t_next - t, t_load0, t_load_slope, t_start, trace_dt, trace, trace_cap,
+                                   stats, gate_level);
+                if (rc != P6_OK) {
+                    stats->error = rc;
+                    return rc;
+                }
+                t = t_next;
+            }
+            if (k == n_ev) {
+                break;
+            }
+            if (ev[k].kind == 0) {
+                int leg = ev[k].leg;
+                int bit = P6_LEGS - 1 - leg;
+                if (p->t_dead > 0.0) {
+                    double i_ph = phase_current(s, leg);
+                    /* sign rule: current out of the leg -> lower diode; into it -> upper diode;
+                     * exactly zero -> the new level (no diode conducts, no voltage-second error) */
+                    s->dead_level[leg] = i_ph > 0.0 ? 0 : (i_ph < 0.0 ? 1 : ev[k].level);
+                    s->dead_until[leg] = ev[k].t + p->t_dead;
+                    if (s->dead_until[leg] < t_end) {
+                        n_ev = add_event(ev, n_ev, s->dead_until[leg], leg, 1, 0);
+                    }
+                }
+                gate_level[leg] = ev[k].level;
+                gate = (gate & ~(1 << bit)) | (ev[k].level << bit);
+            }
+        }
+        s->gate = gate;
+    }
+    s->t_ns += (uint64_t)total_ns;
+    return P6_OK;
+}

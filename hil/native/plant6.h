@@ -1,0 +1,77 @@
+/*
+ * Exact dual three-phase PMSM + six-leg two-level inverter plant kernel (host side, double precision).
+ *
+ * Vector space decomposition (amplitude invariant, factor 1/3): phases A, B, C at 0, 120, 240 deg and
+ * U, V, W at 30, 150, 270 deg, two isolated neutrals. The alpha-beta (torque) subspace is solved in the
+ * rotor dq frame exactly as the three-phase kernel does (closed form, stator-frame voltage constant
+ * per sub-interval); the x-y subspace is a decoupled R - L_ls circuit in the STATIONARY frame, solved
+ * as a first-order exponential. The zero-sequence subspaces carry no current (isolated neutrals).
+ * State code: 6 bits [S_A S_B S_C S_U S_V S_W], S_A the most significant.
+ */
+#ifndef HIL_PLANT6_H
+#define HIL_PLANT6_H
+
+#include <stdint.h>
+
+#define P6_MAX_SUBINTERVALS 8
+#define P6_LEGS 6
+/* t [s], i_a, i_b, i_c, i_u, i_v, i_w [A], torque [N*m], omega_m [rad/s], i_x, i_y [A] */
+#define P6_TRACE_COLUMNS 11
+
+typedef struct {
+    double rs;        /* stator resistance [Ohm], > 0 */
+    double ld, lq;    /* dq inductances [H], > 0 */
+    double lls;       /* leakage inductance of the x-y subspace [H], > 0 */
+    double psi_f;     /* permanent-magnet flux linkage [Wb] */
+    double vdc;       /* DC-link voltage [V] */
+    double j;         /* inertia [kg*m^2] (inertia mode) */
+    double b;         /* viscous friction [N*m*s/rad] (inertia mode) */
+    double t_dead;    /* dead time per leg [s] */
+    double t_mpw;     /* minimum pulse width [s]; shorter pulses never reach the gate */
+    double max_piece; /* inertia mode: longest electrical piece between speed updates [s] */
+    int32_t pole_pairs;
+    int32_t inertia_mode; /* 0: dyno (speed held), 1: inertia (J, B, load torque) */
+} p6_params_t;
+
+typedef struct {
+    uint64_t t_ns;            /* plant time [ns] */
+    uint64_t trace_k;         /* index of the next trace sample */
+    double i_d, i_q;          /* rotor-frame currents [A] */
+    double i_x, i_y;          /* stationary x-y currents [A] */
+    double theta_e;           /* electrical angle [rad], [0, 2*pi) */
+    double omega_m;           /* mechanical speed [rad/s] */
+    double last_edge_t[P6_LEGS]; /* time of the last gate edge per leg [s] */
+    double dead_until[P6_LEGS];  /* leg in dead time until this absolute time [s] */
+    int32_t gate;                /* applied gate code (6 bits) */
+    int32_t dead_level[P6_LEGS]; /* leg level during its dead time (0 low rail, 1 high rail) */
+} p6_state_t;
+
+typedef struct {
+    uint32_t leg_transitions;      /* gate transitions that reached the legs (after T_mpw) */
+    uint32_t boundary_transitions; /* of which at the period start */
+    uint32_t narrow_pulses;        /* pulses shorter than 2*t_dead + t_mpw */
+    uint32_t suppressed_pulses;    /* pulses shorter than t_mpw removed before the gate */
+    uint32_t narrow_pulses_gated;  /* narrow pulses that reached the gate (not suppressed) */
+    int32_t trace_n;               /* trace rows written */
+    int32_t error;                 /* 0 ok, negative: P6_E_* */
+} p6_period_stats_t;
+
+#define P6_OK 0
+#define P6_E_ARGS (-1)
+#define P6_E_TRACE_FULL (-2)
+
+/* Advance one control period of n sub-intervals (6-bit state codes, durations [ns]); see plant.h. */
+int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const int64_t *durations_ns,
+               int32_t n, double t_load0, double t_load_slope, double trace_dt, double *trace,
+               int32_t trace_cap, p6_period_stats_t *stats);
+
+/* Electromagnetic torque 3*p*(psi_d*i_q - psi_q*i_d) [N*m]. */
+double p6_torque(const p6_params_t *p, double i_d, double i_q);
+
+/* Six phase currents [A] (A, B, C, U, V, W) from dq, theta_e and x-y (inverse VSD). */
+void p6_phase_currents(double i_d, double i_q, double theta_e, double i_x, double i_y, double *i_phase);
+
+/* Stator-frame voltages [V] (alpha, beta, x, y) of a 6-bit leg-level code. */
+void p6_code_voltage(double vdc, int32_t code, double *v4);
+
+#endif
