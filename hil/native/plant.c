@@ -1,25 +1,12 @@
 /* Exact PMSM + two-level inverter plant kernel; see plant.h. */
 #include "plant.h"
+#include "dq_segment.h"
 
-#include <complex.h>
 #include <math.h>
 #include <stddef.h>
 
-#define PL_TWO_PI 6.283185307179586476925286766559
 #define PL_SQRT3 1.7320508075688772935274463415059
 #define PL_MAX_EVENTS 64
-#define PL_J ((double complex)I)
-
-/* Closed-form solution of di/dt = A i + u(t) over one sub-interval with constant stator voltage. */
-typedef struct {
-    double m, delta;          /* A = m I + M, M*M = delta I */
-    double M00, M01, M10, M11;
-    double x0_const[2];       /* constant particular solution [A] */
-    double complex z[2];      /* rotating particular solution amplitude [A] */
-    double a0;                /* angle of the stator voltage relative to d at tau = 0 [rad] */
-    double omega_e;           /* electrical speed [rad/s] */
-    double h0[2];             /* initial homogeneous part x0 - x_p(0) [A] */
-} pl_segment_t;
 
 double pl_torque(const pl_params_t *p, double i_d, double i_q)
 {
@@ -36,100 +23,12 @@ void pl_phase_currents(double i_d, double i_q, double theta_e, double *i_a, doub
     *i_c = -0.5 * i_alpha - 0.5 * PL_SQRT3 * i_beta;
 }
 
-static double wrap_angle(double theta)
-{
-    theta = fmod(theta, PL_TWO_PI);
-    if (theta < 0.0) {
-        theta += PL_TWO_PI;
-    }
-    return theta;
-}
-
 /* Stator-frame voltage [V] of leg levels (bit 2: a, bit 1: b, bit 0: c). */
 static void leg_voltage(double vdc, int levels, double *v_alpha, double *v_beta)
 {
     double sa = (double)((levels >> 2) & 1), sb = (double)((levels >> 1) & 1), sc = (double)(levels & 1);
     *v_alpha = vdc / 3.0 * (2.0 * sa - sb - sc);
     *v_beta = vdc / PL_SQRT3 * (sb - sc);
-}
-
-static void segment_setup(const pl_params_t *p, double omega_e, double theta0, double v_alpha, double v_beta,
-                          double i_d0, double i_q0, pl_segment_t *g)
-{
-    double a00 = -p->rs / p->ld, a01 = omega_e * p->lq / p->ld;
-    double a10 = -omega_e * p->ld / p->lq, a11 = -p->rs / p->lq;
-    double det = a00 * a11 - a01 * a10;
-    double c1 = -omega_e * p->psi_f / p->lq; /* back-EMF input on the q axis [A/s] */
-    double vmag = hypot(v_alpha, v_beta);
-    double complex w0 = vmag / p->ld, w1 = PL_J * (vmag / p->lq);
-    double complex b00 = PL_J * omega_e - a00, b01 = -a01, b10 = -a10, b11 = PL_J * omega_e - a11;
-    double complex bdet = b00 * b11 - b01 * b10;
-    double complex e;
-
-    g->m = 0.5 * (a00 + a11);
-    g->M00 = a00 - g->m;
-    g->M01 = a01;
-    g->M10 = a10;
-    g->M11 = a11 - g->m;
-    g->delta = g->M00 * g->M00 + g->M01 * g->M10;
-    /* A x0 + (0, c1) = 0 */
-    g->x0_const[0] = -(-a01 * c1) / det;
-    g->x0_const[1] = -(a00 * c1) / det;
-    /* (j w I - A) z = w with the input written as Re(w exp(j (a0 + w t))) */
-    g->z[0] = (b11 * w0 - b01 * w1) / bdet;
-    g->z[1] = (b00 * w1 - b10 * w0) / bdet;
-    g->a0 = theta0 - atan2(v_beta, v_alpha);
-    g->omega_e = omega_e;
-    e = cexp(PL_J * g->a0);
-    g->h0[0] = i_d0 - (g->x0_const[0] + creal(g->z[0] * e));
-    g->h0[1] = i_q0 - (g->x0_const[1] + creal(g->z[1] * e));
-}
-
-static void segment_eval(const pl_segment_t *g, double tau, double *i_d, double *i_q)
-{
-    double c, s, em = exp(g->m * tau);
-    double dt2 = g->delta * tau * tau;
-    double complex e = cexp(PL_J * (g->a0 + g->omega_e * tau));
-    if (fabs(dt2) < 1e-4) {
-        c = 1.0 + dt2 / 2.0 + dt2 * dt2 / 24.0;
-        s = tau * (1.0 + dt2 / 6.0 + dt2 * dt2 / 120.0);
-    } else if (g->delta > 0.0) {
-        double r = sqrt(g->delta);
-        c = cosh(r * tau);
-        s = sinh(r * tau) / r;
-    } else {
-        double r = sqrt(-g->delta);
-        c = cos(r * tau);
-        s = sin(r * tau) / r;
-    }
-    *i_d = em * (c * g->h0[0] + s * (g->M00 * g->h0[0] + g->M01 * g->h0[1])) + g->x0_const[0] +
-           creal(g->z[0] * e);
-    *i_q = em * (c * g->h0[1] + s * (g->M10 * g->h0[0] + g->M11 * g->h0[1])) + g->x0_const[1] +
-           creal(g->z[1] * e);
-}
-
-typedef struct {
-    double t;     /* absolute time [s] */
-    int32_t leg;
-    int32_t kind; /* 0: gate edge to level `level`, 1: end of dead time */
-    int32_t level;
-} pl_event_t;
-
-static int add_event(pl_event_t *ev, int n, double t, int leg, int kind, int level)
-{
-    int k = n;
-    if (n >= PL_MAX_EVENTS) {
-        return n;
-    }
-    while (k > 0 && (ev[k - 1].t > t || (ev[k - 1].t == t && ev[k - 1].kind > kind))) {
-        ev[k] = ev[k - 1];
-        k--;
-    }
-    ev[k].t = t;
-    ev[k].leg = leg;
-    ev[k].kind = kind;
-    ev[k].level = level;
-    return n + 1;
 }
 
 static double phase_current(const pl_state_t *s, int leg)
@@ -252,12 +151,12 @@ static int integrate_open(const pl_params_t *p, pl_state_t *s, double t0, double
     loop_direction(y, z, theta, &h_d, &h_q);
     s->i_d = (2.0 / 3.0) * h_d * i;
     s->i_q = (2.0 / 3.0) * h_q * i;
-    s->theta_e = wrap_angle(theta);
+    s->theta_e = dq_wrap_angle(theta);
     return PL_OK;
 }
 
 /* Earliest zero crossing in (0, piece] of the current of a leg conducting through a diode, or piece. */
-static double first_blocking(const pl_segment_t *g, double theta0, double omega_e, double piece, int cond_mask,
+static double first_blocking(const dq_segment_t *g, double theta0, double omega_e, double piece, int cond_mask,
                              const int32_t *dead_level, int *leg_out)
 {
     double best = piece;
@@ -270,7 +169,7 @@ static double first_blocking(const pl_segment_t *g, double theta0, double omega_
         sign = dead_level[leg] == 0 ? 1.0 : -1.0; /* low rail: current out of the leg (> 0) */
         for (int q = 1; q <= 8; q++) {
             double tau = piece * (double)q / 8.0, id, iq;
-            segment_eval(g, tau, &id, &iq);
+            dq_segment_eval(g, tau, &id, &iq);
             if (sign * leg_current(id, iq, theta0 + omega_e * tau, leg) <= 0.0) {
                 hi = tau;
                 break;
@@ -282,7 +181,7 @@ static double first_blocking(const pl_segment_t *g, double theta0, double omega_
         }
         for (int it = 0; it < 60 && hi - lo > 1e-13; it++) {
             double mid = 0.5 * (lo + hi), id, iq;
-            segment_eval(g, mid, &id, &iq);
+            dq_segment_eval(g, mid, &id, &iq);
             if (sign * leg_current(id, iq, theta0 + omega_e * mid, leg) <= 0.0) {
                 hi = mid;
             } else {
@@ -331,10 +230,10 @@ static int integrate(const pl_params_t *p, pl_state_t *s, double t_abs, double h
             piece = p->max_piece;
         }
         if (n_open == 0) {
-            pl_segment_t g;
+            dq_segment_t g;
             double v_alpha, v_beta, i_d1, i_q1;
             leg_voltage(p->vdc, levels, &v_alpha, &v_beta);
-            segment_setup(p, omega_e, s->theta_e, v_alpha, v_beta, s->i_d, s->i_q, &g);
+            dq_segment_setup(p->rs, p->ld, p->lq, p->psi_f, omega_e, s->theta_e, v_alpha, v_beta, s->i_d, s->i_q, &g);
             if (cond_mask) {
                 piece = first_blocking(&g, s->theta_e, omega_e, piece, cond_mask, s->dead_level, &blocked);
             }
@@ -349,15 +248,15 @@ static int integrate(const pl_params_t *p, pl_state_t *s, double t_abs, double h
                     if (tau < 0.0) {
                         tau = 0.0;
                     }
-                    segment_eval(&g, tau, &id, &iq);
+                    dq_segment_eval(&g, tau, &id, &iq);
                     rc = emit_row(p, s, tk, id, iq, s->theta_e + omega_e * tau, trace, trace_cap, stats);
                     if (rc != PL_OK) {
                         return rc;
                     }
                 }
             }
-            segment_eval(&g, piece, &i_d1, &i_q1);
-            s->theta_e = wrap_angle(s->theta_e + omega_e * piece);
+            dq_segment_eval(&g, piece, &i_d1, &i_q1);
+            s->theta_e = dq_wrap_angle(s->theta_e + omega_e * piece);
             s->i_d = i_d1;
             s->i_q = i_q1;
         } else if (n_open == 1) {
@@ -382,7 +281,7 @@ static int integrate(const pl_params_t *p, pl_state_t *s, double t_abs, double h
                     return rc;
                 }
             }
-            s->theta_e = wrap_angle(s->theta_e + omega_e * piece);
+            s->theta_e = dq_wrap_angle(s->theta_e + omega_e * piece);
         }
         if (blocked >= 0) {
             s->dead_level[blocked] = PL_LEVEL_OPEN;
@@ -404,7 +303,7 @@ int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const
                int32_t n, double t_load0, double t_load_slope, double trace_dt, double *trace,
                int32_t trace_cap, pl_period_stats_t *stats)
 {
-    pl_event_t ev[PL_MAX_EVENTS];
+    dq_event_t ev[PL_MAX_EVENTS];
     int n_ev = 0;
     int gate_level[3];
     double edge_t[3][2 * PL_MAX_SUBINTERVALS + 2];
@@ -469,7 +368,7 @@ int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const
     for (int leg = 0; leg < 3; leg++) {
         gate_level[leg] = (s->gate >> (2 - leg)) & 1;
         for (int e = 0; e < n_edge[leg]; e++) {
-            n_ev = add_event(ev, n_ev, edge_t[leg][e], leg, 0, edge_lvl[leg][e]);
+            n_ev = dq_add_event(ev, n_ev, PL_MAX_EVENTS, edge_t[leg][e], leg, 0, edge_lvl[leg][e]);
             stats->leg_transitions++;
             if (edge_t[leg][e] - s->last_edge_t[leg] < t_lim) {
                 stats->narrow_pulses_gated++; /* a narrow pulse that reached the gate */
@@ -487,7 +386,7 @@ int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const
         int gate = s->gate;
         for (int leg = 0; leg < 3; leg++) {
             if (s->dead_until[leg] > t && s->dead_until[leg] < t_end) {
-                n_ev = add_event(ev, n_ev, s->dead_until[leg], leg, 1, 0);
+                n_ev = dq_add_event(ev, n_ev, PL_MAX_EVENTS, s->dead_until[leg], leg, 1, 0);
             }
         }
         for (int k = 0; k <= n_ev; k++) {
@@ -520,7 +419,7 @@ int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const
                     s->dead_level[leg] = lvl;
                     s->dead_until[leg] = ev[k].t + p->t_dead;
                     if (s->dead_until[leg] < t_end) {
-                        n_ev = add_event(ev, n_ev, s->dead_until[leg], leg, 1, 0);
+                        n_ev = dq_add_event(ev, n_ev, PL_MAX_EVENTS, s->dead_until[leg], leg, 1, 0);
                     }
                 }
                 gate_level[leg] = ev[k].level;

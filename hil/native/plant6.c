@@ -1,18 +1,15 @@
 /* Exact dual three-phase PMSM + six-leg inverter plant kernel; see plant6.h.
  *
- * The dq closed form is the three-phase kernel's (plant.c, docs/plant.md), restated here with p6_
- * names so that plant.c stays untouched. Dead time: the sign rule per leg (the diode chosen by the
+ * The dq closed form is shared with the three-phase kernel (dq_segment.c, docs/plant.md). Dead time: the sign rule per leg (the diode chosen by the
  * phase current sign at the gate edge conducts for the whole dead time); the three-phase kernel's
  * open-phase logic (diode blocking at a current zero crossing) is not modelled for six phases. */
 #include "plant6.h"
+#include "dq_segment.h"
 
-#include <complex.h>
 #include <math.h>
 #include <stddef.h>
 
-#define P6_TWO_PI 6.283185307179586476925286766559
 #define P6_MAX_EVENTS 128
-#define P6_J ((double complex)I)
 #define P6_H3 0.86602540378443864676372317075294 /* sqrt(3)/2 */
 
 /* Rows of the VSD matrix without its 1/3 factor: alpha, beta, x, y over phases A B C U V W. */
@@ -23,14 +20,6 @@ static const double P6_VSD[4][P6_LEGS] = {
     {0.0, -P6_H3, P6_H3, 0.5, 0.5, -1.0},
 };
 
-typedef struct {
-    double m, delta;
-    double M00, M01, M10, M11;
-    double x0_const[2];
-    double complex z[2];
-    double a0, omega_e;
-    double h0[2];
-} p6_segment_t;
 
 double p6_torque(const p6_params_t *p, double i_d, double i_q)
 {
@@ -59,92 +48,6 @@ void p6_code_voltage(double vdc, int32_t code, double *v4)
         }
         v4[r] = vdc / 3.0 * acc; /* per-group common mode drops out: each row sums to 0 per group */
     }
-}
-
-static double wrap_angle(double theta)
-{
-    theta = fmod(theta, P6_TWO_PI);
-    if (theta < 0.0) {
-        theta += P6_TWO_PI;
-    }
-    return theta;
-}
-
-static void segment_setup(const p6_params_t *p, double omega_e, double theta0, double v_alpha, double v_beta,
-                          double i_d0, double i_q0, p6_segment_t *g)
-{
-    double a00 = -p->rs / p->ld, a01 = omega_e * p->lq / p->ld;
-    double a10 = -omega_e * p->ld / p->lq, a11 = -p->rs / p->lq;
-    double det = a00 * a11 - a01 * a10;
-    double c1 = -omega_e * p->psi_f / p->lq;
-    double vmag = hypot(v_alpha, v_beta);
-    double complex w0 = vmag / p->ld, w1 = P6_J * (vmag / p->lq);
-    double complex b00 = P6_J * omega_e - a00, b01 = -a01, b10 = -a10, b11 = P6_J * omega_e - a11;
-    double complex bdet = b00 * b11 - b01 * b10;
-    double complex e;
-
-    g->m = 0.5 * (a00 + a11);
-    g->M00 = a00 - g->m;
-    g->M01 = a01;
-    g->M10 = a10;
-    g->M11 = a11 - g->m;
-    g->delta = g->M00 * g->M00 + g->M01 * g->M10;
-    g->x0_const[0] = (a01 * c1) / det;
-    g->x0_const[1] = -(a00 * c1) / det;
-    g->z[0] = (b11 * w0 - b01 * w1) / bdet;
-    g->z[1] = (b00 * w1 - b10 * w0) / bdet;
-    g->a0 = theta0 - atan2(v_beta, v_alpha);
-    g->omega_e = omega_e;
-    e = cexp(P6_J * g->a0);
-    g->h0[0] = i_d0 - (g->x0_const[0] + creal(g->z[0] * e));
-    g->h0[1] = i_q0 - (g->x0_const[1] + creal(g->z[1] * e));
-}
-
-static void segment_eval(const p6_segment_t *g, double tau, double *i_d, double *i_q)
-{
-    double c, s, em = exp(g->m * tau);
-    double dt2 = g->delta * tau * tau;
-    double complex e = cexp(P6_J * (g->a0 + g->omega_e * tau));
-    if (fabs(dt2) < 1e-4) {
-        c = 1.0 + dt2 / 2.0 + dt2 * dt2 / 24.0;
-        s = tau * (1.0 + dt2 / 6.0 + dt2 * dt2 / 120.0);
-    } else if (g->delta > 0.0) {
-        double r = sqrt(g->delta);
-        c = cosh(r * tau);
-        s = sinh(r * tau) / r;
-    } else {
-        double r = sqrt(-g->delta);
-        c = cos(r * tau);
-        s = sin(r * tau) / r;
-    }
-    *i_d = em * (c * g->h0[0] + s * (g->M00 * g->h0[0] + g->M01 * g->h0[1])) + g->x0_const[0] +
-           creal(g->z[0] * e);
-    *i_q = em * (c * g->h0[1] + s * (g->M10 * g->h0[0] + g->M11 * g->h0[1])) + g->x0_const[1] +
-           creal(g->z[1] * e);
-}
-
-typedef struct {
-    double t;
-    int32_t leg;
-    int32_t kind; /* 0: gate edge to `level`, 1: end of dead time */
-    int32_t level;
-} p6_event_t;
-
-static int add_event(p6_event_t *ev, int n, double t, int leg, int kind, int level)
-{
-    int k = n;
-    if (n >= P6_MAX_EVENTS) {
-        return n;
-    }
-    while (k > 0 && (ev[k - 1].t > t || (ev[k - 1].t == t && ev[k - 1].kind > kind))) {
-        ev[k] = ev[k - 1];
-        k--;
-    }
-    ev[k].t = t;
-    ev[k].leg = leg;
-    ev[k].kind = kind;
-    ev[k].level = level;
-    return n + 1;
 }
 
 static int emit_row(const p6_params_t *p, p6_state_t *s, double tk, double i_d, double i_q, double theta,
@@ -179,7 +82,7 @@ static int integrate(const p6_params_t *p, p6_state_t *s, double t_abs, double h
         double te0 = p6_torque(p, s->i_d, s->i_q);
         double v[4], ix_inf, iy_inf, kxy, i_d1, i_q1;
         int levels = 0;
-        p6_segment_t g;
+        dq_segment_t g;
         for (int leg = 0; leg < P6_LEGS; leg++) {
             int lvl = gate_level[leg];
             if (t0 < s->dead_until[leg] - 0.5e-9) {
@@ -191,7 +94,7 @@ static int integrate(const p6_params_t *p, p6_state_t *s, double t_abs, double h
             piece = p->max_piece;
         }
         p6_code_voltage(p->vdc, levels, v);
-        segment_setup(p, omega_e, s->theta_e, v[0], v[1], s->i_d, s->i_q, &g);
+        dq_segment_setup(p->rs, p->ld, p->lq, p->psi_f, omega_e, s->theta_e, v[0], v[1], s->i_d, s->i_q, &g);
         ix_inf = v[2] / p->rs;
         iy_inf = v[3] / p->rs;
         kxy = -p->rs / p->lls;
@@ -206,7 +109,7 @@ static int integrate(const p6_params_t *p, p6_state_t *s, double t_abs, double h
                 if (tau < 0.0) {
                     tau = 0.0;
                 }
-                segment_eval(&g, tau, &id, &iq);
+                dq_segment_eval(&g, tau, &id, &iq);
                 ex = exp(kxy * tau);
                 rc = emit_row(p, s, tk, id, iq, s->theta_e + omega_e * tau, ix_inf + (s->i_x - ix_inf) * ex,
                               iy_inf + (s->i_y - iy_inf) * ex, trace, trace_cap, stats);
@@ -215,13 +118,13 @@ static int integrate(const p6_params_t *p, p6_state_t *s, double t_abs, double h
                 }
             }
         }
-        segment_eval(&g, piece, &i_d1, &i_q1);
+        dq_segment_eval(&g, piece, &i_d1, &i_q1);
         {
             double ex = exp(kxy * piece);
             s->i_x = ix_inf + (s->i_x - ix_inf) * ex;
             s->i_y = iy_inf + (s->i_y - iy_inf) * ex;
         }
-        s->theta_e = wrap_angle(s->theta_e + omega_e * piece);
+        s->theta_e = dq_wrap_angle(s->theta_e + omega_e * piece);
         s->i_d = i_d1;
         s->i_q = i_q1;
         if (p->inertia_mode) {
@@ -246,7 +149,7 @@ int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const
                int32_t n, double t_load0, double t_load_slope, double trace_dt, double *trace,
                int32_t trace_cap, p6_period_stats_t *stats)
 {
-    p6_event_t ev[P6_MAX_EVENTS];
+    dq_event_t ev[P6_MAX_EVENTS];
     int n_ev = 0;
     int gate_level[P6_LEGS];
     double edge_t[P6_LEGS][P6_MAX_SUBINTERVALS + 2];
@@ -310,7 +213,7 @@ int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const
     for (int leg = 0; leg < P6_LEGS; leg++) {
         gate_level[leg] = (s->gate >> (P6_LEGS - 1 - leg)) & 1;
         for (int e = 0; e < n_edge[leg]; e++) {
-            n_ev = add_event(ev, n_ev, edge_t[leg][e], leg, 0, edge_lvl[leg][e]);
+            n_ev = dq_add_event(ev, n_ev, P6_MAX_EVENTS, edge_t[leg][e], leg, 0, edge_lvl[leg][e]);
             stats->leg_transitions++;
             if (edge_t[leg][e] - s->last_edge_t[leg] < t_lim) {
                 stats->narrow_pulses_gated++; /* a narrow pulse that reached the gate */
@@ -327,7 +230,7 @@ int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const
         int gate = s->gate;
         for (int leg = 0; leg < P6_LEGS; leg++) {
             if (s->dead_until[leg] > t && s->dead_until[leg] < t_end) {
-                n_ev = add_event(ev, n_ev, s->dead_until[leg], leg, 1, 0);
+                n_ev = dq_add_event(ev, n_ev, P6_MAX_EVENTS, s->dead_until[leg], leg, 1, 0);
             }
         }
         for (int k = 0; k <= n_ev; k++) {
@@ -354,7 +257,7 @@ int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const
                     s->dead_level[leg] = i_ph > 0.0 ? 0 : (i_ph < 0.0 ? 1 : ev[k].level);
                     s->dead_until[leg] = ev[k].t + p->t_dead;
                     if (s->dead_until[leg] < t_end) {
-                        n_ev = add_event(ev, n_ev, s->dead_until[leg], leg, 1, 0);
+                        n_ev = dq_add_event(ev, n_ev, P6_MAX_EVENTS, s->dead_until[leg], leg, 1, 0);
                     }
                 }
                 gate_level[leg] = ev[k].level;
