@@ -17,6 +17,7 @@ import tempfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from pmsm_hil.hil.cli.parsing import positive_int
 from pmsm_hil.hil.errors import HilError, InputFileError
 
 FIRMWARE_DIR = Path(__file__).resolve().parents[2] / "firmware_stub"
@@ -90,16 +91,6 @@ class ControllerFigures:
     instructions_split: list[float] = field(default_factory=list)
 
 
-def _count(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number ≥ 1, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number ≥ 1, got {text!r}")
-    return value
-
-
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Register `controllers` under `hil bench`."""
     p = subparsers.add_parser(
@@ -107,9 +98,9 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         description="Time every implemented controller of the C reference firmware on a rotating "
                     "rated-current vector at 1500 rpm (C-side CLOCK_MONOTONIC per stage, medians over "
                     "repeats); with valgrind installed also count instructions per step (callgrind).")
-    p.add_argument("--steps", type=_count, default=20_000, metavar="N", help="steps per repeat (%(default)s)")
-    p.add_argument("--repeats", type=_count, default=5, metavar="R", help="repeats (%(default)s)")
-    p.add_argument("--valgrind-steps", type=_count, default=2000, metavar="N",
+    p.add_argument("--steps", type=positive_int, default=20_000, metavar="N", help="steps per repeat (%(default)s)")
+    p.add_argument("--repeats", type=positive_int, default=5, metavar="R", help="repeats (%(default)s)")
+    p.add_argument("--valgrind-steps", type=positive_int, default=2000, metavar="N",
                    help="steps per callgrind run (%(default)s)")
     p.add_argument("--no-valgrind", action="store_true", help="skip the instruction counts")
     p.add_argument("--json", type=Path, metavar="FILE", help="also write the figures as JSON")

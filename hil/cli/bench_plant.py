@@ -7,17 +7,8 @@ import json
 from pathlib import Path
 
 from pmsm_hil.hil.bench.plant_bench import format_result, run_plant_bench
+from pmsm_hil.hil.cli.parsing import positive_int
 from pmsm_hil.hil.errors import InputFileError
-
-
-def _count(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number ≥ 1, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number ≥ 1, got {text!r}")
-    return value
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -27,11 +18,11 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         description="Time the plant (niu2020-ipmsm, 1500 rpm dyno, Ts = 100 µs) for single-vector and "
                     "three-sub-interval periods with the 2 µs trace on and off; when gym-electric-motor is "
                     "installed, time its PMSM step and compare its currents with ours.")
-    p.add_argument("--periods", type=_count, default=20_000, metavar="N",
+    p.add_argument("--periods", type=positive_int, default=20_000, metavar="N",
                    help="periods per repeat (default %(default)s)")
-    p.add_argument("--repeats", type=_count, default=5, metavar="R",
+    p.add_argument("--repeats", type=positive_int, default=5, metavar="R",
                    help="repeats, median reported (default %(default)s)")
-    p.add_argument("--accuracy-periods", type=_count, default=2000, metavar="N",
+    p.add_argument("--accuracy-periods", type=positive_int, default=2000, metavar="N",
                    help="random single-vector periods for the GEM accuracy comparison (default %(default)s)")
     p.add_argument("--no-gem", action="store_true", help="skip gym-electric-motor even if installed")
     p.add_argument("--json", type=Path, metavar="FILE", help="also write the figures as JSON")

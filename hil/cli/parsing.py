@@ -43,3 +43,14 @@ def non_negative_int(name: str) -> Callable[[str], int]:
             raise argparse.ArgumentTypeError(f"{name} must be ≥ 0, got {text!r}")
         return value
     return parse
+
+
+def positive_int(text: str) -> int:
+    """Parser for a whole number ≥ 1 (counts: periods, steps, repeats)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number ≥ 1, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number ≥ 1, got {text!r}")
+    return value

@@ -3,24 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import math
 from pathlib import Path
 
 from pmsm_hil.hil.cli.motor_args import add_motor_arguments, motor_from_args
+from pmsm_hil.hil.cli.parsing import finite_float
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.replay import replay
-
-
-def _finite(name: str):  # type: ignore[no-untyped-def]
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
-        if not math.isfinite(value):
-            raise argparse.ArgumentTypeError(f"{name} must be finite, got {text!r}")
-        return value
-    return parse
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -32,9 +20,9 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
                                           "or 6-bit codes 0..63 [S_A S_B S_C S_U S_V S_W] and writes "
                                           "t,i_a1,...,i_c2,i_d,i_q,i_x,i_y,torque,theta_e,omega_m.")
     add_motor_arguments(p, default=None)
-    p.add_argument("--rpm", type=_finite("--rpm"), required=True, help="held shaft speed [rpm]")
-    p.add_argument("--ts", type=_finite("--ts"), required=True, help="control period [s]")
-    p.add_argument("--theta0", type=_finite("--theta0"), default=0.0, help="initial electrical angle [rad]")
+    p.add_argument("--rpm", type=finite_float("--rpm"), required=True, help="held shaft speed [rpm]")
+    p.add_argument("--ts", type=finite_float("--ts"), required=True, help="control period [s]")
+    p.add_argument("--theta0", type=finite_float("--theta0"), default=0.0, help="initial electrical angle [rad]")
     p.add_argument("--input", type=Path, required=True, help="input CSV")
     p.add_argument("--output", type=Path, required=True, help="output CSV")
     p.set_defaults(func=run)
