@@ -1,0 +1,191 @@
+"""What the three- and six-phase plants share: validation, buffers, mechanics, period advance."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+import numpy.typing as npt
+from pmsm_hil.hil._plant_native import ffi
+from pmsm_hil.hil.errors import ParameterError, PlantFaultError, SequenceError
+from pmsm_hil.hil.mechanics import DynoMechanics, InertiaMechanics, LoadProfile, Mechanics
+from pmsm_hil.hil.motor_params import PmsmParams
+
+MAX_SUBINTERVALS = 8
+
+
+@dataclass(frozen=True, slots=True)
+class PeriodStats:
+    """Inverter events of one advanced period (counts of leg gate transitions and pulses)."""
+
+    leg_transitions: int
+    boundary_transitions: int
+    narrow_pulses: int
+    suppressed_pulses: int
+    trace_rows: int
+    open_phase_events: int = 0
+    narrow_pulses_gated: int = 0
+
+
+class PlantBase:
+    """One control period at a time through a C kernel; subclasses name the kernel and its structs.
+
+    Subclass attributes: ``KERNEL_PREFIX`` (C struct/function prefix, e.g. "pl"), ``LEGS``,
+    ``MAX_STATE`` (largest state code), ``STATE_FORMAT`` (how codes are written, for errors) and
+    ``TRACE_COLUMNS``; ``OPEN_PHASE_MODEL`` if the kernel models diode blocking (open phase);
+    ``_kernel_advance`` is the C function (a staticmethod).
+    """
+
+    KERNEL_PREFIX: ClassVar[str]
+    LEGS: ClassVar[int]
+    MAX_STATE: ClassVar[int]
+    STATE_FORMAT: ClassVar[str]
+    TRACE_COLUMNS: ClassVar[tuple[str, ...]]
+    OPEN_PHASE_MODEL: ClassVar[bool] = False
+
+    def __init__(self, params: PmsmParams, ts_s: float, mechanics: Mechanics, *, theta0_rad: float = 0.0,
+                 trace_dt_s: float | None = 2e-6, max_piece_s: float = 5e-6) -> None:
+        if not (math.isfinite(ts_s) and 1e-6 <= ts_s <= 1e-2):
+            raise ParameterError(f"control period 'ts' must be between 1 µs and 10 ms, got {ts_s} s")
+        self.ts_ns = round(ts_s * 1e9)
+        if abs(self.ts_ns - ts_s * 1e9) > 1e-3:
+            raise ParameterError(f"control period 'ts' must be a whole number of ns, got {ts_s} s")
+        if trace_dt_s is not None and not (0 < trace_dt_s <= ts_s):
+            raise ParameterError(f"'trace_dt' must be in (0, ts], got {trace_dt_s} s")
+        if not math.isfinite(theta0_rad):
+            raise ParameterError("'theta0' must be finite")
+        self.params = params
+        self.ts_s = ts_s
+        self.trace_dt_s = trace_dt_s
+        prefix = self.KERNEL_PREFIX
+        self._p: Any = ffi.new(f"{prefix}_params_t *")
+        self._s: Any = ffi.new(f"{prefix}_state_t *")
+        self._stats: Any = ffi.new(f"{prefix}_period_stats_t *")
+        self._states = ffi.new("int32_t[]", MAX_SUBINTERVALS)
+        self._durations = ffi.new("int64_t[]", MAX_SUBINTERVALS)
+        columns = len(self.TRACE_COLUMNS)
+        rows = 0 if trace_dt_s is None else math.ceil(ts_s / trace_dt_s) + 2
+        self._trace_cap = rows
+        self._trace_buf = ffi.new("double[]", max(rows, 1) * columns)
+        self._trace_np: npt.NDArray[np.float64] = np.frombuffer(
+            ffi.buffer(self._trace_buf), dtype=np.float64).reshape(-1, columns)
+        self._trace_dt = 0.0 if trace_dt_s is None else trace_dt_s
+        self._trace_ptr = self._trace_buf if trace_dt_s is not None else ffi.NULL
+        self._load = LoadProfile.constant(0.0)
+        p = self._p
+        p.rs, p.ld, p.lq, p.psi_f, p.vdc = params.rs, params.ld, params.lq, params.psi_f, params.vdc
+        p.j, p.b, p.t_dead, p.t_mpw = params.j, params.b, params.t_dead, params.t_mpw
+        p.max_piece = max_piece_s
+        p.pole_pairs = params.pole_pairs
+        self._set_kernel_params(params)
+        self.mechanics = mechanics
+        self._s.theta_e = theta0_rad % (2.0 * math.pi)
+        if isinstance(mechanics, InertiaMechanics):
+            self._s.omega_m = mechanics.initial_speed_rpm * 2.0 * math.pi / 60.0
+        for leg in range(self.LEGS):
+            self._s.last_edge_t[leg] = -1.0
+            self._s.dead_until[leg] = -1.0
+
+    def _set_kernel_params(self, params: PmsmParams) -> None:
+        """Kernel-specific parameters beyond the common ones (default: none)."""
+
+    def _kernel_advance(self, *args: Any) -> int:
+        raise NotImplementedError
+
+    @property
+    def mechanics(self) -> Mechanics:
+        """Current mechanical mode."""
+        return self._mechanics
+
+    @mechanics.setter
+    def mechanics(self, mechanics: Mechanics) -> None:
+        if isinstance(mechanics, DynoMechanics):
+            self._p.inertia_mode = 0
+            self._s.omega_m = mechanics.omega_m
+        elif isinstance(mechanics, InertiaMechanics):
+            self._p.inertia_mode = 1
+            self._load = mechanics.load
+        else:
+            raise ParameterError(f"unknown mechanics mode {mechanics!r}")
+        self._mechanics = mechanics
+
+    def _set_common_state(self, theta_e: float | None, omega_m: float | None, gate: int | None,
+                          **currents: float | None) -> None:
+        if gate is not None:
+            if not 0 <= gate <= self.MAX_STATE:
+                raise SequenceError(f"gate code {gate} outside 0..{self.MAX_STATE}")
+            self._s.gate = gate
+        for name, value in currents.items():
+            if value is not None:
+                setattr(self._s, name, value)
+        if theta_e is not None:
+            self._s.theta_e = theta_e % (2.0 * math.pi)
+        if omega_m is not None:
+            self._s.omega_m = omega_m
+
+    @property
+    def time_s(self) -> float:
+        """Plant time [s]."""
+        return int(self._s.t_ns) / 1e9
+
+    @property
+    def gate(self) -> int:
+        """Gate code currently applied."""
+        return int(self._s.gate)
+
+    def advance(self, states: Sequence[int], durations_ns: Sequence[int]) -> PeriodStats:
+        """Apply one control period's switching sequence: state codes and durations [ns] summing to Ts."""
+        n = len(states)
+        if n == 0 or n > MAX_SUBINTERVALS or len(durations_ns) != n:
+            raise SequenceError(
+                f"switching sequence needs 1..{MAX_SUBINTERVALS} states with one duration each, "
+                f"got {n} states and {len(durations_ns)} durations")
+        total = 0
+        max_state = self.MAX_STATE
+        for k in range(n):
+            st, du = states[k], durations_ns[k]
+            if not 0 <= st <= max_state:
+                raise SequenceError(f"switching state {k}: code {st} outside 0..{max_state} ({self.STATE_FORMAT})")
+            if du < 0:
+                raise SequenceError(f"switching duration {k}: {du} ns is negative")
+            try:
+                self._states[k] = st
+                self._durations[k] = du
+            except TypeError:
+                raise SequenceError(f"switching state/duration {k}: integers required, got {st!r}, {du!r}") from None
+            total += du
+        if total != self.ts_ns:
+            raise SequenceError(f"switching durations sum to {total} ns, expected Ts = {self.ts_ns} ns")
+        t0 = int(self._s.t_ns) / 1e9
+        load0, slope = self._load.value_and_slope(t0) if self._p.inertia_mode else (0.0, 0.0)
+        st = self._stats
+        rc = self._kernel_advance(self._p, self._s, self._states, self._durations, n, load0, slope,
+                                  self._trace_dt, self._trace_ptr, self._trace_cap, st)
+        if rc != 0:
+            raise PlantFaultError(f"plant kernel rejected the period (code {rc})")
+        return PeriodStats(int(st.leg_transitions), int(st.boundary_transitions), int(st.narrow_pulses),
+                           int(st.suppressed_pulses), int(st.trace_n),
+                           int(st.open_phase_events) if self.OPEN_PHASE_MODEL else 0, int(st.narrow_pulses_gated))
+
+    @property
+    def last_trace(self) -> npt.NDArray[np.float64]:
+        """High-rate trace rows of the last period: columns TRACE_COLUMNS (view, copy to keep)."""
+        return self._trace_np[: int(self._stats.trace_n)]
+
+    def check_trips(self, smp: Any = None) -> str | None:
+        """Trip reason ('overcurrent ...' / 'overspeed ...') for a sample (default: now), or None."""
+        smp = self.sample() if smp is None else smp
+        peak = max(abs(i) for i in smp.phase_currents)
+        if peak > self.params.i_trip:
+            return f"overcurrent: |i| = {peak:.2f} A > i_trip = {self.params.i_trip:.2f} A"
+        rpm = abs(smp.omega_m) * 60.0 / (2.0 * math.pi)
+        if rpm > self.params.speed_trip_rpm:
+            return f"overspeed: {rpm:.0f} rpm > speed_trip_rpm = {self.params.speed_trip_rpm:.0f} rpm"
+        return None
+
+    def sample(self) -> Any:
+        """Exact state at the current time (the period start)."""
+        raise NotImplementedError
