@@ -7,7 +7,10 @@ period start; `states`/`durations_ns` are the switching sequence applied during 
 `n_states` entries are valid); `leg_transitions` counts the real gate transitions of all legs during the
 period including the one at its start boundary, `boundary_transitions` those exactly at the period
 start; `exec_time_ns` is the controller execution time, `exec_split_ns` its measure/reference/predict
-split; `late`/`missed` are the real-time deadline flags.
+split; `late`/`missed` are the real-time deadline flags. `narrow_pulses` counts leg pulses shorter than
+T_lim = 2·T_dead + T_mpw requested in the period, `narrow_pulses_gated` those that reached the gate.
+`mirror` = 1: the command was sent mirrored (`Command.mirror`): the plant applied states[0..n-1] then
+states[n-2..0] with the same durations; `states`/`durations_ns` hold the slots as sent.
 
 `TRACE_DTYPE`: the plant's high-rate trace (one sample every ≤ 2 µs).
 
@@ -48,6 +51,8 @@ PERIOD_DTYPE: Final = np.dtype(
         ("narrow_pulses", "u2"),
         ("late", "u1"),
         ("missed", "u1"),
+        ("narrow_pulses_gated", "u2"),
+        ("mirror", "u1"),
     ]
 )
 

@@ -57,10 +57,10 @@ L_MEAS_B = _expect("MeasB", ("seq_lo", "theta_e", "omega_m", "vdc", "status"))
 L_MEAS_FD = _expect("MeasFd", ("seq", "i_a", "i_b", "i_c", "theta_e", "omega_m", "vdc", "status"))
 L_CMD_A = _expect("CmdA", ("seq", *_CMD_PACKED, "vector_id"))
 L_CMD_B = _expect("CmdB", ("seq", "duration1", "duration2", "candidates"))
-L_CMD_C = _expect("CmdC", ("seq", "exec_time_ns", "status"))
+L_CMD_C = _expect("CmdC", ("seq", "exec_time_ns", "status", "mirror"))
 L_CMD_FD = _expect(
     "CmdFd",
-    ("seq", *_CMD_PACKED, "duration1", "duration2", "vector_id", "candidates", "exec_time_ns", "status"),
+    ("seq", *_CMD_PACKED, "duration1", "duration2", "vector_id", "candidates", "exec_time_ns", "status", "mirror"),
 )
 L_SETPOINT = _expect("Setpoint", ("enable", "mode", "reference", "controller_id"))
 L_CONFIG = _expect("ConfigParam", ("param_id", "value"))
@@ -240,11 +240,11 @@ class FrameCodec:
 
     # -- command (strict) --
     def _enc_cmd_can(self, c: Command) -> list[Frame]:
-        seq, s0, s1, s2, n, d0, d1, d2, vid, cand, ex, st = _cmd_raw(c)
+        seq, s0, s1, s2, n, d0, d1, d2, vid, cand, ex, st, mir = _cmd_raw(c)
         return [
             Frame(L_CMD_A.frame_id, L_CMD_A.pack(seq, s0, s1, s2, n, d0, vid), False),
             Frame(L_CMD_B.frame_id, L_CMD_B.pack(seq, d1, d2, cand), False),
-            Frame(L_CMD_C.frame_id, L_CMD_C.pack(seq, ex, st), False),
+            Frame(L_CMD_C.frame_id, L_CMD_C.pack(seq, ex, st, mir), False),
         ]
 
     def _enc_cmd_fd(self, c: Command) -> list[Frame]:
@@ -255,9 +255,10 @@ def _cmd_raw(c: Command) -> tuple[int, ...]:
     """Raw values; fast path when every field is a plain in-range int, else the checking slow path."""
     states, durs = c.states, c.durations_ns
     n = len(states)
-    seq, vid, cand, ex, st = c.seq, c.vector_id, c.candidates, c.exec_time_ns, c.status
+    seq, vid, cand, ex, st, mir = c.seq, c.vector_id, c.candidates, c.exec_time_ns, c.status, c.mirror
     if (
         n == 3
+        and (mir is False or mir is True)
         and len(durs) == 3
         and seq.__class__ is int
         and 0 <= seq <= 0xFFFF
@@ -286,7 +287,7 @@ def _cmd_raw(c: Command) -> tuple[int, ...]:
             and 0 <= d1 <= _DUR_MAX
             and 0 <= d2 <= _DUR_MAX
         ):
-            return seq, s0, s1, s2, 3, d0, d1, d2, vid, cand, ex, st
+            return seq, s0, s1, s2, 3, d0, d1, d2, vid, cand, ex, st, int(mir)
     return _cmd_raw_slow(c)
 
 
@@ -315,7 +316,17 @@ def _cmd_raw_slow(c: Command) -> tuple[int, ...]:
         _u("Command.candidates", c.candidates, 255),
         ex,
         _u("Command.status", c.status, 255),
+        _flag("Command.mirror", c.mirror),
     )
+
+
+def _flag(field_name: str, value: object) -> int:
+    """Strict one-bit flag: a bool, or the integers 0 and 1."""
+    if value is True or value is False:
+        return int(value)
+    if isinstance(value, int) and value in (0, 1):
+        return int(value)
+    raise EncodeError(f"{field_name}={value!r} is not a flag (False/True or 0/1)")
 
 
 def _enc_setpoint(s: Setpoint) -> list[Frame]:
@@ -405,13 +416,15 @@ def _cmd(
     cand: int,
     ex: int,
     st: int,
+    mir: int,
 ) -> Command:
+    m = mir == 1
     if n == 3:
-        return _new_cmd(seq, (s0, s1, s2), (d0, d1, d2), vid, cand, ex, st)
+        return _new_cmd(seq, (s0, s1, s2), (d0, d1, d2), vid, cand, ex, st, m)
     if n == 2:
-        return _new_cmd(seq, (s0, s1), (d0, d1), vid, cand, ex, st)
+        return _new_cmd(seq, (s0, s1), (d0, d1), vid, cand, ex, st, m)
     if n == 1:
-        return _new_cmd(seq, (s0,), (d0,), vid, cand, ex, st)
+        return _new_cmd(seq, (s0,), (d0,), vid, cand, ex, st, m)
     raise _BadValueError(f"n_states={n} (allowed 1..{MAX_STATES})")
 
 
@@ -512,7 +525,7 @@ class FrameDecoder:
         if parts is None:
             return None
         a, b, c = parts
-        return _cmd(a[0], a[1], a[2], a[3], a[4], a[5], b[1], b[2], a[6], b[3], c[1], c[2])
+        return _cmd(a[0], a[1], a[2], a[3], a[4], a[5], b[1], b[2], a[6], b[3], c[1], c[2], c[3])
 
     def _cmd_a(self, data: bytes) -> Message | None:
         return self._cmd_part(0, L_CMD_A, data)

@@ -73,6 +73,8 @@ class ParamId(IntEnum):
     LLS = 20  # H
     TORQUE_BAND = 21  # N·m
     CURRENT_LIMIT = 22  # A
+    ZERO_SELECT = 23  # 0 paper rule, 1 min_transitions (3vmpc, hv-mpfc)
+    DT_COMP = 24  # 0 off, 1 pulse-based dead-time compensation (3vmpc, hv-mpfc)
 
 
 PARAM_NAMES: dict[ParamId, str] = {p: p.name.lower() for p in ParamId}

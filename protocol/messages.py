@@ -48,7 +48,9 @@ class Command:
     """Target -> plant switching sequence for the period after next.
 
     `states[j]` (6-bit switching state code) is applied for `durations_ns[j]` ns; the durations sum
-    to Ts. `seq` echoes the measurement's; `exec_time_ns` is clamped to 2^32 - 1 on encode."""
+    to Ts. With `mirror` the plant applies states[0..n-1] then states[n-2..0], the mirrored copies with
+    the same durations, so 2·(d0 + … + d(n-2)) + d(n-1) = Ts (a symmetric sequence of 2n − 1 intervals,
+    see `expanded`). `seq` echoes the measurement's; `exec_time_ns` is clamped to 2^32 - 1 on encode."""
 
     seq: int
     states: tuple[int, ...]
@@ -57,6 +59,20 @@ class Command:
     candidates: int = 0
     exec_time_ns: int = 0
     status: int = 0
+    mirror: bool = False
+
+    def expanded(self) -> tuple[tuple[int, ...], tuple[int, ...]]:
+        """(states, durations_ns) as the plant applies them: unchanged, or mirrored when `mirror`."""
+        return expand_mirror(self.states, self.durations_ns, self.mirror)
+
+
+def expand_mirror(
+    states: tuple[int, ...], durations_ns: tuple[int, ...], mirror: bool
+) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    """The applied sequence of a command: s0..s(n-1) then s(n-2)..s0 (same durations) if `mirror`."""
+    if not mirror or len(states) < 2:
+        return states, durations_ns
+    return states + states[-2::-1], durations_ns + durations_ns[-2::-1]
 
 
 @dataclass(frozen=True, slots=True)

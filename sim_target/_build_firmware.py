@@ -57,6 +57,7 @@ typedef struct {
     uint8_t status;
     uint8_t states[3];
     uint8_t full_miss;
+    uint8_t mirror;
     uint32_t durations_ns[3];
     float torque_ref;
     float id_ref;

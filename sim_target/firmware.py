@@ -62,7 +62,8 @@ class FirmwareCommand(NamedTuple):
     prediction stages); torque_ref N·m, id_ref/iq_ref A: debug outputs of the outer loop;
     full_miss: diagnostics of the restricted-candidate controllers (fcs-mpc-1/2, dbcc-mpc), computed
     outside the timed stages: 1 if the full 19-vector DSVM set had a lower cost than the restricted
-    set's choice this step, 0 if not, 255 not applicable.
+    set's choice this step, 0 if not, 255 not applicable. mirror: the plant applies states then
+    states[-2::-1] with the same durations (2·(d0+…+d(n−2)) + d(n−1) = Ts; see `Command.mirror`).
     """
 
     seq: int
@@ -77,6 +78,7 @@ class FirmwareCommand(NamedTuple):
     id_ref: float
     iq_ref: float
     full_miss: int = 255
+    mirror: bool = False
 
 
 def _load() -> tuple[Any, Any]:
@@ -99,10 +101,10 @@ _ERRORS = {
     -6: "reference not finite",
 }
 
-# hil_fw_py_out_t: cmd {seq, n_states, vector_id, candidates, status, states[3], full_miss,
+# hil_fw_py_out_t: cmd {seq, n_states, vector_id, candidates, status, states[3], full_miss, mirror,
 # durations_ns[3], torque_ref, id_ref, iq_ref} then split_ns[3]; native alignment, checked against
 # cffi offsets.
-_OUT = struct.Struct("@HBBBB3BB3I3f3I")
+_OUT = struct.Struct("@HBBBB3BBB3I3f3I")
 
 
 def _check_layout(ffi: Any) -> None:
@@ -112,6 +114,7 @@ def _check_layout(ffi: Any) -> None:
         and ffi.offsetof("hil_fw_cmd_t", "durations_ns") == 12
         and ffi.offsetof("hil_fw_cmd_t", "torque_ref") == 24
         and ffi.offsetof("hil_fw_cmd_t", "full_miss") == 9
+        and ffi.offsetof("hil_fw_cmd_t", "mirror") == 10
     )
     if not ok:  # pragma: no cover - only on an exotic ABI
         raise FirmwareBuildError("hil_fw_py_out_t layout differs from the wrapper's struct format")
@@ -220,8 +223,8 @@ class Firmware:
         u = self._unpack(self._out_buf)
         ns = u[1]
         return FirmwareCommand(
-            u[0], u[5:5 + ns], u[9:9 + ns], u[2], u[3], u[4], u[15] + u[16] + u[17], (u[15], u[16], u[17]),
-            u[12], u[13], u[14], u[8],
+            u[0], u[5:5 + ns], u[10:10 + ns], u[2], u[3], u[4], u[16] + u[17] + u[18], (u[16], u[17], u[18]),
+            u[13], u[14], u[15], u[8], u[9] == 1,
         )
 
 

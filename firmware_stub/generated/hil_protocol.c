@@ -2133,11 +2133,11 @@ int hil_protocol_cmd_c_pack(
     const struct hil_protocol_cmd_c_t *src_p,
     size_t size)
 {
-    if (size < 7u) {
+    if (size < 8u) {
         return (-EINVAL);
     }
 
-    memset(&dst_p[0], 0, 7);
+    memset(&dst_p[0], 0, 8);
 
     dst_p[0] |= pack_left_shift_u16(src_p->seq, 0u, 0xffu);
     dst_p[1] |= pack_right_shift_u16(src_p->seq, 8u, 0xffu);
@@ -2146,8 +2146,9 @@ int hil_protocol_cmd_c_pack(
     dst_p[4] |= pack_right_shift_u32(src_p->exec_time_ns, 16u, 0xffu);
     dst_p[5] |= pack_right_shift_u32(src_p->exec_time_ns, 24u, 0xffu);
     dst_p[6] |= pack_left_shift_u8(src_p->status, 0u, 0xffu);
+    dst_p[7] |= pack_left_shift_u8(src_p->mirror, 0u, 0x01u);
 
-    return (7);
+    return (8);
 }
 
 int hil_protocol_cmd_c_unpack(
@@ -2155,7 +2156,7 @@ int hil_protocol_cmd_c_unpack(
     const uint8_t *src_p,
     size_t size)
 {
-    if (size < 7u) {
+    if (size < 8u) {
         return (-EINVAL);
     }
 
@@ -2166,6 +2167,7 @@ int hil_protocol_cmd_c_unpack(
     dst_p->exec_time_ns |= unpack_left_shift_u32(src_p[4], 16u, 0xffu);
     dst_p->exec_time_ns |= unpack_left_shift_u32(src_p[5], 24u, 0xffu);
     dst_p->status = unpack_right_shift_u8(src_p[6], 0u, 0xffu);
+    dst_p->mirror = unpack_right_shift_u8(src_p[7], 0u, 0x01u);
 
     return (0);
 }
@@ -2245,6 +2247,26 @@ bool hil_protocol_cmd_c_status_is_in_phys_range(float value)
     return ((value >= 0.0f) && (value <= 255.0f));
 }
 
+uint8_t hil_protocol_cmd_c_mirror_encode(float value)
+{
+    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+}
+
+float hil_protocol_cmd_c_mirror_decode(uint8_t value)
+{
+    return ((float)value);
+}
+
+bool hil_protocol_cmd_c_mirror_is_in_range(uint8_t value)
+{
+    return (value <= 1u);
+}
+
+bool hil_protocol_cmd_c_mirror_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 1.0f));
+}
+
 int hil_protocol_cmd_fd_pack(
     uint8_t *dst_p,
     const struct hil_protocol_cmd_fd_t *src_p,
@@ -2280,6 +2302,7 @@ int hil_protocol_cmd_fd_pack(
     dst_p[16] |= pack_right_shift_u32(src_p->exec_time_ns, 16u, 0xffu);
     dst_p[17] |= pack_right_shift_u32(src_p->exec_time_ns, 24u, 0xffu);
     dst_p[18] |= pack_left_shift_u8(src_p->status, 0u, 0xffu);
+    dst_p[19] |= pack_left_shift_u8(src_p->mirror, 0u, 0x01u);
 
     return (20);
 }
@@ -2317,6 +2340,7 @@ int hil_protocol_cmd_fd_unpack(
     dst_p->exec_time_ns |= unpack_left_shift_u32(src_p[16], 16u, 0xffu);
     dst_p->exec_time_ns |= unpack_left_shift_u32(src_p[17], 24u, 0xffu);
     dst_p->status = unpack_right_shift_u8(src_p[18], 0u, 0xffu);
+    dst_p->mirror = unpack_right_shift_u8(src_p[19], 0u, 0x01u);
 
     return (0);
 }
@@ -2578,6 +2602,26 @@ bool hil_protocol_cmd_fd_status_is_in_range(uint8_t value)
 bool hil_protocol_cmd_fd_status_is_in_phys_range(float value)
 {
     return ((value >= 0.0f) && (value <= 255.0f));
+}
+
+uint8_t hil_protocol_cmd_fd_mirror_encode(float value)
+{
+    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+}
+
+float hil_protocol_cmd_fd_mirror_decode(uint8_t value)
+{
+    return ((float)value);
+}
+
+bool hil_protocol_cmd_fd_mirror_is_in_range(uint8_t value)
+{
+    return (value <= 1u);
+}
+
+bool hil_protocol_cmd_fd_mirror_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 1.0f));
 }
 
 int hil_protocol_setpoint_pack(

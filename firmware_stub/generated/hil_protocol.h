@@ -76,7 +76,7 @@ extern "C" {
 #define HIL_PROTOCOL_MEAS_FD6_LENGTH (24u)
 #define HIL_PROTOCOL_CMD_A_LENGTH (8u)
 #define HIL_PROTOCOL_CMD_B_LENGTH (8u)
-#define HIL_PROTOCOL_CMD_C_LENGTH (7u)
+#define HIL_PROTOCOL_CMD_C_LENGTH (8u)
 #define HIL_PROTOCOL_CMD_FD_LENGTH (20u)
 #define HIL_PROTOCOL_SETPOINT_LENGTH (7u)
 #define HIL_PROTOCOL_CONFIG_PARAM_LENGTH (5u)
@@ -216,6 +216,8 @@ extern "C" {
 #define HIL_PROTOCOL_CONFIG_PARAM_PARAM_ID_LLS_CHOICE (20u)
 #define HIL_PROTOCOL_CONFIG_PARAM_PARAM_ID_TORQUE_BAND_CHOICE (21u)
 #define HIL_PROTOCOL_CONFIG_PARAM_PARAM_ID_CURRENT_LIMIT_CHOICE (22u)
+#define HIL_PROTOCOL_CONFIG_PARAM_PARAM_ID_ZERO_SELECT_CHOICE (23u)
+#define HIL_PROTOCOL_CONFIG_PARAM_PARAM_ID_DT_COMP_CHOICE (24u)
 
 #define HIL_PROTOCOL_CONFIG_ACK_PARAM_ID_RS_CHOICE (1u)
 #define HIL_PROTOCOL_CONFIG_ACK_PARAM_ID_LD_CHOICE (2u)
@@ -239,6 +241,8 @@ extern "C" {
 #define HIL_PROTOCOL_CONFIG_ACK_PARAM_ID_LLS_CHOICE (20u)
 #define HIL_PROTOCOL_CONFIG_ACK_PARAM_ID_TORQUE_BAND_CHOICE (21u)
 #define HIL_PROTOCOL_CONFIG_ACK_PARAM_ID_CURRENT_LIMIT_CHOICE (22u)
+#define HIL_PROTOCOL_CONFIG_ACK_PARAM_ID_ZERO_SELECT_CHOICE (23u)
+#define HIL_PROTOCOL_CONFIG_ACK_PARAM_ID_DT_COMP_CHOICE (24u)
 
 #define HIL_PROTOCOL_CONFIG_ACK_STATUS_OK_CHOICE (0u)
 #define HIL_PROTOCOL_CONFIG_ACK_STATUS_OVERCURRENT_CHOICE (1u)
@@ -346,6 +350,7 @@ extern "C" {
 #define HIL_PROTOCOL_CMD_C_SEQ_NAME "seq"
 #define HIL_PROTOCOL_CMD_C_EXEC_TIME_NS_NAME "exec_time_ns"
 #define HIL_PROTOCOL_CMD_C_STATUS_NAME "status"
+#define HIL_PROTOCOL_CMD_C_MIRROR_NAME "mirror"
 #define HIL_PROTOCOL_CMD_FD_SEQ_NAME "seq"
 #define HIL_PROTOCOL_CMD_FD_STATE0_NAME "state0"
 #define HIL_PROTOCOL_CMD_FD_STATE1_NAME "state1"
@@ -358,6 +363,7 @@ extern "C" {
 #define HIL_PROTOCOL_CMD_FD_CANDIDATES_NAME "candidates"
 #define HIL_PROTOCOL_CMD_FD_EXEC_TIME_NS_NAME "exec_time_ns"
 #define HIL_PROTOCOL_CMD_FD_STATUS_NAME "status"
+#define HIL_PROTOCOL_CMD_FD_MIRROR_NAME "mirror"
 #define HIL_PROTOCOL_SETPOINT_ENABLE_NAME "enable"
 #define HIL_PROTOCOL_SETPOINT_MODE_NAME "mode"
 #define HIL_PROTOCOL_SETPOINT_REFERENCE_NAME "reference"
@@ -894,7 +900,7 @@ struct hil_protocol_cmd_b_t {
 /**
  * Signals in message CmdC.
  *
- * Command part C (classic CAN profile): execution time and status.
+ * Command part C (classic CAN profile): execution time, status, mirror flag (byte 7 bit 0; bits 1-7 reserved).
  *
  * All signal values are as on the CAN bus.
  */
@@ -921,12 +927,21 @@ struct hil_protocol_cmd_c_t {
      * Offset: 0
      */
     uint8_t status;
+
+    /**
+     * 1: the plant applies state0..state(n-1) then state(n-2)..state0, mirrored copies with the same durations (2*(d0+..+d(n-2)) + d(n-1) = Ts).
+     *
+     * Range: 0..1 (0..1 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t mirror;
 };
 
 /**
  * Signals in message CmdFd.
  *
- * Command, CAN FD profile (one frame, byte 19 reserved).
+ * Command, CAN FD profile (one frame; byte 19 bit 0 mirror, bits 1-7 reserved).
  *
  * All signal values are as on the CAN bus.
  */
@@ -1016,6 +1031,15 @@ struct hil_protocol_cmd_fd_t {
      * Offset: 0
      */
     uint8_t status;
+
+    /**
+     * 1: the plant applies state0..state(n-1) then state(n-2)..state0, mirrored copies with the same durations (2*(d0+..+d(n-2)) + d(n-1) = Ts).
+     *
+     * Range: 0..1 (0..1 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t mirror;
 };
 
 /**
@@ -4051,6 +4075,46 @@ bool hil_protocol_cmd_c_status_is_in_range(uint8_t value);
 bool hil_protocol_cmd_c_status_is_in_phys_range(float value);
 
 /**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint8_t hil_protocol_cmd_c_mirror_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_cmd_c_mirror_decode(uint8_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_c_mirror_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_c_mirror_is_in_phys_range(float value);
+
+/**
  * Pack message CmdFd.
  *
  * @param[out] dst_p Buffer to pack the message into.
@@ -4566,6 +4630,46 @@ bool hil_protocol_cmd_fd_status_is_in_range(uint8_t value);
  * @return true if in range, false otherwise.
  */
 bool hil_protocol_cmd_fd_status_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint8_t hil_protocol_cmd_fd_mirror_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_cmd_fd_mirror_decode(uint8_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_fd_mirror_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_fd_mirror_is_in_phys_range(float value);
 
 /**
  * Pack message Setpoint.

@@ -85,8 +85,9 @@ void hil_fw_hv_pair_duties(const hil_fw_hv_problem_t *p, uint8_t sector, float t
 uint8_t hil_fw_hv_modes(const hil_fw_hv_problem_t *p, const hil_fw_hv_pair_t *pair, float t_thr, uint32_t ts_ns,
                         hil_fw_dwell_t *dwell, uint8_t *requested);
 
-/* Sequence, packing into the command, dead-time compensation; fills cmd states/durations/n_states
- * and st->seq / st->dt_moved. */
+/* Sequence, packing into the command (its distinct states with the mirror flag: the whole symmetric
+ * sequence in one period), symmetric dead-time compensation; fills cmd states/durations/n_states/
+ * mirror and st->seq / st->dt_moved. */
 void hil_fw_hv_emit(struct hil_fw_state *s, const hil_fw_hv_problem_t *p, const hil_fw_dwell_t *dwell,
                     hil_fw_cmd_t *cmd);
 

@@ -46,12 +46,13 @@ typedef struct {
     float i_q;    /* [A] */
 } hil_fw_refs_t;
 
-/* The command applied by the plant during [k, k+1) (the one issued at step k-1). */
+/* The command applied by the plant during [k, k+1) (the one issued at step k-1), a mirrored
+ * command expanded into its full sequence (so states[n_states - 1] is the last state applied). */
 typedef struct {
     uint8_t n_states;
     uint8_t vector_id;
-    uint8_t states[HIL_FW_MAX_SUBSTATES];
-    uint32_t durations_ns[HIL_FW_MAX_SUBSTATES];
+    uint8_t states[HIL_FW_MAX_APPLIED];
+    uint32_t durations_ns[HIL_FW_MAX_APPLIED];
 } hil_fw_applied_t;
 
 typedef struct hil_fw_state {

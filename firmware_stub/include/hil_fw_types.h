@@ -9,6 +9,8 @@
 
 #define HIL_FW_MAX_PHASES 6
 #define HIL_FW_MAX_SUBSTATES 3
+/* Sub-intervals of an applied (mirror-expanded) command: s0..s(n-1), s(n-2)..s0. */
+#define HIL_FW_MAX_APPLIED (2 * HIL_FW_MAX_SUBSTATES - 1)
 
 /* Return codes of the configuration calls (0 ok, negative error). */
 #define HIL_FW_OK 0
@@ -70,7 +72,10 @@ typedef struct {
     uint8_t full_miss;                           /* diagnostics (sim target only, untimed): 1 if the
                                                     full DSVM set beat the restricted set, 0 if not,
                                                     255 not computed */
-    uint32_t durations_ns[HIL_FW_MAX_SUBSTATES]; /* sub-interval lengths [ns]; sum = Ts [ns] */
+    uint8_t mirror;                              /* 1: the plant applies states[0..n-1] then
+                                                    states[n-2..0] with the same durations */
+    uint32_t durations_ns[HIL_FW_MAX_SUBSTATES]; /* sub-interval lengths [ns]; sum = Ts [ns], with
+                                                    mirror 2*(d0+..+d(n-2)) + d(n-1) = Ts */
     float torque_ref;                            /* debug: torque reference [N*m] */
     float id_ref;                                /* debug: d-axis current reference [A] */
     float iq_ref;                                /* debug: q-axis current reference [A] */

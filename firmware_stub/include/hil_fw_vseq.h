@@ -54,6 +54,18 @@ void hil_fw_vseq_plan(hil_fw_vseq_t *q, const hil_fw_dwell_t *d, uint8_t zero_se
 uint8_t hil_fw_vseq_pack(const hil_fw_vseq_t *q, uint8_t fold, uint8_t odd, uint8_t max_slots, uint8_t *states,
                          uint32_t *durations_ns);
 
+/* Copy a sequence into command slots to be sent with the mirror flag: its q->nest distinct states,
+ * outermost first, with the durations of the first half; the innermost slot gets the rest, so that
+ * 2*(d0+..+d(nest-2)) + d(nest-1) = the sequence's total (an odd total of an outer state loses its
+ * odd ns to the innermost one). Returns the slots used, 0 if max_slots < q->nest. */
+uint8_t hil_fw_vseq_pack_mirror(const hil_fw_vseq_t *q, uint8_t max_slots, uint8_t *states, uint32_t *durations_ns);
+
+/* The sequence the plant applies for command slots (states, durations_ns, n): unchanged, or with
+ * mirror != 0 s0..s(n-1) then s(n-2)..s0 with the same durations. out_*: room for 2n - 1 entries.
+ * Returns the length written. */
+uint8_t hil_fw_vseq_expand(const uint8_t *states, const uint32_t *durations_ns, uint8_t n, uint8_t mirror,
+                           uint8_t *out_states, uint32_t *out_durations_ns);
+
 /* Leg transitions from prev_code through the n states (the boundary one included). */
 uint8_t hil_fw_vseq_transitions(uint8_t prev_code, const uint8_t *states, uint8_t n);
 
@@ -63,5 +75,15 @@ uint8_t hil_fw_vseq_transitions(uint8_t prev_code, const uint8_t *states, uint8_
  * The sum of the durations is unchanged. Returns the number of edges moved. */
 uint8_t hil_fw_vseq_dt_comp(const uint8_t *states, uint32_t *durations_ns, uint8_t n, const float *i_abc,
                             uint32_t t_dead_ns);
+
+/* Dead-time compensation of mirrored command slots (see hil_fw_vseq_pack_mirror), symmetric: an
+ * edge between slots j and j+1 and its mirror image form one leg pulse, and exactly one of the two
+ * is delayed by the inverter, so the leg's high time per period is short by sign(i)*t_dead. Both
+ * edges move by t_dead/2 (the inward edge by d_j -/+ t_dead/2, the mirrored one the other way) so the
+ * leg's high time grows by sign(i)*t_dead: an inward rising edge moves earlier for i > 0 and later
+ * for i < 0, an inward falling edge the reverse. An edge where several legs flip moves only if they
+ * agree; moves are clamped so no slot becomes negative. Returns the number of edges moved. */
+uint8_t hil_fw_vseq_dt_comp_mirror(const uint8_t *states, uint32_t *durations_ns, uint8_t n, const float *i_abc,
+                                   uint32_t t_dead_ns);
 
 #endif

@@ -284,19 +284,19 @@ void hil_fw_hv_emit(struct hil_fw_state *s, const hil_fw_hv_problem_t *p, const 
 {
     hil_fw_hv_state_t *st = &s->ctrl.hv;
     const float *v = s->params.value;
-    const uint8_t fold = HIL_FW_MAX_SUBSTATES < HIL_FW_VSEQ_MAX ? 1u : 0u;
-    const uint8_t odd = (uint8_t)(s->meas.seq & 1u);
-    const uint8_t na = s->applied.n_states;
+    const uint8_t na = s->applied.n_states; /* applied sequence is mirror-expanded */
     const uint8_t prev = s->applied.states[na > 0u ? na - 1u : 0u];
     const uint8_t zsel = v[HIL_FW_P_ZERO_SELECT] >= 0.5f ? HIL_FW_ZERO_MIN_TRANSITIONS : HIL_FW_ZERO_PAPER;
     uint8_t n;
     uint8_t i;
-    hil_fw_vseq_plan(&st->seq, dwell, zsel, prev, fold, odd);
-    n = hil_fw_vseq_pack(&st->seq, fold, odd, HIL_FW_MAX_SUBSTATES, cmd->states, cmd->durations_ns);
+    /* The whole symmetric sequence in one period: its distinct states with the mirror flag. */
+    hil_fw_vseq_plan(&st->seq, dwell, zsel, prev, 0u, 0u);
+    n = hil_fw_vseq_pack_mirror(&st->seq, HIL_FW_MAX_SUBSTATES, cmd->states, cmd->durations_ns);
+    cmd->mirror = n > 1u ? 1u : 0u;
     st->dt_moved = 0u;
     if (v[HIL_FW_P_DT_COMP] >= 0.5f && v[HIL_FW_P_T_DEAD] > 0.0f) {
         const uint32_t td = (uint32_t)(v[HIL_FW_P_T_DEAD] * 1.0e9f + 0.5f);
-        st->dt_moved = hil_fw_vseq_dt_comp(cmd->states, cmd->durations_ns, n, p->i_abc, td);
+        st->dt_moved = hil_fw_vseq_dt_comp_mirror(cmd->states, cmd->durations_ns, n, p->i_abc, td);
     }
     for (i = n; i < HIL_FW_MAX_SUBSTATES; ++i) {
         cmd->states[i] = 0u;

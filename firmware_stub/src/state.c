@@ -16,6 +16,7 @@ void hil_fw_init(hil_fw_state_t *s)
 {
     hil_fw_measured_t zero_meas = {0};
     hil_fw_mpcc_state_t zero_mpcc = {0};
+    uint8_t i;
     hil_fw_params_defaults(&s->params);
     sync_pi_params(s);
     hil_fw_speed_pi_reset(&s->speed_pi, s->params.value[HIL_FW_P_TORQUE_INTEGRATOR_INIT]);
@@ -33,12 +34,11 @@ void hil_fw_init(hil_fw_state_t *s)
     s->ref.i_q = 0.0f;
     s->applied.n_states = 1u;
     s->applied.vector_id = 0u;
-    s->applied.states[0] = 0u;
-    s->applied.states[1] = 0u;
-    s->applied.states[2] = 0u;
+    for (i = 0u; i < HIL_FW_MAX_APPLIED; ++i) {
+        s->applied.states[i] = 0u;
+        s->applied.durations_ns[i] = 0u;
+    }
     s->applied.durations_ns[0] = s->params.model.ts_ns;
-    s->applied.durations_ns[1] = 0u;
-    s->applied.durations_ns[2] = 0u;
     s->ctrl.mpcc = zero_mpcc;
 }
 

@@ -7,6 +7,7 @@
 #include "hil_fw_six.h"
 #include "hil_fw_step.h"
 #include "hil_fw_transforms.h"
+#include "hil_fw_vseq.h"
 
 static float clampf(float x, float lim)
 {
@@ -132,6 +133,7 @@ static void safe_command(const hil_fw_state_t *s, hil_fw_cmd_t *cmd, uint8_t sta
     cmd->vector_id = s->meas.n_phases == 6u ? 0u : hil_fw_state_vector[cmd->states[0]];
     cmd->candidates = 0u;
     cmd->status = status;
+    cmd->mirror = 0u;
 }
 
 void hil_fw_stage_predict(hil_fw_state_t *s, hil_fw_cmd_t *cmd)
@@ -142,6 +144,7 @@ void hil_fw_stage_predict(hil_fw_state_t *s, hil_fw_cmd_t *cmd)
     cmd->torque_ref = s->ref.torque;
     cmd->id_ref = s->ref.i_d;
     cmd->iq_ref = s->ref.i_q;
+    cmd->mirror = 0u; /* controllers that send a mirrored sequence set it */
     if (s->meas.fault != HIL_FW_STATUS_OK) {
         safe_command(s, cmd, s->meas.fault);
     } else if (c == NULL || (c->predict == NULL && s->controller_id != HIL_FW_CTRL_OFF)) {
@@ -151,11 +154,12 @@ void hil_fw_stage_predict(hil_fw_state_t *s, hil_fw_cmd_t *cmd)
     } else {
         c->predict(s, cmd);
     }
-    s->applied.n_states = cmd->n_states;
     s->applied.vector_id = cmd->vector_id;
-    for (i = 0u; i < HIL_FW_MAX_SUBSTATES; ++i) {
-        s->applied.states[i] = cmd->states[i];
-        s->applied.durations_ns[i] = cmd->durations_ns[i];
+    s->applied.n_states = hil_fw_vseq_expand(cmd->states, cmd->durations_ns, cmd->n_states, cmd->mirror,
+                                             s->applied.states, s->applied.durations_ns);
+    for (i = s->applied.n_states; i < HIL_FW_MAX_APPLIED; ++i) {
+        s->applied.states[i] = 0u;
+        s->applied.durations_ns[i] = 0u;
     }
 }
 

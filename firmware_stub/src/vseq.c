@@ -74,6 +74,45 @@ uint8_t hil_fw_vseq_pack(const hil_fw_vseq_t *q, uint8_t fold, uint8_t odd, uint
     return q->nest;
 }
 
+uint8_t hil_fw_vseq_pack_mirror(const hil_fw_vseq_t *q, uint8_t max_slots, uint8_t *states, uint32_t *durations_ns)
+{
+    uint32_t total = 0u;
+    uint32_t outer = 0u;
+    uint8_t i;
+    if (q->nest == 0u || q->nest > max_slots) {
+        return 0u;
+    }
+    for (i = 0u; i < q->n; ++i) {
+        total += q->durations_ns[i];
+    }
+    for (i = 0u; i + 1u < q->nest; ++i) {
+        states[i] = q->states[i];
+        durations_ns[i] = q->durations_ns[i]; /* first half: the smaller one when odd */
+        outer += q->durations_ns[i];
+    }
+    states[q->nest - 1u] = q->states[q->nest - 1u];
+    durations_ns[q->nest - 1u] = total - 2u * outer;
+    return q->nest;
+}
+
+uint8_t hil_fw_vseq_expand(const uint8_t *states, const uint32_t *durations_ns, uint8_t n, uint8_t mirror,
+                           uint8_t *out_states, uint32_t *out_durations_ns)
+{
+    uint8_t i;
+    for (i = 0u; i < n; ++i) {
+        out_states[i] = states[i];
+        out_durations_ns[i] = durations_ns[i];
+    }
+    if (!mirror || n < 2u) {
+        return n;
+    }
+    for (i = 0u; i + 1u < n; ++i) {
+        out_states[n + i] = states[n - 2u - i];
+        out_durations_ns[n + i] = durations_ns[n - 2u - i];
+    }
+    return (uint8_t)(2u * n - 1u);
+}
+
 uint8_t hil_fw_vseq_transitions(uint8_t prev_code, const uint8_t *states, uint8_t n)
 {
     uint8_t total = 0u;
@@ -185,5 +224,59 @@ uint8_t hil_fw_vseq_dt_comp(const uint8_t *states, uint32_t *durations_ns, uint8
             moved = (uint8_t)(moved + (shift > 0u ? 1u : 0u));
         }
     }
+    return moved;
+}
+
+uint8_t hil_fw_vseq_dt_comp_mirror(const uint8_t *states, uint32_t *durations_ns, uint8_t n, const float *i_abc,
+                                   uint32_t t_dead_ns)
+{
+    /* Edge j (between slots j and j+1) sits at e_j = d0 + .. + dj in the first half and at
+     * total - e_j in the second; the innermost slot is total - 2 e_(n-2). */
+    int32_t e[HIL_FW_VSEQ_MAX];
+    int32_t total = 0;
+    int32_t prev = 0;
+    const int32_t half_td = (int32_t)(t_dead_ns / 2u);
+    uint8_t moved = 0u;
+    uint8_t j;
+    if (n < 2u || n > HIL_FW_VSEQ_MAX) {
+        return 0u;
+    }
+    for (j = 0u; j + 1u < n; ++j) {
+        total += 2 * (int32_t)durations_ns[j];
+        e[j] = (j > 0u ? e[j - 1u] : 0) + (int32_t)durations_ns[j];
+    }
+    total += (int32_t)durations_ns[n - 1u];
+    for (j = 0u; j + 1u < n; ++j) {
+        const uint8_t flips = (uint8_t)((states[j] ^ states[j + 1u]) & 7u);
+        int32_t dir = 0; /* -1 earlier, +1 later */
+        uint8_t agree = flips != 0u;
+        uint8_t leg;
+        int32_t hi;
+        int32_t target;
+        for (leg = 0u; leg < 3u && agree; ++leg) {
+            const uint8_t bit = (uint8_t)(2u - leg); /* leg a is the MSB */
+            if ((flips >> bit) & 1u) {
+                const int32_t rising = (int32_t)((states[j + 1u] >> bit) & 1u);
+                const int32_t sgn = i_abc[leg] > 0.0f ? 1 : (i_abc[leg] < 0.0f ? -1 : 0);
+                /* the leg's high time grows by sgn*t_dead: inner pulse high (rising inward) ->
+                 * edge earlier for sgn > 0; inner pulse low (falling inward) -> edge later */
+                const int32_t want = rising ? -sgn : sgn;
+                if (want == 0 || (dir != 0 && want != dir)) {
+                    agree = 0u;
+                }
+                dir = want;
+            }
+        }
+        target = e[j] + (agree ? dir * half_td : 0);
+        hi = j + 2u < n ? e[j + 1u] : total / 2; /* not past the next edge / the middle */
+        target = target < prev ? prev : (target > hi ? hi : target);
+        moved = (uint8_t)(moved + (target != e[j] ? 1u : 0u));
+        e[j] = target;
+        prev = target;
+    }
+    for (j = 0u; j + 1u < n; ++j) {
+        durations_ns[j] = (uint32_t)(e[j] - (j > 0u ? e[j - 1u] : 0));
+    }
+    durations_ns[n - 1u] = (uint32_t)(total - 2 * e[n - 2u]);
     return moved;
 }

@@ -38,6 +38,7 @@ static int check_cmd_fd_round_trip(void)
         in.candidates = (uint8_t)lcg_next();
         in.exec_time_ns = lcg_next();
         in.status = (uint8_t)lcg_next();
+        in.mirror = (uint8_t)(lcg_next() & 1u);
         if (hil_protocol_cmd_fd_pack(buf, &in, sizeof buf) != (int)sizeof buf
             || hil_protocol_cmd_fd_unpack(&back, buf, sizeof buf) != 0
             || back.seq != in.seq || back.state0 != in.state0 || back.state1 != in.state1
@@ -45,7 +46,7 @@ static int check_cmd_fd_round_trip(void)
             || back.duration0 != in.duration0 || back.duration1 != in.duration1
             || back.duration2 != in.duration2 || back.vector_id != in.vector_id
             || back.candidates != in.candidates || back.exec_time_ns != in.exec_time_ns
-            || back.status != in.status) {
+            || back.status != in.status || back.mirror != in.mirror) {
             printf("cmd_fd round trip %d failed\n", k);
             fails++;
         }
@@ -103,7 +104,7 @@ static int check_sizes(void)
         printf("cmd_fd unpack of 4 bytes did not fail\n");
         fails++;
     }
-    if (HIL_PROTOCOL_MEAS_FD_LENGTH != 16u || HIL_PROTOCOL_CMD_FD_LENGTH != 20u || HIL_PROTOCOL_CMD_C_LENGTH != 7u) {
+    if (HIL_PROTOCOL_MEAS_FD_LENGTH != 16u || HIL_PROTOCOL_CMD_FD_LENGTH != 20u || HIL_PROTOCOL_CMD_C_LENGTH != 8u) {
         printf("unexpected frame lengths\n");
         fails++;
     }

@@ -70,6 +70,15 @@ static uint32_t sum_ns(const uint32_t *du, uint8_t n)
     return t;
 }
 
+/* Sum of the applied (mirror-expanded) sequence of a command [ns]. */
+static uint32_t cmd_sum(const hil_fw_cmd_t *c)
+{
+    uint8_t st[HIL_FW_MAX_APPLIED];
+    uint32_t du[HIL_FW_MAX_APPLIED];
+    const uint8_t n = hil_fw_vseq_expand(c->states, c->durations_ns, c->n_states, c->mirror, st, du);
+    return sum_ns(du, n);
+}
+
 /* Make the applied command (during [k, k+1)) realise the stator-frame voltage (ua, ub) [V]. */
 static void set_applied_voltage(hil_fw_state_t *s, float ua, float ub)
 {
@@ -200,7 +209,7 @@ static void test_deadbeat(void)
         psiq2 = p.psi_q1 + ts * uq - we * ts * p.psi_d1 - ts * 1.2f * p.psi_q1 / 0.0085f;
         CHECK_NEAR(psid2, 0.175f + 0.0085f * s.ref.i_d, 2.0e-6f, "psi_d(k+2) = psi_d*");
         CHECK_NEAR(psiq2, 0.0085f * s.ref.i_q, 2.0e-6f, "psi_q(k+2) = psi_q*");
-        CHECK(sum_ns(c.durations_ns, c.n_states) == TS_NS, "command sums to Ts");
+        CHECK(cmd_sum(&c) == TS_NS, "command sums to Ts");
         CHECK(sum_ns(s.ctrl.hv.seq.durations_ns, s.ctrl.hv.seq.n) == TS_NS, "sequence sums to Ts");
     }
     CHECK(infeasible < 20, "most random points have a deadbeat solution (%d of 200 not)", infeasible);
@@ -386,7 +395,7 @@ static void test_no_narrow_pulses(void)
         hil_fw_step(&s, &m, 0u, &c);
         q = &s.ctrl.hv.seq;
         ++modes[s.ctrl.hv.mode];
-        CHECK(sum_ns(q->durations_ns, q->n) == TS_NS && sum_ns(c.durations_ns, c.n_states) == TS_NS,
+        CHECK(sum_ns(q->durations_ns, q->n) == TS_NS && cmd_sum(&c) == TS_NS,
               "sums to Ts");
         /* Each vector's total time (halves summed) >= T_THR. */
         for (i = 0u; i < q->nest; ++i) {
@@ -483,6 +492,72 @@ static void test_zero_rules_and_packing(void)
     }
 }
 
+/* High time of one leg (0 = a) over the applied (mirror-expanded) sequence [ns]. */
+static uint32_t leg_high_ns(const hil_fw_cmd_t *c, uint8_t leg)
+{
+    uint8_t st[HIL_FW_MAX_APPLIED];
+    uint32_t du[HIL_FW_MAX_APPLIED];
+    const uint8_t n = hil_fw_vseq_expand(c->states, c->durations_ns, c->n_states, c->mirror, st, du);
+    uint32_t t = 0u;
+    uint8_t i;
+    for (i = 0u; i < n; ++i) {
+        t += ((st[i] >> (2u - leg)) & 1u) ? du[i] : 0u;
+    }
+    return t;
+}
+
+/* Mirror packing and expansion, and the symmetric dead-time compensation against hand values. */
+static void test_mirror_packing_and_dt_comp(void)
+{
+    const hil_fw_dwell_t d = {4u, 6u, 30001u, 20000u, 49999u}; /* odd halves */
+    hil_fw_vseq_t q;
+    uint8_t st[5];
+    uint32_t du[5];
+    uint8_t xs[5];
+    uint32_t xd[5];
+    uint8_t n;
+    uint8_t nx;
+    uint8_t i;
+    const float i_pos_a[3] = {5.0f, -2.0f, -3.0f};
+    hil_fw_vseq_plan(&q, &d, HIL_FW_ZERO_PAPER, 0u, 0u, 0u);
+    CHECK(hil_fw_vseq_pack_mirror(&q, 2u, st, du) == 0u, "3 distinct states need 3 slots");
+    n = hil_fw_vseq_pack_mirror(&q, 3u, st, du);
+    CHECK(n == 3u && st[0] == 0u && st[1] == 4u && st[2] == 6u, "mirror slots 0-100-110");
+    CHECK(du[0] == 24999u && du[1] == 15000u && du[2] == 20002u, "first halves, odd ns to the middle (%u %u %u)",
+          du[0], du[1], du[2]);
+    nx = hil_fw_vseq_expand(st, du, n, 1u, xs, xd);
+    CHECK(nx == 5u && xs[3] == 4u && xs[4] == 0u && xd[3] == du[1] && xd[4] == du[0] && sum_ns(xd, nx) == TS_NS,
+          "expanded 0-100-110-100-0 sums to Ts");
+    CHECK(hil_fw_vseq_transitions(0u, xs, nx) == 4u, "four one-leg transitions in one period");
+    CHECK(hil_fw_vseq_expand(st, du, 1u, 1u, xs, xd) == 1u, "one state: mirror is a no-op");
+    /* i_a > 0: 000 -> 100 is leg a rising inward (inner pulse high): earlier by t_dead/2, so a's
+     * high time grows by 2.5 us; i_b < 0: 100 -> 110 (b rising inward): later by 1.25 us. */
+    du[0] = 25000u;
+    du[1] = 15000u;
+    du[2] = 20000u;
+    CHECK(hil_fw_vseq_dt_comp_mirror(st, du, 3u, i_pos_a, 2500u) == 2u, "two edges moved");
+    CHECK(du[0] == 23750u && du[1] == 17500u && du[2] == 17500u, "hand values (%u %u %u)", du[0], du[1], du[2]);
+    CHECK(2u * (du[0] + du[1]) + du[2] == TS_NS, "mirrored sum kept");
+    /* Clamp: the middle slot cannot become negative. */
+    du[0] = 25000u;
+    du[1] = 24500u;
+    du[2] = 1000u;
+    (void)hil_fw_vseq_dt_comp_mirror(st, du, 3u, i_pos_a, 2500u);
+    CHECK(du[2] == 0u && 2u * (du[0] + du[1]) == TS_NS, "clamped at the middle (%u)", du[2]);
+    /* A 111 outer zero: 111 -> 110 is leg c falling inward; i_c < 0 -> inner low pulse: edge earlier. */
+    st[0] = 7u;
+    st[1] = 6u;
+    st[2] = 4u;
+    du[0] = 20000u;
+    du[1] = 10000u;
+    du[2] = 40000u;
+    (void)hil_fw_vseq_dt_comp_mirror(st, du, 3u, i_pos_a, 2500u);
+    CHECK(du[0] == 18750u, "falling inward, i < 0: earlier (%u)", du[0]);
+    for (i = 0u; i < 3u; ++i) {
+        CHECK(du[i] <= TS_NS, "no wrap");
+    }
+}
+
 static void test_dead_time_compensation(void)
 {
     /* 000 -> 100 (leg a rises) -> 110 (leg b rises) */
@@ -515,14 +590,17 @@ static void test_dead_time_compensation(void)
     st[2] = 6u;
     (void)hil_fw_vseq_dt_comp(st, du, 3u, i_pos_a, 2500u);
     CHECK(du[0] == 0u && du[1] == 50000u, "clamped at the period start");
-    /* Through the controller: with dt_comp the command differs from the plain one by t_dead. */
+    /* Through the controller: with dt_comp every moved edge pair changes a leg's high time by
+     * sign(i) * t_dead (symmetric, mirrored command). */
     {
         hil_fw_state_t s;
+        hil_fw_hv_problem_t p;
         hil_fw_cmd_t c0;
         hil_fw_cmd_t c1;
         hil_fw_meas_t m = fw_meas_dq(2u, 0.0f, 3.8f, 0.4f, 1000.0f * HIL_FW_PI_F / 30.0f, VDC);
         uint8_t i;
-        uint32_t diff = 0u;
+        uint8_t leg;
+        uint8_t changed = 0u;
         xiao_fixture(&s, HIL_FW_CTRL_HV_MPFC, 4.0f, 0.0f);
         hil_fw_step(&s, &m, 0u, &c0);
         xiao_fixture(&s, HIL_FW_CTRL_HV_MPFC, 4.0f, 0.0f);
@@ -530,24 +608,33 @@ static void test_dead_time_compensation(void)
         CHECK(hil_fw_set_param(&s, HIL_FW_P_DT_COMP, 1.0f) == 0, "dt_comp accepted");
         CHECK(hil_fw_set_param(&s, HIL_FW_P_DT_COMP, 0.5f) == HIL_FW_E_PARAM_VALUE, "dt_comp integer");
         CHECK(hil_fw_set_param(&s, HIL_FW_P_ZERO_SELECT, 2.0f) == HIL_FW_E_PARAM_VALUE, "zero_select 0/1");
-        hil_fw_step(&s, &m, 0u, &c1);
-        CHECK(c0.n_states == c1.n_states && sum_ns(c1.durations_ns, c1.n_states) == TS_NS, "same shape");
+        step_capture(&s, &m, &p, &c1);
+        CHECK(c0.n_states == c1.n_states && c1.mirror == 1u && cmd_sum(&c1) == TS_NS, "same shape, mirrored");
         for (i = 0u; i < c1.n_states; ++i) {
             CHECK(c0.states[i] == c1.states[i], "same states");
-            diff += c0.durations_ns[i] > c1.durations_ns[i] ? c0.durations_ns[i] - c1.durations_ns[i]
-                                                            : c1.durations_ns[i] - c0.durations_ns[i];
         }
-        CHECK(s.ctrl.hv.dt_moved >= 1u && diff == 2u * 2500u * s.ctrl.hv.dt_moved, "moved by t_dead (%u)", diff);
+        for (leg = 0u; leg < 3u; ++leg) {
+            const int32_t h0 = (int32_t)leg_high_ns(&c0, leg);
+            const int32_t h1 = (int32_t)leg_high_ns(&c1, leg);
+            if (h1 != h0) {
+                ++changed;
+                CHECK(h1 - h0 == (p.i_abc[leg] > 0.0f ? 2500 : -2500), "leg %u high time %d ns vs i %g", leg,
+                      h1 - h0, (double)p.i_abc[leg]);
+            }
+        }
+        CHECK(s.ctrl.hv.dt_moved >= 1u && changed == s.ctrl.hv.dt_moved, "moved edges %u, legs changed %u",
+              s.ctrl.hv.dt_moved, changed);
     }
 }
 
-/* Consecutive steps on a fixed trajectory: the folded command alternates direction and the
- * paper rule's boundary transitions are counted against min_transitions. */
-static void test_folded_stream(void)
+/* Consecutive steps on a fixed trajectory: every period sends the whole symmetric sequence with the
+ * mirror flag; the paper rule's boundary transitions are counted against min_transitions. */
+static void test_mirrored_stream(void)
 {
     hil_fw_state_t s;
     uint8_t rule;
     uint32_t trans[2] = {0u, 0u};
+    uint32_t inside[2] = {0u, 0u};
     for (rule = 0u; rule < 2u; ++rule) {
         uint8_t prev = 0u;
         int k;
@@ -563,21 +650,30 @@ static void test_folded_stream(void)
         }
         for (k = 0; k < 600; ++k) {
             hil_fw_cmd_t c;
+            uint8_t xs[HIL_FW_MAX_APPLIED];
+            uint32_t xd[HIL_FW_MAX_APPLIED];
+            uint8_t nx;
+            uint8_t i;
             const float wm = 1000.0f * HIL_FW_PI_F / 30.0f;
             const float th = 4.0f * wm * 100.0e-6f * (float)k;
             hil_fw_meas_t m = fw_meas_dq((uint16_t)k, 0.0f, 3.81f, th, wm, VDC);
             hil_fw_step(&s, &m, 0u, &c);
-            CHECK(sum_ns(c.durations_ns, c.n_states) == TS_NS, "sum Ts");
-            if (HIL_FW_MAX_SUBSTATES < 5 && s.ctrl.hv.seq.n == 5u) {
-                CHECK(c.n_states == 3u && c.states[(k & 1) ? 2 : 0] == s.ctrl.hv.seq.states[0],
-                      "fold direction follows the seq parity");
+            nx = hil_fw_vseq_expand(c.states, c.durations_ns, c.n_states, c.mirror, xs, xd);
+            CHECK(sum_ns(xd, nx) == TS_NS, "sum Ts");
+            CHECK(nx == s.ctrl.hv.seq.n && c.mirror == (c.n_states > 1u), "expanded = the planned sequence");
+            for (i = 0u; i < nx; ++i) {
+                CHECK(xs[i] == s.ctrl.hv.seq.states[i] && s.applied.states[i] == xs[i], "same states, recorded");
             }
-            trans[rule] += hil_fw_vseq_transitions(prev, c.states, c.n_states);
-            prev = c.states[c.n_states - 1u];
+            CHECK(s.applied.n_states == nx, "applied holds the expanded sequence");
+            trans[rule] += hil_fw_vseq_transitions(prev, xs, nx);
+            inside[rule] += hil_fw_vseq_transitions(xs[0], xs, nx);
+            prev = xs[nx - 1u];
         }
     }
     CHECK(trans[1] <= trans[0], "min_transitions never switches more: %u vs %u", trans[1], trans[0]);
-    printf("folded stream, 600 periods: transitions paper %u, min_transitions %u\n", trans[0], trans[1]);
+    CHECK(inside[0] > 3u * 600u, "mostly four transitions inside a period (%u)", inside[0]);
+    printf("mirrored stream, 600 periods: transitions paper %u (inside %u), min_transitions %u (inside %u)\n",
+           trans[0], inside[0], trans[1], inside[1]);
 }
 
 int main(void)
@@ -591,7 +687,8 @@ int main(void)
     test_no_narrow_pulses();
     test_3vmpc();
     test_zero_rules_and_packing();
+    test_mirror_packing_and_dt_comp();
     test_dead_time_compensation();
-    test_folded_stream();
+    test_mirrored_stream();
     return FW_REPORT("test_hv_mpfc");
 }

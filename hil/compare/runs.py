@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from pmsm_hil.hil.compare.preset import ComparePreset
+from pmsm_hil.hil.compare.preset import ComparePreset, Variant
 from pmsm_hil.hil.errors import HilError
 from pmsm_hil.hil.mechanics import RPM_TO_RAD_S
 from pmsm_hil.hil.presets_loader import load_motor
@@ -19,7 +19,8 @@ from pmsm_hil.hil.runner.scenario import load_scenario
 #: metrics copied from the runner's metrics into a row
 ROW_METRICS = ("torque_ripple_rms_nm", "torque_ripple_pp_nm", "current_thd_pct", "current_thd_total_pct",
                "switching_freq_khz", "candidates_evaluated_mean", "torque_error_mean_nm", "candidate_miss_rate",
-               "speed_mean_rpm")
+               "speed_mean_rpm", "switching_freq_intra_khz", "narrow_pulses", "narrow_pulses_gated",
+               "torque_mean_nm")
 #: equal-f_av search: relative tolerance and iteration limit
 FAV_TOL = 0.03
 FAV_ITER = 5
@@ -36,12 +37,23 @@ class CompareResult:
     series: dict[str, dict[str, list[float]]] = field(default_factory=dict)
 
 
-def _config(p: ComparePreset, controller: str, ts_s: float, point: dict[str, float]) -> RunConfig:
+def _config(p: ComparePreset, spec: Variant, ts_s: float, point: dict[str, float], theta0_rad: float) -> RunConfig:
     motor = load_motor(p.motor)
     overrides: dict[str, Any] = {"settle_s": p.settle_s, "duration_s": p.duration_s, "speed_rpm": p.speed_rpm,
-                                 "load_nm": p.load_nm, **point}
+                                 "load_nm": p.load_nm, "theta0_rad": theta0_rad, **point}
     scenario = load_scenario(p.scenario).with_overrides(**overrides)
-    return RunConfig(motor=motor, scenario=scenario, controller=controller, ts_s=ts_s)
+    return RunConfig(motor=motor, scenario=scenario, controller=spec.controller, ts_s=ts_s,
+                     controller_params={**p.params, **spec.params})
+
+
+def evaluation_e(row: dict[str, Any], torque_base_nm: float, fav_base_khz: float,
+                 fav_key: str = "switching_freq_khz") -> float | None:
+    """Eq. (12) of 003_7bbad73a6f78337e.txt: E = ΔT_pp / T_base + f_av / f_base + THD[%] / 100 (THD h2..40);
+    None if a figure is missing."""
+    pp, fav, thd = row.get("torque_ripple_pp_nm"), row.get(fav_key), row.get("current_thd_pct")
+    if pp is None or fav is None or thd is None:
+        return None
+    return float(pp) / torque_base_nm + float(fav) / fav_base_khz + float(thd) / 100.0
 
 
 def _reach_time(periods: np.ndarray, target_rpm: float, frac: float = 0.98) -> float | None:
@@ -51,16 +63,22 @@ def _reach_time(periods: np.ndarray, target_rpm: float, frac: float = 0.98) -> f
     return float(periods["t"][idx[0]]) if len(idx) else None
 
 
-def run_one(p: ComparePreset, controller: str, ts_s: float, point: dict[str, float],
-            group: str = "main") -> tuple[dict[str, Any], np.ndarray]:
+def run_one(p: ComparePreset, spec: Variant | str, ts_s: float, point: dict[str, float],
+            group: str = "main", theta0_rad: float = 0.0) -> tuple[dict[str, Any], np.ndarray]:
     """One closed-loop run; the row and the period records."""
-    cfg = _config(p, controller, ts_s, point)
+    if isinstance(spec, str):
+        spec = Variant(spec, spec)
+    cfg = _config(p, spec, ts_s, point, theta0_rad)
     res = run_closed_loop(cfg)
     m = res.metrics
-    row: dict[str, Any] = {"group": group, "controller": controller, "ts_us": round(ts_s * 1e6, 3),
-                           "speed_rpm": cfg.scenario.speed_rpm, "load_nm": cfg.scenario.load_nm}
+    row: dict[str, Any] = {"group": group, "controller": spec.controller, "label": spec.label,
+                           "ts_us": round(ts_s * 1e6, 3), "speed_rpm": cfg.scenario.speed_rpm,
+                           "load_nm": cfg.scenario.load_nm, "theta0_rad": theta0_rad}
     for key in ROW_METRICS:
         row[key] = m.get(key)
+    if p.evaluation is not None:
+        row["eval_e"] = evaluation_e(row, *p.evaluation)
+        row["eval_e_intra"] = evaluation_e(row, *p.evaluation, fav_key="switching_freq_intra_khz")
     split = m.get("exec_split_us")
     row["exec_time_us_median"] = (m.get("exec_time_us") or {}).get("median")
     row["exec_split_us_median"] = split.get("median") if isinstance(split, dict) else None
@@ -76,21 +94,28 @@ def _points(p: ComparePreset) -> list[dict[str, float]]:
     return [{p.sweep_key: v} for v in p.sweep_values]
 
 
+def _spec(p: ComparePreset, label: str) -> Variant:
+    return next((v for v in p.specs() if v.label == label), Variant(label, label))
+
+
 def _equal_fav(p: ComparePreset, result: CompareResult, progress: Progress) -> None:
-    """Shorten the adjusted controller's Ts until its f_av matches the reference's (secant on 1/Ts)."""
+    """Change the adjusted run's Ts until its f_av (`p.equal_fav_metric`, mean over the initial rotor
+    angles) matches the reference's (f_av ∝ 1/Ts)."""
     assert p.equal_fav is not None  # checked by the caller
     ref_name, adj_name = p.equal_fav
+    key = p.equal_fav_metric
+    adj = _spec(p, adj_name)
     for point in _points(p):
-        ref = next((r for r in result.rows if r["controller"] == ref_name and r["group"] == "main"
-                    and all(r[k] == v for k, v in point.items())), None)
-        if ref is None or not ref["switching_freq_khz"]:
+        refs = [r for r in result.rows if r.get("label", r["controller"]) == ref_name and r["group"] == "main"
+                and all(r[k] == v for k, v in point.items()) and r.get(key)]
+        if not refs:
             continue
-        target = float(ref["switching_freq_khz"])
+        target = float(np.mean([float(r[key]) for r in refs]))
         ts = p.ts_s
-        row: dict[str, Any] | None = None
+        rows: list[dict[str, Any]] = []
         for _ in range(FAV_ITER):
-            row, _periods = run_one(p, adj_name, ts, point, group="equal_fav")
-            fav = float(row["switching_freq_khz"] or 0.0)
+            rows = [run_one(p, adj, ts, point, group="equal_fav", theta0_rad=th)[0] for th in p.theta0_rad]
+            fav = float(np.mean([float(r[key] or 0.0) for r in rows]))
             progress(f"  equal f_av: {adj_name} at Ts = {ts * 1e6:.1f} µs -> {fav:.3f} kHz (target {target:.3f})")
             if fav <= 0.0 or abs(fav - target) <= FAV_TOL * target:
                 break
@@ -99,31 +124,35 @@ def _equal_fav(p: ComparePreset, result: CompareResult, progress: Progress) -> N
             if math.isclose(ts_new, ts):
                 break
             ts = ts_new
-        if row is not None:
+        for row in rows:
             row["equal_fav_target_khz"] = target
             result.rows.append(row)
 
 
 def run_preset(p: ComparePreset, *, controllers: list[str] | None = None,
                progress: Progress | None = None) -> CompareResult:
-    """Run every controller at every operating point of the preset, then the equal-f_av search."""
+    """Run every controller/variant at every operating point and initial rotor angle of the preset, then
+    the equal-f_av search."""
     say = progress or (lambda _msg: None)
     result = CompareResult(p)
-    names = controllers or list(p.controllers)
+    specs = [s for s in p.specs() if controllers is None or s.controller in controllers or s.label in controllers]
     for point in _points(p):
-        for name in names:
-            label = ", ".join(f"{k}={v:g}" for k, v in point.items())
-            say(f"run {name} {label}".rstrip())
-            try:
-                row, periods = run_one(p, name, p.ts_s, point)
-            except HilError as exc:
-                raise HilError(f"{name} {label}: {exc}") from None
-            result.rows.append(row)
-            if p.figure == "accel":
-                step = max(1, len(periods) // 3000)
-                result.series[name] = {"t": periods["t"][::step].tolist(),
-                                       "speed_rpm": (periods["omega_m"][::step] / RPM_TO_RAD_S).tolist(),
-                                       "torque_nm": periods["torque"][::step].tolist()}
+        for spec in specs:
+            for theta0 in p.theta0_rad:
+                label = ", ".join(f"{k}={v:g}" for k, v in point.items())
+                if len(p.theta0_rad) > 1:
+                    label = f"{label}, theta0={theta0:g}".lstrip(", ")
+                say(f"run {spec.label} {label}".rstrip())
+                try:
+                    row, periods = run_one(p, spec, p.ts_s, point, theta0_rad=theta0)
+                except HilError as exc:
+                    raise HilError(f"{spec.label} {label}: {exc}") from None
+                result.rows.append(row)
+                if p.figure == "accel" and theta0 == p.theta0_rad[0]:
+                    step = max(1, len(periods) // 3000)
+                    result.series[spec.label] = {"t": periods["t"][::step].tolist(),
+                                                 "speed_rpm": (periods["omega_m"][::step] / RPM_TO_RAD_S).tolist(),
+                                                 "torque_nm": periods["torque"][::step].tolist()}
     if p.equal_fav is not None:
         _equal_fav(p, result, say)
     return result

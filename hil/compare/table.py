@@ -8,14 +8,17 @@ from pathlib import Path
 from typing import Any
 
 from pmsm_hil.hil.compare.runs import CompareResult
+from pmsm_hil.hil.compare.spread import aggregate
 from pmsm_hil.hil.errors import InputFileError
 
 COLUMNS = ("group", "controller", "ts_us", "speed_rpm", "load_nm", "torque_ripple_rms_nm", "torque_ripple_pp_nm",
            "current_thd_pct", "current_thd_total_pct", "switching_freq_khz", "candidates_evaluated_mean",
            "torque_error_mean_nm", "candidate_miss_rate", "speed_mean_rpm", "exec_time_us_median",
-           "t_reach_98pct_s", "end_reason")
+           "t_reach_98pct_s", "end_reason", "label", "theta0_rad", "switching_freq_intra_khz", "narrow_pulses",
+           "narrow_pulses_gated", "torque_mean_nm", "eval_e", "eval_e_intra")
 _HEAD = ("controller", "Ts µs", "rpm", "N·m", "ripple rms", "ripple p-p", "THD 2-40 %", "THD all %",
-         "f_av kHz", "cand", "T err N·m", "miss rate", "t98 s", "paper")
+         "f_av kHz", "f_av intra", "narrow req/gated", "E", "cand", "T err N·m", "miss rate", "t98 s", "runs",
+         "paper")
 
 
 def _fmt(value: Any, spec: str) -> str:
@@ -32,17 +35,21 @@ def _paper(result: CompareResult, controller: str) -> str:
 
 
 def format_table(result: CompareResult) -> list[str]:
-    """Printable lines: one per run, the paper's figures (where its text gives them) in the last column."""
+    """Printable lines: one per run specification and operating point (means over the initial rotor
+    angles, `runs` of them), the paper's figures (where its text gives them) in the last column."""
     rows = [_HEAD]
-    for r in result.rows:
-        name = r["controller"] + (" (equal f_av)" if r["group"] == "equal_fav" else "")
+    for r in aggregate(result.rows):
+        name = r["label"] + (" (equal f_av)" if r["group"] == "equal_fav" else "")
+        narrow = (f"{r['narrow_pulses']:.0f}/{r['narrow_pulses_gated']:.0f}"
+                  if r.get("narrow_pulses") is not None and r.get("narrow_pulses_gated") is not None else "-")
         rows.append((name, _fmt(r["ts_us"], ".1f"), _fmt(r["speed_rpm"], ".0f"), _fmt(r["load_nm"], ".2f"),
                      _fmt(r["torque_ripple_rms_nm"], ".3f"), _fmt(r["torque_ripple_pp_nm"], ".3f"),
                      _fmt(r["current_thd_pct"], ".2f"), _fmt(r["current_thd_total_pct"], ".2f"),
-                     _fmt(r["switching_freq_khz"], ".2f"), _fmt(r["candidates_evaluated_mean"], ".0f"),
+                     _fmt(r["switching_freq_khz"], ".2f"), _fmt(r["switching_freq_intra_khz"], ".2f"), narrow,
+                     _fmt(r["eval_e"], ".3f"), _fmt(r["candidates_evaluated_mean"], ".0f"),
                      _fmt(r["torque_error_mean_nm"], "+.3f"), _fmt(r["candidate_miss_rate"], ".3f"),
-                     _fmt(r["t_reach_98pct_s"], ".3f"),
-                     _paper(result, r["controller"]) if r["group"] == "main" else ""))
+                     _fmt(r["t_reach_98pct_s"], ".3f"), str(r["n_runs"]),
+                     _paper(result, r["label"]) if r["group"] == "main" else ""))
     widths = [max(len(row[i]) for row in rows) for i in range(len(_HEAD))]
     lines = ["  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)).rstrip() for row in rows]
     lines.insert(1, "-" * len(lines[0]))
@@ -55,7 +62,8 @@ def write_json(result: CompareResult, path: Path) -> None:
     """Rows, the paper's figures and (accel) the series as JSON."""
     p = result.preset
     payload = {"preset": p.name, "description": p.description, "motor": p.motor, "scenario": p.scenario,
-               "paper": p.paper, "paper_note": p.paper_note, "rows": result.rows, "series": result.series}
+               "paper": p.paper, "paper_note": p.paper_note, "rows": result.rows,
+               "aggregates": aggregate(result.rows), "series": result.series}
     try:
         path.write_text(json.dumps(payload, indent=2) + "\n", encoding="utf-8")
     except OSError as exc:

@@ -137,6 +137,7 @@ def compute_run_metrics(
             "exec_split_us": dict(timing.split_median_us),
             "candidates_evaluated_mean": timing.candidates_mean,
             "narrow_pulses": switching.narrow_pulses,
+            "narrow_pulses_gated": switching.narrow_pulses_gated,
             "deadline_misses": misses,
             "late_periods": timing.late_periods,
             "missed_periods": timing.missed_periods,

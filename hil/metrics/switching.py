@@ -3,6 +3,9 @@
 One switching period of a leg has two transitions (on and off), hence the factor 2. The total figure
 counts every real gate transition in the window (including those at period boundaries); the intra-period
 figure excludes the transitions that fall exactly on a period start (`boundary_transitions`).
+Narrow pulses: leg pulses shorter than T_lim = 2·T_dead + T_mpw requested by the controller
+(`narrow_pulses`) and those of them that reached the gate (`narrow_pulses_gated`, 0 if the records
+predate the field).
 Example: a three-vector symmetric sequence with 4 transitions per period at Ts = 100 µs on 3 legs gives
 4 / (2 · 3 · 100 µs) = 6.67 kHz.
 """
@@ -25,6 +28,7 @@ class SwitchingStats:
     transitions: int
     boundary_transitions: int
     narrow_pulses: int
+    narrow_pulses_gated: int = 0
 
 
 def switching_stats(periods: np.ndarray, *, ts_s: float, legs: int = 3) -> SwitchingStats:
@@ -47,4 +51,8 @@ def switching_stats(periods: np.ndarray, *, ts_s: float, legs: int = 3) -> Switc
         transitions=total,
         boundary_transitions=boundary,
         narrow_pulses=int(np.sum(periods["narrow_pulses"], dtype=np.int64)),
+        narrow_pulses_gated=(
+            int(np.sum(periods["narrow_pulses_gated"], dtype=np.int64))
+            if "narrow_pulses_gated" in (periods.dtype.names or ()) else 0
+        ),
     )

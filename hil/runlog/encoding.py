@@ -206,14 +206,21 @@ def _as_float(value: Any) -> float:
     return math.nan if value is None else float(value)
 
 
+#: Period fields added after the first logs were written: absent in older files, read as 0.
+LATE_FIELDS: Final = frozenset({"narrow_pulses_gated", "mirror"})
+
+
 def decode_json_records(messages: Sequence[bytes], dtype: np.dtype, field: str) -> np.ndarray:
-    """Decode JSON objects written by `make_json_encoder(dtype)` back into a `dtype` array (null → NaN)."""
+    """Decode JSON objects written by `make_json_encoder(dtype)` back into a `dtype` array (null → NaN;
+    a `LATE_FIELDS` field missing from an older log → 0)."""
     out = np.zeros(len(messages), dtype=dtype)
     if not messages:
         return out
     try:
         rows = [json.loads(m) for m in messages]
         for name in dtype.names or ():
+            if name in LATE_FIELDS and name not in rows[0]:
+                continue
             values = [row[name] for row in rows]
             if dtype[name].base.kind == "f":
                 if dtype[name].shape:

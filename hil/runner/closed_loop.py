@@ -146,7 +146,10 @@ class ClosedLoop:
             if tap is not None:
                 tap.t, tap.seq = t, k
             send_measurement(meas)
-            st = plant.advance(pending.states, pending.durations_ns)
+            if pending.mirror:  # symmetric command: s0..s(n-1), s(n-2)..s0 (same durations)
+                st = plant.advance(*pending.expanded())
+            else:
+                st = plant.advance(pending.states, pending.durations_ns)
             if k >= n_settle:
                 tr = plant.last_trace
                 n_rows = tr.shape[0]
@@ -181,7 +184,8 @@ class ClosedLoop:
                         t, k, smp.i_a, smp.i_b, smp.i_c, smp.i_d, smp.i_q, smp.torque, smp.omega_m, smp.theta_e,
                         pending_tref, speed_ref_rpm * RPM_TO_RAD_S, load_t, n_st, *states3, *durs3,
                         pending.vector_id, pending.candidates, pending.exec_time_ns, *pending_split,
-                        st.leg_transitions, st.boundary_transitions, st.narrow_pulses, late, missed)
+                        st.leg_transitions, st.boundary_transitions, st.narrow_pulses, late, missed,
+                        st.narrow_pulses_gated, pending.mirror)
                     periods.end += rec_size
                     out.completed_periods = k + 1
                     out.end_reason = (f"watchdog: target silent for {silent} periods "
@@ -209,7 +213,8 @@ class ClosedLoop:
                 t, k, smp.i_a, smp.i_b, smp.i_c, smp.i_d, smp.i_q, smp.torque, smp.omega_m, smp.theta_e,
                 pending_tref, speed_ref_rpm * RPM_TO_RAD_S, load_t, n_st, *states3, *durs3,
                 pending.vector_id, pending.candidates, pending.exec_time_ns, *pending_split,
-                st.leg_transitions, st.boundary_transitions, st.narrow_pulses, late, missed)
+                st.leg_transitions, st.boundary_transitions, st.narrow_pulses, late, missed,
+                st.narrow_pulses_gated, pending.mirror)
             periods.end += rec_size
             pending, pending_split, pending_tref = next_cmd, next_split, next_tref
             next_start += ts_ns

@@ -40,7 +40,7 @@ def build_plant(cfg: RunConfig) -> Plant:
         mech: DynoMechanics | InertiaMechanics = DynoMechanics(sc.start_speed_rpm)
     else:
         mech = InertiaMechanics(sc.load_profile(), initial_speed_rpm=sc.start_speed_rpm)
-    return Plant(cfg.motor, cfg.ts_s, mech, trace_dt_s=cfg.trace_dt_s)
+    return Plant(cfg.motor, cfg.ts_s, mech, trace_dt_s=cfg.trace_dt_s, theta0_rad=sc.theta0_rad)
 
 
 @contextmanager

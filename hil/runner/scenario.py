@@ -23,7 +23,10 @@ class Scenario:
     mechanics: "inertia" (J, B, load profile) or "dyno" (speed held at the reference profile).
     speed_rpm / load_nm: final speed reference and load; initial_* (default: the final value) apply
     before speed_step_s / load_step_s. preset_integrator: start the speed PI integrator at the
-    initial load (bumpless start at the operating point).
+    initial load (bumpless start at the operating point). load_steps: further (time [s], N·m) load
+    steps after the first, in time order (e.g. 0 → 4 → 2 N·m: load_step_s/load_nm = the 4 N·m step,
+    load_steps = ((t2, 2.0),)); the load after the last step is the last step's torque. theta0_rad:
+    initial electrical rotor angle [rad].
     """
 
     name: str
@@ -38,6 +41,8 @@ class Scenario:
     duration_s: float = 0.2
     preset_integrator: bool = True
     description: str = ""
+    load_steps: tuple[tuple[float, float], ...] = ()
+    theta0_rad: float = 0.0
 
     def __post_init__(self) -> None:
         if self.mechanics not in ("inertia", "dyno"):
@@ -50,6 +55,16 @@ class Scenario:
             raise ParameterError(f"scenario '{self.name}': duration must be > 0 s, got {self.duration_s}")
         if self.settle_s < 0:
             raise ParameterError(f"scenario '{self.name}': settle_s must be ≥ 0 s, got {self.settle_s}")
+        if not math.isfinite(self.theta0_rad):
+            raise ParameterError(f"scenario '{self.name}': theta0_rad must be finite")
+        last = self.load_step_s if self.load_step_s is not None else -math.inf
+        for t, nm in self.load_steps:
+            if not (math.isfinite(t) and math.isfinite(nm)):
+                raise ParameterError(f"scenario '{self.name}': load_steps entries must be finite")
+            if t <= last:
+                raise ParameterError(
+                    f"scenario '{self.name}': load_steps times must increase and follow load_step_s, got {t} s")
+            last = t
 
     @property
     def start_speed_rpm(self) -> float:
@@ -74,9 +89,10 @@ class Scenario:
 
     def load_profile(self) -> LoadProfile:
         """Load torque profile [N·m] over time [s]."""
-        if self.load_step_s is None:
+        first = [] if self.load_step_s is None else [(self.load_step_s, self.load_nm)]
+        if not first and not self.load_steps:
             return LoadProfile.constant(self.load_nm)
-        return LoadProfile.steps(self.start_load_nm, [(self.load_step_s, self.load_nm)])
+        return LoadProfile.steps(self.start_load_nm, [*first, *self.load_steps])
 
     def with_overrides(self, **overrides: Any) -> Scenario:
         """Copy with CLI overrides (None values ignored)."""
@@ -118,6 +134,8 @@ def load_scenario(name_or_path: str) -> Scenario:
         elif key == "preset_integrator":
             if not isinstance(value, bool):
                 raise InputFileError(f"scenario file {origin}: '{key}' must be true or false")
+        elif key == "load_steps":
+            doc[key] = _load_steps(value, origin)
         elif not isinstance(value, (int, float)) or isinstance(value, bool):
             raise InputFileError(f"scenario file {origin}: '{key}' must be a number")
     doc.setdefault("name", path.stem if path.suffix else name_or_path)
@@ -127,3 +145,17 @@ def load_scenario(name_or_path: str) -> Scenario:
         return Scenario(**values)
     except ParameterError as exc:
         raise InputFileError(f"scenario file {origin}: {exc}") from None
+
+
+def _load_steps(value: object, origin: str) -> tuple[tuple[float, float], ...]:
+    """`load_steps = [[t_s, nm], ...]` from a scenario file."""
+    bad = InputFileError(f"scenario file {origin}: 'load_steps' must be a list of [time_s, torque_nm] pairs")
+    if not isinstance(value, list):
+        raise bad
+    out: list[tuple[float, float]] = []
+    for item in value:
+        if (not isinstance(item, list) or len(item) != 2
+                or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in item)):
+            raise bad
+        out.append((float(item[0]), float(item[1])))
+    return tuple(out)

@@ -15,9 +15,10 @@ from pmsm_hil.hil.errors import InputFileError, ParameterError
 def test_bundled_presets_load() -> None:
     names = preset_names()
     assert {"niu2020-steady", "niu2020-accel", "niu2020-thd-vs-load", "niu2020-ripple-vs-speed"} <= set(names)
+    assert {"xiao2023-steady", "xiao2023-tthr-sweep", "xiao2023-load-steps", "xiao2023-speed-step"} <= set(names)
     for name in names:
         p = load_preset(name)
-        assert p.controllers and p.motor == "niu2020-ipmsm"
+        assert p.specs() and p.motor in ("niu2020-ipmsm", "xiao2023-spmsm")
     assert load_preset("niu2020-thd-vs-load").sweep_values[-1] == 7.0
 
 

@@ -43,6 +43,7 @@ def commands(draw: st.DrawFn) -> Command:
         draw(u8),
         draw(st.integers(0, 2**32 - 1)),
         draw(u8),
+        draw(st.booleans()),
     )
 
 

@@ -12,15 +12,15 @@ from pmsm_hil.protocol.errors import BudgetError
 
 
 def test_classic_can_hand_calculation() -> None:
-    """docs/protocol.md: 1 Mbit/s, 3 phases, MeasA/MeasB 8 B, CmdA/CmdB 8 B, CmdC 7 B."""
+    """docs/protocol.md: 1 Mbit/s, 3 phases, MeasA/MeasB 8 B, CmdA/CmdB/CmdC 8 B (CmdC byte 7: mirror)."""
     assert can_frame_bits(8) == 47 + 64 + 24 == 135
     assert can_frame_bits(7) == 47 + 56 + 22 == 125
     b = link_budget("can", 3, bitrate=1_000_000, rate_hz=1000)
     assert (b.frames_per_period_up, b.frames_per_period_down) == (2, 3)
-    assert (b.bits_up_worst, b.bits_down_worst, b.bits_per_period_worst) == (270, 395, 665)
-    assert b.wire_time_per_period_us == pytest.approx(665.0)
-    assert b.bus_load_pct == pytest.approx(66.5)
-    assert b.max_rate_hz == pytest.approx(1e6 / 665)
+    assert (b.bits_up_worst, b.bits_down_worst, b.bits_per_period_worst) == (270, 405, 675)
+    assert b.wire_time_per_period_us == pytest.approx(675.0)
+    assert b.bus_load_pct == pytest.approx(67.5)
+    assert b.max_rate_hz == pytest.approx(1e6 / 675)
     assert b.feasible is True
     assert link_budget("can", 3, rate_hz=2000).feasible is False
 
@@ -77,7 +77,7 @@ def test_cli_json(capsys: pytest.CaptureFixture[str]) -> None:
         "max_rate_hz",
     ):
         assert key in d
-    assert d["bits_per_period_worst"] == 665 and d["bus_load_pct"] == pytest.approx(66.5)
+    assert d["bits_per_period_worst"] == 675 and d["bus_load_pct"] == pytest.approx(67.5)
 
 
 def test_cli_text_and_error(capsys: pytest.CaptureFixture[str]) -> None:

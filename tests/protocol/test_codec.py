@@ -139,6 +139,8 @@ def test_measurement_saturates_and_counts() -> None:
         (Command(0, (1,), (1,), 256, 0, 0, 0), "vector_id"),
         (Command(0, (1,), (1,), 0, -1, 0, 0), "candidates"),
         (Command(0, (1.5,), (1,), 0, 0, 0, 0), "states[0]"),  # type: ignore[arg-type]
+        (Command(0, (1, 2, 3), (1, 2, 3), 0, 0, 0, 0, 2), "mirror"),  # type: ignore[arg-type]
+        (Command(0, (1,), (1,), 0, 0, 0, 0, "yes"), "mirror"),  # type: ignore[arg-type]
         (Setpoint(True, 0, 1e39, 1), "reference"),
         (Setpoint(True, 0, math.nan, 1), "reference"),
         (Setpoint(2, 0, 1.0, 1), "enable"),  # type: ignore[arg-type]
@@ -152,6 +154,26 @@ def test_encode_errors_name_the_field(msg: Message, field: str) -> None:
     for profile in PROFILES:
         with pytest.raises(EncodeError, match=field.replace("[", r"\[").replace("]", r"\]")):
             FrameCodec(profile).encode(msg)
+
+
+def test_mirror_flag_position_and_expansion() -> None:
+    c = Command(9, (0, 4, 6), (12_500, 20_000, 35_000), 17, 6, 100, 0, True)
+    can = FrameCodec("can").encode(c)
+    assert [len(f.data) for f in can] == [8, 8, 8]
+    assert can[2].data[7] == 0x01 and can[2].data[6] == 0  # CmdC byte 7 bit 0; status byte 6
+    fd = FrameCodec("canfd").encode(c)
+    assert fd[0].data[19] == 0x01
+    assert FrameCodec("canfd").encode(Command(9, (0, 4, 6), (1, 2, 3), mirror=False))[0].data[19] == 0
+    for frames in (can, fd):
+        back = decode_message(frames)
+        assert isinstance(back, Command) and back.mirror is True
+    states, durs = c.expanded()
+    assert states == (0, 4, 6, 4, 0)
+    assert durs == (12_500, 20_000, 35_000, 20_000, 12_500) and sum(durs) == 100_000
+    assert Command(1, (7, 6), (10, 80), mirror=True).expanded() == ((7, 6, 7), (10, 80, 10))
+    assert Command(1, (7,), (100,), mirror=True).expanded() == ((7,), (100,))
+    assert Command(1, (0, 4, 6), (1, 2, 3)).expanded() == ((0, 4, 6), (1, 2, 3))
+    assert back.mirror is True
 
 
 def test_exec_time_is_clamped() -> None:

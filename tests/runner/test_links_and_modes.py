@@ -65,7 +65,7 @@ def test_realtime_mode_in_process_reports_lateness() -> None:
 
 
 def test_realtime_refuses_a_link_that_cannot_carry_the_rate() -> None:
-    with pytest.raises(ParameterError, match="at most 1504 Hz"):
+    with pytest.raises(ParameterError, match="at most 1481 Hz"):
         run_closed_loop(_cfg(mode="realtime", link="socketcan:can0,bitrate=1000000"))
 
 
