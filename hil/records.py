@@ -10,9 +10,11 @@ start; `exec_time_ns` is the controller execution time, `exec_split_ns` its meas
 split; `late`/`missed` are the real-time deadline flags. `narrow_pulses` counts leg pulses shorter than
 T_lim = 2·T_dead + T_mpw requested in the period, `narrow_pulses_gated` those that reached the gate.
 `mirror` = 1: the command was sent mirrored (`Command.mirror`): the plant applied states[0..n-1] then
-states[n-2..0] with the same durations; `states`/`durations_ns` hold the slots as sent.
+states[n-2..0] with the same durations; `states`/`durations_ns` hold the slots as sent. Dual three-phase
+runs fill `i_u`, `i_v`, `i_w` (second set) and `i_x`, `i_y` (harmonic subspace); three-phase runs leave
+them NaN; `i_a`, `i_b`, `i_c` are the first set.
 
-`TRACE_DTYPE`: the plant's high-rate trace (one sample every ≤ 2 µs).
+`TRACE_DTYPE`: the plant's high-rate trace (one sample every ≤ 2 µs); `TRACE_DTYPE6` for six phases.
 
 `FRAME_DTYPE`: one raw link frame; `direction` 0 = host→target, 1 = target→host; the first `length`
 bytes of `data` are valid.
@@ -53,11 +55,22 @@ PERIOD_DTYPE: Final = np.dtype(
         ("missed", "u1"),
         ("narrow_pulses_gated", "u2"),
         ("mirror", "u1"),
+        ("i_u", "f8"),
+        ("i_v", "f8"),
+        ("i_w", "f8"),
+        ("i_x", "f8"),
+        ("i_y", "f8"),
     ]
 )
 
 TRACE_DTYPE: Final = np.dtype(
     [("t", "f8"), ("i_a", "f8"), ("i_b", "f8"), ("i_c", "f8"), ("torque", "f8"), ("omega_m", "f8")]
+)
+
+#: Trace of a dual three-phase run: both current sets and the x-y (harmonic subspace) currents.
+TRACE_DTYPE6: Final = np.dtype(
+    [("t", "f8"), ("i_a", "f8"), ("i_b", "f8"), ("i_c", "f8"), ("i_u", "f8"), ("i_v", "f8"), ("i_w", "f8"),
+     ("torque", "f8"), ("omega_m", "f8"), ("i_x", "f8"), ("i_y", "f8")]
 )
 
 FRAME_DTYPE: Final = np.dtype(
@@ -81,4 +94,5 @@ __all__ = [
     "FRAME_DTYPE",
     "PERIOD_DTYPE",
     "TRACE_DTYPE",
+    "TRACE_DTYPE6",
 ]

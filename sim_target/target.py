@@ -16,6 +16,7 @@ from pmsm_hil.protocol.messages import (
     Fault,
     Heartbeat,
     Measurement,
+    Measurement6,
     Setpoint,
 )
 from pmsm_hil.sim_target.firmware import Firmware, FirmwareCommand, FirmwareConfigError
@@ -71,7 +72,9 @@ class SimTarget:
 
     def _dispatch(self, msg: object) -> None:
         if isinstance(msg, Measurement):
-            self._on_measurement(msg)
+            self._on_measurement(msg, (msg.i_a, msg.i_b, msg.i_c))
+        elif isinstance(msg, Measurement6):
+            self._on_measurement(msg, (msg.i_a, msg.i_b, msg.i_c, msg.i_u, msg.i_v, msg.i_w))
         elif isinstance(msg, ConfigParam):
             self._on_config(msg)
         elif isinstance(msg, Setpoint):
@@ -82,7 +85,7 @@ class SimTarget:
     def _send(self, msg: Command | ConfigAck | Fault | Heartbeat) -> None:
         self.link.send(self.codec.encode(msg))
 
-    def _on_measurement(self, m: Measurement) -> None:
+    def _on_measurement(self, m: Measurement | Measurement6, currents: tuple[float, ...]) -> None:
         self.counters.measurements += 1
         if self._silent_after is not None and self.counters.measurements > self._silent_after:
             return  # fault injection: a target that stopped answering
@@ -91,7 +94,7 @@ class SimTarget:
         if not self.enabled:
             cmd = Command(seq=m.seq, states=(_IDLE_STATE,), durations_ns=(self.ts_ns,))
         else:
-            res = self.firmware.step(m.seq, (m.i_a, m.i_b, m.i_c), m.theta_e, m.omega_m, m.vdc, t_ns)
+            res = self.firmware.step(m.seq, currents, m.theta_e, m.omega_m, m.vdc, t_ns)
             self.last_result = res
             cmd = Command(seq=m.seq, states=res.states, durations_ns=res.durations_ns, vector_id=res.vector_id,
                           candidates=res.candidates, exec_time_ns=min(res.exec_time_ns, 0xFFFFFFFF),

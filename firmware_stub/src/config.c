@@ -62,7 +62,7 @@ void hil_fw_params_defaults(hil_fw_params_t *p)
     p->value[HIL_FW_P_T_THR] = 0.0f;
     p->value[HIL_FW_P_T_DEAD] = 0.0f;
     p->value[HIL_FW_P_T_MPW] = 0.0f;
-    p->value[HIL_FW_P_FLUX_REF] = 0.21f;
+    p->value[HIL_FW_P_FLUX_REF] = 0.0f; /* 0: from the id = 0 operating point of the torque reference */
     p->value[HIL_FW_P_CURRENT_KP] = 87.96f;    /* 2*pi*1 kHz * Lq */
     p->value[HIL_FW_P_CURRENT_KI] = 28274.3f;  /* 2*pi*1 kHz * Rs */
     p->value[HIL_FW_P_LLS] = 0.0f;

@@ -65,6 +65,16 @@ def _thd(trace: np.ndarray, mean_omega: float, pole_pairs: int) -> dict[str, Any
     return out
 
 
+def _distortion_rms(metrics: Mapping[str, Any]) -> float | None:
+    """Absolute distortion of phase a [A RMS]: all non-fundamental content, fundamental_rms · THD_total.
+
+    Beside THD because a large x-y (six-phase) or low-load current makes the fundamental a poor yardstick."""
+    fund, thd_total = metrics.get("current_fundamental_a"), metrics.get("current_thd_total_pct")
+    if fund is None or thd_total is None:
+        return None
+    return float(fund) / math.sqrt(2.0) * float(thd_total) / 100.0
+
+
 def _torque_reference(periods: np.ndarray) -> tuple[float, str]:
     """Mean torque reference (N·m): finite `torque_ref` values if any (torque mode), else the load torque."""
     ref = np.asarray(periods["torque_ref"], dtype=np.float64)
@@ -125,6 +135,11 @@ def compute_run_metrics(
         "speed_mean_rpm": mean_omega * RAD_S_TO_RPM,
     }
     metrics.update(_thd(trace, mean_omega, p))
+    metrics["current_distortion_rms_a"] = _distortion_rms(metrics)
+    if "i_x" in (trace.dtype.names or ()):
+        t = np.asarray(trace["t"], dtype=np.float64)
+        xy_sq = np.asarray(trace["i_x"], dtype=np.float64) ** 2 + np.asarray(trace["i_y"], dtype=np.float64) ** 2
+        metrics["xy_current_rms_a"] = math.sqrt(weighted_mean(t, xy_sq))
     metrics.update(
         {
             "switching_freq_khz": switching.freq_khz,

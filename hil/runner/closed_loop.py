@@ -12,14 +12,14 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 from pmsm_hil.hil.mechanics import RPM_TO_RAD_S, DynoMechanics
-from pmsm_hil.hil.plant import Plant
-from pmsm_hil.hil.records import TRACE_DTYPE
+from pmsm_hil.hil.plant_base import PlantBase
+from pmsm_hil.hil.runner.phases import NO_SIX_PHASE, measurement6, phase_setup
 from pmsm_hil.hil.runner.recorder import ByteRecords, FrameTap, frame_records, period_records
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.target_client import TargetClient
 from pmsm_hil.hil.sensors import SensorModel
 from pmsm_hil.protocol.ids import Mode
-from pmsm_hil.protocol.messages import Command, Measurement
+from pmsm_hil.protocol.messages import Command, Measurement, Measurement6
 
 _NAN = math.nan
 
@@ -54,7 +54,7 @@ class ClosedLoop:
 
     BLOCK = 1000  # periods per logger block
 
-    def __init__(self, cfg: RunConfig, plant: Plant, client: TargetClient, controller_id: int,
+    def __init__(self, cfg: RunConfig, plant: PlantBase, client: TargetClient, controller_id: int,
                  *, inproc_result: Callable[[], object] | None = None, record_frames: bool = False,
                  sink: BlockSink | None = None) -> None:
         self.cfg = cfg
@@ -87,9 +87,11 @@ class ClosedLoop:
         n_total = round(sc.total_s / ts_s)
         n_settle = round(sc.settle_s / ts_s)
         rows_per_period = math.ceil(ts_s / cfg.trace_dt_s) + 1
-        trace = np.zeros((n_total - n_settle) * rows_per_period, dtype=TRACE_DTYPE)
+        setup = phase_setup(cfg)
+        six = setup.legs == 6
+        trace = np.zeros((n_total - n_settle) * rows_per_period, dtype=setup.trace_dtype)
         trace.view(np.uint8)[:] = 0  # touch every page now, not inside the paced loop
-        trace_view = trace.view(np.float64).reshape(-1, 6)
+        trace_view = trace.view(np.float64).reshape(-1, setup.trace_columns)
         out = LoopOutcome(period_records(), frame_records(), trace, n_settle)
         out.periods.reserve(n_total)
         out.frames.reserve(4 * n_total)
@@ -136,13 +138,19 @@ class ClosedLoop:
                 if dyno:
                     plant.mechanics = DynoMechanics(ref)
             smp = plant.sample()
-            if ideal_sensors:
-                ia, ib, ic, th = smp.i_a, smp.i_b, smp.i_c, smp.theta_e
-            else:
-                ia, ib, ic = sensors.currents(smp.i_a, smp.i_b, smp.i_c)
-                th = sensors.angle(smp.theta_e)
             seq = k & 0xFFFF
-            meas = Measurement(seq=seq, i_a=ia, i_b=ib, i_c=ic, theta_e=th, omega_m=smp.omega_m, vdc=vdc)
+            meas: Measurement | Measurement6
+            if six:
+                meas = measurement6(seq, smp, sensors, ideal_sensors, vdc)
+                extra = (smp.i_u, smp.i_v, smp.i_w, smp.i_x, smp.i_y)
+            else:
+                if ideal_sensors:
+                    ia, ib, ic, th = smp.i_a, smp.i_b, smp.i_c, smp.theta_e
+                else:
+                    ia, ib, ic = sensors.currents(smp.i_a, smp.i_b, smp.i_c)
+                    th = sensors.angle(smp.theta_e)
+                meas = Measurement(seq=seq, i_a=ia, i_b=ib, i_c=ic, theta_e=th, omega_m=smp.omega_m, vdc=vdc)
+                extra = NO_SIX_PHASE
             if tap is not None:
                 tap.t, tap.seq = t, k
             send_measurement(meas)
@@ -172,27 +180,14 @@ class ClosedLoop:
                     while cmd is None and time.perf_counter_ns() < deadline:
                         cmd = poll_command(seq)
             missed = 0
+            watchdog = False
             if cmd is None:
                 missed = 1
                 silent += 1
                 out.lost_commands += 1
                 if realtime:
                     out.deadline_misses += 1
-                if silent >= cfg.watchdog_periods:
-                    periods_pack_into(
-                        periods_buf, periods.end,
-                        t, k, smp.i_a, smp.i_b, smp.i_c, smp.i_d, smp.i_q, smp.torque, smp.omega_m, smp.theta_e,
-                        pending_tref, speed_ref_rpm * RPM_TO_RAD_S, load_t, n_st, *states3, *durs3,
-                        pending.vector_id, pending.candidates, pending.exec_time_ns, *pending_split,
-                        st.leg_transitions, st.boundary_transitions, st.narrow_pulses, late, missed,
-                        st.narrow_pulses_gated, pending.mirror)
-                    periods.end += rec_size
-                    out.completed_periods = k + 1
-                    out.end_reason = (f"watchdog: target silent for {silent} periods "
-                                      f"({silent * ts_s * 1e3:.1f} ms); inverter put in the safe state "
-                                      f"(zero vector, all lower switches on)")
-                    self._safe_state(out)
-                    break
+                watchdog = silent >= cfg.watchdog_periods
                 next_cmd = zero_cmd if cfg.miss_policy == "zero" else pending
                 next_split, next_tref = pending_split, pending_tref
             else:
@@ -214,8 +209,15 @@ class ClosedLoop:
                 pending_tref, speed_ref_rpm * RPM_TO_RAD_S, load_t, n_st, *states3, *durs3,
                 pending.vector_id, pending.candidates, pending.exec_time_ns, *pending_split,
                 st.leg_transitions, st.boundary_transitions, st.narrow_pulses, late, missed,
-                st.narrow_pulses_gated, pending.mirror)
+                st.narrow_pulses_gated, pending.mirror, *extra)
             periods.end += rec_size
+            if watchdog:
+                out.completed_periods = k + 1
+                out.end_reason = (f"watchdog: target silent for {silent} periods "
+                                  f"({silent * ts_s * 1e3:.1f} ms); inverter put in the safe state "
+                                  f"(zero vector, all lower switches on)")
+                self._safe_state(out)
+                break
             pending, pending_split, pending_tref = next_cmd, next_split, next_tref
             next_start += ts_ns
             out.completed_periods = k + 1
@@ -227,7 +229,7 @@ class ClosedLoop:
                 self._safe_state(out)
                 break
             if (abs(smp.i_a) > i_trip or abs(smp.i_b) > i_trip or abs(smp.i_c) > i_trip
-                    or abs(smp.omega_m) > w_trip):
+                    or abs(smp.omega_m) > w_trip or (six and max(abs(x) for x in extra[:3]) > i_trip)):
                 out.end_reason = (f"plant trip: {plant.check_trips(smp)}; "
                                   "inverter put in the safe state (zero vector)")
                 self._safe_state(out)

@@ -14,11 +14,10 @@ from typing import Any
 
 import numpy as np
 from pmsm_hil.hil.errors import HilError
-from pmsm_hil.hil.mechanics import DynoMechanics, InertiaMechanics
 from pmsm_hil.hil.metrics.summary import compute_run_metrics
-from pmsm_hil.hil.plant import Plant
 from pmsm_hil.hil.runner.budget_check import check_realtime_budget
 from pmsm_hil.hil.runner.closed_loop import ClosedLoop, LoopOutcome
+from pmsm_hil.hil.runner.phases import build_plant, phase_setup
 from pmsm_hil.hil.runner.recorder import ByteRecords
 from pmsm_hil.hil.runner.run_config import RunConfig, controller_id
 from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target, link_profile
@@ -31,16 +30,6 @@ class RunResult:
     metrics: dict[str, Any]
     outcome: LoopOutcome
     mcap_path: Path | None
-
-
-def build_plant(cfg: RunConfig) -> Plant:
-    """Plant at the scenario's starting point."""
-    sc = cfg.scenario
-    if sc.mechanics == "dyno":
-        mech: DynoMechanics | InertiaMechanics = DynoMechanics(sc.start_speed_rpm)
-    else:
-        mech = InertiaMechanics(sc.load_profile(), initial_speed_rpm=sc.start_speed_rpm)
-    return Plant(cfg.motor, cfg.ts_s, mech, trace_dt_s=cfg.trace_dt_s, theta0_rad=sc.theta0_rad)
 
 
 @contextmanager
@@ -123,7 +112,7 @@ def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection) -> dict[
         raise HilError(f"run ended before the metrics window: {out.end_reason}")
     wall_window = out.wall_time_s * len(window) / max(len(periods), 1)
     metrics = compute_run_metrics(window, out.trace, ts_s=cfg.ts_s, pole_pairs=cfg.motor.pole_pairs,
-                                  legs=3, wall_time_s=wall_window, link_stats=link_stats,
+                                  legs=phase_setup(cfg).legs, wall_time_s=wall_window, link_stats=link_stats,
                                   deadline_misses=out.deadline_misses)
     metrics["link"].update({k: v for k, v in stats.items() if k not in metrics["link"]})
     metrics["end_reason"] = out.end_reason

@@ -131,6 +131,8 @@ class RunConfig:
             # the firmware is told the inverter's dead time and minimum pulse (for compensation)
             ParamId.T_DEAD: m.t_dead, ParamId.T_MPW: m.t_mpw,
         }
+        if m.is_six_phase:
+            params[ParamId.LLS] = m.lls
         for name, value in self.controller_params.items():
             params[param_id(name)] = value
         return params

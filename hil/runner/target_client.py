@@ -10,7 +10,7 @@ from pmsm_hil.hil.errors import HilError
 from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.ids import ParamId, Status
 from pmsm_hil.protocol.links import Link
-from pmsm_hil.protocol.messages import Command, ConfigAck, ConfigParam, Fault, Measurement, Setpoint
+from pmsm_hil.protocol.messages import Command, ConfigAck, ConfigParam, Fault, Measurement, Measurement6, Setpoint
 
 
 class TargetError(HilError):
@@ -87,7 +87,7 @@ class TargetClient:
             name = Status(f.code).name.lower() if f.code in Status._value2member_map_ else str(f.code)
             raise TargetError(f"target fault: {name} (detail {f.detail})")
 
-    def send_measurement(self, m: Measurement) -> None:
+    def send_measurement(self, m: Measurement | Measurement6) -> None:
         """Send one measurement (one or two frames depending on the profile)."""
         self.link.send(self.codec.encode(m))
 
