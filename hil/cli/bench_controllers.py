@@ -1,14 +1,15 @@
 """`hil bench controllers`: C-side ns/step per implemented controller and, with valgrind, instructions/step.
 
-Inputs are realistic: a current vector of rated amplitude rotating at rated speed (Table 3 machine,
-1500 rpm, Ts = 100 µs) with the speed loop active, so every stage does its normal work.
+Inputs are realistic: a q-current vector rotating at 1500 rpm (Ts = 100 µs) with the speed loop
+active, so every stage does its normal work; three-phase controllers on the Table 3 machine at rated
+current, the dual three-phase mptc1..3 on zhang2021-dtpmsm at 40 N·m with six phase currents
+(`bench_machines`).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import math
 import re
 import shutil
 import statistics
@@ -17,17 +18,23 @@ import tempfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from pmsm_hil.hil.cli.bench_machines import (
+    OMEGA_M,
+    SIX_PHASE_IDS,
+    TS,
+    BenchMachine,
+    inputs,
+    machine_for,
+    six_phase_machine,
+)
 from pmsm_hil.hil.cli.parsing import positive_int
 from pmsm_hil.hil.errors import HilError, InputFileError
+from pmsm_hil.protocol.ids import ParamId
 
 FIRMWARE_DIR = Path(__file__).resolve().parents[2] / "firmware_stub"
 STAGES = ("hil_fw_stage_measure", "hil_fw_stage_reference", "hil_fw_stage_predict")
 STRICT_FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion",
                 "-fsingle-precision-constant", "-O2"]
-OMEGA_M = 1500.0 * 2.0 * math.pi / 60.0  # rated speed [rad/s]
-POLE_PAIRS = 3
-TS = 100e-6  # [s]
-I_AMP = 7.4  # rated q current [A]
 #: Table 4 of 000_81a00a8e308450c6.txt (dSPACE 1103), µs: measurement, reference vector, prediction, total.
 PAPER_TABLE4_US: dict[str, tuple[float | None, float | None, float | None, float]] = {
     "mpcc": (7.32, 0.0, 48.51, 55.83), "fcs-mpc-1": (7.25, 5.62, 39.36, 52.23),
@@ -41,6 +48,10 @@ DRIVER_C = r"""
 #include <stdlib.h>
 #include "hil_fw.h"
 
+static const float angles[%(n_phases)d] = {%(angles)s};
+static const uint8_t param_ids[%(n_params)d] = {%(param_ids)s};
+static const float param_values[%(n_params)d] = {%(param_values)s};
+
 int main(int argc, char **argv)
 {
     hil_fw_state_t s;
@@ -51,22 +62,31 @@ int main(int argc, char **argv)
     const float omega_m = %(omega_m).6ff;
     const float we_ts = %(we_ts).9ff;
     long k;
+    int j;
     unsigned votes = 0u;
     hil_fw_init(&s);
+    for (j = 0; j < %(n_params)d; ++j) {
+        if (param_ids[j] != 0u && hil_fw_set_param(&s, param_ids[j], param_values[j]) != 0) {
+            fprintf(stderr, "param %%u rejected\n", (unsigned)param_ids[j]);
+            return 2;
+        }
+    }
     if (hil_fw_select_controller(&s, (uint8_t)controller) != 0) {
         fprintf(stderr, "controller %%d not implemented\n", controller);
         return 2;
     }
     hil_fw_set_setpoint(&s, 1u, HIL_FW_MODE_SPEED, omega_m + 1.0f);
-    m.n_phases = 3u;
+    m.n_phases = %(n_phases)du;
     m.status = 0u;
     m.omega_m = omega_m;
-    m.vdc = 300.0f;
+    m.vdc = %(vdc).3ff;
     for (k = 0; k < steps; ++k) {
         const float th = we_ts * (float)(k %% 100000);
-        float al, be;
-        hil_fw_park_inv(0.0f, %(i_amp).3ff, cosf(th), sinf(th), &al, &be);
-        hil_fw_clarke_inv(al, be, &m.i_abc[0], &m.i_abc[1], &m.i_abc[2]);
+        const float al = -%(i_q).4ff * sinf(th);
+        const float be = %(i_q).4ff * cosf(th);
+        for (j = 0; j < %(n_phases)d; ++j) {
+            m.i_abc[j] = al * cosf(angles[j]) + be * sinf(angles[j]);
+        }
         m.seq = (uint16_t)k;
         m.theta_e = th;
         hil_fw_step(&s, &m, (uint64_t)k * %(ts_ns)du, &cmd);
@@ -76,6 +96,18 @@ int main(int argc, char **argv)
     return 0;
 }
 """
+
+
+def driver_source(machine: BenchMachine) -> str:
+    """C driver of the instruction counts for one bench machine."""
+    params = sorted(machine.params.items()) or [(0, 0.0)]
+    return DRIVER_C % {
+        "omega_m": OMEGA_M, "we_ts": machine.we_ts, "i_q": machine.i_q, "ts_ns": round(TS * 1e9),
+        "n_phases": len(machine.angles), "angles": ", ".join(f"{a:.9f}f" for a in machine.angles),
+        "n_params": len(params), "param_ids": ", ".join(f"{i}u" for i, _ in params),
+        "param_values": ", ".join(f"{v:.9e}f" for _, v in params),
+        "vdc": machine.params.get(int(ParamId.VDC), 300.0),
+    }
 
 
 @dataclass
@@ -107,38 +139,32 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.set_defaults(func=run)
 
 
-def _inputs(steps: int) -> list[tuple[float, float, float, float]]:
-    """(i_a, i_b, i_c, theta_e) of a q-axis current vector rotating at rated speed."""
-    we_ts = POLE_PAIRS * OMEGA_M * TS
-    rows = []
-    for k in range(steps):
-        th = we_ts * k
-        # i_q only: i_alpha = -I sin(th), i_beta = I cos(th); inverse amplitude-invariant Clarke.
-        al, be = -I_AMP * math.sin(th), I_AMP * math.cos(th)
-        rows.append((al, -0.5 * al + 0.5 * math.sqrt(3.0) * be, -0.5 * al - 0.5 * math.sqrt(3.0) * be,
-                     math.remainder(th, 2.0 * math.pi)))
-    return rows
-
-
 def time_controller(controller_id: int, steps: int, repeats: int) -> ControllerFigures:
-    """Median C-side step time [ns] of one controller over `repeats` runs of `steps` steps."""
+    """Median C-side step time [ns] of one controller over `repeats` runs of `steps` steps (on its
+    `bench_machines` machine; a non-ok firmware status is an error, not a timing)."""
     from pmsm_hil.sim_target.firmware import Firmware, FirmwareError
 
+    machine = machine_for(controller_id)
     try:
         fw = Firmware()
+        for pid, value in machine.params.items():
+            fw.set_param(pid, value)
         fw.select_controller(controller_id)
         fw.set_setpoint(True, 0, OMEGA_M + 1.0)
     except FirmwareError as exc:
         raise HilError(f"controller {controller_id}: {exc}") from None
-    rows = _inputs(steps)
+    vdc = machine.params.get(int(ParamId.VDC), 300.0)
+    rows = inputs(machine, steps)
     medians: list[float] = []
     splits: list[list[float]] = []
     k = 0
     for _ in range(repeats):
         totals: list[int] = []
         parts: list[tuple[int, int, int]] = []
-        for ia, ib, ic, th in rows:
-            cmd = fw.step(k & 0xFFFF, (ia, ib, ic), th, OMEGA_M, 300.0, k * 100_000)
+        for currents, th in rows:
+            cmd = fw.step(k & 0xFFFF, currents, th, OMEGA_M, vdc, k * 100_000)
+            if cmd.status != 0:
+                raise HilError(f"controller {controller_id}: firmware status {cmd.status} on the bench input")
             totals.append(cmd.exec_time_ns)
             parts.append(cmd.split_ns)
             k += 1
@@ -179,24 +205,33 @@ def count_instructions(controller_ids: list[int], steps: int) -> tuple[dict[int,
     result: dict[int, list[float]] = {}
     with tempfile.TemporaryDirectory(prefix="hil-bench-") as name:
         tmp = Path(name)
-        driver_c = tmp / "driver.c"
-        driver_c.write_text(DRIVER_C % {"omega_m": OMEGA_M, "we_ts": POLE_PAIRS * OMEGA_M * TS,
-                                        "i_amp": I_AMP, "ts_ns": round(TS * 1e9)}, encoding="utf-8")
-        driver = tmp / "driver"
-        build = subprocess.run(
-            [cc, *STRICT_FLAGS, "-I", str(FIRMWARE_DIR / "include"), str(driver_c), *map(str, sources),
-             "-lm", "-o", str(driver)],
-            capture_output=True, text=True, timeout=300,
-        )
-        if build.returncode != 0:
-            return {}, f"driver build failed: {build.stderr.strip()[:500]}"
+        drivers: dict[str, Path] = {}
         try:
             for cid in controller_ids:
-                result[cid] = [_callgrind_total(driver, cid, steps, fn, tmp)
+                machine = machine_for(cid)
+                if machine.name not in drivers:
+                    driver = tmp / f"driver{len(drivers)}"
+                    error = _build_driver(cc, machine, sources, driver)
+                    if error:
+                        return result, error
+                    drivers[machine.name] = driver
+                result[cid] = [_callgrind_total(drivers[machine.name], cid, steps, fn, tmp)
                                for fn in ("hil_fw_step", *STAGES)]
         except (subprocess.SubprocessError, OSError) as exc:
             return result, f"valgrind run failed: {exc}"
     return result, ""
+
+
+def _build_driver(cc: str, machine: BenchMachine, sources: list[Path], driver: Path) -> str:
+    """Compile the callgrind driver of one machine; an error text or ''."""
+    driver_c = driver.with_suffix(".c")
+    driver_c.write_text(driver_source(machine), encoding="utf-8")
+    build = subprocess.run(
+        [cc, *STRICT_FLAGS, "-I", str(FIRMWARE_DIR / "include"), str(driver_c), *map(str, sources),
+         "-lm", "-o", str(driver)],
+        capture_output=True, text=True, timeout=300,
+    )
+    return f"driver build failed: {build.stderr.strip()[:500]}" if build.returncode != 0 else ""
 
 
 def implemented_controllers() -> list[int]:
@@ -231,6 +266,9 @@ def format_figures(figures: list[ControllerFigures], note: str) -> list[str]:
         for f in paper:
             parts = " / ".join("-" if v is None else f"{v:.2f}" for v in PAPER_TABLE4_US[f.name])
             lines.append(f"   {f.name:<10} {parts}")
+    if any(f.controller_id in SIX_PHASE_IDS for f in figures):
+        lines.append(f"mptc1..3 run on {six_phase_machine().name} (six phase currents); the others on the "
+                     "three-phase Table 3 machine.")
     lines.append("stage times include one CLOCK_MONOTONIC read each (~20-30 ns).")
     if note:
         lines.append(note)

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
 from pmsm_hil.hil.compare.runs import CompareResult
+from pmsm_hil.hil.compare.spread import aggregate
 from pmsm_hil.hil.errors import InputFileError
 
 
@@ -34,21 +36,27 @@ def _bars(result: CompareResult, plt: Any) -> Any:
         ax.set_xticks(x, labels, rotation=60, fontsize=8)
         ax.set_title(title, fontsize=10)
         ax.grid(axis="y", alpha=0.3)
-    for i, r in enumerate(rows):  # paper's ripple beside ours (definition not stated in its text)
-        val = result.preset.paper.get(r["controller"], {}).get("torque_ripple_nm")
-        if val is not None and r["group"] == "main":
-            axes[0].plot(i, val, "r*", markersize=11, label="paper (experiment)" if i == 0 else None)
-    axes[0].legend(fontsize=8)
+    for ax, key in ((axes[0], "torque_ripple_nm"), (axes[1], "current_thd_pct")):  # paper's figures beside ours
+        marked = False
+        for i, r in enumerate(rows):
+            val = result.preset.paper.get(r["controller"], {}).get(key)
+            if val is not None and r["group"] == "main":
+                ax.plot(i, val, "r*", markersize=11, label=None if marked else "paper (experiment)")
+                marked = True
+        if marked:
+            ax.legend(fontsize=8)
     return fig
 
 
 def _sweep(result: CompareResult, plt: Any, key: str, ylabel: str, xkey: str, xlabel: str,
            xscale: float = 1.0) -> Any:
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
-    names = list(dict.fromkeys(r["controller"] for r in _main_rows(result)))
+    agg = [r for r in aggregate(result.rows) if r["group"] == "main"]  # means over the initial rotor angles
+    names = list(dict.fromkeys(r["label"] for r in agg))
     for name in names:
-        rows = [r for r in _main_rows(result) if r["controller"] == name]
-        ax.plot([r[xkey] * xscale for r in rows], [r.get(key) for r in rows], "o-", label=name)
+        rows = [r for r in agg if r["label"] == name]
+        ax.plot([r[xkey] * xscale for r in rows],
+                [math.nan if r.get(key) is None else r[key] for r in rows], "o-", label=name)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.grid(alpha=0.3)

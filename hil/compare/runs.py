@@ -20,7 +20,7 @@ from pmsm_hil.hil.runner.scenario import load_scenario
 ROW_METRICS = ("torque_ripple_rms_nm", "torque_ripple_pp_nm", "current_thd_pct", "current_thd_total_pct",
                "switching_freq_khz", "candidates_evaluated_mean", "torque_error_mean_nm", "candidate_miss_rate",
                "speed_mean_rpm", "switching_freq_intra_khz", "narrow_pulses", "narrow_pulses_gated",
-               "torque_mean_nm")
+               "torque_mean_nm", "xy_current_rms_a", "current_distortion_rms_a")
 #: equal-f_av search: relative tolerance and iteration limit
 FAV_TOL = 0.03
 FAV_ITER = 5
@@ -88,6 +88,19 @@ def run_one(p: ComparePreset, spec: Variant | str, ts_s: float, point: dict[str,
     return row, periods
 
 
+def _trip_row(p: ComparePreset, spec: Variant, point: dict[str, float], theta0_rad: float,
+              reason: str) -> dict[str, Any]:
+    """Row of a run the plant's protection ended before the metrics window: no metrics, the reason."""
+    overrides: dict[str, Any] = {"speed_rpm": p.speed_rpm, "load_nm": p.load_nm, **point}
+    scenario = load_scenario(p.scenario).with_overrides(**overrides)
+    row: dict[str, Any] = {"group": "main", "controller": spec.controller, "label": spec.label,
+                           "ts_us": round(p.ts_s * 1e6, 3), "speed_rpm": scenario.speed_rpm,
+                           "load_nm": scenario.load_nm, "theta0_rad": theta0_rad}
+    row.update(dict.fromkeys(ROW_METRICS))
+    row.update(exec_time_us_median=None, exec_split_us_median=None, t_reach_98pct_s=None, end_reason=reason)
+    return row
+
+
 def _points(p: ComparePreset) -> list[dict[str, float]]:
     if p.sweep_key is None:
         return [{}]
@@ -146,7 +159,11 @@ def run_preset(p: ComparePreset, *, controllers: list[str] | None = None,
                 try:
                     row, periods = run_one(p, spec, p.ts_s, point, theta0_rad=theta0)
                 except HilError as exc:
-                    raise HilError(f"{spec.label} {label}: {exc}") from None
+                    if "plant trip" not in str(exc):
+                        raise HilError(f"{spec.label} {label}: {exc}") from None
+                    say(f"  {spec.label} {label}: {exc}")
+                    result.rows.append(_trip_row(p, spec, point, theta0, str(exc)))
+                    continue
                 result.rows.append(row)
                 if p.figure == "accel" and theta0 == p.theta0_rad[0]:
                     step = max(1, len(periods) // 3000)

@@ -11,13 +11,14 @@ SPREAD_METRICS = ("torque_ripple_rms_nm", "torque_ripple_pp_nm", "current_thd_pc
                   "switching_freq_khz", "switching_freq_intra_khz", "narrow_pulses", "narrow_pulses_gated",
                   "torque_error_mean_nm", "torque_mean_nm", "speed_mean_rpm", "candidates_evaluated_mean",
                   "candidate_miss_rate", "exec_time_us_median", "t_reach_98pct_s", "eval_e", "eval_e_intra",
-                  "equal_fav_target_khz")
+                  "equal_fav_target_khz", "xy_current_rms_a", "current_distortion_rms_a")
 
 
 def aggregate(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """One row per (group, label, Ts, speed, load) in first-seen order: each metric's mean, and
-    `<metric>_min` / `<metric>_max` over the runs (initial rotor angles); `n_runs` runs, `end_reason`
-    the first that is not "completed" (else "completed"). Metrics missing in a run are skipped."""
+    `<metric>_min` / `<metric>_max` over the runs (initial rotor angles); `n_runs` runs, `n_trips` of
+    them ended by the plant's protection, `end_reason` the first that is not "completed" (else
+    "completed"). Metrics missing in a run are skipped."""
     groups: dict[tuple[Any, ...], list[dict[str, Any]]] = {}
     for r in rows:
         key = tuple(r.get(k, r.get("controller") if k == "label" else None) for k in GROUP_KEYS)
@@ -35,6 +36,7 @@ def aggregate(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
             else:
                 agg[m] = None
         reasons = [str(r.get("end_reason")) for r in members if r.get("end_reason") not in (None, "completed")]
+        agg["n_trips"] = sum("trip" in reason for reason in reasons)
         agg["end_reason"] = reasons[0] if reasons else members[0].get("end_reason")
         out.append(agg)
     return out

@@ -15,10 +15,11 @@ COLUMNS = ("group", "controller", "ts_us", "speed_rpm", "load_nm", "torque_rippl
            "current_thd_pct", "current_thd_total_pct", "switching_freq_khz", "candidates_evaluated_mean",
            "torque_error_mean_nm", "candidate_miss_rate", "speed_mean_rpm", "exec_time_us_median",
            "t_reach_98pct_s", "end_reason", "label", "theta0_rad", "switching_freq_intra_khz", "narrow_pulses",
-           "narrow_pulses_gated", "torque_mean_nm", "eval_e", "eval_e_intra")
+           "narrow_pulses_gated", "torque_mean_nm", "eval_e", "eval_e_intra", "xy_current_rms_a",
+           "current_distortion_rms_a")
 _HEAD = ("controller", "Ts µs", "rpm", "N·m", "ripple rms", "ripple p-p", "THD 2-40 %", "THD all %",
          "f_av kHz", "f_av intra", "narrow req/gated", "E", "cand", "T err N·m", "miss rate", "t98 s", "runs",
-         "paper")
+         "x-y rms A", "dist rms A", "trips", "paper")
 
 
 def _fmt(value: Any, spec: str) -> str:
@@ -48,7 +49,8 @@ def format_table(result: CompareResult) -> list[str]:
                      _fmt(r["switching_freq_khz"], ".2f"), _fmt(r["switching_freq_intra_khz"], ".2f"), narrow,
                      _fmt(r["eval_e"], ".3f"), _fmt(r["candidates_evaluated_mean"], ".0f"),
                      _fmt(r["torque_error_mean_nm"], "+.3f"), _fmt(r["candidate_miss_rate"], ".3f"),
-                     _fmt(r["t_reach_98pct_s"], ".3f"), str(r["n_runs"]),
+                     _fmt(r["t_reach_98pct_s"], ".3f"), str(r["n_runs"]), _fmt(r["xy_current_rms_a"], ".1f"),
+                     _fmt(r["current_distortion_rms_a"], ".1f"), str(r["n_trips"]),
                      _paper(result, r["label"]) if r["group"] == "main" else ""))
     widths = [max(len(row[i]) for row in rows) for i in range(len(_HEAD))]
     lines = ["  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)).rstrip() for row in rows]

@@ -18,7 +18,7 @@ def test_bundled_presets_load() -> None:
     assert {"xiao2023-steady", "xiao2023-tthr-sweep", "xiao2023-load-steps", "xiao2023-speed-step"} <= set(names)
     for name in names:
         p = load_preset(name)
-        assert p.specs() and p.motor in ("niu2020-ipmsm", "xiao2023-spmsm")
+        assert p.specs() and p.motor in ("niu2020-ipmsm", "xiao2023-spmsm", "zhang2021-dtpmsm")
     assert load_preset("niu2020-thd-vs-load").sweep_values[-1] == 7.0
 
 
