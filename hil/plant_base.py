@@ -19,7 +19,9 @@ MAX_SUBINTERVALS = 8
 
 @dataclass(frozen=True, slots=True)
 class PeriodStats:
-    """Inverter events of one advanced period (counts of leg gate transitions and pulses)."""
+    """Inverter events of one advanced period (counts of leg gate transitions and pulses) and the largest
+    phase-current magnitude seen at the trace rows [A] (0 with the trace off): what a hardware
+    overcurrent comparator sees, including peaks inside the period."""
 
     leg_transitions: int
     boundary_transitions: int
@@ -28,6 +30,7 @@ class PeriodStats:
     trace_rows: int
     open_phase_events: int = 0
     narrow_pulses_gated: int = 0
+    peak_current_a: float = 0.0
 
 
 class PlantBase:
@@ -168,7 +171,8 @@ class PlantBase:
             raise PlantFaultError(f"plant kernel rejected the period (code {rc})")
         return PeriodStats(int(st.leg_transitions), int(st.boundary_transitions), int(st.narrow_pulses),
                            int(st.suppressed_pulses), int(st.trace_n),
-                           int(st.open_phase_events) if self.OPEN_PHASE_MODEL else 0, int(st.narrow_pulses_gated))
+                           int(st.open_phase_events) if self.OPEN_PHASE_MODEL else 0, int(st.narrow_pulses_gated),
+                           float(st.peak_current))
 
     @property
     def last_trace(self) -> npt.NDArray[np.float64]:

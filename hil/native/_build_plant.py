@@ -26,6 +26,7 @@ typedef struct {
 typedef struct {
     uint32_t leg_transitions, boundary_transitions, narrow_pulses, suppressed_pulses, open_phase_events,
         narrow_pulses_gated;
+    double peak_current;
     int32_t trace_n;
     int32_t error;
 } pl_period_stats_t;
@@ -54,6 +55,7 @@ typedef struct {
 } p6_state_t;
 typedef struct {
     uint32_t leg_transitions, boundary_transitions, narrow_pulses, suppressed_pulses, narrow_pulses_gated;
+    double peak_current;
     int32_t trace_n;
     int32_t error;
 } p6_period_stats_t;

@@ -57,6 +57,11 @@ static int emit_row(const pl_params_t *p, pl_state_t *s, double tk, double i_d, 
     row[1] = ia;
     row[2] = ib;
     row[3] = ic;
+    for (int k = 1; k <= 3; k++) {
+        if (fabs(row[k]) > stats->peak_current) {
+            stats->peak_current = fabs(row[k]);
+        }
+    }
     row[4] = pl_torque(p, i_d, i_q);
     row[5] = s->omega_m;
     stats->trace_n++;
@@ -319,6 +324,7 @@ int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const
     stats->suppressed_pulses = 0;
     stats->open_phase_events = 0;
     stats->narrow_pulses_gated = 0;
+    stats->peak_current = 0.0;
     stats->trace_n = 0;
     stats->error = PL_OK;
     if (n < 1 || n > PL_MAX_SUBINTERVALS) {

@@ -48,6 +48,7 @@ typedef struct {
     uint32_t suppressed_pulses;    /* pulses shorter than t_mpw removed before the gate */
     uint32_t open_phase_events;    /* dead-time diode currents that reached zero (phase left open) */
     uint32_t narrow_pulses_gated;  /* narrow pulses that reached the gate (not suppressed by t_mpw) */
+    double peak_current;           /* largest |phase current| at the trace rows of the period [A] */
     int32_t trace_n;               /* trace rows written */
     int32_t error;                 /* 0 ok, negative: see PL_E_* */
 } pl_period_stats_t;

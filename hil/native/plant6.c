@@ -60,6 +60,11 @@ static int emit_row(const p6_params_t *p, p6_state_t *s, double tk, double i_d, 
     row = trace + (ptrdiff_t)stats->trace_n * P6_TRACE_COLUMNS;
     row[0] = tk;
     p6_phase_currents(i_d, i_q, theta, i_x, i_y, row + 1);
+    for (int k = 1; k <= 6; k++) {
+        if (fabs(row[k]) > stats->peak_current) {
+            stats->peak_current = fabs(row[k]);
+        }
+    }
     row[7] = p6_torque(p, i_d, i_q);
     row[8] = s->omega_m;
     row[9] = i_x;
@@ -164,6 +169,7 @@ int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const
     stats->narrow_pulses = 0;
     stats->suppressed_pulses = 0;
     stats->narrow_pulses_gated = 0;
+    stats->peak_current = 0.0;
     stats->trace_n = 0;
     stats->error = P6_OK;
     if (n < 1 || n > P6_MAX_SUBINTERVALS || !(p->lls > 0.0) || !(p->rs > 0.0)) {

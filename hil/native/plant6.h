@@ -52,6 +52,7 @@ typedef struct {
     uint32_t narrow_pulses;        /* pulses shorter than 2*t_dead + t_mpw */
     uint32_t suppressed_pulses;    /* pulses shorter than t_mpw removed before the gate */
     uint32_t narrow_pulses_gated;  /* narrow pulses that reached the gate (not suppressed) */
+    double peak_current;           /* largest |phase current| at the trace rows of the period [A] */
     int32_t trace_n;               /* trace rows written */
     int32_t error;                 /* 0 ok, negative: P6_E_* */
 } p6_period_stats_t;

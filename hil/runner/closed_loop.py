@@ -229,9 +229,11 @@ class ClosedLoop:
                 self._safe_state(out)
                 break
             if (abs(smp.i_a) > i_trip or abs(smp.i_b) > i_trip or abs(smp.i_c) > i_trip
-                    or abs(smp.omega_m) > w_trip or (six and max(abs(x) for x in extra[:3]) > i_trip)):
-                out.end_reason = (f"plant trip: {plant.check_trips(smp)}; "
-                                  "inverter put in the safe state (zero vector)")
+                    or abs(smp.omega_m) > w_trip or (six and max(abs(x) for x in extra[:3]) > i_trip)
+                    or st.peak_current_a > i_trip):
+                reason = plant.check_trips(smp) or (
+                    f"overcurrent: peak |i| = {st.peak_current_a:.2f} A inside the period > i_trip = {i_trip:.2f} A")
+                out.end_reason = f"plant trip: {reason}; inverter put in the safe state (zero vector)"
                 self._safe_state(out)
                 break
             trip = plant.check_trips() if k == n_total - 1 else None

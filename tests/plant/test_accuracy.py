@@ -97,3 +97,14 @@ def test_steady_state_with_long_zero_vector_is_short_circuit_current() -> None:
     smp = plant.sample()
     assert smp.i_d == pytest.approx(id_ss, abs=1e-6)
     assert smp.i_q == pytest.approx(iq_ss, abs=1e-6)
+
+
+def test_period_peak_current_is_the_largest_traced_phase_current() -> None:
+    plant = Plant(load_motor("niu2020-ipmsm"), TS, DynoMechanics(1500.0), trace_dt_s=2e-6)
+    peaks = []
+    for state in (4, 6, 2, 3, 1, 5, 0):
+        st = plant.advance([state], [TS_NS])
+        tr = plant.last_trace
+        peaks.append(st.peak_current_a)
+        assert st.peak_current_a == pytest.approx(np.abs(tr[:, 1:4]).max())
+    assert max(peaks) > 1.0
