@@ -75,6 +75,7 @@ class ParamId(IntEnum):
     CURRENT_LIMIT = 22  # A
     ZERO_SELECT = 23  # 0 paper rule, 1 min_transitions (3vmpc, hv-mpfc)
     DT_COMP = 24  # 0 off, 1 pulse-based dead-time compensation (3vmpc, hv-mpfc)
+    FCS_READING = 25  # fcs-mpc-1/2 reading of Tables 1/2, bit flags (docs/algorithms/fcs_mpc_regions.md)
 
 
 PARAM_NAMES: dict[ParamId, str] = {p: p.name.lower() for p in ParamId}

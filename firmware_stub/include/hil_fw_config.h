@@ -31,7 +31,8 @@
 #define HIL_FW_P_CURRENT_LIMIT 22         /* current magnitude limit [A] */
 #define HIL_FW_P_ZERO_SELECT 23           /* zero-vector rule of 3vmpc/hv-mpfc: 0 paper, 1 min_transitions */
 #define HIL_FW_P_DT_COMP 24               /* pulse-based dead-time compensation in 3vmpc/hv-mpfc: 0 off, 1 on */
-#define HIL_FW_P_COUNT 25                 /* array size (index 0 unused) */
+#define HIL_FW_P_FCS_READING 25           /* fcs-mpc-1/2 reading of Tables 1/2, bit flags (hil_fw_fcs_mpc.h) */
+#define HIL_FW_P_COUNT 26                 /* array size (index 0 unused) */
 
 /* Forward-Euler dq model coefficients, recomputed whenever a parameter changes. */
 typedef struct {

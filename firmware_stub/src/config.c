@@ -37,6 +37,7 @@ static const param_rule_t rules[HIL_FW_P_COUNT] = {
     [HIL_FW_P_CURRENT_LIMIT] = {0.0f, 1.0e6f, 1, 0},
     [HIL_FW_P_ZERO_SELECT] = {0.0f, 1.0f, 0, 1},
     [HIL_FW_P_DT_COMP] = {0.0f, 1.0f, 0, 1},
+    [HIL_FW_P_FCS_READING] = {0.0f, 255.0f, 0, 1},
 };
 
 void hil_fw_params_defaults(hil_fw_params_t *p)
@@ -86,6 +87,9 @@ int hil_fw_param_check(uint8_t param_id, float value)
     }
     if (r->integer && floorf(value) != value) {
         return HIL_FW_E_PARAM_VALUE;
+    }
+    if (param_id == HIL_FW_P_FCS_READING && ((unsigned)value & 15u) > 11u) {
+        return HIL_FW_E_PARAM_VALUE; /* sector rotation field 0..11 */
     }
     return HIL_FW_OK;
 }

@@ -23,15 +23,21 @@ const uint8_t hil_fw_fcs_table2[4][6] = {
     {5u, 6u, 1u, 2u, 3u, 4u}, /* h_psi 0, h_te 0 */
 };
 
-uint8_t hil_fw_fcs_sector(float alpha, float beta)
+uint8_t hil_fw_fcs_sector_rot(float alpha, float beta, uint8_t rot)
 {
-    /* shift by +30 deg so that sector boundaries fall on multiples of 60 deg */
-    const float ang = atan2f(beta, alpha) + HIL_FW_PI_F / 6.0f; /* (-150, 210] deg */
-    int k = (int)floorf(ang * (3.0f / HIL_FW_PI_F));            /* -3..3 */
+    /* shift by +30 deg - rot * 30 deg so that sector boundaries fall on multiples of 60 deg */
+    const float ang = atan2f(beta, alpha) + (HIL_FW_PI_F / 6.0f) * (1.0f - (float)(rot % 12u));
+    int k = (int)floorf(ang * (3.0f / HIL_FW_PI_F)); /* -9..3 */
+    k %= 6;
     if (k < 0) {
         k += 6;
     }
-    return (uint8_t)(k % 6 + 1);
+    return (uint8_t)(k + 1);
+}
+
+uint8_t hil_fw_fcs_sector(float alpha, float beta)
+{
+    return hil_fw_fcs_sector_rot(alpha, beta, 0u);
 }
 
 uint8_t hil_fw_fcs_lookup(int table, uint8_t h_psi, uint8_t h_te, uint8_t sector)
@@ -49,7 +55,20 @@ uint8_t hil_fw_fcs_lookup(int table, uint8_t h_psi, uint8_t h_te, uint8_t sector
     return 255u;
 }
 
-/* Flux observer eq. (10) (trapezoidal in the current), estimates at k+1, comparators, sector. */
+/* Comparator with band (0: plain two-level): 1 above +band, 0 below -band, else unchanged. */
+static uint8_t compare(float delta, float band, uint8_t prev)
+{
+    if (delta > band) {
+        return 1u;
+    }
+    if (delta < -band) {
+        return 0u;
+    }
+    return prev;
+}
+
+/* Flux observer eq. (10) (trapezoidal in the current), estimates at k+1 (or k), comparators, sector;
+ * the reading bits of fcs_reading (hil_fw_fcs_mpc.h). */
 static void dtc_state(struct hil_fw_state *s)
 {
     hil_fw_dsvm_state_t *st = &s->ctrl.dsvm;
@@ -60,6 +79,7 @@ static void dtc_state(struct hil_fw_state *s)
     const float wts = me->omega_e * ts;
     const float cw = cosf(wts);
     const float sw = sinf(wts);
+    const unsigned reading = (unsigned)p[HIL_FW_P_FCS_READING];
     float ua;
     float ub;
     float ia1;
@@ -82,37 +102,42 @@ static void dtc_state(struct hil_fw_state *s)
     }
     st->next_t_ns = me->t_ns + s->params.model.ts_ns;
     hil_fw_dsvm_prepare(s);
-    /* i(k+1) in the stator frame at the angle theta + wts */
-    hil_fw_park_inv(st->id1, st->iq1, me->cos_th * cw - me->sin_th * sw, me->sin_th * cw + me->cos_th * sw,
-                    &ia1, &ib1);
     hil_fw_cmd_mean_voltage_ab(s->applied.states, s->applied.durations_ns, s->applied.n_states, me->vdc, &ua,
                                &ub);
-    pa1 = st->psi_a + ts * (ua - rs * 0.5f * (me->i_alpha + ia1));
-    pb1 = st->psi_b + ts * (ub - rs * 0.5f * (me->i_beta + ib1));
     st->u_a_prev = ua;
     st->u_b_prev = ub;
     st->i_a_prev = me->i_alpha;
     st->i_b_prev = me->i_beta;
+    if ((reading & HIL_FW_FCS_AT_K) != 0u) {
+        /* estimates at k: psi(k) and the measured i(k) */
+        pa1 = st->psi_a;
+        pb1 = st->psi_b;
+        ia1 = me->i_alpha;
+        ib1 = me->i_beta;
+    } else {
+        /* i(k+1) in the stator frame at the angle theta + wts */
+        hil_fw_park_inv(st->id1, st->iq1, me->cos_th * cw - me->sin_th * sw, me->sin_th * cw + me->cos_th * sw,
+                        &ia1, &ib1);
+        pa1 = st->psi_a + ts * (ua - rs * 0.5f * (me->i_alpha + ia1));
+        pb1 = st->psi_b + ts * (ub - rs * 0.5f * (me->i_beta + ib1));
+    }
     st->psi_mag1 = sqrtf(pa1 * pa1 + pb1 * pb1);
     st->te1 = s->params.model.torque_k * (pa1 * ib1 - pb1 * ia1); /* eq. (11) */
-    {
+    if ((reading & HIL_FW_FCS_FLUX_PSI_F) != 0u) {
+        st->psi_ref = p[HIL_FW_P_FLUX_REF] > 0.0f ? p[HIL_FW_P_FLUX_REF] : p[HIL_FW_P_PSI_F];
+    } else {
         const float fd = p[HIL_FW_P_LD] * s->ref.i_d + p[HIL_FW_P_PSI_F];
         const float fq = p[HIL_FW_P_LQ] * s->ref.i_q;
         st->psi_ref = sqrtf(fd * fd + fq * fq); /* flux of the current references */
     }
     dpsi = st->psi_ref - st->psi_mag1;
     dte = s->ref.torque - st->te1;
-    if (dpsi > 0.0f) {
-        st->h_psi = 1u;
-    } else if (dpsi < 0.0f) {
-        st->h_psi = 0u;
+    if ((reading & HIL_FW_FCS_TORQUE_INVERT) != 0u) {
+        dte = -dte;
     }
-    if (dte > 0.0f) {
-        st->h_te = 1u;
-    } else if (dte < 0.0f) {
-        st->h_te = 0u;
-    }
-    st->sector = hil_fw_fcs_sector(pa1, pb1);
+    st->h_psi = compare(dpsi, 0.0f, st->h_psi);
+    st->h_te = compare(dte, (reading & HIL_FW_FCS_TORQUE_BAND) != 0u ? p[HIL_FW_P_TORQUE_BAND] : 0.0f, st->h_te);
+    st->sector = hil_fw_fcs_sector_rot(pa1, pb1, (uint8_t)(reading & HIL_FW_FCS_ROT_MASK));
 }
 
 void hil_fw_fcs_mpc1_reference(struct hil_fw_state *s)

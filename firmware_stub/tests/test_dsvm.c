@@ -236,6 +236,105 @@ static void test_candidates_and_miss(void)
     }
 }
 
+/* One fcs step of controller ctrl with reading bits `reading` (torque mode, 7 N*m reference) from the
+ * rotor-frame currents at the angle that puts the current-model flux at psi_deg; `applied` is the
+ * switching code applied over [k, k+1). Returns the DSVM state. */
+static const hil_fw_dsvm_state_t *fcs_step(hil_fw_state_t *s, uint8_t ctrl, float reading, float band, float iq,
+                                           float psi_deg, float omega_m, uint8_t applied)
+{
+    hil_fw_cmd_t cmd;
+    const float delta = atan2f(0.014f * iq, 0.21f); /* flux angle ahead of d at id = 0 */
+    hil_fw_meas_t m;
+    hil_fw_init(s);
+    (void)hil_fw_select_controller(s, ctrl);
+    CHECK(hil_fw_set_param(s, HIL_FW_P_FCS_READING, reading) == HIL_FW_OK, "fcs_reading %g", (double)reading);
+    (void)hil_fw_set_param(s, HIL_FW_P_TORQUE_BAND, band);
+    (void)hil_fw_set_setpoint(s, 1u, HIL_FW_MODE_TORQUE, 7.0f);
+    fw_set_applied(s, applied);
+    m = fw_meas_dq(0u, 0.0f, iq, psi_deg * DEG - delta, omega_m, 311.0f);
+    hil_fw_step(s, &m, 0u, &cmd);
+    CHECK(cmd.candidates == (ctrl == HIL_FW_CTRL_FCS_MPC_1 ? 6u : 5u), "candidate count");
+    CHECK(s->ctrl.dsvm.cand[0] == s->ctrl.dsvm.ref_vector, "region of the reference vector");
+    CHECK(s->ctrl.dsvm.ref_vector == hil_fw_fcs_lookup(ctrl == HIL_FW_CTRL_FCS_MPC_1 ? HIL_FW_FCS_TABLE_VIRTUAL
+                                                                                      : HIL_FW_FCS_TABLE_REAL,
+                                                       s->ctrl.dsvm.h_psi, s->ctrl.dsvm.h_te, s->ctrl.dsvm.sector),
+          "reference vector from the table");
+    return &s->ctrl.dsvm;
+}
+
+static void test_fcs_readings(void)
+{
+    hil_fw_state_t s;
+    const hil_fw_dsvm_state_t *st;
+    uint8_t v0;
+    int r;
+    /* parameter range: integer 0..255 with the rotation field 0..11 */
+    hil_fw_init(&s);
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_FCS_READING, 0.0f) == HIL_FW_OK, "default reading accepted");
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_FCS_READING, 12.0f) == HIL_FW_E_PARAM_VALUE, "rotation 12 rejected");
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_FCS_READING, 256.0f) == HIL_FW_E_PARAM_VALUE, "256 rejected");
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_FCS_READING, 1.5f) == HIL_FW_E_PARAM_VALUE, "fraction rejected");
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_FCS_READING, 251.0f) == HIL_FW_OK, "all bits, rotation 11");
+    /* bits 0-3: S = 1 spans [-30 + 30 r, 30 + 30 r) deg */
+    for (r = 0; r < 12; ++r) {
+        const float lo = -30.0f + 30.0f * (float)r;
+        CHECK(hil_fw_fcs_sector_rot(cosf((lo + 1.0f) * DEG), sinf((lo + 1.0f) * DEG), (uint8_t)r) == 1u,
+              "rotation %d: start of S = 1", r);
+        CHECK(hil_fw_fcs_sector_rot(cosf((lo + 59.0f) * DEG), sinf((lo + 59.0f) * DEG), (uint8_t)r) == 1u,
+              "rotation %d: end of S = 1", r);
+        CHECK(hil_fw_fcs_sector_rot(cosf((lo + 61.0f) * DEG), sinf((lo + 61.0f) * DEG), (uint8_t)r) == 2u,
+              "rotation %d: S = 2 next", r);
+        CHECK(hil_fw_fcs_sector_rot(cosf((lo - 1.0f) * DEG), sinf((lo - 1.0f) * DEG), (uint8_t)r) == 6u,
+              "rotation %d: S = 6 before", r);
+    }
+    /* flux at 15 deg: S = 1 (r = 0), 1 (r = 1, [0, 60)), 2 (r = 11, S = 1 is [-60, 0)), 6 (r = 2) */
+    {
+        static const float rot[4] = {0.0f, 1.0f, 11.0f, 2.0f};
+        static const uint8_t sector[4] = {1u, 1u, 2u, 6u};
+        /* Table 1 row (h_psi 1, h_te 1) of those sectors: u12, u12, u23, u61 */
+        static const uint8_t ref[4] = {7u, 7u, 8u, 12u};
+        int i;
+        for (i = 0; i < 4; ++i) {
+            st = fcs_step(&s, HIL_FW_CTRL_FCS_MPC_1, rot[i], 0.2f, 6.0f, 15.0f, 0.0f, 0u);
+            CHECK(st->sector == sector[i], "rotation %g: sector %u", (double)rot[i], (unsigned)st->sector);
+            CHECK(st->h_psi == 1u && st->h_te == 1u, "rotation %g: flux and torque below the references",
+                  (double)rot[i]);
+            CHECK(st->ref_vector == ref[i], "rotation %g: reference vector %u", (double)rot[i],
+                  (unsigned)st->ref_vector);
+        }
+    }
+    /* bit 4: u3 (120 deg) applied over [k, k+1) turns the flux from 28 deg (S = 1) past 30 deg (S = 2)
+     * by k+1; at k it is still in S = 1 */
+    st = fcs_step(&s, HIL_FW_CTRL_FCS_MPC_2, 0.0f, 0.2f, 6.0f, 28.0f, 0.0f, 2u);
+    CHECK(st->sector == 2u, "k+1: flux past 30 deg (S = %u)", (unsigned)st->sector);
+    v0 = st->ref_vector;
+    st = fcs_step(&s, HIL_FW_CTRL_FCS_MPC_2, (float)HIL_FW_FCS_AT_K, 0.2f, 6.0f, 28.0f, 0.0f, 2u);
+    CHECK(st->sector == 1u, "k: flux at 28 deg (S = %u)", (unsigned)st->sector);
+    CHECK_NEAR(st->psi_mag1, sqrtf(0.21f * 0.21f + 0.084f * 0.084f), 1e-5f, "k: |psi(k)| of the current model");
+    CHECK(st->ref_vector != v0, "k vs k+1: other reference vector");
+    /* bit 5: torque 0.77 N*m above the reference: h_te 0 without band, kept at 1 inside +-1 N*m */
+    st = fcs_step(&s, HIL_FW_CTRL_FCS_MPC_1, 0.0f, 1.0f, 8.5f, 0.0f, 0.0f, 0u);
+    CHECK(st->te1 > 7.5f && st->te1 < 8.0f && st->h_te == 0u, "no band: decrease (te1 %g)", (double)st->te1);
+    v0 = st->ref_vector;
+    st = fcs_step(&s, HIL_FW_CTRL_FCS_MPC_1, (float)HIL_FW_FCS_TORQUE_BAND, 1.0f, 8.5f, 0.0f, 0.0f, 0u);
+    CHECK(st->h_te == 1u && st->ref_vector != v0, "band 1 N*m: torque comparator stays at 1");
+    st = fcs_step(&s, HIL_FW_CTRL_FCS_MPC_1, (float)HIL_FW_FCS_TORQUE_BAND, 0.5f, 8.5f, 0.0f, 0.0f, 0u);
+    CHECK(st->h_te == 0u, "band 0.5 N*m: 0.77 N*m above switches to decrease");
+    /* bit 6: |psi| = 0.226 Wb lies between psi_f = 0.21 Wb and the reference flux 0.234 Wb */
+    st = fcs_step(&s, HIL_FW_CTRL_FCS_MPC_1, 0.0f, 0.2f, 6.0f, 0.0f, 0.0f, 0u);
+    CHECK(st->h_psi == 1u && st->psi_ref > 0.233f, "flux of the current references: increase");
+    v0 = st->ref_vector;
+    st = fcs_step(&s, HIL_FW_CTRL_FCS_MPC_1, (float)HIL_FW_FCS_FLUX_PSI_F, 0.2f, 6.0f, 0.0f, 0.0f, 0u);
+    CHECK(st->h_psi == 0u && st->psi_ref == 0.21f && st->ref_vector != v0, "psi_f reference: decrease");
+    hil_fw_init(&s);
+    /* bit 7: torque below the reference gives h_te 0 */
+    st = fcs_step(&s, HIL_FW_CTRL_FCS_MPC_1, 0.0f, 0.2f, 6.0f, 0.0f, 0.0f, 0u);
+    CHECK(st->h_te == 1u, "torque below the reference: increase");
+    v0 = st->ref_vector;
+    st = fcs_step(&s, HIL_FW_CTRL_FCS_MPC_1, (float)HIL_FW_FCS_TORQUE_INVERT, 0.2f, 6.0f, 0.0f, 0.0f, 0u);
+    CHECK(st->h_te == 0u && st->ref_vector != v0, "inverted sign: decrease");
+}
+
 static void test_dbcc_triangle(void)
 {
     uint8_t out[3];
@@ -287,6 +386,7 @@ int main(void)
     test_tables();
     test_sequences();
     test_candidates_and_miss();
+    test_fcs_readings();
     test_dbcc_triangle();
     test_svpwm();
     return FW_REPORT("test_dsvm");

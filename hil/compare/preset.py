@@ -35,6 +35,7 @@ class ComparePreset:
     adjusted) controllers: the adjusted one's control period is shortened until its average switching
     frequency matches the reference's. paper: label -> metric -> value from the paper's text. params:
     controller parameters of every run; variants: extra labelled runs (controller + params);
+    points: explicit operating points (speed_rpm and/or load_nm each), instead of a one-key sweep;
     theta0_rad: initial rotor angles [rad, electrical], one run each (the table shows their mean, the
     JSON the spread); equal_fav_metric: the f_av figure matched (`switching_freq_khz` or
     `switching_freq_intra_khz`); evaluation: (torque base N·m, f_av base kHz) of eq. (12) of
@@ -52,6 +53,7 @@ class ComparePreset:
     load_nm: float | None = None
     sweep_key: str | None = None
     sweep_values: tuple[float, ...] = ()
+    points: tuple[dict[str, float], ...] = ()
     equal_fav: tuple[str, str] | None = None
     figure: str = "none"
     description: str = ""
@@ -105,7 +107,7 @@ def load_preset(name_or_path: str) -> ComparePreset:
         raise InputFileError(f"compare preset {origin}: {exc}") from None
     known = {"name", "motor", "scenario", "controllers", "ts_s", "settle_s", "duration_s", "speed_rpm", "load_nm",
              "sweep", "equal_fav", "figure", "description", "paper", "paper_note", "params", "variants",
-             "theta0_rad", "evaluation"}
+             "theta0_rad", "evaluation", "points"}
     unknown = set(doc) - known
     if unknown:
         raise InputFileError(f"compare preset {origin}: unknown key(s) {', '.join(sorted(unknown))}")
@@ -145,6 +147,9 @@ def load_preset(name_or_path: str) -> ComparePreset:
                 or not all(isinstance(v, int | float) and math.isfinite(v) for v in values)):
             raise InputFileError(f"compare preset {origin}: 'sweep.values' must be a non-empty list of numbers")
         sweep_key, sweep_values = str(sweep["key"]), tuple(float(v) for v in values)
+    points = _points(doc.get("points"), origin)
+    if points and sweep_key is not None:
+        raise InputFileError(f"compare preset {origin}: give either 'sweep' or 'points', not both")
     equal: tuple[str, str] | None = None
     fav_metric = "switching_freq_khz"
     eq = doc.get("equal_fav")
@@ -166,10 +171,30 @@ def load_preset(name_or_path: str) -> ComparePreset:
         name=doc["name"], motor=doc["motor"], scenario=doc["scenario"], controllers=tuple(ctrls),
         ts_s=100e-6 if ts is None else ts, settle_s=_num(doc, "settle_s", origin),
         duration_s=_num(doc, "duration_s", origin), speed_rpm=_num(doc, "speed_rpm", origin),
-        load_nm=_num(doc, "load_nm", origin), sweep_key=sweep_key, sweep_values=sweep_values, equal_fav=equal,
+        load_nm=_num(doc, "load_nm", origin), sweep_key=sweep_key, sweep_values=sweep_values, points=points,
+        equal_fav=equal,
         figure=str(figure), description=str(doc.get("description", "")), paper=paper,
         paper_note=str(doc.get("paper_note", "")), params=params, variants=variants,
         theta0_rad=tuple(float(v) for v in theta0), equal_fav_metric=str(fav_metric), evaluation=evaluation)
+
+
+def _points(value: object, origin: str) -> tuple[dict[str, float], ...]:
+    """`points = [{ speed_rpm = ..., load_nm = ... }, ...]`: operating points (rpm, N·m)."""
+    if value is None:
+        return ()
+    if not isinstance(value, list) or not value:
+        raise InputFileError(f"compare preset {origin}: 'points' must be a non-empty list of tables")
+    out: list[dict[str, float]] = []
+    for k, item in enumerate(value):
+        if not isinstance(item, dict) or not item or set(item) - set(SWEEP_KEYS):
+            raise InputFileError(f"compare preset {origin}: 'points[{k}]' must set {' and/or '.join(SWEEP_KEYS)}")
+        point: dict[str, float] = {}
+        for key in SWEEP_KEYS:
+            v = _num(item, key, f"{origin} points[{k}]")
+            if v is not None:
+                point[key] = v
+        out.append(point)
+    return tuple(out)
 
 
 def _params(value: object, where: str, origin: str) -> dict[str, float]:

@@ -102,6 +102,8 @@ def _trip_row(p: ComparePreset, spec: Variant, point: dict[str, float], theta0_r
 
 
 def _points(p: ComparePreset) -> list[dict[str, float]]:
+    if p.points:
+        return [dict(pt) for pt in p.points]
     if p.sweep_key is None:
         return [{}]
     return [{p.sweep_key: v} for v in p.sweep_values]
