@@ -131,7 +131,8 @@ class HeadlessChromium:
                 return result
             if reply.get("method") == "Runtime.consoleAPICalled":
                 args = reply["params"].get("args", [])
-                self.console.append(" ".join(str(a.get("value", a.get("description", ""))) for a in args))
+                text = " ".join(str(a.get("value", a.get("description", ""))) for a in args)
+                self.console = [*self.console[-49:], text[:300]]
 
     def navigate(self, url: str) -> None:
         """Open `url` in the page and wait for its load event (document.readyState == complete)."""

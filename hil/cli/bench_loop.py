@@ -58,6 +58,11 @@ def measure(duration: float, repeats: int, cross: list[str], realtime: bool) -> 
     out["lockstep_inproc_log_off_hz"] = off["periods_per_s"]
     out["lockstep_inproc_log_on_hz"] = on["periods_per_s"]
     out["logging_cost_pct"] = 100.0 * (1.0 - on["periods_per_s"] / off["periods_per_s"])
+    from pmsm_hil.dashboards.bench import live_rerun_rate
+
+    rerun = live_rerun_rate(base, repeats)
+    out["lockstep_inproc_rerun_on_hz"] = rerun["periods_per_s"]
+    out["rerun_cost_pct"] = 100.0 * (1.0 - rerun["periods_per_s"] / off["periods_per_s"])
     for name in cross:
         spec = {"udp": "udp", "serial": "serial:pty"}.get(name, name)
         def make(spec: str = spec) -> RunConfig:
@@ -83,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
     for key, value in figures.items():
         if key.endswith("_hz"):
             print(f"  {key:<40} {value:>10.0f} periods/s  ({value * 1e-4:.2f}× real time at 10 kHz)")
-        elif key == "logging_cost_pct":
+        elif key in ("logging_cost_pct", "rerun_cost_pct"):
             print(f"  {key:<40} {value:>10.1f} %")
         elif key not in ("duration_s", "repeats"):
             print(f"  {key:<40} {value}")

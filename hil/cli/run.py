@@ -5,10 +5,13 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import tomllib
+from pmsm_hil.dashboards.cli_live import add_rerun_arguments, live_dashboard
 from pmsm_hil.hil.cli.motor_args import add_motor_arguments
 from pmsm_hil.hil.cli.parsing import finite_float, non_negative_int, positive_float
 from pmsm_hil.hil.cli.report_table import format_metrics
@@ -68,6 +71,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("--no-log", action="store_true", default=None, help="do not write an MCAP log")
     p.add_argument("--log-trace", action="store_true", default=None, help="also log the 2 µs plant trace")
     p.add_argument("--json", type=Path, help="write the metrics as JSON to this file")
+    add_rerun_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -128,7 +132,13 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
 def run(args: argparse.Namespace) -> int:
     """Execute `hil run`."""
     cfg = config_from_args(args)
-    result = run_closed_loop(cfg)
+    with live_dashboard(args, cfg) as live:
+        return _run_and_report(args, cfg, live)
+
+
+def _run_and_report(args: argparse.Namespace, cfg: RunConfig, live: Callable[[np.ndarray], None] | None) -> int:
+    """One run (blocks also to the live dashboard if any); prints the metrics, writes --json."""
+    result = run_closed_loop(cfg, live=live)
     print(format_metrics(result.metrics))
     if result.mcap_path is not None:
         print(f"log: {result.mcap_path}")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import math
 import signal
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -63,8 +63,11 @@ def _open_logger(cfg: RunConfig) -> tuple[Any, Path | None]:
     return RunLogger(path, metadata=meta), path
 
 
-def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None) -> RunResult:
-    """Run the scenario against the target named by cfg.link/cfg.target; returns metrics."""
+def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None,
+                    live: Callable[[np.ndarray], None] | None = None) -> RunResult:
+    """Run the scenario against the target named by cfg.link/cfg.target; returns metrics.
+
+    `live`: optional consumer of each PERIOD_DTYPE block (~1000 periods), e.g. the live dashboard."""
     cid = controller_id(cfg.controller)
     if cfg.mode == "realtime":
         check_realtime_budget(cfg.link, link_profile(cfg.link), cfg.ts_s)
@@ -77,18 +80,24 @@ def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None) -> RunRe
             plant = build_plant(cfg)
 
             def sink(periods: ByteRecords, frames: ByteRecords, trace: Any) -> None:
-                logger.submit_periods(periods.take())
+                block = periods.take()
+                if live is not None:
+                    live(block)
+                if logger is None:
+                    return
+                logger.submit_periods(block)
                 if len(frames):
                     logger.submit_frames(frames.take())
 
+            use_sink = logger is not None or live is not None
             loop = ClosedLoop(cfg, plant, conn.client, cid, inproc_result=conn.inproc_result,
-                              record_frames=logger is not None, sink=sink if logger is not None else None)
+                              record_frames=logger is not None, sink=sink if use_sink else None)
             outcome = loop.run()
             conn.client.check_faults()
-            if logger is not None:
+            if use_sink:
                 sink(outcome.periods, outcome.frames, None)
-                if cfg.log_trace and len(outcome.trace):
-                    logger.submit_trace(outcome.trace)
+            if logger is not None and cfg.log_trace and len(outcome.trace):
+                logger.submit_trace(outcome.trace)
         metrics = summarize(cfg, outcome, conn)
     finally:
         if conn is not None:

@@ -1,0 +1,69 @@
+"""Replay a recorded run (our MCAP) into the live dashboard's Rerun blueprint."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from pmsm_hil.dashboards.blueprint import build_blueprint
+from pmsm_hil.dashboards.errors import DashboardError
+from pmsm_hil.dashboards.recording import RerunTargets, open_recording
+from pmsm_hil.dashboards.streamer import PeriodStreamer
+from pmsm_hil.hil.errors import HilError
+from pmsm_hil.hil.runlog.reader import read_metadata, read_periods
+
+BLOCK = 1000
+
+
+@dataclass(frozen=True)
+class ReplaySource:
+    """What the dashboard needs from a run: the period records, Vdc [V], Ts [s], phases and a name."""
+
+    periods: Any
+    vdc: float
+    ts_s: float
+    phases: int
+    name: str
+
+
+def load_source(path: Path, *, vdc: float | None = None) -> ReplaySource:
+    """Period records and run facts of `path` (Vdc from the motor preset named in the metadata unless given)."""
+    if not path.is_file():
+        raise DashboardError(f"RUN.mcap: {path} is not a file")
+    meta = read_metadata(path)
+    periods = read_periods(path)
+    if len(periods) == 0:
+        raise DashboardError(f"RUN.mcap: {path} holds no /periods messages")
+    try:
+        ts_s = float(meta["ts_s"]) if "ts_s" in meta else float(periods["t"][1] - periods["t"][0])
+    except (ValueError, IndexError):
+        raise DashboardError(f"RUN.mcap: metadata ts_s {meta.get('ts_s')!r} is not a number") from None
+    phases = 3
+    motor_vdc: float | None = None
+    if "motor" in meta:
+        from pmsm_hil.hil.presets_loader import load_motor
+
+        try:
+            motor = load_motor(meta["motor"])
+            motor_vdc = motor.vdc
+            phases = 6 if getattr(motor, "is_six_phase", False) else 3
+        except HilError:
+            motor_vdc = None
+    if vdc is None:
+        vdc = motor_vdc
+    if vdc is None or not vdc > 0.0:
+        raise DashboardError(f"--vdc: the run's motor {meta.get('motor')!r} is unknown here; give --vdc in V")
+    name = " ".join(meta[k] for k in ("motor", "controller", "scenario") if k in meta) or path.stem
+    return ReplaySource(periods, float(vdc), ts_s, phases, name)
+
+
+def replay_to_rerun(source: ReplaySource, targets: RerunTargets) -> tuple[Any, str | None]:
+    """Send all periods of `source` to `targets`; returns (recording stream, web URL or None), flushed."""
+    rec, url = open_recording(targets, build_blueprint(phases=source.phases, vdc=source.vdc))
+    rec.send_recording_name(source.name)
+    streamer = PeriodStreamer(rec, vdc=source.vdc, ts_s=source.ts_s, legs=source.phases)
+    for start in range(0, len(source.periods), BLOCK):
+        streamer.send_block(source.periods[start:start + BLOCK])
+    rec.flush()
+    return rec, url

@@ -1,0 +1,133 @@
+"""Figures of the HTML report (matplotlib, Agg) as inline SVG text."""
+
+from __future__ import annotations
+
+import io
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from pmsm_hil.dashboards.report_data import RunData
+
+#: Harmonic orders shown in the spectra.
+MAX_ORDER = 40
+
+
+def _plt() -> Any:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    plt.rcParams.update({"font.size": 9, "axes.grid": True, "grid.alpha": 0.3, "svg.fonttype": "none"})
+    return plt
+
+
+def _svg(fig: Any) -> str:
+    buf = io.StringIO()
+    fig.savefig(buf, format="svg", bbox_inches="tight")
+    _plt().close(fig)
+    text = buf.getvalue()
+    return text[text.index("<svg"):]
+
+
+def _last_periods(run: RunData, periods: float = 2.0) -> np.ndarray:
+    """Mask of the last `periods` electrical periods of the run's waveform."""
+    f1 = run.fundamental_hz
+    span = periods / f1 if f1 > 0 and math.isfinite(f1) else 0.05
+    return np.asarray(run.t >= run.t[-1] - span)
+
+
+def waveforms(runs: Sequence[RunData]) -> str:
+    """Torque with its reference and the phase currents, last two electrical periods, one row per run."""
+    plt = _plt()
+    fig, axes = plt.subplots(len(runs), 2, figsize=(10, 2.3 * len(runs)), squeeze=False)
+    for row, run in zip(axes, runs, strict=True):
+        m = _last_periods(run)
+        t_ms = (run.t[m] - run.t[m][0]) * 1e3
+        row[0].plot(t_ms, run.torque[m], lw=0.8, label="torque")
+        row[0].plot(t_ms, run.torque_ref[m], lw=1.0, ls="--", label="reference")
+        row[0].set_ylabel("T [N·m]")
+        row[0].set_title(run.label, loc="left")
+        row[0].legend(loc="lower right", fontsize=7)
+        for k, name in enumerate(("i_a", "i_b", "i_c")):
+            row[1].plot(t_ms, run.currents[k][m], lw=0.8, label=name)
+        row[1].set_ylabel("i [A]")
+        row[1].legend(loc="lower right", fontsize=7, ncol=3)
+    for ax in axes[-1]:
+        ax.set_xlabel("t [ms]")
+    fig.tight_layout()
+    return _svg(fig)
+
+
+def harmonic_spectrum(run: RunData) -> tuple[np.ndarray, np.ndarray]:
+    """(orders 1..MAX_ORDER, amplitude [% of fundamental]) of i_a over a whole number of electrical periods,
+    resampled uniformly (the trace step is not exactly constant)."""
+    f1 = run.fundamental_hz
+    if not (f1 > 0 and math.isfinite(f1)):
+        return np.zeros(0), np.zeros(0)
+    span = run.t[-1] - run.t[0]
+    periods = math.floor(span * f1)
+    if periods < 1:
+        return np.zeros(0), np.zeros(0)
+    dt = float(np.median(np.diff(run.t)))
+    n = round(periods / f1 / dt)
+    t = run.t[-1] - periods / f1 + np.arange(n) * (periods / f1 / n)
+    x = np.interp(t, run.t, run.currents[0])
+    amp = np.abs(np.fft.rfft(x)) * 2.0 / n
+    orders = np.arange(1, MAX_ORDER + 1)
+    idx = orders * periods
+    idx = idx[idx < amp.shape[0]]
+    if idx.shape[0] == 0 or amp[idx[0]] == 0.0:
+        return np.zeros(0), np.zeros(0)
+    return orders[: idx.shape[0]], 100.0 * amp[idx] / amp[idx[0]]
+
+
+def spectra(runs: Sequence[RunData]) -> str:
+    """Harmonic spectra of i_a (orders 2..40, % of the fundamental), grouped bars per order."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(10, 3.0))
+    width = 0.8 / max(len(runs), 1)
+    for k, run in enumerate(runs):
+        orders, pct = harmonic_spectrum(run)
+        keep = orders >= 2
+        ax.bar(orders[keep] - 0.4 + (k + 0.5) * width, pct[keep], width=width,
+               label=f"{run.label} (THD {run.metrics.get('current_thd_pct', float('nan')):.2f} %)")
+    ax.set_xlabel("harmonic order of i_a")
+    ax.set_ylabel("amplitude [% of fundamental]")
+    ax.set_xlim(1.4, MAX_ORDER + 0.6)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return _svg(fig)
+
+
+BAR_METRICS = (("torque_ripple_rms_nm", "torque ripple RMS [N·m]", None),
+               ("current_thd_pct", "current THD h2..40 [%]", None),
+               ("switching_freq_khz", "switching frequency f_av [kHz]", None),
+               ("exec_time_us", "execution time, median [µs]", "median"))
+
+
+def _metric(run: RunData, key: str, sub: str | None) -> float:
+    value = run.metrics.get(key)
+    if sub is not None and isinstance(value, dict):
+        value = value.get(sub)
+    return float(value) if isinstance(value, (int, float)) else math.nan
+
+
+def bars(runs: Sequence[RunData]) -> str:
+    """Bar charts of ripple, THD, f_av and execution time per run."""
+    plt = _plt()
+    fig, axes = plt.subplots(1, len(BAR_METRICS), figsize=(12, 3.0))
+    labels = [r.label.split(" · ")[0] for r in runs]
+    colors = [f"C{k % 10}" for k in range(len(runs))]
+    for ax, (key, title, sub) in zip(axes, BAR_METRICS, strict=True):
+        values = [_metric(r, key, sub) for r in runs]
+        ax.bar(range(len(runs)), values, color=colors)
+        ax.set_xticks(range(len(runs)), labels, rotation=30, ha="right")
+        ax.set_title(title)
+        for x, v in enumerate(values):
+            if math.isfinite(v):
+                ax.annotate(f"{v:.3g}", (x, v), ha="center", va="bottom", fontsize=7)
+    fig.tight_layout()
+    return _svg(fig)

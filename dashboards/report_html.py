@@ -1,0 +1,94 @@
+"""`write_report`: a self-contained HTML page comparing runs (metrics table + inline SVG figures)."""
+
+from __future__ import annotations
+
+import html
+import math
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from pmsm_hil.dashboards import report_figures as fig
+from pmsm_hil.dashboards.errors import DashboardError
+from pmsm_hil.dashboards.report_data import RunData, load_run
+
+#: (header, metrics key, sub-key, format) of the metrics table.
+TABLE = (("controller", "controller", None, "{}"), ("scenario", "scenario", None, "{}"),
+         ("speed ref [rpm]", "speed_ref_rpm", None, "{:.0f}"), ("load [N·m]", "load_nm", None, "{:.2f}"),
+         ("speed mean [rpm]", "speed_mean_rpm", None, "{:.1f}"),
+         ("torque mean [N·m]", "torque_mean_nm", None, "{:.3f}"),
+         ("ripple RMS [N·m]", "torque_ripple_rms_nm", None, "{:.3f}"),
+         ("ripple p-p [N·m]", "torque_ripple_pp_nm", None, "{:.3f}"),
+         ("THD h2..40 [%]", "current_thd_pct", None, "{:.2f}"),
+         ("THD all [%]", "current_thd_total_pct", None, "{:.2f}"),
+         ("f_av [kHz]", "switching_freq_khz", None, "{:.2f}"), ("exec median [µs]", "exec_time_us", "median", "{:.3f}"),
+         ("exec p99 [µs]", "exec_time_us", "p99", "{:.3f}"), ("loop rate [periods/s]", "loop_rate_hz", None, "{:.0f}"),
+         ("end", "end_reason", None, "{}"))
+
+_CSS = """body{font-family:system-ui,sans-serif;margin:24px;color:#222;max-width:1280px}
+h1{font-size:22px}h2{font-size:17px;margin-top:28px;border-bottom:1px solid #ddd}
+table{border-collapse:collapse;font-size:13px}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}
+th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}.note{color:#666;font-size:12px}
+figure{margin:8px 0}svg{max-width:100%;height:auto}"""
+
+
+def _cell(metrics: dict[str, Any], key: str, sub: str | None, fmt: str) -> str:
+    value = metrics.get(key)
+    if sub is not None:
+        value = value.get(sub) if isinstance(value, dict) else None
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "–"
+    try:
+        return html.escape(fmt.format(value))
+    except (ValueError, TypeError):
+        return html.escape(str(value))
+
+
+def metrics_table(runs: Sequence[RunData]) -> str:
+    """HTML table: one row per metric, one column per run."""
+    head = "".join(f"<th>{html.escape(r.label)}</th>" for r in runs)
+    rows = [f"<tr><th>metric</th>{head}</tr>"]
+    for title, key, sub, fmt in TABLE:
+        cells = "".join(f"<td>{_cell(r.metrics, key, sub, fmt)}</td>" for r in runs)
+        rows.append(f"<tr><td>{html.escape(title)}</td>{cells}</tr>")
+    return "<table id=\"metrics\">" + "".join(rows) + "</table>"
+
+
+def render_report(runs: Sequence[RunData], title: str = "PMSM HIL run comparison") -> str:
+    """The complete HTML document (no external resources)."""
+    if not runs:
+        raise DashboardError("RUN_DIR: at least one run directory is needed")
+    sources = "; ".join(f"{html.escape(r.label)}: {html.escape(str(r.path))} ({r.source}, "
+                        f"{html.escape(r.metadata.get('motor', '?'))}, Ts = {r.metadata.get('ts_s', '?')} s)"
+                        for r in runs)
+    parts = [
+        "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\">",
+        f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
+        f"<h1>{html.escape(title)}</h1>",
+        f"<p class=\"note\">Generated {time.strftime('%Y-%m-%d %H:%M:%S')} by <code>hil report</code>. "
+        f"Runs: {sources}.</p>",
+        "<h2>Metrics (metrics window)</h2>", metrics_table(runs),
+        "<h2>Torque ripple, current THD, switching frequency, execution time</h2>",
+        f"<figure id=\"bars\">{fig.bars(runs)}</figure>",
+        "<h2>Torque and phase currents (last two electrical periods)</h2>",
+        f"<figure id=\"waveforms\">{fig.waveforms(runs)}</figure>",
+        "<h2>Harmonic spectrum of i_a</h2>",
+        f"<figure id=\"spectra\">{fig.spectra(runs)}</figure>",
+        "<p class=\"note\">THD h2..40: harmonics 2 to 40 of the electrical fundamental; THD all: every non-fundamental "
+        "component (see docs/metrics.md). Spectra are computed here from the logged waveform over a whole number "
+        "of electrical periods.</p>",
+        "</body></html>",
+    ]
+    return "\n".join(parts)
+
+
+def write_report(run_dirs: Sequence[Path], out: Path, title: str = "PMSM HIL run comparison") -> list[RunData]:
+    """Load `run_dirs`, write the self-contained HTML report to `out`; returns the runs."""
+    runs = [load_run(Path(d)) for d in run_dirs]
+    text = render_report(runs, title)
+    try:
+        out.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise DashboardError(f"-o {out}: {exc.strerror}") from None
+    return runs
