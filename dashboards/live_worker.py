@@ -11,7 +11,6 @@ from __future__ import annotations
 import contextlib
 import json
 import signal
-import struct
 from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any, Final
@@ -19,21 +18,16 @@ from typing import Any, Final
 import numpy as np
 from pmsm_hil.dashboards.recording import RerunTargets
 from pmsm_hil.hil.records import PERIOD_DTYPE
+from pmsm_hil.hil.runlog.channel import NOTICE, send_status
 from pmsm_hil.hil.runlog.ring import RingConsumer
 
-NOTICE: Final = struct.Struct("<BQQ")
 KIND_PERIODS: Final = 1
 KIND_FLUSH: Final = 8
 KIND_CLOSE: Final = 9
 
 
-def _send(conn: Connection, payload: bytes) -> None:
-    with contextlib.suppress(OSError):
-        conn.send_bytes(payload)
-
-
-def run_live_worker(notices: Connection, status: Connection, targets: RerunTargets, ring_path: str,
-                    ring_bytes: int, settings: dict[str, Any]) -> None:
+def run_live_worker(notices: Connection, status: Connection, ring_path: str, ring_bytes: int,
+                    targets: RerunTargets, settings: dict[str, Any]) -> None:
     """Live-dashboard process entry point (see module docstring)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
@@ -47,9 +41,9 @@ def run_live_worker(notices: Connection, status: Connection, targets: RerunTarge
             rec.send_recording_name(settings["name"])
         streamer = PeriodStreamer(rec, vdc=settings["vdc"], ts_s=settings["ts_s"], legs=settings["phases"])
     except Exception as exc:  # report setup failures to the loop process instead of a traceback
-        _send(status, b"E" + f"{type(exc).__name__}: {exc}".encode())
+        send_status(status, b"E" + f"{type(exc).__name__}: {exc}".encode())
         return
-    _send(status, b"R" + (url or "").encode())
+    send_status(status, b"R" + (url or "").encode())
     reason = "close"
     try:
         while True:
@@ -62,15 +56,15 @@ def run_live_worker(notices: Connection, status: Connection, targets: RerunTarge
                 streamer.send_block(np.frombuffer(ring.take(pos, nbytes), dtype=PERIOD_DTYPE))
             elif kind == KIND_FLUSH:
                 rec.flush()
-                _send(status, b"F")
+                send_status(status, b"F")
             elif kind == KIND_CLOSE:
                 break
         rec.flush()
     except Exception as exc:
         reason = "error"
-        _send(status, b"E" + f"live dashboard: {type(exc).__name__}: {exc}".encode())
+        send_status(status, b"E" + f"live dashboard: {type(exc).__name__}: {exc}".encode())
     finally:
         ring.close()
-    _send(status, b"D" + json.dumps({"periods": streamer.periods, "reason": reason}).encode())
+    send_status(status, b"D" + json.dumps({"periods": streamer.periods, "reason": reason}).encode())
     with contextlib.suppress(Exception):
         rec.disconnect()

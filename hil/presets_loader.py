@@ -2,43 +2,23 @@
 
 from __future__ import annotations
 
-from importlib import resources
-from pathlib import Path
 from typing import Any
 
-import tomllib
 from pmsm_hil.hil.errors import InputFileError, ParameterError
 from pmsm_hil.hil.motor_params import PmsmParams
+from pmsm_hil.hil.resources import bundled_names, load_toml
 
 _PRESET_PACKAGE = "pmsm_hil.hil.presets"
 
 
 def preset_names() -> list[str]:
     """Names of the bundled motor presets."""
-    root = resources.files(_PRESET_PACKAGE)
-    return sorted(p.name.removesuffix(".toml") for p in root.iterdir() if p.name.endswith(".toml"))
-
-
-def _read_preset_text(name_or_path: str) -> tuple[str, str]:
-    path = Path(name_or_path)
-    if path.suffix == ".toml" or path.exists():
-        try:
-            return path.read_text(encoding="utf-8"), str(path)
-        except OSError as exc:
-            raise InputFileError(f"motor file {path}: {exc.strerror}") from None
-    resource = resources.files(_PRESET_PACKAGE) / f"{name_or_path}.toml"
-    if not resource.is_file():
-        raise ParameterError(f"unknown motor preset '{name_or_path}' (bundled: {', '.join(preset_names())})")
-    return resource.read_text(encoding="utf-8"), name_or_path
+    return bundled_names(_PRESET_PACKAGE)
 
 
 def load_motor(name_or_path: str, overrides: dict[str, float] | None = None) -> PmsmParams:
     """Load a bundled preset by name or a TOML file, then apply overrides (SI units)."""
-    text, origin = _read_preset_text(name_or_path)
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputFileError(f"motor file {origin}: {exc}") from None
+    doc, origin = load_toml(name_or_path, _PRESET_PACKAGE, file_label="motor file", kind="motor preset")
     table = doc.get("parameters")
     if not isinstance(table, dict):
         raise InputFileError(f"motor file {origin}: missing [parameters] table")

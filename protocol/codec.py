@@ -19,9 +19,9 @@ from typing import Any, Literal, TypeVar
 
 from pmsm_hil.protocol import codec6
 from pmsm_hil.protocol.assembler import Assembler, DecodeStats
-from pmsm_hil.protocol.errors import DatabaseError, DecodeError, EncodeError
+from pmsm_hil.protocol.errors import DecodeError, EncodeError
 from pmsm_hil.protocol.frame import Frame
-from pmsm_hil.protocol.layout import FrameLayout, load_layouts
+from pmsm_hil.protocol.layout import FrameLayout, expect_layout, load_layouts
 from pmsm_hil.protocol.messages import (
     Command,
     ConfigAck,
@@ -41,37 +41,27 @@ MAX_STATES = 3
 _L = load_layouts()
 
 
-def _expect(name: str, signals: tuple[str, ...]) -> FrameLayout:
-    layout = _L.get(name)
-    if layout is None:
-        raise DatabaseError(f"hil.dbc lacks message {name}")
-    found = tuple(s.name for s in layout.signals)
-    if found != signals:
-        raise DatabaseError(f"hil.dbc {name}: signals {found}, codec expects {signals}")
-    return layout
-
-
 _CMD_PACKED = ("state0", "state1", "state2", "n_states", "duration0")
-L_MEAS_A = _expect("MeasA", ("seq", "i_a", "i_b", "i_c"))
-L_MEAS_B = _expect("MeasB", ("seq_lo", "theta_e", "omega_m", "vdc", "status"))
-L_MEAS_FD = _expect("MeasFd", ("seq", "i_a", "i_b", "i_c", "theta_e", "omega_m", "vdc", "status"))
-L_CMD_A = _expect("CmdA", ("seq", *_CMD_PACKED, "vector_id"))
-L_CMD_B = _expect("CmdB", ("seq", "duration1", "duration2", "candidates"))
-L_CMD_C = _expect("CmdC", ("seq", "exec_time_ns", "status", "mirror"))
-L_CMD_FD = _expect(
+L_MEAS_A = expect_layout("MeasA", ("seq", "i_a", "i_b", "i_c"))
+L_MEAS_B = expect_layout("MeasB", ("seq_lo", "theta_e", "omega_m", "vdc", "status"))
+L_MEAS_FD = expect_layout("MeasFd", ("seq", "i_a", "i_b", "i_c", "theta_e", "omega_m", "vdc", "status"))
+L_CMD_A = expect_layout("CmdA", ("seq", *_CMD_PACKED, "vector_id"))
+L_CMD_B = expect_layout("CmdB", ("seq", "duration1", "duration2", "candidates"))
+L_CMD_C = expect_layout("CmdC", ("seq", "exec_time_ns", "status", "mirror"))
+L_CMD_FD = expect_layout(
     "CmdFd",
     ("seq", *_CMD_PACKED, "duration1", "duration2", "vector_id", "candidates", "exec_time_ns", "status", "mirror"),
 )
-L_SETPOINT = _expect("Setpoint", ("enable", "mode", "reference", "controller_id"))
-L_CONFIG = _expect("ConfigParam", ("param_id", "value"))
-L_CONFIG_ACK = _expect("ConfigAck", ("param_id", "value", "status"))
+L_SETPOINT = expect_layout("Setpoint", ("enable", "mode", "reference", "controller_id"))
+L_CONFIG = expect_layout("ConfigParam", ("param_id", "value"))
+L_CONFIG_ACK = expect_layout("ConfigAck", ("param_id", "value", "status"))
 L_FAULT = (
-    _expect("FaultHost", ("node", "code", "detail")),
-    _expect("FaultTarget", ("node", "code", "detail")),
+    expect_layout("FaultHost", ("node", "code", "detail")),
+    expect_layout("FaultTarget", ("node", "code", "detail")),
 )
 L_HEARTBEAT = (
-    _expect("HeartbeatHost", ("node", "state", "counter")),
-    _expect("HeartbeatTarget", ("node", "state", "counter")),
+    expect_layout("HeartbeatHost", ("node", "state", "counter")),
+    expect_layout("HeartbeatTarget", ("node", "state", "counter")),
 )
 
 _S_I = L_MEAS_A.signal("i_a").scale

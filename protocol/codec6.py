@@ -8,27 +8,14 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from pmsm_hil.protocol.errors import DatabaseError, EncodeError
-from pmsm_hil.protocol.layout import FrameLayout, load_layouts
+from pmsm_hil.protocol.errors import EncodeError
+from pmsm_hil.protocol.layout import expect_layout
 from pmsm_hil.protocol.messages import Measurement6
 
-_L = load_layouts()
-
-
-def _expect(name: str, signals: tuple[str, ...]) -> FrameLayout:
-    layout = _L.get(name)
-    if layout is None:
-        raise DatabaseError(f"hil.dbc lacks message {name}")
-    found = tuple(s.name for s in layout.signals)
-    if found != signals:
-        raise DatabaseError(f"hil.dbc {name}: signals {found}, codec expects {signals}")
-    return layout
-
-
-L_MEAS6_A = _expect("Meas6A", ("seq", "i_a", "i_b", "i_c"))
-L_MEAS6_C = _expect("Meas6C", ("seq", "i_u", "i_v", "i_w"))
-L_MEAS6_B = _expect("Meas6B", ("seq_lo", "theta_e", "omega_m", "vdc", "status"))
-L_MEAS_FD6 = _expect(
+L_MEAS6_A = expect_layout("Meas6A", ("seq", "i_a", "i_b", "i_c"))
+L_MEAS6_C = expect_layout("Meas6C", ("seq", "i_u", "i_v", "i_w"))
+L_MEAS6_B = expect_layout("Meas6B", ("seq_lo", "theta_e", "omega_m", "vdc", "status"))
+L_MEAS_FD6 = expect_layout(
     "MeasFd6", ("seq", "i_a", "i_b", "i_c", "i_u", "i_v", "i_w", "theta_e", "omega_m", "vdc", "status")
 )
 S_I6 = L_MEAS6_A.signal("i_a").scale

@@ -201,6 +201,18 @@ def load_layouts(path: Path = DBC_PATH) -> dict[str, FrameLayout]:
     return layouts
 
 
+def expect_layout(name: str, signals: tuple[str, ...]) -> FrameLayout:
+    """The compiled layout of DBC message `name`; DatabaseError unless `hil.dbc` has it with exactly
+    the signals `signals`, in that order (what the hand-written codec relies on)."""
+    layout = load_layouts().get(name)
+    if layout is None:
+        raise DatabaseError(f"hil.dbc lacks message {name}")
+    found = tuple(s.name for s in layout.signals)
+    if found != signals:
+        raise DatabaseError(f"hil.dbc {name}: signals {found}, codec expects {signals}")
+    return layout
+
+
 @cache
 def load_database(path: Path = DBC_PATH) -> Any:
     """The cantools database (for tools and cross-checks; not used on the hot path)."""

@@ -21,6 +21,7 @@ from pmsm_hil.protocol.links.peer import EchoPeer
 from pmsm_hil.protocol.messages import Command, Measurement
 
 UDP_BENCH_PORTS = (47390, 47391)
+_BENCH_FRAME = Frame(0x108, bytes(range(16)), True)  # CAN FD, 16 bytes: the round-trip payload
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -100,8 +101,18 @@ def codec_costs(count: int, repeats: int) -> dict[str, dict[str, float]]:
     return {profile: _profile_costs(profile, count, repeats) for profile in PROFILES}
 
 
+def _rtt_summary(rtts_us: list[float]) -> dict[str, float]:
+    """Median and p99 (µs) of the round-trip times `rtts_us`, and their count."""
+    rtts_us = sorted(rtts_us)
+    return {
+        "median_us": rtts_us[len(rtts_us) // 2],
+        "p99_us": rtts_us[int(len(rtts_us) * 0.99) - 1],
+        "count": float(len(rtts_us)),
+    }
+
+
 def _round_trips(link: Link, count: int) -> dict[str, float]:
-    frame = Frame(0x108, bytes(range(16)), True)
+    frame = _BENCH_FRAME
     rtts = []
     for _ in range(count):
         t0 = time.perf_counter_ns()
@@ -110,19 +121,14 @@ def _round_trips(link: Link, count: int) -> dict[str, float]:
         if back is None:
             raise ProtocolError("round trip timed out after 1 s")
         rtts.append((time.perf_counter_ns() - t0) / 1000.0)
-    rtts.sort()
-    return {
-        "median_us": rtts[len(rtts) // 2],
-        "p99_us": rtts[int(len(rtts) * 0.99) - 1],
-        "count": float(count),
-    }
+    return _rtt_summary(rtts)
 
 
 def _virtual(count: int) -> dict[str, float]:
     host = open_link("virtual:bench_link", "host")
     target = open_link("virtual:bench_link", "target")
     try:
-        frame = Frame(0x108, bytes(range(16)), True)
+        frame = _BENCH_FRAME
         rtts = []
         for _ in range(count):
             t0 = time.perf_counter_ns()
@@ -134,12 +140,7 @@ def _virtual(count: int) -> dict[str, float]:
             if host.recv(1.0) is None:
                 raise ProtocolError("virtual round trip lost a frame")
             rtts.append((time.perf_counter_ns() - t0) / 1000.0)
-        rtts.sort()
-        return {
-            "median_us": rtts[len(rtts) // 2],
-            "p99_us": rtts[int(len(rtts) * 0.99) - 1],
-            "count": float(count),
-        }
+        return _rtt_summary(rtts)
     finally:
         host.close()
         target.close()

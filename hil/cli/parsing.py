@@ -32,25 +32,24 @@ def positive_float(name: str) -> Callable[[str], float]:
     return parse
 
 
+def _int_at_least(text: str, minimum: int, not_int: str, too_small: str) -> int:
+    """`int(text)` if ≥ `minimum`; else ArgumentTypeError "<not_int|too_small>, got '<text>'"."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{not_int}, got {text!r}") from None
+    if value < minimum:
+        raise argparse.ArgumentTypeError(f"{too_small}, got {text!r}")
+    return value
+
+
 def non_negative_int(name: str) -> Callable[[str], int]:
     """Parser for an integer ≥ 0."""
     def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} must be an integer, got {text!r}") from None
-        if value < 0:
-            raise argparse.ArgumentTypeError(f"{name} must be ≥ 0, got {text!r}")
-        return value
+        return _int_at_least(text, 0, f"{name} must be an integer", f"{name} must be ≥ 0")
     return parse
 
 
 def positive_int(text: str) -> int:
     """Parser for a whole number ≥ 1 (counts: periods, steps, repeats)."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number ≥ 1, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number ≥ 1, got {text!r}")
-    return value
+    return _int_at_least(text, 1, "expected a whole number ≥ 1", "expected a whole number ≥ 1")

@@ -4,12 +4,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from importlib import resources
-from pathlib import Path
 from typing import Any
 
-import tomllib
 from pmsm_hil.hil.errors import InputFileError, ParameterError
+from pmsm_hil.hil.resources import bundled_names, load_toml
 from pmsm_hil.hil.runner.run_config import PARAM_VALUE_NAMES, param_id
 
 _PACKAGE = "pmsm_hil.hil.compare.presets"
@@ -72,21 +70,7 @@ class ComparePreset:
 
 def preset_names() -> list[str]:
     """Bundled preset names."""
-    root = resources.files(_PACKAGE)
-    return sorted(p.name.removesuffix(".toml") for p in root.iterdir() if p.name.endswith(".toml"))
-
-
-def _read(name_or_path: str) -> tuple[str, str]:
-    path = Path(name_or_path)
-    if path.suffix == ".toml" or path.exists():
-        try:
-            return path.read_text(encoding="utf-8"), str(path)
-        except OSError as exc:
-            raise InputFileError(f"compare preset {path}: {exc.strerror}") from None
-    res = resources.files(_PACKAGE) / f"{name_or_path}.toml"
-    if not res.is_file():
-        raise ParameterError(f"unknown compare preset '{name_or_path}' (bundled: {', '.join(preset_names())})")
-    return res.read_text(encoding="utf-8"), name_or_path
+    return bundled_names(_PACKAGE)
 
 
 def _num(doc: dict[str, Any], key: str, origin: str) -> float | None:
@@ -100,11 +84,7 @@ def _num(doc: dict[str, Any], key: str, origin: str) -> float | None:
 
 def load_preset(name_or_path: str) -> ComparePreset:
     """Load a bundled preset by name or a TOML file; errors name the key."""
-    text, origin = _read(name_or_path)
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputFileError(f"compare preset {origin}: {exc}") from None
+    doc, origin = load_toml(name_or_path, _PACKAGE, file_label="compare preset", kind="compare preset")
     known = {"name", "motor", "scenario", "controllers", "ts_s", "settle_s", "duration_s", "speed_rpm", "load_nm",
              "sweep", "equal_fav", "figure", "description", "paper", "paper_note", "params", "variants",
              "theta0_rad", "evaluation", "points"}

@@ -2,33 +2,28 @@
 
 Each submit copies the block into a shared-memory ring (one memcpy) and sends a 17-byte notice over a
 pipe, so the caller's cost is a few µs per 1000-period block plus the copy, and no Python objects are
-pickled. The logger process (spawn context) encodes and writes MCAP; see docs/logging.md.
+pickled. The logger process (spawn context) encodes and writes MCAP; see docs/logging.md. The process,
+ring and pipes are handled by `pmsm_hil.hil.runlog.worker_client.WorkerClient`.
 """
 
 from __future__ import annotations
 
-import contextlib
-import json
-import multiprocessing
-import time
 from collections.abc import Mapping
-from multiprocessing.process import BaseProcess
 from pathlib import Path
 from types import TracebackType
-from typing import Any
 
 import numpy as np
 from pmsm_hil.hil.records import FRAME_DTYPE, PERIOD_DTYPE, TRACE_DTYPE
 from pmsm_hil.hil.runlog import topics
 from pmsm_hil.hil.runlog.errors import LoggerDiedError, RunLogError
-from pmsm_hil.hil.runlog.ring import RingProducer
 from pmsm_hil.hil.runlog.sink import COMPRESSIONS
-from pmsm_hil.hil.runlog.worker import NOTICE, run_worker
+from pmsm_hil.hil.runlog.worker import run_worker
+from pmsm_hil.hil.runlog.worker_client import WorkerClient
 
 DEFAULT_RING_BYTES = 64 * 1024 * 1024
 
 
-class RunLogger:
+class RunLogger(WorkerClient):
     """Context manager writing period, frame and trace blocks to an MCAP file from a separate process.
 
     `flush_interval_s` (s): the logger ends its chunk and fsyncs at least this often, so a kill loses
@@ -48,9 +43,7 @@ class RunLogger:
         start_timeout_s: float = 60.0,
         stall_timeout_s: float = 10.0,
     ) -> None:
-        self._closed = True
-        self.final_stats: dict[str, Any] | None = None
-        self._error: str | None = None
+        super().__init__()
         path = Path(path)
         if not path.parent.is_dir():
             raise RunLogError(f"path: directory {path.parent} does not exist")
@@ -62,37 +55,14 @@ class RunLogger:
         if start_method not in ("spawn", "forkserver"):
             raise RunLogError(f"start_method: expected 'spawn' or 'forkserver', got {start_method!r}")
         self.path = path
-        self._stall_timeout_s = stall_timeout_s
-        self._ring = RingProducer(ring_bytes)
-        ctx = multiprocessing.get_context(start_method)
-        notice_r, self._notices = ctx.Pipe(duplex=False)
-        self._status, status_w = ctx.Pipe(duplex=False)
-        self._proc: BaseProcess = ctx.Process(  # type: ignore[attr-defined]
-            target=run_worker,
-            name="hil-runlog",
-            args=(
-                notice_r,
-                status_w,
-                str(path),
-                meta,
-                float(flush_interval_s),
-                str(self._ring.path),
-                ring_bytes,
-                compression,
-            ),
-            daemon=True,
-        )
         try:
-            self._proc.start()
+            self._start_worker(run_worker, (str(path), meta, float(flush_interval_s), compression),
+                               name="hil-runlog", start_method=start_method, ring_bytes=ring_bytes,
+                               stall_timeout_s=stall_timeout_s)
         except OSError as exc:
-            self._ring.close()
             raise RunLogError(f"run logger: cannot start the logger process ({exc})") from None
-        finally:
-            notice_r.close()
-            status_w.close()
-        self._closed = False
-        self._await_ready(start_timeout_s)
-        self._ring.unlink()
+        if self._await_ready(start_timeout_s) is None:
+            raise LoggerDiedError(self._error or f"run logger: process did not start within {start_timeout_s} s")
 
     @staticmethod
     def _check_metadata(metadata: Mapping[str, str]) -> dict[str, str]:
@@ -103,37 +73,8 @@ class RunLogger:
                 raise RunLogError(f"metadata[{key!r}]: keys and values must be str, got {value!r}")
         return dict(metadata)
 
-    def _await_ready(self, timeout_s: float) -> None:
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            if self._status.poll(0.05):
-                msg = self._read_status()
-                if msg == b"R":
-                    return
-                break
-            if not self._proc.is_alive():
-                break
-        self._abort()
-        raise LoggerDiedError(self._error or f"run logger: process did not start within {timeout_s} s")
-
-    def _read_status(self) -> bytes | None:
-        try:
-            msg = self._status.recv_bytes()
-        except (EOFError, OSError):
-            return None
-        if msg[:1] == b"E":
-            self._error = msg[1:].decode(errors="replace")
-        elif msg[:1] == b"D":
-            self.final_stats = dict(json.loads(msg[1:]))
-        return msg[:1]
-
-    def _alive(self) -> bool:
-        return self._proc.is_alive()
-
     def _died(self) -> LoggerDiedError:
-        while self._status.poll(0):
-            if self._read_status() is None:
-                break
+        self._drain_status()
         self._proc.join(0.5)
         detail = f": {self._error}" if self._error else ""
         return LoggerDiedError(f"run logger: logger process died (exit code {self._proc.exitcode}){detail}")
@@ -148,15 +89,10 @@ class RunLogger:
             return
         if self._error is not None or self._status.poll(0):
             raise self._died()
-        payload = np.ascontiguousarray(block).view(np.uint8)
-        step = max(1, self._ring.capacity // (4 * dtype.itemsize)) * dtype.itemsize
-        for start in range(0, payload.shape[0], step):
-            piece = payload[start : start + step]
-            pos = self._ring.put(piece, self._alive, self._stall_timeout_s)
-            try:
-                self._notices.send_bytes(NOTICE.pack(kind, pos, piece.shape[0]))
-            except OSError:
-                raise self._died() from None
+        try:
+            self._push(kind, block, dtype.itemsize)
+        except OSError:
+            raise self._died() from None
 
     def submit_periods(self, block: np.ndarray) -> None:
         """Queue a PERIOD_DTYPE block (one MCAP message per period on /periods)."""
@@ -175,44 +111,18 @@ class RunLogger:
         """Process id of the logger process."""
         return self._proc.pid
 
-    @property
-    def stall_s(self) -> float:
-        """Total time (s) submits waited for ring space because the logger was behind."""
-        return float(self._ring.stall_s)
-
     def close(self, timeout_s: float = 60.0) -> None:
         """Finalise the file (summary, footer) and stop the logger process; idempotent.
 
         Raises LoggerDiedError (once) if the logger reported an error or did not end cleanly."""
         if self._closed:
             return
-        self._closed = True
-        with contextlib.suppress(OSError):
-            self._notices.send_bytes(NOTICE.pack(topics.KIND_CLOSE, 0, 0))
-        self._proc.join(timeout_s)
-        if self._proc.is_alive():
+        if not self._stop_worker(topics.KIND_CLOSE, timeout_s):
             self._error = self._error or f"run logger: logger did not finish within {timeout_s} s"
-        self._abort()
         if self._error is not None:
             raise LoggerDiedError(self._error)
         if self._proc.exitcode != 0:
             raise LoggerDiedError(f"run logger: logger process exit code {self._proc.exitcode}")
-
-    def _abort(self) -> None:
-        """Collect the last status messages, stop the process if needed and release the pipes and ring."""
-        self._closed = True
-        while self._status.poll(0):
-            if self._read_status() is None:
-                break
-        if self._proc.is_alive():
-            self._proc.terminate()
-            self._proc.join(5.0)
-        if self._proc.is_alive():
-            self._proc.kill()
-            self._proc.join(5.0)
-        self._notices.close()
-        self._status.close()
-        self._ring.close()
 
     def __enter__(self) -> RunLogger:
         return self

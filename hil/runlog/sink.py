@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Mapping
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import BinaryIO
 
@@ -59,21 +59,22 @@ class McapSink:
 
     def write_periods(self, raw: bytes) -> None:
         """Write one message per period of the PERIOD_DTYPE block `raw`."""
-        block = np.frombuffer(raw, dtype=PERIOD_DTYPE)
-        times = encoding.periods_log_times_ns(block)
-        add, ch = self._writer.add_message, self._ch_periods
-        for t_ns, msg, seq in zip(times, encoding.encode_periods(block), block["seq"].tolist(), strict=True):
-            add(ch, t_ns, msg, t_ns, seq)
-        self.counts["periods"] += block.shape[0]
+        self._write_records(np.frombuffer(raw, dtype=PERIOD_DTYPE), encoding.encode_periods, self._ch_periods,
+                            "periods")
 
     def write_frames(self, raw: bytes) -> None:
         """Write one message per frame of the FRAME_DTYPE block `raw`."""
-        block = np.frombuffer(raw, dtype=FRAME_DTYPE)
+        self._write_records(np.frombuffer(raw, dtype=FRAME_DTYPE), encoding.encode_frames, self._ch_frames,
+                            "frames")
+
+    def _write_records(self, block: np.ndarray, encode: Callable[[np.ndarray], Iterable[bytes]], channel: int,
+                       count_key: str) -> None:
+        """One message per record of `block` (encoded by `encode`), stamped with its time, sequence = seq."""
         times = encoding.periods_log_times_ns(block)
-        add, ch = self._writer.add_message, self._ch_frames
-        for t_ns, msg, seq in zip(times, encoding.encode_frames(block), block["seq"].tolist(), strict=True):
-            add(ch, t_ns, msg, t_ns, seq)
-        self.counts["frames"] += block.shape[0]
+        add = self._writer.add_message
+        for t_ns, msg, seq in zip(times, encode(block), block["seq"].tolist(), strict=True):
+            add(channel, t_ns, msg, t_ns, seq)
+        self.counts[count_key] += block.shape[0]
 
     def write_trace(self, raw: bytes) -> None:
         """Write the TRACE_DTYPE block `raw` as one CDR message stamped with its first sample time."""

@@ -8,11 +8,9 @@ Status messages to the runner: b"R" ready, b"E" + text fatal error, b"D" + JSON 
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
 import signal
-import struct
 import time
 from multiprocessing.connection import Connection
 from pathlib import Path
@@ -20,26 +18,21 @@ from types import FrameType
 from typing import Any, Final
 
 from pmsm_hil.hil.runlog import topics
+from pmsm_hil.hil.runlog.channel import NOTICE, send_status
 from pmsm_hil.hil.runlog.ring import RingConsumer
 from pmsm_hil.hil.runlog.sink import McapSink
 
-NOTICE: Final = struct.Struct("<BQQ")
 MAX_POLL_S: Final = 0.2
-
-
-def _send(conn: Connection, payload: bytes) -> None:
-    with contextlib.suppress(OSError):  # the runner may be gone; nothing to tell then
-        conn.send_bytes(payload)
 
 
 def run_worker(
     notices: Connection,
     status: Connection,
+    ring_path: str,
+    ring_bytes: int,
     path: str,
     metadata: dict[str, str],
     flush_interval_s: float,
-    ring_path: str,
-    ring_bytes: int,
     compression: str,
 ) -> None:
     """Logger process entry point (see module docstring)."""
@@ -54,9 +47,9 @@ def run_worker(
         ring = RingConsumer(Path(ring_path), ring_bytes)
         sink = McapSink(Path(path), metadata, compression)
     except Exception as exc:  # report any setup failure to the runner instead of a traceback
-        _send(status, b"E" + f"run logger: cannot open {path}: {exc}".encode())
+        send_status(status, b"E" + f"run logger: cannot open {path}: {exc}".encode())
         return
-    _send(status, b"R")
+    send_status(status, b"R")
     stats: dict[str, Any] = {"reason": "close", "busy_s": 0.0, "flushes": 0}
     writers = {
         topics.KIND_PERIODS: sink.write_periods,
@@ -92,11 +85,11 @@ def run_worker(
             stats["reason"] = stop[0]
     except Exception as exc:  # keep the data written so far; tell the runner
         stats["reason"] = "error"
-        _send(status, b"E" + f"run logger: {type(exc).__name__}: {exc}".encode())
+        send_status(status, b"E" + f"run logger: {type(exc).__name__}: {exc}".encode())
     finally:
         try:
             sink.close()
         finally:
             ring.close()
     stats.update(sink.counts)
-    _send(status, b"D" + json.dumps(stats).encode())
+    send_status(status, b"D" + json.dumps(stats).encode())

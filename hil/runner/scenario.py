@@ -4,13 +4,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields, replace
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
-import tomllib
 from pmsm_hil.hil.errors import InputFileError, ParameterError
 from pmsm_hil.hil.mechanics import LoadProfile
+from pmsm_hil.hil.resources import bundled_names, load_toml
 
 _PACKAGE = "pmsm_hil.hil.scenarios"
 
@@ -102,27 +101,12 @@ class Scenario:
 
 def scenario_names() -> list[str]:
     """Bundled scenario names."""
-    root = resources.files(_PACKAGE)
-    return sorted(p.name.removesuffix(".toml") for p in root.iterdir() if p.name.endswith(".toml"))
+    return bundled_names(_PACKAGE)
 
 
 def load_scenario(name_or_path: str) -> Scenario:
     """Load a bundled scenario by name or a TOML scenario file; errors name the key."""
-    path = Path(name_or_path)
-    if path.suffix == ".toml" or path.exists():
-        try:
-            text, origin = path.read_text(encoding="utf-8"), str(path)
-        except OSError as exc:
-            raise InputFileError(f"scenario file {path}: {exc.strerror}") from None
-    else:
-        res = resources.files(_PACKAGE) / f"{name_or_path}.toml"
-        if not res.is_file():
-            raise ParameterError(f"unknown scenario '{name_or_path}' (bundled: {', '.join(scenario_names())})")
-        text, origin = res.read_text(encoding="utf-8"), name_or_path
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputFileError(f"scenario file {origin}: {exc}") from None
+    doc, origin = load_toml(name_or_path, _PACKAGE, file_label="scenario file", kind="scenario")
     known = {f.name for f in fields(Scenario)}
     unknown = set(doc) - known
     if unknown:
@@ -138,6 +122,7 @@ def load_scenario(name_or_path: str) -> Scenario:
             doc[key] = _load_steps(value, origin)
         elif not isinstance(value, (int, float)) or isinstance(value, bool):
             raise InputFileError(f"scenario file {origin}: '{key}' must be a number")
+    path = Path(name_or_path)
     doc.setdefault("name", path.stem if path.suffix else name_or_path)
     try:
         values: dict[str, Any] = {k: (float(v) if isinstance(v, int) and not isinstance(v, bool) else v)

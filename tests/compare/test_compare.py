@@ -9,7 +9,9 @@ from pathlib import Path
 import pytest
 from pmsm_hil.hil.cli.main import main
 from pmsm_hil.hil.compare import load_preset, preset_names, run_preset
-from pmsm_hil.hil.errors import InputFileError, ParameterError
+from pmsm_hil.hil.errors import ParameterError
+
+from tests.compare._presets import assert_rejected, preset_file
 
 
 def test_bundled_presets_load() -> None:
@@ -25,24 +27,19 @@ def test_bundled_presets_load() -> None:
 def test_bad_presets_name_the_key(tmp_path: Path) -> None:
     with pytest.raises(ParameterError, match="unknown compare preset"):
         load_preset("nope")
-    bad = tmp_path / "bad.toml"
-    bad.write_text('name = "x"\nmotor = "niu2020-ipmsm"\nscenario = "steady"\ncontrollers = []\n', encoding="utf-8")
-    with pytest.raises(InputFileError, match="controllers"):
-        load_preset(str(bad))
-    bad.write_text('name = "x"\nmotor = "m"\nscenario = "s"\ncontrollers = ["mpcc"]\nfigure = "pie"\n',
-                   encoding="utf-8")
-    with pytest.raises(InputFileError, match="figure"):
-        load_preset(str(bad))
+    assert_rejected(tmp_path, 'name = "x"\nmotor = "niu2020-ipmsm"\nscenario = "steady"\ncontrollers = []\n',
+                    "controllers")
+    assert_rejected(tmp_path, 'name = "x"\nmotor = "m"\nscenario = "s"\ncontrollers = ["mpcc"]\nfigure = "pie"\n',
+                    "figure")
 
 
 def _short_preset(tmp_path: Path) -> Path:
-    path = tmp_path / "short.toml"
-    path.write_text(
+    return preset_file(
+        tmp_path,
         'name = "short"\nmotor = "niu2020-ipmsm"\nscenario = "steady"\ncontrollers = ["mpcc", "dsvm-20"]\n'
         'settle_s = 0.04\nduration_s = 0.04\nfigure = "bars"\n'
         'equal_fav = { reference = "dsvm-20", adjust = "mpcc" }\n'
-        '[paper]\n"mpcc" = { torque_ripple_nm = 0.58 }\n', encoding="utf-8")
-    return path
+        '[paper]\n"mpcc" = { torque_ripple_nm = 0.58 }\n', "short.toml")
 
 
 def test_equal_fav_search_matches_switching_frequency(tmp_path: Path) -> None:

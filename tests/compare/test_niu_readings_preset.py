@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import pytest
-from pmsm_hil.hil.compare import load_preset, run_preset
-from pmsm_hil.hil.errors import InputFileError
+from pmsm_hil.hil.compare import load_preset
+
+from tests.compare._presets import assert_rejected, run_text
 
 HEAD = 'name = "x"\nmotor = "niu2020-ipmsm"\nscenario = "steady"\ncontrollers = ["fcs-mpc-2"]\n'
 
@@ -21,20 +21,14 @@ def test_readings_preset_points_and_variants() -> None:
 
 
 def test_bad_points_name_the_key(tmp_path: Path) -> None:
-    bad = tmp_path / "bad.toml"
     for body, match in (("points = []\n", "points"), ("points = [{ rpm = 1.0 }]\n", r"points\[0\]"),
                         ('points = [{ load_nm = "x" }]\n', "load_nm"),
                         ('points = [{ load_nm = 1.0 }]\nsweep = { key = "load_nm", values = [1.0] }\n', "not both")):
-        bad.write_text(HEAD + body, encoding="utf-8")
-        with pytest.raises(InputFileError, match=match):
-            load_preset(str(bad))
+        assert_rejected(tmp_path, HEAD + body, match)
 
 
 def test_points_run_once_each(tmp_path: Path) -> None:
-    path = tmp_path / "pts.toml"
-    path.write_text(HEAD + "settle_s = 0.02\nduration_s = 0.02\n"
-                    "points = [{ speed_rpm = 1500.0, load_nm = 7.0 }, { speed_rpm = 750.0, load_nm = 3.5 }]\n",
-                    encoding="utf-8")
-    res = run_preset(load_preset(str(path)))
+    res = run_text(tmp_path, HEAD + "settle_s = 0.02\nduration_s = 0.02\n"
+                   "points = [{ speed_rpm = 1500.0, load_nm = 7.0 }, { speed_rpm = 750.0, load_nm = 3.5 }]\n")
     assert [(r["speed_rpm"], r["load_nm"]) for r in res.rows] == [(1500.0, 7.0), (750.0, 3.5)]
     assert all(r["end_reason"] == "completed" and r["candidate_miss_rate"] is not None for r in res.rows)

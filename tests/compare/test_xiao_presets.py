@@ -5,10 +5,11 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from pmsm_hil.hil.compare import load_preset, run_preset
+from pmsm_hil.hil.compare import load_preset
 from pmsm_hil.hil.compare.runs import evaluation_e
 from pmsm_hil.hil.compare.spread import aggregate
-from pmsm_hil.hil.errors import InputFileError
+
+from tests.compare._presets import assert_rejected, run_text
 
 
 def test_tthr_sweep_preset_has_both_zero_rules() -> None:
@@ -37,28 +38,20 @@ def test_aggregate_mean_and_spread() -> None:
 
 
 def test_bad_variant_and_param_name_the_key(tmp_path: Path) -> None:
-    bad = tmp_path / "bad.toml"
     head = 'name = "x"\nmotor = "xiao2023-spmsm"\nscenario = "steady"\n'
-    bad.write_text(head + '[[variants]]\nlabel = "a"\ncontroller = "hv-mpfc"\nparams = { zero_select = "lots" }\n',
-                   encoding="utf-8")
-    with pytest.raises(InputFileError, match="zero_select"):
-        load_preset(str(bad))
-    bad.write_text(head + 'controllers = ["3vmpc"]\nparams = { nope = 1.0 }\n', encoding="utf-8")
-    with pytest.raises(InputFileError, match="nope"):
-        load_preset(str(bad))
-    bad.write_text(head + 'controllers = ["3vmpc"]\ntheta0_rad = []\n', encoding="utf-8")
-    with pytest.raises(InputFileError, match="theta0_rad"):
-        load_preset(str(bad))
+    assert_rejected(tmp_path, head + '[[variants]]\nlabel = "a"\ncontroller = "hv-mpfc"\n'
+                    'params = { zero_select = "lots" }\n', "zero_select")
+    assert_rejected(tmp_path, head + 'controllers = ["3vmpc"]\nparams = { nope = 1.0 }\n', "nope")
+    assert_rejected(tmp_path, head + 'controllers = ["3vmpc"]\ntheta0_rad = []\n', "theta0_rad")
 
 
 def test_short_variant_run_spreads_over_rotor_angles(tmp_path: Path) -> None:
-    path = tmp_path / "short.toml"
-    path.write_text(
+    res = run_text(
+        tmp_path,
         'name = "short"\nmotor = "xiao2023-spmsm"\nscenario = "steady"\nspeed_rpm = 1000.0\nload_nm = 4.0\n'
         'settle_s = 0.03\nduration_s = 0.03\ntheta0_rad = [0.0, 1.0]\n'
         'evaluation = { torque_base_nm = 6.0, fav_base_khz = 6.67 }\n'
-        '[[variants]]\nlabel = "hv 15"\ncontroller = "hv-mpfc"\nparams = { t_thr = 15e-6 }\n', encoding="utf-8")
-    res = run_preset(load_preset(str(path)))
+        '[[variants]]\nlabel = "hv 15"\ncontroller = "hv-mpfc"\nparams = { t_thr = 15e-6 }\n')
     assert [r["theta0_rad"] for r in res.rows] == [0.0, 1.0]
     assert all(r["label"] == "hv 15" and r["end_reason"] == "completed" for r in res.rows)
     assert all(r["narrow_pulses"] == 0 for r in res.rows)  # T_THR 15 µs > T_lim = 8 µs

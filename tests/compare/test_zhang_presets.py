@@ -4,9 +4,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pmsm_hil.hil.compare import load_preset, run_preset
+from pmsm_hil.hil.compare import load_preset
 from pmsm_hil.hil.compare.spread import aggregate
 from pmsm_hil.hil.compare.table import format_table
+
+from tests.compare._presets import run_text
 
 
 def test_zhang_presets_load() -> None:
@@ -24,11 +26,9 @@ def test_zhang_presets_load() -> None:
 
 
 def test_trip_is_a_row_and_six_phase_metrics_reach_the_table(tmp_path: Path) -> None:
-    path = tmp_path / "z.toml"
-    path.write_text('name = "z"\nmotor = "zhang2021-dtpmsm"\nscenario = "steady"\n'
-                    'controllers = ["mptc1", "mptc2"]\nspeed_rpm = 1500.0\nload_nm = 40.0\n'
-                    'settle_s = 0.01\nduration_s = 0.02\n', encoding="utf-8")
-    res = run_preset(load_preset(str(path)))
+    res = run_text(tmp_path, 'name = "z"\nmotor = "zhang2021-dtpmsm"\nscenario = "steady"\n'
+                   'controllers = ["mptc1", "mptc2"]\nspeed_rpm = 1500.0\nload_nm = 40.0\n'
+                   'settle_s = 0.01\nduration_s = 0.02\n')
     trip, ok = res.rows
     assert "plant trip" in trip["end_reason"] and trip["xy_current_rms_a"] is None
     assert ok["end_reason"] == "completed" and ok["xy_current_rms_a"] > 0.0

@@ -50,7 +50,10 @@ def test_truncated_file_recovers_whole_chunks(
     cut = tmp_path / "cut.mcap"
     cut.write_bytes(data[: int(len(data) * cut_fraction)])
     prefix = read_periods(cut)  # tolerant reader works on the cut file directly
-    assert 0 < prefix.shape[0] < 4000
+    # near the end the cut may fall after the last /periods chunk (the layout depends on flush timing)
+    assert 0 < prefix.shape[0] <= 4000
+    if cut_fraction <= 0.8:
+        assert prefix.shape[0] < 4000
     np.testing.assert_array_equal(prefix["seq"], np.arange(prefix.shape[0]))
     dst = tmp_path / "fixed.mcap"
     report = repair_mcap(cut, dst)
