@@ -49,6 +49,15 @@ class LoadProfile:
             level = tq
         return cls(tuple(pts))
 
+    def breakpoints_between(self, t0: float, t1: float) -> list[tuple[float, float, float]]:
+        """Breakpoints strictly inside (t0, t1) [s] as (time [s], torque after it [N·m], slope after it [N·m/s])."""
+        times = self._times
+        lo = bisect.bisect_right(times, t0)
+        if lo >= len(times) or times[lo] >= t1:
+            return []
+        hi = bisect.bisect_left(times, t1)
+        return [(t, *self.value_and_slope(t)) for t in sorted(set(times[lo:hi]))]
+
     def value_and_slope(self, t: float) -> tuple[float, float]:
         """Load torque [N·m] at time t [s] (right-continuous at steps) and its slope [N·m/s]."""
         pts = self.points

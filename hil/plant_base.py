@@ -15,6 +15,8 @@ from pmsm_hil.hil.mechanics import DynoMechanics, InertiaMechanics, LoadProfile,
 from pmsm_hil.hil.motor_params import PmsmParams
 
 MAX_SUBINTERVALS = 8
+#: Load-profile breakpoints honoured inside one control period (more are a ParameterError).
+MAX_LOAD_BREAKPOINTS = 8
 
 
 @dataclass(frozen=True, slots=True)
@@ -69,6 +71,7 @@ class PlantBase:
         self._stats: Any = ffi.new(f"{prefix}_period_stats_t *")
         self._states = ffi.new("int32_t[]", MAX_SUBINTERVALS)
         self._durations = ffi.new("int64_t[]", MAX_SUBINTERVALS)
+        self._load_bp = ffi.new("double[]", 3 * MAX_LOAD_BREAKPOINTS)
         columns = len(self.TRACE_COLUMNS)
         rows = 0 if trace_dt_s is None else math.ceil(ts_s / trace_dt_s) + 2
         self._trace_cap = rows
@@ -163,16 +166,31 @@ class PlantBase:
         if total != self.ts_ns:
             raise SequenceError(f"switching durations sum to {total} ns, expected Ts = {self.ts_ns} ns")
         t0 = int(self._s.t_ns) / 1e9
-        load0, slope = self._load.value_and_slope(t0) if self._p.inertia_mode else (0.0, 0.0)
+        n_bp = 0
+        if self._p.inertia_mode:
+            load0, slope = self._load.value_and_slope(t0)
+            inside = self._load.breakpoints_between(t0, t0 + total * 1e-9)
+            if inside:
+                n_bp = self._set_load_breakpoints(inside)
+        else:
+            load0, slope = 0.0, 0.0
         st = self._stats
-        rc = self._kernel_advance(self._p, self._s, self._states, self._durations, n, load0, slope,
-                                  self._trace_dt, self._trace_ptr, self._trace_cap, st)
+        rc = self._kernel_advance(self._p, self._s, self._states, self._durations, n, load0, slope, self._load_bp,
+                                  n_bp, self._trace_dt, self._trace_ptr, self._trace_cap, st)
         if rc != 0:
             raise PlantFaultError(f"plant kernel rejected the period (code {rc})")
         return PeriodStats(int(st.leg_transitions), int(st.boundary_transitions), int(st.narrow_pulses),
                            int(st.suppressed_pulses), int(st.trace_n),
                            int(st.open_phase_events) if self.OPEN_PHASE_MODEL else 0, int(st.narrow_pulses_gated),
                            float(st.peak_current))
+
+    def _set_load_breakpoints(self, inside: list[tuple[float, float, float]]) -> int:
+        if len(inside) > MAX_LOAD_BREAKPOINTS:
+            raise ParameterError(f"load profile has {len(inside)} breakpoints inside one control period "
+                                 f"(at most {MAX_LOAD_BREAKPOINTS})")
+        for i, (tb, value, slope) in enumerate(inside):
+            self._load_bp[3 * i], self._load_bp[3 * i + 1], self._load_bp[3 * i + 2] = tb, value, slope
+        return len(inside)
 
     @property
     def last_trace(self) -> npt.NDArray[np.float64]:

@@ -31,7 +31,8 @@ typedef struct {
     int32_t error;
 } pl_period_stats_t;
 int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const int64_t *durations_ns,
-               int32_t n, double t_load0, double t_load_slope, double trace_dt, double *trace,
+               int32_t n, double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp,
+               double trace_dt, double *trace,
                int32_t trace_cap, pl_period_stats_t *stats);
 double pl_torque(const pl_params_t *p, double i_d, double i_q);
 void pl_phase_currents(double i_d, double i_q, double theta_e, double *i_a, double *i_b, double *i_c);
@@ -60,7 +61,8 @@ typedef struct {
     int32_t error;
 } p6_period_stats_t;
 int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const int64_t *durations_ns,
-               int32_t n, double t_load0, double t_load_slope, double trace_dt, double *trace,
+               int32_t n, double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp,
+               double trace_dt, double *trace,
                int32_t trace_cap, p6_period_stats_t *stats);
 double p6_torque(const p6_params_t *p, double i_d, double i_q);
 void p6_phase_currents(double i_d, double i_q, double theta_e, double i_x, double i_y, double *i_phase);

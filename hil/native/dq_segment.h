@@ -37,7 +37,7 @@ double dq_wrap_angle(double theta);
 typedef struct {
     double t;     /* absolute time [s] */
     int32_t leg;
-    int32_t kind; /* 0: gate edge to level `level`, 1: end of dead time */
+    int32_t kind; /* 0: gate edge to level `level`, 1: end of dead time, 2: load breakpoint (leg = index) */
     int32_t level;
 } dq_event_t;
 

@@ -305,7 +305,8 @@ static int integrate(const pl_params_t *p, pl_state_t *s, double t_abs, double h
 }
 
 int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const int64_t *durations_ns,
-               int32_t n, double t_load0, double t_load_slope, double trace_dt, double *trace,
+               int32_t n, double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp,
+               double trace_dt, double *trace,
                int32_t trace_cap, pl_period_stats_t *stats)
 {
     dq_event_t ev[PL_MAX_EVENTS];
@@ -389,6 +390,12 @@ int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const
     {
         double t_end = t_start + (double)total_ns * 1e-9;
         double t = t_start;
+        double load_ref = t_start, load_val = t_load0, load_slope = t_load_slope; /* load segment in force */
+        for (int b = 0; b < n_load_bp && load_bp != NULL; b++) {
+            if (load_bp[3 * b] > t_start && load_bp[3 * b] < t_end) {
+                n_ev = dq_add_event(ev, n_ev, PL_MAX_EVENTS, load_bp[3 * b], b, 2, 0);
+            }
+        }
         int gate = s->gate;
         for (int leg = 0; leg < 3; leg++) {
             if (s->dead_until[leg] > t && s->dead_until[leg] < t_end) {
@@ -398,7 +405,7 @@ int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const
         for (int k = 0; k <= n_ev; k++) {
             double t_next = (k < n_ev) ? ev[k].t : t_end;
             if (t_next > t) {
-                int rc = integrate(p, s, t, t_next - t, t_load0, t_load_slope, t_start, trace_dt, trace, trace_cap,
+                int rc = integrate(p, s, t, t_next - t, load_val, load_slope, load_ref, trace_dt, trace, trace_cap,
                                    stats, gate_level);
                 if (rc != PL_OK) {
                     stats->error = rc;
@@ -408,6 +415,12 @@ int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const
             }
             if (k == n_ev) {
                 break;
+            }
+            if (ev[k].kind == 2) { /* a load-profile breakpoint inside the period */
+                const double *bp = load_bp + 3 * ev[k].leg;
+                load_ref = bp[0];
+                load_val = bp[1];
+                load_slope = bp[2];
             }
             if (ev[k].kind == 0) {
                 int leg = ev[k].leg;

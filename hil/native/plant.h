@@ -58,10 +58,13 @@ typedef struct {
 #define PL_E_TRACE_FULL (-2)
 
 /* Advance the plant over one control period made of n sub-intervals (state codes, durations [ns]).
- * Load torque in inertia mode: t_load0 [N*m] at the period start plus t_load_slope [N*m/s].
+ * Load torque in inertia mode: t_load0 [N*m] at the period start plus t_load_slope [N*m/s], then from each
+ * breakpoint inside the period (load_bp: n_load_bp triplets of absolute time [s], value [N*m], slope [N*m/s])
+ * the segment it starts.
  * Trace rows (PL_TRACE_COLUMNS doubles each) are written at t = k * trace_dt (trace_dt <= 0: none). */
 int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const int64_t *durations_ns,
-               int32_t n, double t_load0, double t_load_slope, double trace_dt, double *trace,
+               int32_t n, double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp,
+               double trace_dt, double *trace,
                int32_t trace_cap, pl_period_stats_t *stats);
 
 /* Electromagnetic torque [N*m] for rotor-frame currents [A]. */

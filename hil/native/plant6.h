@@ -63,7 +63,8 @@ typedef struct {
 
 /* Advance one control period of n sub-intervals (6-bit state codes, durations [ns]); see plant.h. */
 int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const int64_t *durations_ns,
-               int32_t n, double t_load0, double t_load_slope, double trace_dt, double *trace,
+               int32_t n, double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp,
+               double trace_dt, double *trace,
                int32_t trace_cap, p6_period_stats_t *stats);
 
 /* Electromagnetic torque 3*p*(psi_d*i_q - psi_q*i_d) [N*m]. */

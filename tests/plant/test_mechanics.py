@@ -139,9 +139,8 @@ def test_viscous_friction_alone_decays_speed_exponentially() -> None:
     assert plant.sample().omega_m == pytest.approx(w0 * math.exp(-100 * TS / tau), rel=1e-8)
 
 
-@pytest.mark.xfail(strict=True, reason="load is linearised per control period from its start: a profile "
-                                       "breakpoint inside a period is not honoured (reported to the lead)")
 def test_ramp_ending_inside_a_period() -> None:
+    """A profile breakpoint inside a period (ramp end at 150 µs) is honoured by the kernel."""
     plant = _no_flux_plant(LoadProfile(((0.0, 0.0), (150e-6, 1.0))), 1000.0)
     w0 = plant.sample().omega_m
     for _ in range(3):
@@ -178,3 +177,12 @@ def test_inertia_mode_per_period_error_against_coupled_reference() -> None:
         worst_w = max(worst_w, abs(s1.omega_m - ref[3]))
     assert worst_i < 1e-3  # measured ≈ 1.5e-4 A with the default 5 µs pieces
     assert worst_w < 1e-4  # rad/s; measured ≈ 5e-6
+
+
+def test_load_step_inside_a_period_takes_effect_at_its_time() -> None:
+    plant = _no_flux_plant(LoadProfile.steps(0.0, [(130e-6, 2.0)]), 1000.0)
+    w0 = plant.sample().omega_m
+    for _ in range(3):
+        plant.advance([0], [TS_NS])
+    integral = 2.0 * (300e-6 - 130e-6)
+    assert plant.sample().omega_m == pytest.approx(w0 - integral / plant.params.j, rel=1e-6)
