@@ -81,7 +81,7 @@ ffibuilder.cdef(CDEF + CDEF6)
 ffibuilder.set_source(
     "pmsm_hil.hil._plant_native",
     '#include "plant.h"\n#include "plant6.h"',
-    sources=[_source(name) for name in ("dq_segment.c", "plant.c", "plant6.c")],
+    sources=[_source(name) for name in ("dq_segment.c", "gate_edges.c", "plant.c", "plant6.c")],
     include_dirs=[str(_HERE)],
     extra_compile_args=["-std=c99", "-O2", "-Wall", "-Wextra", "-Wdouble-promotion"],
     libraries=["m"],

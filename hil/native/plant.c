@@ -1,6 +1,7 @@
 /* Exact PMSM + two-level inverter plant kernel; see plant.h. */
 #include "plant.h"
 #include "dq_segment.h"
+#include "gate_edges.h"
 
 #include <math.h>
 #include <stddef.h>
@@ -312,9 +313,6 @@ int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const
     dq_event_t ev[PL_MAX_EVENTS];
     int n_ev = 0;
     int gate_level[3];
-    double edge_t[3][2 * PL_MAX_SUBINTERVALS + 2];
-    int edge_lvl[3][2 * PL_MAX_SUBINTERVALS + 2];
-    int n_edge[3] = {0, 0, 0};
     double t_start = (double)s->t_ns * 1e-9;
     int64_t total_ns = 0;
     double t_lim = 2.0 * p->t_dead + p->t_mpw;
@@ -338,53 +336,18 @@ int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const
             return PL_E_ARGS;
         }
     }
-    /* Commanded gate edges per leg, then minimum-pulse-width suppression (stack of edges). */
     {
-        int prev = s->gate;
-        int64_t acc = 0;
-        for (int k = 0; k < n; k++) {
-            int st = states[k];
-            if (durations_ns[k] == 0) {
-                continue;
-            }
-            for (int leg = 0; leg < 3; leg++) {
-                int bit = 2 - leg;
-                int old_l = (prev >> bit) & 1, new_l = (st >> bit) & 1;
-                if (old_l != new_l) {
-                    double te = t_start + (double)acc * 1e-9;
-                    double prev_edge = n_edge[leg] > 0 ? edge_t[leg][n_edge[leg] - 1] : s->last_edge_t[leg];
-                    double width = te - prev_edge;
-                    if (width < t_lim) {
-                        stats->narrow_pulses++;
-                    }
-                    if (n_edge[leg] > 0 && width < p->t_mpw) {
-                        n_edge[leg]--; /* the pulse never reaches the gate: drop both edges */
-                        stats->suppressed_pulses++;
-                    } else {
-                        edge_t[leg][n_edge[leg]] = te;
-                        edge_lvl[leg][n_edge[leg]] = new_l;
-                        n_edge[leg]++;
-                    }
-                }
-            }
-            prev = st;
-            acc += durations_ns[k];
-        }
-        total_ns = acc;
+        ge_counts_t counts;
+        n_ev = ge_plan(3, s->gate, states, durations_ns, n, t_start, p->t_mpw, t_lim, s->last_edge_t, ev, n_ev,
+                       PL_MAX_EVENTS, &counts, &total_ns);
+        stats->leg_transitions = counts.leg_transitions;
+        stats->boundary_transitions = counts.boundary_transitions;
+        stats->narrow_pulses = counts.narrow_pulses;
+        stats->suppressed_pulses = counts.suppressed_pulses;
+        stats->narrow_pulses_gated = counts.narrow_pulses_gated;
     }
     for (int leg = 0; leg < 3; leg++) {
-        gate_level[leg] = (s->gate >> (2 - leg)) & 1;
-        for (int e = 0; e < n_edge[leg]; e++) {
-            n_ev = dq_add_event(ev, n_ev, PL_MAX_EVENTS, edge_t[leg][e], leg, 0, edge_lvl[leg][e]);
-            stats->leg_transitions++;
-            if (edge_t[leg][e] - s->last_edge_t[leg] < t_lim) {
-                stats->narrow_pulses_gated++; /* a narrow pulse that reached the gate */
-            }
-            if (edge_t[leg][e] == t_start) {
-                stats->boundary_transitions++;
-            }
-            s->last_edge_t[leg] = edge_t[leg][e];
-        }
+        gate_level[leg] = (s->gate >> (3 - 1 - leg)) & 1;
     }
     /* Event loop: integrate between breakpoints with constant leg levels. */
     {

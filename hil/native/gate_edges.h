@@ -1,0 +1,32 @@
+/*
+ * Gate edges of one control period, shared by the plant kernels: the commanded switching sequence is
+ * turned into per-leg edges, pulses shorter than t_mpw are removed before the gate, narrow pulses
+ * (shorter than t_lim = 2 t_dead + t_mpw) are counted, and the surviving edges become time-ordered events.
+ */
+#ifndef HIL_GATE_EDGES_H
+#define HIL_GATE_EDGES_H
+
+#include <stdint.h>
+
+#include "dq_segment.h"
+
+#define GE_MAX_LEGS 6
+#define GE_MAX_SUBINTERVALS 8
+
+typedef struct {
+    uint32_t leg_transitions;      /* edges that reached the legs */
+    uint32_t boundary_transitions; /* of which at the period start */
+    uint32_t narrow_pulses;        /* requested pulses shorter than t_lim */
+    uint32_t suppressed_pulses;    /* pulses shorter than t_mpw removed */
+    uint32_t narrow_pulses_gated;  /* narrow pulses that reached the gate */
+} ge_counts_t;
+
+/* Plan the period: `legs` legs (bit legs-1-leg of a state code is leg `leg`), applied gate code `gate`,
+ * n sub-intervals (states, durations [ns]) from absolute time t_start [s]. Adds one event (kind 0) per
+ * surviving edge to ev (count n_ev, capacity cap) and returns the new count; updates last_edge_t [s]
+ * per leg; writes the period's total duration [ns]. */
+int ge_plan(int legs, int32_t gate, const int32_t *states, const int64_t *durations_ns, int32_t n, double t_start,
+            double t_mpw, double t_lim, double *last_edge_t, dq_event_t *ev, int n_ev, int cap, ge_counts_t *counts,
+            int64_t *total_ns);
+
+#endif
