@@ -55,8 +55,9 @@ def metrics_table(runs: Sequence[RunData]) -> str:
     return "<table id=\"metrics\">" + "".join(rows) + "</table>"
 
 
-def render_report(runs: Sequence[RunData], title: str = "PMSM HIL run comparison") -> str:
-    """The complete HTML document (no external resources)."""
+def render_report(runs: Sequence[RunData], title: str = "PMSM HIL run comparison", *,
+                  notes: Sequence[str] = (), generator: str = "hil report") -> str:
+    """The complete HTML document (no external resources); `notes`: extra lines under the header."""
     if not runs:
         raise DashboardError("RUN_DIR: at least one run directory is needed")
     sources = "; ".join(f"{html.escape(r.label)}: {html.escape(str(r.path))} ({r.source}, "
@@ -66,8 +67,9 @@ def render_report(runs: Sequence[RunData], title: str = "PMSM HIL run comparison
         "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\">",
         f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
         f"<h1>{html.escape(title)}</h1>",
-        f"<p class=\"note\">Generated {time.strftime('%Y-%m-%d %H:%M:%S')} by <code>hil report</code>. "
+        f"<p class=\"note\">Generated {time.strftime('%Y-%m-%d %H:%M:%S')} by <code>{html.escape(generator)}</code>. "
         f"Runs: {sources}.</p>",
+        *(f"<p class=\"note\">{html.escape(line)}</p>" for line in notes),
         "<h2>Metrics (metrics window)</h2>", metrics_table(runs),
         "<h2>Torque ripple, current THD, switching frequency, execution time</h2>",
         f"<figure id=\"bars\">{fig.bars(runs)}</figure>",

@@ -1,4 +1,5 @@
-"""`hil compare --preset NAME`: a paper experiment run closed loop per controller; table, JSON, CSV, PNG."""
+"""`hil compare --preset NAME`: a paper experiment run closed loop per controller; table, JSON, CSV, PNG,
+and with --report an HTML report of one operating point (hil/compare/report_runs.py)."""
 
 from __future__ import annotations
 
@@ -22,6 +23,10 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("--preset", required=True, metavar="NAME", help="bundled preset name or a TOML file")
     p.add_argument("--out", type=Path, default=Path("compare"), metavar="DIR", help="output folder (%(default)s)")
     p.add_argument("--controllers", metavar="A,B", help="only these controllers (comma-separated)")
+    p.add_argument("--report", nargs="?", const="", default=None, metavar="FILE",
+                   help="also log one run per controller/variant (first point or largest sweep value, first "
+                        "rotor angle; DIR/runs/NAME/LABEL with the 2 µs trace) and write a self-contained HTML "
+                        "report of them to FILE (default DIR/NAME.html)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
 
@@ -30,6 +35,7 @@ def run(args: argparse.Namespace) -> int:
     """Execute `hil compare`."""
     from pmsm_hil.hil.compare.plot import write_png
     from pmsm_hil.hil.compare.preset import load_preset
+    from pmsm_hil.hil.compare.report_runs import ReportSelection, dir_name, write_compare_report
     from pmsm_hil.hil.compare.runs import run_preset
     from pmsm_hil.hil.compare.table import format_table, write_csv, write_json
     from pmsm_hil.hil.runner.run_config import controller_id
@@ -47,7 +53,9 @@ def run(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(msg, file=sys.stderr, flush=True)
 
-    result = run_preset(preset, controllers=names, progress=progress)
+    selection = (ReportSelection(preset, args.out / "runs" / dir_name(preset.name))
+                 if args.report is not None else None)
+    result = run_preset(preset, controllers=names, progress=progress, run_dir=selection)
     for line in format_table(result):
         print(line)
     base = args.out / preset.name
@@ -56,5 +64,11 @@ def run(args: argparse.Namespace) -> int:
     written = [base.with_suffix(".json"), base.with_suffix(".csv")]
     if write_png(result, base.with_suffix(".png")):
         written.append(base.with_suffix(".png"))
+    if selection is not None:
+        html_path = Path(args.report) if args.report else base.with_suffix(".html")
+        summary = write_compare_report(result, selection, html_path)
+        written.append(summary.path)
+        if summary.skipped:
+            progress("report: skipped " + "; ".join(f"{n} ({why})" for n, why in summary.skipped))
     print("written: " + ", ".join(str(p) for p in written))
     return 0

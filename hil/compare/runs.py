@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -26,6 +27,9 @@ FAV_TOL = 0.03
 FAV_ITER = 5
 
 Progress = Callable[[str], None]
+#: where a run logs run.mcap (with the 2 µs trace) and metrics.json, or None (not logged):
+#: (spec, operating point, initial rotor angle [rad], group) -> directory
+RunDirFor = Callable[[Variant, dict[str, float], float, str], Path | None]
 
 
 @dataclass(slots=True)
@@ -64,11 +68,15 @@ def _reach_time(periods: np.ndarray, target_rpm: float, frac: float = 0.98) -> f
 
 
 def run_one(p: ComparePreset, spec: Variant | str, ts_s: float, point: dict[str, float],
-            group: str = "main", theta0_rad: float = 0.0) -> tuple[dict[str, Any], np.ndarray]:
-    """One closed-loop run; the row and the period records."""
+            group: str = "main", theta0_rad: float = 0.0,
+            out_dir: Path | None = None) -> tuple[dict[str, Any], np.ndarray]:
+    """One closed-loop run; the row and the period records. `out_dir`: log the run there (run.mcap with
+    the trace, metrics.json; the row's `run_dir`)."""
     if isinstance(spec, str):
         spec = Variant(spec, spec)
     cfg = _config(p, spec, ts_s, point, theta0_rad)
+    if out_dir is not None:
+        cfg = replace(cfg, out_dir=out_dir, log_trace=True)
     res = run_closed_loop(cfg)
     m = res.metrics
     row: dict[str, Any] = {"group": group, "controller": spec.controller, "label": spec.label,
@@ -85,6 +93,8 @@ def run_one(p: ComparePreset, spec: Variant | str, ts_s: float, point: dict[str,
     periods = res.outcome.periods.all()
     row["t_reach_98pct_s"] = _reach_time(periods, cfg.scenario.speed_rpm)
     row["end_reason"] = m.get("end_reason")
+    if out_dir is not None:
+        row["run_dir"] = str(out_dir)
     return row, periods
 
 
@@ -113,7 +123,8 @@ def _spec(p: ComparePreset, label: str) -> Variant:
     return next((v for v in p.specs() if v.label == label), Variant(label, label))
 
 
-def _equal_fav(p: ComparePreset, result: CompareResult, progress: Progress) -> None:
+def _equal_fav(p: ComparePreset, result: CompareResult, progress: Progress,
+               run_dir: RunDirFor | None = None) -> None:
     """Change the adjusted run's Ts until its f_av (`p.equal_fav_metric`, mean over the initial rotor
     angles) matches the reference's (f_av ∝ 1/Ts)."""
     assert p.equal_fav is not None  # checked by the caller
@@ -129,7 +140,9 @@ def _equal_fav(p: ComparePreset, result: CompareResult, progress: Progress) -> N
         ts = p.ts_s
         rows: list[dict[str, Any]] = []
         for _ in range(FAV_ITER):
-            rows = [run_one(p, adj, ts, point, group="equal_fav", theta0_rad=th)[0] for th in p.theta0_rad]
+            rows = [run_one(p, adj, ts, point, group="equal_fav", theta0_rad=th,
+                            out_dir=run_dir(adj, point, th, "equal_fav") if run_dir else None)[0]
+                    for th in p.theta0_rad]
             fav = float(np.mean([float(r[key] or 0.0) for r in rows]))
             progress(f"  equal f_av: {adj_name} at Ts = {ts * 1e6:.1f} µs -> {fav:.3f} kHz (target {target:.3f})")
             if fav <= 0.0 or abs(fav - target) <= FAV_TOL * target:
@@ -145,9 +158,10 @@ def _equal_fav(p: ComparePreset, result: CompareResult, progress: Progress) -> N
 
 
 def run_preset(p: ComparePreset, *, controllers: list[str] | None = None,
-               progress: Progress | None = None) -> CompareResult:
+               progress: Progress | None = None, run_dir: RunDirFor | None = None) -> CompareResult:
     """Run every controller/variant at every operating point and initial rotor angle of the preset, then
-    the equal-f_av search."""
+    the equal-f_av search. `run_dir`: which runs to log, and where (rows of logged runs, tripped ones
+    too, carry `run_dir`)."""
     say = progress or (lambda _msg: None)
     result = CompareResult(p)
     specs = [s for s in p.specs() if controllers is None or s.controller in controllers or s.label in controllers]
@@ -158,13 +172,16 @@ def run_preset(p: ComparePreset, *, controllers: list[str] | None = None,
                 if len(p.theta0_rad) > 1:
                     label = f"{label}, theta0={theta0:g}".lstrip(", ")
                 say(f"run {spec.label} {label}".rstrip())
+                out_dir = run_dir(spec, point, theta0, "main") if run_dir else None
                 try:
-                    row, periods = run_one(p, spec, p.ts_s, point, theta0_rad=theta0)
+                    row, periods = run_one(p, spec, p.ts_s, point, theta0_rad=theta0, out_dir=out_dir)
                 except HilError as exc:
                     if "plant trip" not in str(exc):
                         raise HilError(f"{spec.label} {label}: {exc}") from None
                     say(f"  {spec.label} {label}: {exc}")
                     result.rows.append(_trip_row(p, spec, point, theta0, str(exc)))
+                    if out_dir is not None:
+                        result.rows[-1]["run_dir"] = str(out_dir)
                     continue
                 result.rows.append(row)
                 if p.figure == "accel" and theta0 == p.theta0_rad[0]:
@@ -173,5 +190,5 @@ def run_preset(p: ComparePreset, *, controllers: list[str] | None = None,
                                                  "speed_rpm": (periods["omega_m"][::step] / RPM_TO_RAD_S).tolist(),
                                                  "torque_nm": periods["torque"][::step].tolist()}
     if p.equal_fav is not None:
-        _equal_fav(p, result, say)
+        _equal_fav(p, result, say, run_dir)
     return result
