@@ -50,6 +50,7 @@ CASES: tuple[tuple[str, Message], ...] = (
     ("config_current_limit", ConfigParam(22, 30.0)),
     ("config_dt_comp", ConfigParam(24, 1.0)),
     ("config_fcs_reading", ConfigParam(25, 96.0)),
+    ("config_v3_symmetric", ConfigParam(26, 1.0)),
     ("config_ack_ok", ConfigAck(5, 4.0, 0)),
     ("config_ack_invalid", ConfigAck(200, -1.5, 5)),
     ("heartbeat_host", Heartbeat(0, 2, 17)),

@@ -76,6 +76,7 @@ class ParamId(IntEnum):
     ZERO_SELECT = 23  # 0 paper rule, 1 min_transitions (3vmpc, hv-mpfc)
     DT_COMP = 24  # 0 off, 1 pulse-based dead-time compensation (3vmpc, hv-mpfc)
     FCS_READING = 25  # fcs-mpc-1/2 reading of Tables 1/2, bit flags (docs/algorithms/fcs_mpc_regions.md)
+    V3_SYMMETRIC = 26  # 0 off, 1 mptc2/mptc3 send each V3 as G1/2-G2-G1/2 (mirrored command)
 
 
 PARAM_NAMES: dict[ParamId, str] = {p: p.name.lower() for p in ParamId}

@@ -9,6 +9,8 @@ import struct
 from collections.abc import Sequence
 from typing import Any, NamedTuple
 
+from pmsm_hil.protocol.ids import CONTROLLER_NAMES, ParamId
+
 __all__ = [
     "CONTROLLER_IDS",
     "MODE_SPEED",
@@ -22,18 +24,10 @@ __all__ = [
     "FirmwareInputError",
 ]
 
-# Shared numbering (docs/architecture.md).
-PARAM_IDS: dict[str, int] = {
-    "rs": 1, "ld": 2, "lq": 3, "psi_f": 4, "pole_pairs": 5, "ts": 6, "vdc": 7, "speed_kp": 8,
-    "speed_ki": 9, "torque_limit": 10, "torque_integrator_init": 11, "id_ref": 12, "lambda": 13,
-    "t_thr": 14, "t_dead": 15, "t_mpw": 16, "flux_ref": 17, "current_kp": 18, "current_ki": 19,
-    "lls": 20, "torque_band": 21, "current_limit": 22,
-}
+# Shared numbering: the DBC value tables, through protocol/ids.py (one source, no hand-kept copy).
+PARAM_IDS: dict[str, int] = {p.name.lower(): int(p) for p in ParamId}
 PARAM_NAMES: dict[int, str] = {v: k for k, v in PARAM_IDS.items()}
-CONTROLLER_IDS: dict[str, int] = {
-    "off": 0, "mpcc": 1, "fcs-mpc-1": 2, "fcs-mpc-2": 3, "dsvm-20": 4, "dbcc-mpc": 5, "foc": 6,
-    "mptc1": 7, "mptc2": 8, "mptc3": 9, "3vmpc": 10, "hv-mpfc": 11,
-}
+CONTROLLER_IDS: dict[str, int] = {name: int(cid) for cid, name in CONTROLLER_NAMES.items()}
 MODE_SPEED = 0
 MODE_TORQUE = 1
 

@@ -32,7 +32,8 @@
 #define HIL_FW_P_ZERO_SELECT 23           /* zero-vector rule of 3vmpc/hv-mpfc: 0 paper, 1 min_transitions */
 #define HIL_FW_P_DT_COMP 24               /* pulse-based dead-time compensation in 3vmpc/hv-mpfc: 0 off, 1 on */
 #define HIL_FW_P_FCS_READING 25           /* fcs-mpc-1/2 reading of Tables 1/2, bit flags (hil_fw_fcs_mpc.h) */
-#define HIL_FW_P_COUNT 26                 /* array size (index 0 unused) */
+#define HIL_FW_P_V3_SYMMETRIC 26          /* mptc2/mptc3 V3 as G1/2-G2-G1/2 (mirrored command): 0 off, 1 on */
+#define HIL_FW_P_COUNT 27                 /* array size (index 0 unused) */
 
 /* Forward-Euler dq model coefficients, recomputed whenever a parameter changes. */
 typedef struct {

@@ -2,7 +2,8 @@
  * Reference firmware: model predictive torque control of a dual three-phase PMSM (Zhang et al. 2021):
  * mptc1 (12 G1 vectors + zero, weighted cost eq. (10)), mptc2 (12 virtual vectors V3 + zero, full
  * dual-vector model eq. (13), weighted cost) and mptc3 (6 V3 chosen by the system state of Table 1,
- * simplified model eqs. (15)-(16), cost J1 or J2 of Table 2). See docs/algorithms/mptc.md.
+ * simplified model eqs. (15)-(16), cost J1 or J2 of Table 2). Param v3_symmetric sends each V3 of
+ * mptc2/mptc3 as the symmetric G1/2 - G2 - G1/2 sequence (mirrored command). See docs/algorithms/mptc.md.
  */
 #ifndef HIL_FW_MPTC_H
 #define HIL_FW_MPTC_H
@@ -58,7 +59,12 @@ float hil_fw_mptc_torque(const struct hil_fw_state *s, float i_d, float i_q);
 /* One forward-Euler step of length h [s] with rotor-frame voltage (vd, vq) [V] (eq. (8)). */
 void hil_fw_mptc_euler(const struct hil_fw_state *s, float h, float vd, float vq, float *i_d, float *i_q);
 
-/* Write the command: best 0 = zero vector, else vector index 1..12; v3 selects the G1+G2 pair. */
+/* 1 if param v3_symmetric is set: mptc2/mptc3 send a V3 as G1 for eta_G1 Ts/2, G2 for eta_G2 Ts with the
+ * mirror flag (applied G1/2 - G2 - G1/2), else 0 (G1 for eta_G1 Ts, then G2). */
+int hil_fw_mptc_v3_symmetric(const struct hil_fw_state *s);
+
+/* Write the command: best 0 = zero vector, else vector index 1..12; v3 selects the G1+G2 pair (mirrored
+ * when hil_fw_mptc_v3_symmetric). */
 void hil_fw_mptc_emit(struct hil_fw_state *s, hil_fw_cmd_t *cmd, int best, int v3, uint8_t candidates);
 
 /* Unit direction (cos, sin) of vector index j = 0..11 (angle 15 + 30 j degrees). */

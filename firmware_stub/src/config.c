@@ -38,6 +38,7 @@ static const param_rule_t rules[HIL_FW_P_COUNT] = {
     [HIL_FW_P_ZERO_SELECT] = {0.0f, 1.0f, 0, 1},
     [HIL_FW_P_DT_COMP] = {0.0f, 1.0f, 0, 1},
     [HIL_FW_P_FCS_READING] = {0.0f, 255.0f, 0, 1},
+    [HIL_FW_P_V3_SYMMETRIC] = {0.0f, 1.0f, 0, 1},
 };
 
 void hil_fw_params_defaults(hil_fw_params_t *p)

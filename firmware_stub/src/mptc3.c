@@ -1,7 +1,8 @@
 /* Reference firmware: mptc3, the weighting-factor-free MPTC (Zhang et al. 2021): 6 V3 candidates chosen by
  * the system state (Table 1) and the flux sector (Fig. 5 as derived in docs/algorithms/mptc.md),
  * simplified model eqs. (15)-(16) with the V3 mean voltage over Ts, cost J1 = |psi - psi*| (18) or
- * J2 = |T - T*| (19) by Table 2. */
+ * J2 = |T - T*| (19) by Table 2. The model needs only the V3 volt-seconds, so v3_symmetric (G1/2 - G2 - G1/2)
+ * changes the emitted command, not the prediction. */
 #include <math.h>
 
 #include "hil_fw_mptc.h"

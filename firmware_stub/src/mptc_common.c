@@ -77,6 +77,11 @@ void hil_fw_mptc_begin(struct hil_fw_state *s, hil_fw_mptc_ctx_t *c)
     st->use_j1 = 0u;
 }
 
+int hil_fw_mptc_v3_symmetric(const struct hil_fw_state *s)
+{
+    return s->params.value[HIL_FW_P_V3_SYMMETRIC] >= 0.5f;
+}
+
 void hil_fw_mptc_emit(struct hil_fw_state *s, hil_fw_cmd_t *cmd, int best, int v3, uint8_t candidates)
 {
     const uint32_t ts_ns = s->params.model.ts_ns;
@@ -84,6 +89,7 @@ void hil_fw_mptc_emit(struct hil_fw_state *s, hil_fw_cmd_t *cmd, int best, int v
     cmd->states[2] = 0u;
     cmd->durations_ns[1] = 0u;
     cmd->durations_ns[2] = 0u;
+    cmd->mirror = 0u;
     if (best == 0) {
         const uint8_t prev = s->applied.states[s->applied.n_states > 0u ? s->applied.n_states - 1u : 0u];
         cmd->n_states = 1u;
@@ -98,8 +104,15 @@ void hil_fw_mptc_emit(struct hil_fw_state *s, hil_fw_cmd_t *cmd, int best, int v
         cmd->n_states = 2u;
         cmd->states[0] = hil_fw_six_g1[best - 1];
         cmd->states[1] = hil_fw_six_g2[best - 1];
-        cmd->durations_ns[0] = t1;
-        cmd->durations_ns[1] = ts_ns - t1;
+        if (hil_fw_mptc_v3_symmetric(s)) {
+            /* G1/2 - G2 - G1/2: the plant mirrors the slots; an odd G1 total gives its 1 ns to G2 */
+            cmd->durations_ns[0] = t1 / 2u;
+            cmd->durations_ns[1] = ts_ns - 2u * (t1 / 2u);
+            cmd->mirror = 1u;
+        } else {
+            cmd->durations_ns[0] = t1;
+            cmd->durations_ns[1] = ts_ns - t1;
+        }
     }
     cmd->vector_id = (uint8_t)best;
     cmd->candidates = candidates;

@@ -52,7 +52,7 @@ void hil_fw_six_mean_voltage_ab(const uint8_t *states, const uint32_t *durations
     float ub = 0.0f;
     float total = 0.0f;
     uint8_t i;
-    for (i = 0u; i < n_states && i < HIL_FW_MAX_SUBSTATES; ++i) {
+    for (i = 0u; i < n_states && i < HIL_FW_MAX_APPLIED; ++i) {
         float v[4];
         const float w = (float)durations_ns[i];
         hil_fw_six_code_voltage(states[i], vdc, v);

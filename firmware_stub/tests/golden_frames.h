@@ -898,141 +898,161 @@ static int golden_check_35(void)
     return fails;
 }
 
-/* can/config_ack_ok: ConfigAck 0x211 */
+/* can/config_v3_symmetric: ConfigParam 0x210 */
 static int golden_check_36(void)
+{
+    static const uint8_t data[5] = {0x1a, 0x00, 0x00, 0x80, 0x3f};
+    uint8_t out[5];
+    struct hil_protocol_config_param_t m;
+    int fails = 0;
+    if (hil_protocol_config_param_unpack(&m, data, sizeof data) != 0) {
+        printf("golden 36 can/config_v3_symmetric: ConfigParam unpack failed\n");
+        return 1;
+    }
+    GOLDEN_EXPECT_EQ("can/config_v3_symmetric", "ConfigParam.param_id", (long long)m.param_id, (long long)26u);
+    GOLDEN_EXPECT_EQ("can/config_v3_symmetric", "ConfigParam.value", (double)m.value, (double)0x1.0000000000000p+0f);
+    if (hil_protocol_config_param_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
+        printf("golden 36 can/config_v3_symmetric: ConfigParam pack differs\n");
+        fails++;
+    }
+    return fails;
+}
+
+/* can/config_ack_ok: ConfigAck 0x211 */
+static int golden_check_37(void)
 {
     static const uint8_t data[6] = {0x05, 0x00, 0x00, 0x80, 0x40, 0x00};
     uint8_t out[6];
     struct hil_protocol_config_ack_t m;
     int fails = 0;
     if (hil_protocol_config_ack_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 36 can/config_ack_ok: ConfigAck unpack failed\n");
+        printf("golden 37 can/config_ack_ok: ConfigAck unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("can/config_ack_ok", "ConfigAck.param_id", (long long)m.param_id, (long long)5u);
     GOLDEN_EXPECT_EQ("can/config_ack_ok", "ConfigAck.value", (double)m.value, (double)0x1.0000000000000p+2f);
     GOLDEN_EXPECT_EQ("can/config_ack_ok", "ConfigAck.status", (long long)m.status, (long long)0u);
     if (hil_protocol_config_ack_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 36 can/config_ack_ok: ConfigAck pack differs\n");
+        printf("golden 37 can/config_ack_ok: ConfigAck pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* can/config_ack_invalid: ConfigAck 0x211 */
-static int golden_check_37(void)
+static int golden_check_38(void)
 {
     static const uint8_t data[6] = {0xc8, 0x00, 0x00, 0xc0, 0xbf, 0x05};
     uint8_t out[6];
     struct hil_protocol_config_ack_t m;
     int fails = 0;
     if (hil_protocol_config_ack_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 37 can/config_ack_invalid: ConfigAck unpack failed\n");
+        printf("golden 38 can/config_ack_invalid: ConfigAck unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("can/config_ack_invalid", "ConfigAck.param_id", (long long)m.param_id, (long long)200u);
     GOLDEN_EXPECT_EQ("can/config_ack_invalid", "ConfigAck.value", (double)m.value, (double)-0x1.8000000000000p+0f);
     GOLDEN_EXPECT_EQ("can/config_ack_invalid", "ConfigAck.status", (long long)m.status, (long long)5u);
     if (hil_protocol_config_ack_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 37 can/config_ack_invalid: ConfigAck pack differs\n");
+        printf("golden 38 can/config_ack_invalid: ConfigAck pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* can/heartbeat_host: HeartbeatHost 0x700 */
-static int golden_check_38(void)
+static int golden_check_39(void)
 {
     static const uint8_t data[3] = {0x00, 0x02, 0x11};
     uint8_t out[3];
     struct hil_protocol_heartbeat_host_t m;
     int fails = 0;
     if (hil_protocol_heartbeat_host_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 38 can/heartbeat_host: HeartbeatHost unpack failed\n");
+        printf("golden 39 can/heartbeat_host: HeartbeatHost unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("can/heartbeat_host", "HeartbeatHost.node", (long long)m.node, (long long)0u);
     GOLDEN_EXPECT_EQ("can/heartbeat_host", "HeartbeatHost.state", (long long)m.state, (long long)2u);
     GOLDEN_EXPECT_EQ("can/heartbeat_host", "HeartbeatHost.counter", (long long)m.counter, (long long)17u);
     if (hil_protocol_heartbeat_host_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 38 can/heartbeat_host: HeartbeatHost pack differs\n");
+        printf("golden 39 can/heartbeat_host: HeartbeatHost pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* can/heartbeat_target: HeartbeatTarget 0x701 */
-static int golden_check_39(void)
+static int golden_check_40(void)
 {
     static const uint8_t data[3] = {0x01, 0x01, 0xff};
     uint8_t out[3];
     struct hil_protocol_heartbeat_target_t m;
     int fails = 0;
     if (hil_protocol_heartbeat_target_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 39 can/heartbeat_target: HeartbeatTarget unpack failed\n");
+        printf("golden 40 can/heartbeat_target: HeartbeatTarget unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("can/heartbeat_target", "HeartbeatTarget.node", (long long)m.node, (long long)1u);
     GOLDEN_EXPECT_EQ("can/heartbeat_target", "HeartbeatTarget.state", (long long)m.state, (long long)1u);
     GOLDEN_EXPECT_EQ("can/heartbeat_target", "HeartbeatTarget.counter", (long long)m.counter, (long long)255u);
     if (hil_protocol_heartbeat_target_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 39 can/heartbeat_target: HeartbeatTarget pack differs\n");
+        printf("golden 40 can/heartbeat_target: HeartbeatTarget pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* can/fault_host: FaultHost 0x010 */
-static int golden_check_40(void)
+static int golden_check_41(void)
 {
     static const uint8_t data[6] = {0x00, 0x03, 0x01, 0x01, 0x00, 0x00};
     uint8_t out[6];
     struct hil_protocol_fault_host_t m;
     int fails = 0;
     if (hil_protocol_fault_host_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 40 can/fault_host: FaultHost unpack failed\n");
+        printf("golden 41 can/fault_host: FaultHost unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("can/fault_host", "FaultHost.node", (long long)m.node, (long long)0u);
     GOLDEN_EXPECT_EQ("can/fault_host", "FaultHost.code", (long long)m.code, (long long)3u);
     GOLDEN_EXPECT_EQ("can/fault_host", "FaultHost.detail", (long long)m.detail, (long long)257u);
     if (hil_protocol_fault_host_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 40 can/fault_host: FaultHost pack differs\n");
+        printf("golden 41 can/fault_host: FaultHost pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* can/fault_target: FaultTarget 0x011 */
-static int golden_check_41(void)
+static int golden_check_42(void)
 {
     static const uint8_t data[6] = {0x01, 0x01, 0xef, 0xbe, 0xad, 0xde};
     uint8_t out[6];
     struct hil_protocol_fault_target_t m;
     int fails = 0;
     if (hil_protocol_fault_target_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 41 can/fault_target: FaultTarget unpack failed\n");
+        printf("golden 42 can/fault_target: FaultTarget unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("can/fault_target", "FaultTarget.node", (long long)m.node, (long long)1u);
     GOLDEN_EXPECT_EQ("can/fault_target", "FaultTarget.code", (long long)m.code, (long long)1u);
     GOLDEN_EXPECT_EQ("can/fault_target", "FaultTarget.detail", (long long)m.detail, (long long)3735928559u);
     if (hil_protocol_fault_target_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 41 can/fault_target: FaultTarget pack differs\n");
+        printf("golden 42 can/fault_target: FaultTarget pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* canfd/meas_nominal: MeasFd 0x108 */
-static int golden_check_42(void)
+static int golden_check_43(void)
 {
     static const uint8_t data[16] = {0x01, 0x00, 0xd2, 0x04, 0x97, 0xfd, 0x97, 0xfd, 0xbe, 0x28, 0x74, 0x14, 0xc0, 0x12, 0x00, 0x00};
     uint8_t out[16];
     struct hil_protocol_meas_fd_t m;
     int fails = 0;
     if (hil_protocol_meas_fd_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 42 canfd/meas_nominal: MeasFd unpack failed\n");
+        printf("golden 43 canfd/meas_nominal: MeasFd unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("canfd/meas_nominal", "MeasFd.seq", (long long)m.seq, (long long)1u);
@@ -1056,21 +1076,21 @@ static int golden_check_42(void)
     GOLDEN_EXPECT_EQ("canfd/meas_nominal", "MeasFd.vdc encode", (long long)hil_protocol_meas_fd_vdc_encode(0x1.8000000000000p+5f), (long long)4800u);
     GOLDEN_EXPECT_EQ("canfd/meas_nominal", "MeasFd.status", (long long)m.status, (long long)0u);
     if (hil_protocol_meas_fd_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 42 canfd/meas_nominal: MeasFd pack differs\n");
+        printf("golden 43 canfd/meas_nominal: MeasFd pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* canfd/meas_limits: MeasFd 0x108 */
-static int golden_check_43(void)
+static int golden_check_44(void)
 {
     static const uint8_t data[16] = {0xff, 0xff, 0x00, 0x80, 0xff, 0x7f, 0x00, 0x00, 0xff, 0xff, 0x00, 0x80, 0xff, 0xff, 0x01, 0x00};
     uint8_t out[16];
     struct hil_protocol_meas_fd_t m;
     int fails = 0;
     if (hil_protocol_meas_fd_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 43 canfd/meas_limits: MeasFd unpack failed\n");
+        printf("golden 44 canfd/meas_limits: MeasFd unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("canfd/meas_limits", "MeasFd.seq", (long long)m.seq, (long long)65535u);
@@ -1094,21 +1114,21 @@ static int golden_check_43(void)
     GOLDEN_EXPECT_EQ("canfd/meas_limits", "MeasFd.vdc encode", (long long)hil_protocol_meas_fd_vdc_encode(0x1.47acccccccccdp+9f), (long long)65535u);
     GOLDEN_EXPECT_EQ("canfd/meas_limits", "MeasFd.status", (long long)m.status, (long long)1u);
     if (hil_protocol_meas_fd_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 43 canfd/meas_limits: MeasFd pack differs\n");
+        printf("golden 44 canfd/meas_limits: MeasFd pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* canfd/meas_saturated_wrapped: MeasFd 0x108 */
-static int golden_check_44(void)
+static int golden_check_45(void)
 {
     static const uint8_t data[16] = {0x70, 0x11, 0xff, 0x7f, 0x00, 0x80, 0x00, 0x00, 0xa1, 0xeb, 0xff, 0x7f, 0x00, 0x00, 0x02, 0x00};
     uint8_t out[16];
     struct hil_protocol_meas_fd_t m;
     int fails = 0;
     if (hil_protocol_meas_fd_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 44 canfd/meas_saturated_wrapped: MeasFd unpack failed\n");
+        printf("golden 45 canfd/meas_saturated_wrapped: MeasFd unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("canfd/meas_saturated_wrapped", "MeasFd.seq", (long long)m.seq, (long long)4464u);
@@ -1132,21 +1152,21 @@ static int golden_check_44(void)
     GOLDEN_EXPECT_EQ("canfd/meas_saturated_wrapped", "MeasFd.vdc encode", (long long)hil_protocol_meas_fd_vdc_encode(0x0.0p+0f), (long long)0u);
     GOLDEN_EXPECT_EQ("canfd/meas_saturated_wrapped", "MeasFd.status", (long long)m.status, (long long)2u);
     if (hil_protocol_meas_fd_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 44 canfd/meas_saturated_wrapped: MeasFd pack differs\n");
+        printf("golden 45 canfd/meas_saturated_wrapped: MeasFd pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* canfd/meas6_nominal: MeasFd6 0x109 */
-static int golden_check_45(void)
+static int golden_check_46(void)
 {
     static const uint8_t data[24] = {0x02, 0x00, 0x0e, 0x1a, 0xf9, 0xf2, 0xf9, 0xf2, 0x90, 0x16, 0x70, 0xe9, 0x00, 0x00, 0x5f, 0x14, 0xae, 0x1e, 0x30, 0x75, 0x00, 0x00, 0x00, 0x00};
     uint8_t out[24];
     struct hil_protocol_meas_fd6_t m;
     int fails = 0;
     if (hil_protocol_meas_fd6_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 45 canfd/meas6_nominal: MeasFd6 unpack failed\n");
+        printf("golden 46 canfd/meas6_nominal: MeasFd6 unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("canfd/meas6_nominal", "MeasFd6.seq", (long long)m.seq, (long long)2u);
@@ -1179,21 +1199,21 @@ static int golden_check_45(void)
     GOLDEN_EXPECT_EQ("canfd/meas6_nominal", "MeasFd6.vdc encode", (long long)hil_protocol_meas_fd6_vdc_encode(0x1.2c00000000000p+8f), (long long)30000u);
     GOLDEN_EXPECT_EQ("canfd/meas6_nominal", "MeasFd6.status", (long long)m.status, (long long)0u);
     if (hil_protocol_meas_fd6_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 45 canfd/meas6_nominal: MeasFd6 pack differs\n");
+        printf("golden 46 canfd/meas6_nominal: MeasFd6 pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* canfd/meas6_saturated_wrapped: MeasFd6 0x109 */
-static int golden_check_46(void)
+static int golden_check_47(void)
 {
     static const uint8_t data[24] = {0x01, 0x00, 0xff, 0x7f, 0x00, 0x80, 0x00, 0x00, 0xff, 0x7f, 0x00, 0x80, 0x64, 0x00, 0x35, 0x1d, 0x32, 0x00, 0xc0, 0x12, 0x01, 0x00, 0x00, 0x00};
     uint8_t out[24];
     struct hil_protocol_meas_fd6_t m;
     int fails = 0;
     if (hil_protocol_meas_fd6_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 46 canfd/meas6_saturated_wrapped: MeasFd6 unpack failed\n");
+        printf("golden 47 canfd/meas6_saturated_wrapped: MeasFd6 unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("canfd/meas6_saturated_wrapped", "MeasFd6.seq", (long long)m.seq, (long long)1u);
@@ -1226,21 +1246,21 @@ static int golden_check_46(void)
     GOLDEN_EXPECT_EQ("canfd/meas6_saturated_wrapped", "MeasFd6.vdc encode", (long long)hil_protocol_meas_fd6_vdc_encode(0x1.8000000000000p+5f), (long long)4800u);
     GOLDEN_EXPECT_EQ("canfd/meas6_saturated_wrapped", "MeasFd6.status", (long long)m.status, (long long)1u);
     if (hil_protocol_meas_fd6_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 46 canfd/meas6_saturated_wrapped: MeasFd6 pack differs\n");
+        printf("golden 47 canfd/meas6_saturated_wrapped: MeasFd6 pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* canfd/cmd_six_phase_v3: CmdFd 0x118 */
-static int golden_check_47(void)
+static int golden_check_48(void)
 {
     static const uint8_t data[20] = {0x03, 0x00, 0x9b, 0x02, 0x58, 0xdf, 0x11, 0xab, 0x68, 0x00, 0x00, 0x00, 0x07, 0x0d, 0x34, 0x08, 0x00, 0x00, 0x00, 0x00};
     uint8_t out[20];
     struct hil_protocol_cmd_fd_t m;
     int fails = 0;
     if (hil_protocol_cmd_fd_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 47 canfd/cmd_six_phase_v3: CmdFd unpack failed\n");
+        printf("golden 48 canfd/cmd_six_phase_v3: CmdFd unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("canfd/cmd_six_phase_v3", "CmdFd.seq", (long long)m.seq, (long long)3u);
@@ -1257,21 +1277,21 @@ static int golden_check_47(void)
     GOLDEN_EXPECT_EQ("canfd/cmd_six_phase_v3", "CmdFd.status", (long long)m.status, (long long)0u);
     GOLDEN_EXPECT_EQ("canfd/cmd_six_phase_v3", "CmdFd.mirror", (long long)m.mirror, (long long)0u);
     if (hil_protocol_cmd_fd_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 47 canfd/cmd_six_phase_v3: CmdFd pack differs\n");
+        printf("golden 48 canfd/cmd_six_phase_v3: CmdFd pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* canfd/cmd_three_states: CmdFd 0x118 */
-static int golden_check_48(void)
+static int golden_check_49(void)
 {
     static const uint8_t data[20] = {0x01, 0x00, 0x84, 0x71, 0x0c, 0x53, 0x07, 0x20, 0x4e, 0x00, 0x35, 0x0c, 0x0c, 0x1b, 0xd2, 0x04, 0x00, 0x00, 0x00, 0x00};
     uint8_t out[20];
     struct hil_protocol_cmd_fd_t m;
     int fails = 0;
     if (hil_protocol_cmd_fd_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 48 canfd/cmd_three_states: CmdFd unpack failed\n");
+        printf("golden 49 canfd/cmd_three_states: CmdFd unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("canfd/cmd_three_states", "CmdFd.seq", (long long)m.seq, (long long)1u);
@@ -1288,21 +1308,21 @@ static int golden_check_48(void)
     GOLDEN_EXPECT_EQ("canfd/cmd_three_states", "CmdFd.status", (long long)m.status, (long long)0u);
     GOLDEN_EXPECT_EQ("canfd/cmd_three_states", "CmdFd.mirror", (long long)m.mirror, (long long)0u);
     if (hil_protocol_cmd_fd_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 48 canfd/cmd_three_states: CmdFd pack differs\n");
+        printf("golden 49 canfd/cmd_three_states: CmdFd pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* canfd/cmd_two_states_limits: CmdFd 0x118 */
-static int golden_check_49(void)
+static int golden_check_50(void)
 {
     static const uint8_t data[20] = {0xff, 0xff, 0xc1, 0x0f, 0xf8, 0xff, 0xff, 0x00, 0x00, 0x00, 0x00, 0x00, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0x06, 0x00};
     uint8_t out[20];
     struct hil_protocol_cmd_fd_t m;
     int fails = 0;
     if (hil_protocol_cmd_fd_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 49 canfd/cmd_two_states_limits: CmdFd unpack failed\n");
+        printf("golden 50 canfd/cmd_two_states_limits: CmdFd unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("canfd/cmd_two_states_limits", "CmdFd.seq", (long long)m.seq, (long long)65535u);
@@ -1319,21 +1339,21 @@ static int golden_check_49(void)
     GOLDEN_EXPECT_EQ("canfd/cmd_two_states_limits", "CmdFd.status", (long long)m.status, (long long)6u);
     GOLDEN_EXPECT_EQ("canfd/cmd_two_states_limits", "CmdFd.mirror", (long long)m.mirror, (long long)0u);
     if (hil_protocol_cmd_fd_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 49 canfd/cmd_two_states_limits: CmdFd pack differs\n");
+        printf("golden 50 canfd/cmd_two_states_limits: CmdFd pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* canfd/cmd_one_state_clamped: CmdFd 0x118 */
-static int golden_check_50(void)
+static int golden_check_51(void)
 {
     static const uint8_t data[20] = {0x2a, 0x00, 0x00, 0x00, 0x04, 0x6a, 0x18, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x01, 0xff, 0xff, 0xff, 0xff, 0x00, 0x00};
     uint8_t out[20];
     struct hil_protocol_cmd_fd_t m;
     int fails = 0;
     if (hil_protocol_cmd_fd_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 50 canfd/cmd_one_state_clamped: CmdFd unpack failed\n");
+        printf("golden 51 canfd/cmd_one_state_clamped: CmdFd unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("canfd/cmd_one_state_clamped", "CmdFd.seq", (long long)m.seq, (long long)42u);
@@ -1350,21 +1370,21 @@ static int golden_check_50(void)
     GOLDEN_EXPECT_EQ("canfd/cmd_one_state_clamped", "CmdFd.status", (long long)m.status, (long long)0u);
     GOLDEN_EXPECT_EQ("canfd/cmd_one_state_clamped", "CmdFd.mirror", (long long)m.mirror, (long long)0u);
     if (hil_protocol_cmd_fd_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 50 canfd/cmd_one_state_clamped: CmdFd pack differs\n");
+        printf("golden 51 canfd/cmd_one_state_clamped: CmdFd pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* canfd/cmd_mirror_three_states: CmdFd 0x118 */
-static int golden_check_51(void)
+static int golden_check_52(void)
 {
     static const uint8_t data[20] = {0x07, 0x00, 0x00, 0x61, 0x4c, 0x0d, 0x03, 0x20, 0x4e, 0x80, 0x8b, 0x08, 0x11, 0x06, 0xb6, 0x03, 0x00, 0x00, 0x00, 0x01};
     uint8_t out[20];
     struct hil_protocol_cmd_fd_t m;
     int fails = 0;
     if (hil_protocol_cmd_fd_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 51 canfd/cmd_mirror_three_states: CmdFd unpack failed\n");
+        printf("golden 52 canfd/cmd_mirror_three_states: CmdFd unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("canfd/cmd_mirror_three_states", "CmdFd.seq", (long long)m.seq, (long long)7u);
@@ -1381,21 +1401,21 @@ static int golden_check_51(void)
     GOLDEN_EXPECT_EQ("canfd/cmd_mirror_three_states", "CmdFd.status", (long long)m.status, (long long)0u);
     GOLDEN_EXPECT_EQ("canfd/cmd_mirror_three_states", "CmdFd.mirror", (long long)m.mirror, (long long)1u);
     if (hil_protocol_cmd_fd_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 51 canfd/cmd_mirror_three_states: CmdFd pack differs\n");
+        printf("golden 52 canfd/cmd_mirror_three_states: CmdFd pack differs\n");
         fails++;
     }
     return fails;
 }
 
 /* canfd/cmd_mirror_two_states: CmdFd 0x118 */
-static int golden_check_52(void)
+static int golden_check_53(void)
 {
     static const uint8_t data[20] = {0xfe, 0xff, 0x87, 0x01, 0x18, 0x00, 0x00, 0x9e, 0x86, 0x01, 0x00, 0x00, 0x24, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0x01};
     uint8_t out[20];
     struct hil_protocol_cmd_fd_t m;
     int fails = 0;
     if (hil_protocol_cmd_fd_unpack(&m, data, sizeof data) != 0) {
-        printf("golden 52 canfd/cmd_mirror_two_states: CmdFd unpack failed\n");
+        printf("golden 53 canfd/cmd_mirror_two_states: CmdFd unpack failed\n");
         return 1;
     }
     GOLDEN_EXPECT_EQ("canfd/cmd_mirror_two_states", "CmdFd.seq", (long long)m.seq, (long long)65534u);
@@ -1412,7 +1432,7 @@ static int golden_check_52(void)
     GOLDEN_EXPECT_EQ("canfd/cmd_mirror_two_states", "CmdFd.status", (long long)m.status, (long long)0u);
     GOLDEN_EXPECT_EQ("canfd/cmd_mirror_two_states", "CmdFd.mirror", (long long)m.mirror, (long long)1u);
     if (hil_protocol_cmd_fd_pack(out, &m, sizeof out) != (int)sizeof out || memcmp(out, data, sizeof out) != 0) {
-        printf("golden 52 canfd/cmd_mirror_two_states: CmdFd pack differs\n");
+        printf("golden 53 canfd/cmd_mirror_two_states: CmdFd pack differs\n");
         fails++;
     }
     return fails;
@@ -1456,24 +1476,25 @@ static const struct { const char *name; golden_check_fn fn; } golden_checks[] = 
     {"can/config_current_limit ConfigParam", golden_check_33},
     {"can/config_dt_comp ConfigParam", golden_check_34},
     {"can/config_fcs_reading ConfigParam", golden_check_35},
-    {"can/config_ack_ok ConfigAck", golden_check_36},
-    {"can/config_ack_invalid ConfigAck", golden_check_37},
-    {"can/heartbeat_host HeartbeatHost", golden_check_38},
-    {"can/heartbeat_target HeartbeatTarget", golden_check_39},
-    {"can/fault_host FaultHost", golden_check_40},
-    {"can/fault_target FaultTarget", golden_check_41},
-    {"canfd/meas_nominal MeasFd", golden_check_42},
-    {"canfd/meas_limits MeasFd", golden_check_43},
-    {"canfd/meas_saturated_wrapped MeasFd", golden_check_44},
-    {"canfd/meas6_nominal MeasFd6", golden_check_45},
-    {"canfd/meas6_saturated_wrapped MeasFd6", golden_check_46},
-    {"canfd/cmd_six_phase_v3 CmdFd", golden_check_47},
-    {"canfd/cmd_three_states CmdFd", golden_check_48},
-    {"canfd/cmd_two_states_limits CmdFd", golden_check_49},
-    {"canfd/cmd_one_state_clamped CmdFd", golden_check_50},
-    {"canfd/cmd_mirror_three_states CmdFd", golden_check_51},
-    {"canfd/cmd_mirror_two_states CmdFd", golden_check_52},
+    {"can/config_v3_symmetric ConfigParam", golden_check_36},
+    {"can/config_ack_ok ConfigAck", golden_check_37},
+    {"can/config_ack_invalid ConfigAck", golden_check_38},
+    {"can/heartbeat_host HeartbeatHost", golden_check_39},
+    {"can/heartbeat_target HeartbeatTarget", golden_check_40},
+    {"can/fault_host FaultHost", golden_check_41},
+    {"can/fault_target FaultTarget", golden_check_42},
+    {"canfd/meas_nominal MeasFd", golden_check_43},
+    {"canfd/meas_limits MeasFd", golden_check_44},
+    {"canfd/meas_saturated_wrapped MeasFd", golden_check_45},
+    {"canfd/meas6_nominal MeasFd6", golden_check_46},
+    {"canfd/meas6_saturated_wrapped MeasFd6", golden_check_47},
+    {"canfd/cmd_six_phase_v3 CmdFd", golden_check_48},
+    {"canfd/cmd_three_states CmdFd", golden_check_49},
+    {"canfd/cmd_two_states_limits CmdFd", golden_check_50},
+    {"canfd/cmd_one_state_clamped CmdFd", golden_check_51},
+    {"canfd/cmd_mirror_three_states CmdFd", golden_check_52},
+    {"canfd/cmd_mirror_two_states CmdFd", golden_check_53},
 };
-#define GOLDEN_CHECK_COUNT 53
+#define GOLDEN_CHECK_COUNT 54
 
 #endif /* GOLDEN_FRAMES_H */
