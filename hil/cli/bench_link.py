@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import socket
 import statistics
 import time
 import tty
@@ -20,8 +21,14 @@ from pmsm_hil.protocol.links.link import Link, open_link
 from pmsm_hil.protocol.links.peer import EchoPeer
 from pmsm_hil.protocol.messages import Command, Measurement
 
-UDP_BENCH_PORTS = (47390, 47391)
 _BENCH_FRAME = Frame(0x108, bytes(range(16)), True)  # CAN FD, 16 bytes: the round-trip payload
+
+
+def _free_udp_port() -> int:
+    """A UDP port on 127.0.0.1 that is free now (two benches or tests may run at once)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -163,7 +170,7 @@ def link_latencies(links: list[str], count: int) -> dict[str, dict[str, float]]:
     if "virtual" in links:
         out["virtual (one thread)"] = _virtual(count)
     if "udp" in links:
-        a, b = UDP_BENCH_PORTS
+        a, b = _free_udp_port(), _free_udp_port()
         out["udp (peer process)"] = _with_peer(f"udp:{a}:{b}", f"udp:{b}:{a}", count)
     if "serial" in links:
         master, slave = os.openpty()
