@@ -247,9 +247,9 @@ def _cmd_raw(c: Command) -> tuple[int, ...]:
     n = len(states)
     seq, vid, cand, ex, st, mir = c.seq, c.vector_id, c.candidates, c.exec_time_ns, c.status, c.mirror
     if (
-        n == 3
+        1 <= n <= 3
         and (mir is False or mir is True)
-        and len(durs) == 3
+        and len(durs) == n
         and seq.__class__ is int
         and 0 <= seq <= 0xFFFF
         and vid.__class__ is int
@@ -261,23 +261,13 @@ def _cmd_raw(c: Command) -> tuple[int, ...]:
         and ex.__class__ is int
         and 0 <= ex <= _U32_MAX
     ):
-        s0, s1, s2 = states
-        d0, d1, d2 = durs
-        if (
-            s0.__class__ is int
-            and s1.__class__ is int
-            and s2.__class__ is int
-            and 0 <= s0 <= _STATE_MAX
-            and 0 <= s1 <= _STATE_MAX
-            and 0 <= s2 <= _STATE_MAX
-            and d0.__class__ is int
-            and d1.__class__ is int
-            and d2.__class__ is int
-            and 0 <= d0 <= _DUR_MAX
-            and 0 <= d1 <= _DUR_MAX
-            and 0 <= d2 <= _DUR_MAX
-        ):
-            return seq, s0, s1, s2, 3, d0, d1, d2, vid, cand, ex, st, int(mir)
+        for k in range(n):
+            sk, dk = states[k], durs[k]
+            if not (sk.__class__ is int and 0 <= sk <= _STATE_MAX and dk.__class__ is int and 0 <= dk <= _DUR_MAX):
+                return _cmd_raw_slow(c)
+        s_pad = (*states, 0, 0)
+        d_pad = (*durs, 0, 0)
+        return seq, s_pad[0], s_pad[1], s_pad[2], n, d_pad[0], d_pad[1], d_pad[2], vid, cand, ex, st, int(mir)
     return _cmd_raw_slow(c)
 
 

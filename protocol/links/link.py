@@ -154,6 +154,8 @@ class BusLink:
         """The next raw message, or None at once (virtual: straight from its queue, no BusABC layers)."""
         virtual = self._virtual
         if virtual is not None:
+            if not virtual.queue.queue:  # empty: skip the lock and the Empty exception (busy polling)
+                return None
             try:
                 msg: can.Message = virtual.queue.get_nowait()
             except queue.Empty:
