@@ -1,0 +1,20 @@
+"""The plant kernels compile cleanly under the project's strict C flags (the cffi build uses milder ones)."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+NATIVE = Path(__file__).resolve().parents[2] / "hil" / "native"
+STRICT = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion", "-pedantic", "-O2"]
+
+
+@pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed")
+@pytest.mark.parametrize("source", sorted(p.name for p in NATIVE.glob("*.c")))
+def test_kernel_compiles_with_strict_flags(source: str, tmp_path: Path) -> None:
+    result = subprocess.run(["gcc", *STRICT, "-c", str(NATIVE / source), "-o", str(tmp_path / "x.o")],
+                            capture_output=True, text=True, check=False)
+    assert result.returncode == 0, result.stderr
