@@ -27,6 +27,8 @@ def run(args: argparse.Namespace) -> int:
     from pmsm_hil.dashboards.errors import DashboardError
     from pmsm_hil.dashboards.replay import load_source, replay_to_rerun
 
+    if not args.mcap.is_file():
+        raise DashboardError(f"hil replay: RUN.mcap {args.mcap} does not exist or is not a file")
     targets = rerun_targets(args)
     if not targets.any():
         raise DashboardError("hil replay: choose --rerun, --rerun-save FILE.rrd or --rerun-serve")
