@@ -51,7 +51,6 @@ class Plant(PlantBase):
     MAX_STATE = 7
     STATE_FORMAT = "4·Sa + 2·Sb + Sc"
     TRACE_COLUMNS = TRACE_COLUMNS
-    OPEN_PHASE_MODEL = True
     _kernel_advance = staticmethod(lib.pl_advance)
 
     def _set_kernel_params(self, params: PmsmParams) -> None:

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import math
+import struct
 from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -19,20 +19,24 @@ MAX_SUBINTERVALS = 8
 MAX_LOAD_BREAKPOINTS = 8
 
 
-@dataclass(frozen=True, slots=True)
-class PeriodStats:
+class PeriodStats(NamedTuple):
     """Inverter events of one advanced period (counts of leg gate transitions and pulses) and the largest
     phase-current magnitude seen at the trace rows [A] (0 with the trace off): what a hardware
-    overcurrent comparator sees, including peaks inside the period."""
+    overcurrent comparator sees, including peaks inside the period. Field order = the C stats struct."""
 
     leg_transitions: int
     boundary_transitions: int
     narrow_pulses: int
     suppressed_pulses: int
+    open_phase_events: int
+    narrow_pulses_gated: int
+    peak_current_a: float
     trace_rows: int
-    open_phase_events: int = 0
-    narrow_pulses_gated: int = 0
-    peak_current_a: float = 0.0
+    error: int = 0
+
+
+#: Layout of pl_period_stats_t / p6_period_stats_t (identical by construction; checked at import).
+_STATS_STRUCT = struct.Struct("=6Idii")
 
 
 class PlantBase:
@@ -40,8 +44,7 @@ class PlantBase:
 
     Subclass attributes: ``KERNEL_PREFIX`` (C struct/function prefix, e.g. "pl"), ``LEGS``,
     ``MAX_STATE`` (largest state code), ``STATE_FORMAT`` (how codes are written, for errors) and
-    ``TRACE_COLUMNS``; ``OPEN_PHASE_MODEL`` if the kernel models diode blocking (open phase);
-    ``_kernel_advance`` is the C function (a staticmethod).
+    ``TRACE_COLUMNS``; ``_kernel_advance`` is the C function (a staticmethod).
     """
 
     KERNEL_PREFIX: ClassVar[str]
@@ -49,7 +52,6 @@ class PlantBase:
     MAX_STATE: ClassVar[int]
     STATE_FORMAT: ClassVar[str]
     TRACE_COLUMNS: ClassVar[tuple[str, ...]]
-    OPEN_PHASE_MODEL: ClassVar[bool] = False
 
     def __init__(self, params: PmsmParams, ts_s: float, mechanics: Mechanics, *, theta0_rad: float = 0.0,
                  trace_dt_s: float | None = 2e-6, max_piece_s: float = 5e-6) -> None:
@@ -69,6 +71,10 @@ class PlantBase:
         self._p: Any = ffi.new(f"{prefix}_params_t *")
         self._s: Any = ffi.new(f"{prefix}_state_t *")
         self._stats: Any = ffi.new(f"{prefix}_period_stats_t *")
+        if ffi.sizeof(self._stats[0]) != _STATS_STRUCT.size:
+            raise ImportError(f"{prefix}_period_stats_t does not match the Python stats layout")
+        self._stats_buf = ffi.buffer(self._stats)
+        self._inertia = False
         self._states = ffi.new("int32_t[]", MAX_SUBINTERVALS)
         self._durations = ffi.new("int64_t[]", MAX_SUBINTERVALS)
         self._load_bp = ffi.new("double[]", 3 * MAX_LOAD_BREAKPOINTS)
@@ -110,9 +116,11 @@ class PlantBase:
     def mechanics(self, mechanics: Mechanics) -> None:
         if isinstance(mechanics, DynoMechanics):
             self._p.inertia_mode = 0
+            self._inertia = False
             self._s.omega_m = mechanics.omega_m
         elif isinstance(mechanics, InertiaMechanics):
             self._p.inertia_mode = 1
+            self._inertia = True
             self._load = mechanics.load
         else:
             raise ParameterError(f"unknown mechanics mode {mechanics!r}")
@@ -151,6 +159,7 @@ class PlantBase:
                 f"got {n} states and {len(durations_ns)} durations")
         total = 0
         max_state = self.MAX_STATE
+        c_states, c_durations = self._states, self._durations
         for k in range(n):
             st, du = states[k], durations_ns[k]
             if not 0 <= st <= max_state:
@@ -158,31 +167,27 @@ class PlantBase:
             if du < 0:
                 raise SequenceError(f"switching duration {k}: {du} ns is negative")
             try:
-                self._states[k] = st
-                self._durations[k] = du
+                c_states[k] = st
+                c_durations[k] = du
             except TypeError:
                 raise SequenceError(f"switching state/duration {k}: integers required, got {st!r}, {du!r}") from None
             total += du
         if total != self.ts_ns:
             raise SequenceError(f"switching durations sum to {total} ns, expected Ts = {self.ts_ns} ns")
-        t0 = int(self._s.t_ns) / 1e9
         n_bp = 0
-        if self._p.inertia_mode:
+        if self._inertia:
+            t0 = int(self._s.t_ns) / 1e9
             load0, slope = self._load.value_and_slope(t0)
             inside = self._load.breakpoints_between(t0, t0 + total * 1e-9)
             if inside:
                 n_bp = self._set_load_breakpoints(inside)
         else:
             load0, slope = 0.0, 0.0
-        st = self._stats
-        rc = self._kernel_advance(self._p, self._s, self._states, self._durations, n, load0, slope, self._load_bp,
-                                  n_bp, self._trace_dt, self._trace_ptr, self._trace_cap, st)
+        rc = self._kernel_advance(self._p, self._s, c_states, c_durations, n, load0, slope, self._load_bp,
+                                  n_bp, self._trace_dt, self._trace_ptr, self._trace_cap, self._stats)
         if rc != 0:
             raise PlantFaultError(f"plant kernel rejected the period (code {rc})")
-        return PeriodStats(int(st.leg_transitions), int(st.boundary_transitions), int(st.narrow_pulses),
-                           int(st.suppressed_pulses), int(st.trace_n),
-                           int(st.open_phase_events) if self.OPEN_PHASE_MODEL else 0, int(st.narrow_pulses_gated),
-                           float(st.peak_current))
+        return tuple.__new__(PeriodStats, _STATS_STRUCT.unpack_from(self._stats_buf))
 
     def _set_load_breakpoints(self, inside: list[tuple[float, float, float]]) -> int:
         if len(inside) > MAX_LOAD_BREAKPOINTS:

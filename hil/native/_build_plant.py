@@ -55,7 +55,8 @@ typedef struct {
     int32_t dead_level[6];
 } p6_state_t;
 typedef struct {
-    uint32_t leg_transitions, boundary_transitions, narrow_pulses, suppressed_pulses, narrow_pulses_gated;
+    uint32_t leg_transitions, boundary_transitions, narrow_pulses, suppressed_pulses, open_phase_events;
+    uint32_t narrow_pulses_gated;
     double peak_current;
     int32_t trace_n;
     int32_t error;

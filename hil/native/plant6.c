@@ -168,6 +168,7 @@ int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const
     stats->narrow_pulses = 0;
     stats->suppressed_pulses = 0;
     stats->narrow_pulses_gated = 0;
+    stats->open_phase_events = 0;
     stats->peak_current = 0.0;
     stats->trace_n = 0;
     stats->error = P6_OK;

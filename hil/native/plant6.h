@@ -51,6 +51,7 @@ typedef struct {
     uint32_t boundary_transitions; /* of which at the period start */
     uint32_t narrow_pulses;        /* pulses shorter than 2*t_dead + t_mpw */
     uint32_t suppressed_pulses;    /* pulses shorter than t_mpw removed before the gate */
+    uint32_t open_phase_events;    /* always 0: no open-phase model for six phases (same layout as pl_) */
     uint32_t narrow_pulses_gated;  /* narrow pulses that reached the gate (not suppressed) */
     double peak_current;           /* largest |phase current| at the trace rows of the period [A] */
     int32_t trace_n;               /* trace rows written */
