@@ -208,7 +208,10 @@ def format_result(r: PlantBenchResult) -> list[str]:
         f"  single-vector, trace off, advance only:{r.periods_per_s_single_advance_only:12,.0f} periods/s",
     ]
     if r.gem_steps_per_s is None:
-        lines.append("  gym-electric-motor: not installed (pip install pmsm-hil[bench]); no comparison")
+        if gem_version() is None:
+            lines.append("  gym-electric-motor: not installed (pip install pmsm-hil[bench]); no comparison")
+        else:
+            lines.append("  gym-electric-motor: comparison skipped (--no-gem)")
         return lines
     lines += [
         f"gym-electric-motor {r.gem_version}, timed with {r.gem_timing_method}",

@@ -38,7 +38,8 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--config", type=Path, help="TOML file with any of the options below (CLI wins)")
     add_motor_arguments(p, default=None)
     p.add_argument("--controller", help="controller name (default mpcc)")
-    p.add_argument("--scenario", help="steady | speed-step | load-step | accel | FILE.toml (default steady)")
+    p.add_argument("--scenario", help="steady | speed-step | load-step | load-steps | accel | dyno-steady | "
+                                      "FILE.toml (default steady)")
     p.add_argument("--speed", type=finite_float("--speed"), help="speed reference [rpm]")
     p.add_argument("--load", type=finite_float("--load"), help="load torque [N·m]")
     p.add_argument("--duration", type=positive_float("--duration"), help="metrics window [s] (settling on top)")

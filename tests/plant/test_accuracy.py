@@ -29,7 +29,7 @@ def _run_against_reference(sequences: list[tuple[list[int], list[int]]], motor: 
         i_d, i_q, theta = solve_period(params, omega, theta, i_dq, states, [d * 1e-9 for d in durs])
         smp = plant.sample()
         worst = max(worst, abs(smp.i_d - i_d), abs(smp.i_q - i_q))
-        # restart the reference from the plant state so errors do not accumulate chaotically
+        # the reference carries its own state forward (independent of the plant)
         i_dq = (i_d, i_q)
     return worst
 
