@@ -1,6 +1,8 @@
 /* Gate edges of one control period; see gate_edges.h. */
 #include "gate_edges.h"
 
+#include <stddef.h>
+
 int ge_plan(int legs, int32_t gate, const int32_t *states, const int64_t *durations_ns, int32_t n, double t_start,
             double t_mpw, double t_lim, double *last_edge_t, dq_event_t *ev, int n_ev, int cap, ge_counts_t *counts,
             int64_t *total_ns)
@@ -59,4 +61,60 @@ int ge_plan(int legs, int32_t gate, const int32_t *states, const int64_t *durati
         }
     }
     return n_ev;
+}
+
+int ge_run_period(int legs, double t_start, double t_end, double t_dead, dq_event_t *ev, int n_ev, int cap,
+                  double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp, int32_t *gate,
+                  double *dead_until, int32_t *dead_level, ge_integrate_fn integrate, ge_dead_level_fn dead_level_of,
+                  void *ctx)
+{
+    int gate_level[GE_MAX_LEGS];
+    double t = t_start;
+    double load_ref = t_start, load_val = t_load0, load_slope = t_load_slope; /* load segment in force */
+    int32_t g = *gate;
+    for (int leg = 0; leg < legs; leg++) {
+        gate_level[leg] = (g >> (legs - 1 - leg)) & 1;
+        if (dead_until[leg] > t && dead_until[leg] < t_end) {
+            n_ev = dq_add_event(ev, n_ev, cap, dead_until[leg], leg, 1, 0);
+        }
+    }
+    for (int b = 0; b < n_load_bp && load_bp != NULL; b++) {
+        if (load_bp[3 * b] > t_start && load_bp[3 * b] < t_end) {
+            n_ev = dq_add_event(ev, n_ev, cap, load_bp[3 * b], b, 2, 0);
+        }
+    }
+    for (int k = 0; k <= n_ev; k++) {
+        double t_next = (k < n_ev) ? ev[k].t : t_end;
+        if (t_next > t) {
+            int rc = integrate(ctx, t, t_next - t, load_val, load_slope, load_ref, gate_level);
+            if (rc != 0) {
+                *gate = g;
+                return rc;
+            }
+            t = t_next;
+        }
+        if (k == n_ev) {
+            break;
+        }
+        if (ev[k].kind == 2) { /* a load-profile breakpoint inside the period */
+            const double *bp = load_bp + 3 * ev[k].leg;
+            load_ref = bp[0];
+            load_val = bp[1];
+            load_slope = bp[2];
+        } else if (ev[k].kind == 0) {
+            int leg = ev[k].leg;
+            int bit = legs - 1 - leg;
+            if (t_dead > 0.0) {
+                dead_level[leg] = dead_level_of(ctx, leg, ev[k].level);
+                dead_until[leg] = ev[k].t + t_dead;
+                if (dead_until[leg] < t_end) {
+                    n_ev = dq_add_event(ev, n_ev, cap, dead_until[leg], leg, 1, 0);
+                }
+            }
+            gate_level[leg] = ev[k].level;
+            g = (g & ~(1 << bit)) | (ev[k].level << bit);
+        }
+    }
+    *gate = g;
+    return 0;
 }

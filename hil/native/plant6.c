@@ -151,6 +151,33 @@ static double phase_current(const p6_state_t *s, int leg)
     return ip[leg];
 }
 
+/* Callbacks for the shared period driver (gate_edges.c). */
+typedef struct {
+    const p6_params_t *p;
+    p6_state_t *s;
+    double trace_dt;
+    double *trace;
+    int32_t trace_cap;
+    p6_period_stats_t *stats;
+} p6_run_ctx_t;
+
+static int p6_integrate_cb(void *ctx, double t, double h, double load_val, double load_slope, double load_ref,
+                           const int *gate_level)
+{
+    p6_run_ctx_t *c = (p6_run_ctx_t *)ctx;
+    return integrate(c->p, c->s, t, h, load_val, load_slope, load_ref, c->trace_dt, c->trace, c->trace_cap, c->stats,
+                     gate_level);
+}
+
+/* Sign rule: current out of the leg -> lower diode; into it -> upper diode; exactly zero -> the new level
+ * (no open-phase model for six phases). */
+static int p6_dead_level_cb(void *ctx, int leg, int new_level)
+{
+    p6_run_ctx_t *c = (p6_run_ctx_t *)ctx;
+    double i_ph = phase_current(c->s, leg);
+    return i_ph > 0.0 ? 0 : (i_ph < 0.0 ? 1 : new_level);
+}
+
 int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const int64_t *durations_ns,
                int32_t n, double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp,
                double trace_dt, double *trace,
@@ -158,7 +185,6 @@ int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const
 {
     dq_event_t ev[P6_MAX_EVENTS];
     int n_ev = 0;
-    int gate_level[P6_LEGS];
     double t_start = (double)s->t_ns * 1e-9;
     int64_t total_ns = 0;
     double t_lim = 2.0 * p->t_dead + p->t_mpw;
@@ -192,62 +218,15 @@ int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const
         stats->suppressed_pulses = counts.suppressed_pulses;
         stats->narrow_pulses_gated = counts.narrow_pulses_gated;
     }
-    for (int leg = 0; leg < P6_LEGS; leg++) {
-        gate_level[leg] = (s->gate >> (P6_LEGS - 1 - leg)) & 1;
-    }
     {
-        double t_end = t_start + (double)total_ns * 1e-9;
-        double t = t_start;
-        double load_ref = t_start, load_val = t_load0, load_slope = t_load_slope; /* load segment in force */
-        for (int b = 0; b < n_load_bp && load_bp != NULL; b++) {
-            if (load_bp[3 * b] > t_start && load_bp[3 * b] < t_end) {
-                n_ev = dq_add_event(ev, n_ev, P6_MAX_EVENTS, load_bp[3 * b], b, 2, 0);
-            }
+        p6_run_ctx_t c = {p, s, trace_dt, trace, trace_cap, stats};
+        int rc = ge_run_period(P6_LEGS, t_start, t_start + (double)total_ns * 1e-9, p->t_dead, ev, n_ev, P6_MAX_EVENTS,
+                               t_load0, t_load_slope, load_bp, n_load_bp, &s->gate, s->dead_until, s->dead_level,
+                               p6_integrate_cb, p6_dead_level_cb, &c);
+        if (rc != P6_OK) {
+            stats->error = rc;
+            return rc;
         }
-        int gate = s->gate;
-        for (int leg = 0; leg < P6_LEGS; leg++) {
-            if (s->dead_until[leg] > t && s->dead_until[leg] < t_end) {
-                n_ev = dq_add_event(ev, n_ev, P6_MAX_EVENTS, s->dead_until[leg], leg, 1, 0);
-            }
-        }
-        for (int k = 0; k <= n_ev; k++) {
-            double t_next = (k < n_ev) ? ev[k].t : t_end;
-            if (t_next > t) {
-                int rc = integrate(p, s, t, t_next - t, load_val, load_slope, load_ref, trace_dt, trace, trace_cap,
-                                   stats, gate_level);
-                if (rc != P6_OK) {
-                    stats->error = rc;
-                    return rc;
-                }
-                t = t_next;
-            }
-            if (k == n_ev) {
-                break;
-            }
-            if (ev[k].kind == 2) { /* a load-profile breakpoint inside the period */
-                const double *bp = load_bp + 3 * ev[k].leg;
-                load_ref = bp[0];
-                load_val = bp[1];
-                load_slope = bp[2];
-            }
-            if (ev[k].kind == 0) {
-                int leg = ev[k].leg;
-                int bit = P6_LEGS - 1 - leg;
-                if (p->t_dead > 0.0) {
-                    double i_ph = phase_current(s, leg);
-                    /* sign rule: current out of the leg -> lower diode; into it -> upper diode;
-                     * exactly zero -> the new level (no diode conducts, no voltage-second error) */
-                    s->dead_level[leg] = i_ph > 0.0 ? 0 : (i_ph < 0.0 ? 1 : ev[k].level);
-                    s->dead_until[leg] = ev[k].t + p->t_dead;
-                    if (s->dead_until[leg] < t_end) {
-                        n_ev = dq_add_event(ev, n_ev, P6_MAX_EVENTS, s->dead_until[leg], leg, 1, 0);
-                    }
-                }
-                gate_level[leg] = ev[k].level;
-                gate = (gate & ~(1 << bit)) | (ev[k].level << bit);
-            }
-        }
-        s->gate = gate;
     }
     s->t_ns += (uint64_t)total_ns;
     return P6_OK;
