@@ -133,6 +133,9 @@ class RunConfig:
         }
         if m.is_six_phase:
             params[ParamId.LLS] = m.lls
+            # mptc3's torque hysteresis band B_T (not given by the paper): 5 % of rated torque; the firmware's
+            # 0.2 N·m default lets its torque-only cost drift i_d until it trips (docs/comparisons/zhang2021.md)
+            params[ParamId.TORQUE_BAND] = 0.05 * rated
         for name, value in self.controller_params.items():
             params[param_id(name)] = value
         return params
