@@ -29,7 +29,8 @@ typedef struct {
     double peak_current;
     int32_t trace_n;
     int32_t error;
-} pl_period_stats_t;
+} ge_period_stats_t;
+typedef ge_period_stats_t pl_period_stats_t;
 int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const int64_t *durations_ns,
                int32_t n, double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp,
                double trace_dt, double *trace,
@@ -54,13 +55,7 @@ typedef struct {
     int32_t gate;
     int32_t dead_level[6];
 } p6_state_t;
-typedef struct {
-    uint32_t leg_transitions, boundary_transitions, narrow_pulses, suppressed_pulses, open_phase_events;
-    uint32_t narrow_pulses_gated;
-    double peak_current;
-    int32_t trace_n;
-    int32_t error;
-} p6_period_stats_t;
+typedef ge_period_stats_t p6_period_stats_t;
 int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const int64_t *durations_ns,
                int32_t n, double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp,
                double trace_dt, double *trace,

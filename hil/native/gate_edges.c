@@ -3,8 +3,21 @@
 
 #include <stddef.h>
 
+void ge_stats_reset(ge_period_stats_t *stats)
+{
+    stats->leg_transitions = 0;
+    stats->boundary_transitions = 0;
+    stats->narrow_pulses = 0;
+    stats->suppressed_pulses = 0;
+    stats->open_phase_events = 0;
+    stats->narrow_pulses_gated = 0;
+    stats->peak_current = 0.0;
+    stats->trace_n = 0;
+    stats->error = 0;
+}
+
 int ge_plan(int legs, int32_t gate, const int32_t *states, const int64_t *durations_ns, int32_t n, double t_start,
-            double t_mpw, double t_lim, double *last_edge_t, dq_event_t *ev, int n_ev, int cap, ge_counts_t *counts,
+            double t_mpw, double t_lim, double *last_edge_t, dq_event_t *ev, int n_ev, int cap, ge_period_stats_t *counts,
             int64_t *total_ns)
 {
     double edge_t[GE_MAX_LEGS][GE_MAX_SUBINTERVALS + 2];
@@ -13,11 +26,6 @@ int ge_plan(int legs, int32_t gate, const int32_t *states, const int64_t *durati
     int32_t prev = gate;
     int64_t acc = 0;
 
-    counts->leg_transitions = 0;
-    counts->boundary_transitions = 0;
-    counts->narrow_pulses = 0;
-    counts->suppressed_pulses = 0;
-    counts->narrow_pulses_gated = 0;
     for (int k = 0; k < n; k++) {
         int32_t st = states[k];
         if (durations_ns[k] == 0) {

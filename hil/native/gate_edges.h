@@ -13,20 +13,28 @@
 #define GE_MAX_LEGS 6
 #define GE_MAX_SUBINTERVALS 8
 
+/* Statistics of one advanced period, shared by both plant kernels (pl_/p6_period_stats_t). */
 typedef struct {
-    uint32_t leg_transitions;      /* edges that reached the legs */
+    uint32_t leg_transitions;      /* gate transitions that reached the legs (after T_mpw) */
     uint32_t boundary_transitions; /* of which at the period start */
-    uint32_t narrow_pulses;        /* requested pulses shorter than t_lim */
-    uint32_t suppressed_pulses;    /* pulses shorter than t_mpw removed */
-    uint32_t narrow_pulses_gated;  /* narrow pulses that reached the gate */
-} ge_counts_t;
+    uint32_t narrow_pulses;        /* requested pulses shorter than 2*t_dead + t_mpw (counted when they end) */
+    uint32_t suppressed_pulses;    /* pulses shorter than t_mpw removed before the gate */
+    uint32_t open_phase_events;    /* dead-time diode currents that reached zero (three-phase kernel only) */
+    uint32_t narrow_pulses_gated;  /* narrow pulses that reached the gate (not suppressed by t_mpw) */
+    double peak_current;           /* largest |phase current| at the trace rows of the period [A] */
+    int32_t trace_n;               /* trace rows written */
+    int32_t error;                 /* 0 ok, negative: the kernel's error codes */
+} ge_period_stats_t;
+
+/* Zero every counter of a period. */
+void ge_stats_reset(ge_period_stats_t *stats);
 
 /* Plan the period: `legs` legs (bit legs-1-leg of a state code is leg `leg`), applied gate code `gate`,
  * n sub-intervals (states, durations [ns]) from absolute time t_start [s]. Adds one event (kind 0) per
  * surviving edge to ev (count n_ev, capacity cap) and returns the new count; updates last_edge_t [s]
  * per leg; writes the period's total duration [ns]. */
 int ge_plan(int legs, int32_t gate, const int32_t *states, const int64_t *durations_ns, int32_t n, double t_start,
-            double t_mpw, double t_lim, double *last_edge_t, dq_event_t *ev, int n_ev, int cap, ge_counts_t *counts,
+            double t_mpw, double t_lim, double *last_edge_t, dq_event_t *ev, int n_ev, int cap, ge_period_stats_t *counts,
             int64_t *total_ns);
 
 /* Integrate h seconds from absolute time t [s] with the given leg gate levels; the load torque in force is

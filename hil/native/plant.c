@@ -344,15 +344,7 @@ int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const
     int64_t total_ns = 0;
     double t_lim = 2.0 * p->t_dead + p->t_mpw;
 
-    stats->leg_transitions = 0;
-    stats->boundary_transitions = 0;
-    stats->narrow_pulses = 0;
-    stats->suppressed_pulses = 0;
-    stats->open_phase_events = 0;
-    stats->narrow_pulses_gated = 0;
-    stats->peak_current = 0.0;
-    stats->trace_n = 0;
-    stats->error = PL_OK;
+    ge_stats_reset(stats);
     if (n < 1 || n > PL_MAX_SUBINTERVALS) {
         stats->error = PL_E_ARGS;
         return PL_E_ARGS;
@@ -363,16 +355,8 @@ int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const
             return PL_E_ARGS;
         }
     }
-    {
-        ge_counts_t counts;
-        n_ev = ge_plan(3, s->gate, states, durations_ns, n, t_start, p->t_mpw, t_lim, s->last_edge_t, ev, n_ev,
-                       PL_MAX_EVENTS, &counts, &total_ns);
-        stats->leg_transitions = counts.leg_transitions;
-        stats->boundary_transitions = counts.boundary_transitions;
-        stats->narrow_pulses = counts.narrow_pulses;
-        stats->suppressed_pulses = counts.suppressed_pulses;
-        stats->narrow_pulses_gated = counts.narrow_pulses_gated;
-    }
+    n_ev = ge_plan(3, s->gate, states, durations_ns, n, t_start, p->t_mpw, t_lim, s->last_edge_t, ev, n_ev,
+                   PL_MAX_EVENTS, stats, &total_ns);
     {
         pl_run_ctx_t c = {p, s, trace_dt, trace, trace_cap, stats};
         int rc = ge_run_period(3, t_start, t_start + (double)total_ns * 1e-9, p->t_dead, ev, n_ev, PL_MAX_EVENTS,

@@ -11,6 +11,8 @@
 
 #include <stdint.h>
 
+#include "gate_edges.h"
+
 #define PL_MAX_SUBINTERVALS 8
 #define PL_TRACE_COLUMNS 6 /* t [s], i_a, i_b, i_c [A], torque [N*m], omega_m [rad/s] */
 
@@ -41,17 +43,7 @@ typedef struct {
     int32_t dead_level[3];/* leg level during its dead time (0: low rail, 1: high rail, 2: open) */
 } pl_state_t;
 
-typedef struct {
-    uint32_t leg_transitions;      /* gate transitions that reached the legs (after T_mpw) */
-    uint32_t boundary_transitions; /* of which at the period start */
-    uint32_t narrow_pulses;        /* requested pulses shorter than 2*t_dead + t_mpw (counted when they end) */
-    uint32_t suppressed_pulses;    /* pulses shorter than t_mpw removed before the gate */
-    uint32_t open_phase_events;    /* dead-time diode currents that reached zero (phase left open) */
-    uint32_t narrow_pulses_gated;  /* narrow pulses that reached the gate (not suppressed by t_mpw) */
-    double peak_current;           /* largest |phase current| at the trace rows of the period [A] */
-    int32_t trace_n;               /* trace rows written */
-    int32_t error;                 /* 0 ok, negative: see PL_E_* */
-} pl_period_stats_t;
+typedef ge_period_stats_t pl_period_stats_t; /* see gate_edges.h */
 
 #define PL_OK 0
 #define PL_E_ARGS (-1)

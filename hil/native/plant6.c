@@ -189,15 +189,7 @@ int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const
     int64_t total_ns = 0;
     double t_lim = 2.0 * p->t_dead + p->t_mpw;
 
-    stats->leg_transitions = 0;
-    stats->boundary_transitions = 0;
-    stats->narrow_pulses = 0;
-    stats->suppressed_pulses = 0;
-    stats->narrow_pulses_gated = 0;
-    stats->open_phase_events = 0;
-    stats->peak_current = 0.0;
-    stats->trace_n = 0;
-    stats->error = P6_OK;
+    ge_stats_reset(stats);
     if (n < 1 || n > P6_MAX_SUBINTERVALS || !(p->lls > 0.0) || !(p->rs > 0.0)) {
         stats->error = P6_E_ARGS;
         return P6_E_ARGS;
@@ -208,16 +200,8 @@ int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const
             return P6_E_ARGS;
         }
     }
-    {
-        ge_counts_t counts;
-        n_ev = ge_plan(P6_LEGS, s->gate, states, durations_ns, n, t_start, p->t_mpw, t_lim, s->last_edge_t, ev, n_ev,
-                       P6_MAX_EVENTS, &counts, &total_ns);
-        stats->leg_transitions = counts.leg_transitions;
-        stats->boundary_transitions = counts.boundary_transitions;
-        stats->narrow_pulses = counts.narrow_pulses;
-        stats->suppressed_pulses = counts.suppressed_pulses;
-        stats->narrow_pulses_gated = counts.narrow_pulses_gated;
-    }
+    n_ev = ge_plan(P6_LEGS, s->gate, states, durations_ns, n, t_start, p->t_mpw, t_lim, s->last_edge_t, ev, n_ev,
+                   P6_MAX_EVENTS, stats, &total_ns);
     {
         p6_run_ctx_t c = {p, s, trace_dt, trace, trace_cap, stats};
         int rc = ge_run_period(P6_LEGS, t_start, t_start + (double)total_ns * 1e-9, p->t_dead, ev, n_ev, P6_MAX_EVENTS,

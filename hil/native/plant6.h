@@ -13,6 +13,8 @@
 
 #include <stdint.h>
 
+#include "gate_edges.h"
+
 #define P6_MAX_SUBINTERVALS 8
 #define P6_LEGS 6
 /* t [s], i_a, i_b, i_c, i_u, i_v, i_w [A], torque [N*m], omega_m [rad/s], i_x, i_y [A] */
@@ -46,17 +48,7 @@ typedef struct {
     int32_t dead_level[P6_LEGS]; /* leg level during its dead time (0 low rail, 1 high rail) */
 } p6_state_t;
 
-typedef struct {
-    uint32_t leg_transitions;      /* gate transitions that reached the legs (after T_mpw) */
-    uint32_t boundary_transitions; /* of which at the period start */
-    uint32_t narrow_pulses;        /* pulses shorter than 2*t_dead + t_mpw */
-    uint32_t suppressed_pulses;    /* pulses shorter than t_mpw removed before the gate */
-    uint32_t open_phase_events;    /* always 0: no open-phase model for six phases (same layout as pl_) */
-    uint32_t narrow_pulses_gated;  /* narrow pulses that reached the gate (not suppressed) */
-    double peak_current;           /* largest |phase current| at the trace rows of the period [A] */
-    int32_t trace_n;               /* trace rows written */
-    int32_t error;                 /* 0 ok, negative: P6_E_* */
-} p6_period_stats_t;
+typedef ge_period_stats_t p6_period_stats_t; /* see gate_edges.h */
 
 #define P6_OK 0
 #define P6_E_ARGS (-1)
