@@ -56,14 +56,14 @@ def hold_serving(url: str) -> None:
 def live_dashboard(args: argparse.Namespace, cfg: Any) -> Iterator[Callable[[np.ndarray], None] | None]:
     """Yields the block consumer for `run_closed_loop(live=...)`, or None when no --rerun option is given.
 
-    `cfg` is the RunConfig (its motor gives Vdc and the phase count)."""
+    `cfg` is the RunConfig (its motor gives Vdc, its machine descriptor the phase count)."""
     targets = rerun_targets(args)
     if not targets.any():
         yield None
         return
     from pmsm_hil.dashboards.live import LiveRerun
 
-    phases = 6 if getattr(cfg.motor, "is_six_phase", False) else 3
+    phases = cfg.machine.phases
     name = f"{cfg.motor.name} {cfg.controller} {cfg.scenario.name}"
     live = LiveRerun(targets, vdc=cfg.motor.vdc, ts_s=cfg.ts_s, phases=phases, name=name)
     try:

@@ -11,6 +11,7 @@ from pmsm_hil.dashboards.errors import DashboardError
 from pmsm_hil.dashboards.recording import RerunTargets, open_recording
 from pmsm_hil.dashboards.streamer import PeriodStreamer
 from pmsm_hil.hil.errors import HilError
+from pmsm_hil.hil.machine import layout_for_phases, load_machine
 from pmsm_hil.hil.runlog.reader import read_metadata, read_periods
 
 BLOCK = 1000
@@ -39,15 +40,18 @@ def load_source(path: Path, *, vdc: float | None = None) -> ReplaySource:
         ts_s = float(meta["ts_s"]) if "ts_s" in meta else float(periods["t"][1] - periods["t"][0])
     except (ValueError, IndexError):
         raise DashboardError(f"RUN.mcap: metadata ts_s {meta.get('ts_s')!r} is not a number") from None
-    phases = 3
+    phases: int | None = None
+    if "phases" in meta:
+        try:
+            phases = layout_for_phases(int(meta["phases"])).legs
+        except (ValueError, HilError):
+            raise DashboardError(f"RUN.mcap: metadata phases {meta['phases']!r} is not a known phase count") from None
     motor_vdc: float | None = None
     if "motor" in meta:
-        from pmsm_hil.hil.presets_loader import load_motor
-
         try:
-            motor = load_motor(meta["motor"])
-            motor_vdc = motor.vdc
-            phases = 6 if getattr(motor, "is_six_phase", False) else 3
+            machine = load_machine(meta["motor"])
+            motor_vdc = machine.params.vdc
+            phases = machine.phases if phases is None else phases  # logs written before the phases key
         except HilError:
             motor_vdc = None
     if vdc is None:
@@ -55,7 +59,7 @@ def load_source(path: Path, *, vdc: float | None = None) -> ReplaySource:
     if vdc is None or not vdc > 0.0:
         raise DashboardError(f"--vdc: the run's motor {meta.get('motor')!r} is unknown here; give --vdc in V")
     name = " ".join(meta[k] for k in ("motor", "controller", "scenario") if k in meta) or path.stem
-    return ReplaySource(periods, float(vdc), ts_s, phases, name)
+    return ReplaySource(periods, float(vdc), ts_s, 3 if phases is None else phases, name)
 
 
 def replay_to_rerun(source: ReplaySource, targets: RerunTargets) -> tuple[Any, str | None]:

@@ -73,6 +73,13 @@ TRACE_DTYPE6: Final = np.dtype(
      ("torque", "f8"), ("omega_m", "f8"), ("i_x", "f8"), ("i_y", "f8")]
 )
 
+
+
+def trace_dtype(names: tuple[str, ...]) -> np.dtype:
+    """Trace record dtype with these float64 fields (the layouts above, or a machine kind's own)."""
+    return np.dtype([(name, "f8") for name in names])
+
+
 FRAME_DTYPE: Final = np.dtype(
     [
         ("t", "f8"),
@@ -95,4 +102,5 @@ __all__ = [
     "PERIOD_DTYPE",
     "TRACE_DTYPE",
     "TRACE_DTYPE6",
+    "trace_dtype",
 ]

@@ -13,16 +13,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from pmsm_hil.hil.errors import InputFileError, SequenceError
+from pmsm_hil.hil.machine import DUAL_THREE_PHASE, THREE_PHASE, MachineLayout, machine_for
 from pmsm_hil.hil.mechanics import DynoMechanics
 from pmsm_hil.hil.motor_params import PmsmParams
-from pmsm_hil.hil.plant import MAX_SUBINTERVALS, Plant
-from pmsm_hil.hil.plant6 import Plant6
+from pmsm_hil.hil.plant import MAX_SUBINTERVALS
 
-OUTPUT_COLUMNS = ("t", "i_a", "i_b", "i_c", "i_d", "i_q", "torque", "theta_e", "omega_m")
-_LEG_COLUMNS = ("sa", "sb", "sc")
-OUTPUT_COLUMNS6 = ("t", "i_a1", "i_b1", "i_c1", "i_a2", "i_b2", "i_c2", "i_d", "i_q", "i_x", "i_y", "torque",
-                   "theta_e", "omega_m")
-_LEG_COLUMNS6 = ("sa1", "sb1", "sc1", "sa2", "sb2", "sc2")
+OUTPUT_COLUMNS = THREE_PHASE.replay_columns
+OUTPUT_COLUMNS6 = DUAL_THREE_PHASE.replay_columns
 
 
 @dataclass(frozen=True, slots=True)
@@ -39,15 +36,15 @@ def _parse_bit(text: str, row: int, column: str) -> int:
     return int(text)
 
 
-def read_commands(path: Path, ts_ns: int, *, six_phase: bool = False) -> Iterator[ReplayCommand]:
+def read_commands(path: Path, ts_ns: int, *, layout: MachineLayout = THREE_PHASE) -> Iterator[ReplayCommand]:
     """Yield the commands of a replay CSV (header required; rows numbered from 1 after the header).
 
     Forms: ``sa,sb,sc`` (one state for the whole period) or ``s0,t0,s1,t1,s2,t2`` (state codes and
     durations [s] summing to Ts; unused slots empty). Six phases: ``sa1,sb1,sc1,sa2,sb2,sc2`` or the
-    sequence form with codes 0..63.
+    sequence form with codes 0..63 (`layout`: the machine's legs and largest state code).
     """
-    legs = _LEG_COLUMNS6 if six_phase else _LEG_COLUMNS
-    max_code = 63 if six_phase else 7
+    legs = layout.replay_legs
+    max_code = layout.max_state_code
     try:
         handle = path.open(newline="", encoding="utf-8", errors="replace")
     except OSError as exc:
@@ -69,7 +66,7 @@ def read_commands(path: Path, ts_ns: int, *, six_phase: bool = False) -> Iterato
                     f"got {','.join(header)}")
         else:
             raise InputFileError(f"input file {path}: header must be '{','.join(legs)}' or 's0,t0,s1,t1,...' "
-                                 f"({'six' if six_phase else 'three'}-phase motor), got {','.join(header)}")
+                                 f"({layout.legs}-phase motor), got {','.join(header)}")
         for row_no, row in enumerate(reader, start=1):
             if not row or all(not c.strip() for c in row):
                 continue
@@ -120,35 +117,26 @@ def replay(params: PmsmParams, *, rpm: float, ts_s: float, input_path: Path, out
     """Replay the input CSV through the plant in dyno mode; writes N+1 rows; returns N.
 
     A motor with lls > 0 runs the dual three-phase plant (`Plant6`) and writes `OUTPUT_COLUMNS6`."""
-    six = params.is_six_phase
-    plant: Plant | Plant6
-    if six:
-        plant = Plant6(params, ts_s, DynoMechanics(rpm), theta0_rad=theta0_rad, trace_dt_s=None)
-    else:
-        plant = Plant(params, ts_s, DynoMechanics(rpm), theta0_rad=theta0_rad, trace_dt_s=None)
-    commands = list(read_commands(input_path, plant.ts_ns, six_phase=six))
-    rows = [_row(plant)]
+    machine = machine_for(params)
+    layout = machine.layout
+    plant = machine.build_plant(ts_s, DynoMechanics(rpm), theta0_rad=theta0_rad, trace_dt_s=None)
+    commands = list(read_commands(input_path, plant.ts_ns, layout=layout))
+
+    def _row() -> list[str]:
+        return [repr(float(v)) for v in layout.replay_row(plant.sample())]
+
+    rows = [_row()]
     for idx, cmd in enumerate(commands, start=1):
         try:
             plant.advance(cmd.states, cmd.durations_ns)
         except SequenceError as exc:
             raise InputFileError(f"row {idx}: {exc}") from None
-        rows.append(_row(plant))
+        rows.append(_row())
     try:
         with output_path.open("w", newline="", encoding="utf-8") as out:
             writer = csv.writer(out)
-            writer.writerow(OUTPUT_COLUMNS6 if six else OUTPUT_COLUMNS)
+            writer.writerow(layout.replay_columns)
             writer.writerows(rows)
     except OSError as exc:
         raise InputFileError(f"output file {output_path}: {exc.strerror}") from None
     return len(commands)
-
-
-def _row(plant: Plant | Plant6) -> list[str]:
-    if isinstance(plant, Plant6):
-        q = plant.sample()
-        return [repr(float(v)) for v in (q.t, q.i_a, q.i_b, q.i_c, q.i_u, q.i_v, q.i_w, q.i_d, q.i_q, q.i_x,
-                                          q.i_y, q.torque, q.theta_e, q.omega_m)]
-    s = plant.sample()
-    values = (s.t, s.i_a, s.i_b, s.i_c, s.i_d, s.i_q, s.torque, s.theta_e, s.omega_m)
-    return [repr(float(v)) for v in values]

@@ -165,24 +165,41 @@ def ros2msg_schema(dtype: np.dtype) -> bytes:
     return ("\n".join(lines) + "\n").encode()
 
 
+def ros2msg_fields(schema: bytes) -> tuple[str, ...]:
+    """Field names of a trace schema written by `ros2msg_schema` (McapFormatError if it is not one)."""
+    names: list[str] = []
+    for line in schema.decode("utf-8", errors="replace").splitlines():
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        kind, _, name = line.partition(" ")
+        if kind != "float64[]" or not name.strip().isidentifier():
+            raise McapFormatError(f"/trace: schema line {line!r} is not 'float64[] NAME'")
+        names.append(name.strip())
+    if not names:
+        raise McapFormatError("/trace: schema has no fields")
+    return tuple(names)
+
+
 def encode_trace_cdr(block: np.ndarray) -> bytes:
-    """CDR (little endian) of a TRACE_DTYPE block: per field uint32 count, 4 pad bytes, float64 data."""
+    """CDR (little endian) of a trace block (any all-float64 trace dtype, fields in order): per field uint32
+    count, 4 pad bytes, float64 data."""
     n = block.shape[0]
     prefix = struct.pack("<II", n, 0)
     parts = [CDR_LE_HEADER]
-    for name in TRACE_DTYPE.names or ():
+    for name in block.dtype.names or ():
         parts.append(prefix)
         parts.append(np.ascontiguousarray(block[name], dtype="<f8").tobytes())
     return b"".join(parts)
 
 
-def decode_trace_cdr(data: bytes) -> np.ndarray:
-    """Inverse of `encode_trace_cdr` (TRACE_DTYPE block); raises McapFormatError on a malformed message."""
+def decode_trace_cdr(data: bytes, dtype: np.dtype = TRACE_DTYPE) -> np.ndarray:
+    """Inverse of `encode_trace_cdr` for a block of `dtype`; raises McapFormatError on a malformed message."""
     if data[:4] != CDR_LE_HEADER:
         raise McapFormatError("/trace: message is not little-endian CDR")
     pos = 4
     cols: dict[str, np.ndarray] = {}
-    for name in TRACE_DTYPE.names or ():
+    for name in dtype.names or ():
         if pos + 4 > len(data):
             raise McapFormatError(f"/trace: message truncated before field {name}")
         (count,) = struct.unpack_from("<I", data, pos)
@@ -196,7 +213,7 @@ def decode_trace_cdr(data: bytes) -> np.ndarray:
     lengths = {c.shape[0] for c in cols.values()}
     if len(lengths) != 1:
         raise McapFormatError("/trace: fields have different lengths")
-    out = np.empty(lengths.pop(), dtype=TRACE_DTYPE)
+    out = np.empty(lengths.pop(), dtype=dtype)
     for name, col in cols.items():
         out[name] = col
     return out

@@ -29,6 +29,7 @@ class RunLogger(WorkerClient):
     `flush_interval_s` (s): the logger ends its chunk and fsyncs at least this often, so a kill loses
     at most that much. `ring_bytes`: shared buffer between the processes; a submit waits (counted in
     `stall_s`) only if the logger falls this far behind, and raises after `stall_timeout_s`.
+    `trace_dtype`: the machine's trace layout (`Machine.layout.trace_dtype`; all float64 fields).
     """
 
     def __init__(
@@ -42,6 +43,7 @@ class RunLogger(WorkerClient):
         start_method: str = "spawn",
         start_timeout_s: float = 60.0,
         stall_timeout_s: float = 10.0,
+        trace_dtype: np.dtype = TRACE_DTYPE,
     ) -> None:
         super().__init__()
         path = Path(path)
@@ -54,9 +56,13 @@ class RunLogger(WorkerClient):
             raise RunLogError(f"compression: expected one of {sorted(COMPRESSIONS)}, got {compression!r}")
         if start_method not in ("spawn", "forkserver"):
             raise RunLogError(f"start_method: expected 'spawn' or 'forkserver', got {start_method!r}")
+        names = tuple(trace_dtype.names or ())
+        if not names or any(trace_dtype[n] != np.dtype("f8") for n in names):
+            raise RunLogError(f"trace_dtype: expected float64 fields, got {trace_dtype}")
         self.path = path
+        self.trace_dtype = trace_dtype
         try:
-            self._start_worker(run_worker, (str(path), meta, float(flush_interval_s), compression),
+            self._start_worker(run_worker, (str(path), meta, float(flush_interval_s), compression, names),
                                name="hil-runlog", start_method=start_method, ring_bytes=ring_bytes,
                                stall_timeout_s=stall_timeout_s)
         except OSError as exc:
@@ -103,8 +109,8 @@ class RunLogger(WorkerClient):
         self._submit(topics.KIND_FRAMES, block, FRAME_DTYPE, "frames")
 
     def submit_trace(self, block: np.ndarray) -> None:
-        """Queue a TRACE_DTYPE block (one CDR message per block on /trace)."""
-        self._submit(topics.KIND_TRACE, block, TRACE_DTYPE, "trace")
+        """Queue a block of the logger's `trace_dtype` (one CDR message per block on /trace)."""
+        self._submit(topics.KIND_TRACE, block, self.trace_dtype, "trace")
 
     @property
     def pid(self) -> int | None:

@@ -20,7 +20,7 @@ from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 from mcap.records import Channel, Chunk, McapRecord, Message, Metadata, Schema
 from mcap.stream_reader import breakup_chunk
-from pmsm_hil.hil.records import FRAME_DTYPE, PERIOD_DTYPE, TRACE_DTYPE
+from pmsm_hil.hil.records import FRAME_DTYPE, PERIOD_DTYPE, TRACE_DTYPE, trace_dtype
 from pmsm_hil.hil.runlog import encoding, topics
 from pmsm_hil.hil.runlog.errors import McapFormatError
 
@@ -146,9 +146,26 @@ def read_frames(path: Path) -> np.ndarray:
 
 
 def read_trace(path: Path) -> np.ndarray:
-    """TRACE_DTYPE array: all /trace blocks concatenated."""
-    blocks = [encoding.decode_trace_cdr(m.data) for m in read_topic_messages(path, topics.TOPIC_TRACE)]
-    out: np.ndarray = np.concatenate(blocks) if blocks else np.zeros(0, dtype=TRACE_DTYPE)
+    """All /trace blocks concatenated, in the layout the file's trace schema names (TRACE_DTYPE for a
+    three-phase run, TRACE_DTYPE6 for a dual three-phase one; TRACE_DTYPE if the file has no trace)."""
+    schemas: dict[int, bytes] = {}
+    channels: dict[int, int] = {}
+    messages: list[Message] = []
+    for record in scan_records(Path(path), ScanState()):
+        if isinstance(record, Schema):
+            schemas[record.id] = record.data
+        elif isinstance(record, Channel) and record.topic == topics.TOPIC_TRACE:
+            channels[record.id] = record.schema_id
+        elif isinstance(record, Message) and record.channel_id in channels:
+            messages.append(record)
+    dtype = TRACE_DTYPE
+    if channels:
+        schema = schemas.get(next(iter(channels.values())))
+        if schema is None:
+            raise McapFormatError(f"{topics.TOPIC_TRACE}: channel without its schema")
+        dtype = trace_dtype(encoding.ros2msg_fields(schema))
+    blocks = [encoding.decode_trace_cdr(m.data, dtype) for m in messages]
+    out: np.ndarray = np.concatenate(blocks) if blocks else np.zeros(0, dtype=dtype)
     return out
 
 

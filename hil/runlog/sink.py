@@ -23,7 +23,8 @@ LIBRARY = "pmsm-hil runlog"
 class McapSink:
     """Writes period, frame and trace blocks to an MCAP file (see docs/logging.md for the layout)."""
 
-    def __init__(self, path: Path, metadata: Mapping[str, str], compression: str = "lz4") -> None:
+    def __init__(self, path: Path, metadata: Mapping[str, str], compression: str = "lz4",
+                 trace_dtype: np.dtype = TRACE_DTYPE) -> None:
         if compression not in COMPRESSIONS:
             raise RunLogError(f"compression: expected one of {sorted(COMPRESSIONS)}, got {compression!r}")
         self._file: BinaryIO = open(path, "wb", buffering=1024 * 1024)  # noqa: SIM115 - closed in close()
@@ -44,7 +45,7 @@ class McapSink:
         self._ch_trace = w.register_channel(
             topics.TOPIC_TRACE,
             MessageEncoding.CDR,
-            w.register_schema(topics.SCHEMA_TRACE, SchemaEncoding.ROS2, encoding.ros2msg_schema(TRACE_DTYPE)),
+            w.register_schema(topics.SCHEMA_TRACE, SchemaEncoding.ROS2, encoding.ros2msg_schema(trace_dtype)),
         )
         ch_meta = w.register_channel(
             topics.TOPIC_METADATA,
@@ -56,6 +57,7 @@ class McapSink:
         w.add_message(ch_meta, 0, json.dumps(meta).encode(), 0)
         self.counts = {"periods": 0, "frames": 0, "trace_blocks": 0, "trace_samples": 0}
         self._closed = False
+        self._trace_dtype = trace_dtype
 
     def write_periods(self, raw: bytes) -> None:
         """Write one message per period of the PERIOD_DTYPE block `raw`."""
@@ -77,8 +79,9 @@ class McapSink:
         self.counts[count_key] += block.shape[0]
 
     def write_trace(self, raw: bytes) -> None:
-        """Write the TRACE_DTYPE block `raw` as one CDR message stamped with its first sample time."""
-        block = np.frombuffer(raw, dtype=TRACE_DTYPE)
+        """Write the trace block `raw` (the sink's trace dtype) as one CDR message stamped with its first
+        sample time."""
+        block = np.frombuffer(raw, dtype=self._trace_dtype)
         if block.shape[0] == 0:
             return
         t_ns = encoding.periods_log_times_ns(block[:1])[0]

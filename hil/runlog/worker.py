@@ -17,6 +17,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Any, Final
 
+from pmsm_hil.hil.records import trace_dtype
 from pmsm_hil.hil.runlog import topics
 from pmsm_hil.hil.runlog.channel import NOTICE, send_status
 from pmsm_hil.hil.runlog.ring import RingConsumer
@@ -34,6 +35,7 @@ def run_worker(
     metadata: dict[str, str],
     flush_interval_s: float,
     compression: str,
+    trace_fields: tuple[str, ...],
 ) -> None:
     """Logger process entry point (see module docstring)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -45,7 +47,7 @@ def run_worker(
     signal.signal(signal.SIGTERM, on_term)
     try:
         ring = RingConsumer(Path(ring_path), ring_bytes)
-        sink = McapSink(Path(path), metadata, compression)
+        sink = McapSink(Path(path), metadata, compression, trace_dtype(tuple(trace_fields)))
     except Exception as exc:  # report any setup failure to the runner instead of a traceback
         send_status(status, b"E" + f"run logger: cannot open {path}: {exc}".encode())
         return

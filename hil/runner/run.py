@@ -17,7 +17,7 @@ from pmsm_hil.hil.errors import HilError
 from pmsm_hil.hil.metrics.summary import compute_run_metrics
 from pmsm_hil.hil.runner.budget_check import check_realtime_budget
 from pmsm_hil.hil.runner.closed_loop import ClosedLoop, LoopOutcome
-from pmsm_hil.hil.runner.phases import build_plant, phase_setup
+from pmsm_hil.hil.runner.plant_setup import build_plant
 from pmsm_hil.hil.runner.recorder import ByteRecords
 from pmsm_hil.hil.runner.run_config import RunConfig, controller_id
 from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target, link_profile
@@ -59,8 +59,8 @@ def _open_logger(cfg: RunConfig) -> tuple[Any, Path | None]:
     meta = {"motor": cfg.motor.name, "controller": cfg.controller, "scenario": cfg.scenario.name,
             "ts_s": repr(cfg.ts_s), "link": cfg.link, "mode": cfg.mode, "seed": str(cfg.seed),
             "speed_rpm": repr(cfg.scenario.speed_rpm), "load_nm": repr(cfg.scenario.load_nm),
-            "pole_pairs": str(cfg.motor.pole_pairs)}
-    return RunLogger(path, metadata=meta), path
+            "pole_pairs": str(cfg.motor.pole_pairs), "phases": str(cfg.machine.phases)}
+    return RunLogger(path, metadata=meta, trace_dtype=cfg.machine.layout.trace_dtype), path
 
 
 def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None,
@@ -70,7 +70,7 @@ def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None,
     `live`: optional consumer of each PERIOD_DTYPE block (~1000 periods), e.g. the live dashboard."""
     cid = controller_id(cfg.controller)
     if cfg.mode == "realtime":
-        check_realtime_budget(cfg.link, link_profile(cfg.link), cfg.ts_s)
+        check_realtime_budget(cfg.link, link_profile(cfg.link), cfg.ts_s, cfg.machine.phases)
     logger, mcap_path = _open_logger(cfg)
     conn: TargetConnection | None = None
     try:
@@ -121,7 +121,7 @@ def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection) -> dict[
         raise HilError(f"run ended before the metrics window: {out.end_reason}")
     wall_window = out.wall_time_s * len(window) / max(len(periods), 1)
     metrics = compute_run_metrics(window, out.trace, ts_s=cfg.ts_s, pole_pairs=cfg.motor.pole_pairs,
-                                  legs=phase_setup(cfg).legs, wall_time_s=wall_window, link_stats=link_stats,
+                                  legs=cfg.machine.phases, wall_time_s=wall_window, link_stats=link_stats,
                                   deadline_misses=out.deadline_misses)
     metrics["link"].update({k: v for k, v in stats.items() if k not in metrics["link"]})
     metrics["end_reason"] = out.end_reason

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from pmsm_hil.hil.errors import ParameterError
+from pmsm_hil.hil.machine import Machine, machine_for
 from pmsm_hil.hil.motor_params import PmsmParams, parse_set_options
 from pmsm_hil.hil.runner.scenario import Scenario
 from pmsm_hil.hil.sensors import SensorConfig
@@ -90,12 +91,12 @@ class RunConfig:
 
     def __post_init__(self) -> None:
         controller_id(self.controller)
-        six = self.controller in SIX_PHASE_CONTROLLERS
-        if six != self.motor.is_six_phase:
+        needs = 6 if self.controller in SIX_PHASE_CONTROLLERS else 3
+        if needs != self.machine.phases:
+            words = {3: "three", 6: "six"}
             raise ParameterError(
-                f"controller '{self.controller}' needs a {'six' if six else 'three'}-phase motor, but "
-                f"'{self.motor.name}' is {'six' if self.motor.is_six_phase else 'three'}-phase "
-                f"(six-phase motors have lls > 0)")
+                f"controller '{self.controller}' needs a {words[needs]}-phase motor, but '{self.motor.name}' is "
+                f"{words.get(self.machine.phases, self.machine.phases)}-phase (six-phase motors have lls > 0)")
         if not (math.isfinite(self.ts_s) and 5e-6 <= self.ts_s <= 1e-2):
             raise ParameterError(f"--ts must be between 5 µs and 10 ms, got {self.ts_s} s")
         if abs(round(self.ts_s * 1e9) - self.ts_s * 1e9) > 1e-3:
@@ -110,6 +111,11 @@ class RunConfig:
             raise ParameterError(f"watchdog periods must be ≥ 1, got {self.watchdog_periods}")
         for name in self.controller_params:
             param_id(name)
+
+    @property
+    def machine(self) -> Machine:
+        """The machine descriptor of the motor (phase count, plant class, frames, record layouts)."""
+        return machine_for(self.motor)
 
     @property
     def ts_ns(self) -> int:
@@ -131,11 +137,7 @@ class RunConfig:
             # the firmware is told the inverter's dead time and minimum pulse (for compensation)
             ParamId.T_DEAD: m.t_dead, ParamId.T_MPW: m.t_mpw,
         }
-        if m.is_six_phase:
-            params[ParamId.LLS] = m.lls
-            # mptc3's torque hysteresis band B_T (not given by the paper): 5 % of rated torque; the firmware's
-            # 0.2 N·m default lets its torque-only cost drift i_d until it trips (docs/comparisons/zhang2021.md)
-            params[ParamId.TORQUE_BAND] = 0.05 * rated
+        params.update(self.machine.layout.target_extras(m, rated))
         for name, value in self.controller_params.items():
             params[param_id(name)] = value
         return params

@@ -1,0 +1,189 @@
+"""The machine descriptor: everything that differs between machine kinds, asked in one place.
+
+A `Machine` is made from a motor preset (`machine_for(params)` or `load_machine(name)`) and owns the phase
+count, the parameters, the plant class, the measurement frame, the trace and record layouts and the
+replay CSV columns. Code that would branch on "three or six phases" asks the descriptor instead; a new
+machine kind is one `MachineLayout` entry (see docs/recipes.md, "A new machine kind").
+Units are SI: currents A, angle rad (electrical), speed rad/s (mechanical), voltage V, time s.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, Final
+
+import numpy as np
+from pmsm_hil.hil.errors import ParameterError
+from pmsm_hil.hil.mechanics import Mechanics
+from pmsm_hil.hil.motor_params import PmsmParams
+from pmsm_hil.hil.plant import Plant
+from pmsm_hil.hil.plant6 import Plant6
+from pmsm_hil.hil.plant_base import PlantBase
+from pmsm_hil.hil.sensors import SensorModel
+from pmsm_hil.protocol.ids import ParamId
+from pmsm_hil.protocol.messages import Measurement, Measurement6
+
+_NAN = math.nan
+#: The six-phase record fields (i_u, i_v, i_w, i_x, i_y) of a machine without a second set: NaN.
+NO_SECOND_SET: Final = (_NAN, _NAN, _NAN, _NAN, _NAN)
+
+#: (seq, plant sample, sensor model, ideal sensors, vdc [V]) -> (frame to send, the record's
+#: (i_u, i_v, i_w, i_x, i_y) [A] true values)
+MeasureFn = Callable[[int, Any, SensorModel, bool, float], "tuple[Measurement | Measurement6, tuple[float, ...]]"]
+
+
+def _measure3(seq: int, smp: Any, sensors: SensorModel, ideal: bool, vdc: float
+              ) -> tuple[Measurement, tuple[float, ...]]:
+    """Three-phase measurement frame of a `Plant` sample (sensor model applied unless ideal)."""
+    if ideal:
+        ia, ib, ic, th = smp.i_a, smp.i_b, smp.i_c, smp.theta_e
+    else:
+        ia, ib, ic = sensors.currents(smp.i_a, smp.i_b, smp.i_c)
+        th = sensors.angle(smp.theta_e)
+    return Measurement(seq=seq, i_a=ia, i_b=ib, i_c=ic, theta_e=th, omega_m=smp.omega_m, vdc=vdc), NO_SECOND_SET
+
+
+def _measure6(seq: int, smp: Any, sensors: SensorModel, ideal: bool, vdc: float
+              ) -> tuple[Measurement6, tuple[float, ...]]:
+    """Six-phase measurement frame of a `Plant6` sample (sensor model applied per set of three)."""
+    ia, ib, ic, iu, iv, iw = smp.phase_currents
+    th = smp.theta_e
+    if not ideal:
+        ia, ib, ic = sensors.currents(ia, ib, ic)
+        iu, iv, iw = sensors.currents(iu, iv, iw)
+        th = sensors.angle(th)
+    meas = Measurement6(seq=seq, i_a=ia, i_b=ib, i_c=ic, i_u=iu, i_v=iv, i_w=iw, theta_e=th,
+                        omega_m=smp.omega_m, vdc=vdc)
+    return meas, (smp.i_u, smp.i_v, smp.i_w, smp.i_x, smp.i_y)
+
+
+def _no_extras(params: PmsmParams, rated_nm: float) -> dict[ParamId, float]:
+    return {}
+
+
+def _extras6(params: PmsmParams, rated_nm: float) -> dict[ParamId, float]:
+    """The leakage inductance L_ls [H], and mptc3's torque hysteresis band B_T (not given by the paper):
+    5 % of rated torque [N·m]; the firmware's 0.2 N·m default lets its torque-only cost drift i_d until it
+    trips (docs/comparisons/zhang2021.md)."""
+    return {ParamId.LLS: params.lls, ParamId.TORQUE_BAND: 0.05 * rated_nm}
+
+
+def _replay_row3(s: Any) -> tuple[float, ...]:
+    return (s.t, s.i_a, s.i_b, s.i_c, s.i_d, s.i_q, s.torque, s.theta_e, s.omega_m)
+
+
+def _replay_row6(q: Any) -> tuple[float, ...]:
+    return (q.t, q.i_a, q.i_b, q.i_c, q.i_u, q.i_v, q.i_w, q.i_d, q.i_q, q.i_x, q.i_y, q.torque, q.theta_e,
+            q.omega_m)
+
+
+@dataclass(frozen=True, slots=True)
+class MachineLayout:
+    """Facts of one machine kind: legs, plant class, frame builder and the record/CSV layouts.
+
+    `legs`, `max_state_code` and `trace_dtype` come from the plant class. `replay_legs` / `replay_columns`:
+    CSV columns of `hil plant replay` input (one gate bit per leg) and output; `replay_row`: a plant sample
+    → output row; `target_extras(params, rated torque [N·m])`: the machine-specific parameters written to
+    the target before enabling.
+    """
+
+    kind: str
+    plant_class: type[PlantBase]
+    measure: MeasureFn
+    replay_legs: tuple[str, ...]
+    replay_columns: tuple[str, ...]
+    replay_row: Callable[[Any], tuple[float, ...]]
+    target_extras: Callable[[PmsmParams, float], dict[ParamId, float]]
+
+    @property
+    def legs(self) -> int:
+        """Inverter legs = phases (the plant class's `LEGS`)."""
+        return self.plant_class.LEGS
+
+    @property
+    def max_state_code(self) -> int:
+        """Largest switching state code (the plant class's `MAX_STATE`)."""
+        return self.plant_class.MAX_STATE
+
+    @property
+    def trace_dtype(self) -> np.dtype:
+        """Record dtype of the plant's trace rows (all float64, the plant class's `TRACE_COLUMNS`)."""
+        return np.dtype([(name, "f8") for name in self.plant_class.TRACE_COLUMNS])
+
+    @property
+    def trace_columns(self) -> int:
+        """Doubles per trace row."""
+        return len(self.trace_dtype.names or ())
+
+
+THREE_PHASE: Final = MachineLayout(
+    kind="three-phase", plant_class=Plant, measure=_measure3,
+    replay_legs=("sa", "sb", "sc"),
+    replay_columns=("t", "i_a", "i_b", "i_c", "i_d", "i_q", "torque", "theta_e", "omega_m"),
+    replay_row=_replay_row3, target_extras=_no_extras)
+
+DUAL_THREE_PHASE: Final = MachineLayout(
+    kind="dual-three-phase", plant_class=Plant6, measure=_measure6,
+    replay_legs=("sa1", "sb1", "sc1", "sa2", "sb2", "sc2"),
+    replay_columns=("t", "i_a1", "i_b1", "i_c1", "i_a2", "i_b2", "i_c2", "i_d", "i_q", "i_x", "i_y", "torque",
+                    "theta_e", "omega_m"),
+    replay_row=_replay_row6, target_extras=_extras6)
+
+#: Machine layouts by phase count (the registry: a new kind adds an entry).
+LAYOUTS: Final[dict[int, MachineLayout]] = {lay.legs: lay for lay in (THREE_PHASE, DUAL_THREE_PHASE)}
+
+
+def layout_for_phases(phases: int) -> MachineLayout:
+    """The layout of a phase count; ParameterError naming `phases` for an unknown one."""
+    try:
+        return LAYOUTS[phases]
+    except (KeyError, TypeError):
+        known = ", ".join(str(k) for k in sorted(LAYOUTS))
+        raise ParameterError(f"phases: no machine layout for {phases!r} phases (known: {known})") from None
+
+
+def layout_for_trace(names: tuple[str, ...]) -> MachineLayout | None:
+    """The layout whose trace has exactly these field names (None if none does)."""
+    return next((lay for lay in LAYOUTS.values() if tuple(lay.trace_dtype.names or ()) == names), None)
+
+
+@dataclass(frozen=True, slots=True)
+class Machine:
+    """One motor preset with its machine kind: parameters plus the layout the run, logger, replay,
+    metrics and dashboards use."""
+
+    params: PmsmParams
+    layout: MachineLayout
+
+    @property
+    def name(self) -> str:
+        """Preset name."""
+        return self.params.name
+
+    @property
+    def phases(self) -> int:
+        """Phase count = inverter legs (3 or 6)."""
+        return self.layout.legs
+
+    def build_plant(self, ts_s: float, mechanics: Mechanics, *, trace_dt_s: float | None = 2e-6,
+                    theta0_rad: float = 0.0) -> PlantBase:
+        """The exact plant of this machine, control period `ts_s` [s], trace step `trace_dt_s` [s] or None."""
+        return self.layout.plant_class(self.params, ts_s, mechanics, trace_dt_s=trace_dt_s, theta0_rad=theta0_rad)
+
+
+def machine_for(params: PmsmParams) -> Machine:
+    """The descriptor of a motor: six phases when it has a leakage inductance lls > 0, else three."""
+    return Machine(params, layout_for_phases(6 if params.lls > 0.0 else 3))
+
+
+def load_machine(name_or_path: str, overrides: dict[str, float] | None = None) -> Machine:
+    """The descriptor of a bundled preset or a TOML file, with ``--set`` overrides (SI units)."""
+    from pmsm_hil.hil.presets_loader import load_motor
+
+    return machine_for(load_motor(name_or_path, overrides))
+
+
+__all__ = ["DUAL_THREE_PHASE", "LAYOUTS", "NO_SECOND_SET", "THREE_PHASE", "Machine", "MachineLayout",
+           "layout_for_phases", "layout_for_trace", "load_machine", "machine_for"]
