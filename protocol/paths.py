@@ -6,5 +6,6 @@ from pathlib import Path
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 GENERATED_C_DIR = REPO_ROOT / "firmware_stub" / "generated"
+IDS_PY = REPO_ROOT / "protocol" / "ids.py"
 GOLDEN_JSON = REPO_ROOT / "tests" / "golden" / "frames.json"
 GOLDEN_C_HEADER = REPO_ROOT / "firmware_stub" / "tests" / "golden_frames.h"

@@ -77,6 +77,13 @@ typedef struct {
     uint32_t split_ns[3];
 } hil_fw_py_out_t;
 
+typedef struct {
+    const char *name;
+    uint8_t id;
+    uint8_t phases;
+    ...;
+} hil_fw_controller_t;
+
 void hil_fw_init(hil_fw_state_t *s);
 int hil_fw_set_param(hil_fw_state_t *s, uint8_t param_id, float value);
 int hil_fw_get_param(const hil_fw_state_t *s, uint8_t param_id, float *value);
@@ -84,6 +91,7 @@ int hil_fw_select_controller(hil_fw_state_t *s, uint8_t controller_id);
 int hil_fw_set_setpoint(hil_fw_state_t *s, uint8_t enable, uint8_t mode, float reference);
 int hil_fw_controller_implemented(uint8_t controller_id);
 const char *hil_fw_controller_name(uint8_t controller_id);
+const hil_fw_controller_t *hil_fw_controller_get(uint8_t controller_id);
 
 void hil_fw_stage_measure(hil_fw_state_t *s, const hil_fw_meas_t *m, uint64_t t_ns);
 void hil_fw_stage_reference(hil_fw_state_t *s);
@@ -145,7 +153,7 @@ ffibuilder.set_source(
     "pmsm_hil.sim_target._firmware",
     PREAMBLE,
     sources=[_rel(p) for p in sorted((FIRMWARE / "src").glob("*.c"))],
-    include_dirs=[_rel(FIRMWARE / "include")],
+    include_dirs=[_rel(FIRMWARE / "include"), _rel(FIRMWARE / "generated")],
     extra_compile_args=STRICT_FLAGS,
     libraries=["m"],
 )

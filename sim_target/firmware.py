@@ -1,35 +1,43 @@
 """Python wrapper of the C reference firmware (cffi extension `pmsm_hil.sim_target._firmware`).
 
 One `Firmware` owns one fixed-size C state record. Units are SI: currents A, angle rad (electrical),
-speed rad/s (mechanical), voltage V, torque N·m, time ns.
+speed rad/s (mechanical), voltage V, torque N·m, time ns. `CONTROLLERS` is the firmware's controller
+table (name, id, phase count, implemented), read from C; names and ids are the DBC's (protocol/ids.py),
+the phase count is a fact of this firmware that a foreign target need not share.
 """
 from __future__ import annotations
 
 import struct
 from collections.abc import Sequence
+from dataclasses import dataclass
+from functools import cache
 from typing import Any, NamedTuple
 
-from pmsm_hil.protocol.ids import CONTROLLER_NAMES, ParamId
+from pmsm_hil.protocol.ids import CONTROLLER_NAMES, PARAM_NAMES, Mode
 
 __all__ = [
+    "CONTROLLERS",
     "CONTROLLER_IDS",
     "MODE_SPEED",
     "MODE_TORQUE",
     "PARAM_IDS",
+    "ControllerInfo",
     "Firmware",
     "FirmwareBuildError",
     "FirmwareCommand",
     "FirmwareConfigError",
     "FirmwareError",
     "FirmwareInputError",
+    "controller_by_name",
+    "controller_phases",
 ]
 
-# Shared numbering: the DBC value tables, through protocol/ids.py (one source, no hand-kept copy).
-PARAM_IDS: dict[str, int] = {p.name.lower(): int(p) for p in ParamId}
-PARAM_NAMES: dict[int, str] = {v: k for k, v in PARAM_IDS.items()}
+# Shared numbering: the DBC value tables, through the generated protocol/ids.py.
+PARAM_IDS: dict[str, int] = {name: int(p) for p, name in PARAM_NAMES.items()}
+_PARAM_NAME_OF: dict[int, str] = {v: k for k, v in PARAM_IDS.items()}
 CONTROLLER_IDS: dict[str, int] = {name: int(cid) for cid, name in CONTROLLER_NAMES.items()}
-MODE_SPEED = 0
-MODE_TORQUE = 1
+MODE_SPEED = int(Mode.SPEED)
+MODE_TORQUE = int(Mode.TORQUE)
 
 
 class FirmwareError(Exception):
@@ -75,6 +83,7 @@ class FirmwareCommand(NamedTuple):
     mirror: bool = False
 
 
+@cache
 def _load() -> tuple[Any, Any]:
     try:
         from pmsm_hil.sim_target import _firmware  # type: ignore[attr-defined]
@@ -86,14 +95,63 @@ def _load() -> tuple[Any, Any]:
     return _firmware.ffi, _firmware.lib
 
 
-_ERRORS = {
-    -1: "unknown id",
-    -2: "value not finite or outside its physical range",
-    -3: "unknown controller id",
-    -4: "controller not implemented in this firmware",
-    -5: "unknown setpoint mode",
-    -6: "reference not finite",
-}
+@dataclass(frozen=True, slots=True)
+class ControllerInfo:
+    """One entry of the firmware's controller table: DBC name and id, measured phases (3 or 6; 0 for
+    `off`, which takes either) and whether this build implements it."""
+
+    name: str
+    id: int
+    phases: int
+    implemented: bool
+
+
+def _read_table() -> tuple[ControllerInfo, ...]:
+    """The C controller table, one entry per id below HIL_FW_CTRL_COUNT that has a table line."""
+    ffi, lib = _load()
+    out = []
+    for cid in range(lib.HIL_FW_CTRL_COUNT):
+        entry = lib.hil_fw_controller_get(cid)
+        if entry != ffi.NULL:
+            out.append(ControllerInfo(ffi.string(entry.name).decode("ascii"), int(entry.id), int(entry.phases),
+                                      bool(lib.hil_fw_controller_implemented(cid))))
+    return tuple(out)
+
+
+#: The firmware's controller table, in id order.
+CONTROLLERS: tuple[ControllerInfo, ...] = _read_table()
+
+
+def controller_by_name(name: str) -> ControllerInfo:
+    """The table entry called `name`; FirmwareConfigError listing the names if there is none."""
+    for info in CONTROLLERS:
+        if info.name == name:
+            return info
+    raise FirmwareConfigError(f"controller {name!r}: unknown to the firmware (known: "
+                              f"{', '.join(c.name for c in CONTROLLERS)})")
+
+
+def controller_phases(controller_id: int) -> int:
+    """Measured phases the firmware's controller `controller_id` drives (3 or 6; 0 for off)."""
+    for info in CONTROLLERS:
+        if info.id == controller_id:
+            return info.phases
+    raise FirmwareConfigError(f"controller_id {controller_id!r}: unknown to the firmware")
+
+
+def _error_text(rc: int) -> str:
+    """Meaning of a negative return code of the firmware's configuration calls (HIL_FW_E_*)."""
+    _, lib = _load()
+    texts = {
+        lib.HIL_FW_E_PARAM_ID: "unknown id",
+        lib.HIL_FW_E_PARAM_VALUE: "value not finite or outside its physical range",
+        lib.HIL_FW_E_CONTROLLER_ID: "unknown controller id",
+        lib.HIL_FW_E_NOT_IMPLEMENTED: "controller not implemented in this firmware",
+        lib.HIL_FW_E_MODE: "unknown setpoint mode",
+        lib.HIL_FW_E_REFERENCE: "reference not finite",
+        lib.HIL_FW_E_NULL: "null state",
+    }
+    return texts.get(rc, f"error {rc}")
 
 # hil_fw_py_out_t: cmd {seq, n_states, vector_id, candidates, status, states[3], full_miss, mirror,
 # durations_ns[3], torque_ref, id_ref, iq_ref} then split_ns[3]; native alignment, checked against
@@ -132,14 +190,14 @@ class Firmware:
 
     def set_param(self, param_id: int, value: float) -> None:
         """Set parameter `param_id` (ids of docs/architecture.md) to `value` in SI units."""
-        name = PARAM_NAMES.get(param_id, f"param_id {param_id}")
+        name = _PARAM_NAME_OF.get(param_id, f"param_id {param_id}")
         try:
             fval = float(value)
             rc = self._lib.hil_fw_set_param(self._state, param_id, fval)
         except (TypeError, ValueError, OverflowError) as exc:
             raise FirmwareConfigError(f"{name}: cannot set to {value!r} ({exc})") from None
-        if rc != 0:
-            raise FirmwareConfigError(f"{name}: {_ERRORS.get(rc, f'error {rc}')} (value {value!r})")
+        if rc != self._lib.HIL_FW_OK:
+            raise FirmwareConfigError(f"{name}: {_error_text(rc)} (value {value!r})")
 
     def get_param(self, param_id: int) -> float:
         """Current value of parameter `param_id` (float32 as stored by the firmware)."""
@@ -147,9 +205,9 @@ class Firmware:
         try:
             rc = self._lib.hil_fw_get_param(self._state, param_id, out)
         except (TypeError, OverflowError):
-            rc = -1
-        if rc != 0:
-            raise FirmwareConfigError(f"param_id {param_id!r}: unknown id")
+            rc = self._lib.HIL_FW_E_PARAM_ID
+        if rc != self._lib.HIL_FW_OK:
+            raise FirmwareConfigError(f"param_id {param_id!r}: {_error_text(rc)}")
         return float(out[0])
 
     def select_controller(self, controller_id: int) -> None:
@@ -157,20 +215,20 @@ class Firmware:
         try:
             rc = self._lib.hil_fw_select_controller(self._state, controller_id)
         except (TypeError, OverflowError):
-            rc = -3
-        if rc != 0:
-            raise FirmwareConfigError(f"controller_id {controller_id!r}: {_ERRORS.get(rc, f'error {rc}')}")
+            rc = self._lib.HIL_FW_E_CONTROLLER_ID
+        if rc != self._lib.HIL_FW_OK:
+            raise FirmwareConfigError(f"controller_id {controller_id!r}: {_error_text(rc)}")
 
     def set_setpoint(self, enable: bool, mode: int, reference: float) -> None:
         """Enable/disable; mode 0: speed reference in rad/s (mechanical), 1: torque in N·m."""
         try:
             rc = self._lib.hil_fw_set_setpoint(self._state, 1 if enable else 0, mode, float(reference))
         except (TypeError, ValueError, OverflowError):
-            rc = -5
-        if rc == -6:
+            rc = self._lib.HIL_FW_E_MODE
+        if rc == self._lib.HIL_FW_E_REFERENCE:
             raise FirmwareConfigError(f"reference {reference!r}: not finite")
-        if rc != 0:
-            raise FirmwareConfigError(f"mode {mode!r} / reference {reference!r}: {_ERRORS.get(rc, rc)}")
+        if rc != self._lib.HIL_FW_OK:
+            raise FirmwareConfigError(f"mode {mode!r} / reference {reference!r}: {_error_text(rc)}")
 
     @property
     def controller_id(self) -> int:

@@ -23,6 +23,7 @@ struct hil_fw_state;
 #define HIL_FW_DSVM_VECTORS 19     /* distinct synthesized voltages */
 #define HIL_FW_DSVM_MAX_CAND 19    /* largest candidate list */
 #define HIL_FW_DSVM_NO_DIAG 255u   /* full_miss: not a restricted-set controller */
+#define HIL_FW_DSVM_NO_STEP UINT64_MAX /* next_t_ns after reset: the next step (re)starts the flux observer */
 
 /* One DSVM vector: lattice coordinates and the real vectors (0 = zero, 1..6) of its two halves. */
 typedef struct {
@@ -43,8 +44,6 @@ extern const uint8_t hil_fw_dsvm_lattice_index[5][5];
 
 /* State of the DSVM family (flux observer, hysteresis, candidate list, last evaluation). */
 typedef struct {
-    uint32_t magic;        /* HIL_FW_DSVM_MAGIC once initialised for controller `owner` */
-    uint8_t owner;         /* controller id that initialised the record */
     uint8_t h_psi;         /* flux comparator output (Table 1/2 row) */
     uint8_t h_te;          /* torque comparator output */
     uint8_t sector;        /* flux sector S, 1..6 */
@@ -53,7 +52,7 @@ typedef struct {
     uint8_t best;          /* chosen DSVM index */
     uint8_t prepared;      /* 1: prediction terms below are valid for this step */
     uint8_t cand[HIL_FW_DSVM_MAX_CAND];
-    uint64_t next_t_ns;    /* expected sample time of the next step [ns] */
+    uint64_t next_t_ns;    /* expected sample time of the next step [ns]; HIL_FW_DSVM_NO_STEP after reset */
     float psi_a;           /* stator flux estimate at k, eq. (10) [Wb] */
     float psi_b;
     float i_a_prev;        /* stator current at k-1 [A] */
@@ -77,6 +76,10 @@ typedef struct {
     float v_ref_n;
     float best_cost;       /* g1 of the chosen vector [A] */
 } hil_fw_dsvm_state_t;
+
+/* Reset of the family's controllers (table entry): no previous step, so fcs-mpc-1/2 start the flux
+ * observer from the current model at their first step. */
+void hil_fw_dsvm_reset(struct hil_fw_state *s);
 
 /* Delay compensation and the per-candidate terms for this step (idempotent within a step). */
 void hil_fw_dsvm_prepare(struct hil_fw_state *s);

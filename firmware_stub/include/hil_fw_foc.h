@@ -16,7 +16,6 @@
 struct hil_fw_state;
 
 typedef struct {
-    uint32_t magic;     /* set once initialised for this run */
     uint8_t parity;     /* 0: up-counting half (a, b, 7), 1: down-counting half (b, a, 0) */
     uint8_t sector;     /* SVPWM sector 1..6 of the last voltage */
     uint64_t next_t_ns; /* expected sample time of the next step [ns] */

@@ -67,7 +67,7 @@ typedef struct hil_fw_state {
     hil_fw_measured_t meas;
     hil_fw_refs_t ref;
     hil_fw_applied_t applied;
-    union {
+    union { /* state of the selected controller; zeroed and reset on select and enable */
         hil_fw_mpcc_state_t mpcc;
         hil_fw_mptc_state_t mptc; /* mptc1, mptc2, mptc3 */
         hil_fw_dsvm_state_t dsvm; /* dsvm-20, fcs-mpc-1, fcs-mpc-2, dbcc-mpc */
@@ -85,12 +85,14 @@ int hil_fw_set_param(hil_fw_state_t *s, uint8_t param_id, float value);
 /* Read one parameter into *value; 0 or HIL_FW_E_PARAM_ID. */
 int hil_fw_get_param(const hil_fw_state_t *s, uint8_t param_id, float *value);
 
-/* Select the controller; HIL_FW_E_CONTROLLER_ID (unknown) or HIL_FW_E_NOT_IMPLEMENTED
- * leave the previous selection in place. */
+/* Select the controller; a change of controller resets its state (hil_fw_controller_reset), selecting
+ * the current one again keeps it. HIL_FW_E_CONTROLLER_ID (unknown) or HIL_FW_E_NOT_IMPLEMENTED leave the
+ * previous selection in place. */
 int hil_fw_select_controller(hil_fw_state_t *s, uint8_t controller_id);
 
-/* Enable/disable and set the reference (mode 0: rad/s mechanical, 1: N*m). On a rising enable
- * edge or a change into speed mode the speed integrator is preset to torque_integrator_init. */
+/* Enable/disable and set the reference (mode 0: rad/s mechanical, 1: N*m). A rising enable edge resets
+ * the selected controller's state (hil_fw_controller_reset); on a rising enable edge or a change into
+ * speed mode the speed integrator is preset to torque_integrator_init. */
 int hil_fw_set_setpoint(hil_fw_state_t *s, uint8_t enable, uint8_t mode, float reference);
 
 #endif

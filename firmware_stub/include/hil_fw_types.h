@@ -1,11 +1,14 @@
 /*
  * Reference firmware: shared constants and the measurement / command records.
- * Numbering follows docs/architecture.md (the DBC value tables are the source).
+ * The protocol ids (HIL_FW_CTRL_*, HIL_FW_P_*, HIL_FW_STATUS_*, HIL_FW_MODE_*) are generated from the
+ * DBC value tables into hil_ids.h (firmware_stub/generated, python -m pmsm_hil.protocol.gen_c).
  */
 #ifndef HIL_FW_TYPES_H
 #define HIL_FW_TYPES_H
 
 #include <stdint.h>
+
+#include "hil_ids.h"
 
 #define HIL_FW_MAX_PHASES 6
 #define HIL_FW_MAX_SUBSTATES 3
@@ -21,34 +24,6 @@
 #define HIL_FW_E_MODE (-5)            /* unknown setpoint mode */
 #define HIL_FW_E_REFERENCE (-6)       /* setpoint reference not finite */
 #define HIL_FW_E_NULL (-7)            /* null state pointer */
-
-/* Status / fault codes carried in the command. */
-#define HIL_FW_STATUS_OK 0
-#define HIL_FW_STATUS_OVERCURRENT 1
-#define HIL_FW_STATUS_OVERSPEED 2
-#define HIL_FW_STATUS_WATCHDOG 3
-#define HIL_FW_STATUS_BAD_FRAME 4
-#define HIL_FW_STATUS_INVALID_CONFIG 5
-#define HIL_FW_STATUS_NOT_IMPLEMENTED 6
-
-/* Controller ids. */
-#define HIL_FW_CTRL_OFF 0
-#define HIL_FW_CTRL_MPCC 1
-#define HIL_FW_CTRL_FCS_MPC_1 2
-#define HIL_FW_CTRL_FCS_MPC_2 3
-#define HIL_FW_CTRL_DSVM_20 4
-#define HIL_FW_CTRL_DBCC_MPC 5
-#define HIL_FW_CTRL_FOC 6
-#define HIL_FW_CTRL_MPTC1 7
-#define HIL_FW_CTRL_MPTC2 8
-#define HIL_FW_CTRL_MPTC3 9
-#define HIL_FW_CTRL_3VMPC 10
-#define HIL_FW_CTRL_HV_MPFC 11
-#define HIL_FW_CTRL_COUNT 12
-
-/* Setpoint modes. */
-#define HIL_FW_MODE_SPEED 0  /* reference: mechanical speed [rad/s] */
-#define HIL_FW_MODE_TORQUE 1 /* reference: torque [N*m] */
 
 /* One sampled measurement (instant k = t_ns / Ts). */
 typedef struct {

@@ -51,7 +51,6 @@ void hil_fw_dbcc_reference(struct hil_fw_state *s)
     float vb;
     uint8_t i;
     hil_fw_dsvm_prepare(s);
-    st->owner = s->controller_id;
     /* eq. (6) with e_d = -we Lq iq, e_q = we (Ld id + psi_f) */
     vd = p[HIL_FW_P_RS] * st->id1 + p[HIL_FW_P_LD] / ts * (s->ref.i_d - st->id1) - we * p[HIL_FW_P_LQ] * st->iq1;
     vq = p[HIL_FW_P_RS] * st->iq1 + p[HIL_FW_P_LQ] / ts * (s->ref.i_q - st->iq1) +

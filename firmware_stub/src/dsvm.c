@@ -1,6 +1,8 @@
 /* Reference firmware: DSVM (N = 2) tables, prediction core and switching sequences. */
 #include <math.h>
+#include <stddef.h>
 
+#include "hil_fw_controllers.h"
 #include "hil_fw_dsvm.h"
 #include "hil_fw_inverter.h"
 #include "hil_fw_state.h"
@@ -34,6 +36,11 @@ const uint8_t hil_fw_dsvm_lattice_index[5][5] = {
 };
 
 #define SIN60 0.86602540378f
+
+void hil_fw_dsvm_reset(struct hil_fw_state *s)
+{
+    s->ctrl.dsvm.next_t_ns = HIL_FW_DSVM_NO_STEP;
+}
 
 void hil_fw_dsvm_prepare(struct hil_fw_state *s)
 {
@@ -141,7 +148,6 @@ void hil_fw_dsvm20_predict(struct hil_fw_state *s, hil_fw_cmd_t *cmd)
     hil_fw_dsvm_state_t *st = &s->ctrl.dsvm;
     uint8_t i;
     hil_fw_dsvm_prepare(s);
-    st->owner = s->controller_id;
     for (i = 0u; i < HIL_FW_DSVM_VECTORS; ++i) {
         st->cand[i] = i;
     }
@@ -157,11 +163,12 @@ void hil_fw_dsvm_restricted_predict(struct hil_fw_state *s, hil_fw_cmd_t *cmd)
 uint8_t hil_fw_dsvm_full_miss(const struct hil_fw_state *s)
 {
     const hil_fw_dsvm_state_t *st = &s->ctrl.dsvm;
-    const uint8_t c = s->controller_id;
+    const hil_fw_controller_t *c = hil_fw_controller_get(s->controller_id);
     float full = 0.0f;
     uint8_t i;
-    if ((c != HIL_FW_CTRL_FCS_MPC_1 && c != HIL_FW_CTRL_FCS_MPC_2 && c != HIL_FW_CTRL_DBCC_MPC) || !s->enable ||
-        s->meas.fault != HIL_FW_STATUS_OK || !st->prepared || st->owner != c) {
+    /* restricted-set controllers evaluate the reference stage's list; the state is reset on select */
+    if (c == NULL || c->predict != hil_fw_dsvm_restricted_predict || !s->enable ||
+        s->meas.fault != HIL_FW_STATUS_OK || !st->prepared) {
         return HIL_FW_DSVM_NO_DIAG;
     }
     for (i = 0u; i < HIL_FW_DSVM_VECTORS; ++i) {

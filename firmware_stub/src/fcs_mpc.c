@@ -7,8 +7,6 @@
 #include "hil_fw_state.h"
 #include "hil_fw_transforms.h"
 
-#define FCS_MAGIC 0x46435331u
-
 /* DSVM indices: u12..u61 = 7..12, u1..u6 = 1..6. Rows as printed in the paper. */
 const uint8_t hil_fw_fcs_table1[4][6] = {
     {7u, 8u, 9u, 10u, 11u, 12u},  /* h_psi 1, h_te 1: u12 u23 u34 u45 u56 u61 */
@@ -88,12 +86,11 @@ static void dtc_state(struct hil_fw_state *s)
     float pb1;
     float dpsi;
     float dte;
-    if (st->magic != FCS_MAGIC || st->owner != s->controller_id || st->next_t_ns != me->t_ns) {
-        /* (re)start: flux from the current model at k, eq. (2) */
+    if (st->next_t_ns != me->t_ns) {
+        /* (re)start after reset (next_t_ns = HIL_FW_DSVM_NO_STEP) or a gap in time: flux from the current
+         * model at k, eq. (2) */
         hil_fw_park_inv(p[HIL_FW_P_LD] * me->i_d + p[HIL_FW_P_PSI_F], p[HIL_FW_P_LQ] * me->i_q, me->cos_th,
                         me->sin_th, &st->psi_a, &st->psi_b);
-        st->magic = FCS_MAGIC;
-        st->owner = s->controller_id;
         st->h_psi = 1u;
         st->h_te = 1u;
     } else {

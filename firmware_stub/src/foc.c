@@ -6,8 +6,6 @@
 #include "hil_fw_state.h"
 #include "hil_fw_transforms.h"
 
-#define FOC_MAGIC 0x464F4331u
-
 uint8_t hil_fw_svpwm(float u_alpha, float u_beta, float vdc, uint32_t ts_ns, uint8_t *a, uint8_t *b,
                      uint32_t times_ns[3])
 {
@@ -88,8 +86,8 @@ void hil_fw_foc_predict(struct hil_fw_state *s, hil_fw_cmd_t *cmd)
     uint32_t durs[3];
     uint8_t i;
     uint8_t n = 0u;
-    if (st->magic != FOC_MAGIC || st->next_t_ns != me->t_ns) {
-        st->magic = FOC_MAGIC;
+    if (st->next_t_ns != me->t_ns) {
+        /* a gap in time: restart the pattern and the integrators (all zero after reset already) */
         st->parity = 0u;
         st->x_d = 0.0f;
         st->x_q = 0.0f;

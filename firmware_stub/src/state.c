@@ -15,7 +15,6 @@ static void sync_pi_params(hil_fw_state_t *s)
 void hil_fw_init(hil_fw_state_t *s)
 {
     hil_fw_measured_t zero_meas = {0};
-    hil_fw_mpcc_state_t zero_mpcc = {0};
     uint8_t i;
     hil_fw_params_defaults(&s->params);
     sync_pi_params(s);
@@ -39,7 +38,7 @@ void hil_fw_init(hil_fw_state_t *s)
         s->applied.durations_ns[i] = 0u;
     }
     s->applied.durations_ns[0] = s->params.model.ts_ns;
-    s->ctrl.mpcc = zero_mpcc;
+    hil_fw_controller_reset(s);
 }
 
 int hil_fw_set_param(hil_fw_state_t *s, uint8_t param_id, float value)
@@ -84,7 +83,10 @@ int hil_fw_select_controller(hil_fw_state_t *s, uint8_t controller_id)
     if (!hil_fw_controller_implemented(controller_id)) {
         return HIL_FW_E_NOT_IMPLEMENTED;
     }
-    s->controller_id = controller_id;
+    if (controller_id != s->controller_id) {
+        s->controller_id = controller_id;
+        hil_fw_controller_reset(s);
+    }
     return HIL_FW_OK;
 }
 
@@ -99,6 +101,9 @@ int hil_fw_set_setpoint(hil_fw_state_t *s, uint8_t enable, uint8_t mode, float r
     }
     if (!isfinite(reference)) {
         return HIL_FW_E_REFERENCE;
+    }
+    if (on && !s->enable) {
+        hil_fw_controller_reset(s);
     }
     if (on && mode == HIL_FW_MODE_SPEED && (!s->enable || s->mode != HIL_FW_MODE_SPEED)) {
         hil_fw_speed_pi_reset(&s->speed_pi, s->params.value[HIL_FW_P_TORQUE_INTEGRATOR_INIT]);

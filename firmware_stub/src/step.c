@@ -26,15 +26,14 @@ static int speed_due(hil_fw_state_t *s, uint64_t t_ns, uint64_t period_ns)
     return 0;
 }
 
-/* Phases the selected controller expects: 6 for the dual three-phase MPTCs, 3 otherwise (off: either). */
+/* The frame carries the phase count of the selected controller's table entry (0: either 3 or 6). */
 static int phases_match(uint8_t controller_id, uint8_t n_phases)
 {
-    const int six = controller_id == HIL_FW_CTRL_MPTC1 || controller_id == HIL_FW_CTRL_MPTC2 ||
-                    controller_id == HIL_FW_CTRL_MPTC3;
-    if (controller_id == HIL_FW_CTRL_OFF) {
+    const hil_fw_controller_t *c = hil_fw_controller_get(controller_id);
+    if (c == NULL || c->phases == 0u) {
         return n_phases == 3u || n_phases == 6u;
     }
-    return n_phases == (six ? 6u : 3u);
+    return n_phases == c->phases;
 }
 
 static uint8_t check_frame(const hil_fw_meas_t *m, uint8_t controller_id)

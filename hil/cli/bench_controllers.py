@@ -172,9 +172,9 @@ def time_controller(controller_id: int, steps: int, repeats: int) -> ControllerF
         splits.append([statistics.median(p[i] for p in parts) for i in range(3)])
     order = sorted(range(repeats), key=lambda r: medians[r])
     mid = order[len(order) // 2]
-    from pmsm_hil.sim_target import firmware as fwmod
+    from pmsm_hil.sim_target.firmware import CONTROLLERS
 
-    name = next((n for n, i in fwmod.CONTROLLER_IDS.items() if i == controller_id), str(controller_id))
+    name = next((c.name for c in CONTROLLERS if c.id == controller_id), str(controller_id))
     return ControllerFigures(controller_id, name, medians[mid], min(medians), splits[mid])
 
 
@@ -227,8 +227,8 @@ def _build_driver(cc: str, machine: BenchMachine, sources: list[Path], driver: P
     driver_c = driver.with_suffix(".c")
     driver_c.write_text(driver_source(machine), encoding="utf-8")
     build = subprocess.run(
-        [cc, *STRICT_FLAGS, "-I", str(FIRMWARE_DIR / "include"), str(driver_c), *map(str, sources),
-         "-lm", "-o", str(driver)],
+        [cc, *STRICT_FLAGS, "-I", str(FIRMWARE_DIR / "include"), "-I", str(FIRMWARE_DIR / "generated"),
+         str(driver_c), *map(str, sources), "-lm", "-o", str(driver)],
         capture_output=True, text=True, timeout=300,
     )
     return f"driver build failed: {build.stderr.strip()[:500]}" if build.returncode != 0 else ""
@@ -236,12 +236,9 @@ def _build_driver(cc: str, machine: BenchMachine, sources: list[Path], driver: P
 
 def implemented_controllers() -> list[int]:
     """Ids (>= 1) the firmware build implements."""
-    from pmsm_hil.sim_target.firmware import CONTROLLER_IDS, Firmware, FirmwareError
+    from pmsm_hil.sim_target.firmware import CONTROLLERS
 
-    try:
-        return [i for i in sorted(CONTROLLER_IDS.values()) if i >= 1 and Firmware.controller_implemented(i)]
-    except FirmwareError as exc:
-        raise HilError(str(exc)) from None
+    return [c.id for c in CONTROLLERS if c.id >= 1 and c.implemented]
 
 
 def format_figures(figures: list[ControllerFigures], note: str) -> list[str]:
@@ -266,9 +263,10 @@ def format_figures(figures: list[ControllerFigures], note: str) -> list[str]:
         for f in paper:
             parts = " / ".join("-" if v is None else f"{v:.2f}" for v in PAPER_TABLE4_US[f.name])
             lines.append(f"   {f.name:<10} {parts}")
-    if any(f.controller_id in SIX_PHASE_IDS for f in figures):
-        lines.append(f"mptc1..3 run on {six_phase_machine().name} (six phase currents); the others on the "
-                     "three-phase Table 3 machine.")
+    six = [f.name for f in figures if f.controller_id in SIX_PHASE_IDS]
+    if six:
+        lines.append(f"{', '.join(six)} run on {six_phase_machine().name} (six phase currents); the others on "
+                     "the three-phase Table 3 machine.")
     lines.append("stage times include one CLOCK_MONOTONIC read each (~20-30 ns).")
     if note:
         lines.append(note)

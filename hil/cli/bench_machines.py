@@ -12,15 +12,16 @@ import math
 from dataclasses import dataclass, field
 
 from pmsm_hil.hil.presets_loader import load_motor
-from pmsm_hil.hil.runner.run_config import SIX_PHASE_CONTROLLERS
-from pmsm_hil.protocol.ids import CONTROLLER_NAMES, ParamId
+from pmsm_hil.protocol.ids import ParamId
+from pmsm_hil.sim_target.firmware import CONTROLLERS
 
 TS = 100e-6  # [s]
 OMEGA_M = 1500.0 * 2.0 * math.pi / 60.0  # [rad/s]
 #: phase axes [rad]: A, B, C (three-phase); A, B, C, U, V, W (dual three-phase, 30° apart)
 ANGLES_3 = (0.0, 2.0 * math.pi / 3.0, 4.0 * math.pi / 3.0)
 ANGLES_6 = (*ANGLES_3, math.pi / 6.0, 5.0 * math.pi / 6.0, 3.0 * math.pi / 2.0)
-SIX_PHASE_IDS = frozenset(int(i) for i, n in CONTROLLER_NAMES.items() if n in SIX_PHASE_CONTROLLERS)
+#: the firmware's dual three-phase controllers (phase count of its controller table)
+SIX_PHASE_IDS = frozenset(c.id for c in CONTROLLERS if c.phases == 6)
 
 
 @dataclass(frozen=True, slots=True)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import shutil
 import subprocess
 from pathlib import Path
@@ -9,7 +10,7 @@ from pathlib import Path
 import pytest
 
 FIRMWARE = Path(__file__).resolve().parents[2] / "firmware_stub"
-OWN_TESTS = {"test_config", "test_mpcc", "test_speed_pi", "test_step", "test_transforms"}
+OWN_TESTS = {"test_config", "test_controllers", "test_mpcc", "test_speed_pi", "test_step", "test_transforms"}
 
 pytestmark = pytest.mark.skipif(shutil.which("cmake") is None, reason="cmake not installed")
 
@@ -28,7 +29,7 @@ def build_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_every_c_test_is_registered(build_dir: Path) -> None:
     listed = subprocess.run(["ctest", "-N"], cwd=build_dir, capture_output=True, text=True, timeout=60)
-    names = {line.split(":")[1].strip() for line in listed.stdout.splitlines() if "Test #" in line}
+    names = set(re.findall(r"Test +#\d+: (\S+)", listed.stdout))  # "Test  #1: a" ... "Test #10: b"
     expected = {p.stem for p in (FIRMWARE / "tests").glob("test_*.c")}
     assert expected >= OWN_TESTS
     assert names == expected

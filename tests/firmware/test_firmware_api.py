@@ -9,6 +9,7 @@ from typing import Any
 import pytest
 from pmsm_hil.sim_target.firmware import (
     CONTROLLER_IDS,
+    CONTROLLERS,
     MODE_SPEED,
     MODE_TORQUE,
     PARAM_IDS,
@@ -58,7 +59,7 @@ def test_controller_selection_errors() -> None:
         with pytest.raises(FirmwareConfigError, match="not implemented"):
             fw.select_controller(cid)
     with pytest.raises(FirmwareConfigError, match="unknown controller"):
-        fw.select_controller(12)
+        fw.select_controller(max(c.id for c in CONTROLLERS) + 1)  # first id past the firmware's table
     with pytest.raises(FirmwareConfigError, match="controller_id -1"):
         fw.select_controller(-1)
     assert fw.controller_id == CONTROLLER_IDS["mpcc"]

@@ -1,10 +1,20 @@
-"""The Python numbering (ids.py) agrees with the DBC value tables and docs/architecture.md."""
+"""The ids are generated from the DBC value tables (protocol/ids.py, firmware_stub/generated/hil_ids.h):
+they agree with the signals' VAL_ tables, are not stale, and the generator refuses drifting tables."""
 
 from __future__ import annotations
 
+import re
+from typing import Any
+
+import cantools
+import pytest
+from pmsm_hil.protocol import gen_c, gen_ids
+from pmsm_hil.protocol.errors import DatabaseError
 from pmsm_hil.protocol.ids import (
     CONTROLLER_NAMES,
+    PARAM_DOCS,
     PARAM_NAMES,
+    PARAM_UNITS,
     STATUS_NAMES,
     ControllerId,
     Mode,
@@ -13,7 +23,8 @@ from pmsm_hil.protocol.ids import (
     ParamId,
     Status,
 )
-from pmsm_hil.protocol.layout import load_database
+from pmsm_hil.protocol.layout import DBC_PATH, load_database
+from pmsm_hil.protocol.paths import GENERATED_C_DIR
 
 DB = load_database()
 
@@ -21,6 +32,10 @@ DB = load_database()
 def choices(message: str, signal: str) -> dict[int, str]:
     sig = DB.get_message_by_name(message).get_signal_by_name(signal)
     return {int(k): str(v) for k, v in sig.choices.items()}
+
+
+def _db(text: str) -> Any:
+    return cantools.database.load_string(text, database_format="dbc")
 
 
 def test_controller_ids() -> None:
@@ -34,6 +49,8 @@ def test_modes_params_status_nodes() -> None:
     for msg in ("ConfigParam", "ConfigAck"):
         assert choices(msg, "param_id") == {int(k): v for k, v in PARAM_NAMES.items()}
     assert int(ParamId.CURRENT_LIMIT) == 22 and PARAM_NAMES[ParamId.PSI_F] == "psi_f"
+    assert PARAM_UNITS[ParamId.RS] == "Ohm" and PARAM_UNITS[ParamId.SPEED_KP] == "N*m/(rad/s)"
+    assert PARAM_DOCS[ParamId.LLS] == "leakage inductance" and set(PARAM_DOCS) == set(ParamId)
     status = {int(k): v for k, v in STATUS_NAMES.items()}
     for msg, sig in (
         ("MeasB", "status"),
@@ -51,15 +68,59 @@ def test_modes_params_status_nodes() -> None:
     assert choices("HeartbeatHost", "state") == {s.value: s.name.lower() for s in NodeState}
 
 
-def test_priority_order_of_ids() -> None:
-    ids = {m.name: m.frame_id for m in DB.messages}
-    fault = max(ids["FaultHost"], ids["FaultTarget"])
-    hot = [ids[n] for n in ("MeasA", "MeasB", "MeasFd", "CmdA", "CmdB", "CmdC", "CmdFd", "Meas6A", "Meas6C",
-                            "Meas6B", "MeasFd6")]
-    slow = [ids[n] for n in ("Setpoint", "ConfigParam", "ConfigAck")]
-    beat = min(ids["HeartbeatHost"], ids["HeartbeatTarget"])
-    assert fault < min(hot) and max(hot) < min(slow) and max(slow) < beat
-    assert all(i < 0x800 for i in ids.values())
-    # six-phase measurement on the ids reserved for it, below the commands
-    assert (ids["Meas6A"], ids["Meas6C"], ids["Meas6B"], ids["MeasFd6"]) == (0x102, 0x103, 0x104, 0x109)
-    assert max(ids[n] for n in ("Meas6A", "Meas6C", "Meas6B", "MeasFd6")) < ids["CmdA"]
+def test_generated_ids_not_stale() -> None:
+    assert gen_c.stale_files(GENERATED_C_DIR) == []
+    header = (GENERATED_C_DIR / gen_ids.C_HEADER).read_text(encoding="utf-8")
+    macros = dict(re.findall(r"#define (HIL_FW_\w+) +(\S+)", header))
+    for cid, name in CONTROLLER_NAMES.items():
+        macro = "HIL_FW_CTRL_" + name.upper().replace("-", "_")
+        assert macros[macro] == str(int(cid)) and macros[macro + "_NAME"] == f'"{name}"'
+    assert macros["HIL_FW_CTRL_COUNT"] == str(max(ControllerId) + 1)
+    assert macros["HIL_FW_P_COUNT"] == str(max(ParamId) + 1)
+    assert "/* stator resistance [Ohm] */" in header
+
+
+def test_check_fails_on_a_stale_ids_module(tmp_path: Any) -> None:
+    ids_py = tmp_path / "ids.py"
+    gen_c.write(tmp_path, ids_py)
+    assert gen_c.main(["--check", "--output-dir", str(tmp_path), "--ids-py", str(ids_py)]) == 0
+    ids_py.write_text(ids_py.read_text(encoding="utf-8").replace("HV_MPFC = 11", "HV_MPFC = 12"), encoding="utf-8")
+    assert gen_c.main(["--check", "--output-dir", str(tmp_path), "--ids-py", str(ids_py)]) == 1
+    (tmp_path / gen_ids.C_HEADER).unlink()
+    assert gen_c.stale_files(tmp_path, ids_py) == [str(tmp_path / gen_ids.C_HEADER), str(ids_py)]
+
+
+def test_a_new_controller_in_the_dbc_reaches_c_and_python() -> None:
+    text = DBC_PATH.read_text(encoding="utf-8").replace('11 "hv-mpfc" ;', '11 "hv-mpfc" 12 "my-ctrl" ;')
+    header, module = gen_ids.render(_db(text))
+    assert re.search(r"#define HIL_FW_CTRL_MY_CTRL +12\n#define HIL_FW_CTRL_MY_CTRL_NAME +\"my-ctrl\"", header)
+    assert re.search(r"#define HIL_FW_CTRL_COUNT +13", header)
+    assert "    MY_CTRL = 12\n" in module and 'ControllerId.MY_CTRL: "my-ctrl",' in module
+    namespace: dict[str, Any] = {}
+    exec(compile(module, "ids.py", "exec"), namespace)  # the generated module runs
+    assert namespace["CONTROLLER_NAMES"][namespace["ControllerId"](12)] == "my-ctrl"
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "error"),
+    [
+        # the signal's VAL_ no longer repeats the family table
+        ('VAL_ 512 controller_id 0 "off" 1 "mpcc"', 'VAL_ 512 controller_id 0 "off" 1 "mpc"', "Setpoint.controller_id"),
+        # the family gains an id that no signal knows
+        ('11 "hv-mpfc" ;', '11 "hv-mpfc" 12 "x" ;', "controller_id"),
+        ('VAL_TABLE_ Node 0 "host" 1 "target" ;', "", "Node missing"),
+        ('26 "v3_symmetric" ;\nVAL_TABLE_ ParamUnit', '26 "v3_symmetric" 27 "p" ;\nVAL_TABLE_ ParamUnit', "ParamUnit"),
+        ('VAL_TABLE_ Mode 0 "speed" 1 "torque" ;', 'VAL_TABLE_ Mode 0 "speed" 1 "Torque" ;', "Mode"),
+    ],
+)
+def test_generator_refuses_drifting_tables(old: str, new: str, error: str) -> None:
+    text = DBC_PATH.read_text(encoding="utf-8")
+    assert old in text
+    with pytest.raises(DatabaseError, match=error):
+        gen_ids.render(_db(text.replace(old, new, 1)))
+
+
+def test_python_member_of_a_name_starting_with_a_digit() -> None:
+    assert gen_ids.py_member("3vmpc") == "MPC_3V" and gen_ids.py_member("fcs-mpc-1") == "FCS_MPC_1"
+    with pytest.raises(DatabaseError, match="PY_MEMBER"):
+        gen_ids.py_member("2foo")
