@@ -5,10 +5,9 @@ from __future__ import annotations
 import signal
 from types import FrameType
 
-from pmsm_hil.hil.runner.run_config import controller_id
-from pmsm_hil.hil.runner.target_setup import link_profile
 from pmsm_hil.protocol.codec import FrameCodec
-from pmsm_hil.protocol.links import open_link
+from pmsm_hil.protocol.links import link_profile, open_link
+from pmsm_hil.sim_target.firmware import controller_by_name
 from pmsm_hil.sim_target.target import SimTarget
 
 
@@ -24,10 +23,11 @@ def serve(link_spec: str, controller: str | None = None, *, role: str = "target"
     signal.signal(signal.SIGINT, on_signal)
     link = open_link(link_spec, role)  # type: ignore[arg-type]
     try:
-        target = SimTarget(link, FrameCodec(link_profile(link_spec)))  # type: ignore[arg-type]
+        target = SimTarget(link, FrameCodec(link_profile(link_spec)))
         if controller is not None:
-            target.firmware.select_controller(controller_id(controller))
-            target.controller_id = controller_id(controller)
+            cid = controller_by_name(controller).id
+            target.firmware.select_controller(cid)
+            target.controller_id = cid
         target.run_forever(lambda: stop["flag"])
         return target
     finally:

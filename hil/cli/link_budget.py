@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 import json
 
-from pmsm_hil.protocol.budget import (
+from pmsm_hil.protocol.errors import BudgetError
+from pmsm_hil.protocol.links.budget import (
     DEFAULT_BAUD,
     DEFAULT_BITRATE,
     DEFAULT_DATA_BITRATE,
@@ -13,7 +14,6 @@ from pmsm_hil.protocol.budget import (
     LinkBudget,
     link_budget,
 )
-from pmsm_hil.protocol.errors import BudgetError
 
 DEFAULT_RATE_HZ = 10_000.0
 

@@ -20,7 +20,7 @@ from pmsm_hil.hil.runner.closed_loop import ClosedLoop, LoopOutcome
 from pmsm_hil.hil.runner.plant_setup import build_plant
 from pmsm_hil.hil.runner.recorder import ByteRecords
 from pmsm_hil.hil.runner.run_config import RunConfig, controller_id
-from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target, link_profile
+from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target
 
 
 @dataclass(slots=True)
@@ -70,7 +70,7 @@ def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None,
     `live`: optional consumer of each PERIOD_DTYPE block (~1000 periods), e.g. the live dashboard."""
     cid = controller_id(cfg.controller)
     if cfg.mode == "realtime":
-        check_realtime_budget(cfg.link, link_profile(cfg.link), cfg.ts_s, cfg.machine.phases)
+        check_realtime_budget(cfg.link, cfg.ts_s, cfg.machine.phases)
     logger, mcap_path = _open_logger(cfg)
     conn: TargetConnection | None = None
     try:

@@ -12,6 +12,7 @@ from pmsm_hil.hil.motor_params import PmsmParams, parse_set_options
 from pmsm_hil.hil.runner.scenario import Scenario
 from pmsm_hil.hil.sensors import SensorConfig
 from pmsm_hil.protocol.ids import CONTROLLER_NAMES, ParamId
+from pmsm_hil.sim_target.firmware import controller_phases
 
 MODES = ("lockstep", "realtime")
 MISS_POLICIES = ("hold", "zero")
@@ -31,9 +32,6 @@ def controller_id(name: str) -> int:
             return int(cid)
     raise ParameterError(f"unknown controller '{name}' (known: {', '.join(CONTROLLER_NAMES.values())})")
 
-
-#: Controllers for the dual three-phase machine (everything else drives three phases).
-SIX_PHASE_CONTROLLERS = ("mptc1", "mptc2", "mptc3")
 
 #: Named values accepted by --param for enumerated controller parameters.
 PARAM_VALUE_NAMES: dict[str, dict[str, float]] = {
@@ -90,13 +88,13 @@ class RunConfig:
     lockstep_timeout_s: float = 0.5
 
     def __post_init__(self) -> None:
-        controller_id(self.controller)
-        needs = 6 if self.controller in SIX_PHASE_CONTROLLERS else 3
-        if needs != self.machine.phases:
+        needs = controller_phases(controller_id(self.controller))  # the firmware's controller table
+        if needs not in (0, self.machine.phases):
             words = {3: "three", 6: "six"}
+            has = self.machine.phases
             raise ParameterError(
-                f"controller '{self.controller}' needs a {words[needs]}-phase motor, but '{self.motor.name}' is "
-                f"{words.get(self.machine.phases, self.machine.phases)}-phase (six-phase motors have lls > 0)")
+                f"controller '{self.controller}' needs a {words.get(needs, needs)}-phase motor, but "
+                f"'{self.motor.name}' is {words.get(has, has)}-phase (six-phase motors have lls > 0)")
         if not (math.isfinite(self.ts_s) and 5e-6 <= self.ts_s <= 1e-2):
             raise ParameterError(f"--ts must be between 5 µs and 10 ms, got {self.ts_s} s")
         if abs(round(self.ts_s * 1e9) - self.ts_s * 1e9) > 1e-3:

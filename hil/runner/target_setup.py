@@ -10,29 +10,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.target_client import TargetClient
 from pmsm_hil.protocol.codec import FrameCodec
-from pmsm_hil.protocol.links import Link, open_link
-
-
-def link_interface(spec: str) -> str:
-    """Interface name of a link SPEC (text before ':' or ',')."""
-    return spec.split(",", 1)[0].split(":", 1)[0].strip().lower()
-
-
-def link_profile(spec: str) -> str:
-    """Frame profile for a link: 'canfd' unless the spec says fd=false; real CAN adapters default to
-    classic CAN unless fd=true (virtual, UDP and serial links carry FD-sized frames)."""
-    opts = {k.strip().lower(): v.strip().lower() for k, _, v in
-            (item.partition("=") for item in spec.split(",")[1:])}
-    fd = opts.get("fd")
-    if fd is not None:
-        if fd not in ("true", "false", "1", "0", "yes", "no"):
-            raise ParameterError(f"link option fd must be true or false, got {fd!r}")
-        return "canfd" if fd in ("true", "1", "yes") else "can"
-    return "canfd" if link_interface(spec) in ("virtual", "udp", "hiludp", "serial", "hilserial") else "can"
+from pmsm_hil.protocol.links import Link, link_kind, open_link, parse_spec
 
 
 @dataclass(slots=True)
@@ -80,36 +61,12 @@ def _slots(obj: object) -> list[tuple[str, object]]:
     return [(n, getattr(obj, n)) for n in names if hasattr(obj, n)]
 
 
-def _spawn_specs(spec: str) -> tuple[str, str, list[int]]:
-    """Host and target link specs for a spawned target. ``udp:L:R`` gives the target ``udp:R:L``;
-    ``serial:pty`` makes a pseudo-terminal pair: the host takes the master descriptor, the target
-    process opens the slave by its path."""
-    head, sep, opts = spec.partition(",")
-    name, _, channel = head.strip().partition(":")
-    if name.lower() == "udp" and channel:
-        ports, at, host = channel.partition("@")
-        local, _, remote = ports.partition(":")
-        return spec, f"udp:{remote}:{local}{at}{host}{sep}{opts}", []
-    if head.strip().lower() != "serial:pty":
-        return spec, spec, []
-    master, slave = os.openpty()
-    tail = sep + opts
-    # the host link owns the master descriptor; we keep the slave open until the run ends
-    return f"serial:fd:{master}{tail}", f"serial:{os.ttyname(slave)}{tail}", [slave]
-
-
 def connect_target(cfg: RunConfig, *, silent_after: int | None = None) -> TargetConnection:
     """Open the link(s) and, for in-process or spawned targets, start the target."""
-    kind = cfg.target
-    iface = link_interface(cfg.link)
-    if kind == "auto":
-        if iface == "virtual":
-            kind = "inproc"
-        elif cfg.link.split(",", 1)[0].strip().lower() == "serial:pty":
-            kind = "spawn"
-        else:
-            kind = "external"
-    codec = FrameCodec(link_profile(cfg.link))  # type: ignore[arg-type]
+    spec = parse_spec(cfg.link)
+    link = link_kind(spec)
+    kind = link.auto_target(spec) if cfg.target == "auto" else cfg.target
+    codec = FrameCodec(link.profile(spec))
     if kind == "inproc":
         from pmsm_hil.sim_target.target import SimTarget
 
@@ -120,13 +77,13 @@ def connect_target(cfg: RunConfig, *, silent_after: int | None = None) -> Target
         return TargetConnection(client, host_link, target_link=target_link,
                                 inproc_result=lambda: target.last_result, extra=[target])
     if kind == "spawn":
-        host_spec, target_spec, fds = _spawn_specs(cfg.link)
-        host_link = open_link(host_spec, "host")
-        cmd = [sys.executable, "-m", "pmsm_hil.hil.cli.main", "target", "--link", target_spec, "--role", "target"]
+        specs = link.mirror(cfg.link, spec)
+        host_link = open_link(specs.host, "host")
+        cmd = [sys.executable, "-m", "pmsm_hil.hil.cli.main", "target", "--link", specs.target, "--role", "target"]
         proc = subprocess.Popen(cmd, env=dict(os.environ), stdout=subprocess.DEVNULL)
         client = TargetClient(host_link, codec)
         conn = TargetConnection(client, host_link, process=proc)
-        conn.extra.extend(fds)
+        conn.extra.extend(specs.keep_open)
         return conn
     host_link = open_link(cfg.link, "host")
     return TargetConnection(TargetClient(host_link, codec), host_link)

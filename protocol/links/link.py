@@ -15,8 +15,7 @@ from __future__ import annotations
 import queue
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
-from typing import Any, Literal, Protocol, runtime_checkable
+from typing import Protocol, runtime_checkable
 
 import can
 from can import CanProtocol
@@ -24,13 +23,10 @@ from can.interfaces.virtual import VirtualBus
 from pmsm_hil.protocol.errors import LinkError, LinkSpecError
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.links.framed_bus import FramedBus
-from pmsm_hil.protocol.links.serial_bus import CobsSerialBus
+from pmsm_hil.protocol.links.kinds import link_kind
+from pmsm_hil.protocol.links.spec import Role, parse_spec
 from pmsm_hil.protocol.links.stats import LinkStats
-from pmsm_hil.protocol.links.udp_bus import UdpUnicastBus, parse_udp_channel
 
-Role = Literal["host", "target"]
-DEFAULT_VIRTUAL_CHANNEL = "pmsm_hil"
-DEFAULT_UDP_PORTS = {"host": (47310, 47311), "target": (47311, 47310)}
 _perf = time.perf_counter
 
 
@@ -56,49 +52,6 @@ class Link(Protocol):
     def close(self) -> None:
         """Release the transport (idempotent)."""
         ...
-
-
-@dataclass(frozen=True, slots=True)
-class LinkSpec:
-    """Parsed SPEC string: kind (interface name), channel, options for can.Bus."""
-
-    kind: str
-    channel: str | None
-    options: dict[str, Any] = field(default_factory=dict)
-
-
-def _option_value(text: str) -> Any:
-    low = text.lower()
-    if low in ("true", "yes", "on"):
-        return True
-    if low in ("false", "no", "off"):
-        return False
-    for conv in (int, float):
-        try:
-            return conv(text)
-        except ValueError:
-            pass
-    return text
-
-
-def parse_spec(spec: str) -> LinkSpec:
-    """Split "NAME[:CHANNEL][,key=value...]"; raises LinkSpecError naming the bad part."""
-    if not isinstance(spec, str) or not spec.strip():
-        raise LinkSpecError(f"link spec {spec!r} is empty")
-    head, *opts = spec.strip().split(",")
-    name, sep, channel = head.partition(":")
-    name = name.strip()
-    if not name:
-        raise LinkSpecError(f"link spec {spec!r}: missing interface name before ':'")
-    if sep and not channel:
-        raise LinkSpecError(f"link spec {spec!r}: empty channel after '{name}:'")
-    options: dict[str, Any] = {}
-    for opt in opts:
-        key, eq, value = opt.partition("=")
-        if not eq or not key.strip():
-            raise LinkSpecError(f"link spec {spec!r}: option {opt!r} is not key=value")
-        options[key.strip()] = _option_value(value.strip())
-    return LinkSpec(name, channel or None, options)
 
 
 class BusLink:
@@ -207,45 +160,13 @@ class BusLink:
         self.close()
 
 
-def _make_bus(ls: LinkSpec, role: Role) -> tuple[can.BusABC, str]:
-    opts = dict(ls.options)
-    if ls.kind == "virtual":
-        fd = bool(opts.pop("fd", True))
-        opts.setdefault("receive_own_messages", False)
-        channel = ls.channel or DEFAULT_VIRTUAL_CHANNEL
-        proto = CanProtocol.CAN_FD if fd else CanProtocol.CAN_20
-        return can.Bus(interface="virtual", channel=channel, protocol=proto, **opts), f"virtual:{channel}"
-    if ls.kind == "udp":
-        if ls.channel is None:
-            local, remote = DEFAULT_UDP_PORTS[role]
-            channel = f"{local}:{remote}"
-        else:
-            channel = ls.channel
-            try:
-                parse_udp_channel(channel)
-            except ValueError as exc:
-                raise LinkSpecError(str(exc)) from exc
-        return UdpUnicastBus(channel=channel, **opts), f"udp:{channel}"
-    if ls.kind == "serial":
-        if ls.channel is None:
-            raise LinkSpecError("link spec serial: needs a port, e.g. serial:/dev/ttyACM0,baudrate=3000000")
-        return CobsSerialBus(channel=ls.channel, **opts), f"serial:{ls.channel}"
-    if ls.kind == "can":
-        if ls.channel is not None:
-            opts["channel"] = ls.channel
-        return can.Bus(**opts), "can (python-can configuration)"
-    if ls.channel is not None:
-        opts["channel"] = ls.channel
-    return can.Bus(interface=ls.kind, **opts), f"{ls.kind}:{ls.channel or ''}"
-
-
 def open_link(spec: str = "virtual", role: Role = "host") -> BusLink:
     """Open a link end from a SPEC string; raises LinkSpecError / LinkError naming the spec."""
     if role not in ("host", "target"):
         raise LinkSpecError(f"role={role!r} (expected 'host' or 'target')")
     ls = parse_spec(spec)
     try:
-        bus, description = _make_bus(ls, role)
+        bus, description = link_kind(ls).open_bus(ls, role)
     except LinkError:
         raise
     except (

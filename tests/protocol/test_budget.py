@@ -7,8 +7,8 @@ import json
 
 import pytest
 from pmsm_hil.hil.cli import link_budget as cli
-from pmsm_hil.protocol.budget import can_frame_bits, canfd_frame_bits, link_budget, serial_frame_bytes
 from pmsm_hil.protocol.errors import BudgetError
+from pmsm_hil.protocol.links.budget import can_frame_bits, canfd_frame_bits, link_budget, serial_frame_bytes
 
 
 def test_classic_can_hand_calculation() -> None:

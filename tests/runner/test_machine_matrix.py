@@ -81,9 +81,9 @@ def test_realtime_budget_counts_the_machines_frames(phases: int, refused: bool) 
     (one more Measurement frame): Ts = 800 µs (1250 Hz) fits the first only."""
     if refused:
         with pytest.raises(ParameterError, match="at most 1235 Hz"):
-            check_realtime_budget("socketcan:vcan0", "can", 800e-6, phases)
+            check_realtime_budget("socketcan:vcan0", 800e-6, phases)
     else:
-        check_realtime_budget("socketcan:vcan0", "can", 800e-6, phases)
+        check_realtime_budget("socketcan:vcan0", 800e-6, phases)
 
 
 def test_realtime_run_of_a_six_phase_motor_is_budgeted_with_six_phase_frames(tmp_path: Path) -> None:

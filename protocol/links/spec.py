@@ -1,0 +1,53 @@
+"""Link SPEC strings: "NAME[:CHANNEL][,key=value...]" parsed into a `LinkSpec` (docs/protocol.md, "Link specs")."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from pmsm_hil.protocol.errors import LinkSpecError
+
+Role = Literal["host", "target"]
+
+
+@dataclass(frozen=True, slots=True)
+class LinkSpec:
+    """Parsed SPEC string: kind (interface name), channel, options for can.Bus."""
+
+    kind: str
+    channel: str | None
+    options: dict[str, Any] = field(default_factory=dict)
+
+
+def _option_value(text: str) -> Any:
+    low = text.lower()
+    if low in ("true", "yes", "on"):
+        return True
+    if low in ("false", "no", "off"):
+        return False
+    for conv in (int, float):
+        try:
+            return conv(text)
+        except ValueError:
+            pass
+    return text
+
+
+def parse_spec(spec: str) -> LinkSpec:
+    """Split "NAME[:CHANNEL][,key=value...]"; raises LinkSpecError naming the bad part."""
+    if not isinstance(spec, str) or not spec.strip():
+        raise LinkSpecError(f"link spec {spec!r} is empty")
+    head, *opts = spec.strip().split(",")
+    name, sep, channel = head.partition(":")
+    name = name.strip()
+    if not name:
+        raise LinkSpecError(f"link spec {spec!r}: missing interface name before ':'")
+    if sep and not channel:
+        raise LinkSpecError(f"link spec {spec!r}: empty channel after '{name}:'")
+    options: dict[str, Any] = {}
+    for opt in opts:
+        key, eq, value = opt.partition("=")
+        if not eq or not key.strip():
+            raise LinkSpecError(f"link spec {spec!r}: option {opt!r} is not key=value")
+        options[key.strip()] = _option_value(value.strip())
+    return LinkSpec(name, channel or None, options)
