@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 from pmsm_hil.dashboards.report_data import RunData
+from pmsm_hil.hil.metrics.registry import REPORT_BARS, in_view
 
 #: Harmonic orders shown in the spectra.
 MAX_ORDER = 40
@@ -102,10 +103,8 @@ def spectra(runs: Sequence[RunData]) -> str:
     return _svg(fig)
 
 
-BAR_METRICS = (("torque_ripple_rms_nm", "torque ripple RMS [N·m]", None),
-               ("current_thd_pct", "current THD h2..40 [%]", None),
-               ("switching_freq_khz", "switching frequency f_av [kHz]", None),
-               ("exec_time_us", "execution time, median [µs]", "median"))
+#: (key, title, sub-key) of the bar charts: the registry's report-bars view.
+BAR_METRICS = tuple((m.key, m.title, m.sub) for m in in_view(REPORT_BARS))
 
 
 def _metric(run: RunData, key: str, sub: str | None) -> float:

@@ -12,19 +12,10 @@ from typing import Any
 from pmsm_hil.dashboards import report_figures as fig
 from pmsm_hil.dashboards.errors import DashboardError
 from pmsm_hil.dashboards.report_data import RunData, load_run
+from pmsm_hil.hil.metrics.registry import REPORT, in_view
 
-#: (header, metrics key, sub-key, format) of the metrics table.
-TABLE = (("controller", "controller", None, "{}"), ("scenario", "scenario", None, "{}"),
-         ("speed ref [rpm]", "speed_ref_rpm", None, "{:.0f}"), ("load [N·m]", "load_nm", None, "{:.2f}"),
-         ("speed mean [rpm]", "speed_mean_rpm", None, "{:.1f}"),
-         ("torque mean [N·m]", "torque_mean_nm", None, "{:.3f}"),
-         ("ripple RMS [N·m]", "torque_ripple_rms_nm", None, "{:.3f}"),
-         ("ripple p-p [N·m]", "torque_ripple_pp_nm", None, "{:.3f}"),
-         ("THD h2..40 [%]", "current_thd_pct", None, "{:.2f}"),
-         ("THD all [%]", "current_thd_total_pct", None, "{:.2f}"),
-         ("f_av [kHz]", "switching_freq_khz", None, "{:.2f}"), ("exec median [µs]", "exec_time_us", "median", "{:.3f}"),
-         ("exec p99 [µs]", "exec_time_us", "p99", "{:.3f}"), ("loop rate [periods/s]", "loop_rate_hz", None, "{:.0f}"),
-         ("end", "end_reason", None, "{}"))
+#: (header, metrics key, sub-key, format) of the metrics table: the registry's report view.
+TABLE = tuple((m.title, m.key, m.sub, "{:" + m.fmt + "}" if m.fmt else "{}") for m in in_view(REPORT))
 
 _CSS = """body{font-family:system-ui,sans-serif;margin:24px;color:#222;max-width:1280px}
 h1{font-size:22px}h2{font-size:17px;margin-top:28px;border-bottom:1px solid #ddd}

@@ -4,17 +4,10 @@ from __future__ import annotations
 
 from typing import Any
 
-_ROWS = (
-    ("controller", "controller", ""), ("scenario", "scenario", ""), ("periods", "periods (window)", ""),
-    ("speed_mean_rpm", "speed mean", "rpm"), ("torque_mean_nm", "torque mean", "N·m"),
-    ("torque_error_mean_nm", "torque error mean", "N·m"), ("torque_ripple_rms_nm", "torque ripple RMS", "N·m"),
-    ("torque_ripple_pp_nm", "torque ripple p-p", "N·m"), ("current_fundamental_a", "current fundamental", "A"),
-    ("current_thd_pct", "current THD (h2..40)", "%"), ("current_thd_total_pct", "current THD (all)", "%"),
-    ("switching_freq_khz", "switching freq f_av", "kHz"), ("switching_freq_intra_khz", "f_av intra-period", "kHz"),
-    ("candidates_evaluated_mean", "candidates / step", ""), ("narrow_pulses", "narrow pulses", ""),
-    ("deadline_misses", "deadline misses", ""), ("loop_rate_hz", "loop rate", "periods/s"),
-    ("end_reason", "end", ""),
-)
+from pmsm_hil.hil.metrics.registry import CLI, in_view
+
+#: (key, label, unit) of the summary rows: the registry's CLI view (dict-valued keys get their own lines below).
+_ROWS = tuple((m.key, m.label, m.unit) for m in in_view(CLI) if m.sub is None)
 
 
 def _fmt(value: Any) -> str:

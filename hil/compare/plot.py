@@ -9,6 +9,7 @@ from typing import Any
 from pmsm_hil.hil.compare.runs import CompareResult
 from pmsm_hil.hil.compare.spread import aggregate
 from pmsm_hil.hil.errors import InputFileError
+from pmsm_hil.hil.metrics.registry import COMPARE_BARS, in_view
 
 
 def _pyplot() -> Any:
@@ -27,8 +28,7 @@ def _main_rows(result: CompareResult) -> list[dict[str, Any]]:
 def _bars(result: CompareResult, plt: Any) -> Any:
     rows = result.rows
     labels = [r["controller"] + ("\n(eq. f_av)" if r["group"] == "equal_fav" else "") for r in rows]
-    metrics = (("torque_ripple_rms_nm", "torque ripple RMS [N·m]"), ("current_thd_pct", "current THD h2-40 [%]"),
-               ("switching_freq_khz", "f_av [kHz]"), ("candidate_miss_rate", "candidate miss rate"))
+    metrics = [(m.key, m.title) for m in in_view(COMPARE_BARS)]
     fig, axes = plt.subplots(1, len(metrics), figsize=(4.2 * len(metrics), 4.2))
     x = list(range(len(rows)))
     for ax, (key, title) in zip(axes, metrics, strict=True):

@@ -12,16 +12,14 @@ import numpy as np
 from pmsm_hil.hil.compare.preset import ComparePreset, Variant
 from pmsm_hil.hil.errors import HilError
 from pmsm_hil.hil.mechanics import RPM_TO_RAD_S
+from pmsm_hil.hil.metrics.registry import RUN, WINDOW, row_keys
 from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import load_scenario
 
-#: metrics copied from the runner's metrics into a row
-ROW_METRICS = ("torque_ripple_rms_nm", "torque_ripple_pp_nm", "current_thd_pct", "current_thd_total_pct",
-               "switching_freq_khz", "candidates_evaluated_mean", "torque_error_mean_nm", "candidate_miss_rate",
-               "speed_mean_rpm", "switching_freq_intra_khz", "narrow_pulses", "narrow_pulses_gated",
-               "torque_mean_nm", "xy_current_rms_a", "current_distortion_rms_a")
+#: metrics copied from the runner's metrics into a row (the registry's compare-row view, run sources)
+ROW_METRICS = row_keys(source=(WINDOW, RUN))
 #: equal-f_av search: relative tolerance and iteration limit
 FAV_TOL = 0.03
 FAV_ITER = 5

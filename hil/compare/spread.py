@@ -4,14 +4,12 @@ from __future__ import annotations
 
 from typing import Any
 
+from pmsm_hil.hil.metrics.registry import row_keys
+
 #: row keys identifying one operating point of one run specification
 GROUP_KEYS = ("group", "label", "controller", "ts_us", "speed_rpm", "load_nm")
-#: numeric metrics aggregated
-SPREAD_METRICS = ("torque_ripple_rms_nm", "torque_ripple_pp_nm", "current_thd_pct", "current_thd_total_pct",
-                  "switching_freq_khz", "switching_freq_intra_khz", "narrow_pulses", "narrow_pulses_gated",
-                  "torque_error_mean_nm", "torque_mean_nm", "speed_mean_rpm", "candidates_evaluated_mean",
-                  "candidate_miss_rate", "exec_time_us_median", "t_reach_98pct_s", "eval_e", "eval_e_intra",
-                  "equal_fav_target_khz", "xy_current_rms_a", "current_distortion_rms_a")
+#: numeric metrics aggregated: every compare-row metric of the registry
+SPREAD_METRICS = row_keys()
 
 
 def aggregate(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:

@@ -10,13 +10,11 @@ from typing import Any
 from pmsm_hil.hil.compare.runs import CompareResult
 from pmsm_hil.hil.compare.spread import aggregate
 from pmsm_hil.hil.errors import InputFileError
+from pmsm_hil.hil.metrics.registry import row_keys
 
-COLUMNS = ("group", "controller", "ts_us", "speed_rpm", "load_nm", "torque_ripple_rms_nm", "torque_ripple_pp_nm",
-           "current_thd_pct", "current_thd_total_pct", "switching_freq_khz", "candidates_evaluated_mean",
-           "torque_error_mean_nm", "candidate_miss_rate", "speed_mean_rpm", "exec_time_us_median",
-           "t_reach_98pct_s", "end_reason", "label", "theta0_rad", "switching_freq_intra_khz", "narrow_pulses",
-           "narrow_pulses_gated", "torque_mean_nm", "eval_e", "eval_e_intra", "xy_current_rms_a",
-           "current_distortion_rms_a")
+#: CSV columns: the operating point, every compare-row metric of the registry, how the run ended
+COLUMNS = ("group", "controller", "ts_us", "speed_rpm", "load_nm", *row_keys(), "end_reason", "label",
+           "theta0_rad")
 _HEAD = ("controller", "Ts µs", "rpm", "N·m", "ripple rms", "ripple p-p", "THD 2-40 %", "THD all %",
          "f_av kHz", "f_av intra", "narrow req/gated", "E", "cand", "T err N·m", "miss rate", "t98 s", "runs",
          "x-y rms A", "dist rms A", "trips", "paper")

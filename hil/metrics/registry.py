@@ -1,0 +1,221 @@
+"""The metrics registry: every metrics.json key once, with its label, unit, table format, definition and the
+views that show it. The CLI summary, `hil compare` rows/CSV/figures, the HTML report and docs/metrics.md read
+it; adding a metric is one `Metric(...)` line here plus its computation (docs/recipes.md, "A new metric").
+
+Run `python -m pmsm_hil.hil.metrics.registry --check` (CI) to check docs/metrics.md's key table against the
+registry, `--write` to regenerate it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Final
+
+#: Views: the `hil run` summary, the HTML report's table and bar charts, a `hil compare` row (copied from the
+#: run or computed by compare; numeric rows are aggregated over the initial rotor angles), compare's bar figure.
+CLI: Final = "cli"
+REPORT: Final = "report"
+REPORT_BARS: Final = "report_bars"
+COMPARE_ROW: Final = "compare_row"
+COMPARE_BARS: Final = "compare_bars"
+#: Sources: the window metrics (`compute_run_metrics`), the runner's run-level facts, or `hil compare`.
+WINDOW: Final = "window"
+RUN: Final = "run"
+COMPARE: Final = "compare"
+
+
+@dataclass(frozen=True, slots=True)
+class Metric:
+    """One metrics key. `sub`: a field of a dict-valued key (e.g. exec_time_us → median); `fmt`: format spec
+    of a table cell ("" = str); `unit`: SI or the stated unit ("" for counts and text)."""
+
+    key: str
+    label: str
+    unit: str
+    doc: str
+    fmt: str = ".4g"
+    sub: str | None = None
+    source: str = WINDOW
+    views: frozenset[str] = frozenset()
+
+    @property
+    def name(self) -> str:
+        """`key` or `key.sub`."""
+        return self.key if self.sub is None else f"{self.key}.{self.sub}"
+
+    @property
+    def title(self) -> str:
+        """Label with the unit in brackets."""
+        return f"{self.label} [{self.unit}]" if self.unit else self.label
+
+    def value(self, metrics: Mapping[str, Any]) -> Any:
+        """The value in a metrics dict (None if absent)."""
+        value = metrics.get(self.key)
+        if self.sub is not None:
+            value = value.get(self.sub) if isinstance(value, Mapping) else None
+        return value
+
+    def format(self, value: Any) -> str:
+        """Table cell text: "n/a" for None or non-finite, else `fmt` (str for text)."""
+        if value is None or (isinstance(value, float) and not math.isfinite(value)):
+            return "n/a"
+        if self.fmt and isinstance(value, int | float) and not isinstance(value, bool):
+            return format(value, self.fmt)
+        return str(value)
+
+
+def _m(key: str, label: str, unit: str, doc: str, fmt: str = ".4g", *views: str, sub: str | None = None,
+       source: str = WINDOW) -> Metric:
+    return Metric(key, label, unit, doc, fmt, sub, source, frozenset(views))
+
+
+METRICS: Final[tuple[Metric, ...]] = (
+    # run-level facts (the runner)
+    _m("controller", "controller", "", "controller name (`--controller`)", "", CLI, REPORT, source=RUN),
+    _m("scenario", "scenario", "", "scenario name", "", CLI, REPORT, source=RUN),
+    _m("speed_ref_rpm", "speed ref", "rpm", "scenario speed reference", ".0f", REPORT, source=RUN),
+    _m("load_nm", "load", "N·m", "scenario load torque", ".2f", REPORT, source=RUN),
+    _m("mode", "mode", "", "lockstep or realtime", "", source=RUN),
+    _m("link_spec", "link", "", "link SPEC of the run", "", source=RUN),
+    _m("end_reason", "end", "", "`completed`, or why the run stopped (trip, watchdog, target fault)", "", CLI,
+       REPORT, source=RUN),
+    _m("safe_state", "safe state", "", "true when the run ended in the safe state", "", source=RUN),
+    _m("total_periods", "total periods", "", "periods run, settling included", "d", source=RUN),
+    _m("total_wall_time_s", "total wall time", "s", "wall time of the whole loop", source=RUN),
+    _m("loop_rate_total_hz", "loop rate (total)", "periods/s", "total_periods / total_wall_time_s", ".0f",
+       source=RUN),
+    _m("lateness_us", "lateness", "µs", "real time: `{median, p99, max}` of how late each period started",
+       source=RUN),
+    _m("speed_error_pct", "speed error", "%", "100 · (speed_mean_rpm − reference) / reference", ".3g", source=RUN),
+    _m("candidate_miss_rate", "miss rate", "", "fraction of window periods where a restricted-candidate "
+       "controller (fcs-mpc-1/2, dbcc-mpc) missed the full 19-vector optimum (in-process targets; null otherwise)",
+       ".3f", COMPARE_ROW, COMPARE_BARS, source=RUN),
+    # the metrics window
+    _m("periods", "periods (window)", "", "N periods in the window", "d", CLI),
+    _m("sim_time_s", "simulated time", "s", "N·Ts"),
+    _m("wall_time_s", "wall time", "s", "wall time of the window"),
+    _m("loop_rate_hz", "loop rate", "periods/s", "N / wall time (null if wall time is 0)", ".0f", CLI, REPORT),
+    _m("torque_mean_nm", "torque mean", "N·m", "time-weighted mean of the trace torque, T_av", ".3f", CLI, REPORT,
+       COMPARE_ROW),
+    _m("torque_ripple_rms_nm", "torque ripple RMS", "N·m", "eq. (20) below", ".3f", CLI, REPORT, REPORT_BARS,
+       COMPARE_ROW, COMPARE_BARS),
+    _m("torque_ripple_pp_nm", "torque ripple p-p", "N·m", "max − min of the trace torque", ".3f", CLI, REPORT,
+       COMPARE_ROW),
+    _m("torque_error_mean_nm", "torque error mean", "N·m", "T_av − mean reference; reference = finite "
+       "`torque_ref` values (torque mode), else `load_torque` (named in `torque_error_reference`)", "+.3f", CLI,
+       COMPARE_ROW),
+    _m("torque_error_reference", "torque error reference", "", "`torque_ref` or `load_torque`", ""),
+    _m("speed_mean_rpm", "speed mean", "rpm", "time-weighted mean of trace `omega_m` · 60/2π", ".1f", CLI, REPORT,
+       COMPARE_ROW),
+    _m("current_thd_pct", "current THD (h2..40)", "%", "integer harmonics 2..40 of phase a (below)", ".2f", CLI,
+       REPORT, REPORT_BARS, COMPARE_ROW, COMPARE_BARS),
+    _m("current_thd_total_pct", "current THD (all)", "%", "all non-fundamental content of phase a (below)", ".2f",
+       CLI, REPORT, COMPARE_ROW),
+    _m("current_fundamental_a", "current fundamental", "A", "fundamental amplitude of phase a", ".4g", CLI),
+    _m("current_fundamental_hz", "fundamental frequency", "Hz", "f1 from the mean speed"),
+    _m("current_thd_phases_pct", "THD per phase", "%", "both THD figures per phase a/b/c"),
+    _m("current_thd_note", "THD note", "", "reason when THD is null", ""),
+    _m("current_distortion_rms_a", "distortion RMS", "A", "fundamental RMS · THD_total: all non-fundamental "
+       "content of phase a", ".1f", COMPARE_ROW),
+    _m("xy_current_rms_a", "x-y current RMS", "A", "dual three-phase: RMS of the harmonic-subspace current "
+       "sqrt(i_x² + i_y²) (absent for three-phase runs)", ".1f", COMPARE_ROW),
+    _m("switching_freq_khz", "switching freq f_av", "kHz", "f_av (below), all transitions", ".2f", CLI, REPORT,
+       REPORT_BARS, COMPARE_ROW, COMPARE_BARS),
+    _m("switching_freq_intra_khz", "f_av intra-period", "kHz", "f_av without period-boundary transitions", ".2f",
+       CLI, COMPARE_ROW),
+    _m("exec_time_us", "exec time", "µs", "`{median, p99, max}` of `exec_time_ns`"),
+    _m("exec_time_us", "exec median", "µs", "median controller execution time", ".3f", REPORT, REPORT_BARS,
+       sub="median"),
+    _m("exec_time_us", "exec p99", "µs", "99th percentile of the controller execution time", ".3f", REPORT,
+       sub="p99"),
+    _m("exec_split_us", "exec split", "µs", "`{measure, reference, predict}` medians of `exec_split_ns`"),
+    _m("candidates_evaluated_mean", "candidates / step", "", "mean of `candidates`", ".0f", CLI, COMPARE_ROW),
+    _m("narrow_pulses", "narrow pulses", "", "Σ leg pulses shorter than T_lim = 2·T_dead + T_mpw requested by the "
+       "controller", ".0f", CLI, COMPARE_ROW),
+    _m("narrow_pulses_gated", "narrow pulses gated", "", "Σ narrow pulses that reached the gate (not suppressed "
+       "by T_mpw); 0 for records that predate the field", ".0f", COMPARE_ROW),
+    _m("deadline_misses", "deadline misses", "", "real time: commands that missed their period", "d", CLI),
+    _m("late_periods", "late periods", "", "count of `late` flags"),
+    _m("missed_periods", "missed periods", "", "count of `missed` flags"),
+    _m("link", "link", "", "`{frames_tx, frames_rx, crc_errors, lost, late}` plus the link's own counters"),
+    # computed by `hil compare` per row
+    _m("exec_time_us_median", "exec median", "µs", "`exec_time_us.median` of the run", ".3f", COMPARE_ROW,
+       source=COMPARE),
+    _m("t_reach_98pct_s", "t98", "s", "accel: first time the speed reaches 98 % of the reference", ".3f",
+       COMPARE_ROW, source=COMPARE),
+    _m("eval_e", "E", "", "the preset's evaluation index (ripple and f_av weighted as the paper)", ".3f",
+       COMPARE_ROW, source=COMPARE),
+    _m("eval_e_intra", "E intra", "", "`eval_e` with f_av intra-period", ".3f", COMPARE_ROW, source=COMPARE),
+    _m("equal_fav_target_khz", "equal f_av target", "kHz", "equal-f_av runs: the f_av they were matched to", ".2f",
+       COMPARE_ROW, source=COMPARE),
+)
+
+
+def in_view(view: str) -> tuple[Metric, ...]:
+    """The metrics shown by `view`, in registry order."""
+    return tuple(m for m in METRICS if view in m.views)
+
+
+def row_keys(*, source: Iterable[str] = (WINDOW, RUN, COMPARE)) -> tuple[str, ...]:
+    """Keys of the numeric `hil compare` row metrics from these sources (no sub-keys)."""
+    wanted = set(source)
+    return tuple(m.key for m in in_view(COMPARE_ROW) if m.sub is None and m.source in wanted)
+
+
+def by_name(name: str) -> Metric:
+    """The metric `key` or `key.sub`; KeyError naming it when unknown."""
+    for m in METRICS:
+        if m.name == name:
+            return m
+    raise KeyError(f"metric {name!r} is not in the registry (hil/metrics/registry.py)")
+
+
+# --- docs/metrics.md key table --------------------------------------------------------------------------
+DOC_PATH = Path(__file__).resolve().parents[2] / "docs" / "metrics.md"
+_START = "<!-- metrics-registry:start (generated by python -m pmsm_hil.hil.metrics.registry --write) -->"
+_END = "<!-- metrics-registry:end -->"
+
+
+def doc_table() -> str:
+    """The generated Markdown table of every key (sub-keys folded into their key's row)."""
+    lines = [_START, "| key | definition | unit | source |", "|---|---|---|---|"]
+    for m in METRICS:
+        if m.sub is None:
+            lines.append(f"| `{m.key}` | {m.doc} | {m.unit or '–'} | {m.source} |")
+    lines.append(_END)
+    return "\n".join(lines)
+
+
+def _doc_with_table(text: str) -> str:
+    if _START not in text or _END not in text:
+        raise ValueError(f"{DOC_PATH}: markers {_START!r} … {_END!r} not found")
+    head, rest = text.split(_START, 1)
+    _, tail = rest.split(_END, 1)
+    return head + doc_table() + tail
+
+
+def main(argv: list[str] | None = None) -> int:
+    """`--check`: exit 1 if docs/metrics.md's key table differs from the registry; `--write`: rewrite it."""
+    ap = argparse.ArgumentParser(prog="python -m pmsm_hil.hil.metrics.registry")
+    group = ap.add_mutually_exclusive_group(required=True)
+    group.add_argument("--check", action="store_true")
+    group.add_argument("--write", action="store_true")
+    args = ap.parse_args(argv)
+    text = DOC_PATH.read_text(encoding="utf-8")
+    want = _doc_with_table(text)
+    if args.write:
+        DOC_PATH.write_text(want, encoding="utf-8")
+        return 0
+    if want != text:
+        print(f"{DOC_PATH}: key table differs from hil/metrics/registry.py (run with --write)", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,78 @@
+"""The metrics registry is complete (every key a run produces is registered, and the reverse), docs/metrics.md
+matches it, and the views read it."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+from pmsm_hil.dashboards.report_html import TABLE
+from pmsm_hil.hil.cli.report_table import format_metrics
+from pmsm_hil.hil.compare.spread import SPREAD_METRICS
+from pmsm_hil.hil.compare.table import COLUMNS
+from pmsm_hil.hil.metrics.registry import (
+    CLI,
+    COMPARE,
+    COMPARE_ROW,
+    METRICS,
+    REPORT,
+    RUN,
+    WINDOW,
+    by_name,
+    in_view,
+    main,
+    row_keys,
+)
+from pmsm_hil.hil.presets_loader import load_motor
+from pmsm_hil.hil.runner.run import run_closed_loop
+from pmsm_hil.hil.runner.run_config import RunConfig
+from pmsm_hil.hil.runner.scenario import load_scenario
+
+#: keys produced only under conditions these short lockstep runs do not meet
+CONDITIONAL = {"lateness_us"}  # real-time runs only
+
+
+def _metrics(motor: str, controller: str, load: float) -> dict[str, Any]:
+    sc = load_scenario("steady").with_overrides(load_nm=load, settle_s=0.005, duration_s=0.01)
+    return run_closed_loop(RunConfig(motor=load_motor(motor), scenario=sc, controller=controller)).metrics
+
+
+@pytest.fixture(scope="module")
+def runs() -> list[dict[str, Any]]:
+    return [_metrics("niu2020-ipmsm", "fcs-mpc-1", 7.0), _metrics("zhang2021-dtpmsm", "mptc2", 40.0)]
+
+
+def test_every_key_a_run_produces_is_registered_and_the_reverse(runs: list[dict[str, Any]]) -> None:
+    registered = {m.key for m in METRICS if m.source in (WINDOW, RUN)}
+    produced = set().union(*(set(m) for m in runs))
+    assert produced - registered == set(), "metrics keys missing from hil/metrics/registry.py"
+    assert registered - produced - CONDITIONAL == set(), "registered keys no run produced"
+    for m in METRICS:  # sub-keys exist in their dicts
+        if m.sub is not None:
+            assert m.sub in runs[0][m.key]
+
+
+def test_docs_key_table_matches_the_registry() -> None:
+    assert main(["--check"]) == 0
+
+
+def test_names_are_unique_and_views_read_the_registry(runs: list[dict[str, Any]]) -> None:
+    names = [m.name for m in METRICS]
+    assert len(names) == len(set(names))
+    assert by_name("exec_time_us.median").sub == "median"
+    with pytest.raises(KeyError, match="not in the registry"):
+        by_name("no_such_metric")
+    assert [row[1] for row in TABLE] == [m.key for m in in_view(REPORT)]
+    assert set(SPREAD_METRICS) == set(row_keys()) == {m.key for m in in_view(COMPARE_ROW)}
+    assert set(row_keys(source=(COMPARE,))) <= set(COLUMNS)
+    text = format_metrics(runs[0])
+    for m in in_view(CLI):
+        if m.sub is None and m.key in runs[0]:
+            assert m.label in text
+
+
+def test_format_of_a_cell() -> None:
+    ripple = by_name("torque_ripple_rms_nm")
+    assert ripple.format(0.12345) == "0.123" and ripple.format(None) == "n/a" and ripple.format(float("nan")) == "n/a"
+    assert ripple.title == "torque ripple RMS [N·m]"
+    assert by_name("end_reason").format("completed") == "completed"
