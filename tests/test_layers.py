@@ -1,0 +1,110 @@
+"""The one-way dependency rule of docs/architecture.md ("Layers"): every import of a pmsm_hil module, at module
+level or inside a function (lazy imports count), goes to its own layer or one it may use."""
+
+from __future__ import annotations
+
+import ast
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+#: repository folder -> import name (pyproject.toml [tool.setuptools] package-dir)
+PACKAGES = {"hil": "pmsm_hil.hil", "protocol": "pmsm_hil.protocol", "sim_target": "pmsm_hil.sim_target",
+            "dashboards": "pmsm_hil.dashboards"}
+
+#: (module prefix, layer), most specific first
+LAYER_OF = (
+    ("pmsm_hil.protocol", "protocol"),
+    ("pmsm_hil.sim_target", "target"),
+    ("pmsm_hil.hil.cli", "application"),
+    ("pmsm_hil.hil.compare", "application"),
+    ("pmsm_hil.hil.bench", "application"),
+    ("pmsm_hil.dashboards", "dashboards"),
+    ("pmsm_hil.hil.runner", "runner"),
+    ("pmsm_hil.hil.runlog", "infrastructure"),
+    ("pmsm_hil.hil", "model"),
+)
+#: layer -> the layers it may import (besides itself)
+MAY_USE = {
+    "protocol": set(),
+    "target": {"protocol"},
+    "model": {"protocol"},
+    "infrastructure": {"model"},
+    "runner": {"protocol", "target", "model", "infrastructure"},
+    "dashboards": {"protocol", "model", "infrastructure", "runner"},
+    "application": {"protocol", "target", "model", "infrastructure", "runner", "dashboards"},
+}
+
+
+def layer(module: str) -> str:
+    """Layer of a pmsm_hil module; ValueError for a module outside every layer."""
+    for prefix, name in LAYER_OF:
+        if module == prefix or module.startswith(prefix + "."):
+            return name
+    raise ValueError(f"{module}: no layer (add it to LAYER_OF and docs/architecture.md)")
+
+
+def module_name(path: Path) -> str:
+    rel = path.relative_to(ROOT)
+    parts = list(rel.with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join([PACKAGES[parts[0]], *parts[1:]])
+
+
+def imports(path: Path) -> Iterator[tuple[int, str]]:
+    """(line, module) of every pmsm_hil import in the file, lazy ones included."""
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names = [node.module]
+        elif isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        else:
+            continue
+        for name in names:
+            if name.startswith("pmsm_hil."):
+                yield node.lineno, name
+
+
+def violations(edges: list[tuple[str, int, str, str]]) -> list[str]:
+    """Edges (file, line, importer, imported) against the rule, as messages."""
+    out = []
+    for file, line, src, dst in edges:
+        a, b = layer(src), layer(dst)
+        if a != b and b not in MAY_USE[a]:
+            out.append(f"{file}:{line}: {src} ({a}) imports {dst} ({b}); {a} may use {sorted(MAY_USE[a])}")
+    return out
+
+
+def _edges() -> list[tuple[str, int, str, str]]:
+    edges = []
+    for folder in PACKAGES:
+        for path in sorted((ROOT / folder).rglob("*.py")):
+            src = module_name(path)
+            for line, dst in imports(path):
+                edges.append((str(path.relative_to(ROOT)), line, src, dst))
+    return edges
+
+
+def test_imports_follow_the_layer_rule() -> None:
+    edges = _edges()
+    assert len(edges) > 100  # the scan really saw the code
+    assert violations(edges) == []
+
+
+def test_the_rule_catches_an_upward_import() -> None:
+    bad = [("sim_target/process.py", 9, "pmsm_hil.sim_target.process", "pmsm_hil.hil.runner.run_config"),
+           ("hil/plant.py", 3, "pmsm_hil.hil.plant", "pmsm_hil.hil.runlog.logger"),
+           ("hil/runlog/sink.py", 5, "pmsm_hil.hil.runlog.sink", "pmsm_hil.dashboards.live")]
+    found = violations(bad)
+    assert len(found) == 3 and "target" in found[0] and "model" in found[1]
+
+
+def test_every_module_has_a_layer() -> None:
+    for folder in PACKAGES:
+        for path in (ROOT / folder).rglob("*.py"):
+            layer(module_name(path))
+    with pytest.raises(ValueError, match="no layer"):
+        layer("pmsm_hil.elsewhere")
