@@ -14,6 +14,8 @@ from pmsm_hil.hil.cli.main import main
 from pmsm_hil.hil.compare import load_preset, run_preset
 from pmsm_hil.hil.compare.preset import Variant
 from pmsm_hil.hil.compare.report_runs import MAX_REPORT_RUNS, ReportSelection, dir_name, write_compare_report
+from pmsm_hil.hil.records import TRACE_DTYPE6
+from pmsm_hil.hil.runlog.reader import read_trace
 
 from tests.compare._presets import load_text, preset_file
 
@@ -101,3 +103,19 @@ def test_selection_names_equal_fav_and_dedupes(tmp_path: Path) -> None:
     assert (a, b, eq) == (tmp_path / "a-b", tmp_path / "a-b-2", tmp_path / "mpcc-equal-fav")
     assert sel(Variant("mpcc", "mpcc"), {}, 0.0, "equal_fav") == eq  # every equal-f_av iteration overwrites
     assert dir_name("../..") == "run" and dir_name("t_thr=8us min_tr") == "t_thr=8us-min_tr"
+
+
+TINY6 = ('name = "tiny6"\nmotor = "zhang2021-dtpmsm"\nscenario = "steady"\ncontrollers = ["mptc2"]\n'
+         'settle_s = 0.01\nduration_s = 0.02\nfigure = "bars"\nload_nm = 40.0\n')
+
+
+def test_cli_report_of_a_six_phase_preset(tmp_path: Path) -> None:
+    """The report logs the six-phase trace (both current sets and x-y) and renders it (exit 2 before the
+    machine descriptor: the logger took only the three-phase trace)."""
+    out = tmp_path / "out"
+    assert main(["compare", "--preset", str(preset_file(tmp_path, TINY6, "tiny6.toml")), "--out", str(out),
+                 "--quiet", "--report"]) == 0
+    run = load_run(out / "runs" / "tiny6" / "mptc2")
+    assert run.source == "trace (2 µs)"
+    assert read_trace(out / "runs" / "tiny6" / "mptc2" / "run.mcap").dtype.names == TRACE_DTYPE6.names
+    assert "mptc2" in (out / "tiny6.html").read_text(encoding="utf-8")
