@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -10,20 +11,38 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p = subparsers.add_parser("target", help="run the virtual target on a link (its own process)",
                               description="Serve the C reference firmware over a link until SIGTERM/Ctrl-C. "
                                           "The host selects the controller with its setpoint; --controller "
-                                          "preselects one.")
-    p.add_argument("--link", required=True, help="link SPEC, e.g. udp:..., serial:/dev/pts/3, socketcan:can0")
+                                          "preselects one. Prints 'ready LINK' once the link is open; a link "
+                                          "that cannot open (e.g. a UDP port in use) is a one-line error, exit 2.")
+    p.add_argument("--link", required=True, help="link SPEC, e.g. udp:LOCAL:REMOTE, serial:/dev/pts/3, socketcan:can0")
     p.add_argument("--controller", help="controller to preselect (e.g. mpcc)")
     p.add_argument("--role", default="target", choices=("target", "host"),
                    help="end of a point-to-point link this process takes (default target)")
+    p.add_argument("--idle-timeout", type=_positive, default=None, metavar="S",
+                   help="stop after S seconds without a frame (default: never; targets spawned by "
+                        "`hil run` get 30)")
+    p.add_argument("--parent-pid", type=int, default=None, metavar="PID",
+                   help="stop when process PID (this process's parent) exits (set by `hil run --target spawn`)")
     p.set_defaults(func=run)
+
+
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--idle-timeout must be a number of seconds, got {text!r}") from None
+    if not value > 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"--idle-timeout must be positive and finite, got {text!r}")
+    return value
 
 
 def run(args: argparse.Namespace) -> int:
     """Execute `hil target`."""
-    from pmsm_hil.sim_target.process import serve
+    from pmsm_hil.sim_target.process import LINK_STATS_LINE, READY_LINE, serve
 
-    target = serve(args.link, args.controller, role=args.role)
-    c = target.counters
-    print(f"target stopped: {c.measurements} measurements, {c.commands} commands, "
+    served = serve(args.link, args.controller, role=args.role, max_idle_s=args.idle_timeout,
+                   parent_pid=args.parent_pid, on_ready=lambda: print(f"{READY_LINE} {args.link}", flush=True))
+    c = served.target.counters
+    print(f"target stopped ({served.reason}): {c.measurements} measurements, {c.commands} commands, "
           f"{c.config_writes} config writes ({c.config_rejected} rejected), {c.faults} faults")
+    print(f"{LINK_STATS_LINE} {json.dumps(served.link_stats)}", flush=True)
     return 0

@@ -1,19 +1,34 @@
-"""Connects the runner to a target: in-process sim target, a spawned `hil target` process, or external."""
+"""Connects the runner to a target: in-process sim target, a spawned `hil target` process, or external.
+
+A spawned target gets `--parent-pid` (it exits with the host) and an idle timeout; the host waits for its
+"ready" line and ends the run with the target's own error if it cannot open its link (e.g. a UDP port in
+use), so it never talks to whatever else holds the port. UDP links agree a session before the run.
+"""
 
 from __future__ import annotations
 
 import contextlib
+import json
 import os
+import selectors
 import subprocess
 import sys
+import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import IO, Any
 
 from pmsm_hil.hil.runner.run_config import RunConfig
-from pmsm_hil.hil.runner.target_client import TargetClient
+from pmsm_hil.hil.runner.target_client import TargetClient, TargetError
 from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.links import Link, link_kind, open_link, parse_spec
+from pmsm_hil.protocol.links.udp_bus import UdpUnicastBus
+from pmsm_hil.sim_target.process import LINK_STATS_LINE, READY_LINE, SPAWNED_IDLE_TIMEOUT_S
+
+#: how long a spawned target may take to open its link (interpreter start and imports on a loaded machine)
+SPAWN_READY_TIMEOUT_S = 60.0
+#: how long the host waits for a UDP peer to agree a session
+SESSION_TIMEOUT_S = 10.0
 
 
 @dataclass(slots=True)
@@ -26,6 +41,9 @@ class TargetConnection:
     process: subprocess.Popen[bytes] | None = None
     inproc_result: Callable[[], object] | None = None
     extra: list[Any] = field(default_factory=list)
+    process_stderr: IO[bytes] | None = None
+    #: a spawned target's own link counters (its last stdout line), filled by `close`
+    target_link_stats: dict[str, int] = field(default_factory=dict)
 
     def link_stats(self) -> dict[str, int]:
         """Host link counters plus decoder counters."""
@@ -37,14 +55,16 @@ class TargetConnection:
         return stats
 
     def close(self) -> None:
-        """Close links and stop a spawned target."""
+        """Close links and stop a spawned target (reading its link counters)."""
         if self.process is not None:
-            self.process.terminate()
-            try:
-                self.process.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                self.process.kill()
-                self.process.wait()
+            _stop(self.process)
+            self.target_link_stats = _target_link_stats(self.process)
+        if self.process_stderr is not None:
+            with self.process_stderr as err:
+                text = _drain(err)
+            self.process_stderr = None
+            if text:  # what the target said (a warning, a crash) is not lost
+                print(text, file=sys.stderr)
         for link in (self.host_link, self.target_link):
             if link is not None:
                 link.close()
@@ -52,6 +72,76 @@ class TargetConnection:
             if isinstance(item, int):
                 with contextlib.suppress(OSError):
                     os.close(item)
+
+
+def _stop(proc: subprocess.Popen[bytes]) -> None:
+    if proc.poll() is None:
+        proc.terminate()
+    try:
+        proc.wait(timeout=5)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+
+
+def _target_link_stats(proc: subprocess.Popen[bytes]) -> dict[str, int]:
+    """The counters a stopped `hil target` printed last ({} if it printed none)."""
+    if proc.stdout is None:
+        return {}
+    with proc.stdout:
+        lines = proc.stdout.read().decode(errors="replace").splitlines()
+    for line in reversed(lines):
+        if line.startswith(LINK_STATS_LINE):
+            with contextlib.suppress(ValueError):
+                stats = json.loads(line[len(LINK_STATS_LINE):])
+                return {str(k): int(v) for k, v in stats.items()} if isinstance(stats, dict) else {}
+    return {}
+
+
+def _spawn_target(spec: str) -> tuple[subprocess.Popen[bytes], IO[bytes]]:
+    """Start `hil target` on `spec` and wait for its ready line; raises TargetError with its own error line if
+    it exits first (a port in use) or does not get ready in time. Its stderr goes to the returned file."""
+    cmd = [sys.executable, "-m", "pmsm_hil.hil.cli.main", "target", "--link", spec, "--role", "target",
+           "--parent-pid", str(os.getpid()), "--idle-timeout", repr(SPAWNED_IDLE_TIMEOUT_S)]
+    err = tempfile.TemporaryFile()  # noqa: SIM115 (the connection owns it: `close` forwards it)
+    proc = subprocess.Popen(cmd, env=dict(os.environ), stdout=subprocess.PIPE, stderr=err)
+    stdout = proc.stdout
+    if stdout is not None and _read_line(stdout, SPAWN_READY_TIMEOUT_S).startswith(READY_LINE):
+        return proc, err
+    _stop(proc)
+    with err:
+        why = _drain(err).splitlines()
+    if why:
+        detail = why[-1].removeprefix("hil: error: ")
+    elif proc.returncode in (-15, -9):
+        detail = f"no '{READY_LINE}' line within {SPAWN_READY_TIMEOUT_S:g} s"
+    else:
+        detail = f"exit code {proc.returncode}"
+    if stdout is not None:
+        stdout.close()
+    raise TargetError(f"spawned target on {spec!r} did not start: {detail}")
+
+
+def _drain(err: IO[bytes]) -> str:
+    """What a spawned target wrote to its stderr file, stripped."""
+    err.seek(0)
+    return err.read().decode(errors="replace").strip()
+
+
+def _read_line(stream: IO[bytes], timeout_s: float) -> str:
+    """One line from a child's stdout, or '' on end of file / timeout."""
+    with selectors.DefaultSelector() as sel:
+        sel.register(stream, selectors.EVENT_READ)
+        if not sel.select(timeout_s):
+            return ""
+    return stream.readline().decode(errors="replace").strip()
+
+
+def _await_session(link: Link) -> None:
+    """Agree the session of a UDP link with its peer before the run (LinkError naming the peer if none)."""
+    bus = getattr(link, "bus", None)
+    if isinstance(bus, UdpUnicastBus):
+        bus.wait_session(SESSION_TIMEOUT_S)
 
 
 def _slots(obj: object) -> list[tuple[str, object]]:
@@ -79,11 +169,19 @@ def connect_target(cfg: RunConfig, *, silent_after: int | None = None) -> Target
     if kind == "spawn":
         specs = link.mirror(cfg.link, spec)
         host_link = open_link(specs.host, "host")
-        cmd = [sys.executable, "-m", "pmsm_hil.hil.cli.main", "target", "--link", specs.target, "--role", "target"]
-        proc = subprocess.Popen(cmd, env=dict(os.environ), stdout=subprocess.DEVNULL)
-        client = TargetClient(host_link, codec)
-        conn = TargetConnection(client, host_link, process=proc)
-        conn.extra.extend(specs.keep_open)
+        conn = TargetConnection(TargetClient(host_link, codec), host_link, extra=list(specs.keep_open))
+        try:
+            conn.process, conn.process_stderr = _spawn_target(specs.target)
+            _await_session(host_link)
+        except BaseException:
+            conn.close()
+            raise
         return conn
     host_link = open_link(cfg.link, "host")
-    return TargetConnection(TargetClient(host_link, codec), host_link)
+    conn = TargetConnection(TargetClient(host_link, codec), host_link)
+    try:
+        _await_session(host_link)
+    except BaseException:
+        conn.close()
+        raise
+    return conn

@@ -49,12 +49,15 @@ class FramedBus(can.BusABC):
         return body
 
     # -- shared --
-    def _accept(self, body: bytes) -> None:
-        """A framing-valid header+payload arrived."""
-        arb, flags, seq, _length = HEADER.unpack_from(body)
-        if self._tracker.accept(seq):
+    def _accept(self, packet: bytes, offset: int = 0) -> None:
+        """A header+payload whose length field matches arrived at `offset` of `packet`; a payload length
+        that is not a valid classic (≤ 8) or FD length is a framing error."""
+        arb, flags, seq, length = HEADER.unpack_from(packet, offset)
+        if not valid_payload_length(length, bool(flags & FLAG_FD)):
+            self.link_stats.framing_errors += 1
+        elif self._tracker.accept(seq):
             self.link_stats.frames_rx += 1
-            self._rx.append((arb, body[HEADER_SIZE:], flags))
+            self._rx.append((arb, packet[offset + HEADER_SIZE:], flags))
 
     def send_frame(self, arbitration_id: int, data: bytes, is_fd: bool, flags: int = 0) -> None:
         """Fast path send; raises can.CanOperationError on an invalid length or an I/O error."""

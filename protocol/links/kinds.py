@@ -19,7 +19,7 @@ from pmsm_hil.protocol.errors import LinkSpecError
 from pmsm_hil.protocol.links.budget import LinkBudget, link_budget
 from pmsm_hil.protocol.links.serial_bus import CobsSerialBus
 from pmsm_hil.protocol.links.spec import LinkSpec, Role, parse_spec
-from pmsm_hil.protocol.links.udp_bus import UdpUnicastBus, parse_udp_channel
+from pmsm_hil.protocol.links.udp_bus import UdpUnicastBus, free_udp_ports, parse_udp_channel
 
 Profile = Literal["can", "canfd"]
 #: What limits one period's wire time: nothing (in-process, loopback), a serial line or a CAN bus.
@@ -142,11 +142,13 @@ def _open_udp(ls: LinkSpec, role: Role) -> tuple[can.BusABC, str]:
 
 
 def _mirror_udp(spec: str, ls: LinkSpec) -> SpawnSpecs:
-    """``udp:L:R[@HOST]`` gives the target ``udp:R:L[@HOST]`` (same options)."""
+    """``udp:L:R[@HOST]`` gives the target ``udp:R:L[@HOST]`` (same options); ``udp`` without ports takes two
+    ports free now on 127.0.0.1 (not the fixed defaults, which another target may hold)."""
     head, sep, opts = spec.partition(",")
     _, _, channel = head.strip().partition(":")
     if not channel:
-        return SpawnSpecs(spec, spec)
+        a, b = free_udp_ports(2)
+        return SpawnSpecs(f"udp:{a}:{b}{sep}{opts}", f"udp:{b}:{a}{sep}{opts}")
     ports, at, host = channel.partition("@")
     local, _, remote = ports.partition(":")
     return SpawnSpecs(spec, f"udp:{remote}:{local}{at}{host}{sep}{opts}")

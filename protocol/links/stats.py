@@ -21,6 +21,8 @@ class LinkStats:
     out_of_order: int = 0
     send_errors: int = 0
     ignored: int = 0  # remote/error frames or extended ids seen by the generic path
+    foreign_dropped: int = 0  # UDP datagrams from an address other than the configured peer
+    session_dropped: int = 0  # UDP datagrams from the peer outside the agreed session
 
     def as_dict(self) -> dict[str, int]:
         """Counters by name."""

@@ -1,20 +1,40 @@
-"""python-can interface `hiludp`: unicast UDP, one frame per datagram (header from `wire`).
+"""python-can interface `hiludp`: unicast UDP, one frame per datagram, only with the configured peer.
 
 channel: "LOCALPORT:REMOTEPORT[@HOST]" (HOST default 127.0.0.1). Non-blocking socket; the Link
 wrapper busy-polls `poll_frame`. Example: can.Bus(interface="hiludp", channel="47310:47311").
+
+Datagram = session id (u32 LE) + `wire` header + payload. Session 0 marks a control datagram (HELLO /
+ACK, `CONTROL`): the first end that sends proposes a random session id, its peer adopts it and acks
+(on a clash the larger id wins); both then drop datagrams of any other session. Datagrams from any
+address but the peer's are dropped too. docs/protocol.md, "UDP datagrams and session handshake".
 """
 
 from __future__ import annotations
 
+import secrets
 import socket
+import struct
+import time
 from typing import Any
 
 import can
+from pmsm_hil.protocol.errors import LinkError
 from pmsm_hil.protocol.links.framed_bus import FramedBus
-from pmsm_hil.protocol.links.wire import HEADER, HEADER_SIZE
+from pmsm_hil.protocol.links.stats import SeqTracker
+from pmsm_hil.protocol.links.wire import HEADER_SIZE
 
 DEFAULT_HOST = "127.0.0.1"
 MAX_DATAGRAM = 2048
+SESSION = struct.Struct("<I")
+#: control datagram: session 0, magic, type, version, session id (14 bytes)
+CONTROL = struct.Struct("<I4sBBI")
+MAGIC = b"HILS"
+VERSION = 1
+HELLO = 1
+ACK = 2
+HELLO_INTERVAL_S = 0.1  # a proposal is repeated until acknowledged
+_DATA_MIN = SESSION.size + HEADER_SIZE
+_LENGTH_AT = SESSION.size + HEADER_SIZE - 1  # offset of the header's payload length byte
 
 
 def parse_udp_channel(channel: str) -> tuple[int, int, str]:
@@ -33,16 +53,36 @@ def parse_udp_channel(channel: str) -> tuple[int, int, str]:
     return local, remote, host or DEFAULT_HOST
 
 
+def free_udp_ports(n: int = 2, host: str = DEFAULT_HOST) -> list[int]:
+    """`n` distinct UDP ports free on `host` now (bound to port 0 together, then released)."""
+    socks = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(n)]
+    try:
+        for s in socks:
+            s.bind((host, 0))
+        return [int(s.getsockname()[1]) for s in socks]
+    finally:
+        for s in socks:
+            s.close()
+
+
+def _new_session_id() -> int:
+    while True:
+        sid = secrets.randbits(32)
+        if sid:
+            return sid
+
+
 class UdpUnicastBus(FramedBus):
-    """Point-to-point UDP bus (both ends on one host or across a network)."""
+    """Point-to-point UDP bus (both ends on one host or across a network) with a per-run session."""
 
     def __init__(self, channel: Any = None, *, fd: bool = True, **kwargs: Any) -> None:
         if channel is None:
             raise can.CanInitializationError("hiludp needs channel='LOCALPORT:REMOTEPORT[@HOST]'")
         try:
             local, remote, host = parse_udp_channel(channel)
-        except ValueError as exc:
-            raise can.CanInitializationError(str(exc)) from exc
+            peer_ip = socket.gethostbyname(host)
+        except (ValueError, OSError) as exc:
+            raise can.CanInitializationError(f"hiludp channel {channel!r}: {exc}") from exc
         self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         try:
             self._sock.bind((host if host in ("127.0.0.1", "localhost") else "", local))
@@ -50,33 +90,123 @@ class UdpUnicastBus(FramedBus):
             self._sock.close()
             raise can.CanInitializationError(f"hiludp: cannot bind UDP port {local}: {exc}") from exc
         self._sock.setblocking(False)
-        self._remote = (host, remote)
-        self.local_port = self._sock.getsockname()[1]
-        self.channel_info = f"hiludp {self.local_port}->{host}:{remote}"
+        self._remote = (peer_ip, remote)
+        self.local_port: int = self._sock.getsockname()[1]
+        self.channel_info = f"hiludp {self.local_port}->{peer_ip}:{remote}"
+        self.session = 0  #: session id in use (0: none yet)
+        self._proposal = 0  # our own proposal while not acknowledged
+        self._next_hello = 0.0
+        self._tx_prefix = b""
+        self._rx_prefix = b""  # session bytes of the agreed session (b"": none, every datagram takes the slow path)
         super().__init__(channel=channel, fd=fd, **kwargs)
+
+    @property
+    def established(self) -> bool:
+        """True once both ends use the same session."""
+        return bool(self._rx_prefix)
 
     def fileno(self) -> int:
         """Socket descriptor (for select-based python-can notifiers)."""
         return self._sock.fileno()
 
+    # -- session handshake --
+    def _control(self, kind: int, sid: int) -> None:
+        try:
+            self._sock.sendto(CONTROL.pack(0, MAGIC, kind, VERSION, sid), self._remote)
+        except OSError:
+            self.link_stats.send_errors += 1
+
+    def _use(self, sid: int, agreed: bool) -> None:
+        if self.session and sid != self.session:  # the peer started a new run: forget the old one's frames
+            self._rx.clear()
+            self._tracker = SeqTracker(self.link_stats)
+        self.session = sid
+        self._tx_prefix = SESSION.pack(sid)
+        self._rx_prefix = self._tx_prefix if agreed else b""
+        self._proposal = 0 if agreed else sid
+
+    def propose(self) -> None:
+        """Start the handshake with a fresh random session id (HELLO, repeated until acknowledged)."""
+        self._use(_new_session_id(), agreed=False)
+        self._control(HELLO, self._proposal)
+        self._next_hello = time.perf_counter() + HELLO_INTERVAL_S
+
+    def wait_session(self, timeout_s: float) -> None:
+        """Propose a session if none is in use and pump until the peer agreed; raises LinkError naming the peer."""
+        if not self.session:
+            self.propose()
+        deadline = time.perf_counter() + timeout_s
+        while not self.established:
+            if time.perf_counter() > deadline:
+                peer = f"{self._remote[0]}:{self._remote[1]}"
+                s = self.link_stats
+                if s.session_dropped or s.framing_errors:
+                    why = (f"the peer at {peer} answers without the hiludp session handshake "
+                           f"({s.session_dropped + s.framing_errors} datagrams dropped): an old or foreign target, "
+                           "see docs/protocol.md")
+                else:
+                    why = f"no answer from the peer at {peer} within {timeout_s:g} s (is a target running there?)"
+                raise LinkError(f"{self.channel_info}: no session agreed: {why}")
+            self._pump()
+            self._wait_readable(0.01)
+
+    def _slow(self, dgram: bytes) -> None:
+        """A datagram from the peer outside the agreed session: handshake, first frames or a drop."""
+        stats = self.link_stats
+        n = len(dgram)
+        if n == CONTROL.size and dgram[:4] == b"\0\0\0\0":
+            _, magic, kind, version, sid = CONTROL.unpack(dgram)
+            if magic != MAGIC or version != VERSION or kind not in (HELLO, ACK) or not sid:
+                stats.framing_errors += 1
+            elif kind == ACK:
+                if sid == self._proposal:
+                    self._use(sid, agreed=True)
+                else:
+                    stats.session_dropped += 1
+            elif self._proposal > sid:  # a clash: the larger id wins, the peer adopts ours
+                self._next_hello = 0.0
+            else:
+                self._use(sid, agreed=True)
+                self._control(ACK, sid)
+            return
+        if n < _DATA_MIN or dgram[_LENGTH_AT] != n - _DATA_MIN:
+            stats.framing_errors += 1
+        elif self._proposal and dgram[:4] == self._tx_prefix:  # the peer adopted our proposal (its ACK is late)
+            self._use(self._proposal, agreed=True)
+            self._accept(dgram, SESSION.size)
+        else:
+            stats.session_dropped += 1
+
+    # -- FramedBus primitives --
     def _transmit(self, packet: bytes) -> None:
-        self._sock.sendto(packet, self._remote)
+        if not self.session:
+            self.propose()
+        self._sock.sendto(self._tx_prefix + packet, self._remote)
 
     def _pump(self) -> None:
-        recv = self._sock.recv
+        """Read datagrams until one frame is delivered or the socket is empty (never blocks)."""
+        if self._proposal and time.perf_counter() >= self._next_hello:
+            self._control(HELLO, self._proposal)
+            self._next_hello = time.perf_counter() + HELLO_INTERVAL_S
+        recvfrom = self._sock.recvfrom
         stats = self.link_stats
-        while True:
+        peer = self._remote
+        rx = self._rx
+        while not rx:  # one frame per call: an empty socket costs a BlockingIOError (~2 µs)
             try:
-                dgram = recv(MAX_DATAGRAM)
+                dgram, addr = recvfrom(MAX_DATAGRAM)
             except (BlockingIOError, InterruptedError):
                 return
             except OSError:  # e.g. ICMP port unreachable reported on some platforms
                 stats.framing_errors += 1
                 return
-            if len(dgram) < HEADER_SIZE or HEADER.unpack_from(dgram)[3] != len(dgram) - HEADER_SIZE:
-                stats.framing_errors += 1
-                continue
-            self._accept(dgram)
+            if addr != peer:
+                stats.foreign_dropped += 1
+            elif (dgram[:4] == self._rx_prefix and (n := len(dgram)) >= _DATA_MIN
+                  and dgram[_LENGTH_AT] == n - _DATA_MIN):
+                self._accept(dgram, SESSION.size)
+            else:
+                self._slow(dgram)
 
     def shutdown(self) -> None:
         """Close the socket (python-can API; idempotent)."""

@@ -20,6 +20,7 @@ from pmsm_hil.protocol.links import BusLink, Link, open_link, parse_spec
 from pmsm_hil.protocol.links.cobs import cobs_encode, encode_packet
 from pmsm_hil.protocol.links.echo import STOP_ID
 from pmsm_hil.protocol.links.peer import EchoPeer
+from pmsm_hil.protocol.links.udp_bus import CONTROL, HELLO, MAGIC, SESSION, VERSION
 from pmsm_hil.protocol.links.wire import pack_frame
 from pmsm_hil.protocol.messages import Command, Measurement
 
@@ -94,11 +95,14 @@ def test_udp_counts_gaps_duplicates_and_garbage(links: Opener) -> None:
     a, b = free_udp_ports()
     target = links(f"udp:{b}:{a}", "target")
     raw = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    raw.bind(("127.0.0.1", a))  # the configured peer, in session 7 (docs/protocol.md)
+    session = SESSION.pack(7)
     try:
+        raw.sendto(CONTROL.pack(0, MAGIC, HELLO, VERSION, 7), ("127.0.0.1", b))
         for seq in (0, 1, 1, 4, 3):
-            raw.sendto(pack_frame(0x200, bytes(7), 0, seq), ("127.0.0.1", b))
+            raw.sendto(session + pack_frame(0x200, bytes(7), 0, seq), ("127.0.0.1", b))
         raw.sendto(b"\x01\x02", ("127.0.0.1", b))
-        raw.sendto(pack_frame(0x200, bytes(7), 0, 5)[:-1], ("127.0.0.1", b))
+        raw.sendto(session + pack_frame(0x200, bytes(7), 0, 5)[:-1], ("127.0.0.1", b))
         got = [target.recv(0.5) for _ in range(4)]
     finally:
         raw.close()
