@@ -25,6 +25,7 @@ class ControllerId(IntEnum):
     MPTC3 = 9
     MPC_3V = 10
     HV_MPFC = 11
+    EXTERNAL = 255
 
 
 CONTROLLER_NAMES: dict[ControllerId, str] = {
@@ -40,7 +41,11 @@ CONTROLLER_NAMES: dict[ControllerId, str] = {
     ControllerId.MPTC3: "mptc3",
     ControllerId.MPC_3V: "3vmpc",
     ControllerId.HV_MPFC: "hv-mpfc",
+    ControllerId.EXTERNAL: "external",
 }
+
+#: reserved ids (ControllerIdReserved): named by the protocol, not counted in HIL_FW_CTRL_COUNT
+RESERVED_CONTROLLER_IDS: frozenset[ControllerId] = frozenset({ControllerId.EXTERNAL})
 
 
 class Mode(IntEnum):

@@ -29,6 +29,8 @@
 #define HIL_FW_CTRL_HV_MPFC        11
 #define HIL_FW_CTRL_HV_MPFC_NAME   "hv-mpfc"
 #define HIL_FW_CTRL_COUNT          12 /* largest id + 1 (size of arrays indexed by id) */
+#define HIL_FW_CTRL_EXTERNAL       255 /* reserved (ControllerIdReserved): not counted in HIL_FW_CTRL_COUNT */
+#define HIL_FW_CTRL_EXTERNAL_NAME  "external"
 
 /* Mode: Setpoint.mode */
 #define HIL_FW_MODE_SPEED       0

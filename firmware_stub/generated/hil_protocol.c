@@ -624,7 +624,7 @@ bool hil_protocol_meas_b_theta_e_is_in_range(uint16_t value)
 
 bool hil_protocol_meas_b_theta_e_is_in_phys_range(float value)
 {
-    return ((value >= 0.0f) && (value <= 6.283089f));
+    return ((value >= 0.0f) && (value <= 6.2830894333803435f));
 }
 
 int16_t hil_protocol_meas_b_omega_m_encode(float value)
@@ -1103,7 +1103,7 @@ bool hil_protocol_meas6_b_theta_e_is_in_range(uint16_t value)
 
 bool hil_protocol_meas6_b_theta_e_is_in_phys_range(float value)
 {
-    return ((value >= 0.0f) && (value <= 6.283089f));
+    return ((value >= 0.0f) && (value <= 6.2830894333803435f));
 }
 
 int16_t hil_protocol_meas6_b_omega_m_encode(float value)
@@ -1364,7 +1364,7 @@ bool hil_protocol_meas_fd_theta_e_is_in_range(uint16_t value)
 
 bool hil_protocol_meas_fd_theta_e_is_in_phys_range(float value)
 {
-    return ((value >= 0.0f) && (value <= 6.283089f));
+    return ((value >= 0.0f) && (value <= 6.2830894333803435f));
 }
 
 int16_t hil_protocol_meas_fd_omega_m_encode(float value)
@@ -1715,7 +1715,7 @@ bool hil_protocol_meas_fd6_theta_e_is_in_range(uint16_t value)
 
 bool hil_protocol_meas_fd6_theta_e_is_in_phys_range(float value)
 {
-    return ((value >= 0.0f) && (value <= 6.283089f));
+    return ((value >= 0.0f) && (value <= 6.2830894333803435f));
 }
 
 int16_t hil_protocol_meas_fd6_omega_m_encode(float value)
@@ -2733,12 +2733,12 @@ float hil_protocol_setpoint_reference_decode(float value)
 
 bool hil_protocol_setpoint_reference_is_in_range(float value)
 {
-    return ((value >= -3.4e+38f) && (value <= 3.4e+38f));
+    return ((value >= -3.4028234663852886e+38f) && (value <= 3.4028234663852886e+38f));
 }
 
 bool hil_protocol_setpoint_reference_is_in_phys_range(float value)
 {
-    return ((value >= -3.4e+38f) && (value <= 3.4e+38f));
+    return ((value >= -3.4028234663852886e+38f) && (value <= 3.4028234663852886e+38f));
 }
 
 uint8_t hil_protocol_setpoint_controller_id_encode(float value)
@@ -2850,12 +2850,12 @@ float hil_protocol_config_param_value_decode(float value)
 
 bool hil_protocol_config_param_value_is_in_range(float value)
 {
-    return ((value >= -3.4e+38f) && (value <= 3.4e+38f));
+    return ((value >= -3.4028234663852886e+38f) && (value <= 3.4028234663852886e+38f));
 }
 
 bool hil_protocol_config_param_value_is_in_phys_range(float value)
 {
-    return ((value >= -3.4e+38f) && (value <= 3.4e+38f));
+    return ((value >= -3.4028234663852886e+38f) && (value <= 3.4028234663852886e+38f));
 }
 
 int hil_protocol_config_ack_pack(
@@ -2947,12 +2947,12 @@ float hil_protocol_config_ack_value_decode(float value)
 
 bool hil_protocol_config_ack_value_is_in_range(float value)
 {
-    return ((value >= -3.4e+38f) && (value <= 3.4e+38f));
+    return ((value >= -3.4028234663852886e+38f) && (value <= 3.4028234663852886e+38f));
 }
 
 bool hil_protocol_config_ack_value_is_in_phys_range(float value)
 {
-    return ((value >= -3.4e+38f) && (value <= 3.4e+38f));
+    return ((value >= -3.4028234663852886e+38f) && (value <= 3.4028234663852886e+38f));
 }
 
 uint8_t hil_protocol_config_ack_status_encode(float value)

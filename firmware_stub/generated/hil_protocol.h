@@ -162,6 +162,36 @@ extern "C" {
 #define HIL_PROTOCOL_MEAS_FD6_STATUS_INVALID_CONFIG_CHOICE (5u)
 #define HIL_PROTOCOL_MEAS_FD6_STATUS_NOT_IMPLEMENTED_CHOICE (6u)
 
+#define HIL_PROTOCOL_CMD_A_STATE0_V0_000_CHOICE (0u)
+#define HIL_PROTOCOL_CMD_A_STATE0_V5_001_CHOICE (1u)
+#define HIL_PROTOCOL_CMD_A_STATE0_V3_010_CHOICE (2u)
+#define HIL_PROTOCOL_CMD_A_STATE0_V4_011_CHOICE (3u)
+#define HIL_PROTOCOL_CMD_A_STATE0_V1_100_CHOICE (4u)
+#define HIL_PROTOCOL_CMD_A_STATE0_V6_101_CHOICE (5u)
+#define HIL_PROTOCOL_CMD_A_STATE0_V2_110_CHOICE (6u)
+#define HIL_PROTOCOL_CMD_A_STATE0_V7_111_CHOICE (7u)
+
+#define HIL_PROTOCOL_CMD_A_STATE1_V0_000_CHOICE (0u)
+#define HIL_PROTOCOL_CMD_A_STATE1_V5_001_CHOICE (1u)
+#define HIL_PROTOCOL_CMD_A_STATE1_V3_010_CHOICE (2u)
+#define HIL_PROTOCOL_CMD_A_STATE1_V4_011_CHOICE (3u)
+#define HIL_PROTOCOL_CMD_A_STATE1_V1_100_CHOICE (4u)
+#define HIL_PROTOCOL_CMD_A_STATE1_V6_101_CHOICE (5u)
+#define HIL_PROTOCOL_CMD_A_STATE1_V2_110_CHOICE (6u)
+#define HIL_PROTOCOL_CMD_A_STATE1_V7_111_CHOICE (7u)
+
+#define HIL_PROTOCOL_CMD_A_STATE2_V0_000_CHOICE (0u)
+#define HIL_PROTOCOL_CMD_A_STATE2_V5_001_CHOICE (1u)
+#define HIL_PROTOCOL_CMD_A_STATE2_V3_010_CHOICE (2u)
+#define HIL_PROTOCOL_CMD_A_STATE2_V4_011_CHOICE (3u)
+#define HIL_PROTOCOL_CMD_A_STATE2_V1_100_CHOICE (4u)
+#define HIL_PROTOCOL_CMD_A_STATE2_V6_101_CHOICE (5u)
+#define HIL_PROTOCOL_CMD_A_STATE2_V2_110_CHOICE (6u)
+#define HIL_PROTOCOL_CMD_A_STATE2_V7_111_CHOICE (7u)
+
+#define HIL_PROTOCOL_CMD_C_EXEC_TIME_NS_NOT_MEASURED_CHOICE (0u)
+#define HIL_PROTOCOL_CMD_C_EXEC_TIME_NS_SATURATED_CHOICE (4294967295u)
+
 #define HIL_PROTOCOL_CMD_C_STATUS_OK_CHOICE (0u)
 #define HIL_PROTOCOL_CMD_C_STATUS_OVERCURRENT_CHOICE (1u)
 #define HIL_PROTOCOL_CMD_C_STATUS_OVERSPEED_CHOICE (2u)
@@ -170,6 +200,39 @@ extern "C" {
 #define HIL_PROTOCOL_CMD_C_STATUS_INVALID_CONFIG_CHOICE (5u)
 #define HIL_PROTOCOL_CMD_C_STATUS_NOT_IMPLEMENTED_CHOICE (6u)
 
+#define HIL_PROTOCOL_CMD_C_MIRROR_PLAIN_CHOICE (0u)
+#define HIL_PROTOCOL_CMD_C_MIRROR_MIRRORED_CHOICE (1u)
+
+#define HIL_PROTOCOL_CMD_FD_STATE0_V0_000_CHOICE (0u)
+#define HIL_PROTOCOL_CMD_FD_STATE0_V5_001_CHOICE (1u)
+#define HIL_PROTOCOL_CMD_FD_STATE0_V3_010_CHOICE (2u)
+#define HIL_PROTOCOL_CMD_FD_STATE0_V4_011_CHOICE (3u)
+#define HIL_PROTOCOL_CMD_FD_STATE0_V1_100_CHOICE (4u)
+#define HIL_PROTOCOL_CMD_FD_STATE0_V6_101_CHOICE (5u)
+#define HIL_PROTOCOL_CMD_FD_STATE0_V2_110_CHOICE (6u)
+#define HIL_PROTOCOL_CMD_FD_STATE0_V7_111_CHOICE (7u)
+
+#define HIL_PROTOCOL_CMD_FD_STATE1_V0_000_CHOICE (0u)
+#define HIL_PROTOCOL_CMD_FD_STATE1_V5_001_CHOICE (1u)
+#define HIL_PROTOCOL_CMD_FD_STATE1_V3_010_CHOICE (2u)
+#define HIL_PROTOCOL_CMD_FD_STATE1_V4_011_CHOICE (3u)
+#define HIL_PROTOCOL_CMD_FD_STATE1_V1_100_CHOICE (4u)
+#define HIL_PROTOCOL_CMD_FD_STATE1_V6_101_CHOICE (5u)
+#define HIL_PROTOCOL_CMD_FD_STATE1_V2_110_CHOICE (6u)
+#define HIL_PROTOCOL_CMD_FD_STATE1_V7_111_CHOICE (7u)
+
+#define HIL_PROTOCOL_CMD_FD_STATE2_V0_000_CHOICE (0u)
+#define HIL_PROTOCOL_CMD_FD_STATE2_V5_001_CHOICE (1u)
+#define HIL_PROTOCOL_CMD_FD_STATE2_V3_010_CHOICE (2u)
+#define HIL_PROTOCOL_CMD_FD_STATE2_V4_011_CHOICE (3u)
+#define HIL_PROTOCOL_CMD_FD_STATE2_V1_100_CHOICE (4u)
+#define HIL_PROTOCOL_CMD_FD_STATE2_V6_101_CHOICE (5u)
+#define HIL_PROTOCOL_CMD_FD_STATE2_V2_110_CHOICE (6u)
+#define HIL_PROTOCOL_CMD_FD_STATE2_V7_111_CHOICE (7u)
+
+#define HIL_PROTOCOL_CMD_FD_EXEC_TIME_NS_NOT_MEASURED_CHOICE (0u)
+#define HIL_PROTOCOL_CMD_FD_EXEC_TIME_NS_SATURATED_CHOICE (4294967295u)
+
 #define HIL_PROTOCOL_CMD_FD_STATUS_OK_CHOICE (0u)
 #define HIL_PROTOCOL_CMD_FD_STATUS_OVERCURRENT_CHOICE (1u)
 #define HIL_PROTOCOL_CMD_FD_STATUS_OVERSPEED_CHOICE (2u)
@@ -177,6 +240,12 @@ extern "C" {
 #define HIL_PROTOCOL_CMD_FD_STATUS_BAD_FRAME_CHOICE (4u)
 #define HIL_PROTOCOL_CMD_FD_STATUS_INVALID_CONFIG_CHOICE (5u)
 #define HIL_PROTOCOL_CMD_FD_STATUS_NOT_IMPLEMENTED_CHOICE (6u)
+
+#define HIL_PROTOCOL_CMD_FD_MIRROR_PLAIN_CHOICE (0u)
+#define HIL_PROTOCOL_CMD_FD_MIRROR_MIRRORED_CHOICE (1u)
+
+#define HIL_PROTOCOL_SETPOINT_ENABLE_DISABLED_CHOICE (0u)
+#define HIL_PROTOCOL_SETPOINT_ENABLE_ENABLED_CHOICE (1u)
 
 #define HIL_PROTOCOL_SETPOINT_MODE_SPEED_CHOICE (0u)
 #define HIL_PROTOCOL_SETPOINT_MODE_TORQUE_CHOICE (1u)
@@ -193,6 +262,7 @@ extern "C" {
 #define HIL_PROTOCOL_SETPOINT_CONTROLLER_ID_MPTC3_CHOICE (9u)
 #define HIL_PROTOCOL_SETPOINT_CONTROLLER_ID_3VMPC_CHOICE (10u)
 #define HIL_PROTOCOL_SETPOINT_CONTROLLER_ID_HV_MPFC_CHOICE (11u)
+#define HIL_PROTOCOL_SETPOINT_CONTROLLER_ID_EXTERNAL_CHOICE (255u)
 
 #define HIL_PROTOCOL_CONFIG_PARAM_PARAM_ID_RS_CHOICE (1u)
 #define HIL_PROTOCOL_CONFIG_PARAM_PARAM_ID_LD_CHOICE (2u)
@@ -393,6 +463,8 @@ extern "C" {
  */
 struct hil_protocol_fault_host_t {
     /**
+     * Sender node, 0 host (VAL_TABLE_ Node).
+     *
      * Range: 0..255 (0..255 -)
      * Scale: 1
      * Offset: 0
@@ -400,6 +472,8 @@ struct hil_protocol_fault_host_t {
     uint8_t node;
 
     /**
+     * Fault code, a Status value (VAL_TABLE_ Status), 1..6.
+     *
      * Range: 0..255 (0..255 -)
      * Scale: 1
      * Offset: 0
@@ -407,6 +481,8 @@ struct hil_protocol_fault_host_t {
     uint8_t code;
 
     /**
+     * Free detail of the fault, u32 0..4294967295 (e.g. the offending id or value); 0 if none.
+     *
      * Range: 0..4294967295 (0..4294967295 -)
      * Scale: 1
      * Offset: 0
@@ -423,6 +499,8 @@ struct hil_protocol_fault_host_t {
  */
 struct hil_protocol_fault_target_t {
     /**
+     * Sender node, 1 target (VAL_TABLE_ Node).
+     *
      * Range: 0..255 (0..255 -)
      * Scale: 1
      * Offset: 0
@@ -430,6 +508,8 @@ struct hil_protocol_fault_target_t {
     uint8_t node;
 
     /**
+     * Fault code, a Status value (VAL_TABLE_ Status), 1..6: e.g. 6 not_implemented for a controller_id the firmware lacks, 5 invalid_config for a bad setpoint mode. Ends the run (docs/runner.md).
+     *
      * Range: 0..255 (0..255 -)
      * Scale: 1
      * Offset: 0
@@ -437,6 +517,8 @@ struct hil_protocol_fault_target_t {
     uint8_t code;
 
     /**
+     * Free detail of the fault, u32 0..4294967295: the rejected controller_id (not_implemented) or setpoint mode (invalid_config) in the reference firmware; 0 if none.
+     *
      * Range: 0..4294967295 (0..4294967295 -)
      * Scale: 1
      * Offset: 0
@@ -453,7 +535,7 @@ struct hil_protocol_fault_target_t {
  */
 struct hil_protocol_meas_a_t {
     /**
-     * Measurement sequence number k, wraps at 65536.
+     * Measurement sequence number k, 0..65535, +1 per control period, wraps to 0 after 65535; the target echoes it in its Command.
      *
      * Range: 0..65535 (0..65535 -)
      * Scale: 1
@@ -462,6 +544,8 @@ struct hil_protocol_meas_a_t {
     uint16_t seq;
 
     /**
+     * Phase a current, positive into the machine winding; A, int16 x 0.001 A, -32.768..32.767 A (the host saturates at the extremes).
+     *
      * Range: -32768..32767 (-32.768..32.767 A)
      * Scale: 0.001
      * Offset: 0
@@ -469,6 +553,8 @@ struct hil_protocol_meas_a_t {
     int16_t i_a;
 
     /**
+     * Phase b current, positive into the machine winding; A, int16 x 0.001 A, -32.768..32.767 A (the host saturates at the extremes).
+     *
      * Range: -32768..32767 (-32.768..32.767 A)
      * Scale: 0.001
      * Offset: 0
@@ -476,6 +562,8 @@ struct hil_protocol_meas_a_t {
     int16_t i_b;
 
     /**
+     * Phase c current, positive into the machine winding; A, int16 x 0.001 A, -32.768..32.767 A (the host saturates at the extremes).
+     *
      * Range: -32768..32767 (-32.768..32.767 A)
      * Scale: 0.001
      * Offset: 0
@@ -492,7 +580,7 @@ struct hil_protocol_meas_a_t {
  */
 struct hil_protocol_meas_b_t {
     /**
-     * Low byte of the sequence number of part A.
+     * seq mod 256 of the part A frame of the same measurement (0..255); use the two parts together only when they agree.
      *
      * Range: 0..255 (0..255 -)
      * Scale: 1
@@ -501,7 +589,7 @@ struct hil_protocol_meas_b_t {
     uint8_t seq_lo;
 
     /**
-     * Electrical rotor angle in [0, 2*pi).
+     * Electrical rotor angle theta_e = pole_pairs * mechanical angle, rad in [0, 2*pi): 0 when the d axis (magnet flux) lies on the phase-a axis, increasing with positive speed (positive sequence a-b-c). u16 x 2*pi/65536 rad (0.0055 deg), 0..6.2830894 rad; a sender wraps: raw = round(theta_e/scale) mod 65536.
      *
      * Range: 0..65535 (0..6.28309 rad)
      * Scale: 9.587379924285257e-05
@@ -510,7 +598,7 @@ struct hil_protocol_meas_b_t {
     uint16_t theta_e;
 
     /**
-     * Mechanical rotor speed.
+     * Mechanical rotor speed, positive in the direction in which theta_e increases; rad/s, int16 x 0.02 rad/s, -655.36..655.34 rad/s (about +-6258 rpm; saturated).
      *
      * Range: -32768..32767 (-655.36..655.34 rad/s)
      * Scale: 0.02
@@ -519,6 +607,8 @@ struct hil_protocol_meas_b_t {
     int16_t omega_m;
 
     /**
+     * Measured DC-link voltage; V, u16 x 0.01 V, 0..655.35 V (saturated). The target may fall back to ConfigParam vdc when 0.
+     *
      * Range: 0..65535 (0..655.35 V)
      * Scale: 0.01
      * Offset: 0
@@ -526,6 +616,8 @@ struct hil_protocol_meas_b_t {
     uint16_t vdc;
 
     /**
+     * Host status, a Status value (VAL_TABLE_ Status); the host sends 0 ok.
+     *
      * Range: 0..255 (0..255 -)
      * Scale: 1
      * Offset: 0
@@ -542,6 +634,8 @@ struct hil_protocol_meas_b_t {
  */
 struct hil_protocol_meas6_a_t {
     /**
+     * Measurement sequence number k, 0..65535, +1 per control period, wraps to 0 after 65535; the target echoes it in its Command.
+     *
      * Range: 0..65535 (0..65535 -)
      * Scale: 1
      * Offset: 0
@@ -549,6 +643,8 @@ struct hil_protocol_meas6_a_t {
     uint16_t seq;
 
     /**
+     * Phase a current, positive into the machine winding; A, int16 x 0.01 A, -327.68..327.67 A (the host saturates at the extremes).
+     *
      * Range: -32768..32767 (-327.68..327.67 A)
      * Scale: 0.01
      * Offset: 0
@@ -556,6 +652,8 @@ struct hil_protocol_meas6_a_t {
     int16_t i_a;
 
     /**
+     * Phase b current, positive into the machine winding; A, int16 x 0.01 A, -327.68..327.67 A (the host saturates at the extremes).
+     *
      * Range: -32768..32767 (-327.68..327.67 A)
      * Scale: 0.01
      * Offset: 0
@@ -563,6 +661,8 @@ struct hil_protocol_meas6_a_t {
     int16_t i_b;
 
     /**
+     * Phase c current, positive into the machine winding; A, int16 x 0.01 A, -327.68..327.67 A (the host saturates at the extremes).
+     *
      * Range: -32768..32767 (-327.68..327.67 A)
      * Scale: 0.01
      * Offset: 0
@@ -579,6 +679,8 @@ struct hil_protocol_meas6_a_t {
  */
 struct hil_protocol_meas6_c_t {
     /**
+     * Measurement sequence number k, 0..65535, +1 per control period, wraps to 0 after 65535; the target echoes it in its Command.
+     *
      * Range: 0..65535 (0..65535 -)
      * Scale: 1
      * Offset: 0
@@ -586,6 +688,8 @@ struct hil_protocol_meas6_c_t {
     uint16_t seq;
 
     /**
+     * Second-set phase u current (axis at 30 deg electrical from phase a), positive into the machine winding; A, int16 x 0.01 A, -327.68..327.67 A (the host saturates at the extremes).
+     *
      * Range: -32768..32767 (-327.68..327.67 A)
      * Scale: 0.01
      * Offset: 0
@@ -593,6 +697,8 @@ struct hil_protocol_meas6_c_t {
     int16_t i_u;
 
     /**
+     * Second-set phase v current (axis at 150 deg electrical from phase a), positive into the machine winding; A, int16 x 0.01 A, -327.68..327.67 A (the host saturates at the extremes).
+     *
      * Range: -32768..32767 (-327.68..327.67 A)
      * Scale: 0.01
      * Offset: 0
@@ -600,6 +706,8 @@ struct hil_protocol_meas6_c_t {
     int16_t i_v;
 
     /**
+     * Second-set phase w current (axis at 270 deg electrical from phase a), positive into the machine winding; A, int16 x 0.01 A, -327.68..327.67 A (the host saturates at the extremes).
+     *
      * Range: -32768..32767 (-327.68..327.67 A)
      * Scale: 0.01
      * Offset: 0
@@ -616,6 +724,8 @@ struct hil_protocol_meas6_c_t {
  */
 struct hil_protocol_meas6_b_t {
     /**
+     * seq mod 256 of the part A frame of the same measurement (0..255); use the two parts together only when they agree.
+     *
      * Range: 0..255 (0..255 -)
      * Scale: 1
      * Offset: 0
@@ -623,6 +733,8 @@ struct hil_protocol_meas6_b_t {
     uint8_t seq_lo;
 
     /**
+     * Electrical rotor angle theta_e = pole_pairs * mechanical angle, rad in [0, 2*pi): 0 when the d axis (magnet flux) lies on the phase-a axis, increasing with positive speed (positive sequence a-b-c). u16 x 2*pi/65536 rad (0.0055 deg), 0..6.2830894 rad; a sender wraps: raw = round(theta_e/scale) mod 65536.
+     *
      * Range: 0..65535 (0..6.28309 rad)
      * Scale: 9.587379924285257e-05
      * Offset: 0
@@ -630,6 +742,8 @@ struct hil_protocol_meas6_b_t {
     uint16_t theta_e;
 
     /**
+     * Mechanical rotor speed, positive in the direction in which theta_e increases; rad/s, int16 x 0.02 rad/s, -655.36..655.34 rad/s (about +-6258 rpm; saturated).
+     *
      * Range: -32768..32767 (-655.36..655.34 rad/s)
      * Scale: 0.02
      * Offset: 0
@@ -637,6 +751,8 @@ struct hil_protocol_meas6_b_t {
     int16_t omega_m;
 
     /**
+     * Measured DC-link voltage; V, u16 x 0.01 V, 0..655.35 V (saturated). The target may fall back to ConfigParam vdc when 0.
+     *
      * Range: 0..65535 (0..655.35 V)
      * Scale: 0.01
      * Offset: 0
@@ -644,6 +760,8 @@ struct hil_protocol_meas6_b_t {
     uint16_t vdc;
 
     /**
+     * Host status, a Status value (VAL_TABLE_ Status); the host sends 0 ok.
+     *
      * Range: 0..255 (0..255 -)
      * Scale: 1
      * Offset: 0
@@ -660,6 +778,8 @@ struct hil_protocol_meas6_b_t {
  */
 struct hil_protocol_meas_fd_t {
     /**
+     * Measurement sequence number k, 0..65535, +1 per control period, wraps to 0 after 65535; the target echoes it in its Command.
+     *
      * Range: 0..65535 (0..65535 -)
      * Scale: 1
      * Offset: 0
@@ -667,6 +787,8 @@ struct hil_protocol_meas_fd_t {
     uint16_t seq;
 
     /**
+     * Phase a current, positive into the machine winding; A, int16 x 0.001 A, -32.768..32.767 A (the host saturates at the extremes).
+     *
      * Range: -32768..32767 (-32.768..32.767 A)
      * Scale: 0.001
      * Offset: 0
@@ -674,6 +796,8 @@ struct hil_protocol_meas_fd_t {
     int16_t i_a;
 
     /**
+     * Phase b current, positive into the machine winding; A, int16 x 0.001 A, -32.768..32.767 A (the host saturates at the extremes).
+     *
      * Range: -32768..32767 (-32.768..32.767 A)
      * Scale: 0.001
      * Offset: 0
@@ -681,6 +805,8 @@ struct hil_protocol_meas_fd_t {
     int16_t i_b;
 
     /**
+     * Phase c current, positive into the machine winding; A, int16 x 0.001 A, -32.768..32.767 A (the host saturates at the extremes).
+     *
      * Range: -32768..32767 (-32.768..32.767 A)
      * Scale: 0.001
      * Offset: 0
@@ -688,6 +814,8 @@ struct hil_protocol_meas_fd_t {
     int16_t i_c;
 
     /**
+     * Electrical rotor angle theta_e = pole_pairs * mechanical angle, rad in [0, 2*pi): 0 when the d axis (magnet flux) lies on the phase-a axis, increasing with positive speed (positive sequence a-b-c). u16 x 2*pi/65536 rad (0.0055 deg), 0..6.2830894 rad; a sender wraps: raw = round(theta_e/scale) mod 65536.
+     *
      * Range: 0..65535 (0..6.28309 rad)
      * Scale: 9.587379924285257e-05
      * Offset: 0
@@ -695,6 +823,8 @@ struct hil_protocol_meas_fd_t {
     uint16_t theta_e;
 
     /**
+     * Mechanical rotor speed, positive in the direction in which theta_e increases; rad/s, int16 x 0.02 rad/s, -655.36..655.34 rad/s (about +-6258 rpm; saturated).
+     *
      * Range: -32768..32767 (-655.36..655.34 rad/s)
      * Scale: 0.02
      * Offset: 0
@@ -702,6 +832,8 @@ struct hil_protocol_meas_fd_t {
     int16_t omega_m;
 
     /**
+     * Measured DC-link voltage; V, u16 x 0.01 V, 0..655.35 V (saturated). The target may fall back to ConfigParam vdc when 0.
+     *
      * Range: 0..65535 (0..655.35 V)
      * Scale: 0.01
      * Offset: 0
@@ -709,6 +841,8 @@ struct hil_protocol_meas_fd_t {
     uint16_t vdc;
 
     /**
+     * Host status, a Status value (VAL_TABLE_ Status); the host sends 0 ok.
+     *
      * Range: 0..255 (0..255 -)
      * Scale: 1
      * Offset: 0
@@ -725,6 +859,8 @@ struct hil_protocol_meas_fd_t {
  */
 struct hil_protocol_meas_fd6_t {
     /**
+     * Measurement sequence number k, 0..65535, +1 per control period, wraps to 0 after 65535; the target echoes it in its Command.
+     *
      * Range: 0..65535 (0..65535 -)
      * Scale: 1
      * Offset: 0
@@ -732,6 +868,8 @@ struct hil_protocol_meas_fd6_t {
     uint16_t seq;
 
     /**
+     * Phase a current, positive into the machine winding; A, int16 x 0.01 A, -327.68..327.67 A (the host saturates at the extremes).
+     *
      * Range: -32768..32767 (-327.68..327.67 A)
      * Scale: 0.01
      * Offset: 0
@@ -739,6 +877,8 @@ struct hil_protocol_meas_fd6_t {
     int16_t i_a;
 
     /**
+     * Phase b current, positive into the machine winding; A, int16 x 0.01 A, -327.68..327.67 A (the host saturates at the extremes).
+     *
      * Range: -32768..32767 (-327.68..327.67 A)
      * Scale: 0.01
      * Offset: 0
@@ -746,6 +886,8 @@ struct hil_protocol_meas_fd6_t {
     int16_t i_b;
 
     /**
+     * Phase c current, positive into the machine winding; A, int16 x 0.01 A, -327.68..327.67 A (the host saturates at the extremes).
+     *
      * Range: -32768..32767 (-327.68..327.67 A)
      * Scale: 0.01
      * Offset: 0
@@ -753,6 +895,8 @@ struct hil_protocol_meas_fd6_t {
     int16_t i_c;
 
     /**
+     * Second-set phase u current (axis at 30 deg electrical from phase a), positive into the machine winding; A, int16 x 0.01 A, -327.68..327.67 A (the host saturates at the extremes).
+     *
      * Range: -32768..32767 (-327.68..327.67 A)
      * Scale: 0.01
      * Offset: 0
@@ -760,6 +904,8 @@ struct hil_protocol_meas_fd6_t {
     int16_t i_u;
 
     /**
+     * Second-set phase v current (axis at 150 deg electrical from phase a), positive into the machine winding; A, int16 x 0.01 A, -327.68..327.67 A (the host saturates at the extremes).
+     *
      * Range: -32768..32767 (-327.68..327.67 A)
      * Scale: 0.01
      * Offset: 0
@@ -767,6 +913,8 @@ struct hil_protocol_meas_fd6_t {
     int16_t i_v;
 
     /**
+     * Second-set phase w current (axis at 270 deg electrical from phase a), positive into the machine winding; A, int16 x 0.01 A, -327.68..327.67 A (the host saturates at the extremes).
+     *
      * Range: -32768..32767 (-327.68..327.67 A)
      * Scale: 0.01
      * Offset: 0
@@ -774,6 +922,8 @@ struct hil_protocol_meas_fd6_t {
     int16_t i_w;
 
     /**
+     * Electrical rotor angle theta_e = pole_pairs * mechanical angle, rad in [0, 2*pi): 0 when the d axis (magnet flux) lies on the phase-a axis, increasing with positive speed (positive sequence a-b-c). u16 x 2*pi/65536 rad (0.0055 deg), 0..6.2830894 rad; a sender wraps: raw = round(theta_e/scale) mod 65536.
+     *
      * Range: 0..65535 (0..6.28309 rad)
      * Scale: 9.587379924285257e-05
      * Offset: 0
@@ -781,6 +931,8 @@ struct hil_protocol_meas_fd6_t {
     uint16_t theta_e;
 
     /**
+     * Mechanical rotor speed, positive in the direction in which theta_e increases; rad/s, int16 x 0.02 rad/s, -655.36..655.34 rad/s (about +-6258 rpm; saturated).
+     *
      * Range: -32768..32767 (-655.36..655.34 rad/s)
      * Scale: 0.02
      * Offset: 0
@@ -788,6 +940,8 @@ struct hil_protocol_meas_fd6_t {
     int16_t omega_m;
 
     /**
+     * Measured DC-link voltage; V, u16 x 0.01 V, 0..655.35 V (saturated). The target may fall back to ConfigParam vdc when 0.
+     *
      * Range: 0..65535 (0..655.35 V)
      * Scale: 0.01
      * Offset: 0
@@ -795,6 +949,8 @@ struct hil_protocol_meas_fd6_t {
     uint16_t vdc;
 
     /**
+     * Host status, a Status value (VAL_TABLE_ Status); the host sends 0 ok.
+     *
      * Range: 0..255 (0..255 -)
      * Scale: 1
      * Offset: 0
@@ -811,6 +967,8 @@ struct hil_protocol_meas_fd6_t {
  */
 struct hil_protocol_cmd_a_t {
     /**
+     * Echo of the seq of the Measurement this Command answers (the same value in CmdA, CmdB and CmdC).
+     *
      * Range: 0..65535 (0..65535 -)
      * Scale: 1
      * Offset: 0
@@ -818,7 +976,7 @@ struct hil_protocol_cmd_a_t {
     uint16_t seq;
 
     /**
-     * Switching state code, 3 phases 4*Sa+2*Sb+Sc, 6 phases [S_A S_B S_C S_U S_V S_W].
+     * First switching state. Three phases: 4*Sa + 2*Sb + Sc, 0..7 (VAL_TABLE_ SwitchState3, named by the inverter vector Vj and the bits Sa Sb Sc); six phases: [S_A S_B S_C S_U S_V S_W], S_A the MSB, 0..63. S = 1: upper switch of the leg on, S = 0: lower switch on.
      *
      * Range: 0..63 (0..63 -)
      * Scale: 1
@@ -827,6 +985,8 @@ struct hil_protocol_cmd_a_t {
     uint8_t state0;
 
     /**
+     * Second switching state. Three phases: 4*Sa + 2*Sb + Sc, 0..7 (VAL_TABLE_ SwitchState3, named by the inverter vector Vj and the bits Sa Sb Sc); six phases: [S_A S_B S_C S_U S_V S_W], S_A the MSB, 0..63. S = 1: upper switch of the leg on, S = 0: lower switch on. 0 when n_states < 2.
+     *
      * Range: 0..63 (0..63 -)
      * Scale: 1
      * Offset: 0
@@ -834,6 +994,8 @@ struct hil_protocol_cmd_a_t {
     uint8_t state1;
 
     /**
+     * Third switching state. Three phases: 4*Sa + 2*Sb + Sc, 0..7 (VAL_TABLE_ SwitchState3, named by the inverter vector Vj and the bits Sa Sb Sc); six phases: [S_A S_B S_C S_U S_V S_W], S_A the MSB, 0..63. S = 1: upper switch of the leg on, S = 0: lower switch on. 0 when n_states < 3.
+     *
      * Range: 0..63 (0..63 -)
      * Scale: 1
      * Offset: 0
@@ -841,7 +1003,7 @@ struct hil_protocol_cmd_a_t {
     uint8_t state2;
 
     /**
-     * Number of valid (state, duration) pairs, 1..3.
+     * Number of valid (state, duration) pairs, 1..3 (0 is an invalid frame).
      *
      * Range: 1..3 (1..3 -)
      * Scale: 1
@@ -850,6 +1012,8 @@ struct hil_protocol_cmd_a_t {
     uint8_t n_states;
 
     /**
+     * Duration of state0 in ns, u20 0..1048575 ns; the applied durations sum to Ts (with mirror: 2*(d0+..+d(n-2)) + d(n-1) = Ts).
+     *
      * Range: 0..1048575 (0..1048575 ns)
      * Scale: 1
      * Offset: 0
@@ -857,6 +1021,8 @@ struct hil_protocol_cmd_a_t {
     uint32_t duration0;
 
     /**
+     * Controller-specific diagnostic, 0..255 (reference firmware: mpcc the inverter vector index Vj 0..7, foc the sector, 3vmpc/hv-mpfc 16*mode + sector); the host logs it per period and does not interpret it. 0 if unused.
+     *
      * Range: 0..255 (0..255 -)
      * Scale: 1
      * Offset: 0
@@ -873,6 +1039,8 @@ struct hil_protocol_cmd_a_t {
  */
 struct hil_protocol_cmd_b_t {
     /**
+     * Echo of the seq of the Measurement this Command answers (the same value in CmdA, CmdB and CmdC).
+     *
      * Range: 0..65535 (0..65535 -)
      * Scale: 1
      * Offset: 0
@@ -880,6 +1048,8 @@ struct hil_protocol_cmd_b_t {
     uint16_t seq;
 
     /**
+     * Duration of state1 in ns, u20 0..1048575 ns, 0 when n_states < 2; the applied durations sum to Ts (with mirror: 2*(d0+..+d(n-2)) + d(n-1) = Ts).
+     *
      * Range: 0..1048575 (0..1048575 ns)
      * Scale: 1
      * Offset: 0
@@ -887,6 +1057,8 @@ struct hil_protocol_cmd_b_t {
     uint32_t duration1;
 
     /**
+     * Duration of state2 in ns, u20 0..1048575 ns, 0 when n_states < 3; the applied durations sum to Ts (with mirror: 2*(d0+..+d(n-2)) + d(n-1) = Ts).
+     *
      * Range: 0..1048575 (0..1048575 ns)
      * Scale: 1
      * Offset: 0
@@ -894,6 +1066,8 @@ struct hil_protocol_cmd_b_t {
     uint32_t duration2;
 
     /**
+     * Candidate vectors or sequences the controller evaluated in this step, 0..255; 0 if not reported. The host reports its mean over the metrics window (candidates_evaluated_mean).
+     *
      * Range: 0..255 (0..255 -)
      * Scale: 1
      * Offset: 0
@@ -910,6 +1084,8 @@ struct hil_protocol_cmd_b_t {
  */
 struct hil_protocol_cmd_c_t {
     /**
+     * Echo of the seq of the Measurement this Command answers (the same value in CmdA, CmdB and CmdC).
+     *
      * Range: 0..65535 (0..65535 -)
      * Scale: 1
      * Offset: 0
@@ -917,7 +1093,7 @@ struct hil_protocol_cmd_c_t {
     uint16_t seq;
 
     /**
-     * Controller execution time, clamped to 2^32-1 ns.
+     * Controller execution time of this step in ns, u32 0..4294967295: 0 not measured, 4294967295 saturated (>= 4.29 s). The host logs it per period and reports median/p99/max (exec_time_us) unchecked; deadlines are judged by the host's own clock, not by this value.
      *
      * Range: 0..4294967295 (0..4294967295 ns)
      * Scale: 1
@@ -926,6 +1102,8 @@ struct hil_protocol_cmd_c_t {
     uint32_t exec_time_ns;
 
     /**
+     * Target status (VAL_TABLE_ Status): 0 ok; 4 bad_frame, 5 invalid_config or 6 not_implemented with a safe zero-vector command. Logged in the raw frames; to stop the run send FaultTarget.
+     *
      * Range: 0..255 (0..255 -)
      * Scale: 1
      * Offset: 0
@@ -933,7 +1111,7 @@ struct hil_protocol_cmd_c_t {
     uint8_t status;
 
     /**
-     * 1: the plant applies state0..state(n-1) then state(n-2)..state0, mirrored copies with the same durations (2*(d0+..+d(n-2)) + d(n-1) = Ts).
+     * 0 plain; 1 mirrored: the plant applies state0..state(n-1) then state(n-2)..state0, mirrored copies with the same durations (2*(d0+..+d(n-2)) + d(n-1) = Ts). Bits 1-7 of the byte are reserved, 0.
      *
      * Range: 0..1 (0..1 -)
      * Scale: 1
@@ -951,6 +1129,8 @@ struct hil_protocol_cmd_c_t {
  */
 struct hil_protocol_cmd_fd_t {
     /**
+     * Echo of the seq of the Measurement this Command answers (the same value in CmdA, CmdB and CmdC).
+     *
      * Range: 0..65535 (0..65535 -)
      * Scale: 1
      * Offset: 0
@@ -958,6 +1138,8 @@ struct hil_protocol_cmd_fd_t {
     uint16_t seq;
 
     /**
+     * First switching state. Three phases: 4*Sa + 2*Sb + Sc, 0..7 (VAL_TABLE_ SwitchState3, named by the inverter vector Vj and the bits Sa Sb Sc); six phases: [S_A S_B S_C S_U S_V S_W], S_A the MSB, 0..63. S = 1: upper switch of the leg on, S = 0: lower switch on.
+     *
      * Range: 0..63 (0..63 -)
      * Scale: 1
      * Offset: 0
@@ -965,6 +1147,8 @@ struct hil_protocol_cmd_fd_t {
     uint8_t state0;
 
     /**
+     * Second switching state. Three phases: 4*Sa + 2*Sb + Sc, 0..7 (VAL_TABLE_ SwitchState3, named by the inverter vector Vj and the bits Sa Sb Sc); six phases: [S_A S_B S_C S_U S_V S_W], S_A the MSB, 0..63. S = 1: upper switch of the leg on, S = 0: lower switch on. 0 when n_states < 2.
+     *
      * Range: 0..63 (0..63 -)
      * Scale: 1
      * Offset: 0
@@ -972,6 +1156,8 @@ struct hil_protocol_cmd_fd_t {
     uint8_t state1;
 
     /**
+     * Third switching state. Three phases: 4*Sa + 2*Sb + Sc, 0..7 (VAL_TABLE_ SwitchState3, named by the inverter vector Vj and the bits Sa Sb Sc); six phases: [S_A S_B S_C S_U S_V S_W], S_A the MSB, 0..63. S = 1: upper switch of the leg on, S = 0: lower switch on. 0 when n_states < 3.
+     *
      * Range: 0..63 (0..63 -)
      * Scale: 1
      * Offset: 0
@@ -979,7 +1165,7 @@ struct hil_protocol_cmd_fd_t {
     uint8_t state2;
 
     /**
-     * Number of valid (state, duration) pairs, 1..3.
+     * Number of valid (state, duration) pairs, 1..3 (0 is an invalid frame).
      *
      * Range: 1..3 (1..3 -)
      * Scale: 1
@@ -988,6 +1174,8 @@ struct hil_protocol_cmd_fd_t {
     uint8_t n_states;
 
     /**
+     * Duration of state0 in ns, u20 0..1048575 ns; the applied durations sum to Ts (with mirror: 2*(d0+..+d(n-2)) + d(n-1) = Ts).
+     *
      * Range: 0..1048575 (0..1048575 ns)
      * Scale: 1
      * Offset: 0
@@ -995,6 +1183,8 @@ struct hil_protocol_cmd_fd_t {
     uint32_t duration0;
 
     /**
+     * Duration of state1 in ns, u20 0..1048575 ns, 0 when n_states < 2; the applied durations sum to Ts (with mirror: 2*(d0+..+d(n-2)) + d(n-1) = Ts).
+     *
      * Range: 0..1048575 (0..1048575 ns)
      * Scale: 1
      * Offset: 0
@@ -1002,6 +1192,8 @@ struct hil_protocol_cmd_fd_t {
     uint32_t duration1;
 
     /**
+     * Duration of state2 in ns, u20 0..1048575 ns, 0 when n_states < 3; the applied durations sum to Ts (with mirror: 2*(d0+..+d(n-2)) + d(n-1) = Ts).
+     *
      * Range: 0..1048575 (0..1048575 ns)
      * Scale: 1
      * Offset: 0
@@ -1009,6 +1201,8 @@ struct hil_protocol_cmd_fd_t {
     uint32_t duration2;
 
     /**
+     * Controller-specific diagnostic, 0..255 (reference firmware: mpcc the inverter vector index Vj 0..7, foc the sector, 3vmpc/hv-mpfc 16*mode + sector); the host logs it per period and does not interpret it. 0 if unused.
+     *
      * Range: 0..255 (0..255 -)
      * Scale: 1
      * Offset: 0
@@ -1016,6 +1210,8 @@ struct hil_protocol_cmd_fd_t {
     uint8_t vector_id;
 
     /**
+     * Candidate vectors or sequences the controller evaluated in this step, 0..255; 0 if not reported. The host reports its mean over the metrics window (candidates_evaluated_mean).
+     *
      * Range: 0..255 (0..255 -)
      * Scale: 1
      * Offset: 0
@@ -1023,6 +1219,8 @@ struct hil_protocol_cmd_fd_t {
     uint8_t candidates;
 
     /**
+     * Controller execution time of this step in ns, u32 0..4294967295: 0 not measured, 4294967295 saturated (>= 4.29 s). The host logs it per period and reports median/p99/max (exec_time_us) unchecked; deadlines are judged by the host's own clock, not by this value.
+     *
      * Range: 0..4294967295 (0..4294967295 ns)
      * Scale: 1
      * Offset: 0
@@ -1030,6 +1228,8 @@ struct hil_protocol_cmd_fd_t {
     uint32_t exec_time_ns;
 
     /**
+     * Target status (VAL_TABLE_ Status): 0 ok; 4 bad_frame, 5 invalid_config or 6 not_implemented with a safe zero-vector command. Logged in the raw frames; to stop the run send FaultTarget.
+     *
      * Range: 0..255 (0..255 -)
      * Scale: 1
      * Offset: 0
@@ -1037,7 +1237,7 @@ struct hil_protocol_cmd_fd_t {
     uint8_t status;
 
     /**
-     * 1: the plant applies state0..state(n-1) then state(n-2)..state0, mirrored copies with the same durations (2*(d0+..+d(n-2)) + d(n-1) = Ts).
+     * 0 plain; 1 mirrored: the plant applies state0..state(n-1) then state(n-2)..state0, mirrored copies with the same durations (2*(d0+..+d(n-2)) + d(n-1) = Ts). Bits 1-7 of the byte are reserved, 0.
      *
      * Range: 0..1 (0..1 -)
      * Scale: 1
@@ -1055,6 +1255,8 @@ struct hil_protocol_cmd_fd_t {
  */
 struct hil_protocol_setpoint_t {
     /**
+     * 0 disabled: answer every Measurement with a full-period zero vector (n_states 1, duration0 = Ts); 1 enabled: run the selected controller. Rising edge in speed mode presets the speed PI integrator (torque_integrator_init).
+     *
      * Range: 0..1 (0..1 -)
      * Scale: 1
      * Offset: 0
@@ -1062,6 +1264,8 @@ struct hil_protocol_setpoint_t {
     uint8_t enable;
 
     /**
+     * Setpoint mode (VAL_TABLE_ Mode): 0 speed (reference in rad/s mechanical, speed PI active), 1 torque (reference in N*m, speed PI bypassed).
+     *
      * Range: 0..1 (0..1 -)
      * Scale: 1
      * Offset: 0
@@ -1069,15 +1273,17 @@ struct hil_protocol_setpoint_t {
     uint8_t mode;
 
     /**
-     * rad/s (mode 0) or N*m (mode 1).
+     * Reference, float32 finite: mechanical speed in rad/s (mode 0) or torque in N*m (mode 1), limited by torque_limit.
      *
-     * Range: -3.4e+38..3.4e+38 (-3.4e+38..3.4e+38 -)
+     * Range: -3.4028234663852886e+38..3.4028234663852886e+38 (-3.4028234663852886e+38..3.4028234663852886e+38 -)
      * Scale: 1
      * Offset: 0
      */
     float reference;
 
     /**
+     * Controller to run (VAL_TABLE_ ControllerId): 0 off, then the reference controllers from 1 up; 255 external (VAL_TABLE_ ControllerIdReserved) labels a foreign firmware's own controller (the reference firmware answers 255 with Fault not_implemented).
+     *
      * Range: 0..255 (0..255 -)
      * Scale: 1
      * Offset: 0
@@ -1094,6 +1300,8 @@ struct hil_protocol_setpoint_t {
  */
 struct hil_protocol_config_param_t {
     /**
+     * Parameter id (VAL_TABLE_ ParamId; unit in ParamUnit, meaning in ParamDoc); unknown ids are answered with ConfigAck status 5.
+     *
      * Range: 0..255 (0..255 -)
      * Scale: 1
      * Offset: 0
@@ -1101,7 +1309,9 @@ struct hil_protocol_config_param_t {
     uint8_t param_id;
 
     /**
-     * Range: -3.4e+38..3.4e+38 (-3.4e+38..3.4e+38 -)
+     * Parameter value, float32 finite, in the SI unit of VAL_TABLE_ ParamUnit (integers such as pole_pairs and codes as exact floats).
+     *
+     * Range: -3.4028234663852886e+38..3.4028234663852886e+38 (-3.4028234663852886e+38..3.4028234663852886e+38 -)
      * Scale: 1
      * Offset: 0
      */
@@ -1117,6 +1327,8 @@ struct hil_protocol_config_param_t {
  */
 struct hil_protocol_config_ack_t {
     /**
+     * Id of the acknowledged ConfigParam (VAL_TABLE_ ParamId).
+     *
      * Range: 0..255 (0..255 -)
      * Scale: 1
      * Offset: 0
@@ -1124,13 +1336,17 @@ struct hil_protocol_config_ack_t {
     uint8_t param_id;
 
     /**
-     * Range: -3.4e+38..3.4e+38 (-3.4e+38..3.4e+38 -)
+     * The value of the ConfigParam echoed bit for bit (float32), also when rejected.
+     *
+     * Range: -3.4028234663852886e+38..3.4028234663852886e+38 (-3.4028234663852886e+38..3.4028234663852886e+38 -)
      * Scale: 1
      * Offset: 0
      */
     float value;
 
     /**
+     * 0 ok (value taken) or 5 invalid_config (unknown id, value not finite or out of its physical range) (VAL_TABLE_ Status).
+     *
      * Range: 0..255 (0..255 -)
      * Scale: 1
      * Offset: 0
@@ -1145,6 +1361,8 @@ struct hil_protocol_config_ack_t {
  */
 struct hil_protocol_heartbeat_host_t {
     /**
+     * Sender node, 0 host (VAL_TABLE_ Node).
+     *
      * Range: 0..255 (0..255 -)
      * Scale: 1
      * Offset: 0
@@ -1152,6 +1370,8 @@ struct hil_protocol_heartbeat_host_t {
     uint8_t node;
 
     /**
+     * Sender state (VAL_TABLE_ NodeState): 0 boot, 1 idle, 2 running, 3 fault.
+     *
      * Range: 0..255 (0..255 -)
      * Scale: 1
      * Offset: 0
@@ -1159,6 +1379,8 @@ struct hil_protocol_heartbeat_host_t {
     uint8_t state;
 
     /**
+     * Heartbeat counter, +1 per heartbeat, 0..255, wraps.
+     *
      * Range: 0..255 (0..255 -)
      * Scale: 1
      * Offset: 0
@@ -1173,6 +1395,8 @@ struct hil_protocol_heartbeat_host_t {
  */
 struct hil_protocol_heartbeat_target_t {
     /**
+     * Sender node, 1 target (VAL_TABLE_ Node).
+     *
      * Range: 0..255 (0..255 -)
      * Scale: 1
      * Offset: 0
@@ -1180,6 +1404,8 @@ struct hil_protocol_heartbeat_target_t {
     uint8_t node;
 
     /**
+     * Sender state (VAL_TABLE_ NodeState): 0 boot, 1 idle, 2 running, 3 fault.
+     *
      * Range: 0..255 (0..255 -)
      * Scale: 1
      * Offset: 0
@@ -1187,6 +1413,8 @@ struct hil_protocol_heartbeat_target_t {
     uint8_t state;
 
     /**
+     * Heartbeat counter, 0..255, wraps.
+     *
      * Range: 0..255 (0..255 -)
      * Scale: 1
      * Offset: 0

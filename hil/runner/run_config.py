@@ -12,7 +12,7 @@ from pmsm_hil.hil.motor_params import PmsmParams, parse_set_options
 from pmsm_hil.hil.runner.scenario import Scenario
 from pmsm_hil.hil.sensors import SensorConfig
 from pmsm_hil.protocol.ids import CONTROLLER_NAMES, ParamId
-from pmsm_hil.sim_target.firmware import controller_phases
+from pmsm_hil.sim_target.firmware import CONTROLLERS, controller_phases
 
 MODES = ("lockstep", "realtime")
 MISS_POLICIES = ("hold", "zero")
@@ -88,7 +88,9 @@ class RunConfig:
     lockstep_timeout_s: float = 0.5
 
     def __post_init__(self) -> None:
-        needs = controller_phases(controller_id(self.controller))  # the firmware's controller table
+        cid = controller_id(self.controller)
+        # the firmware's controller table; an id it lacks (external: a foreign firmware's own controller) fits any motor
+        needs = controller_phases(cid) if any(c.id == cid for c in CONTROLLERS) else 0
         if needs not in (0, self.machine.phases):
             words = {3: "three", 6: "six"}
             has = self.machine.phases

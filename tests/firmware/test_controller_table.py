@@ -4,7 +4,7 @@ DBC controller name and id, with the phase count the firmware enforces on measur
 from __future__ import annotations
 
 import pytest
-from pmsm_hil.protocol.ids import CONTROLLER_NAMES, ControllerId, Status
+from pmsm_hil.protocol.ids import CONTROLLER_NAMES, RESERVED_CONTROLLER_IDS, ControllerId, Status
 from pmsm_hil.sim_target.firmware import (
     CONTROLLERS,
     ControllerInfo,
@@ -16,7 +16,8 @@ from pmsm_hil.sim_target.firmware import (
 
 
 def test_one_entry_per_dbc_controller() -> None:
-    assert [(c.id, c.name) for c in CONTROLLERS] == [(int(k), v) for k, v in sorted(CONTROLLER_NAMES.items())]
+    counted = sorted((k, v) for k, v in CONTROLLER_NAMES.items() if k not in RESERVED_CONTROLLER_IDS)
+    assert [(c.id, c.name) for c in CONTROLLERS] == [(int(k), v) for k, v in counted]
     assert all(c.implemented for c in CONTROLLERS)
     assert controller_by_name("off") == ControllerInfo("off", int(ControllerId.OFF), 0, True)
     assert {c.phases for c in CONTROLLERS if c.id != ControllerId.OFF} == {3, 6}
@@ -29,6 +30,14 @@ def test_lookups() -> None:
         controller_by_name("nope")
     with pytest.raises(FirmwareConfigError, match="controller_id 99"):
         controller_phases(99)
+    with pytest.raises(FirmwareConfigError, match="'external': unknown to the firmware"):
+        controller_by_name("external")  # a DBC name reserved for foreign firmware, not in the table
+
+
+def test_the_reference_firmware_rejects_the_external_id() -> None:
+    fw = Firmware()
+    with pytest.raises(FirmwareConfigError, match="controller"):
+        fw.select_controller(int(ControllerId.EXTERNAL))
 
 
 @pytest.mark.parametrize("info", [c for c in CONTROLLERS if c.id != ControllerId.OFF], ids=lambda c: c.name)

@@ -54,10 +54,12 @@ def test_param_errors_name_the_param() -> None:
 def test_controller_selection_errors() -> None:
     fw = Firmware()
     fw.select_controller(CONTROLLER_IDS["mpcc"])
-    missing = [i for i in CONTROLLER_IDS.values() if not Firmware.controller_implemented(i)]
+    missing = [c.id for c in CONTROLLERS if not Firmware.controller_implemented(c.id)]
     for cid in missing:
         with pytest.raises(FirmwareConfigError, match="not implemented"):
             fw.select_controller(cid)
+    with pytest.raises(FirmwareConfigError, match="controller_id 255: unknown controller id"):
+        fw.select_controller(CONTROLLER_IDS["external"])  # reserved for foreign firmware: not in the table
     with pytest.raises(FirmwareConfigError, match="unknown controller"):
         fw.select_controller(max(c.id for c in CONTROLLERS) + 1)  # first id past the firmware's table
     with pytest.raises(FirmwareConfigError, match="controller_id -1"):

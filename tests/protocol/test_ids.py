@@ -15,6 +15,7 @@ from pmsm_hil.protocol.ids import (
     PARAM_DOCS,
     PARAM_NAMES,
     PARAM_UNITS,
+    RESERVED_CONTROLLER_IDS,
     STATUS_NAMES,
     ControllerId,
     Mode,
@@ -42,6 +43,9 @@ def test_controller_ids() -> None:
     assert choices("Setpoint", "controller_id") == {int(k): v for k, v in CONTROLLER_NAMES.items()}
     assert set(CONTROLLER_NAMES) == set(ControllerId)
     assert CONTROLLER_NAMES[ControllerId(10)] == "3vmpc" and int(ControllerId.HV_MPFC) == 11
+    # the label of a foreign firmware's controller: a DBC name and id, reserved (outside the counted ids)
+    assert CONTROLLER_NAMES[ControllerId.EXTERNAL] == "external" and int(ControllerId.EXTERNAL) == 255
+    assert {ControllerId.EXTERNAL} == RESERVED_CONTROLLER_IDS
 
 
 def test_modes_params_status_nodes() -> None:
@@ -75,7 +79,9 @@ def test_generated_ids_not_stale() -> None:
     for cid, name in CONTROLLER_NAMES.items():
         macro = "HIL_FW_CTRL_" + name.upper().replace("-", "_")
         assert macros[macro] == str(int(cid)) and macros[macro + "_NAME"] == f'"{name}"'
-    assert macros["HIL_FW_CTRL_COUNT"] == str(max(ControllerId) + 1)
+    counted = set(ControllerId) - RESERVED_CONTROLLER_IDS
+    assert macros["HIL_FW_CTRL_COUNT"] == str(max(counted) + 1) == "12"  # 255 external does not size the tables
+    assert macros["HIL_FW_CTRL_EXTERNAL"] == "255" and macros["HIL_FW_CTRL_EXTERNAL_NAME"] == '"external"'
     assert macros["HIL_FW_P_COUNT"] == str(max(ParamId) + 1)
     assert "/* stator resistance [Ohm] */" in header
 
@@ -92,6 +98,7 @@ def test_check_fails_on_a_stale_ids_module(tmp_path: Any) -> None:
 
 def test_a_new_controller_in_the_dbc_reaches_c_and_python() -> None:
     text = DBC_PATH.read_text(encoding="utf-8").replace('11 "hv-mpfc" ;', '11 "hv-mpfc" 12 "my-ctrl" ;')
+    text = text.replace('11 "hv-mpfc" 255 "external" ;', '11 "hv-mpfc" 12 "my-ctrl" 255 "external" ;')
     header, module = gen_ids.render(_db(text))
     assert re.search(r"#define HIL_FW_CTRL_MY_CTRL +12\n#define HIL_FW_CTRL_MY_CTRL_NAME +\"my-ctrl\"", header)
     assert re.search(r"#define HIL_FW_CTRL_COUNT +13", header)
@@ -111,6 +118,14 @@ def test_a_new_controller_in_the_dbc_reaches_c_and_python() -> None:
         ('VAL_TABLE_ Node 0 "host" 1 "target" ;', "", "Node missing"),
         ('26 "v3_symmetric" ;\nVAL_TABLE_ ParamUnit', '26 "v3_symmetric" 27 "p" ;\nVAL_TABLE_ ParamUnit', "ParamUnit"),
         ('VAL_TABLE_ Mode 0 "speed" 1 "torque" ;', 'VAL_TABLE_ Mode 0 "speed" 1 "Torque" ;', "Mode"),
+        # the signal drops the reserved id, or the reserved id falls inside the counted range
+        ('11 "hv-mpfc" 255 "external" ;', '11 "hv-mpfc" ;', "Setpoint.controller_id"),
+        ('ControllerIdReserved 255 "external" ;', 'ControllerIdReserved 11 "external" ;', "not above the ids"),
+        ('ControllerIdReserved 255 "external" ;', 'ControllerIdReserved 255 "mpcc" ;', "not unique"),
+        ('VAL_TABLE_ Enable 0 "disabled" 1 "enabled" ;', "", "Enable missing"),
+        # a value description drifts from its signals; an unknown table
+        ('VAL_TABLE_ Mirror 0 "plain" 1 "mirrored" ;', 'VAL_TABLE_ Mirror 0 "plain" 1 "mirror" ;', "CmdC.mirror"),
+        ('VAL_TABLE_ Enable 0', 'VAL_TABLE_ Spare 0 "x" ;\nVAL_TABLE_ Enable 0', "Spare is not known"),
     ],
 )
 def test_generator_refuses_drifting_tables(old: str, new: str, error: str) -> None:
