@@ -1,7 +1,7 @@
 """The virtual target as its own process: busy-polls its link and serves the firmware stub.
 
 A spawned target (`hil run --target spawn`) must not outlive its host: `serve(parent_pid=...)` asks Linux for
-SIGTERM when the parent dies (prctl PR_SET_PDEATHSIG) and also stops once `os.getppid()` changes (other
+SIGKILL when the parent dies (prctl PR_SET_PDEATHSIG) and also stops once `os.getppid()` changes (other
 systems, or a parent that died before the prctl); `max_idle_s` stops it after that long without a frame.
 """
 
@@ -40,12 +40,13 @@ class Served:
 
 
 def die_with_parent(parent_pid: int) -> Callable[[], bool]:
-    """SIGTERM this process when its parent exits (Linux prctl; elsewhere a no-op); returns a check that is
-    true once `parent_pid` is no longer the parent (the fallback, and a parent that died before the prctl)."""
+    """SIGKILL this process when its parent exits (Linux prctl: nobody is left to read its report, and the
+    kernel frees its port at once); returns a check that is true once `parent_pid` is no longer the parent
+    (the fallback elsewhere, and for a parent that died before the prctl)."""
     if sys.platform.startswith("linux"):
         try:
             libc = ctypes.CDLL(None, use_errno=True)
-            libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
+            libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
         except (OSError, AttributeError):
             pass
     return lambda: os.getppid() != parent_pid

@@ -133,15 +133,17 @@ def test_a_spawned_target_that_cannot_bind_ends_the_run_with_its_error() -> None
         again.bind(("127.0.0.1", a))  # the host released its port
 
 
-def _children(pid: int) -> list[int]:
+def _target_children(pid: int) -> list[int]:
+    """Children of `pid` running `hil target`."""
     out = []
     for entry in Path("/proc").iterdir():
         if entry.name.isdigit():
             try:
                 stat = (entry / "stat").read_text()
+                argv = (entry / "cmdline").read_bytes().split(b"\0")
             except OSError:
                 continue
-            if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
+            if int(stat.rsplit(")", 1)[1].split()[1]) == pid and b"target" in argv:
                 out.append(int(entry.name))
     return out
 
@@ -171,7 +173,7 @@ def test_kill_9_of_the_host_leaves_no_target() -> None:
         deadline = time.monotonic() + 60
         targets: list[int] = []
         while time.monotonic() < deadline and not (targets and _has_socket(targets[0])):
-            targets = _children(host.pid)
+            targets = _target_children(host.pid)
             time.sleep(0.05)
         assert targets and _has_socket(targets[0]), "the host did not spawn a target"
         time.sleep(0.5)  # the run is under way
