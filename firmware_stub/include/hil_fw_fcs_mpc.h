@@ -4,8 +4,12 @@
  * without band, flux sector S (S = 1 centred on u1, [-30, 30) deg), Tables 1 and 2, then the
  * region of Fig. 6 (I, 6 candidates) or Fig. 8 (II, 5 candidates) of the chosen reference vector.
  * Flux and torque are compared at k+1 (delay-compensated, as the two-step prediction).
- * Parameter fcs_reading (HIL_FW_P_FCS_READING, default 0 = the reading above) selects other readings
- * of the text for the experiments of docs/comparisons/niu2020.md (bit flags below).
+ * Parameter fcs_reading (HIL_FW_P_FCS_READING) selects other readings of the text for the experiments
+ * of docs/comparisons/niu2020.md (bit flags below). Its power-on value is the sentinel
+ * HIL_FW_FCS_READING_CONTROLLER_DEFAULT, resolved at every step by the selected controller: fcs-mpc-1
+ * reading 11 (sectors centred on the virtual vectors, under which Table 1 is the classic DTC table),
+ * fcs-mpc-2 reading 0 (the reading above). Resolving per step, not when the controller is selected,
+ * makes the result independent of the order of ConfigParam and Setpoint frames.
  * See docs/algorithms/fcs_mpc_regions.md.
  */
 #ifndef HIL_FW_FCS_MPC_H
@@ -26,6 +30,14 @@ struct hil_fw_state;
 #define HIL_FW_FCS_FLUX_PSI_F 64u    /* flux reference flux_ref if > 0, else psi_f (Table 3 "stator flux") */
 #define HIL_FW_FCS_TORQUE_INVERT 128u /* torque comparator sign inverted (h_te = 1 when T_ref < T) */
 
+/* Power-on value of fcs_reading: "the selected controller's default" (rotation field 15, no flags). Not
+ * accepted as a ConfigParam (rotation fields 12-15 are rejected): send 11 or 0 to choose explicitly.
+ * Defaults (docs/algorithms/fcs_mpc_regions.md, "Defaults"): fcs-mpc-1 holds speed and torque over the
+ * operating range only with 11; 11 makes fcs-mpc-2 worse at every point, so it keeps 0. */
+#define HIL_FW_FCS_READING_CONTROLLER_DEFAULT 15u
+#define HIL_FW_FCS_READING_DEFAULT_1 11u /* fcs-mpc-1: r = 11, comparators as the text defines them */
+#define HIL_FW_FCS_READING_DEFAULT_2 0u  /* fcs-mpc-2: r = 0, the reading as built */
+
 /* Tables 1 and 2 as printed: rows (h_psi, h_te) = (1,1), (1,0), (0,1), (0,0); columns S = 1..6;
  * entries are DSVM vector indices (hil_fw_dsvm.h). */
 extern const uint8_t hil_fw_fcs_table1[4][6];
@@ -41,6 +53,9 @@ uint8_t hil_fw_fcs_sector_rot(float alpha, float beta, uint8_t rot);
 /* Reference vector (DSVM index) of table 1 or 2 for comparator outputs and sector S (1..6);
  * 255 for a bad argument. */
 uint8_t hil_fw_fcs_lookup(int table, uint8_t h_psi, uint8_t h_te, uint8_t sector);
+
+/* fcs_reading in effect for the selected controller (the sentinel resolved, other values unchanged). */
+unsigned hil_fw_fcs_reading(const struct hil_fw_state *s);
 
 /* Reference stages of fcs-mpc-1 and fcs-mpc-2: fill the candidate list of the DSVM state. */
 void hil_fw_fcs_mpc1_reference(struct hil_fw_state *s);

@@ -2,6 +2,7 @@
 #include <math.h>
 
 #include "hil_fw_config.h"
+#include "hil_fw_fcs_mpc.h"
 #include "hil_fw_types.h"
 
 typedef struct {
@@ -70,6 +71,8 @@ void hil_fw_params_defaults(hil_fw_params_t *p)
     p->value[HIL_FW_P_LLS] = 0.0f;
     p->value[HIL_FW_P_TORQUE_BAND] = 0.2f;
     p->value[HIL_FW_P_CURRENT_LIMIT] = 15.0f;
+    /* each fcs controller's own reading, resolved per step (hil_fw_fcs_mpc.h) */
+    p->value[HIL_FW_P_FCS_READING] = (float)HIL_FW_FCS_READING_CONTROLLER_DEFAULT;
     hil_fw_params_derive(p);
 }
 

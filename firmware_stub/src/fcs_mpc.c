@@ -53,6 +53,15 @@ uint8_t hil_fw_fcs_lookup(int table, uint8_t h_psi, uint8_t h_te, uint8_t sector
     return 255u;
 }
 
+unsigned hil_fw_fcs_reading(const struct hil_fw_state *s)
+{
+    const unsigned set = (unsigned)s->params.value[HIL_FW_P_FCS_READING];
+    if (set != HIL_FW_FCS_READING_CONTROLLER_DEFAULT) {
+        return set;
+    }
+    return s->controller_id == HIL_FW_CTRL_FCS_MPC_1 ? HIL_FW_FCS_READING_DEFAULT_1 : HIL_FW_FCS_READING_DEFAULT_2;
+}
+
 /* Comparator with band (0: plain two-level): 1 above +band, 0 below -band, else unchanged. */
 static uint8_t compare(float delta, float band, uint8_t prev)
 {
@@ -77,7 +86,7 @@ static void dtc_state(struct hil_fw_state *s)
     const float wts = me->omega_e * ts;
     const float cw = cosf(wts);
     const float sw = sinf(wts);
-    const unsigned reading = (unsigned)p[HIL_FW_P_FCS_READING];
+    const unsigned reading = hil_fw_fcs_reading(s);
     float ua;
     float ub;
     float ia1;

@@ -1,6 +1,9 @@
-/* Configuration: parameter validation, controller selection, setpoint validation, defaults. */
+/* Configuration: parameter validation, controller selection, setpoint validation, defaults (incl. the
+ * per-controller fcs_reading default). */
 #include "fw_check.h"
+#include "fw_fixture.h"
 #include "hil_fw.h"
+#include "hil_fw_fcs_mpc.h"
 
 static void test_param_validation(void)
 {
@@ -92,11 +95,110 @@ static void test_setpoint(void)
     CHECK_NEAR(s.speed_pi.integ, 10.5f, 0.0f, "preset clamped to the torque limit");
 }
 
+/* fcs_reading defaults per controller: the power-on sentinel resolves to 11 for fcs-mpc-1 and 0 for
+ * fcs-mpc-2 at every step, whatever the order of parameter writes and controller selection. */
+#define DEG (HIL_FW_PI_F / 180.0f)
+
+/* Configure per `order` (0: select then write, 1: write then select, 2: no write), take one torque-mode
+ * step (7 N*m) with the current-model flux at 15 deg (i_q 6 A, standstill), return the command. */
+static hil_fw_cmd_t step_at_15deg(hil_fw_state_t *s, uint8_t ctrl, int order, float reading)
+{
+    hil_fw_cmd_t cmd;
+    const float delta = atan2f(0.014f * 6.0f, 0.21f); /* flux angle ahead of d at id = 0 */
+    hil_fw_meas_t m = fw_meas_dq(0u, 0.0f, 6.0f, 15.0f * DEG - delta, 0.0f, 311.0f);
+    hil_fw_init(s);
+    if (order == 1) {
+        CHECK(hil_fw_set_param(s, HIL_FW_P_FCS_READING, reading) == HIL_FW_OK, "write %g", (double)reading);
+    }
+    CHECK(hil_fw_select_controller(s, ctrl) == HIL_FW_OK, "select %u", (unsigned)ctrl);
+    if (order == 0) {
+        CHECK(hil_fw_set_param(s, HIL_FW_P_FCS_READING, reading) == HIL_FW_OK, "write %g", (double)reading);
+    }
+    (void)hil_fw_set_setpoint(s, 1u, HIL_FW_MODE_TORQUE, 7.0f);
+    fw_set_applied(s, 0u);
+    hil_fw_step(s, &m, 0u, &cmd);
+    return cmd;
+}
+
+static int same_cmd(const hil_fw_cmd_t *a, const hil_fw_cmd_t *b)
+{
+    int i;
+    if (a->n_states != b->n_states || a->vector_id != b->vector_id || a->candidates != b->candidates) {
+        return 0;
+    }
+    for (i = 0; i < a->n_states; ++i) {
+        if (a->states[i] != b->states[i] || a->durations_ns[i] != b->durations_ns[i]) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+static void test_fcs_reading_power_on(void)
+{
+    hil_fw_state_t s;
+    float v = -1.0f;
+    hil_fw_init(&s);
+    CHECK(hil_fw_get_param(&s, HIL_FW_P_FCS_READING, &v) == HIL_FW_OK &&
+              v == (float)HIL_FW_FCS_READING_CONTROLLER_DEFAULT,
+          "power-on fcs_reading is the controller-default sentinel, got %g", (double)v);
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_FCS_READING, (float)HIL_FW_FCS_READING_CONTROLLER_DEFAULT) ==
+              HIL_FW_E_PARAM_VALUE,
+          "the sentinel is not a ConfigParam value (rotation field 15)");
+}
+
+static void test_fcs_reading_resolution(void)
+{
+    hil_fw_state_t s;
+    hil_fw_init(&s);
+    (void)hil_fw_select_controller(&s, HIL_FW_CTRL_FCS_MPC_1);
+    CHECK(hil_fw_fcs_reading(&s) == 11u, "fcs-mpc-1 default 11, got %u", hil_fw_fcs_reading(&s));
+    (void)hil_fw_select_controller(&s, HIL_FW_CTRL_FCS_MPC_2);
+    CHECK(hil_fw_fcs_reading(&s) == 0u, "fcs-mpc-2 default 0, got %u", hil_fw_fcs_reading(&s));
+    (void)hil_fw_select_controller(&s, HIL_FW_CTRL_FCS_MPC_1);
+    CHECK(hil_fw_fcs_reading(&s) == 11u, "back to fcs-mpc-1: 11 again");
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_FCS_READING, 0.0f) == HIL_FW_OK, "explicit 0 accepted");
+    CHECK(hil_fw_fcs_reading(&s) == 0u, "explicit 0 overrides fcs-mpc-1's default");
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_FCS_READING, 43.0f) == HIL_FW_OK, "explicit 43 accepted");
+    (void)hil_fw_select_controller(&s, HIL_FW_CTRL_FCS_MPC_2);
+    CHECK(hil_fw_fcs_reading(&s) == 43u, "an explicit value survives a controller change");
+}
+
+static void test_fcs_reading_order_independent(void)
+{
+    static const uint8_t ctrl[2] = {HIL_FW_CTRL_FCS_MPC_1, HIL_FW_CTRL_FCS_MPC_2};
+    static const float own[2] = {(float)HIL_FW_FCS_READING_DEFAULT_1, (float)HIL_FW_FCS_READING_DEFAULT_2};
+    /* flux at 15 deg: S = 2 with r = 11 (S = 1 spans [-60, 0) deg), S = 1 with r = 0 */
+    static const uint8_t sector[2] = {2u, 1u};
+    hil_fw_state_t s;
+    int c;
+    int order;
+    for (c = 0; c < 2; ++c) {
+        const hil_fw_cmd_t dflt = step_at_15deg(&s, ctrl[c], 2, 0.0f);
+        CHECK(s.ctrl.dsvm.sector == sector[c], "controller %u default: sector %u", (unsigned)ctrl[c],
+              (unsigned)s.ctrl.dsvm.sector);
+        for (order = 0; order < 2; ++order) {
+            const hil_fw_cmd_t expl = step_at_15deg(&s, ctrl[c], order, own[c]);
+            CHECK(same_cmd(&dflt, &expl), "controller %u: default = explicit %g (order %d)", (unsigned)ctrl[c],
+                  (double)own[c], order);
+            CHECK(s.ctrl.dsvm.sector == sector[c], "controller %u explicit: sector %u", (unsigned)ctrl[c],
+                  (unsigned)s.ctrl.dsvm.sector);
+        }
+        /* the other controller's default written explicitly changes the sector */
+        (void)step_at_15deg(&s, ctrl[c], 1, own[1 - c]);
+        CHECK(s.ctrl.dsvm.sector == sector[1 - c], "controller %u with reading %g: sector %u", (unsigned)ctrl[c],
+              (double)own[1 - c], (unsigned)s.ctrl.dsvm.sector);
+    }
+}
+
 int main(void)
 {
     test_param_validation();
     test_defaults();
     test_controller_selection();
     test_setpoint();
+    test_fcs_reading_power_on();
+    test_fcs_reading_resolution();
+    test_fcs_reading_order_independent();
     return FW_REPORT("test_config");
 }

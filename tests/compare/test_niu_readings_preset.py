@@ -17,7 +17,10 @@ def test_readings_preset_points_and_variants() -> None:
     specs = {v.label: v for v in p.specs()}
     assert specs["I rot11 band 1 (43)"].params == {"fcs_reading": 43.0, "torque_band": 1.0}
     assert specs["II (0) as built"].controller == "fcs-mpc-2" and specs["II (0) as built"].params == {}
+    # fcs-mpc-1's default is reading 11, so its built reading 0 is sent explicitly; fcs-mpc-2's default is 0
+    assert specs["I (0) as built"].params == {"fcs_reading": 0.0}
     assert all(f"({int(v.params.get('fcs_reading', 0))})" in v.label for v in p.variants)
+    assert all("fcs_reading" in v.params for v in p.variants if v.controller == "fcs-mpc-1")
 
 
 def test_bad_points_name_the_key(tmp_path: Path) -> None:

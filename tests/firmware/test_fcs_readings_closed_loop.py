@@ -9,16 +9,31 @@ from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import load_scenario
+from pmsm_hil.sim_target.firmware import PARAM_IDS, Firmware
 
 
-def _run(controller: str, reading: int, load_nm: float = 7.0, band_nm: float = 0.2) -> dict[str, Any]:
+def _run(controller: str, reading: int | None, load_nm: float = 7.0, band_nm: float = 0.2) -> dict[str, Any]:
+    """Steady run; reading None leaves fcs_reading at its power-on value (the controller's default)."""
     sc = load_scenario("steady").with_overrides(settle_s=0.05, duration_s=0.05, load_nm=load_nm)
-    cfg = RunConfig(motor=load_motor("niu2020-ipmsm"), scenario=sc, controller=controller,
-                    controller_params={"fcs_reading": float(reading), "torque_band": band_nm})
+    params = {"torque_band": band_nm} if reading is None else {"fcs_reading": float(reading), "torque_band": band_nm}
+    cfg = RunConfig(motor=load_motor("niu2020-ipmsm"), scenario=sc, controller=controller, controller_params=params)
     m = run_closed_loop(cfg).metrics
     assert m["end_reason"] == "completed"
     assert m["candidate_miss_rate"] is not None
     return m
+
+
+#: Deterministic run metrics (lockstep, in-process): equal for equal firmware behaviour.
+_TRAJECTORY = ("speed_mean_rpm", "torque_mean_nm", "torque_ripple_rms_nm", "candidate_miss_rate", "switching_freq_khz")
+
+
+def test_default_reading_is_per_controller() -> None:
+    # power-on value 15 = "the controller's default", resolved per step: fcs-mpc-1 runs 11, fcs-mpc-2 runs 0
+    assert Firmware().get_param(PARAM_IDS["fcs_reading"]) == 15.0
+    for controller, own, other in (("fcs-mpc-1", 11, 0), ("fcs-mpc-2", 0, 11)):
+        default, explicit = _run(controller, None, load_nm=2.1), _run(controller, own, load_nm=2.1)
+        assert [default[k] for k in _TRAJECTORY] == [explicit[k] for k in _TRAJECTORY]
+        assert default["candidate_miss_rate"] != _run(controller, other, load_nm=2.1)["candidate_miss_rate"]
 
 
 def test_reading_0_is_the_built_reading() -> None:

@@ -1,0 +1,166 @@
+"""Operating range of every controller's defaults, each on its own machine (issue 18).
+
+Steady scenario (start at the operating point, speed PI closed), firmware and runner defaults (no
+--param): over the metrics window the mean speed must be within 1 % of the reference and the mean
+electromagnetic torque within max(2 %, 0.05 N·m) of the load torque, at 10/40/70/100 % of rated torque.
+A point that a controller cannot hold is listed in EXPECTED_FAILURES with the reason from the docs; the
+test then asserts that it really fails (a point that starts to hold fails the test until its entry is
+removed) and reports it as XFAIL with the measured miss, so nothing is skipped silently.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import pytest
+from pmsm_hil.hil.errors import HilError
+from pmsm_hil.hil.presets_loader import load_motor
+from pmsm_hil.hil.runner.run import run_closed_loop
+from pmsm_hil.hil.runner.run_config import RunConfig
+from pmsm_hil.hil.runner.scenario import load_scenario
+from pmsm_hil.sim_target.firmware import CONTROLLERS
+
+#: Load points as fractions of the machine's rated torque.
+LOAD_FRACTIONS = (0.1, 0.4, 0.7, 1.0)
+SPEED_TOL_PCT = 1.0
+TORQUE_TOL_REL, TORQUE_TOL_MIN_NM = 0.02, 0.05
+#: Within-period trace step [s]: the window means need no 2 µs trace (10 µs changes them by < 1e-4 N·m and
+#: 1e-4 %, measured) and the run is ~35 % faster.
+TRACE_DT_S = 10e-6
+
+
+@dataclass(frozen=True, slots=True)
+class MachineGrid:
+    """A motor preset, its rated torque [N·m], the test speeds [rpm], the controllers made for it, and the
+    settling time before and length of the metrics window [s] (the steady scenario starts at the point)."""
+
+    motor: str
+    rated_nm: float
+    speeds_rpm: tuple[float, ...]
+    controllers: tuple[str, ...]
+    settle_s: float
+    window_s: float
+
+
+GRIDS = (
+    MachineGrid("niu2020-ipmsm", 7.0, (300.0, 1500.0),
+                ("mpcc", "dsvm-20", "fcs-mpc-1", "fcs-mpc-2", "dbcc-mpc", "foc"), 0.05, 0.1),
+    MachineGrid("xiao2023-spmsm", 6.0, (500.0, 2000.0), ("3vmpc", "hv-mpfc"), 0.05, 0.1),
+    # 750-3000 rpm, 8-80 N·m: inside the voltage (126 V back-EMF at 3000 rpm < 173 V linear reach) and current
+    # (66.7 A rated < 300 A trip) limits of the preset. J = 0.1 kg·m² (77x niu2020): the window mean of the
+    # torque follows the residual speed drift J·Δω/T, hence the longer window.
+    MachineGrid("zhang2021-dtpmsm", 80.0, (750.0, 1500.0, 3000.0), ("mptc1", "mptc2", "mptc3"), 0.2, 0.2),
+)
+
+# mptc1 neither predicts nor costs the x-y subspace: every G1 vector puts 52 V on L_ls = 80 µH and the x-y
+# current integrates past the 300 A protection within milliseconds (physics of the preset's machine).
+_MPTC1 = "physics: x-y current runaway (docs/comparisons/zhang2021.md, 'mptc1: the x-y subspace is an integrator')"
+# Not physics, a defect of the defaults (reported; the runner writes the speed PI, not fixed here): every machine
+# gets the niu2020 speed PI (kp 0.8 N·m·s/rad, ki 0.35 N·m/rad, for J = 0.0013 kg·m²). On J = 0.1 kg·m² a torque
+# bias b of the controller leaves a speed droop b/kp that the integrator removes only over seconds; with the
+# zhang2021-speed-step preset's kp 3, ki 5 the points hold (test_machine_scaled_speed_pi_holds).
+SPEED_PI_DEFECT = ("defect in the defaults: niu2020 speed PI on J = 0.1 kg·m², droop = torque bias / kp "
+                   "(docs/comparisons/zhang2021.md, Decisions)")
+# mptc3 as specified: one V3 period moves the torque by ~26 N·m against the 4 N·m band and its torque-only cost
+# J2 lets i_d drift; measured, its mean torque sits 1-16 N·m below its reference, which the default speed PI
+# (SPEED_PI_DEFECT) turns into a speed droop > 1 %; at 3000 rpm / 80 N·m it loses flux control and trips.
+_MPTC3 = ("mptc3 as specified: torque step per period >> band, i_d drift (docs/comparisons/zhang2021.md, 'mptc3: "
+          "torque-only cost J2 lets i_d drift'), bias turned into droop by the default speed PI")
+_MPTC3_TRIP = "mptc3 loses flux control at rated speed and load, trips (docs/comparisons/zhang2021.md, summary (iii))"
+
+#: (controller, speed [rpm] or None for all, load fraction or None for all) -> (expected miss, reason).
+#: Expected miss: "trip" (the protection ends the run) or "tracking" (speed or torque out of tolerance).
+EXPECTED_FAILURES: dict[tuple[str, float | None, float | None], tuple[str, str]] = {
+    ("mptc1", None, None): ("trip", _MPTC1),
+    **{("mptc2", 750.0, f): ("tracking", SPEED_PI_DEFECT) for f in (0.4, 0.7, 1.0)},
+    ("mptc2", 3000.0, None): ("tracking", SPEED_PI_DEFECT),
+    ("mptc3", 750.0, None): ("tracking", _MPTC3),
+    ("mptc3", 1500.0, 1.0): ("tracking", _MPTC3),
+    **{("mptc3", 3000.0, f): ("tracking", _MPTC3) for f in (0.1, 0.4, 0.7)},
+    ("mptc3", 3000.0, 1.0): ("trip", _MPTC3_TRIP),
+}
+
+
+@dataclass(frozen=True, slots=True)
+class Point:
+    """One grid point: machine, controller, speed [rpm] and load as a fraction of rated torque."""
+
+    grid: MachineGrid
+    controller: str
+    speed_rpm: float
+    load_frac: float
+
+    @property
+    def load_nm(self) -> float:
+        """Load torque [N·m]."""
+        return self.grid.rated_nm * self.load_frac
+
+    @property
+    def name(self) -> str:
+        """Test id, e.g. mpcc-300rpm-40%."""
+        return f"{self.controller}-{self.speed_rpm:.0f}rpm-{100 * self.load_frac:.0f}%"
+
+
+POINTS = [Point(g, c, n, f)
+          for g in GRIDS for c in g.controllers for n in g.speeds_rpm for f in LOAD_FRACTIONS]
+
+
+def expected_failure(p: Point) -> tuple[str, str] | None:
+    """The EXPECTED_FAILURES entry covering point p, if any."""
+    for (ctrl, speed, frac), entry in EXPECTED_FAILURES.items():
+        if ctrl == p.controller and speed in (None, p.speed_rpm) and frac in (None, p.load_frac):
+            return entry
+    return None
+
+
+def miss(p: Point, params: dict[str, float] | None = None) -> tuple[str, str] | None:
+    """Run point p with the defaults (plus `params`, controller parameters); None if it holds, else
+    (kind, figures) with kind "trip" or "tracking"."""
+    sc = load_scenario("steady").with_overrides(speed_rpm=p.speed_rpm, load_nm=p.load_nm, settle_s=p.grid.settle_s,
+                                                duration_s=p.grid.window_s)
+    cfg = RunConfig(motor=load_motor(p.grid.motor), scenario=sc, controller=p.controller,
+                    controller_params=params or {}, trace_dt_s=TRACE_DT_S)
+    try:
+        m = run_closed_loop(cfg).metrics
+    except HilError as exc:  # the protection ended the run before the metrics window
+        return "trip", str(exc)
+    speed_pct = 100.0 * (m["speed_mean_rpm"] - p.speed_rpm) / p.speed_rpm
+    torque_err = m["torque_mean_nm"] - p.load_nm
+    torque_tol = max(TORQUE_TOL_REL * p.load_nm, TORQUE_TOL_MIN_NM)
+    figures = (f"speed {speed_pct:+.3f} % (tol {SPEED_TOL_PCT} %), torque {torque_err:+.3f} N·m "
+               f"(tol {torque_tol:.3f}), ripple {m['torque_ripple_rms_nm']:.3f} N·m RMS")
+    print(f"{p.name}: {figures}, {m['end_reason']}")
+    if m["end_reason"] != "completed":
+        return "trip", f"{m['end_reason']}; {figures}"
+    if abs(speed_pct) > SPEED_TOL_PCT or abs(torque_err) > torque_tol:
+        return "tracking", figures
+    return None
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("p", POINTS, ids=[p.name for p in POINTS])
+def test_defaults_hold_speed_and_torque(p: Point) -> None:
+    expected = expected_failure(p)
+    got = miss(p)
+    if expected is None:
+        assert got is None, f"{p.name} on {p.grid.motor}: {got}"
+        return
+    kind, reason = expected
+    assert got is not None, f"{p.name} now holds: remove its EXPECTED_FAILURES entry ({reason})"
+    assert got[0] == kind, f"{p.name}: expected a {kind} miss, got {got}"
+    pytest.xfail(f"{p.name}: {reason}; measured: {got[1]}")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["mptc2-750rpm-100%", "mptc2-3000rpm-100%"])
+def test_machine_scaled_speed_pi_holds(name: str) -> None:
+    """The cause named by SPEED_PI_DEFECT: with the zhang2021-speed-step preset's gains (kp 3 N·m·s/rad,
+    ki 5 N·m/rad) the point holds."""
+    p = next(q for q in POINTS if q.name == name)
+    assert expected_failure(p) == ("tracking", SPEED_PI_DEFECT)
+    assert miss(p, {"speed_kp": 3.0, "speed_ki": 5.0}) is None
+
+
+def test_every_controller_is_in_the_grid() -> None:
+    """Every controller the reference firmware implements (phases 0 is `off`) has its grid."""
+    assert {p.controller for p in POINTS} == {c.name for c in CONTROLLERS if c.implemented and c.phases}
