@@ -23,6 +23,8 @@ SETTABLE_UNITS: dict[str, str] = {
     "i_trip": "A",
     "speed_trip_rpm": "rpm",
     "lls": "H",
+    "speed_kp": "N·m/(rad/s)",
+    "speed_ki": "N·m/rad",
 }
 
 
@@ -48,6 +50,10 @@ class PmsmParams:
         name: preset name or a label.
         lls: leakage inductance of the x-y subspace of a dual three-phase machine [H], ≥ 0; 0 (the
             default) for a three-phase machine. `pmsm_hil.hil.plant6.Plant6` requires lls > 0.
+        speed_kp, speed_ki: the outer speed-PI gains the runner writes to the target by default
+            [N·m/(rad/s)], [N·m/rad], ≥ 0 — a drive setting that belongs with the inertia: the defaults are the
+            niu2020 paper's (0.8, 0.35), tuned for J ≈ 1.3e-3 kg·m²; a machine with another inertia states
+            its own in its preset (`--param speed_kp=...` still overrides per run).
     """
 
     rs: float
@@ -66,10 +72,13 @@ class PmsmParams:
     rated_torque_nm: float = 0.0
     name: str = "custom"
     lls: float = 0.0
+    speed_kp: float = 0.8
+    speed_ki: float = 0.35
 
     def __post_init__(self) -> None:
         positive = ("rs", "ld", "lq", "vdc", "j", "i_trip", "speed_trip_rpm")
-        non_negative = ("psi_f", "b", "t_dead", "t_mpw", "rated_speed_rpm", "rated_torque_nm", "lls")
+        non_negative = ("psi_f", "b", "t_dead", "t_mpw", "rated_speed_rpm", "rated_torque_nm", "lls", "speed_kp",
+                        "speed_ki")
         for name in positive + non_negative:
             value = getattr(self, name)
             if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):

@@ -92,12 +92,20 @@ FRAME_DTYPE: Final = np.dtype(
     ]
 )
 
+#: One injected link fault (`--fault`): run time t [s], period index, direction (0 host→target, 1
+#: target→host), kind (index into FAULT_KINDS), the frame's arbitration id.
+FAULT_DTYPE: Final = np.dtype([("t", "f8"), ("seq", "u4"), ("direction", "u1"), ("kind", "u1"),
+                               ("arbitration_id", "u4")])
+FAULT_KINDS: Final = ("drop", "dup", "corrupt", "delay", "reorder", "silence")
+
 DIRECTION_HOST_TO_TARGET: Final = 0
 DIRECTION_TARGET_TO_HOST: Final = 1
 
 __all__ = [
     "DIRECTION_HOST_TO_TARGET",
     "DIRECTION_TARGET_TO_HOST",
+    "FAULT_DTYPE",
+    "FAULT_KINDS",
     "FRAME_DTYPE",
     "PERIOD_DTYPE",
     "TRACE_DTYPE",

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
+import tomllib
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
-import tomllib
 from pmsm_hil.hil.errors import InputFileError, ParameterError
 
 
@@ -25,15 +25,26 @@ def load_toml(name_or_path: str, package: str, *, file_label: str, kind: str) ->
     path = Path(name_or_path)
     if path.suffix == ".toml" or path.exists():
         try:
-            text, origin = path.read_text(encoding="utf-8"), str(path)
+            data, origin = path.read_bytes(), str(path)
         except OSError as exc:
             raise InputFileError(f"{file_label} {path}: {exc.strerror}") from None
     else:
         res = resources.files(package) / f"{name_or_path}.toml"
         if not res.is_file():
             raise ParameterError(f"unknown {kind} '{name_or_path}' (bundled: {', '.join(bundled_names(package))})")
-        text, origin = res.read_text(encoding="utf-8"), name_or_path
+        data, origin = res.read_bytes(), name_or_path
+    return parse_toml_bytes(data, f"{file_label} {origin}"), origin
+
+
+def parse_toml_bytes(data: bytes, where: str) -> dict[str, Any]:
+    """Parse TOML bytes; InputFileError "<where>: ..." naming the first non-UTF-8 byte or the syntax error."""
     try:
-        return tomllib.loads(text), origin
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data[:exc.start].count(b"\n") + 1
+        raise InputFileError(f"{where}: not UTF-8 text (byte 0x{data[exc.start]:02x} on line {line}); "
+                             "save the file as UTF-8") from None
+    try:
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise InputFileError(f"{file_label} {origin}: {exc}") from None
+        raise InputFileError(f"{where}: {exc}") from None

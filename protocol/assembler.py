@@ -37,11 +37,16 @@ class DecodeStats:
 class Assembler:
     """Collects the parts of one message kind; `add` returns the raw parts when complete."""
 
-    __slots__ = ("_held_mask", "_held_seq", "_last", "_n", "_parts", "_stats", "_unordered")
+    __slots__ = ("_held_mask", "_held_seq", "_last", "_n", "_ordered", "_parts", "_stats", "_unordered")
 
-    def __init__(self, n_parts: int, stats: DecodeStats) -> None:
+    def __init__(self, n_parts: int, stats: DecodeStats, *, ordered: bool = True) -> None:
+        """`ordered`: drop messages whose seq is not newer than the last one delivered (a target's view of
+        the host's Measurements). With `ordered=False` every complete message is delivered and a part with
+        another seq than the held ones replaces them (the host checks each Command's seq itself: a corrupted
+        future seq must not block the genuine replies that follow)."""
         self._n = n_parts
         self._stats = stats
+        self._ordered = ordered
         self._parts: list[Any] = [None] * n_parts
         self._held_seq = -1  # seq of the held parts, -1 when none held
         self._held_mask = 0
@@ -51,7 +56,7 @@ class Assembler:
     def add(self, part: int, seq: int, mask: int, raw: Any) -> list[Any] | None:
         """Offer part `part` with sequence `seq` (known to `mask` bits: 0xFFFF or 0xFF)."""
         stats = self._stats
-        if self._last >= 0:
+        if self._last >= 0 and self._ordered:
             d = (seq - self._last) & mask
             if d == 0:
                 stats.duplicate += 1
@@ -66,7 +71,7 @@ class Assembler:
                 if self._parts[part] is not None:
                     stats.duplicate += 1
                     return None
-            elif d <= (m >> 1):
+            elif d <= (m >> 1) or not self._ordered:
                 stats.mixed_seq += 1
                 self._clear()
             else:

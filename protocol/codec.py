@@ -150,9 +150,10 @@ class FrameCodec:
             raise EncodeError(f"message type {type(msg).__name__} is not a protocol message")
         return enc(msg)
 
-    def decoder(self) -> FrameDecoder:
-        """A new stateful decoder (it accepts the frames of both profiles)."""
-        return FrameDecoder()
+    def decoder(self, *, ordered: bool = True) -> FrameDecoder:
+        """A new stateful decoder (it accepts the frames of both profiles); `ordered=False` for the host's
+        Commands (see `Assembler`)."""
+        return FrameDecoder(ordered=ordered)
 
     # -- measurement (saturating) --
     def _sat(self, name: str, x: float, scale: float, lim: tuple[int, int]) -> int:
@@ -412,15 +413,15 @@ class FrameDecoder:
     """Stateful decoder: `feed` one frame, get a complete message or None. Never raises on bad frames;
     see `stats` (DecodeStats) for what was dropped and why."""
 
-    def __init__(self) -> None:
+    def __init__(self, *, ordered: bool = True) -> None:
         self.stats = DecodeStats()
         st = self.stats
-        self._meas = Assembler(2, st)
-        self._meas_fd = Assembler(1, st)
-        self._cmd = Assembler(3, st)
-        self._cmd_fd = Assembler(1, st)
-        self._meas6 = Assembler(3, st)
-        self._meas6_fd = Assembler(1, st)
+        self._meas = Assembler(2, st, ordered=ordered)
+        self._meas_fd = Assembler(1, st, ordered=ordered)
+        self._cmd = Assembler(3, st, ordered=ordered)
+        self._cmd_fd = Assembler(1, st, ordered=ordered)
+        self._meas6 = Assembler(3, st, ordered=ordered)
+        self._meas6_fd = Assembler(1, st, ordered=ordered)
         h: dict[int, tuple[int, Callable[[bytes], Message | None]]] = {
             L_MEAS_A.frame_id: (L_MEAS_A.length, self._meas_a),
             L_MEAS_B.frame_id: (L_MEAS_B.length, self._meas_b),

@@ -7,7 +7,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from pmsm_hil.protocol.codec import FrameCodec
-from pmsm_hil.protocol.ids import ControllerId, ParamId, Status
+from pmsm_hil.protocol.ids import ControllerId, NodeState, ParamId, Status
 from pmsm_hil.protocol.links import Link
 from pmsm_hil.protocol.messages import (
     Command,
@@ -80,7 +80,8 @@ class SimTarget:
         elif isinstance(msg, Setpoint):
             self._on_setpoint(msg)
         elif isinstance(msg, Heartbeat) and msg.node != TARGET_NODE:
-            self._send(Heartbeat(node=TARGET_NODE, state=1 if self.enabled else 0, counter=msg.counter))
+            state = NodeState.RUNNING if self.enabled else NodeState.IDLE
+            self._send(Heartbeat(node=TARGET_NODE, state=int(state), counter=msg.counter))
 
     def _send(self, msg: Command | ConfigAck | Fault | Heartbeat) -> None:
         self.link.send(self.codec.encode(msg))

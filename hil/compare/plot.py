@@ -27,7 +27,8 @@ def _main_rows(result: CompareResult) -> list[dict[str, Any]]:
 
 def _bars(result: CompareResult, plt: Any) -> Any:
     rows = result.rows
-    labels = [r["controller"] + ("\n(eq. f_av)" if r["group"] == "equal_fav" else "") for r in rows]
+    labels = [(r.get("label") or r["controller"]) + ("\n(eq. f_av)" if r["group"] == "equal_fav" else "")
+              for r in rows]
     metrics = [(m.key, m.title) for m in in_view(COMPARE_BARS)]
     fig, axes = plt.subplots(1, len(metrics), figsize=(4.2 * len(metrics), 4.2))
     x = list(range(len(rows)))
@@ -36,10 +37,15 @@ def _bars(result: CompareResult, plt: Any) -> Any:
         ax.set_xticks(x, labels, rotation=60, fontsize=8)
         ax.set_title(title, fontsize=10)
         ax.grid(axis="y", alpha=0.3)
-    for ax, key in ((axes[0], "torque_ripple_nm"), (axes[1], "current_thd_pct")):  # paper's figures beside ours
+    paper_keys = {"torque_ripple_rms_nm": "torque_ripple_nm", "current_thd_pct": "current_thd_pct"}
+    for ax, (metric, _) in zip(axes, metrics, strict=True):  # the paper's figures beside ours
+        paper_key = paper_keys.get(metric)
+        if paper_key is None:
+            continue
         marked = False
         for i, r in enumerate(rows):
-            val = result.preset.paper.get(r["controller"], {}).get(key)
+            paper = result.preset.paper
+            val = paper.get(r.get("label") or r["controller"], paper.get(r["controller"], {})).get(paper_key)
             if val is not None and r["group"] == "main":
                 ax.plot(i, val, "r*", markersize=11, label=None if marked else "paper (experiment)")
                 marked = True

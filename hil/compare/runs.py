@@ -77,6 +77,13 @@ def run_one(p: ComparePreset, spec: Variant | str, ts_s: float, point: dict[str,
         cfg = replace(cfg, out_dir=out_dir, log_trace=True)
     res = run_closed_loop(cfg)
     m = res.metrics
+    periods = res.outcome.periods.all()
+    if m.get("speed_mean_rpm") is None:  # ended before the metrics window (a trip): a row without metrics
+        tripped = _trip_row(p, spec, point, theta0_rad, str(m.get("end_reason")))
+        tripped["group"] = group
+        if out_dir is not None:
+            tripped["run_dir"] = str(out_dir)
+        return tripped, periods
     row: dict[str, Any] = {"group": group, "controller": spec.controller, "label": spec.label,
                            "ts_us": round(ts_s * 1e6, 3), "speed_rpm": cfg.scenario.speed_rpm,
                            "load_nm": cfg.scenario.load_nm, "theta0_rad": theta0_rad}
@@ -88,7 +95,6 @@ def run_one(p: ComparePreset, spec: Variant | str, ts_s: float, point: dict[str,
     split = m.get("exec_split_us")
     row["exec_time_us_median"] = (m.get("exec_time_us") or {}).get("median")
     row["exec_split_us_median"] = split.get("median") if isinstance(split, dict) else None
-    periods = res.outcome.periods.all()
     row["t_reach_98pct_s"] = _reach_time(periods, cfg.scenario.speed_rpm)
     row["end_reason"] = m.get("end_reason")
     if out_dir is not None:

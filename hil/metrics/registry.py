@@ -84,7 +84,32 @@ METRICS: Final[tuple[Metric, ...]] = (
     _m("link_spec", "link", "", "link SPEC of the run", "", source=RUN),
     _m("end_reason", "end", "", "`completed`, or why the run stopped (trip, watchdog, target fault)", "", CLI,
        REPORT, source=RUN),
+    _m("end_code", "end code", "", "how the run ended = exit code of `hil run`: 0 completed, 1 internal error, "
+       "3 safety stop (watchdog, trip, target fault), 4 DUT contract violation, 130 interrupted", "d", CLI,
+       source=RUN),
+    _m("end_period", "end period", "", "index of the last period run and logged (−1: none); the MCAP holds "
+       "end_period + 1 periods", "d", source=RUN),
     _m("safe_state", "safe state", "", "true when the run ended in the safe state", "", source=RUN),
+    _m("target_disabled", "target disabled", "", "true when the disabling Setpoint was sent at the end", "",
+       source=RUN),
+    _m("dut_violations", "DUT violations", "", "DUT contract findings (docs/runner.md, 'DUT contract'), all "
+       "counted; the run ends at the first beyond `tolerate`", "d", CLI, source=RUN),
+    _m("dut_violations_by_rule", "DUT violations by rule", "", "findings per rule: `{missing, sequence, "
+       "state_code, durations, frame}`", "", source=RUN),
+    _m("dut_violation_list", "DUT violation list", "", "the first 100 findings: `{period, seq, rule, frame, "
+       "detail}`", "", source=RUN),
+    _m("tolerate", "tolerated violations", "", "`--tolerate N`: findings accepted before the run ends", "d",
+       source=RUN),
+    _m("link_faults", "link faults", "", "`--fault`: injected faults `{dropped, duplicated, corrupted, delayed, "
+       "reordered}` (null without fault injection)", "", source=RUN),
+    _m("command_wait_max_us", "command wait max", "µs", "longest wall-time wait for a Command (targets in "
+       "another process or on a board)", ".1f", source=RUN),
+    _m("overruns", "overruns", "", "real time: periods that started later than `overrun_threshold_us`", "d", CLI,
+       source=RUN),
+    _m("overrun_threshold_us", "overrun threshold", "µs", "real time: `--overrun-threshold` (default Ts/2)", ".1f",
+       source=RUN),
+    _m("warnings", "warnings", "", "lines the summary warns with (overruns, tolerated violations)", "",
+       source=RUN),
     _m("total_periods", "total periods", "", "periods run, settling included", "d", source=RUN),
     _m("total_wall_time_s", "total wall time", "s", "wall time of the whole loop", source=RUN),
     _m("loop_rate_total_hz", "loop rate (total)", "periods/s", "total_periods / total_wall_time_s", ".0f",
@@ -92,9 +117,9 @@ METRICS: Final[tuple[Metric, ...]] = (
     _m("lateness_us", "lateness", "µs", "real time: `{median, p99, max}` of how late each period started",
        source=RUN),
     _m("speed_error_pct", "speed error", "%", "100 · (speed_mean_rpm − reference) / reference", ".3g", source=RUN),
-    _m("candidate_miss_rate", "miss rate", "", "fraction of window periods where a restricted-candidate "
-       "controller (fcs-mpc-1/2, dbcc-mpc) missed the full 19-vector optimum (in-process targets; null otherwise)",
-       ".3f", COMPARE_ROW, COMPARE_BARS, source=RUN),
+    _m("speed_reference_missed", "speed reference missed", "", "completed runs: true when the speed over the last "
+       "10 % of the window is off the reference by more than 10 % (≥ 5 rpm; hil/runner/run_limits.py); null "
+       "otherwise", "", source=RUN),
     # the metrics window
     _m("periods", "periods (window)", "", "N periods in the window", "d", CLI),
     _m("sim_time_s", "simulated time", "s", "N·Ts"),
@@ -128,6 +153,9 @@ METRICS: Final[tuple[Metric, ...]] = (
        REPORT_BARS, COMPARE_ROW, COMPARE_BARS),
     _m("switching_freq_intra_khz", "f_av intra-period", "kHz", "f_av without period-boundary transitions", ".2f",
        CLI, COMPARE_ROW),
+    _m("candidate_miss_rate", "miss rate", "", "fraction of window periods where a restricted-candidate "
+       "controller (fcs-mpc-1/2, dbcc-mpc) missed the full 19-vector optimum (in-process targets; null otherwise)",
+       ".3f", COMPARE_ROW, COMPARE_BARS, source=RUN),
     _m("exec_time_us", "exec time", "µs", "`{median, p99, max}` of `exec_time_ns`"),
     _m("exec_time_us", "exec median", "µs", "median controller execution time", ".3f", REPORT, REPORT_BARS,
        sub="median"),

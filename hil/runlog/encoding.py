@@ -17,7 +17,7 @@ from collections.abc import Callable, Sequence
 from typing import Any, Final
 
 import numpy as np
-from pmsm_hil.hil.records import FRAME_DTYPE, PERIOD_DTYPE, TRACE_DTYPE
+from pmsm_hil.hil.records import FAULT_DTYPE, FRAME_DTYPE, PERIOD_DTYPE, TRACE_DTYPE
 from pmsm_hil.hil.runlog.errors import McapFormatError
 
 CDR_LE_HEADER: Final = b"\x00\x01\x00\x00"
@@ -113,6 +113,7 @@ def make_json_encoder(dtype: np.dtype) -> Callable[[np.ndarray], list[bytes]]:
 
 
 encode_periods: Final = make_json_encoder(PERIOD_DTYPE)
+encode_faults: Final = make_json_encoder(FAULT_DTYPE)
 
 
 def encode_frames(block: np.ndarray) -> list[bytes]:

@@ -13,7 +13,7 @@ from pathlib import Path
 from types import TracebackType
 
 import numpy as np
-from pmsm_hil.hil.records import FRAME_DTYPE, PERIOD_DTYPE, TRACE_DTYPE
+from pmsm_hil.hil.records import FAULT_DTYPE, FRAME_DTYPE, PERIOD_DTYPE, TRACE_DTYPE
 from pmsm_hil.hil.runlog import topics
 from pmsm_hil.hil.runlog.errors import LoggerDiedError, RunLogError
 from pmsm_hil.hil.runlog.sink import COMPRESSIONS
@@ -107,6 +107,10 @@ class RunLogger(WorkerClient):
     def submit_frames(self, block: np.ndarray) -> None:
         """Queue a FRAME_DTYPE block (one MCAP message per frame on /frames)."""
         self._submit(topics.KIND_FRAMES, block, FRAME_DTYPE, "frames")
+
+    def submit_faults(self, block: np.ndarray) -> None:
+        """Queue a FAULT_DTYPE block (one MCAP message per injected link fault on /link_faults)."""
+        self._submit(topics.KIND_FAULTS, block, FAULT_DTYPE, "faults")
 
     def submit_trace(self, block: np.ndarray) -> None:
         """Queue a block of the logger's `trace_dtype` (one CDR message per block on /trace)."""

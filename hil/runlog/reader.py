@@ -20,7 +20,7 @@ from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 from mcap.records import Channel, Chunk, McapRecord, Message, Metadata, Schema
 from mcap.stream_reader import breakup_chunk
-from pmsm_hil.hil.records import FRAME_DTYPE, PERIOD_DTYPE, TRACE_DTYPE, trace_dtype
+from pmsm_hil.hil.records import FAULT_DTYPE, FRAME_DTYPE, PERIOD_DTYPE, TRACE_DTYPE, trace_dtype
 from pmsm_hil.hil.runlog import encoding, topics
 from pmsm_hil.hil.runlog.errors import McapFormatError
 
@@ -120,6 +120,13 @@ def read_periods(path: Path) -> np.ndarray:
     """PERIOD_DTYPE array of all /periods messages (truncated files: the valid prefix)."""
     msgs = read_topic_messages(path, topics.TOPIC_PERIODS)
     out: np.ndarray = encoding.decode_json_records([m.data for m in msgs], PERIOD_DTYPE, topics.TOPIC_PERIODS)
+    return out
+
+
+def read_faults(path: Path) -> np.ndarray:
+    """FAULT_DTYPE array of all /link_faults messages (kind: index into FAULT_KINDS)."""
+    msgs = read_topic_messages(path, topics.TOPIC_FAULTS)
+    out: np.ndarray = encoding.decode_json_records([m.data for m in msgs], FAULT_DTYPE, topics.TOPIC_FAULTS)
     return out
 
 

@@ -11,7 +11,7 @@ from typing import BinaryIO
 import numpy as np
 from mcap.well_known import MessageEncoding, SchemaEncoding
 from mcap.writer import CompressionType, Writer
-from pmsm_hil.hil.records import FRAME_DTYPE, PERIOD_DTYPE, TRACE_DTYPE
+from pmsm_hil.hil.records import FAULT_DTYPE, FRAME_DTYPE, PERIOD_DTYPE, TRACE_DTYPE
 from pmsm_hil.hil.runlog import encoding, topics
 from pmsm_hil.hil.runlog.errors import RunLogError
 
@@ -47,6 +47,11 @@ class McapSink:
             MessageEncoding.CDR,
             w.register_schema(topics.SCHEMA_TRACE, SchemaEncoding.ROS2, encoding.ros2msg_schema(trace_dtype)),
         )
+        self._ch_faults = w.register_channel(
+            topics.TOPIC_FAULTS,
+            MessageEncoding.JSON,
+            w.register_schema(topics.SCHEMA_FAULTS, json_enc, encoding.json_schema(FAULT_DTYPE, "link fault")),
+        )
         ch_meta = w.register_channel(
             topics.TOPIC_METADATA,
             MessageEncoding.JSON,
@@ -55,7 +60,7 @@ class McapSink:
         meta = dict(metadata)
         w.add_metadata(topics.TOPIC_METADATA, meta)
         w.add_message(ch_meta, 0, json.dumps(meta).encode(), 0)
-        self.counts = {"periods": 0, "frames": 0, "trace_blocks": 0, "trace_samples": 0}
+        self.counts = {"periods": 0, "frames": 0, "trace_blocks": 0, "trace_samples": 0, "faults": 0}
         self._closed = False
         self._trace_dtype = trace_dtype
 
@@ -68,6 +73,11 @@ class McapSink:
         """Write one message per frame of the FRAME_DTYPE block `raw`."""
         self._write_records(np.frombuffer(raw, dtype=FRAME_DTYPE), encoding.encode_frames, self._ch_frames,
                             "frames")
+
+    def write_faults(self, raw: bytes) -> None:
+        """Write one message per injected link fault of the FAULT_DTYPE block `raw` on /link_faults."""
+        self._write_records(np.frombuffer(raw, dtype=FAULT_DTYPE), encoding.encode_faults, self._ch_faults,
+                            "faults")
 
     def _write_records(self, block: np.ndarray, encode: Callable[[np.ndarray], Iterable[bytes]], channel: int,
                        count_key: str) -> None:

@@ -7,15 +7,18 @@ from typing import Final
 TOPIC_PERIODS: Final = "/periods"
 TOPIC_FRAMES: Final = "/frames"
 TOPIC_TRACE: Final = "/trace"
+TOPIC_FAULTS: Final = "/link_faults"
 TOPIC_METADATA: Final = "/run/metadata"
 
 SCHEMA_PERIODS: Final = "pmsm_hil.Period"
 SCHEMA_FRAMES: Final = "pmsm_hil.Frame"
 SCHEMA_TRACE: Final = "pmsm_hil/msg/TraceBlock"
+SCHEMA_FAULTS: Final = "pmsm_hil.LinkFault"
 SCHEMA_METADATA: Final = "pmsm_hil.RunMetadata"
 
 # Notice kinds sent from the runner to the logger process (first byte of a notice).
 KIND_PERIODS: Final = 1
 KIND_FRAMES: Final = 2
 KIND_TRACE: Final = 3
+KIND_FAULTS: Final = 4
 KIND_CLOSE: Final = 9

@@ -57,6 +57,7 @@ def run_worker(
         topics.KIND_PERIODS: sink.write_periods,
         topics.KIND_FRAMES: sink.write_frames,
         topics.KIND_TRACE: sink.write_trace,
+        topics.KIND_FAULTS: sink.write_faults,
     }
     next_flush = time.monotonic() + flush_interval_s
     parent = os.getppid()

@@ -14,11 +14,13 @@ import numpy as np
 import numpy.typing as npt
 from pmsm_hil.hil.mechanics import RPM_TO_RAD_S, DynoMechanics
 from pmsm_hil.hil.plant_base import PeriodStats, PlantBase
+from pmsm_hil.hil.runner.contract import MISSING, EndCode, Violation, check_command, describe
 from pmsm_hil.hil.runner.recorder import ByteRecords, FrameTap, frame_records, period_records
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.target_client import TargetClient
 from pmsm_hil.hil.sensors import SensorModel
 from pmsm_hil.protocol.ids import Mode
+from pmsm_hil.protocol.links.faults import FaultyLink
 from pmsm_hil.protocol.messages import Command
 
 _NAN = math.nan
@@ -39,12 +41,31 @@ class LoopOutcome:
     lost_commands: int = 0
     lateness_ns: list[int] = field(default_factory=list)
     end_reason: str = "completed"
+    #: how the run ended (`EndCode`: the exit code of `hil run`)
+    end_code: int = EndCode.COMPLETED
     safe_state: bool = False
+    #: the disabling Setpoint was sent at the end (every ending)
+    target_disabled: bool = False
+    #: DUT contract findings: all counted, the first `MAX_KEPT_VIOLATIONS` kept
+    violation_count: int = 0
+    violations: list[Violation] = field(default_factory=list)
+    violations_by_rule: dict[str, int] = field(default_factory=dict)
+    #: real time: periods that started later than the overrun threshold
+    overruns: int = 0
+    #: longest wait for a Command [ns] (wall time)
+    max_wait_ns: int = 0
+    #: injected link faults by kind (`--fault`), None without fault injection
+    link_faults: dict[str, int] | None = None
+    #: the exception behind an internal-error ending (re-raised by the runner after the outputs are written)
+    error: BaseException | None = None
     #: metrics-window periods with a restricted-vs-full candidate diagnostic, and those where the
     #: restricted set missed the full-set optimum (in-process targets that report `full_miss`)
     candidate_checked: int = 0
     candidate_misses: int = 0
 
+
+#: violations kept in the outcome (all are counted)
+MAX_KEPT_VIOLATIONS = 100
 
 BlockSink = Callable[[ByteRecords, ByteRecords, "npt.NDArray[np.void] | None"], None]
 
@@ -57,6 +78,7 @@ class ClosedLoop:
     kinds (frame, record fields, trace layout) is bound once from `cfg.machine` in `__init__`."""
 
     BLOCK = 1000  # periods per logger block
+    LINGER_S = 0.05  # wall time the link stays open after the disabling Setpoint [s]
 
     def __init__(self, cfg: RunConfig, plant: PlantBase, client: TargetClient, controller_id: int,
                  *, inproc_result: Callable[[], object] | None = None, record_frames: bool = False,
@@ -74,6 +96,17 @@ class ClosedLoop:
         self._trace_dtype = layout.trace_dtype
         self._trace_columns = layout.trace_columns
         self._second_set_trip = layout.legs > 3
+        #: run time [s] the link fault injection sees: the period start in lockstep (time moves in whole
+        #: periods), the wall time since the start in real time
+        self.clock_s = 0.0
+        #: the fault-injecting link (set by the runner before `run`), None without `--fault`
+        self.faulty: FaultyLink | None = None
+
+    def run_time_s(self) -> float:
+        """Run time [s] for the link fault injection."""
+        if self._realtime:
+            return (time.perf_counter_ns() - self._t_wall0) / 1e9
+        return self.clock_s
 
     def run(self) -> LoopOutcome:
         """Run settle + metrics window; stops early on a trip or watchdog (safe state applied).
@@ -83,11 +116,22 @@ class ClosedLoop:
         gc_was_enabled = gc.isenabled()
         gc.collect()
         gc.disable()
+        out = self._start()
         try:
-            return self._run()
+            self._run(out)
+        except KeyboardInterrupt:
+            self._end(out, EndCode.INTERRUPTED, "interrupted (Ctrl-C or SIGTERM)")
+        except Exception as exc:  # a bug or a plant fault: still a safe stop and complete outputs
+            out.error = exc
+            self._end(out, EndCode.INTERNAL_ERROR, f"internal error: {type(exc).__name__}: {exc}")
         finally:
+            self._stop(out)
+            out.wall_time_s = (time.perf_counter_ns() - self._t_wall0) / 1e9
+            out.late_commands = self.client.stale_commands
+            out.trace = self._trace[:self._trace_n]
             if gc_was_enabled:
                 gc.enable()
+        return out
 
     # --- set-up -------------------------------------------------------------------------------------
     def _start(self) -> LoopOutcome:
@@ -123,7 +167,11 @@ class ClosedLoop:
         self._ideal, self._vdc = cfg.sensors.ideal, cfg.motor.vdc
         self._i_trip, self._w_trip = cfg.motor.i_trip, cfg.motor.speed_trip_rpm * RPM_TO_RAD_S
         self._poll_command = self.client.poll_command
+        self._take_anomalies = self.client.take_anomalies
+        self._max_state = self.cfg.machine.layout.max_state_code
+        self._overrun_ns = cfg.overrun_threshold_ns
         self._timeout_ns = int(cfg.lockstep_timeout_s * 1e9)
+        self._wait_ns = 0
         self._t_wall0 = time.perf_counter_ns()
         self._next_start = self._t_wall0
         return out
@@ -133,13 +181,14 @@ class ClosedLoop:
                                  controller_id=self.controller_id)
 
     # --- the period ---------------------------------------------------------------------------------
-    def _run(self) -> LoopOutcome:
-        out = self._start()
+    def _run(self, out: LoopOutcome) -> None:
         ts_s, ts_ns, realtime = self.cfg.ts_s, self.cfg.ts_ns, self._realtime
         pace, follow_reference, sample_and_send = self._pace, self._follow_reference, self._sample_and_send
-        apply_and_trace, await_command, accept, record = (self._apply_and_trace, self._await_command,
-                                                          self._accept, self._record)
+        apply_and_trace, accept, record = self._apply_and_trace, self._accept, self._record
+        delayed = self.faulty is not None and not realtime and self.faulty.spec.delays
+        await_command = self._await_delayed if delayed else self._await_command
         check_end, sink, block = self._check_end, self.sink, self.BLOCK
+        check, tolerate = self._check_contract, self.cfg.tolerate
         for k in range(self._n_total):
             t = k * ts_s
             if realtime:
@@ -148,27 +197,25 @@ class ClosedLoop:
             smp, extra = sample_and_send(k, t)
             st = apply_and_trace(k)
             pending = self._pending
-            cmd = await_command(k & 0xFFFF)
+            cmd = check(out, k, await_command(k & 0xFFFF))
             watchdog = accept(cmd, k, out)
             record(out, t, k, smp, st, pending, extra, cmd is None)
+            if out.violation_count > tolerate:
+                v = out.violations[-1] if out.violation_count <= MAX_KEPT_VIOLATIONS else None
+                reason = v.message() if v is not None else f"{out.violation_count} DUT contract violations"
+                self._end(out, EndCode.DUT_VIOLATION, f"{reason}; inverter put in the safe state")
+                break
             if watchdog:
-                out.completed_periods = k + 1
                 silent = self._silent
-                out.end_reason = (f"watchdog: target silent for {silent} periods "
-                                  f"({silent * ts_s * 1e3:.1f} ms); inverter put in the safe state "
-                                  f"(zero vector, all lower switches on)")
-                self._safe_state(out)
+                self._end(out, EndCode.SAFETY_STOP,
+                          f"watchdog: target silent for {silent} periods ({silent * ts_s * 1e3:.1f} ms); inverter "
+                          f"put in the safe state (zero vector, all lower switches on)")
                 break
             self._next_start += ts_ns
-            out.completed_periods = k + 1
             if sink is not None and (k + 1) % block == 0:
                 sink(out.periods, out.frames, None)
             if check_end(out, k, smp, st, extra):
                 break
-        out.wall_time_s = (time.perf_counter_ns() - self._t_wall0) / 1e9
-        out.late_commands = self.client.stale_commands
-        out.trace = self._trace[:self._trace_n]
-        return out
 
     def _pace(self, out: LoopOutcome) -> None:
         """Real time: busy-wait for the period start and record how late it began [ns]."""
@@ -176,7 +223,10 @@ class ClosedLoop:
         now = time.perf_counter_ns()
         while now < next_start:
             now = time.perf_counter_ns()
-        out.lateness_ns.append(now - next_start)
+        late = now - next_start
+        out.lateness_ns.append(late)
+        if late > self._overrun_ns:
+            out.overruns += 1
 
     def _follow_reference(self, t: float) -> None:
         """Send a new Setpoint when the scenario's speed reference changes at `t` [s]."""
@@ -191,6 +241,7 @@ class ClosedLoop:
         """Sample the plant at the period start and send Measurement k (the machine's frame)."""
         smp = self.plant.sample()
         meas, extra = self._measure(k & 0xFFFF, smp, self.sensors, self._ideal, self._vdc)
+        self.clock_s = t
         tap = self._tap
         if tap is not None:
             tap.t, tap.seq = t, k
@@ -216,15 +267,68 @@ class ClosedLoop:
         or at once (in-process target, which answers inside the poll)."""
         poll_command = self._poll_command
         cmd = poll_command(seq)
-        if cmd is None:
+        if cmd is None and (self._realtime or self.inproc_result is None):
+            t0 = time.perf_counter_ns()
+            deadline = self._next_start + self.cfg.ts_ns if self._realtime else t0 + self._timeout_ns
+            now = t0
+            while cmd is None and now < deadline:
+                cmd = poll_command(seq)
+                now = time.perf_counter_ns()
+            self._wait_ns = now - t0
+        return cmd
+
+    def _await_delayed(self, seq: int) -> Command | None:
+        """Lockstep with delayed frames (`--fault delay/jitter`): virtual time runs from the period start to
+        its deadline through the release times of the delayed frames (a reply computed the moment its
+        Measurement arrives), so a Command is in time when up + down delay ≤ Ts (zero compute time). A target
+        in another process gets the lockstep timeout (wall time) for its reply, as without faults."""
+        faulty = self.faulty
+        assert faulty is not None
+        deadline_s = self.clock_s + self.cfg.ts_s + 1e-12  # release times are sums of floats: 1 ps slack
+        poll_command = self._poll_command
+        give_up_ns = 0
+        while True:
+            cmd = poll_command(seq)
+            if cmd is not None:
+                return cmd
+            nxt = faulty.next_release_s()
+            if nxt is not None and nxt <= deadline_s:
+                self.clock_s = max(self.clock_s, nxt)  # the next delayed frame arrives
+                continue
+            if self.inproc_result is not None:
+                return None
+            now = time.perf_counter_ns()
+            if not give_up_ns:
+                give_up_ns = now + self._timeout_ns
+            elif now >= give_up_ns:
+                self._wait_ns = now - give_up_ns + self._timeout_ns
+                return None
+
+    def _check_contract(self, out: LoopOutcome, k: int, cmd: Command | None) -> Command | None:
+        """Record the period's contract findings; the Command if it may be applied, else None."""
+        findings = self._take_anomalies()
+        wait = self._wait_ns
+        if wait:
+            out.max_wait_ns = max(out.max_wait_ns, wait)
+            self._wait_ns = 0
+        if cmd is not None:
+            bad = check_command(cmd, self.cfg.ts_ns, self._max_state)
+            if bad is not None:
+                findings.append((bad[0], describe(cmd), bad[1]))
+                cmd = None
+        else:  # no genuine reply (whatever else arrived)
             if self._realtime:
-                deadline = self._next_start + self.cfg.ts_ns
-                while cmd is None and time.perf_counter_ns() < deadline:
-                    cmd = poll_command(seq)
-            elif self.inproc_result is None:
-                deadline = time.perf_counter_ns() + self._timeout_ns
-                while cmd is None and time.perf_counter_ns() < deadline:
-                    cmd = poll_command(seq)
+                limit = "before the next period start (real time)"
+            elif self.inproc_result is not None:
+                limit = "from the in-process target"
+            else:
+                limit = f"within the lockstep timeout {self.cfg.lockstep_timeout_s:g} s (wall time)"
+            findings.append((MISSING, "Command", f"no Command for seq {k & 0xFFFF} {limit}"))
+        for rule, frame, detail in findings:
+            out.violation_count += 1
+            out.violations_by_rule[rule] = out.violations_by_rule.get(rule, 0) + 1
+            if len(out.violations) < MAX_KEPT_VIOLATIONS:
+                out.violations.append(Violation(k, k & 0xFFFF, rule, frame, detail))
         return cmd
 
     def _accept(self, cmd: Command | None, k: int, out: LoopOutcome) -> bool:
@@ -269,14 +373,15 @@ class ClosedLoop:
             st.leg_transitions, st.boundary_transitions, st.narrow_pulses, 0, int(missed),
             st.narrow_pulses_gated, applied.mirror, *extra)
         periods.end += periods.size
+        out.completed_periods = k + 1
         self._pending, self._pending_split, self._pending_tref = self._next_pending
 
     def _check_end(self, out: LoopOutcome, k: int, smp: Any, st: PeriodStats, extra: tuple[float, ...]) -> bool:
         """Target fault or plant trip (instantaneous overcurrent/overspeed): safe state, True to stop."""
         if self.client.faults:
             f = self.client.faults[0]
-            out.end_reason = f"target fault code {f.code} (detail {f.detail}); inverter put in the safe state"
-            self._safe_state(out)
+            self._end(out, EndCode.SAFETY_STOP,
+                      f"target fault code {f.code} (detail {f.detail}); inverter put in the safe state")
             return True
         plant, i_trip, w_trip = self.plant, self._i_trip, self._w_trip
         if (abs(smp.i_a) > i_trip or abs(smp.i_b) > i_trip or abs(smp.i_c) > i_trip
@@ -284,20 +389,36 @@ class ClosedLoop:
                 or st.peak_current_a > i_trip):
             reason = plant.check_trips(smp) or (
                 f"overcurrent: peak |i| = {st.peak_current_a:.2f} A inside the period > i_trip = {i_trip:.2f} A")
-            out.end_reason = f"plant trip: {reason}; inverter put in the safe state (zero vector)"
-            self._safe_state(out)
+            self._end(out, EndCode.SAFETY_STOP, f"plant trip: {reason}; inverter put in the safe state (zero vector)")
             return True
         trip = plant.check_trips() if k == self._n_total - 1 else None
         if trip is not None:
-            out.end_reason = f"plant trip: {trip}; inverter put in the safe state (zero vector)"
-            self._safe_state(out)
+            self._end(out, EndCode.SAFETY_STOP, f"plant trip: {trip}; inverter put in the safe state (zero vector)")
             return True
         return False
 
-    def _safe_state(self, out: LoopOutcome) -> None:
-        """Zero vector (all lower switches on) and the target disabled."""
+    def _end(self, out: LoopOutcome, code: EndCode, reason: str) -> None:
+        """Record how the run ends; every ending but completion puts the plant in the safe state."""
+        out.end_code = int(code)
+        out.end_reason = reason
         out.safe_state = True
-        self.plant.advance((0,), (self.cfg.ts_ns,))
-        with contextlib.suppress(Exception):
+
+    def _stop(self, out: LoopOutcome) -> None:
+        """Every exit path: the zero vector (all lower switches on) after a protective ending, and the
+        disabling Setpoint to the target (recorded as a frame when frames are logged)."""
+        if out.safe_state:
+            with contextlib.suppress(Exception):
+                self.plant.advance((0,), (self.cfg.ts_ns,))
+        if self.faulty is not None:  # the safe stop is not subject to the injected faults
+            if self._tap is not None:
+                self._tap.link = self.faulty.link
+            else:
+                self.client.link = self.faulty.link
+        try:
             self.client.set_setpoint(enable=False, mode=int(Mode.SPEED), reference=0.0,
                                      controller_id=self.controller_id)
+            out.target_disabled = True
+            if self.inproc_result is None:  # a target in another process or on a board: let the frame arrive
+                self.client.linger(self.LINGER_S)  # before the runner closes the link (a pty drops unread data)
+        except Exception:  # the link itself failed: say so, do not hide the ending
+            out.target_disabled = False

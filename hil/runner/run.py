@@ -13,13 +13,20 @@ from types import FrameType
 from typing import Any
 
 import numpy as np
-from pmsm_hil.hil.errors import HilError
+from pmsm_hil.hil.atomic_write import write_text_atomic
+from pmsm_hil.hil.metrics.errors import MetricsWindowError
+from pmsm_hil.hil.metrics.registry import METRICS, WINDOW
 from pmsm_hil.hil.metrics.summary import compute_run_metrics
 from pmsm_hil.hil.runner.budget_check import check_realtime_budget
 from pmsm_hil.hil.runner.closed_loop import ClosedLoop, LoopOutcome
+from pmsm_hil.hil.runner.contract import RULES, EndCode
+from pmsm_hil.hil.runner.fault_setup import fault_records, install_faults
 from pmsm_hil.hil.runner.plant_setup import build_plant
-from pmsm_hil.hil.runner.recorder import ByteRecords
+from pmsm_hil.hil.runner.recorder import ByteRecords, frame_records, period_records
 from pmsm_hil.hil.runner.run_config import RunConfig, controller_id
+from pmsm_hil.hil.runner.run_limits import check_run_limits, speed_reference_check
+from pmsm_hil.hil.runner.run_metadata import run_metadata, tap_setup_frames
+from pmsm_hil.hil.runner.target_client import DutViolationError
 from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target
 
 
@@ -55,49 +62,43 @@ def _open_logger(cfg: RunConfig) -> tuple[Any, Path | None]:
     from pmsm_hil.hil.runlog.logger import RunLogger
 
     cfg.out_dir.mkdir(parents=True, exist_ok=True)
+    (cfg.out_dir / "metrics.json").unlink(missing_ok=True)  # never a new log beside an old run's metrics
     path = cfg.out_dir / "run.mcap"
-    meta = {"motor": cfg.motor.name, "controller": cfg.controller, "scenario": cfg.scenario.name,
-            "ts_s": repr(cfg.ts_s), "link": cfg.link, "mode": cfg.mode, "seed": str(cfg.seed),
-            "speed_rpm": repr(cfg.scenario.speed_rpm), "load_nm": repr(cfg.scenario.load_nm),
-            "pole_pairs": str(cfg.motor.pole_pairs), "phases": str(cfg.machine.phases)}
-    return RunLogger(path, metadata=meta, trace_dtype=cfg.machine.layout.trace_dtype), path
+    return RunLogger(path, metadata=run_metadata(cfg), trace_dtype=cfg.machine.layout.trace_dtype), path
 
 
 def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None,
                     live: Callable[[np.ndarray], None] | None = None) -> RunResult:
-    """Run the scenario against the target named by cfg.link/cfg.target; returns metrics.
+    """Run the scenario against the target named by cfg.link/cfg.target; returns metrics and outcome.
 
+    Every ending after the target is configured (completed, DUT violation, safety stop, Ctrl-C/SIGTERM,
+    internal error) stops safely (disabling Setpoint sent), logs every period up to the last and writes
+    metrics.json with `end_reason`, `end_period` and `end_code` (`EndCode`; the exception of an internal error
+    is `outcome.error`). A target that breaks the contract while being configured (ConfigAck missing or echoing
+    another value) ends the run with `end_code` 4 and no periods.
     `live`: optional consumer of each PERIOD_DTYPE block (~1000 periods), e.g. the live dashboard."""
     cid = controller_id(cfg.controller)
+    check_run_limits(cfg)
     if cfg.mode == "realtime":
         check_realtime_budget(cfg.link, cfg.ts_s, cfg.machine.phases)
     logger, mcap_path = _open_logger(cfg)
     conn: TargetConnection | None = None
+    outcome: LoopOutcome | None = None
     try:
         with _terminate_as_interrupt():
             conn = connect_target(cfg, silent_after=silent_after)
-            conn.client.configure(cfg.target_parameters())
-            plant = build_plant(cfg)
-
-            def sink(periods: ByteRecords, frames: ByteRecords, trace: Any) -> None:
-                block = periods.take()
-                if live is not None:
-                    live(block)
-                if logger is None:
-                    return
-                logger.submit_periods(block)
-                if len(frames):
-                    logger.submit_frames(frames.take())
-
-            use_sink = logger is not None or live is not None
-            loop = ClosedLoop(cfg, plant, conn.client, cid, inproc_result=conn.inproc_result,
-                              record_frames=logger is not None, sink=sink if use_sink else None)
-            outcome = loop.run()
-            conn.client.check_faults()
-            if use_sink:
-                sink(outcome.periods, outcome.frames, None)
-            if logger is not None and cfg.log_trace and len(outcome.trace):
-                logger.submit_trace(outcome.trace)
+            try:
+                with tap_setup_frames(conn.client, logger):
+                    conn.client.configure(cfg.target_parameters())
+            except DutViolationError as exc:
+                outcome = LoopOutcome(period_records(), frame_records(), np.zeros(0, cfg.machine.layout.trace_dtype),
+                                      0, end_reason=f"DUT contract violation while configuring: {exc}",
+                                      end_code=int(EndCode.DUT_VIOLATION), safe_state=True)
+                with tap_setup_frames(conn.client, logger):  # the disabling Setpoint is logged too
+                    conn.client.set_setpoint(enable=False, mode=0, reference=0.0, controller_id=cid)
+                outcome.target_disabled = True
+            if outcome is None:
+                outcome = _loop(cfg, conn, cid, logger, live)
         metrics = summarize(cfg, outcome, conn)
     finally:
         if conn is not None:
@@ -105,27 +106,83 @@ def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None,
         if logger is not None:
             logger.close()
     if cfg.out_dir is not None:
-        (cfg.out_dir / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n", encoding="utf-8")
+        write_text_atomic(cfg.out_dir / "metrics.json", json.dumps(metrics, indent=2) + "\n", option="metrics file")
     return RunResult(metrics=metrics, outcome=outcome, mcap_path=mcap_path)
 
 
-def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection) -> dict[str, Any]:
-    """Metrics over the metrics window plus run-level facts (end reason, lateness, link counters)."""
+def _loop(cfg: RunConfig, conn: TargetConnection, cid: int, logger: Any,
+          live: Callable[[np.ndarray], None] | None) -> LoopOutcome:
+    """The closed loop with its block sink; the last block (and the frames of the safe stop) is always
+    flushed, whatever ended the loop."""
+
+    def sink(periods: ByteRecords, frames: ByteRecords, trace: Any) -> None:
+        block = periods.take()
+        if live is not None:
+            live(block)
+        if logger is None:
+            return
+        logger.submit_periods(block)
+        if len(frames):
+            logger.submit_frames(frames.take())
+        if faulty is not None:
+            logger.submit_faults(fault_records(faulty, cfg.ts_s))
+
+    spec = cfg.fault_spec
+    use_sink = logger is not None or live is not None
+    loop = ClosedLoop(cfg, build_plant(cfg), conn.client, cid, inproc_result=conn.inproc_result,
+                      record_frames=logger is not None, sink=sink if use_sink else None)
+    faulty = install_faults(conn.client, spec, loop.run_time_s) if spec is not None else None
+    loop.faulty = faulty
+    outcome = loop.run()
+    if use_sink:
+        sink(outcome.periods, outcome.frames, None)
+    if faulty is not None:
+        outcome.link_faults = dict(faulty.counts)
+    if logger is not None and cfg.log_trace and len(outcome.trace):
+        logger.submit_trace(outcome.trace)
+    return outcome
+
+
+def _window_metrics(cfg: RunConfig, out: LoopOutcome, link_stats: dict[str, int]) -> dict[str, Any]:
+    """Metrics over the window; every window key null (with the reason) when the run ended before it."""
     periods = out.periods.all()
     window = periods[out.window_start_period:]
+    wall_window = out.wall_time_s * len(window) / max(len(periods), 1)
+    if len(window) and len(out.trace):
+        try:
+            return compute_run_metrics(window, out.trace, ts_s=cfg.ts_s, pole_pairs=cfg.motor.pole_pairs,
+                                       legs=cfg.machine.phases, wall_time_s=wall_window, link_stats=link_stats,
+                                       deadline_misses=out.deadline_misses)
+        except MetricsWindowError as exc:
+            note = str(exc)
+    else:
+        note = f"run ended before the metrics window ({len(window)} window periods)"
+    metrics: dict[str, Any] = {m.key: None for m in METRICS if m.source == WINDOW and m.sub is None}
+    metrics.update(periods=len(window), link=dict(link_stats), deadline_misses=out.deadline_misses,
+                   current_thd_note=note)
+    metrics.pop("xy_current_rms_a", None)
+    return metrics
+
+
+def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection) -> dict[str, Any]:
+    """Metrics over the metrics window plus run-level facts (ending, contract findings, lateness, link)."""
     stats = conn.link_stats()
     link_stats = {"frames_tx": stats.get("frames_tx", 0), "frames_rx": stats.get("frames_rx", 0),
                   "crc_errors": stats.get("crc_errors", 0), "lost": out.lost_commands,
                   "late": out.late_commands}
-    if len(window) == 0 or len(out.trace) == 0:
-        raise HilError(f"run ended before the metrics window: {out.end_reason}")
-    wall_window = out.wall_time_s * len(window) / max(len(periods), 1)
-    metrics = compute_run_metrics(window, out.trace, ts_s=cfg.ts_s, pole_pairs=cfg.motor.pole_pairs,
-                                  legs=cfg.machine.phases, wall_time_s=wall_window, link_stats=link_stats,
-                                  deadline_misses=out.deadline_misses)
+    metrics = _window_metrics(cfg, out, link_stats)
     metrics["link"].update({k: v for k, v in stats.items() if k not in metrics["link"]})
     metrics["end_reason"] = out.end_reason
+    metrics["end_code"] = out.end_code
+    metrics["end_period"] = out.completed_periods - 1
     metrics["safe_state"] = out.safe_state
+    metrics["target_disabled"] = out.target_disabled
+    metrics["dut_violations"] = out.violation_count
+    metrics["dut_violation_list"] = [v.as_dict() for v in out.violations]
+    metrics["dut_violations_by_rule"] = {rule: out.violations_by_rule.get(rule, 0) for rule in RULES}
+    metrics["tolerate"] = cfg.tolerate
+    metrics["link_faults"] = out.link_faults
+    metrics["command_wait_max_us"] = out.max_wait_ns / 1e3
     metrics["total_periods"] = out.completed_periods
     metrics["total_wall_time_s"] = out.wall_time_s
     metrics["loop_rate_total_hz"] = out.completed_periods / out.wall_time_s if out.wall_time_s else None
@@ -135,12 +192,31 @@ def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection) -> dict[
     metrics["load_nm"] = cfg.scenario.load_nm
     metrics["mode"] = cfg.mode
     metrics["link_spec"] = cfg.link
+    warnings: list[str] = []
     if cfg.mode == "realtime" and out.lateness_ns:
         lat = np.asarray(out.lateness_ns, dtype=np.float64) / 1e3
         metrics["lateness_us"] = {"median": float(np.median(lat)), "p99": float(np.percentile(lat, 99)),
                                   "max": float(lat.max())}
-    speed_err = metrics.get("speed_mean_rpm", math.nan) - cfg.scenario.speed_rpm
-    metrics["speed_error_pct"] = 100.0 * speed_err / cfg.scenario.speed_rpm if cfg.scenario.speed_rpm else None
+        threshold_us = cfg.overrun_threshold_ns / 1e3
+        metrics["overruns"] = out.overruns
+        metrics["overrun_threshold_us"] = threshold_us
+        if out.overruns or metrics["lateness_us"]["p99"] > threshold_us:
+            warnings.append(f"real time: {out.overruns} of {len(lat)} periods started more than {threshold_us:g} µs "
+                            f"late (lateness p99 {metrics['lateness_us']['p99']:.1f} µs): the host did not keep "
+                            f"the period; timing results are not trustworthy")
+    speed_mean = metrics.get("speed_mean_rpm")
+    speed_err = (speed_mean - cfg.scenario.speed_rpm) if isinstance(speed_mean, float) else math.nan
+    metrics["speed_error_pct"] = (100.0 * speed_err / cfg.scenario.speed_rpm
+                                  if cfg.scenario.speed_rpm and math.isfinite(speed_err) else None)
     metrics["candidate_miss_rate"] = (out.candidate_misses / out.candidate_checked
                                       if out.candidate_checked else None)
+    missed, speed_warning = (speed_reference_check(out.periods.all()[out.window_start_period:])
+                             if out.end_code == EndCode.COMPLETED else (None, None))
+    metrics["speed_reference_missed"] = missed
+    if speed_warning is not None:
+        warnings.append(speed_warning)
+    if out.violation_count and out.end_code != EndCode.DUT_VIOLATION:
+        warnings.append(f"{out.violation_count} DUT contract violation(s) tolerated (--tolerate {cfg.tolerate}); "
+                        f"first: {out.violations[0].message()}")
+    metrics["warnings"] = warnings
     return metrics

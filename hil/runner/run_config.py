@@ -11,16 +11,15 @@ from pmsm_hil.hil.machine import Machine, machine_for
 from pmsm_hil.hil.motor_params import PmsmParams, parse_set_options
 from pmsm_hil.hil.runner.scenario import Scenario
 from pmsm_hil.hil.sensors import SensorConfig
+from pmsm_hil.protocol.errors import LinkSpecError
 from pmsm_hil.protocol.ids import CONTROLLER_NAMES, ParamId
+from pmsm_hil.protocol.links.faults import FaultSpec, parse_fault_spec
 from pmsm_hil.sim_target.firmware import CONTROLLERS, controller_phases
 
 MODES = ("lockstep", "realtime")
 MISS_POLICIES = ("hold", "zero")
 TARGET_KINDS = ("auto", "inproc", "spawn", "external")
 
-#: Speed PI gains of 000_81a00a8e308450c6.txt (Section IV): N·m/(rad/s) and N·m/rad.
-PAPER_SPEED_KP = 0.8
-PAPER_SPEED_KI = 0.35
 #: The paper limits the starting torque to ~10 N·m for its 7 N·m machine: 10/7 of rated.
 TORQUE_LIMIT_PER_RATED = 10.0 / 7.0
 
@@ -86,6 +85,12 @@ class RunConfig:
     miss_policy: str = "hold"
     watchdog_periods: int = 10
     lockstep_timeout_s: float = 0.5
+    #: DUT contract findings accepted before the run ends as a violation (counted in `dut_violations`)
+    tolerate: int = 0
+    #: real time: a period starting later than this [s] is an overrun (None: Ts / 2)
+    overrun_threshold_s: float | None = None
+    #: link fault injection SPEC (`--fault`, docs/runner.md "Link fault injection"); "" = none
+    faults: str = ""
 
     def __post_init__(self) -> None:
         cid = controller_id(self.controller)
@@ -109,6 +114,18 @@ class RunConfig:
             raise ParameterError(f"--target must be one of {', '.join(TARGET_KINDS)}, got {self.target!r}")
         if self.watchdog_periods < 1:
             raise ParameterError(f"watchdog periods must be ≥ 1, got {self.watchdog_periods}")
+        if not (math.isfinite(self.lockstep_timeout_s) and 0.0 < self.lockstep_timeout_s <= 3600.0):
+            raise ParameterError(f"--lockstep-timeout must be in (0, 3600] s, got {self.lockstep_timeout_s}")
+        if self.faults:
+            try:
+                parse_fault_spec(self.faults)
+            except LinkSpecError as exc:
+                raise ParameterError(f"--fault: {exc}") from None
+        if self.tolerate < 0:
+            raise ParameterError(f"--tolerate must be ≥ 0, got {self.tolerate}")
+        if self.overrun_threshold_s is not None and not (
+                math.isfinite(self.overrun_threshold_s) and self.overrun_threshold_s > 0.0):
+            raise ParameterError(f"--overrun-threshold must be a positive time in s, got {self.overrun_threshold_s}")
         for name in self.controller_params:
             param_id(name)
 
@@ -116,6 +133,17 @@ class RunConfig:
     def machine(self) -> Machine:
         """The machine descriptor of the motor (phase count, plant class, frames, record layouts)."""
         return machine_for(self.motor)
+
+    @property
+    def fault_spec(self) -> FaultSpec | None:
+        """The parsed `--fault` spec, None when no fault is injected."""
+        spec = parse_fault_spec(self.faults) if self.faults else None
+        return spec if spec is not None and spec.active else None
+
+    @property
+    def overrun_threshold_ns(self) -> int:
+        """Real-time lateness [ns] above which a period start is an overrun (default Ts / 2)."""
+        return round((self.ts_s / 2 if self.overrun_threshold_s is None else self.overrun_threshold_s) * 1e9)
 
     @property
     def ts_ns(self) -> int:
@@ -130,7 +158,7 @@ class RunConfig:
         params: dict[ParamId, float] = {
             ParamId.RS: m.rs, ParamId.LD: m.ld, ParamId.LQ: m.lq, ParamId.PSI_F: m.psi_f,
             ParamId.POLE_PAIRS: float(m.pole_pairs), ParamId.TS: self.ts_s, ParamId.VDC: m.vdc,
-            ParamId.SPEED_KP: PAPER_SPEED_KP, ParamId.SPEED_KI: PAPER_SPEED_KI,
+            ParamId.SPEED_KP: m.speed_kp, ParamId.SPEED_KI: m.speed_ki,
             ParamId.TORQUE_LIMIT: TORQUE_LIMIT_PER_RATED * rated,
             ParamId.TORQUE_INTEGRATOR_INIT: sc.start_load_nm if sc.preset_integrator else 0.0,
             ParamId.CURRENT_LIMIT: 0.8 * m.i_trip,

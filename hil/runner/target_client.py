@@ -3,18 +3,26 @@
 from __future__ import annotations
 
 import math
+import struct
 import time
 from collections.abc import Callable, Mapping
 
 from pmsm_hil.hil.errors import HilError
+from pmsm_hil.hil.runner.contract import FRAME, SEQUENCE, describe
 from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.ids import ParamId, Status
 from pmsm_hil.protocol.links import Link
 from pmsm_hil.protocol.messages import Command, ConfigAck, ConfigParam, Fault, Measurement, Measurement6, Setpoint
 
+_F32 = struct.Struct("<f")
+
 
 class TargetError(HilError):
     """The target rejected a configuration, reported a fault or did not answer."""
+
+
+class DutViolationError(TargetError):
+    """The target broke the contract while being configured (no ConfigAck, or an echo of another value)."""
 
 
 class TargetClient:
@@ -23,12 +31,19 @@ class TargetClient:
     def __init__(self, link: Link, codec: FrameCodec, pump: Callable[[], object] | None = None) -> None:
         self.link = link
         self.codec = codec
-        self.decoder = codec.decoder()
+        self.decoder = codec.decoder(ordered=False)  # the contract checks each Command's seq itself
         self.pump = pump
         self.faults: list[Fault] = []
+        #: replies to the previous period that arrived after it was declared missing (late; not a new finding)
         self.stale_commands = 0
+        #: contract findings since the last `take_anomalies()`: (rule, frame text, detail)
+        self.anomalies: list[tuple[str, str, str]] = []
         self._acks: dict[int, ConfigAck] = {}
-        self._commands: dict[int, Command] = {}
+        self._expected = -1  # seq of the last Measurement sent
+        self._reply: Command | None = None  # the genuine reply to it
+        self._prev_answered = True  # did the period before get its reply?
+        self._malformed = 0  # decoder rejects seen so far: bad length/value
+        self._out_of_seq = 0  # and old/repeated seq parts
 
     def _drain(self) -> None:
         if self.pump is not None:
@@ -42,7 +57,7 @@ class TargetClient:
             if msg is None:
                 continue
             if isinstance(msg, Command):
-                self._commands[msg.seq] = msg
+                self._on_command(msg)
             elif isinstance(msg, ConfigAck):
                 self._acks[msg.param_id] = msg
             elif isinstance(msg, Fault):
@@ -62,8 +77,8 @@ class TargetClient:
                 break
             if now - start > timeout_s:
                 missing = ", ".join(ParamId(p).name.lower() for p in pending)
-                raise TargetError(f"target did not acknowledge parameter(s) {missing} within {timeout_s} s "
-                                  "(is a target running on this link?)")
+                raise DutViolationError(f"target did not acknowledge parameter(s) {missing} within {timeout_s} s "
+                                        "(is a target running on this link?)")
             if now - last_send >= resend_s:
                 for pid in pending:
                     self.link.send(self.codec.encode(ConfigParam(param_id=int(pid), value=float(params[pid]))))
@@ -71,31 +86,67 @@ class TargetClient:
             self._drain()
         for pid in params:
             ack = self._acks[int(pid)]
+            name = ParamId(pid).name.lower()
             if ack.status != int(Status.OK):
-                raise TargetError(f"target rejected parameter '{ParamId(pid).name.lower()}' = {params[pid]}")
+                raise TargetError(f"target rejected parameter '{name}' = {params[pid]}")
+            sent = _F32.unpack(_F32.pack(float(params[pid])))[0]
+            if ack.value != sent:  # the echo must be the float32 written, bit for bit
+                raise DutViolationError(f"target acknowledged parameter '{name}' with value {ack.value!r}, "
+                                        f"but {sent!r} was written (ConfigAck echo differs)")
 
     def set_setpoint(self, *, enable: bool, mode: int, reference: float, controller_id: int) -> None:
         """Send a setpoint (enable, mode, reference in rad/s or N·m, controller id)."""
         self.link.send(self.codec.encode(Setpoint(enable=enable, mode=mode, reference=reference,
                                                   controller_id=controller_id)))
 
-    def check_faults(self) -> None:
-        """Raise if the target reported a fault."""
-        self._drain()
-        if self.faults:
-            f = self.faults[0]
-            name = Status(f.code).name.lower() if f.code in Status._value2member_map_ else str(f.code)
-            raise TargetError(f"target fault: {name} (detail {f.detail})")
+    def linger(self, seconds: float) -> None:
+        """Keep serving the link for `seconds` of wall time (frames still arriving are taken as usual)."""
+        end = time.perf_counter() + seconds
+        while time.perf_counter() < end:
+            self._drain()
+            time.sleep(0.001)
+
+    def _on_command(self, cmd: Command) -> None:
+        """Keep the genuine reply to the last Measurement; anything else is a finding (or a late reply)."""
+        seq = cmd.seq
+        if seq == self._expected:
+            if self._reply is None:
+                self._reply = cmd
+            else:
+                self.anomalies.append((SEQUENCE, describe(cmd), f"a second Command for seq {seq}"))
+        elif seq == (self._expected - 1) & 0xFFFF and not self._prev_answered:
+            self.stale_commands += 1  # the previous period's reply, after it was declared missing
+            self._prev_answered = True
+        else:
+            self.anomalies.append((SEQUENCE, describe(cmd), f"seq {seq} while the period's seq is {self._expected}"))
 
     def send_measurement(self, m: Measurement | Measurement6) -> None:
-        """Send one measurement (one or two frames depending on the profile)."""
+        """Send one measurement (one or two frames depending on the profile); its seq is now the expected one."""
+        if self._expected >= 0:
+            self._prev_answered = self._reply is not None
+        self._expected = m.seq
+        self._reply = None
         self.link.send(self.codec.encode(m))
 
     def poll_command(self, seq: int) -> Command | None:
-        """Non-blocking: the command answering measurement ``seq`` if it has arrived."""
+        """Non-blocking: the genuine Command answering measurement ``seq`` if it has arrived."""
         self._drain()
-        cmd = self._commands.pop(seq, None)
-        if self._commands:
-            self.stale_commands += len(self._commands)  # answers to older measurements arriving late
-            self._commands.clear()
-        return cmd
+        return self._reply if seq == self._expected else None
+
+    def take_anomalies(self) -> list[tuple[str, str, str]]:
+        """Contract findings since the last call, frames the decoder rejected included: malformed frames
+        (length, value) as `frame`, Command parts with an old or repeated seq as `sequence`."""
+        st = self.decoder.stats
+        malformed = st.bad_length + st.bad_value
+        out_of_seq = st.stale + st.duplicate + st.out_of_order + st.mixed_seq
+        if malformed != self._malformed:
+            self.anomalies.append((FRAME, "frames from the target", f"{malformed - self._malformed} frame(s) "
+                                   f"rejected by the decoder (bad_length {st.bad_length}, bad_value {st.bad_value})"))
+            self._malformed = malformed
+        if out_of_seq != self._out_of_seq:
+            self.anomalies.append((SEQUENCE, "frames from the target", f"{out_of_seq - self._out_of_seq} frame(s) "
+                                   f"with an old or repeated seq (stale {st.stale}, duplicate {st.duplicate}, "
+                                   f"out_of_order {st.out_of_order}, mixed_seq {st.mixed_seq})"))
+            self._out_of_seq = out_of_seq
+        out, self.anomalies = self.anomalies, []
+        return out

@@ -149,6 +149,11 @@ class FaultSpec:
         """False when no fault can happen: the runner then does not wrap its link at all."""
         return self.up.active or self.down.active
 
+    @property
+    def delays(self) -> bool:
+        """True when frames can be held for a time (delay or jitter in a direction)."""
+        return any(d.delay_s > 0.0 or d.jitter_s > 0.0 for d in (self.up, self.down))
+
     def direction(self, direction: Direction) -> DirectionFaults:
         """The faults of `direction` ("up" or "down")."""
         return self.up if direction == "up" else self.down
@@ -262,11 +267,12 @@ class _EventRing:
 class _Pipe:
     """The fault pipeline of one direction: faults at entry, a FIFO delay line, then the reorder stage."""
 
-    __slots__ = ("_delayed", "_dir", "_f", "_held", "_last_release", "_line", "_mine", "_random", "_ring",
-                 "_total")
+    __slots__ = ("_crc_caught", "_delayed", "_dir", "_f", "_held", "_last_release", "_line", "_mine", "_random",
+                 "_ring", "_total")
 
     def __init__(self, faults: DirectionFaults, seed: int, direction: Direction, total: dict[str, int],
-                 mine: dict[str, int], ring: _EventRing) -> None:
+                 mine: dict[str, int], ring: _EventRing, crc_caught: Callable[[], None] | None = None) -> None:
+        self._crc_caught = crc_caught
         self._f = faults
         self._random = random.Random(f"pmsm_hil.faults:{seed}:{direction}").random
         self._dir = direction
@@ -312,6 +318,9 @@ class _Pipe:
             data[bit >> 3] ^= 1 << (bit & 7)
             fr = Frame(fr[0], bytes(data), fr[2])
             self._note(now, "corrupt", fr[0])
+            if self._crc_caught is not None:  # the link's integrity check (CRC) sees it: counted, dropped
+                self._crc_caught()
+                return
         copies = 1
         if u_dup < f.dup:
             copies = 2
@@ -364,8 +373,12 @@ class FaultyLink:
     fd: bool
 
     def __init__(self, link: Link, spec: FaultSpec, clock: Callable[[], float], *,
-                 event_capacity: int = DEFAULT_EVENT_CAPACITY) -> None:
+                 event_capacity: int = DEFAULT_EVENT_CAPACITY, crc_checked: bool = False) -> None:
+        """`crc_checked`: the link below has an integrity check (CAN/CAN FD CRC, the serial and UDP CRC-16),
+        so a corrupted frame is caught there: counted in `corrupted` and the link's `crc_errors`, and dropped.
+        False passes corrupted frames on (what a link without a check would deliver)."""
         self.link = link
+        self._crc_checked = crc_checked
         self.spec = spec
         self.clock = clock
         self.stats = link.stats
@@ -382,7 +395,11 @@ class FaultyLink:
         faults = spec.direction(direction)
         if not faults.active:
             return None
-        return _Pipe(faults, spec.seed, direction, self.counts, self.counts_by_direction[direction], self._ring)
+        return _Pipe(faults, spec.seed, direction, self.counts, self.counts_by_direction[direction], self._ring,
+                     self._count_crc_error if self._crc_checked else None)
+
+    def _count_crc_error(self) -> None:
+        self.stats.crc_errors += 1
 
     # -- Link protocol --
     def send(self, frames: Sequence[Frame]) -> None:

@@ -9,6 +9,9 @@ from pmsm_hil.protocol.errors import LinkSpecError
 
 Role = Literal["host", "target"]
 
+#: options that are rates: a positive whole number in these units (checked when the SPEC is parsed)
+RATE_OPTIONS = {"bitrate": "bit/s", "data_bitrate": "bit/s", "baudrate": "baud"}
+
 
 @dataclass(frozen=True, slots=True)
 class LinkSpec:
@@ -50,4 +53,14 @@ def parse_spec(spec: str) -> LinkSpec:
         if not eq or not key.strip():
             raise LinkSpecError(f"link spec {spec!r}: option {opt!r} is not key=value")
         options[key.strip()] = _option_value(value.strip())
+    for key, unit in RATE_OPTIONS.items():
+        if key in options:
+            options[key] = _rate(spec, key, options[key], unit)
     return LinkSpec(name, channel or None, options)
+
+
+def _rate(spec: str, key: str, value: Any, unit: str) -> int:
+    """A rate option as a positive int (1e6 and 1000000 alike); LinkSpecError naming the option otherwise."""
+    if isinstance(value, int | float) and not isinstance(value, bool) and value > 0 and float(value).is_integer():
+        return int(value)
+    raise LinkSpecError(f"link spec {spec!r}: {key} must be a positive whole number of {unit}, got {value!r}")

@@ -11,6 +11,7 @@ address but the peer's are dropped too. docs/protocol.md, "UDP datagrams and ses
 
 from __future__ import annotations
 
+import binascii
 import secrets
 import socket
 import struct
@@ -19,6 +20,7 @@ from typing import Any
 
 import can
 from pmsm_hil.protocol.errors import LinkError
+from pmsm_hil.protocol.links.cobs import CRC_INIT, CRC_SIZE
 from pmsm_hil.protocol.links.framed_bus import FramedBus
 from pmsm_hil.protocol.links.stats import SeqTracker
 from pmsm_hil.protocol.links.wire import HEADER_SIZE
@@ -33,7 +35,8 @@ VERSION = 1
 HELLO = 1
 ACK = 2
 HELLO_INTERVAL_S = 0.1  # a proposal is repeated until acknowledged
-_DATA_MIN = SESSION.size + HEADER_SIZE
+#: data datagram: session + wire header + payload + CRC-16 (CCITT, init 0xFFFF, big endian, over header+payload)
+_DATA_MIN = SESSION.size + HEADER_SIZE + CRC_SIZE
 _LENGTH_AT = SESSION.size + HEADER_SIZE - 1  # offset of the header's payload length byte
 
 
@@ -173,15 +176,24 @@ class UdpUnicastBus(FramedBus):
             stats.framing_errors += 1
         elif self._proposal and dgram[:4] == self._tx_prefix:  # the peer adopted our proposal (its ACK is late)
             self._use(self._proposal, agreed=True)
-            self._accept(dgram, SESSION.size)
+            self._checked(dgram)
         else:
             stats.session_dropped += 1
+
+    def _checked(self, dgram: bytes) -> None:
+        """Accept a data datagram of the session whose CRC-16 matches (else `crc_errors`, dropped)."""
+        body = dgram[SESSION.size:-CRC_SIZE]
+        if binascii.crc_hqx(body, CRC_INIT) != int.from_bytes(dgram[-CRC_SIZE:], "big"):
+            self.link_stats.crc_errors += 1
+            return
+        self._accept(dgram[:-CRC_SIZE], SESSION.size)
 
     # -- FramedBus primitives --
     def _transmit(self, packet: bytes) -> None:
         if not self.session:
             self.propose()
-        self._sock.sendto(self._tx_prefix + packet, self._remote)
+        crc = binascii.crc_hqx(packet, CRC_INIT).to_bytes(CRC_SIZE, "big")
+        self._sock.sendto(self._tx_prefix + packet + crc, self._remote)
 
     def _pump(self) -> None:
         """Read datagrams until one frame is delivered or the socket is empty (never blocks)."""
@@ -204,7 +216,7 @@ class UdpUnicastBus(FramedBus):
                 stats.foreign_dropped += 1
             elif (dgram[:4] == self._rx_prefix and (n := len(dgram)) >= _DATA_MIN
                   and dgram[_LENGTH_AT] == n - _DATA_MIN):
-                self._accept(dgram, SESSION.size)
+                self._checked(dgram)
             else:
                 self._slow(dgram)
 

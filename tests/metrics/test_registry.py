@@ -29,7 +29,7 @@ from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import load_scenario
 
 #: keys produced only under conditions these short lockstep runs do not meet
-CONDITIONAL = {"lateness_us"}  # real-time runs only
+CONDITIONAL = {"lateness_us", "overruns", "overrun_threshold_us"}  # real-time runs only
 
 
 def _metrics(motor: str, controller: str, load: float) -> dict[str, Any]:

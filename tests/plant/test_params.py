@@ -3,20 +3,20 @@
 from __future__ import annotations
 
 import math
+import tomllib
 from dataclasses import fields, replace
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import pytest
-import tomllib
 from pmsm_hil.hil.errors import HilError, InputFileError, ParameterError
 from pmsm_hil.hil.motor_params import SETTABLE_UNITS, PmsmParams, parse_set_options
 from pmsm_hil.hil.presets_loader import load_motor, preset_names
 
 BASE = PmsmParams(rs=1.0, ld=0.01, lq=0.012, psi_f=0.2, pole_pairs=3, vdc=300.0, j=0.001)
 POSITIVE = ("rs", "ld", "lq", "vdc", "j", "i_trip", "speed_trip_rpm")
-NON_NEGATIVE = ("psi_f", "b", "t_dead", "t_mpw", "rated_speed_rpm", "rated_torque_nm", "lls")
+NON_NEGATIVE = ("psi_f", "b", "t_dead", "t_mpw", "rated_speed_rpm", "rated_torque_nm", "lls", "speed_kp", "speed_ki")
 NUMERIC_FIELDS = [f.name for f in fields(PmsmParams) if f.name != "name"]
 
 

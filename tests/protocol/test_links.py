@@ -100,7 +100,8 @@ def test_udp_counts_gaps_duplicates_and_garbage(links: Opener) -> None:
     try:
         raw.sendto(CONTROL.pack(0, MAGIC, HELLO, VERSION, 7), ("127.0.0.1", b))
         for seq in (0, 1, 1, 4, 3):
-            raw.sendto(session + pack_frame(0x200, bytes(7), 0, seq), ("127.0.0.1", b))
+            body = pack_frame(0x200, bytes(7), 0, seq)
+            raw.sendto(session + body + binascii.crc_hqx(body, 0xFFFF).to_bytes(2, "big"), ("127.0.0.1", b))
         raw.sendto(b"\x01\x02", ("127.0.0.1", b))
         raw.sendto(session + pack_frame(0x200, bytes(7), 0, 5)[:-1], ("127.0.0.1", b))
         got = [target.recv(0.5) for _ in range(4)]

@@ -3,6 +3,7 @@ datagrams and session handshake"), the payload-length rule, and free ports for s
 
 from __future__ import annotations
 
+import binascii
 import socket
 import struct
 from collections.abc import Callable, Iterator
@@ -35,7 +36,8 @@ class RawPeer:
         self.sock.sendto(struct.pack("<I4sBBI", 0, b"HILS", kind, 1, session), self.remote)
 
     def frame(self, session: int, arb: int, data: bytes, flags: int = FLAG_FD | FLAG_BRS) -> None:
-        self.raw(struct.pack("<IIBBB", session, arb, flags, self.seq & 0xFF, len(data)) + data)
+        body = struct.pack("<IBBB", arb, flags, self.seq & 0xFF, len(data)) + data
+        self.raw(struct.pack("<I", session) + body + binascii.crc_hqx(body, 0xFFFF).to_bytes(2, "big"))
         self.seq += 1
 
     def raw(self, datagram: bytes) -> None:
@@ -181,3 +183,21 @@ def test_spawned_udp_without_ports_takes_free_ports() -> None:
     target_ports = specs.target.split(",")[0].split(":")[1:]
     assert host_ports == target_ports[::-1] and specs.target.endswith(",fd=true")
     assert not {"47310", "47311"} & set(host_ports) and host_ports[0] != host_ports[1]
+
+
+def test_a_corrupted_datagram_fails_its_crc_and_is_dropped(raw_peer: RawPeer, ports: list[int]) -> None:
+    """The UDP link's own check: CRC-16 (CCITT, init 0xFFFF) over header + payload, big endian, last."""
+    a, b, _ = ports
+    with UdpUnicastBus(f"{a}:{b}") as bus:
+        raw_peer.control(1, 3)
+        body = struct.pack("<IBBB", 0x108, 3, 0, 16) + bytes(16)
+        crc = binascii.crc_hqx(body, 0xFFFF).to_bytes(2, "big")
+        flipped = bytearray(body)
+        flipped[9] ^= 0x10  # one payload bit on the way
+        raw_peer.raw(struct.pack("<I", 3) + bytes(flipped) + crc)
+        raw_peer.raw(struct.pack("<I", 3) + body + crc)
+        link = BusLink(bus, "udp")
+        assert link.recv(1.0) == Frame(0x108, bytes(16), True)
+        assert link.recv(0.05) is None
+        assert bus.link_stats.crc_errors == 1 and bus.link_stats.frames_rx == 1
+        raw_peer.sock.recv(2048)  # the ACK

@@ -53,7 +53,7 @@ def test_file_is_complete_indexed_mcap_with_json_channels(tmp_path: Path) -> Non
         summary = reader.get_summary()
         assert summary is not None and summary.statistics is not None
         topics = {ch.topic: ch for ch in summary.channels.values()}
-        assert set(topics) == {"/periods", "/frames", "/trace", "/run/metadata"}
+        assert set(topics) == {"/periods", "/frames", "/trace", "/run/metadata", "/link_faults"}
         assert topics["/periods"].message_encoding == "json"
         assert summary.schemas[topics["/periods"].schema_id].encoding == "jsonschema"
         assert topics["/trace"].message_encoding == "cdr"

@@ -64,7 +64,7 @@ def test_load_step_recovers() -> None:
 
 
 def test_silent_target_trips_watchdog_into_safe_state() -> None:
-    cfg = replace(_cfg(settle_s=0.0, duration_s=0.05), watchdog_periods=5)
+    cfg = replace(_cfg(settle_s=0.0, duration_s=0.05), watchdog_periods=5, tolerate=1000)
     res = run_closed_loop(cfg, silent_after=100)
     assert res.outcome.safe_state
     assert res.outcome.end_reason.startswith("watchdog: target silent for 5 periods")
@@ -77,3 +77,11 @@ def test_overcurrent_trip_ends_run_safely() -> None:
     res = run_closed_loop(cfg)
     assert res.outcome.safe_state
     assert "overcurrent" in res.outcome.end_reason
+
+
+def test_silent_target_is_a_dut_violation_by_default() -> None:
+    res = run_closed_loop(replace(_cfg(settle_s=0.0, duration_s=0.05), watchdog_periods=5), silent_after=100)
+    m = res.metrics
+    assert m["end_code"] == 4 and m["end_period"] == 100 and m["dut_violations"] == 1
+    assert m["end_reason"].startswith("DUT contract violation at period 100 (seq 100): missing:")
+    assert m["dut_violation_list"][0]["rule"] == "missing" and m["target_disabled"] is True

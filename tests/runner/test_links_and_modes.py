@@ -60,8 +60,11 @@ def test_realtime_mode_in_process_reports_lateness() -> None:
     _assert_holds_operating_point(res.metrics)
     lat = res.metrics["lateness_us"]
     assert set(lat) == {"median", "p99", "max"} and lat["median"] >= 0.0
-    # pacing: the wall time is the simulated time (within start-up slack)
-    assert res.outcome.wall_time_s == pytest.approx(0.2, rel=0.1)
+    # pacing: the wall time is the simulated time (within start-up slack), or - on a loaded machine - the
+    # periods that started late are counted as overruns and the summary warns (never a silent "0 misses")
+    if res.outcome.wall_time_s != pytest.approx(0.2, rel=0.1):
+        assert res.metrics["overruns"] > 0 and any("real time" in w for w in res.metrics["warnings"])
+    assert res.metrics["overrun_threshold_us"] == pytest.approx(50.0)
 
 
 def test_realtime_refuses_a_link_that_cannot_carry_the_rate() -> None:

@@ -3,6 +3,7 @@ that cannot bind its port ends the run with its error, a killed host leaves no t
 
 from __future__ import annotations
 
+import binascii
 import os
 import signal
 import socket
@@ -52,7 +53,8 @@ def _forged_datagrams(session: int) -> tuple[list[bytes], list[bytes]]:
         out = [struct.pack("<I4sBBI", 0, b"HILS", 1, 1, 0x5EED)]
         for i, fr in enumerate(frames):
             body = struct.pack("<IBBB", fr.arbitration_id, 3 if fr.is_fd else 0, i & 0xFF, len(fr.data)) + fr.data
-            out += [body, struct.pack("<I", 0x5EED) + body, struct.pack("<I", session) + body]
+            crc = binascii.crc_hqx(body, 0xFFFF).to_bytes(2, "big")
+            out += [body, struct.pack("<I", 0x5EED) + body + crc, struct.pack("<I", session) + body + crc]
         return out
 
     return datagrams(to_target), datagrams(to_host)

@@ -1,0 +1,86 @@
+"""The DUT contract: what the host requires of the target every period (docs/runner.md, "DUT contract"),
+the findings when it is broken, and how a run ends (end codes, the exit codes of `hil run`).
+
+Per period k (seq = k mod 65536) the target sends exactly one Command echoing seq, within the lockstep
+timeout (lockstep) or before the next period start (real time), with state codes of the machine
+(0..2^legs − 1) and durations summing to Ts (mirrored: 2·(d0+…+d(n−2)) + d(n−1) = Ts). Frames the decoder
+rejects (wrong length, impossible values, parts that do not assemble) count against the period they
+arrive in. A reply with another seq (a future one, or a second/late answer) is a violation and never
+displaces the genuine reply.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import IntEnum
+from typing import Final
+
+from pmsm_hil.protocol.messages import Command
+
+
+class EndCode(IntEnum):
+    """How a run ended = the exit code of `hil run` (usage errors exit 2 before any run starts)."""
+
+    COMPLETED = 0
+    INTERNAL_ERROR = 1
+    USAGE_ERROR = 2
+    SAFETY_STOP = 3  # watchdog, plant trip, target fault
+    DUT_VIOLATION = 4
+    INTERRUPTED = 130
+
+
+#: Rules of the contract (the `rule` of a `Violation`).
+MISSING: Final = "missing"  # no Command for the period in time
+SEQUENCE: Final = "sequence"  # a Command whose seq is not the period's (future, stale, or a second answer)
+STATE_CODE: Final = "state_code"  # a state code outside the machine's 0..2^legs − 1
+DURATIONS: Final = "durations"  # durations that do not fill Ts
+FRAME: Final = "frame"  # a frame the decoder rejected (length, value, assembly)
+RULES: Final = (MISSING, SEQUENCE, STATE_CODE, DURATIONS, FRAME)
+
+
+@dataclass(frozen=True, slots=True)
+class Violation:
+    """One finding: period index, the seq expected, the rule, the frame (or message) concerned, the detail."""
+
+    period: int
+    seq: int
+    rule: str
+    frame: str
+    detail: str
+
+    def message(self) -> str:
+        """One line naming period, seq, rule, frame and detail."""
+        return f"DUT contract violation at period {self.period} (seq {self.seq}): {self.rule}: {self.detail} " \
+               f"[{self.frame}]"
+
+    def as_dict(self) -> dict[str, object]:
+        """JSON form (metrics.json `dut_violations`)."""
+        return {"period": self.period, "seq": self.seq, "rule": self.rule, "frame": self.frame,
+                "detail": self.detail}
+
+
+def describe(cmd: Command) -> str:
+    """Short text of a Command for a finding."""
+    mirror = ", mirror" if cmd.mirror else ""
+    return f"Command seq={cmd.seq} states={cmd.states} durations_ns={cmd.durations_ns}{mirror}"
+
+
+def check_command(cmd: Command, ts_ns: int, max_state: int) -> tuple[str, str] | None:
+    """(rule, detail) when the Command's sequence cannot be applied, else None."""
+    for j, code in enumerate(cmd.states):
+        if not 0 <= code <= max_state:
+            return STATE_CODE, f"state {j} = {code} outside 0..{max_state}"
+    d = cmd.durations_ns
+    if any(x < 0 for x in d):
+        return DURATIONS, f"negative duration in {d}"
+    if cmd.mirror and len(d) >= 2:
+        total = 2 * sum(d[:-1]) + d[-1]
+        if total != ts_ns:
+            return DURATIONS, f"mirrored durations fill {total} ns (2·(d0+…+d(n−2)) + d(n−1)), Ts = {ts_ns} ns"
+    elif sum(d) != ts_ns:
+        return DURATIONS, f"durations sum to {sum(d)} ns, Ts = {ts_ns} ns"
+    return None
+
+
+__all__ = ["DURATIONS", "FRAME", "MISSING", "RULES", "SEQUENCE", "STATE_CODE", "EndCode", "Violation",
+           "check_command", "describe"]

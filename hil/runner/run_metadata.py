@@ -1,0 +1,89 @@
+"""What a run log records about the run's set-up: the configuration as MCAP metadata (`/run/metadata`,
+enough to repeat the run) and the ConfigParam/ConfigAck frames of the configuration (`/frames`).
+
+Plain keys (read by the replay, the HTML report and Foxglove): motor, controller, scenario, ts_s, link,
+mode, seed, speed_rpm, load_nm, pole_pairs, phases. JSON-valued keys: `motor_params` (every motor and
+inverter parameter as run, `--set` applied), `motor_set` (the parameters that differ from the named preset,
+i.e. the `--set` overrides), `controller_params` (`--param`), `target_parameters` (every ConfigParam
+written, by name), `scenario_params` (every scenario field, CLI overrides applied), `sensors`; and `target`,
+`miss_policy`, `watchdog_periods`, `log_trace`, `version` (the pmsm-hil package version)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from collections.abc import Iterator
+from contextlib import contextmanager
+from importlib import metadata as importlib_metadata
+from typing import Any
+
+from pmsm_hil.hil.errors import HilError
+from pmsm_hil.hil.motor_params import PmsmParams
+from pmsm_hil.hil.runner.recorder import FrameTap, frame_records
+from pmsm_hil.hil.runner.run_config import RunConfig
+from pmsm_hil.hil.runner.target_client import TargetClient
+
+#: the files a run writes into its output directory (`RunConfig.out_dir`)
+RUN_FILES = ("run.mcap", "metrics.json")
+
+
+def package_version() -> str:
+    """Installed pmsm-hil version ('unknown' when run from a tree that is not installed)."""
+    try:
+        return importlib_metadata.version("pmsm-hil")
+    except importlib_metadata.PackageNotFoundError:
+        return "unknown"
+
+
+def _motor_set(motor: PmsmParams) -> dict[str, Any] | None:
+    """Parameters that differ from the preset or file the motor is named after (None if it cannot be loaded)."""
+    from pmsm_hil.hil.presets_loader import load_motor
+
+    try:
+        base = load_motor(motor.name)
+    except (HilError, OSError):
+        return None
+    return {f.name: getattr(motor, f.name) for f in dataclasses.fields(motor)
+            if f.name != "name" and getattr(motor, f.name) != getattr(base, f.name)}
+
+
+def _json(value: Any) -> str:
+    return json.dumps(value, sort_keys=True, default=str)
+
+
+def run_metadata(cfg: RunConfig) -> dict[str, str]:
+    """Metadata mapping (str → str) of a run (see the module docstring)."""
+    sc, m = cfg.scenario, cfg.motor
+    meta = {"motor": m.name, "controller": cfg.controller, "scenario": sc.name, "ts_s": repr(cfg.ts_s),
+            "link": cfg.link, "mode": cfg.mode, "seed": str(cfg.seed), "speed_rpm": repr(sc.speed_rpm),
+            "load_nm": repr(sc.load_nm), "pole_pairs": str(m.pole_pairs), "phases": str(cfg.machine.phases),
+            "target": cfg.target, "miss_policy": cfg.miss_policy, "watchdog_periods": str(cfg.watchdog_periods),
+            "log_trace": "true" if cfg.log_trace else "false", "version": package_version(),
+            "motor_params": _json(dataclasses.asdict(m)),
+            "controller_params": _json(cfg.controller_params),
+            "target_parameters": _json({p.name.lower(): v for p, v in cfg.target_parameters().items()}),
+            "scenario_params": _json(dataclasses.asdict(sc)),
+            "sensors": _json(dataclasses.asdict(cfg.sensors))}
+    motor_set = _motor_set(m)
+    if motor_set is not None:
+        meta["motor_set"] = _json(motor_set)
+    return meta
+
+
+@contextmanager
+def tap_setup_frames(client: TargetClient, logger: Any) -> Iterator[None]:
+    """Record the frames exchanged inside the block (the ConfigParam writes and their ConfigAcks, t = 0,
+    seq 0: before the first period) and submit them to `logger`'s `/frames`; no-op without a logger.
+    The loop taps the link itself from its first Setpoint on."""
+    if logger is None:
+        yield
+        return
+    link = client.link
+    tap = FrameTap(link, frame_records())
+    client.link = tap
+    try:
+        yield
+    finally:
+        client.link = link
+        if len(tap.records):
+            logger.submit_frames(tap.records.take())

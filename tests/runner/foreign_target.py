@@ -1,0 +1,93 @@
+"""A foreign target, written as a user would: python-can (the documented `hilserial` interface) + cantools +
+protocol/hil.dbc, no project code. Misbehaves on request so the host's DUT contract can be tested.
+
+Usage: python foreign_target.py PORT LOGFILE [RULE=PERIOD ...]
+Rules: skip (no reply), future_seq (reply with seq + 1 instead), bad_sum (durations 1 ns short),
+bad_state (state code 9), second (two replies), bad_length (a 19-byte Command frame), fault (a FaultTarget
+frame), silent (stop replying from then on), bad_ack (echo ConfigParam values + 1.0).
+Every frame received from the host is logged to LOGFILE as one JSON line, flushed at once.
+The "controller": the zero vector for the whole period (a dyno run at low speed stays within its limits).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import can
+import cantools
+
+DBC = Path(__file__).resolve().parents[2] / "protocol" / "hil.dbc"
+TS_NS = 100_000
+
+
+def main() -> int:
+    port, log_path = sys.argv[1], sys.argv[2]
+    rules = {k: int(v) for k, _, v in (a.partition("=") for a in sys.argv[3:])}
+    db = cantools.database.load_file(str(DBC))
+    meas, cmd = db.get_message_by_name("MeasFd"), db.get_message_by_name("CmdFd")
+    setpoint, param = db.get_message_by_name("Setpoint"), db.get_message_by_name("ConfigParam")
+    ack, fault = db.get_message_by_name("ConfigAck"), db.get_message_by_name("FaultTarget")
+    bus = can.Bus(interface="hilserial", channel=port)
+    log = open(log_path, "w", encoding="utf-8")  # noqa: SIM115 - closed at exit
+
+    def send(message: cantools.database.Message, **values: float) -> None:
+        bus.send(can.Message(arbitration_id=message.frame_id, data=message.encode(values), is_fd=True,
+                             is_extended_id=False))
+
+    def reply(seq: int) -> None:
+        send(cmd, seq=seq, state0=0, state1=0, state2=0, n_states=1, duration0=TS_NS, duration1=0, duration2=0,
+             vector_id=0, candidates=1, exec_time_ns=1000, status=0, mirror=0)
+
+    k = 0
+    timeout = 30.0
+    try:
+        while True:
+            msg = bus.recv(timeout=timeout)
+            if msg is None:
+                return 0
+            if msg.arbitration_id == setpoint.frame_id:
+                sp = setpoint.decode(msg.data, decode_choices=False)
+                log.write(json.dumps({"frame": "Setpoint", "enable": int(sp["enable"])}) + "\n")
+                if not sp["enable"]:
+                    timeout = 0.3  # disabled: log what still comes, then end (a board would idle)
+            elif msg.arbitration_id == param.frame_id:
+                p = param.decode(msg.data, decode_choices=False)
+                value = p["value"] + (1.0 if "bad_ack" in rules else 0.0)
+                send(ack, param_id=p["param_id"], value=value, status=0)
+                log.write(json.dumps({"frame": "ConfigParam", "param_id": int(p["param_id"])}) + "\n")
+            elif msg.arbitration_id == meas.frame_id:
+                seq = int(meas.decode(msg.data, decode_choices=False)["seq"])
+                log.write(json.dumps({"frame": "Measurement", "seq": seq}) + "\n")
+                if rules.get("silent", 1 << 30) <= k or rules.get("skip") == k:
+                    pass
+                elif rules.get("future_seq") == k:
+                    reply((seq + 1) & 0xFFFF)
+                elif rules.get("bad_sum") == k:
+                    send(cmd, seq=seq, state0=0, state1=0, state2=0, n_states=1, duration0=TS_NS - 1, duration1=0,
+                         duration2=0, vector_id=0, candidates=1, exec_time_ns=1000, status=0, mirror=0)
+                elif rules.get("bad_state") == k:
+                    send(cmd, seq=seq, state0=9, state1=0, state2=0, n_states=1, duration0=TS_NS, duration1=0,
+                         duration2=0, vector_id=0, candidates=1, exec_time_ns=1000, status=0, mirror=0)
+                elif rules.get("bad_length") == k:
+                    bus.send(can.Message(arbitration_id=cmd.frame_id, data=bytes(24), is_fd=True,
+                                         is_extended_id=False))
+                    reply(seq)
+                else:
+                    reply(seq)
+                    if rules.get("second") == k:
+                        reply(seq)
+                if rules.get("fault") == k:
+                    send(fault, node=1, code=1, detail=7)
+                k += 1
+            else:
+                log.write(json.dumps({"frame": hex(msg.arbitration_id)}) + "\n")
+            log.flush()
+    finally:
+        log.close()
+        bus.shutdown()
+
+
+if __name__ == "__main__":
+    sys.exit(main())
