@@ -59,7 +59,9 @@ def load_run(run_dir: Path) -> RunData:
         raise DashboardError(f"RUN_DIR: {mcap_path}: {exc}") from None
     if len(periods) == 0:
         raise DashboardError(f"RUN_DIR: {mcap_path} holds no periods")
-    n_window = int(metrics.get("periods") or len(periods))
+    n_window = metrics.get("periods") or len(periods)
+    if not isinstance(n_window, int) or isinstance(n_window, bool) or n_window < 1:
+        raise DashboardError(f"RUN_DIR: {metrics_path}: 'periods' must be a whole number ≥ 1, got {n_window!r}")
     window = periods[-n_window:]
     t0 = float(window["t"][0])
     if len(trace) and float(trace["t"][-1]) > t0:

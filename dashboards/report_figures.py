@@ -93,8 +93,10 @@ def spectra(runs: Sequence[RunData]) -> str:
     for k, run in enumerate(runs):
         orders, pct = harmonic_spectrum(run)
         keep = orders >= 2
+        thd = run.metrics.get("current_thd_pct")
+        thd_text = f"{thd:.2f} %" if isinstance(thd, int | float) else "n/a"  # null: window too short for a THD
         ax.bar(orders[keep] - 0.4 + (k + 0.5) * width, pct[keep], width=width,
-               label=f"{run.label} (THD {run.metrics.get('current_thd_pct', float('nan')):.2f} %)")
+               label=f"{run.label} (THD {thd_text})")
     ax.set_xlabel("harmonic order of i_a")
     ax.set_ylabel("amplitude [% of fundamental]")
     ax.set_xlim(1.4, MAX_ORDER + 0.6)

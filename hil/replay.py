@@ -12,7 +12,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from pmsm_hil.hil.errors import InputFileError, SequenceError
+from pmsm_hil.hil.atomic_write import atomic_path, refuse_inputs
+from pmsm_hil.hil.errors import InputFileError, ParameterError, SequenceError
 from pmsm_hil.hil.machine import DUAL_THREE_PHASE, THREE_PHASE, MachineLayout, machine_for
 from pmsm_hil.hil.mechanics import DynoMechanics
 from pmsm_hil.hil.motor_params import PmsmParams
@@ -101,6 +102,9 @@ def _parse_sequence_row(row: list[str], header: list[str], row_no: int, ts_ns: i
             raise InputFileError(f"row {row_no}, column '{header[k + 1]}': not a number: {t_text!r}") from None
         if not math.isfinite(t_val) or t_val < 0:
             raise InputFileError(f"row {row_no}, column '{header[k + 1]}': duration must be ≥ 0 s, got {t_text}")
+        if t_val * 1e9 > ts_ns + 1:
+            raise InputFileError(f"row {row_no}, column '{header[k + 1]}': duration {t_text} s is longer than "
+                                 f"Ts = {ts_ns * 1e-9:.9g} s")
         states.append(int(s_text))
         durs.append(round(t_val * 1e9))
     if not states:
@@ -116,27 +120,36 @@ def replay(params: PmsmParams, *, rpm: float, ts_s: float, input_path: Path, out
            theta0_rad: float = 0.0) -> int:
     """Replay the input CSV through the plant in dyno mode; writes N+1 rows; returns N.
 
-    A motor with lls > 0 runs the dual three-phase plant (`Plant6`) and writes `OUTPUT_COLUMNS6`."""
+    A motor with lls > 0 runs the dual three-phase plant (`Plant6`) and writes `OUTPUT_COLUMNS6`.
+    The output is written through a temporary file and only if the replay produced valid rows: an input
+    without command rows, an output that is the input, or a non-finite plant state raise InputFileError /
+    ParameterError and leave an existing output untouched."""
+    refuse_inputs(output_path, [input_path], option="--output")
     machine = machine_for(params)
     layout = machine.layout
     plant = machine.build_plant(ts_s, DynoMechanics(rpm), theta0_rad=theta0_rad, trace_dt_s=None)
     commands = list(read_commands(input_path, plant.ts_ns, layout=layout))
+    if not commands:
+        raise InputFileError(f"input file {input_path}: no command rows after the header (nothing to replay)")
 
-    def _row() -> list[str]:
-        return [repr(float(v)) for v in layout.replay_row(plant.sample())]
+    def _row(idx: int) -> list[str]:
+        values = [float(v) for v in layout.replay_row(plant.sample())]
+        if not all(math.isfinite(v) for v in values):
+            col, value = next((c, v) for c, v in zip(layout.replay_columns, values, strict=True)
+                              if not math.isfinite(v))
+            raise ParameterError(f"row {idx}: the plant state is not finite ({col} = {value}) at --rpm {rpm:g}: "
+                                 "the speed or the --set parameters are beyond the model")
+        return [repr(v) for v in values]
 
-    rows = [_row()]
+    rows = [_row(0)]
     for idx, cmd in enumerate(commands, start=1):
         try:
             plant.advance(cmd.states, cmd.durations_ns)
         except SequenceError as exc:
             raise InputFileError(f"row {idx}: {exc}") from None
-        rows.append(_row())
-    try:
-        with output_path.open("w", newline="", encoding="utf-8") as out:
-            writer = csv.writer(out)
-            writer.writerow(layout.replay_columns)
-            writer.writerows(rows)
-    except OSError as exc:
-        raise InputFileError(f"output file {output_path}: {exc.strerror}") from None
+        rows.append(_row(idx))
+    with atomic_path(output_path, option="--output") as tmp, tmp.open("w", newline="", encoding="utf-8") as out:
+        writer = csv.writer(out)
+        writer.writerow(layout.replay_columns)
+        writer.writerows(rows)
     return len(commands)

@@ -18,6 +18,7 @@ import tempfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from pmsm_hil.hil.atomic_write import write_text_atomic
 from pmsm_hil.hil.cli.bench_machines import (
     OMEGA_M,
     SIX_PHASE_IDS,
@@ -28,7 +29,7 @@ from pmsm_hil.hil.cli.bench_machines import (
     six_phase_machine,
 )
 from pmsm_hil.hil.cli.parsing import positive_int
-from pmsm_hil.hil.errors import HilError, InputFileError
+from pmsm_hil.hil.errors import HilError
 from pmsm_hil.protocol.ids import ParamId
 
 FIRMWARE_DIR = Path(__file__).resolve().parents[2] / "firmware_stub"
@@ -290,9 +291,6 @@ def run(args: argparse.Namespace) -> int:
     if args.json is not None:
         payload = {"steps": args.steps, "repeats": args.repeats, "note": note,
                    "controllers": [asdict(f) for f in figures]}
-        try:
-            args.json.write_text(json.dumps(payload, indent=2) + "\n", encoding="utf-8")
-        except OSError as exc:
-            raise InputFileError(f"json file {args.json}: {exc.strerror}") from None
+        write_text_atomic(args.json, json.dumps(payload, indent=2) + "\n", option="--json")
         print(f"figures written to {args.json}")
     return 0

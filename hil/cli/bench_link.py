@@ -7,11 +7,13 @@ import json
 import os
 import socket
 import statistics
+import sys
 import time
 import tty
 from collections.abc import Callable
 from typing import Any
 
+from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.protocol.codec import PROFILES, FrameCodec
 from pmsm_hil.protocol.errors import ProtocolError
 from pmsm_hil.protocol.frame import Frame
@@ -188,14 +190,15 @@ def run(args: argparse.Namespace) -> int:
     """Run the benchmark and print it; returns 0, or 1 if a link failed."""
     links = [s.strip() for s in args.links.split(",") if s.strip()]
     unknown = sorted(set(links) - {"virtual", "udp", "serial"})
-    if unknown or args.count < 1 or args.repeats < 1:
-        print(f"hil bench link: bad arguments (unknown links {unknown}, count/repeats must be ≥ 1)")
-        return 2
+    if unknown:
+        raise ParameterError(f"--links: unknown link(s) {', '.join(unknown)} (known: virtual, udp, serial)")
+    if args.count < 1 or args.repeats < 1:
+        raise ParameterError(f"--count/--repeats must be ≥ 1, got {args.count}/{args.repeats}")
     result: dict[str, Any] = {"codec": codec_costs(args.count, args.repeats)}
     try:
         result["round_trip"] = link_latencies(links, args.count)
     except ProtocolError as exc:
-        print(f"hil bench link: {exc}")
+        print(f"hil: error: bench link: {exc}", file=sys.stderr)
         return 1
     if args.json:
         print(json.dumps(result, indent=1))

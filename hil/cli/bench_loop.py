@@ -6,12 +6,14 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
+import sys
 import tempfile
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from pmsm_hil.hil.atomic_write import write_text_atomic
 from pmsm_hil.hil.cli.parsing import non_negative_int, positive_float
 from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runner.run import run_closed_loop
@@ -47,11 +49,15 @@ def _median_rate(make: Callable[[], RunConfig], repeats: int) -> dict[str, Any]:
     return {"periods_per_s": statistics.median(rates), "runs": rates, "last_metrics": extra}
 
 
-def measure(duration: float, repeats: int, cross: list[str], realtime: bool) -> dict[str, Any]:
-    """All loop figures; keys documented in docs/benchmarks.md."""
+def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
+            progress: Callable[[str], None] = lambda _msg: None) -> dict[str, Any]:
+    """All loop figures; keys documented in docs/benchmarks.md. `progress` gets one line per stage."""
     base = _base(duration)
     out: dict[str, Any] = {"duration_s": duration, "repeats": repeats}
+    runs = f"{max(repeats, 1)} × {duration:g} s"
+    progress(f"lockstep in-process, logging off ({runs})")
     off = _median_rate(lambda: base, repeats)
+    progress(f"lockstep in-process, logging on ({runs})")
     with tempfile.TemporaryDirectory() as tmp:
         counter = iter(range(1000))
         on = _median_rate(lambda: replace(base, out_dir=Path(tmp) / f"run{next(counter)}"), repeats)
@@ -60,6 +66,7 @@ def measure(duration: float, repeats: int, cross: list[str], realtime: bool) -> 
     out["logging_cost_pct"] = 100.0 * (1.0 - on["periods_per_s"] / off["periods_per_s"])
     from pmsm_hil.dashboards.bench import live_rerun_rate
 
+    progress(f"lockstep in-process, live Rerun dashboard to an .rrd ({runs})")
     rerun = live_rerun_rate(base, repeats)
     out["lockstep_inproc_rerun_on_hz"] = rerun["periods_per_s"]
     out["rerun_cost_pct"] = 100.0 * (1.0 - rerun["periods_per_s"] / off["periods_per_s"])
@@ -68,12 +75,14 @@ def measure(duration: float, repeats: int, cross: list[str], realtime: bool) -> 
         def make(spec: str = spec) -> RunConfig:
             return replace(base, link=spec, target="spawn")
 
+        progress(f"lockstep, target in its own process over {spec} ({runs})")
         try:
             res = _median_rate(make, repeats)
             out[f"lockstep_{name}_process_hz"] = res["periods_per_s"]
         except Exception as exc:
             out[f"lockstep_{name}_process_error"] = str(exc)
     if realtime:
+        progress(f"real time in-process at 10 kHz ({duration:g} s)")
         rt = run_closed_loop(replace(base, mode="realtime"))
         out["realtime_inproc_10khz_lateness_us"] = rt.metrics.get("lateness_us")
         out["realtime_inproc_10khz_deadline_misses"] = rt.metrics.get("deadline_misses")
@@ -83,7 +92,10 @@ def measure(duration: float, repeats: int, cross: list[str], realtime: bool) -> 
 def run(args: argparse.Namespace) -> int:
     """Execute `hil bench loop`."""
     cross = [c.strip() for c in args.cross_process.split(",") if c.strip()]
-    figures = measure(args.duration, args.repeats, cross, not args.no_realtime)
+    def progress(msg: str) -> None:
+        print(f"bench loop: {msg} ...", file=sys.stderr, flush=True)
+
+    figures = measure(args.duration, args.repeats, cross, not args.no_realtime, progress)
     print(f"closed loop, niu2020 IPMSM, MPCC, Ts = 100 µs, {args.duration} s simulated, median of {args.repeats}")
     for key, value in figures.items():
         if key.endswith("_hz"):
@@ -93,5 +105,5 @@ def run(args: argparse.Namespace) -> int:
         elif key not in ("duration_s", "repeats"):
             print(f"  {key:<40} {value}")
     if args.json is not None:
-        args.json.write_text(json.dumps(figures, indent=2, default=str) + "\n", encoding="utf-8")
+        write_text_atomic(args.json, json.dumps(figures, indent=2, default=str) + "\n", option="--json")
     return 0

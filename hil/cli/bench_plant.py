@@ -6,9 +6,9 @@ import argparse
 import json
 from pathlib import Path
 
+from pmsm_hil.hil.atomic_write import write_text_atomic
 from pmsm_hil.hil.bench.plant_bench import format_result, run_plant_bench
 from pmsm_hil.hil.cli.parsing import positive_int
-from pmsm_hil.hil.errors import InputFileError
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -36,9 +36,6 @@ def run(args: argparse.Namespace) -> int:
     for line in format_result(result):
         print(line)
     if args.json is not None:
-        try:
-            args.json.write_text(json.dumps(result.to_dict(), indent=2) + "\n", encoding="utf-8")
-        except OSError as exc:
-            raise InputFileError(f"json file {args.json}: {exc.strerror}") from None
+        write_text_atomic(args.json, json.dumps(result.to_dict(), indent=2) + "\n", option="--json")
         print(f"figures written to {args.json}")
     return 0

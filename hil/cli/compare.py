@@ -7,6 +7,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from pmsm_hil.hil.atomic_write import atomic_path, refuse_inputs
 from pmsm_hil.hil.errors import InputFileError
 
 
@@ -41,6 +42,8 @@ def run(args: argparse.Namespace) -> int:
     from pmsm_hil.hil.runner.run_config import controller_id
 
     preset = load_preset(args.preset)
+    if args.report and Path(args.preset).is_file():
+        refuse_inputs(Path(args.report), [Path(args.preset)], option="--report")
     names = [c.strip() for c in args.controllers.split(",") if c.strip()] if args.controllers else None
     for name in names or preset.controllers:
         controller_id(name)
@@ -59,13 +62,15 @@ def run(args: argparse.Namespace) -> int:
     for line in format_table(result):
         print(line)
     base = args.out / preset.name
-    write_json(result, base.with_suffix(".json"))
-    write_csv(result, base.with_suffix(".csv"))
-    written = [base.with_suffix(".json"), base.with_suffix(".csv")]
-    if write_png(result, base.with_suffix(".png")):
-        written.append(base.with_suffix(".png"))
+    written: list[Path] = []
+    for suffix, writer in ((".json", write_json), (".csv", write_csv), (".png", write_png)):
+        path = base.with_suffix(suffix)
+        with atomic_path(path, option="--out") as tmp:  # each file complete or the previous one kept
+            if writer(result, tmp) is not False:  # write_png: False when the preset has no figure
+                written.append(path)
     if selection is not None:
         html_path = Path(args.report) if args.report else base.with_suffix(".html")
+        progress(f"report: rendering {len(selection.dirs)} logged run(s) into {html_path}")
         summary = write_compare_report(result, selection, html_path)
         written.append(summary.path)
         if summary.skipped:

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
-from pmsm_hil.protocol.errors import BudgetError
 from pmsm_hil.protocol.links.budget import (
     DEFAULT_BAUD,
     DEFAULT_BITRATE,
@@ -25,6 +25,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
         help="worst-case link budget of one control period",
         description="Frames, worst-case bits (bit stuffing) and wire time per control "
         "period; bus load at --rate and the maximum closed-loop rate.",
+        epilog="exit codes: 0 the link carries --rate, 1 too slow for --rate (the figures are still printed), "
+        "2 bad arguments",
     )
     p.add_argument("--link", choices=LINK_KINDS, default="can", help="link type (default: %(default)s)")
     p.add_argument("--bitrate", type=int, default=DEFAULT_BITRATE, help="CAN (nominal) bit rate, bit/s")
@@ -60,18 +62,19 @@ def format_budget(b: LinkBudget) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Print the budget; returns 0, or 2 on invalid arguments."""
-    try:
-        b = link_budget(
-            args.link,
-            args.phases,
-            bitrate=args.bitrate,
-            data_bitrate=args.data_bitrate,
-            baud=args.baud,
-            rate_hz=args.rate,
-        )
-    except BudgetError as exc:
-        print(f"hil link-budget: {exc}")
-        return 2
+    """Print the budget; returns 0 if the link carries --rate, 1 if it is too slow (BudgetError on invalid
+    arguments: `hil` prints it as one line, exit 2)."""
+    b = link_budget(
+        args.link,
+        args.phases,
+        bitrate=args.bitrate,
+        data_bitrate=args.data_bitrate,
+        baud=args.baud,
+        rate_hz=args.rate,
+    )
     print(json.dumps(b.as_dict(), indent=1) if args.json else format_budget(b))
+    if b.feasible is False:
+        print(f"hil: link-budget: too slow: {b.link} carries at most {b.max_rate_hz:.0f} Hz of closed loop, "
+              f"--rate is {b.rate_hz:.0f} Hz", file=sys.stderr)
+        return 1
     return 0

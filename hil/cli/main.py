@@ -58,7 +58,17 @@ def build_parser() -> argparse.ArgumentParser:
             if module is not None:
                 module.add_parser(group_sub)
         group_parser.set_defaults(func=lambda args, p=group_parser: _usage(p))
+    _add_debug(sub)
     return parser
+
+
+def _add_debug(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """`--debug` after any (sub)command too (`hil run --debug`); absent there, the top-level value stands."""
+    for p in set(sub.choices.values()):
+        p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks on errors")
+        for action in p._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                _add_debug(action)
 
 
 def _usage(parser: argparse.ArgumentParser) -> int:

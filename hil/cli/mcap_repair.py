@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 from typing import Any
 
-from pmsm_hil.hil.runlog.errors import RunLogError
+from pmsm_hil.hil.atomic_write import refuse_inputs
+from pmsm_hil.hil.errors import InputFileError
 from pmsm_hil.hil.runlog.repair import repair_mcap
 
 
@@ -26,17 +26,14 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the repair; prints a one-paragraph report. Returns 0 on success, 2 on error."""
+    """Run the repair; prints a one-paragraph report. Returns 0; errors (RunLogError, InputFileError) are
+    printed by `hil` as one line, exit 2, and leave an existing OUT untouched."""
     src: Path = args.input
     dst: Path = args.output if args.output is not None else src.with_suffix(".repaired.mcap")
     if not src.is_file():
-        print(f"hil mcap-repair: input: {src} is not a file", file=sys.stderr)
-        return 2
-    try:
-        report = repair_mcap(src, dst)
-    except RunLogError as exc:
-        print(f"hil mcap-repair: {exc}", file=sys.stderr)
-        return 2
+        raise InputFileError(f"IN.mcap {src}: is not a file")
+    refuse_inputs(dst, [src], option="-o")
+    report = repair_mcap(src, dst)
     state = "complete" if report.source_complete else f"cut ({report.stop_reason})"
     topics = ", ".join(f"{t}: {n}" for t, n in sorted(report.messages_per_topic.items())) or "none"
     print(

@@ -20,7 +20,11 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 def run(args: argparse.Namespace) -> int:
     """Execute `hil report`."""
     from pmsm_hil.dashboards.report_html import write_report
+    from pmsm_hil.hil.atomic_write import atomic_path, refuse_inputs
+    from pmsm_hil.hil.runner.run_metadata import RUN_FILES
 
-    runs = write_report(args.run_dirs, args.output, args.title)
+    refuse_inputs(args.output, [Path(d) / name for d in args.run_dirs for name in RUN_FILES], option="-o")
+    with atomic_path(args.output, option="-o") as tmp:
+        runs = write_report(args.run_dirs, tmp, args.title)
     print(f"report: {args.output} ({len(runs)} run{'s' if len(runs) != 1 else ''})")
     return 0

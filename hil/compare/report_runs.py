@@ -13,6 +13,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from pmsm_hil.hil.atomic_write import write_text_atomic
 from pmsm_hil.hil.compare.preset import ComparePreset, Variant
 from pmsm_hil.hil.compare.runs import CompareResult
 
@@ -135,7 +136,7 @@ def write_compare_report(result: CompareResult, selection: ReportSelection, out:
     text = render_report(runs, title, notes=notes, generator=f"hil compare --preset {p.name} --report")
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(text, encoding="utf-8")
     except OSError as exc:
         raise DashboardError(f"--report {out}: {exc.strerror}") from None
+    write_text_atomic(out, text, option="--report")
     return ReportSummary(out, [r.label for r in runs], skipped)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import textwrap
 from pathlib import Path
 from typing import Any
 
@@ -12,6 +13,8 @@ from pmsm_hil.hil.compare.spread import aggregate
 from pmsm_hil.hil.errors import InputFileError
 from pmsm_hil.hil.metrics.registry import row_keys
 
+#: widest line of the printed table [characters]
+TABLE_WIDTH = 120
 #: CSV columns: the operating point, every compare-row metric of the registry, how the run ended
 COLUMNS = ("group", "controller", "ts_us", "speed_rpm", "load_nm", *row_keys(), "end_reason", "label",
            "theta0_rad")
@@ -50,11 +53,30 @@ def format_table(result: CompareResult) -> list[str]:
                      _fmt(r["t_reach_98pct_s"], ".3f"), str(r["n_runs"]), _fmt(r["xy_current_rms_a"], ".1f"),
                      _fmt(r["current_distortion_rms_a"], ".1f"), str(r["n_trips"]),
                      _paper(result, r["label"]) if r["group"] == "main" else ""))
-    widths = [max(len(row[i]) for row in rows) for i in range(len(_HEAD))]
-    lines = ["  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)).rstrip() for row in rows]
-    lines.insert(1, "-" * len(lines[0]))
+    lines = _column_blocks([row[:-1] for row in rows], TABLE_WIDTH)
+    for row in rows[1:]:  # the paper's figures below the table: they do not fit a column
+        if row[-1]:
+            lines += textwrap.wrap(f"paper, {row[0]}: {row[-1]}", TABLE_WIDTH, subsequent_indent="  ")
     if result.preset.paper_note:
-        lines.append(f"paper: {result.preset.paper_note}")
+        lines += textwrap.wrap(f"paper: {result.preset.paper_note}", TABLE_WIDTH, subsequent_indent="  ")
+    return lines
+
+
+def _column_blocks(rows: list[tuple[str, ...]], width: int) -> list[str]:
+    """The table as blocks of whole columns, each at most `width` characters wide (the first column, the run
+    name, repeated in every block; blocks separated by a blank line)."""
+    widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
+    lines: list[str] = []
+    col = 1
+    while col < len(widths):
+        cols, used = [0], widths[0]
+        while col < len(widths) and (len(cols) == 1 or used + 2 + widths[col] <= width):
+            cols.append(col)
+            used += 2 + widths[col]
+            col += 1
+        block = ["  ".join(row[c].ljust(widths[c]) for c in cols).rstrip() for row in rows]
+        block.insert(1, "-" * max(len(line) for line in block))
+        lines += ([""] if lines else []) + block
     return lines
 
 

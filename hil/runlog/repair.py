@@ -7,6 +7,7 @@ from pathlib import Path
 
 from mcap.records import Channel, Message, Metadata, Schema
 from mcap.writer import CompressionType, Writer
+from pmsm_hil.hil.atomic_write import atomic_path, same_file
 from pmsm_hil.hil.runlog.errors import McapFormatError
 from pmsm_hil.hil.runlog.reader import ScanState, scan_records
 
@@ -33,21 +34,19 @@ class RepairReport:
 def repair_mcap(src: Path, dst: Path) -> RepairReport:
     """Read the valid prefix of `src` chunk by chunk and write it to `dst` as a complete, indexed MCAP.
 
-    Raises McapFormatError if `src` is not an MCAP file or `dst` is `src`."""
+    `dst` is written through a temporary file and replaced only when complete: a failed repair leaves an
+    existing `dst` untouched. Raises McapFormatError if `src` is not an MCAP file or `dst` is `src`
+    (InputFileError if `dst` cannot be written)."""
     src, dst = Path(src), Path(dst)
-    if dst.resolve() == src.resolve():
-        raise McapFormatError("dst: must differ from src (the source is read while writing)")
+    if same_file(dst, src):
+        raise McapFormatError(f"dst: {dst} is the source {src} (the source is read while writing)")
     state = ScanState()
     schema_ids: dict[int, int] = {}
     channel_ids: dict[int, int] = {}
     topics: dict[int, str] = {}
     counts: dict[str, int] = {}
     messages = metadata = 0
-    try:
-        out = open(dst, "wb")  # noqa: SIM115 - closed below
-    except OSError as exc:
-        raise McapFormatError(f"dst: cannot write {dst} ({exc})") from None
-    with out:
+    with atomic_path(dst, option="-o") as tmp, open(tmp, "wb") as out:
         writer = Writer(out, compression=CompressionType.ZSTD)
         writer.start(profile="", library="pmsm-hil mcap-repair")
         for record in scan_records(src, state):

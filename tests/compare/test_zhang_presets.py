@@ -36,4 +36,5 @@ def test_trip_is_a_row_and_six_phase_metrics_reach_the_table(tmp_path: Path) -> 
     agg = {r["label"]: r for r in aggregate(res.rows)}
     assert agg["mptc1"]["n_trips"] == 1 and agg["mptc2"]["n_trips"] == 0
     lines = format_table(res)
-    assert "x-y rms A" in lines[0] and "trips" in lines[0]
+    assert "x-y rms A" in "\n".join(lines) and "trips" in "\n".join(lines)
+    assert max(len(line) for line in lines) <= 120

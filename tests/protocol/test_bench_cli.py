@@ -7,6 +7,7 @@ import json
 
 import pytest
 from pmsm_hil.hil.cli import bench_link
+from pmsm_hil.hil.cli.main import main
 
 
 def test_bench_link_json(capsys: pytest.CaptureFixture[str]) -> None:
@@ -23,9 +24,11 @@ def test_bench_link_json(capsys: pytest.CaptureFixture[str]) -> None:
     assert all(0 < r["median_us"] <= r["p99_us"] for r in d["round_trip"].values())
 
 
-def test_bench_link_bad_args(capsys: pytest.CaptureFixture[str]) -> None:
-    p = argparse.ArgumentParser()
-    bench_link.add_parser(p.add_subparsers())
-    args = p.parse_args(["link", "--links", "carrier-pigeon"])
-    assert args.func(args) == 2
-    assert "carrier-pigeon" in capsys.readouterr().out
+@pytest.mark.parametrize(("argv", "needle"), [
+    (["--links", "carrier-pigeon"], "--links: unknown link(s) carrier-pigeon"),
+    (["--count", "0"], "--count/--repeats must be ≥ 1"),
+])
+def test_bench_link_bad_args(capsys: pytest.CaptureFixture[str], argv: list[str], needle: str) -> None:
+    assert main(["bench", "link", *argv]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.startswith(f"hil: error: {needle}") and len(err.splitlines()) == 1

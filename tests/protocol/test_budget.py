@@ -7,6 +7,7 @@ import json
 
 import pytest
 from pmsm_hil.hil.cli import link_budget as cli
+from pmsm_hil.hil.cli.main import main
 from pmsm_hil.protocol.errors import BudgetError
 from pmsm_hil.protocol.links.budget import can_frame_bits, canfd_frame_bits, link_budget, serial_frame_bytes
 
@@ -81,10 +82,18 @@ def test_cli_json(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_cli_text_and_error(capsys: pytest.CaptureFixture[str]) -> None:
-    args = parse(["--link", "serial", "--baud", "3000000", "--phases", "6"])
+    args = parse(["--link", "serial", "--baud", "3000000", "--phases", "6", "--rate", "4000"])
     assert args.func(args) == 0
     out = capsys.readouterr().out
     assert "serial" in out and "max closed-loop rate" in out
-    args = parse(["--link", "can", "--bitrate", "-5"])
-    assert args.func(args) == 2
-    assert "bitrate" in capsys.readouterr().out
+    assert main(["link-budget", "--link", "can", "--bitrate", "-5"]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.startswith("hil: error: ") and "bitrate" in err and len(err.splitlines()) == 1
+
+
+def test_cli_too_slow_exits_1(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["link-budget", "--link", "can", "--bitrate", "1000000", "--rate", "10000"]) == 1
+    out, err = capsys.readouterr()
+    assert "TOO SLOW" in out and err.startswith("hil: link-budget: too slow: can carries at most 1481 Hz")
+    assert main(["link-budget", "--link", "canfd", "--rate", "5000"]) == 0
+    assert "(fits)" in capsys.readouterr().out

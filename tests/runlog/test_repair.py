@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 from pmsm_hil.hil.cli import mcap_repair
+from pmsm_hil.hil.cli.main import main
 from pmsm_hil.hil.runlog import McapFormatError, RunLogger, read_periods, read_trace, repair_mcap
 from pmsm_hil.hil.runlog.reader import MAGIC
 
@@ -106,9 +107,33 @@ def test_cli_repairs_cut_file(chunked_file: Path, tmp_path: Path, capsys: pytest
 def test_cli_bad_input_returns_error_without_traceback(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    assert mcap_repair.run(_parse(["mcap-repair", str(tmp_path / "missing.mcap")])) == 2
+    assert main(["mcap-repair", str(tmp_path / "missing.mcap")]) == 2
     junk = tmp_path / "junk.mcap"
     junk.write_bytes(b"x" * 100)
-    assert mcap_repair.run(_parse(["mcap-repair", str(junk)])) == 2
+    assert main(["mcap-repair", str(junk)]) == 2
     err = capsys.readouterr().err
-    assert "input" in err and "bad magic" in err and "Traceback" not in err
+    lines = err.strip().splitlines()
+    assert len(lines) == 2 and all(line.startswith("hil: error: ") for line in lines)
+    assert "IN.mcap" in lines[0] and "bad magic" in lines[1] and "Traceback" not in err
+
+
+def test_cli_failed_repair_leaves_existing_output_untouched(
+    chunked_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    good = tmp_path / "good.mcap"
+    assert main(["mcap-repair", str(chunked_file), "-o", str(good)]) == 0
+    before = good.read_bytes()
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(b"x" * 100)
+    assert main(["mcap-repair", str(junk), "-o", str(good)]) == 2
+    assert good.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["good.mcap", "junk.mcap"]  # no temporary left
+    capsys.readouterr()
+
+
+def test_cli_refuses_output_onto_its_input(chunked_file: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    before = chunked_file.read_bytes()
+    assert main(["mcap-repair", str(chunked_file), "-o", str(chunked_file)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("hil: error: -o ") and "reads or writes itself" in err
+    assert chunked_file.read_bytes() == before
