@@ -19,11 +19,18 @@ from pmsm_hil.dashboards.recording import RerunTargets
 def add_rerun_arguments(p: argparse.ArgumentParser) -> None:
     """Register the live-dashboard options on a subcommand parser."""
     g = p.add_argument_group("live dashboard (Rerun)")
-    g.add_argument("--rerun", action="store_true", help="stream the run to a native Rerun viewer (spawned)")
+    g.add_argument("--rerun", action="store_true",
+                   help="stream to a native Rerun viewer, spawned (needs a display; the viewer stays open)")
+    g.add_argument("--rerun-viewer-port", type=int, default=0, metavar="PORT",
+                   help="port of the spawned viewer (default 0: a free port; a viewer already listening on PORT "
+                        "is reused, so one viewer can collect several runs)")
     g.add_argument("--rerun-save", type=Path, metavar="FILE.rrd", help="write the dashboard recording to FILE.rrd")
     g.add_argument("--rerun-serve", action="store_true",
                    help="serve the dashboard over gRPC with the bundled web viewer (prints the URL; "
                         "keeps serving after the run until Ctrl-C)")
+    g.add_argument("--rerun-bind", default="127.0.0.1", metavar="ADDR",
+                   help="interface of the served data (gRPC) port (default 127.0.0.1: this machine only; "
+                        "0.0.0.0 opens it to the network)")
     g.add_argument("--rerun-web-port", type=int, default=9090, metavar="PORT", help="web viewer port (default 9090)")
     g.add_argument("--rerun-grpc-port", type=int, default=9876, metavar="PORT", help="gRPC port (default 9876)")
 
@@ -33,7 +40,9 @@ def rerun_targets(args: argparse.Namespace) -> RerunTargets:
     return RerunTargets(spawn=bool(getattr(args, "rerun", False)), save=getattr(args, "rerun_save", None),
                         serve=bool(getattr(args, "rerun_serve", False)),
                         grpc_port=int(getattr(args, "rerun_grpc_port", 9876)),
-                        web_port=int(getattr(args, "rerun_web_port", 9090)))
+                        web_port=int(getattr(args, "rerun_web_port", 9090)),
+                        bind=str(getattr(args, "rerun_bind", "127.0.0.1")),
+                        viewer_port=int(getattr(args, "rerun_viewer_port", 0)))
 
 
 def hold_serving(url: str) -> None:
@@ -62,7 +71,10 @@ def live_dashboard(args: argparse.Namespace, cfg: Any) -> Iterator[Callable[[np.
         yield None
         return
     from pmsm_hil.dashboards.live import LiveRerun
+    from pmsm_hil.dashboards.recording import check_display
 
+    if targets.spawn:
+        check_display()  # here, in one line, rather than from the dashboard process
     phases = cfg.machine.phases
     name = f"{cfg.motor.name} {cfg.controller} {cfg.scenario.name}"
     live = LiveRerun(targets, vdc=cfg.motor.vdc, ts_s=cfg.ts_s, phases=phases, name=name)

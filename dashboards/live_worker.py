@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any, Final
 
 import numpy as np
-from pmsm_hil.dashboards.recording import RerunTargets
+from pmsm_hil.dashboards.recording import RerunTargets, flush_recording
 from pmsm_hil.hil.records import PERIOD_DTYPE
 from pmsm_hil.hil.runlog.channel import NOTICE, send_status
 from pmsm_hil.hil.runlog.ring import RingConsumer
@@ -55,11 +55,11 @@ def run_live_worker(notices: Connection, status: Connection, ring_path: str, rin
             if kind == KIND_PERIODS:
                 streamer.send_block(np.frombuffer(ring.take(pos, nbytes), dtype=PERIOD_DTYPE))
             elif kind == KIND_FLUSH:
-                rec.flush()
+                flush_recording(rec)
                 send_status(status, b"F")
             elif kind == KIND_CLOSE:
                 break
-        rec.flush()
+        flush_recording(rec)
     except Exception as exc:
         reason = "error"
         send_status(status, b"E" + f"live dashboard: {type(exc).__name__}: {exc}".encode())

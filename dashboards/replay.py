@@ -8,7 +8,7 @@ from typing import Any
 
 from pmsm_hil.dashboards.blueprint import build_blueprint
 from pmsm_hil.dashboards.errors import DashboardError
-from pmsm_hil.dashboards.recording import RerunTargets, open_recording
+from pmsm_hil.dashboards.recording import RerunTargets, flush_recording, open_recording
 from pmsm_hil.dashboards.streamer import PeriodStreamer
 from pmsm_hil.hil.errors import HilError
 from pmsm_hil.hil.machine import layout_for_phases, load_machine
@@ -69,5 +69,5 @@ def replay_to_rerun(source: ReplaySource, targets: RerunTargets) -> tuple[Any, s
     streamer = PeriodStreamer(rec, vdc=source.vdc, ts_s=source.ts_s, legs=source.phases)
     for start in range(0, len(source.periods), BLOCK):
         streamer.send_block(source.periods[start:start + BLOCK])
-    rec.flush()
+    flush_recording(rec)
     return rec, url
