@@ -26,10 +26,13 @@ def run(args: argparse.Namespace) -> int:
     from pmsm_hil.dashboards.cli_live import hold_serving, rerun_targets
     from pmsm_hil.dashboards.errors import DashboardError
     from pmsm_hil.dashboards.replay import load_source, replay_to_rerun
+    from pmsm_hil.hil.atomic_write import refuse_inputs
 
     if not args.mcap.is_file():
         raise DashboardError(f"hil replay: RUN.mcap {args.mcap} does not exist or is not a file")
     targets = rerun_targets(args)
+    if targets.save is not None:
+        refuse_inputs(targets.save, [args.mcap], option="--rerun-save")
     if not targets.any():
         raise DashboardError("hil replay: choose --rerun, --rerun-save FILE.rrd or --rerun-serve")
     source = load_source(args.mcap, vdc=args.vdc)

@@ -154,6 +154,17 @@ def test_report_never_writes_onto_a_run(tmp_path: Path, capsys: pytest.CaptureFi
     assert sorted(p.name for p in tmp_path.iterdir()) == ["good.html", "r"]  # no temporary file left
 
 
+def test_rerun_save_onto_the_replayed_log_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    run_dir = tmp_path / "r"
+    assert main(["run", "--out", str(run_dir), *SHORT]) == 0
+    mcap = run_dir / "run.mcap"
+    before = mcap.read_bytes()
+    capsys.readouterr()
+    assert main(["replay", str(mcap), "--rerun-save", str(mcap)]) == 2
+    _one_line_error(capsys, f"--rerun-save {mcap}: names a file this command reads or writes itself")
+    assert mcap.read_bytes() == before
+
+
 def _replay(tmp_path: Path, rows: list[str], *extra: str, rpm: str = "1500") -> int:
     src = tmp_path / "in.csv"
     src.write_text("".join(f"{r}\n" for r in rows), encoding="utf-8")
