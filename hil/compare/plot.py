@@ -44,8 +44,7 @@ def _bars(result: CompareResult, plt: Any) -> Any:
             continue
         marked = False
         for i, r in enumerate(rows):
-            paper = result.preset.paper
-            val = paper.get(r.get("label") or r["controller"], paper.get(r["controller"], {})).get(paper_key)
+            val = result.preset.paper.get(r.get("label") or r["controller"], {}).get(paper_key)
             if val is not None and r["group"] == "main":
                 ax.plot(i, val, "r*", markersize=11, label=None if marked else "paper (experiment)")
                 marked = True
