@@ -26,6 +26,14 @@ from pmsm_hil.hil.cli.main import main
 HIL = Path(sys.executable).parent / "hil"
 
 
+def _end_viewer(port: int) -> None:
+    """Stop the viewer listening on `port` (found by its command line) and remove its log."""
+    for pid in _viewer_pids(port):
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(pid, signal.SIGTERM)
+    (Path(tempfile.gettempdir()) / f"hil-rerun-viewer-{port}.log").unlink(missing_ok=True)
+
+
 def _viewer_pids(port: int) -> list[int]:
     """Processes of the viewer listening on `port` (its command line names the port)."""
     pids = []
@@ -98,9 +106,7 @@ def test_live_run_and_replay_reach_the_spawned_viewer(tmp_path: Path, monkeypatc
             assert len(recs) == 2
             assert all(next(t for t in r.timelines if t.name == "time").end == 49_900_000 for r, _ in recs)
         finally:
-            for pid in _viewer_pids(port):
-                with contextlib.suppress(ProcessLookupError):
-                    os.kill(pid, signal.SIGTERM)
+            _end_viewer(port)
     assert "replayed 500 periods" in capsys.readouterr().out
 
 
@@ -127,9 +133,7 @@ def test_replay_to_a_viewer_that_cannot_start_honours_ctrl_c(tmp_path: Path) -> 
         if proc.poll() is None:
             proc.kill()
             proc.wait()
-        for pid in _viewer_pids(port):
-            with contextlib.suppress(ProcessLookupError):
-                os.kill(pid, signal.SIGTERM)
+        _end_viewer(port)
     assert proc.returncode == 130
     assert "hil: interrupted" in err and "Traceback" not in err
 
@@ -156,6 +160,7 @@ def test_spawn_call_receives_the_recording(monkeypatch: pytest.MonkeyPatch) -> N
     finally:
         rec.disconnect()
         server.disconnect()
+        _end_viewer(port)
 
 
 def test_no_display_is_a_one_line_error(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
