@@ -172,14 +172,14 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
         sensors = SensorConfig(adc_lsb_a=float(pick("adc_lsb")), noise_std_a=float(pick("noise")),
                                encoder_counts=int(pick("encoder_counts")), seed=int(pick("seed")))
         run_cfg = RunConfig(motor=motor, scenario=scenario, controller=controller, ts_s=float(pick("ts")),
-                         link=str(pick("link")), mode=str(pick("mode")), target=str(pick("target")),
-                         seed=int(pick("seed")), controller_params=controller_params, sensors=sensors,
-                         out_dir=None if no_log else Path(out), log_trace=bool(pick("log_trace")),
-                         miss_policy=str(pick("miss_policy")), watchdog_periods=int(pick("watchdog_periods")),
-                         tolerate=int(pick("tolerate")), faults=str(pick("fault") or ""),
-                         lockstep_timeout_s=float(pick("lockstep_timeout")),
-                         overrun_threshold_s=None if pick("overrun_threshold") is None
-                         else float(pick("overrun_threshold")))
+                            link=str(pick("link")), mode=str(pick("mode")), target=str(pick("target")),
+                            seed=int(pick("seed")), controller_params=controller_params, sensors=sensors,
+                            out_dir=None if no_log else Path(out), log_trace=bool(pick("log_trace")),
+                            miss_policy=str(pick("miss_policy")), watchdog_periods=int(pick("watchdog_periods")),
+                            tolerate=int(pick("tolerate")), faults=str(pick("fault") or ""),
+                            lockstep_timeout_s=float(pick("lockstep_timeout")),
+                            overrun_threshold_s=None if pick("overrun_threshold") is None
+                            else float(pick("overrun_threshold")))
     except (TypeError, ValueError) as exc:
         if isinstance(exc, ParameterError):
             raise
