@@ -96,6 +96,8 @@ def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None,
                                       end_code=int(EndCode.DUT_VIOLATION), safe_state=True)
                 with tap_setup_frames(conn.client, logger):  # the disabling Setpoint is logged too
                     conn.client.set_setpoint(enable=False, mode=0, reference=0.0, controller_id=cid)
+                    if conn.inproc_result is None:  # let it arrive before the link closes
+                        conn.client.linger(ClosedLoop.LINGER_S)
                 outcome.target_disabled = True
             if outcome is None:
                 outcome = _loop(cfg, conn, cid, logger, live)

@@ -91,4 +91,4 @@ def test_cli_unwritable_json_is_a_clear_error(tmp_path: Path, capsys: pytest.Cap
                "--json", str(tmp_path / "missing-dir" / "b.json")])
     assert rc == 2
     err = capsys.readouterr().err.strip()
-    assert err.startswith("hil: error: json file") and len(err.splitlines()) == 1
+    assert err.startswith("hil: error: --json") and "does not exist" in err and len(err.splitlines()) == 1
