@@ -52,7 +52,6 @@ from __future__ import annotations
 
 import math
 import random
-import time
 from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, fields
@@ -61,7 +60,7 @@ from typing import Literal, NamedTuple
 
 from pmsm_hil.protocol.errors import LinkSpecError
 from pmsm_hil.protocol.frame import Frame
-from pmsm_hil.protocol.links.link import Link
+from pmsm_hil.protocol.links.link import Link, poll_until
 from pmsm_hil.protocol.links.stats import LinkStats
 
 Direction = Literal["up", "down"]
@@ -78,7 +77,6 @@ _DURATION_KEYS = {"delay": "delay_s", "jitter": "jitter_s"}
 _KEYS = (*_PROBABILITY_KEYS, *_DURATION_KEYS, "silence")
 _UNITS = (("ms", Decimal("1e-3")), ("us", Decimal("1e-6")), ("µs", Decimal("1e-6")), ("ns", Decimal("1e-9")),
           ("s", Decimal(1)))
-_perf = time.perf_counter
 
 
 class FaultEvent(NamedTuple):
@@ -440,16 +438,7 @@ class FaultyLink:
 
     def recv(self, timeout_s: float) -> Frame | None:
         """Busy-poll up to `timeout_s` seconds of wall time (held frames need the run clock to pass)."""
-        poll = self.poll
-        fr = poll()
-        if fr is not None:
-            return fr
-        deadline = _perf() + timeout_s
-        while _perf() < deadline:
-            fr = poll()
-            if fr is not None:
-                return fr
-        return None
+        return poll_until(self.poll, timeout_s)
 
     def close(self) -> None:
         """Close the wrapped link and forget held frames (idempotent)."""

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import queue
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Protocol, runtime_checkable
 
 import can
@@ -52,6 +52,19 @@ class Link(Protocol):
     def close(self) -> None:
         """Release the transport (idempotent)."""
         ...
+
+
+def poll_until(poll: Callable[[], Frame | None], timeout_s: float) -> Frame | None:
+    """Call `poll` until it returns a frame or `timeout_s` seconds of wall time have passed (busy-polling)."""
+    fr = poll()
+    if fr is not None:
+        return fr
+    deadline = _perf() + timeout_s
+    while _perf() < deadline:
+        fr = poll()
+        if fr is not None:
+            return fr
+    return None
 
 
 class BusLink:
@@ -136,16 +149,7 @@ class BusLink:
 
     def recv(self, timeout_s: float) -> Frame | None:
         """Busy-poll up to `timeout_s` seconds."""
-        poll = self.poll
-        fr = poll()
-        if fr is not None:
-            return fr
-        deadline = _perf() + timeout_s
-        while _perf() < deadline:
-            fr = poll()
-            if fr is not None:
-                return fr
-        return None
+        return poll_until(self.poll, timeout_s)
 
     def close(self) -> None:
         """Shut the bus down (idempotent)."""
