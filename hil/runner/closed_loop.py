@@ -169,6 +169,7 @@ class ClosedLoop:
         self._poll_command = self.client.poll_command
         self._take_anomalies = self.client.take_anomalies
         self._max_state = self.cfg.machine.layout.max_state_code
+        self._ts_ns = cfg.ts_ns
         self._overrun_ns = cfg.overrun_threshold_ns
         self._timeout_ns = int(cfg.lockstep_timeout_s * 1e9)
         self._wait_ns = 0
@@ -312,7 +313,7 @@ class ClosedLoop:
             out.max_wait_ns = max(out.max_wait_ns, wait)
             self._wait_ns = 0
         if cmd is not None:
-            bad = check_command(cmd, self.cfg.ts_ns, self._max_state)
+            bad = check_command(cmd, self._ts_ns, self._max_state)
             if bad is not None:
                 findings.append((bad[0], describe(cmd), bad[1]))
                 cmd = None
