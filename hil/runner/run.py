@@ -221,4 +221,5 @@ def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection) -> dict[
         warnings.append(f"{out.violation_count} DUT contract violation(s) tolerated (--tolerate {cfg.tolerate}); "
                         f"first: {out.violations[0].message()}")
     metrics["warnings"] = warnings
+    metrics.update(conn.extra_metrics())
     return metrics

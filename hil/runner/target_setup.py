@@ -44,6 +44,9 @@ class TargetConnection:
     process_stderr: IO[bytes] | None = None
     #: a spawned target's own link counters (its last stdout line), filled by `close`
     target_link_stats: dict[str, int] = field(default_factory=dict)
+    #: target-specific metrics merged into metrics.json after the run (e.g. an emulated MCU's instruction
+    #: counts); called once, after the loop, before `close`
+    extra_metrics: Callable[[], dict[str, Any]] = field(default=lambda: {})
 
     def link_stats(self) -> dict[str, int]:
         """Host link counters plus decoder counters."""
