@@ -9,8 +9,9 @@ _FOLDERS = ("hil", "protocol", "sim_target", "dashboards")
 
 
 def _packages() -> list[str]:
-    """pmsm_hil plus every package below the mapped folders (see [tool.setuptools] package-dir)."""
-    packages = ["pmsm_hil"]
+    """pmsm_hil, its own subpackages (pmsm_hil/testing, pmsm_hil/conformance) and every package below the
+    mapped folders (see [tool.setuptools] package-dir)."""
+    packages = [".".join(init.parent.parts) for init in sorted(Path("pmsm_hil").rglob("__init__.py"))]
     for folder in _FOLDERS:
         for init in sorted(Path(folder).rglob("__init__.py")):
             packages.append(".".join(("pmsm_hil", folder, *init.parent.relative_to(folder).parts)))

@@ -1,0 +1,125 @@
+"""The pytest side: options `--hil-target`, `--hil-motor`, `--hil-controller`, `--hil-out` and the fixtures
+`hil` (per test: `hil.run(...)`, failure plots recorded in the JUnit XML) and `hil_session` (session-wide, for
+module-scoped runs). Loaded by every pytest run of an installation (entry point `pytest11`), so it imports
+only pytest here; nothing happens unless a test uses a fixture."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import pytest
+
+if TYPE_CHECKING:
+    from pmsm_hil.testing.report import Reporter
+    from pmsm_hil.testing.runs import HilResult, HilSettings
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    """The plugin's command-line options (group `pmsm-hil`)."""
+    group = parser.getgroup("pmsm-hil", "pmsm-hil firmware tests (pmsm_hil.testing)")
+    group.addoption("--hil-target", default="inproc", metavar="KIND",
+                    help="target of hil.run: inproc (default: the reference firmware in-process on a virtual bus), "
+                         "spawn (a `hil target` process over UDP), sil:PATH, qemu:PATH.elf (as `hil run --target`), "
+                         "external:LINKSPEC (a board on that link, e.g. external:socketcan:can0)")
+    group.addoption("--hil-motor", default=None, metavar="PRESET|FILE",
+                    help="motor of hil.run (default: hil run's)")
+    group.addoption("--hil-controller", default=None, metavar="NAME",
+                    help="controller of hil.run unless a test names one (default: hil run's; a foreign "
+                         "firmware: external)")
+    group.addoption("--hil-out", default=None, metavar="DIR",
+                    help="folder for run logs and failure plots, one subfolder per test (default: pytest's "
+                         "temporary folders)")
+
+
+def _settings(config: pytest.Config) -> HilSettings:
+    from pmsm_hil.testing.runs import HilSettings
+
+    out = config.getoption("--hil-out")
+    return HilSettings(target=config.getoption("--hil-target"), motor=config.getoption("--hil-motor"),
+                       controller=config.getoption("--hil-controller"),
+                       out=None if out is None else (config.invocation_params.dir / out).resolve())
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("_")[:120] or "test"
+
+
+class HilSession:
+    """The session's settings and run factory: `run(folder, **choices)` runs into a fresh folder below the
+    session's output (`--hil-out`, else a pytest temporary folder)."""
+
+    def __init__(self, settings: HilSettings, base: Path) -> None:
+        self.settings = settings
+        self.base = base
+
+    def folder(self, name: str) -> Path:
+        """A new, empty folder `name` (or `name-2`, ...) below the session's output."""
+        path, n = self.base / _slug(name), 2
+        while path.exists():
+            path, n = self.base / f"{_slug(name)}-{n}", n + 1
+        path.mkdir(parents=True)
+        return path
+
+    def run(self, folder: str | Path, *, reporter: Reporter | None = None, **choices: Any) -> HilResult:
+        """One closed-loop run (choices as `hil.run`) logged into the new folder `folder`."""
+        from pmsm_hil.testing.runs import execute
+
+        return execute(self.settings, self.folder(str(folder)), choices, reporter)
+
+
+@pytest.fixture(scope="session")
+def hil_session(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> HilSession:
+    """The session's target, motor, controller and output folder (for module-scoped runs)."""
+    settings = _settings(request.config)
+    base = settings.out if settings.out is not None else tmp_path_factory.mktemp("hil", numbered=True)
+    return HilSession(settings, base)
+
+
+class Hil:
+    """The `hil` fixture: `run(...)` takes the choices of `hil run` as keyword arguments (`controller`,
+    `scenario`, `speed`, `load`, `duration`, `settle`, `params={...}`, `sets={...}`, `faults=SPEC`, and any
+    other option by its name, e.g. `ts=50e-6`, `tolerate=3`) and returns a `HilResult`. Runs log into
+    `--hil-out`/<test>/run-N (else the test's tmp_path); failing assertions write their plots there."""
+
+    def __init__(self, session: HilSession, out_dir: Path, reporter: Reporter) -> None:
+        self.session = session
+        self.out_dir = out_dir
+        self.reporter = reporter
+        self._runs = 0
+
+    @property
+    def target(self) -> str:
+        """`--hil-target` of the session."""
+        return self.session.settings.target
+
+    def run(self, **choices: Any) -> HilResult:
+        """One closed-loop run against the session's target (see the class)."""
+        from pmsm_hil.testing.runs import execute
+
+        self._runs += 1
+        folder = self.out_dir / f"run-{self._runs}"
+        while folder.exists():
+            self._runs += 1
+            folder = self.out_dir / f"run-{self._runs}"
+        return execute(self.session.settings, folder, choices, self.reporter)
+
+
+@pytest.fixture
+def hil(request: pytest.FixtureRequest, hil_session: HilSession, tmp_path: Path) -> Iterator[Hil]:
+    """Closed-loop runs against `--hil-target` for this test (see `Hil`)."""
+    from pmsm_hil.testing.report import Reporter, pop_reporter, push_reporter
+
+    settings = hil_session.settings
+    out_dir = tmp_path if settings.out is None else settings.out / _slug(request.node.nodeid)
+    reporter = Reporter(out_dir, lambda: request.getfixturevalue("record_property"))
+    push_reporter(reporter)
+    try:
+        yield Hil(hil_session, out_dir, reporter)
+    finally:
+        pop_reporter(reporter)
+
+
+__all__ = ["Hil", "HilSession", "hil", "hil_session", "pytest_addoption"]
