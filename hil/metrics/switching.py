@@ -31,28 +31,28 @@ class SwitchingStats:
     narrow_pulses_gated: int = 0
 
 
+def switching_from_counts(periods: int, transitions: int, boundary: int, narrow: int, narrow_gated: int, *,
+                          ts_s: float, legs: int = 3) -> SwitchingStats:
+    """f_av (kHz) from transition counts over `periods` control periods of `ts_s` [s], `legs` inverter legs."""
+    ts = require_positive(ts_s, "ts_s")
+    n_legs = require_int(legs, "legs", 1)
+    if boundary > transitions:
+        raise MetricsError(
+            f"periods.boundary_transitions: {boundary} exceeds periods.leg_transitions {transitions}"
+        )
+    scale = 1e-3 / (2.0 * n_legs * periods * ts)
+    return SwitchingStats(freq_khz=transitions * scale, freq_intra_khz=(transitions - boundary) * scale,
+                          transitions=transitions, boundary_transitions=boundary, narrow_pulses=narrow,
+                          narrow_pulses_gated=narrow_gated)
+
+
 def switching_stats(periods: np.ndarray, *, ts_s: float, legs: int = 3) -> SwitchingStats:
     """f_av (kHz) over `periods` (control period `ts_s`, s) for an inverter with `legs` legs."""
     require_fields(periods, ("leg_transitions", "boundary_transitions", "narrow_pulses"), "periods")
     require_nonempty(periods, "periods")
-    ts = require_positive(ts_s, "ts_s")
-    n_legs = require_int(legs, "legs", 1)
-    total = int(np.sum(periods["leg_transitions"], dtype=np.int64))
-    boundary = int(np.sum(periods["boundary_transitions"], dtype=np.int64))
-    if boundary > total:
-        raise MetricsError(
-            f"periods.boundary_transitions: {boundary} exceeds periods.leg_transitions {total}"
-        )
-    duration = periods.shape[0] * ts
-    scale = 1e-3 / (2.0 * n_legs * duration)
-    return SwitchingStats(
-        freq_khz=total * scale,
-        freq_intra_khz=(total - boundary) * scale,
-        transitions=total,
-        boundary_transitions=boundary,
-        narrow_pulses=int(np.sum(periods["narrow_pulses"], dtype=np.int64)),
-        narrow_pulses_gated=(
-            int(np.sum(periods["narrow_pulses_gated"], dtype=np.int64))
-            if "narrow_pulses_gated" in (periods.dtype.names or ()) else 0
-        ),
-    )
+    gated = (int(np.sum(periods["narrow_pulses_gated"], dtype=np.int64))
+             if "narrow_pulses_gated" in (periods.dtype.names or ()) else 0)
+    return switching_from_counts(
+        int(periods.shape[0]), int(np.sum(periods["leg_transitions"], dtype=np.int64)),
+        int(np.sum(periods["boundary_transitions"], dtype=np.int64)),
+        int(np.sum(periods["narrow_pulses"], dtype=np.int64)), gated, ts_s=ts_s, legs=legs)

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from pmsm_hil.hil.metrics._validate import require_fields, require_nonempty, trace_times
+from pmsm_hil.hil.metrics.moments import WeightedMoments
 
 
 @dataclass(frozen=True)
@@ -47,9 +48,6 @@ def torque_stats(trace: np.ndarray) -> TorqueStats:
     """Mean, ripple RMS (deviation from the mean, eq. (20)) and peak-to-peak of `trace['torque']` (N·m)."""
     require_fields(trace, ("t", "torque"), "trace")
     require_nonempty(trace, "trace")
-    t = trace_times(trace["t"])
-    torque = np.asarray(trace["torque"], dtype=np.float64)
-    w = sample_weights(t)
-    mean = float(np.dot(w, torque))
-    rms = float(np.sqrt(np.dot(w, (torque - mean) ** 2)))
-    return TorqueStats(mean_nm=mean, ripple_rms_nm=rms, ripple_pp_nm=float(torque.max() - torque.min()))
+    acc = WeightedMoments()
+    acc.add(trace_times(trace["t"]), trace["torque"])
+    return TorqueStats(mean_nm=acc.mean, ripple_rms_nm=acc.rms_deviation, ripple_pp_nm=acc.maximum - acc.minimum)

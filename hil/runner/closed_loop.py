@@ -13,9 +13,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 from pmsm_hil.hil.mechanics import RPM_TO_RAD_S, DynoMechanics
+from pmsm_hil.hil.metrics.quantiles import IntQuantiles
 from pmsm_hil.hil.plant_base import PeriodStats, PlantBase
 from pmsm_hil.hil.runner.contract import MISSING, EndCode, Violation, check_command, describe
-from pmsm_hil.hil.runner.recorder import ByteRecords, FrameTap, frame_records, period_records
+from pmsm_hil.hil.runner.recorder import KEEP_PERIODS_MAX, ByteRecords, FrameTap, frame_records, period_records
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.target_client import TargetClient
 from pmsm_hil.hil.sensors import SensorModel
@@ -28,7 +29,11 @@ _NAN = math.nan
 
 @dataclass(slots=True)
 class LoopOutcome:
-    """What the loop produced: records, the metrics-window trace, counters and how it ended."""
+    """What the loop produced: records, counters and how it ended.
+
+    `periods` keeps every period record for runs of up to `KEEP_PERIODS_MAX` periods (longer runs stream
+    them to the block sink only); `frames` are streamed to the sink, never kept; `trace` is the end of the
+    metrics-window trace (the runner sets it: the span the THD was computed over)."""
 
     periods: ByteRecords
     frames: ByteRecords
@@ -39,7 +44,10 @@ class LoopOutcome:
     deadline_misses: int = 0
     late_commands: int = 0
     lost_commands: int = 0
+    #: real time: lateness of the period starts not yet folded into `lateness_us` (at most one block) [ns]
     lateness_ns: list[int] = field(default_factory=list)
+    #: real time: lateness of every period start [µs] (exact quantiles from counts)
+    lateness_us: IntQuantiles = field(default_factory=lambda: IntQuantiles(1e-3))
     end_reason: str = "completed"
     #: how the run ended (`EndCode`: the exit code of `hil run`)
     end_code: int = EndCode.COMPLETED
@@ -67,7 +75,9 @@ class LoopOutcome:
 #: violations kept in the outcome (all are counted)
 MAX_KEPT_VIOLATIONS = 100
 
-BlockSink = Callable[[ByteRecords, ByteRecords, "npt.NDArray[np.void] | None"], None]
+#: consumer of each block: (period records, raw frames or None when frames are not recorded, the block's
+#: metrics-window trace rows — a view valid during the call only)
+BlockSink = Callable[[np.ndarray, "np.ndarray | None", np.ndarray], None]
 
 
 class ClosedLoop:
@@ -77,7 +87,7 @@ class ClosedLoop:
     `_apply_and_trace`, `_await_command`, `_accept`, `_record`, `_check_end`); what differs between machine
     kinds (frame, record fields, trace layout) is bound once from `cfg.machine` in `__init__`."""
 
-    BLOCK = 1000  # periods per logger block
+    BLOCK = 1000  # periods per block handed to the sink (logger, metrics, live view)
     LINGER_S = 0.05  # wall time the link stays open after the disabling Setpoint [s]
 
     def __init__(self, cfg: RunConfig, plant: PlantBase, client: TargetClient, controller_id: int,
@@ -96,6 +106,8 @@ class ClosedLoop:
         self._trace_dtype = layout.trace_dtype
         self._trace_columns = layout.trace_columns
         self._second_set_trip = layout.legs > 3
+        self._trace: npt.NDArray[np.void] = np.zeros(0, dtype=self._trace_dtype)  # one block (`_start`)
+        self._trace_n = 0  # rows of `_trace` in use
         #: run time [s] the link fault injection sees: the period start in lockstep (time moves in whole
         #: periods), the wall time since the start in real time
         self.clock_s = 0.0
@@ -112,7 +124,8 @@ class ClosedLoop:
         """Run settle + metrics window; stops early on a trip or watchdog (safe state applied).
 
         The cyclic garbage collector is paused for the loop (a gen-2 pass stalls it for milliseconds);
-        the loop allocates no reference cycles, so memory stays bounded."""
+        the loop allocates no reference cycles, so memory stays bounded. Every `BLOCK` periods, and once
+        more at the end (the safe stop's frames included), the records go to the sink."""
         gc_was_enabled = gc.isenabled()
         gc.collect()
         gc.disable()
@@ -128,27 +141,44 @@ class ClosedLoop:
             self._stop(out)
             out.wall_time_s = (time.perf_counter_ns() - self._t_wall0) / 1e9
             out.late_commands = self.client.stale_commands
-            out.trace = self._trace[:self._trace_n]
-            if gc_was_enabled:
-                gc.enable()
+            try:
+                self._flush(out)
+            finally:
+                if gc_was_enabled:
+                    gc.enable()
         return out
+
+    def _flush(self, out: LoopOutcome) -> None:
+        """Hand the block (periods, frames, trace rows since the last flush) to the sink and start a new one."""
+        periods = out.periods.take()
+        frames = out.frames.take() if self.record_frames else None
+        trace = self._trace[:self._trace_n]
+        if out.lateness_ns:
+            out.lateness_us.add(np.asarray(out.lateness_ns, dtype=np.int64))
+            out.lateness_ns.clear()
+        try:
+            if self.sink is not None:
+                self.sink(periods, frames, trace)
+        finally:
+            self._trace_n = 0
 
     # --- set-up -------------------------------------------------------------------------------------
     def _start(self) -> LoopOutcome:
-        """Allocate the records and the trace, tap the link, enable the target at the first reference."""
+        """Allocate one block of records and trace, tap the link, enable the target at the first reference."""
         cfg, sc = self.cfg, self.cfg.scenario
         self._n_total = round(sc.total_s / cfg.ts_s)
         n_settle = round(sc.settle_s / cfg.ts_s)
         self._n_settle = n_settle
         rows_per_period = math.ceil(cfg.ts_s / cfg.trace_dt_s) + 1
-        trace = np.zeros((self._n_total - n_settle) * rows_per_period, dtype=self._trace_dtype)
+        trace = np.zeros(self.BLOCK * rows_per_period, dtype=self._trace_dtype)
         trace.view(np.uint8)[:] = 0  # touch every page now, not inside the paced loop
         self._trace = trace
         self._trace_view = trace.view(np.float64).reshape(-1, self._trace_columns)
         self._trace_n = 0
-        out = LoopOutcome(period_records(), frame_records(), trace, n_settle)
-        out.periods.reserve(self._n_total)
-        out.frames.reserve(4 * self._n_total)
+        keep = self._n_total <= KEEP_PERIODS_MAX
+        out = LoopOutcome(period_records(keep=keep), frame_records(keep=False), trace[:0], n_settle)
+        out.periods.reserve(self._n_total if keep else self.BLOCK)
+        out.frames.reserve(4 * self.BLOCK)
         self._tap: FrameTap | None = None
         if self.record_frames:
             self._tap = FrameTap(self.client.link, out.frames)
@@ -188,7 +218,7 @@ class ClosedLoop:
         apply_and_trace, accept, record = self._apply_and_trace, self._accept, self._record
         delayed = self.faulty is not None and not realtime and self.faulty.spec.delays
         await_command = self._await_delayed if delayed else self._await_command
-        check_end, sink, block = self._check_end, self.sink, self.BLOCK
+        check_end, flush, block = self._check_end, self._flush, self.BLOCK
         check, tolerate = self._check_contract, self.cfg.tolerate
         for k in range(self._n_total):
             t = k * ts_s
@@ -213,8 +243,8 @@ class ClosedLoop:
                           f"put in the safe state (zero vector, all lower switches on)")
                 break
             self._next_start += ts_ns
-            if sink is not None and (k + 1) % block == 0:
-                sink(out.periods, out.frames, None)
+            if (k + 1) % block == 0:
+                flush(out)
             if check_end(out, k, smp, st, extra):
                 break
 

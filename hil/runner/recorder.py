@@ -8,6 +8,7 @@ from typing import Any, Final
 
 import numpy as np
 import numpy.typing as npt
+from pmsm_hil.hil.errors import HilError
 from pmsm_hil.hil.records import FRAME_DTYPE, PERIOD_DTYPE
 from pmsm_hil.protocol.frame import Frame
 
@@ -20,14 +21,20 @@ if PERIOD_STRUCT.size != PERIOD_DTYPE.itemsize or FRAME_STRUCT.size != FRAME_DTY
     raise ImportError("recorder struct layouts are out of step with hil/records.py dtypes")
 
 
+class RecordsNotKeptError(HilError):
+    """The records of a long run were streamed to the log and the metrics, not kept in memory."""
+
+
 class ByteRecords:
     """Packed records in a buffer; `take()` returns the new block as a structured array.
 
     `reserve(n)` pre-allocates (and touches) room for n records so a paced loop never waits on a
-    reallocation or a page fault; `append_packed` then writes in place.
+    reallocation or a page fault; `append_packed` then writes in place. With `keep=False` a `take()` also
+    drops the records it returns (the buffer is reused: memory stays at one block), and `all()` then
+    refuses with `RecordsNotKeptError`.
     """
 
-    def __init__(self, dtype: np.dtype, fmt: struct.Struct) -> None:
+    def __init__(self, dtype: np.dtype, fmt: struct.Struct, *, keep: bool = True) -> None:
         self.dtype = dtype
         self.pack = fmt.pack
         self.pack_into = fmt.pack_into
@@ -35,6 +42,9 @@ class ByteRecords:
         self.buf = bytearray()
         self.end = 0  # bytes in use
         self._taken = 0
+        self.keep = keep
+        #: records dropped after a `take()` (keep=False)
+        self.dropped = 0
 
     def reserve(self, records: int) -> None:
         """Make room for `records` more records without reallocating."""
@@ -56,22 +66,36 @@ class ByteRecords:
     def take(self) -> npt.NDArray[np.void]:
         """Records appended since the last take (a copy)."""
         start = self._taken
-        self._taken = self.end
-        return np.frombuffer(bytes(self.buf[start:self.end]), dtype=self.dtype)
+        block = np.frombuffer(bytes(self.buf[start:self.end]), dtype=self.dtype)
+        if self.keep:
+            self._taken = self.end
+        else:
+            self.dropped += block.shape[0]
+            self.end = self._taken = 0
+        return block
 
     def all(self) -> npt.NDArray[np.void]:
-        """Every record so far (a copy)."""
+        """Every record so far (a copy); `RecordsNotKeptError` if some were dropped (keep=False)."""
+        if self.dropped:
+            raise RecordsNotKeptError(
+                f"records: {self.dropped} records of this run were streamed to the log and the metrics, not "
+                f"kept in memory (runs of more than {KEEP_PERIODS_MAX} periods); read them from its run.mcap")
         return np.frombuffer(bytes(self.buf[: self.end]), dtype=self.dtype)
 
 
-def period_records() -> ByteRecords:
+#: period records of runs up to this many periods stay in memory (`LoopOutcome.periods.all()`, ≈ 37 MB);
+#: longer runs stream them (to the logger and the metrics) in blocks
+KEEP_PERIODS_MAX = 200_000
+
+
+def period_records(*, keep: bool = True) -> ByteRecords:
     """Empty period record store."""
-    return ByteRecords(PERIOD_DTYPE, PERIOD_STRUCT)
+    return ByteRecords(PERIOD_DTYPE, PERIOD_STRUCT, keep=keep)
 
 
-def frame_records() -> ByteRecords:
+def frame_records(*, keep: bool = True) -> ByteRecords:
     """Empty raw-frame record store."""
-    return ByteRecords(FRAME_DTYPE, FRAME_STRUCT)
+    return ByteRecords(FRAME_DTYPE, FRAME_STRUCT, keep=keep)
 
 
 class FrameTap:

@@ -16,15 +16,15 @@ import numpy as np
 from pmsm_hil.hil.atomic_write import write_text_atomic
 from pmsm_hil.hil.metrics.errors import MetricsWindowError
 from pmsm_hil.hil.metrics.registry import METRICS, WINDOW
-from pmsm_hil.hil.metrics.summary import compute_run_metrics
+from pmsm_hil.hil.runner.block_sink import RunSink
 from pmsm_hil.hil.runner.budget_check import check_realtime_budget
 from pmsm_hil.hil.runner.closed_loop import ClosedLoop, LoopOutcome
 from pmsm_hil.hil.runner.contract import RULES, EndCode
-from pmsm_hil.hil.runner.fault_setup import fault_records, install_faults
+from pmsm_hil.hil.runner.fault_setup import install_faults
 from pmsm_hil.hil.runner.plant_setup import build_plant
-from pmsm_hil.hil.runner.recorder import ByteRecords, frame_records, period_records
+from pmsm_hil.hil.runner.recorder import frame_records, period_records
 from pmsm_hil.hil.runner.run_config import RunConfig, controller_id
-from pmsm_hil.hil.runner.run_limits import check_run_limits, speed_reference_check
+from pmsm_hil.hil.runner.run_limits import check_run_limits
 from pmsm_hil.hil.runner.run_metadata import run_metadata, tap_setup_frames
 from pmsm_hil.hil.runner.target_client import DutViolationError
 from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target
@@ -84,6 +84,7 @@ def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None,
     logger, mcap_path = _open_logger(cfg)
     conn: TargetConnection | None = None
     outcome: LoopOutcome | None = None
+    sink = RunSink(cfg, logger, live)
     try:
         with _terminate_as_interrupt():
             conn = connect_target(cfg, silent_after=silent_after)
@@ -100,8 +101,8 @@ def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None,
                         conn.client.linger(ClosedLoop.LINGER_S)
                 outcome.target_disabled = True
             if outcome is None:
-                outcome = _loop(cfg, conn, cid, logger, live)
-        metrics = summarize(cfg, outcome, conn)
+                outcome = _loop(cfg, conn, cid, sink)
+        metrics = summarize(cfg, outcome, conn, sink)
     finally:
         if conn is not None:
             conn.close()
@@ -112,67 +113,47 @@ def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None,
     return RunResult(metrics=metrics, outcome=outcome, mcap_path=mcap_path)
 
 
-def _loop(cfg: RunConfig, conn: TargetConnection, cid: int, logger: Any,
-          live: Callable[[np.ndarray], None] | None) -> LoopOutcome:
-    """The closed loop with its block sink; the last block (and the frames of the safe stop) is always
-    flushed, whatever ended the loop."""
-
-    def sink(periods: ByteRecords, frames: ByteRecords, trace: Any) -> None:
-        block = periods.take()
-        if live is not None:
-            live(block)
-        if logger is None:
-            return
-        logger.submit_periods(block)
-        if len(frames):
-            logger.submit_frames(frames.take())
-        if faulty is not None:
-            logger.submit_faults(fault_records(faulty, cfg.ts_s))
-
+def _loop(cfg: RunConfig, conn: TargetConnection, cid: int, sink: RunSink) -> LoopOutcome:
+    """The closed loop feeding `sink` block by block (the last block, with the frames of the safe stop, is
+    flushed whatever ended the loop)."""
     spec = cfg.fault_spec
-    use_sink = logger is not None or live is not None
     loop = ClosedLoop(cfg, build_plant(cfg), conn.client, cid, inproc_result=conn.inproc_result,
-                      record_frames=logger is not None, sink=sink if use_sink else None)
+                      record_frames=sink.logger is not None, sink=sink)
     faulty = install_faults(conn.client, spec, loop.run_time_s) if spec is not None else None
-    loop.faulty = faulty
+    loop.faulty = sink.faulty = faulty
     outcome = loop.run()
-    if use_sink:
-        sink(outcome.periods, outcome.frames, None)
     if faulty is not None:
         outcome.link_faults = dict(faulty.counts)
-    if logger is not None and cfg.log_trace and len(outcome.trace):
-        logger.submit_trace(outcome.trace)
+    outcome.trace = sink.window.tail.array()
     return outcome
 
 
-def _window_metrics(cfg: RunConfig, out: LoopOutcome, link_stats: dict[str, int]) -> dict[str, Any]:
+def _window_metrics(cfg: RunConfig, out: LoopOutcome, sink: RunSink, link_stats: dict[str, int]) -> dict[str, Any]:
     """Metrics over the window; every window key null (with the reason) when the run ended before it."""
-    periods = out.periods.all()
-    window = periods[out.window_start_period:]
-    wall_window = out.wall_time_s * len(window) / max(len(periods), 1)
-    if len(window) and len(out.trace):
+    window = sink.window
+    wall_window = out.wall_time_s * window.periods / max(out.completed_periods, 1)
+    if window.periods and window.torque.samples:
         try:
-            return compute_run_metrics(window, out.trace, ts_s=cfg.ts_s, pole_pairs=cfg.motor.pole_pairs,
-                                       legs=cfg.machine.phases, wall_time_s=wall_window, link_stats=link_stats,
-                                       deadline_misses=out.deadline_misses)
+            return window.result(ts_s=cfg.ts_s, pole_pairs=cfg.motor.pole_pairs, legs=cfg.machine.phases,
+                                 wall_time_s=wall_window, link_stats=link_stats, deadline_misses=out.deadline_misses)
         except MetricsWindowError as exc:
             note = str(exc)
     else:
-        note = f"run ended before the metrics window ({len(window)} window periods)"
+        note = f"run ended before the metrics window ({window.periods} window periods)"
     metrics: dict[str, Any] = {m.key: None for m in METRICS if m.source == WINDOW and m.sub is None}
-    metrics.update(periods=len(window), link=dict(link_stats), deadline_misses=out.deadline_misses,
+    metrics.update(periods=window.periods, link=dict(link_stats), deadline_misses=out.deadline_misses,
                    current_thd_note=note)
     metrics.pop("xy_current_rms_a", None)
     return metrics
 
 
-def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection) -> dict[str, Any]:
+def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection, sink: RunSink) -> dict[str, Any]:
     """Metrics over the metrics window plus run-level facts (ending, contract findings, lateness, link)."""
     stats = conn.link_stats()
     link_stats = {"frames_tx": stats.get("frames_tx", 0), "frames_rx": stats.get("frames_rx", 0),
                   "crc_errors": stats.get("crc_errors", 0), "lost": out.lost_commands,
                   "late": out.late_commands}
-    metrics = _window_metrics(cfg, out, link_stats)
+    metrics = _window_metrics(cfg, out, sink, link_stats)
     metrics["link"].update({k: v for k, v in stats.items() if k not in metrics["link"]})
     metrics["end_reason"] = out.end_reason
     metrics["end_code"] = out.end_code
@@ -195,15 +176,14 @@ def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection) -> dict[
     metrics["mode"] = cfg.mode
     metrics["link_spec"] = cfg.link
     warnings: list[str] = []
-    if cfg.mode == "realtime" and out.lateness_ns:
-        lat = np.asarray(out.lateness_ns, dtype=np.float64) / 1e3
-        metrics["lateness_us"] = {"median": float(np.median(lat)), "p99": float(np.percentile(lat, 99)),
-                                  "max": float(lat.max())}
+    lat = out.lateness_us
+    if cfg.mode == "realtime" and lat.n:
+        metrics["lateness_us"] = {"median": lat.median(), "p99": lat.percentile(99.0), "max": lat.maximum()}
         threshold_us = cfg.overrun_threshold_ns / 1e3
         metrics["overruns"] = out.overruns
         metrics["overrun_threshold_us"] = threshold_us
         if out.overruns or metrics["lateness_us"]["p99"] > threshold_us:
-            warnings.append(f"real time: {out.overruns} of {len(lat)} periods started more than {threshold_us:g} µs "
+            warnings.append(f"real time: {out.overruns} of {lat.n} periods started more than {threshold_us:g} µs "
                             f"late (lateness p99 {metrics['lateness_us']['p99']:.1f} µs): the host did not keep "
                             f"the period; timing results are not trustworthy")
     speed_mean = metrics.get("speed_mean_rpm")
@@ -212,8 +192,7 @@ def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection) -> dict[
                                   if cfg.scenario.speed_rpm and math.isfinite(speed_err) else None)
     metrics["candidate_miss_rate"] = (out.candidate_misses / out.candidate_checked
                                       if out.candidate_checked else None)
-    missed, speed_warning = (speed_reference_check(out.periods.all()[out.window_start_period:])
-                             if out.end_code == EndCode.COMPLETED else (None, None))
+    missed, speed_warning = sink.speed_tail.check() if out.end_code == EndCode.COMPLETED else (None, None)
     metrics["speed_reference_missed"] = missed
     if speed_warning is not None:
         warnings.append(speed_warning)

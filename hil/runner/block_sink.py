@@ -1,0 +1,55 @@
+"""`RunSink`: where each block of the closed loop goes while the run goes on — the window metrics, the
+speed-reference check, the live view and the run logger — so nothing of the run has to stay in memory."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from pmsm_hil.hil.metrics.streaming import WindowMetrics
+from pmsm_hil.hil.runner.fault_setup import fault_records
+from pmsm_hil.hil.runner.run_config import RunConfig
+from pmsm_hil.hil.runner.run_limits import SpeedTail
+from pmsm_hil.protocol.links.faults import FaultyLink
+
+
+class RunSink:
+    """Consumes the loop's blocks (`ClosedLoop` BlockSink): period records, raw frames, window trace rows."""
+
+    def __init__(self, cfg: RunConfig, logger: Any, live: Callable[[np.ndarray], None] | None) -> None:
+        sc = cfg.scenario
+        n_total = round(sc.total_s / cfg.ts_s)
+        self.window_start = round(sc.settle_s / cfg.ts_s)
+        self.window = WindowMetrics(cfg.machine.layout.trace_dtype)
+        self.speed_tail = SpeedTail(self.window_start, n_total - self.window_start)
+        self.logger = logger
+        self.live = live
+        self.log_trace = cfg.log_trace
+        self.ts_s = cfg.ts_s
+        #: the fault-injecting link (`--fault`), set once installed
+        self.faulty: FaultyLink | None = None
+        #: period records seen so far
+        self.periods_seen = 0
+
+    def __call__(self, periods: np.ndarray, frames: np.ndarray | None, trace: np.ndarray) -> None:
+        first = self.periods_seen
+        self.periods_seen += periods.shape[0]
+        in_window = max(self.window_start - first, 0)
+        if in_window < periods.shape[0]:
+            self.window.add_periods(periods[in_window:])
+        self.window.add_trace(trace)
+        self.speed_tail.add(periods, first)
+        if self.live is not None:
+            self.live(periods)
+        faults = fault_records(self.faulty, self.ts_s) if self.faulty is not None else None  # drained always
+        logger = self.logger
+        if logger is None:
+            return
+        logger.submit_periods(periods)
+        if frames is not None and frames.shape[0]:
+            logger.submit_frames(frames)
+        if faults is not None:
+            logger.submit_faults(faults)
+        if self.log_trace and trace.shape[0]:
+            logger.submit_trace(trace)
