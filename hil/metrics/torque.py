@@ -23,27 +23,6 @@ class TorqueStats:
     ripple_pp_nm: float
 
 
-def sample_weights(t: np.ndarray) -> np.ndarray:
-    """Trapezoidal weights of samples at times `t` (s), normalised to sum 1; equal weights if one sample."""
-    n = t.shape[0]
-    if n < 2:
-        ones: np.ndarray = np.ones(n, dtype=np.float64) / max(n, 1)
-        return ones
-    dt = np.diff(t)
-    w = np.empty(n, dtype=np.float64)
-    w[0] = dt[0] / 2.0
-    w[-1] = dt[-1] / 2.0
-    w[1:-1] = (dt[:-1] + dt[1:]) / 2.0
-    total = float(w.sum())
-    normalised: np.ndarray = w / total
-    return normalised
-
-
-def weighted_mean(t: np.ndarray, x: np.ndarray) -> float:
-    """Time-weighted mean of `x` sampled at `t`."""
-    return float(np.dot(sample_weights(t), x))
-
-
 def torque_stats(trace: np.ndarray) -> TorqueStats:
     """Mean, ripple RMS (deviation from the mean, eq. (20)) and peak-to-peak of `trace['torque']` (N·m)."""
     require_fields(trace, ("t", "torque"), "trace")
