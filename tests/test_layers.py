@@ -21,6 +21,7 @@ LAYER_OF = (
     ("pmsm_hil.hil.cli", "application"),
     ("pmsm_hil.hil.compare", "application"),
     ("pmsm_hil.hil.bench", "application"),
+    ("pmsm_hil.hil.sweep", "application"),
     ("pmsm_hil.dashboards", "dashboards"),
     ("pmsm_hil.hil.runner", "runner"),
     ("pmsm_hil.hil.runlog", "infrastructure"),

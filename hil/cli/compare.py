@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 from pmsm_hil.hil.atomic_write import atomic_path, refuse_inputs
+from pmsm_hil.hil.cli.parsing import non_negative_int
 from pmsm_hil.hil.errors import InputFileError
 
 
@@ -29,6 +30,11 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
                         "rotor angle; DIR/runs/NAME/LABEL with the 2 µs trace) and write a self-contained HTML "
                         "report of them to FILE (default DIR/NAME.html)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("--workers", type=non_negative_int("--workers"), metavar="N",
+                   help="worker processes (default: every core; 0: one run after the other in this process)")
+    p.add_argument("--engine", choices=("local", "dask", "ray"), default="local",
+                   help="where the runs go, as for `hil sweep` (docs/sweeps.md; default local process pool)")
+    p.add_argument("--address", metavar="ADDR", help="Dask scheduler or Ray cluster address (--engine dask/ray)")
     p.set_defaults(func=run)
 
 
@@ -40,6 +46,7 @@ def run(args: argparse.Namespace) -> int:
     from pmsm_hil.hil.compare.runs import run_preset
     from pmsm_hil.hil.compare.table import format_table, write_csv, write_json
     from pmsm_hil.hil.runner.run_config import controller_id
+    from pmsm_hil.hil.sweep.engines import open_engine
 
     preset = load_preset(args.preset)
     if args.report and Path(args.preset).is_file():
@@ -58,7 +65,9 @@ def run(args: argparse.Namespace) -> int:
 
     selection = (ReportSelection(preset, args.out / "runs" / dir_name(preset.name))
                  if args.report is not None else None)
-    result = run_preset(preset, controllers=names, progress=progress, run_dir=selection)
+    with open_engine(args.engine, workers=args.workers, address=args.address) as engine:
+        progress(f"compare {preset.name}: on {engine.describe()}")
+        result = run_preset(preset, controllers=names, progress=progress, run_dir=selection, engine=engine)
     for line in format_table(result):
         print(line)
     base = args.out / preset.name

@@ -13,10 +13,10 @@ from pmsm_hil.hil.runlog.errors import RunLogError
 from pmsm_hil.protocol.errors import ProtocolError
 
 # (group or None, module): each module exposes add_parser(subparsers) that sets func=run.
-_TOP_LEVEL = ("run", "target", "link_budget", "mcap_repair", "compare", "replay_mcap", "report")
+_TOP_LEVEL = ("run", "target", "link_budget", "mcap_repair", "compare", "sweep", "replay_mcap", "report")
 _GROUPS = {
     "plant": ("plant_replay",),
-    "bench": ("bench_plant", "bench_loop", "bench_controllers", "bench_link"),
+    "bench": ("bench_plant", "bench_loop", "bench_controllers", "bench_link", "bench_sweep", "bench_memory"),
 }
 _GROUP_HELP = {"plant": "offline plant tools", "bench": "benchmarks that print figures"}
 

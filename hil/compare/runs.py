@@ -17,6 +17,7 @@ from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import load_scenario
+from pmsm_hil.hil.sweep.engines import Engine, InlineEngine
 
 #: metrics copied from the runner's metrics into a row (the registry's compare-row view, run sources)
 ROW_METRICS = row_keys(source=(WINDOW, RUN))
@@ -127,72 +128,143 @@ def _spec(p: ComparePreset, label: str) -> Variant:
     return next((v for v in p.specs() if v.label == label), Variant(label, label))
 
 
-def _equal_fav(p: ComparePreset, result: CompareResult, progress: Progress,
+@dataclass(frozen=True, slots=True)
+class CompareTask:
+    """One run of a preset as sent to an engine's worker (hil/sweep/engines.py)."""
+
+    preset: ComparePreset
+    spec: Variant
+    ts_s: float
+    point: dict[str, float]
+    group: str = "main"
+    theta0_rad: float = 0.0
+    out_dir: Path | None = None
+    #: return the speed/torque series (the accel figure's run)
+    series: bool = False
+
+
+@dataclass(frozen=True, slots=True)
+class TaskResult:
+    """A run's row and (accel) series, or the plant-trip reason, or another error's message."""
+
+    row: dict[str, Any] | None = None
+    series: dict[str, list[float]] | None = None
+    trip: str | None = None
+    error: str | None = None
+
+
+def run_task(task: CompareTask) -> TaskResult:
+    """Run one task (in a worker): `run_one`, the accel series subsampled to ~3000 points."""
+    try:
+        row, periods = run_one(task.preset, task.spec, task.ts_s, task.point, group=task.group,
+                               theta0_rad=task.theta0_rad, out_dir=task.out_dir)
+    except HilError as exc:
+        if "plant trip" in str(exc):
+            return TaskResult(trip=str(exc))
+        return TaskResult(error=str(exc))
+    series = None
+    if task.series:
+        step = max(1, len(periods) // 3000)
+        series = {"t": periods["t"][::step].tolist(),
+                  "speed_rpm": (periods["omega_m"][::step] / RPM_TO_RAD_S).tolist(),
+                  "torque_nm": periods["torque"][::step].tolist()}
+    return TaskResult(row=row, series=series)
+
+
+def _run_all(engine: Engine, tasks: list[CompareTask], say: Progress, labels: list[str]) -> list[TaskResult]:
+    """Every task on the engine; results in task order; progress as they finish."""
+    out: list[TaskResult | None] = [None] * len(tasks)
+    for n, (i, res, error) in enumerate(engine.map_unordered(run_task, tasks), start=1):
+        out[i] = res if error is None else TaskResult(error=f"worker lost: {error}")
+        say(f"run {labels[i].rstrip()} ({n}/{len(tasks)})")
+    return [r if r is not None else TaskResult(error="no result") for r in out]
+
+
+def _equal_fav(p: ComparePreset, result: CompareResult, progress: Progress, engine: Engine,
                run_dir: RunDirFor | None = None) -> None:
     """Change the adjusted run's Ts until its f_av (`p.equal_fav_metric`, mean over the initial rotor
-    angles) matches the reference's (f_av ∝ 1/Ts)."""
+    angles) matches the reference's (f_av ∝ 1/Ts). Points search side by side: each round runs every
+    rotor angle of every point still searching."""
     assert p.equal_fav is not None  # checked by the caller
     ref_name, adj_name = p.equal_fav
     key = p.equal_fav_metric
     adj = _spec(p, adj_name)
+    searches: list[dict[str, Any]] = []
     for point in _points(p):
         refs = [r for r in result.rows if r.get("label", r["controller"]) == ref_name and r["group"] == "main"
                 and all(r[k] == v for k, v in point.items()) and r.get(key)]
-        if not refs:
-            continue
-        target = float(np.mean([float(r[key]) for r in refs]))
-        ts = p.ts_s
-        rows: list[dict[str, Any]] = []
-        for _ in range(FAV_ITER):
-            rows = [run_one(p, adj, ts, point, group="equal_fav", theta0_rad=th,
-                            out_dir=run_dir(adj, point, th, "equal_fav") if run_dir else None)[0]
-                    for th in p.theta0_rad]
-            fav = float(np.mean([float(r[key] or 0.0) for r in rows]))
+        if refs:
+            searches.append({"point": point, "target": float(np.mean([float(r[key]) for r in refs])),
+                             "ts": p.ts_s, "rows": [], "done": False})
+    for _ in range(FAV_ITER):
+        active = [s for s in searches if not s["done"]]
+        if not active:
+            break
+        tasks = [CompareTask(p, adj, s["ts"], s["point"], "equal_fav", th,
+                             run_dir(adj, s["point"], th, "equal_fav") if run_dir else None)
+                 for s in active for th in p.theta0_rad]
+        outcomes = iter(_run_all(engine, tasks, lambda _msg: None, [""] * len(tasks)))
+        for s in active:
+            s["rows"] = []
+            for _th in p.theta0_rad:
+                res = next(outcomes)
+                if res.row is None:
+                    raise HilError(f"{adj_name} equal f_av: {res.trip or res.error}")
+                s["rows"].append(res.row)
+            fav = float(np.mean([float(r[key] or 0.0) for r in s["rows"]]))
+            ts, target = s["ts"], s["target"]
             progress(f"  equal f_av: {adj_name} at Ts = {ts * 1e6:.1f} µs -> {fav:.3f} kHz (target {target:.3f})")
             if fav <= 0.0 or abs(fav - target) <= FAV_TOL * target:
-                break
+                s["done"] = True
+                continue
             ts_new = round(ts * fav / target * 1e7) / 1e7  # f_av ∝ 1/Ts; 0.1 µs grid
             ts_new = min(max(ts_new, 5e-6), 1e-2)
             if math.isclose(ts_new, ts):
-                break
-            ts = ts_new
-        for row in rows:
-            row["equal_fav_target_khz"] = target
+                s["done"] = True
+                continue
+            s["ts"] = ts_new
+    for s in searches:
+        for row in s["rows"]:
+            row["equal_fav_target_khz"] = s["target"]
             result.rows.append(row)
 
 
 def run_preset(p: ComparePreset, *, controllers: list[str] | None = None,
-               progress: Progress | None = None, run_dir: RunDirFor | None = None) -> CompareResult:
+               progress: Progress | None = None, run_dir: RunDirFor | None = None,
+               engine: Engine | None = None) -> CompareResult:
     """Run every controller/variant at every operating point and initial rotor angle of the preset, then
     the equal-f_av search. `run_dir`: which runs to log, and where (rows of logged runs, tripped ones
-    too, carry `run_dir`)."""
+    too, carry `run_dir`). `engine`: where the runs go (hil/sweep/engines.py; default: this process, one
+    after the other); rows come back in the same order on every engine."""
     say = progress or (lambda _msg: None)
+    engine = engine or InlineEngine()
     result = CompareResult(p)
     specs = [s for s in p.specs() if controllers is None or s.controller in controllers or s.label in controllers]
+    tasks: list[CompareTask] = []
+    labels: list[str] = []
     for point in _points(p):
         for spec in specs:
             for theta0 in p.theta0_rad:
                 label = ", ".join(f"{k}={v:g}" for k, v in point.items())
                 if len(p.theta0_rad) > 1:
                     label = f"{label}, theta0={theta0:g}".lstrip(", ")
-                say(f"run {spec.label} {label}".rstrip())
                 out_dir = run_dir(spec, point, theta0, "main") if run_dir else None
-                try:
-                    row, periods = run_one(p, spec, p.ts_s, point, theta0_rad=theta0, out_dir=out_dir)
-                except HilError as exc:
-                    if "plant trip" not in str(exc):
-                        raise HilError(f"{spec.label} {label}: {exc}") from None
-                    say(f"  {spec.label} {label}: {exc}")
-                    result.rows.append(_trip_row(p, spec, point, theta0, str(exc)))
-                    if out_dir is not None:
-                        result.rows[-1]["run_dir"] = str(out_dir)
-                    continue
-                result.rows.append(row)
-                if p.figure == "accel" and theta0 == p.theta0_rad[0]:
-                    step = max(1, len(periods) // 3000)
-                    result.series[spec.label] = {"t": periods["t"][::step].tolist(),
-                                                 "speed_rpm": (periods["omega_m"][::step] / RPM_TO_RAD_S).tolist(),
-                                                 "torque_nm": periods["torque"][::step].tolist()}
+                tasks.append(CompareTask(p, spec, p.ts_s, point, "main", theta0, out_dir,
+                                         series=p.figure == "accel" and theta0 == p.theta0_rad[0]))
+                labels.append(f"{spec.label} {label}")
+    for task, label, res in zip(tasks, labels, _run_all(engine, tasks, say, labels), strict=True):
+        if res.error is not None:
+            raise HilError(f"{label.rstrip()}: {res.error}")
+        if res.trip is not None:
+            say(f"  {label.rstrip()}: {res.trip}")
+            result.rows.append(_trip_row(p, task.spec, task.point, task.theta0_rad, res.trip))
+            if task.out_dir is not None:
+                result.rows[-1]["run_dir"] = str(task.out_dir)
+            continue
+        assert res.row is not None
+        result.rows.append(res.row)
+        if res.series is not None:
+            result.series[task.spec.label] = res.series
     if p.equal_fav is not None:
-        _equal_fav(p, result, say, run_dir)
+        _equal_fav(p, result, say, engine, run_dir)
     return result
