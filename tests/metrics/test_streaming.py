@@ -1,0 +1,144 @@
+"""Streaming window metrics: many blocks give the whole-array figures; quantiles are numpy's exactly; the
+THD span is the end of the window; memory-bounded pieces keep what they promise."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from pmsm_hil.hil.metrics import MetricsError, compute_run_metrics, current_thd
+from pmsm_hil.hil.metrics.moments import WeightedMoments
+from pmsm_hil.hil.metrics.quantiles import IntQuantiles
+from pmsm_hil.hil.metrics.streaming import WindowMetrics
+from pmsm_hil.hil.metrics.thd import next_smooth
+from pmsm_hil.hil.metrics.trace_tail import TraceTail
+from pmsm_hil.hil.records import TRACE_DTYPE
+
+from tests.metrics._signals import make_periods, make_trace, three_phase
+
+TS = 100e-6
+P = 4
+OMEGA = 1500.0 * 2 * math.pi / 60.0
+F1 = P * OMEGA / (2 * math.pi)
+ARGS = {"ts_s": TS, "pole_pairs": P, "wall_time_s": 1.0, "link_stats": {}, "deadline_misses": 0}
+
+
+def _run(duration: float, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    tr = make_trace(duration, 2e-6, OMEGA)
+    tr["omega_m"] += rng.normal(0.0, 0.5, tr.shape[0])
+    tr["i_a"], tr["i_b"], tr["i_c"] = three_phase(tr["t"], F1, {1: 10.0, 5: 0.5, 7: 0.3})
+    tr["torque"] = 7.0 + 0.4 * np.sin(2 * np.pi * 3000.0 * tr["t"]) + rng.normal(0.0, 0.05, tr.shape[0])
+    n = round(duration / TS)
+    p = make_periods(n, TS)
+    p["leg_transitions"] = rng.integers(0, 7, n)
+    p["boundary_transitions"] = np.minimum(p["leg_transitions"], 1)
+    p["exec_time_ns"] = rng.integers(500, 90_000, n)
+    p["exec_split_ns"] = rng.integers(100, 30_000, (n, 3))
+    p["candidates"] = rng.integers(1, 8, n)
+    p["torque_ref"] = 7.0 + rng.normal(0.0, 0.01, n)
+    return p, tr
+
+
+def _blocks(arr: np.ndarray, cuts: list[int]) -> list[np.ndarray]:
+    edges = sorted({0, arr.shape[0], *(c % max(arr.shape[0], 1) for c in cuts)})
+    return [arr[a:b] for a, b in zip(edges[:-1], edges[1:], strict=True)]
+
+
+def _flat(m: dict[str, object], prefix: str = "") -> dict[str, object]:
+    out: dict[str, object] = {}
+    for k, v in m.items():
+        if isinstance(v, dict):
+            out.update(_flat(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.lists(st.integers(min_value=1, max_value=10**6), max_size=12))
+def test_any_block_split_gives_the_whole_array_metrics(cuts: list[int]) -> None:
+    p, tr = _run(0.12)
+    whole = _flat(compute_run_metrics(p, tr, **ARGS))
+    acc = WindowMetrics()
+    for block in _blocks(p, cuts):
+        acc.add_periods(block)
+    for block in _blocks(tr, [c * 7 for c in cuts]):
+        acc.add_trace(block)
+    streamed = _flat(acc.result(**ARGS))
+    assert streamed.keys() == whole.keys()
+    for key, value in whole.items():
+        if isinstance(value, float):
+            assert streamed[key] == pytest.approx(value, rel=1e-12, abs=1e-12), key
+        else:
+            assert streamed[key] == value, key
+
+
+def test_exec_quantiles_are_numpys_exactly() -> None:
+    rng = np.random.default_rng(5)
+    for n in (1, 2, 3, 10, 999, 4321):
+        values = rng.integers(0, rng.integers(1, 200_000), n)
+        acc = IntQuantiles(1e-3)
+        for part in np.array_split(values, 5):
+            acc.add(part)
+        us = values.astype(np.float64) * 1e-3
+        assert acc.median() == np.median(us)
+        for q in (0.0, 1.0, 50.0, 99.0, 100.0):
+            assert acc.percentile(q) == np.percentile(us, q)
+        assert acc.maximum() == us.max()
+    assert math.isnan(IntQuantiles().median())
+
+
+def test_moments_of_one_sample_and_of_a_constant() -> None:
+    one = WeightedMoments()
+    one.add(np.array([0.5]), np.array([3.0]))
+    assert (one.mean, one.rms_deviation, one.samples) == (3.0, 0.0, 1)
+    flat = WeightedMoments()
+    for k in range(4):
+        t = np.arange(k * 10, k * 10 + 10) * 1e-6
+        flat.add(t, np.full(10, 2.5))
+    assert flat.mean == pytest.approx(2.5, rel=1e-15) and flat.rms_deviation == pytest.approx(0.0, abs=1e-12)
+
+
+def test_trace_tail_keeps_the_last_span_only() -> None:
+    tail = TraceTail(TRACE_DTYPE, span_s=0.01)
+    for k in range(50):
+        block = make_trace(0.001 - 2e-6, 2e-6)
+        block["t"] += k * 0.001
+        tail.add(block)
+    rows = tail.array()
+    assert rows["t"][-1] == pytest.approx(0.05 - 2e-6)
+    assert rows["t"][0] >= rows["t"][-1] - 0.01 - 1e-12
+    assert rows["t"][0] <= rows["t"][-1] - 0.01 + 2e-6 + 1e-12
+    assert len(tail._blocks) <= 12  # bounded by the span, not by the 50 blocks added
+
+
+def test_thd_of_a_long_window_is_the_last_second() -> None:
+    # 1.5 s: the first 0.5 s carries a 5th harmonic, the last second none; the THD sees only the last second
+    tr = make_trace(1.5, 2e-6, OMEGA)
+    tr["i_a"], tr["i_b"], tr["i_c"] = three_phase(tr["t"], F1, {1: 10.0})
+    early = tr["t"] < 0.5 - 1e-9
+    dirty = three_phase(tr["t"], F1, {5: 1.0})
+    for ph, extra in zip(("i_a", "i_b", "i_c"), dirty, strict=True):
+        tr[ph][early] += extra[early]
+    p = make_periods(round(1.5 / TS), TS)
+    m = compute_run_metrics(p, tr, **ARGS)
+    assert m["current_thd_pct"] < 0.01
+    whole = current_thd(tr["t"], tr["i_a"], F1)
+    assert whole.thd_pct > 1.0  # over the whole window the harmonic would show
+
+
+def test_fast_fft_lengths() -> None:
+    assert next_smooth(6668) == 6750 and next_smooth(82) == 90 and next_smooth(1) == 1
+    assert all(n <= next_smooth(n) < 2 * n for n in range(1, 3000))
+
+
+def test_trace_blocks_out_of_order_are_refused() -> None:
+    acc = WindowMetrics()
+    tr = make_trace(0.001, 2e-6)
+    acc.add_trace(tr)
+    with pytest.raises(MetricsError, match="trace.t"):
+        acc.add_trace(tr)
