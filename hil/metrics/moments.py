@@ -49,7 +49,7 @@ class WeightedMoments:
         """Add samples `x` at strictly increasing times `t` [s] (after those already added)."""
         if t.shape[0] == 0:
             return
-        xs = np.asarray(x, dtype=np.float64)
+        xs = np.ascontiguousarray(x, dtype=np.float64)
         self.samples += xs.shape[0]
         self.minimum = min(self.minimum, float(xs.min()))
         self.maximum = max(self.maximum, float(xs.max()))
@@ -62,8 +62,8 @@ class WeightedMoments:
         if total <= 0.0:
             return
         wn = w / total
-        mean = float(np.dot(wn, xs))
-        self._merge(_Block(total, mean, float(np.dot(wn, (xs - mean) ** 2))))
+        mean = float(np.sum(wn * xs))  # not np.dot: BLAS threads stall for ms on a loaded machine
+        self._merge(_Block(total, mean, float(np.sum(wn * (xs - mean) ** 2))))
 
     def _merge(self, b: _Block) -> None:
         a = self._total
