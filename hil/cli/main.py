@@ -17,8 +17,10 @@ _TOP_LEVEL = ("run", "target", "link_budget", "mcap_repair", "compare", "sweep",
 _GROUPS = {
     "plant": ("plant_replay",),
     "bench": ("bench_plant", "bench_loop", "bench_controllers", "bench_link", "bench_sweep", "bench_memory"),
+    "fw": ("fw_build",),
 }
-_GROUP_HELP = {"plant": "offline plant tools", "bench": "benchmarks that print figures"}
+_GROUP_HELP = {"plant": "offline plant tools", "bench": "benchmarks that print figures",
+               "fw": "build firmware for the SIL and QEMU targets"}
 
 
 def _user_errors() -> tuple[type[Exception], ...]:

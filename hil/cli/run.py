@@ -35,7 +35,7 @@ DEFAULTS: dict[str, Any] = {"motor": "niu2020-ipmsm", "controller": "mpcc", "sce
                             "link": "virtual", "mode": "lockstep", "target": "auto", "seed": 0,
                             "miss_policy": "hold", "watchdog_periods": 10, "adc_lsb": 0.0, "noise": 0.0,
                             "encoder_counts": 0, "no_log": False, "log_trace": False, "tolerate": 0,
-                            "lockstep_timeout": 0.5, "overrun_threshold": None}
+                            "lockstep_timeout": 0.5, "overrun_threshold": None, "mcu_clock": 168e6}
 
 #: `hil run` exit codes (= metrics `end_code`), printed by --help.
 EXIT_CODES = ("exit codes: 0 completed, 1 internal error, 2 usage/config error, 3 safety stop (watchdog, plant "
@@ -69,9 +69,14 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                         + PYTHON_CAN_ADAPTER.summary + _default("link"))
     p.add_argument("--mode", choices=("lockstep", "realtime"),
                    help=f"virtual time or wall-clock pacing{_default('mode')}")
-    p.add_argument("--target", choices=("auto", "inproc", "spawn", "external"),
-                   help="who runs the target: auto (virtual → in-process), spawn a `hil target` process, "
-                        f"or external (a real board){_default('target')}")
+    p.add_argument("--target", metavar="KIND",
+                   help="who runs the target: auto (virtual → in-process), inproc, spawn a `hil target` process, "
+                        "external (a real board), sil:PATH (a firmware built with `hil fw build --board host`, or "
+                        "its source folder, in-process) or qemu:PATH.elf (a firmware built for mps2-an386, run in "
+                        f"QEMU over its emulated UART; docs/firmware_api.md){_default('target')}")
+    p.add_argument("--mcu-clock", type=_clock_hz, metavar="HZ",
+                   help="qemu targets: MCU clock of the execution-time estimate, Hz or with a unit (168MHz) "
+                        "(default 168 MHz)")
     p.add_argument("--seed", type=non_negative_int("--seed"), help=f"seed for sensor noise{_default('seed')}")
     p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                    help="controller parameter (SI units), e.g. lambda=0.5, t_thr=8e-6, speed_kp=0.8")
@@ -95,6 +100,24 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="current noise standard deviation [A] (default 0: none)")
     p.add_argument("--encoder-counts", type=non_negative_int("--encoder-counts"),
                    help="encoder counts/rev (default 0: ideal angle)")
+
+
+def _clock_hz(text: str) -> float:
+    """A clock frequency: Hz, or a number with kHz / MHz / GHz."""
+    raw = text.strip().lower().replace(" ", "")
+    scale = 1.0
+    for unit, factor in (("ghz", 1e9), ("mhz", 1e6), ("khz", 1e3), ("hz", 1.0)):
+        if raw.endswith(unit):
+            raw, scale = raw[: -len(unit)], factor
+            break
+    try:
+        value = float(raw) * scale
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"--mcu-clock: expected a frequency (e.g. 168e6 or 168MHz), got {text!r}") from None
+    if not (1e6 <= value <= 2e9):
+        raise argparse.ArgumentTypeError(f"--mcu-clock must be between 1 MHz and 2 GHz, got {text!r}")
+    return value
 
 
 def _default(name: str) -> str:
@@ -178,6 +201,7 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
                             miss_policy=str(pick("miss_policy")), watchdog_periods=int(pick("watchdog_periods")),
                             tolerate=int(pick("tolerate")), faults=str(pick("fault") or ""),
                             lockstep_timeout_s=float(pick("lockstep_timeout")),
+                            mcu_clock_hz=float(pick("mcu_clock")),
                             overrun_threshold_s=None if pick("overrun_threshold") is None
                             else float(pick("overrun_threshold")))
     except (TypeError, ValueError) as exc:

@@ -162,6 +162,16 @@ METRICS: Final[tuple[Metric, ...]] = (
     _m("exec_time_us", "exec p99", "µs", "99th percentile of the controller execution time", ".3f", REPORT,
        sub="p99"),
     _m("exec_split_us", "exec split", "µs", "`{measure, reference, predict}` medians of `exec_split_ns`"),
+    _m("exec_instructions", "exec instructions", "", "qemu targets: `{median, p99, max, steps}` of the exact "
+       "instructions per control step (QEMU plugin, between the firmware's step markers) over the metrics window; "
+       "`exec_time_us` is then the estimate instructions × CPI / `mcu_clock_hz` (docs/firmware_api.md)",
+       source=RUN),
+    _m("exec_instructions", "exec instructions", "", "median instructions per control step (qemu targets)", ".0f",
+       REPORT, sub="median", source=RUN),
+    _m("mcu_clock_hz", "MCU clock", "Hz", "qemu targets: the clock of the `exec_time_us` estimate (`--mcu-clock`)",
+       ".4g", source=RUN),
+    _m("exec_time_model", "exec time model", "", "qemu targets: how `exec_time_us` is estimated (cycle model)", "",
+       source=RUN),
     _m("candidates_evaluated_mean", "candidates / step", "", "mean of `candidates`", ".0f", CLI, COMPARE_ROW),
     _m("narrow_pulses", "narrow pulses", "", "Σ leg pulses shorter than T_lim = 2·T_dead + T_mpw requested by the "
        "controller", ".0f", CLI, COMPARE_ROW),

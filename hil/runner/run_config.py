@@ -19,6 +19,12 @@ from pmsm_hil.sim_target.firmware import CONTROLLERS, controller_phases
 MODES = ("lockstep", "realtime")
 MISS_POLICIES = ("hold", "zero")
 TARGET_KINDS = ("auto", "inproc", "spawn", "external")
+#: targets that carry a path: a firmware of the HIL target core built for the host (SIL library, or a source
+#: folder built on the fly) or for the emulated MCU (QEMU mps2-an386 ELF); docs/firmware_api.md
+TARGET_PREFIXES = ("sil:", "qemu:")
+#: link spec of a qemu target: its emulated UART0 (a Unix socket to QEMU, COBS + CRC-16 serial framing)
+QEMU_LINK = "serial:qemu-uart0"
+DEFAULT_MCU_CLOCK_HZ = 168e6
 
 #: The paper limits the starting torque to ~10 N·m for its 7 N·m machine: 10/7 of rated.
 TORQUE_LIMIT_PER_RATED = 10.0 / 7.0
@@ -91,6 +97,8 @@ class RunConfig:
     overrun_threshold_s: float | None = None
     #: link fault injection SPEC (`--fault`, docs/runner.md "Link fault injection"); "" = none
     faults: str = ""
+    #: qemu targets: the MCU clock of the execution-time estimate [Hz] (`--mcu-clock`)
+    mcu_clock_hz: float = DEFAULT_MCU_CLOCK_HZ
 
     def __post_init__(self) -> None:
         cid = controller_id(self.controller)
@@ -111,7 +119,18 @@ class RunConfig:
         if self.miss_policy not in MISS_POLICIES:
             raise ParameterError(f"miss policy must be one of {', '.join(MISS_POLICIES)}, got {self.miss_policy!r}")
         if self.target not in TARGET_KINDS:
-            raise ParameterError(f"--target must be one of {', '.join(TARGET_KINDS)}, got {self.target!r}")
+            prefix = next((p for p in TARGET_PREFIXES if self.target.startswith(p)), None)
+            if prefix is None or not self.target[len(prefix):].strip():
+                raise ParameterError(f"--target must be one of {', '.join(TARGET_KINDS)}, sil:PATH or qemu:PATH.elf, "
+                                     f"got {self.target!r}")
+            if prefix == "qemu:":
+                if self.link == "virtual":  # the default: the emulated UART is the link
+                    object.__setattr__(self, "link", QEMU_LINK)
+                elif self.link != QEMU_LINK:
+                    raise ParameterError(f"--target qemu:... talks over the emulated UART: leave --link out "
+                                         f"(or give {QEMU_LINK}), got {self.link!r}")
+        if not (math.isfinite(self.mcu_clock_hz) and 1e6 <= self.mcu_clock_hz <= 2e9):
+            raise ParameterError(f"--mcu-clock must be between 1 MHz and 2 GHz, got {self.mcu_clock_hz:g} Hz")
         if self.watchdog_periods < 1:
             raise ParameterError(f"watchdog periods must be ≥ 1, got {self.watchdog_periods}")
         if not (math.isfinite(self.lockstep_timeout_s) and 0.0 < self.lockstep_timeout_s <= 3600.0):
@@ -144,6 +163,12 @@ class RunConfig:
     def overrun_threshold_ns(self) -> int:
         """Real-time lateness [ns] above which a period start is an overrun (default Ts / 2)."""
         return round((self.ts_s / 2 if self.overrun_threshold_s is None else self.overrun_threshold_s) * 1e9)
+
+    @property
+    def target_path(self) -> str | None:
+        """The PATH of `sil:PATH` / `qemu:PATH`, None for the other target kinds."""
+        kind, sep, path = self.target.partition(":")
+        return path.strip() if sep and kind + ":" in TARGET_PREFIXES else None
 
     @property
     def ts_ns(self) -> int:

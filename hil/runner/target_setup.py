@@ -1,4 +1,5 @@
-"""Connects the runner to a target: in-process sim target, a spawned `hil target` process, or external.
+"""Connects the runner to a target: in-process sim target, a spawned `hil target` process, external, a SIL
+firmware library in-process (`sil:PATH`) or a firmware ELF in QEMU (`qemu:PATH`).
 
 A spawned target gets `--parent-pid` (it exits with the host) and an idle timeout; the host waits for its
 "ready" line and ends the run with the target's own error if it cannot open its link (e.g. a UDP port in
@@ -16,6 +17,7 @@ import sys
 import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import IO, Any
 
 from pmsm_hil.hil.runner.run_config import RunConfig
@@ -75,6 +77,8 @@ class TargetConnection:
             if isinstance(item, int):
                 with contextlib.suppress(OSError):
                     os.close(item)
+            elif callable(getattr(item, "close", None)):  # a QEMU target: stopped on every exit path
+                item.close()
 
 
 def _stop(proc: subprocess.Popen[bytes]) -> None:
@@ -154,12 +158,64 @@ def _slots(obj: object) -> list[tuple[str, object]]:
     return [(n, getattr(obj, n)) for n in names if hasattr(obj, n)]
 
 
+def _sil_library(path: str) -> str:
+    """A SIL library path; a source folder is built for the host first (`hil fw build --board host`)."""
+    from pmsm_hil.sim_target.fw_build import build_firmware
+
+    p = Path(path).expanduser()
+    if p.is_dir():
+        return str(build_firmware("host", p).path)
+    return str(p)
+
+
+def _connect_sil(cfg: RunConfig, codec: FrameCodec, path: str) -> TargetConnection:
+    """The SIL firmware in this process behind both ends of the run's link (like the in-process target)."""
+    from pmsm_hil.sim_target.sil import SilTarget
+
+    library = _sil_library(path)
+    target_link = open_link(cfg.link, "target")
+    try:
+        host_link = open_link(cfg.link, "host")
+    except BaseException:
+        target_link.close()
+        raise
+    try:
+        target = SilTarget(target_link, library)
+    except BaseException:
+        target_link.close()
+        host_link.close()
+        raise
+    client = TargetClient(host_link, codec, pump=target.service)
+    return TargetConnection(client, host_link, target_link=target_link, inproc_result=target.last_result,
+                            extra=[target.firmware])
+
+
+def _connect_qemu(cfg: RunConfig, path: str) -> TargetConnection:
+    """QEMU running the ELF; the host's serial link on its UART socket; instruction counts as extra metrics
+    over the metrics window (the firmware steps once per period from the first, enabled, period on)."""
+    from pmsm_hil.sim_target.qemu import QemuTarget
+
+    skip = round(cfg.scenario.settle_s / cfg.ts_s)
+    qemu = QemuTarget(Path(path).expanduser(), mcu_clock_hz=cfg.mcu_clock_hz, skip_steps=skip)
+    try:
+        host_link = open_link(qemu.link_spec, "host")
+    except BaseException:
+        qemu.close()
+        raise
+    codec = FrameCodec(link_kind(parse_spec(cfg.link)).profile(parse_spec(cfg.link)))
+    return TargetConnection(TargetClient(host_link, codec), host_link, extra=[qemu], extra_metrics=qemu.metrics)
+
+
 def connect_target(cfg: RunConfig, *, silent_after: int | None = None) -> TargetConnection:
     """Open the link(s) and, for in-process or spawned targets, start the target."""
+    if cfg.target.startswith("qemu:") and cfg.target_path is not None:
+        return _connect_qemu(cfg, cfg.target_path)
     spec = parse_spec(cfg.link)
     link = link_kind(spec)
     kind = link.auto_target(spec) if cfg.target == "auto" else cfg.target
     codec = FrameCodec(link.profile(spec))
+    if cfg.target.startswith("sil:") and cfg.target_path is not None:
+        return _connect_sil(cfg, codec, cfg.target_path)
     if kind == "inproc":
         from pmsm_hil.sim_target.target import SimTarget
 

@@ -1,0 +1,131 @@
+/* mps2-an386 board layer: CMSDK APB UART0 at 0x40004000 with an RX interrupt and WFI, the serial framing
+ * (COBS + CRC-16, hil_serial.c) around the target core, SysTick as the execution clock. */
+#include <stddef.h>
+#include <stdint.h>
+
+#include "board.h"
+#include "hil_serial.h"
+#include "hil_target_core.h"
+
+#define UART0_BASE 0x40004000u
+#define UART_DATA (*(volatile uint32_t *)(UART0_BASE + 0x00u))
+#define UART_STATE (*(volatile uint32_t *)(UART0_BASE + 0x04u))
+#define UART_CTRL (*(volatile uint32_t *)(UART0_BASE + 0x08u))
+#define UART_INTCLEAR (*(volatile uint32_t *)(UART0_BASE + 0x0Cu))
+#define UART_BAUDDIV (*(volatile uint32_t *)(UART0_BASE + 0x10u))
+#define STATE_TXFULL 0x1u
+#define STATE_RXFULL 0x2u
+#define CTRL_TXEN 0x1u
+#define CTRL_RXEN 0x2u
+#define CTRL_RXINTEN 0x8u
+#define INT_RX 0x2u
+
+#define NVIC_ISER0 (*(volatile uint32_t *)0xE000E100u)
+#define SYST_CSR (*(volatile uint32_t *)0xE000E010u)
+#define SYST_RVR (*(volatile uint32_t *)0xE000E014u)
+#define SYST_CVR (*(volatile uint32_t *)0xE000E018u)
+
+#define RX_RING 512u /* power of two */
+
+__attribute__((section(".noinit"))) volatile hil_board_cfg_t hil_board_cfg;
+
+static volatile uint8_t rx_ring[RX_RING];
+static volatile uint32_t rx_head; /* written by the ISR */
+static uint32_t rx_tail;          /* written by the main loop */
+static hil_serial_t serial;
+
+static void uart_drain(void)
+{
+    while (UART_STATE & STATE_RXFULL) {
+        const uint8_t b = (uint8_t)UART_DATA;
+        const uint32_t h = rx_head;
+        if (h - rx_tail < RX_RING) { /* full: the byte is lost (the host sees a framing error) */
+            rx_ring[h & (RX_RING - 1u)] = b;
+            rx_head = h + 1u;
+        }
+    }
+}
+
+/* Clear first, then drain: a byte that arrives after the last read raises the interrupt again (clearing
+ * after the drain could swallow that interrupt and leave the byte unread, the UART stalled). */
+void UART0_RX_Handler(void)
+{
+    UART_INTCLEAR = INT_RX;
+    uart_drain();
+}
+
+static void uart_write(const uint8_t *p, size_t n)
+{
+    size_t i;
+    for (i = 0u; i < n; ++i) {
+        while (UART_STATE & STATE_TXFULL) {
+        }
+        UART_DATA = p[i];
+    }
+}
+
+uint32_t hil_board_clock(void)
+{
+    return 0x00FFFFFFu - (SYST_CVR & 0x00FFFFFFu);
+}
+
+/* SysTick runs at SYSCLK on virtual time; under -icount each instruction takes ns_per_insn of it, so
+ * ticks -> instructions -> cycles (cpi) -> ns at mcu_clock_hz. 0 ("not measured") if the host did not
+ * write the configuration. */
+uint32_t hil_board_exec_ns(uint32_t t0, uint32_t t1)
+{
+    const uint64_t ticks = (uint64_t)((t1 - t0) & 0x00FFFFFFu);
+    uint64_t den;
+    uint64_t num;
+    if (hil_board_cfg.magic != HIL_BOARD_CFG_MAGIC || hil_board_cfg.mcu_clock_hz == 0u ||
+        hil_board_cfg.ns_per_insn == 0u) {
+        return 0u;
+    }
+    /* ns = ticks * (1e9 / SYSCLK) / ns_per_insn * cpi / mcu_clock * 1e9 */
+    num = ticks * (1000000000u / HIL_BOARD_SYSCLK_HZ) * hil_board_cfg.cpi_milli * 1000000u;
+    den = (uint64_t)hil_board_cfg.ns_per_insn * hil_board_cfg.mcu_clock_hz;
+    return (uint32_t)((num + den / 2u) / den);
+}
+
+static void board_init(void)
+{
+    UART_BAUDDIV = 16u;
+    UART_CTRL = CTRL_TXEN | CTRL_RXEN | CTRL_RXINTEN;
+    NVIC_ISER0 = 1u << 0; /* IRQ 0: UART0 RX */
+    SYST_RVR = 0x00FFFFFFu;
+    SYST_CVR = 0u;
+    SYST_CSR = 0x5u; /* enable, core clock, no interrupt */
+    hil_serial_init(&serial);
+}
+
+static void service_frame(const hil_core_frame_t *in)
+{
+    static uint8_t packet[HIL_SERIAL_MAX_PACKET];
+    hil_core_frame_t out;
+    hil_core_rx(in->id, in->data, in->len, in->fd);
+    while (hil_core_tx(&out)) {
+        uart_write(packet, hil_serial_encode(&serial, &out, packet));
+    }
+}
+
+int main(void)
+{
+    hil_core_frame_t frame;
+    board_init();
+    hil_core_init();
+    for (;;) {
+        __asm__ volatile("cpsid i" ::: "memory");
+        uart_drain(); /* a byte held in the data register is never left behind */
+        if (rx_head == rx_tail) {
+            __asm__ volatile("wfi" ::: "memory"); /* a pending RX interrupt wakes it (taken after cpsie) */
+        }
+        __asm__ volatile("cpsie i" ::: "memory");
+        while (rx_head != rx_tail) {
+            const uint8_t b = rx_ring[rx_tail & (RX_RING - 1u)];
+            rx_tail++;
+            if (hil_serial_feed(&serial, b, &frame)) {
+                service_frame(&frame);
+            }
+        }
+    }
+}

@@ -1,0 +1,61 @@
+/* The reference firmware (firmware_stub/src) behind the firmware API (hil_app.h). */
+#include <string.h>
+
+#include "hil_app.h"
+#include "hil_fw.h"
+
+static hil_fw_state_t fw;
+
+void hil_app_init(void)
+{
+    hil_fw_init(&fw);
+}
+
+int hil_app_config(uint8_t param_id, float value)
+{
+    return hil_fw_set_param(&fw, param_id, value) == HIL_FW_OK ? HIL_APP_OK : HIL_APP_E_PARAM;
+}
+
+int hil_app_select(uint8_t controller_id)
+{
+    return hil_fw_select_controller(&fw, controller_id) == HIL_FW_OK ? HIL_APP_OK : HIL_APP_E_NOT_IMPLEMENTED;
+}
+
+void hil_app_reset(void)
+{
+    hil_fw_controller_reset(&fw); /* hil_fw_set_setpoint resets on the rising edge too: the same state */
+}
+
+int hil_app_setpoint(uint8_t enable, uint8_t mode, float reference)
+{
+    return hil_fw_set_setpoint(&fw, enable, mode, reference) == HIL_FW_OK ? HIL_APP_OK : HIL_APP_E_SETPOINT;
+}
+
+void hil_app_step(const hil_app_meas_t *m, hil_app_cmd_t *cmd)
+{
+    hil_fw_meas_t fm;
+    hil_fw_cmd_t fc;
+    uint8_t j;
+    fm.seq = m->seq;
+    fm.n_phases = m->n_phases;
+    fm.status = 0u; /* as the Python virtual target: the plant status is not passed to the control law */
+    for (j = 0u; j < HIL_FW_MAX_PHASES; ++j) {
+        fm.i_abc[j] = m->i[j];
+    }
+    fm.theta_e = m->theta_e;
+    fm.omega_m = m->omega_m;
+    fm.vdc = m->vdc;
+    hil_fw_step(&fw, &fm, m->t_ns, &fc);
+    cmd->n_states = fc.n_states;
+    for (j = 0u; j < HIL_APP_MAX_STATES; ++j) {
+        cmd->states[j] = fc.states[j];
+        cmd->durations_ns[j] = fc.durations_ns[j];
+    }
+    cmd->mirror = fc.mirror;
+    cmd->vector_id = fc.vector_id;
+    cmd->candidates = fc.candidates;
+    cmd->status = fc.status;
+    cmd->torque_ref = fc.torque_ref;
+    cmd->id_ref = fc.id_ref;
+    cmd->iq_ref = fc.iq_ref;
+}

@@ -1,0 +1,46 @@
+/*
+ * Serial framing of the HIL link in C (docs/protocol.md, "Serial framing"; protocol/links/serial_bus.py):
+ * packet = COBS(header + payload + CRC-16/CCITT-FALSE big-endian) + 0x00, header = u32 LE id, u8 flags
+ * (bit0 FD, bit1 BRS, bit3 extended, bit4 remote), u8 link sequence number, u8 payload length.
+ */
+#ifndef HIL_SERIAL_H
+#define HIL_SERIAL_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "hil_target_core.h"
+
+#define HIL_SERIAL_HEADER 7u
+#define HIL_SERIAL_MAX_RAW (HIL_SERIAL_HEADER + HIL_CORE_MAX_PAYLOAD + 2u)
+#define HIL_SERIAL_MAX_ENCODED (HIL_SERIAL_MAX_RAW + HIL_SERIAL_MAX_RAW / 254u + 1u)
+#define HIL_SERIAL_MAX_PACKET (HIL_SERIAL_MAX_ENCODED + 1u)
+
+typedef struct {
+    uint8_t buf[HIL_SERIAL_MAX_ENCODED];
+    uint16_t n;
+    uint8_t discarding;
+    uint8_t tx_seq;
+    uint32_t framing_errors;
+    uint32_t crc_errors;
+    uint32_t ignored;
+} hil_serial_t;
+
+/* CRC-16/CCITT-FALSE (poly 0x1021, init given, no reflection). */
+uint16_t hil_serial_crc16(const uint8_t *data, size_t n, uint16_t crc);
+
+/* COBS-encode n bytes of src into dst (no delimiter); returns the encoded length. */
+size_t hil_serial_cobs_encode(const uint8_t *src, size_t n, uint8_t *dst);
+
+/* COBS-decode n bytes into dst; returns the decoded length, or -1 when malformed. */
+int hil_serial_cobs_decode(const uint8_t *src, size_t n, uint8_t *dst);
+
+void hil_serial_init(hil_serial_t *s);
+
+/* One frame as a packet (delimiter included) into out[HIL_SERIAL_MAX_PACKET]; returns its length. */
+size_t hil_serial_encode(hil_serial_t *s, const hil_core_frame_t *f, uint8_t *out);
+
+/* Feed one received byte: 1 when it completed a valid data frame (written to *f), else 0. */
+int hil_serial_feed(hil_serial_t *s, uint8_t byte, hil_core_frame_t *f);
+
+#endif

@@ -1,0 +1,46 @@
+# Build a firmware behind the HIL target core (docs/firmware_api.md).
+#
+#   include(${HIL_SDK}/target/hil_target.cmake)      # `hil fw build` passes -DHIL_SDK and -DHIL_BOARD
+#   hil_add_firmware(my_fw SOURCES my_control.c [INCLUDES dir...] [STRICT])
+#
+# HIL_BOARD host: a shared library out/libhil_firmware.so for `hil run --target sil:PATH`;
+# HIL_BOARD mps2-an386: a Cortex-M4F ELF out/hil_firmware.elf for `hil run --target qemu:PATH` (configure
+# with -DCMAKE_TOOLCHAIN_FILE=${HIL_SDK}/boards/mps2-an386/toolchain.cmake). The core, the generated codec
+# and the board layer are compiled with the project's strict flags; STRICT applies them to SOURCES too.
+get_filename_component(HIL_SDK "${CMAKE_CURRENT_LIST_DIR}/.." ABSOLUTE)
+if(NOT HIL_BOARD)
+    set(HIL_BOARD host)
+endif()
+set(HIL_STRICT_FLAGS -std=c99 -Wall -Wextra -Werror -Wdouble-promotion -fsingle-precision-constant -O2)
+set(HIL_USER_FLAGS -std=c99 -Wall -Wextra -O2)
+
+function(hil_add_firmware name)
+    cmake_parse_arguments(FW "STRICT" "" "SOURCES;INCLUDES" ${ARGN})
+    set(core "${HIL_SDK}/target/hil_target_core.c" "${HIL_SDK}/generated/hil_protocol.c")
+    if(HIL_BOARD STREQUAL "host")
+        list(APPEND core "${HIL_SDK}/boards/host/hil_sil.c")
+        add_library(${name} SHARED ${FW_SOURCES} ${core})
+        set_target_properties(${name} PROPERTIES OUTPUT_NAME hil_firmware PREFIX "lib" SUFFIX ".so"
+                              LIBRARY_OUTPUT_DIRECTORY "${CMAKE_BINARY_DIR}/out")
+        target_link_libraries(${name} PRIVATE m)
+    elseif(HIL_BOARD STREQUAL "mps2-an386")
+        set(board "${HIL_SDK}/boards/mps2-an386")
+        list(APPEND core "${HIL_SDK}/target/hil_serial.c" "${board}/startup.c" "${board}/board.c")
+        add_executable(${name} ${FW_SOURCES} ${core})
+        set_target_properties(${name} PROPERTIES OUTPUT_NAME hil_firmware SUFFIX ".elf"
+                              RUNTIME_OUTPUT_DIRECTORY "${CMAKE_BINARY_DIR}/out")
+        target_link_options(${name} PRIVATE "-T${board}/mps2-an386.ld" -nostartfiles --specs=nano.specs
+                            --specs=nosys.specs -Wl,--gc-sections "-Wl,-Map=${CMAKE_BINARY_DIR}/out/hil_firmware.map")
+        target_link_libraries(${name} PRIVATE m)
+        target_include_directories(${name} PRIVATE "${board}")
+    else()
+        message(FATAL_ERROR "HIL_BOARD must be host or mps2-an386, got '${HIL_BOARD}'")
+    endif()
+    target_include_directories(${name} PRIVATE ${FW_INCLUDES} "${HIL_SDK}/target" "${HIL_SDK}/generated")
+    if(FW_STRICT)
+        target_compile_options(${name} PRIVATE ${HIL_STRICT_FLAGS})
+    else()
+        target_compile_options(${name} PRIVATE ${HIL_USER_FLAGS})
+        set_source_files_properties(${core} PROPERTIES COMPILE_OPTIONS "${HIL_STRICT_FLAGS}")
+    endif()
+endfunction()

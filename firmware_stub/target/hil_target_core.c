@@ -1,0 +1,446 @@
+/* The portable HIL target core (hil_target_core.h): protocol endpoint around the firmware API. */
+#include <stddef.h>
+#include <string.h>
+
+#include "hil_ids.h"
+#include "hil_protocol.h"
+#include "hil_target_core.h"
+
+/* DBC scales as exact doubles (hex literals: -fsingle-precision-constant does not round them to float),
+ * so the decoded values equal the Python codec's raw * scale bit for bit after the float conversion. */
+#define SCALE_I3 ((double)0x1.0624dd2f1a9fcp-10L)  /* 0.001 A */
+#define SCALE_I6 ((double)0x1.47ae147ae147bp-7L)   /* 0.01 A */
+#define SCALE_W ((double)0x1.47ae147ae147bp-6L)    /* 0.02 rad/s */
+#define SCALE_V ((double)0x1.47ae147ae147bp-7L)    /* 0.01 V */
+#define SCALE_TH ((double)0x1.921fb54442d18p-14L)  /* 2*pi/65536 rad */
+#define NS_PER_S ((double)0x1.dcd65p+29L)          /* 1e9 */
+
+#define PART_A 1u
+#define PART_B 2u
+#define PART_C 4u
+
+typedef struct {
+    uint8_t have;      /* PART_* bits held */
+    uint16_t seq;      /* seq of parts A / C */
+    uint8_t seq_lo;    /* seq_lo of part B */
+    int16_t i[6];
+    uint16_t theta_e;
+    int16_t omega_m;
+    uint16_t vdc;
+    uint8_t status;
+} pending_meas_t;
+
+static struct {
+    uint8_t enabled;
+    uint8_t controller_id;
+    uint32_t ts_ns;
+    uint64_t k;
+    hil_core_counters_t counters;
+    hil_core_frame_t txq[HIL_CORE_TX_QUEUE];
+    uint8_t tx_head;
+    uint8_t tx_count;
+    pending_meas_t pend3;
+    pending_meas_t pend6;
+    hil_app_cmd_t last_cmd;
+    uint32_t last_exec_ns;
+} g;
+
+#if defined(__GNUC__)
+#define HIL_NOINLINE __attribute__((noinline, used))
+#else
+#define HIL_NOINLINE
+#endif
+
+HIL_NOINLINE void hil_core_step_begin(void)
+{
+#if defined(__GNUC__)
+    __asm__ volatile("" ::: "memory");
+#endif
+}
+
+HIL_NOINLINE void hil_core_step_end(void)
+{
+#if defined(__GNUC__)
+    __asm__ volatile("" ::: "memory");
+#endif
+}
+
+static hil_core_frame_t *tx_slot(uint32_t id, uint8_t len, uint8_t fd)
+{
+    hil_core_frame_t *f;
+    if (g.tx_count >= HIL_CORE_TX_QUEUE) {
+        g.counters.tx_overflow++;
+        return NULL;
+    }
+    f = &g.txq[(uint8_t)((g.tx_head + g.tx_count) % HIL_CORE_TX_QUEUE)];
+    g.tx_count++;
+    f->id = id;
+    f->len = len;
+    f->fd = fd;
+    memset(f->data, 0, sizeof f->data);
+    return f;
+}
+
+static void send_fault(uint8_t code, uint32_t detail)
+{
+    struct hil_protocol_fault_target_t ft;
+    hil_core_frame_t *f = tx_slot(HIL_PROTOCOL_FAULT_TARGET_FRAME_ID, HIL_PROTOCOL_FAULT_TARGET_LENGTH, 0u);
+    g.counters.faults++;
+    if (f == NULL) {
+        return;
+    }
+    ft.node = HIL_CORE_NODE;
+    ft.code = code;
+    ft.detail = detail;
+    (void)hil_protocol_fault_target_pack(f->data, &ft, HIL_PROTOCOL_FAULT_TARGET_LENGTH);
+}
+
+static void send_command(uint16_t seq, const hil_app_cmd_t *c, uint32_t exec_ns, uint8_t fd)
+{
+    hil_core_frame_t *f;
+    g.counters.commands++;
+    if (fd) {
+        struct hil_protocol_cmd_fd_t cf;
+        memset(&cf, 0, sizeof cf);
+        cf.seq = seq;
+        cf.state0 = c->states[0];
+        cf.state1 = c->states[1];
+        cf.state2 = c->states[2];
+        cf.n_states = c->n_states;
+        cf.duration0 = c->durations_ns[0];
+        cf.duration1 = c->durations_ns[1];
+        cf.duration2 = c->durations_ns[2];
+        cf.vector_id = c->vector_id;
+        cf.candidates = c->candidates;
+        cf.exec_time_ns = exec_ns;
+        cf.status = c->status;
+        cf.mirror = c->mirror ? 1u : 0u;
+        f = tx_slot(HIL_PROTOCOL_CMD_FD_FRAME_ID, HIL_PROTOCOL_CMD_FD_LENGTH, 1u);
+        if (f != NULL) {
+            (void)hil_protocol_cmd_fd_pack(f->data, &cf, HIL_PROTOCOL_CMD_FD_LENGTH);
+        }
+    } else {
+        struct hil_protocol_cmd_a_t ca;
+        struct hil_protocol_cmd_b_t cb;
+        struct hil_protocol_cmd_c_t cc;
+        ca.seq = seq;
+        ca.state0 = c->states[0];
+        ca.state1 = c->states[1];
+        ca.state2 = c->states[2];
+        ca.n_states = c->n_states;
+        ca.duration0 = c->durations_ns[0];
+        ca.vector_id = c->vector_id;
+        cb.seq = seq;
+        cb.duration1 = c->durations_ns[1];
+        cb.duration2 = c->durations_ns[2];
+        cb.candidates = c->candidates;
+        cc.seq = seq;
+        cc.exec_time_ns = exec_ns;
+        cc.status = c->status;
+        cc.mirror = c->mirror ? 1u : 0u;
+        f = tx_slot(HIL_PROTOCOL_CMD_A_FRAME_ID, HIL_PROTOCOL_CMD_A_LENGTH, 0u);
+        if (f != NULL) {
+            (void)hil_protocol_cmd_a_pack(f->data, &ca, HIL_PROTOCOL_CMD_A_LENGTH);
+        }
+        f = tx_slot(HIL_PROTOCOL_CMD_B_FRAME_ID, HIL_PROTOCOL_CMD_B_LENGTH, 0u);
+        if (f != NULL) {
+            (void)hil_protocol_cmd_b_pack(f->data, &cb, HIL_PROTOCOL_CMD_B_LENGTH);
+        }
+        f = tx_slot(HIL_PROTOCOL_CMD_C_FRAME_ID, HIL_PROTOCOL_CMD_C_LENGTH, 0u);
+        if (f != NULL) {
+            (void)hil_protocol_cmd_c_pack(f->data, &cc, HIL_PROTOCOL_CMD_C_LENGTH);
+        }
+    }
+}
+
+/* Measurement k: disabled -> full-period zero vector (state 0); enabled -> the firmware's step. */
+static void on_measurement(const pending_meas_t *p, uint8_t n_phases, double scale_i, uint8_t fd)
+{
+    hil_app_cmd_t cmd;
+    uint32_t exec_ns = 0u;
+    uint8_t j;
+    const uint64_t t_ns = g.k * (uint64_t)g.ts_ns;
+    g.k++;
+    g.counters.measurements++;
+    memset(&cmd, 0, sizeof cmd);
+    if (!g.enabled) {
+        cmd.n_states = 1u;
+        cmd.durations_ns[0] = g.ts_ns;
+    } else {
+        hil_app_meas_t m;
+        uint32_t t0;
+        uint32_t t1;
+        memset(&m, 0, sizeof m);
+        m.t_ns = t_ns;
+        m.seq = p->seq;
+        m.n_phases = n_phases;
+        m.status = p->status;
+        for (j = 0u; j < n_phases; ++j) {
+            m.i[j] = (float)((double)p->i[j] * scale_i);
+        }
+        m.theta_e = (float)((double)p->theta_e * SCALE_TH);
+        m.omega_m = (float)((double)p->omega_m * SCALE_W);
+        m.vdc = (float)((double)p->vdc * SCALE_V);
+        t0 = hil_board_clock();
+        hil_core_step_begin();
+        hil_app_step(&m, &cmd);
+        hil_core_step_end();
+        t1 = hil_board_clock();
+        exec_ns = hil_board_exec_ns(t0, t1);
+        g.counters.steps++;
+        g.last_cmd = cmd;
+        g.last_exec_ns = exec_ns;
+    }
+    send_command(p->seq, &cmd, exec_ns, fd);
+}
+
+static void on_config(const uint8_t *data)
+{
+    struct hil_protocol_config_param_t cp;
+    struct hil_protocol_config_ack_t ack;
+    hil_core_frame_t *f;
+    (void)hil_protocol_config_param_unpack(&cp, data, HIL_PROTOCOL_CONFIG_PARAM_LENGTH);
+    g.counters.config_writes++;
+    ack.param_id = cp.param_id;
+    ack.value = cp.value;
+    if (hil_app_config(cp.param_id, cp.value) == HIL_APP_OK) {
+        ack.status = HIL_FW_STATUS_OK;
+        if (cp.param_id == HIL_FW_P_TS) {
+            const double ns = (double)cp.value * NS_PER_S;
+            g.ts_ns = (uint32_t)(ns + (double)0.5L); /* ts is checked positive (5 us..10 ms) by the firmware */
+        }
+    } else {
+        g.counters.config_rejected++;
+        ack.status = HIL_FW_STATUS_INVALID_CONFIG;
+    }
+    f = tx_slot(HIL_PROTOCOL_CONFIG_ACK_FRAME_ID, HIL_PROTOCOL_CONFIG_ACK_LENGTH, 0u);
+    if (f != NULL) {
+        (void)hil_protocol_config_ack_pack(f->data, &ack, HIL_PROTOCOL_CONFIG_ACK_LENGTH);
+    }
+}
+
+static void on_setpoint(const uint8_t *data)
+{
+    struct hil_protocol_setpoint_t sp;
+    const uint8_t was = g.enabled;
+    uint8_t enable;
+    (void)hil_protocol_setpoint_unpack(&sp, data, HIL_PROTOCOL_SETPOINT_LENGTH);
+    enable = sp.enable != 0u ? 1u : 0u;
+    if (sp.controller_id != g.controller_id) {
+        if (hil_app_select(sp.controller_id) != HIL_APP_OK) {
+            g.enabled = 0u;
+            send_fault(HIL_FW_STATUS_NOT_IMPLEMENTED, sp.controller_id);
+            return;
+        }
+        g.controller_id = sp.controller_id;
+    }
+    if (enable && !was) {
+        hil_app_reset();
+    }
+    if (hil_app_setpoint(enable, sp.mode, sp.reference) != HIL_APP_OK) {
+        g.enabled = 0u;
+        send_fault(HIL_FW_STATUS_INVALID_CONFIG, sp.mode);
+        return;
+    }
+    g.enabled = enable;
+}
+
+static void on_heartbeat(const uint8_t *data)
+{
+    struct hil_protocol_heartbeat_host_t hb;
+    struct hil_protocol_heartbeat_target_t out;
+    hil_core_frame_t *f;
+    (void)hil_protocol_heartbeat_host_unpack(&hb, data, HIL_PROTOCOL_HEARTBEAT_HOST_LENGTH);
+    if (hb.node == HIL_CORE_NODE) {
+        return;
+    }
+    out.node = HIL_CORE_NODE;
+    out.state = g.enabled ? HIL_PROTOCOL_HEARTBEAT_TARGET_STATE_RUNNING_CHOICE
+                          : HIL_PROTOCOL_HEARTBEAT_TARGET_STATE_IDLE_CHOICE;
+    out.counter = hb.counter;
+    f = tx_slot(HIL_PROTOCOL_HEARTBEAT_TARGET_FRAME_ID, HIL_PROTOCOL_HEARTBEAT_TARGET_LENGTH, 0u);
+    if (f != NULL) {
+        (void)hil_protocol_heartbeat_target_pack(f->data, &out, HIL_PROTOCOL_HEARTBEAT_TARGET_LENGTH);
+    }
+}
+
+/* Classic frames: a measurement is complete when its parts carry one seq (B only its low byte). */
+static void try_complete(pending_meas_t *p, uint8_t need, uint8_t n_phases, double scale_i)
+{
+    if ((p->have & need) == need && p->seq_lo == (uint8_t)(p->seq & 0xFFu)) {
+        p->have = 0u;
+        on_measurement(p, n_phases, scale_i, 0u);
+    }
+}
+
+static uint8_t expected_length(uint32_t id)
+{
+    switch (id) {
+    case HIL_PROTOCOL_MEAS_FD_FRAME_ID: return HIL_PROTOCOL_MEAS_FD_LENGTH;
+    case HIL_PROTOCOL_MEAS_FD6_FRAME_ID: return HIL_PROTOCOL_MEAS_FD6_LENGTH;
+    case HIL_PROTOCOL_MEAS_A_FRAME_ID: return HIL_PROTOCOL_MEAS_A_LENGTH;
+    case HIL_PROTOCOL_MEAS_B_FRAME_ID: return HIL_PROTOCOL_MEAS_B_LENGTH;
+    case HIL_PROTOCOL_MEAS6_A_FRAME_ID: return HIL_PROTOCOL_MEAS6_A_LENGTH;
+    case HIL_PROTOCOL_MEAS6_B_FRAME_ID: return HIL_PROTOCOL_MEAS6_B_LENGTH;
+    case HIL_PROTOCOL_MEAS6_C_FRAME_ID: return HIL_PROTOCOL_MEAS6_C_LENGTH;
+    case HIL_PROTOCOL_SETPOINT_FRAME_ID: return HIL_PROTOCOL_SETPOINT_LENGTH;
+    case HIL_PROTOCOL_CONFIG_PARAM_FRAME_ID: return HIL_PROTOCOL_CONFIG_PARAM_LENGTH;
+    case HIL_PROTOCOL_HEARTBEAT_HOST_FRAME_ID: return HIL_PROTOCOL_HEARTBEAT_HOST_LENGTH;
+    case HIL_PROTOCOL_HEARTBEAT_TARGET_FRAME_ID: return HIL_PROTOCOL_HEARTBEAT_TARGET_LENGTH;
+    case HIL_PROTOCOL_FAULT_HOST_FRAME_ID: return HIL_PROTOCOL_FAULT_HOST_LENGTH;
+    default: return 0u;
+    }
+}
+
+void hil_core_rx(uint32_t id, const uint8_t *data, uint8_t len, uint8_t fd)
+{
+    const uint8_t want = expected_length(id);
+    (void)fd; /* the id tells the layout; like the Python decoder, both profiles are accepted */
+    g.counters.frames_rx++;
+    if (want == 0u) {
+        g.counters.unknown_id++;
+        return;
+    }
+    if (len != want) {
+        g.counters.bad_length++;
+        return;
+    }
+    switch (id) {
+    case HIL_PROTOCOL_MEAS_FD_FRAME_ID: {
+        struct hil_protocol_meas_fd_t m;
+        pending_meas_t p;
+        (void)hil_protocol_meas_fd_unpack(&m, data, len);
+        memset(&p, 0, sizeof p);
+        p.seq = m.seq;
+        p.i[0] = m.i_a;
+        p.i[1] = m.i_b;
+        p.i[2] = m.i_c;
+        p.theta_e = m.theta_e;
+        p.omega_m = m.omega_m;
+        p.vdc = m.vdc;
+        p.status = m.status;
+        on_measurement(&p, 3u, SCALE_I3, 1u);
+        break;
+    }
+    case HIL_PROTOCOL_MEAS_FD6_FRAME_ID: {
+        struct hil_protocol_meas_fd6_t m;
+        pending_meas_t p;
+        (void)hil_protocol_meas_fd6_unpack(&m, data, len);
+        memset(&p, 0, sizeof p);
+        p.seq = m.seq;
+        p.i[0] = m.i_a;
+        p.i[1] = m.i_b;
+        p.i[2] = m.i_c;
+        p.i[3] = m.i_u;
+        p.i[4] = m.i_v;
+        p.i[5] = m.i_w;
+        p.theta_e = m.theta_e;
+        p.omega_m = m.omega_m;
+        p.vdc = m.vdc;
+        p.status = m.status;
+        on_measurement(&p, 6u, SCALE_I6, 1u);
+        break;
+    }
+    case HIL_PROTOCOL_MEAS_A_FRAME_ID: {
+        struct hil_protocol_meas_a_t m;
+        (void)hil_protocol_meas_a_unpack(&m, data, len);
+        if ((g.pend3.have & PART_A) && g.pend3.seq != m.seq) {
+            g.pend3.have = 0u; /* a newer measurement: drop the incomplete one */
+        }
+        g.pend3.seq = m.seq;
+        g.pend3.i[0] = m.i_a;
+        g.pend3.i[1] = m.i_b;
+        g.pend3.i[2] = m.i_c;
+        g.pend3.have |= PART_A;
+        if ((g.pend3.have & PART_B) && g.pend3.seq_lo != (uint8_t)(m.seq & 0xFFu)) {
+            g.pend3.have &= (uint8_t)~PART_B;
+        }
+        try_complete(&g.pend3, PART_A | PART_B, 3u, SCALE_I3);
+        break;
+    }
+    case HIL_PROTOCOL_MEAS_B_FRAME_ID:
+    case HIL_PROTOCOL_MEAS6_B_FRAME_ID: {
+        struct hil_protocol_meas_b_t m;
+        const int six = id == HIL_PROTOCOL_MEAS6_B_FRAME_ID;
+        pending_meas_t *p = six ? &g.pend6 : &g.pend3;
+        (void)hil_protocol_meas_b_unpack(&m, data, len); /* Meas6B has MeasB's layout */
+        p->seq_lo = m.seq_lo;
+        p->theta_e = m.theta_e;
+        p->omega_m = m.omega_m;
+        p->vdc = m.vdc;
+        p->status = m.status;
+        p->have |= PART_B;
+        if (six) {
+            try_complete(p, PART_A | PART_B | PART_C, 6u, SCALE_I6);
+        } else {
+            try_complete(p, PART_A | PART_B, 3u, SCALE_I3);
+        }
+        break;
+    }
+    case HIL_PROTOCOL_MEAS6_A_FRAME_ID:
+    case HIL_PROTOCOL_MEAS6_C_FRAME_ID: {
+        struct hil_protocol_meas6_a_t m; /* Meas6C has Meas6A's layout (i_u, i_v, i_w) */
+        const uint8_t part = id == HIL_PROTOCOL_MEAS6_A_FRAME_ID ? PART_A : PART_C;
+        const uint8_t off = part == PART_A ? 0u : 3u;
+        (void)hil_protocol_meas6_a_unpack(&m, data, len);
+        if ((g.pend6.have & (PART_A | PART_C)) && g.pend6.seq != m.seq) {
+            g.pend6.have = 0u;
+        }
+        g.pend6.seq = m.seq;
+        g.pend6.i[off] = m.i_a;
+        g.pend6.i[off + 1u] = m.i_b;
+        g.pend6.i[off + 2u] = m.i_c;
+        g.pend6.have |= part;
+        try_complete(&g.pend6, PART_A | PART_B | PART_C, 6u, SCALE_I6);
+        break;
+    }
+    case HIL_PROTOCOL_SETPOINT_FRAME_ID:
+        on_setpoint(data);
+        break;
+    case HIL_PROTOCOL_CONFIG_PARAM_FRAME_ID:
+        on_config(data);
+        break;
+    case HIL_PROTOCOL_HEARTBEAT_HOST_FRAME_ID:
+    case HIL_PROTOCOL_HEARTBEAT_TARGET_FRAME_ID:
+        on_heartbeat(data);
+        break;
+    default: /* FaultHost: informational */
+        break;
+    }
+}
+
+int hil_core_tx(hil_core_frame_t *out)
+{
+    if (g.tx_count == 0u) {
+        return 0;
+    }
+    *out = g.txq[g.tx_head];
+    g.tx_head = (uint8_t)((g.tx_head + 1u) % HIL_CORE_TX_QUEUE);
+    g.tx_count--;
+    return 1;
+}
+
+void hil_core_init(void)
+{
+    memset(&g, 0, sizeof g);
+    g.ts_ns = 100000u;
+    g.controller_id = HIL_FW_CTRL_OFF;
+    hil_app_init();
+    hil_core_step_begin(); /* the markers' own cost, for an instruction counter to subtract */
+    hil_core_step_end();
+}
+
+const hil_core_counters_t *hil_core_counters(void)
+{
+    return &g.counters;
+}
+
+const hil_app_cmd_t *hil_core_last_cmd(void)
+{
+    return &g.last_cmd;
+}
+
+uint32_t hil_core_last_exec_ns(void)
+{
+    return g.last_exec_ns;
+}

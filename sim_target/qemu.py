@@ -1,0 +1,231 @@
+"""The emulated MCU target: a firmware of the HIL target core built for mps2-an386 (`hil fw build --board
+mps2-an386`, a Cortex-M4F ELF) running in QEMU, started and stopped by the host.
+
+Lockstep and deterministic: QEMU runs with `-icount` (virtual time advances a fixed 2^shift ns per
+instruction), the firmware waits for frames with WFI, and the host's serial link (COBS + CRC-16) talks to the
+emulated CMSDK UART0 through a Unix socket (`-chardev socket,...,server=on -serial chardev:...`).
+
+Execution cost: a QEMU TCG plugin (firmware_stub/boards/mps2-an386/qemu/hil_insn_plugin.c, built on first
+use) counts the instructions between the firmware's step markers exactly; `metrics()` turns the counts of the
+metrics window into `exec_instructions` and the estimate `exec_time_us` at `mcu_clock_hz` with the cycle
+model below. The firmware itself reads SysTick (which under -icount counts virtual time, so instructions) and
+reports the same estimate per period in each Command's exec_time_ns.
+
+QEMU never outlives the host: it gets PR_SET_PDEATHSIG(SIGKILL) before exec, and `close()` (every exit path
+of the runner) terminates it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import hashlib
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from array import array
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from pmsm_hil.sim_target.elf import ElfError, elf_symbols
+from pmsm_hil.sim_target.firmware import FirmwareError
+from pmsm_hil.sim_target.fw_build import FIRMWARE_DIR, cache_dir
+
+QEMU = "qemu-system-arm"
+MACHINE = "mps2-an386"
+#: -icount shift: 2^6 = 64 ns of virtual time per instruction, so SysTick (25 MHz) ticks 1.6 times per
+#: instruction and the firmware's own reading resolves single instructions
+ICOUNT_SHIFT = 6
+DEFAULT_MCU_CLOCK_HZ = 168e6
+#: Cycle model of the estimate: cycles = instructions × CPI. CPI 1 is the Cortex-M4's issue rate (one
+#: instruction per cycle, zero-wait-state memory); loads, taken branches, divides, square roots and flash wait
+#: states add cycles on a real part, so the estimate is a lower bound (typically 1.2-1.5x on real hardware).
+CPI = 1.0
+CYCLE_MODEL = (f"estimate: instructions counted exactly in QEMU (mps2-an386, Cortex-M4F) x {CPI:g} cycle per "
+               "instruction at the MCU clock (zero-wait-state lower bound; real parts add cycles for loads, taken "
+               "branches, divides and flash wait states)")
+PLUGIN_SRC = FIRMWARE_DIR / "boards" / "mps2-an386" / "qemu" / "hil_insn_plugin.c"
+START_TIMEOUT_S = 20.0
+_PR_SET_PDEATHSIG = 1
+CFG_MAGIC = 0x48494C43
+
+
+class QemuError(FirmwareError):
+    """QEMU or the plugin compiler is missing, the ELF lacks the core's symbols, or QEMU did not start."""
+
+
+def qemu_available() -> str:
+    """'' when qemu-system-arm and a host C compiler are on PATH, else what is missing."""
+    missing = [t for t in (QEMU,) if shutil.which(t) is None]
+    if shutil.which("cc") is None and shutil.which("gcc") is None:
+        missing.append("cc")
+    return ", ".join(missing)
+
+
+def plugin_path() -> Path:
+    """The instruction-count plugin, compiled on first use into the cache (keyed by its source)."""
+    src = PLUGIN_SRC.read_bytes()
+    key = hashlib.sha256(src).hexdigest()[:16]
+    out = cache_dir() / f"hil_insn_plugin-{key}.so"
+    if out.is_file():
+        return out
+    cc = shutil.which("cc") or shutil.which("gcc")
+    if cc is None:
+        raise QemuError("the instruction-count plugin needs a host C compiler (cc)")
+    tmp = out.with_name(f"{out.name}.{os.getpid()}.tmp")
+    proc = subprocess.run([cc, "-shared", "-fPIC", "-O2", "-Wall", "-Wextra", "-o", str(tmp), str(PLUGIN_SRC)],
+                          capture_output=True, text=True, timeout=120)
+    if proc.returncode != 0:
+        raise QemuError(f"plugin build failed: {proc.stderr.strip()[:500]}")
+    os.replace(tmp, out)
+    return out
+
+
+def _die_with_parent() -> None:  # pragma: no cover - runs in the child between fork and exec
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+
+
+def stats(values: np.ndarray) -> dict[str, float]:
+    """{median, p99, max} of a sample (numbers)."""
+    return {"median": float(np.median(values)), "p99": float(np.percentile(values, 99)), "max": float(values.max())}
+
+
+class QemuTarget:
+    """One QEMU process running `elf`; `link_spec` is the host's end of the emulated UART0."""
+
+    def __init__(self, elf: str | Path, *, mcu_clock_hz: float = DEFAULT_MCU_CLOCK_HZ, count_instructions: bool = True,
+                 skip_steps: int = 0) -> None:
+        self.elf = Path(elf)
+        if not self.elf.is_file():
+            raise QemuError(f"qemu target: {self.elf} not found (build one with `hil fw build --board mps2-an386`)")
+        missing = qemu_available()
+        if missing:
+            raise QemuError(f"qemu target needs {missing} on PATH (apt-get install qemu-system-arm)")
+        try:
+            syms = elf_symbols(self.elf)
+        except (ElfError, OSError) as exc:
+            raise QemuError(f"qemu target: {exc}") from None
+        needed = ("hil_core_step_begin", "hil_core_step_end", "hil_board_cfg")
+        lacking = [n for n in needed if n not in syms]
+        if lacking:
+            raise QemuError(f"qemu target: {self.elf} lacks {', '.join(lacking)} (not a HIL target core firmware "
+                            "for mps2-an386?)")
+        if not (1e6 <= mcu_clock_hz <= 2e9):
+            raise QemuError(f"--mcu-clock must be between 1 MHz and 2 GHz, got {mcu_clock_hz:g} Hz")
+        self.mcu_clock_hz = float(mcu_clock_hz)
+        self.skip_steps = skip_steps
+        self._dir = Path(tempfile.mkdtemp(prefix="hil-qemu-"))
+        self.socket_path = self._dir / "uart0.sock"
+        self.counts_path: Path | None = self._dir / "insns.u32" if count_instructions else None
+        self.process: subprocess.Popen[bytes] | None = None
+        self._stderr = open(self._dir / "qemu.stderr", "w+b")  # noqa: SIM115 (closed in close())
+        self._sock: socket.socket | None = None
+        cfg_addr = syms["hil_board_cfg"]
+        cmd = [QEMU, "-M", MACHINE, "-nodefaults", "-display", "none", "-monitor", "none",
+               "-chardev", f"socket,id=uart0,path={self.socket_path},server=on,wait=off",
+               "-serial", "chardev:uart0", "-icount", f"shift={ICOUNT_SHIFT},align=off",
+               "-kernel", str(self.elf)]
+        for offset, value in enumerate((CFG_MAGIC, round(self.mcu_clock_hz), 1 << ICOUNT_SHIFT, round(CPI * 1000))):
+            cmd += ["-device", f"loader,addr={cfg_addr + 4 * offset:#x},data={value},data-len=4"]
+        if self.counts_path is not None:
+            begin, end = syms["hil_core_step_begin"] & ~1, syms["hil_core_step_end"] & ~1
+            cmd += ["-plugin", f"{plugin_path()},begin={begin:#x},end={end:#x},out={self.counts_path}"]
+        self.command = cmd
+        try:
+            self.process = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                            stderr=self._stderr, preexec_fn=_die_with_parent)
+            self._sock = self._connect()
+        except BaseException:
+            self.close()
+            raise
+
+    def _connect(self) -> socket.socket:
+        deadline = time.monotonic() + START_TIMEOUT_S
+        while True:
+            assert self.process is not None
+            if self.process.poll() is not None:
+                raise QemuError(f"QEMU exited with code {self.process.returncode}: {self._stderr_text()[-500:]}")
+            if self.socket_path.exists():
+                sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+                try:
+                    sock.connect(str(self.socket_path))
+                    return sock
+                except OSError:
+                    sock.close()
+            if time.monotonic() > deadline:
+                raise QemuError(f"QEMU did not open its UART socket within {START_TIMEOUT_S:g} s")
+            time.sleep(0.005)
+
+    def _stderr_text(self) -> str:
+        with contextlib.suppress(OSError, ValueError):
+            self._stderr.flush()
+            self._stderr.seek(0)
+            return self._stderr.read().decode(errors="replace").strip()
+        return ""
+
+    @property
+    def link_spec(self) -> str:
+        """`serial:fd:N` on a duplicate of the connected socket (the link owns and closes it)."""
+        assert self._sock is not None
+        return f"serial:fd:{os.dup(self._sock.fileno())}"
+
+    def instruction_counts(self) -> np.ndarray:
+        """Instructions of every control step so far (the markers' own cost subtracted), in step order."""
+        if self.counts_path is None or not self.counts_path.exists():
+            return np.zeros(0, dtype=np.int64)
+        raw = array("I")
+        data = self.counts_path.read_bytes()
+        raw.frombytes(data[: len(data) // 4 * 4])
+        if sys.byteorder != "little":  # pragma: no cover
+            raw.byteswap()
+        counts = np.asarray(raw, dtype=np.int64)
+        if len(counts) == 0:
+            return counts
+        return np.asarray(counts[1:] - counts[0], dtype=np.int64)  # the first record is the empty begin/end pair at boot
+
+    def metrics(self) -> dict[str, Any]:
+        """exec_instructions {median, p99, max} and the estimate exec_time_us over the steps from `skip_steps`
+        (the metrics window), plus the clock and cycle model; {} without counts."""
+        counts = self.instruction_counts()
+        window = counts[self.skip_steps:] if len(counts) > self.skip_steps else counts
+        out: dict[str, Any] = {"mcu_clock_hz": self.mcu_clock_hz, "exec_time_model": CYCLE_MODEL}
+        if len(window) == 0:
+            out["exec_instructions"] = None
+            return out
+        out["exec_instructions"] = stats(window)
+        out["exec_instructions"]["steps"] = len(window)
+        us = window * (CPI / self.mcu_clock_hz * 1e6)
+        out["exec_time_us"] = stats(us)
+        return out
+
+    def close(self) -> None:
+        """Stop QEMU (SIGTERM, then SIGKILL) and remove its files; idempotent."""
+        if self._sock is not None:
+            with contextlib.suppress(OSError):
+                self._sock.close()
+            self._sock = None
+        proc = self.process
+        if proc is not None and proc.poll() is None:
+            proc.terminate()
+            try:
+                proc.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+        self.process = None
+        with contextlib.suppress(OSError, ValueError):
+            self._stderr.close()
+        shutil.rmtree(self._dir, ignore_errors=True)
+
+    def __del__(self) -> None:  # a forgotten target still stops
+        with contextlib.suppress(Exception):
+            if self.process is not None and self.process.poll() is None:
+                self.process.kill()
