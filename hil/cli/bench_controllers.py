@@ -28,9 +28,13 @@ from pmsm_hil.hil.cli.bench_machines import (
     machine_for,
     six_phase_machine,
 )
+from pmsm_hil.hil.cli.bench_mcu import McuFigures
+from pmsm_hil.hil.cli.bench_mcu import measure as measure_mcu
 from pmsm_hil.hil.cli.parsing import positive_int
 from pmsm_hil.hil.errors import HilError
 from pmsm_hil.protocol.ids import ParamId
+from pmsm_hil.sim_target.fw_build import Sizes
+from pmsm_hil.sim_target.qemu import CPI
 
 FIRMWARE_DIR = Path(__file__).resolve().parents[2] / "firmware_stub"
 STAGES = ("hil_fw_stage_measure", "hil_fw_stage_reference", "hil_fw_stage_predict")
@@ -137,6 +141,13 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
                    help="steps per callgrind run (%(default)s)")
     p.add_argument("--no-valgrind", action="store_true", help="skip the instruction counts")
     p.add_argument("--json", type=Path, metavar="FILE", help="also write the figures as JSON")
+    p.add_argument("--board", choices=("host", "mps2-an386"), default="host",
+                   help="host: this machine (ns/step, callgrind); mps2-an386: the reference firmware built for the "
+                        "Cortex-M4F and run in QEMU (exact instructions/step, estimated µs at --mcu-clock, flash/RAM)")
+    p.add_argument("--mcu-clock", type=float, default=168e6, metavar="HZ",
+                   help="mps2-an386: MCU clock of the time estimate [Hz] (default 168e6)")
+    p.add_argument("--mcu-steps", type=positive_int, default=200, metavar="N",
+                   help="mps2-an386: steps per controller (default 200)")
     p.set_defaults(func=run)
 
 
@@ -274,9 +285,51 @@ def format_figures(figures: list[ControllerFigures], note: str) -> list[str]:
     return lines
 
 
+def format_mcu(figures: list[McuFigures], sizes: Sizes | None, mcu_clock_hz: float, steps: int) -> list[str]:
+    """Printable table of the emulated-MCU figures beside the paper's Table 4."""
+    mhz = mcu_clock_hz / 1e6
+    lines = [f"reference firmware on the emulated Cortex-M4F (QEMU mps2-an386), {steps} steps per controller; "
+             f"time is an ESTIMATE at {mhz:g} MHz ({CPI:g} cycle/instruction, zero-wait-state lower bound)",
+             f"controller   instr/step med / p99 / max     est. µs med / max @{mhz:g} MHz   own code B   "
+             "paper Table 4 total µs (dSPACE 1103)"]
+    for f in figures:
+        paper = PAPER_TABLE4_US.get(f.name)
+        ins, est = f.instructions, f.est_us
+        own = "-" if f.own_flash_bytes is None else str(f.own_flash_bytes)
+        lines.append(f"{f.controller_id:>2} {f.name:<10}{ins['median']:>8.0f} / {ins['p99']:>6.0f} / {ins['max']:>6.0f}"
+                     f"     {est['median']:>8.2f} / {est['max']:>7.2f}        {own:>10}   "
+                     f"{'-' if paper is None else f'{paper[3]:.2f}'}")
+    if sizes is not None:
+        lines.append(f"image (all eleven controllers, target core, codec, serial framing, libm): flash {sizes.flash} B "
+                     f"(text {sizes.text} + data {sizes.data}), static RAM {sizes.ram} B (data + bss incl. the "
+                     "16 KiB stack)")
+    lines.append("own code: flash of the controller's source files (GNU ld map); shared files count for each user. "
+                 "Instructions include the firmware API adapter (hil_app_step copying the measurement and command).")
+    return lines
+
+
+def run_mcu(args: argparse.Namespace, ids: list[int]) -> int:
+    """`hil bench controllers --board mps2-an386`."""
+    from pmsm_hil.sim_target.firmware import CONTROLLERS
+
+    names = {c.id: c.name for c in CONTROLLERS}
+    figures, sizes, per_file = measure_mcu(ids, names, args.mcu_steps, args.mcu_clock)
+    for line in format_mcu(figures, sizes, args.mcu_clock, args.mcu_steps):
+        print(line)
+    if args.json is not None:
+        payload = {"board": "mps2-an386", "steps": args.mcu_steps, "mcu_clock_hz": args.mcu_clock, "cpi": CPI,
+                   "image": None if sizes is None else asdict(sizes), "files": per_file,
+                   "controllers": [asdict(f) for f in figures]}
+        write_text_atomic(args.json, json.dumps(payload, indent=2) + "\n", option="--json")
+        print(f"figures written to {args.json}")
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     """Execute `hil bench controllers`."""
     ids = implemented_controllers()
+    if getattr(args, "board", "host") == "mps2-an386":
+        return run_mcu(args, ids)
     figures = [time_controller(cid, args.steps, args.repeats) for cid in ids]
     note = "instruction counts skipped (--no-valgrind)"
     if not args.no_valgrind:

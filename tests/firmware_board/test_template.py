@@ -34,3 +34,21 @@ def test_fw_build_cli_prints_sizes(template_elf: Path, tmp_path: Path, capsys: p
     out = capsys.readouterr().out
     assert "text" in out and "bss" in out and (tmp_path / "fw.elf").is_file()
     assert main(["fw", "build", "--src", str(tmp_path)]) == 2  # no CMakeLists.txt: one-line error
+
+
+def test_bench_controllers_mcu_prints_all_eleven(reference_elf: Path, tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    import json
+
+    from pmsm_hil.sim_target.firmware import CONTROLLERS
+
+    assert main(["bench", "controllers", "--board", "mps2-an386", "--mcu-steps", "10", "--json",
+                 str(tmp_path / "b.json")]) == 0
+    out = capsys.readouterr().out
+    names = [c.name for c in CONTROLLERS if c.id >= 1 and c.implemented]
+    assert len(names) == 11
+    for name in names:
+        assert f" {name} " in out
+    assert "ESTIMATE" in out and "55.83" in out  # beside the paper's Table 4
+    payload = json.loads((tmp_path / "b.json").read_text())
+    assert all(c["instructions"]["median"] > 100 for c in payload["controllers"])
