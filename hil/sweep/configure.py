@@ -77,6 +77,14 @@ def _run_parser() -> argparse.ArgumentParser:
     return p
 
 
+def base_args(argv: Sequence[str] = ()) -> argparse.Namespace:
+    """Base options of every run from `hil run` option strings (e.g. ["--duration", "0.1"])."""
+    try:
+        return _run_parser().parse_args(list(argv))
+    except ParameterError as exc:
+        raise ParameterError(str(exc).removeprefix("argument ")) from None
+
+
 def point_argv(point: Point) -> list[str]:
     """The `hil run` options a point stands for (theta0 excluded: the scenario's angle, set separately)."""
     from pmsm_hil.hil.cli.run import config_schema
@@ -110,6 +118,10 @@ def _grid_error(message: str, point: Point, where: str) -> ParameterError:
         if text.startswith(f"{option}: ") or text.startswith(f"{option}/"):
             return ParameterError(f"{where} {key}: {text.split(': ', 1)[1]}")
         if option in text or f"'{key}'" in text:
+            return ParameterError(f"{where} {key}: {text}")
+    for key, value in point:  # a configuration error quoting the value or the name (unknown controller 'x')
+        name = key.split(".", 1)[1] if key.startswith(TABLE_PREFIXES) else None
+        if f"'{value}'" in text or (name is not None and f"'{name}'" in text):
             return ParameterError(f"{where} {key}: {text}")
     shown = ", ".join(f"{k}={v}" for k, v in point) or "(base options)"
     return ParameterError(f"{where} {shown}: {text}")
@@ -177,4 +189,5 @@ def store_dir(store: Path, rid: str) -> Path:
     return store / rid
 
 
-__all__ = ["SweepRun", "build_config", "build_runs", "config_text", "point_argv", "store_dir", "with_repeat"]
+__all__ = ["SweepRun", "base_args", "build_config", "build_runs", "config_text", "point_argv", "store_dir",
+           "with_repeat"]

@@ -1,0 +1,77 @@
+"""`hil bench sweep`: wall time of one 16-run sweep plan on 1 and on 2 local workers, and their ratio."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+
+from pmsm_hil.hil.cli.parsing import positive_float, positive_int
+
+#: the plan: 2 controllers × 2 loads × 4 initial rotor angles = 16 runs
+CONTROLLERS = ("mpcc", "dsvm-20")
+LOADS = ("3", "7")
+ANGLES = 4
+
+
+def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Register `bench sweep`."""
+    p = subparsers.add_parser(
+        "sweep", help="speed-up of `hil sweep` with 2 local workers against 1 (same 16-run plan)",
+        description="Runs one 16-run sweep plan (controllers mpcc, dsvm-20 × load 3, 7 N·m × 4 initial rotor "
+                    "angles; --sim seconds simulated each, half settling) on the local process pool with 1 and "
+                    "with 2 workers, alternately, --repeat times (pool start-up included), and prints the median "
+                    "wall times, the ratio 2 workers / 1 worker (ideal 0.5; the goal is ≤ 0.6 on an idle 2-core "
+                    "machine) and the load average before and after: a shared machine makes the figures noisy. "
+                    "Also checks that both give the same metrics (wall-clock ones aside).")
+    p.add_argument("--repeat", type=positive_int, default=3, metavar="N", help="rounds (default %(default)s)")
+    p.add_argument("--sim", type=positive_float("--sim"), default=0.2, metavar="S",
+                   help="simulated seconds per run (default %(default)s)")
+    p.set_defaults(func=run)
+
+
+def _load() -> str:
+    return " ".join(f"{x:.2f}" for x in os.getloadavg())
+
+
+def run(args: argparse.Namespace) -> int:
+    """Execute `hil bench sweep`."""
+    from pmsm_hil.hil.sweep.configure import base_args, build_runs
+    from pmsm_hil.hil.sweep.engines import LocalEngine
+    from pmsm_hil.hil.sweep.execute import tasks_for
+    from pmsm_hil.hil.sweep.rows import deterministic_view
+    from pmsm_hil.hil.sweep.task import run_task
+
+    half = repr(args.sim / 2)
+    base = base_args(["--duration", half, "--settle", half])
+    runs = build_runs(base, [(("controller", c), ("load", x)) for c in CONTROLLERS for x in LOADS], ANGLES)
+    tasks = tasks_for(runs, None)
+    print(f"hil bench sweep: {len(tasks)} runs ({', '.join(CONTROLLERS)} × load {', '.join(LOADS)} N·m × {ANGLES} "
+          f"rotor angles, {args.sim:g} s simulated each) on the local process pool; {os.cpu_count()} cores")
+    print(f"load average before (1/5/15 min): {_load()}")
+    times: dict[int, list[float]] = {1: [], 2: []}
+    rows: dict[int, dict[str, dict[str, object]]] = {}
+    for k in range(args.repeat):
+        for workers in ((1, 2) if k % 2 == 0 else (2, 1)):
+            t0 = time.perf_counter()
+            with LocalEngine(workers) as engine:
+                got = {tasks[i].run_id: row for i, row, error in engine.map_unordered(run_task, tasks)
+                       if error is None}
+            times[workers].append(time.perf_counter() - t0)
+            rows.setdefault(workers, got)
+        print(f"round {k + 1}: 1 worker {times[1][-1]:.2f} s, 2 workers {times[2][-1]:.2f} s, "
+              f"ratio {times[2][-1] / times[1][-1]:.3f}; load {_load()}", flush=True)
+    one, two = statistics.median(times[1]), statistics.median(times[2])
+    same = (len(rows[1]) == len(tasks) and rows[1].keys() == rows[2].keys()
+            and all(deterministic_view(rows[1][r]) == deterministic_view(rows[2][r]) for r in rows[1]))
+    failed = sum(1 for r in rows[1].values() if r.get("end_code") != 0)
+    print(f"median wall time: 1 worker {one:.2f} s, 2 workers {two:.2f} s")
+    print(f"ratio 2 workers / 1 worker: {two / one:.3f} (ideal 0.5; goal ≤ 0.6 on an idle 2-core machine)")
+    print(f"metrics identical on 1 and 2 workers: {'yes' if same else 'NO'}; runs that did not complete: {failed}")
+    print(f"load average after (1/5/15 min): {_load()}")
+    if not same:
+        print("hil: bench sweep: 1 and 2 workers gave different metrics", file=sys.stderr)
+        return 1
+    return 0
