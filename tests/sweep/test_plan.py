@@ -68,7 +68,7 @@ def test_run_ids_are_stable_and_follow_the_configuration() -> None:
     assert run_id(replace(a, out_dir=Path("x"), log_trace=True)) == run_id(a)  # logging is not configuration
     assert run_id(build_config(base, (("controller", "mpcc"), ("load", "3.5")))) != run_id(a)
     assert run_id(build_config(base, (("controller", "mpcc"), ("load", "3"), ("set.rs", "4.6")))) != run_id(a)
-    assert run_id(a) == "%016x" % int(run_id(a), 16)  # 16 hex digits
+    assert len(run_id(a)) == 16 and int(run_id(a), 16) >= 0  # 16 hex digits
     # a value given by the base options or by the point is the same run
     assert run_id(build_config(base_args(["--duration", "0.1", "--load", "3"]), (("controller", "mpcc"),))) == run_id(a)
 
