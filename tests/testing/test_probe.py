@@ -1,0 +1,97 @@
+"""The conformance probe finds each behaviour rule broken by an in-process reference target patched to break it
+(and nothing on the unpatched one)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+from pmsm_hil.protocol.ids import CONTROLLER_NAMES, Mode
+from pmsm_hil.protocol.messages import Setpoint
+from pmsm_hil.sim_target import target as sim_target
+
+from pmsm_hil.conformance import RULES, broken
+from pmsm_hil.conformance.probe import ProbeReport, probe_target, unassigned_controller_id
+from pmsm_hil.testing.runs import HilSettings, build_config
+
+
+def _probe(**choices: Any) -> ProbeReport:
+    cfg = build_config(HilSettings(), None, {"scenario": "dyno-steady", "speed": 500, "load": 0, "settle": 0,
+                                             **choices})
+    return probe_target(cfg)
+
+
+def _broken_rules(report: ProbeReport) -> set[str]:
+    return {rule for rule, found in report.findings.items() if found}
+
+
+def test_the_reference_target_passes_every_probe_rule() -> None:
+    report = _probe()
+    assert report.stopped == "" and _broken_rules(report) == set()
+    assert report.reached == set(RULES) - {"missing", "sequence", "state_code", "durations", "frame", "speed_mode"}
+
+
+def test_a_target_ignoring_a_disable_while_running(monkeypatch: pytest.MonkeyPatch) -> None:
+    real = sim_target.SimTarget._on_setpoint
+
+    def keep_running(self: sim_target.SimTarget, s: Setpoint) -> None:
+        if not (self.enabled and not s.enable):
+            real(self, s)
+
+    monkeypatch.setattr(sim_target.SimTarget, "_on_setpoint", keep_running)
+    report = _probe()
+    assert _broken_rules(report) == {"safe_state", "watchdog"}
+    assert "Measurement after the disabling Setpoint " in report.findings["safe_state"][0]
+
+
+def test_a_target_answering_a_disabled_measurement_with_an_active_vector(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(sim_target, "_IDLE_STATE", 3)
+    report = _probe()
+    assert {"setpoint_disabled", "safe_state", "watchdog"} <= _broken_rules(report)
+    assert "states=(3,)" in report.findings["setpoint_disabled"][0]
+
+
+def test_a_target_running_torque_mode_as_speed_mode(monkeypatch: pytest.MonkeyPatch) -> None:
+    real = sim_target.SimTarget._on_setpoint
+
+    def speed_only(self: sim_target.SimTarget, s: Setpoint) -> None:
+        real(self, Setpoint(s.enable, int(Mode.SPEED) if s.mode == Mode.TORQUE else s.mode, s.reference,
+                            s.controller_id))
+
+    monkeypatch.setattr(sim_target.SimTarget, "_on_setpoint", speed_only)
+    report = _probe()
+    assert _broken_rules(report) == {"torque_mode"}
+    message = broken("torque_mode", report.findings["torque_mode"][0])
+    assert message.startswith("conformance rule 'torque_mode' broken (Setpoint mode 1")
+
+
+def test_a_target_without_faults(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(sim_target.SimTarget, "_send", _drop_faults(sim_target.SimTarget._send))
+    report = _probe()
+    assert _broken_rules(report) == {"fault_mode", "fault_controller"}
+    assert "no FaultTarget within" in report.findings["fault_controller"][0]
+
+
+def _drop_faults(send: Any) -> Any:
+    def without_faults(self: sim_target.SimTarget, msg: Any) -> None:
+        if type(msg).__name__ != "Fault":
+            send(self, msg)
+    return without_faults
+
+
+def test_a_silent_target_stops_the_probe_with_a_finding(monkeypatch: pytest.MonkeyPatch) -> None:
+    real = sim_target.SimTarget._on_measurement
+
+    def silent_when_enabled(self: sim_target.SimTarget, m: Any, currents: Any) -> None:
+        if not self.enabled:
+            real(self, m, currents)
+
+    monkeypatch.setattr(sim_target.SimTarget, "_on_measurement", silent_when_enabled)
+    report = _probe()
+    assert "target silent" in report.stopped and _broken_rules(report) == {"torque_mode"}
+    assert report.reached == {"config_ack", "setpoint_disabled", "torque_mode"}
+
+
+def test_the_unassigned_controller_id_is_no_controller() -> None:
+    cid = unassigned_controller_id()
+    assert 0 < cid < 255 and cid not in {int(c) for c in CONTROLLER_NAMES}
