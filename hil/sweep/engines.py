@@ -27,6 +27,7 @@ from collections import deque
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
+from multiprocessing import forkserver
 from typing import Any
 
 from pmsm_hil.hil.errors import ParameterError
@@ -110,9 +111,15 @@ class LocalEngine(Engine):
         self._pool: ProcessPoolExecutor | None = None
 
     def _new_pool(self) -> ProcessPoolExecutor:
-        os.environ.update(blas_env())  # inherited by the fork server when it starts (this process's BLAS is loaded)
         ctx = multiprocessing.get_context("forkserver")
         ctx.set_forkserver_preload(_PRELOAD)
+        saved = dict(os.environ)
+        os.environ.update(blas_env())  # the fork server (and so every worker) starts with it
+        try:
+            forkserver.ensure_running()
+        finally:
+            os.environ.clear()
+            os.environ.update(saved)
         return ProcessPoolExecutor(self.workers, mp_context=ctx, initializer=_worker_init)
 
     def map_unordered(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[Outcome]:

@@ -51,6 +51,11 @@ def group_rows(rows: Sequence[Mapping[str, Any]], keys: Sequence[str]) -> list[d
     return out
 
 
+def _key_text(value: Any) -> str:
+    """A swept key's value as given (numbers in their shortest form: 3, 4.05)."""
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
 def _headers() -> list[str]:
     return [by_name(m).title for m in SUMMARY_METRICS]
 
@@ -61,7 +66,7 @@ def summary_lines(rows: Sequence[Mapping[str, Any]], keys: Sequence[str]) -> lis
     head = [*keys, "runs", "failed", *_headers()]
     table = [head]
     for g in group_rows(rows, keys):
-        cells = ["-" if g[k] is None else f"{g[k]:g}" if isinstance(g[k], float) else str(g[k]) for k in keys]
+        cells = ["-" if g[k] is None else _key_text(g[k]) for k in keys]
         cells += [str(g["runs"]), str(g["failed"])]
         cells += ["-" if g[m] is None else by_name(m).format(g[m]) for m in SUMMARY_METRICS]
         table.append(cells)
@@ -124,7 +129,7 @@ def render_html(rows: Sequence[Mapping[str, Any]], keys: Sequence[str], *, title
     group_keys = [k for k in keys if k not in _PER_RUN]
     table = [[*group_keys, "runs", "failed", *_headers()]]
     for g in group_rows(rows, group_keys):
-        table.append([*("–" if g[k] is None else str(g[k]) for k in group_keys), str(g["runs"]), str(g["failed"]),
+        table.append([*("–" if g[k] is None else _key_text(g[k]) for k in group_keys), str(g["runs"]), str(g["failed"]),
                       *("–" if g[m] is None else by_name(m).format(g[m]) for m in SUMMARY_METRICS)])
     failed = [r for r in rows if r.get("end_code") != 0]
     parts = [

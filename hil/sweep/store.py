@@ -93,11 +93,11 @@ class ResultsStore:
     def add(self, row: dict[str, Any]) -> None:
         """Append a finished run's row to the journal (flushed and synced) and keep it."""
         line = json.dumps(row, separators=(",", ":"), allow_nan=False, default=str) + "\n"
+        self.rows[row["run_id"]] = row  # first: a Ctrl-C during the write still leaves it in the results files
         with self.journal.open("a", encoding="utf-8") as fh:
             fh.write(line)
             fh.flush()
             os.fsync(fh.fileno())
-        self.rows[row["run_id"]] = row
 
     def plan_rows(self, run_ids: Iterable[str]) -> list[dict[str, Any]]:
         """The rows of these run ids that exist, in that order."""
