@@ -20,6 +20,7 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import hashlib
+import mmap
 import os
 import shutil
 import signal
@@ -29,10 +30,15 @@ import sys
 import tempfile
 import time
 from array import array
+from collections import deque
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from pmsm_hil.protocol.errors import LinkError
+from pmsm_hil.protocol.frame import Frame
+from pmsm_hil.protocol.links.stats import LinkStats
 from pmsm_hil.sim_target.elf import ElfError, elf_symbols
 from pmsm_hil.sim_target.firmware import FirmwareError
 from pmsm_hil.sim_target.fw_build import FIRMWARE_DIR, cache_dir
@@ -54,6 +60,13 @@ PLUGIN_SRC = FIRMWARE_DIR / "boards" / "mps2-an386" / "qemu" / "hil_insn_plugin.
 START_TIMEOUT_S = 20.0
 _PR_SET_PDEATHSIG = 1
 CFG_MAGIC = 0x48494C43
+#: transports: the emulated UART (default, WFI on its RX interrupt) or the PSRAM mailbox (busy-polled)
+TRANSPORTS = ("uart", "mailbox")
+#: the board's PSRAM (QEMU machine RAM, 16 MiB at 0x21000000): its backing file is the mailbox
+PSRAM_SIZE = 16 << 20
+MBOX_H2T_SEQ, MBOX_H2T_LEN, MBOX_T2H_SEQ, MBOX_T2H_LEN = 0x000, 0x004, 0x008, 0x00C
+MBOX_H2T_BUF, MBOX_T2H_BUF, MBOX_BUF_SIZE = 0x040, 0x440, 0x400
+MAILBOX_TIMEOUT_S = 5.0
 
 
 class QemuError(FirmwareError):
@@ -102,7 +115,7 @@ class QemuTarget:
     """One QEMU process running `elf`; `link_spec` is the host's end of the emulated UART0."""
 
     def __init__(self, elf: str | Path, *, mcu_clock_hz: float = DEFAULT_MCU_CLOCK_HZ, count_instructions: bool = True,
-                 skip_steps: int = 0) -> None:
+                 skip_steps: int = 0, transport: str = "uart") -> None:
         self.elf = Path(elf)
         if not self.elf.is_file():
             raise QemuError(f"qemu target: {self.elf} not found (build one with `hil fw build --board mps2-an386`)")
@@ -120,20 +133,31 @@ class QemuTarget:
                             "for mps2-an386?)")
         if not (1e6 <= mcu_clock_hz <= 2e9):
             raise QemuError(f"--mcu-clock must be between 1 MHz and 2 GHz, got {mcu_clock_hz:g} Hz")
+        if transport not in TRANSPORTS:
+            raise QemuError(f"qemu transport must be one of {', '.join(TRANSPORTS)}, got {transport!r}")
         self.mcu_clock_hz = float(mcu_clock_hz)
         self.skip_steps = skip_steps
+        self.transport = transport
         self._dir = Path(tempfile.mkdtemp(prefix="hil-qemu-"))
         self.socket_path = self._dir / "uart0.sock"
         self.counts_path: Path | None = self._dir / "insns.u32" if count_instructions else None
         self.process: subprocess.Popen[bytes] | None = None
         self._stderr = open(self._dir / "qemu.stderr", "w+b")  # noqa: SIM115 (closed in close())
         self._sock: socket.socket | None = None
+        self.psram_path = self._dir / "psram"
         cfg_addr = syms["hil_board_cfg"]
         cmd = [QEMU, "-M", MACHINE, "-nodefaults", "-display", "none", "-monitor", "none",
                "-chardev", f"socket,id=uart0,path={self.socket_path},server=on,wait=off",
                "-serial", "chardev:uart0", "-icount", f"shift={ICOUNT_SHIFT},align=off",
                "-kernel", str(self.elf)]
-        for offset, value in enumerate((CFG_MAGIC, round(self.mcu_clock_hz), 1 << ICOUNT_SHIFT, round(CPI * 1000))):
+        if transport == "mailbox":
+            with open(self.psram_path, "wb") as fh:
+                fh.truncate(PSRAM_SIZE)
+            cmd[2:3] = [f"{MACHINE},memory-backend=psram", "-object",
+                        f"memory-backend-file,id=psram,size={PSRAM_SIZE},mem-path={self.psram_path},share=on"]
+        cfg_words = (CFG_MAGIC, round(self.mcu_clock_hz), 1 << ICOUNT_SHIFT, round(CPI * 1000),
+                     TRANSPORTS.index(transport))
+        for offset, value in enumerate(cfg_words):
             cmd += ["-device", f"loader,addr={cfg_addr + 4 * offset:#x},data={value},data-len=4"]
         if self.counts_path is not None:
             begin, end = syms["hil_core_step_begin"] & ~1, syms["hil_core_step_end"] & ~1
@@ -171,6 +195,12 @@ class QemuTarget:
             return self._stderr.read().decode(errors="replace").strip()
         return ""
 
+    def mailbox_link(self) -> MailboxLink:
+        """The host's end of the PSRAM mailbox (transport 'mailbox')."""
+        if self.transport != "mailbox":
+            raise QemuError("this QEMU target runs the UART transport: use link_spec")
+        return MailboxLink(self.psram_path)
+
     @property
     def link_spec(self) -> str:
         """`serial:fd:N` on a duplicate of the connected socket (the link owns and closes it)."""
@@ -189,7 +219,8 @@ class QemuTarget:
         counts = np.asarray(raw, dtype=np.int64)
         if len(counts) == 0:
             return counts
-        return np.asarray(counts[1:] - counts[0], dtype=np.int64)  # the first record is the empty begin/end pair at boot
+        # the first record is the empty begin/end pair at boot: the markers' own cost
+        return np.asarray(counts[1:] - counts[0], dtype=np.int64)
 
     def metrics(self) -> dict[str, Any]:
         """exec_instructions {median, p99, max} and the estimate exec_time_us over the steps from `skip_steps`
@@ -229,3 +260,87 @@ class QemuTarget:
         with contextlib.suppress(Exception):
             if self.process is not None and self.process.poll() is None:
                 self.process.kill()
+
+
+class MailboxLink:
+    """The host's end of the PSRAM mailbox (implements the Link protocol): `send` waits for the reply to the
+    previous request (collecting its frames), writes the frames and their length, then the sequence word in one
+    aligned 32-bit store; `poll` returns the reply's frames once the target has echoed the sequence word."""
+
+    def __init__(self, psram: Path) -> None:
+        self.stats = LinkStats()
+        self.fd = True
+        self._file = open(psram, "r+b")  # noqa: SIM115 (closed in close())
+        self._map = mmap.mmap(self._file.fileno(), MBOX_T2H_BUF + MBOX_BUF_SIZE)
+        self._h2t_seq = ctypes.c_uint32.from_buffer(self._map, MBOX_H2T_SEQ)
+        self._h2t_len = ctypes.c_uint32.from_buffer(self._map, MBOX_H2T_LEN)
+        self._t2h_seq = ctypes.c_uint32.from_buffer(self._map, MBOX_T2H_SEQ)
+        self._t2h_len = ctypes.c_uint32.from_buffer(self._map, MBOX_T2H_LEN)
+        self._seq = self._h2t_seq.value
+        self._pending = False
+        self._rx: deque[Frame] = deque()
+        self._closed = False
+
+    def _collect(self) -> bool:
+        """Take the reply to the pending request if it is complete; True when nothing is pending."""
+        if not self._pending:
+            return True
+        if self._t2h_seq.value != self._seq:
+            return False
+        n = min(self._t2h_len.value, MBOX_BUF_SIZE)
+        buf = self._map[MBOX_T2H_BUF:MBOX_T2H_BUF + n]
+        pos = 0
+        while pos + 6 <= n:
+            ident = int.from_bytes(buf[pos:pos + 4], "little")
+            fd, length = buf[pos + 4], buf[pos + 5]
+            self._rx.append(Frame(ident, bytes(buf[pos + 6:pos + 6 + length]), bool(fd)))
+            self.stats.frames_rx += 1
+            pos += 6 + length
+        self._pending = False
+        return True
+
+    def send(self, frames: Sequence[Frame]) -> None:
+        """One request carrying `frames`."""
+        deadline = time.perf_counter() + MAILBOX_TIMEOUT_S
+        while not self._collect():
+            if time.perf_counter() > deadline:
+                self.stats.send_errors += 1
+                raise LinkError(f"mailbox: the target did not answer request {self._seq} within "
+                                f"{MAILBOX_TIMEOUT_S:g} s")
+        body = b"".join(f.arbitration_id.to_bytes(4, "little") + bytes((1 if f.is_fd else 0, len(f.data))) + f.data
+                        for f in frames)
+        if len(body) > MBOX_BUF_SIZE:
+            self.stats.send_errors += 1
+            raise LinkError(f"mailbox: {len(body)} bytes in one request (at most {MBOX_BUF_SIZE})")
+        self._map[MBOX_H2T_BUF:MBOX_H2T_BUF + len(body)] = body
+        self._h2t_len.value = len(body)
+        self._seq = (self._seq + 1) & 0xFFFFFFFF
+        self._pending = True
+        self._h2t_seq.value = self._seq  # last, one aligned 32-bit store
+        self.stats.frames_tx += len(frames)
+
+    def poll(self) -> Frame | None:
+        """The next reply frame, or None at once."""
+        if not self._rx:
+            self._collect()
+            if not self._rx:
+                return None
+        return self._rx.popleft()
+
+    def recv(self, timeout_s: float) -> Frame | None:
+        """Busy-poll up to `timeout_s` seconds."""
+        end = time.perf_counter() + timeout_s
+        while True:
+            frame = self.poll()
+            if frame is not None or time.perf_counter() >= end:
+                return frame
+
+    def close(self) -> None:
+        """Unmap the mailbox (idempotent)."""
+        if self._closed:
+            return
+        self._closed = True
+        del self._h2t_seq, self._h2t_len, self._t2h_seq, self._t2h_len
+        with contextlib.suppress(BufferError, ValueError):
+            self._map.close()
+        self._file.close()

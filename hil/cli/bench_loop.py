@@ -30,6 +30,9 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("--cross-process", default="udp,serial",
                    help="comma list of cross-process links to measure (udp, serial; empty: none)")
     p.add_argument("--no-realtime", action="store_true", help="skip the real-time lateness measurement")
+    p.add_argument("--qemu", type=Path, metavar="ELF",
+                   help="also measure a firmware for mps2-an386 in QEMU (hil fw build --board mps2-an386) over its "
+                        "UART and its PSRAM mailbox (lockstep_qemu_uart_hz, lockstep_qemu_mailbox_hz)")
     p.add_argument("--json", type=Path, help="write the figures as JSON")
     p.set_defaults(func=run)
 
@@ -50,7 +53,7 @@ def _median_rate(make: Callable[[], RunConfig], repeats: int) -> dict[str, Any]:
 
 
 def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
-            progress: Callable[[str], None] = lambda _msg: None) -> dict[str, Any]:
+            progress: Callable[[str], None] = lambda _msg: None, qemu: Path | None = None) -> dict[str, Any]:
     """All loop figures; keys documented in docs/benchmarks.md. `progress` gets one line per stage."""
     base = _base(duration)
     out: dict[str, Any] = {"duration_s": duration, "repeats": repeats}
@@ -81,6 +84,17 @@ def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
             out[f"lockstep_{name}_process_hz"] = res["periods_per_s"]
         except Exception as exc:
             out[f"lockstep_{name}_process_error"] = str(exc)
+    if qemu is not None:
+        for transport, link in (("uart", "virtual"), ("mailbox", "mailbox")):
+            progress(f"lockstep, {qemu.name} in QEMU mps2-an386 over its {transport} ({runs})")
+            def make_qemu(link: str = link) -> RunConfig:
+                return replace(base, target=f"qemu:{qemu}", link=link)
+
+            try:
+                res = _median_rate(make_qemu, repeats)
+                out[f"lockstep_qemu_{transport}_hz"] = res["periods_per_s"]
+            except Exception as exc:
+                out[f"lockstep_qemu_{transport}_error"] = str(exc)
     if realtime:
         progress(f"real time in-process at 10 kHz ({duration:g} s)")
         rt = run_closed_loop(replace(base, mode="realtime"))
@@ -95,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
     def progress(msg: str) -> None:
         print(f"bench loop: {msg} ...", file=sys.stderr, flush=True)
 
-    figures = measure(args.duration, args.repeats, cross, not args.no_realtime, progress)
+    figures = measure(args.duration, args.repeats, cross, not args.no_realtime, progress, qemu=args.qemu)
     print(f"closed loop, niu2020 IPMSM, MPCC, Ts = 100 µs, {args.duration} s simulated, median of {args.repeats}")
     for key, value in figures.items():
         if key.endswith("_hz"):

@@ -22,8 +22,10 @@ TARGET_KINDS = ("auto", "inproc", "spawn", "external")
 #: targets that carry a path: a firmware of the HIL target core built for the host (SIL library, or a source
 #: folder built on the fly) or for the emulated MCU (QEMU mps2-an386 ELF); docs/firmware_api.md
 TARGET_PREFIXES = ("sil:", "qemu:")
-#: link spec of a qemu target: its emulated UART0 (a Unix socket to QEMU, COBS + CRC-16 serial framing)
+#: link specs of a qemu target: its emulated UART0 (default; a Unix socket to QEMU, COBS + CRC-16 serial framing)
+#: or the faster mailbox in the board's PSRAM shared with the host (`--link mailbox`)
 QEMU_LINK = "serial:qemu-uart0"
+QEMU_MAILBOX_LINK = "mailbox:qemu-psram"
 DEFAULT_MCU_CLOCK_HZ = 168e6
 
 #: The paper limits the starting torque to ~10 N·m for its 7 N·m machine: 10/7 of rated.
@@ -126,9 +128,14 @@ class RunConfig:
             if prefix == "qemu:":
                 if self.link == "virtual":  # the default: the emulated UART is the link
                     object.__setattr__(self, "link", QEMU_LINK)
-                elif self.link != QEMU_LINK:
-                    raise ParameterError(f"--target qemu:... talks over the emulated UART: leave --link out "
-                                         f"(or give {QEMU_LINK}), got {self.link!r}")
+                elif self.link in ("mailbox", "mailbox:"):
+                    object.__setattr__(self, "link", QEMU_MAILBOX_LINK)
+                elif self.link not in (QEMU_LINK, QEMU_MAILBOX_LINK):
+                    raise ParameterError(f"--target qemu:... talks over the emulated UART (leave --link out) or the "
+                                         f"PSRAM mailbox (--link mailbox), got --link {self.link!r}")
+                if self.mode != "lockstep":
+                    raise ParameterError("--target qemu:... runs lockstep only (the emulated MCU keeps virtual "
+                                         "time, not wall time)")
         if not (math.isfinite(self.mcu_clock_hz) and 1e6 <= self.mcu_clock_hz <= 2e9):
             raise ParameterError(f"--mcu-clock must be between 1 MHz and 2 GHz, got {self.mcu_clock_hz:g} Hz")
         if self.watchdog_periods < 1:

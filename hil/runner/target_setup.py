@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
-from pmsm_hil.hil.runner.run_config import RunConfig
+from pmsm_hil.hil.runner.run_config import QEMU_MAILBOX_LINK, RunConfig
 from pmsm_hil.hil.runner.target_client import TargetClient, TargetError
 from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.links import Link, link_kind, open_link, parse_spec
@@ -196,13 +196,14 @@ def _connect_qemu(cfg: RunConfig, path: str) -> TargetConnection:
     from pmsm_hil.sim_target.qemu import QemuTarget
 
     skip = round(cfg.scenario.settle_s / cfg.ts_s)
-    qemu = QemuTarget(Path(path).expanduser(), mcu_clock_hz=cfg.mcu_clock_hz, skip_steps=skip)
+    transport = "mailbox" if cfg.link == QEMU_MAILBOX_LINK else "uart"
+    qemu = QemuTarget(Path(path).expanduser(), mcu_clock_hz=cfg.mcu_clock_hz, skip_steps=skip, transport=transport)
     try:
-        host_link = open_link(qemu.link_spec, "host")
+        host_link: Link = qemu.mailbox_link() if transport == "mailbox" else open_link(qemu.link_spec, "host")
     except BaseException:
         qemu.close()
         raise
-    codec = FrameCodec(link_kind(parse_spec(cfg.link)).profile(parse_spec(cfg.link)))
+    codec = FrameCodec("canfd")  # both transports carry the CAN FD layouts, as the serial link does
     return TargetConnection(TargetClient(host_link, codec), host_link, extra=[qemu], extra_metrics=qemu.metrics)
 
 

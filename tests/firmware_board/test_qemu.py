@@ -72,3 +72,23 @@ def test_qemu_errors(tmp_path: Path, reference_sil: Path) -> None:
         QemuTarget(tmp_path / "none.elf")
     with pytest.raises(QemuError):
         QemuTarget(reference_sil)  # a host library: not an mps2-an386 firmware
+
+
+def test_mailbox_transport_equals_uart(reference_elf: Path) -> None:
+    """The PSRAM mailbox carries the same frames: a lockstep run is identical to the UART run."""
+    uart = metrics(rated(f"qemu:{reference_elf}", settle_s=0.01, duration_s=0.03))
+    mbox = metrics(rated(f"qemu:{reference_elf}", settle_s=0.01, duration_s=0.03, link="mailbox"))
+    assert mbox["link_spec"] == "mailbox:qemu-psram"
+    for key in ("torque_mean_nm", "torque_ripple_rms_nm", "speed_mean_rpm", "exec_instructions"):
+        assert mbox[key] == uart[key], key
+
+
+def test_qemu_config_errors(reference_elf: Path) -> None:
+    from pmsm_hil.hil.errors import ParameterError
+
+    with pytest.raises(ParameterError, match="lockstep only"):
+        rated(f"qemu:{reference_elf}", mode="realtime")
+    with pytest.raises(ParameterError, match="emulated UART"):
+        rated(f"qemu:{reference_elf}", link="udp")
+    with pytest.raises(ParameterError, match="--target"):
+        rated("qemu:")

@@ -69,3 +69,18 @@ def test_sil_errors(tmp_path: Path) -> None:
         SilFirmware(tmp_path / "missing.so")
     with pytest.raises((HilError, FirmwareError)):
         run_closed_loop(rated(f"sil:{tmp_path}", duration_s=0.01))  # a folder without CMakeLists.txt
+
+
+def test_sil_other_scenario_equals_inproc(reference_sil: Path) -> None:
+    """Any scenario: a speed step (speed reference changes mid-run, Setpoint re-sent) runs identically."""
+    from dataclasses import replace
+
+    from pmsm_hil.hil.runner.scenario import load_scenario
+
+    sc = load_scenario("speed-step")
+    sc = sc.with_overrides(duration_s=min(sc.duration_s, 0.1), settle_s=min(sc.settle_s, 0.02))
+    base = replace(rated(), scenario=sc)
+    ref = metrics(base)
+    sil = metrics(replace(base, target=f"sil:{reference_sil}"))
+    for key in ("speed_mean_rpm", "torque_mean_nm", "torque_ripple_rms_nm"):
+        assert sil[key] == ref[key], key

@@ -11,7 +11,24 @@ typedef struct {
     uint32_t mcu_clock_hz; /* clock of the estimate (`hil run --mcu-clock`, default 168 MHz) */
     uint32_t ns_per_insn;  /* QEMU -icount: 2^shift ns of virtual time per instruction */
     uint32_t cpi_milli;    /* cycle model: cycles per instruction x 1000 */
+    uint32_t transport;    /* HIL_BOARD_UART (WFI on the UART RX interrupt) or HIL_BOARD_MAILBOX (busy-polls PSRAM) */
 } hil_board_cfg_t;
+
+#define HIL_BOARD_UART 0u
+#define HIL_BOARD_MAILBOX 1u
+
+/* Mailbox in the board's PSRAM (QEMU machine RAM at 0x21000000, shared with the host through
+ * -object memory-backend-file,share=on): one request, one reply, each a list of frames
+ * (u32 LE id, u8 fd, u8 len, len bytes). The host writes its buffer and length, then its sequence word in
+ * one 32-bit store; the target answers with its buffer and length, then echoes the sequence word. */
+#define HIL_MBOX_BASE 0x21000000u
+#define HIL_MBOX_H2T_SEQ 0x000u
+#define HIL_MBOX_H2T_LEN 0x004u
+#define HIL_MBOX_T2H_SEQ 0x008u
+#define HIL_MBOX_T2H_LEN 0x00Cu
+#define HIL_MBOX_H2T_BUF 0x040u
+#define HIL_MBOX_T2H_BUF 0x440u
+#define HIL_MBOX_BUF_SIZE 0x400u
 
 #define HIL_BOARD_CFG_MAGIC 0x48494C43u /* "HILC" */
 #define HIL_BOARD_SYSCLK_HZ 25000000u   /* mps2-an386 SYSCLK: the SysTick (CLKSOURCE = core clock) */
