@@ -21,8 +21,9 @@ if TYPE_CHECKING:
     from pmsm_hil.testing.report import Reporter
     from pmsm_hil.testing.signals import Signal
 
-#: target kinds of `--hil-target` besides `external:LINKSPEC`, `sil:PATH` and `qemu:PATH.elf`
-TARGETS = ("inproc", "spawn")
+#: lockstep: wall time a test run waits for each Command [s] unless the test passes `lockstep_timeout`; `hil run`
+#: waits 0.5 s, but a loaded CI host can stall a target process longer than that (a false `missing` finding)
+LOCKSTEP_TIMEOUT_S = 2.0
 #: `hil run` options the run's own set-up owns (target and link from --hil-target, outputs per run)
 _OWNED = frozenset({"target", "link", "out", "overwrite", "no_log", "json", "config"})
 _RAD_S_TO_RPM = 60.0 / (2.0 * math.pi)
@@ -95,6 +96,8 @@ def run_argv(settings: HilSettings, out_dir: Path | None, kwargs: Mapping[str, A
     if settings.controller is not None and "controller" not in kwargs:
         argv.append(f"--controller={settings.controller}")
     argv += [f"--out={out_dir}"] if out_dir is not None else ["--no-log"]
+    if "lockstep_timeout" not in kwargs:
+        argv.append(f"--lockstep-timeout={LOCKSTEP_TIMEOUT_S}")
     for name, value in kwargs.items():
         if name in _OWNED:
             raise TypeError(f"hil.run: '{name}' is set by the session (--hil-target, --hil-out), not per run")
@@ -202,4 +205,5 @@ class HilResult:
         return Signal(name, periods["t"].astype("f8"), y, unit, self.reporter)
 
 
-__all__ = ["SIGNALS", "TARGETS", "HilResult", "HilRunError", "HilSettings", "build_config", "execute", "run_argv"]
+__all__ = ["LOCKSTEP_TIMEOUT_S", "SIGNALS", "HilResult", "HilRunError", "HilSettings", "build_config",
+           "execute", "run_argv"]

@@ -58,11 +58,11 @@ def test_choices_become_hil_run_arguments() -> None:
     argv = run_argv(HilSettings(target="spawn", motor="zhang2021-dtpmsm", controller="mptc3"), Path("/o"),
                     {"speed": 1200, "load": -3.5, "params": {"lambda": 0.5}, "sets": {"j": 0.1},
                      "faults": "drop=0.01", "log_trace": True, "settle": None})
-    assert argv == ["run", "--target=spawn", "--link=udp", "--motor=zhang2021-dtpmsm", "--controller=mptc3", "--out=/o",
-                    "--speed=1200", "--load=-3.5", "--param=lambda=0.5", "--set=j=0.1", "--fault=drop=0.01",
-                    "--log-trace"]
-    assert run_argv(HilSettings(controller="foc"), None, {"controller": "mpcc"})[3:] == ["--no-log",
-                                                                                         "--controller=mpcc"]
+    assert argv == ["run", "--target=spawn", "--link=udp", "--motor=zhang2021-dtpmsm", "--controller=mptc3",
+                    "--out=/o", "--lockstep-timeout=2.0", "--speed=1200", "--load=-3.5", "--param=lambda=0.5",
+                    "--set=j=0.1", "--fault=drop=0.01", "--log-trace"]
+    assert run_argv(HilSettings(controller="foc"), None, {"controller": "mpcc", "lockstep_timeout": 5})[3:] == [
+        "--no-log", "--controller=mpcc", "--lockstep-timeout=5"]
     # targets hil run has or will have: passed through as they are
     assert run_argv(HilSettings(target="external:socketcan:can0"), None, {})[1:3] == ["--target=external",
                                                                                       "--link=socketcan:can0"]

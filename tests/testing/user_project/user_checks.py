@@ -9,7 +9,7 @@ SIGNALS = ("speed_rpm", "torque_nm", "torque_ref_nm", "i_a", "i_b", "i_c", "i_d"
 
 
 def test_signals_cover_the_whole_run(hil):
-    # any `hil run` option by name; a loaded CI host may stall a target process for a while
+    # any `hil run` option by name (the plugin's lockstep timeout is 2 s; a very loaded host may stall longer)
     r = hil.run(scenario="steady", speed=1500, load=7, settle=0.02, duration=0.03, lockstep_timeout=5)
     assert r.end_code == 0, r.end_reason
     assert r.mcap_path.is_file() and r.metrics["total_periods"] == 500
