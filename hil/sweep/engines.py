@@ -280,6 +280,8 @@ def open_engine(name: str, *, workers: int | None = None, address: str | None = 
         raise ParameterError(f"--address: only for --engine dask or ray, not {name}")
     if address and workers:
         raise ParameterError("--workers: sizes a cluster started here; the cluster at --address has its own workers")
+    if workers == 0 and name not in ("local", "inline"):
+        raise ParameterError(f"--workers 0 (runs in this process): only with --engine local, not {name}")
     if name == "inline" or (name == "local" and workers == 0):
         return InlineEngine()
     if name == "local":
