@@ -141,6 +141,12 @@ class CompareTask:
     out_dir: Path | None = None
     #: return the speed/torque series (the accel figure's run)
     series: bool = False
+    #: `out_dir` made absolute in the coordinating process
+    abs_out_dir: Path | None = None
+
+    def __post_init__(self) -> None:
+        if self.out_dir is not None and self.abs_out_dir is None:
+            object.__setattr__(self, "abs_out_dir", Path(self.out_dir).absolute())
 
 
 @dataclass(frozen=True, slots=True)
@@ -154,10 +160,13 @@ class TaskResult:
 
 
 def run_task(task: CompareTask) -> TaskResult:
-    """Run one task (in a worker): `run_one`, the accel series subsampled to ~3000 points."""
+    """Run one task (in a worker): `run_one`, the accel series subsampled to ~3000 points. `out_dir` is
+    made absolute by the caller (a worker's working directory may be another); the row names it as given."""
     try:
         row, periods = run_one(task.preset, task.spec, task.ts_s, task.point, group=task.group,
-                               theta0_rad=task.theta0_rad, out_dir=task.out_dir)
+                               theta0_rad=task.theta0_rad, out_dir=task.abs_out_dir)
+        if task.out_dir is not None:
+            row["run_dir"] = str(task.out_dir)
     except HilError as exc:
         if "plant trip" in str(exc):
             return TaskResult(trip=str(exc))
