@@ -75,13 +75,13 @@ def _terminate_as_interrupt() -> Iterator[None]:
 
 def run(args: argparse.Namespace) -> int:
     """Execute `hil sweep`."""
-    from pmsm_hil.hil.errors import ParameterError
+    from pmsm_hil.hil.errors import InputFileError, ParameterError
     from pmsm_hil.hil.sweep.configure import build_runs
     from pmsm_hil.hil.sweep.engines import open_engine
     from pmsm_hil.hil.sweep.execute import run_sweep
     from pmsm_hil.hil.sweep.plan import expand, load_plan, parse_grid, swept_keys
     from pmsm_hil.hil.sweep.report import summary_lines, write_html
-    from pmsm_hil.hil.sweep.store import ResultsStore
+    from pmsm_hil.hil.sweep.store import ResultsStore, is_done
 
     grid = parse_grid(args.grid)
     plan = load_plan(args.plan) if args.plan is not None else None
@@ -97,10 +97,12 @@ def run(args: argparse.Namespace) -> int:
         print(f"{len(runs)} runs")
         return 0
     mcap_store = (args.store or args.out / "runs") if (args.mcap or args.store is not None) else None
-    results = ResultsStore(args.out, overwrite=args.overwrite)
+    if args.out.exists() and not args.out.is_dir():
+        raise InputFileError(f"--out {args.out}: exists and is not a directory")
     with _terminate_as_interrupt():
         engine = open_engine(args.engine, workers=args.workers, address=args.address)
         with engine:
+            results = ResultsStore(args.out, overwrite=args.overwrite)
             if not args.quiet:
                 print(f"hil sweep: {len(runs)} runs on {engine.describe()}", file=sys.stderr)
             if engine.warning:
@@ -118,7 +120,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"hil: {not_ok} of {len(rows)} runs did not complete (end_code and end_reason in "
               f"{results.out / 'results.json'})", file=sys.stderr)
     if outcome.interrupted:
-        print(f"hil: interrupted; {len(rows)} of {outcome.total} runs done, the same command resumes the sweep",
+        done = sum(1 for r in rows if is_done(r))
+        print(f"hil: interrupted; {done} of {outcome.total} runs done, the same command resumes the sweep",
               file=sys.stderr)
         return 130
     return 0
