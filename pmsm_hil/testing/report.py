@@ -60,10 +60,8 @@ class Reporter:
 
 
 def write_plot(path: Path, assertion: str, sig: Signal, req: PlotRequest) -> None:
-    """The signal over time, its band shaded over the checked window, the worst violation marked (Agg, PNG)."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
+    """The signal over time, its band shaded over the checked window, the worst violation marked. A bare Figure
+    renders through matplotlib's Agg canvas whatever backend the session selected (pyplot is not touched)."""
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(8.0, 3.6), dpi=100, layout="constrained")

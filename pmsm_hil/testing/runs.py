@@ -25,7 +25,7 @@ if TYPE_CHECKING:
 #: waits 0.5 s, but a loaded CI host can stall a target process longer than that (a false `missing` finding)
 LOCKSTEP_TIMEOUT_S = 2.0
 #: `hil run` options the run's own set-up owns (target and link from --hil-target, outputs per run)
-_OWNED = frozenset({"target", "link", "out", "overwrite", "no_log", "json", "config"})
+_OWNED = frozenset({"target", "link", "out", "overwrite", "no_log", "json"})
 _RAD_S_TO_RPM = 60.0 / (2.0 * math.pi)
 #: signal name → (PERIOD_DTYPE field, scale, unit); every other scalar field is available by its own name
 SIGNALS: dict[str, tuple[str, float, str]] = {
@@ -128,12 +128,14 @@ def execute(settings: HilSettings, out_dir: Path, kwargs: Mapping[str, Any],
     """Run in `out_dir` (created; must not hold a run) and return the result; prints the metrics table (pytest
     shows it with a failing test). An internal error of the tool is raised (HilRunError from it)."""
     from pmsm_hil.hil.cli.report_table import format_metrics
+    from pmsm_hil.hil.cli.run import config_from_args
     from pmsm_hil.hil.runner.run import run_closed_loop
 
-    cfg = build_config(settings, out_dir, kwargs)
+    argv = run_argv(settings, out_dir, kwargs)
+    cfg = config_from_args(_run_parser().parse_args(argv))
     out_dir.mkdir(parents=True, exist_ok=True)
     result = run_closed_loop(cfg)
-    print(f"hil run {' '.join(run_argv(settings, out_dir, kwargs)[1:])}")
+    print(f"hil {' '.join(argv)}")
     print(format_metrics(result.metrics))
     if result.outcome.error is not None:
         raise HilRunError(f"hil run ended with an internal error: {result.metrics['end_reason']}") \

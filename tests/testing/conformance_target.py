@@ -2,8 +2,7 @@
 docs/protocol.md alone) plus the FaultTarget for an undefined Setpoint mode, which breaks one rule on request.
 
 Usage: python conformance_target.py LINKSPEC [--break RULE]
-Rules it can break: durations (the 30th Measurement answered with durations 1 ns short of Ts), config_ack (echo
-every ConfigParam value + 1), fault_mode (run an undefined mode as torque mode instead of reporting a fault).
+Rule it can break: durations (the 30th Measurement answered with durations 1 ns short of Ts).
 """
 
 from __future__ import annotations
@@ -17,10 +16,10 @@ from typing import Any
 from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.ids import Mode, Status
 from pmsm_hil.protocol.links import open_link
-from pmsm_hil.protocol.messages import Command, ConfigAck, Fault, Measurement, Message, Setpoint
+from pmsm_hil.protocol.messages import Command, Fault, Measurement, Message, Setpoint
 
 EXAMPLE = runpy.run_path(str(Path(__file__).resolve().parents[2] / "examples" / "python_target.py"))
-BREAKS = ("durations", "config_ack", "fault_mode")
+BREAKS = ("durations",)
 
 
 class ConformanceTarget(EXAMPLE["ExampleTarget"]):  # type: ignore[misc]
@@ -32,12 +31,10 @@ class ConformanceTarget(EXAMPLE["ExampleTarget"]):  # type: ignore[misc]
         self.measurements = 0
 
     def handle(self, msg: Message) -> list[Any]:
-        if isinstance(msg, Setpoint) and msg.mode not in (Mode.SPEED, Mode.TORQUE) and self.breaks != "fault_mode":
+        if isinstance(msg, Setpoint) and msg.mode not in (Mode.SPEED, Mode.TORQUE):
             self.setpoint = None
             return [Fault(node=EXAMPLE["TARGET_NODE"], code=int(Status.INVALID_CONFIG), detail=msg.mode)]
         replies: list[Any] = super().handle(msg)
-        if self.breaks == "config_ack":
-            replies = [dataclasses.replace(r, value=r.value + 1.0) if isinstance(r, ConfigAck) else r for r in replies]
         if isinstance(msg, Measurement):
             self.measurements += 1
             if self.breaks == "durations" and self.measurements == 30:

@@ -7,7 +7,7 @@ from typing import Any
 
 import pytest
 from pmsm_hil.protocol.ids import CONTROLLER_NAMES, Mode
-from pmsm_hil.protocol.messages import Setpoint
+from pmsm_hil.protocol.messages import ConfigAck, Setpoint
 from pmsm_hil.sim_target import target as sim_target
 
 from pmsm_hil.conformance import RULES, broken
@@ -90,6 +90,18 @@ def test_a_silent_target_stops_the_probe_with_a_finding(monkeypatch: pytest.Monk
     report = _probe()
     assert "target silent" in report.stopped and _broken_rules(report) == {"torque_mode"}
     assert report.reached == {"config_ack", "setpoint_disabled", "torque_mode"}
+
+
+def test_a_target_echoing_another_config_value(monkeypatch: pytest.MonkeyPatch) -> None:
+    real = sim_target.SimTarget._send
+
+    def plus_one(self: sim_target.SimTarget, msg: Any) -> None:
+        real(self, ConfigAck(msg.param_id, msg.value + 1.0, msg.status) if isinstance(msg, ConfigAck) else msg)
+
+    monkeypatch.setattr(sim_target.SimTarget, "_send", plus_one)
+    report = _probe()
+    assert _broken_rules(report) == {"config_ack"} and report.reached == {"config_ack"}
+    assert "ConfigAck echo differs" in report.findings["config_ack"][0] and report.stopped
 
 
 def test_the_unassigned_controller_id_is_no_controller() -> None:
