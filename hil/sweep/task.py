@@ -20,6 +20,7 @@ from pmsm_hil.hil.errors import InputFileError, ParameterError, PlantFaultError
 from pmsm_hil.hil.runner.contract import EndCode
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.sweep.rows import flatten
+from pmsm_hil.hil.sweep.runid import canonical_text
 
 _ONE_RUN = threading.Lock()
 
@@ -47,7 +48,8 @@ def end_code_of(exc: BaseException) -> int:
 
 def run_task(task: RunTask) -> dict[str, Any]:
     """Run `task` and return its row: run_id, end_code, end_reason, the configuration columns, config,
-    every metric flattened (hil/sweep/rows.py), and the run facts host, pid, blas_threads, run_wall_s, mcap."""
+    run_config, every metric flattened (hil/sweep/rows.py), and the run facts host, pid, blas_threads,
+    run_wall_s, mcap."""
     from pmsm_hil.hil.runner.run import run_closed_loop
 
     cfg = task.cfg
@@ -65,8 +67,7 @@ def run_task(task: RunTask) -> dict[str, Any]:
         except Exception as exc:  # the worker's boundary: every failure of a run is a row
             code, reason = end_code_of(exc), f"{type(exc).__name__}: {exc}"
         wall = time.perf_counter() - t0
-    row: dict[str, Any] = {"run_id": task.run_id, "end_code": code, "end_reason": reason, **task.columns,
-                           "config": task.config}
+    row = failed_row(task, code, reason)
     for key, value in flatten(metrics).items():
         row.setdefault(key, value)
     row.update(host=socket.gethostname(), pid=os.getpid(), blas_threads=os.environ.get("OPENBLAS_NUM_THREADS"),
@@ -75,8 +76,10 @@ def run_task(task: RunTask) -> dict[str, Any]:
 
 
 def failed_row(task: RunTask, code: int, reason: str) -> dict[str, Any]:
-    """The row of a run whose worker did not answer (lost, killed): its configuration and why."""
-    return {"run_id": task.run_id, "end_code": code, "end_reason": reason, **task.columns, "config": task.config}
+    """A row without metrics: run id, end code and reason, the configuration columns, `config` (the point)
+    and `run_config` (the whole canonical configuration, whose hash is the run id)."""
+    return {"run_id": task.run_id, "end_code": code, "end_reason": reason, **task.columns, "config": task.config,
+            "run_config": canonical_text(task.cfg)}
 
 
 __all__ = ["RunTask", "end_code_of", "failed_row", "run_task"]

@@ -4,6 +4,7 @@ that fails is a row, not the end of the sweep."""
 
 from __future__ import annotations
 
+import hashlib
 import json
 from pathlib import Path
 
@@ -35,6 +36,8 @@ def test_rows_hold_configuration_end_and_metrics(swept: Path) -> None:
         assert r["torque_ripple_rms_nm"] > 0 and r["controller"] == "mpcc" and r["seed"] == 0
         assert isinstance(r["exec_time_us.median"], float) and "link.frames_tx" in r
         assert json.loads(r["config"]) == {"fault": "drop=0", "load": str(int(r["load"]))}
+        assert hashlib.sha256(r["run_config"].encode()).hexdigest()[:16] == r["run_id"]
+        assert json.loads(r["run_config"])["scenario"]["duration_s"] == 0.03
     for r in bad:  # a failed run is a row with its end code and reason
         assert r["end_code"] == 4 and "DUT contract violation" in r["end_reason"]
         assert r["torque_ripple_rms_nm"] is None
