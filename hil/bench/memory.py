@@ -31,6 +31,8 @@ class MemoryPoint:
 
     duration_s: float
     wall_s: float
+    #: CPU time of the run's process (user + system) [s]: less sensitive than wall time to other load
+    cpu_s: float
     periods: int
     rss_host_mb: float
     rss_logger_mb: float
@@ -42,10 +44,11 @@ class MemoryPoint:
         return self.wall_s / self.duration_s
 
 
-def marginal_rates(points: list[MemoryPoint]) -> list[float]:
-    """Wall seconds per extra simulated second between consecutive durations (sorted by duration)."""
+def marginal_rates(points: list[MemoryPoint], *, cpu: bool = False) -> list[float]:
+    """Wall (or CPU) seconds per extra simulated second between consecutive durations (sorted by duration)."""
     ordered = sorted(points, key=lambda p: p.duration_s)
-    return [(b.wall_s - a.wall_s) / (b.duration_s - a.duration_s)
+    cost = (lambda p: p.cpu_s) if cpu else (lambda p: p.wall_s)
+    return [(cost(b) - cost(a)) / (b.duration_s - a.duration_s)
             for a, b in itertools.pairwise(ordered) if b.duration_s > a.duration_s]
 
 
@@ -53,11 +56,11 @@ def probe(argv: list[str]) -> dict[str, float]:
     """Run `hil run ARGV` here and return wall time, exit code and peak RSS of this process and its children."""
     from pmsm_hil.hil.cli.main import main
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     code = main(["run", *argv])
-    wall = time.perf_counter() - t0
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     kib = 1024.0 if sys.platform != "darwin" else 1.0
-    return {"exit_code": float(code), "wall_s": wall,
+    return {"exit_code": float(code), "wall_s": wall, "cpu_s": cpu,
             "rss_host_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * kib / 1e6,
             "rss_logger_mb": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * kib / 1e6}
 
@@ -79,28 +82,30 @@ def measure(duration_s: float, *, log: bool, log_trace: bool, controller: str, s
                                f"{proc.stderr.strip().splitlines()[-1:] or proc.stdout[-200:]}")
         fig = json.loads(lines[-1])
         periods = json.loads(metrics.read_text())["total_periods"] if metrics.exists() else 0
-    return MemoryPoint(duration_s, fig["wall_s"], int(periods), fig["rss_host_mb"], fig["rss_logger_mb"],
+    return MemoryPoint(duration_s, fig["wall_s"], fig["cpu_s"], int(periods), fig["rss_host_mb"], fig["rss_logger_mb"],
                        int(fig["exit_code"]))
 
 
 def format_points(points: list[MemoryPoint]) -> list[str]:
     """The table, the linearity figures and the verdict against the goals."""
-    lines = [f"{'simulated s':>11}  {'wall s':>8}  {'wall/sim':>8}  {'host RSS MB':>11}  {'logger RSS MB':>13}  exit"]
+    lines = [f"{'simulated s':>11}  {'wall s':>8}  {'wall/sim':>8}  {'CPU s':>8}  {'CPU/sim':>8}  {'host RSS MB':>11}  "
+             f"{'logger RSS MB':>13}  exit"]
     for p in points:
-        lines.append(f"{p.duration_s:>11g}  {p.wall_s:>8.1f}  {p.wall_per_sim_s:>8.3f}  {p.rss_host_mb:>11.0f}  "
-                     f"{p.rss_logger_mb:>13.0f}  {p.exit_code}")
+        lines.append(f"{p.duration_s:>11g}  {p.wall_s:>8.1f}  {p.wall_per_sim_s:>8.3f}  {p.cpu_s:>8.1f}  "
+                     f"{p.cpu_s / p.duration_s:>8.3f}  {p.rss_host_mb:>11.0f}  {p.rss_logger_mb:>13.0f}  {p.exit_code}")
     if len(points) >= 2:
         longest = max(points, key=lambda p: p.duration_s)
         total = longest.rss_host_mb + longest.rss_logger_mb
         lines.append(f"peak RSS of the longest run ({longest.duration_s:g} s), host + logger: {total:.0f} MB "
                      f"(goal < {RSS_GOAL_MB:g} MB) — {'met' if total < RSS_GOAL_MB else 'NOT met'}")
-    rates = marginal_rates(points)
-    if len(rates) >= 2:
-        spread = max(rates) / min(rates) - 1.0 if min(rates) > 0 else float("inf")
-        lines.append("marginal wall time per simulated second between consecutive durations: "
-                     + ", ".join(f"{r:.3f}" for r in rates)
-                     + f" (spread {spread:.1%}, goal within {LINEARITY_GOAL:.0%}) — "
-                     + ("met" if spread <= LINEARITY_GOAL else "NOT met"))
+    for label, cpu in (("wall", False), ("CPU", True)):
+        rates = marginal_rates(points, cpu=cpu)
+        if len(rates) >= 2:
+            spread = max(rates) / min(rates) - 1.0 if min(rates) > 0 else float("inf")
+            lines.append(f"marginal {label} time per simulated second between consecutive durations: "
+                         + ", ".join(f"{r:.3f}" for r in rates)
+                         + f" (spread {spread:.1%}, goal within {LINEARITY_GOAL:.0%}) — "
+                         + ("met" if spread <= LINEARITY_GOAL else "NOT met"))
     lines.append(f"machine load (1/5/15 min): {' '.join(f'{x:.2f}' for x in os.getloadavg())} on {os.cpu_count()} CPUs")
     return lines
 

@@ -27,5 +27,6 @@ def test_bad_durations_name_the_option(capsys: pytest.CaptureFixture[str]) -> No
 
 
 def test_marginal_rates_allow_a_fixed_start_up_cost() -> None:
-    pts = [MemoryPoint(d, 2.0 + 0.5 * d, 0, 1.0, 1.0, 0) for d in (10.0, 60.0, 600.0)]
+    pts = [MemoryPoint(d, 2.0 + 0.5 * d, 1.0 + 0.25 * d, 0, 1.0, 1.0, 0) for d in (10.0, 60.0, 600.0)]
     assert marginal_rates(pts) == pytest.approx([0.5, 0.5])
+    assert marginal_rates(pts, cpu=True) == pytest.approx([0.25, 0.25])
