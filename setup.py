@@ -4,7 +4,8 @@ from pathlib import Path
 
 from setuptools import setup
 
-_BUILDERS = ["hil/native/_build_plant.py:ffibuilder", "sim_target/_build_firmware.py:ffibuilder"]
+_BUILDERS = ["hil/native/_build_plant.py:ffibuilder", "sim_target/_build_firmware.py:ffibuilder",
+             "hil/native/_build_loop.py:ffibuilder"]
 _FOLDERS = ("hil", "protocol", "sim_target", "dashboards")
 
 

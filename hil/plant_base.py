@@ -35,6 +35,19 @@ class PeriodStats(NamedTuple):
     error: int = 0
 
 
+class KernelView(NamedTuple):
+    """The plant's C structs and trace buffer as addresses, for a native loop that advances the same plant:
+    params, state and trace-buffer addresses, trace rows one period may write, trace step [s] (0: none), and
+    whether the load profile applies (inertia mode)."""
+
+    params: int
+    state: int
+    trace: int
+    trace_cap: int
+    trace_dt_s: float
+    inertia: bool
+
+
 #: Layout of pl_period_stats_t / p6_period_stats_t (identical by construction; checked at import).
 _STATS_STRUCT = struct.Struct("=6Idii")
 
@@ -196,6 +209,14 @@ class PlantBase:
         for i, (tb, value, slope) in enumerate(inside):
             self._load_bp[3 * i], self._load_bp[3 * i + 1], self._load_bp[3 * i + 2] = tb, value, slope
         return len(inside)
+
+    def kernel_view(self) -> KernelView:
+        """Addresses of the kernel structs (valid while this plant lives) and the per-period trace facts."""
+        def addr(ptr: Any) -> int:
+            return int(ffi.cast("uintptr_t", ptr))
+
+        return KernelView(addr(self._p), addr(self._s), addr(self._trace_buf), self._trace_cap, self._trace_dt,
+                          self._inertia)
 
     @property
     def last_trace(self) -> npt.NDArray[np.float64]:

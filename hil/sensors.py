@@ -46,10 +46,27 @@ class SensorModel:
         self._rng = np.random.default_rng(cfg.seed)
         self._noise: list[float] = []
 
+    def _refill(self) -> None:
+        self._noise = (self._rng.standard_normal(self._BLOCK) * self.cfg.noise_std_a).tolist()
+
     def _next_noise(self) -> float:
         if not self._noise:
-            self._noise = (self._rng.standard_normal(self._BLOCK) * self.cfg.noise_std_a).tolist()
+            self._refill()
         return self._noise.pop()
+
+    def take_noise(self, n: int) -> np.ndarray:
+        """The next `n` noise values [A] in the order `currents` would use them (for a native loop)."""
+        out = np.empty(n, dtype=np.float64)
+        i = 0
+        while i < n:
+            if not self._noise:
+                self._refill()
+            m = min(n - i, len(self._noise))
+            chunk = self._noise[-m:]
+            del self._noise[-m:]
+            out[i:i + m] = chunk[::-1]
+            i += m
+        return out
 
     def currents(self, i_a: float, i_b: float, i_c: float) -> tuple[float, float, float]:
         """Measured phase currents [A]."""

@@ -1,8 +1,28 @@
-/* The reference firmware (firmware_stub/src) behind the firmware API (hil_app.h). */
+/* The reference firmware (firmware_stub/src) behind the firmware API (hil_app.h). Built with
+ * HIL_APP_REFERENCE_PROFILED (the host's native loop, hil/native/loop.c) each step is timed per stage and the
+ * restricted-vs-full candidate diagnostic kept, as the Python in-process target does; read with
+ * hil_app_reference_diag. */
 #include <string.h>
 
 #include "hil_app.h"
 #include "hil_fw.h"
+#ifdef HIL_APP_REFERENCE_PROFILED
+#include "hil_fw_dsvm.h"
+#include "hil_fw_profile.h"
+
+static uint32_t diag_split_ns[3];
+static uint8_t diag_full_miss = 255u;
+
+void hil_app_reference_diag(uint32_t split_ns[3], uint8_t *full_miss);
+
+void hil_app_reference_diag(uint32_t split_ns[3], uint8_t *full_miss)
+{
+    split_ns[0] = diag_split_ns[0];
+    split_ns[1] = diag_split_ns[1];
+    split_ns[2] = diag_split_ns[2];
+    *full_miss = diag_full_miss;
+}
+#endif
 
 static hil_fw_state_t fw;
 
@@ -45,7 +65,12 @@ void hil_app_step(const hil_app_meas_t *m, hil_app_cmd_t *cmd)
     fm.theta_e = m->theta_e;
     fm.omega_m = m->omega_m;
     fm.vdc = m->vdc;
+#ifdef HIL_APP_REFERENCE_PROFILED
+    hil_fw_step_profiled(&fw, &fm, m->t_ns, &fc, diag_split_ns);
+    diag_full_miss = hil_fw_dsvm_full_miss(&fw);
+#else
     hil_fw_step(&fw, &fm, m->t_ns, &fc);
+#endif
     cmd->n_states = fc.n_states;
     for (j = 0u; j < HIL_APP_MAX_STATES; ++j) {
         cmd->states[j] = fc.states[j];

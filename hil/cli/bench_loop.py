@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import statistics
 import sys
 import tempfile
@@ -38,8 +39,9 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 
 def _base(duration: float) -> RunConfig:
+    """The Python loop's run (the issue-17 figures put the native loop beside it)."""
     scenario = load_scenario("steady").with_overrides(settle_s=0.0, duration_s=duration)
-    return RunConfig(motor=load_motor("niu2020-ipmsm"), scenario=scenario, controller="mpcc")
+    return RunConfig(motor=load_motor("niu2020-ipmsm"), scenario=scenario, controller="mpcc", loop="python")
 
 
 def _median_rate(make: Callable[[], RunConfig], repeats: int) -> dict[str, Any]:
@@ -67,6 +69,17 @@ def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
     out["lockstep_inproc_log_off_hz"] = off["periods_per_s"]
     out["lockstep_inproc_log_on_hz"] = on["periods_per_s"]
     out["logging_cost_pct"] = 100.0 * (1.0 - on["periods_per_s"] / off["periods_per_s"])
+    native = replace(base, loop="native")
+    progress(f"lockstep in-process, native loop (C), logging off ({runs})")
+    n_off = _median_rate(lambda: native, repeats)
+    progress(f"lockstep in-process, native loop (C), logging on ({runs})")
+    with tempfile.TemporaryDirectory() as tmp:
+        counter = iter(range(1000))
+        n_on = _median_rate(lambda: replace(native, out_dir=Path(tmp) / f"run{next(counter)}"), repeats)
+    out["lockstep_inproc_native_log_off_hz"] = n_off["periods_per_s"]
+    out["lockstep_inproc_native_log_on_hz"] = n_on["periods_per_s"]
+    out["native_speedup_log_off"] = n_off["periods_per_s"] / off["periods_per_s"]
+    out["native_speedup_log_on"] = n_on["periods_per_s"] / on["periods_per_s"]
     from pmsm_hil.dashboards.bench import live_rerun_rate
 
     progress(f"lockstep in-process, live Rerun dashboard to an .rrd ({runs})")
@@ -110,12 +123,16 @@ def run(args: argparse.Namespace) -> int:
         print(f"bench loop: {msg} ...", file=sys.stderr, flush=True)
 
     figures = measure(args.duration, args.repeats, cross, not args.no_realtime, progress, qemu=args.qemu)
-    print(f"closed loop, niu2020 IPMSM, MPCC, Ts = 100 µs, {args.duration} s simulated, median of {args.repeats}")
+    load1, load5, _ = os.getloadavg()
+    print(f"closed loop, niu2020 IPMSM, MPCC, Ts = 100 µs, {args.duration} s simulated, median of {args.repeats}; "
+          f"load average {load1:.2f} / {load5:.2f} (1 / 5 min) at the end")
     for key, value in figures.items():
         if key.endswith("_hz"):
             print(f"  {key:<40} {value:>10.0f} periods/s  ({value * 1e-4:.2f}× real time at 10 kHz)")
         elif key in ("logging_cost_pct", "rerun_cost_pct"):
             print(f"  {key:<40} {value:>10.1f} %")
+        elif key.startswith("native_speedup"):
+            print(f"  {key:<40} {value:>10.2f} ×  (native / python, same run)")
         elif key not in ("duration_s", "repeats"):
             print(f"  {key:<40} {value}")
     if args.json is not None:

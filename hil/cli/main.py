@@ -16,7 +16,8 @@ from pmsm_hil.protocol.errors import ProtocolError
 _TOP_LEVEL = ("run", "target", "link_budget", "mcap_repair", "compare", "sweep", "replay_mcap", "report")
 _GROUPS = {
     "plant": ("plant_replay",),
-    "bench": ("bench_plant", "bench_loop", "bench_controllers", "bench_link", "bench_sweep", "bench_memory"),
+    "bench": ("bench_plant", "bench_loop", "bench_realtime", "bench_controllers", "bench_link", "bench_sweep",
+              "bench_memory"),
     "fw": ("fw_build",),
 }
 _GROUP_HELP = {"plant": "offline plant tools", "bench": "benchmarks that print figures",

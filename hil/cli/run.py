@@ -35,7 +35,8 @@ DEFAULTS: dict[str, Any] = {"motor": "niu2020-ipmsm", "controller": "mpcc", "sce
                             "link": "virtual", "mode": "lockstep", "target": "auto", "seed": 0,
                             "miss_policy": "hold", "watchdog_periods": 10, "adc_lsb": 0.0, "noise": 0.0,
                             "encoder_counts": 0, "no_log": False, "log_trace": False, "tolerate": 0,
-                            "lockstep_timeout": 0.5, "overrun_threshold": None, "mcu_clock": 168e6}
+                            "lockstep_timeout": 0.5, "overrun_threshold": None, "mcu_clock": 168e6,
+                            "loop": "auto", "rt_priority": 0, "cpu": None}
 
 #: `hil run` exit codes (= metrics `end_code`), printed by --help.
 EXIT_CODES = ("exit codes: 0 completed, 1 internal error, 2 usage/config error, 3 safety stop (watchdog, plant "
@@ -92,6 +93,15 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--fault", metavar="SPEC",
                    help="link fault injection on the host's link: drop=P,dup=P,corrupt=P,delay=D,jitter=D,"
                         "reorder=P,silence=T0:T1,seed=S (KEY.up / KEY.down per direction; docs/runner.md)")
+    p.add_argument("--loop", choices=("auto", "native", "python"),
+                   help="the period loop: native (C, hil/native/loop.c: in-process target on the virtual link, no "
+                        "--fault), python, or auto = native where supported, else python with the reason in "
+                        f"loop_note{_default('loop')}")
+    p.add_argument("--rt-priority", type=non_negative_int("--rt-priority"), metavar="N",
+                   help="real time, native loop: SCHED_FIFO priority 1..99 of the loop thread (default 0: none; "
+                        "refused without CAP_SYS_NICE, said in the warnings)")
+    p.add_argument("--cpu", type=non_negative_int("--cpu"), metavar="N",
+                   help="real time, native loop: pin the loop thread to this CPU (default: any)")
     p.add_argument("--overrun-threshold", type=positive_float("--overrun-threshold"),
                    help="real time: a period starting later than this is an overrun [s] (default Ts/2)")
     p.add_argument("--adc-lsb", type=finite_float("--adc-lsb"),
@@ -201,7 +211,9 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
                             miss_policy=str(pick("miss_policy")), watchdog_periods=int(pick("watchdog_periods")),
                             tolerate=int(pick("tolerate")), faults=str(pick("fault") or ""),
                             lockstep_timeout_s=float(pick("lockstep_timeout")),
-                            mcu_clock_hz=float(pick("mcu_clock")),
+                            mcu_clock_hz=float(pick("mcu_clock")), loop=str(pick("loop")),
+                            rt_priority=int(pick("rt_priority")),
+                            cpu=None if pick("cpu") is None else int(pick("cpu")),
                             overrun_threshold_s=None if pick("overrun_threshold") is None
                             else float(pick("overrun_threshold")))
     except (TypeError, ValueError) as exc:

@@ -21,6 +21,7 @@ from pmsm_hil.hil.runner.budget_check import check_realtime_budget
 from pmsm_hil.hil.runner.closed_loop import ClosedLoop, LoopOutcome
 from pmsm_hil.hil.runner.contract import RULES, EndCode
 from pmsm_hil.hil.runner.fault_setup import install_faults
+from pmsm_hil.hil.runner.native_run import connect_loop_target, python_loop_reason, realtime_warnings, run_native
 from pmsm_hil.hil.runner.plant_setup import build_plant
 from pmsm_hil.hil.runner.recorder import frame_records, period_records
 from pmsm_hil.hil.runner.run_config import RunConfig, controller_id
@@ -81,13 +82,15 @@ def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None,
     check_run_limits(cfg)
     if cfg.mode == "realtime":
         check_realtime_budget(cfg.link, cfg.ts_s, cfg.machine.phases)
+    python_reason = python_loop_reason(cfg)
     logger, mcap_path = _open_logger(cfg)
     conn: TargetConnection | None = None
     outcome: LoopOutcome | None = None
     sink = RunSink(cfg, logger, live)
     try:
         with _terminate_as_interrupt():
-            conn = connect_target(cfg, silent_after=silent_after)
+            conn, python_reason = connect_loop_target(
+                cfg, python_reason, lambda: connect_target(cfg, silent_after=silent_after))
             try:
                 with tap_setup_frames(conn.client, logger):
                     conn.client.configure(cfg.target_parameters())
@@ -101,8 +104,11 @@ def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None,
                         conn.client.linger(ClosedLoop.LINGER_S)
                 outcome.target_disabled = True
             if outcome is None:
-                outcome = _loop(cfg, conn, cid, sink)
+                outcome = (_loop(cfg, conn, cid, sink) if python_reason
+                           else run_native(cfg, conn, cid, sink, silent_after))
         metrics = summarize(cfg, outcome, conn, sink)
+        metrics["loop"], metrics["loop_note"] = "python" if python_reason else "native", python_reason
+        metrics["warnings"] += realtime_warnings(cfg, conn)
     finally:
         if conn is not None:
             conn.close()

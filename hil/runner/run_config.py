@@ -17,6 +17,8 @@ from pmsm_hil.protocol.links.faults import FaultSpec, parse_fault_spec
 from pmsm_hil.sim_target.firmware import CONTROLLERS, controller_phases
 
 MODES = ("lockstep", "realtime")
+#: the period loop: native where supported (else Python, with the reason in the metrics), native or Python
+LOOPS = ("auto", "native", "python")
 MISS_POLICIES = ("hold", "zero")
 TARGET_KINDS = ("auto", "inproc", "spawn", "external")
 #: targets that carry a path: a firmware of the HIL target core built for the host (SIL library, or a source
@@ -101,6 +103,11 @@ class RunConfig:
     faults: str = ""
     #: qemu targets: the MCU clock of the execution-time estimate [Hz] (`--mcu-clock`)
     mcu_clock_hz: float = DEFAULT_MCU_CLOCK_HZ
+    #: the period loop (`--loop`, LOOPS): "auto" runs the C loop (hil/native/loop.c) where supported
+    loop: str = "auto"
+    #: real time: SCHED_FIFO priority of the loop thread (`--rt-priority`, 0: none) and its CPU (`--cpu`)
+    rt_priority: int = 0
+    cpu: int | None = None
 
     def __post_init__(self) -> None:
         cid = controller_id(self.controller)
@@ -138,6 +145,13 @@ class RunConfig:
                                          "time, not wall time)")
         if not (math.isfinite(self.mcu_clock_hz) and 1e6 <= self.mcu_clock_hz <= 2e9):
             raise ParameterError(f"--mcu-clock must be between 1 MHz and 2 GHz, got {self.mcu_clock_hz:g} Hz")
+        if self.loop not in LOOPS:
+            raise ParameterError(f"--loop must be one of {', '.join(LOOPS)}, got {self.loop!r}")
+        if not 0 <= self.rt_priority <= 99:
+            raise ParameterError(f"--rt-priority must be 0 (none) or a SCHED_FIFO priority 1..99, "
+                                 f"got {self.rt_priority}")
+        if self.cpu is not None and self.cpu < 0:
+            raise ParameterError(f"--cpu must be a CPU number ≥ 0, got {self.cpu}")
         if self.watchdog_periods < 1:
             raise ParameterError(f"watchdog periods must be ≥ 1, got {self.watchdog_periods}")
         if not (math.isfinite(self.lockstep_timeout_s) and 0.0 < self.lockstep_timeout_s <= 3600.0):

@@ -10,11 +10,14 @@ import pytest
 
 NATIVE = Path(__file__).resolve().parents[2] / "hil" / "native"
 STRICT = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion", "-pedantic", "-O2"]
+#: the native loop (loop*.c) includes the HIL target core and the generated codec
+FIRMWARE = NATIVE.parents[1] / "firmware_stub"
+INCLUDES = [f"-I{FIRMWARE / d}" for d in ("target", "generated", "include")]
 
 
 @pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed")
 @pytest.mark.parametrize("source", sorted(p.name for p in NATIVE.glob("*.c")))
 def test_kernel_compiles_with_strict_flags(source: str, tmp_path: Path) -> None:
-    result = subprocess.run(["gcc", *STRICT, "-c", str(NATIVE / source), "-o", str(tmp_path / "x.o")],
+    result = subprocess.run(["gcc", *STRICT, *INCLUDES, "-c", str(NATIVE / source), "-o", str(tmp_path / "x.o")],
                             capture_output=True, text=True, check=False)
     assert result.returncode == 0, result.stderr

@@ -1,0 +1,96 @@
+"""`hil bench realtime`: real-time lateness of the Python and the native (C) period loop side by side —
+lateness p50 / p99 / max [µs] and overruns per 100k periods, in-process target, medians of repeats run
+alternately, with the machine's load average (this machine is shared: figures are noisy)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import sys
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+from pmsm_hil.hil.atomic_write import write_text_atomic
+from pmsm_hil.hil.cli.parsing import non_negative_int, positive_float
+from pmsm_hil.hil.presets_loader import load_motor
+from pmsm_hil.hil.runner.run import run_closed_loop
+from pmsm_hil.hil.runner.run_config import RunConfig
+from pmsm_hil.hil.runner.scenario import load_scenario
+
+LOOPS = ("python", "native")
+
+
+def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Register `hil bench realtime`."""
+    p = subparsers.add_parser("realtime", help="real-time lateness and overruns: Python vs native loop")
+    p.add_argument("--duration", type=positive_float("--duration"), default=1.0,
+                   help="seconds of real time per run (default 1.0)")
+    p.add_argument("--ts", type=positive_float("--ts"), default=100e-6, help="control period [s] (default 100e-6)")
+    p.add_argument("--repeats", type=non_negative_int("--repeats"), default=3, help="runs per loop (median)")
+    p.add_argument("--rt-priority", type=non_negative_int("--rt-priority"), default=0,
+                   help="SCHED_FIFO priority of the native loop thread (default 0: none)")
+    p.add_argument("--cpu", type=non_negative_int("--cpu"), help="pin the native loop thread to this CPU")
+    p.add_argument("--log", action="store_true", help="log each run to MCAP as `hil run` does (default off)")
+    p.add_argument("--json", type=Path, help="write the figures as JSON")
+    p.set_defaults(func=run)
+
+
+def _config(loop: str, duration: float, ts: float, rt_priority: int, cpu: int | None) -> RunConfig:
+    scenario = load_scenario("steady").with_overrides(settle_s=0.0, duration_s=duration)
+    return RunConfig(motor=load_motor("niu2020-ipmsm"), scenario=scenario, controller="mpcc", ts_s=ts,
+                     mode="realtime", loop=loop, rt_priority=rt_priority, cpu=cpu)
+
+
+def measure(duration: float, ts: float, repeats: int, rt_priority: int = 0, cpu: int | None = None,
+            log_dir: Path | None = None) -> dict[str, Any]:
+    """Per loop: median lateness p50 / p99 / max [µs] over the runs, overruns per 100k periods over all runs,
+    deadline misses, periods, and the warnings of the last run (e.g. a refused priority)."""
+    runs: dict[str, list[dict[str, Any]]] = {loop: [] for loop in LOOPS}
+    for i in range(max(repeats, 1)):
+        for loop in LOOPS:  # alternately: both loops see the same machine load
+            cfg = _config(loop, duration, ts, rt_priority, cpu)
+            if log_dir is not None:
+                cfg = replace(cfg, out_dir=log_dir / f"{loop}{i}")
+            runs[loop].append(run_closed_loop(cfg).metrics)
+    out: dict[str, Any] = {"duration_s": duration, "ts_s": ts, "repeats": repeats}
+    for loop, metrics in runs.items():
+        periods = sum(int(m["total_periods"]) for m in metrics)
+        overruns = sum(int(m["overruns"]) for m in metrics)
+        out[loop] = {
+            "lateness_p50_us": statistics.median(m["lateness_us"]["median"] for m in metrics),
+            "lateness_p99_us": statistics.median(m["lateness_us"]["p99"] for m in metrics),
+            "lateness_max_us": statistics.median(m["lateness_us"]["max"] for m in metrics),
+            "overruns_per_100k": 1e5 * overruns / periods if periods else None,
+            "overruns": overruns,
+            "deadline_misses": sum(int(m["deadline_misses"]) for m in metrics),
+            "periods": periods,
+            "warnings": metrics[-1]["warnings"],
+        }
+    out["load_average"] = os.getloadavg()
+    return out
+
+
+def run(args: argparse.Namespace) -> int:
+    """Execute `hil bench realtime`."""
+    print(f"bench realtime: {args.repeats} × {args.duration:g} s per loop at Ts = {args.ts * 1e6:g} µs ...",
+          file=sys.stderr, flush=True)
+    figures = measure(args.duration, args.ts, args.repeats, args.rt_priority, args.cpu,
+                      Path("runs") / "bench-realtime" if args.log else None)
+    load = figures["load_average"]
+    print(f"real time, in-process target, niu2020 IPMSM, MPCC, Ts = {args.ts * 1e6:g} µs, {args.repeats} × "
+          f"{args.duration:g} s per loop (medians); load average {load[0]:.2f} / {load[1]:.2f} / {load[2]:.2f}")
+    print(f"  {'loop':<8} {'p50 µs':>9} {'p99 µs':>9} {'max µs':>10} {'overruns/100k':>14} {'misses':>7} "
+          f"{'periods':>8}")
+    for loop in LOOPS:
+        f = figures[loop]
+        per = f["overruns_per_100k"]
+        print(f"  {loop:<8} {f['lateness_p50_us']:>9.2f} {f['lateness_p99_us']:>9.2f} {f['lateness_max_us']:>10.1f} "
+              f"{per if per is None else format(per, '14.1f'):>14} {f['deadline_misses']:>7} {f['periods']:>8}")
+        for line in f["warnings"]:
+            print(f"    {loop}: {line}")
+    if args.json is not None:
+        write_text_atomic(args.json, json.dumps(figures, indent=2) + "\n", option="--json")
+    return 0

@@ -1,0 +1,212 @@
+"""cffi (API mode) builder of the native period loop: extension `pmsm_hil.hil._loop_native`.
+
+Two sets of flags: the firmware side (reference firmware, HIL target core, generated codec) is compiled with
+the firmware's strict flags (`-fsingle-precision-constant`, as every other build of it) into objects linked
+in; the loop and the plant (double precision) with the plant's flags plus `-Werror`, no FMA contraction and
+no sin/cos fusion, so every value equals the Python loop's bit for bit.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+
+from cffi import FFI
+
+_HERE = Path(__file__).resolve().parent
+_ROOT = _HERE.parent.parent
+_FW = _ROOT / "firmware_stub"
+_FW_INCLUDES = [_FW / "include", _FW / "generated", _FW / "target"]
+
+#: the firmware's strict flags (firmware_stub/target/hil_target.cmake HIL_STRICT_FLAGS)
+FIRMWARE_FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion", "-fsingle-precision-constant",
+                  "-O2", "-fPIC", "-DHIL_APP_REFERENCE_PROFILED"]
+LOOP_FLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion", "-ffp-contract=off",
+              "-fno-builtin-sin", "-fno-builtin-cos", "-pthread"]
+LOOP_SOURCES = ("loop.c", "loop_frames.c", "loop_rt.c", "loop_board.c", "dq_segment.c", "gate_edges.c", "plant.c",
+                "plant6.c")
+
+CDEF = """
+#define NL_BLOCK ...
+#define NL_RING ...
+#define NL_FRAMES_PER_PERIOD ...
+#define NL_FINDINGS ...
+#define NL_REF_CHANGES ...
+#define NL_LOAD_POINTS ...
+#define NL_RULES ...
+#define NL_END_RUNNING ...
+#define NL_END_COMPLETED ...
+#define NL_END_VIOLATION ...
+#define NL_END_WATCHDOG ...
+#define NL_END_FAULT ...
+#define NL_END_TRIP ...
+#define NL_END_PLANT_ERROR ...
+#define NL_END_ENCODE_ERROR ...
+#define NL_END_INTERRUPTED ...
+#define NL_PLANT_E_BREAKPOINTS ...
+#define NL_WHAT_MISSING ...
+#define NL_WHAT_SECOND ...
+#define NL_WHAT_OTHER_SEQ ...
+#define NL_WHAT_DECODER_SEQ ...
+#define NL_WHAT_DECODER_FRAME ...
+#define NL_WHAT_STATE_CODE ...
+#define NL_WHAT_DURATIONS ...
+
+typedef struct {
+    uint32_t period;
+    uint8_t rule;
+    uint8_t what;
+    uint8_t has_cmd;
+    uint8_t n_states;
+    uint8_t mirror;
+    uint8_t states[3];
+    uint16_t cmd_seq;
+    uint32_t durations_ns[3];
+    int64_t v[5];
+} nl_finding_t;
+
+typedef struct {
+    int32_t legs, fd;
+    int64_t ts_ns;
+    double ts_s;
+    int64_t n_total, n_settle;
+    int32_t max_state, tolerate, watchdog_periods, miss_zero, controller_id, mode_speed;
+    int64_t silent_after;
+    int32_t record_frames;
+    double nan;
+    int32_t ideal;
+    double noise_std, adc_lsb, enc_step, two_pi, vdc;
+    double s_i, s_th, s_w, s_v;
+    int32_t i_min, i_max, w_min, w_max, v_min, v_max, th_mod;
+    void *plant_params;
+    void *plant_state;
+    double *plant_trace;
+    int32_t trace_cap;
+    double trace_dt;
+    int32_t trace_columns;
+    double torque_k, psi_f, dl, sqrt3_2, rpm_to_rad_s;
+    int32_t dyno, inertia, n_load;
+    double load_t[64];
+    double load_v[64];
+    int32_t n_ref;
+    int64_t ref_k[16];
+    double ref_rpm[16];
+    double i_trip, w_trip;
+    int32_t fault_pending;
+    uint8_t fault_code_in;
+    uint32_t fault_detail_in;
+    int32_t realtime;
+    int64_t overrun_ns, spin_ns;
+    int32_t rt_priority, cpu, lock_memory;
+} nl_config_t;
+
+typedef struct {
+    double *trace;
+    int64_t trace_rows_cap;
+    int32_t n_periods, n_frames, n_findings;
+    int64_t n_trace_rows;
+    ...;
+} nl_slot_t;
+
+typedef struct {
+    int32_t end;
+    int64_t completed_periods, end_period, lost_commands, deadline_misses, stale_commands, overruns, max_wait_ns,
+        violation_count;
+    int64_t by_rule[5];
+    int64_t candidate_checked, candidate_misses, silent;
+    uint8_t fault_code;
+    uint32_t fault_detail;
+    double peak_current;
+    int32_t plant_rc, plant_detail, encode_field;
+    double encode_value;
+    int64_t frames_tx, frames_rx;
+    int64_t dec_frames, dec_messages, dec_unknown_id, dec_bad_length, dec_bad_value, dec_stale, dec_duplicate,
+        dec_out_of_order, dec_mixed_seq;
+    double speed_ref_rpm;
+    double tap_t;
+    uint32_t tap_seq;
+    int64_t ring_waits, wall_ns;
+    int32_t rt_mlock_errno, rt_sched_errno, rt_affinity_errno;
+} nl_result_t;
+
+typedef struct nl_handle nl_handle_t;
+
+uint64_t nl_handle_size(void);
+int nl_init(nl_handle_t *h);
+void nl_destroy(nl_handle_t *h);
+nl_config_t *nl_config(nl_handle_t *h);
+nl_slot_t *nl_slot(nl_handle_t *h, int32_t i);
+const nl_result_t *nl_result(const nl_handle_t *h);
+void nl_run(nl_handle_t *h);
+int nl_wait_full(nl_handle_t *h, int32_t i, int64_t timeout_ns);
+void nl_release(nl_handle_t *h, int32_t i);
+void nl_stop(nl_handle_t *h);
+
+size_t nl_sizeof_period(void);
+size_t nl_sizeof_frame(void);
+void *nl_slot_periods(nl_handle_t *h, int32_t i);
+void *nl_slot_frames(nl_handle_t *h, int32_t i);
+int64_t *nl_slot_lateness(nl_handle_t *h, int32_t i);
+nl_finding_t *nl_slot_findings(nl_handle_t *h, int32_t i);
+double *nl_slot_noise(nl_handle_t *h, int32_t i);
+
+typedef struct {
+    uint32_t id;
+    uint8_t len;
+    uint8_t fd;
+    uint8_t data[64];
+} hil_core_frame_t;
+void hil_core_init(void);
+void hil_core_rx(uint32_t id, const uint8_t *data, uint8_t len, uint8_t fd);
+int hil_core_tx(hil_core_frame_t *out);
+"""
+
+PREAMBLE = """
+#include <stddef.h>
+#include "loop.h"
+#include "hil_target_core.h"
+
+static size_t nl_sizeof_period(void) { return sizeof(nl_period_t); }
+static size_t nl_sizeof_frame(void) { return sizeof(nl_frame_rec_t); }
+static void *nl_slot_periods(nl_handle_t *h, int32_t i) { return nl_slot(h, i)->periods; }
+static void *nl_slot_frames(nl_handle_t *h, int32_t i) { return nl_slot(h, i)->frames; }
+static int64_t *nl_slot_lateness(nl_handle_t *h, int32_t i) { return nl_slot(h, i)->lateness_ns; }
+static nl_finding_t *nl_slot_findings(nl_handle_t *h, int32_t i) { return nl_slot(h, i)->findings; }
+static double *nl_slot_noise(nl_handle_t *h, int32_t i) { return nl_slot(h, i)->noise; }
+"""
+
+
+def _rel(path: Path) -> str:
+    """Path relative to the working directory when possible (setuptools wants that)."""
+    return str(path.relative_to(Path.cwd())) if path.is_relative_to(Path.cwd()) else str(path)
+
+
+def _firmware_objects() -> list[str]:
+    """Compile the firmware side with its own flags; the object files to link."""
+    from setuptools._distutils.ccompiler import new_compiler
+    from setuptools._distutils.sysconfig import customize_compiler
+
+    cc = new_compiler()
+    customize_compiler(cc)
+    sources = [*sorted((_FW / "src").glob("*.c")), _FW / "target" / "hil_target_core.c",
+               _FW / "target" / "hil_app_reference.c", _FW / "generated" / "hil_protocol.c"]
+    out = tempfile.mkdtemp(prefix="hil-loop-fw-")
+    objects: list[str] = cc.compile([str(s) for s in sources], output_dir=out,
+                                    include_dirs=[str(p) for p in _FW_INCLUDES], extra_postargs=FIRMWARE_FLAGS)
+    return objects
+
+
+ffibuilder = FFI()
+ffibuilder.cdef(CDEF)
+ffibuilder.set_source(
+    "pmsm_hil.hil._loop_native",
+    PREAMBLE,
+    sources=[_rel(_HERE / name) for name in LOOP_SOURCES],
+    include_dirs=[_rel(_HERE), *(_rel(p) for p in _FW_INCLUDES)],
+    extra_compile_args=LOOP_FLAGS,
+    extra_objects=_firmware_objects(),
+    libraries=["m", "pthread"],
+)
+
+if __name__ == "__main__":
+    ffibuilder.compile(verbose=True)

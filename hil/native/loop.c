@@ -1,0 +1,879 @@
+/* The native period loop (loop.h): the steps of hil/runner/closed_loop.py ClosedLoop._run in C. */
+#define _POSIX_C_SOURCE 200809L
+
+#include <math.h>
+#include <pthread.h>
+#include <string.h>
+
+#include "hil_target_core.h"
+#include "loop.h"
+#include "loop_frames.h"
+#include "loop_rt.h"
+#include "plant.h"
+#include "plant6.h"
+
+/* The reference firmware's profiled step (hil_app_reference.c built with HIL_APP_REFERENCE_PROFILED): the
+ * stage split [ns] and the restricted-vs-full candidate diagnostic of the last step. */
+void hil_app_reference_diag(uint32_t split_ns[3], uint8_t *full_miss);
+
+#define SLOT_OWNED_BY_PYTHON 0
+#define SLOT_READY 1
+#define SLOT_FULL 2
+#define PENDING_FINDINGS 16
+
+struct nl_handle {
+    nl_config_t cfg;
+    nl_slot_t slots[NL_RING];
+    nl_result_t res;
+    pthread_mutex_t mu;
+    pthread_cond_t cv;
+    int32_t state[NL_RING];
+    int32_t done;
+    int32_t stop;
+};
+
+/* A command with what the host keeps beside it (closed_loop.py `_pending`, `_pending_split`, `_pending_tref`). */
+typedef struct {
+    nl_cmd_t cmd;
+    uint32_t split[3];
+    double tref;
+} pending_t;
+
+/* The plant's exact sample at a period start (PlantSample / PlantSample6). */
+typedef struct {
+    double i[6];
+    double i_d, i_q, i_x, i_y, theta_e, omega_m, torque;
+} sample_t;
+
+typedef struct {
+    nl_handle_t *h;
+    const nl_config_t *c;
+    nl_result_t *r;
+    nl_slot_t *slot;
+    int32_t slot_i;
+    int64_t block;              /* blocks started */
+    int32_t noise_i;            /* next noise value of the slot */
+    double tap_t;               /* FrameTap t [s] and seq (period index) */
+    uint32_t tap_seq;
+    int64_t meas_sent;
+    /* TargetClient */
+    int32_t expected;           /* seq of the last Measurement, -1 before the first */
+    int32_t have_reply;
+    nl_cmd_t reply;
+    int32_t prev_answered;
+    nl_cmd_asm_t as;
+    int32_t has_fault;
+    uint8_t fault_code;
+    uint32_t fault_detail;
+    int64_t malformed_seen, out_of_seq_seen;
+    nl_finding_t pend[PENDING_FINDINGS];
+    int32_t n_pend;
+    /* the loop */
+    pending_t pending;
+    pending_t next;
+    double speed_ref_rpm;
+    int32_t ref_i;
+    int32_t inertia;
+    int64_t next_start;
+    int64_t wait_ns;
+} loop_t;
+
+static const double NS_PER_S = 1e9;
+
+uint64_t nl_handle_size(void)
+{
+    return (uint64_t)sizeof(nl_handle_t);
+}
+
+int nl_init(nl_handle_t *h)
+{
+    int i;
+    if (pthread_mutex_init(&h->mu, NULL) != 0) {
+        return -1;
+    }
+    if (pthread_cond_init(&h->cv, NULL) != 0) {
+        pthread_mutex_destroy(&h->mu);
+        return -1;
+    }
+    for (i = 0; i < NL_RING; ++i) {
+        h->state[i] = SLOT_OWNED_BY_PYTHON;
+    }
+    h->done = 0;
+    h->stop = 0;
+    memset(&h->res, 0, sizeof h->res);
+    return 0;
+}
+
+void nl_destroy(nl_handle_t *h)
+{
+    pthread_cond_destroy(&h->cv);
+    pthread_mutex_destroy(&h->mu);
+}
+
+nl_config_t *nl_config(nl_handle_t *h)
+{
+    return &h->cfg;
+}
+
+nl_slot_t *nl_slot(nl_handle_t *h, int32_t i)
+{
+    return &h->slots[i];
+}
+
+const nl_result_t *nl_result(const nl_handle_t *h)
+{
+    return &h->res;
+}
+
+void nl_stop(nl_handle_t *h)
+{
+    pthread_mutex_lock(&h->mu);
+    __atomic_store_n(&h->stop, 1, __ATOMIC_RELEASE);
+    pthread_cond_broadcast(&h->cv);
+    pthread_mutex_unlock(&h->mu);
+}
+
+void nl_release(nl_handle_t *h, int32_t i)
+{
+    pthread_mutex_lock(&h->mu);
+    h->state[i] = SLOT_READY;
+    pthread_cond_broadcast(&h->cv);
+    pthread_mutex_unlock(&h->mu);
+}
+
+static void deadline_in(struct timespec *ts, int64_t timeout_ns)
+{
+    clock_gettime(CLOCK_REALTIME, ts);
+    ts->tv_sec += (time_t)(timeout_ns / 1000000000);
+    ts->tv_nsec += (long)(timeout_ns % 1000000000);
+    if (ts->tv_nsec >= 1000000000L) {
+        ts->tv_sec += 1;
+        ts->tv_nsec -= 1000000000L;
+    }
+}
+
+int nl_wait_full(nl_handle_t *h, int32_t i, int64_t timeout_ns)
+{
+    struct timespec ts;
+    int rc = 0;
+    deadline_in(&ts, timeout_ns);
+    pthread_mutex_lock(&h->mu);
+    while (h->state[i] != SLOT_FULL && !h->done) {
+        if (pthread_cond_timedwait(&h->cv, &h->mu, &ts) != 0) {
+            break;
+        }
+    }
+    if (h->state[i] == SLOT_FULL) {
+        h->state[i] = SLOT_OWNED_BY_PYTHON;
+        rc = 1;
+    } else if (h->done) {
+        rc = -1;
+    }
+    pthread_mutex_unlock(&h->mu);
+    return rc;
+}
+
+/* The loop's next slot (waits for Python to hand it back); 0 ok, -1 when stopped while waiting. */
+static int take_slot(loop_t *L)
+{
+    nl_handle_t *h = L->h;
+    const int32_t i = (int32_t)(L->block % NL_RING);
+    int ready;
+    pthread_mutex_lock(&h->mu);
+    if (h->state[i] != SLOT_READY) {
+        L->r->ring_waits++;
+        while (h->state[i] != SLOT_READY && !__atomic_load_n(&h->stop, __ATOMIC_ACQUIRE)) {
+            pthread_cond_wait(&h->cv, &h->mu);
+        }
+    }
+    ready = h->state[i] == SLOT_READY;
+    pthread_mutex_unlock(&h->mu);
+    if (!ready) {
+        return -1;
+    }
+    L->slot_i = i;
+    L->slot = &h->slots[i];
+    L->slot->n_periods = 0;
+    L->slot->n_frames = 0;
+    L->slot->n_findings = 0;
+    L->slot->n_trace_rows = 0;
+    L->noise_i = 0;
+    L->block++;
+    return 0;
+}
+
+static void publish_slot(loop_t *L, int32_t last)
+{
+    nl_handle_t *h = L->h;
+    pthread_mutex_lock(&h->mu);
+    h->state[L->slot_i] = SLOT_FULL;
+    if (last) {
+        h->done = 1;
+    }
+    pthread_cond_broadcast(&h->cv);
+    pthread_mutex_unlock(&h->mu);
+    L->slot = NULL;
+}
+
+/* --- frames ---------------------------------------------------------------------------------------- */
+static void record_frame(loop_t *L, uint8_t direction, const hil_core_frame_t *f)
+{
+    nl_slot_t *s = L->slot;
+    nl_frame_rec_t *rec;
+    if (!L->c->record_frames || s->n_frames >= NL_BLOCK * NL_FRAMES_PER_PERIOD) {
+        return;
+    }
+    rec = &s->frames[s->n_frames++];
+    rec->t = L->tap_t;
+    rec->seq = L->tap_seq;
+    rec->direction = direction;
+    rec->arbitration_id = f->id;
+    rec->is_fd = f->fd;
+    rec->length = f->len;
+    memcpy(rec->data, f->data, sizeof rec->data);
+}
+
+static void to_target(loop_t *L, const hil_core_frame_t *frames, int n, int deliver)
+{
+    int j;
+    for (j = 0; j < n; ++j) {
+        L->r->frames_tx++;
+        record_frame(L, 0u, &frames[j]);
+        if (deliver) {
+            hil_core_rx(frames[j].id, frames[j].data, frames[j].len, frames[j].fd);
+        }
+    }
+}
+
+static void add_pending(loop_t *L, uint8_t rule, uint8_t what, const nl_cmd_t *cmd, int64_t v0, int64_t v1)
+{
+    nl_finding_t *f;
+    if (L->n_pend >= PENDING_FINDINGS) {
+        return;
+    }
+    f = &L->pend[L->n_pend++];
+    memset(f, 0, sizeof *f);
+    f->rule = rule;
+    f->what = what;
+    f->v[0] = v0;
+    f->v[1] = v1;
+    if (cmd != NULL) {
+        f->has_cmd = 1u;
+        f->cmd_seq = cmd->seq;
+        f->n_states = cmd->n_states;
+        f->mirror = cmd->mirror;
+        memcpy(f->states, cmd->states, sizeof f->states);
+        memcpy(f->durations_ns, cmd->durations_ns, sizeof f->durations_ns);
+    }
+}
+
+/* TargetClient._on_command. */
+static void on_command(loop_t *L, const nl_cmd_t *cmd)
+{
+    const int32_t seq = cmd->seq;
+    if (seq == L->expected) {
+        if (!L->have_reply) {
+            L->reply = *cmd;
+            L->have_reply = 1;
+        } else {
+            add_pending(L, NL_RULE_SEQUENCE, NL_WHAT_SECOND, cmd, seq, 0);
+        }
+    } else if (seq == ((L->expected - 1) & 0xFFFF) && !L->prev_answered) {
+        L->r->stale_commands++;
+        L->prev_answered = 1;
+    } else {
+        add_pending(L, NL_RULE_SEQUENCE, NL_WHAT_OTHER_SEQ, cmd, seq, L->expected);
+    }
+}
+
+/* TargetClient._drain: every frame the target queued. */
+static void from_target(loop_t *L)
+{
+    hil_core_frame_t f;
+    nl_cmd_t cmd;
+    uint8_t code = 0u;
+    uint32_t detail = 0u;
+    while (hil_core_tx(&f)) {
+        int msg;
+        L->r->frames_rx++;
+        record_frame(L, 1u, &f);
+        msg = nl_decode(&L->as, &f, L->r, &cmd, &code, &detail);
+        if (msg == NL_MSG_COMMAND) {
+            on_command(L, &cmd);
+        } else if (msg == NL_MSG_FAULT && !L->has_fault) {
+            L->has_fault = 1;
+            L->fault_code = code;
+            L->fault_detail = detail;
+        }
+    }
+}
+
+/* --- plant and sensors --------------------------------------------------------------------------------- */
+static void sample(const loop_t *L, sample_t *smp)
+{
+    const nl_config_t *c = L->c;
+    if (c->legs == 6) {
+        const p6_state_t *s = (const p6_state_t *)c->plant_state;
+        p6_phase_currents(s->i_d, s->i_q, s->theta_e, s->i_x, s->i_y, smp->i);
+        smp->i_d = s->i_d;
+        smp->i_q = s->i_q;
+        smp->i_x = s->i_x;
+        smp->i_y = s->i_y;
+        smp->theta_e = s->theta_e;
+        smp->omega_m = s->omega_m;
+        smp->torque = p6_torque((const p6_params_t *)c->plant_params, s->i_d, s->i_q);
+    } else {
+        const pl_state_t *s = (const pl_state_t *)c->plant_state;
+        const double i_d = s->i_d;
+        const double i_q = s->i_q;
+        const double th = s->theta_e;
+        const double co = cos(th);
+        const double sn = sin(th);
+        const double i_al = i_d * co - i_q * sn;
+        const double i_be = i_d * sn + i_q * co;
+        smp->i[0] = i_al;
+        smp->i[1] = -0.5 * i_al + c->sqrt3_2 * i_be;
+        smp->i[2] = -0.5 * i_al - c->sqrt3_2 * i_be;
+        smp->i_d = i_d;
+        smp->i_q = i_q;
+        smp->i_x = c->nan;
+        smp->i_y = c->nan;
+        smp->theta_e = th;
+        smp->omega_m = s->omega_m;
+        smp->torque = c->torque_k * (c->psi_f + c->dl * i_d) * i_q;
+    }
+}
+
+/* Python's float % (the sign of the divisor). */
+static double py_mod(double x, double m)
+{
+    double r = fmod(x, m);
+    if (r != 0.0) {
+        if ((m < 0.0) != (r < 0.0)) {
+            r += m;
+        }
+    } else {
+        r = copysign(0.0, m);
+    }
+    return r;
+}
+
+/* machine.py _measure3 / _measure6 with sensors.py SensorModel: the measured currents and angle. */
+static void measure(loop_t *L, const sample_t *smp, double *cur, double *theta)
+{
+    const nl_config_t *c = L->c;
+    int j;
+    for (j = 0; j < c->legs; ++j) {
+        cur[j] = smp->i[j];
+    }
+    *theta = smp->theta_e;
+    if (c->ideal) {
+        return;
+    }
+    if (c->noise_std != 0.0) {
+        for (j = 0; j < c->legs; ++j) {
+            cur[j] = cur[j] + L->slot->noise[L->noise_i++];
+        }
+    }
+    if (c->adc_lsb != 0.0) {
+        for (j = 0; j < c->legs; ++j) {
+            cur[j] = nearbyint(cur[j] / c->adc_lsb) * c->adc_lsb;
+        }
+    }
+    if (c->enc_step != 0.0) {
+        *theta = py_mod(floor(*theta / c->enc_step) * c->enc_step, c->two_pi);
+    }
+}
+
+/* LoadProfile.value_and_slope at t [s]. */
+static void load_at(const nl_config_t *c, double t, double *value, double *slope)
+{
+    int32_t idx = 0;
+    const int32_t n = c->n_load;
+    while (idx < n && c->load_t[idx] <= t) {
+        idx++;
+    }
+    *slope = 0.0;
+    if (idx == 0) {
+        *value = c->load_v[0];
+    } else if (idx >= n) {
+        *value = c->load_v[n - 1];
+    } else {
+        const double t0 = c->load_t[idx - 1];
+        const double t1 = c->load_t[idx];
+        const double v0 = c->load_v[idx - 1];
+        const double v1 = c->load_v[idx];
+        if (t1 == t0) {
+            *value = v1;
+        } else {
+            const double s = (v1 - v0) / (t1 - t0);
+            *value = v0 + s * (t - t0);
+            *slope = s;
+        }
+    }
+}
+
+/* LoadProfile.breakpoints_between(t0, t1) as (time, value, slope) triplets; the count, or -count when more
+ * than NL_LOAD_BREAKPOINTS. */
+static int32_t load_breakpoints(const nl_config_t *c, double t0, double t1, double *bp)
+{
+    int32_t lo = 0;
+    int32_t n_bp = 0;
+    int32_t i;
+    const int32_t n = c->n_load;
+    while (lo < n && c->load_t[lo] <= t0) {
+        lo++;
+    }
+    if (lo >= n || c->load_t[lo] >= t1) {
+        return 0;
+    }
+    for (i = lo; i < n && c->load_t[i] < t1; ++i) {
+        if (i > lo && c->load_t[i] == c->load_t[i - 1]) {
+            continue; /* sorted(set(...)) */
+        }
+        if (n_bp < NL_LOAD_BREAKPOINTS) {
+            bp[3 * n_bp] = c->load_t[i];
+            load_at(c, c->load_t[i], &bp[3 * n_bp + 1], &bp[3 * n_bp + 2]);
+        }
+        n_bp++;
+    }
+    return n_bp > NL_LOAD_BREAKPOINTS ? -n_bp : n_bp;
+}
+
+/* ClosedLoop._apply_and_trace: one period with the pending command (mirrored when it is). */
+static int advance(loop_t *L, int64_t k, ge_period_stats_t *st)
+{
+    const nl_config_t *c = L->c;
+    const nl_cmd_t *cmd = &L->pending.cmd;
+    int32_t states[2 * 3];
+    int64_t durs[2 * 3];
+    int32_t n = cmd->n_states;
+    int32_t j;
+    int64_t total = 0;
+    double load0 = 0.0;
+    double slope = 0.0;
+    double bp[3 * NL_LOAD_BREAKPOINTS];
+    int32_t n_bp = 0;
+    double *trace = c->plant_trace;
+    int rc;
+    for (j = 0; j < n; ++j) {
+        states[j] = cmd->states[j];
+        durs[j] = cmd->durations_ns[j];
+    }
+    if (cmd->mirror && n >= 2) {
+        for (j = n - 2; j >= 0; --j) {
+            states[n] = cmd->states[j];
+            durs[n] = cmd->durations_ns[j];
+            n++;
+        }
+    }
+    for (j = 0; j < n; ++j) {
+        total += durs[j];
+    }
+    if (L->inertia) {
+        const uint64_t t_ns = c->legs == 6 ? ((const p6_state_t *)c->plant_state)->t_ns
+                                           : ((const pl_state_t *)c->plant_state)->t_ns;
+        const double t0 = (double)t_ns / NS_PER_S;
+        load_at(c, t0, &load0, &slope);
+        n_bp = load_breakpoints(c, t0, t0 + (double)total * 1e-9, bp);
+        if (n_bp < 0) {
+            L->r->plant_detail = -n_bp;
+            return NL_PLANT_E_BREAKPOINTS;
+        }
+    }
+    if (k >= c->n_settle && c->trace_dt > 0.0) {
+        nl_slot_t *s = L->slot;
+        if (s->n_trace_rows + c->trace_cap > s->trace_rows_cap) {
+            return PL_E_TRACE_FULL;
+        }
+        trace = s->trace + s->n_trace_rows * c->trace_columns;
+    }
+    if (c->legs == 6) {
+        rc = p6_advance((const p6_params_t *)c->plant_params, (p6_state_t *)c->plant_state, states, durs, n,
+                        load0, slope, bp, n_bp, c->trace_dt, c->trace_dt > 0.0 ? trace : NULL, c->trace_cap, st);
+    } else {
+        rc = pl_advance((const pl_params_t *)c->plant_params, (pl_state_t *)c->plant_state, states, durs, n,
+                        load0, slope, bp, n_bp, c->trace_dt, c->trace_dt > 0.0 ? trace : NULL, c->trace_cap, st);
+    }
+    if (rc == 0 && k >= c->n_settle && c->trace_dt > 0.0) {
+        L->slot->n_trace_rows += st->trace_n;
+    }
+    return rc;
+}
+
+/* --- the period -------------------------------------------------------------------------------------------- */
+/* ClosedLoop._follow_reference. */
+static void follow_reference(loop_t *L, int64_t k)
+{
+    const nl_config_t *c = L->c;
+    hil_core_frame_t f;
+    while (L->ref_i < c->n_ref && c->ref_k[L->ref_i] <= k) {
+        const double ref = c->ref_rpm[L->ref_i++];
+        if (ref == L->speed_ref_rpm) {
+            continue;
+        }
+        L->speed_ref_rpm = ref;
+        nl_encode_setpoint(1u, (uint8_t)c->mode_speed, ref * c->rpm_to_rad_s, (uint8_t)c->controller_id, &f);
+        to_target(L, &f, 1, 1);
+        if (c->dyno) {
+            L->inertia = 0;
+            if (c->legs == 6) {
+                ((p6_params_t *)c->plant_params)->inertia_mode = 0;
+                ((p6_state_t *)c->plant_state)->omega_m = ref * c->rpm_to_rad_s;
+            } else {
+                ((pl_params_t *)c->plant_params)->inertia_mode = 0;
+                ((pl_state_t *)c->plant_state)->omega_m = ref * c->rpm_to_rad_s;
+            }
+        }
+    }
+}
+
+static void add_finding(loop_t *L, int64_t k, const nl_finding_t *f)
+{
+    nl_slot_t *s = L->slot;
+    L->r->violation_count++;
+    L->r->by_rule[f->rule]++;
+    if (s->n_findings < NL_FINDINGS) {
+        s->findings[s->n_findings] = *f;
+        s->findings[s->n_findings].period = (uint32_t)k;
+        s->n_findings++;
+    }
+}
+
+/* TargetClient.take_anomalies + ClosedLoop._check_contract: 1 when the reply may be applied. */
+static int check_contract(loop_t *L, int64_t k, int have)
+{
+    const nl_config_t *c = L->c;
+    nl_result_t *r = L->r;
+    const int64_t malformed = r->dec_bad_length + r->dec_bad_value;
+    const int64_t out_of_seq = r->dec_stale + r->dec_duplicate + r->dec_out_of_order + r->dec_mixed_seq;
+    int32_t j;
+    int ok = have;
+    if (malformed != L->malformed_seen) {
+        add_pending(L, NL_RULE_FRAME, NL_WHAT_DECODER_FRAME, NULL, malformed - L->malformed_seen, r->dec_bad_length);
+        L->pend[L->n_pend - 1].v[2] = r->dec_bad_value;
+        L->malformed_seen = malformed;
+    }
+    if (out_of_seq != L->out_of_seq_seen) {
+        add_pending(L, NL_RULE_SEQUENCE, NL_WHAT_DECODER_SEQ, NULL, out_of_seq - L->out_of_seq_seen, r->dec_stale);
+        L->pend[L->n_pend - 1].v[2] = r->dec_duplicate;
+        L->pend[L->n_pend - 1].v[3] = r->dec_out_of_order;
+        L->pend[L->n_pend - 1].v[4] = r->dec_mixed_seq;
+        L->out_of_seq_seen = out_of_seq;
+    }
+    if (L->wait_ns) {
+        if (L->wait_ns > r->max_wait_ns) {
+            r->max_wait_ns = L->wait_ns;
+        }
+        L->wait_ns = 0;
+    }
+    if (have) {
+        const nl_cmd_t *cmd = &L->reply;
+        int64_t total = 0;
+        int bad = 0;
+        for (j = 0; j < cmd->n_states; ++j) {
+            if (cmd->states[j] > c->max_state) {
+                add_pending(L, NL_RULE_STATE_CODE, NL_WHAT_STATE_CODE, cmd, j, cmd->states[j]);
+                L->pend[L->n_pend - 1].v[2] = c->max_state;
+                bad = 1;
+                break;
+            }
+        }
+        if (!bad) {
+            if (cmd->mirror && cmd->n_states >= 2) {
+                for (j = 0; j < cmd->n_states - 1; ++j) {
+                    total += cmd->durations_ns[j];
+                }
+                total = 2 * total + cmd->durations_ns[cmd->n_states - 1];
+            } else {
+                for (j = 0; j < cmd->n_states; ++j) {
+                    total += cmd->durations_ns[j];
+                }
+            }
+            if (total != c->ts_ns) {
+                add_pending(L, NL_RULE_DURATIONS, NL_WHAT_DURATIONS, cmd, total, c->ts_ns);
+                bad = 1;
+            }
+        }
+        ok = !bad;
+    } else {
+        add_pending(L, NL_RULE_MISSING, NL_WHAT_MISSING, NULL, k & 0xFFFF, 0);
+    }
+    for (j = 0; j < L->n_pend; ++j) {
+        add_finding(L, k, &L->pend[j]);
+    }
+    L->n_pend = 0;
+    return ok;
+}
+
+/* ClosedLoop._accept: the pending command of the next period; 1 when the watchdog ends the run. */
+static int accept(loop_t *L, int64_t k, int ok)
+{
+    const nl_config_t *c = L->c;
+    nl_result_t *r = L->r;
+    if (!ok) {
+        r->silent++;
+        r->lost_commands++;
+        if (c->realtime) {
+            r->deadline_misses++;
+        }
+        if (c->miss_zero) {
+            memset(&L->next.cmd, 0, sizeof L->next.cmd);
+            L->next.cmd.n_states = 1u;
+            L->next.cmd.durations_ns[0] = (uint32_t)c->ts_ns;
+        } else {
+            L->next.cmd = L->pending.cmd;
+        }
+        memcpy(L->next.split, L->pending.split, sizeof L->next.split);
+        L->next.tref = L->pending.tref;
+        return r->silent >= c->watchdog_periods;
+    }
+    r->silent = 0;
+    L->next.cmd = L->reply;
+    if (hil_core_counters()->steps > 0u) {
+        uint8_t full_miss = 255u;
+        hil_app_reference_diag(L->next.split, &full_miss);
+        L->next.tref = (double)hil_core_last_cmd()->torque_ref;
+        if (full_miss != 255u && k >= c->n_settle) {
+            r->candidate_checked++;
+            r->candidate_misses += full_miss;
+        }
+    } else {
+        memset(L->next.split, 0, sizeof L->next.split);
+        L->next.tref = c->nan;
+    }
+    return 0;
+}
+
+/* ClosedLoop._record. */
+static void record(loop_t *L, double t, int64_t k, const sample_t *smp, const ge_period_stats_t *st, int missed,
+                   double load_t)
+{
+    const nl_config_t *c = L->c;
+    const pending_t *p = &L->pending;
+    nl_period_t *rec = &L->slot->periods[L->slot->n_periods++];
+    int j;
+    rec->t = t;
+    rec->seq = (uint32_t)k;
+    rec->i_a = smp->i[0];
+    rec->i_b = smp->i[1];
+    rec->i_c = smp->i[2];
+    rec->i_d = smp->i_d;
+    rec->i_q = smp->i_q;
+    rec->torque = smp->torque;
+    rec->omega_m = smp->omega_m;
+    rec->theta_e = smp->theta_e;
+    rec->torque_ref = p->tref;
+    rec->speed_ref = L->speed_ref_rpm * c->rpm_to_rad_s;
+    rec->load_torque = load_t;
+    rec->n_states = p->cmd.n_states;
+    for (j = 0; j < 3; ++j) {
+        rec->states[j] = j < p->cmd.n_states ? p->cmd.states[j] : 0u;
+        rec->durations_ns[j] = j < p->cmd.n_states ? p->cmd.durations_ns[j] : 0u;
+        rec->exec_split_ns[j] = p->split[j];
+    }
+    rec->vector_id = p->cmd.vector_id;
+    rec->candidates = p->cmd.candidates;
+    rec->exec_time_ns = p->cmd.exec_time_ns;
+    rec->leg_transitions = (uint16_t)st->leg_transitions;
+    rec->boundary_transitions = (uint16_t)st->boundary_transitions;
+    rec->narrow_pulses = (uint16_t)st->narrow_pulses;
+    rec->late = 0u;
+    rec->missed = (uint8_t)(missed ? 1u : 0u);
+    rec->narrow_pulses_gated = (uint16_t)st->narrow_pulses_gated;
+    rec->mirror = p->cmd.mirror;
+    if (c->legs == 6) {
+        rec->i_u = smp->i[3];
+        rec->i_v = smp->i[4];
+        rec->i_w = smp->i[5];
+        rec->i_x = smp->i_x;
+        rec->i_y = smp->i_y;
+    } else {
+        rec->i_u = c->nan;
+        rec->i_v = c->nan;
+        rec->i_w = c->nan;
+        rec->i_x = c->nan;
+        rec->i_y = c->nan;
+    }
+    L->r->completed_periods = k + 1;
+    L->pending = L->next;
+}
+
+/* ClosedLoop._check_end (the final-period trip check stays in Python): 1 to stop. */
+static int check_end(loop_t *L, int64_t k, const sample_t *smp, const ge_period_stats_t *st)
+{
+    const nl_config_t *c = L->c;
+    const double i_trip = c->i_trip;
+    int j;
+    int trip = 0;
+    if (L->has_fault) {
+        L->r->end = NL_END_FAULT;
+        L->r->fault_code = L->fault_code;
+        L->r->fault_detail = L->fault_detail;
+        return 1;
+    }
+    for (j = 0; j < c->legs; ++j) {
+        if (fabs(smp->i[j]) > i_trip) {
+            trip = 1;
+        }
+    }
+    if (fabs(smp->omega_m) > c->w_trip || st->peak_current > i_trip) {
+        trip = 1;
+    }
+    if (trip) {
+        L->r->end = NL_END_TRIP;
+        L->r->peak_current = st->peak_current;
+        return 1;
+    }
+    (void)k;
+    return 0;
+}
+
+/* Measurement k to the target (TargetClient.send_measurement); 0 ok, -1 when the codec refused a value. */
+static int send_measurement(loop_t *L, int64_t k, double t, const sample_t *smp)
+{
+    const nl_config_t *c = L->c;
+    hil_core_frame_t frames[3];
+    double cur[6];
+    double theta;
+    int n = 0;
+    const uint16_t seq = (uint16_t)(k & 0xFFFF);
+    measure(L, smp, cur, &theta);
+    if (nl_encode_meas(c, seq, cur, theta, smp->omega_m, frames, &n, &L->r->encode_field, &L->r->encode_value)
+        != 0) {
+        return -1;
+    }
+    L->tap_t = t;
+    L->tap_seq = (uint32_t)k;
+    if (L->expected >= 0) {
+        L->prev_answered = L->have_reply;
+    }
+    L->expected = seq;
+    L->have_reply = 0;
+    L->meas_sent++;
+    to_target(L, frames, n, c->silent_after < 0 || L->meas_sent <= c->silent_after);
+    return 0;
+}
+
+static void loop_init(loop_t *L, nl_handle_t *h)
+{
+    const nl_config_t *c = &h->cfg;
+    memset(L, 0, sizeof *L);
+    L->h = h;
+    L->c = c;
+    L->r = &h->res;
+    L->expected = -1;
+    L->prev_answered = 1;
+    L->as.held_seq = -1;
+    L->has_fault = c->fault_pending;
+    L->fault_code = c->fault_code_in;
+    L->fault_detail = c->fault_detail_in;
+    L->pending.cmd.n_states = 1u;
+    L->pending.cmd.durations_ns[0] = (uint32_t)c->ts_ns;
+    L->pending.tref = c->nan;
+    L->speed_ref_rpm = c->n_ref > 0 ? c->ref_rpm[0] : 0.0;
+    L->ref_i = c->n_ref > 0 ? 1 : 0;
+    L->inertia = c->inertia;
+}
+
+/* One period k; returns NL_END_RUNNING or the ending. */
+static int32_t period(loop_t *L, int64_t k)
+{
+    const nl_config_t *c = L->c;
+    nl_result_t *r = L->r;
+    const double t = (double)k * c->ts_s;
+    sample_t smp;
+    ge_period_stats_t st;
+    double load_t;
+    double unused_slope;
+    int ok;
+    int watchdog;
+    int rc;
+    if (c->realtime) {
+        const int64_t now = nl_wait_until(L->next_start, c->spin_ns);
+        const int64_t late = now - L->next_start;
+        L->slot->lateness_ns[L->slot->n_periods] = late;
+        if (late > c->overrun_ns) {
+            r->overruns++;
+        }
+    }
+    follow_reference(L, k);
+    sample(L, &smp);
+    if (send_measurement(L, k, t, &smp) != 0) {
+        return NL_END_ENCODE_ERROR;
+    }
+    rc = advance(L, k, &st);
+    if (rc != 0) {
+        r->plant_rc = rc;
+        return NL_END_PLANT_ERROR;
+    }
+    from_target(L);
+    if (!L->have_reply && c->realtime) { /* nothing more will come in process: wait out the period */
+        const int64_t t0 = nl_now_ns();
+        const int64_t now = nl_wait_until(L->next_start + c->ts_ns, 0);
+        L->wait_ns = now - t0;
+    }
+    ok = check_contract(L, k, L->have_reply);
+    watchdog = accept(L, k, ok);
+    load_at(c, t, &load_t, &unused_slope);
+    record(L, t, k, &smp, &st, !L->have_reply, load_t);
+    if (r->violation_count > c->tolerate) {
+        return NL_END_VIOLATION;
+    }
+    if (watchdog) {
+        return NL_END_WATCHDOG;
+    }
+    L->next_start += c->ts_ns;
+    if ((k + 1) % NL_BLOCK == 0) {
+        publish_slot(L, 0);
+    }
+    if (check_end(L, k, &smp, &st)) {
+        return r->end;
+    }
+    return NL_END_RUNNING;
+}
+
+void nl_run(nl_handle_t *h)
+{
+    loop_t L;
+    nl_rt_saved_t saved;
+    int64_t k;
+    int32_t end = NL_END_COMPLETED;
+    int64_t t_start;
+    loop_init(&L, h);
+    if (h->cfg.realtime || h->cfg.rt_priority > 0 || h->cfg.cpu >= 0 || h->cfg.lock_memory) {
+        nl_rt_setup(&h->cfg, &h->res, &saved);
+    } else {
+        memset(&saved, 0, sizeof saved);
+    }
+    t_start = nl_now_ns();
+    L.next_start = t_start;
+    for (k = 0; k < h->cfg.n_total; ++k) {
+        int32_t e;
+        if (__atomic_load_n(&h->stop, __ATOMIC_ACQUIRE) || (L.slot == NULL && take_slot(&L) != 0)) {
+            end = NL_END_INTERRUPTED;
+            h->res.end_period = k;
+            break;
+        }
+        e = period(&L, k);
+        if (e != NL_END_RUNNING) {
+            end = e;
+            h->res.end_period = k;
+            break;
+        }
+    }
+    h->res.wall_ns = nl_now_ns() - t_start;
+    h->res.speed_ref_rpm = L.speed_ref_rpm;
+    h->res.tap_t = L.tap_t;
+    h->res.tap_seq = L.tap_seq;
+    h->res.end = end;
+    nl_rt_restore(&saved);
+    if (L.slot != NULL) {
+        publish_slot(&L, 1);
+    } else {
+        pthread_mutex_lock(&h->mu);
+        h->done = 1;
+        pthread_cond_broadcast(&h->cv);
+        pthread_mutex_unlock(&h->mu);
+    }
+}

@@ -1,0 +1,233 @@
+/*
+ * The native period loop: plant sample, sensor model, Measurement encode (generated codec), the C target
+ * core called with the frames, Command decode, DUT-contract checks, plant advance, the period record --
+ * the same steps, in the same order and with the same arithmetic, as hil/runner/closed_loop.py.
+ *
+ * The loop runs in its own thread over the whole run and writes each block of NL_BLOCK periods into a ring
+ * of NL_RING slots (period records in PERIOD_DTYPE layout, raw frames in FRAME_DTYPE layout, metrics-window
+ * trace rows, lateness); Python drains full slots to the run's sink and hands them back with the next
+ * block's sensor noise. All memory is allocated by the caller before the run: nothing is allocated in the
+ * loop. Units: SI (A, rad, rad/s, N*m, V, s), times in ns where named so.
+ */
+#ifndef HIL_NATIVE_LOOP_H
+#define HIL_NATIVE_LOOP_H
+
+#include <stdint.h>
+
+#define NL_BLOCK 1000              /* periods per slot (= ClosedLoop.BLOCK) */
+#define NL_RING 8                  /* slots */
+#define NL_FRAMES_PER_PERIOD 8     /* frame records per period: Setpoint + Measurement (<= 3) + Command (<= 3) */
+#define NL_FINDINGS 64             /* contract findings kept per slot (all are counted) */
+#define NL_REF_CHANGES 16          /* speed-reference changes per run */
+#define NL_LOAD_POINTS 64          /* load-profile points */
+#define NL_LOAD_BREAKPOINTS 8      /* load breakpoints inside one period (= MAX_LOAD_BREAKPOINTS) */
+#define NL_RULES 5                 /* missing, sequence, state_code, durations, frame (contract.RULES order) */
+
+/* The contract rules (index into nl_result_t.by_rule). */
+#define NL_RULE_MISSING 0
+#define NL_RULE_SEQUENCE 1
+#define NL_RULE_STATE_CODE 2
+#define NL_RULE_DURATIONS 3
+#define NL_RULE_FRAME 4
+
+/* What a finding says (nl_finding_t.what). */
+#define NL_WHAT_MISSING 0        /* v[0] = seq */
+#define NL_WHAT_SECOND 1         /* a second Command for v[0] = seq */
+#define NL_WHAT_OTHER_SEQ 2      /* Command seq v[0] while the period's is v[1] */
+#define NL_WHAT_DECODER_SEQ 3    /* v[0] frames with an old/repeated seq; v[1..4] stale, duplicate, out_of_order, mixed */
+#define NL_WHAT_DECODER_FRAME 4  /* v[0] frames rejected; v[1] bad_length, v[2] bad_value */
+#define NL_WHAT_STATE_CODE 5     /* state v[0] = code v[1] outside 0..v[2] */
+#define NL_WHAT_DURATIONS 6      /* durations fill v[0] ns, Ts = v[1] ns (mirrored when the Command is) */
+
+/* How the run ended (nl_result_t.end). */
+#define NL_END_RUNNING 0
+#define NL_END_COMPLETED 1
+#define NL_END_VIOLATION 2       /* more findings than `tolerate` */
+#define NL_END_WATCHDOG 3        /* target silent for watchdog_periods */
+#define NL_END_FAULT 4           /* FaultTarget received: fault_code, fault_detail */
+#define NL_END_TRIP 5            /* plant trip at period end_period (peak_current: the in-period peak) */
+#define NL_END_PLANT_ERROR 6     /* the plant kernel refused the period: plant_rc */
+#define NL_END_ENCODE_ERROR 7    /* a Measurement value the codec cannot encode: encode_field, encode_value */
+#define NL_END_INTERRUPTED 8     /* nl_stop() */
+
+#define NL_PLANT_E_BREAKPOINTS (-100) /* more load breakpoints inside one period than NL_LOAD_BREAKPOINTS */
+
+#if defined(__GNUC__)
+#define NL_PACKED __attribute__((packed))
+#else
+#define NL_PACKED
+#endif
+
+/* One period record, byte for byte PERIOD_DTYPE (hil/records.py). */
+typedef struct NL_PACKED {
+    double t;
+    uint32_t seq;
+    double i_a, i_b, i_c, i_d, i_q, torque, omega_m, theta_e, torque_ref, speed_ref, load_torque;
+    uint8_t n_states;
+    uint8_t states[3];
+    uint32_t durations_ns[3];
+    uint8_t vector_id;
+    uint8_t candidates;
+    uint32_t exec_time_ns;
+    uint32_t exec_split_ns[3];
+    uint16_t leg_transitions, boundary_transitions, narrow_pulses;
+    uint8_t late, missed;
+    uint16_t narrow_pulses_gated;
+    uint8_t mirror;
+    double i_u, i_v, i_w, i_x, i_y;
+} nl_period_t;
+
+/* One raw frame record, byte for byte FRAME_DTYPE. */
+typedef struct NL_PACKED {
+    double t;
+    uint32_t seq;
+    uint8_t direction;         /* 0 host -> target, 1 target -> host */
+    uint32_t arbitration_id;
+    uint8_t is_fd;
+    uint8_t length;
+    uint8_t data[64];
+} nl_frame_rec_t;
+
+/* One DUT-contract finding; Python words it as the Python loop does. */
+typedef struct {
+    uint32_t period;
+    uint8_t rule;              /* NL_RULE_* */
+    uint8_t what;              /* NL_WHAT_* */
+    uint8_t has_cmd;           /* the Command fields below are valid */
+    uint8_t n_states;
+    uint8_t mirror;
+    uint8_t states[3];
+    uint16_t cmd_seq;
+    uint32_t durations_ns[3];
+    int64_t v[5];
+} nl_finding_t;
+
+/* Fixed for the run; written by Python before nl_run. */
+typedef struct {
+    int32_t legs;              /* 3 or 6 */
+    int32_t fd;                /* 1: CAN FD frames, 0: classic CAN parts */
+    int64_t ts_ns;
+    double ts_s;
+    int64_t n_total;           /* periods of the run */
+    int64_t n_settle;          /* first period of the metrics window */
+    int32_t max_state;
+    int32_t tolerate;
+    int32_t watchdog_periods;
+    int32_t miss_zero;         /* miss policy: 1 zero vector, 0 hold */
+    int32_t controller_id;
+    int32_t mode_speed;        /* Setpoint mode value of speed control */
+    int64_t silent_after;      /* measurements the target answers (-1: all) */
+    int32_t record_frames;
+    double nan;                /* the NaN the Python loop writes (bit pattern kept) */
+    /* sensors */
+    int32_t ideal;
+    double noise_std;          /* [A]; noise values come per slot */
+    double adc_lsb;            /* [A], 0: none */
+    double enc_step;           /* encoder step [rad electrical], 0: ideal angle */
+    double two_pi;
+    double vdc;                /* measured DC link sent in every Measurement [V] */
+    /* codec scales and raw limits (from hil.dbc) */
+    double s_i, s_th, s_w, s_v;
+    int32_t i_min, i_max, w_min, w_max, v_min, v_max, th_mod;
+    /* plant: the Python plant's own kernel structs (pl_* or p6_*) */
+    void *plant_params;
+    void *plant_state;
+    double *plant_trace;       /* the plant's trace buffer (periods before the window) */
+    int32_t trace_cap;         /* trace rows one period may write */
+    double trace_dt;           /* [s], 0: no trace */
+    int32_t trace_columns;
+    double torque_k, psi_f, dl, sqrt3_2, rpm_to_rad_s;
+    /* mechanics and scenario */
+    int32_t dyno;              /* 1: dyno (speed held at the reference), 0: inertia */
+    int32_t inertia;           /* the plant's mechanics at the start: 1 inertia (load profile applies) */
+    int32_t n_load;            /* load profile points (time [s], torque [N*m]) */
+    double load_t[NL_LOAD_POINTS];
+    double load_v[NL_LOAD_POINTS];
+    int32_t n_ref;             /* speed reference [rpm] from period ref_k[j] on */
+    int64_t ref_k[NL_REF_CHANGES];
+    double ref_rpm[NL_REF_CHANGES];
+    double i_trip, w_trip;     /* [A], [rad/s] */
+    /* target state the Python set-up left (a Fault while configuring) */
+    int32_t fault_pending;
+    uint8_t fault_code_in;
+    uint32_t fault_detail_in;
+    /* real time */
+    int32_t realtime;
+    int64_t overrun_ns;
+    int64_t spin_ns;           /* busy-wait at most this long before a period start; sleep before that */
+    int32_t rt_priority;       /* SCHED_FIFO priority, 0: none */
+    int32_t cpu;               /* CPU for the loop thread, -1: any */
+    int32_t lock_memory;       /* mlockall for the run */
+} nl_config_t;
+
+/* One block of the ring. `trace` (rows x trace_columns doubles) is the caller's. */
+typedef struct {
+    nl_period_t periods[NL_BLOCK];
+    nl_frame_rec_t frames[NL_BLOCK * NL_FRAMES_PER_PERIOD];
+    int64_t lateness_ns[NL_BLOCK];
+    nl_finding_t findings[NL_FINDINGS];
+    double noise[NL_BLOCK * 6];
+    double *trace;
+    int64_t trace_rows_cap;
+    int32_t n_periods;
+    int32_t n_frames;
+    int32_t n_findings;
+    int64_t n_trace_rows;
+} nl_slot_t;
+
+/* Counters and ending, read by Python after the run (and between blocks). */
+typedef struct {
+    int32_t end;               /* NL_END_* */
+    int64_t completed_periods;
+    int64_t end_period;        /* the period the ending was found in */
+    int64_t lost_commands;
+    int64_t deadline_misses;
+    int64_t stale_commands;
+    int64_t overruns;
+    int64_t max_wait_ns;
+    int64_t violation_count;
+    int64_t by_rule[NL_RULES];
+    int64_t candidate_checked;
+    int64_t candidate_misses;
+    int64_t silent;            /* periods without a Command in a row */
+    uint8_t fault_code;
+    uint32_t fault_detail;
+    double peak_current;       /* trip: the period's in-period peak |i| [A] */
+    int32_t plant_rc;
+    int32_t plant_detail;      /* NL_PLANT_E_BREAKPOINTS: the breakpoints inside the period */
+    int32_t encode_field;      /* index into the Measurement's fields (Python names it) */
+    double encode_value;
+    int64_t frames_tx, frames_rx;
+    /* host decoder counters (DecodeStats) */
+    int64_t dec_frames, dec_messages, dec_unknown_id, dec_bad_length, dec_bad_value, dec_stale, dec_duplicate,
+        dec_out_of_order, dec_mixed_seq;
+    double speed_ref_rpm;      /* the speed reference in force at the end [rpm] */
+    double tap_t;              /* the last period started: t [s] and index (the frame tap after the loop) */
+    uint32_t tap_seq;
+    int64_t ring_waits;        /* times the loop waited for Python to hand back a slot */
+    int64_t wall_ns;           /* wall time of the loop [ns] */
+    /* real-time set-up: 0 ok / not asked, else the errno of the refused call */
+    int32_t rt_mlock_errno, rt_sched_errno, rt_affinity_errno;
+} nl_result_t;
+
+typedef struct nl_handle nl_handle_t;
+
+/* Bytes of a handle (the caller allocates it, zeroed, suitably aligned). */
+uint64_t nl_handle_size(void);
+/* Initialise the handle's synchronisation; 0 ok. */
+int nl_init(nl_handle_t *h);
+void nl_destroy(nl_handle_t *h);
+nl_config_t *nl_config(nl_handle_t *h);
+nl_slot_t *nl_slot(nl_handle_t *h, int32_t i);
+const nl_result_t *nl_result(const nl_handle_t *h);
+
+/* Run the whole loop (call from the loop's own thread); returns when the run ended. */
+void nl_run(nl_handle_t *h);
+/* Wait up to timeout_ns for slot i to be full: 1 full, 0 timeout, -1 the run ended with no more slots. */
+int nl_wait_full(nl_handle_t *h, int32_t i, int64_t timeout_ns);
+/* Hand slot i back to the loop (its noise refilled). */
+void nl_release(nl_handle_t *h, int32_t i);
+/* Ask the loop to end at the next period (NL_END_INTERRUPTED). */
+void nl_stop(nl_handle_t *h);
+
+#endif

@@ -1,0 +1,95 @@
+/* Real-time support of the native loop (loop_rt.h). Linux: sched_setscheduler / sched_setaffinity act on the
+ * calling thread when given pid 0. */
+#define _GNU_SOURCE
+
+#include <errno.h>
+#include <sched.h>
+#include <string.h>
+#include <sys/mman.h>
+#include <time.h>
+
+#include "loop_rt.h"
+
+int64_t nl_now_ns(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (int64_t)ts.tv_sec * 1000000000 + (int64_t)ts.tv_nsec;
+}
+
+int64_t nl_wait_until(int64_t deadline_ns, int64_t spin_ns)
+{
+    int64_t now = nl_now_ns();
+    if (deadline_ns - now > spin_ns) {
+        const int64_t wake = deadline_ns - spin_ns;
+        struct timespec ts;
+        ts.tv_sec = (time_t)(wake / 1000000000);
+        ts.tv_nsec = (long)(wake % 1000000000);
+        while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, NULL) == EINTR) {
+        }
+        now = nl_now_ns();
+    }
+    while (now < deadline_ns) {
+        now = nl_now_ns();
+    }
+    return now;
+}
+
+void nl_rt_setup(const nl_config_t *cfg, nl_result_t *r, nl_rt_saved_t *saved)
+{
+    memset(saved, 0, sizeof *saved);
+    if (cfg->lock_memory) {
+        if (mlockall(MCL_CURRENT | MCL_FUTURE) == 0) {
+            saved->locked = 1;
+        } else {
+            r->rt_mlock_errno = errno;
+        }
+    }
+    if (cfg->cpu >= 0) {
+        cpu_set_t old;
+        cpu_set_t want;
+        CPU_ZERO(&old);
+        if (sched_getaffinity(0, sizeof old, &old) != 0) {
+            r->rt_affinity_errno = errno;
+        } else {
+            CPU_ZERO(&want);
+            CPU_SET((size_t)cfg->cpu, &want);
+            if (sched_setaffinity(0, sizeof want, &want) == 0) {
+                saved->affinity_set = 1;
+                memcpy(saved->old_mask, &old, sizeof old < sizeof saved->old_mask ? sizeof old
+                                                                                  : sizeof saved->old_mask);
+            } else {
+                r->rt_affinity_errno = errno;
+            }
+        }
+    }
+    if (cfg->rt_priority > 0) {
+        struct sched_param sp;
+        saved->old_policy = sched_getscheduler(0);
+        (void)sched_getparam(0, &sp);
+        saved->old_priority = sp.sched_priority;
+        sp.sched_priority = cfg->rt_priority;
+        if (sched_setscheduler(0, SCHED_FIFO, &sp) == 0) {
+            saved->sched_set = 1;
+        } else {
+            r->rt_sched_errno = errno;
+        }
+    }
+}
+
+void nl_rt_restore(const nl_rt_saved_t *saved)
+{
+    if (saved->sched_set) {
+        struct sched_param sp;
+        sp.sched_priority = saved->old_priority;
+        (void)sched_setscheduler(0, saved->old_policy, &sp);
+    }
+    if (saved->affinity_set) {
+        cpu_set_t old;
+        memcpy(&old, saved->old_mask, sizeof old < sizeof saved->old_mask ? sizeof old : sizeof saved->old_mask);
+        (void)sched_setaffinity(0, sizeof old, &old);
+    }
+    if (saved->locked) {
+        (void)munlockall();
+    }
+}

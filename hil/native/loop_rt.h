@@ -1,0 +1,36 @@
+/*
+ * Real-time support of the native loop: CLOCK_MONOTONIC time, waiting for an absolute deadline (sleep until
+ * a bounded spin window before it, then busy-wait), and the run's set-up (mlockall, SCHED_FIFO priority, CPU
+ * affinity of the calling thread) with what it refused, restored after the run.
+ */
+#ifndef HIL_NATIVE_LOOP_RT_H
+#define HIL_NATIVE_LOOP_RT_H
+
+#include <stdint.h>
+
+#include "loop.h"
+
+/* What the set-up changed, for nl_rt_restore. */
+typedef struct {
+    int32_t locked;            /* mlockall done */
+    int32_t sched_set;         /* policy changed */
+    int32_t old_policy;
+    int32_t old_priority;
+    int32_t affinity_set;
+    uint8_t old_mask[128];     /* cpu_set_t of the thread before (1024 CPUs) */
+} nl_rt_saved_t;
+
+/* CLOCK_MONOTONIC [ns]. */
+int64_t nl_now_ns(void);
+
+/* Sleep until `spin_ns` before `deadline_ns` if it is further away, then busy-wait for it; returns the time
+ * the wait ended [ns]. */
+int64_t nl_wait_until(int64_t deadline_ns, int64_t spin_ns);
+
+/* Apply cfg's memory lock, priority and CPU to the calling thread; errno of each refused call into r. */
+void nl_rt_setup(const nl_config_t *cfg, nl_result_t *r, nl_rt_saved_t *saved);
+
+/* Undo what nl_rt_setup changed. */
+void nl_rt_restore(const nl_rt_saved_t *saved);
+
+#endif

@@ -1,0 +1,92 @@
+"""Which loop a run uses (`--loop`), the connection to the native loop's C target core, and the native run:
+the C loop where it supports the run, the Python `ClosedLoop` otherwise with the reason in the metrics."""
+
+from __future__ import annotations
+
+import errno
+import os
+from collections.abc import Callable
+
+from pmsm_hil.hil.errors import ParameterError
+from pmsm_hil.hil.runner.block_sink import RunSink
+from pmsm_hil.hil.runner.closed_loop import LoopOutcome
+from pmsm_hil.hil.runner.native_config import NativeOptions, support_problem
+from pmsm_hil.hil.runner.native_link import NativeCoreLink, NativeLoopUnavailableError, native_lib
+from pmsm_hil.hil.runner.native_loop import NativeLoop
+from pmsm_hil.hil.runner.plant_setup import build_plant
+from pmsm_hil.hil.runner.run_config import RunConfig
+from pmsm_hil.hil.runner.target_client import TargetClient
+from pmsm_hil.hil.runner.target_setup import TargetConnection
+from pmsm_hil.protocol.codec import FrameCodec
+from pmsm_hil.protocol.links import link_kind, parse_spec
+
+
+def python_loop_reason(cfg: RunConfig) -> str | None:
+    """None when the run uses the native loop, else why it uses the Python loop; `--loop native` on a run the
+    native loop cannot do is a ParameterError naming the reason."""
+    if cfg.loop == "python":
+        return "--loop python"
+    try:
+        _, lib = native_lib()
+        problem = support_problem(cfg, lib)
+    except NativeLoopUnavailableError as exc:
+        problem = str(exc)
+    if problem is not None and cfg.loop == "native":
+        raise ParameterError(f"--loop native: {problem}")
+    return problem
+
+
+def connect_native(cfg: RunConfig) -> TargetConnection:
+    """The host's client on the C target core (the in-process target of the native loop)."""
+    spec = parse_spec(cfg.link)
+    profile = link_kind(spec).profile(spec)
+    link = NativeCoreLink(fd=profile == "canfd")
+    client = TargetClient(link, FrameCodec(profile))
+    return TargetConnection(client, link, inproc_result=lambda: None)
+
+
+def connect_loop_target(cfg: RunConfig, python_reason: str | None,
+                        connect_python: Callable[[], TargetConnection]) -> tuple[TargetConnection, str | None]:
+    """The target of the loop `python_reason` chose; the Python loop's target (`connect_python`) and why, when
+    the C core is in use by another native run in this process (`--loop native`: that error)."""
+    if python_reason is None:
+        try:
+            return connect_native(cfg), None
+        except NativeLoopUnavailableError as exc:
+            if cfg.loop == "native":
+                raise
+            python_reason = str(exc)
+    return connect_python(), python_reason
+
+
+def run_native(cfg: RunConfig, conn: TargetConnection, cid: int, sink: RunSink,
+               silent_after: int | None) -> LoopOutcome:
+    """The run through the C loop, feeding `sink` block by block."""
+    link = conn.host_link
+    assert isinstance(link, NativeCoreLink)
+    fault = conn.client.faults[0] if conn.client.faults else None
+    opts = NativeOptions(record_frames=sink.logger is not None, silent_after=silent_after,
+                         fault=(fault.code, fault.detail) if fault is not None else None)
+    loop = NativeLoop(cfg, build_plant(cfg), conn.client, link, cid, opts, sink=sink)
+    outcome = loop.run()
+    outcome.trace = sink.window.tail.array()
+    return outcome
+
+
+def realtime_warnings(cfg: RunConfig, conn: TargetConnection) -> list[str]:
+    """What the real-time set-up of the native loop was refused (mlockall, --rt-priority, --cpu), one line each."""
+    link = conn.host_link
+    if not isinstance(link, NativeCoreLink):
+        return []
+    mlock, sched, affinity = link.rt_errnos
+    lines = []
+    if mlock:
+        lines.append(f"real time: mlockall refused ({os.strerror(mlock)}; raise `ulimit -l` or grant CAP_IPC_LOCK): "
+                     "page faults may delay periods")
+    if sched:
+        why = "needs CAP_SYS_NICE or an rtprio limit (ulimit -r)" if sched == errno.EPERM else os.strerror(sched)
+        lines.append(f"--rt-priority {cfg.rt_priority}: SCHED_FIFO not permitted ({why}); the loop ran at normal "
+                     "priority")
+    if affinity:
+        lines.append(f"--cpu {cfg.cpu}: CPU affinity refused ({os.strerror(affinity)}); the loop ran on any CPU")
+    return lines

@@ -1,0 +1,153 @@
+"""The native period loop (hil/native/loop.c) gives the Python loop's records bit for bit: every field of every
+period record but the measured execution times, the raw frames of the log, the trace, the metrics, and the
+same ending (a silent target); runs it cannot do fall back to the Python loop with the reason."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from pmsm_hil.hil.errors import ParameterError
+from pmsm_hil.hil.presets_loader import load_motor
+from pmsm_hil.hil.runlog.reader import read_frames, read_periods, read_trace
+from pmsm_hil.hil.runner.native_run import python_loop_reason
+from pmsm_hil.hil.runner.run import RunResult, run_closed_loop
+from pmsm_hil.hil.runner.run_config import RunConfig
+from pmsm_hil.hil.runner.scenario import load_scenario
+from pmsm_hil.hil.sensors import SensorConfig
+from pmsm_hil.protocol.codec import decode_frame
+from pmsm_hil.protocol.frame import Frame
+
+#: measured on the host's clock: differ between any two runs
+TIMING_FIELDS = {"exec_time_ns", "exec_split_ns"}
+TIMING_METRICS = {"exec_time_us", "exec_split_us", "total_wall_time_s", "loop_rate_total_hz", "loop_rate_hz",
+                  "wall_time_s", "realtime_factor", "loop", "loop_note"}
+SENSORS = SensorConfig(adc_lsb_a=0.01, noise_std_a=0.05, encoder_counts=4096, seed=3)
+
+
+def _both(cfg: RunConfig, tmp_path: Path | None = None, **kw: Any) -> tuple[RunResult, RunResult]:
+    runs = []
+    for loop in ("python", "native"):
+        out = None if tmp_path is None else tmp_path / loop
+        runs.append(run_closed_loop(replace(cfg, loop=loop, out_dir=out), **kw))
+    assert runs[0].metrics["loop"] == "python" and runs[1].metrics["loop"] == "native"
+    return runs[0], runs[1]
+
+
+def _assert_same_records(a: np.ndarray, b: np.ndarray) -> None:
+    assert a.shape == b.shape and a.shape[0] > 0
+    for name in a.dtype.names or ():
+        if name not in TIMING_FIELDS:
+            assert a[name].tobytes() == b[name].tobytes(), name
+    for name in TIMING_FIELDS:  # measured, so only plausible: the firmware's steps took time
+        assert (a[name][1:] > 0).any() and (b[name][1:] > 0).any(), name
+
+
+def _assert_same_frames(a: np.ndarray, b: np.ndarray) -> None:
+    """Same frames, bytes and all, but the Commands' measured exec_time_ns."""
+    assert a.shape == b.shape and a.shape[0] > 0
+    for name in ("t", "seq", "direction", "arbitration_id", "is_fd", "length"):
+        assert a[name].tobytes() == b[name].tobytes(), name
+    for x, y in zip(a, b, strict=True):
+        fx, fy = (decode_frame(Frame(int(r["arbitration_id"]), bytes(r["data"][:r["length"]]), bool(r["is_fd"])))
+                  for r in (x, y))
+        assert fx[0] == fy[0]
+        fx[1].pop("exec_time_ns", None)
+        fy[1].pop("exec_time_ns", None)
+        assert fx[1] == fy[1], fx[0]
+
+
+def _assert_same_metrics(py: dict[str, Any], na: dict[str, Any]) -> None:
+    assert py.keys() == na.keys()
+    for key in py.keys() - TIMING_METRICS:
+        assert py[key] == na[key], key
+
+
+def _three(**overrides: Any) -> RunConfig:
+    sc = load_scenario("speed-step").with_overrides(settle_s=0.005, duration_s=0.03, speed_step_s=0.02)
+    return RunConfig(motor=load_motor("niu2020-ipmsm"), scenario=sc, controller="mpcc", **overrides)
+
+
+def _mirrored(**overrides: Any) -> RunConfig:
+    """hv-mpfc sends mirrored sequences (the plant applies s0..s(n-1), s(n-2)..s0)."""
+    return replace(_three(**overrides), controller="hv-mpfc")
+
+
+def _six(**overrides: Any) -> RunConfig:
+    sc = load_scenario("steady").with_overrides(load_nm=40.0, settle_s=0.005, duration_s=0.015)
+    return RunConfig(motor=load_motor("zhang2021-dtpmsm"), scenario=sc, controller="mptc2", **overrides)
+
+
+def test_three_phase_canfd_with_sensors_and_a_speed_step_logs_identically(tmp_path: Path) -> None:
+    py, na = _both(_three(sensors=SENSORS, log_trace=True), tmp_path)
+    _assert_same_records(py.outcome.periods.all(), na.outcome.periods.all())
+    _assert_same_metrics(py.metrics, na.metrics)
+    assert py.mcap_path is not None and na.mcap_path is not None
+    _assert_same_records(read_periods(py.mcap_path), read_periods(na.mcap_path))
+    _assert_same_frames(read_frames(py.mcap_path), read_frames(na.mcap_path))  # set-up and step Setpoints too
+    assert read_trace(py.mcap_path).tobytes() == read_trace(na.mcap_path).tobytes()
+    assert np.unique(na.outcome.periods.all()["speed_ref"]).size == 2
+
+
+@pytest.mark.parametrize(("make", "link", "sensors"), [
+    (_three, "virtual,fd=false", SensorConfig()),
+    (_mirrored, "virtual", SensorConfig()),
+    (_six, "virtual", SensorConfig()),
+    (_six, "virtual,fd=false", SENSORS),
+])
+def test_classic_can_and_six_phases(make: Any, link: str, sensors: SensorConfig) -> None:
+    py, na = _both(make(link=link, sensors=sensors))
+    _assert_same_records(py.outcome.periods.all(), na.outcome.periods.all())
+    _assert_same_metrics(py.metrics, na.metrics)
+    if make is _mirrored:
+        assert na.outcome.periods.all()["mirror"].any()
+
+
+def test_load_steps_in_inertia_mode() -> None:
+    sc = load_scenario("load-steps").with_overrides(settle_s=0.005, duration_s=0.03, load_step_s=0.01,
+                                                    load_steps=((0.02, 2.0),))
+    cfg = RunConfig(motor=load_motor("niu2020-ipmsm"), scenario=sc, controller="foc")
+    py, na = _both(cfg)
+    _assert_same_records(py.outcome.periods.all(), na.outcome.periods.all())
+    assert np.unique(na.outcome.periods.all()["load_torque"]).size == 3
+
+
+def test_a_silent_target_ends_both_loops_alike() -> None:
+    py, na = _both(_three(watchdog_periods=5, tolerate=100), silent_after=40)
+    _assert_same_records(py.outcome.periods.all(), na.outcome.periods.all())
+    _assert_same_metrics(py.metrics, na.metrics)
+    assert na.metrics["end_code"] == 3 and "watchdog: target silent for 5 periods" in na.metrics["end_reason"]
+    assert na.metrics["dut_violations_by_rule"]["missing"] == 5
+    assert [v.as_dict() for v in py.outcome.violations] == [v.as_dict() for v in na.outcome.violations]
+
+
+def test_runs_the_native_loop_cannot_do_use_the_python_loop_with_the_reason() -> None:
+    assert python_loop_reason(_three()) is None
+    assert "virtual link" in (python_loop_reason(_three(link="udp", target="spawn")) or "")
+    assert "--fault" in (python_loop_reason(_three(faults="drop=0.1")) or "")
+    assert python_loop_reason(_three(loop="python")) == "--loop python"
+    with pytest.raises(ParameterError, match="--loop native: link fault injection"):
+        python_loop_reason(_three(faults="drop=0.1", loop="native"))
+    with pytest.raises(ParameterError, match="--loop must be one of"):
+        _three(loop="c")
+    with pytest.raises(ParameterError, match="--rt-priority"):
+        _three(rt_priority=100)
+
+
+def test_real_time_native_run_reports_lateness_and_what_was_refused() -> None:
+    cfg = _three(mode="realtime", rt_priority=1, cpu=0, loop="native")
+    res = run_closed_loop(replace(cfg, scenario=cfg.scenario.with_overrides(settle_s=0.0, duration_s=0.02)))
+    m = res.metrics
+    assert m["loop"] == "native" and m["end_code"] == 0 and m["total_periods"] == 200
+    assert set(m["lateness_us"]) == {"median", "p99", "max"} and m["lateness_us"]["max"] >= 0.0
+    assert isinstance(m["overruns"], int)
+    # a refused SCHED_FIFO priority is said, never silently dropped (asked of this machine independently)
+    probe = subprocess.run([sys.executable, "-c", "import os; os.sched_setscheduler(0, os.SCHED_FIFO, "
+                            "os.sched_param(1))"], capture_output=True, check=False)
+    refused = [w for w in m["warnings"] if w.startswith("--rt-priority 1: SCHED_FIFO not permitted")]
+    assert bool(refused) == (probe.returncode != 0)
