@@ -19,6 +19,9 @@ from pmsm_hil.protocol.links.spec import parse_spec
 
 #: real time: the loop busy-waits at most this long before a period start and sleeps before that [ns]
 SPIN_NS = 100_000
+#: ... under SCHED_FIFO (`--rt-priority`: timer slack 0, wake-ups within microseconds): sleeping most of the period
+#: also keeps the thread under the kernel's real-time throttling (sched_rt_runtime_us: 95 % of each second)
+SPIN_NS_FIFO = 70_000
 
 
 @dataclass(frozen=True, slots=True)
@@ -114,7 +117,7 @@ def fill_config(c: Any, ffi: Any, cfg: RunConfig, plant: PlantBase, controller_i
     c.fault_pending = 1 if opts.fault is not None else 0
     c.fault_code_in, c.fault_detail_in = opts.fault if opts.fault is not None else (0, 0)
     c.realtime = 1 if cfg.mode == "realtime" else 0
-    c.overrun_ns, c.spin_ns = cfg.overrun_threshold_ns, SPIN_NS
+    c.overrun_ns, c.spin_ns = cfg.overrun_threshold_ns, SPIN_NS_FIFO if cfg.rt_priority else SPIN_NS
     c.rt_priority = cfg.rt_priority
     c.cpu = -1 if cfg.cpu is None else cfg.cpu
     c.lock_memory = 1 if cfg.mode == "realtime" else 0
