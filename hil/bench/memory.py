@@ -47,9 +47,9 @@ class MemoryPoint:
 def marginal_rates(points: list[MemoryPoint], *, cpu: bool = False) -> list[float]:
     """Wall (or CPU) seconds per extra simulated second between consecutive durations (sorted by duration)."""
     ordered = sorted(points, key=lambda p: p.duration_s)
-    cost = (lambda p: p.cpu_s) if cpu else (lambda p: p.wall_s)
-    return [(cost(b) - cost(a)) / (b.duration_s - a.duration_s)
-            for a, b in itertools.pairwise(ordered) if b.duration_s > a.duration_s]
+    costs = [p.cpu_s if cpu else p.wall_s for p in ordered]
+    return [(costs[i + 1] - costs[i]) / (b.duration_s - a.duration_s)
+            for i, (a, b) in enumerate(itertools.pairwise(ordered)) if b.duration_s > a.duration_s]
 
 
 def probe(argv: list[str]) -> dict[str, float]:
