@@ -100,6 +100,11 @@ class Assembler:
         self._unordered = False
         return done
 
+    def restart(self) -> None:
+        """Forget the last delivered seq and any held parts: the next message starts a new sequence."""
+        self._clear()
+        self._last = -1
+
     def _clear(self) -> None:
         self._parts = [None] * self._n
         self._held_seq = -1

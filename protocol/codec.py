@@ -439,6 +439,12 @@ class FrameDecoder:
             h[lay.frame_id] = (lay.length, _simple(lay, simple))
         self._handlers = h
 
+    def restart(self) -> None:
+        """Start the sequence tracking afresh (a new run): a Measurement seq lower than the last one is then
+        accepted instead of counted as stale. The statistics are kept."""
+        for assembler in (self._meas, self._meas_fd, self._cmd, self._cmd_fd, self._meas6, self._meas6_fd):
+            assembler.restart()
+
     def feed(self, frame: Frame) -> Message | None:
         """Offer one frame; returns a message when all its parts for one seq have arrived."""
         st = self.stats

@@ -104,6 +104,9 @@ class SimTarget:
         self._send(cmd)
 
     def _on_config(self, c: ConfigParam) -> None:
+        # a host configures before every run: the next run numbers its Measurements from 0 again, which the
+        # decoder's ordering would otherwise drop as stale after a short earlier run
+        self.decoder.restart()
         self.counters.config_writes += 1
         try:
             self.firmware.set_param(c.param_id, c.value)
