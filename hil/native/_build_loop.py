@@ -156,6 +156,8 @@ typedef struct {
     uint8_t fd;
     uint8_t data[64];
 } hil_core_frame_t;
+int nl_encode_meas(const nl_config_t *c, uint16_t seq, const double *currents, double theta_e, double omega_m,
+                   hil_core_frame_t *out, int *n, int32_t *bad_field, double *bad_value);
 void hil_core_init(void);
 void hil_core_rx(uint32_t id, const uint8_t *data, uint8_t len, uint8_t fd);
 int hil_core_tx(hil_core_frame_t *out);
@@ -164,6 +166,7 @@ int hil_core_tx(hil_core_frame_t *out);
 PREAMBLE = """
 #include <stddef.h>
 #include "loop.h"
+#include "loop_frames.h"
 #include "hil_target_core.h"
 
 static size_t nl_sizeof_period(void) { return sizeof(nl_period_t); }

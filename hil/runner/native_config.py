@@ -67,7 +67,8 @@ def support_problem(cfg: RunConfig, lib: Any) -> str | None:
     return None
 
 
-def _codec(c: Any, legs: int) -> None:
+def fill_codec(c: Any, legs: int) -> None:
+    """The Measurement's scales and raw limits of `legs` phases (hil.dbc) into nl_config_t `c`."""
     cur = (codec6.L_MEAS6_A if legs == 6 else L_MEAS_A).signal("i_a")
     meas_b = codec6.L_MEAS6_B if legs == 6 else L_MEAS_B
     th, w, v = meas_b.signal("theta_e"), meas_b.signal("omega_m"), meas_b.signal("vdc")
@@ -97,7 +98,7 @@ def fill_config(c: Any, ffi: Any, cfg: RunConfig, plant: PlantBase, controller_i
     c.two_pi = 2.0 * math.pi
     c.enc_step = c.two_pi * m.pole_pairs / sensors.encoder_counts if sensors.encoder_counts else 0.0
     c.vdc = m.vdc
-    _codec(c, legs)
+    fill_codec(c, legs)
     view = plant.kernel_view()
     c.plant_params, c.plant_state = ffi.cast("void *", view.params), ffi.cast("void *", view.state)
     c.plant_trace = ffi.cast("double *", view.trace)

@@ -19,12 +19,13 @@ import numpy as np
 from pmsm_hil.hil.mechanics import RPM_TO_RAD_S, DynoMechanics
 from pmsm_hil.hil.plant_base import PlantBase
 from pmsm_hil.hil.records import FRAME_DTYPE, PERIOD_DTYPE
+from pmsm_hil.hil.runner import closed_loop
 from pmsm_hil.hil.runner.closed_loop import MAX_KEPT_VIOLATIONS, BlockSink, LoopOutcome
 from pmsm_hil.hil.runner.contract import RULES, EndCode
 from pmsm_hil.hil.runner.native_config import NativeOptions, fill_config
 from pmsm_hil.hil.runner.native_findings import internal_error, violation
 from pmsm_hil.hil.runner.native_link import NativeCoreLink
-from pmsm_hil.hil.runner.recorder import KEEP_PERIODS_MAX, FrameTap, frame_records, period_records
+from pmsm_hil.hil.runner.recorder import FrameTap, frame_records, period_records
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.target_client import TargetClient
 from pmsm_hil.hil.sensors import SensorModel
@@ -120,7 +121,7 @@ class NativeLoop:
     # --- set-up -------------------------------------------------------------------------------------
     def _start(self) -> LoopOutcome:
         n_total = int(self._c.n_total)
-        keep = n_total <= KEEP_PERIODS_MAX
+        keep = n_total <= closed_loop.KEEP_PERIODS_MAX  # the Python loop's limit, read when the run starts
         out = LoopOutcome(period_records(keep=keep), frame_records(keep=False), np.zeros(0, self._trace_dtype),
                           int(self._c.n_settle))
         self._tap: FrameTap | None = None

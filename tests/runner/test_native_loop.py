@@ -151,3 +151,52 @@ def test_real_time_native_run_reports_lateness_and_what_was_refused() -> None:
                             "os.sched_param(1))"], capture_output=True, check=False)
     refused = [w for w in m["warnings"] if w.startswith("--rt-priority 1: SCHED_FIFO not permitted")]
     assert bool(refused) == (probe.returncode != 0)
+
+
+@pytest.mark.parametrize(("legs", "fd"), [(3, True), (3, False), (6, True), (6, False)])
+def test_measurement_frames_equal_the_python_codec_at_ties_saturation_and_wrap(legs: int, fd: bool) -> None:
+    """Raw values rounded half to even (0.0005 A → 0, 0.0015 A → 2), saturated (±40 A), the angle wrapped
+    (−0.1 rad, 7 rad, 2π), seq wrapped: the C frames are the Python codec's, byte for byte."""
+    from pmsm_hil.hil._loop_native import ffi, lib
+    from pmsm_hil.hil.runner.native_config import fill_codec
+    from pmsm_hil.protocol.codec import FrameCodec
+    from pmsm_hil.protocol.messages import Measurement, Measurement6
+
+    c = ffi.new("nl_config_t *")
+    c.legs, c.fd, c.vdc = legs, 1 if fd else 0, 48.005
+    fill_codec(c, legs)
+    codec = FrameCodec("canfd" if fd else "can")
+    step = 0.01 if legs == 6 else 0.001
+    cases = [(0.5 * step, 1.5 * step, -2.5 * step, -0.1), (40.0 * legs, -400.0, 1e308, 7.0),
+             (0.0, -0.0, 0.0, 2 * np.pi)]
+    out = ffi.new("hil_core_frame_t[3]")
+    n, field, value = ffi.new("int *"), ffi.new("int32_t *"), ffi.new("double *")
+    for seq, (a, b, cc, theta) in zip((0, 255, 65535), cases, strict=True):
+        currents = [a, b, cc, -a, -b, cc][:legs]
+        omega = -700.0 if seq == 255 else 104.72
+        assert lib.nl_encode_meas(c, seq, ffi.new("double[]", currents), theta, omega, out, n, field, value) == 0
+        msg = (Measurement(seq, *currents, theta_e=theta, omega_m=omega, vdc=48.005) if legs == 3
+               else Measurement6(seq, *currents, theta_e=theta, omega_m=omega, vdc=48.005))
+        want = codec.encode(msg)
+        got = [(int(out[j].id), bytes(ffi.buffer(out[j].data, out[j].len)), bool(out[j].fd)) for j in range(n[0])]
+        assert got == [(f.arbitration_id, f.data, f.is_fd) for f in want]
+    nan = [float("nan")] * legs
+    assert lib.nl_encode_meas(c, 1, ffi.new("double[]", nan), 0.0, 0.0, out, n, field, value) == -1
+    assert field[0] == 1  # i_a: the run ends as the Python codec's EncodeError names it
+
+
+def test_ctrl_c_while_draining_ends_both_loops_as_interrupted() -> None:
+    for loop in ("python", "native"):
+        raised: list[int] = []
+
+        def interrupt(periods: np.ndarray, raised: list[int] = raised) -> None:
+            if not raised:  # once, as a Ctrl-C: the final block still reaches the sink
+                raised.append(periods.shape[0])
+                raise KeyboardInterrupt
+
+        cfg = _three(loop=loop)
+        res = run_closed_loop(replace(cfg, scenario=cfg.scenario.with_overrides(duration_s=0.3)), live=interrupt)
+        assert res.metrics["loop"] == loop
+        assert res.metrics["end_code"] == 130 and res.metrics["end_reason"] == "interrupted (Ctrl-C or SIGTERM)"
+        assert res.outcome.target_disabled and res.outcome.safe_state
+        assert 1000 <= res.outcome.completed_periods < 3050
