@@ -74,10 +74,13 @@ def run_native(cfg: RunConfig, conn: TargetConnection, cid: int, sink: RunSink,
 
 
 def realtime_warnings(cfg: RunConfig, conn: TargetConnection) -> list[str]:
-    """What the real-time set-up of the native loop was refused (mlockall, --rt-priority, --cpu), one line each."""
+    """What the real-time set-up of the native loop was refused (mlockall, --rt-priority, --cpu), one line each;
+    --rt-priority / --cpu given to a run of the Python loop."""
     link = conn.host_link
     if not isinstance(link, NativeCoreLink):
-        return []
+        asked = [opt for opt, given in (("--rt-priority", cfg.rt_priority), ("--cpu", cfg.cpu is not None)) if given]
+        return [f"{' and '.join(asked)}: not applied, they act on the native loop and this run used the Python "
+                f"loop"] if asked else []
     mlock, sched, affinity = link.rt_errnos
     lines = []
     if mlock:

@@ -200,3 +200,32 @@ def test_ctrl_c_while_draining_ends_both_loops_as_interrupted() -> None:
         assert res.metrics["end_code"] == 130 and res.metrics["end_reason"] == "interrupted (Ctrl-C or SIGTERM)"
         assert res.outcome.target_disabled and res.outcome.safe_state
         assert 1000 <= res.outcome.completed_periods < 3050
+
+
+def test_rt_options_on_the_python_loop_are_said_not_applied() -> None:
+    res = run_closed_loop(_three(loop="python", rt_priority=10, cpu=0))
+    assert "--rt-priority and --cpu: not applied, they act on the native loop and this run used the Python loop" \
+        in res.metrics["warnings"]
+    assert res.metrics["loop_note"] == "--loop python"
+
+
+def test_bench_realtime_prints_both_loops_side_by_side(capsys: pytest.CaptureFixture[str]) -> None:
+    from pmsm_hil.hil.cli.main import main
+
+    assert main(["bench", "realtime", "--duration", "0.005", "--repeats", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "load average" in out and "overruns/100k" in out
+    rows = [line.split() for line in out.splitlines() if line.strip().startswith(("python ", "native "))]
+    assert [r[0] for r in rows] == ["python", "native"] and all(r[-1] == "50" for r in rows)  # periods per loop
+
+
+def test_dyno_speed_step_and_the_candidate_diagnostic() -> None:
+    """Dyno mechanics follow the new reference in the same period; fcs-mpc-2's restricted-vs-full candidate
+    diagnostic (read from the firmware after each step) is counted alike."""
+    sc = load_scenario("dyno-steady").with_overrides(settle_s=0.005, duration_s=0.03, speed_step_s=0.02,
+                                                     initial_speed_rpm=1000.0, speed_rpm=1500.0)
+    py, na = _both(RunConfig(motor=load_motor("niu2020-ipmsm"), scenario=sc, controller="fcs-mpc-2"))
+    _assert_same_records(py.outcome.periods.all(), na.outcome.periods.all())
+    _assert_same_metrics(py.metrics, na.metrics)
+    assert na.metrics["candidate_miss_rate"] is not None
+    assert np.unique(na.outcome.periods.all()["omega_m"]).size == 2
