@@ -12,10 +12,13 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 #: repository folder -> import name (pyproject.toml [tool.setuptools] package-dir)
 PACKAGES = {"hil": "pmsm_hil.hil", "protocol": "pmsm_hil.protocol", "sim_target": "pmsm_hil.sim_target",
-            "dashboards": "pmsm_hil.dashboards"}
+            "dashboards": "pmsm_hil.dashboards", "pmsm_hil/testing": "pmsm_hil.testing",
+            "pmsm_hil/conformance": "pmsm_hil.conformance"}
 
 #: (module prefix, layer), most specific first
 LAYER_OF = (
+    ("pmsm_hil.testing", "application"),
+    ("pmsm_hil.conformance", "application"),
     ("pmsm_hil.protocol", "protocol"),
     ("pmsm_hil.sim_target", "target"),
     ("pmsm_hil.hil.cli", "application"),
@@ -52,7 +55,11 @@ def module_name(path: Path) -> str:
     parts = list(rel.with_suffix("").parts)
     if parts[-1] == "__init__":
         parts = parts[:-1]
-    return ".".join([PACKAGES[parts[0]], *parts[1:]])
+    for folder, package in PACKAGES.items():
+        depth = len(Path(folder).parts)
+        if tuple(parts[:depth]) == Path(folder).parts:
+            return ".".join([package, *parts[depth:]])
+    raise ValueError(f"{rel}: not below a package folder")
 
 
 def imports(path: Path) -> Iterator[tuple[int, str]]:
