@@ -22,6 +22,9 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
                         "`hil run` get 30)")
     p.add_argument("--parent-pid", type=int, default=None, metavar="PID",
                    help="stop when process PID (this process's parent) exits (set by `hil run --target spawn`)")
+    p.add_argument("--native", action="store_true",
+                   help="serve from a C loop (udp links only; what `hil run --target spawn` starts for the native "
+                        "loop)")
     p.set_defaults(func=run)
 
 
@@ -39,10 +42,29 @@ def run(args: argparse.Namespace) -> int:
     """Execute `hil target`."""
     from pmsm_hil.sim_target.process import LINK_STATS_LINE, READY_LINE, serve
 
+    if args.native:
+        return _run_native(args)
+
     served = serve(args.link, args.controller, role=args.role, max_idle_s=args.idle_timeout,
                    parent_pid=args.parent_pid, on_ready=lambda: print(f"{READY_LINE} {args.link}", flush=True))
     c = served.target.counters
     print(f"target stopped ({served.reason}): {c.measurements} measurements, {c.commands} commands, "
           f"{c.config_writes} config writes ({c.config_rejected} rejected), {c.faults} faults")
+    print(f"{LINK_STATS_LINE} {json.dumps(served.link_stats)}", flush=True)
+    return 0
+
+
+def _run_native(args: argparse.Namespace) -> int:
+    from pmsm_hil.hil.errors import ParameterError
+    from pmsm_hil.sim_target.native_target import serve_native
+    from pmsm_hil.sim_target.process import LINK_STATS_LINE, READY_LINE
+
+    if args.controller is not None:
+        raise ParameterError("--controller: not with --native (the host's Setpoint selects the controller)")
+    served = serve_native(args.link, role=args.role, max_idle_s=args.idle_timeout, parent_pid=args.parent_pid,
+                          on_ready=lambda: print(f"{READY_LINE} {args.link}", flush=True))
+    c = served.counters
+    print(f"target stopped ({served.reason}): {c['measurements']} measurements, {c['commands']} commands, "
+          f"{c['config_writes']} config writes ({c['config_rejected']} rejected), {c['faults']} faults (native)")
     print(f"{LINK_STATS_LINE} {json.dumps(served.link_stats)}", flush=True)
     return 0

@@ -23,8 +23,8 @@ FIRMWARE_FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion
                   "-O2", "-fPIC", "-DHIL_APP_REFERENCE_PROFILED"]
 LOOP_FLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion", "-ffp-contract=off",
               "-fno-builtin-sin", "-fno-builtin-cos", "-pthread"]
-LOOP_SOURCES = ("loop.c", "loop_frames.c", "loop_rt.c", "loop_board.c", "dq_segment.c", "gate_edges.c", "plant.c",
-                "plant6.c")
+LOOP_SOURCES = ("loop.c", "loop_frames.c", "loop_rt.c", "loop_udp.c", "target_udp.c", "loop_board.c", "dq_segment.c",
+                "gate_edges.c", "plant.c", "plant6.c")
 
 CDEF = """
 #define NL_BLOCK ...
@@ -98,6 +98,8 @@ typedef struct {
     int32_t realtime;
     int64_t overrun_ns, spin_ns;
     int32_t rt_priority, cpu, lock_memory;
+    void *udp;
+    int64_t lockstep_timeout_ns;
 } nl_config_t;
 
 typedef struct {
@@ -159,6 +161,29 @@ typedef struct {
 int nl_encode_meas(const nl_config_t *c, uint16_t seq, const double *currents, double theta_e, double omega_m,
                    hil_core_frame_t *out, int *n, int32_t *bad_field, double *bad_value);
 void hil_core_init(void);
+
+typedef struct {
+    int32_t fd;
+    uint32_t session;
+    uint32_t peer_addr;
+    uint16_t peer_port;
+    uint8_t tx_seq;
+    int32_t target_role;
+    int32_t rx_last;
+    int64_t spin_ns;
+    int64_t frames_tx, frames_rx, crc_errors, framing_errors, dropped, duplicate, out_of_order, send_errors,
+        ignored, foreign_dropped, session_dropped;
+    int64_t blocked;
+} nl_udp_t;
+#define NT_END_SIGNAL ...
+#define NT_END_PARENT ...
+#define NT_END_IDLE ...
+int32_t nt_serve(nl_udp_t *u, int64_t idle_ns, int32_t parent_pid);
+typedef struct {
+    uint32_t frames_rx, measurements, commands, config_writes, config_rejected, faults, unknown_id, bad_length,
+        tx_overflow, steps;
+} hil_core_counters_t;
+const hil_core_counters_t *hil_core_counters(void);
 void hil_core_rx(uint32_t id, const uint8_t *data, uint8_t len, uint8_t fd);
 int hil_core_tx(hil_core_frame_t *out);
 """
@@ -168,6 +193,8 @@ PREAMBLE = """
 #include "loop.h"
 #include "loop_frames.h"
 #include "hil_target_core.h"
+#include "loop_udp.h"
+#include "target_udp.h"
 
 static size_t nl_sizeof_period(void) { return sizeof(nl_period_t); }
 static size_t nl_sizeof_frame(void) { return sizeof(nl_frame_rec_t); }
@@ -192,7 +219,8 @@ def _firmware_objects() -> list[str]:
     cc = new_compiler()
     customize_compiler(cc)
     sources = [*sorted((_FW / "src").glob("*.c")), _FW / "target" / "hil_target_core.c",
-               _FW / "target" / "hil_app_reference.c", _FW / "generated" / "hil_protocol.c"]
+               _FW / "target" / "hil_app_reference.c", _FW / "target" / "hil_serial.c",
+               _FW / "generated" / "hil_protocol.c"]
     out = tempfile.mkdtemp(prefix="hil-loop-fw-")
     objects: list[str] = cc.compile([str(s) for s in sources], output_dir=out,
                                     include_dirs=[str(p) for p in _FW_INCLUDES], extra_postargs=FIRMWARE_FLAGS)

@@ -9,6 +9,7 @@
 #include "loop.h"
 #include "loop_frames.h"
 #include "loop_rt.h"
+#include "loop_udp.h"
 #include "plant.h"
 #include "plant6.h"
 
@@ -239,7 +240,9 @@ static void to_target(loop_t *L, const hil_core_frame_t *frames, int n, int deli
     for (j = 0; j < n; ++j) {
         L->r->frames_tx++;
         record_frame(L, 0u, &frames[j]);
-        if (deliver) {
+        if (L->c->udp != NULL) {
+            (void)nl_udp_send((nl_udp_t *)L->c->udp, &frames[j]);
+        } else if (deliver) {
             hil_core_rx(frames[j].id, frames[j].data, frames[j].len, frames[j].fd);
         }
     }
@@ -286,25 +289,63 @@ static void on_command(loop_t *L, const nl_cmd_t *cmd)
     }
 }
 
+/* One frame from the target (TargetClient._drain's body). */
+static void take_frame(loop_t *L, const hil_core_frame_t *f)
+{
+    nl_cmd_t cmd;
+    uint8_t code = 0u;
+    uint32_t detail = 0u;
+    int msg;
+    L->r->frames_rx++;
+    record_frame(L, 1u, f);
+    msg = nl_decode(&L->as, f, L->r, &cmd, &code, &detail);
+    if (msg == NL_MSG_COMMAND) {
+        on_command(L, &cmd);
+    } else if (msg == NL_MSG_FAULT && !L->has_fault) {
+        L->has_fault = 1;
+        L->fault_code = code;
+        L->fault_detail = detail;
+    }
+}
+
+/* ClosedLoop._await_command over UDP: what is queued, then frames until the reply or the deadline (the period
+ * end in real time, the lockstep timeout else), then what came with the reply (poll_command drains it all). */
+static void from_udp(loop_t *L)
+{
+    const nl_config_t *c = L->c;
+    nl_udp_t *u = (nl_udp_t *)c->udp;
+    hil_core_frame_t f;
+    int64_t t0;
+    int64_t deadline;
+    while (nl_udp_recv(u, &f, 0)) {
+        take_frame(L, &f);
+    }
+    if (L->have_reply) {
+        return;
+    }
+    t0 = nl_now_ns();
+    deadline = c->realtime ? L->next_start + c->ts_ns : t0 + c->lockstep_timeout_ns;
+    while (!L->have_reply && nl_udp_recv(u, &f, deadline)) {
+        take_frame(L, &f);
+    }
+    if (L->have_reply) {
+        while (nl_udp_recv(u, &f, 0)) {
+            take_frame(L, &f);
+        }
+    }
+    L->wait_ns = nl_now_ns() - t0;
+}
+
 /* TargetClient._drain: every frame the target queued. */
 static void from_target(loop_t *L)
 {
     hil_core_frame_t f;
-    nl_cmd_t cmd;
-    uint8_t code = 0u;
-    uint32_t detail = 0u;
+    if (L->c->udp != NULL) {
+        from_udp(L);
+        return;
+    }
     while (hil_core_tx(&f)) {
-        int msg;
-        L->r->frames_rx++;
-        record_frame(L, 1u, &f);
-        msg = nl_decode(&L->as, &f, L->r, &cmd, &code, &detail);
-        if (msg == NL_MSG_COMMAND) {
-            on_command(L, &cmd);
-        } else if (msg == NL_MSG_FAULT && !L->has_fault) {
-            L->has_fault = 1;
-            L->fault_code = code;
-            L->fault_detail = detail;
-        }
+        take_frame(L, &f);
     }
 }
 
@@ -630,7 +671,7 @@ static int accept(loop_t *L, int64_t k, int ok)
     }
     r->silent = 0;
     L->next.cmd = L->reply;
-    if (hil_core_counters()->steps > 0u) {
+    if (c->udp == NULL && hil_core_counters()->steps > 0u) { /* another process: no split, no torque ref */
         uint8_t full_miss = 255u;
         hil_app_reference_diag(L->next.split, &full_miss);
         L->next.tref = (double)hil_core_last_cmd()->torque_ref;
@@ -808,7 +849,7 @@ static int32_t period(loop_t *L, int64_t k)
         return NL_END_PLANT_ERROR;
     }
     from_target(L);
-    if (!L->have_reply && c->realtime) { /* nothing more will come in process: wait out the period */
+    if (!L->have_reply && c->realtime && c->udp == NULL) { /* nothing more will come in process: wait it out */
         const int64_t t0 = nl_now_ns();
         const int64_t now = nl_wait_until(L->next_start + c->ts_ns, 0);
         L->wait_ns = now - t0;

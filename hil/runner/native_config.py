@@ -56,9 +56,12 @@ def reference_changes(sc: Scenario, ts_s: float, n_total: int) -> list[tuple[int
 def support_problem(cfg: RunConfig, lib: Any) -> str | None:
     """Why this run cannot use the native loop, None when it can."""
     kind = parse_spec(cfg.link).kind
-    if cfg.target not in ("auto", "inproc") or kind != "virtual":
+    in_process = cfg.target in ("auto", "inproc") and kind == "virtual"
+    over_udp = cfg.target in ("auto", "spawn", "external") and kind == "udp"
+    if not (in_process or over_udp):
         target = cfg.target.partition(":")[0]
-        return f"the native loop runs the in-process target on the virtual link (here: a {kind} link, {target} target)"
+        return (f"the native loop runs the in-process target on the virtual link or a spawned or external target "
+                f"on a udp link (here: a {kind} link, {target} target)")
     if cfg.fault_spec is not None:
         return "link fault injection (--fault) runs on the Python link"
     sc = cfg.scenario

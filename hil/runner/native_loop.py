@@ -25,6 +25,7 @@ from pmsm_hil.hil.runner.contract import RULES, EndCode
 from pmsm_hil.hil.runner.native_config import NativeOptions, fill_config
 from pmsm_hil.hil.runner.native_findings import internal_error, violation
 from pmsm_hil.hil.runner.native_link import NativeCoreLink
+from pmsm_hil.hil.runner.native_udp import NativeUdpLink
 from pmsm_hil.hil.runner.recorder import FrameTap, frame_records, period_records
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.target_client import TargetClient
@@ -46,7 +47,7 @@ class NativeLoop:
 
     LINGER_S = 0.0  # the core answers inside the call: nothing to wait for
 
-    def __init__(self, cfg: RunConfig, plant: PlantBase, client: TargetClient, link: NativeCoreLink,
+    def __init__(self, cfg: RunConfig, plant: PlantBase, client: TargetClient, link: NativeCoreLink | NativeUdpLink,
                  controller_id: int, opts: NativeOptions, *, sink: BlockSink | None = None) -> None:
         self.cfg = cfg
         self.plant = plant
@@ -90,6 +91,8 @@ class NativeLoop:
         gc.collect()
         gc.disable()
         out = self._start()
+        if isinstance(self.link, NativeUdpLink):  # the socket as the enabling Setpoint left it
+            self.link.attach(self._c, self.cfg.lockstep_timeout_s)
         thread = threading.Thread(target=lib.nl_run, args=(h,), name="hil-native-loop", daemon=True)
         interrupted = False
         try:
@@ -121,7 +124,7 @@ class NativeLoop:
     # --- set-up -------------------------------------------------------------------------------------
     def _start(self) -> LoopOutcome:
         n_total = int(self._c.n_total)
-        keep = n_total <= closed_loop.KEEP_PERIODS_MAX  # the Python loop's limit, read when the run starts
+        keep = n_total <= closed_loop.KEEP_PERIODS_MAX  # type: ignore[attr-defined]  # ClosedLoop's, read now
         out = LoopOutcome(period_records(keep=keep), frame_records(keep=False), np.zeros(0, self._trace_dtype),
                           int(self._c.n_settle))
         self._tap: FrameTap | None = None
@@ -190,8 +193,11 @@ class NativeLoop:
             self.sink(periods, frames, rec)
 
     def _missing_limit(self) -> str:
-        return "before the next period start (real time)" if self.cfg.mode == "realtime" \
-            else "from the in-process target"
+        if self.cfg.mode == "realtime":
+            return "before the next period start (real time)"
+        if isinstance(self.link, NativeUdpLink):
+            return f"within the lockstep timeout {self.cfg.lockstep_timeout_s:g} s (wall time)"
+        return "from the in-process target"
 
     # --- the ending ---------------------------------------------------------------------------------
     def _finish(self, out: LoopOutcome, interrupted: bool) -> None:
@@ -252,8 +258,11 @@ class NativeLoop:
 
     def _add_link_counters(self) -> None:
         res, stats = self._res, self.link.stats
-        stats.frames_tx += int(res.frames_tx)
-        stats.frames_rx += int(res.frames_rx)
+        if isinstance(self.link, NativeUdpLink):  # the socket's own counters, frames included
+            self.link.detach()
+        else:
+            stats.frames_tx += int(res.frames_tx)
+            stats.frames_rx += int(res.frames_rx)
         dec = self.client.decoder.stats
         for name in ("frames", "messages", "unknown_id", "bad_length", "bad_value", "stale", "duplicate",
                      "out_of_order", "mixed_seq"):
@@ -274,5 +283,7 @@ class NativeLoop:
             self.client.set_setpoint(enable=False, mode=int(Mode.SPEED), reference=0.0,
                                      controller_id=self.controller_id)
             out.target_disabled = True
+            if isinstance(self.link, NativeUdpLink):  # another process: let the frame arrive before the close
+                self.client.linger(closed_loop.ClosedLoop.LINGER_S)
         except Exception:
             out.target_disabled = False

@@ -105,11 +105,12 @@ def _target_link_stats(proc: subprocess.Popen[bytes]) -> dict[str, int]:
     return {}
 
 
-def _spawn_target(spec: str) -> tuple[subprocess.Popen[bytes], IO[bytes]]:
-    """Start `hil target` on `spec` and wait for its ready line; raises TargetError with its own error line if
-    it exits first (a port in use) or does not get ready in time. Its stderr goes to the returned file."""
+def _spawn_target(spec: str, native: bool = False) -> tuple[subprocess.Popen[bytes], IO[bytes]]:
+    """Start `hil target` (`--native`: its C serve loop) on `spec` and wait for its ready line; raises
+    TargetError with its own error line if it exits first (a port in use) or does not get ready in time. Its
+    stderr goes to the returned file."""
     cmd = [sys.executable, "-m", "pmsm_hil.hil.cli.main", "target", "--link", spec, "--role", "target",
-           "--parent-pid", str(os.getpid()), "--idle-timeout", repr(SPAWNED_IDLE_TIMEOUT_S)]
+           "--parent-pid", str(os.getpid()), "--idle-timeout", repr(SPAWNED_IDLE_TIMEOUT_S), *(["--native"] * native)]
     err = tempfile.TemporaryFile()  # noqa: SIM115 (the connection owns it: `close` forwards it)
     proc = subprocess.Popen(cmd, env=dict(os.environ), stdout=subprocess.PIPE, stderr=err)
     stdout = proc.stdout
@@ -207,8 +208,9 @@ def _connect_qemu(cfg: RunConfig, path: str) -> TargetConnection:
     return TargetConnection(TargetClient(host_link, codec), host_link, extra=[qemu], extra_metrics=qemu.metrics)
 
 
-def connect_target(cfg: RunConfig, *, silent_after: int | None = None) -> TargetConnection:
-    """Open the link(s) and, for in-process or spawned targets, start the target."""
+def connect_target(cfg: RunConfig, *, silent_after: int | None = None, native_target: bool = False) -> TargetConnection:
+    """Open the link(s) and, for in-process or spawned targets, start the target (`native_target`: a spawned
+    target runs its C serve loop, `hil target --native`)."""
     if cfg.target.startswith("qemu:") and cfg.target_path is not None:
         return _connect_qemu(cfg, cfg.target_path)
     spec = parse_spec(cfg.link)
@@ -231,7 +233,7 @@ def connect_target(cfg: RunConfig, *, silent_after: int | None = None) -> Target
         host_link = open_link(specs.host, "host")
         conn = TargetConnection(TargetClient(host_link, codec), host_link, extra=list(specs.keep_open))
         try:
-            conn.process, conn.process_stderr = _spawn_target(specs.target)
+            conn.process, conn.process_stderr = _spawn_target(specs.target, native_target)
             _await_session(host_link)
         except BaseException:
             conn.close()

@@ -38,6 +38,15 @@ class SeqTracker:
         self._stats = stats
         self._last = -1
 
+    @property
+    def last(self) -> int:
+        """The last sequence number accepted (-1: none yet); settable for a native loop handing the link back."""
+        return self._last
+
+    @last.setter
+    def last(self, seq: int) -> None:
+        self._last = seq
+
     def accept(self, seq: int) -> bool:
         """Count gaps (dropped), repeats (duplicate) and late frames (out_of_order, still delivered)."""
         last = self._last

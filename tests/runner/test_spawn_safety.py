@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 import pytest
 from pmsm_hil.hil.presets_loader import load_motor
+from pmsm_hil.hil.runner import native_run
 from pmsm_hil.hil.runner import run as run_module
 from pmsm_hil.hil.runner.run import RunResult, run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
@@ -70,7 +71,8 @@ def _spoofed_run(cfg: RunConfig, monkeypatch: pytest.MonkeyPatch) -> tuple[RunRe
         seen.append(conn)
         return conn
 
-    monkeypatch.setattr(run_module, "connect_target", capture)
+    monkeypatch.setattr(run_module, "connect_target", capture)  # the Python loop's connection
+    monkeypatch.setattr(native_run, "connect_target", capture)  # the native loop's
     sent = {"host": 0, "target": 0}
     done = threading.Event()
 
@@ -104,11 +106,15 @@ def _spoofed_run(cfg: RunConfig, monkeypatch: pytest.MonkeyPatch) -> tuple[RunRe
     return res, seen[0], sent
 
 
-def test_forged_datagrams_are_dropped_and_counted_and_change_nothing(monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.mark.parametrize("loop", ["python", "native"])
+def test_forged_datagrams_are_dropped_and_counted_and_change_nothing(monkeypatch: pytest.MonkeyPatch,
+                                                                     loop: str) -> None:
+    """The native loop's C link and the native target it spawns drop and count them as the Python ends do."""
     a, b = free_udp_ports()
-    clean = run_closed_loop(_cfg(f"udp:{a}:{b}"))
+    clean = run_closed_loop(replace(_cfg(f"udp:{a}:{b}"), loop=loop))
     a, b = free_udp_ports()
-    res, conn, sent = _spoofed_run(_cfg(f"udp:{a}:{b}"), monkeypatch)
+    res, conn, sent = _spoofed_run(replace(_cfg(f"udp:{a}:{b}"), loop=loop), monkeypatch)
+    assert res.metrics["loop"] == loop
     assert sent["host"] > 30 and sent["target"] > 7
     host = res.metrics["link"]
     assert 0 < host["foreign_dropped"] <= sent["host"]
@@ -167,9 +173,12 @@ def _has_socket(pid: int) -> bool:
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
-def test_kill_9_of_the_host_leaves_no_target() -> None:
+@pytest.mark.parametrize("loop", ["auto", "python"])
+def test_kill_9_of_the_host_leaves_no_target(loop: str) -> None:
+    """`--loop auto` spawns the native target (`hil target --native`, a C serve loop), `--loop python` the
+    Python one: neither outlives its host."""
     host = subprocess.Popen([sys.executable, "-m", "pmsm_hil.hil.cli.main", "run", "--link", "udp", "--target",
-                             "spawn", "--duration", "60", "--no-log"],
+                             "spawn", "--loop", loop, "--duration", "60", "--no-log"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         deadline = time.monotonic() + 60
@@ -178,6 +187,8 @@ def test_kill_9_of_the_host_leaves_no_target() -> None:
             targets = _target_children(host.pid)
             time.sleep(0.05)
         assert targets and _has_socket(targets[0]), "the host did not spawn a target"
+        argv = Path(f"/proc/{targets[0]}/cmdline").read_bytes().split(b"\0")
+        assert (b"--native" in argv) == (loop == "auto")
         time.sleep(0.5)  # the run is under way
         host.send_signal(signal.SIGKILL)
         host.wait()

@@ -1,0 +1,231 @@
+/* The hiludp link in C (loop_udp.h): the same checks, in the same order, as UdpUnicastBus._pump. */
+#define _GNU_SOURCE
+
+#include <errno.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <time.h>
+
+#include "hil_serial.h"
+#include "loop_rt.h"
+#include "loop_udp.h"
+
+#define SESSION_SIZE 4
+#define HEADER_SIZE 7
+#define CRC_SIZE 2
+#define DATA_MIN (SESSION_SIZE + HEADER_SIZE + CRC_SIZE)
+#define LENGTH_AT (SESSION_SIZE + HEADER_SIZE - 1)
+#define CONTROL_SIZE 14
+#define MAX_DATAGRAM 2048
+#define FLAG_FD 0x01u
+#define FLAG_BRS 0x02u
+#define FLAG_EXTENDED 0x08u
+#define FLAG_REMOTE 0x10u
+#define ID_MASK 0x1FFFFFFFu
+#define CTRL_VERSION 1u
+#define CTRL_HELLO 1u
+#define CTRL_ACK 2u
+
+static void put_u32(uint8_t *p, uint32_t v)
+{
+    p[0] = (uint8_t)(v & 0xFFu);
+    p[1] = (uint8_t)((v >> 8) & 0xFFu);
+    p[2] = (uint8_t)((v >> 16) & 0xFFu);
+    p[3] = (uint8_t)(v >> 24);
+}
+
+static uint32_t get_u32(const uint8_t *p)
+{
+    return (uint32_t)p[0] | ((uint32_t)p[1] << 8) | ((uint32_t)p[2] << 16) | ((uint32_t)p[3] << 24);
+}
+
+static int valid_length(uint8_t n, int fd)
+{
+    if (!fd) {
+        return n <= 8u;
+    }
+    return n <= 8u || n == 12u || n == 16u || n == 20u || n == 24u || n == 32u || n == 48u || n == 64u;
+}
+
+static int send_to_peer(nl_udp_t *u, const uint8_t *buf, size_t n)
+{
+    struct sockaddr_in to;
+    memset(&to, 0, sizeof to);
+    to.sin_family = AF_INET;
+    to.sin_addr.s_addr = u->peer_addr;
+    to.sin_port = u->peer_port;
+    while (sendto(u->fd, buf, n, 0, (const struct sockaddr *)&to, sizeof to) < 0) {
+        if (errno != EINTR) {
+            u->send_errors++;
+            return -1;
+        }
+    }
+    return 0;
+}
+
+int nl_udp_send(nl_udp_t *u, const hil_core_frame_t *f)
+{
+    uint8_t buf[DATA_MIN + HIL_CORE_MAX_PAYLOAD];
+    uint16_t crc;
+    const uint8_t flags = f->fd ? (uint8_t)(FLAG_FD | FLAG_BRS) : 0u;
+    if (!valid_length(f->len, f->fd)) {
+        u->send_errors++;
+        return -1;
+    }
+    put_u32(buf, u->session);
+    put_u32(buf + SESSION_SIZE, f->id & ID_MASK);
+    buf[SESSION_SIZE + 4] = flags;
+    buf[SESSION_SIZE + 5] = u->tx_seq;
+    buf[SESSION_SIZE + 6] = f->len;
+    memcpy(buf + SESSION_SIZE + HEADER_SIZE, f->data, f->len);
+    crc = hil_serial_crc16(buf + SESSION_SIZE, (size_t)(HEADER_SIZE + f->len), 0xFFFFu);
+    buf[SESSION_SIZE + HEADER_SIZE + f->len] = (uint8_t)(crc >> 8);
+    buf[SESSION_SIZE + HEADER_SIZE + f->len + 1] = (uint8_t)(crc & 0xFFu);
+    u->tx_seq = (uint8_t)(u->tx_seq + 1u);
+    if (send_to_peer(u, buf, (size_t)(DATA_MIN + f->len)) != 0) {
+        return -1;
+    }
+    u->frames_tx++;
+    return 0;
+}
+
+/* SeqTracker.accept: 1 deliver, 0 a repeat. */
+static int seq_accept(nl_udp_t *u, uint8_t seq)
+{
+    int d;
+    if (u->rx_last < 0) {
+        u->rx_last = seq;
+        return 1;
+    }
+    d = (int)((uint8_t)(seq - (uint8_t)u->rx_last));
+    if (d == 0) {
+        u->duplicate++;
+        return 0;
+    }
+    if (d < 128) {
+        u->dropped += d - 1;
+        u->rx_last = seq;
+        return 1;
+    }
+    u->out_of_order++;
+    return 1;
+}
+
+/* A control datagram (session 0): the target adopts a HELLO and acknowledges it. */
+static void control(nl_udp_t *u, const uint8_t *d)
+{
+    const uint32_t sid = get_u32(d + 10);
+    const uint8_t kind = d[8];
+    if (memcmp(d + 4, "HILS", 4) != 0 || d[9] != CTRL_VERSION || (kind != CTRL_HELLO && kind != CTRL_ACK)
+        || sid == 0u) {
+        u->framing_errors++;
+    } else if (kind == CTRL_HELLO && u->target_role) {
+        uint8_t ack[CONTROL_SIZE];
+        if (u->session != sid) {
+            u->rx_last = -1;
+        }
+        u->session = sid;
+        put_u32(ack, 0u);
+        memcpy(ack + 4, "HILS", 4);
+        ack[8] = CTRL_ACK;
+        ack[9] = CTRL_VERSION;
+        put_u32(ack + 10, sid);
+        (void)send_to_peer(u, ack, sizeof ack);
+    } else {
+        u->session_dropped++;
+    }
+}
+
+/* One datagram from the peer: 1 when it delivered a data frame into *f. */
+static int datagram(nl_udp_t *u, const uint8_t *d, size_t n, hil_core_frame_t *f)
+{
+    const uint8_t *body = d + SESSION_SIZE;
+    uint16_t crc;
+    uint8_t flags;
+    uint8_t len;
+    if (n == CONTROL_SIZE && get_u32(d) == 0u) {
+        control(u, d);
+        return 0;
+    }
+    if (n < DATA_MIN || d[LENGTH_AT] != n - DATA_MIN) {
+        u->framing_errors++;
+        return 0;
+    }
+    if (u->session == 0u || get_u32(d) != u->session) {
+        u->session_dropped++;
+        return 0;
+    }
+    len = d[LENGTH_AT];
+    crc = (uint16_t)(((uint16_t)d[n - 2] << 8) | d[n - 1]);
+    if (hil_serial_crc16(body, (size_t)(HEADER_SIZE + len), 0xFFFFu) != crc) {
+        u->crc_errors++;
+        return 0;
+    }
+    flags = body[4];
+    if (!valid_length(len, (flags & FLAG_FD) != 0u)) {
+        u->framing_errors++;
+        return 0;
+    }
+    if (!seq_accept(u, body[5])) {
+        return 0;
+    }
+    u->frames_rx++;
+    if (flags & (FLAG_EXTENDED | FLAG_REMOTE)) {
+        u->ignored++;
+        return 0;
+    }
+    f->id = get_u32(body);
+    f->fd = (flags & FLAG_FD) ? 1u : 0u;
+    f->len = len;
+    memcpy(f->data, body + HEADER_SIZE, len);
+    memset(f->data + len, 0, (size_t)(HIL_CORE_MAX_PAYLOAD - len));
+    return 1;
+}
+
+int nl_udp_recv(nl_udp_t *u, hil_core_frame_t *f, int64_t deadline_ns)
+{
+    uint8_t buf[MAX_DATAGRAM];
+    int64_t spin_end = -1;
+    for (;;) {
+        struct sockaddr_in from;
+        socklen_t alen = sizeof from;
+        const ssize_t n = recvfrom(u->fd, buf, sizeof buf, MSG_DONTWAIT, (struct sockaddr *)&from, &alen);
+        int64_t now;
+        if (n >= 0) {
+            if (alen < (socklen_t)sizeof from || from.sin_family != AF_INET || from.sin_addr.s_addr != u->peer_addr
+                || from.sin_port != u->peer_port) {
+                u->foreign_dropped++;
+            } else if (datagram(u, buf, (size_t)n, f)) {
+                return 1;
+            }
+            continue;
+        }
+        if (errno == EINTR) {
+            continue;
+        }
+        if (errno != EAGAIN && errno != EWOULDBLOCK) { /* e.g. ICMP port unreachable */
+            u->framing_errors++;
+        }
+        now = nl_now_ns();
+        if (now >= deadline_ns) {
+            return 0;
+        }
+        if (spin_end < 0) {
+            spin_end = now + u->spin_ns;
+        }
+        if (now >= spin_end) {
+            struct pollfd p;
+            struct timespec ts;
+            const int64_t left = deadline_ns - now;
+            p.fd = u->fd;
+            p.events = POLLIN;
+            p.revents = 0;
+            ts.tv_sec = (time_t)(left / 1000000000);
+            ts.tv_nsec = (long)(left % 1000000000);
+            u->blocked++;
+            (void)ppoll(&p, 1, &ts, NULL);
+        }
+    }
+}

@@ -1,0 +1,42 @@
+/*
+ * The UDP link of the native loop and of the native target: the hiludp wire format of
+ * protocol/links/udp_bus.py (docs/protocol.md, "UDP datagrams and session handshake"). A data datagram is
+ * session id (u32 LE) + header (id u32 LE, flags, link seq, payload length) + payload + CRC-16/CCITT (init
+ * 0xFFFF, big endian, over header + payload); session 0 marks a control datagram (HELLO / ACK). Datagrams
+ * from any address but the peer's and of any other session are dropped and counted.
+ *
+ * The socket is the caller's (bound, non-blocking); the session was agreed before (the host: Python's
+ * handshake) or is agreed here (the target: a HELLO from the peer is adopted and acknowledged). Waiting for
+ * a frame busy-polls for at most spin_ns, then blocks in ppoll until the deadline, so a loaded machine
+ * degrades instead of collapsing. No allocation.
+ */
+#ifndef HIL_NATIVE_LOOP_UDP_H
+#define HIL_NATIVE_LOOP_UDP_H
+
+#include <stdint.h>
+
+#include "hil_target_core.h"
+
+typedef struct {
+    int32_t fd;                /* bound UDP socket */
+    uint32_t session;          /* agreed session id (0: none yet; the target adopts the peer's HELLO) */
+    uint32_t peer_addr;        /* peer IPv4 address, network byte order */
+    uint16_t peer_port;        /* peer port, network byte order */
+    uint8_t tx_seq;            /* next link sequence number sent */
+    int32_t target_role;       /* 1: adopt and acknowledge the peer's HELLO; 0 (host): count it as dropped */
+    int32_t rx_last;           /* last link sequence number accepted, -1: none */
+    int64_t spin_ns;           /* busy-poll this long before blocking */
+    /* LinkStats */
+    int64_t frames_tx, frames_rx, crc_errors, framing_errors, dropped, duplicate, out_of_order, send_errors,
+        ignored, foreign_dropped, session_dropped;
+    int64_t blocked;           /* waits that ended in ppoll (the spin found nothing) */
+} nl_udp_t;
+
+/* Send one frame (FD frames with the FD and BRS flags, as FramedBus.send_frame); 0 ok, -1 counted error. */
+int nl_udp_send(nl_udp_t *u, const hil_core_frame_t *f);
+
+/* The next frame from the peer into *f: 1, or 0 when none came before deadline_ns (CLOCK_MONOTONIC; a
+ * deadline in the past: only what is queued now). */
+int nl_udp_recv(nl_udp_t *u, hil_core_frame_t *f, int64_t deadline_ns);
+
+#endif

@@ -1,0 +1,64 @@
+/* The native target's serve loop (target_udp.h): sim_target/process.py `serve` over the C target core. */
+#define _POSIX_C_SOURCE 200809L
+
+#include <signal.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "hil_target_core.h"
+#include "loop_rt.h"
+#include "target_udp.h"
+
+#define CHECK_NS 50000000 /* parent, signal and idle checks at least this often [ns] */
+
+static volatile sig_atomic_t g_stop;
+
+static void on_signal(int signum)
+{
+    (void)signum;
+    g_stop = 1;
+}
+
+int32_t nt_serve(nl_udp_t *u, int64_t idle_ns, int32_t parent_pid)
+{
+    struct sigaction sa;
+    struct sigaction old_term;
+    struct sigaction old_int;
+    hil_core_frame_t in;
+    hil_core_frame_t out;
+    int64_t last_rx = nl_now_ns();
+    int64_t next_check = last_rx;
+    int32_t end = 0;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_signal;
+    sigemptyset(&sa.sa_mask);
+    g_stop = 0;
+    sigaction(SIGTERM, &sa, &old_term);
+    sigaction(SIGINT, &sa, &old_int);
+    while (end == 0) {
+        int64_t now = nl_now_ns();
+        if (nl_udp_recv(u, &in, now + CHECK_NS)) {
+            hil_core_rx(in.id, in.data, in.len, in.fd);
+            while (hil_core_tx(&out)) {
+                (void)nl_udp_send(u, &out);
+            }
+            now = nl_now_ns();
+            last_rx = now;
+        } else {
+            now = nl_now_ns();
+        }
+        if (g_stop) {
+            end = NT_END_SIGNAL;
+        } else if (now >= next_check) {
+            next_check = now + CHECK_NS;
+            if (parent_pid > 0 && getppid() != (pid_t)parent_pid) {
+                end = NT_END_PARENT;
+            } else if (idle_ns > 0 && now - last_rx > idle_ns) {
+                end = NT_END_IDLE;
+            }
+        }
+    }
+    sigaction(SIGTERM, &old_term, NULL);
+    sigaction(SIGINT, &old_int, NULL);
+    return end;
+}
