@@ -4,12 +4,15 @@ real-time lateness; medians over repeats because this machine is shared and nois
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import statistics
+import subprocess
 import sys
 import tempfile
-from collections.abc import Callable
+import time
+from collections.abc import Callable, Iterator
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -17,6 +20,7 @@ from typing import Any
 from pmsm_hil.hil.atomic_write import write_text_atomic
 from pmsm_hil.hil.cli.parsing import non_negative_int, positive_float
 from pmsm_hil.hil.presets_loader import load_motor
+from pmsm_hil.hil.runner.closed_loop import ClosedLoop
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import load_scenario
@@ -44,14 +48,54 @@ def _base(duration: float) -> RunConfig:
     return RunConfig(motor=load_motor("niu2020-ipmsm"), scenario=scenario, controller="mpcc", loop="python")
 
 
-def _median_rate(make: Callable[[], RunConfig], repeats: int) -> dict[str, Any]:
+def _median_rate(make: Callable[[], RunConfig], repeats: int, exclude_s: float = 0.0) -> dict[str, Any]:
     rates: list[float] = []
     extra: dict[str, Any] = {}
     for _ in range(max(repeats, 1)):
         res = run_closed_loop(make())
-        rates.append(res.outcome.completed_periods / res.outcome.wall_time_s)
+        rates.append(res.outcome.completed_periods / (res.outcome.wall_time_s - exclude_s))
         extra = res.metrics
     return {"periods_per_s": statistics.median(rates), "runs": rates, "last_metrics": extra}
+
+
+@contextlib.contextmanager
+def _cpu_burner() -> Iterator[int]:
+    """A process spinning on a CPU (`while True: pass`) for the block: load on the other core; yields its pid."""
+    proc = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        time.sleep(0.2)  # running before the measurement starts
+        yield proc.pid
+    finally:
+        proc.kill()
+        proc.wait()
+
+
+def _udp_native_under_load(base: RunConfig, repeats: int, runs: str,
+                           progress: Callable[[str], None]) -> dict[str, Any]:
+    """The native loop with the native target over UDP and the Python pair, idle and beside a CPU burner, in
+    this run: the rates (the 50 ms linger after the disabling Setpoint excluded, as in both loops) and the
+    loaded / idle ratios."""
+    out: dict[str, Any] = {}
+    pairs = (("udp_native", replace(base, link="udp", target="spawn", loop="native")),
+             ("udp_python", replace(base, link="udp", target="spawn", loop="python")))
+    for load in ("", "_loaded"):
+        for name, cfg in pairs:
+            progress(f"lockstep over udp, {name.replace('_', ' ')} pair{', a CPU burner beside it' if load else ''} "
+                     f"({runs})")
+            try:
+                def make(cfg: RunConfig = cfg) -> RunConfig:
+                    return cfg
+
+                with _cpu_burner() if load else contextlib.nullcontext():
+                    res = _median_rate(make, repeats, exclude_s=ClosedLoop.LINGER_S)
+                out[f"lockstep_{name}{load}_hz"] = res["periods_per_s"]
+            except Exception as exc:
+                out[f"lockstep_{name}{load}_error"] = str(exc)
+    for name, _ in pairs:
+        idle, loaded = out.get(f"lockstep_{name}_hz"), out.get(f"lockstep_{name}_loaded_hz")
+        if idle and loaded:
+            out[f"{name}_load_ratio"] = loaded / idle
+    return out
 
 
 def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
@@ -97,6 +141,8 @@ def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
             out[f"lockstep_{name}_process_hz"] = res["periods_per_s"]
         except Exception as exc:
             out[f"lockstep_{name}_process_error"] = str(exc)
+    if "udp" in cross:
+        out.update(_udp_native_under_load(base, repeats, runs, progress))
     if qemu is not None:
         for transport, link in (("uart", "virtual"), ("mailbox", "mailbox")):
             progress(f"lockstep, {qemu.name} in QEMU mps2-an386 over its {transport} ({runs})")
@@ -129,6 +175,8 @@ def run(args: argparse.Namespace) -> int:
     for key, value in figures.items():
         if key.endswith("_hz"):
             print(f"  {key:<40} {value:>10.0f} periods/s  ({value * 1e-4:.2f}× real time at 10 kHz)")
+        elif key.endswith("_load_ratio"):
+            print(f"  {key:<40} {value:>10.2f} ×  (beside a CPU burner / idle, same run)")
         elif key in ("logging_cost_pct", "rerun_cost_pct"):
             print(f"  {key:<40} {value:>10.1f} %")
         elif key.startswith("native_speedup"):
