@@ -56,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _run_native(args: argparse.Namespace) -> int:
     from pmsm_hil.hil.errors import ParameterError
-    from pmsm_hil.sim_target.native_target import serve_native
+    from pmsm_hil.hil.runner.native_target import serve_native
     from pmsm_hil.sim_target.process import LINK_STATS_LINE, READY_LINE
 
     if args.controller is not None:
