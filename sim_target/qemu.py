@@ -5,6 +5,11 @@ Lockstep and deterministic: QEMU runs with `-icount` (virtual time advances a fi
 instruction), the firmware waits for frames with WFI, and the host's serial link (COBS + CRC-16) talks to the
 emulated CMSDK UART0 through a Unix socket (`-chardev socket,...,server=on -serial chardev:...`).
 
+The faster transport (`transport="mailbox"`): frames in the board's PSRAM, backed by a file shared with the host,
+and two host FIFOs as doorbells that the firmware reads and writes with Arm semihosting calls (blocking QEMU's
+vCPU thread in read(2) until the host rings): neither end spins, so the pair does not stall for scheduler time
+slices on a busy machine (docs/firmware_api.md, docs/benchmarks.md issue 14).
+
 Execution cost: a QEMU TCG plugin (firmware_stub/boards/mps2-an386/qemu/hil_insn_plugin.c, built on first
 use) counts the instructions between the firmware's step markers exactly; `metrics()` turns the counts of the
 metrics window into `exec_instructions` and the estimate `exec_time_us` at `mcu_clock_hz` with the cycle
@@ -22,6 +27,7 @@ import ctypes
 import hashlib
 import mmap
 import os
+import select
 import shutil
 import signal
 import socket
@@ -67,6 +73,10 @@ PSRAM_SIZE = 16 << 20
 MBOX_H2T_SEQ, MBOX_H2T_LEN, MBOX_T2H_SEQ, MBOX_T2H_LEN = 0x000, 0x004, 0x008, 0x00C
 MBOX_H2T_BUF, MBOX_T2H_BUF, MBOX_BUF_SIZE = 0x040, 0x440, 0x400
 MAILBOX_TIMEOUT_S = 5.0
+#: longest single sleep on the doorbell [ms] (the caller's deadlines are checked between sleeps)
+WAIT_SLICE_MS = 2
+#: doorbell FIFO paths in the PSRAM (offsets, size; firmware_stub/boards/mps2-an386/board.h)
+MBOX_H2T_PATH, MBOX_T2H_PATH, MBOX_PATH_SIZE = 0x840, 0x940, 0x100
 
 
 class QemuError(FirmwareError):
@@ -150,11 +160,12 @@ class QemuTarget:
                "-chardev", f"socket,id=uart0,path={self.socket_path},server=on,wait=off",
                "-serial", "chardev:uart0", "-icount", f"shift={ICOUNT_SHIFT},align=off",
                "-kernel", str(self.elf)]
+        self._bells: tuple[int, int] | None = None
         if transport == "mailbox":
-            with open(self.psram_path, "wb") as fh:
-                fh.truncate(PSRAM_SIZE)
+            self._bells = self._make_bells()
             cmd[2:3] = [f"{MACHINE},memory-backend=psram", "-object",
-                        f"memory-backend-file,id=psram,size={PSRAM_SIZE},mem-path={self.psram_path},share=on"]
+                        f"memory-backend-file,id=psram,size={PSRAM_SIZE},mem-path={self.psram_path},share=on",
+                        "-semihosting-config", "enable=on,target=native"]
         cfg_words = (CFG_MAGIC, round(self.mcu_clock_hz), 1 << ICOUNT_SHIFT, round(CPI * 1000),
                      TRANSPORTS.index(transport))
         for offset, value in enumerate(cfg_words):
@@ -170,6 +181,24 @@ class QemuTarget:
         except BaseException:
             self.close()
             raise
+
+    def _make_bells(self) -> tuple[int, int]:
+        """The PSRAM file with the doorbell FIFO paths in it, and the host's ends of the two FIFOs (opened
+        read-write, so neither open blocks nor the firmware's open of the other end; non-blocking)."""
+        paths = (self._dir / "bell_h2t", self._dir / "bell_t2h")
+        with open(self.psram_path, "wb") as fh:
+            fh.truncate(PSRAM_SIZE)
+            for offset, path in zip((MBOX_H2T_PATH, MBOX_T2H_PATH), paths, strict=True):
+                raw = os.fsencode(path)
+                if len(raw) >= MBOX_PATH_SIZE:
+                    raise QemuError(f"qemu target: temporary path too long for the mailbox: {path}")
+                fh.seek(offset)
+                fh.write(raw + b"\0")
+        fds: list[int] = []
+        for path in paths:
+            os.mkfifo(path, 0o600)
+            fds.append(os.open(path, os.O_RDWR | os.O_NONBLOCK | os.O_CLOEXEC))
+        return fds[0], fds[1]
 
     def _connect(self) -> socket.socket:
         deadline = time.monotonic() + START_TIMEOUT_S
@@ -199,7 +228,8 @@ class QemuTarget:
         """The host's end of the PSRAM mailbox (transport 'mailbox')."""
         if self.transport != "mailbox":
             raise QemuError("this QEMU target runs the UART transport: use link_spec")
-        return MailboxLink(self.psram_path)
+        assert self._bells is not None
+        return MailboxLink(self.psram_path, os.dup(self._bells[0]), os.dup(self._bells[1]))
 
     @property
     def link_spec(self) -> str:
@@ -243,6 +273,11 @@ class QemuTarget:
             with contextlib.suppress(OSError):
                 self._sock.close()
             self._sock = None
+        if self._bells is not None:  # the firmware, blocked on its doorbell, reads end-of-file and moves on
+            for fd in self._bells:
+                with contextlib.suppress(OSError):
+                    os.close(fd)
+            self._bells = None
         proc = self.process
         if proc is not None and proc.poll() is None:
             proc.terminate()
@@ -265,17 +300,24 @@ class QemuTarget:
 class MailboxLink:
     """The host's end of the PSRAM mailbox (implements the Link protocol): `send` waits for the reply to the
     previous request (collecting its frames), writes the frames and their length, then the sequence word in one
-    aligned 32-bit store; `poll` returns the reply's frames once the target has echoed the sequence word."""
+    aligned 32-bit store, and rings the target's doorbell (one byte into the host-to-target FIFO); `poll`
+    returns the reply's frames once the target has echoed the sequence word. While a reply is outstanding
+    `poll` waits for it, asleep on the target's doorbell (the target-to-host FIFO) for up to `WAIT_SLICE_MS`.
+    Neither end spins: two spinners on a busy machine stall each other for scheduler time slices
+    (milliseconds). The link owns (and closes) the two doorbell descriptors."""
 
-    def __init__(self, psram: Path) -> None:
+    def __init__(self, psram: Path, bell_out: int, bell_in: int) -> None:
         self.stats = LinkStats()
         self.fd = True
+        self._bell_out, self._bell_in = bell_out, bell_in
         self._file = open(psram, "r+b")  # noqa: SIM115 (closed in close())
         self._map = mmap.mmap(self._file.fileno(), MBOX_T2H_BUF + MBOX_BUF_SIZE)
         self._h2t_seq = ctypes.c_uint32.from_buffer(self._map, MBOX_H2T_SEQ)
         self._h2t_len = ctypes.c_uint32.from_buffer(self._map, MBOX_H2T_LEN)
         self._t2h_seq = ctypes.c_uint32.from_buffer(self._map, MBOX_T2H_SEQ)
         self._t2h_len = ctypes.c_uint32.from_buffer(self._map, MBOX_T2H_LEN)
+        self._poller = select.poll()
+        self._poller.register(bell_in, select.POLLIN)
         self._seq = self._h2t_seq.value
         self._pending = False
         self._rx: deque[Frame] = deque()
@@ -299,14 +341,32 @@ class MailboxLink:
         self._pending = False
         return True
 
+    @property
+    def pending(self) -> bool:
+        """A request awaits its reply."""
+        return self._pending
+
+    def _wait(self) -> bool:
+        """True once nothing is pending (the reply collected at once or after the target's doorbell); False
+        after a quiet slice of WAIT_SLICE_MS (the caller checks its deadline)."""
+        if self._collect():
+            return True
+        # the target rings after it echoes the sequence word. A bell read here may be an earlier reply's
+        # (replies found at once leave theirs unread): the look after it decides, a miss waits again.
+        if self._poller.poll(WAIT_SLICE_MS):
+            with contextlib.suppress(BlockingIOError, InterruptedError):
+                os.read(self._bell_in, 4096)
+        return self._collect()
+
     def send(self, frames: Sequence[Frame]) -> None:
         """One request carrying `frames`."""
-        deadline = time.perf_counter() + MAILBOX_TIMEOUT_S
-        while not self._collect():
-            if time.perf_counter() > deadline:
-                self.stats.send_errors += 1
-                raise LinkError(f"mailbox: the target did not answer request {self._seq} within "
-                                f"{MAILBOX_TIMEOUT_S:g} s")
+        if not self._collect():
+            deadline = time.perf_counter() + MAILBOX_TIMEOUT_S
+            while not self._wait():
+                if time.perf_counter() > deadline:
+                    self.stats.send_errors += 1
+                    raise LinkError(f"mailbox: the target did not answer request {self._seq} within "
+                                    f"{MAILBOX_TIMEOUT_S:g} s")
         body = b"".join(f.arbitration_id.to_bytes(4, "little") + bytes((1 if f.is_fd else 0, len(f.data))) + f.data
                         for f in frames)
         if len(body) > MBOX_BUF_SIZE:
@@ -317,18 +377,26 @@ class MailboxLink:
         self._seq = (self._seq + 1) & 0xFFFFFFFF
         self._pending = True
         self._h2t_seq.value = self._seq  # last, one aligned 32-bit store
+        try:
+            os.write(self._bell_out, b"\x00")  # the target's doorbell
+        except OSError as exc:  # EAGAIN: 64 KiB of unread bells, the target no longer reads them
+            self.stats.send_errors += 1
+            raise LinkError(f"mailbox: doorbell: {exc}") from None
         self.stats.frames_tx += len(frames)
 
     def poll(self) -> Frame | None:
-        """The next reply frame, or None at once."""
-        if not self._rx:
-            self._collect()
-            if not self._rx:
+        """The next reply frame; None when nothing is outstanding, or after a quiet wait slice."""
+        rx = self._rx
+        if not rx:
+            if not self._pending:
                 return None
-        return self._rx.popleft()
+            self._wait()
+            if not rx:
+                return None
+        return rx.popleft()
 
     def recv(self, timeout_s: float) -> Frame | None:
-        """Busy-poll up to `timeout_s` seconds."""
+        """Wait up to `timeout_s` seconds."""
         end = time.perf_counter() + timeout_s
         while True:
             frame = self.poll()
@@ -336,7 +404,7 @@ class MailboxLink:
                 return frame
 
     def close(self) -> None:
-        """Unmap the mailbox (idempotent)."""
+        """Unmap the mailbox and close the doorbells (idempotent)."""
         if self._closed:
             return
         self._closed = True
@@ -344,3 +412,6 @@ class MailboxLink:
         with contextlib.suppress(BufferError, ValueError):
             self._map.close()
         self._file.close()
+        for fd in (self._bell_out, self._bell_in):
+            with contextlib.suppress(OSError):
+                os.close(fd)

@@ -92,3 +92,27 @@ def test_qemu_config_errors(reference_elf: Path) -> None:
         rated(f"qemu:{reference_elf}", link="udp")
     with pytest.raises(ParameterError, match="--target"):
         rated("qemu:")
+
+
+def test_mailbox_doorbells_and_prompt_stop(reference_elf: Path) -> None:
+    """The mailbox's doorbells (host FIFOs the firmware reads and writes with semihosting): requests are answered
+    with both ends asleep between them, and QEMU stops at once on close (the firmware, blocked on its doorbell,
+    reads end-of-file and halts) rather than after the SIGTERM grace period."""
+    from pmsm_hil.sim_target.qemu import MailboxLink
+
+    q = QemuTarget(reference_elf, count_instructions=False, transport="mailbox")
+    try:
+        link = q.mailbox_link()
+        assert isinstance(link, MailboxLink)
+        for _ in range(3):
+            link.send([])
+            time.sleep(0.01)  # the firmware answers and sleeps on its doorbell; the host's wait is a sleep too
+            deadline = time.monotonic() + 5
+            while link.pending and time.monotonic() < deadline:
+                assert link.poll() is None  # an empty request has an empty reply
+            assert not link.pending
+        link.close()
+    finally:
+        t0 = time.monotonic()
+        q.close()
+        assert time.monotonic() - t0 < 2.5

@@ -11,7 +11,7 @@ typedef struct {
     uint32_t mcu_clock_hz; /* clock of the estimate (`hil run --mcu-clock`, default 168 MHz) */
     uint32_t ns_per_insn;  /* QEMU -icount: 2^shift ns of virtual time per instruction */
     uint32_t cpi_milli;    /* cycle model: cycles per instruction x 1000 */
-    uint32_t transport;    /* HIL_BOARD_UART (WFI on the UART RX interrupt) or HIL_BOARD_MAILBOX (busy-polls PSRAM) */
+    uint32_t transport;    /* HIL_BOARD_UART (WFI on the UART RX interrupt) or HIL_BOARD_MAILBOX (PSRAM + doorbells) */
 } hil_board_cfg_t;
 
 #define HIL_BOARD_UART 0u
@@ -29,6 +29,11 @@ typedef struct {
 #define HIL_MBOX_H2T_BUF 0x040u
 #define HIL_MBOX_T2H_BUF 0x440u
 #define HIL_MBOX_BUF_SIZE 0x400u
+/* doorbells: NUL-terminated paths of two host FIFOs (host-to-target, target-to-host), one byte rung per
+ * request and per reply, read and written by the firmware with Arm semihosting calls */
+#define HIL_MBOX_H2T_PATH 0x840u
+#define HIL_MBOX_T2H_PATH 0x940u
+#define HIL_MBOX_PATH_SIZE 0x100u
 
 #define HIL_BOARD_CFG_MAGIC 0x48494C43u /* "HILC" */
 #define HIL_BOARD_SYSCLK_HZ 25000000u   /* mps2-an386 SYSCLK: the SysTick (CLKSOURCE = core clock) */
