@@ -355,7 +355,7 @@ class MailboxLink:
         # (replies found at once leave theirs unread): the look after it decides, a miss waits again.
         if self._poller.poll(WAIT_SLICE_MS):
             with contextlib.suppress(BlockingIOError, InterruptedError):
-                os.read(self._bell_in, 4096)
+                os.read(self._bell_in, 65536)
         return self._collect()
 
     def send(self, frames: Sequence[Frame]) -> None:
