@@ -38,3 +38,4 @@ def test_bench_sweep_prints_the_ratio(capsys: pytest.CaptureFixture[str]) -> Non
     out = capsys.readouterr().out
     assert "ratio 2 workers / 1 worker: " in out and "load average before" in out
     assert "metrics identical on 1 and 2 workers: yes; runs that did not complete: 0" in out
+    assert "cores busy during the 1-worker rounds: " in out and "--loop auto" in out
