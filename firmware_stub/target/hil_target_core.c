@@ -51,6 +51,17 @@ static struct {
 #define HIL_NOINLINE
 #endif
 
+/* Interrupts are masked between the markers on the MCU: a handler that ran inside them (a UART byte or a
+ * timer, whose arrival in the emulator follows the host's scheduling) would add its instructions to that one
+ * record -- and when it hit the boot pair, whose count is subtracted from every step, to all of them. */
+#if defined(__arm__) && defined(__GNUC__)
+#define HIL_CORE_IRQ_OFF() __asm__ volatile("cpsid i" ::: "memory")
+#define HIL_CORE_IRQ_ON() __asm__ volatile("cpsie i" ::: "memory")
+#else
+#define HIL_CORE_IRQ_OFF() ((void)0)
+#define HIL_CORE_IRQ_ON() ((void)0)
+#endif
+
 HIL_NOINLINE void hil_core_step_begin(void)
 {
 #if defined(__GNUC__)
@@ -182,9 +193,11 @@ static void on_measurement(const pending_meas_t *p, uint8_t n_phases, double sca
         m.omega_m = (float)((double)p->omega_m * SCALE_W);
         m.vdc = (float)((double)p->vdc * SCALE_V);
         t0 = hil_board_clock();
+        HIL_CORE_IRQ_OFF();
         hil_core_step_begin();
         hil_app_step(&m, &cmd);
         hil_core_step_end();
+        HIL_CORE_IRQ_ON();
         t1 = hil_board_clock();
         exec_ns = hil_board_exec_ns(t0, t1);
         g.counters.steps++;
@@ -426,8 +439,10 @@ void hil_core_init(void)
     g.ts_ns = 100000u;
     g.controller_id = HIL_FW_CTRL_OFF;
     hil_app_init();
+    HIL_CORE_IRQ_OFF();
     hil_core_step_begin(); /* the markers' own cost, for an instruction counter to subtract */
     hil_core_step_end();
+    HIL_CORE_IRQ_ON();
 }
 
 const hil_core_counters_t *hil_core_counters(void)
