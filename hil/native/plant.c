@@ -14,14 +14,21 @@ double pl_torque(const pl_params_t *p, double i_d, double i_q)
     return 1.5 * (double)p->pole_pairs * (p->psi_f * i_q + (p->ld - p->lq) * i_d * i_q);
 }
 
-void pl_phase_currents(double i_d, double i_q, double theta_e, double *i_a, double *i_b, double *i_c)
+/* Phase currents [A] from the dq currents and cos, sin of the rotor angle. */
+static void phase_currents_cs(double i_d, double i_q, double c, double s, double *i_a, double *i_b, double *i_c)
 {
-    double c = cos(theta_e), s = sin(theta_e);
     double i_alpha = i_d * c - i_q * s;
     double i_beta = i_d * s + i_q * c;
     *i_a = i_alpha;
     *i_b = -0.5 * i_alpha + 0.5 * PL_SQRT3 * i_beta;
     *i_c = -0.5 * i_alpha - 0.5 * PL_SQRT3 * i_beta;
+}
+
+void pl_phase_currents(double i_d, double i_q, double theta_e, double *i_a, double *i_b, double *i_c)
+{
+    double c, s;
+    dq_sincos(theta_e, &s, &c);
+    phase_currents_cs(i_d, i_q, c, s, i_a, i_b, i_c);
 }
 
 /* Stator-frame voltage [V] of leg levels (bit 2: a, bit 1: b, bit 0: c). */
@@ -45,14 +52,15 @@ static double phase_current(const pl_state_t *s, int leg)
 static const double PL_EX[3] = {1.0, -0.5, -0.5};
 static const double PL_EY[3] = {0.0, 0.8660254037844386, -0.8660254037844386};
 
-static int emit_row(const pl_params_t *p, pl_state_t *s, double tk, double i_d, double i_q, double theta,
-                    double *trace, int32_t trace_cap, pl_period_stats_t *stats)
+/* One trace row at time tk [s]: dq currents [A] and cos, sin of the rotor angle. */
+static int emit_row_cs(const pl_params_t *p, pl_state_t *s, double tk, double i_d, double i_q, double cos_th,
+                       double sin_th, double *trace, int32_t trace_cap, pl_period_stats_t *stats)
 {
     double ia, ib, ic, *row;
     if (stats->trace_n >= trace_cap) {
         return PL_E_TRACE_FULL;
     }
-    pl_phase_currents(i_d, i_q, theta, &ia, &ib, &ic);
+    phase_currents_cs(i_d, i_q, cos_th, sin_th, &ia, &ib, &ic);
     row = trace + (ptrdiff_t)stats->trace_n * PL_TRACE_COLUMNS;
     row[0] = tk;
     row[1] = ia;
@@ -70,6 +78,14 @@ static int emit_row(const pl_params_t *p, pl_state_t *s, double tk, double i_d, 
     return PL_OK;
 }
 
+static int emit_row(const pl_params_t *p, pl_state_t *s, double tk, double i_d, double i_q, double theta,
+                    double *trace, int32_t trace_cap, pl_period_stats_t *stats)
+{
+    double c, sn;
+    dq_sincos(theta, &sn, &c);
+    return emit_row_cs(p, s, tk, i_d, i_q, c, sn, trace, trace_cap, stats);
+}
+
 static double leg_current(double i_d, double i_q, double theta, int leg)
 {
     double ia, ib, ic;
@@ -81,7 +97,8 @@ static double leg_current(double i_d, double i_q, double theta, int leg)
 static void loop_direction(int y, int z, double theta, double *h_d, double *h_q)
 {
     double dx = PL_EX[y] - PL_EX[z], dy = PL_EY[y] - PL_EY[z];
-    double c = cos(theta), sn = sin(theta);
+    double c, sn;
+    dq_sincos(theta, &sn, &c);
     *h_d = c * dx + sn * dy;
     *h_q = -sn * dx + c * dy;
 }
@@ -211,6 +228,11 @@ static int integrate(const pl_params_t *p, pl_state_t *s, double t_abs, double h
                      pl_period_stats_t *stats, const int *gate_level)
 {
     double done = 0.0;
+    dq_machine_t mc;
+    double em_step;
+    const double inv_j = p->inertia_mode ? 1.0 / p->j : 0.0; /* [1/(kg*m^2)] */
+    dq_machine_init(p->rs, p->ld, p->lq, p->psi_f, &mc);
+    em_step = trace_dt > 0.0 ? exp(mc.m * trace_dt) : 1.0; /* exp(m dt) of the trace walker */
     while (done < h - 0.5e-9) {
         double piece = h - done;
         double omega_e = (double)p->pole_pairs * s->omega_m;
@@ -239,26 +261,33 @@ static int integrate(const pl_params_t *p, pl_state_t *s, double t_abs, double h
             dq_segment_t g;
             double v_alpha, v_beta, i_d1, i_q1;
             leg_voltage(p->vdc, levels, &v_alpha, &v_beta);
-            dq_segment_setup(p->rs, p->ld, p->lq, p->psi_f, omega_e, s->theta_e, v_alpha, v_beta, s->i_d, s->i_q, &g);
+            dq_segment_setup(&mc, omega_e, s->theta_e, v_alpha, v_beta, s->i_d, s->i_q, &g);
             if (cond_mask) {
                 piece = first_blocking(&g, s->theta_e, omega_e, piece, cond_mask, s->dead_level, &blocked);
             }
             if (trace_dt > 0.0 && trace != NULL) {
+                dq_walk_t w;
+                int fresh = 1;
                 for (;;) {
                     double tk = (double)s->trace_k * trace_dt;
                     double tau = tk - t0, id, iq;
-                    int rc;
+                    int rc, clamped = 0;
                     if (tau >= piece - 0.5e-9) { /* grid and edges are ns-aligned */
                         break;
                     }
                     if (tau < 0.0) {
                         tau = 0.0;
+                        clamped = 1;
                     }
-                    dq_segment_eval(&g, tau, &id, &iq);
-                    rc = emit_row(p, s, tk, id, iq, s->theta_e + omega_e * tau, trace, trace_cap, stats);
+                    if (fresh) {
+                        dq_walk_start(&g, tau, trace_dt, em_step, &w);
+                    }
+                    dq_walk_eval(&g, &w, &id, &iq);
+                    rc = emit_row_cs(p, s, tk, id, iq, w.cos_th, w.sin_th, trace, trace_cap, stats);
                     if (rc != PL_OK) {
                         return rc;
                     }
+                    fresh = clamped || !dq_walk_next(&g, &w);
                 }
             }
             dq_segment_eval(&g, piece, &i_d1, &i_q1);
@@ -297,8 +326,10 @@ static int integrate(const pl_params_t *p, pl_state_t *s, double t_abs, double h
             double te1 = pl_torque(p, s->i_d, s->i_q);
             double t_mid = t0 + 0.5 * piece - t_period0;
             double t_load = t_load0 + t_load_slope * t_mid;
-            double k = 0.5 * piece * p->b / p->j;
-            s->omega_m = (s->omega_m * (1.0 - k) + piece * (0.5 * (te0 + te1) - t_load) / p->j) / (1.0 + k);
+            /* trapezoidal torque, implicit friction: (1 + k) w1 = (1 - k) w0 + piece (Te - Tl) / J */
+            const double k = 0.5 * piece * p->b * inv_j;
+            const double w1 = s->omega_m * (1.0 - k) + piece * (0.5 * (te0 + te1) - t_load) * inv_j;
+            s->omega_m = k != 0.0 ? w1 / (1.0 + k) : w1;
         }
         done += piece;
     }

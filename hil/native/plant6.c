@@ -27,9 +27,9 @@ double p6_torque(const p6_params_t *p, double i_d, double i_q)
     return 3.0 * (double)p->pole_pairs * (p->psi_f * i_q + (p->ld - p->lq) * i_d * i_q);
 }
 
-void p6_phase_currents(double i_d, double i_q, double theta_e, double i_x, double i_y, double *i_phase)
+/* Phase currents [A] from the dq currents, cos and sin of the rotor angle, and the x-y currents. */
+static void phase_currents_cs(double i_d, double i_q, double c, double s, double i_x, double i_y, double *i_phase)
 {
-    double c = cos(theta_e), s = sin(theta_e);
     double v[4];
     v[0] = i_d * c - i_q * s;
     v[1] = i_d * s + i_q * c;
@@ -38,6 +38,13 @@ void p6_phase_currents(double i_d, double i_q, double theta_e, double i_x, doubl
     for (int k = 0; k < P6_LEGS; k++) {
         i_phase[k] = P6_VSD[0][k] * v[0] + P6_VSD[1][k] * v[1] + P6_VSD[2][k] * v[2] + P6_VSD[3][k] * v[3];
     }
+}
+
+void p6_phase_currents(double i_d, double i_q, double theta_e, double i_x, double i_y, double *i_phase)
+{
+    double c, s;
+    dq_sincos(theta_e, &s, &c);
+    phase_currents_cs(i_d, i_q, c, s, i_x, i_y, i_phase);
 }
 
 void p6_code_voltage(double vdc, int32_t code, double *v4)
@@ -51,8 +58,9 @@ void p6_code_voltage(double vdc, int32_t code, double *v4)
     }
 }
 
-static int emit_row(const p6_params_t *p, p6_state_t *s, double tk, double i_d, double i_q, double theta,
-                    double i_x, double i_y, double *trace, int32_t trace_cap, p6_period_stats_t *stats)
+/* One trace row at time tk [s]: dq currents [A], cos and sin of the rotor angle, x-y currents [A]. */
+static int emit_row(const p6_params_t *p, p6_state_t *s, double tk, double i_d, double i_q, double cos_th,
+                    double sin_th, double i_x, double i_y, double *trace, int32_t trace_cap, p6_period_stats_t *stats)
 {
     double *row;
     if (stats->trace_n >= trace_cap) {
@@ -60,7 +68,7 @@ static int emit_row(const p6_params_t *p, p6_state_t *s, double tk, double i_d, 
     }
     row = trace + (ptrdiff_t)stats->trace_n * P6_TRACE_COLUMNS;
     row[0] = tk;
-    p6_phase_currents(i_d, i_q, theta, i_x, i_y, row + 1);
+    phase_currents_cs(i_d, i_q, cos_th, sin_th, i_x, i_y, row + 1);
     for (int k = 1; k <= 6; k++) {
         if (fabs(row[k]) > stats->peak_current) {
             stats->peak_current = fabs(row[k]);
@@ -81,6 +89,11 @@ static int integrate(const p6_params_t *p, p6_state_t *s, double t_abs, double h
                      p6_period_stats_t *stats, const int *gate_level)
 {
     double done = 0.0;
+    dq_machine_t mc;
+    double em_step;
+    const double inv_j = p->inertia_mode ? 1.0 / p->j : 0.0; /* [1/(kg*m^2)] */
+    dq_machine_init(p->rs, p->ld, p->lq, p->psi_f, &mc);
+    em_step = trace_dt > 0.0 ? exp(mc.m * trace_dt) : 1.0; /* exp(m dt) of the trace walker */
     while (done < h - 0.5e-9) {
         double piece = h - done;
         double omega_e = (double)p->pole_pairs * s->omega_m;
@@ -100,28 +113,37 @@ static int integrate(const p6_params_t *p, p6_state_t *s, double t_abs, double h
             piece = p->max_piece;
         }
         p6_code_voltage(p->vdc, levels, v);
-        dq_segment_setup(p->rs, p->ld, p->lq, p->psi_f, omega_e, s->theta_e, v[0], v[1], s->i_d, s->i_q, &g);
+        dq_segment_setup(&mc, omega_e, s->theta_e, v[0], v[1], s->i_d, s->i_q, &g);
         ix_inf = v[2] / p->rs;
         iy_inf = v[3] / p->rs;
         kxy = -p->rs / p->lls;
         if (trace_dt > 0.0 && trace != NULL) {
+            dq_walk_t w;
+            double ex = 1.0, ex_step = exp(kxy * trace_dt);
+            int fresh = 1;
             for (;;) {
                 double tk = (double)s->trace_k * trace_dt;
-                double tau = tk - t0, id, iq, ex;
-                int rc;
+                double tau = tk - t0, id, iq;
+                int rc, clamped = 0;
                 if (tau >= piece - 0.5e-9) {
                     break;
                 }
                 if (tau < 0.0) {
                     tau = 0.0;
+                    clamped = 1;
                 }
-                dq_segment_eval(&g, tau, &id, &iq);
-                ex = exp(kxy * tau);
-                rc = emit_row(p, s, tk, id, iq, s->theta_e + omega_e * tau, ix_inf + (s->i_x - ix_inf) * ex,
+                if (fresh) {
+                    dq_walk_start(&g, tau, trace_dt, em_step, &w);
+                    ex = exp(kxy * tau);
+                }
+                dq_walk_eval(&g, &w, &id, &iq);
+                rc = emit_row(p, s, tk, id, iq, w.cos_th, w.sin_th, ix_inf + (s->i_x - ix_inf) * ex,
                               iy_inf + (s->i_y - iy_inf) * ex, trace, trace_cap, stats);
                 if (rc != P6_OK) {
                     return rc;
                 }
+                fresh = clamped || !dq_walk_next(&g, &w);
+                ex *= ex_step;
             }
         }
         dq_segment_eval(&g, piece, &i_d1, &i_q1);
@@ -136,8 +158,10 @@ static int integrate(const p6_params_t *p, p6_state_t *s, double t_abs, double h
         if (p->inertia_mode) {
             double te1 = p6_torque(p, s->i_d, s->i_q);
             double t_load = t_load0 + t_load_slope * (t0 + 0.5 * piece - t_period0);
-            double k = 0.5 * piece * p->b / p->j;
-            s->omega_m = (s->omega_m * (1.0 - k) + piece * (0.5 * (te0 + te1) - t_load) / p->j) / (1.0 + k);
+            /* trapezoidal torque, implicit friction: (1 + k) w1 = (1 - k) w0 + piece (Te - Tl) / J */
+            const double k = 0.5 * piece * p->b * inv_j;
+            const double w1 = s->omega_m * (1.0 - k) + piece * (0.5 * (te0 + te1) - t_load) * inv_j;
+            s->omega_m = k != 0.0 ? w1 / (1.0 + k) : w1;
         }
         done += piece;
     }

@@ -108,3 +108,32 @@ def test_period_peak_current_is_the_largest_traced_phase_current() -> None:
         peaks.append(st.peak_current_a)
         assert st.peak_current_a == pytest.approx(np.abs(tr[:, 1:4]).max())
     assert max(peaks) > 1.0
+
+
+@pytest.mark.parametrize(("motor", "trace_dt_ns"), [("niu2020-ipmsm", 2000), ("niu2020-ipmsm", 700),
+                                                     ("xiao2023-spmsm", 2000)])
+def test_trace_rows_equal_the_closed_form_at_their_times(motor: str, trace_dt_ns: int) -> None:
+    """Trace rows come from addition theorems stepped along the row grid (restarted every 32 rows); each row
+    equals the closed-form state at its time, computed by a second plant whose period ends exactly there."""
+    params = load_motor(motor)
+    traced = Plant(params, TS, DynoMechanics(1500.0), trace_dt_s=trace_dt_ns * 1e-9)
+    for st in (6, 2, 3, 4, 4):
+        traced.advance([st], [TS_NS])
+    start = traced.sample()
+    traced.advance([4], [TS_NS])  # same vector as before: no gate edge inside the period
+    rows = traced.last_trace.copy()
+    assert rows.shape[0] == -(-TS_NS // trace_dt_ns)
+    checked, worst = 0, 0.0
+    for row in rows:
+        offset_ns = round((row[0] - start.t) * 1e9)
+        if offset_ns < 1000:  # a plant period is at least 1 µs
+            continue
+        ref_plant = Plant(params, offset_ns * 1e-9, DynoMechanics(1500.0), trace_dt_s=None)
+        ref_plant.set_state(i_d=start.i_d, i_q=start.i_q, theta_e=start.theta_e, gate=4)
+        ref_plant.advance([4], [offset_ns])
+        ref = ref_plant.sample()
+        worst = max(worst, abs(row[1] - ref.i_a), abs(row[2] - ref.i_b), abs(row[3] - ref.i_c))
+        assert row[4] == pytest.approx(ref.torque, rel=1e-12, abs=1e-12)
+        checked += 1
+    assert checked >= rows.shape[0] - 2
+    assert worst < 1e-11  # A, against currents of ~10 A: rounding only
