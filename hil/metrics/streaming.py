@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 from pmsm_hil.hil.metrics._validate import require_fields, require_int, require_positive
 from pmsm_hil.hil.metrics.errors import MetricsError, MetricsWindowError
-from pmsm_hil.hil.metrics.moments import WeightedMoments
+from pmsm_hil.hil.metrics.moments import TrapezoidWeights, WeightedMoments, buffer_room
 from pmsm_hil.hil.metrics.quantiles import IntQuantiles
 from pmsm_hil.hil.metrics.switching import SwitchingStats, switching_from_counts
 from pmsm_hil.hil.metrics.thd import current_thd, fundamental_hz
@@ -50,6 +50,9 @@ class WindowMetrics:
         names = trace_dtype.names or ()
         self.xy_sq: WeightedMoments | None = WeightedMoments() if "i_x" in names else None
         self.tail = TraceTail(trace_dtype, thd_span_s)
+        self.weights = TrapezoidWeights()  # of the trace times, shared by the moments
+        self._cols = [np.empty(0) for _ in range(3)]  # contiguous columns of the current block
+        self._dt = np.empty(0)
         self.exec_us = IntQuantiles(1e-3)
         self.split_us = [IntQuantiles(1e-3) for _ in SPLIT_NAMES]
         self.periods = 0
@@ -88,21 +91,34 @@ class WindowMetrics:
     def add_trace(self, block: np.ndarray) -> None:
         """Add a block of trace records (times strictly increasing, after the previous block's)."""
         require_fields(block, _TRACE_FIELDS, "trace")
-        if block.shape[0] == 0:
+        n = block.shape[0]
+        if n == 0:
             return
-        t = np.asarray(block["t"], dtype=np.float64)
-        if not np.all(np.isfinite(t)):
-            raise MetricsError("trace.t: contains non-finite times")
-        if t[0] <= self._last_t or (t.shape[0] > 1 and np.any(np.diff(t) <= 0.0)):
+        t = self._column(0, block["t"])
+        self._dt = buffer_room(self._dt, n)
+        dt = np.subtract(t[1:], t[:-1], out=self._dt[: n - 1])
+        t0, t1 = float(t[0]), float(t[-1])
+        if not (math.isfinite(t0) and math.isfinite(t1) and t0 > self._last_t and bool(np.all(dt > 0.0))):
+            if not np.all(np.isfinite(t)):  # finite ends and positive steps: all finite
+                raise MetricsError("trace.t: contains non-finite times")
             raise MetricsError("trace.t: times must be strictly increasing")
-        self._last_t = float(t[-1])
-        self.torque.add(t, block["torque"])
-        self.speed.add(t, block["omega_m"])
+        self._last_t = t1
+        self.weights.add(t, dt)
+        self.torque.add_weighted(self._column(1, block["torque"]), self.weights)
+        self.speed.add_weighted(self._column(1, block["omega_m"]), self.weights)
         if self.xy_sq is not None:
-            ix = np.asarray(block["i_x"], dtype=np.float64)
-            iy = np.asarray(block["i_y"], dtype=np.float64)
-            self.xy_sq.add(t, ix**2 + iy**2)
+            ix, iy = self._column(1, block["i_x"]), self._column(2, block["i_y"])
+            np.multiply(ix, ix, out=ix)
+            self.xy_sq.add_weighted(np.add(ix, np.multiply(iy, iy, out=iy), out=ix), self.weights)
         self.tail.add(block)
+
+    def _column(self, k: int, values: np.ndarray) -> np.ndarray:
+        """`values` (a field of a block) as contiguous float64 in the reused buffer k."""
+        n = values.shape[0]
+        self._cols[k] = buffer_room(self._cols[k], n)
+        out = self._cols[k][:n]
+        np.copyto(out, values, casting="unsafe")
+        return out
 
     def switching(self, ts_s: float, legs: int) -> SwitchingStats:
         """Switching statistics of the periods added so far."""

@@ -104,17 +104,57 @@ def test_moments_of_one_sample_and_of_a_constant() -> None:
     assert flat.mean == pytest.approx(2.5, rel=1e-15) and flat.rms_deviation == pytest.approx(0.0, abs=1e-12)
 
 
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.integers(min_value=1, max_value=3000), min_size=1, max_size=12), st.integers(0, 2**32 - 1))
+def test_moments_in_blocks_are_the_trapezoid_formulas(sizes: list[int], seed: int) -> None:
+    # non-uniform times, blocks of any size (single samples included): the textbook whole-array figures
+    rng = np.random.default_rng(seed)
+    t = np.cumsum(rng.uniform(1e-7, 2e-6, sum(sizes)))
+    x = 7.0 + 0.4 * np.sin(2e4 * t) + rng.normal(0.0, 0.05, t.shape[0])
+    acc = WeightedMoments()
+    for a, b in itertools.pairwise(np.cumsum([0, *sizes])):
+        acc.add(t[a:b], x[a:b])
+    assert (acc.samples, acc.minimum, acc.maximum) == (x.shape[0], x.min(), x.max())
+    if t.shape[0] == 1:
+        assert (acc.mean, acc.rms_deviation) == (x[0], 0.0)
+        return
+    w = np.zeros_like(t)
+    w[:-1] += np.diff(t) / 2.0
+    w[1:] += np.diff(t) / 2.0
+    mean = float(np.sum(w * x) / np.sum(w))
+    assert acc.mean == pytest.approx(mean, rel=1e-14)
+    assert acc.rms_deviation == pytest.approx(math.sqrt(np.sum(w * (x - mean) ** 2) / np.sum(w)), rel=1e-12)
+
+
 def test_trace_tail_keeps_the_last_span_only() -> None:
     tail = TraceTail(TRACE_DTYPE, span_s=0.01)
     for k in range(50):
         block = make_trace(0.001 - 2e-6, 2e-6)
         block["t"] += k * 0.001
         tail.add(block)
+        if k == 20:
+            warm = tail._ring
+    assert tail._ring is warm  # once the span is filled the ring is reused, not reallocated
     rows = tail.array()
     assert rows["t"][-1] == pytest.approx(0.05 - 2e-6)
     assert rows["t"][0] >= rows["t"][-1] - 0.01 - 1e-12
     assert rows["t"][0] <= rows["t"][-1] - 0.01 + 2e-6 + 1e-12
-    assert len(tail._blocks) <= 12  # bounded by the span, not by the 50 blocks added
+    assert tail.capacity <= 5000 + 3 * 500  # the span (5000 records) and a block or two, not 50 blocks
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.integers(min_value=1, max_value=9000), min_size=1, max_size=30),
+       st.floats(min_value=0.0, max_value=0.02))
+def test_trace_tail_is_the_last_span_of_the_whole_trace(sizes: list[int], span: float) -> None:
+    # blocks of any size (shorter or longer than the span, the ring wrapping anywhere) keep exactly the
+    # records a whole-trace cut keeps
+    whole = make_trace(sum(sizes) * 2e-6, 2e-6)[: sum(sizes)]
+    whole["i_a"] = np.arange(whole.shape[0])
+    tail = TraceTail(TRACE_DTYPE, span_s=span)
+    for a, b in itertools.pairwise(np.cumsum([0, *sizes])):
+        tail.add(whole[a:b])
+        expect = whole[: b][whole["t"][: b] >= whole["t"][b - 1] - span]
+        assert np.array_equal(tail.array(), expect)
 
 
 def test_thd_of_a_long_window_is_the_last_second() -> None:
