@@ -16,6 +16,7 @@ from typing import Any
 from pmsm_hil.hil.atomic_write import write_text_atomic
 from pmsm_hil.hil.cli.parsing import non_negative_int, positive_float
 from pmsm_hil.hil.presets_loader import load_motor
+from pmsm_hil.hil.runner.native_config import rt_throttled
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import load_scenario
@@ -70,6 +71,7 @@ def measure(duration: float, ts: float, repeats: int, rt_priority: int = 0, cpu:
             "warnings": metrics[-1]["warnings"],
         }
     out["load_average"] = os.getloadavg()
+    out["rt_throttled"] = rt_throttled()
     return out
 
 
@@ -91,6 +93,14 @@ def run(args: argparse.Namespace) -> int:
               f"{per if per is None else format(per, '14.1f'):>14} {f['deadline_misses']:>7} {f['periods']:>8}")
         for line in f["warnings"]:
             print(f"    {loop}: {line}")
+    if args.rt_priority:
+        if figures["rt_throttled"]:
+            print("  note: the kernel throttles real-time tasks (kernel.sched_rt_runtime_us ≥ 0), so the SCHED_FIFO "
+                  "loop sleeps until 70 µs before each period start and a late wake-up shows as lateness; "
+                  "`sysctl -w kernel.sched_rt_runtime_us=-1` lets it busy-wait (docs/benchmarks.md)")
+        else:
+            print("  real-time throttling is off (kernel.sched_rt_runtime_us = -1): the SCHED_FIFO loop busy-waits "
+                  "to each period start")
     if args.json is not None:
         write_text_atomic(args.json, json.dumps(figures, indent=2) + "\n", option="--json")
     return 0

@@ -22,6 +22,8 @@ SPIN_NS = 100_000
 #: ... under SCHED_FIFO (`--rt-priority`: timer slack 0, wake-ups within microseconds): sleeping most of the period
 #: also keeps the thread under the kernel's real-time throttling (sched_rt_runtime_us: 95 % of each second)
 SPIN_NS_FIFO = 70_000
+#: the kernel's real-time budget per period (-1: real-time tasks are not throttled)
+RT_RUNTIME_FILE = "/proc/sys/kernel/sched_rt_runtime_us"
 
 
 @dataclass(frozen=True, slots=True)
@@ -121,7 +123,17 @@ def fill_config(c: Any, ffi: Any, cfg: RunConfig, plant: PlantBase, controller_i
     c.fault_pending = 1 if opts.fault is not None else 0
     c.fault_code_in, c.fault_detail_in = opts.fault if opts.fault is not None else (0, 0)
     c.realtime = 1 if cfg.mode == "realtime" else 0
-    c.overrun_ns, c.spin_ns = cfg.overrun_threshold_ns, SPIN_NS_FIFO if cfg.rt_priority else SPIN_NS
+    c.overrun_ns, c.spin_ns = cfg.overrun_threshold_ns, SPIN_NS_FIFO if cfg.rt_priority and rt_throttled() else SPIN_NS
     c.rt_priority = cfg.rt_priority
     c.cpu = -1 if cfg.cpu is None else cfg.cpu
     c.lock_memory = 1 if cfg.mode == "realtime" else 0
+
+def rt_throttled() -> bool:
+    """True when the kernel throttles real-time tasks (sched_rt_runtime_us ≥ 0, the default 950 000 µs per s):
+    a SCHED_FIFO loop must then sleep part of each period. With `sysctl kernel.sched_rt_runtime_us=-1` it may
+    busy-wait the whole period, as without `--rt-priority`."""
+    try:
+        with open(RT_RUNTIME_FILE, encoding="ascii") as f:
+            return int(f.read().strip()) >= 0
+    except (OSError, ValueError):
+        return True

@@ -13,6 +13,7 @@ import contextlib
 import gc
 import threading
 import time
+from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -22,6 +23,7 @@ from pmsm_hil.hil.records import FRAME_DTYPE, PERIOD_DTYPE
 from pmsm_hil.hil.runner import closed_loop
 from pmsm_hil.hil.runner.closed_loop import MAX_KEPT_VIOLATIONS, BlockSink, LoopOutcome
 from pmsm_hil.hil.runner.contract import RULES, EndCode
+from pmsm_hil.hil.runner.cpu_isolation import isolate_cpu
 from pmsm_hil.hil.runner.native_config import NativeOptions, fill_config
 from pmsm_hil.hil.runner.native_findings import internal_error, violation
 from pmsm_hil.hil.runner.native_link import NativeCoreLink
@@ -95,6 +97,7 @@ class NativeLoop:
             self.link.attach(self._c, self.cfg.lockstep_timeout_s)
         thread = threading.Thread(target=lib.nl_run, args=(h,), name="hil-native-loop", daemon=True)
         interrupted = False
+        restore_cpus = self._isolate_cpu()
         try:
             for _ in range(lib.NL_RING):
                 self._hand_back(self._blocks_filled % lib.NL_RING)
@@ -108,6 +111,7 @@ class NativeLoop:
             lib.nl_stop(h)
             while thread.is_alive():
                 thread.join(0.05)
+            restore_cpus()
             with contextlib.suppress(Exception):
                 self._drain(out)
             self._finish(out, interrupted)
@@ -122,6 +126,15 @@ class NativeLoop:
         return out
 
     # --- set-up -------------------------------------------------------------------------------------
+    def _isolate_cpu(self) -> Callable[[], None]:
+        """Real time on `--cpu N`: this process's other threads and the logger process leave CPU N for the run."""
+        cfg = self.cfg
+        if cfg.mode != "realtime" or cfg.cpu is None:
+            return lambda: None
+        logger = self.sink.logger if self.sink is not None else None
+        pid = getattr(logger, "pid", None)
+        return isolate_cpu(cfg.cpu, [pid] if isinstance(pid, int) else [])
+
     def _start(self) -> LoopOutcome:
         n_total = int(self._c.n_total)
         keep = n_total <= closed_loop.KEEP_PERIODS_MAX  # type: ignore[attr-defined]  # ClosedLoop's, read now
