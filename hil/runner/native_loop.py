@@ -182,10 +182,10 @@ class NativeLoop:
         slot = lib.nl_slot(h, i)
         n = int(slot.n_periods)
         out.periods.reserve(n)
-        out.periods.append_packed(ffi.buffer(lib.nl_slot_periods(h, i), n * self._period_size)[:])
+        out.periods.append_packed(memoryview(ffi.buffer(lib.nl_slot_periods(h, i), n * self._period_size)))
         n_frames = int(slot.n_frames)
         if n_frames:
-            out.frames.append_packed(ffi.buffer(lib.nl_slot_frames(h, i), n_frames * self._frame_size)[:])
+            out.frames.append_packed(memoryview(ffi.buffer(lib.nl_slot_frames(h, i), n_frames * self._frame_size)))
         if self.cfg.mode == "realtime" and n:
             lateness = np.frombuffer(ffi.buffer(lib.nl_slot_lateness(h, i), 8 * n), dtype=np.int64)
             out.lateness_us.add(lateness.copy())

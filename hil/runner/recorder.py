@@ -52,8 +52,8 @@ class ByteRecords:
         if need > len(self.buf):
             self.buf.extend(bytes(need - len(self.buf)))
 
-    def append_packed(self, packed: bytes) -> None:
-        """Append one record already packed with the matching struct."""
+    def append_packed(self, packed: bytes | memoryview) -> None:
+        """Append records already packed with the matching struct (any bytes-like object)."""
         end = self.end + len(packed)
         if end > len(self.buf):
             self.buf.extend(bytes(max(end - len(self.buf), 1 << 16)))
@@ -66,7 +66,7 @@ class ByteRecords:
     def take(self) -> npt.NDArray[np.void]:
         """Records appended since the last take (a copy)."""
         start = self._taken
-        block = np.frombuffer(bytes(self.buf[start:self.end]), dtype=self.dtype)
+        block = np.frombuffer(bytes(memoryview(self.buf)[start:self.end]), dtype=self.dtype)  # one memcpy
         if self.keep:
             self._taken = self.end
         else:
@@ -80,7 +80,7 @@ class ByteRecords:
             raise RecordsNotKeptError(
                 f"records: {self.dropped} records of this run were streamed to the log and the metrics, not "
                 f"kept in memory (runs of more than {KEEP_PERIODS_MAX} periods); read them from its run.mcap")
-        return np.frombuffer(bytes(self.buf[: self.end]), dtype=self.dtype)
+        return np.frombuffer(bytes(memoryview(self.buf)[: self.end]), dtype=self.dtype)
 
 
 #: period records of runs up to this many periods stay in memory (`LoopOutcome.periods.all()`, ≈ 37 MB);

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from pmsm_hil.hil.metrics import MetricsError, compute_run_metrics, current_thd
+from pmsm_hil.hil.metrics import MetricsError, compute_run_metrics, current_thd, quantiles
 from pmsm_hil.hil.metrics.moments import WeightedMoments
 from pmsm_hil.hil.metrics.quantiles import IntQuantiles
 from pmsm_hil.hil.metrics.streaming import WindowMetrics
@@ -91,6 +91,20 @@ def test_exec_quantiles_are_numpys_exactly() -> None:
             assert acc.percentile(q) == np.percentile(us, q)
         assert acc.maximum() == us.max()
     assert math.isnan(IntQuantiles().median())
+
+
+@pytest.mark.parametrize("pending", [1, 7, 100])
+def test_exec_quantiles_counted_in_many_folds(monkeypatch: pytest.MonkeyPatch, pending: int) -> None:
+    # blocks larger and smaller than the pending buffer, values seen again in later folds
+    monkeypatch.setattr(quantiles, "PENDING", pending)
+    rng = np.random.default_rng(pending)
+    values = rng.integers(0, 300, 2000).astype(np.uint32)
+    acc = IntQuantiles(1e-3)
+    for part in np.array_split(values, 37):
+        acc.add(part)
+    us = values.astype(np.float64) * 1e-3
+    assert acc.n == values.shape[0] and acc.median() == np.median(us) and acc.maximum() == us.max()
+    assert [acc.percentile(q) for q in (0.0, 3.0, 99.0)] == [np.percentile(us, q) for q in (0.0, 3.0, 99.0)]
 
 
 def test_moments_of_one_sample_and_of_a_constant() -> None:
