@@ -119,6 +119,8 @@ METRICS: Final[tuple[Metric, ...]] = (
        source=RUN),
     _m("lateness_us", "lateness", "µs", "real time: `{median, p99, max}` of how late each period started",
        source=RUN),
+    _m("lateness_histogram_us", "lateness histogram", "µs", "real time: `{edges_us, counts}`, period starts per "
+       "lateness bin [edges_us[i], edges_us[i+1]) µs, the last bin open-ended", "", source=RUN),
     _m("speed_error_pct", "speed error", "%", "100 · (speed_mean_rpm − reference) / reference", ".3g", source=RUN),
     _m("speed_reference_missed", "speed reference missed", "", "completed runs: true when the speed over the last "
        "10 % of the window is off the reference by more than 10 % (≥ 5 rpm; hil/runner/run_limits.py); null "

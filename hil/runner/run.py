@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 from pmsm_hil.hil.atomic_write import write_text_atomic
 from pmsm_hil.hil.metrics.errors import MetricsWindowError
+from pmsm_hil.hil.metrics.lateness import lateness_histogram
 from pmsm_hil.hil.metrics.registry import METRICS, WINDOW
 from pmsm_hil.hil.runner.block_sink import RunSink
 from pmsm_hil.hil.runner.budget_check import check_realtime_budget
@@ -185,6 +186,7 @@ def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection, sink: Ru
     lat = out.lateness_us
     if cfg.mode == "realtime" and lat.n:
         metrics["lateness_us"] = {"median": lat.median(), "p99": lat.percentile(99.0), "max": lat.maximum()}
+        metrics["lateness_histogram_us"] = lateness_histogram(lat)
         threshold_us = cfg.overrun_threshold_ns / 1e3
         metrics["overruns"] = out.overruns
         metrics["overrun_threshold_us"] = threshold_us

@@ -29,7 +29,7 @@ from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import load_scenario
 
 #: keys produced only under conditions these short lockstep runs do not meet
-CONDITIONAL = {"lateness_us", "overruns", "overrun_threshold_us",  # real-time runs only
+CONDITIONAL = {"lateness_us", "lateness_histogram_us", "overruns", "overrun_threshold_us",  # real time only
                "exec_instructions", "mcu_clock_hz", "exec_time_model"}  # qemu targets only (tests/firmware_board)
 
 

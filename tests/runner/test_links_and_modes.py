@@ -60,6 +60,10 @@ def test_realtime_mode_in_process_reports_lateness() -> None:
     _assert_holds_operating_point(res.metrics)
     lat = res.metrics["lateness_us"]
     assert set(lat) == {"median", "p99", "max"} and lat["median"] >= 0.0
+    hist = res.metrics["lateness_histogram_us"]
+    assert sum(hist["counts"]) == res.metrics["total_periods"]  # every period start in one bin
+    over = sum(c for e, c in zip(hist["edges_us"], hist["counts"], strict=True) if e >= 100.0)
+    assert over <= res.metrics["overruns"]  # starts ≥ 100 µs late are overruns (threshold 50 µs)
     # pacing: the wall time is the simulated time (within start-up slack), or - on a loaded machine - the
     # periods that started late are counted as overruns and the summary warns (never a silent "0 misses")
     if res.outcome.wall_time_s != pytest.approx(0.2, rel=0.1):
