@@ -105,11 +105,3 @@ class IntQuantiles:
         bins = np.searchsorted(edges, self._keys, side="right") - 1
         bins = np.clip(bins, 0, edges.shape[0] - 2)
         return np.bincount(bins, weights=self._counts, minlength=edges.shape[0] - 1).astype(np.int64)
-
-    def histogram(self, edges: np.ndarray) -> np.ndarray:
-        """Counts of the samples in the bins [edges[i], edges[i+1]) of raw (unscaled) integer values; samples below
-        edges[0] count in the first bin, from edges[-1] on in the last (len(edges) - 1 bins)."""
-        self._fold()
-        bins = np.searchsorted(edges, self._keys, side="right") - 1
-        bins = np.clip(bins, 0, edges.shape[0] - 2)
-        return np.bincount(bins, weights=self._counts, minlength=edges.shape[0] - 1).astype(np.int64)
