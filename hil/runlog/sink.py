@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import BinaryIO
 
@@ -13,6 +13,7 @@ from mcap.well_known import MessageEncoding, SchemaEncoding
 from mcap.writer import CompressionType, Writer
 from pmsm_hil.hil.records import FAULT_DTYPE, FRAME_DTYPE, PERIOD_DTYPE, TRACE_DTYPE
 from pmsm_hil.hil.runlog import encoding, topics
+from pmsm_hil.hil.runlog.bulk_messages import BulkMessages
 from pmsm_hil.hil.runlog.errors import RunLogError
 
 COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
@@ -61,6 +62,7 @@ class McapSink:
         w.add_metadata(topics.TOPIC_METADATA, meta)
         w.add_message(ch_meta, 0, json.dumps(meta).encode(), 0)
         self.counts = {"periods": 0, "frames": 0, "trace_blocks": 0, "trace_samples": 0, "faults": 0}
+        self._bulk = BulkMessages.of(self._writer)
         self._closed = False
         self._trace_dtype = trace_dtype
 
@@ -79,13 +81,19 @@ class McapSink:
         self._write_records(np.frombuffer(raw, dtype=FAULT_DTYPE), encoding.encode_faults, self._ch_faults,
                             "faults")
 
-    def _write_records(self, block: np.ndarray, encode: Callable[[np.ndarray], Iterable[bytes]], channel: int,
+    def _write_records(self, block: np.ndarray, encode: Callable[[np.ndarray], Sequence[bytes]], channel: int,
                        count_key: str) -> None:
         """One message per record of `block` (encoded by `encode`), stamped with its time, sequence = seq."""
         times = encoding.periods_log_times_ns(block)
-        add = self._writer.add_message
-        for t_ns, msg, seq in zip(times, encode(block), block["seq"].tolist(), strict=True):
-            add(channel, t_ns, msg, t_ns, seq)
+        msgs, seqs = encode(block), block["seq"].tolist()
+        if len(msgs) != len(times):
+            raise RunLogError(f"{count_key}: {len(msgs)} messages encoded for {len(times)} records")
+        if self._bulk is not None:
+            self._bulk.add(channel, times, msgs, seqs)
+        else:
+            add = self._writer.add_message
+            for t_ns, msg, seq in zip(times, msgs, seqs, strict=True):
+                add(channel, t_ns, msg, t_ns, seq)
         self.counts[count_key] += block.shape[0]
 
     def write_trace(self, raw: bytes) -> None:
