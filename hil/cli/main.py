@@ -4,8 +4,14 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from types import ModuleType
+
+# Nothing `hil` runs calls BLAS, but OpenBLAS starts a worker thread per extra core that spins ~0.05-0.1 s of
+# CPU after numpy is imported (in this process and in the logger process, which inherits the environment):
+# one thread unless the user chose otherwise. Set before the first numpy import (the imports below).
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from pmsm_hil.hil.errors import HilError
 from pmsm_hil.hil.metrics.errors import MetricsError
