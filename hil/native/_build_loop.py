@@ -23,8 +23,8 @@ FIRMWARE_FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion
                   "-O2", "-fPIC", "-DHIL_APP_REFERENCE_PROFILED"]
 LOOP_FLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion", "-ffp-contract=off",
               "-fno-builtin-sin", "-fno-builtin-cos", "-pthread"]
-LOOP_SOURCES = ("loop.c", "loop_frames.c", "loop_rt.c", "loop_udp.c", "target_udp.c", "loop_board.c", "dq_segment.c",
-                "gate_edges.c", "plant.c", "plant6.c")
+LOOP_SOURCES = ("loop.c", "loop_frames.c", "loop_rt.c", "nl_link.c", "loop_udp.c", "loop_serial.c", "loop_socketcan.c",
+                "target_serve.c", "loop_board.c", "dq_segment.c", "gate_edges.c", "plant.c", "plant6.c")
 
 CDEF = """
 #define NL_BLOCK ...
@@ -98,7 +98,7 @@ typedef struct {
     int32_t realtime;
     int64_t overrun_ns, spin_ns;
     int32_t rt_priority, cpu, lock_memory;
-    void *udp;
+    const struct nl_link *link;
     int64_t lockstep_timeout_ns;
 } nl_config_t;
 
@@ -162,6 +162,14 @@ int nl_encode_meas(const nl_config_t *c, uint16_t seq, const double *currents, d
                    hil_core_frame_t *out, int *n, int32_t *bad_field, double *bad_value);
 void hil_core_init(void);
 
+typedef struct nl_link {
+    ...;
+} nl_link_t;
+typedef struct {
+    int64_t frames_tx, frames_rx, crc_errors, framing_errors, dropped, duplicate, out_of_order, send_errors,
+        ignored, foreign_dropped, session_dropped;
+    int64_t blocked;
+} nl_link_stats_t;
 typedef struct {
     int32_t fd;
     uint32_t session;
@@ -171,14 +179,44 @@ typedef struct {
     int32_t target_role;
     int32_t rx_last;
     int64_t spin_ns;
-    int64_t frames_tx, frames_rx, crc_errors, framing_errors, dropped, duplicate, out_of_order, send_errors,
-        ignored, foreign_dropped, session_dropped;
-    int64_t blocked;
+    nl_link_stats_t stats;
 } nl_udp_t;
+void nl_udp_link(nl_link_t *l, nl_udp_t *u);
+typedef struct {
+    uint8_t tx_seq;
+    ...;
+} hil_serial_t;
+typedef struct {
+    int32_t fd;
+    int32_t fd_frames;
+    hil_serial_t framer;
+    int32_t rx_last;
+    int64_t spin_ns;
+    int64_t write_timeout_ns;
+    nl_link_stats_t stats;
+    uint8_t pkt[...];
+    int32_t pkt_n;
+    int32_t discarding;
+    uint8_t rx[...];
+    int32_t rx_at, rx_n;
+} nl_serial_t;
+void nl_serial_link(nl_link_t *l, nl_serial_t *s);
+int nl_serial_send(nl_serial_t *s, const hil_core_frame_t *f);
+int nl_serial_recv(nl_serial_t *s, hil_core_frame_t *f, int64_t deadline_ns);
+typedef struct {
+    int32_t fd;
+    int32_t fd_frames;
+    int64_t spin_ns;
+    nl_link_stats_t stats;
+} nl_socketcan_t;
+void nl_socketcan_link(nl_link_t *l, nl_socketcan_t *s);
+int nl_socketcan_send(nl_socketcan_t *s, const hil_core_frame_t *f);
+int nl_socketcan_recv(nl_socketcan_t *s, hil_core_frame_t *f, int64_t deadline_ns);
 #define NT_END_SIGNAL ...
 #define NT_END_PARENT ...
 #define NT_END_IDLE ...
-int32_t nt_serve(nl_udp_t *u, int64_t idle_ns, int32_t parent_pid);
+#define NT_END_CLOSED ...
+int32_t nt_serve(const nl_link_t *l, int64_t idle_ns, int32_t parent_pid);
 typedef struct {
     uint32_t frames_rx, measurements, commands, config_writes, config_rejected, faults, unknown_id, bad_length,
         tx_overflow, steps;
@@ -194,7 +232,9 @@ PREAMBLE = """
 #include "loop_frames.h"
 #include "hil_target_core.h"
 #include "loop_udp.h"
-#include "target_udp.h"
+#include "loop_serial.h"
+#include "loop_socketcan.h"
+#include "target_serve.h"
 
 static size_t nl_sizeof_period(void) { return sizeof(nl_period_t); }
 static size_t nl_sizeof_frame(void) { return sizeof(nl_frame_rec_t); }

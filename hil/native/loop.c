@@ -9,7 +9,7 @@
 #include "loop.h"
 #include "loop_frames.h"
 #include "loop_rt.h"
-#include "loop_udp.h"
+#include "nl_link.h"
 #include "plant.h"
 #include "plant6.h"
 
@@ -240,8 +240,8 @@ static void to_target(loop_t *L, const hil_core_frame_t *frames, int n, int deli
     for (j = 0; j < n; ++j) {
         L->r->frames_tx++;
         record_frame(L, 0u, &frames[j]);
-        if (L->c->udp != NULL) {
-            (void)nl_udp_send((nl_udp_t *)L->c->udp, &frames[j]);
+        if (L->c->link != NULL) {
+            (void)L->c->link->send(L->c->link->ctx, &frames[j]);
         } else if (deliver) {
             hil_core_rx(frames[j].id, frames[j].data, frames[j].len, frames[j].fd);
         }
@@ -308,16 +308,17 @@ static void take_frame(loop_t *L, const hil_core_frame_t *f)
     }
 }
 
-/* ClosedLoop._await_command over UDP: what is queued, then frames until the reply or the deadline (the period
- * end in real time, the lockstep timeout else), then what came with the reply (poll_command drains it all). */
-static void from_udp(loop_t *L)
+/* ClosedLoop._await_command over a link to another process: what is queued, then frames until the reply or the
+ * deadline (the period end in real time, the lockstep timeout else), then what came with the reply
+ * (poll_command drains it all). */
+static void from_link(loop_t *L)
 {
     const nl_config_t *c = L->c;
-    nl_udp_t *u = (nl_udp_t *)c->udp;
+    const nl_link_t *l = c->link;
     hil_core_frame_t f;
     int64_t t0;
     int64_t deadline;
-    while (nl_udp_recv(u, &f, 0)) {
+    while (l->recv(l->ctx, &f, 0) > 0) {
         take_frame(L, &f);
     }
     if (L->have_reply) {
@@ -325,11 +326,11 @@ static void from_udp(loop_t *L)
     }
     t0 = nl_now_ns();
     deadline = c->realtime ? L->next_start + c->ts_ns : t0 + c->lockstep_timeout_ns;
-    while (!L->have_reply && nl_udp_recv(u, &f, deadline)) {
+    while (!L->have_reply && l->recv(l->ctx, &f, deadline) > 0) {
         take_frame(L, &f);
     }
     if (L->have_reply) {
-        while (nl_udp_recv(u, &f, 0)) {
+        while (l->recv(l->ctx, &f, 0) > 0) {
             take_frame(L, &f);
         }
     }
@@ -340,8 +341,8 @@ static void from_udp(loop_t *L)
 static void from_target(loop_t *L)
 {
     hil_core_frame_t f;
-    if (L->c->udp != NULL) {
-        from_udp(L);
+    if (L->c->link != NULL) {
+        from_link(L);
         return;
     }
     while (hil_core_tx(&f)) {
@@ -671,7 +672,7 @@ static int accept(loop_t *L, int64_t k, int ok)
     }
     r->silent = 0;
     L->next.cmd = L->reply;
-    if (c->udp == NULL && hil_core_counters()->steps > 0u) { /* another process: no split, no torque ref */
+    if (c->link == NULL && hil_core_counters()->steps > 0u) { /* another process: no split, no torque ref */
         uint8_t full_miss = 255u;
         hil_app_reference_diag(L->next.split, &full_miss);
         L->next.tref = (double)hil_core_last_cmd()->torque_ref;
@@ -849,7 +850,7 @@ static int32_t period(loop_t *L, int64_t k)
         return NL_END_PLANT_ERROR;
     }
     from_target(L);
-    if (!L->have_reply && c->realtime && c->udp == NULL) { /* nothing more will come in process: wait it out */
+    if (!L->have_reply && c->realtime && c->link == NULL) { /* nothing more will come in process: wait it out */
         const int64_t t0 = nl_now_ns();
         const int64_t now = nl_wait_until(L->next_start + c->ts_ns, 0);
         L->wait_ns = now - t0;
@@ -857,7 +858,7 @@ static int32_t period(loop_t *L, int64_t k)
     ok = check_contract(L, k, L->have_reply);
     watchdog = accept(L, k, ok);
     load_at(c, t, &load_t, &unused_slope);
-    record(L, t, k, &smp, &st, !L->have_reply, load_t);
+    record(L, t, k, &smp, &st, !ok, load_t); /* missed: no Command applied (none, or one breaking the contract) */
     if (r->violation_count > c->tolerate) {
         return NL_END_VIOLATION;
     }

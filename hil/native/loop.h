@@ -158,9 +158,10 @@ typedef struct {
     int32_t rt_priority;       /* SCHED_FIFO priority, 0: none */
     int32_t cpu;               /* CPU for the loop thread, -1: any */
     int32_t lock_memory;       /* mlockall for the run */
-    /* the link: NULL the in-process C target core, else a UDP link to another process (nl_udp_t, loop_udp.h) */
-    void *udp;
-    int64_t lockstep_timeout_ns; /* lockstep over UDP: how long to wait for a Command [ns] (wall time) */
+    /* the link: NULL the in-process C target core, else a link to another process (nl_link.h: UDP, serial,
+     * SocketCAN) */
+    const struct nl_link *link;
+    int64_t lockstep_timeout_ns; /* lockstep over a link: how long to wait for a Command [ns] (wall time) */
 } nl_config_t;
 
 /* One block of the ring. `trace` (rows x trace_columns doubles) is the caller's. */

@@ -3,13 +3,10 @@
 
 #include <errno.h>
 #include <netinet/in.h>
-#include <poll.h>
 #include <string.h>
 #include <sys/socket.h>
-#include <time.h>
 
 #include "hil_serial.h"
-#include "loop_rt.h"
 #include "loop_udp.h"
 
 #define SESSION_SIZE 4
@@ -21,8 +18,6 @@
 #define MAX_DATAGRAM 2048
 #define FLAG_FD 0x01u
 #define FLAG_BRS 0x02u
-#define FLAG_EXTENDED 0x08u
-#define FLAG_REMOTE 0x10u
 #define ID_MASK 0x1FFFFFFFu
 #define CTRL_VERSION 1u
 #define CTRL_HELLO 1u
@@ -41,14 +36,6 @@ static uint32_t get_u32(const uint8_t *p)
     return (uint32_t)p[0] | ((uint32_t)p[1] << 8) | ((uint32_t)p[2] << 16) | ((uint32_t)p[3] << 24);
 }
 
-static int valid_length(uint8_t n, int fd)
-{
-    if (!fd) {
-        return n <= 8u;
-    }
-    return n <= 8u || n == 12u || n == 16u || n == 20u || n == 24u || n == 32u || n == 48u || n == 64u;
-}
-
 static int send_to_peer(nl_udp_t *u, const uint8_t *buf, size_t n)
 {
     struct sockaddr_in to;
@@ -58,7 +45,7 @@ static int send_to_peer(nl_udp_t *u, const uint8_t *buf, size_t n)
     to.sin_port = u->peer_port;
     while (sendto(u->fd, buf, n, 0, (const struct sockaddr *)&to, sizeof to) < 0) {
         if (errno != EINTR) {
-            u->send_errors++;
+            u->stats.send_errors++;
             return -1;
         }
     }
@@ -70,8 +57,8 @@ int nl_udp_send(nl_udp_t *u, const hil_core_frame_t *f)
     uint8_t buf[DATA_MIN + HIL_CORE_MAX_PAYLOAD];
     uint16_t crc;
     const uint8_t flags = f->fd ? (uint8_t)(FLAG_FD | FLAG_BRS) : 0u;
-    if (!valid_length(f->len, f->fd)) {
-        u->send_errors++;
+    if (!nl_valid_length(f->len, f->fd)) {
+        u->stats.send_errors++;
         return -1;
     }
     put_u32(buf, u->session);
@@ -87,30 +74,8 @@ int nl_udp_send(nl_udp_t *u, const hil_core_frame_t *f)
     if (send_to_peer(u, buf, (size_t)(DATA_MIN + f->len)) != 0) {
         return -1;
     }
-    u->frames_tx++;
+    u->stats.frames_tx++;
     return 0;
-}
-
-/* SeqTracker.accept: 1 deliver, 0 a repeat. */
-static int seq_accept(nl_udp_t *u, uint8_t seq)
-{
-    int d;
-    if (u->rx_last < 0) {
-        u->rx_last = seq;
-        return 1;
-    }
-    d = (int)((uint8_t)(seq - (uint8_t)u->rx_last));
-    if (d == 0) {
-        u->duplicate++;
-        return 0;
-    }
-    if (d < 128) {
-        u->dropped += d - 1;
-        u->rx_last = seq;
-        return 1;
-    }
-    u->out_of_order++;
-    return 1;
 }
 
 /* A control datagram (session 0): the target adopts a HELLO and acknowledges it. */
@@ -120,7 +85,7 @@ static void control(nl_udp_t *u, const uint8_t *d)
     const uint8_t kind = d[8];
     if (memcmp(d + 4, "HILS", 4) != 0 || d[9] != CTRL_VERSION || (kind != CTRL_HELLO && kind != CTRL_ACK)
         || sid == 0u) {
-        u->framing_errors++;
+        u->stats.framing_errors++;
     } else if (kind == CTRL_HELLO && u->target_role) {
         uint8_t ack[CONTROL_SIZE];
         if (u->session != sid) {
@@ -134,7 +99,7 @@ static void control(nl_udp_t *u, const uint8_t *d)
         put_u32(ack + 10, sid);
         (void)send_to_peer(u, ack, sizeof ack);
     } else {
-        u->session_dropped++;
+        u->stats.session_dropped++;
     }
 }
 
@@ -143,45 +108,26 @@ static int datagram(nl_udp_t *u, const uint8_t *d, size_t n, hil_core_frame_t *f
 {
     const uint8_t *body = d + SESSION_SIZE;
     uint16_t crc;
-    uint8_t flags;
     uint8_t len;
     if (n == CONTROL_SIZE && get_u32(d) == 0u) {
         control(u, d);
         return 0;
     }
     if (n < DATA_MIN || d[LENGTH_AT] != n - DATA_MIN) {
-        u->framing_errors++;
+        u->stats.framing_errors++;
         return 0;
     }
     if (u->session == 0u || get_u32(d) != u->session) {
-        u->session_dropped++;
+        u->stats.session_dropped++;
         return 0;
     }
     len = d[LENGTH_AT];
     crc = (uint16_t)(((uint16_t)d[n - 2] << 8) | d[n - 1]);
     if (hil_serial_crc16(body, (size_t)(HEADER_SIZE + len), 0xFFFFu) != crc) {
-        u->crc_errors++;
+        u->stats.crc_errors++;
         return 0;
     }
-    flags = body[4];
-    if (!valid_length(len, (flags & FLAG_FD) != 0u)) {
-        u->framing_errors++;
-        return 0;
-    }
-    if (!seq_accept(u, body[5])) {
-        return 0;
-    }
-    u->frames_rx++;
-    if (flags & (FLAG_EXTENDED | FLAG_REMOTE)) {
-        u->ignored++;
-        return 0;
-    }
-    f->id = get_u32(body);
-    f->fd = (flags & FLAG_FD) ? 1u : 0u;
-    f->len = len;
-    memcpy(f->data, body + HEADER_SIZE, len);
-    memset(f->data + len, 0, (size_t)(HIL_CORE_MAX_PAYLOAD - len));
-    return 1;
+    return nl_accept_framed(body, &u->rx_last, &u->stats, f);
 }
 
 int nl_udp_recv(nl_udp_t *u, hil_core_frame_t *f, int64_t deadline_ns)
@@ -192,11 +138,10 @@ int nl_udp_recv(nl_udp_t *u, hil_core_frame_t *f, int64_t deadline_ns)
         struct sockaddr_in from;
         socklen_t alen = sizeof from;
         const ssize_t n = recvfrom(u->fd, buf, sizeof buf, MSG_DONTWAIT, (struct sockaddr *)&from, &alen);
-        int64_t now;
         if (n >= 0) {
             if (alen < (socklen_t)sizeof from || from.sin_family != AF_INET || from.sin_addr.s_addr != u->peer_addr
                 || from.sin_port != u->peer_port) {
-                u->foreign_dropped++;
+                u->stats.foreign_dropped++;
             } else if (datagram(u, buf, (size_t)n, f)) {
                 return 1;
             }
@@ -206,26 +151,12 @@ int nl_udp_recv(nl_udp_t *u, hil_core_frame_t *f, int64_t deadline_ns)
             continue;
         }
         if (errno != EAGAIN && errno != EWOULDBLOCK) { /* e.g. ICMP port unreachable */
-            u->framing_errors++;
+            u->stats.framing_errors++;
         }
-        now = nl_now_ns();
-        if (now >= deadline_ns) {
-            return 0;
-        }
-        if (spin_end < 0) {
-            spin_end = now + u->spin_ns;
-        }
-        if (now >= spin_end) {
-            struct pollfd p;
-            struct timespec ts;
-            const int64_t left = deadline_ns - now;
-            p.fd = u->fd;
-            p.events = POLLIN;
-            p.revents = 0;
-            ts.tv_sec = (time_t)(left / 1000000000);
-            ts.tv_nsec = (long)(left % 1000000000);
-            u->blocked++;
-            (void)ppoll(&p, 1, &ts, NULL);
+        if (nl_wait_readable(u->fd, deadline_ns, u->spin_ns, &spin_end, &u->stats) == 0) {
+            return 0; /* -1 (POLLERR: an ICMP error queued) is read and counted by the next recvfrom */
         }
     }
 }
+
+NL_LINK_DEFINE(nl_udp, nl_udp_t)

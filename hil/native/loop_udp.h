@@ -15,7 +15,7 @@
 
 #include <stdint.h>
 
-#include "hil_target_core.h"
+#include "nl_link.h"
 
 typedef struct {
     int32_t fd;                /* bound UDP socket */
@@ -26,10 +26,7 @@ typedef struct {
     int32_t target_role;       /* 1: adopt and acknowledge the peer's HELLO; 0 (host): count it as dropped */
     int32_t rx_last;           /* last link sequence number accepted, -1: none */
     int64_t spin_ns;           /* busy-poll this long before blocking */
-    /* LinkStats */
-    int64_t frames_tx, frames_rx, crc_errors, framing_errors, dropped, duplicate, out_of_order, send_errors,
-        ignored, foreign_dropped, session_dropped;
-    int64_t blocked;           /* waits that ended in ppoll (the spin found nothing) */
+    nl_link_stats_t stats;
 } nl_udp_t;
 
 /* Send one frame (FD frames with the FD and BRS flags, as FramedBus.send_frame); 0 ok, -1 counted error. */
@@ -38,5 +35,8 @@ int nl_udp_send(nl_udp_t *u, const hil_core_frame_t *f);
 /* The next frame from the peer into *f: 1, or 0 when none came before deadline_ns (CLOCK_MONOTONIC; a
  * deadline in the past: only what is queued now). */
 int nl_udp_recv(nl_udp_t *u, hil_core_frame_t *f, int64_t deadline_ns);
+
+/* *l: the link on *u. */
+void nl_udp_link(nl_link_t *l, nl_udp_t *u);
 
 #endif

@@ -10,6 +10,7 @@ from typing import Any
 
 from pmsm_hil.hil.mechanics import RPM_TO_RAD_S
 from pmsm_hil.hil.plant_base import PlantBase
+from pmsm_hil.hil.runner.native_link_kinds import NATIVE_WIRES
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import Scenario
 from pmsm_hil.protocol import codec6
@@ -59,11 +60,11 @@ def support_problem(cfg: RunConfig, lib: Any) -> str | None:
     """Why this run cannot use the native loop, None when it can."""
     kind = parse_spec(cfg.link).kind
     in_process = cfg.target in ("auto", "inproc") and kind == "virtual"
-    over_udp = cfg.target in ("auto", "spawn", "external") and kind == "udp"
-    if not (in_process or over_udp):
+    over_link = cfg.target in ("auto", "spawn", "external") and kind.lower() in NATIVE_WIRES
+    if not (in_process or over_link):
         target = cfg.target.partition(":")[0]
         return (f"the native loop runs the in-process target on the virtual link or a spawned or external target "
-                f"on a udp link (here: a {kind} link, {target} target)")
+                f"on a {'/'.join(NATIVE_WIRES)} link (here: a {kind} link, {target} target)")
     if cfg.fault_spec is not None:
         return "link fault injection (--fault) runs on the Python link"
     sc = cfg.scenario

@@ -12,8 +12,9 @@ from pmsm_hil.hil.runner.block_sink import RunSink
 from pmsm_hil.hil.runner.closed_loop import LoopOutcome
 from pmsm_hil.hil.runner.native_config import NativeOptions, support_problem
 from pmsm_hil.hil.runner.native_link import NativeCoreLink, NativeLoopUnavailableError, native_lib
+from pmsm_hil.hil.runner.native_link_kinds import NATIVE_WIRES
 from pmsm_hil.hil.runner.native_loop import NativeLoop
-from pmsm_hil.hil.runner.native_udp import NativeUdpLink, udp_bus
+from pmsm_hil.hil.runner.native_wire import NativeWireLink
 from pmsm_hil.hil.runner.plant_setup import build_plant
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.target_client import TargetClient
@@ -38,19 +39,22 @@ def python_loop_reason(cfg: RunConfig) -> str | None:
 
 
 def connect_native(cfg: RunConfig) -> TargetConnection:
-    """The host's client on the C target core (the in-process target of the native loop), or on a UDP target
-    (spawned: the native target, `hil target --native`) through the link the C loop takes over."""
+    """The host's client on the C target core (the in-process target of the native loop), or on a target in
+    another process over UDP, serial or SocketCAN (spawned: the native target, `hil target --native`) through
+    the link the C loop takes over."""
     spec = parse_spec(cfg.link)
     profile = link_kind(spec).profile(spec)
-    if spec.kind == "udp":
+    wire = NATIVE_WIRES.get(spec.kind.lower())
+    if wire is not None:
         ffi, lib = native_lib()
         conn = connect_target(cfg, native_target=True)
-        bus = udp_bus(conn.host_link)
-        if bus is None:  # the udp kind always opens a hiludp bus
+        bus = wire.bus_of(conn.host_link)
+        if bus is None:  # e.g. serial:socket://...: no descriptor for C
             conn.close()
-            raise NativeLoopUnavailableError(f"link {cfg.link!r} did not open a hiludp socket")
-        udp = NativeUdpLink(conn.host_link, bus, ffi, lib, fd=profile == "canfd")
-        conn.host_link = conn.client.link = udp
+            raise NativeLoopUnavailableError(f"link {cfg.link!r} opened no {spec.kind} port the native loop can take "
+                                             "over")
+        native = NativeWireLink(conn.host_link, bus, wire, ffi, lib, fd=profile == "canfd")
+        conn.host_link = conn.client.link = native
         return conn
     link = NativeCoreLink(fd=profile == "canfd")
     client = TargetClient(link, FrameCodec(profile))
@@ -75,7 +79,7 @@ def run_native(cfg: RunConfig, conn: TargetConnection, cid: int, sink: RunSink,
                silent_after: int | None) -> LoopOutcome:
     """The run through the C loop, feeding `sink` block by block."""
     link = conn.host_link
-    assert isinstance(link, NativeCoreLink | NativeUdpLink)
+    assert isinstance(link, NativeCoreLink | NativeWireLink)
     fault = conn.client.faults[0] if conn.client.faults else None
     opts = NativeOptions(record_frames=sink.logger is not None, silent_after=silent_after,
                          fault=(fault.code, fault.detail) if fault is not None else None)
@@ -89,7 +93,7 @@ def realtime_warnings(cfg: RunConfig, conn: TargetConnection) -> list[str]:
     """What the real-time set-up of the native loop was refused (mlockall, --rt-priority, --cpu), one line each;
     --rt-priority / --cpu given to a run of the Python loop."""
     link = conn.host_link
-    if not isinstance(link, NativeCoreLink | NativeUdpLink):
+    if not isinstance(link, NativeCoreLink | NativeWireLink):
         asked = [opt for opt, given in (("--rt-priority", cfg.rt_priority), ("--cpu", cfg.cpu is not None)) if given]
         return [f"{' and '.join(asked)}: not applied, they act on the native loop and this run used the Python "
                 f"loop"] if asked else []

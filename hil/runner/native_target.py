@@ -1,9 +1,11 @@
-"""The native target: `hil target --native` serves the C target core and reference firmware on a UDP link from
-a C loop (hil/native/target_udp.c), so a cross-process run measures the link, not a second interpreter.
+"""The native target: `hil target --native` serves the C target core and reference firmware on a UDP, serial or
+SocketCAN link from a C loop (hil/native/target_serve.c), so a cross-process run measures the link, not a second
+interpreter.
 
-Python opens the socket (the same binding and one-line errors as the Python target) and prints the ready line;
-C agrees each run's session (the host's HELLO), serves frames and stops on SIGTERM/SIGINT, the idle timeout or
-the death of the parent (PR_SET_PDEATHSIG, as `serve` in process.py, plus a getppid check).
+Python opens the link (the same binding, port set-up and one-line errors as the Python target) and prints the
+ready line; C serves frames (over UDP it agrees each run's session from the host's HELLO) and stops on
+SIGTERM/SIGINT, the idle timeout, the death of the parent (PR_SET_PDEATHSIG, as `serve` in process.py, plus a
+getppid check) or the host closing the link (a pty's other end).
 """
 
 from __future__ import annotations
@@ -13,11 +15,12 @@ from dataclasses import dataclass
 
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.runner.native_link import native_lib
-from pmsm_hil.hil.runner.native_udp import SPIN_NS, udp_bus, udp_counters, udp_handle
-from pmsm_hil.protocol.links import open_link
+from pmsm_hil.hil.runner.native_link_kinds import NATIVE_WIRES
+from pmsm_hil.hil.runner.native_wire import WireHandle
+from pmsm_hil.protocol.links import open_link, parse_spec
 from pmsm_hil.sim_target.process import die_with_parent
 
-_REASONS = {1: "signal", 2: "parent exited", 3: "idle"}
+_REASONS = {1: "signal", 2: "parent exited", 3: "idle", 4: "link closed"}
 
 
 @dataclass(slots=True)
@@ -31,28 +34,32 @@ class NativeServed:
 
 def serve_native(link_spec: str, *, role: str = "target", max_idle_s: float | None = None,
                  parent_pid: int | None = None, on_ready: Callable[[], None] | None = None) -> NativeServed:
-    """Serve the C target core on the UDP link `link_spec` until an ending (see the module docstring)."""
+    """Serve the C target core on the link `link_spec` until an ending (see the module docstring)."""
     ffi, lib = native_lib()
+    wire = NATIVE_WIRES.get(parse_spec(link_spec).kind.lower())
+    if wire is None:
+        *kinds, last = NATIVE_WIRES
+        raise ParameterError(f"--native: serves {', '.join(kinds)} and {last} links only (here: {link_spec!r})")
     orphaned = die_with_parent(parent_pid) if parent_pid is not None else (lambda: False)
     link = open_link(link_spec, role)  # type: ignore[arg-type]
     try:
-        bus = udp_bus(link)
+        bus = wire.bus_of(link)
         if bus is None:
-            raise ParameterError(f"--native: serves udp links only (here: {link_spec!r})")
+            raise ParameterError(f"--native: {link_spec!r} opened no port the C loop can serve")
         lib.hil_core_init()
-        u = udp_handle(ffi, bus, target_role=True, spin_ns=SPIN_NS)
+        h = WireHandle(wire, ffi, lib, bus, target_role=True)
         if on_ready is not None:
             on_ready()
         if orphaned():
             end = 2
         else:
             idle_ns = 0 if max_idle_s is None else int(max_idle_s * 1e9)
-            end = int(lib.nt_serve(u, idle_ns, parent_pid or 0))
+            end = int(lib.nt_serve(h.link, idle_ns, parent_pid or 0))
         c = lib.hil_core_counters()
         counters = {name: int(getattr(c, name)) for name in ("measurements", "commands", "config_writes",
                                                               "config_rejected", "faults")}
         stats = link.stats.as_dict()
-        for name, value in udp_counters(u).items():
+        for name, value in h.counters().items():
             stats[name] += value
         reason = _REASONS.get(end, "?")
         if end == 3 and max_idle_s is not None:

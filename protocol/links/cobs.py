@@ -95,6 +95,17 @@ class Deframer:
             buf.clear()
             self._discarding = True
 
+    @property
+    def pending(self) -> tuple[bytes, bool]:
+        """(bytes after the last delimiter, discarding until the next one): where a native loop reading the
+        stream for a run continues from (`resume` hands its state back)."""
+        return bytes(self._buf), self._discarding
+
+    def resume(self, pending: bytes, discarding: bool) -> None:
+        """Continue from a packet half received (`pending`) or a run being discarded."""
+        self._buf[:] = pending
+        self._discarding = discarding
+
     def _packet(self, enc: bytes) -> None:
         stats = self._stats
         if len(enc) > MAX_ENCODED:

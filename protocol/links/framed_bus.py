@@ -49,6 +49,17 @@ class FramedBus(can.BusABC):
         return body
 
     # -- shared --
+    @property
+    def link_seq(self) -> tuple[int, int]:
+        """(next link sequence number sent, last one received or -1): what a native loop taking the socket or
+        port over for a run continues from (`resume_link_seq` hands them back)."""
+        return self._tx_seq, self._tracker.last
+
+    def resume_link_seq(self, tx_seq: int, rx_last: int) -> None:
+        """Continue from the link sequence numbers a native loop used on this socket or port."""
+        self._tx_seq = tx_seq & 0xFF
+        self._tracker.last = rx_last
+
     def _accept(self, packet: bytes, offset: int = 0) -> None:
         """A header+payload whose length field matches arrived at `offset` of `packet`; a payload length
         that is not a valid classic (≤ 8) or FD length is a framing error."""

@@ -77,6 +77,11 @@ class CobsSerialBus(FramedBus):
             return self._raw_fd
         raise NotImplementedError("no descriptor for this serial transport")
 
+    @property
+    def deframer(self) -> Deframer:
+        """The receiver's deframer (a native loop reading the port for a run takes its state over)."""
+        return self._deframer
+
     def _encode(self, body: bytes) -> bytes:
         return encode_packet(body)
 

@@ -117,17 +117,6 @@ class UdpUnicastBus(FramedBus):
         """The peer's (IPv4 address, port): the only sender accepted."""
         return self._remote
 
-    @property
-    def link_seq(self) -> tuple[int, int]:
-        """(next link sequence number sent, last one received or -1): what a native loop taking the socket
-        over for a run continues from (`resume_link_seq` hands them back)."""
-        return self._tx_seq, self._tracker.last
-
-    def resume_link_seq(self, tx_seq: int, rx_last: int) -> None:
-        """Continue from the link sequence numbers a native loop used on this socket."""
-        self._tx_seq = tx_seq & 0xFF
-        self._tracker.last = rx_last
-
     # -- session handshake --
     def _control(self, kind: int, sid: int) -> None:
         try:

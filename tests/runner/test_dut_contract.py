@@ -84,6 +84,7 @@ def _run(tmp_path: Path, pty: tuple[int, str], *rules: str, extra: tuple[str, ..
 def test_a_clean_run_completes_and_disables_the_target(tmp_path: Path, pty: tuple[int, str]) -> None:
     e = _run(tmp_path, pty)
     assert e.rc == 0 and e.metrics["end_reason"] == "completed" and e.metrics["dut_violations"] == 0
+    assert e.metrics["loop"] == "native"  # --loop auto: the C loop over the serial port (tests: both loops alike)
     assert e.setpoints() == [1, 0]
     assert e.metrics["end_period"] == 99
     e.check_safe_and_complete()
@@ -153,7 +154,7 @@ def test_an_internal_error_still_stops_safely(tmp_path: Path, pty: tuple[int, st
         return real(self, *args)
 
     monkeypatch.setattr(PlantBase, "advance", failing)
-    e = _run(tmp_path, pty)
+    e = _run(tmp_path, pty, extra=("--loop", "python"))  # the failure is the Python loop's per-period advance
     assert e.rc == 1 and e.metrics["end_reason"] == "internal error: RuntimeError: injected failure"
     assert e.metrics["end_period"] == 39
     e.check_safe_and_complete()
@@ -174,7 +175,7 @@ def test_interrupt_stops_safely_with_exit_130(sig: signal.Signals, tmp_path: Pat
     host.send_signal(sig)
     rc = host.wait(timeout=60)
     e = _ended(rc, out, log, target)
-    assert rc == 130 and e.metrics["end_reason"].startswith("interrupted")
+    assert rc == 130 and e.metrics["end_reason"].startswith("interrupted") and e.metrics["loop"] == "native"
     e.check_safe_and_complete()
 
 

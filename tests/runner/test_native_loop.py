@@ -129,7 +129,8 @@ def test_a_silent_target_ends_both_loops_alike() -> None:
 def test_runs_the_native_loop_cannot_do_use_the_python_loop_with_the_reason() -> None:
     assert python_loop_reason(_three()) is None
     assert python_loop_reason(_three(link="udp", target="spawn")) is None  # tests/runner/test_native_udp.py
-    assert "serial link" in (python_loop_reason(_three(link="serial", target="spawn")) or "")
+    assert python_loop_reason(_three(link="serial:pty", target="spawn")) is None  # test_native_serial.py
+    assert "pcan link" in (python_loop_reason(_three(link="pcan:PCAN_USBBUS1", target="external")) or "")
     assert "--fault" in (python_loop_reason(_three(faults="drop=0.1")) or "")
     assert python_loop_reason(_three(loop="python")) == "--loop python"
     with pytest.raises(ParameterError, match="--loop native: link fault injection"):

@@ -78,4 +78,4 @@ def test_native_target_serves_udp_only_and_stops_when_idle() -> None:
     assert out.returncode == 0 and "target stopped (parent exited)" in out.stdout
     out = subprocess.run([*cmd, "--link", "virtual"], capture_output=True, text=True, timeout=60)
     assert out.returncode == 2 and out.stderr.strip().splitlines()[-1] == \
-        "hil: error: --native: serves udp links only (here: 'virtual')"
+        "hil: error: --native: serves udp, serial and socketcan links only (here: 'virtual')"

@@ -1,4 +1,4 @@
-/* The native target's serve loop (target_udp.h): sim_target/process.py `serve` over the C target core. */
+/* The native target's serve loop (target_serve.h): sim_target/process.py `serve` over the C target core. */
 #define _POSIX_C_SOURCE 200809L
 
 #include <signal.h>
@@ -7,7 +7,7 @@
 
 #include "hil_target_core.h"
 #include "loop_rt.h"
-#include "target_udp.h"
+#include "target_serve.h"
 
 #define CHECK_NS 50000000 /* parent, signal and idle checks at least this often [ns] */
 
@@ -19,7 +19,7 @@ static void on_signal(int signum)
     g_stop = 1;
 }
 
-int32_t nt_serve(nl_udp_t *u, int64_t idle_ns, int32_t parent_pid)
+int32_t nt_serve(const nl_link_t *l, int64_t idle_ns, int32_t parent_pid)
 {
     struct sigaction sa;
     struct sigaction old_term;
@@ -37,17 +37,20 @@ int32_t nt_serve(nl_udp_t *u, int64_t idle_ns, int32_t parent_pid)
     sigaction(SIGINT, &sa, &old_int);
     while (end == 0) {
         int64_t now = nl_now_ns();
-        if (nl_udp_recv(u, &in, now + CHECK_NS)) {
+        const int got = l->recv(l->ctx, &in, now + CHECK_NS);
+        if (got > 0) {
             hil_core_rx(in.id, in.data, in.len, in.fd);
             while (hil_core_tx(&out)) {
-                (void)nl_udp_send(u, &out);
+                (void)l->send(l->ctx, &out);
             }
             now = nl_now_ns();
             last_rx = now;
         } else {
             now = nl_now_ns();
         }
-        if (g_stop) {
+        if (got < 0) {
+            end = NT_END_CLOSED;
+        } else if (g_stop) {
             end = NT_END_SIGNAL;
         } else if (now >= next_check) {
             next_check = now + CHECK_NS;

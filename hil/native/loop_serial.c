@@ -1,0 +1,151 @@
+/* The hilserial link in C (loop_serial.h): the checks of Deframer._packet and FramedBus._accept / poll_frame
+ * in the same order. */
+#define _GNU_SOURCE
+
+#include <errno.h>
+#include <poll.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "loop_rt.h"
+#include "loop_serial.h"
+
+#define CRC_SIZE 2
+
+/* Wait until `fd` takes more output: 1, or 0 once deadline_ns has passed. */
+static int wait_writable(int32_t fd, int64_t deadline_ns)
+{
+    struct pollfd p;
+    struct timespec ts;
+    const int64_t left = deadline_ns - nl_now_ns();
+    if (left <= 0) {
+        return 0;
+    }
+    p.fd = fd;
+    p.events = POLLOUT;
+    p.revents = 0;
+    ts.tv_sec = (time_t)(left / 1000000000);
+    ts.tv_nsec = (long)(left % 1000000000);
+    (void)ppoll(&p, 1, &ts, NULL);
+    return 1;
+}
+
+int nl_serial_send(nl_serial_t *s, const hil_core_frame_t *f)
+{
+    uint8_t packet[HIL_SERIAL_MAX_PACKET];
+    size_t n;
+    size_t at = 0u;
+    int64_t deadline = -1;
+    if (!nl_valid_length(f->len, f->fd) || (f->fd && !s->fd_frames)) {
+        s->stats.send_errors++;
+        return -1;
+    }
+    n = hil_serial_encode(&s->framer, f, packet);
+    while (at < n) {
+        const ssize_t w = write(s->fd, packet + at, n - at);
+        if (w > 0) {
+            at += (size_t)w;
+        } else if (w < 0 && errno == EINTR) {
+            continue;
+        } else if (w < 0 && errno != EAGAIN && errno != EWOULDBLOCK) {
+            s->stats.send_errors++;
+            return -1;
+        } else {
+            if (deadline < 0) {
+                deadline = nl_now_ns() + s->write_timeout_ns;
+            }
+            if (!wait_writable(s->fd, deadline)) {
+                s->stats.send_errors++;
+                return -1;
+            }
+        }
+    }
+    s->stats.frames_tx++;
+    return 0;
+}
+
+/* One packet between delimiters (Deframer._packet, FramedBus._accept, poll_frame): 1 when it is a data
+ * frame for *f. */
+static int packet(nl_serial_t *s, hil_core_frame_t *f)
+{
+    uint8_t raw[HIL_SERIAL_MAX_ENCODED];
+    const int n = hil_serial_cobs_decode(s->pkt, (size_t)s->pkt_n, raw);
+    uint16_t crc;
+    uint8_t len;
+    if (n < (int)(HIL_SERIAL_HEADER + CRC_SIZE)) { /* malformed COBS too (-1) */
+        s->stats.framing_errors++;
+        return 0;
+    }
+    crc = (uint16_t)(((uint16_t)raw[n - 2] << 8) | raw[n - 1]);
+    if (hil_serial_crc16(raw, (size_t)n - CRC_SIZE, 0xFFFFu) != crc) {
+        s->stats.crc_errors++;
+        return 0;
+    }
+    len = raw[6];
+    if ((int)len != n - CRC_SIZE - (int)HIL_SERIAL_HEADER || len > HIL_CORE_MAX_PAYLOAD) {
+        s->stats.framing_errors++;
+        return 0;
+    }
+    return nl_accept_framed(raw, &s->rx_last, &s->stats, f);
+}
+
+/* One received byte (Deframer.feed): 1 when it completed a data frame for *f. */
+static int feed(nl_serial_t *s, uint8_t byte, hil_core_frame_t *f)
+{
+    if (byte == 0u) {
+        int got = 0;
+        if (!s->discarding && s->pkt_n > 0) {
+            got = packet(s, f);
+        }
+        s->pkt_n = 0;
+        s->discarding = 0;
+        return got;
+    }
+    if (s->discarding) {
+        return 0;
+    }
+    if (s->pkt_n >= (int32_t)HIL_SERIAL_MAX_ENCODED) { /* more than a packet can be without a delimiter */
+        s->stats.framing_errors++;
+        s->pkt_n = 0;
+        s->discarding = 1;
+        return 0;
+    }
+    s->pkt[s->pkt_n++] = byte;
+    return 0;
+}
+
+int nl_serial_recv(nl_serial_t *s, hil_core_frame_t *f, int64_t deadline_ns)
+{
+    int64_t spin_end = -1;
+    int hangup = 0;
+    for (;;) {
+        ssize_t n;
+        int w;
+        while (s->rx_at < s->rx_n) {
+            if (feed(s, s->rx[s->rx_at++], f)) {
+                return 1;
+            }
+        }
+        n = read(s->fd, s->rx, sizeof s->rx);
+        if (n > 0) {
+            s->rx_at = 0;
+            s->rx_n = (int32_t)n;
+            continue;
+        }
+        if (n < 0 && errno == EINTR) {
+            continue;
+        }
+        if ((n < 0 && errno == EIO) || (n == 0 && hangup)) { /* the other end of the pty is closed */
+            return -1;
+        }
+        /* 0: nothing (a raw tty with VMIN = 0) or end of file, EAGAIN: nothing (non-blocking) */
+        w = nl_wait_readable(s->fd, deadline_ns, s->spin_ns, &spin_end, &s->stats);
+        if (w == 0) {
+            return 0;
+        }
+        hangup = w < 0;
+    }
+}
+
+NL_LINK_DEFINE(nl_serial, nl_serial_t)
