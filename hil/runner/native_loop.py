@@ -131,8 +131,7 @@ class NativeLoop:
         cfg = self.cfg
         if cfg.mode != "realtime" or cfg.cpu is None:
             return lambda: None
-        logger = self.sink.logger if self.sink is not None else None
-        pid = getattr(logger, "pid", None)
+        pid = getattr(getattr(self.sink, "logger", None), "pid", None)  # a RunSink's logger process
         return isolate_cpu(cfg.cpu, [pid] if isinstance(pid, int) else [])
 
     def _start(self) -> LoopOutcome:
