@@ -33,7 +33,9 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
                    help="simulated seconds per measurement (default 0.5)")
     p.add_argument("--repeats", type=non_negative_int("--repeats"), default=3, help="repeats (median)")
     p.add_argument("--cross-process", default="udp,serial",
-                   help="comma list of cross-process links to measure (udp, serial; empty: none)")
+                   help="comma list of cross-process links to measure (udp, serial; empty: none): the Python "
+                        "pair, then the native pair (native loop + `hil target --native`) beside the Python pair, "
+                        "idle and beside a CPU burner")
     p.add_argument("--no-realtime", action="store_true", help="skip the real-time lateness measurement")
     p.add_argument("--qemu", type=Path, metavar="ELF",
                    help="also measure a firmware for mps2-an386 in QEMU (hil fw build --board mps2-an386) over its "
@@ -70,17 +72,18 @@ def _cpu_burner() -> Iterator[int]:
         proc.wait()
 
 
-def _udp_native_under_load(base: RunConfig, repeats: int, runs: str,
-                           progress: Callable[[str], None]) -> dict[str, Any]:
-    """The native loop with the native target over UDP and the Python pair, idle and beside a CPU burner, in
-    this run: the rates (the 50 ms linger after the disabling Setpoint excluded, as in both loops) and the
-    loaded / idle ratios."""
+def _native_pair_under_load(base: RunConfig, name: str, spec: str, repeats: int, runs: str,
+                            progress: Callable[[str], None]) -> dict[str, Any]:
+    """The native loop with the native target over link `spec` (udp, serial:pty) and the Python pair, idle and
+    beside a CPU burner, in this run: the rates (the 50 ms linger after the disabling Setpoint excluded, as in
+    both loops) as lockstep_{name}_native_hz / lockstep_{name}_python_hz (+ _loaded) and the loaded / idle
+    ratios."""
     out: dict[str, Any] = {}
-    pairs = (("udp_native", replace(base, link="udp", target="spawn", loop="native")),
-             ("udp_python", replace(base, link="udp", target="spawn", loop="python")))
+    pairs = ((f"{name}_native", replace(base, link=spec, target="spawn", loop="native")),
+             (f"{name}_python", replace(base, link=spec, target="spawn", loop="python")))
     for load in ("", "_loaded"):
-        for name, cfg in pairs:
-            progress(f"lockstep over udp, {name.replace('_', ' ')} pair{', a CPU burner beside it' if load else ''} "
+        for key, cfg in pairs:
+            progress(f"lockstep over {spec}, {key.partition('_')[2]} pair{', a CPU burner beside it' if load else ''} "
                      f"({runs})")
             try:
                 def make(cfg: RunConfig = cfg) -> RunConfig:
@@ -88,13 +91,13 @@ def _udp_native_under_load(base: RunConfig, repeats: int, runs: str,
 
                 with _cpu_burner() if load else contextlib.nullcontext():
                     res = _median_rate(make, repeats, exclude_s=ClosedLoop.LINGER_S)
-                out[f"lockstep_{name}{load}_hz"] = res["periods_per_s"]
+                out[f"lockstep_{key}{load}_hz"] = res["periods_per_s"]
             except Exception as exc:
-                out[f"lockstep_{name}{load}_error"] = str(exc)
-    for name, _ in pairs:
-        idle, loaded = out.get(f"lockstep_{name}_hz"), out.get(f"lockstep_{name}_loaded_hz")
+                out[f"lockstep_{key}{load}_error"] = str(exc)
+    for key, _ in pairs:
+        idle, loaded = out.get(f"lockstep_{key}_hz"), out.get(f"lockstep_{key}_loaded_hz")
         if idle and loaded:
-            out[f"{name}_load_ratio"] = loaded / idle
+            out[f"{key}_load_ratio"] = loaded / idle
     return out
 
 
@@ -141,8 +144,9 @@ def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
             out[f"lockstep_{name}_process_hz"] = res["periods_per_s"]
         except Exception as exc:
             out[f"lockstep_{name}_process_error"] = str(exc)
-    if "udp" in cross:
-        out.update(_udp_native_under_load(base, repeats, runs, progress))
+    for name, spec in (("udp", "udp"), ("serial", "serial:pty")):
+        if name in cross:  # the native pair beside the Python pair (both spawned)
+            out.update(_native_pair_under_load(base, name, spec, repeats, runs, progress))
     if qemu is not None:
         for transport, link in (("uart", "virtual"), ("mailbox", "mailbox")):
             progress(f"lockstep, {qemu.name} in QEMU mps2-an386 over its {transport} ({runs})")

@@ -232,3 +232,28 @@ def test_ctrl_c_ends_a_native_serial_run_safely() -> None:
     assert res.outcome.target_disabled and res.outcome.safe_state
     assert 1000 <= res.outcome.completed_periods < 3050
     assert res.metrics["link"]["lost"] == 0
+
+
+def test_bench_loop_names_the_serial_pairs_as_the_udp_pairs(monkeypatch: pytest.MonkeyPatch) -> None:
+    """`hil bench loop --cross-process udp,serial`: the same keys per link (the runs themselves faked here:
+    the figures are in docs/benchmarks.md)."""
+    from pmsm_hil.hil.cli import bench_loop
+
+    seen: list[tuple[str, str, str]] = []
+
+    def fake_rate(make: Any, repeats: int, exclude_s: float = 0.0) -> dict[str, Any]:
+        cfg = make()
+        seen.append((cfg.link, cfg.target, cfg.loop))
+        return {"periods_per_s": 1000.0 if cfg.loop == "native" else 500.0, "runs": [], "last_metrics": {}}
+
+    monkeypatch.setattr(bench_loop, "_median_rate", fake_rate)
+    monkeypatch.setattr(bench_loop, "_cpu_burner", contextlib.nullcontext)
+    out = {}
+    for name, spec in (("udp", "udp"), ("serial", "serial:pty")):
+        out.update(bench_loop._native_pair_under_load(bench_loop._base(0.01), name, spec, 1, "1 × 0.01 s",
+                                                      lambda _msg: None))
+    for name in ("udp", "serial"):
+        assert {k for k in out if k.startswith(f"lockstep_{name}_") or k.startswith(f"{name}_")} == {
+            f"lockstep_{name}_native_hz", f"lockstep_{name}_python_hz", f"lockstep_{name}_native_loaded_hz",
+            f"lockstep_{name}_python_loaded_hz", f"{name}_native_load_ratio", f"{name}_python_load_ratio"}
+    assert ("serial:pty", "spawn", "native") in seen and ("serial:pty", "spawn", "python") in seen
