@@ -171,6 +171,13 @@ typedef struct {
     int64_t blocked;
 } nl_link_stats_t;
 typedef struct {
+    int64_t spin_ns;
+    int64_t window_wall_ns, window_cpu_ns, window_blocked_ns;
+    int32_t window_n, window_spun_out, block_left, contended, spinning;
+    int64_t backoffs;
+} nl_spin_t;
+int nl_wait_readable(int32_t fd, int64_t deadline_ns, nl_spin_t *sp, int64_t *spin_end, nl_link_stats_t *st);
+typedef struct {
     int32_t fd;
     uint32_t session;
     uint32_t peer_addr;
@@ -178,7 +185,7 @@ typedef struct {
     uint8_t tx_seq;
     int32_t target_role;
     int32_t rx_last;
-    int64_t spin_ns;
+    nl_spin_t spin;
     nl_link_stats_t stats;
 } nl_udp_t;
 void nl_udp_link(nl_link_t *l, nl_udp_t *u);
@@ -191,7 +198,7 @@ typedef struct {
     int32_t fd_frames;
     hil_serial_t framer;
     int32_t rx_last;
-    int64_t spin_ns;
+    nl_spin_t spin;
     int64_t write_timeout_ns;
     nl_link_stats_t stats;
     uint8_t pkt[...];
@@ -206,7 +213,7 @@ int nl_serial_recv(nl_serial_t *s, hil_core_frame_t *f, int64_t deadline_ns);
 typedef struct {
     int32_t fd;
     int32_t fd_frames;
-    int64_t spin_ns;
+    nl_spin_t spin;
     nl_link_stats_t stats;
 } nl_socketcan_t;
 void nl_socketcan_link(nl_link_t *l, nl_socketcan_t *s);

@@ -140,7 +140,7 @@ int nl_serial_recv(nl_serial_t *s, hil_core_frame_t *f, int64_t deadline_ns)
             return -1;
         }
         /* 0: nothing (a raw tty with VMIN = 0) or end of file, EAGAIN: nothing (non-blocking) */
-        w = nl_wait_readable(s->fd, deadline_ns, s->spin_ns, &spin_end, &s->stats);
+        w = nl_wait_readable(s->fd, deadline_ns, &s->spin, &spin_end, &s->stats);
         if (w == 0) {
             return 0;
         }

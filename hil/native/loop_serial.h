@@ -26,7 +26,7 @@ typedef struct {
     int32_t fd_frames;         /* 1: CAN FD frames may be sent (the bus's fd option) */
     hil_serial_t framer;       /* framer.tx_seq: next link sequence number sent */
     int32_t rx_last;           /* last link sequence number accepted, -1: none */
-    int64_t spin_ns;           /* busy-poll this long before blocking */
+    nl_spin_t spin;            /* busy-poll, then block (adaptive, nl_link.h) */
     int64_t write_timeout_ns;  /* a full output buffer for this long: the frame is a send error */
     nl_link_stats_t stats;
     /* the deframer: the packet so far (pkt_n bytes), or discarding until the next 0x00 */

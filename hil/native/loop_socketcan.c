@@ -103,7 +103,7 @@ int nl_socketcan_recv(nl_socketcan_t *s, hil_core_frame_t *f, int64_t deadline_n
         if (errno != EAGAIN && errno != EWOULDBLOCK) { /* e.g. ENETDOWN: python-can raises, BusLink counts it */
             s->stats.framing_errors++;
         }
-        if (nl_wait_readable(s->fd, deadline_ns, s->spin_ns, &spin_end, &s->stats) == 0) {
+        if (nl_wait_readable(s->fd, deadline_ns, &s->spin, &spin_end, &s->stats) == 0) {
             return 0;
         }
     }

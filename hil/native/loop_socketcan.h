@@ -23,7 +23,7 @@
 typedef struct {
     int32_t fd;                /* CAN_RAW socket (or a SOCK_SEQPACKET end carrying the same structs) */
     int32_t fd_frames;         /* 1: CAN FD frames may be sent (CAN_RAW_FD_FRAMES is on) */
-    int64_t spin_ns;           /* busy-poll this long before blocking */
+    nl_spin_t spin;            /* busy-poll, then block (adaptive, nl_link.h) */
     nl_link_stats_t stats;
 } nl_socketcan_t;
 

@@ -153,7 +153,7 @@ int nl_udp_recv(nl_udp_t *u, hil_core_frame_t *f, int64_t deadline_ns)
         if (errno != EAGAIN && errno != EWOULDBLOCK) { /* e.g. ICMP port unreachable */
             u->stats.framing_errors++;
         }
-        if (nl_wait_readable(u->fd, deadline_ns, u->spin_ns, &spin_end, &u->stats) == 0) {
+        if (nl_wait_readable(u->fd, deadline_ns, &u->spin, &spin_end, &u->stats) == 0) {
             return 0; /* -1 (POLLERR: an ICMP error queued) is read and counted by the next recvfrom */
         }
     }

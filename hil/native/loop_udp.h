@@ -25,7 +25,7 @@ typedef struct {
     uint8_t tx_seq;            /* next link sequence number sent */
     int32_t target_role;       /* 1: adopt and acknowledge the peer's HELLO; 0 (host): count it as dropped */
     int32_t rx_last;           /* last link sequence number accepted, -1: none */
-    int64_t spin_ns;           /* busy-poll this long before blocking */
+    nl_spin_t spin;            /* busy-poll, then block (adaptive, nl_link.h) */
     nl_link_stats_t stats;
 } nl_udp_t;
 

@@ -63,9 +63,33 @@ int nl_valid_length(uint8_t n, int fd);
  * ignored. 1 when *f got a data frame (payload past len zeroed). */
 int nl_accept_framed(const uint8_t *body, int32_t *rx_last, nl_link_stats_t *st, hil_core_frame_t *f);
 
-/* Nothing to read on `fd`: 0 once deadline_ns has passed, else 1 after busy-polling (until *spin_end, set to
- * now + spin_ns on the first call of a receive: start it at -1) or blocking in ppoll until the deadline or
- * input (counted in st->blocked); -1 when ppoll reported a hang-up or an error (input may be there too). */
-int nl_wait_readable(int32_t fd, int64_t deadline_ns, int64_t spin_ns, int64_t *spin_end, nl_link_stats_t *st);
+/* How long a receive busy-polls before it blocks, adapted to the machine. Spinning wins on an idle machine
+ * (a blocked process on a halted vCPU wakes tens of µs late); blocking wins when the CPU is contended: a
+ * spinning end then takes a core from the peer or from the load, while two ends that block leave a core idle
+ * for whichever of them is woken (and a busy CPU wakes a blocked thread quickly). Over a window of
+ * NL_SPIN_WINDOW receives that waited, the time the thread was runnable but not running (wall time - its CPU
+ * time - time blocked in ppoll) and the spins that ran out before the frame came are counted. A window is
+ * contended when the first exceeds a quarter of it or the second half of its receives; after two contended
+ * windows in a row the next NL_SPIN_BACKOFF receives block at once, then spinning is tried again. All zero:
+ * spinning, no history. */
+#define NL_SPIN_WINDOW 256
+#define NL_SPIN_BACKOFF 4096
+typedef struct {
+    int64_t spin_ns;           /* busy-poll at most this long before blocking (0: always block) */
+    int64_t window_wall_ns;    /* CLOCK_MONOTONIC at the start of the current window */
+    int64_t window_cpu_ns;     /* the thread's CPU time at the start of the current window */
+    int64_t window_blocked_ns; /* time spent in ppoll in the current window */
+    int32_t window_n;          /* receives that waited in the current window */
+    int32_t window_spun_out;   /* receives of the window whose spin ran out before the frame came */
+    int32_t block_left;        /* receives left that block at once */
+    int32_t contended;         /* contended windows in a row */
+    int32_t spinning;          /* the current receive spins (not yet counted as run out) */
+    int64_t backoffs;          /* times the link went to blocking at once */
+} nl_spin_t;
+
+/* Nothing to read on `fd`: 0 once deadline_ns has passed, else 1 after busy-polling (until *spin_end, set on
+ * the first call of a receive from *sp: start it at -1) or blocking in ppoll until the deadline or input
+ * (counted in st->blocked); -1 when ppoll reported a hang-up or an error (input may be there too). */
+int nl_wait_readable(int32_t fd, int64_t deadline_ns, nl_spin_t *sp, int64_t *spin_end, nl_link_stats_t *st);
 
 #endif

@@ -129,6 +129,7 @@ def fill_config(c: Any, ffi: Any, cfg: RunConfig, plant: PlantBase, controller_i
     c.cpu = -1 if cfg.cpu is None else cfg.cpu
     c.lock_memory = 1 if cfg.mode == "realtime" else 0
 
+
 def rt_throttled() -> bool:
     """True when the kernel throttles real-time tasks (sched_rt_runtime_us ≥ 0, the default 950 000 µs per s):
     a SCHED_FIFO loop must then sleep part of each period. With `sysctl kernel.sched_rt_runtime_us=-1` it may

@@ -51,7 +51,7 @@ class WireHandle:
                  spin_ns: int = SPIN_NS) -> None:
         self.wire, self.ffi, self.bus = wire, ffi, bus
         self.state = ffi.new(f"{wire.struct} *")
-        self.state.spin_ns = spin_ns
+        self.state.spin.spin_ns = spin_ns
         wire.fill(ffi, self.state, bus, target_role)
         self.link = ffi.new("nl_link_t *")
         getattr(lib, wire.make_link)(self.link, self.state)
