@@ -7,6 +7,10 @@ with one `write`, the statistics and the chunk's message index are updated once 
 indexes are written with numpy. The file is byte-identical to the one `add_message` writes (same records,
 same chunk boundaries: a chunk is closed after the first message that takes it past the chunk size).
 
+Fixed-size messages (`/periods`, `/frames`: CDR, one size per topic) go through `add_records`: the caller
+builds a block's Message records as one numpy structured array (`message_records`, header fields and
+payload at their byte offsets), written with one `write` and indexed with numpy, no per-message Python.
+
 This reaches into the Writer's private state (mcap 1.x, `_Writer__…`); `BulkMessages.of` returns None when
 that state is not there, and the caller then uses `add_message`.
 """
@@ -28,16 +32,34 @@ from mcap.writer import Writer
 #: MCAP Message record header: opcode, record length (after these 9 bytes), channel id, sequence, log time,
 #: publish time
 _HEADER: Final = struct.Struct("<BQHIQQ")
+_HEADER_FIELDS: Final = (("opcode", "u1", 0), ("length", "<u8", 1), ("channel", "<u2", 9), ("sequence", "<u4", 11),
+                         ("log_time", "<u8", 15), ("publish_time", "<u8", 23))
+
+
+def message_records(payload: np.dtype, n: int) -> np.ndarray:
+    """`n` zeroed MCAP Message records with a fixed-size `payload` (a structured dtype): fields opcode,
+    length, channel, sequence, log_time, publish_time [ns] and `data` (the payload, at byte 31)."""
+    names = [f[0] for f in _HEADER_FIELDS] + ["data"]
+    formats = [f[1] for f in _HEADER_FIELDS] + [payload]
+    offsets = [f[2] for f in _HEADER_FIELDS] + [_HEADER.size]
+    dtype = np.dtype({"names": names, "formats": formats, "offsets": offsets,
+                      "itemsize": _HEADER.size + payload.itemsize})
+    return np.zeros(n, dtype=dtype)
 
 
 class _MessageIndex(MessageIndex):
-    """A chunk's message index written with numpy (mcap writes 2 small writes per entry)."""
+    """A chunk's message index kept as numpy (log time, offset) arrays, written in one piece (mcap writes 2
+    small writes per entry)."""
+
+    def __init__(self, channel_id: int, parts: list[np.ndarray]) -> None:
+        super().__init__(channel_id=channel_id, records=[])
+        self.parts = parts
 
     def write(self, stream: RecordBuilder) -> None:
-        pairs = np.array(self.records, dtype="<u8").reshape(-1)
+        pairs = np.concatenate(self.parts, axis=0).astype("<u8", copy=False)
         stream.start_record(Opcode.MESSAGE_INDEX)
         stream.write2(self.channel_id)
-        stream.write4(len(self.records) * 16)
+        stream.write4(pairs.shape[0] * 16)
         stream.write(pairs.tobytes())
         stream.finish_record()  # type: ignore[no-untyped-call]
 
@@ -78,14 +100,36 @@ class BulkMessages:
             count = ends[j - i]
             if chunk.count != count:
                 raise RuntimeError(f"mcap chunk: {chunk.count - start} bytes written, {count - start} expected")
-            self._account(chunk, channel, times[i:j], list(zip(times[i:j], ends, strict=False)))
+            self._account(chunk, channel, np.column_stack((times[i:j], ends[: j - i])))
             if count > self._limit:
                 self._finalize()
             i = j
 
-    def _account(self, chunk: Any, channel: int, times: Sequence[int], index: list[tuple[int, int]]) -> None:
-        """Statistics, chunk times and message index of messages just written (as `add_message` keeps them)."""
-        k, t0, t1 = len(times), min(times), max(times)
+    def add_records(self, channel: int, records: np.ndarray) -> None:
+        """Messages of `records` (from `message_records`, sequence, times and data set) on `channel`; sets
+        their opcode, length and channel."""
+        size, n, i, chunk = records.dtype.itemsize, records.shape[0], 0, self._chunk
+        records["opcode"] = Opcode.MESSAGE
+        records["length"] = size - 9
+        records["channel"] = channel
+        raw = records.view(np.uint8) if records.flags.c_contiguous else np.ascontiguousarray(records).view(np.uint8)
+        while i < n:
+            start = chunk.count
+            # up to and including the message that takes the chunk past its size
+            j = i + min(max(1, (self._limit - start) // size + 1), n - i)
+            chunk.record_writer.write(raw[i * size : j * size].data)
+            if chunk.count != start + (j - i) * size:
+                raise RuntimeError(f"mcap chunk: {chunk.count - start} bytes written, {(j - i) * size} expected")
+            offsets = start + size * np.arange(j - i, dtype=np.uint64)
+            self._account(chunk, channel, np.column_stack((records["log_time"][i:j], offsets)))
+            if chunk.count > self._limit:
+                self._finalize()
+            i = j
+
+    def _account(self, chunk: Any, channel: int, index: np.ndarray) -> None:
+        """Statistics, chunk times and message index of messages just written (as `add_message` keeps them);
+        `index`: (log time [ns], offset in the chunk) per message."""
+        k, t0, t1 = index.shape[0], int(index[:, 0].min()), int(index[:, 0].max())
         stats = self._stats
         stats.message_start_time = t0 if stats.message_count == 0 else min(t0, stats.message_start_time)
         stats.message_end_time = max(t1, stats.message_end_time)
@@ -94,7 +138,8 @@ class BulkMessages:
         chunk.message_start_time = t0 if chunk.num_messages == 0 else min(t0, chunk.message_start_time)
         chunk.message_end_time = max(t1, chunk.message_end_time)
         entry = chunk.message_indices.get(channel)
-        if not entry:
-            entry = chunk.message_indices[channel] = _MessageIndex(channel_id=channel, records=[])
-        entry.records.extend(index)
+        if not isinstance(entry, _MessageIndex):  # none yet, or mcap's own (messages added by add_message)
+            parts = [np.array(entry.records, dtype=np.uint64).reshape(-1, 2)] if entry else []
+            entry = chunk.message_indices[channel] = _MessageIndex(channel, parts)
+        entry.parts.append(index.astype(np.uint64, copy=False))
         chunk.num_messages += k

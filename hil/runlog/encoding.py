@@ -1,9 +1,9 @@
-"""Message encoders/decoders of the run log.
+"""Message encoders/decoders of the run log (the fixed-size CDR `/periods` and `/frames` are in `cdr.py`).
 
-`/periods` and `/frames` are JSON (JSON-schema channels); the JSON text is built with a %-format template
-per block, the fields constant over the block written into it once (≈ 9 µs/period on a 2-core EPYC VM, most
-of it float-to-text conversion; several times faster than `json.dumps` of a dict).
-Non-finite floats are written as `null` (JSON has no NaN) and read back as NaN.
+`/link_faults` is JSON (JSON-schema channel), built with a %-format template per block, the fields constant
+over the block written into it once; logs written before the CDR change have `/periods` and `/frames` in
+JSON too (`decode_json_records`, `decode_frames_json` read them). Non-finite floats are written as `null`
+(JSON has no NaN) and read back as NaN.
 `/trace` blocks are ROS 2 CDR (schema encoding `ros2msg`, one `float64[]` per field): formatting
 50 000 floats as JSON text costs ≈ 130 ms per 1000-period block, far too slow; CDR is a memcpy and
 Foxglove decodes it natively.
@@ -18,18 +18,23 @@ from collections.abc import Callable, Sequence
 from typing import Any, Final
 
 import numpy as np
-from pmsm_hil.hil.records import FAULT_DTYPE, FRAME_DTYPE, PERIOD_DTYPE, TRACE_DTYPE
+from pmsm_hil.hil.records import FAULT_DTYPE, FRAME_DTYPE, TRACE_DTYPE
 from pmsm_hil.hil.runlog.errors import McapFormatError
 
 CDR_LE_HEADER: Final = b"\x00\x01\x00\x00"
 
-_UNITS: Final = {
+UNITS: Final = {
     "t": "s (sim time, period start)",
     "i_a": "A",
     "i_b": "A",
     "i_c": "A",
     "i_d": "A",
     "i_q": "A",
+    "i_u": "A (second three-phase set)",
+    "i_v": "A (second three-phase set)",
+    "i_w": "A (second three-phase set)",
+    "i_x": "A (x-y harmonic subspace)",
+    "i_y": "A (x-y harmonic subspace)",
     "torque": "N·m",
     "torque_ref": "N·m",
     "load_torque": "N·m",
@@ -55,8 +60,8 @@ def json_schema(dtype: np.dtype, title: str) -> bytes:
     for name in dtype.names or ():
         field = dtype[name]
         base: dict[str, Any] = {"type": _json_type(field.base.kind)}
-        if name in _UNITS:
-            base["description"] = _UNITS[name]
+        if name in UNITS:
+            base["description"] = UNITS[name]
         if field.shape:
             props[name] = {
                 "type": "array",
@@ -72,22 +77,6 @@ def json_schema(dtype: np.dtype, title: str) -> bytes:
         "properties": props,
     }
     return json.dumps(schema).encode()
-
-
-def _flat_columns(block: np.ndarray, names: Sequence[str]) -> list[list[Any]]:
-    """Columns of `block` as Python lists (sub-array fields split per element); non-finite floats → 'null'."""
-    cols: list[list[Any]] = []
-    for name in names:
-        arr = block[name]
-        parts = [arr[:, k] for k in range(arr.shape[1])] if arr.ndim == 2 else [arr]
-        for col in parts:
-            values = col.tolist()
-            if col.dtype.kind == "f":
-                bad = np.flatnonzero(~np.isfinite(col))
-                for i in bad.tolist():
-                    values[i] = "null"
-            cols.append(values)
-    return cols
 
 
 def _template(dtype: np.dtype, names: Sequence[str]) -> str:
@@ -151,43 +140,8 @@ def make_json_encoder(dtype: np.dtype) -> Callable[[np.ndarray], list[bytes]]:
     return encode
 
 
-encode_periods: Final = make_json_encoder(PERIOD_DTYPE)
 encode_faults: Final = make_json_encoder(FAULT_DTYPE)
 
-
-_FRAME_TEMPLATE: Final = '{"t":%s,"seq":%s,"dir":%s,"id":%s,"fd":%s,"len":%s,"data":"%s"}'
-
-
-def encode_frames(block: np.ndarray) -> list[bytes]:
-    """JSON per frame: t (s), seq, dir (0 host→target, 1 target→host), id, fd, len, data (hex)."""
-    if block.shape[0] == 0:
-        return []
-    width = FRAME_DTYPE["data"].shape[0]
-    hex_all = np.ascontiguousarray(block["data"]).tobytes().hex()  # 2·width characters per frame
-    t, seq, direction, arb, fd = _flat_columns(block, ("t", "seq", "direction", "arbitration_id", "is_fd"))
-    lengths = np.minimum(block["length"], width).tolist()
-    data = [hex_all[2 * width * i : 2 * (width * i + n)] for i, n in enumerate(lengths)]
-    fd_text = ["true" if x else "false" for x in fd]
-    rows = zip(t, seq, direction, arb, fd_text, lengths, data, strict=True)
-    return [(_FRAME_TEMPLATE % row).encode() for row in rows]
-
-
-FRAME_JSON_SCHEMA: Final = json.dumps(
-    {
-        "$schema": "http://json-schema.org/draft-07/schema#",
-        "title": "pmsm_hil raw link frame",
-        "type": "object",
-        "properties": {
-            "t": {"type": ["number", "null"], "description": "s (sim time)"},
-            "seq": {"type": "integer"},
-            "dir": {"type": "integer", "description": "0 host→target, 1 target→host"},
-            "id": {"type": "integer", "description": "arbitration id"},
-            "fd": {"type": "boolean"},
-            "len": {"type": "integer", "description": "payload bytes"},
-            "data": {"type": "string", "description": "payload, hex"},
-        },
-    }
-).encode()
 
 METADATA_JSON_SCHEMA: Final = json.dumps(
     {
@@ -292,8 +246,23 @@ def decode_json_records(messages: Sequence[bytes], dtype: np.dtype, field: str) 
     return out
 
 
-def periods_log_times_ns(block: np.ndarray) -> list[int]:
-    """log_time of each record: its `t` (s) in ns, non-finite or negative times clamped to 0."""
+def decode_frames_json(messages: Sequence[bytes], field: str) -> np.ndarray:
+    """FRAME_DTYPE array of JSON frame messages (JSON-era logs: t, seq, dir, id, fd, len, data as hex; the
+    payload padded with zeros, `length` = payload bytes, null t → NaN)."""
+    out = np.zeros(len(messages), dtype=FRAME_DTYPE)
+    try:
+        for i, m in enumerate(messages):
+            d = json.loads(m)
+            payload = bytes.fromhex(d["data"])
+            out[i] = (_as_float(d["t"]), d["seq"], d["dir"], d["id"], bool(d["fd"]), len(payload),
+                      np.frombuffer(payload.ljust(FRAME_DTYPE["data"].shape[0], b"\0"), dtype=np.uint8))
+    except (ValueError, KeyError, TypeError) as exc:
+        raise McapFormatError(f"{field}: cannot decode message ({exc})") from None
+    return out
+
+
+def periods_log_times_ns(block: np.ndarray) -> np.ndarray:
+    """log_time [ns] (uint64) of each record: its `t` (s), non-finite or negative times clamped to 0."""
     t = np.nan_to_num(np.asarray(block["t"], dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0)
-    ns: list[int] = np.rint(np.clip(t, 0.0, 9.0e9) * 1e9).astype(np.int64).tolist()
+    ns: np.ndarray = np.rint(np.clip(t, 0.0, 9.0e9) * 1e9).astype(np.uint64)
     return ns

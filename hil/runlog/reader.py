@@ -8,7 +8,6 @@ recovered. Complete files are read the same way.
 from __future__ import annotations
 
 import io
-import json
 import struct
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -20,8 +19,9 @@ from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 from mcap.records import Channel, Chunk, McapRecord, Message, Metadata, Schema
 from mcap.stream_reader import breakup_chunk
+from mcap.well_known import MessageEncoding
 from pmsm_hil.hil.records import FAULT_DTYPE, FRAME_DTYPE, PERIOD_DTYPE, TRACE_DTYPE, trace_dtype
-from pmsm_hil.hil.runlog import encoding, topics
+from pmsm_hil.hil.runlog import cdr, encoding, topics
 from pmsm_hil.hil.runlog.errors import McapFormatError
 
 MAGIC = b"\x89MCAP0\r\n"
@@ -104,22 +104,61 @@ def scan_records(path: Path, state: ScanState) -> Iterator[McapRecord]:
         f.close()
 
 
+@dataclass
+class TopicMessages:
+    """The messages of one topic in file order, with the message encoding and schema of its channel(s)."""
+
+    messages: list[Message]
+    message_encoding: str = ""
+    schema: bytes | None = None
+
+
+def read_topic(path: Path, topic: str) -> TopicMessages:
+    """All messages of `topic` in the valid prefix of `path` (McapFormatError if its channels disagree on
+    the message encoding or schema)."""
+    schemas: dict[int, bytes] = {}
+    channels: dict[int, tuple[str, bytes | None]] = {}
+    out = TopicMessages([])
+    for record in scan_records(Path(path), ScanState()):
+        if isinstance(record, Schema):
+            schemas[record.id] = record.data
+        elif isinstance(record, Channel) and record.topic == topic:
+            channels[record.id] = (record.message_encoding, schemas.get(record.schema_id))
+            if len(set(channels.values())) > 1:
+                raise McapFormatError(f"{topic}: channels with different encodings or schemas")
+            out.message_encoding, out.schema = channels[record.id]
+        elif isinstance(record, Message) and record.channel_id in channels:
+            out.messages.append(record)
+    return out
+
+
 def read_topic_messages(path: Path, topic: str) -> list[Message]:
     """All messages of `topic` in the valid prefix of `path`, in file order."""
-    channels: set[int] = set()
-    out: list[Message] = []
-    for record in scan_records(Path(path), ScanState()):
-        if isinstance(record, Channel) and record.topic == topic:
-            channels.add(record.id)
-        elif isinstance(record, Message) and record.channel_id in channels:
-            out.append(record)
+    return read_topic(path, topic).messages
+
+
+def _read_fixed(path: Path, topic: str, dtype: np.dtype, renames: dict[str, str]) -> TopicMessages | np.ndarray:
+    """`dtype` records of a CDR `topic` (decoded with the file's own schema), or its messages if the topic is
+    not CDR (a JSON-era log)."""
+    found = read_topic(path, topic)
+    if found.message_encoding != MessageEncoding.CDR:
+        return found
+    if found.schema is None:
+        raise McapFormatError(f"{topic}: channel without its schema")
+    data = [m.data for m in found.messages]
+    msg = cdr.parse_schema(found.schema, topic, len(data[0]) if data else None)
+    out: np.ndarray = cdr.decode(data, msg, dtype, renames, topic)
     return out
 
 
 def read_periods(path: Path) -> np.ndarray:
-    """PERIOD_DTYPE array of all /periods messages (truncated files: the valid prefix)."""
-    msgs = read_topic_messages(path, topics.TOPIC_PERIODS)
-    out: np.ndarray = encoding.decode_json_records([m.data for m in msgs], PERIOD_DTYPE, topics.TOPIC_PERIODS)
+    """PERIOD_DTYPE array of all /periods messages (CDR, or JSON in older logs: null → NaN; truncated files:
+    the valid prefix)."""
+    found = _read_fixed(path, topics.TOPIC_PERIODS, PERIOD_DTYPE, {})
+    if isinstance(found, np.ndarray):
+        return found
+    out: np.ndarray = encoding.decode_json_records([m.data for m in found.messages], PERIOD_DTYPE,
+                                                   topics.TOPIC_PERIODS)
     return out
 
 
@@ -131,47 +170,24 @@ def read_faults(path: Path) -> np.ndarray:
 
 
 def read_frames(path: Path) -> np.ndarray:
-    """FRAME_DTYPE array of all /frames messages (hex payload decoded, padded with zeros)."""
-    msgs = read_topic_messages(path, topics.TOPIC_FRAMES)
-    out = np.zeros(len(msgs), dtype=FRAME_DTYPE)
-    try:
-        for i, m in enumerate(msgs):
-            d = json.loads(m.data)
-            payload = bytes.fromhex(d["data"])
-            out[i] = (
-                np.nan if d["t"] is None else d["t"],
-                d["seq"],
-                d["dir"],
-                d["id"],
-                bool(d["fd"]),
-                len(payload),
-                np.frombuffer(payload.ljust(64, b"\0"), dtype=np.uint8),
-            )
-    except (ValueError, KeyError, TypeError) as exc:
-        raise McapFormatError(f"{topics.TOPIC_FRAMES}: cannot decode message ({exc})") from None
-    return out
+    """FRAME_DTYPE array of all /frames messages (CDR, or JSON with a hex payload in older logs: padded with
+    zeros)."""
+    found = _read_fixed(path, topics.TOPIC_FRAMES, FRAME_DTYPE, cdr.FRAME_RENAMES)
+    if isinstance(found, np.ndarray):
+        return found
+    return encoding.decode_frames_json([m.data for m in found.messages], topics.TOPIC_FRAMES)
 
 
 def read_trace(path: Path) -> np.ndarray:
     """All /trace blocks concatenated, in the layout the file's trace schema names (TRACE_DTYPE for a
     three-phase run, TRACE_DTYPE6 for a dual three-phase one; TRACE_DTYPE if the file has no trace)."""
-    schemas: dict[int, bytes] = {}
-    channels: dict[int, int] = {}
-    messages: list[Message] = []
-    for record in scan_records(Path(path), ScanState()):
-        if isinstance(record, Schema):
-            schemas[record.id] = record.data
-        elif isinstance(record, Channel) and record.topic == topics.TOPIC_TRACE:
-            channels[record.id] = record.schema_id
-        elif isinstance(record, Message) and record.channel_id in channels:
-            messages.append(record)
+    found = read_topic(path, topics.TOPIC_TRACE)
     dtype = TRACE_DTYPE
-    if channels:
-        schema = schemas.get(next(iter(channels.values())))
-        if schema is None:
+    if found.message_encoding:
+        if found.schema is None:
             raise McapFormatError(f"{topics.TOPIC_TRACE}: channel without its schema")
-        dtype = trace_dtype(encoding.ros2msg_fields(schema))
-    blocks = [encoding.decode_trace_cdr(m.data, dtype) for m in messages]
+        dtype = trace_dtype(encoding.ros2msg_fields(found.schema))
+    blocks = [encoding.decode_trace_cdr(m.data, dtype) for m in found.messages]
     out: np.ndarray = np.concatenate(blocks) if blocks else np.zeros(0, dtype=dtype)
     return out
 

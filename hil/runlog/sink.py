@@ -12,8 +12,8 @@ import numpy as np
 from mcap.well_known import MessageEncoding, SchemaEncoding
 from mcap.writer import CompressionType, Writer
 from pmsm_hil.hil.records import FAULT_DTYPE, FRAME_DTYPE, PERIOD_DTYPE, TRACE_DTYPE
-from pmsm_hil.hil.runlog import encoding, topics
-from pmsm_hil.hil.runlog.bulk_messages import BulkMessages
+from pmsm_hil.hil.runlog import cdr, encoding, topics
+from pmsm_hil.hil.runlog.bulk_messages import BulkMessages, message_records
 from pmsm_hil.hil.runlog.errors import RunLogError
 
 COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
@@ -35,13 +35,13 @@ class McapSink:
         json_enc = SchemaEncoding.JSONSchema
         self._ch_periods = w.register_channel(
             topics.TOPIC_PERIODS,
-            MessageEncoding.JSON,
-            w.register_schema(topics.SCHEMA_PERIODS, json_enc, encoding.json_schema(PERIOD_DTYPE, "period")),
+            MessageEncoding.CDR,
+            w.register_schema(topics.SCHEMA_PERIODS, SchemaEncoding.ROS2, cdr.PERIOD_MSG.schema),
         )
         self._ch_frames = w.register_channel(
             topics.TOPIC_FRAMES,
-            MessageEncoding.JSON,
-            w.register_schema(topics.SCHEMA_FRAMES, json_enc, encoding.FRAME_JSON_SCHEMA),
+            MessageEncoding.CDR,
+            w.register_schema(topics.SCHEMA_FRAMES, SchemaEncoding.ROS2, cdr.FRAME_MSG.schema),
         )
         self._ch_trace = w.register_channel(
             topics.TOPIC_TRACE,
@@ -67,14 +67,34 @@ class McapSink:
         self._trace_dtype = trace_dtype
 
     def write_periods(self, raw: bytes) -> None:
-        """Write one message per period of the PERIOD_DTYPE block `raw`."""
-        self._write_records(np.frombuffer(raw, dtype=PERIOD_DTYPE), encoding.encode_periods, self._ch_periods,
-                            "periods")
+        """Write one CDR message per period of the PERIOD_DTYPE block `raw`."""
+        self._write_fixed(np.frombuffer(raw, dtype=PERIOD_DTYPE), cdr.PERIOD_MSG, cdr.fill_periods,
+                          self._ch_periods, "periods")
 
     def write_frames(self, raw: bytes) -> None:
-        """Write one message per frame of the FRAME_DTYPE block `raw`."""
-        self._write_records(np.frombuffer(raw, dtype=FRAME_DTYPE), encoding.encode_frames, self._ch_frames,
-                            "frames")
+        """Write one CDR message per frame of the FRAME_DTYPE block `raw`."""
+        self._write_fixed(np.frombuffer(raw, dtype=FRAME_DTYPE), cdr.FRAME_MSG, cdr.fill_frames, self._ch_frames,
+                          "frames")
+
+    def _write_fixed(self, block: np.ndarray, msg: cdr.CdrMessage, fill: Callable[[np.ndarray, np.ndarray], None],
+                     channel: int, count_key: str) -> None:
+        """One fixed-size message per record of `block` (payload by `fill`), stamped with its time,
+        sequence = seq; the block's Message records are one numpy array."""
+        n = block.shape[0]
+        if n == 0:
+            return
+        records = message_records(msg.dtype, n)
+        fill(records["data"], block)
+        records["sequence"] = block["seq"]
+        records["log_time"] = records["publish_time"] = encoding.periods_log_times_ns(block)
+        if self._bulk is not None:
+            self._bulk.add_records(channel, records)
+        else:
+            payloads = records.view(np.uint8).reshape(n, -1)[:, records.dtype.itemsize - msg.dtype.itemsize :]
+            add = self._writer.add_message
+            for rec, payload in zip(records.tolist(), payloads, strict=True):
+                add(channel, rec[4], payload.tobytes(), rec[5], rec[3])
+        self.counts[count_key] += n
 
     def write_faults(self, raw: bytes) -> None:
         """Write one message per injected link fault of the FAULT_DTYPE block `raw` on /link_faults."""
@@ -84,7 +104,7 @@ class McapSink:
     def _write_records(self, block: np.ndarray, encode: Callable[[np.ndarray], Sequence[bytes]], channel: int,
                        count_key: str) -> None:
         """One message per record of `block` (encoded by `encode`), stamped with its time, sequence = seq."""
-        times = encoding.periods_log_times_ns(block)
+        times = encoding.periods_log_times_ns(block).tolist()
         msgs, seqs = encode(block), block["seq"].tolist()
         if len(msgs) != len(times):
             raise RunLogError(f"{count_key}: {len(msgs)} messages encoded for {len(times)} records")
@@ -102,7 +122,7 @@ class McapSink:
         block = np.frombuffer(raw, dtype=self._trace_dtype)
         if block.shape[0] == 0:
             return
-        t_ns = encoding.periods_log_times_ns(block[:1])[0]
+        t_ns = int(encoding.periods_log_times_ns(block[:1])[0])
         self._writer.add_message(
             self._ch_trace, t_ns, encoding.encode_trace_cdr(block), t_ns, self.counts["trace_blocks"]
         )

@@ -10,8 +10,8 @@ TOPIC_TRACE: Final = "/trace"
 TOPIC_FAULTS: Final = "/link_faults"
 TOPIC_METADATA: Final = "/run/metadata"
 
-SCHEMA_PERIODS: Final = "pmsm_hil.Period"
-SCHEMA_FRAMES: Final = "pmsm_hil.Frame"
+SCHEMA_PERIODS: Final = "pmsm_hil/msg/Period"  # ros2msg (CDR); "pmsm_hil.Period" (JSON) in older logs
+SCHEMA_FRAMES: Final = "pmsm_hil/msg/Frame"  # ros2msg (CDR); "pmsm_hil.Frame" (JSON) in older logs
 SCHEMA_TRACE: Final = "pmsm_hil/msg/TraceBlock"
 SCHEMA_FAULTS: Final = "pmsm_hil.LinkFault"
 SCHEMA_METADATA: Final = "pmsm_hil.RunMetadata"

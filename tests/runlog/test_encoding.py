@@ -1,4 +1,6 @@
-"""Message encodings: JSON text is valid JSON (NaN → null), CDR trace round trip, schemas parse."""
+"""Message encodings: JSON text is valid JSON (NaN → null), CDR trace round trip, schemas parse.
+
+(The fixed-size CDR /periods and /frames messages: test_cdr.py.)"""
 
 from __future__ import annotations
 
@@ -10,35 +12,20 @@ from pmsm_hil.hil.records import PERIOD_DTYPE, TRACE_DTYPE
 from pmsm_hil.hil.runlog import McapFormatError
 from pmsm_hil.hil.runlog import encoding as enc
 
-from tests.runlog._blocks import frame_block, period_block, trace_block
+from tests.runlog._blocks import period_block, trace_block
 
 
-def test_period_json_is_valid_and_exact() -> None:
-    block = period_block(5, 20)
+def test_record_json_is_valid_and_exact() -> None:
+    block = period_block(5, 20)  # the widest record dtype through the JSON encoder /link_faults uses
     block["torque"][3] = np.inf
     block["omega_m"][4] = np.nan
-    msgs = enc.encode_periods(block)
+    msgs = enc.make_json_encoder(PERIOD_DTYPE)(block)
     rows = [json.loads(m) for m in msgs]  # strict JSON: no NaN/Infinity literals
     assert rows[3]["torque"] is None and rows[4]["omega_m"] is None
     assert rows[0]["i_a"] == block["i_a"][0] and rows[0]["states"] == block["states"][0].tolist()
     back = enc.decode_json_records(msgs, PERIOD_DTYPE, "/periods")
     np.testing.assert_array_equal(back["i_b"], block["i_b"])
     assert np.isnan(back["torque"][3]) and np.isnan(back["omega_m"][4])
-
-
-def test_frame_json_hex_payload_only_valid_bytes() -> None:
-    block = frame_block(0, 2)
-    rows = [json.loads(m) for m in enc.encode_frames(block)]
-    assert rows[0] == {
-        "t": 0.0,
-        "seq": 0,
-        "dir": 0,
-        "id": 0x100,
-        "fd": False,
-        "len": 8,
-        "data": bytes(block["data"][0][:8]).hex(),
-    }
-    assert rows[2]["fd"] is True and len(rows[2]["data"]) == 128
 
 
 def test_cdr_trace_round_trip_and_layout() -> None:
@@ -65,4 +52,4 @@ def test_schemas() -> None:
 def test_log_times_clamped() -> None:
     block = period_block(0, 3)
     block["t"] = [-1.0, np.nan, 2.5]
-    assert enc.periods_log_times_ns(block) == [0, 0, 2_500_000_000]
+    assert enc.periods_log_times_ns(block).tolist() == [0, 0, 2_500_000_000]

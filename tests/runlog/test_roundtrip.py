@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
@@ -42,7 +41,7 @@ def test_round_trip_identical_values(tmp_path: Path, compression: str) -> None:
     assert read_metadata(path) == {"controller": "fcs-mpc-1", "ts": "1e-4"}
 
 
-def test_file_is_complete_indexed_mcap_with_json_channels(tmp_path: Path) -> None:
+def test_file_is_complete_indexed_mcap_with_cdr_channels(tmp_path: Path) -> None:
     path = tmp_path / "run.mcap"
     with RunLogger(path, metadata={"a": "b"}) as lg:
         lg.submit_periods(period_block(0, 100))
@@ -54,16 +53,17 @@ def test_file_is_complete_indexed_mcap_with_json_channels(tmp_path: Path) -> Non
         assert summary is not None and summary.statistics is not None
         topics = {ch.topic: ch for ch in summary.channels.values()}
         assert set(topics) == {"/periods", "/frames", "/trace", "/run/metadata", "/link_faults"}
-        assert topics["/periods"].message_encoding == "json"
-        assert summary.schemas[topics["/periods"].schema_id].encoding == "jsonschema"
-        assert topics["/trace"].message_encoding == "cdr"
+        for name in ("/periods", "/frames", "/trace"):
+            assert topics[name].message_encoding == "cdr"
+            assert summary.schemas[topics[name].schema_id].encoding == "ros2msg"
+        assert topics["/link_faults"].message_encoding == "json"
         counts = summary.statistics.channel_message_counts
         assert counts[topics["/periods"].id] == 100 and counts[topics["/frames"].id] == 20
-        first = next(iter(reader.iter_messages(topics=["/periods"])))
-        msg = json.loads(first[2].data)
-        assert first[2].log_time == 0 and msg["seq"] == 0 and len(msg["states"]) == 3
-        frame = json.loads(next(iter(reader.iter_messages(topics=["/frames"])))[2].data)
-        assert frame["len"] == 8 and len(frame["data"]) == 16
+        periods = [m for _, _, m in reader.iter_messages(topics=["/periods"])]
+        assert periods[0].log_time == 0 and periods[0].sequence == 0 and periods[1].sequence == 1
+        assert {len(m.data) for m in periods} == {196}  # fixed size: header + PERIOD_DTYPE fields, aligned
+        frames = [m for _, _, m in reader.iter_messages(topics=["/frames"])]
+        assert {len(m.data) for m in frames} == {90} and frames[0].data[:4] == b"\x00\x01\x00\x00"
 
 
 def test_log_time_is_sim_time_ns(tmp_path: Path) -> None:
