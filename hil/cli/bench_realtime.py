@@ -17,6 +17,7 @@ from pmsm_hil.hil.atomic_write import write_text_atomic
 from pmsm_hil.hil.cli.parsing import non_negative_int, positive_float
 from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runner.native_config import rt_throttled
+from pmsm_hil.hil.runner.native_link import NativeLoopUnavailableError, native_lib
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import load_scenario
@@ -72,7 +73,25 @@ def measure(duration: float, ts: float, repeats: int, rt_priority: int = 0, cpu:
         }
     out["load_average"] = os.getloadavg()
     out["rt_throttled"] = rt_throttled()
+    out["floor"] = gap_floor(duration, ts, rt_priority, cpu)
     return out
+
+
+def gap_floor(duration: float, ts: float, rt_priority: int, cpu: int | None) -> dict[str, Any] | None:
+    """What a bare C busy loop on the same CPU and priority sees for `duration` s: gaps between two clock reads
+    longer than Ts/2 (the default overrun threshold) per 100k periods, longer than 10 µs, the longest, and the
+    share of time lost in them — the floor under any loop's lateness here (None without the native extension)."""
+    try:
+        ffi, lib = native_lib()
+    except NativeLoopUnavailableError:
+        return None
+    probe = ffi.new("nl_gap_probe_t *")
+    refused = int(lib.nl_gap_probe(round(duration * 1e9), round(ts * 1e9 / 2), -1 if cpu is None else cpu,
+                                   rt_priority, probe))
+    periods = duration / ts
+    return {"gaps_over_threshold_per_100k": 1e5 * int(probe.gaps) / periods, "gaps_over_10us": int(probe.gaps_10us),
+            "max_gap_us": int(probe.max_gap_ns) / 1e3, "lost_pct": 100.0 * int(probe.lost_ns) / (duration * 1e9),
+            "refused_errno": refused}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -93,6 +112,12 @@ def run(args: argparse.Namespace) -> int:
               f"{per if per is None else format(per, '14.1f'):>14} {f['deadline_misses']:>7} {f['periods']:>8}")
         for line in f["warnings"]:
             print(f"    {loop}: {line}")
+    floor = figures["floor"]
+    if floor is not None:
+        print(f"  floor: a bare C busy loop ({args.duration:g} s, same CPU and priority) saw "
+              f"{floor['gaps_over_threshold_per_100k']:.1f} gaps > Ts/2 per 100k periods, {floor['gaps_over_10us']} "
+              f"gaps > 10 µs, the longest {floor['max_gap_us']:.1f} µs, {floor['lost_pct']:.2f} % of the time lost "
+              f"(interrupts, other tasks, the hypervisor: no loop here can do better)")
     if args.rt_priority:
         if figures["rt_throttled"]:
             print("  note: the kernel throttles real-time tasks (kernel.sched_rt_runtime_us ≥ 0), so the SCHED_FIFO "

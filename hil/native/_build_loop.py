@@ -176,6 +176,10 @@ typedef struct {
     int32_t window_n, window_spun_out, block_left, contended, spinning;
     int64_t backoffs;
 } nl_spin_t;
+typedef struct {
+    int64_t reads, gaps, gaps_10us, max_gap_ns, lost_ns;
+} nl_gap_probe_t;
+int32_t nl_gap_probe(int64_t duration_ns, int64_t gap_ns, int32_t cpu, int32_t rt_priority, nl_gap_probe_t *out);
 int nl_wait_readable(int32_t fd, int64_t deadline_ns, nl_spin_t *sp, int64_t *spin_end, nl_link_stats_t *st);
 typedef struct {
     int32_t fd;
@@ -237,6 +241,7 @@ PREAMBLE = """
 #include <stddef.h>
 #include "loop.h"
 #include "loop_frames.h"
+#include "loop_rt.h"
 #include "hil_target_core.h"
 #include "loop_udp.h"
 #include "loop_serial.h"

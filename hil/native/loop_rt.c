@@ -93,3 +93,41 @@ void nl_rt_restore(const nl_rt_saved_t *saved)
         (void)munlockall();
     }
 }
+
+int32_t nl_gap_probe(int64_t duration_ns, int64_t gap_ns, int32_t cpu, int32_t rt_priority, nl_gap_probe_t *out)
+{
+    nl_config_t cfg;
+    nl_result_t r;
+    nl_rt_saved_t saved;
+    int64_t last;
+    int64_t end;
+    int32_t refused;
+    memset(&cfg, 0, sizeof cfg);
+    memset(&r, 0, sizeof r);
+    memset(out, 0, sizeof *out);
+    cfg.cpu = cpu;
+    cfg.rt_priority = rt_priority;
+    cfg.lock_memory = 1;
+    nl_rt_setup(&cfg, &r, &saved);
+    refused = r.rt_sched_errno ? r.rt_sched_errno : (r.rt_affinity_errno ? r.rt_affinity_errno : 0);
+    last = nl_now_ns();
+    end = last + duration_ns;
+    while (last < end) {
+        const int64_t t = nl_now_ns();
+        const int64_t d = t - last;
+        out->reads++;
+        if (d > 10000) {
+            out->gaps_10us++;
+        }
+        if (d > gap_ns) {
+            out->gaps++;
+            out->lost_ns += d;
+        }
+        if (d > out->max_gap_ns) {
+            out->max_gap_ns = d;
+        }
+        last = t;
+    }
+    nl_rt_restore(&saved);
+    return refused;
+}

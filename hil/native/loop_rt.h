@@ -30,6 +30,19 @@ int64_t nl_wait_until(int64_t deadline_ns, int64_t spin_ns);
 /* Apply cfg's memory lock, priority and CPU to the calling thread; errno of each refused call into r. */
 void nl_rt_setup(const nl_config_t *cfg, nl_result_t *r, nl_rt_saved_t *saved);
 
+/* What a bare busy loop sees on this machine: for duration_ns it reads CLOCK_MONOTONIC back to back (on `cpu`
+ * if >= 0, at SCHED_FIFO `rt_priority` if > 0, memory locked) and counts the gaps between two reads longer than
+ * gap_ns — time the thread did not run (interrupts, other tasks, a hypervisor running another guest). It is
+ * the floor under any loop's lateness on this machine. Returns 0, or the errno of a refused set-up call. */
+typedef struct {
+    int64_t reads;             /* clock reads */
+    int64_t gaps;              /* gaps longer than gap_ns */
+    int64_t gaps_10us;         /* gaps longer than 10 µs */
+    int64_t max_gap_ns;
+    int64_t lost_ns;           /* total time in gaps longer than gap_ns */
+} nl_gap_probe_t;
+int32_t nl_gap_probe(int64_t duration_ns, int64_t gap_ns, int32_t cpu, int32_t rt_priority, nl_gap_probe_t *out);
+
 /* Undo what nl_rt_setup changed. */
 void nl_rt_restore(const nl_rt_saved_t *saved);
 

@@ -219,6 +219,16 @@ def test_bench_realtime_prints_both_loops_side_by_side(capsys: pytest.CaptureFix
     assert "load average" in out and "overruns/100k" in out
     rows = [line.split() for line in out.splitlines() if line.strip().startswith(("python ", "native "))]
     assert [r[0] for r in rows] == ["python", "native"] and all(r[-1] == "50" for r in rows)  # periods per loop
+    assert "floor: a bare C busy loop" in out  # what the machine itself allows, beside the loops
+
+
+def test_gap_probe_counts_the_time_a_busy_loop_did_not_run() -> None:
+    from pmsm_hil.hil.cli.bench_realtime import gap_floor
+
+    floor = gap_floor(0.05, 100e-6, 0, None)
+    assert floor is not None and floor["refused_errno"] == 0
+    assert 0.0 <= floor["lost_pct"] <= 100.0 and floor["max_gap_us"] >= 0.0
+    assert floor["gaps_over_10us"] >= floor["gaps_over_threshold_per_100k"] * 0.05 / 100e-6 / 1e5 - 1e-9
 
 
 def test_dyno_speed_step_and_the_candidate_diagnostic() -> None:
