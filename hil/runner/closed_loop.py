@@ -40,7 +40,12 @@ class LoopOutcome:
     trace: npt.NDArray[np.void]
     window_start_period: int
     completed_periods: int = 0
+    #: wall time of the whole run [s]: start-up (enabling Setpoint, real-time set-up such as `mlockall`),
+    #: the periods, the safe stop
     wall_time_s: float = 0.0
+    #: wall time of the periods alone [s]: from the first period's scheduled start to the end of the loop
+    #: (in real time, n·Ts plus the lateness of the last period when nothing started late)
+    paced_time_s: float = 0.0
     deadline_misses: int = 0
     late_commands: int = 0
     lost_commands: int = 0
@@ -138,6 +143,7 @@ class ClosedLoop:
             out.error = exc
             self._end(out, EndCode.INTERNAL_ERROR, f"internal error: {type(exc).__name__}: {exc}")
         finally:
+            out.paced_time_s = (time.perf_counter_ns() - self._t_wall0) / 1e9
             self._stop(out)
             out.wall_time_s = (time.perf_counter_ns() - self._t_wall0) / 1e9
             out.late_commands = self.client.stale_commands

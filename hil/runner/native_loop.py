@@ -216,6 +216,7 @@ class NativeLoop:
         """Counters and the ending from the C loop, worded as `ClosedLoop` words them."""
         lib, res, cfg = self._lib, self._res, self.cfg
         out.completed_periods = int(res.completed_periods)
+        out.paced_time_s = int(res.wall_ns) / 1e9
         out.lost_commands, out.deadline_misses = int(res.lost_commands), int(res.deadline_misses)
         out.late_commands, out.overruns = int(res.stale_commands), int(res.overruns)
         out.max_wait_ns = int(res.max_wait_ns)
