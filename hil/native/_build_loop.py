@@ -173,9 +173,14 @@ typedef struct {
 typedef struct {
     int64_t spin_ns;
     int64_t window_wall_ns, window_cpu_ns, window_blocked_ns;
-    int32_t window_n, window_spun_out, block_left, contended, spinning;
-    int64_t backoffs;
+    int32_t window_n, window_spun_out, block_left, contended, spinning, doublings, rx_backed_off, check_n;
+    int64_t rx_start_ns, rx_last_ns, window_wait_ns, spin_wait_ns, check_wait_ns, backoffs, early_ends;
 } nl_spin_t;
+#define NL_SPIN_CHECK ...
+#define NL_SPIN_WINDOW ...
+#define NL_SPIN_BACKOFF ...
+#define NL_SPIN_BACKOFF_DOUBLINGS ...
+#define NL_SPIN_NEAR_MISS_NS ...
 typedef struct {
     int64_t reads, gaps, gaps_10us, max_gap_ns, lost_ns;
 } nl_gap_probe_t;

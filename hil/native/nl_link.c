@@ -73,36 +73,93 @@ static int64_t thread_cpu_ns(void)
     return (int64_t)ts.tv_sec * 1000000000 + (int64_t)ts.tv_nsec;
 }
 
+/* The wait of the receive before this one (from its first wait to its last poll), to the back-off check when it
+ * blocked at once, else to the window. */
+static void account_previous(nl_spin_t *sp)
+{
+    const int64_t wait = sp->rx_last_ns - sp->rx_start_ns;
+    if (sp->rx_start_ns == 0) {
+        return;
+    }
+    if (sp->rx_backed_off) {
+        sp->check_wait_ns += wait;
+        sp->check_n++;
+    } else {
+        sp->window_wait_ns += wait;
+    }
+}
+
+/* Backed off: every NL_SPIN_CHECK receives, does blocking still wait less than the spinning it replaced? On a
+ * machine whose load went away (or a window that only looked contended) a blocked receive waits for a wake-up
+ * of an idle CPU: far longer than a spin. 1: keep blocking. */
+static int backoff_pays(nl_spin_t *sp)
+{
+    int pays = 1;
+    if (sp->check_n >= NL_SPIN_CHECK) {
+        pays = sp->check_wait_ns <= sp->spin_wait_ns * sp->check_n;
+        sp->check_n = 0;
+        sp->check_wait_ns = 0;
+    }
+    return pays;
+}
+
+/* A window is full: contended or not (nl_link.h), and the back-off that follows. */
+static void close_window(nl_spin_t *sp, int64_t now)
+{
+    const int64_t wall = now - sp->window_wall_ns;
+    const int64_t waiting = wall - (thread_cpu_ns() - sp->window_cpu_ns) - sp->window_blocked_ns;
+    /* runnable but not running for over a quarter of the time, or most spins ran out before the frame came:
+     * spinning keeps a core from the peer or from the work that would wake it */
+    if (4 * waiting > wall || 2 * sp->window_spun_out > NL_SPIN_WINDOW) {
+        if (++sp->contended >= 2) { /* the load stayed: each back-off that follows one is longer */
+            sp->block_left = NL_SPIN_BACKOFF << sp->doublings;
+            sp->doublings += sp->doublings < NL_SPIN_BACKOFF_DOUBLINGS;
+            sp->spin_wait_ns = sp->window_wait_ns / (NL_SPIN_WINDOW - 1);
+            sp->check_n = 0;
+            sp->check_wait_ns = 0;
+            sp->backoffs++;
+            sp->contended = 0;
+        }
+    } else {
+        sp->contended = 0;
+        sp->doublings = 0;
+    }
+    sp->window_n = 0;
+}
+
 /* A receive that has to wait: close the window when it is full and choose how this receive waits; returns its
  * spin end (now: block at once). */
 static int64_t spin_start(nl_spin_t *sp, int64_t now)
 {
+    account_previous(sp);
+    sp->rx_start_ns = now;
+    sp->rx_last_ns = now;
     sp->spinning = 0;
+    sp->rx_backed_off = 0;
     if (sp->block_left > 0) {
-        sp->block_left--;
-        return now;
+        if (backoff_pays(sp)) {
+            sp->block_left--;
+            sp->rx_backed_off = 1;
+            return now;
+        }
+        sp->block_left = 0; /* spin again, and start over with the shortest back-off */
+        sp->doublings = 0;
+        sp->early_ends++;
     }
     if (sp->window_n == 0) {
         sp->window_wall_ns = now;
         sp->window_cpu_ns = thread_cpu_ns();
         sp->window_blocked_ns = 0;
+        sp->window_wait_ns = 0;
         sp->window_spun_out = 0;
     }
     if (++sp->window_n >= NL_SPIN_WINDOW) {
-        const int64_t wall = now - sp->window_wall_ns;
-        const int64_t waiting = wall - (thread_cpu_ns() - sp->window_cpu_ns) - sp->window_blocked_ns;
-        /* runnable but not running for over a quarter of the time, or most spins ran out before the frame came:
-         * spinning keeps a core from the peer or from the work that would wake it */
-        if (4 * waiting > wall || 2 * sp->window_spun_out > NL_SPIN_WINDOW) {
-            if (++sp->contended >= 2) {
-                sp->block_left = NL_SPIN_BACKOFF;
-                sp->backoffs++;
-                sp->contended = 0;
-            }
-        } else {
-            sp->contended = 0;
+        close_window(sp, now);
+        if (sp->block_left > 0) {
+            sp->block_left--;
+            sp->rx_backed_off = 1;
+            return now;
         }
-        sp->window_n = 0;
     }
     sp->spinning = sp->spin_ns > 0;
     return now + sp->spin_ns;
@@ -117,10 +174,12 @@ int nl_wait_readable(int32_t fd, int64_t deadline_ns, nl_spin_t *sp, int64_t *sp
     if (*spin_end < 0) {
         *spin_end = spin_start(sp, now);
     }
+    sp->rx_last_ns = now;
     if (now >= *spin_end) {
         struct pollfd p;
         struct timespec ts;
         const int64_t left = deadline_ns - now;
+        int64_t blocked_ns;
         int ready;
         p.fd = fd;
         p.events = POLLIN;
@@ -128,12 +187,14 @@ int nl_wait_readable(int32_t fd, int64_t deadline_ns, nl_spin_t *sp, int64_t *sp
         ts.tv_sec = (time_t)(left / 1000000000);
         ts.tv_nsec = (long)(left % 1000000000);
         st->blocked++;
+        ready = ppoll(&p, 1, &ts, NULL);
+        blocked_ns = nl_now_ns() - now;
+        sp->rx_last_ns = now + blocked_ns;
+        sp->window_blocked_ns += blocked_ns;
         if (sp->spinning) { /* the first block of a receive whose spin ran out */
             sp->spinning = 0;
-            sp->window_spun_out++;
+            sp->window_spun_out += blocked_ns < NL_SPIN_NEAR_MISS_NS; /* the frame came soon after */
         }
-        ready = ppoll(&p, 1, &ts, NULL);
-        sp->window_blocked_ns += nl_now_ns() - now;
         if (ready > 0 && (p.revents & (POLLHUP | POLLERR | POLLNVAL))) {
             return -1;
         }

@@ -68,23 +68,42 @@ int nl_accept_framed(const uint8_t *body, int32_t *rx_last, nl_link_stats_t *st,
  * spinning end then takes a core from the peer or from the load, while two ends that block leave a core idle
  * for whichever of them is woken (and a busy CPU wakes a blocked thread quickly). Over a window of
  * NL_SPIN_WINDOW receives that waited, the time the thread was runnable but not running (wall time - its CPU
- * time - time blocked in ppoll) and the spins that ran out before the frame came are counted. A window is
- * contended when the first exceeds a quarter of it or the second half of its receives; after two contended
- * windows in a row the next NL_SPIN_BACKOFF receives block at once, then spinning is tried again. All zero:
- * spinning, no history. */
+ * time - time blocked in ppoll) and the spins that ran out shortly before the frame came (it came less than
+ * NL_SPIN_NEAR_MISS_NS after: a slowed peer, not one that had nothing to send - a host between runs, a
+ * Setpoint from Python) are counted. A window is contended when the first exceeds a quarter of it or the
+ * second half of its receives; after two contended windows in a row the next receives block at once:
+ * NL_SPIN_BACKOFF of them, doubled (up to NL_SPIN_BACKOFF_DOUBLINGS times) for each back-off that follows
+ * without a clean window in between, then spinning is tried again. A back-off ends early (and the next one is
+ * the shortest again) when, over NL_SPIN_CHECK receives, blocking waited longer per receive than the spinning of
+ * the window that started it: the load went away, or the window only looked contended (the run's own drain),
+ * and a blocked receive now waits for an idle CPU to wake. Counted in receives, not in time: the two
+ * ends of a lockstep link receive alike, so they back off and try again together (an end that spins while its
+ * peer blocks sees its spins run out and would back off again). All zero: spinning, no history. */
 #define NL_SPIN_WINDOW 256
 #define NL_SPIN_BACKOFF 4096
+#define NL_SPIN_BACKOFF_DOUBLINGS 4
+#define NL_SPIN_NEAR_MISS_NS 1000000
+#define NL_SPIN_CHECK 64
 typedef struct {
     int64_t spin_ns;           /* busy-poll at most this long before blocking (0: always block) */
     int64_t window_wall_ns;    /* CLOCK_MONOTONIC at the start of the current window */
     int64_t window_cpu_ns;     /* the thread's CPU time at the start of the current window */
     int64_t window_blocked_ns; /* time spent in ppoll in the current window */
     int32_t window_n;          /* receives that waited in the current window */
-    int32_t window_spun_out;   /* receives of the window whose spin ran out before the frame came */
+    int32_t window_spun_out;   /* receives of the window whose spin ran out shortly before the frame came */
     int32_t block_left;        /* receives left that block at once */
     int32_t contended;         /* contended windows in a row */
     int32_t spinning;          /* the current receive spins (not yet counted as run out) */
+    int32_t doublings;         /* the next back-off is NL_SPIN_BACKOFF << doublings */
+    int32_t rx_backed_off;     /* the current receive blocks at once (backed off) */
+    int32_t check_n;           /* receives of the current back-off check */
+    int64_t rx_start_ns;       /* the current receive's first wait (0: none yet) */
+    int64_t rx_last_ns;        /* its last poll */
+    int64_t window_wait_ns;    /* the waits of the window's receives (each from its first wait to its last poll) */
+    int64_t spin_wait_ns;      /* mean wait of a receive in the window that started the back-off */
+    int64_t check_wait_ns;     /* the waits of the current back-off check's receives */
     int64_t backoffs;          /* times the link went to blocking at once */
+    int64_t early_ends;        /* back-offs ended early: blocking waited longer than spinning had */
 } nl_spin_t;
 
 /* Nothing to read on `fd`: 0 once deadline_ns has passed, else 1 after busy-polling (until *spin_end, set on

@@ -11,6 +11,7 @@ for `SPIN_NS`, then blocks.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -22,6 +23,14 @@ from pmsm_hil.protocol.links.stats import LinkStats
 #: busy-poll this long for a frame before blocking in ppoll [ns]: a lockstep round trip on an idle machine
 #: is well inside it, and a loaded machine gets the core back instead of two spinning processes
 SPIN_NS = 50_000
+
+
+def default_spin_ns() -> int:
+    """`SPIN_NS`, or 0 (always block) when this process may run on one CPU only: there a spin just delays the
+    peer it waits for."""
+    return SPIN_NS if len(os.sched_getaffinity(0)) > 1 else 0
+
+
 #: LinkStats counters the C links keep (nl_link_stats_t fields of the same names)
 COUNTERS = tuple(LinkStats.__slots__)
 
@@ -48,10 +57,10 @@ class WireHandle:
     """A wire's C state on `bus` and the nl_link_t over it (kept alive together)."""
 
     def __init__(self, wire: Wire, ffi: Any, lib: Any, bus: Any, *, target_role: bool,
-                 spin_ns: int = SPIN_NS) -> None:
+                 spin_ns: int | None = None) -> None:
         self.wire, self.ffi, self.bus = wire, ffi, bus
         self.state = ffi.new(f"{wire.struct} *")
-        self.state.spin.spin_ns = spin_ns
+        self.state.spin.spin_ns = default_spin_ns() if spin_ns is None else spin_ns
         wire.fill(ffi, self.state, bus, target_role)
         self.link = ffi.new("nl_link_t *")
         getattr(lib, wire.make_link)(self.link, self.state)

@@ -1,5 +1,6 @@
 """The adaptive spin of the native links (hil/native/nl_link.c): spin while it pays, block at once when the
-spins keep running out (the peer shares a core with other work), then try spinning again."""
+spins keep running out (the peer shares a core with other work) - longer each time the load stays - then try
+spinning again; a peer with nothing to send is no load."""
 
 from __future__ import annotations
 
@@ -9,8 +10,6 @@ from collections.abc import Iterator
 
 import pytest
 from pmsm_hil.hil.runner.native_link import native_lib
-
-WINDOW, BACKOFF = 256, 4096
 
 
 @pytest.fixture
@@ -31,39 +30,108 @@ def _receive(lib: object, ffi: object, fd: int, spin: object, stats: object, wai
     return calls
 
 
-def test_spins_that_keep_running_out_switch_to_blocking_then_spinning_is_tried_again(pair) -> None:
+def _spin_out_windows(lib: object, ffi: object, fd: int, spin: object, stats: object, windows: int) -> None:
+    """Receives that never get a frame for `windows` windows: each spin runs out, then ppoll to a near deadline."""
+    for _ in range(windows * lib.NL_SPIN_WINDOW):  # type: ignore[attr-defined]
+        _receive(lib, ffi, fd, spin, stats, 200_000)
+
+
+def test_spins_that_keep_running_out_switch_to_blocking_longer_each_time(pair) -> None:
     ffi, lib = native_lib()
     a, _ = pair
+    window, backoff = lib.NL_SPIN_WINDOW, lib.NL_SPIN_BACKOFF
     spin, stats = ffi.new("nl_spin_t *"), ffi.new("nl_link_stats_t *")
     spin.spin_ns = 5_000
-    for _ in range(2 * WINDOW - 1):  # nothing ever comes: each spin runs out, then ppoll to the deadline
+    for _ in range(2 * window - 1):
         _receive(lib, ffi, a.fileno(), spin, stats, 200_000)
     assert spin.backoffs == 0  # two full contended windows are needed
-    _receive(lib, ffi, a.fileno(), spin, stats, 200_000)
-    assert spin.backoffs == 1 and spin.block_left == BACKOFF
     blocked = stats.blocked
     calls = _receive(lib, ffi, a.fileno(), spin, stats, 200_000)
-    assert stats.blocked == blocked + 1 and calls <= 2  # blocked at once: no spinning polls
-    assert spin.block_left == BACKOFF - 1
+    assert spin.backoffs == 1 and spin.block_left == backoff - 1  # this receive already blocked at once
+    assert spin.rx_backed_off == 1 and stats.blocked >= blocked + 1  # no spinning polls
+    assert spin.spin_wait_ns >= 150_000  # the window's receives waited ~200 µs each
+    spin.spin_wait_ns = 10**9  # (the back-off check is the next test: here blocking always pays)
+    _receive(lib, ffi, a.fileno(), spin, stats, 200_000)
+    assert spin.rx_backed_off == 1 and spin.block_left == backoff - 2
     spin.block_left = 1  # the last blocking receive, then a spin again
     _receive(lib, ffi, a.fileno(), spin, stats, 200_000)
     assert spin.block_left == 0
     calls = _receive(lib, ffi, a.fileno(), spin, stats, 200_000)
     assert calls > 2  # spinning polls before the block
+    _spin_out_windows(lib, ffi, a.fileno(), spin, stats, 2)  # still contended: the next back-off is longer
+    assert spin.backoffs == 2 and spin.block_left in (2 * backoff - 1, 2 * backoff - 2)
+    spin.block_left, spin.doublings = 0, lib.NL_SPIN_BACKOFF_DOUBLINGS
+    _spin_out_windows(lib, ffi, a.fileno(), spin, stats, 2)
+    longest = backoff << lib.NL_SPIN_BACKOFF_DOUBLINGS
+    assert spin.backoffs == 3 and spin.block_left in (longest - 1, longest - 2)  # capped
+    assert spin.doublings == lib.NL_SPIN_BACKOFF_DOUBLINGS
 
 
-def test_spins_that_find_the_frame_keep_spinning(pair) -> None:
+def _backed_off(lib: object, ffi: object, spin_wait_ns: int) -> tuple[object, object]:
+    spin, stats = ffi.new("nl_spin_t *"), ffi.new("nl_link_stats_t *")  # type: ignore[attr-defined]
+    spin.spin_ns, spin.block_left, spin.doublings = 5_000, lib.NL_SPIN_BACKOFF, 2  # type: ignore[attr-defined]
+    spin.spin_wait_ns = spin_wait_ns  # mean wait of a receive in the spinning window that started the back-off
+    return spin, stats
+
+
+def test_a_backoff_ends_early_when_blocking_waits_longer_than_spinning_did(pair) -> None:
+    """The load went away (or was never there): a blocked receive waits for an idle CPU to wake - here ~200 µs
+    against the 20 µs the spinning receives waited - so spinning comes back after one check, not 4096 receives."""
+    ffi, lib = native_lib()
+    a, _ = pair
+    spin, stats = _backed_off(lib, ffi, 20_000)
+    for _ in range(lib.NL_SPIN_CHECK):  # one check's worth
+        _receive(lib, ffi, a.fileno(), spin, stats, 200_000)
+        assert spin.rx_backed_off == 1  # blocked at once
+    calls = _receive(lib, ffi, a.fileno(), spin, stats, 200_000)
+    assert calls > 2 and spin.rx_backed_off == 0 and spin.block_left == 0  # spinning again
+    assert spin.early_ends == 1 and spin.doublings == 0  # the next back-off is the shortest
+
+
+def test_a_backoff_that_pays_runs_its_length(pair) -> None:
+    """Blocking waits less than the spinning it replaced (a CPU burner made each spin ~1 ms): it stays."""
+    ffi, lib = native_lib()
+    a, _ = pair
+    spin, stats = _backed_off(lib, ffi, 1_000_000)
+    for _ in range(3 * lib.NL_SPIN_CHECK + 1):
+        _receive(lib, ffi, a.fileno(), spin, stats, 200_000)
+        assert spin.rx_backed_off == 1
+    assert spin.early_ends == 0 and spin.block_left == lib.NL_SPIN_BACKOFF - 3 * lib.NL_SPIN_CHECK - 1
+
+
+def test_a_peer_with_nothing_to_send_is_no_load(pair) -> None:
+    """Spins that run out long before the frame comes (a host between runs, Python sending a Setpoint) are not
+    counted: blocking then costs nothing, and they say nothing about the CPU."""
+    ffi, lib = native_lib()
+    a, _ = pair
+    spin, stats = ffi.new("nl_spin_t *"), ffi.new("nl_link_stats_t *")
+    spin.spin_ns = 5_000
+    for _ in range(2 * lib.NL_SPIN_WINDOW + 8):
+        _receive(lib, ffi, a.fileno(), spin, stats, lib.NL_SPIN_NEAR_MISS_NS + 500_000)
+    assert spin.window_spun_out == 0 and spin.backoffs == 0
+
+
+def test_spins_that_find_the_frame_keep_spinning_and_a_clean_window_resets_the_backoff(pair) -> None:
     ffi, lib = native_lib()
     a, b = pair
     spin, stats = ffi.new("nl_spin_t *"), ffi.new("nl_link_stats_t *")
     spin.spin_ns = 50_000
+    spin.doublings = 3  # left from earlier back-offs
     spun_out = 0
-    for _ in range(3 * WINDOW):
+    for _ in range(3 * lib.NL_SPIN_WINDOW):
         b.send(b"x")  # the frame is there while the receive spins
         spin_end = ffi.new("int64_t *", -1)
         assert lib.nl_wait_readable(a.fileno(), time.monotonic_ns() + 1_000_000, spin, spin_end, stats) == 1
         a.recv(1)
         spun_out = max(spun_out, spin.window_spun_out)
     assert spun_out == 0  # no spin ran out (a loaded machine may still make the thread wait: the other rule)
-    if spin.backoffs == 0:
-        assert spin.block_left == 0 and stats.blocked == 0
+    if spin.backoffs == 0:  # a window was clean
+        assert spin.block_left == 0 and stats.blocked == 0 and spin.doublings == 0
+
+
+def test_a_process_on_one_cpu_does_not_spin(monkeypatch: pytest.MonkeyPatch) -> None:
+    from pmsm_hil.hil.runner import native_wire
+    monkeypatch.setattr(native_wire.os, "sched_getaffinity", lambda _pid: {1})
+    assert native_wire.default_spin_ns() == 0  # a spin would only delay the peer it waits for
+    monkeypatch.setattr(native_wire.os, "sched_getaffinity", lambda _pid: {0, 1})
+    assert native_wire.default_spin_ns() == native_wire.SPIN_NS > 0
