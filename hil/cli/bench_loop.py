@@ -35,7 +35,8 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("--cross-process", default="udp,serial",
                    help="comma list of cross-process links to measure (udp, serial; empty: none): the Python "
                         "pair, then the native pair (native loop + `hil target --native`) beside the Python pair, "
-                        "idle and beside a CPU burner")
+                        "idle and beside a CPU burner; for udp also the floor: a bare C ping-pong between two "
+                        "processes, spinning and blocking, idle and beside the burner (udp_floor_*)")
     p.add_argument("--no-realtime", action="store_true", help="skip the real-time lateness measurement")
     p.add_argument("--qemu", type=Path, metavar="ELF",
                    help="also measure a firmware for mps2-an386 in QEMU (hil fw build --board mps2-an386) over its "
@@ -101,6 +102,31 @@ def _native_pair_under_load(base: RunConfig, name: str, spec: str, repeats: int,
     return out
 
 
+def _udp_floor(progress: Callable[[str], None], round_trips: int = 5000) -> dict[str, float]:
+    """The floor of the UDP pair on this machine (hil/native/link_floor.c): mean round trip [µs] of a bare C
+    ping-pong between two processes spinning (as the native links do) or always blocking, idle and beside a CPU
+    burner; `udp_floor_load_ratio` is the best rate beside the burner over the best idle rate - the most the
+    native pair's `udp_native_load_ratio` can reach here."""
+    from pmsm_hil.hil.runner.native_link import native_lib
+    from pmsm_hil.hil.runner.native_wire import SPIN_NS
+
+    ffi, lib = native_lib()
+    result = ffi.new("nl_udp_floor_t *")
+    out: dict[str, float] = {}
+    for load in ("", "_loaded"):
+        progress(f"udp floor: bare C ping-pong between two processes{', a CPU burner beside it' if load else ''}")
+        with _cpu_burner() if load else contextlib.nullcontext():
+            for mode, spin in (("spin", SPIN_NS), ("block", 0)):
+                err = int(lib.nl_udp_floor(round_trips, spin, result))
+                if err:
+                    raise OSError(err, f"udp floor ({mode}{load}): {os.strerror(err)}")
+                out[f"udp_floor_{mode}{load}_us"] = int(result.mean_ns) / 1e3
+    best_idle = min(out["udp_floor_spin_us"], out["udp_floor_block_us"])
+    best_loaded = min(out["udp_floor_spin_loaded_us"], out["udp_floor_block_loaded_us"])
+    out["udp_floor_load_ratio"] = best_idle / best_loaded
+    return out
+
+
 def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
             progress: Callable[[str], None] = lambda _msg: None, qemu: Path | None = None) -> dict[str, Any]:
     """All loop figures; keys documented in docs/benchmarks.md. `progress` gets one line per stage."""
@@ -147,6 +173,11 @@ def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
     for name, spec in (("udp", "udp"), ("serial", "serial:pty")):
         if name in cross:  # the native pair beside the Python pair (both spawned)
             out.update(_native_pair_under_load(base, name, spec, repeats, runs, progress))
+    if "udp" in cross:
+        try:
+            out.update(_udp_floor(progress))
+        except OSError as exc:
+            out["udp_floor_error"] = str(exc)
     if qemu is not None:
         for transport, link in (("uart", "virtual"), ("mailbox", "mailbox")):
             progress(f"lockstep, {qemu.name} in QEMU mps2-an386 over its {transport} ({runs})")
@@ -177,7 +208,9 @@ def run(args: argparse.Namespace) -> int:
     print(f"closed loop, niu2020 IPMSM, MPCC, Ts = 100 µs, {args.duration} s simulated, median of {args.repeats}; "
           f"load average {load1:.2f} / {load5:.2f} (1 / 5 min) at the end")
     for key, value in figures.items():
-        if key.endswith("_hz"):
+        if key.startswith("udp_floor_") and key.endswith("_us"):
+            print(f"  {key:<40} {value:>10.1f} µs per round trip (bare C, two processes)")
+        elif key.endswith("_hz"):
             print(f"  {key:<40} {value:>10.0f} periods/s  ({value * 1e-4:.2f}× real time at 10 kHz)")
         elif key.endswith("_load_ratio"):
             print(f"  {key:<40} {value:>10.2f} ×  (beside a CPU burner / idle, same run)")

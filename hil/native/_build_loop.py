@@ -24,7 +24,7 @@ FIRMWARE_FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion
 LOOP_FLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion", "-ffp-contract=off",
               "-fno-builtin-sin", "-fno-builtin-cos", "-pthread"]
 LOOP_SOURCES = ("loop.c", "loop_frames.c", "loop_rt.c", "nl_link.c", "loop_udp.c", "loop_serial.c", "loop_socketcan.c",
-                "target_serve.c", "loop_board.c", "dq_segment.c", "gate_edges.c", "plant.c", "plant6.c")
+                "target_serve.c", "link_floor.c", "loop_board.c", "dq_segment.c", "gate_edges.c", "plant.c", "plant6.c")
 
 CDEF = """
 #define NL_BLOCK ...
@@ -185,6 +185,10 @@ typedef struct {
     int64_t reads, gaps, gaps_10us, max_gap_ns, lost_ns;
 } nl_gap_probe_t;
 int32_t nl_gap_probe(int64_t duration_ns, int64_t gap_ns, int32_t cpu, int32_t rt_priority, nl_gap_probe_t *out);
+typedef struct {
+    int64_t round_trips, mean_ns, max_ns;
+} nl_udp_floor_t;
+int32_t nl_udp_floor(int64_t n, int64_t spin_ns, nl_udp_floor_t *out);
 int nl_wait_readable(int32_t fd, int64_t deadline_ns, nl_spin_t *sp, int64_t *spin_end, nl_link_stats_t *st);
 typedef struct {
     int32_t fd;
@@ -252,6 +256,7 @@ PREAMBLE = """
 #include "loop_serial.h"
 #include "loop_socketcan.h"
 #include "target_serve.h"
+#include "link_floor.h"
 
 static size_t nl_sizeof_period(void) { return sizeof(nl_period_t); }
 static size_t nl_sizeof_frame(void) { return sizeof(nl_frame_rec_t); }

@@ -135,3 +135,27 @@ def test_a_process_on_one_cpu_does_not_spin(monkeypatch: pytest.MonkeyPatch) -> 
     assert native_wire.default_spin_ns() == 0  # a spin would only delay the peer it waits for
     monkeypatch.setattr(native_wire.os, "sched_getaffinity", lambda _pid: {0, 1})
     assert native_wire.default_spin_ns() == native_wire.SPIN_NS > 0
+
+
+def test_the_udp_floor_is_a_real_round_trip_between_two_processes() -> None:
+    """hil/native/link_floor.c (`hil bench loop` prints it beside the native pair): every round trip is timed,
+    a blocking one costs at least a wake-up of the other process, nothing is left running."""
+    ffi, lib = native_lib()
+    out = ffi.new("nl_udp_floor_t *")
+    for spin_ns in (50_000, 0):
+        assert lib.nl_udp_floor(300, spin_ns, out) == 0
+        assert out.round_trips == 300 and 0 < out.mean_ns <= out.max_ns
+        assert out.mean_ns >= 1_000  # two system calls each way and a context switch or a cross-CPU hand-off
+
+
+def test_bench_loop_prints_the_udp_floor_and_its_load_ratio(monkeypatch: pytest.MonkeyPatch) -> None:
+    import contextlib
+
+    from pmsm_hil.hil.cli import bench_loop
+    monkeypatch.setattr(bench_loop, "_cpu_burner", contextlib.nullcontext)  # the figure itself: docs/benchmarks.md
+    out = bench_loop._udp_floor(lambda _msg: None, round_trips=200)
+    assert set(out) == {"udp_floor_spin_us", "udp_floor_block_us", "udp_floor_spin_loaded_us",
+                        "udp_floor_block_loaded_us", "udp_floor_load_ratio"}
+    best_idle = min(out["udp_floor_spin_us"], out["udp_floor_block_us"])
+    best_loaded = min(out["udp_floor_spin_loaded_us"], out["udp_floor_block_loaded_us"])
+    assert out["udp_floor_load_ratio"] == pytest.approx(best_idle / best_loaded)
