@@ -185,7 +185,8 @@ METRICS: Final[tuple[Metric, ...]] = (
     _m("deadline_misses", "deadline misses", "", "real time: commands that missed their period", "d", CLI),
     _m("late_periods", "late periods", "", "count of `late` flags"),
     _m("missed_periods", "missed periods", "", "count of `missed` flags"),
-    _m("link", "link", "", "`{frames_tx, frames_rx, crc_errors, lost, late}` plus the link's own counters"),
+    _m("link", "link", "", "`{frames_tx, frames_rx, crc_errors, lost, late}` plus the link's own counters "
+       "(the native loop over a link: also `blocked`, `spin_backoffs`, `spin_early_ends`)"),
     # computed by `hil compare` per row
     _m("exec_time_us_median", "exec median", "µs", "`exec_time_us.median` of the run", ".3f", COMPARE_ROW,
        source=COMPARE),

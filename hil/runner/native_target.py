@@ -61,6 +61,7 @@ def serve_native(link_spec: str, *, role: str = "target", max_idle_s: float | No
         stats = link.stats.as_dict()
         for name, value in h.counters().items():
             stats[name] += value
+        stats.update(h.waits())
         reason = _REASONS.get(end, "?")
         if end == 3 and max_idle_s is not None:
             reason = f"idle {max_idle_s:g} s"

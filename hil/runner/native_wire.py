@@ -69,6 +69,12 @@ class WireHandle:
         """The C link's LinkStats counters by name."""
         return {name: int(getattr(self.state.stats, name)) for name in COUNTERS}
 
+    def waits(self) -> dict[str, int]:
+        """How the C link's receives waited: `blocked` (spins that ran out, then ppoll), `spin_backoffs` (times
+        it went to blocking at once: a contended machine), `spin_early_ends` (back-offs ended early)."""
+        st, sp = self.state.stats, self.state.spin
+        return {"blocked": int(st.blocked), "spin_backoffs": int(sp.backoffs), "spin_early_ends": int(sp.early_ends)}
+
     def hand_back(self) -> None:
         """Give the bus what it continues from (link sequence numbers, bytes of a packet half received)."""
         self.wire.hand_back(self.ffi, self.state, self.bus)
@@ -86,6 +92,8 @@ class NativeWireLink:
         #: errno of what the last run's real-time set-up was refused: mlockall, SCHED_FIFO, CPU affinity (0: ok)
         self.rt_errnos: tuple[int, int, int] = (0, 0, 0)
         self.handle: WireHandle | None = None
+        #: how the C loop's receives waited over its runs (`WireHandle.waits`)
+        self.waits: dict[str, int] = {}
 
     def attach(self, c: Any, lockstep_timeout_s: float) -> None:
         """Give the loop's nl_config_t `c` the link as it is now."""
@@ -100,6 +108,8 @@ class NativeWireLink:
             return
         for name, value in h.counters().items():
             setattr(self.stats, name, getattr(self.stats, name) + value)
+        for name, value in h.waits().items():
+            self.waits[name] = self.waits.get(name, 0) + value
         h.hand_back()
         self.handle = None
 

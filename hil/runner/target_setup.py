@@ -51,12 +51,14 @@ class TargetConnection:
     extra_metrics: Callable[[], dict[str, Any]] = field(default=lambda: {})
 
     def link_stats(self) -> dict[str, int]:
-        """Host link counters plus decoder counters."""
+        """Host link counters plus decoder counters, plus how the native loop's receives waited (`blocked`,
+        `spin_backoffs`, `spin_early_ends`: NativeWireLink.waits) on its links to another process."""
         stats: dict[str, int] = {}
         for source in (self.host_link.stats, self.client.decoder.stats):
             for key, value in vars(source).items() if hasattr(source, "__dict__") else _slots(source):
                 if isinstance(value, int):
                     stats[key] = stats.get(key, 0) + value
+        stats.update(getattr(self.host_link, "waits", {}))
         return stats
 
     def close(self) -> None:

@@ -23,7 +23,9 @@ from tests.runner.test_native_loop import SENSORS, _assert_same_frames, _mirrore
 #: the link, so those are 0 / NaN in both loops alike and compared)
 WALL_FIELDS = {"exec_time_ns"}
 WALL_METRICS = {"exec_time_us", "exec_split_us", "total_wall_time_s", "loop_rate_total_hz", "loop_rate_hz",
-                "wall_time_s", "realtime_factor", "loop", "loop_note", "command_wait_max_us", "link_spec"}
+                "wall_time_s", "realtime_factor", "loop", "loop_note", "command_wait_max_us", "link_spec", "link"}
+#: the native links' counters of how receives waited (NativeWireLink.waits): the machine's timing
+WAIT_COUNTERS = {"blocked", "spin_backoffs", "spin_early_ends"}
 
 
 def _pair(cfg: RunConfig, tmp_path: Path | None = None) -> tuple[RunResult, RunResult]:
@@ -49,6 +51,10 @@ def _assert_same(py: RunResult, na: RunResult) -> None:
     assert py.metrics.keys() == na.metrics.keys()
     for key in py.metrics.keys() - WALL_METRICS:
         assert py.metrics[key] == na.metrics[key], key
+    py_link, na_link = py.metrics["link"], dict(na.metrics["link"])
+    waits = {key: na_link.pop(key) for key in WAIT_COUNTERS}
+    assert py_link == na_link and WAIT_COUNTERS.isdisjoint(py_link)
+    assert all(isinstance(v, int) and v >= 0 for v in waits.values())
     assert na.metrics["end_reason"] == "completed" and na.metrics["link"]["lost"] == 0
 
 
