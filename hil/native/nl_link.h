@@ -80,7 +80,7 @@ int nl_accept_framed(const uint8_t *body, int32_t *rx_last, nl_link_stats_t *st,
  * ends of a lockstep link receive alike, so they back off and try again together (an end that spins while its
  * peer blocks sees its spins run out and would back off again). The window is short because its receives are the
  * price of noticing the load: beside a CPU burner both ends spin ~100 µs per receive until they back off (two
- * windows of 256 cost a 1 s lockstep run ~20 % of its rate; 128: idle rate unchanged, loaded +12-16 %; 64: false
+ * windows of 256 cost a 1 s lockstep run ~20 % of its rate; 128: idle rate unchanged, loaded +11-17 %; 64: false
  * back-offs on an idle machine, idle rate -35 %; docs/benchmarks.md). All zero: spinning, no history. */
 #define NL_SPIN_WINDOW 128
 #define NL_SPIN_BACKOFF 4096
