@@ -16,13 +16,17 @@ from typing import Any, Final
 
 import numpy as np
 from pmsm_hil.hil.errors import ParameterError
+from pmsm_hil.hil.machine_params import MachineParams
 from pmsm_hil.hil.mechanics import Mechanics
 from pmsm_hil.hil.motor_params import PmsmParams
 from pmsm_hil.hil.plant import Plant
 from pmsm_hil.hil.plant6 import Plant6
 from pmsm_hil.hil.plant_base import PlantBase
 from pmsm_hil.hil.sensors import SensorModel
+from pmsm_hil.protocol import codec6
+from pmsm_hil.protocol.codec import L_MEAS_A, L_MEAS_B
 from pmsm_hil.protocol.ids import ParamId
+from pmsm_hil.protocol.layout import FrameLayout
 from pmsm_hil.protocol.messages import Measurement, Measurement6
 
 _NAN = math.nan
@@ -59,7 +63,23 @@ def _measure6(seq: int, smp: Any, sensors: SensorModel, ideal: bool, vdc: float
     return meas, (smp.i_u, smp.i_v, smp.i_w, smp.i_x, smp.i_y)
 
 
-def _no_extras(params: PmsmParams, rated_nm: float) -> dict[ParamId, float]:
+@dataclass(frozen=True, slots=True)
+class MeasurementFrames:
+    """The Measurement frames a machine kind is measured with: `native` names the native loop's encoder
+    (`NL_MEAS_*` of hil/native/loop.h), `currents` the phase currents they carry; `current_layout` /
+    `state_layout`: the DBC layouts whose signals give the current and angle/speed/vdc scales and raw limits."""
+
+    native: str
+    currents: int
+    current_layout: FrameLayout
+    state_layout: FrameLayout
+
+
+MEAS_THREE: Final = MeasurementFrames("NL_MEAS_3", 3, L_MEAS_A, L_MEAS_B)
+MEAS_SIX: Final = MeasurementFrames("NL_MEAS_6", 6, codec6.L_MEAS6_A, codec6.L_MEAS6_B)
+
+
+def _no_extras(params: Any, rated_nm: float) -> dict[ParamId, float]:
     return {}
 
 
@@ -83,19 +103,24 @@ def _replay_row6(q: Any) -> tuple[float, ...]:
 class MachineLayout:
     """Facts of one machine kind: legs, plant class, frame builder and the record/CSV layouts.
 
-    `legs`, `max_state_code` and `trace_dtype` come from the plant class. `replay_legs` / `replay_columns`:
-    CSV columns of `hil plant replay` input (one gate bit per leg) and output; `replay_row`: a plant sample
-    → output row; `target_extras(params, rated torque [N·m])`: the machine-specific parameters written to
-    the target before enabling.
+    `legs`, `max_state_code` and `trace_dtype` come from the plant class. `params_class`: the kind's parameter
+    class (`MachineParams`), and `accepts(params)` whether this layout runs a given instance of it (the PMSM
+    layouts share `PmsmParams`: lls > 0 selects the dual three-phase one); `measurement`: the Measurement
+    frames; `replay_legs` / `replay_columns`: CSV columns of `hil plant replay` input (one gate bit per leg) and
+    output; `replay_row`: a plant sample → output row; `target_extras(params, rated torque [N·m])`: the
+    machine-specific parameters written to the target before enabling, beyond `params.model_parameters()`.
     """
 
     kind: str
     plant_class: type[PlantBase]
+    params_class: type
+    accepts: Callable[[Any], bool]
+    measurement: MeasurementFrames
     measure: MeasureFn
     replay_legs: tuple[str, ...]
     replay_columns: tuple[str, ...]
     replay_row: Callable[[Any], tuple[float, ...]]
-    target_extras: Callable[[PmsmParams, float], dict[ParamId, float]]
+    target_extras: Callable[[Any, float], dict[ParamId, float]]
 
     @property
     def legs(self) -> int:
@@ -117,31 +142,57 @@ class MachineLayout:
         """Doubles per trace row."""
         return len(self.trace_dtype.names or ())
 
+    @property
+    def native_kernel(self) -> str | None:
+        """The name of the plant's machine-kernel table for the native loop (None: the Python loop only)."""
+        return self.plant_class.KERNEL_TABLE
+
 
 THREE_PHASE: Final = MachineLayout(
-    kind="three-phase", plant_class=Plant, measure=_measure3,
+    kind="three-phase", plant_class=Plant, params_class=PmsmParams, accepts=lambda p: p.lls == 0.0,
+    measurement=MEAS_THREE, measure=_measure3,
     replay_legs=("sa", "sb", "sc"),
     replay_columns=("t", "i_a", "i_b", "i_c", "i_d", "i_q", "torque", "theta_e", "omega_m"),
     replay_row=_replay_row3, target_extras=_no_extras)
 
 DUAL_THREE_PHASE: Final = MachineLayout(
-    kind="dual-three-phase", plant_class=Plant6, measure=_measure6,
+    kind="dual-three-phase", plant_class=Plant6, params_class=PmsmParams, accepts=lambda p: p.lls > 0.0,
+    measurement=MEAS_SIX, measure=_measure6,
     replay_legs=("sa1", "sb1", "sc1", "sa2", "sb2", "sc2"),
     replay_columns=("t", "i_a1", "i_b1", "i_c1", "i_a2", "i_b2", "i_c2", "i_d", "i_q", "i_x", "i_y", "torque",
                     "theta_e", "omega_m"),
     replay_row=_replay_row6, target_extras=_extras6)
 
-#: Machine layouts by phase count (the registry: a new kind adds an entry).
-LAYOUTS: Final[dict[int, MachineLayout]] = {lay.legs: lay for lay in (THREE_PHASE, DUAL_THREE_PHASE)}
+#: Machine layouts by kind, in registration order (the registry: a new kind is one `register_layout` call).
+LAYOUTS: Final[dict[str, MachineLayout]] = {}
+
+
+def register_layout(layout: MachineLayout) -> MachineLayout:
+    """Add a machine kind to the registry (ParameterError if the kind is taken by another layout)."""
+    held = LAYOUTS.get(layout.kind)
+    if held is not None and held is not layout:
+        raise ParameterError(f"machine kind {layout.kind!r} is already registered")
+    LAYOUTS[layout.kind] = layout
+    return layout
+
+
+def unregister_layout(kind: str) -> None:
+    """Remove a machine kind (tests that register their own)."""
+    LAYOUTS.pop(kind, None)
+
+
+register_layout(THREE_PHASE)
+register_layout(DUAL_THREE_PHASE)
 
 
 def layout_for_phases(phases: int) -> MachineLayout:
-    """The layout of a phase count; ParameterError naming `phases` for an unknown one."""
-    try:
-        return LAYOUTS[phases]
-    except (KeyError, TypeError):
-        known = ", ".join(str(k) for k in sorted(LAYOUTS))
-        raise ParameterError(f"phases: no machine layout for {phases!r} phases (known: {known})") from None
+    """The first registered layout of a phase count (the PMSM layouts for 3 and 6); ParameterError naming
+    `phases` for a count no layout has."""
+    for lay in LAYOUTS.values():
+        if isinstance(phases, int) and lay.legs == phases:
+            return lay
+    known = ", ".join(str(k) for k in sorted({lay.legs for lay in LAYOUTS.values()}))
+    raise ParameterError(f"phases: no machine layout for {phases!r} phases (known: {known})")
 
 
 def layout_for_trace(names: tuple[str, ...]) -> MachineLayout | None:
@@ -154,7 +205,7 @@ class Machine:
     """One motor preset with its machine kind: parameters plus the layout the run, logger, replay,
     metrics and dashboards use."""
 
-    params: PmsmParams
+    params: MachineParams
     layout: MachineLayout
 
     @property
@@ -173,9 +224,15 @@ class Machine:
         return self.layout.plant_class(self.params, ts_s, mechanics, trace_dt_s=trace_dt_s, theta0_rad=theta0_rad)
 
 
-def machine_for(params: PmsmParams) -> Machine:
-    """The descriptor of a motor: six phases when it has a leakage inductance lls > 0, else three."""
-    return Machine(params, layout_for_phases(6 if params.lls > 0.0 else 3))
+def machine_for(params: MachineParams) -> Machine:
+    """The descriptor of a motor: the first registered layout of its parameter class that accepts it (a PMSM:
+    six phases when it has a leakage inductance lls > 0, else three); ParameterError for a parameter class no
+    registered kind has."""
+    for lay in LAYOUTS.values():
+        if isinstance(params, lay.params_class) and lay.accepts(params):
+            return Machine(params, lay)
+    raise ParameterError(f"motor '{params.name}': no registered machine kind takes {type(params).__name__} "
+                         f"(known kinds: {', '.join(LAYOUTS)})")
 
 
 def load_machine(name_or_path: str, overrides: dict[str, float] | None = None) -> Machine:
@@ -185,5 +242,6 @@ def load_machine(name_or_path: str, overrides: dict[str, float] | None = None) -
     return machine_for(load_motor(name_or_path, overrides))
 
 
-__all__ = ["DUAL_THREE_PHASE", "LAYOUTS", "NO_SECOND_SET", "THREE_PHASE", "Machine", "MachineLayout",
-           "layout_for_phases", "layout_for_trace", "load_machine", "machine_for"]
+__all__ = ["DUAL_THREE_PHASE", "LAYOUTS", "MEAS_SIX", "MEAS_THREE", "NO_SECOND_SET", "THREE_PHASE", "Machine",
+           "MachineLayout", "MeasurementFrames", "layout_for_phases", "layout_for_trace", "load_machine",
+           "machine_for", "register_layout", "unregister_layout"]

@@ -7,6 +7,7 @@ from dataclasses import dataclass, fields, replace
 from typing import Any
 
 from pmsm_hil.hil.errors import ParameterError
+from pmsm_hil.protocol.ids import ParamId
 
 #: Names accepted by ``--set NAME=VALUE`` on every command that takes a motor, with their units.
 SETTABLE_UNITS: dict[str, str] = {
@@ -115,6 +116,18 @@ class PmsmParams:
             if key == "pole_pairs" and float(value) != int(value):
                 raise ParameterError(f"motor parameter 'pole_pairs' must be an integer, got {value!r}")
         return replace(self, **clean)
+
+    @property
+    def torque_rating_nm(self) -> float:
+        """Rated torque [N·m]: the preset's, else the magnet torque at half the trip current 1.5·p·ψf·i_trip/2."""
+        if self.rated_torque_nm > 0:
+            return self.rated_torque_nm
+        return self.psi_f * 1.5 * self.pole_pairs * 0.5 * self.i_trip
+
+    def model_parameters(self) -> dict[ParamId, float]:
+        """The PMSM model the target is told: Rs [Ω], Ld, Lq [H], ψf [Wb] (the dual three-phase layout adds
+        L_ls through its `target_extras`)."""
+        return {ParamId.RS: self.rs, ParamId.LD: self.ld, ParamId.LQ: self.lq, ParamId.PSI_F: self.psi_f}
 
     def torque_nm(self, i_d: float, i_q: float) -> float:
         """Electromagnetic torque 1.5·p·(ψf·iq + (Ld−Lq)·id·iq) [N·m] for currents [A]."""

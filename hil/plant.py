@@ -7,7 +7,7 @@ from typing import NamedTuple
 
 from pmsm_hil.hil._plant_native import lib
 from pmsm_hil.hil.motor_params import PmsmParams
-from pmsm_hil.hil.plant_base import MAX_SUBINTERVALS, PeriodStats, PlantBase
+from pmsm_hil.hil.plant_base import MAX_SUBINTERVALS, PeriodStats, PlantBase, reset_gate_edges, set_inverter_pmsm_params
 
 __all__ = ["MAX_SUBINTERVALS", "TRACE_COLUMNS", "PeriodStats", "Plant", "PlantSample"]
 
@@ -47,6 +47,7 @@ class Plant(PlantBase):
     """
 
     KERNEL_PREFIX = "pl"
+    KERNEL_TABLE = "pl_kernel"
     LEGS = 3
     MAX_STATE = 7
     STATE_FORMAT = "4·Sa + 2·Sb + Sc"
@@ -54,10 +55,14 @@ class Plant(PlantBase):
     _kernel_advance = staticmethod(lib.pl_advance)
 
     def _set_kernel_params(self, params: PmsmParams) -> None:
+        set_inverter_pmsm_params(self._p, params, self._max_piece_s)
         self._torque_k = 1.5 * params.pole_pairs
         self._psi_f = params.psi_f
         self._dl = params.ld - params.lq
         self._vdc = params.vdc
+
+    def _init_kernel_state(self) -> None:
+        reset_gate_edges(self._s, self.LEGS)
 
     def set_state(self, *, i_d: float | None = None, i_q: float | None = None,
                   theta_e: float | None = None, omega_m: float | None = None, gate: int | None = None) -> None:

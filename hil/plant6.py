@@ -13,7 +13,7 @@ from pmsm_hil.hil._plant_native import ffi, lib
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.mechanics import Mechanics
 from pmsm_hil.hil.motor_params import PmsmParams
-from pmsm_hil.hil.plant_base import PlantBase
+from pmsm_hil.hil.plant_base import PlantBase, reset_gate_edges, set_inverter_pmsm_params
 
 #: Trace columns of `Plant6.last_trace`: t [s], six phase currents [A], torque [N·m], omega_m [rad/s],
 #: x-y currents [A].
@@ -61,6 +61,7 @@ class Plant6(PlantBase):
     """
 
     KERNEL_PREFIX = "p6"
+    KERNEL_TABLE = "p6_kernel"
     LEGS = N_LEGS
     MAX_STATE = MAX_STATE6
     STATE_FORMAT = "[S_A S_B S_C S_U S_V S_W]"
@@ -76,7 +77,11 @@ class Plant6(PlantBase):
         self._phase = ffi.new("double[]", N_LEGS)
 
     def _set_kernel_params(self, params: PmsmParams) -> None:
+        set_inverter_pmsm_params(self._p, params, self._max_piece_s)
         self._p.lls = params.lls
+
+    def _init_kernel_state(self) -> None:
+        reset_gate_edges(self._s, self.LEGS)
 
     def set_state(self, *, i_d: float | None = None, i_q: float | None = None, i_x: float | None = None,
                   i_y: float | None = None, theta_e: float | None = None, omega_m: float | None = None,

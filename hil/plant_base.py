@@ -9,10 +9,10 @@ from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
-from pmsm_hil.hil._plant_native import ffi
+from pmsm_hil.hil import _plant_native
 from pmsm_hil.hil.errors import ParameterError, PlantFaultError, SequenceError
+from pmsm_hil.hil.machine_params import MachineParams
 from pmsm_hil.hil.mechanics import DynoMechanics, InertiaMechanics, LoadProfile, Mechanics
-from pmsm_hil.hil.motor_params import PmsmParams
 
 MAX_SUBINTERVALS = 8
 #: Load-profile breakpoints honoured inside one control period (more are a ParameterError).
@@ -37,9 +37,11 @@ class PeriodStats(NamedTuple):
 
 class KernelView(NamedTuple):
     """The plant's C structs and trace buffer as addresses, for a native loop that advances the same plant:
-    params, state and trace-buffer addresses, trace rows one period may write, trace step [s] (0: none), and
-    whether the load profile applies (inertia mode)."""
+    the machine-kernel table (hil/native/machine_kernel.h, 0: the plant has none), params, state and trace-buffer
+    addresses, trace rows one period may write, trace step [s] (0: none), and whether the load profile applies
+    (inertia mode)."""
 
+    kernel: int
     params: int
     state: int
     trace: int
@@ -52,21 +54,43 @@ class KernelView(NamedTuple):
 _STATS_STRUCT = struct.Struct("=6Idii")
 
 
+def set_inverter_pmsm_params(p: Any, params: Any, max_piece_s: float) -> None:
+    """The fields the PMSM kernels' params structs share (pl_params_t / p6_params_t): motor, inverter and
+    mechanics parameters [SI], the longest piece between speed updates [s]."""
+    p.rs, p.ld, p.lq, p.psi_f, p.vdc = params.rs, params.ld, params.lq, params.psi_f, params.vdc
+    p.j, p.b, p.t_dead, p.t_mpw = params.j, params.b, params.t_dead, params.t_mpw
+    p.max_piece = max_piece_s
+    p.pole_pairs = params.pole_pairs
+
+
+def reset_gate_edges(s: Any, legs: int) -> None:
+    """No gate edge and no dead time yet on any of `legs` legs (the gate_edges.c state of an inverter kernel)."""
+    for leg in range(legs):
+        s.last_edge_t[leg] = -1.0
+        s.dead_until[leg] = -1.0
+
+
 class PlantBase:
     """One control period at a time through a C kernel; subclasses name the kernel and its structs.
 
-    Subclass attributes: ``KERNEL_PREFIX`` (C struct/function prefix, e.g. "pl"), ``LEGS``,
-    ``MAX_STATE`` (largest state code), ``STATE_FORMAT`` (how codes are written, for errors) and
-    ``TRACE_COLUMNS``; ``_kernel_advance`` is the C function (a staticmethod).
+    Subclass attributes: ``NATIVE_MODULE`` (the cffi extension holding the kernel, default the bundled
+    `pmsm_hil.hil._plant_native`), ``KERNEL_PREFIX`` (C struct/function prefix, e.g. "pl": the structs
+    ``<prefix>_params_t``, ``<prefix>_state_t``, ``<prefix>_period_stats_t``), ``KERNEL_TABLE`` (the name of the
+    extension's function returning its machine-kernel table for the native loop; None: the Python loop only),
+    ``LEGS``, ``MAX_STATE`` (largest state code), ``STATE_FORMAT`` (how codes are written, for errors) and
+    ``TRACE_COLUMNS``; ``_kernel_advance`` is the C function (a staticmethod); ``_set_kernel_params`` writes the
+    machine's parameters into the params struct.
     """
 
+    NATIVE_MODULE: ClassVar[Any] = _plant_native
+    KERNEL_TABLE: ClassVar[str | None] = None
     KERNEL_PREFIX: ClassVar[str]
     LEGS: ClassVar[int]
     MAX_STATE: ClassVar[int]
     STATE_FORMAT: ClassVar[str]
     TRACE_COLUMNS: ClassVar[tuple[str, ...]]
 
-    def __init__(self, params: PmsmParams, ts_s: float, mechanics: Mechanics, *, theta0_rad: float = 0.0,
+    def __init__(self, params: Any, ts_s: float, mechanics: Mechanics, *, theta0_rad: float = 0.0,
                  trace_dt_s: float | None = 2e-6, max_piece_s: float = 5e-6) -> None:
         if not (math.isfinite(ts_s) and 1e-6 <= ts_s <= 1e-2):
             raise ParameterError(f"control period 'ts' must be between 1 µs and 10 ms, got {ts_s} s")
@@ -77,10 +101,12 @@ class PlantBase:
             raise ParameterError(f"'trace_dt' must be in (0, ts], got {trace_dt_s} s")
         if not math.isfinite(theta0_rad):
             raise ParameterError("'theta0' must be finite")
-        self.params = params
+        self.params: MachineParams = params
         self.ts_s = ts_s
         self.trace_dt_s = trace_dt_s
+        self._max_piece_s = max_piece_s
         prefix = self.KERNEL_PREFIX
+        ffi = self._ffi = self.NATIVE_MODULE.ffi
         self._p: Any = ffi.new(f"{prefix}_params_t *")
         self._s: Any = ffi.new(f"{prefix}_state_t *")
         self._stats: Any = ffi.new(f"{prefix}_period_stats_t *")
@@ -100,22 +126,19 @@ class PlantBase:
         self._trace_dt = 0.0 if trace_dt_s is None else trace_dt_s
         self._trace_ptr = self._trace_buf if trace_dt_s is not None else ffi.NULL
         self._load = LoadProfile.constant(0.0)
-        p = self._p
-        p.rs, p.ld, p.lq, p.psi_f, p.vdc = params.rs, params.ld, params.lq, params.psi_f, params.vdc
-        p.j, p.b, p.t_dead, p.t_mpw = params.j, params.b, params.t_dead, params.t_mpw
-        p.max_piece = max_piece_s
-        p.pole_pairs = params.pole_pairs
         self._set_kernel_params(params)
         self.mechanics = mechanics
         self._s.theta_e = theta0_rad % (2.0 * math.pi)
         if isinstance(mechanics, InertiaMechanics):
             self._s.omega_m = mechanics.initial_speed_rpm * 2.0 * math.pi / 60.0
-        for leg in range(self.LEGS):
-            self._s.last_edge_t[leg] = -1.0
-            self._s.dead_until[leg] = -1.0
+        self._init_kernel_state()
 
-    def _set_kernel_params(self, params: PmsmParams) -> None:
-        """Kernel-specific parameters beyond the common ones (default: none)."""
+    def _set_kernel_params(self, params: Any) -> None:
+        """Write the machine's parameters into the kernel's params struct ``self._p``."""
+        raise NotImplementedError
+
+    def _init_kernel_state(self) -> None:
+        """Kernel state beyond angle and speed at the start (default: none)."""
 
     def _kernel_advance(self, *args: Any) -> int:
         raise NotImplementedError
@@ -213,9 +236,10 @@ class PlantBase:
     def kernel_view(self) -> KernelView:
         """Addresses of the kernel structs (valid while this plant lives) and the per-period trace facts."""
         def addr(ptr: Any) -> int:
-            return int(ffi.cast("uintptr_t", ptr))
+            return int(self._ffi.cast("uintptr_t", ptr))
 
-        return KernelView(addr(self._p), addr(self._s), addr(self._trace_buf), self._trace_cap, self._trace_dt,
+        table = 0 if self.KERNEL_TABLE is None else addr(getattr(self.NATIVE_MODULE.lib, self.KERNEL_TABLE)())
+        return KernelView(table, addr(self._p), addr(self._s), addr(self._trace_buf), self._trace_cap, self._trace_dt,
                           self._inertia)
 
     @property

@@ -24,7 +24,7 @@ FIRMWARE_FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion
 LOOP_FLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion", "-ffp-contract=off",
               "-fno-builtin-sin", "-fno-builtin-cos", "-pthread"]
 LOOP_SOURCES = ("loop.c", "loop_frames.c", "loop_rt.c", "nl_link.c", "loop_udp.c", "loop_serial.c", "loop_socketcan.c",
-                "target_serve.c", "link_floor.c", "loop_board.c", "dq_segment.c", "gate_edges.c", "plant.c", "plant6.c")
+                "target_serve.c", "link_floor.c", "loop_board.c")
 
 CDEF = """
 #define NL_BLOCK ...
@@ -44,6 +44,11 @@ CDEF = """
 #define NL_END_ENCODE_ERROR ...
 #define NL_END_INTERRUPTED ...
 #define NL_PLANT_E_BREAKPOINTS ...
+#define NL_PLANT_E_KERNEL ...
+#define NL_MEAS_3 ...
+#define NL_MEAS_6 ...
+#define MK_ABI_VERSION ...
+#define MK_MAX_LEGS ...
 #define NL_WHAT_MISSING ...
 #define NL_WHAT_SECOND ...
 #define NL_WHAT_OTHER_SEQ ...
@@ -51,6 +56,8 @@ CDEF = """
 #define NL_WHAT_DECODER_FRAME ...
 #define NL_WHAT_STATE_CODE ...
 #define NL_WHAT_DURATIONS ...
+
+typedef struct mk_kernel mk_kernel_t;
 
 typedef struct {
     uint32_t period;
@@ -66,7 +73,7 @@ typedef struct {
 } nl_finding_t;
 
 typedef struct {
-    int32_t legs, fd;
+    int32_t legs, fd, meas_format;
     int64_t ts_ns;
     double ts_s;
     int64_t n_total, n_settle;
@@ -78,13 +85,14 @@ typedef struct {
     double noise_std, adc_lsb, enc_step, two_pi, vdc;
     double s_i, s_th, s_w, s_v;
     int32_t i_min, i_max, w_min, w_max, v_min, v_max, th_mod;
+    const struct mk_kernel *kernel;
     void *plant_params;
     void *plant_state;
     double *plant_trace;
     int32_t trace_cap;
     double trace_dt;
     int32_t trace_columns;
-    double torque_k, psi_f, dl, sqrt3_2, rpm_to_rad_s;
+    double rpm_to_rad_s;
     int32_t dyno, inertia, n_load;
     double load_t[64];
     double load_v[64];
@@ -249,6 +257,7 @@ int hil_core_tx(hil_core_frame_t *out);
 PREAMBLE = """
 #include <stddef.h>
 #include "loop.h"
+#include "machine_kernel.h"
 #include "loop_frames.h"
 #include "loop_rt.h"
 #include "hil_target_core.h"

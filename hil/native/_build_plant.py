@@ -23,13 +23,6 @@ typedef struct {
     int32_t gate;
     int32_t dead_level[3];
 } pl_state_t;
-typedef struct {
-    uint32_t leg_transitions, boundary_transitions, narrow_pulses, suppressed_pulses, open_phase_events,
-        narrow_pulses_gated;
-    double peak_current;
-    int32_t trace_n;
-    int32_t error;
-} ge_period_stats_t;
 typedef ge_period_stats_t pl_period_stats_t;
 int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const int64_t *durations_ns,
                int32_t n, double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp,
@@ -65,6 +58,12 @@ void p6_phase_currents(double i_d, double i_q, double theta_e, double i_x, doubl
 void p6_code_voltage(double vdc, int32_t code, double *v4);
 """
 
+#: The machine-kernel tables (machine_kernel.h) of both plants, opaque here: the native loop calls them.
+CDEF_KERNELS = """
+const mk_kernel_t *pl_kernel(void);
+const mk_kernel_t *p6_kernel(void);
+"""
+
 
 def _source(name: str) -> str:
     """Source path, relative to the working directory when possible (setuptools wants that)."""
@@ -72,14 +71,20 @@ def _source(name: str) -> str:
     return str(path.relative_to(Path.cwd())) if path.is_relative_to(Path.cwd()) else str(path)
 
 
+#: stats struct, sample struct and the opaque table type, shared with every kernel (hil/kernel_build.py)
+CDEF_COMMON = (_HERE / "machine_kernel.cdef").read_text(encoding="utf-8")
+
 ffibuilder = FFI()
-ffibuilder.cdef(CDEF + CDEF6)
+ffibuilder.cdef(CDEF_COMMON + CDEF + CDEF6 + CDEF_KERNELS)
 ffibuilder.set_source(
     "pmsm_hil.hil._plant_native",
     '#include "plant.h"\n#include "plant6.h"',
     sources=[_source(name) for name in ("dq_segment.c", "gate_edges.c", "plant.c", "plant6.c")],
     include_dirs=[str(_HERE)],
-    extra_compile_args=["-std=c99", "-O2", "-Wall", "-Wextra", "-Wdouble-promotion"],
+    # the native loop calls these kernels too: no FMA contraction and no sin/cos fusion, so its records equal the
+    # Python loop's bit for bit on every architecture
+    extra_compile_args=["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion", "-ffp-contract=off",
+                        "-fno-builtin-sin", "-fno-builtin-cos"],
     libraries=["m"],
 )
 

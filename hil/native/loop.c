@@ -9,9 +9,8 @@
 #include "loop.h"
 #include "loop_frames.h"
 #include "loop_rt.h"
+#include "machine_kernel.h"
 #include "nl_link.h"
-#include "plant.h"
-#include "plant6.h"
 
 /* The reference firmware's profiled step (hil_app_reference.c built with HIL_APP_REFERENCE_PROFILED): the
  * stage split [ns] and the restricted-vs-full candidate diagnostic of the last step. */
@@ -40,11 +39,8 @@ typedef struct {
     double tref;
 } pending_t;
 
-/* The plant's exact sample at a period start (PlantSample / PlantSample6). */
-typedef struct {
-    double i[6];
-    double i_d, i_q, i_x, i_y, theta_e, omega_m, torque;
-} sample_t;
+/* The plant's exact sample at a period start (the kernel's mk_sample_t). */
+typedef mk_sample_t sample_t;
 
 typedef struct {
     nl_handle_t *h;
@@ -354,36 +350,18 @@ static void from_target(loop_t *L)
 static void sample(const loop_t *L, sample_t *smp)
 {
     const nl_config_t *c = L->c;
-    if (c->legs == 6) {
-        const p6_state_t *s = (const p6_state_t *)c->plant_state;
-        p6_phase_currents(s->i_d, s->i_q, s->theta_e, s->i_x, s->i_y, smp->i);
-        smp->i_d = s->i_d;
-        smp->i_q = s->i_q;
-        smp->i_x = s->i_x;
-        smp->i_y = s->i_y;
-        smp->theta_e = s->theta_e;
-        smp->omega_m = s->omega_m;
-        smp->torque = p6_torque((const p6_params_t *)c->plant_params, s->i_d, s->i_q);
-    } else {
-        const pl_state_t *s = (const pl_state_t *)c->plant_state;
-        const double i_d = s->i_d;
-        const double i_q = s->i_q;
-        const double th = s->theta_e;
-        const double co = cos(th);
-        const double sn = sin(th);
-        const double i_al = i_d * co - i_q * sn;
-        const double i_be = i_d * sn + i_q * co;
-        smp->i[0] = i_al;
-        smp->i[1] = -0.5 * i_al + c->sqrt3_2 * i_be;
-        smp->i[2] = -0.5 * i_al - c->sqrt3_2 * i_be;
-        smp->i_d = i_d;
-        smp->i_q = i_q;
-        smp->i_x = c->nan;
-        smp->i_y = c->nan;
-        smp->theta_e = th;
-        smp->omega_m = s->omega_m;
-        smp->torque = c->torque_k * (c->psi_f + c->dl * i_d) * i_q;
+    int j;
+    for (j = 0; j < MK_MAX_LEGS; ++j) {
+        smp->i[j] = c->nan;
     }
+    smp->i_d = c->nan;
+    smp->i_q = c->nan;
+    smp->i_x = c->nan;
+    smp->i_y = c->nan;
+    smp->theta_e = c->nan;
+    smp->omega_m = c->nan;
+    smp->torque = c->nan;
+    c->kernel->sample(c->plant_params, c->plant_state, smp);
 }
 
 /* Python's float % (the sign of the divisor). */
@@ -513,8 +491,7 @@ static int advance(loop_t *L, int64_t k, ge_period_stats_t *st)
         total += durs[j];
     }
     if (L->inertia) {
-        const uint64_t t_ns = c->legs == 6 ? ((const p6_state_t *)c->plant_state)->t_ns
-                                           : ((const pl_state_t *)c->plant_state)->t_ns;
+        const uint64_t t_ns = c->kernel->time_ns(c->plant_state);
         const double t0 = (double)t_ns / NS_PER_S;
         load_at(c, t0, &load0, &slope);
         n_bp = load_breakpoints(c, t0, t0 + (double)total * 1e-9, bp);
@@ -526,17 +503,12 @@ static int advance(loop_t *L, int64_t k, ge_period_stats_t *st)
     if (k >= c->n_settle && c->trace_dt > 0.0) {
         nl_slot_t *s = L->slot;
         if (s->n_trace_rows + c->trace_cap > s->trace_rows_cap) {
-            return PL_E_TRACE_FULL;
+            return MK_E_TRACE_FULL;
         }
         trace = s->trace + s->n_trace_rows * c->trace_columns;
     }
-    if (c->legs == 6) {
-        rc = p6_advance((const p6_params_t *)c->plant_params, (p6_state_t *)c->plant_state, states, durs, n,
-                        load0, slope, bp, n_bp, c->trace_dt, c->trace_dt > 0.0 ? trace : NULL, c->trace_cap, st);
-    } else {
-        rc = pl_advance((const pl_params_t *)c->plant_params, (pl_state_t *)c->plant_state, states, durs, n,
-                        load0, slope, bp, n_bp, c->trace_dt, c->trace_dt > 0.0 ? trace : NULL, c->trace_cap, st);
-    }
+    rc = c->kernel->advance(c->plant_params, c->plant_state, states, durs, n, load0, slope, bp, n_bp, c->trace_dt,
+                            c->trace_dt > 0.0 ? trace : NULL, c->trace_cap, st);
     if (rc == 0 && k >= c->n_settle && c->trace_dt > 0.0) {
         L->slot->n_trace_rows += st->trace_n;
     }
@@ -559,13 +531,7 @@ static void follow_reference(loop_t *L, int64_t k)
         to_target(L, &f, 1, 1);
         if (c->dyno) {
             L->inertia = 0;
-            if (c->legs == 6) {
-                ((p6_params_t *)c->plant_params)->inertia_mode = 0;
-                ((p6_state_t *)c->plant_state)->omega_m = ref * c->rpm_to_rad_s;
-            } else {
-                ((pl_params_t *)c->plant_params)->inertia_mode = 0;
-                ((pl_state_t *)c->plant_state)->omega_m = ref * c->rpm_to_rad_s;
-            }
+            c->kernel->hold_speed(c->plant_params, c->plant_state, ref * c->rpm_to_rad_s);
         }
     }
 }
@@ -724,19 +690,12 @@ static void record(loop_t *L, double t, int64_t k, const sample_t *smp, const ge
     rec->missed = (uint8_t)(missed ? 1u : 0u);
     rec->narrow_pulses_gated = (uint16_t)st->narrow_pulses_gated;
     rec->mirror = p->cmd.mirror;
-    if (c->legs == 6) {
-        rec->i_u = smp->i[3];
-        rec->i_v = smp->i[4];
-        rec->i_w = smp->i[5];
-        rec->i_x = smp->i_x;
-        rec->i_y = smp->i_y;
-    } else {
-        rec->i_u = c->nan;
-        rec->i_v = c->nan;
-        rec->i_w = c->nan;
-        rec->i_x = c->nan;
-        rec->i_y = c->nan;
-    }
+    /* the second winding set (NaN where the machine has none: the sample's fill) */
+    rec->i_u = smp->i[3];
+    rec->i_v = smp->i[4];
+    rec->i_w = smp->i[5];
+    rec->i_x = smp->i_x;
+    rec->i_y = smp->i_y;
     L->r->completed_periods = k + 1;
     L->pending = L->next;
 }
@@ -875,6 +834,23 @@ static int32_t period(loop_t *L, int64_t k)
     return NL_END_RUNNING;
 }
 
+/* Phase currents each Measurement format carries (index: NL_MEAS_*). */
+static const int32_t MEAS_CURRENTS[NL_MEAS_FORMATS] = {3, 6};
+
+/* The machine kernel can run in this loop: a table of this ABI whose legs the Measurement format carries. */
+static int kernel_fits(const nl_config_t *c)
+{
+    const mk_kernel_t *k = c->kernel;
+    if (k == NULL || k->abi != MK_ABI_VERSION || k->legs != c->legs || k->legs < 1 || k->legs > MK_MAX_LEGS) {
+        return 0;
+    }
+    if (c->plant_params == NULL || c->plant_state == NULL || k->advance == NULL || k->sample == NULL
+        || k->hold_speed == NULL || k->time_ns == NULL) {
+        return 0;
+    }
+    return c->meas_format >= 0 && c->meas_format < NL_MEAS_FORMATS && MEAS_CURRENTS[c->meas_format] == k->legs;
+}
+
 void nl_run(nl_handle_t *h)
 {
     loop_t L;
@@ -883,6 +859,16 @@ void nl_run(nl_handle_t *h)
     int32_t end = NL_END_COMPLETED;
     int64_t t_start;
     loop_init(&L, h);
+    if (!kernel_fits(&h->cfg)) {
+        h->res.plant_rc = NL_PLANT_E_KERNEL;
+        h->res.end = NL_END_PLANT_ERROR;
+        h->res.end_period = 0;
+        pthread_mutex_lock(&h->mu);
+        h->done = 1;
+        pthread_cond_broadcast(&h->cv);
+        pthread_mutex_unlock(&h->mu);
+        return;
+    }
     if (h->cfg.realtime || h->cfg.rt_priority > 0 || h->cfg.cpu >= 0 || h->cfg.lock_memory) {
         nl_rt_setup(&h->cfg, &h->res, &saved);
     } else {

@@ -51,6 +51,12 @@
 #define NL_END_INTERRUPTED 8     /* nl_stop() */
 
 #define NL_PLANT_E_BREAKPOINTS (-100) /* more load breakpoints inside one period than NL_LOAD_BREAKPOINTS */
+#define NL_PLANT_E_KERNEL (-101)      /* no machine kernel, another MK_ABI_VERSION, or legs/format it cannot serve */
+
+/* The Measurement frames a machine is measured with (nl_config_t.meas_format; loop_frames.c encodes them). */
+#define NL_MEAS_3 0              /* three currents: MeasA + MeasB (classic CAN) or MeasFd */
+#define NL_MEAS_6 1              /* six currents: Meas6A + Meas6C + Meas6B (classic CAN) or MeasFd6 */
+#define NL_MEAS_FORMATS 2
 
 #if defined(__GNUC__)
 #define NL_PACKED __attribute__((packed))
@@ -104,8 +110,9 @@ typedef struct {
 
 /* Fixed for the run; written by Python before nl_run. */
 typedef struct {
-    int32_t legs;              /* 3 or 6 */
+    int32_t legs;              /* measured phase currents = the kernel's legs (a loop bound, never a branch) */
     int32_t fd;                /* 1: CAN FD frames, 0: classic CAN parts */
+    int32_t meas_format;       /* NL_MEAS_*: the Measurement frames of the machine (MachineLayout.measurement) */
     int64_t ts_ns;
     double ts_s;
     int64_t n_total;           /* periods of the run */
@@ -129,14 +136,15 @@ typedef struct {
     /* codec scales and raw limits (from hil.dbc) */
     double s_i, s_th, s_w, s_v;
     int32_t i_min, i_max, w_min, w_max, v_min, v_max, th_mod;
-    /* plant: the Python plant's own kernel structs (pl_* or p6_*) */
+    /* plant: the machine kernel's table (machine_kernel.h) and the Python plant's own structs it works on */
+    const struct mk_kernel *kernel;
     void *plant_params;
     void *plant_state;
     double *plant_trace;       /* the plant's trace buffer (periods before the window) */
     int32_t trace_cap;         /* trace rows one period may write */
     double trace_dt;           /* [s], 0: no trace */
     int32_t trace_columns;
-    double torque_k, psi_f, dl, sqrt3_2, rpm_to_rad_s;
+    double rpm_to_rad_s;
     /* mechanics and scenario */
     int32_t dyno;              /* 1: dyno (speed held at the reference), 0: inertia */
     int32_t inertia;           /* the plant's mechanics at the start: 1 inertia (load profile applies) */

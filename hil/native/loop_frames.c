@@ -79,7 +79,7 @@ int nl_encode_meas(const nl_config_t *c, uint16_t seq, const double *currents, d
         *bad_value = c->vdc;
         return -1;
     }
-    if (legs == 3 && c->fd) {
+    if (c->meas_format == NL_MEAS_3 && c->fd) {
         struct hil_protocol_meas_fd_t m;
         m.seq = seq;
         m.i_a = (int16_t)i[0];
@@ -92,7 +92,7 @@ int nl_encode_meas(const nl_config_t *c, uint16_t seq, const double *currents, d
         frame_init(&out[0], HIL_PROTOCOL_MEAS_FD_FRAME_ID, HIL_PROTOCOL_MEAS_FD_LENGTH, 1u);
         (void)hil_protocol_meas_fd_pack(out[0].data, &m, HIL_PROTOCOL_MEAS_FD_LENGTH);
         *n = 1;
-    } else if (legs == 6 && c->fd) {
+    } else if (c->meas_format == NL_MEAS_6 && c->fd) {
         struct hil_protocol_meas_fd6_t m;
         m.seq = seq;
         m.i_a = (int16_t)i[0];
@@ -111,7 +111,7 @@ int nl_encode_meas(const nl_config_t *c, uint16_t seq, const double *currents, d
     } else {
         struct hil_protocol_meas_a_t a; /* Meas6A and Meas6C have this layout */
         struct hil_protocol_meas_b_t b; /* Meas6B too */
-        const int six = legs == 6;
+        const int six = c->meas_format == NL_MEAS_6;
         int k = 0;
         a.seq = seq;
         a.i_a = (int16_t)i[0];

@@ -34,7 +34,10 @@ int nl_valid_length(uint8_t n, int fd)
     if (!fd) {
         return n <= 8u;
     }
-    return n <= 8u || n == 12u || n == 16u || n == 20u || n == 24u || n == 32u || n == 48u || n == 64u;
+    switch (n) { /* the CAN FD data lengths above 8 bytes */
+    case 12u: case 16u: case 20u: case 24u: case 32u: case 48u: case 64u: return 1;
+    default: return n <= 8u;
+    }
 }
 
 #define FLAG_FD 0x01u

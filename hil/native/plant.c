@@ -401,3 +401,58 @@ int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const
     s->t_ns += (uint64_t)total_ns;
     return PL_OK;
 }
+
+/* --- the machine-kernel table (machine_kernel.h) ------------------------------------------------------------ */
+static int pl_k_advance(const void *p, void *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
+                        double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp,
+                        double trace_dt, double *trace, int32_t trace_cap, ge_period_stats_t *stats)
+{
+    return pl_advance((const pl_params_t *)p, (pl_state_t *)s, states, durations_ns, n, t_load0, t_load_slope,
+                      load_bp, n_load_bp, trace_dt, trace, trace_cap, stats);
+}
+
+/* Plant.sample (hil/plant.py) with the same expressions, so the native loop's records equal the Python
+ * loop's bit for bit: inverse Park with cos/sin of the angle, Clarke with sqrt(3)/2, torque
+ * 1.5*p*(psi_f + (Ld - Lq)*i_d)*i_q. */
+static void pl_k_sample(const void *params, const void *state, mk_sample_t *out)
+{
+    const pl_params_t *p = (const pl_params_t *)params;
+    const pl_state_t *s = (const pl_state_t *)state;
+    const double i_d = s->i_d;
+    const double i_q = s->i_q;
+    const double co = cos(s->theta_e);
+    const double sn = sin(s->theta_e);
+    const double i_al = i_d * co - i_q * sn;
+    const double i_be = i_d * sn + i_q * co;
+    const double sqrt3_2 = 0.5 * PL_SQRT3;
+    const double torque_k = 1.5 * (double)p->pole_pairs;
+    out->i[0] = i_al;
+    out->i[1] = -0.5 * i_al + sqrt3_2 * i_be;
+    out->i[2] = -0.5 * i_al - sqrt3_2 * i_be;
+    out->i_d = i_d;
+    out->i_q = i_q;
+    out->theta_e = s->theta_e;
+    out->omega_m = s->omega_m;
+    out->torque = torque_k * (p->psi_f + (p->ld - p->lq) * i_d) * i_q;
+}
+
+static void pl_k_hold_speed(void *params, void *state, double omega_m)
+{
+    ((pl_params_t *)params)->inertia_mode = 0;
+    ((pl_state_t *)state)->omega_m = omega_m;
+}
+
+static uint64_t pl_k_time_ns(const void *state)
+{
+    return ((const pl_state_t *)state)->t_ns;
+}
+
+static const mk_kernel_t PL_KERNEL = {
+    MK_ABI_VERSION, "three-phase PMSM", 3, 7, PL_TRACE_COLUMNS, sizeof(pl_params_t), sizeof(pl_state_t),
+    pl_k_advance, pl_k_sample, pl_k_hold_speed, pl_k_time_ns,
+};
+
+const mk_kernel_t *pl_kernel(void)
+{
+    return &PL_KERNEL;
+}

@@ -12,6 +12,7 @@
 #include <stdint.h>
 
 #include "gate_edges.h"
+#include "machine_kernel.h"
 
 #define PL_MAX_SUBINTERVALS 8
 #define PL_TRACE_COLUMNS 6 /* t [s], i_a, i_b, i_c [A], torque [N*m], omega_m [rad/s] */
@@ -46,8 +47,8 @@ typedef struct {
 typedef ge_period_stats_t pl_period_stats_t; /* see gate_edges.h */
 
 #define PL_OK 0
-#define PL_E_ARGS (-1)
-#define PL_E_TRACE_FULL (-2)
+#define PL_E_ARGS MK_E_ARGS
+#define PL_E_TRACE_FULL MK_E_TRACE_FULL
 
 /* Advance the plant over one control period made of n sub-intervals (state codes, durations [ns]).
  * Load torque in inertia mode: t_load0 [N*m] at the period start plus t_load_slope [N*m/s], then from each
@@ -64,5 +65,8 @@ double pl_torque(const pl_params_t *p, double i_d, double i_q);
 
 /* Phase currents [A] (amplitude-invariant inverse Park + Clarke). */
 void pl_phase_currents(double i_d, double i_q, double theta_e, double *i_a, double *i_b, double *i_c);
+
+/* The machine-kernel table of this plant (machine_kernel.h), for the native period loop. */
+const mk_kernel_t *pl_kernel(void);
 
 #endif

@@ -239,3 +239,47 @@ int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const
     s->t_ns += (uint64_t)total_ns;
     return P6_OK;
 }
+
+/* --- the machine-kernel table (machine_kernel.h) ------------------------------------------------------------ */
+static int p6_k_advance(const void *p, void *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
+                        double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp,
+                        double trace_dt, double *trace, int32_t trace_cap, ge_period_stats_t *stats)
+{
+    return p6_advance((const p6_params_t *)p, (p6_state_t *)s, states, durations_ns, n, t_load0, t_load_slope,
+                      load_bp, n_load_bp, trace_dt, trace, trace_cap, stats);
+}
+
+/* Plant6.sample (hil/plant6.py): the same kernel functions. */
+static void p6_k_sample(const void *params, const void *state, mk_sample_t *out)
+{
+    const p6_state_t *s = (const p6_state_t *)state;
+    p6_phase_currents(s->i_d, s->i_q, s->theta_e, s->i_x, s->i_y, out->i);
+    out->i_d = s->i_d;
+    out->i_q = s->i_q;
+    out->i_x = s->i_x;
+    out->i_y = s->i_y;
+    out->theta_e = s->theta_e;
+    out->omega_m = s->omega_m;
+    out->torque = p6_torque((const p6_params_t *)params, s->i_d, s->i_q);
+}
+
+static void p6_k_hold_speed(void *params, void *state, double omega_m)
+{
+    ((p6_params_t *)params)->inertia_mode = 0;
+    ((p6_state_t *)state)->omega_m = omega_m;
+}
+
+static uint64_t p6_k_time_ns(const void *state)
+{
+    return ((const p6_state_t *)state)->t_ns;
+}
+
+static const mk_kernel_t P6_KERNEL = {
+    MK_ABI_VERSION, "dual three-phase PMSM", P6_LEGS, 63, P6_TRACE_COLUMNS, sizeof(p6_params_t), sizeof(p6_state_t),
+    p6_k_advance, p6_k_sample, p6_k_hold_speed, p6_k_time_ns,
+};
+
+const mk_kernel_t *p6_kernel(void)
+{
+    return &P6_KERNEL;
+}

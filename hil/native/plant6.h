@@ -14,6 +14,7 @@
 #include <stdint.h>
 
 #include "gate_edges.h"
+#include "machine_kernel.h"
 
 #define P6_MAX_SUBINTERVALS 8
 #define P6_LEGS 6
@@ -51,8 +52,8 @@ typedef struct {
 typedef ge_period_stats_t p6_period_stats_t; /* see gate_edges.h */
 
 #define P6_OK 0
-#define P6_E_ARGS (-1)
-#define P6_E_TRACE_FULL (-2)
+#define P6_E_ARGS MK_E_ARGS
+#define P6_E_TRACE_FULL MK_E_TRACE_FULL
 
 /* Advance one control period of n sub-intervals (6-bit state codes, durations [ns]); see plant.h. */
 int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const int64_t *durations_ns,
@@ -68,5 +69,8 @@ void p6_phase_currents(double i_d, double i_q, double theta_e, double i_x, doubl
 
 /* Stator-frame voltages [V] (alpha, beta, x, y) of a 6-bit leg-level code. */
 void p6_code_voltage(double vdc, int32_t code, double *v4);
+
+/* The machine-kernel table of this plant (machine_kernel.h), for the native period loop. */
+const mk_kernel_t *p6_kernel(void);
 
 #endif

@@ -8,13 +8,13 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from pmsm_hil.hil.errors import ParameterError
+from pmsm_hil.hil.machine import MachineLayout, MeasurementFrames
 from pmsm_hil.hil.mechanics import RPM_TO_RAD_S
 from pmsm_hil.hil.plant_base import PlantBase
 from pmsm_hil.hil.runner.native_link_kinds import NATIVE_WIRES
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import Scenario
-from pmsm_hil.protocol import codec6
-from pmsm_hil.protocol.codec import L_MEAS_A, L_MEAS_B
 from pmsm_hil.protocol.ids import Mode
 from pmsm_hil.protocol.links.spec import parse_spec
 
@@ -65,6 +65,9 @@ def support_problem(cfg: RunConfig, lib: Any) -> str | None:
         target = cfg.target.partition(":")[0]
         return (f"the native loop runs the in-process target on the virtual link or a spawned or external target "
                 f"on a {'/'.join(NATIVE_WIRES)} link (here: a {kind} link, {target} target)")
+    kernel_problem = machine_kernel_problem(cfg.machine.layout)
+    if kernel_problem is not None:
+        return kernel_problem
     if cfg.fault_spec is not None:
         return "link fault injection (--fault) runs on the Python link"
     sc = cfg.scenario
@@ -73,10 +76,23 @@ def support_problem(cfg: RunConfig, lib: Any) -> str | None:
     return None
 
 
-def fill_codec(c: Any, legs: int) -> None:
-    """The Measurement's scales and raw limits of `legs` phases (hil.dbc) into nl_config_t `c`."""
-    cur = (codec6.L_MEAS6_A if legs == 6 else L_MEAS_A).signal("i_a")
-    meas_b = codec6.L_MEAS6_B if legs == 6 else L_MEAS_B
+def machine_kernel_problem(layout: MachineLayout) -> str | None:
+    """Why the native loop cannot run this machine kind (no machine-kernel table, or Measurement frames with
+    another number of currents than its legs), None when it can."""
+    if layout.native_kernel is None:
+        return (f"machine kind '{layout.kind}' has no native kernel ({layout.plant_class.__name__}.KERNEL_TABLE is "
+                "None): the native loop never runs it as another machine")
+    if layout.measurement.currents != layout.legs:
+        return (f"machine kind '{layout.kind}': its Measurement frames carry {layout.measurement.currents} currents "
+                f"for {layout.legs} legs")
+    return None
+
+
+def fill_codec(c: Any, lib: Any, frames: MeasurementFrames) -> None:
+    """The Measurement format and its scales and raw limits (hil.dbc) into nl_config_t `c`."""
+    c.meas_format = getattr(lib, frames.native)
+    cur = frames.current_layout.signal("i_a")
+    meas_b = frames.state_layout
     th, w, v = meas_b.signal("theta_e"), meas_b.signal("omega_m"), meas_b.signal("vdc")
     c.s_i, c.i_min, c.i_max = cur.scale, cur.raw_min, cur.raw_max
     c.s_th, c.th_mod = th.scale, th.raw_max + 1
@@ -84,11 +100,16 @@ def fill_codec(c: Any, legs: int) -> None:
     c.s_v, c.v_min, c.v_max = v.scale, v.raw_min, v.raw_max
 
 
-def fill_config(c: Any, ffi: Any, cfg: RunConfig, plant: PlantBase, controller_id: int, fd: bool,
+def fill_config(c: Any, ffi: Any, lib: Any, cfg: RunConfig, plant: PlantBase, controller_id: int, fd: bool,
                 opts: NativeOptions) -> None:
-    """Write everything of the run into the loop's nl_config_t `c`."""
+    """Write everything of the run into the loop's nl_config_t `c`; ParameterError for a machine kind the
+    native loop cannot run (never run as another machine)."""
     sc, m, sensors = cfg.scenario, cfg.motor, cfg.sensors
-    legs = cfg.machine.phases
+    layout = cfg.machine.layout
+    problem = machine_kernel_problem(layout)
+    if problem is not None:
+        raise ParameterError(f"--loop native: {problem}")
+    legs = layout.legs
     n_total = round(sc.total_s / cfg.ts_s)
     c.legs, c.fd = legs, 1 if fd else 0
     c.ts_ns, c.ts_s = cfg.ts_ns, cfg.ts_s
@@ -104,13 +125,15 @@ def fill_config(c: Any, ffi: Any, cfg: RunConfig, plant: PlantBase, controller_i
     c.two_pi = 2.0 * math.pi
     c.enc_step = c.two_pi * m.pole_pairs / sensors.encoder_counts if sensors.encoder_counts else 0.0
     c.vdc = m.vdc
-    fill_codec(c, legs)
+    fill_codec(c, lib, layout.measurement)
     view = plant.kernel_view()
+    if view.kernel == 0:
+        raise ParameterError(f"--loop native: the {type(plant).__name__} plant has no machine-kernel table")
+    c.kernel = ffi.cast("mk_kernel_t *", view.kernel)
     c.plant_params, c.plant_state = ffi.cast("void *", view.params), ffi.cast("void *", view.state)
     c.plant_trace = ffi.cast("double *", view.trace)
     c.trace_cap, c.trace_dt, c.trace_columns = view.trace_cap, view.trace_dt_s, len(plant.TRACE_COLUMNS)
-    c.torque_k, c.psi_f, c.dl = 1.5 * m.pole_pairs, m.psi_f, m.ld - m.lq
-    c.sqrt3_2, c.rpm_to_rad_s = math.sqrt(3.0) / 2.0, RPM_TO_RAD_S
+    c.rpm_to_rad_s = RPM_TO_RAD_S
     c.dyno, c.inertia = 1 if sc.mechanics == "dyno" else 0, 1 if view.inertia else 0
     points = sc.load_profile().points
     c.n_load = len(points)

@@ -67,7 +67,7 @@ class NativeLoop:
             raise MemoryError("native loop: cannot initialise its mutex and condition variable")
         self._c = lib.nl_config(self._h)
         self._res = lib.nl_result(self._h)
-        fill_config(self._c, ffi, cfg, plant, controller_id, link.fd, opts)
+        fill_config(self._c, ffi, lib, cfg, plant, controller_id, link.fd, opts)
         self._period_size = int(lib.nl_sizeof_period())
         self._frame_size = int(lib.nl_sizeof_frame())
         if self._period_size != PERIOD_DTYPE.itemsize or self._frame_size != FRAME_DTYPE.itemsize:

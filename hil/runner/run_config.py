@@ -8,7 +8,8 @@ from pathlib import Path
 
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.machine import Machine, machine_for
-from pmsm_hil.hil.motor_params import PmsmParams, parse_set_options
+from pmsm_hil.hil.machine_params import MachineParams
+from pmsm_hil.hil.motor_params import parse_set_options
 from pmsm_hil.hil.runner.scenario import Scenario
 from pmsm_hil.hil.sensors import SensorConfig
 from pmsm_hil.protocol.errors import LinkSpecError
@@ -79,7 +80,7 @@ def param_id(name: str) -> ParamId:
 class RunConfig:
     """A closed-loop run: motor, controller, scenario, period Ts [s], link and mode, outputs."""
 
-    motor: PmsmParams
+    motor: MachineParams
     scenario: Scenario
     controller: str = "mpcc"
     ts_s: float = 100e-6
@@ -200,9 +201,9 @@ class RunConfig:
         """Parameters written to the target before enabling: its model of the motor, the speed PI
         and limits, then the user's --param values (which may deliberately mismatch the plant)."""
         m, sc = self.motor, self.scenario
-        rated = m.rated_torque_nm if m.rated_torque_nm > 0 else m.psi_f * 1.5 * m.pole_pairs * 0.5 * m.i_trip
+        rated = m.torque_rating_nm
         params: dict[ParamId, float] = {
-            ParamId.RS: m.rs, ParamId.LD: m.ld, ParamId.LQ: m.lq, ParamId.PSI_F: m.psi_f,
+            **m.model_parameters(),
             ParamId.POLE_PAIRS: float(m.pole_pairs), ParamId.TS: self.ts_s, ParamId.VDC: m.vdc,
             ParamId.SPEED_KP: m.speed_kp, ParamId.SPEED_KI: m.speed_ki,
             ParamId.TORQUE_LIMIT: TORQUE_LIMIT_PER_RATED * rated,

@@ -18,7 +18,7 @@ from importlib import metadata as importlib_metadata
 from typing import Any
 
 from pmsm_hil.hil.errors import HilError
-from pmsm_hil.hil.motor_params import PmsmParams
+from pmsm_hil.hil.machine_params import MachineParams
 from pmsm_hil.hil.runner.recorder import FrameTap, frame_records
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.target_client import TargetClient
@@ -35,13 +35,22 @@ def package_version() -> str:
         return "unknown"
 
 
-def _motor_set(motor: PmsmParams) -> dict[str, Any] | None:
+def _params_dict(motor: MachineParams) -> dict[str, Any]:
+    """The motor's parameter dataclass as a dict."""
+    if not dataclasses.is_dataclass(motor) or isinstance(motor, type):
+        raise TypeError(f"{type(motor).__name__}: a machine's parameter class must be a dataclass")
+    return dataclasses.asdict(motor)
+
+
+def _motor_set(motor: MachineParams) -> dict[str, Any] | None:
     """Parameters that differ from the preset or file the motor is named after (None if it cannot be loaded)."""
     from pmsm_hil.hil.presets_loader import load_motor
 
     try:
         base = load_motor(motor.name)
     except (HilError, OSError):
+        return None
+    if type(base) is not type(motor) or not dataclasses.is_dataclass(motor):
         return None
     return {f.name: getattr(motor, f.name) for f in dataclasses.fields(motor)
             if f.name != "name" and getattr(motor, f.name) != getattr(base, f.name)}
@@ -59,7 +68,7 @@ def run_metadata(cfg: RunConfig) -> dict[str, str]:
             "load_nm": repr(sc.load_nm), "pole_pairs": str(m.pole_pairs), "phases": str(cfg.machine.phases),
             "target": cfg.target, "miss_policy": cfg.miss_policy, "watchdog_periods": str(cfg.watchdog_periods),
             "log_trace": "true" if cfg.log_trace else "false", "version": package_version(),
-            "motor_params": _json(dataclasses.asdict(m)),
+            "motor_params": _json(_params_dict(m)),
             "controller_params": _json(cfg.controller_params),
             "target_parameters": _json({p.name.lower(): v for p, v in cfg.target_parameters().items()}),
             "scenario_params": _json(dataclasses.asdict(sc)),

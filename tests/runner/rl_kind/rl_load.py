@@ -1,0 +1,122 @@
+"""A machine kind added the way docs/recipes.md says ("A new machine kind"): its C kernel (rl_load.c), its
+parameter class and its plant class (this file), and one registry line (`register_rl_load`). Nothing else in the
+package knows it: the test proves the C period loop runs it through its kernel table.
+
+The machine: a balanced three-phase R-L load in star on the two-level inverter, no back-EMF, at a held speed
+that only turns the dq view of its currents (rl_load.c). Units: SI.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, replace
+from pathlib import Path
+from typing import Any, ClassVar
+
+from pmsm_hil.hil.errors import ParameterError
+from pmsm_hil.hil.kernel_build import build_kernel_module
+from pmsm_hil.hil.machine import MEAS_THREE, THREE_PHASE, MachineLayout, register_layout
+from pmsm_hil.hil.plant import TRACE_COLUMNS, PlantSample
+from pmsm_hil.hil.plant_base import PlantBase
+from pmsm_hil.protocol.ids import ParamId
+
+KERNEL_C = Path(__file__).with_name("rl_load.c")
+CDEF = """
+typedef struct { double r, l, vdc; int32_t pole_pairs; int32_t inertia_mode; } rl_params_t;
+typedef struct {
+    uint64_t t_ns; uint64_t trace_k; double i_al, i_be, theta_e, omega_m; int32_t gate;
+} rl_state_t;
+typedef ge_period_stats_t rl_period_stats_t;
+int rl_advance(const rl_params_t *p, rl_state_t *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
+               double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp, double trace_dt,
+               double *trace, int32_t trace_cap, rl_period_stats_t *stats);
+void rl_sample(const rl_params_t *p, const rl_state_t *s, mk_sample_t *out);
+const mk_kernel_t *rl_kernel(void);
+"""
+
+
+@dataclass(frozen=True, slots=True)
+class RlLoadParams:
+    """R-L load: r [Ω], l [H] per phase, the flux `psi_model` [Wb] the controller is told (its torque-to-current
+    scale: the load itself has none), and the drive facts every machine kind has (MachineParams)."""
+
+    r: float
+    l: float  # noqa: E741 - the inductance's own symbol
+    vdc: float
+    psi_model: float = 0.1
+    pole_pairs: int = 2
+    j: float = 1.0
+    b: float = 0.0
+    t_dead: float = 0.0
+    t_mpw: float = 0.0
+    i_trip: float = 50.0
+    speed_trip_rpm: float = 6000.0
+    rated_speed_rpm: float = 0.0
+    rated_torque_nm: float = 0.0
+    speed_kp: float = 0.8
+    speed_ki: float = 0.35
+    name: str = "rl-load"
+
+    def __post_init__(self) -> None:
+        for key in ("r", "l", "vdc", "psi_model", "i_trip"):
+            value = getattr(self, key)
+            if not (isinstance(value, float | int) and math.isfinite(value) and value > 0):
+                raise ParameterError(f"R-L load parameter '{key}' must be a finite number > 0, got {value!r}")
+
+    @property
+    def torque_rating_nm(self) -> float:
+        """The torque the controller would ask at half the trip current [N·m]."""
+        return self.rated_torque_nm or 1.5 * self.pole_pairs * self.psi_model * 0.5 * self.i_trip
+
+    def with_overrides(self, overrides: dict[str, Any]) -> RlLoadParams:
+        """A copy with `--set` overrides."""
+        known = {f.name for f in fields(self)} - {"name"}
+        unknown = set(overrides) - known
+        if unknown:
+            raise ParameterError(f"unknown R-L load parameter(s) {', '.join(sorted(unknown))}")
+        return replace(self, **overrides)
+
+    def model_parameters(self) -> dict[ParamId, float]:
+        """The controller's model: a round-rotor machine of R, L and the flux psi_model, and FOC's current-PI
+        gains for a 1 kHz loop bandwidth on this load (kp = 2π·1 kHz·L [V/A], ki = 2π·1 kHz·R [V/(A·s)])."""
+        bandwidth = 2.0 * math.pi * 1000.0
+        return {ParamId.RS: self.r, ParamId.LD: self.l, ParamId.LQ: self.l, ParamId.PSI_F: self.psi_model,
+                ParamId.CURRENT_KP: bandwidth * self.l, ParamId.CURRENT_KI: bandwidth * self.r}
+
+
+class RlLoadPlant(PlantBase):
+    """The R-L load through its C kernel (built by `register_rl_load`)."""
+
+    NATIVE_MODULE: ClassVar[Any] = None
+    KERNEL_TABLE = "rl_kernel"
+    KERNEL_PREFIX = "rl"
+    LEGS = 3
+    MAX_STATE = 7
+    STATE_FORMAT = "4·Sa + 2·Sb + Sc"
+    TRACE_COLUMNS = TRACE_COLUMNS
+
+    def _kernel_advance(self, *args: Any) -> int:
+        return int(self.NATIVE_MODULE.lib.rl_advance(*args))
+
+    def _set_kernel_params(self, params: RlLoadParams) -> None:
+        self._p.r, self._p.l, self._p.vdc, self._p.pole_pairs = params.r, params.l, params.vdc, params.pole_pairs
+        self._out = self._ffi.new("mk_sample_t *")
+
+    def sample(self) -> PlantSample:
+        """The kernel's own sample (the same C function the native loop calls)."""
+        o = self._out
+        self.NATIVE_MODULE.lib.rl_sample(self._p, self._s, o)
+        return PlantSample(int(self._s.t_ns) / 1e9, o.i[0], o.i[1], o.i[2], o.i_d, o.i_q, o.theta_e, o.omega_m,
+                           o.torque, self._p.vdc)
+
+
+RL_LOAD = MachineLayout(
+    kind="rl-load", plant_class=RlLoadPlant, params_class=RlLoadParams, accepts=lambda p: True,
+    measurement=MEAS_THREE, measure=THREE_PHASE.measure, replay_legs=THREE_PHASE.replay_legs,
+    replay_columns=THREE_PHASE.replay_columns, replay_row=THREE_PHASE.replay_row, target_extras=lambda p, rated: {})
+
+
+def register_rl_load(build_dir: Path) -> MachineLayout:
+    """Build the kernel into `build_dir` and register the kind (the one registry line)."""
+    RlLoadPlant.NATIVE_MODULE = build_kernel_module("rl_load_kernel", KERNEL_C, CDEF, build_dir)
+    return register_layout(RL_LOAD)

@@ -1,0 +1,122 @@
+"""docs/recipes.md "A new machine kind", proven: a kind the package does not know (an R-L load, tests/runner/rl_kind:
+its C kernel, its parameter and plant classes, one registry line) runs closed loop in the C period loop through
+its kernel table, with the Python loop's records bit for bit; a kind without a native kernel is refused by the C
+loop, never run as a PMSM."""
+
+from __future__ import annotations
+
+import math
+import sys
+from collections.abc import Iterator
+from dataclasses import replace
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+import pytest
+from pmsm_hil.hil.errors import ParameterError
+from pmsm_hil.hil.machine import LAYOUTS, machine_for, unregister_layout
+from pmsm_hil.hil.mechanics import DynoMechanics
+from pmsm_hil.hil.runner.run import run_closed_loop
+from pmsm_hil.hil.runner.run_config import RunConfig
+from pmsm_hil.hil.runner.scenario import load_scenario
+
+KIND_DIR = Path(__file__).with_name("rl_kind")
+REPO = Path(__file__).resolve().parents[2]
+TIMING_FIELDS = {"exec_time_ns", "exec_split_ns"}
+
+
+@pytest.fixture(scope="module")
+def rl(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ModuleType]:
+    sys.path.insert(0, str(KIND_DIR))
+    try:
+        import rl_load
+
+        rl_load.register_rl_load(tmp_path_factory.mktemp("rl_kernel"))
+        yield rl_load
+    finally:
+        unregister_layout("rl-load")
+        sys.path.remove(str(KIND_DIR))
+        sys.modules.pop("rl_load", None)
+
+
+def _cfg(rl: Any, loop: str) -> RunConfig:
+    sc = load_scenario("dyno-steady").with_overrides(settle_s=0.02, duration_s=0.03, load_nm=2.0)
+    return RunConfig(motor=rl.RlLoadParams(r=1.0, l=5e-3, vdc=300.0), scenario=sc, controller="foc", loop=loop)
+
+
+def test_the_kind_lives_only_in_its_own_files(rl: Any) -> None:
+    """Nothing in the package names the kind: its kernel, parameter class and registry line are its own."""
+    assert sorted(p.name for p in KIND_DIR.iterdir() if p.suffix in (".c", ".py")) == ["rl_load.c", "rl_load.py"]
+    for folder in ("hil", "protocol", "sim_target", "dashboards", "pmsm_hil"):
+        for path in (REPO / folder).rglob("*"):
+            if path.suffix in (".py", ".c", ".h", ".toml"):
+                text = path.read_text(encoding="utf-8", errors="replace")
+                assert "rl_load" not in text and "RlLoad" not in text, path
+    assert machine_for(rl.RlLoadParams(r=1.0, l=5e-3, vdc=300.0)).layout is LAYOUTS["rl-load"]
+
+
+def test_the_rl_kernel_is_exact_over_one_sub_interval(rl: Any) -> None:
+    """From rest, the active vector 100 for Ts: i_α(Ts) = (2/3·Vdc/R)(1 − e^(−R·Ts/L)), i_β = 0 (closed form)."""
+    params = rl.RlLoadParams(r=1.0, l=5e-3, vdc=300.0)
+    plant = rl.RlLoadPlant(params, 1e-4, DynoMechanics(speed_rpm=0.0), trace_dt_s=None)
+    plant.advance([4], [100_000])
+    smp = plant.sample()
+    want = 2.0 / 3.0 * 300.0 / 1.0 * (1.0 - math.exp(-1.0 * 1e-4 / 5e-3))
+    assert smp.i_a == pytest.approx(want, rel=1e-14)
+    assert smp.i_b == pytest.approx(-0.5 * want, rel=1e-14) and smp.i_c == pytest.approx(-0.5 * want, rel=1e-14)
+    assert smp.torque == 0.0
+
+
+def test_the_c_loop_runs_the_new_kind_as_the_python_loop_does(rl: Any) -> None:
+    runs = [run_closed_loop(_cfg(rl, loop)) for loop in ("python", "native")]
+    assert [r.metrics["loop"] for r in runs] == ["python", "native"]
+    py, na = (r.outcome.periods.all() for r in runs)
+    assert py.shape == na.shape and py.shape[0] == 500
+    for name in py.dtype.names or ():
+        if name not in TIMING_FIELDS:
+            assert py[name].tobytes() == na[name].tobytes(), name
+    # the controller regulates the load's currents: FOC's i_q reference is T*/(1.5·p·ψ) = 2/(1.5·2·0.1) A
+    window = na[200:]
+    i_q_ref = window["torque_ref"].mean() / (1.5 * 2 * 0.1)
+    assert abs(window["i_q"].mean() - i_q_ref) < 0.005 * i_q_ref
+    assert abs(window["i_d"].mean()) < 0.01 and (na["torque"] == 0.0).all()
+    assert np.isnan(na["i_u"]).all() and np.isnan(na["i_x"]).all()  # no second winding set
+
+
+def test_a_kind_without_a_native_kernel_is_refused(rl: Any) -> None:
+    """A kind whose plant class names no kernel table: `--loop native` is a ParameterError naming the kind,
+    `--loop auto` runs the Python loop and says why."""
+    no_kernel = type("NoKernelPlant", (rl.RlLoadPlant,), {"KERNEL_TABLE": None})
+    layout = replace(LAYOUTS["rl-load"], kind="rl-load-python-only", plant_class=no_kernel)
+    cfg = _cfg(rl, "native")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setitem(LAYOUTS, "rl-load", layout)
+        with pytest.raises(ParameterError, match="'rl-load-python-only' has no native kernel"):
+            run_closed_loop(cfg)
+        res = run_closed_loop(replace(cfg, loop="auto"))
+    assert res.metrics["loop"] == "python" and "no native kernel" in res.metrics["loop_note"]
+
+
+def test_the_c_loop_refuses_a_missing_or_mismatched_kernel_table() -> None:
+    """The loop's own guard: no table, or a table whose legs the configured Measurement does not carry, ends the
+    run at period 0 as a plant error (NL_PLANT_E_KERNEL) before any period runs."""
+    from pmsm_hil.hil._loop_native import ffi, lib
+    from pmsm_hil.hil._plant_native import ffi as plant_ffi
+    from pmsm_hil.hil._plant_native import lib as plant_lib
+
+    six_table = ffi.cast("mk_kernel_t *", int(plant_ffi.cast("uintptr_t", plant_lib.p6_kernel())))
+    params, state = ffi.new("char[256]"), ffi.new("char[256]")
+    for kernel, meas_format in ((ffi.NULL, lib.NL_MEAS_3), (six_table, lib.NL_MEAS_3)):
+        mem = ffi.new("char[]", int(lib.nl_handle_size()))
+        h = ffi.cast("nl_handle_t *", mem)
+        assert lib.nl_init(h) == 0
+        c = lib.nl_config(h)
+        c.kernel, c.legs, c.meas_format, c.n_total = kernel, 3, meas_format, 10
+        c.plant_params, c.plant_state = params, state
+        lib.nl_run(h)
+        r = lib.nl_result(h)
+        assert (r.end, r.plant_rc, r.completed_periods) == (lib.NL_END_PLANT_ERROR, lib.NL_PLANT_E_KERNEL, 0)
+        assert lib.nl_wait_full(h, 0, 0) == -1  # the run ended: no slot will fill
+        lib.nl_destroy(h)
