@@ -32,11 +32,13 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("--duration", type=positive_float("--duration"), default=0.5,
                    help="simulated seconds per measurement (default 0.5)")
     p.add_argument("--repeats", type=non_negative_int("--repeats"), default=3, help="repeats (median)")
-    p.add_argument("--cross-process", default="udp,serial",
-                   help="comma list of cross-process links to measure (udp, serial; empty: none): the Python "
+    p.add_argument("--cross-process", default="udp,serial,pycan",
+                   help="comma list of cross-process links to measure (udp, serial, pycan; empty: none): the Python "
                         "pair, then the native pair (native loop + `hil target --native`) beside the Python pair, "
                         "idle and beside a CPU burner; for udp also the floor: a bare C ping-pong between two "
-                        "processes, spinning and blocking, idle and beside the burner (udp_floor_*)")
+                        "processes, spinning and blocking, idle and beside the burner (udp_floor_*); pycan: the "
+                        "host's end opened as a python-can adapter (the hiludp interface) to the native target, "
+                        "both loops (the C loop through its callback link)")
     p.add_argument("--no-realtime", action="store_true", help="skip the real-time lateness measurement")
     p.add_argument("--qemu", type=Path, metavar="ELF",
                    help="also measure a firmware for mps2-an386 in QEMU (hil fw build --board mps2-an386) over its "
@@ -102,6 +104,36 @@ def _native_pair_under_load(base: RunConfig, name: str, spec: str, repeats: int,
     return out
 
 
+def _pycan_pair(base: RunConfig, repeats: int, runs: str, progress: Callable[[str], None]) -> dict[str, Any]:
+    """A python-can adapter to a fast target: the host opens `hiludp` the way python-can opens any adapter (not a
+    registered link kind: the C loop drives it through its callback link), the other end is the native target
+    (`hil target --native`, started here). Both loops in this run: lockstep_pycan_{python,native}_hz and
+    pycan_native_speedup."""
+    from pmsm_hil.protocol.links.udp_bus import free_udp_ports
+
+    host, target = free_udp_ports(2)
+    proc = subprocess.Popen([sys.executable, "-m", "pmsm_hil.hil.cli.main", "target", "--native", "--link",
+                             f"udp:{target}:{host}"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    out: dict[str, Any] = {}
+    try:
+        if proc.stdout is None or not proc.stdout.readline().startswith(b"ready"):
+            return {"lockstep_pycan_error": "the native target did not start"}
+        for loop in ("python", "native"):
+            progress(f"lockstep over a python-can adapter (hiludp) to the native target, {loop} loop ({runs})")
+            cfg = replace(base, link=f"hiludp:{host}:{target}", target="external", loop=loop)
+            try:
+                out[f"lockstep_pycan_{loop}_hz"] = _median_rate(lambda cfg=cfg: cfg, repeats,
+                                                                exclude_s=ClosedLoop.LINGER_S)["periods_per_s"]
+            except Exception as exc:
+                out[f"lockstep_pycan_{loop}_error"] = str(exc)
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)
+    if out.get("lockstep_pycan_python_hz") and out.get("lockstep_pycan_native_hz"):
+        out["pycan_native_speedup"] = out["lockstep_pycan_native_hz"] / out["lockstep_pycan_python_hz"]
+    return out
+
+
 def _udp_floor(progress: Callable[[str], None], round_trips: int = 5000) -> dict[str, float]:
     """The floor of the UDP pair on this machine (hil/native/link_floor.c): mean round trip [µs] of a bare C
     ping-pong between two processes spinning (as the native links do) or always blocking, idle and beside a CPU
@@ -159,7 +191,7 @@ def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
     rerun = live_rerun_rate(base, repeats)
     out["lockstep_inproc_rerun_on_hz"] = rerun["periods_per_s"]
     out["rerun_cost_pct"] = 100.0 * (1.0 - rerun["periods_per_s"] / off["periods_per_s"])
-    for name in cross:
+    for name in [c for c in cross if c != "pycan"]:
         spec = {"udp": "udp", "serial": "serial:pty"}.get(name, name)
         def make(spec: str = spec) -> RunConfig:
             return replace(base, link=spec, target="spawn")
@@ -173,6 +205,8 @@ def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
     for name, spec in (("udp", "udp"), ("serial", "serial:pty")):
         if name in cross:  # the native pair beside the Python pair (both spawned)
             out.update(_native_pair_under_load(base, name, spec, repeats, runs, progress))
+    if "pycan" in cross:
+        out.update(_pycan_pair(base, repeats, runs, progress))
     if "udp" in cross:
         try:
             out.update(_udp_floor(progress))
@@ -216,7 +250,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"  {key:<40} {value:>10.2f} ×  (beside a CPU burner / idle, same run)")
         elif key in ("logging_cost_pct", "rerun_cost_pct"):
             print(f"  {key:<40} {value:>10.1f} %")
-        elif key.startswith("native_speedup"):
+        elif key.startswith("native_speedup") or key == "pycan_native_speedup":
             print(f"  {key:<40} {value:>10.2f} ×  (native / python, same run)")
         elif key not in ("duration_s", "repeats"):
             print(f"  {key:<40} {value}")

@@ -238,6 +238,13 @@ typedef struct {
     nl_link_stats_t stats;
 } nl_socketcan_t;
 void nl_socketcan_link(nl_link_t *l, nl_socketcan_t *s);
+
+/* the callback link: any Python link (python-can adapters, links to in-process, SIL and QEMU targets, the
+   fault-injecting wrapper) carries the C loop's frames through these two Python functions */
+extern "Python" int nl_py_send(void *ctx, const hil_core_frame_t *f);
+extern "Python" int nl_py_recv(void *ctx, hil_core_frame_t *f, int64_t deadline_ns);
+extern "Python" int nl_py_diag(void *ctx, uint32_t *split_ns, double *torque_ref, uint8_t *full_miss);
+void nl_py_link(nl_link_t *l, void *ctx, int with_diag);
 int nl_socketcan_send(nl_socketcan_t *s, const hil_core_frame_t *f);
 int nl_socketcan_recv(nl_socketcan_t *s, hil_core_frame_t *f, int64_t deadline_ns);
 #define NT_END_SIGNAL ...
@@ -274,6 +281,18 @@ static void *nl_slot_frames(nl_handle_t *h, int32_t i) { return nl_slot(h, i)->f
 static int64_t *nl_slot_lateness(nl_handle_t *h, int32_t i) { return nl_slot(h, i)->lateness_ns; }
 static nl_finding_t *nl_slot_findings(nl_handle_t *h, int32_t i) { return nl_slot(h, i)->findings; }
 static double *nl_slot_noise(nl_handle_t *h, int32_t i) { return nl_slot(h, i)->noise; }
+
+/* The callback link (hil/runner/native_pylink.py defines the two functions) */
+static int nl_py_send(void *ctx, const hil_core_frame_t *f);
+static int nl_py_recv(void *ctx, hil_core_frame_t *f, int64_t deadline_ns);
+static int nl_py_diag(void *ctx, uint32_t *split_ns, double *torque_ref, uint8_t *full_miss);
+static void nl_py_link(nl_link_t *l, void *ctx, int with_diag)
+{
+    l->send = nl_py_send;
+    l->recv = nl_py_recv;
+    l->ctx = ctx;
+    l->diag = with_diag ? nl_py_diag : NULL;
+}
 """
 
 

@@ -647,8 +647,15 @@ static int accept(loop_t *L, int64_t k, int ok)
             r->candidate_misses += full_miss;
         }
     } else {
+        uint8_t full_miss = 255u;
         memset(L->next.split, 0, sizeof L->next.split);
         L->next.tref = c->nan;
+        if (c->link != NULL && c->link->diag != NULL
+            && c->link->diag(c->link->ctx, L->next.split, &L->next.tref, &full_miss) && full_miss != 255u
+            && k >= c->n_settle) { /* an in-process target behind a Python link */
+            r->candidate_checked++;
+            r->candidate_misses += full_miss;
+        }
     }
     return 0;
 }

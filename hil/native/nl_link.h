@@ -20,10 +20,16 @@ typedef int (*nl_send_fn)(void *ctx, const hil_core_frame_t *f);
  * (CLOCK_MONOTONIC; a deadline in the past: only what is queued now); -1 when the peer closed the link. */
 typedef int (*nl_recv_fn)(void *ctx, hil_core_frame_t *f, int64_t deadline_ns);
 
+/* What an in-process target says of the step that produced the last reply (the Python loop's `inproc_result`):
+ * its stage split [ns], torque reference [N*m] and restricted-vs-full candidate miss (255: not checked);
+ * 1 filled, 0 nothing to say. NULL on links to another process. */
+typedef int (*nl_diag_fn)(void *ctx, uint32_t *split_ns, double *torque_ref, uint8_t *full_miss);
+
 typedef struct nl_link {
     nl_send_fn send;
     nl_recv_fn recv;
     void *ctx;
+    nl_diag_fn diag;
 } nl_link_t;
 
 /* Defines `void PREFIX_link(nl_link_t *l, TYPE *state)` for a link file with
@@ -42,6 +48,7 @@ typedef struct nl_link {
         l->send = prefix##_send_any;                                                                     \
         l->recv = prefix##_recv_any;                                                                     \
         l->ctx = state;                                                                                  \
+        l->diag = NULL;                                                                                  \
     }
 
 /* LinkStats (protocol/links/stats.py), plus the waits that ended in ppoll. */

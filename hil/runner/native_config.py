@@ -12,11 +12,9 @@ from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.machine import MachineLayout, MeasurementFrames
 from pmsm_hil.hil.mechanics import RPM_TO_RAD_S
 from pmsm_hil.hil.plant_base import PlantBase
-from pmsm_hil.hil.runner.native_link_kinds import NATIVE_WIRES
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import Scenario
 from pmsm_hil.protocol.ids import Mode
-from pmsm_hil.protocol.links.spec import parse_spec
 
 #: real time: the loop busy-waits at most this long before a period start and sleeps before that [ns]
 SPIN_NS = 100_000
@@ -58,13 +56,6 @@ def reference_changes(sc: Scenario, ts_s: float, n_total: int) -> list[tuple[int
 
 def support_problem(cfg: RunConfig, lib: Any) -> str | None:
     """Why this run cannot use the native loop, None when it can."""
-    kind = parse_spec(cfg.link).kind
-    in_process = cfg.target in ("auto", "inproc") and kind == "virtual"
-    over_link = cfg.target in ("auto", "spawn", "external") and kind.lower() in NATIVE_WIRES
-    if not (in_process or over_link):
-        target = cfg.target.partition(":")[0]
-        return (f"the native loop runs the in-process target on the virtual link or a spawned or external target "
-                f"on a {'/'.join(NATIVE_WIRES)} link (here: a {kind} link, {target} target)")
     kernel_problem = machine_kernel_problem(cfg.machine.layout)
     if kernel_problem is not None:
         return kernel_problem

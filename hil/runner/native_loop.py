@@ -27,7 +27,8 @@ from pmsm_hil.hil.runner.cpu_isolation import isolate_cpu
 from pmsm_hil.hil.runner.native_config import NativeOptions, fill_config
 from pmsm_hil.hil.runner.native_findings import internal_error, violation
 from pmsm_hil.hil.runner.native_link import NativeCoreLink
-from pmsm_hil.hil.runner.native_udp import NativeUdpLink
+from pmsm_hil.hil.runner.native_pylink import NativePyLink
+from pmsm_hil.hil.runner.native_wire import NativeWireLink
 from pmsm_hil.hil.runner.recorder import FrameTap, frame_records, period_records
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.target_client import TargetClient
@@ -49,8 +50,9 @@ class NativeLoop:
 
     LINGER_S = 0.0  # the core answers inside the call: nothing to wait for
 
-    def __init__(self, cfg: RunConfig, plant: PlantBase, client: TargetClient, link: NativeCoreLink | NativeUdpLink,
-                 controller_id: int, opts: NativeOptions, *, sink: BlockSink | None = None) -> None:
+    def __init__(self, cfg: RunConfig, plant: PlantBase, client: TargetClient,
+                 link: NativeCoreLink | NativeWireLink | NativePyLink, controller_id: int, opts: NativeOptions, *,
+                 sink: BlockSink | None = None) -> None:
         self.cfg = cfg
         self.plant = plant
         self.client = client
@@ -93,8 +95,10 @@ class NativeLoop:
         gc.collect()
         gc.disable()
         out = self._start()
-        if isinstance(self.link, NativeUdpLink):  # the socket as the enabling Setpoint left it
+        if not isinstance(self.link, NativeCoreLink):  # the link as the enabling Setpoint left it
             self.link.attach(self._c, self.cfg.lockstep_timeout_s)
+        if isinstance(self.link, NativePyLink):  # a bus error in a callback ends the run
+            self.link.on_error = lambda: lib.nl_stop(h)
         thread = threading.Thread(target=lib.nl_run, args=(h,), name="hil-native-loop", daemon=True)
         interrupted = False
         restore_cpus = self._isolate_cpu()
@@ -207,7 +211,7 @@ class NativeLoop:
     def _missing_limit(self) -> str:
         if self.cfg.mode == "realtime":
             return "before the next period start (real time)"
-        if isinstance(self.link, NativeUdpLink):
+        if self._other_process():
             return f"within the lockstep timeout {self.cfg.lockstep_timeout_s:g} s (wall time)"
         return "from the in-process target"
 
@@ -230,6 +234,8 @@ class NativeLoop:
         if cfg.scenario.mechanics == "dyno":  # the Python object follows what the C loop set
             self.plant.mechanics = DynoMechanics(float(res.speed_ref_rpm))
         end = int(res.end)
+        if isinstance(self.link, NativePyLink) and self.link.error is not None and out.error is None:
+            out.error = self.link.error  # a bus error in the callback link
         if out.error is not None:
             self._end(out, EndCode.INTERNAL_ERROR, f"internal error: {type(out.error).__name__}: {out.error}")
         elif interrupted or end == lib.NL_END_INTERRUPTED:
@@ -271,7 +277,7 @@ class NativeLoop:
 
     def _add_link_counters(self) -> None:
         res, stats = self._res, self.link.stats
-        if isinstance(self.link, NativeUdpLink):  # the socket's own counters, frames included
+        if isinstance(self.link, NativeWireLink | NativePyLink):  # the link's own counters, frames included
             self.link.detach()
         else:
             stats.frames_tx += int(res.frames_tx)
@@ -280,6 +286,11 @@ class NativeLoop:
         for name in ("frames", "messages", "unknown_id", "bad_length", "bad_value", "stale", "duplicate",
                      "out_of_order", "mixed_seq"):
             setattr(dec, name, getattr(dec, name) + int(getattr(res, f"dec_{name}")))
+
+    def _other_process(self) -> bool:
+        """The target answers over wall time (another process or a board), not inside the loop's call."""
+        link = self.link
+        return isinstance(link, NativeWireLink) or (isinstance(link, NativePyLink) and link.other_process)
 
     @staticmethod
     def _end(out: LoopOutcome, code: EndCode, reason: str) -> None:
@@ -296,7 +307,7 @@ class NativeLoop:
             self.client.set_setpoint(enable=False, mode=int(Mode.SPEED), reference=0.0,
                                      controller_id=self.controller_id)
             out.target_disabled = True
-            if isinstance(self.link, NativeUdpLink):  # another process: let the frame arrive before the close
+            if self._other_process():  # another process: let the frame arrive before the close
                 self.client.linger(closed_loop.ClosedLoop.LINGER_S)
         except Exception:
             out.target_disabled = False

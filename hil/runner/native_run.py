@@ -14,6 +14,7 @@ from pmsm_hil.hil.runner.native_config import NativeOptions, support_problem
 from pmsm_hil.hil.runner.native_link import NativeCoreLink, NativeLoopUnavailableError, native_lib
 from pmsm_hil.hil.runner.native_link_kinds import NATIVE_WIRES
 from pmsm_hil.hil.runner.native_loop import NativeLoop
+from pmsm_hil.hil.runner.native_pylink import NativePyLink
 from pmsm_hil.hil.runner.native_wire import NativeWireLink
 from pmsm_hil.hil.runner.plant_setup import build_plant
 from pmsm_hil.hil.runner.run_config import RunConfig
@@ -39,26 +40,33 @@ def python_loop_reason(cfg: RunConfig) -> str | None:
 
 
 def connect_native(cfg: RunConfig) -> TargetConnection:
-    """The host's client on the C target core (the in-process target of the native loop), or on a target in
+    """The host's client on the C target core (the in-process target on the virtual link); on a target in
     another process over UDP, serial or SocketCAN (spawned: the native target, `hil target --native`) through
-    the link the C loop takes over."""
+    the descriptor the C loop takes over; on any other target and link (python-can adapters, in-process
+    Python or SIL targets, QEMU, a serial socket) through the callback link (`NativePyLink`)."""
     spec = parse_spec(cfg.link)
     profile = link_kind(spec).profile(spec)
-    wire = NATIVE_WIRES.get(spec.kind.lower())
-    if wire is not None:
-        ffi, lib = native_lib()
-        conn = connect_target(cfg, native_target=True)
-        bus = wire.bus_of(conn.host_link)
-        if bus is None:  # e.g. serial:socket://...: no descriptor for C
-            conn.close()
-            raise NativeLoopUnavailableError(f"link {cfg.link!r} opened no {spec.kind} port the native loop can take "
-                                             "over")
-        native = NativeWireLink(conn.host_link, bus, wire, ffi, lib, fd=profile == "canfd")
-        conn.host_link = conn.client.link = native
-        return conn
-    link = NativeCoreLink(fd=profile == "canfd")
-    client = TargetClient(link, FrameCodec(profile))
-    return TargetConnection(client, link, inproc_result=lambda: None)
+    ffi, lib = native_lib()
+    fd = profile == "canfd"
+    if in_core(cfg):
+        link = NativeCoreLink(fd=fd)
+        client = TargetClient(link, FrameCodec(profile))
+        return TargetConnection(client, link, inproc_result=lambda: None)
+    wire = NATIVE_WIRES.get(spec.kind.lower()) if cfg.target_path is None else None
+    conn = connect_target(cfg, native_target=wire is not None and cfg.target in ("auto", "spawn"))
+    bus = wire.bus_of(conn.host_link) if wire is not None else None
+    native: NativeWireLink | NativePyLink
+    if wire is not None and bus is not None and conn.client.pump is None:
+        native = NativeWireLink(conn.host_link, bus, wire, ffi, lib, fd=fd)
+    else:  # an in-process target served in Python, or no descriptor for C (serial:socket://...): through Python
+        native = NativePyLink(conn.host_link, ffi, lib, fd=fd, pump=conn.client.pump, inproc_result=conn.inproc_result)
+    conn.host_link = conn.client.link = native
+    return conn
+
+
+def in_core(cfg: RunConfig) -> bool:
+    """The run's target is the C target core of the loop itself: the in-process target on the virtual link."""
+    return cfg.target in ("auto", "inproc") and parse_spec(cfg.link).kind == "virtual"
 
 
 def connect_loop_target(cfg: RunConfig, python_reason: str | None,
@@ -79,7 +87,7 @@ def run_native(cfg: RunConfig, conn: TargetConnection, cid: int, sink: RunSink,
                silent_after: int | None) -> LoopOutcome:
     """The run through the C loop, feeding `sink` block by block."""
     link = conn.host_link
-    assert isinstance(link, NativeCoreLink | NativeWireLink)
+    assert isinstance(link, NativeCoreLink | NativeWireLink | NativePyLink)
     fault = conn.client.faults[0] if conn.client.faults else None
     opts = NativeOptions(record_frames=sink.logger is not None, silent_after=silent_after,
                          fault=(fault.code, fault.detail) if fault is not None else None)
@@ -93,7 +101,7 @@ def realtime_warnings(cfg: RunConfig, conn: TargetConnection) -> list[str]:
     """What the real-time set-up of the native loop was refused (mlockall, --rt-priority, --cpu), one line each;
     --rt-priority / --cpu given to a run of the Python loop."""
     link = conn.host_link
-    if not isinstance(link, NativeCoreLink | NativeWireLink):
+    if not isinstance(link, NativeCoreLink | NativeWireLink | NativePyLink):
         asked = [opt for opt, given in (("--rt-priority", cfg.rt_priority), ("--cpu", cfg.cpu is not None)) if given]
         return [f"{' and '.join(asked)}: not applied, they act on the native loop and this run used the Python "
                 f"loop"] if asked else []

@@ -23,6 +23,7 @@ def test_reference_qemu_like_inproc(reference_elf: Path, tmp_path: Path) -> None
     m = metrics(rated(f"qemu:{reference_elf}", out_dir=tmp_path / "q"))
     assert_like(m, ref)
     assert m["dut_violations"] == 0 and m["link_spec"] == "serial:qemu-uart0"
+    assert m["loop"] == "native"  # the C loop, through its callback link to the UART socket
     ins = m["exec_instructions"]
     assert 500 < ins["median"] < 5000 and ins["median"] <= ins["p99"] <= ins["max"]
     assert ins["steps"] == round(0.15 / 1e-4)  # the metrics window

@@ -26,6 +26,7 @@ def test_reference_sil_equals_inproc(reference_sil: Path, tmp_path: Path) -> Non
     for key in KEYS:
         assert sil[key] == ref[key], key
     assert sil["dut_violations"] == 0
+    assert sil["loop"] == "native"  # the C loop, the library served by its pump in the callback link
     assert (tmp_path / "sil" / "run.mcap").stat().st_size > 0  # logging works as with any target
 
 
