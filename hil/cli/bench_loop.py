@@ -121,8 +121,12 @@ def _pycan_pair(base: RunConfig, repeats: int, runs: str, progress: Callable[[st
         for loop in ("python", "native"):
             progress(f"lockstep over a python-can adapter (hiludp) to the native target, {loop} loop ({runs})")
             cfg = replace(base, link=f"hiludp:{host}:{target}", target="external", loop=loop)
+
+            def make(cfg: RunConfig = cfg) -> RunConfig:
+                return cfg
+
             try:
-                out[f"lockstep_pycan_{loop}_hz"] = _median_rate(lambda cfg=cfg: cfg, repeats,
+                out[f"lockstep_pycan_{loop}_hz"] = _median_rate(make, repeats,
                                                                 exclude_s=ClosedLoop.LINGER_S)["periods_per_s"]
             except Exception as exc:
                 out[f"lockstep_pycan_{loop}_error"] = str(exc)

@@ -10,9 +10,10 @@ receives of the reply. The plant, codec, contract and record stay in C.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from typing import Any
 
+from pmsm_hil.hil.runner.link_facade import LinkFacade
 from pmsm_hil.hil.runner.native_wire import default_spin_ns
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.links import Link
@@ -56,7 +57,7 @@ def _define_callbacks(ffi: Any) -> None:
     _CALLBACKS_DEFINED.add(id(ffi))
 
 
-class NativePyLink:
+class NativePyLink(LinkFacade):
     """A Python `link` the C loop drives through callbacks, usable by `TargetClient` between runs as the link
     itself. `pump`: an in-process target's service (called before each receive; such a target answers inside
     it, so a receive never waits); `inproc_result`: what that target says of its last step (stage split [ns],
@@ -147,19 +148,3 @@ class NativePyLink:
         full_miss[0] = int(getattr(res, "full_miss", 255))
         return 1
 
-    # --- Link, between runs -------------------------------------------------------------------------------------
-    def send(self, frames: Sequence[Frame]) -> None:
-        """As `Link.send`."""
-        self.link.send(frames)
-
-    def poll(self) -> Frame | None:
-        """As `Link.poll`."""
-        return self.link.poll()
-
-    def recv(self, timeout_s: float) -> Frame | None:
-        """As `Link.recv`."""
-        return self.link.recv(timeout_s)
-
-    def close(self) -> None:
-        """Close the link (idempotent)."""
-        self.link.close()

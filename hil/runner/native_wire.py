@@ -12,11 +12,11 @@ for `SPIN_NS`, then blocks.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from pmsm_hil.protocol.frame import Frame
+from pmsm_hil.hil.runner.link_facade import LinkFacade
 from pmsm_hil.protocol.links import Link
 from pmsm_hil.protocol.links.stats import LinkStats
 
@@ -80,7 +80,7 @@ class WireHandle:
         self.wire.hand_back(self.ffi, self.state, self.bus)
 
 
-class NativeWireLink:
+class NativeWireLink(LinkFacade):
     """The host's link to a target in another process, usable by `TargetClient` between runs of the C loop and
     by the C loop itself (`attach`, `detach`); `fd`: the host's frame profile is CAN FD."""
 
@@ -112,19 +112,3 @@ class NativeWireLink:
             self.waits[name] = self.waits.get(name, 0) + value
         h.hand_back()
         self.handle = None
-
-    def send(self, frames: Sequence[Frame]) -> None:
-        """As `Link.send` (Python, between runs of the C loop)."""
-        self.link.send(frames)
-
-    def poll(self) -> Frame | None:
-        """As `Link.poll`."""
-        return self.link.poll()
-
-    def recv(self, timeout_s: float) -> Frame | None:
-        """As `Link.recv`."""
-        return self.link.recv(timeout_s)
-
-    def close(self) -> None:
-        """Close the link (idempotent)."""
-        self.link.close()
