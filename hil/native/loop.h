@@ -58,41 +58,9 @@
 #define NL_MEAS_6 1              /* six currents: Meas6A + Meas6C + Meas6B (classic CAN) or MeasFd6 */
 #define NL_MEAS_FORMATS 2
 
-#if defined(__GNUC__)
-#define NL_PACKED __attribute__((packed))
-#else
-#define NL_PACKED
-#endif
-
-/* One period record, byte for byte PERIOD_DTYPE (hil/records.py). */
-typedef struct NL_PACKED {
-    double t;
-    uint32_t seq;
-    double i_a, i_b, i_c, i_d, i_q, torque, omega_m, theta_e, torque_ref, speed_ref, load_torque;
-    uint8_t n_states;
-    uint8_t states[3];
-    uint32_t durations_ns[3];
-    uint8_t vector_id;
-    uint8_t candidates;
-    uint32_t exec_time_ns;
-    uint32_t exec_split_ns[3];
-    uint16_t leg_transitions, boundary_transitions, narrow_pulses;
-    uint8_t late, missed;
-    uint16_t narrow_pulses_gated;
-    uint8_t mirror;
-    double i_u, i_v, i_w, i_x, i_y;
-} nl_period_t;
-
-/* One raw frame record, byte for byte FRAME_DTYPE. */
-typedef struct NL_PACKED {
-    double t;
-    uint32_t seq;
-    uint8_t direction;         /* 0 host -> target, 1 target -> host */
-    uint32_t arbitration_id;
-    uint8_t is_fd;
-    uint8_t length;
-    uint8_t data[64];
-} nl_frame_rec_t;
+/* nl_period_t and nl_frame_rec_t: generated from hil/records.py (PERIOD_DTYPE, FRAME_DTYPE) by
+ * `python -m pmsm_hil.hil.gen_records`, with compile-time checks of their size and field offsets. */
+#include "records.h"
 
 /* One DUT-contract finding; Python words it as the Python loop does. */
 typedef struct {

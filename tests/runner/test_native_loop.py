@@ -269,3 +269,14 @@ def test_every_reference_controller_gives_the_python_loops_records(name: str, ph
     py, na = _both(replace(_controller_case(name, phases), link=link))
     _assert_same_records(py.outcome.periods.all(), na.outcome.periods.all())
     _assert_same_metrics(py.metrics, na.metrics)
+
+
+def test_the_c_record_structs_are_generated_from_the_dtypes() -> None:
+    """hil/native/records.h is what `python -m pmsm_hil.hil.gen_records` writes from PERIOD_DTYPE / FRAME_DTYPE,
+    and the compiled loop's structs have the dtypes' sizes (the header also checks every offset at compile time)."""
+    from pmsm_hil.hil import gen_records
+    from pmsm_hil.hil._loop_native import lib
+    from pmsm_hil.hil.records import FRAME_DTYPE, PERIOD_DTYPE
+
+    assert gen_records.main(["--check"]) == 0
+    assert (lib.nl_sizeof_period(), lib.nl_sizeof_frame()) == (PERIOD_DTYPE.itemsize, FRAME_DTYPE.itemsize)
