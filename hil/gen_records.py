@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from pmsm_hil.hil.records import FRAME_DTYPE, PERIOD_DTYPE
@@ -33,7 +34,7 @@ def _c_type(dtype: np.dtype) -> str:
 
 
 def _struct(name: str, dtype: np.dtype, what: str) -> str:
-    fields = dtype.fields or {}
+    fields: dict[str, Any] = dict(dtype.fields or {})
     lines = [f"/* {what}: {dtype.itemsize} bytes, packed. */", "typedef struct NL_PACKED {"]
     checks = [f"NL_RECORD_CHECK({name}_size, sizeof({name}) == {dtype.itemsize});"]
     for field in dtype.names or ():
