@@ -32,7 +32,6 @@ CDEF = """
 #define NL_FRAMES_PER_PERIOD ...
 #define NL_FINDINGS ...
 #define NL_REF_CHANGES ...
-#define NL_LOAD_POINTS ...
 #define NL_RULES ...
 #define NL_END_RUNNING ...
 #define NL_END_COMPLETED ...
@@ -94,8 +93,8 @@ typedef struct {
     int32_t trace_columns;
     double rpm_to_rad_s;
     int32_t dyno, inertia, n_load;
-    double load_t[64];
-    double load_v[64];
+    const double *load_t;
+    const double *load_v;
     int32_t n_ref;
     int64_t ref_k[16];
     double ref_rpm[16];
@@ -244,7 +243,8 @@ void nl_socketcan_link(nl_link_t *l, nl_socketcan_t *s);
 extern "Python" int nl_py_send(void *ctx, const hil_core_frame_t *f);
 extern "Python" int nl_py_recv(void *ctx, hil_core_frame_t *f, int64_t deadline_ns);
 extern "Python" int nl_py_diag(void *ctx, uint32_t *split_ns, double *torque_ref, uint8_t *full_miss);
-void nl_py_link(nl_link_t *l, void *ctx, int with_diag);
+extern "Python" void nl_py_period(void *ctx, double t_s);
+void nl_py_link(nl_link_t *l, void *ctx, int with_diag, int with_period);
 int nl_socketcan_send(nl_socketcan_t *s, const hil_core_frame_t *f);
 int nl_socketcan_recv(nl_socketcan_t *s, hil_core_frame_t *f, int64_t deadline_ns);
 #define NT_END_SIGNAL ...
@@ -286,12 +286,14 @@ static double *nl_slot_noise(nl_handle_t *h, int32_t i) { return nl_slot(h, i)->
 static int nl_py_send(void *ctx, const hil_core_frame_t *f);
 static int nl_py_recv(void *ctx, hil_core_frame_t *f, int64_t deadline_ns);
 static int nl_py_diag(void *ctx, uint32_t *split_ns, double *torque_ref, uint8_t *full_miss);
-static void nl_py_link(nl_link_t *l, void *ctx, int with_diag)
+static void nl_py_period(void *ctx, double t_s);
+static void nl_py_link(nl_link_t *l, void *ctx, int with_diag, int with_period)
 {
     l->send = nl_py_send;
     l->recv = nl_py_recv;
     l->ctx = ctx;
     l->diag = with_diag ? nl_py_diag : NULL;
+    l->period = with_period ? nl_py_period : NULL;
 }
 """
 

@@ -753,6 +753,9 @@ static int send_measurement(loop_t *L, int64_t k, double t, const sample_t *smp)
     }
     L->tap_t = t;
     L->tap_seq = (uint32_t)k;
+    if (c->link != NULL && c->link->period != NULL) {
+        c->link->period(c->link->ctx, t);
+    }
     if (L->expected >= 0) {
         L->prev_answered = L->have_reply;
     }

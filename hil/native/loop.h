@@ -17,9 +17,9 @@
 #define NL_BLOCK 1000              /* periods per slot (= ClosedLoop.BLOCK) */
 #define NL_RING 8                  /* slots */
 #define NL_FRAMES_PER_PERIOD 8     /* frame records per period: Setpoint + Measurement (<= 3) + Command (<= 3) */
-#define NL_FINDINGS 64             /* contract findings kept per slot (all are counted) */
+#define NL_FINDINGS 100            /* contract findings kept per slot (all are counted): >= MAX_KEPT_VIOLATIONS, so the
+                                      * first findings of a run are the Python loop's whatever a block holds */
 #define NL_REF_CHANGES 16          /* speed-reference changes per run */
-#define NL_LOAD_POINTS 64          /* load-profile points */
 #define NL_LOAD_BREAKPOINTS 8      /* load breakpoints inside one period (= MAX_LOAD_BREAKPOINTS) */
 #define NL_RULES 5                 /* missing, sequence, state_code, durations, frame (contract.RULES order) */
 
@@ -116,9 +116,9 @@ typedef struct {
     /* mechanics and scenario */
     int32_t dyno;              /* 1: dyno (speed held at the reference), 0: inertia */
     int32_t inertia;           /* the plant's mechanics at the start: 1 inertia (load profile applies) */
-    int32_t n_load;            /* load profile points (time [s], torque [N*m]) */
-    double load_t[NL_LOAD_POINTS];
-    double load_v[NL_LOAD_POINTS];
+    int32_t n_load;            /* load profile points (time [s], torque [N*m]), any number (the caller's arrays) */
+    const double *load_t;
+    const double *load_v;
     int32_t n_ref;             /* speed reference [rpm] from period ref_k[j] on */
     int64_t ref_k[NL_REF_CHANGES];
     double ref_rpm[NL_REF_CHANGES];

@@ -25,11 +25,16 @@ typedef int (*nl_recv_fn)(void *ctx, hil_core_frame_t *f, int64_t deadline_ns);
  * 1 filled, 0 nothing to say. NULL on links to another process. */
 typedef int (*nl_diag_fn)(void *ctx, uint32_t *split_ns, double *torque_ref, uint8_t *full_miss);
 
+/* A period starts at run time t_s [s] (k * Ts): called just before its Measurement is sent, where the Python
+ * loop sets the clock link fault injection reads. NULL on links that need no clock. */
+typedef void (*nl_period_fn)(void *ctx, double t_s);
+
 typedef struct nl_link {
     nl_send_fn send;
     nl_recv_fn recv;
     void *ctx;
     nl_diag_fn diag;
+    nl_period_fn period;
 } nl_link_t;
 
 /* Defines `void PREFIX_link(nl_link_t *l, TYPE *state)` for a link file with
@@ -49,6 +54,7 @@ typedef struct nl_link {
         l->recv = prefix##_recv_any;                                                                     \
         l->ctx = state;                                                                                  \
         l->diag = NULL;                                                                                  \
+        l->period = NULL;                                                                                \
     }
 
 /* LinkStats (protocol/links/stats.py), plus the waits that ended in ppoll. */

@@ -56,15 +56,7 @@ def reference_changes(sc: Scenario, ts_s: float, n_total: int) -> list[tuple[int
 
 def support_problem(cfg: RunConfig, lib: Any) -> str | None:
     """Why this run cannot use the native loop, None when it can."""
-    kernel_problem = machine_kernel_problem(cfg.machine.layout)
-    if kernel_problem is not None:
-        return kernel_problem
-    if cfg.fault_spec is not None:
-        return "link fault injection (--fault) runs on the Python link"
-    sc = cfg.scenario
-    if len(sc.load_profile().points) > lib.NL_LOAD_POINTS:
-        return f"the load profile has more than {lib.NL_LOAD_POINTS} points"
-    return None
+    return machine_kernel_problem(cfg.machine.layout)
 
 
 def machine_kernel_problem(layout: MachineLayout) -> str | None:
@@ -92,9 +84,10 @@ def fill_codec(c: Any, lib: Any, frames: MeasurementFrames) -> None:
 
 
 def fill_config(c: Any, ffi: Any, lib: Any, cfg: RunConfig, plant: PlantBase, controller_id: int, fd: bool,
-                opts: NativeOptions) -> None:
+                opts: NativeOptions) -> list[Any]:
     """Write everything of the run into the loop's nl_config_t `c`; ParameterError for a machine kind the
-    native loop cannot run (never run as another machine)."""
+    native loop cannot run (never run as another machine). Returns the arrays `c` points to (the load profile):
+    keep them alive for the run."""
     sc, m, sensors = cfg.scenario, cfg.motor, cfg.sensors
     layout = cfg.machine.layout
     problem = machine_kernel_problem(layout)
@@ -128,8 +121,9 @@ def fill_config(c: Any, ffi: Any, lib: Any, cfg: RunConfig, plant: PlantBase, co
     c.dyno, c.inertia = 1 if sc.mechanics == "dyno" else 0, 1 if view.inertia else 0
     points = sc.load_profile().points
     c.n_load = len(points)
-    for j, (t, v) in enumerate(points):
-        c.load_t[j], c.load_v[j] = t, v
+    load_t = ffi.new("double[]", [t for t, _ in points] or [0.0])
+    load_v = ffi.new("double[]", [v for _, v in points] or [0.0])
+    c.load_t, c.load_v = load_t, load_v
     changes = reference_changes(sc, cfg.ts_s, n_total)
     c.n_ref = len(changes)
     for j, (k, rpm) in enumerate(changes):
@@ -142,6 +136,7 @@ def fill_config(c: Any, ffi: Any, lib: Any, cfg: RunConfig, plant: PlantBase, co
     c.rt_priority = cfg.rt_priority
     c.cpu = -1 if cfg.cpu is None else cfg.cpu
     c.lock_memory = 1 if cfg.mode == "realtime" else 0
+    return [load_t, load_v]
 
 
 def rt_throttled() -> bool:

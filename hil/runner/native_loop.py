@@ -69,7 +69,9 @@ class NativeLoop:
             raise MemoryError("native loop: cannot initialise its mutex and condition variable")
         self._c = lib.nl_config(self._h)
         self._res = lib.nl_result(self._h)
-        fill_config(self._c, ffi, lib, cfg, plant, controller_id, link.fd, opts)
+        self._config_arrays = fill_config(self._c, ffi, lib, cfg, plant, controller_id, link.fd, opts)
+        if lib.NL_FINDINGS < MAX_KEPT_VIOLATIONS:
+            raise ImportError("native loop: NL_FINDINGS must keep at least MAX_KEPT_VIOLATIONS findings per block")
         self._period_size = int(lib.nl_sizeof_period())
         self._frame_size = int(lib.nl_sizeof_frame())
         if self._period_size != PERIOD_DTYPE.itemsize or self._frame_size != FRAME_DTYPE.itemsize:
@@ -303,6 +305,8 @@ class NativeLoop:
         if out.safe_state:
             with contextlib.suppress(Exception):
                 self.plant.advance((0,), (self.cfg.ts_ns,))
+        if isinstance(self.link, NativePyLink):  # the safe stop is not subject to the injected faults
+            self.link.remove_faults()
         try:
             self.client.set_setpoint(enable=False, mode=int(Mode.SPEED), reference=0.0,
                                      controller_id=self.controller_id)

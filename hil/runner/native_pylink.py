@@ -17,6 +17,7 @@ from pmsm_hil.hil.runner.link_facade import LinkFacade
 from pmsm_hil.hil.runner.native_wire import default_spin_ns
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.links import Link
+from pmsm_hil.protocol.links.faults import FaultSpec, FaultyLink
 from pmsm_hil.protocol.links.stats import LinkStats
 
 _CALLBACKS_DEFINED: set[int] = set()
@@ -54,6 +55,11 @@ def _define_callbacks(ffi: Any) -> None:
             bridge.fail(exc)
             return 0
 
+    @ffi.def_extern()  # type: ignore[untyped-decorator]
+    def nl_py_period(ctx: Any, t_s: float) -> None:
+        bridge: NativePyLink = ffi.from_handle(ctx)
+        bridge.on_period(t_s)
+
     _CALLBACKS_DEFINED.add(id(ffi))
 
 
@@ -82,6 +88,15 @@ class NativePyLink(LinkFacade):
         self.spin_ns = default_spin_ns()
         self._handle: Any = None
         self._c_link: Any = None
+        #: link fault injection (`install_faults`): the wrapper, its run clock [s] and the period's virtual deadline
+        self.faulty: FaultyLink | None = None
+        self.clock_s = 0.0
+        self._ts_s = 0.0
+        self._realtime = False
+        self._delayed = False
+        self._period_deadline_s = 0.0
+        self._t0_ns = 0
+        self._pump_unfaulted = pump
 
     @property
     def other_process(self) -> bool:
@@ -93,9 +108,64 @@ class NativePyLink(LinkFacade):
         self.error = None
         self._handle = self.ffi.new_handle(self)
         self._c_link = self.ffi.new("nl_link_t *")
-        self.lib.nl_py_link(self._c_link, self._handle, 1 if self.inproc_result is not None else 0)
+        self.lib.nl_py_link(self._c_link, self._handle, 1 if self.inproc_result is not None else 0,
+                            1 if self.faulty is not None else 0)
         c.link = self._c_link
         c.lockstep_timeout_ns = int(lockstep_timeout_s * 1e9)
+        self._ts_s, self._realtime = float(c.ts_s), bool(c.realtime)
+        self._delayed = self.faulty is not None and not self._realtime and self.faulty.spec.delays
+        self._t0_ns = time.perf_counter_ns()
+
+    # --- link fault injection (`--fault`) ----------------------------------------------------------------------
+    def install_faults(self, spec: FaultSpec) -> FaultyLink:
+        """Inject `spec` between the C loop and the link (as `fault_setup.install_faults` does for the Python
+        loop, with the same clock: the period start in lockstep, wall time since the start in real time); an
+        in-process target is served after the delayed frames due are released."""
+        faulty = FaultyLink(self.link, spec, self.run_time_s, crc_checked=True)
+        self.faulty, self.link = faulty, faulty
+        serve = self._pump_unfaulted
+        if serve is not None:
+            def pump() -> None:
+                faulty.pump()
+                serve()
+
+            self.pump = pump
+        return faulty
+
+    def remove_faults(self) -> None:
+        """The safe stop is not subject to the injected faults: the link and pump without them."""
+        if self.faulty is not None:
+            self.link, self.pump = self.faulty.link, self._pump_unfaulted
+
+    def run_time_s(self) -> float:
+        """Run time [s] the fault injection sees: the period start in lockstep, the wall time in real time."""
+        if self._realtime:
+            return (time.perf_counter_ns() - self._t0_ns) / 1e9
+        return self.clock_s
+
+    def on_period(self, t_s: float) -> None:
+        """A period starts at `t_s` [s] (its Measurement is sent next)."""
+        self.clock_s = t_s
+        self._period_deadline_s = t_s + self._ts_s + 1e-12  # release times are sums of floats: 1 ps slack
+
+    def _await_delayed(self, deadline_ns: int) -> Frame | None:
+        """Lockstep with delayed frames (ClosedLoop._await_delayed): virtual time runs from the period start to
+        its end through the release times of the delayed frames; a target in another process gets the wall-time
+        deadline for its reply."""
+        faulty = self.faulty
+        assert faulty is not None
+        while True:
+            if self.pump is not None:
+                self.pump()
+            frame = self.link.poll()
+            if frame is not None:
+                return frame
+            nxt = faulty.next_release_s()
+            if nxt is not None and nxt <= self._period_deadline_s:
+                self.clock_s = max(self.clock_s, nxt)  # the next delayed frame arrives
+                continue
+            if self.pump is not None or time.monotonic_ns() >= deadline_ns:
+                return None
 
     def detach(self) -> None:
         """After the run (the Python link counted its own frames)."""
@@ -115,7 +185,9 @@ class NativePyLink(LinkFacade):
 
     def on_recv(self, f: Any, deadline_ns: int) -> int:
         """The next frame into `f` (1), or 0 when none came before `deadline_ns` (CLOCK_MONOTONIC; 0: poll)."""
-        if self.pump is not None:
+        if deadline_ns > 0 and self._delayed:
+            frame = self._await_delayed(deadline_ns)
+        elif self.pump is not None:
             self.pump()
             frame = self.link.poll()
         elif deadline_ns <= 0:

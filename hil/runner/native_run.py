@@ -48,15 +48,17 @@ def connect_native(cfg: RunConfig) -> TargetConnection:
     profile = link_kind(spec).profile(spec)
     ffi, lib = native_lib()
     fd = profile == "canfd"
-    if in_core(cfg):
+    if in_core(cfg) and cfg.fault_spec is None:
         link = NativeCoreLink(fd=fd)
         client = TargetClient(link, FrameCodec(profile))
         return TargetConnection(client, link, inproc_result=lambda: None)
     wire = NATIVE_WIRES.get(spec.kind.lower()) if cfg.target_path is None else None
+    if in_core(cfg) and cfg.fault_spec is not None:
+        wire = None  # faults between the loop and the in-process Python target, as the Python loop injects them
     conn = connect_target(cfg, native_target=wire is not None and cfg.target in ("auto", "spawn"))
     bus = wire.bus_of(conn.host_link) if wire is not None else None
     native: NativeWireLink | NativePyLink
-    if wire is not None and bus is not None and conn.client.pump is None:
+    if wire is not None and bus is not None and conn.client.pump is None and cfg.fault_spec is None:
         native = NativeWireLink(conn.host_link, bus, wire, ffi, lib, fd=fd)
     else:  # an in-process target served in Python, or no descriptor for C (serial:socket://...): through Python
         native = NativePyLink(conn.host_link, ffi, lib, fd=fd, pump=conn.client.pump, inproc_result=conn.inproc_result)
@@ -92,7 +94,12 @@ def run_native(cfg: RunConfig, conn: TargetConnection, cid: int, sink: RunSink,
     opts = NativeOptions(record_frames=sink.logger is not None, silent_after=silent_after,
                          fault=(fault.code, fault.detail) if fault is not None else None)
     loop = NativeLoop(cfg, build_plant(cfg), conn.client, link, cid, opts, sink=sink)
+    spec = cfg.fault_spec
+    faulty = link.install_faults(spec) if spec is not None and isinstance(link, NativePyLink) else None
+    sink.faulty = faulty
     outcome = loop.run()
+    if faulty is not None:
+        outcome.link_faults = dict(faulty.counts)
     outcome.trace = sink.window.tail.array()
     return outcome
 

@@ -257,9 +257,14 @@ class _EventRing:
         events.append(ev)
 
     def take(self) -> list[FaultEvent]:
-        out = list(self.events)
-        self.events.clear()
-        return out
+        """Pop what is there (safe while another thread adds: deque appends and pops are atomic)."""
+        out: list[FaultEvent] = []
+        pop = self.events.popleft
+        while True:
+            try:
+                out.append(pop())
+            except IndexError:
+                return out
 
 
 class _Pipe:

@@ -117,6 +117,16 @@ def test_load_steps_in_inertia_mode() -> None:
     assert np.unique(na.outcome.periods.all()["load_torque"]).size == 3
 
 
+def test_a_load_profile_of_many_points() -> None:
+    """70 load steps (the C loop reads the profile from the caller's arrays: no fixed number of points)."""
+    steps = tuple((0.005 + 0.0004 * (i + 1), float(i % 3)) for i in range(70))
+    sc = load_scenario("load-steps").with_overrides(settle_s=0.005, duration_s=0.03, load_step_s=0.005,
+                                                    load_steps=steps)
+    py, na = _both(RunConfig(motor=load_motor("niu2020-ipmsm"), scenario=sc, controller="foc"))
+    _assert_same_records(py.outcome.periods.all(), na.outcome.periods.all())
+    assert set(np.unique(na.outcome.periods.all()["load_torque"])) == {0.0, 1.0, 2.0, 4.0}  # the preset's 4 N·m too
+
+
 def test_a_silent_target_ends_both_loops_alike() -> None:
     py, na = _both(_three(watchdog_periods=5, tolerate=100), silent_after=40)
     _assert_same_records(py.outcome.periods.all(), na.outcome.periods.all())
@@ -133,10 +143,12 @@ def test_runs_the_native_loop_cannot_do_use_the_python_loop_with_the_reason() ->
     # python-can adapters, in-process Python and SIL targets, QEMU: the callback link (test_native_pylink.py)
     assert python_loop_reason(_three(link="pcan:PCAN_USBBUS1", target="external")) is None
     assert python_loop_reason(_three(link="udp", target="inproc")) is None
-    assert "--fault" in (python_loop_reason(_three(faults="drop=0.1")) or "")
+    assert python_loop_reason(_three(faults="drop=0.1")) is None  # faults through the callback link
+    steps = tuple((0.001 * (i + 2), float(i % 3)) for i in range(70))
+    many = load_scenario("load-steps").with_overrides(settle_s=0.005, duration_s=0.1, load_step_s=0.001,
+                                                      load_steps=steps)
+    assert python_loop_reason(replace(_three(), scenario=many)) is None  # any number of load-profile points
     assert python_loop_reason(_three(loop="python")) == "--loop python"
-    with pytest.raises(ParameterError, match="--loop native: link fault injection"):
-        python_loop_reason(_three(faults="drop=0.1", loop="native"))
     with pytest.raises(ParameterError, match="--loop must be one of"):
         _three(loop="c")
     with pytest.raises(ParameterError, match="--rt-priority"):

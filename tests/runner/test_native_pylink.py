@@ -79,3 +79,21 @@ def test_a_bus_error_in_a_callback_ends_the_run_safely(monkeypatch: pytest.Monke
     res = run_closed_loop(_three(link="udp", target="inproc", loop="native"))
     assert res.metrics["end_code"] == 1 and "adapter unplugged" in res.metrics["end_reason"]
     assert res.outcome.completed_periods < 110 and res.outcome.target_disabled
+
+
+FAULTS = ["drop=0.02,seed=1", "dup=0.02,seed=2", "corrupt=0.02,seed=3", "delay=30us", "jitter=80us,seed=4",
+          "reorder=0.02,seed=5", "silence=0.004:0.005", "drop=0.01,dup=0.01,delay=30us,reorder.down=0.02,seed=6"]
+
+
+@pytest.mark.parametrize("fault", FAULTS)
+def test_link_faults_in_the_c_loop_as_in_the_python_loop(fault: str) -> None:
+    """`--fault` in the C loop (the fault-injecting wrapper under its callback link, the same clock): the same
+    faults, records, metrics and /link_faults counts as the Python loop, for every fault class; lockstep delays
+    run on virtual time in both."""
+    cfg = _three(faults=fault, tolerate=10_000)
+    py, na = _both(cfg)
+    _assert_same_records(py.outcome.periods.all(), na.outcome.periods.all())
+    assert py.metrics.keys() == na.metrics.keys()
+    for key in py.metrics.keys() - WALL_METRICS:  # the time spent in a lost reply's receive is wall time
+        assert py.metrics[key] == na.metrics[key], key
+    assert na.outcome.link_faults == py.outcome.link_faults and sum(na.outcome.link_faults.values()) > 0
