@@ -154,6 +154,22 @@ static void test_tables(void)
                   (double)ang[i]);
         }
     }
+    /* a NaN flux estimate: sector 1, never a NaN cast to int (a sector outside 1..6 would index past the
+     * tables); an infinite component still has a direction (atan2) and a sector in 1..6 */
+    {
+        const float inf[2] = {INFINITY, -INFINITY};
+        uint8_t sa;
+        uint8_t sb;
+        int i;
+        CHECK(hil_fw_fcs_sector_rot(NAN, 1.0f, 3u) == 1u, "sector of a NaN alpha");
+        CHECK(hil_fw_fcs_sector_rot(0.5f, NAN, 0u) == 1u, "sector of a NaN beta");
+        for (i = 0; i < 2; ++i) {
+            sa = hil_fw_fcs_sector_rot(inf[i], 1.0f, 3u);
+            sb = hil_fw_fcs_sector_rot(inf[i], inf[1 - i], 7u);
+            CHECK(sa >= 1u && sa <= 6u && sb >= 1u && sb <= 6u, "sectors with %g: %u %u", (double)inf[i],
+                  (unsigned)sa, (unsigned)sb);
+        }
+    }
 }
 
 static void test_sequences(void)
