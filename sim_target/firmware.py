@@ -98,12 +98,13 @@ def _load() -> tuple[Any, Any]:
 @dataclass(frozen=True, slots=True)
 class ControllerInfo:
     """One entry of the firmware's controller table: DBC name and id, measured phases (3 or 6; 0 for
-    `off`, which takes either) and whether this build implements it."""
+    `off`, which takes either), whether this build implements it and the parameter ids it reads."""
 
     name: str
     id: int
     phases: int
     implemented: bool
+    params: frozenset[int] = frozenset()
 
 
 def _read_table() -> tuple[ControllerInfo, ...]:
@@ -113,8 +114,10 @@ def _read_table() -> tuple[ControllerInfo, ...]:
     for cid in range(lib.HIL_FW_CTRL_COUNT):
         entry = lib.hil_fw_controller_get(cid)
         if entry != ffi.NULL:
+            mask = int(entry.params)
             out.append(ControllerInfo(ffi.string(entry.name).decode("ascii"), int(entry.id), int(entry.phases),
-                                      bool(lib.hil_fw_controller_implemented(cid))))
+                                      bool(lib.hil_fw_controller_implemented(cid)),
+                                      frozenset(p for p in range(32) if mask >> p & 1)))
     return tuple(out)
 
 

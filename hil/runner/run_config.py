@@ -80,6 +80,21 @@ def param_id(name: str) -> ParamId:
         raise ParameterError(f"unknown controller parameter '{name}' (known: {known})") from None
 
 
+def check_params_used(controller: str, names: list[str] | dict[str, float], *, option: str = "--param") -> None:
+    """ParameterError for a controller parameter the reference firmware's `controller` does not read, naming the
+    controllers that do (the firmware's table, CONTROLLERS); `external` (a foreign firmware's own) takes any."""
+    info = next((c for c in CONTROLLERS if c.name == controller), None)
+    if info is None:
+        return
+    for name in names:
+        pid = int(param_id(name))
+        if pid in info.params:
+            continue
+        users = [c.name for c in CONTROLLERS if pid in c.params]
+        where = f"used by {', '.join(users)}" if users else "no controller of the reference firmware reads it"
+        raise ParameterError(f"{option} {name}: controller '{controller}' does not use it ({where})")
+
+
 @dataclass(frozen=True, slots=True)
 class RunConfig:
     """A closed-loop run: motor, controller, scenario, period Ts [s], link and mode, outputs."""

@@ -13,7 +13,7 @@ import pytest
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runner.native_link import NativeCoreLink
-from pmsm_hil.hil.runner.run_config import MAX_TS_S, RunConfig
+from pmsm_hil.hil.runner.run_config import MAX_TS_S, RunConfig, check_params_used
 from pmsm_hil.hil.runner.scenario import load_scenario
 from pmsm_hil.protocol.codec import MAX_DURATION_NS, FrameCodec
 from pmsm_hil.protocol.frame import Frame
@@ -152,3 +152,36 @@ def test_cli_ts_above_the_frame_format_exits_2(capsys: pytest.CaptureFixture[str
     assert main(["run", "--ts", "2e-3", "--duration", "0.01", "--no-log"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("hil: error: --ts must be between") and "1048575 ns" in err[0]
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["--controller", "mpcc", "--param", "lambda=1000"],
+     "--param lambda: controller 'mpcc' does not use it (used by mptc1, mptc2)"),
+    (["--controller", "dsvm-20", "--param", "t_thr=8e-6"],
+     "--param t_thr: controller 'dsvm-20' does not use it (used by hv-mpfc)"),
+    (["--controller", "mpcc", "--param", "t_mpw=1e-6"],
+     "--param t_mpw: controller 'mpcc' does not use it (no controller of the reference firmware reads it)"),
+])
+def test_cli_param_the_controller_does_not_use_exits_2(argv: list[str], message: str,
+                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    from pmsm_hil.hil.cli.main import main
+
+    assert main(["run", *argv, "--duration", "0.01", "--no-log"]) == 2
+    assert capsys.readouterr().err.strip() == f"hil: error: {message}"
+
+
+def test_params_the_controller_uses_pass() -> None:
+    check_params_used("mpcc", {"ld": 0.01, "id_ref": -1.0})  # the shared step's: every controller
+    check_params_used("hv-mpfc", ["t_thr", "zero_select", "dt_comp", "t_dead"])
+    check_params_used("external", {"lambda": 1.0, "t_mpw": 1e-6})  # a foreign firmware's own controller
+    with pytest.raises(ParameterError, match="unknown controller parameter 'nope'"):
+        check_params_used("mpcc", ["nope"])
+
+
+def test_sweep_point_with_an_unused_param_names_the_grid(capsys: pytest.CaptureFixture[str]) -> None:
+    from pmsm_hil.hil.cli.main import main
+
+    assert main(["sweep", "--grid", "controller=mpcc,mptc2", "--grid", "param.lambda=500", "--duration",
+                 "0.01"]) == 2
+    err = capsys.readouterr().err
+    assert "--grid param.lambda: --param lambda: controller 'mpcc' does not use it (used by mptc1, mptc2)" in err
