@@ -393,6 +393,18 @@ static void test_svpwm(void)
         CHECK_NEAR(ma, ua, 0.2f, "svpwm mean alpha");
         CHECK_NEAR(mb, ub, 0.2f, "svpwm mean beta");
     }
+    {   /* a NaN or infinite reference: zero vector over Ts, never a NaN cast */
+        const float bad[3] = {NAN, INFINITY, -INFINITY};
+        int i;
+        for (i = 0; i < 3; ++i) {
+            uint8_t a;
+            uint8_t b;
+            uint32_t t[3];
+            (void)hil_fw_svpwm(bad[i], 10.0f, 311.0f, 100000u, &a, &b, t);
+            CHECK(t[0] == 0u && t[1] == 0u && t[2] == 100000u, "svpwm of %g: %u %u %u", (double)bad[i],
+                  (unsigned)t[0], (unsigned)t[1], (unsigned)t[2]);
+        }
+    }
 }
 
 int main(void)
