@@ -35,6 +35,8 @@ from pmsm_hil.protocol.messages import (
     Setpoint,
 )
 
+from pmsm_hil.errors import HilError
+
 Profile = Literal["can", "canfd"]
 PROFILES: tuple[Profile, ...] = ("can", "canfd")
 MAX_STATES = 3
@@ -379,7 +381,7 @@ _new_meas = _builder(Measurement)
 _new_cmd = _builder(Command)
 
 
-class _BadValueError(Exception):
+class _BadValueError(HilError):
     """Internal: a frame carries an impossible value (e.g. n_states = 0)."""
 
 

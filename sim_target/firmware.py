@@ -15,6 +15,8 @@ from typing import Any, NamedTuple
 
 from pmsm_hil.protocol.ids import CONTROLLER_NAMES, PARAM_NAMES, Mode
 
+from pmsm_hil.errors import HilError
+
 __all__ = [
     "CONTROLLERS",
     "CONTROLLER_IDS",
@@ -40,7 +42,7 @@ MODE_SPEED = int(Mode.SPEED)
 MODE_TORQUE = int(Mode.TORQUE)
 
 
-class FirmwareError(Exception):
+class FirmwareError(HilError):
     """Base of the firmware wrapper's errors."""
 
 
