@@ -4,8 +4,8 @@
 It answers as a board would: every ConfigParam with a ConfigAck echoing the value (status 5 for NaN or ±inf),
 every Measurement with a Command echoing its seq (a full-period zero vector while disabled), and a Fault for a
 controller id it does not implement. Its control law uses only the documented conventions (θe = 0 with the d
-axis on phase a, positive speed turns a→b→c, amplitude-invariant Clarke, state code 4·Sa + 2·Sb + Sc with S =
-1 the upper switch on) and ConfigParam values: the speed PI of docs/algorithms/speed_pi.md (parallel form,
+axis on phase a, positive speed turns a→b→c, amplitude-invariant Clarke, state code 4·Sa + 2·Sb + Sc with
+S = 1 the upper switch on) and ConfigParam values: the speed PI of docs/algorithms/speed_pi.md (parallel form,
 forward rectangle, clamped integrator) feeding a one-step finite-control-set current controller in the stator
 frame (i_d = 0; it predicts over the period in flight, then picks the best of the 8 states). Three phases
 only.
