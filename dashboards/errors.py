@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from pmsm_hil.hil.errors import HilError
+from pmsm_hil.errors import HilError
 
 
 class DashboardError(HilError):

@@ -1,13 +1,14 @@
 """A foreign controller target in Python, written from docs/protocol.md alone: the protocol's codec
 (`pmsm_hil.protocol.codec.FrameCodec`, `pmsm_hil.protocol.messages`) over any link, no reference firmware.
 
-It answers as a board would: every ConfigParam with a ConfigAck echoing the value, every Measurement with a
-Command echoing its seq (a full-period zero vector while disabled), and a Fault for a controller id it does
-not implement. Its control law uses only the documented conventions (θe = 0 with the d axis on phase a,
-positive speed turns a→b→c, amplitude-invariant Clarke, state code 4·Sa + 2·Sb + Sc with S = 1 the upper
-switch on) and ConfigParam values: the speed PI of docs/algorithms/speed_pi.md (parallel form, forward
-rectangle, clamped integrator) feeding a one-step finite-control-set current controller in the stator frame
-(i_d = 0; it predicts over the period in flight, then picks the best of the 8 states). Three phases only.
+It answers as a board would: every ConfigParam with a ConfigAck echoing the value (status 5 for NaN or ±inf),
+every Measurement with a Command echoing its seq (a full-period zero vector while disabled), and a Fault for a
+controller id it does not implement. Its control law uses only the documented conventions (θe = 0 with the d
+axis on phase a, positive speed turns a→b→c, amplitude-invariant Clarke, state code 4·Sa + 2·Sb + Sc with
+S = 1 the upper switch on) and ConfigParam values: the speed PI of docs/algorithms/speed_pi.md (parallel form,
+forward rectangle, clamped integrator) feeding a one-step finite-control-set current controller in the stator
+frame (i_d = 0; it predicts over the period in flight, then picks the best of the 8 states). Three phases
+only.
 
 Run (two shells):   python examples/python_target.py --link udp:47311:47310
                     hil run --link udp --target external --controller external
@@ -59,6 +60,8 @@ class ExampleTarget:
     def handle(self, msg: Message) -> list[Message]:
         """Replies to one message (empty for messages that need none)."""
         if isinstance(msg, ConfigParam):
+            if not math.isfinite(msg.value):  # a frame can carry NaN or ±inf: refused, the value still echoed
+                return [ConfigAck(param_id=msg.param_id, value=msg.value, status=int(Status.INVALID_CONFIG))]
             self.params[msg.param_id] = msg.value
             return [ConfigAck(param_id=msg.param_id, value=msg.value, status=int(Status.OK))]
         if isinstance(msg, Setpoint):

@@ -1,10 +1,11 @@
-"""Exception tree of the plant emulator and runner (`pmsm_hil.hil`)."""
+"""Exception tree of the plant emulator and runner (`pmsm_hil.hil`); `HilError` is the package's one root
+(`pmsm_hil.errors`), re-exported here for the existing imports."""
 
 from __future__ import annotations
 
+from pmsm_hil.errors import HilError
 
-class HilError(Exception):
-    """Base of every error raised by `pmsm_hil.hil` for bad input or a failed run."""
+__all__ = ["HilError", "InputFileError", "ParameterError", "PlantFaultError", "SequenceError"]
 
 
 class ParameterError(HilError, ValueError):

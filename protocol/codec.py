@@ -3,7 +3,8 @@
 Encoding policy: a Measurement saturates out-of-range values to the nearest representable raw value
 and counts it in `FrameCodec.stats` (what a real ADC does); `seq` wraps mod 2^16 and `theta_e` wraps
 into [0, 2π). Every other message raises EncodeError naming the field when a value is out of range;
-the one exception is `Command.exec_time_ns`, which is clamped to [0, 2^32 - 1]. The decoder never
+the exceptions are `Command.exec_time_ns`, which is clamped to [0, 2^32 - 1], and `ConfigAck.value`, which
+echoes any ConfigParam value, NaN and ±inf included (a target rejects them with status 5). The decoder never
 raises: bad frames are counted in `FrameDecoder.stats`. `decode_frame` is the strict API for tools.
 """
 
@@ -33,6 +34,8 @@ from pmsm_hil.protocol.messages import (
     Message,
     Setpoint,
 )
+
+from pmsm_hil.errors import HilError
 
 Profile = Literal["can", "canfd"]
 PROFILES: tuple[Profile, ...] = ("can", "canfd")
@@ -74,6 +77,8 @@ _V_LIM = (L_MEAS_B.signal("vdc").raw_min, L_MEAS_B.signal("vdc").raw_max)
 _TH_MOD = L_MEAS_B.signal("theta_e").raw_max + 1
 _STATE_MAX = L_CMD_A.signal("state0").raw_max
 _DUR_MAX = L_CMD_A.signal("duration0").raw_max
+#: Longest sub-interval a Command can carry [ns] (the DBC's duration fields): a period Ts above it cannot be sent
+MAX_DURATION_NS: int = _DUR_MAX
 _U32_MAX = L_CMD_C.signal("exec_time_ns").raw_max
 _F32 = struct.Struct("<f")
 _T = TypeVar("_T")
@@ -110,14 +115,14 @@ def _int(field_name: str, value: Any) -> int:
         raise EncodeError(f"{field_name}={value!r} is not an integer") from None
 
 
-def _f32(field_name: str, value: object) -> float:
-    """Strict finite float32 value."""
+def _f32(field_name: str, value: object, *, finite: bool = True) -> float:
+    """Strict float32 value, finite unless `finite` is False (an echo: NaN and ±inf pass)."""
     try:
         x = float(value)  # type: ignore[arg-type]
         _F32.pack(x)
     except (TypeError, ValueError, OverflowError):
         raise EncodeError(f"{field_name}={value!r} is not representable as float32") from None
-    if not math.isfinite(x):
+    if finite and not math.isfinite(x):
         raise EncodeError(f"{field_name}={value!r} is not finite")
     return x
 
@@ -330,7 +335,7 @@ def _enc_config(c: ConfigParam) -> list[Frame]:
 def _enc_config_ack(c: ConfigAck) -> list[Frame]:
     data = L_CONFIG_ACK.pack(
         _u("ConfigAck.param_id", c.param_id, 255),
-        _f32("ConfigAck.value", c.value),
+        _f32("ConfigAck.value", c.value, finite=False),  # the echo of any ConfigParam, also a rejected NaN
         _u("ConfigAck.status", c.status, 255),
     )
     return [Frame(L_CONFIG_ACK.frame_id, data, False)]
@@ -376,7 +381,7 @@ _new_meas = _builder(Measurement)
 _new_cmd = _builder(Command)
 
 
-class _BadValueError(Exception):
+class _BadValueError(HilError):
     """Internal: a frame carries an impossible value (e.g. n_states = 0)."""
 
 

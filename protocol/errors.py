@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from pmsm_hil.errors import HilError
 
-class ProtocolError(Exception):
+
+class ProtocolError(HilError):
     """Base of every error raised by `pmsm_hil.protocol`; the message names the message/field."""
 
 

@@ -6,8 +6,10 @@ from __future__ import annotations
 import struct
 from pathlib import Path
 
+from pmsm_hil.errors import HilError
 
-class ElfError(ValueError):
+
+class ElfError(HilError, ValueError):
     """Not an ELF file this reader understands, or no symbol table."""
 
 

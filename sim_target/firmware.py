@@ -15,6 +15,8 @@ from typing import Any, NamedTuple
 
 from pmsm_hil.protocol.ids import CONTROLLER_NAMES, PARAM_NAMES, Mode
 
+from pmsm_hil.errors import HilError
+
 __all__ = [
     "CONTROLLERS",
     "CONTROLLER_IDS",
@@ -40,7 +42,7 @@ MODE_SPEED = int(Mode.SPEED)
 MODE_TORQUE = int(Mode.TORQUE)
 
 
-class FirmwareError(Exception):
+class FirmwareError(HilError):
     """Base of the firmware wrapper's errors."""
 
 
@@ -98,12 +100,13 @@ def _load() -> tuple[Any, Any]:
 @dataclass(frozen=True, slots=True)
 class ControllerInfo:
     """One entry of the firmware's controller table: DBC name and id, measured phases (3 or 6; 0 for
-    `off`, which takes either) and whether this build implements it."""
+    `off`, which takes either), whether this build implements it and the parameter ids it reads."""
 
     name: str
     id: int
     phases: int
     implemented: bool
+    params: frozenset[int] = frozenset()
 
 
 def _read_table() -> tuple[ControllerInfo, ...]:
@@ -113,8 +116,10 @@ def _read_table() -> tuple[ControllerInfo, ...]:
     for cid in range(lib.HIL_FW_CTRL_COUNT):
         entry = lib.hil_fw_controller_get(cid)
         if entry != ffi.NULL:
+            mask = int(entry.params)
             out.append(ControllerInfo(ffi.string(entry.name).decode("ascii"), int(entry.id), int(entry.phases),
-                                      bool(lib.hil_fw_controller_implemented(cid))))
+                                      bool(lib.hil_fw_controller_implemented(cid)),
+                                      frozenset(p for p in range(32) if mask >> p & 1)))
     return tuple(out)
 
 

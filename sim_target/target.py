@@ -6,7 +6,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from pmsm_hil.protocol.codec import FrameCodec
+from pmsm_hil.protocol.codec import MAX_DURATION_NS, FrameCodec
 from pmsm_hil.protocol.ids import ControllerId, NodeState, ParamId, Status
 from pmsm_hil.protocol.links import Link
 from pmsm_hil.protocol.messages import (
@@ -108,10 +108,14 @@ class SimTarget:
         # decoder's ordering would otherwise drop as stale after a short earlier run
         self.decoder.restart()
         self.counters.config_writes += 1
+        is_ts = c.param_id == int(ParamId.TS)
         try:
+            if is_ts and not c.value * 1e9 < MAX_DURATION_NS + 0.5:  # NaN fails too
+                raise FirmwareConfigError(f"ts: {c.value!r} s is longer than a Command can carry "
+                                          f"({MAX_DURATION_NS} ns)")
             self.firmware.set_param(c.param_id, c.value)
             status = int(Status.OK)
-            if c.param_id == int(ParamId.TS):
+            if is_ts:
                 self.ts_ns = round(c.value * 1e9)
         except FirmwareConfigError:
             self.counters.config_rejected += 1

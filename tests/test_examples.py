@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 import runpy
 import socket
 import statistics
@@ -49,6 +50,9 @@ def _configure(target: Any, motor: Any) -> None:
               ParamId.TORQUE_LIMIT: 10.0}
     for pid, value in values.items():
         assert target.handle(ConfigParam(int(pid), value)) == [ConfigAck(int(pid), value, int(Status.OK))]
+    [nan_ack] = target.handle(ConfigParam(int(ParamId.LD), math.nan))  # refused, value echoed
+    assert nan_ack.status == Status.INVALID_CONFIG and math.isnan(nan_ack.value)
+    assert target.p(ParamId.LD) == motor.ld
 
 
 def test_python_target_example_follows_the_protocol() -> None:

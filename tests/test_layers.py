@@ -17,6 +17,7 @@ PACKAGES = {"hil": "pmsm_hil.hil", "protocol": "pmsm_hil.protocol", "sim_target"
 
 #: (module prefix, layer), most specific first
 LAYER_OF = (
+    ("pmsm_hil.errors", "base"),
     ("pmsm_hil.testing", "application"),
     ("pmsm_hil.conformance", "application"),
     ("pmsm_hil.protocol", "protocol"),
@@ -32,13 +33,14 @@ LAYER_OF = (
 )
 #: layer -> the layers it may import (besides itself)
 MAY_USE = {
-    "protocol": set(),
-    "target": {"protocol"},
-    "model": {"protocol"},
-    "infrastructure": {"model"},
-    "runner": {"protocol", "target", "model", "infrastructure"},
-    "dashboards": {"protocol", "model", "infrastructure", "runner"},
-    "application": {"protocol", "target", "model", "infrastructure", "runner", "dashboards"},
+    "base": set(),
+    "protocol": {"base"},
+    "target": {"base", "protocol"},
+    "model": {"base", "protocol"},
+    "infrastructure": {"base", "model"},
+    "runner": {"base", "protocol", "target", "model", "infrastructure"},
+    "dashboards": {"base", "protocol", "model", "infrastructure", "runner"},
+    "application": {"base", "protocol", "target", "model", "infrastructure", "runner", "dashboards"},
 }
 
 
@@ -116,3 +118,8 @@ def test_every_module_has_a_layer() -> None:
             layer(module_name(path))
     with pytest.raises(ValueError, match="no layer"):
         layer("pmsm_hil.elsewhere")
+
+
+def test_the_exception_root_imports_nothing_and_every_layer_may_use_it() -> None:
+    assert list(imports(ROOT / "pmsm_hil" / "errors.py")) == []
+    assert all("base" in used for name, used in MAY_USE.items() if name != "base")

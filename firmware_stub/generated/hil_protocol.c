@@ -130,6 +130,16 @@ static inline uint32_t unpack_right_shift_u32(
     return (uint32_t)((uint32_t)(value & mask) >> shift);
 }
 
+/* pmsm_hil (protocol/gen_c.py): an encode's rounded raw value saturated to its signal's raw range
+ * [lo, hi], NaN as 0: a float-to-integer cast of NaN or of a value outside the type is undefined in C. */
+static double hil_protocol_saturate(double value, double lo, double hi)
+{
+    if (isnan(value)) {
+        return 0;
+    }
+    return value < lo ? lo : (value > hi ? hi : value);
+}
+
 static uint64_t cantools_unsigned_from_double(double value)
 {
     if (value < 0) {
@@ -190,7 +200,7 @@ int hil_protocol_fault_host_init(struct hil_protocol_fault_host_t *msg_p)
 
 uint8_t hil_protocol_fault_host_node_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_fault_host_node_decode(uint8_t value)
@@ -212,7 +222,7 @@ bool hil_protocol_fault_host_node_is_in_phys_range(float value)
 
 uint8_t hil_protocol_fault_host_code_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_fault_host_code_decode(uint8_t value)
@@ -234,7 +244,7 @@ bool hil_protocol_fault_host_code_is_in_phys_range(float value)
 
 uint32_t hil_protocol_fault_host_detail_encode(float value)
 {
-    return (uint32_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint32_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 4294967295LL)));
 }
 
 float hil_protocol_fault_host_detail_decode(uint32_t value)
@@ -305,7 +315,7 @@ int hil_protocol_fault_target_init(struct hil_protocol_fault_target_t *msg_p)
 
 uint8_t hil_protocol_fault_target_node_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_fault_target_node_decode(uint8_t value)
@@ -327,7 +337,7 @@ bool hil_protocol_fault_target_node_is_in_phys_range(float value)
 
 uint8_t hil_protocol_fault_target_code_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_fault_target_code_decode(uint8_t value)
@@ -349,7 +359,7 @@ bool hil_protocol_fault_target_code_is_in_phys_range(float value)
 
 uint32_t hil_protocol_fault_target_detail_encode(float value)
 {
-    return (uint32_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint32_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 4294967295LL)));
 }
 
 float hil_protocol_fault_target_detail_decode(uint32_t value)
@@ -438,7 +448,7 @@ int hil_protocol_meas_a_init(struct hil_protocol_meas_a_t *msg_p)
 
 uint16_t hil_protocol_meas_a_seq_encode(float value)
 {
-    return (uint16_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 65535LL)));
 }
 
 float hil_protocol_meas_a_seq_decode(uint16_t value)
@@ -460,7 +470,7 @@ bool hil_protocol_meas_a_seq_is_in_phys_range(float value)
 
 int16_t hil_protocol_meas_a_i_a_encode(float value)
 {
-    return (int16_t)(roundf(value / 0.001f));
+    return (int16_t)(hil_protocol_saturate((double)roundf(value / 0.001f), -32768LL, 32767LL));
 }
 
 float hil_protocol_meas_a_i_a_decode(int16_t value)
@@ -482,7 +492,7 @@ bool hil_protocol_meas_a_i_a_is_in_phys_range(float value)
 
 int16_t hil_protocol_meas_a_i_b_encode(float value)
 {
-    return (int16_t)(roundf(value / 0.001f));
+    return (int16_t)(hil_protocol_saturate((double)roundf(value / 0.001f), -32768LL, 32767LL));
 }
 
 float hil_protocol_meas_a_i_b_decode(int16_t value)
@@ -504,7 +514,7 @@ bool hil_protocol_meas_a_i_b_is_in_phys_range(float value)
 
 int16_t hil_protocol_meas_a_i_c_encode(float value)
 {
-    return (int16_t)(roundf(value / 0.001f));
+    return (int16_t)(hil_protocol_saturate((double)roundf(value / 0.001f), -32768LL, 32767LL));
 }
 
 float hil_protocol_meas_a_i_c_decode(int16_t value)
@@ -585,7 +595,7 @@ int hil_protocol_meas_b_init(struct hil_protocol_meas_b_t *msg_p)
 
 uint8_t hil_protocol_meas_b_seq_lo_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_meas_b_seq_lo_decode(uint8_t value)
@@ -607,7 +617,7 @@ bool hil_protocol_meas_b_seq_lo_is_in_phys_range(float value)
 
 uint16_t hil_protocol_meas_b_theta_e_encode(float value)
 {
-    return (uint16_t)(cantools_unsigned_from_double(roundf(value / 9.587379924285257e-05f)));
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value / 9.587379924285257e-05f), 0LL, 65535LL)));
 }
 
 float hil_protocol_meas_b_theta_e_decode(uint16_t value)
@@ -629,7 +639,7 @@ bool hil_protocol_meas_b_theta_e_is_in_phys_range(float value)
 
 int16_t hil_protocol_meas_b_omega_m_encode(float value)
 {
-    return (int16_t)(roundf(value / 0.02f));
+    return (int16_t)(hil_protocol_saturate((double)roundf(value / 0.02f), -32768LL, 32767LL));
 }
 
 float hil_protocol_meas_b_omega_m_decode(int16_t value)
@@ -651,7 +661,7 @@ bool hil_protocol_meas_b_omega_m_is_in_phys_range(float value)
 
 uint16_t hil_protocol_meas_b_vdc_encode(float value)
 {
-    return (uint16_t)(cantools_unsigned_from_double(roundf(value / 0.01f)));
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value / 0.01f), 0LL, 65535LL)));
 }
 
 float hil_protocol_meas_b_vdc_decode(uint16_t value)
@@ -673,7 +683,7 @@ bool hil_protocol_meas_b_vdc_is_in_phys_range(float value)
 
 uint8_t hil_protocol_meas_b_status_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_meas_b_status_decode(uint8_t value)
@@ -762,7 +772,7 @@ int hil_protocol_meas6_a_init(struct hil_protocol_meas6_a_t *msg_p)
 
 uint16_t hil_protocol_meas6_a_seq_encode(float value)
 {
-    return (uint16_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 65535LL)));
 }
 
 float hil_protocol_meas6_a_seq_decode(uint16_t value)
@@ -784,7 +794,7 @@ bool hil_protocol_meas6_a_seq_is_in_phys_range(float value)
 
 int16_t hil_protocol_meas6_a_i_a_encode(float value)
 {
-    return (int16_t)(roundf(value / 0.01f));
+    return (int16_t)(hil_protocol_saturate((double)roundf(value / 0.01f), -32768LL, 32767LL));
 }
 
 float hil_protocol_meas6_a_i_a_decode(int16_t value)
@@ -806,7 +816,7 @@ bool hil_protocol_meas6_a_i_a_is_in_phys_range(float value)
 
 int16_t hil_protocol_meas6_a_i_b_encode(float value)
 {
-    return (int16_t)(roundf(value / 0.01f));
+    return (int16_t)(hil_protocol_saturate((double)roundf(value / 0.01f), -32768LL, 32767LL));
 }
 
 float hil_protocol_meas6_a_i_b_decode(int16_t value)
@@ -828,7 +838,7 @@ bool hil_protocol_meas6_a_i_b_is_in_phys_range(float value)
 
 int16_t hil_protocol_meas6_a_i_c_encode(float value)
 {
-    return (int16_t)(roundf(value / 0.01f));
+    return (int16_t)(hil_protocol_saturate((double)roundf(value / 0.01f), -32768LL, 32767LL));
 }
 
 float hil_protocol_meas6_a_i_c_decode(int16_t value)
@@ -917,7 +927,7 @@ int hil_protocol_meas6_c_init(struct hil_protocol_meas6_c_t *msg_p)
 
 uint16_t hil_protocol_meas6_c_seq_encode(float value)
 {
-    return (uint16_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 65535LL)));
 }
 
 float hil_protocol_meas6_c_seq_decode(uint16_t value)
@@ -939,7 +949,7 @@ bool hil_protocol_meas6_c_seq_is_in_phys_range(float value)
 
 int16_t hil_protocol_meas6_c_i_u_encode(float value)
 {
-    return (int16_t)(roundf(value / 0.01f));
+    return (int16_t)(hil_protocol_saturate((double)roundf(value / 0.01f), -32768LL, 32767LL));
 }
 
 float hil_protocol_meas6_c_i_u_decode(int16_t value)
@@ -961,7 +971,7 @@ bool hil_protocol_meas6_c_i_u_is_in_phys_range(float value)
 
 int16_t hil_protocol_meas6_c_i_v_encode(float value)
 {
-    return (int16_t)(roundf(value / 0.01f));
+    return (int16_t)(hil_protocol_saturate((double)roundf(value / 0.01f), -32768LL, 32767LL));
 }
 
 float hil_protocol_meas6_c_i_v_decode(int16_t value)
@@ -983,7 +993,7 @@ bool hil_protocol_meas6_c_i_v_is_in_phys_range(float value)
 
 int16_t hil_protocol_meas6_c_i_w_encode(float value)
 {
-    return (int16_t)(roundf(value / 0.01f));
+    return (int16_t)(hil_protocol_saturate((double)roundf(value / 0.01f), -32768LL, 32767LL));
 }
 
 float hil_protocol_meas6_c_i_w_decode(int16_t value)
@@ -1064,7 +1074,7 @@ int hil_protocol_meas6_b_init(struct hil_protocol_meas6_b_t *msg_p)
 
 uint8_t hil_protocol_meas6_b_seq_lo_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_meas6_b_seq_lo_decode(uint8_t value)
@@ -1086,7 +1096,7 @@ bool hil_protocol_meas6_b_seq_lo_is_in_phys_range(float value)
 
 uint16_t hil_protocol_meas6_b_theta_e_encode(float value)
 {
-    return (uint16_t)(cantools_unsigned_from_double(roundf(value / 9.587379924285257e-05f)));
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value / 9.587379924285257e-05f), 0LL, 65535LL)));
 }
 
 float hil_protocol_meas6_b_theta_e_decode(uint16_t value)
@@ -1108,7 +1118,7 @@ bool hil_protocol_meas6_b_theta_e_is_in_phys_range(float value)
 
 int16_t hil_protocol_meas6_b_omega_m_encode(float value)
 {
-    return (int16_t)(roundf(value / 0.02f));
+    return (int16_t)(hil_protocol_saturate((double)roundf(value / 0.02f), -32768LL, 32767LL));
 }
 
 float hil_protocol_meas6_b_omega_m_decode(int16_t value)
@@ -1130,7 +1140,7 @@ bool hil_protocol_meas6_b_omega_m_is_in_phys_range(float value)
 
 uint16_t hil_protocol_meas6_b_vdc_encode(float value)
 {
-    return (uint16_t)(cantools_unsigned_from_double(roundf(value / 0.01f)));
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value / 0.01f), 0LL, 65535LL)));
 }
 
 float hil_protocol_meas6_b_vdc_decode(uint16_t value)
@@ -1152,7 +1162,7 @@ bool hil_protocol_meas6_b_vdc_is_in_phys_range(float value)
 
 uint8_t hil_protocol_meas6_b_status_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_meas6_b_status_decode(uint8_t value)
@@ -1259,7 +1269,7 @@ int hil_protocol_meas_fd_init(struct hil_protocol_meas_fd_t *msg_p)
 
 uint16_t hil_protocol_meas_fd_seq_encode(float value)
 {
-    return (uint16_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 65535LL)));
 }
 
 float hil_protocol_meas_fd_seq_decode(uint16_t value)
@@ -1281,7 +1291,7 @@ bool hil_protocol_meas_fd_seq_is_in_phys_range(float value)
 
 int16_t hil_protocol_meas_fd_i_a_encode(float value)
 {
-    return (int16_t)(roundf(value / 0.001f));
+    return (int16_t)(hil_protocol_saturate((double)roundf(value / 0.001f), -32768LL, 32767LL));
 }
 
 float hil_protocol_meas_fd_i_a_decode(int16_t value)
@@ -1303,7 +1313,7 @@ bool hil_protocol_meas_fd_i_a_is_in_phys_range(float value)
 
 int16_t hil_protocol_meas_fd_i_b_encode(float value)
 {
-    return (int16_t)(roundf(value / 0.001f));
+    return (int16_t)(hil_protocol_saturate((double)roundf(value / 0.001f), -32768LL, 32767LL));
 }
 
 float hil_protocol_meas_fd_i_b_decode(int16_t value)
@@ -1325,7 +1335,7 @@ bool hil_protocol_meas_fd_i_b_is_in_phys_range(float value)
 
 int16_t hil_protocol_meas_fd_i_c_encode(float value)
 {
-    return (int16_t)(roundf(value / 0.001f));
+    return (int16_t)(hil_protocol_saturate((double)roundf(value / 0.001f), -32768LL, 32767LL));
 }
 
 float hil_protocol_meas_fd_i_c_decode(int16_t value)
@@ -1347,7 +1357,7 @@ bool hil_protocol_meas_fd_i_c_is_in_phys_range(float value)
 
 uint16_t hil_protocol_meas_fd_theta_e_encode(float value)
 {
-    return (uint16_t)(cantools_unsigned_from_double(roundf(value / 9.587379924285257e-05f)));
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value / 9.587379924285257e-05f), 0LL, 65535LL)));
 }
 
 float hil_protocol_meas_fd_theta_e_decode(uint16_t value)
@@ -1369,7 +1379,7 @@ bool hil_protocol_meas_fd_theta_e_is_in_phys_range(float value)
 
 int16_t hil_protocol_meas_fd_omega_m_encode(float value)
 {
-    return (int16_t)(roundf(value / 0.02f));
+    return (int16_t)(hil_protocol_saturate((double)roundf(value / 0.02f), -32768LL, 32767LL));
 }
 
 float hil_protocol_meas_fd_omega_m_decode(int16_t value)
@@ -1391,7 +1401,7 @@ bool hil_protocol_meas_fd_omega_m_is_in_phys_range(float value)
 
 uint16_t hil_protocol_meas_fd_vdc_encode(float value)
 {
-    return (uint16_t)(cantools_unsigned_from_double(roundf(value / 0.01f)));
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value / 0.01f), 0LL, 65535LL)));
 }
 
 float hil_protocol_meas_fd_vdc_decode(uint16_t value)
@@ -1413,7 +1423,7 @@ bool hil_protocol_meas_fd_vdc_is_in_phys_range(float value)
 
 uint8_t hil_protocol_meas_fd_status_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_meas_fd_status_decode(uint8_t value)
@@ -1544,7 +1554,7 @@ int hil_protocol_meas_fd6_init(struct hil_protocol_meas_fd6_t *msg_p)
 
 uint16_t hil_protocol_meas_fd6_seq_encode(float value)
 {
-    return (uint16_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 65535LL)));
 }
 
 float hil_protocol_meas_fd6_seq_decode(uint16_t value)
@@ -1566,7 +1576,7 @@ bool hil_protocol_meas_fd6_seq_is_in_phys_range(float value)
 
 int16_t hil_protocol_meas_fd6_i_a_encode(float value)
 {
-    return (int16_t)(roundf(value / 0.01f));
+    return (int16_t)(hil_protocol_saturate((double)roundf(value / 0.01f), -32768LL, 32767LL));
 }
 
 float hil_protocol_meas_fd6_i_a_decode(int16_t value)
@@ -1588,7 +1598,7 @@ bool hil_protocol_meas_fd6_i_a_is_in_phys_range(float value)
 
 int16_t hil_protocol_meas_fd6_i_b_encode(float value)
 {
-    return (int16_t)(roundf(value / 0.01f));
+    return (int16_t)(hil_protocol_saturate((double)roundf(value / 0.01f), -32768LL, 32767LL));
 }
 
 float hil_protocol_meas_fd6_i_b_decode(int16_t value)
@@ -1610,7 +1620,7 @@ bool hil_protocol_meas_fd6_i_b_is_in_phys_range(float value)
 
 int16_t hil_protocol_meas_fd6_i_c_encode(float value)
 {
-    return (int16_t)(roundf(value / 0.01f));
+    return (int16_t)(hil_protocol_saturate((double)roundf(value / 0.01f), -32768LL, 32767LL));
 }
 
 float hil_protocol_meas_fd6_i_c_decode(int16_t value)
@@ -1632,7 +1642,7 @@ bool hil_protocol_meas_fd6_i_c_is_in_phys_range(float value)
 
 int16_t hil_protocol_meas_fd6_i_u_encode(float value)
 {
-    return (int16_t)(roundf(value / 0.01f));
+    return (int16_t)(hil_protocol_saturate((double)roundf(value / 0.01f), -32768LL, 32767LL));
 }
 
 float hil_protocol_meas_fd6_i_u_decode(int16_t value)
@@ -1654,7 +1664,7 @@ bool hil_protocol_meas_fd6_i_u_is_in_phys_range(float value)
 
 int16_t hil_protocol_meas_fd6_i_v_encode(float value)
 {
-    return (int16_t)(roundf(value / 0.01f));
+    return (int16_t)(hil_protocol_saturate((double)roundf(value / 0.01f), -32768LL, 32767LL));
 }
 
 float hil_protocol_meas_fd6_i_v_decode(int16_t value)
@@ -1676,7 +1686,7 @@ bool hil_protocol_meas_fd6_i_v_is_in_phys_range(float value)
 
 int16_t hil_protocol_meas_fd6_i_w_encode(float value)
 {
-    return (int16_t)(roundf(value / 0.01f));
+    return (int16_t)(hil_protocol_saturate((double)roundf(value / 0.01f), -32768LL, 32767LL));
 }
 
 float hil_protocol_meas_fd6_i_w_decode(int16_t value)
@@ -1698,7 +1708,7 @@ bool hil_protocol_meas_fd6_i_w_is_in_phys_range(float value)
 
 uint16_t hil_protocol_meas_fd6_theta_e_encode(float value)
 {
-    return (uint16_t)(cantools_unsigned_from_double(roundf(value / 9.587379924285257e-05f)));
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value / 9.587379924285257e-05f), 0LL, 65535LL)));
 }
 
 float hil_protocol_meas_fd6_theta_e_decode(uint16_t value)
@@ -1720,7 +1730,7 @@ bool hil_protocol_meas_fd6_theta_e_is_in_phys_range(float value)
 
 int16_t hil_protocol_meas_fd6_omega_m_encode(float value)
 {
-    return (int16_t)(roundf(value / 0.02f));
+    return (int16_t)(hil_protocol_saturate((double)roundf(value / 0.02f), -32768LL, 32767LL));
 }
 
 float hil_protocol_meas_fd6_omega_m_decode(int16_t value)
@@ -1742,7 +1752,7 @@ bool hil_protocol_meas_fd6_omega_m_is_in_phys_range(float value)
 
 uint16_t hil_protocol_meas_fd6_vdc_encode(float value)
 {
-    return (uint16_t)(cantools_unsigned_from_double(roundf(value / 0.01f)));
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value / 0.01f), 0LL, 65535LL)));
 }
 
 float hil_protocol_meas_fd6_vdc_decode(uint16_t value)
@@ -1764,7 +1774,7 @@ bool hil_protocol_meas_fd6_vdc_is_in_phys_range(float value)
 
 uint8_t hil_protocol_meas_fd6_status_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_meas_fd6_status_decode(uint8_t value)
@@ -1847,7 +1857,7 @@ int hil_protocol_cmd_a_init(struct hil_protocol_cmd_a_t *msg_p)
 
 uint16_t hil_protocol_cmd_a_seq_encode(float value)
 {
-    return (uint16_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 65535LL)));
 }
 
 float hil_protocol_cmd_a_seq_decode(uint16_t value)
@@ -1869,7 +1879,7 @@ bool hil_protocol_cmd_a_seq_is_in_phys_range(float value)
 
 uint8_t hil_protocol_cmd_a_state0_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 63LL)));
 }
 
 float hil_protocol_cmd_a_state0_decode(uint8_t value)
@@ -1889,7 +1899,7 @@ bool hil_protocol_cmd_a_state0_is_in_phys_range(float value)
 
 uint8_t hil_protocol_cmd_a_state1_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 63LL)));
 }
 
 float hil_protocol_cmd_a_state1_decode(uint8_t value)
@@ -1909,7 +1919,7 @@ bool hil_protocol_cmd_a_state1_is_in_phys_range(float value)
 
 uint8_t hil_protocol_cmd_a_state2_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 63LL)));
 }
 
 float hil_protocol_cmd_a_state2_decode(uint8_t value)
@@ -1929,7 +1939,7 @@ bool hil_protocol_cmd_a_state2_is_in_phys_range(float value)
 
 uint8_t hil_protocol_cmd_a_n_states_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 3LL)));
 }
 
 float hil_protocol_cmd_a_n_states_decode(uint8_t value)
@@ -1949,7 +1959,7 @@ bool hil_protocol_cmd_a_n_states_is_in_phys_range(float value)
 
 uint32_t hil_protocol_cmd_a_duration0_encode(float value)
 {
-    return (uint32_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint32_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 1048575LL)));
 }
 
 float hil_protocol_cmd_a_duration0_decode(uint32_t value)
@@ -1969,7 +1979,7 @@ bool hil_protocol_cmd_a_duration0_is_in_phys_range(float value)
 
 uint8_t hil_protocol_cmd_a_vector_id_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_cmd_a_vector_id_decode(uint8_t value)
@@ -2046,7 +2056,7 @@ int hil_protocol_cmd_b_init(struct hil_protocol_cmd_b_t *msg_p)
 
 uint16_t hil_protocol_cmd_b_seq_encode(float value)
 {
-    return (uint16_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 65535LL)));
 }
 
 float hil_protocol_cmd_b_seq_decode(uint16_t value)
@@ -2068,7 +2078,7 @@ bool hil_protocol_cmd_b_seq_is_in_phys_range(float value)
 
 uint32_t hil_protocol_cmd_b_duration1_encode(float value)
 {
-    return (uint32_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint32_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 1048575LL)));
 }
 
 float hil_protocol_cmd_b_duration1_decode(uint32_t value)
@@ -2088,7 +2098,7 @@ bool hil_protocol_cmd_b_duration1_is_in_phys_range(float value)
 
 uint32_t hil_protocol_cmd_b_duration2_encode(float value)
 {
-    return (uint32_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint32_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 1048575LL)));
 }
 
 float hil_protocol_cmd_b_duration2_decode(uint32_t value)
@@ -2108,7 +2118,7 @@ bool hil_protocol_cmd_b_duration2_is_in_phys_range(float value)
 
 uint8_t hil_protocol_cmd_b_candidates_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_cmd_b_candidates_decode(uint8_t value)
@@ -2183,7 +2193,7 @@ int hil_protocol_cmd_c_init(struct hil_protocol_cmd_c_t *msg_p)
 
 uint16_t hil_protocol_cmd_c_seq_encode(float value)
 {
-    return (uint16_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 65535LL)));
 }
 
 float hil_protocol_cmd_c_seq_decode(uint16_t value)
@@ -2205,7 +2215,7 @@ bool hil_protocol_cmd_c_seq_is_in_phys_range(float value)
 
 uint32_t hil_protocol_cmd_c_exec_time_ns_encode(float value)
 {
-    return (uint32_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint32_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 4294967295LL)));
 }
 
 float hil_protocol_cmd_c_exec_time_ns_decode(uint32_t value)
@@ -2227,7 +2237,7 @@ bool hil_protocol_cmd_c_exec_time_ns_is_in_phys_range(float value)
 
 uint8_t hil_protocol_cmd_c_status_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_cmd_c_status_decode(uint8_t value)
@@ -2249,7 +2259,7 @@ bool hil_protocol_cmd_c_status_is_in_phys_range(float value)
 
 uint8_t hil_protocol_cmd_c_mirror_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 1LL)));
 }
 
 float hil_protocol_cmd_c_mirror_decode(uint8_t value)
@@ -2356,7 +2366,7 @@ int hil_protocol_cmd_fd_init(struct hil_protocol_cmd_fd_t *msg_p)
 
 uint16_t hil_protocol_cmd_fd_seq_encode(float value)
 {
-    return (uint16_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 65535LL)));
 }
 
 float hil_protocol_cmd_fd_seq_decode(uint16_t value)
@@ -2378,7 +2388,7 @@ bool hil_protocol_cmd_fd_seq_is_in_phys_range(float value)
 
 uint8_t hil_protocol_cmd_fd_state0_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 63LL)));
 }
 
 float hil_protocol_cmd_fd_state0_decode(uint8_t value)
@@ -2398,7 +2408,7 @@ bool hil_protocol_cmd_fd_state0_is_in_phys_range(float value)
 
 uint8_t hil_protocol_cmd_fd_state1_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 63LL)));
 }
 
 float hil_protocol_cmd_fd_state1_decode(uint8_t value)
@@ -2418,7 +2428,7 @@ bool hil_protocol_cmd_fd_state1_is_in_phys_range(float value)
 
 uint8_t hil_protocol_cmd_fd_state2_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 63LL)));
 }
 
 float hil_protocol_cmd_fd_state2_decode(uint8_t value)
@@ -2438,7 +2448,7 @@ bool hil_protocol_cmd_fd_state2_is_in_phys_range(float value)
 
 uint8_t hil_protocol_cmd_fd_n_states_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 3LL)));
 }
 
 float hil_protocol_cmd_fd_n_states_decode(uint8_t value)
@@ -2458,7 +2468,7 @@ bool hil_protocol_cmd_fd_n_states_is_in_phys_range(float value)
 
 uint32_t hil_protocol_cmd_fd_duration0_encode(float value)
 {
-    return (uint32_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint32_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 1048575LL)));
 }
 
 float hil_protocol_cmd_fd_duration0_decode(uint32_t value)
@@ -2478,7 +2488,7 @@ bool hil_protocol_cmd_fd_duration0_is_in_phys_range(float value)
 
 uint32_t hil_protocol_cmd_fd_duration1_encode(float value)
 {
-    return (uint32_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint32_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 1048575LL)));
 }
 
 float hil_protocol_cmd_fd_duration1_decode(uint32_t value)
@@ -2498,7 +2508,7 @@ bool hil_protocol_cmd_fd_duration1_is_in_phys_range(float value)
 
 uint32_t hil_protocol_cmd_fd_duration2_encode(float value)
 {
-    return (uint32_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint32_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 1048575LL)));
 }
 
 float hil_protocol_cmd_fd_duration2_decode(uint32_t value)
@@ -2518,7 +2528,7 @@ bool hil_protocol_cmd_fd_duration2_is_in_phys_range(float value)
 
 uint8_t hil_protocol_cmd_fd_vector_id_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_cmd_fd_vector_id_decode(uint8_t value)
@@ -2540,7 +2550,7 @@ bool hil_protocol_cmd_fd_vector_id_is_in_phys_range(float value)
 
 uint8_t hil_protocol_cmd_fd_candidates_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_cmd_fd_candidates_decode(uint8_t value)
@@ -2562,7 +2572,7 @@ bool hil_protocol_cmd_fd_candidates_is_in_phys_range(float value)
 
 uint32_t hil_protocol_cmd_fd_exec_time_ns_encode(float value)
 {
-    return (uint32_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint32_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 4294967295LL)));
 }
 
 float hil_protocol_cmd_fd_exec_time_ns_decode(uint32_t value)
@@ -2584,7 +2594,7 @@ bool hil_protocol_cmd_fd_exec_time_ns_is_in_phys_range(float value)
 
 uint8_t hil_protocol_cmd_fd_status_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_cmd_fd_status_decode(uint8_t value)
@@ -2606,7 +2616,7 @@ bool hil_protocol_cmd_fd_status_is_in_phys_range(float value)
 
 uint8_t hil_protocol_cmd_fd_mirror_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 1LL)));
 }
 
 float hil_protocol_cmd_fd_mirror_decode(uint8_t value)
@@ -2683,7 +2693,7 @@ int hil_protocol_setpoint_init(struct hil_protocol_setpoint_t *msg_p)
 
 uint8_t hil_protocol_setpoint_enable_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_setpoint_enable_decode(uint8_t value)
@@ -2703,7 +2713,7 @@ bool hil_protocol_setpoint_enable_is_in_phys_range(float value)
 
 uint8_t hil_protocol_setpoint_mode_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_setpoint_mode_decode(uint8_t value)
@@ -2743,7 +2753,7 @@ bool hil_protocol_setpoint_reference_is_in_phys_range(float value)
 
 uint8_t hil_protocol_setpoint_controller_id_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_setpoint_controller_id_decode(uint8_t value)
@@ -2818,7 +2828,7 @@ int hil_protocol_config_param_init(struct hil_protocol_config_param_t *msg_p)
 
 uint8_t hil_protocol_config_param_param_id_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_config_param_param_id_decode(uint8_t value)
@@ -2915,7 +2925,7 @@ int hil_protocol_config_ack_init(struct hil_protocol_config_ack_t *msg_p)
 
 uint8_t hil_protocol_config_ack_param_id_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_config_ack_param_id_decode(uint8_t value)
@@ -2957,7 +2967,7 @@ bool hil_protocol_config_ack_value_is_in_phys_range(float value)
 
 uint8_t hil_protocol_config_ack_status_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_config_ack_status_decode(uint8_t value)
@@ -3022,7 +3032,7 @@ int hil_protocol_heartbeat_host_init(struct hil_protocol_heartbeat_host_t *msg_p
 
 uint8_t hil_protocol_heartbeat_host_node_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_heartbeat_host_node_decode(uint8_t value)
@@ -3044,7 +3054,7 @@ bool hil_protocol_heartbeat_host_node_is_in_phys_range(float value)
 
 uint8_t hil_protocol_heartbeat_host_state_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_heartbeat_host_state_decode(uint8_t value)
@@ -3066,7 +3076,7 @@ bool hil_protocol_heartbeat_host_state_is_in_phys_range(float value)
 
 uint8_t hil_protocol_heartbeat_host_counter_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_heartbeat_host_counter_decode(uint8_t value)
@@ -3131,7 +3141,7 @@ int hil_protocol_heartbeat_target_init(struct hil_protocol_heartbeat_target_t *m
 
 uint8_t hil_protocol_heartbeat_target_node_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_heartbeat_target_node_decode(uint8_t value)
@@ -3153,7 +3163,7 @@ bool hil_protocol_heartbeat_target_node_is_in_phys_range(float value)
 
 uint8_t hil_protocol_heartbeat_target_state_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_heartbeat_target_state_decode(uint8_t value)
@@ -3175,7 +3185,7 @@ bool hil_protocol_heartbeat_target_state_is_in_phys_range(float value)
 
 uint8_t hil_protocol_heartbeat_target_counter_encode(float value)
 {
-    return (uint8_t)(cantools_unsigned_from_double(roundf(value)));
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
 }
 
 float hil_protocol_heartbeat_target_counter_decode(uint8_t value)

@@ -18,6 +18,18 @@ typedef void (*hil_fw_reset_fn)(struct hil_fw_state *s);
 typedef void (*hil_fw_reference_fn)(struct hil_fw_state *s);
 typedef void (*hil_fw_predict_fn)(struct hil_fw_state *s, hil_fw_cmd_t *cmd);
 
+/* Bit of parameter id p (HIL_FW_P_*) in a parameter mask. */
+#define HIL_FW_PARAM_BIT(p) (1UL << (p))
+
+/* Parameters the shared step reads for every controller: the motor model, Ts, Vdc, the speed PI, the torque
+ * limit and integrator preset, and the torque -> current reference (id_ref, current_limit). */
+#define HIL_FW_PARAMS_COMMON                                                                                  \
+    (HIL_FW_PARAM_BIT(HIL_FW_P_RS) | HIL_FW_PARAM_BIT(HIL_FW_P_LD) | HIL_FW_PARAM_BIT(HIL_FW_P_LQ) |           \
+     HIL_FW_PARAM_BIT(HIL_FW_P_PSI_F) | HIL_FW_PARAM_BIT(HIL_FW_P_POLE_PAIRS) | HIL_FW_PARAM_BIT(HIL_FW_P_TS) |  \
+     HIL_FW_PARAM_BIT(HIL_FW_P_VDC) | HIL_FW_PARAM_BIT(HIL_FW_P_SPEED_KP) | HIL_FW_PARAM_BIT(HIL_FW_P_SPEED_KI) | \
+     HIL_FW_PARAM_BIT(HIL_FW_P_TORQUE_LIMIT) | HIL_FW_PARAM_BIT(HIL_FW_P_TORQUE_INTEGRATOR_INIT) |                \
+     HIL_FW_PARAM_BIT(HIL_FW_P_ID_REF) | HIL_FW_PARAM_BIT(HIL_FW_P_CURRENT_LIMIT))
+
 typedef struct {
     const char *name;              /* DBC name (HIL_FW_CTRL_*_NAME) */
     uint8_t id;                    /* HIL_FW_CTRL_* */
@@ -25,6 +37,8 @@ typedef struct {
     hil_fw_reset_fn reset;         /* NULL: the zeroed state is its initial state */
     hil_fw_reference_fn reference; /* NULL: no reference-vector stage */
     hil_fw_predict_fn predict;     /* NULL: not implemented */
+    uint32_t params;               /* parameters it reads: HIL_FW_PARAMS_COMMON | its own (HIL_FW_PARAM_BIT);
+                                    * `hil run` refuses a --param outside it (off: none) */
 } hil_fw_controller_t;
 
 /* Table entry for controller_id, or NULL for ids without an entry (unknown to this firmware). */

@@ -47,7 +47,7 @@ extern const uint8_t hil_fw_fcs_table2[4][6];
 uint8_t hil_fw_fcs_sector(float alpha, float beta);
 
 /* Sector S (1..6) with the boundaries rotated by rot * 30 deg (rot 0..11): S = 1 for angles in
- * [-30 + 30 rot, 30 + 30 rot) deg. */
+ * [-30 + 30 rot, 30 + 30 rot) deg; 1 for a non-finite vector (NaN flux estimate), never out of 1..6. */
 uint8_t hil_fw_fcs_sector_rot(float alpha, float beta, uint8_t rot);
 
 /* Reference vector (DSVM index) of table 1 or 2 for comparator outputs and sector S (1..6);

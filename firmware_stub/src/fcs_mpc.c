@@ -25,7 +25,11 @@ uint8_t hil_fw_fcs_sector_rot(float alpha, float beta, uint8_t rot)
 {
     /* shift by +30 deg - rot * 30 deg so that sector boundaries fall on multiples of 60 deg */
     const float ang = atan2f(beta, alpha) + (HIL_FW_PI_F / 6.0f) * (1.0f - (float)(rot % 12u));
-    int k = (int)floorf(ang * (3.0f / HIL_FW_PI_F)); /* -9..3 */
+    int k;
+    if (!isfinite(ang)) {
+        return 1u; /* a NaN/inf flux estimate has no sector: sector 1, never a NaN cast (undefined in C) */
+    }
+    k = (int)floorf(ang * (3.0f / HIL_FW_PI_F)); /* -9..3 */
     k %= 6;
     if (k < 0) {
         k += 6;

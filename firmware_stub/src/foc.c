@@ -12,7 +12,7 @@ uint8_t hil_fw_svpwm(float u_alpha, float u_beta, float vdc, uint32_t ts_ns, uin
     /* dwell fractions of Vj (angle (j-1)*60 deg) and V(j+1) in sector j */
     const float ang = atan2f(u_beta, u_alpha);
     const float mag = sqrtf(u_alpha * u_alpha + u_beta * u_beta);
-    float pos = ang < 0.0f ? ang + 2.0f * HIL_FW_PI_F : ang;
+    float pos = isfinite(ang) ? (ang < 0.0f ? ang + 2.0f * HIL_FW_PI_F : ang) : 0.0f; /* NaN: never cast */
     int k = (int)(pos * (3.0f / HIL_FW_PI_F));
     float phi;
     float f1;
@@ -32,7 +32,10 @@ uint8_t hil_fw_svpwm(float u_alpha, float u_beta, float vdc, uint32_t ts_ns, uin
     f1 = f1 > 0.0f ? f1 : 0.0f;
     f2 = f2 > 0.0f ? f2 : 0.0f;
     sum = f1 + f2;
-    if (sum > 1.0f) {
+    if (!(sum <= 1.0e30f)) { /* an infinite or NaN reference: no duty, never a NaN cast */
+        f1 = 0.0f;
+        f2 = 0.0f;
+    } else if (sum > 1.0f) {
         f1 /= sum;
         f2 /= sum;
     }

@@ -15,6 +15,9 @@ uint8_t hil_fw_hv_sector(float x_alpha, float x_beta)
 {
     float ang = atan2f(x_beta, x_alpha);
     int k;
+    if (!isfinite(ang)) {
+        return 1u; /* a NaN error vector: sector 1, never a NaN cast (undefined in C) */
+    }
     if (ang < 0.0f) {
         ang += 2.0f * HIL_FW_PI_F;
     }

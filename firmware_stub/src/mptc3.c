@@ -65,7 +65,7 @@ void hil_fw_mptc3_predict(struct hil_fw_state *s, hil_fw_cmd_t *cmd)
     psi_q1 = v[HIL_FW_P_LQ] * c.iq1;
     ang = atan2f(c.s2, c.c2) + atan2f(psi_q1, psi_d1);
     ang -= TWO_PI_F * floorf(ang / TWO_PI_F);
-    sector = (int)(ang * (12.0f / TWO_PI_F));
+    sector = isfinite(ang) ? (int)(ang * (12.0f / TWO_PI_F)) : 0; /* NaN flux: sector 1, never a NaN cast */
     sector = sector > 11 ? 11 : sector;
     st->flux_sector = (uint8_t)(sector + 1);
     set = st->use_j1 ? hil_fw_mptc3_set_j1 : hil_fw_mptc3_set_j2;

@@ -207,6 +207,21 @@ static void on_measurement(const pending_meas_t *p, uint8_t n_phases, double sca
     send_command(p->seq, &cmd, exec_ns, fd);
 }
 
+/* 0 for a ts the Commands cannot carry (a sub-interval longer than the duration field, not positive, NaN):
+ * rejected before the firmware sees it; 1 for any other parameter. Never casts a NaN. */
+static int ts_fits(const struct hil_protocol_config_param_t *cp)
+{
+    double ns;
+    if (cp->param_id != HIL_FW_P_TS) {
+        return 1;
+    }
+    ns = (double)cp->value * NS_PER_S;
+    if (!(ns > 0 && ns < (double)0xFFFFFFFFL)) {
+        return 0;
+    }
+    return hil_protocol_cmd_a_duration0_is_in_range((uint32_t)(ns + (double)0.5L)) ? 1 : 0;
+}
+
 static void on_config(const uint8_t *data)
 {
     struct hil_protocol_config_param_t cp;
@@ -215,12 +230,12 @@ static void on_config(const uint8_t *data)
     (void)hil_protocol_config_param_unpack(&cp, data, HIL_PROTOCOL_CONFIG_PARAM_LENGTH);
     g.counters.config_writes++;
     ack.param_id = cp.param_id;
-    ack.value = cp.value;
-    if (hil_app_config(cp.param_id, cp.value) == HIL_APP_OK) {
+    ack.value = cp.value; /* echoed bit for bit, NaN included (a float copy, no arithmetic) */
+    if (ts_fits(&cp) && hil_app_config(cp.param_id, cp.value) == HIL_APP_OK) {
         ack.status = HIL_FW_STATUS_OK;
         if (cp.param_id == HIL_FW_P_TS) {
             const double ns = (double)cp.value * NS_PER_S;
-            g.ts_ns = (uint32_t)(ns + (double)0.5L); /* ts is checked positive (5 us..10 ms) by the firmware */
+            g.ts_ns = (uint32_t)(ns + (double)0.5L); /* in range: checked by ts_fits */
         }
     } else {
         g.counters.config_rejected++;

@@ -2,6 +2,7 @@
  * Checks every golden frame (golden_frames.h, generated from tests/golden/frames.json),
  * pack/unpack round trips of pseudo-random raw values, and size checks.
  * Exit status: number of failures (0 = pass). C99, no malloc. */
+#include <math.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <string.h>
@@ -111,6 +112,34 @@ static int check_sizes(void)
     return fails;
 }
 
+/* Encoders never cast NaN or an out-of-type value to an integer (undefined in C): NaN gives 0, the rest saturates
+ * to the signal's raw range (protocol/gen_c.py). */
+static int check_encode_saturates(void)
+{
+    int fails = 0;
+#define EXPECT(got, want)                                                        \
+    do {                                                                         \
+        if ((long long)(got) != (long long)(want)) {                            \
+            printf("%s = %lld, want %lld\n", #got, (long long)(got), (long long)(want)); \
+            fails++;                                                             \
+        }                                                                        \
+    } while (0)
+    EXPECT(hil_protocol_meas_a_i_a_encode(NAN), 0);
+    EXPECT(hil_protocol_meas_a_i_a_encode(INFINITY), 32767);
+    EXPECT(hil_protocol_meas_a_i_a_encode(-1.0e30f), -32768);
+    EXPECT(hil_protocol_meas_b_vdc_encode(NAN), 0);
+    EXPECT(hil_protocol_meas_b_vdc_encode(-5.0f), 0);
+    EXPECT(hil_protocol_meas_b_vdc_encode(1.0e9f), 65535);
+    EXPECT(hil_protocol_cmd_a_duration0_encode(2.0e6f), 1048575);
+    EXPECT(hil_protocol_cmd_a_duration0_encode(-INFINITY), 0);
+    EXPECT(hil_protocol_cmd_c_exec_time_ns_encode(1.0e20f), 4294967295u);
+    EXPECT(hil_protocol_cmd_c_exec_time_ns_encode(NAN), 0);
+    EXPECT(hil_protocol_cmd_a_n_states_encode(NAN), 0);
+    EXPECT(hil_protocol_config_param_param_id_encode(300.0f), 255);
+#undef EXPECT
+    return fails;
+}
+
 int main(void)
 {
     int fails = 0;
@@ -125,6 +154,7 @@ int main(void)
     fails += check_cmd_fd_round_trip();
     fails += check_meas_split_round_trip();
     fails += check_sizes();
+    fails += check_encode_saturates();
     printf("test_codec: %d golden frames, %d failure(s)\n", GOLDEN_CHECK_COUNT, fails);
     return fails != 0;
 }

@@ -23,6 +23,17 @@ static void test_param_validation(void)
           "negative current limit rejected");
     CHECK(hil_fw_set_param(&s, HIL_FW_P_SPEED_KP, NAN) == HIL_FW_E_PARAM_VALUE, "NaN rejected");
     CHECK(hil_fw_set_param(&s, HIL_FW_P_PSI_F, INFINITY) == HIL_FW_E_PARAM_VALUE, "inf rejected");
+    {   /* every parameter refuses NaN and +-inf (a ConfigParam frame can carry them) */
+        const float bad[3] = {NAN, INFINITY, -INFINITY};
+        unsigned id;
+        int b;
+        for (id = 1u; id < HIL_FW_P_COUNT; ++id) {
+            for (b = 0; b < 3; ++b) {
+                CHECK(hil_fw_set_param(&s, (uint8_t)id, bad[b]) == HIL_FW_E_PARAM_VALUE, "param %u = %g rejected",
+                      id, (double)bad[b]);
+            }
+        }
+    }
     CHECK(hil_fw_set_param(&s, 0u, 1.0f) == HIL_FW_E_PARAM_ID, "param id 0 rejected");
     CHECK(hil_fw_set_param(&s, HIL_FW_P_COUNT, 1.0f) == HIL_FW_E_PARAM_ID, "param id past the last rejected");
     CHECK(hil_fw_set_param(&s, 255u, 1.0f) == HIL_FW_E_PARAM_ID, "param id 255 rejected");

@@ -154,6 +154,22 @@ static void test_tables(void)
                   (double)ang[i]);
         }
     }
+    /* a NaN flux estimate: sector 1, never a NaN cast to int (a sector outside 1..6 would index past the
+     * tables); an infinite component still has a direction (atan2) and a sector in 1..6 */
+    {
+        const float inf[2] = {INFINITY, -INFINITY};
+        uint8_t sa;
+        uint8_t sb;
+        int i;
+        CHECK(hil_fw_fcs_sector_rot(NAN, 1.0f, 3u) == 1u, "sector of a NaN alpha");
+        CHECK(hil_fw_fcs_sector_rot(0.5f, NAN, 0u) == 1u, "sector of a NaN beta");
+        for (i = 0; i < 2; ++i) {
+            sa = hil_fw_fcs_sector_rot(inf[i], 1.0f, 3u);
+            sb = hil_fw_fcs_sector_rot(inf[i], inf[1 - i], 7u);
+            CHECK(sa >= 1u && sa <= 6u && sb >= 1u && sb <= 6u, "sectors with %g: %u %u", (double)inf[i],
+                  (unsigned)sa, (unsigned)sb);
+        }
+    }
 }
 
 static void test_sequences(void)
@@ -376,6 +392,18 @@ static void test_svpwm(void)
         hil_fw_cmd_mean_voltage_ab(st, t, 3u, 311.0f, &ma, &mb);
         CHECK_NEAR(ma, ua, 0.2f, "svpwm mean alpha");
         CHECK_NEAR(mb, ub, 0.2f, "svpwm mean beta");
+    }
+    {   /* a NaN or infinite reference: zero vector over Ts, never a NaN cast */
+        const float bad[3] = {NAN, INFINITY, -INFINITY};
+        int i;
+        for (i = 0; i < 3; ++i) {
+            uint8_t a;
+            uint8_t b;
+            uint32_t t[3];
+            (void)hil_fw_svpwm(bad[i], 10.0f, 311.0f, 100000u, &a, &b, t);
+            CHECK(t[0] == 0u && t[1] == 0u && t[2] == 100000u, "svpwm of %g: %u %u %u", (double)bad[i],
+                  (unsigned)t[0], (unsigned)t[1], (unsigned)t[2]);
+        }
     }
 }
 

@@ -124,6 +124,7 @@ static void test_sector_table(void)
         }
     }
     CHECK(hil_fw_hv_sector(1.0f, -1.0e-6f) == 6u, "just below 0 rad is sector 6");
+    CHECK(hil_fw_hv_sector(NAN, 1.0f) == 1u && hil_fw_hv_sector(1.0f, NAN) == 1u, "a NaN vector: sector 1");
 }
 
 /* hv-mpfc picks the Table 1 pair of the flux error sector, in one prediction. */

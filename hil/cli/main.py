@@ -13,10 +13,7 @@ from types import ModuleType
 # one thread unless the user chose otherwise. Set before the first numpy import (the imports below).
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from pmsm_hil.hil.errors import HilError
-from pmsm_hil.hil.metrics.errors import MetricsError
-from pmsm_hil.hil.runlog.errors import RunLogError
-from pmsm_hil.protocol.errors import ProtocolError
+from pmsm_hil.errors import HilError
 
 # (group or None, module): each module exposes add_parser(subparsers) that sets func=run.
 _TOP_LEVEL = ("run", "target", "link_budget", "mcap_repair", "compare", "sweep", "replay_mcap", "report")
@@ -28,16 +25,6 @@ _GROUPS = {
 }
 _GROUP_HELP = {"plant": "offline plant tools", "bench": "benchmarks that print figures",
                "fw": "build firmware for the SIL and QEMU targets"}
-
-
-def _user_errors() -> tuple[type[Exception], ...]:
-    """Exception bases that mean bad input or a failed run: reported as one line, no traceback."""
-    errors: list[type[Exception]] = [HilError, ProtocolError, MetricsError, RunLogError]
-    try:
-        from pmsm_hil.sim_target.firmware import FirmwareError
-    except ImportError:
-        return tuple(errors)
-    return (*errors, FirmwareError)
 
 
 def _load(name: str) -> ModuleType | None:
@@ -98,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         return int(func(args))
-    except _user_errors() as exc:
+    except HilError as exc:  # the package's one root (pmsm_hil.errors): bad input or a failed run, one line
         if args.debug:
             raise
         print(f"hil: error: {exc}", file=sys.stderr)

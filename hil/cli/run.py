@@ -22,7 +22,7 @@ from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.motor_params import parse_set_options
 from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runner.run import run_closed_loop
-from pmsm_hil.hil.runner.run_config import RunConfig, parse_param_options
+from pmsm_hil.hil.runner.run_config import RunConfig, check_params_used, parse_param_options
 from pmsm_hil.hil.runner.run_limits import check_run_limits
 from pmsm_hil.hil.runner.run_metadata import RUN_FILES
 from pmsm_hil.hil.runner.scenario import load_scenario, scenario_names
@@ -220,6 +220,7 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
         if isinstance(exc, ParameterError):
             raise
         raise ParameterError(f"bad option value: {exc}") from None
+    check_params_used(run_cfg.controller, run_cfg.controller_params)
     check_run_limits(run_cfg, speed_option=source("speed", f"scenario '{scenario.name}' speed_rpm"),
                      duration_option=source("duration", f"scenario '{scenario.name}' duration_s"))
     parse_spec(run_cfg.link)  # a bad --link fails here, before any output is created

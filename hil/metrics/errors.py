@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from pmsm_hil.errors import HilError
 
-class MetricsError(ValueError):
+
+class MetricsError(HilError, ValueError):
     """Bad input to a metric; the message names the offending field."""
 
 

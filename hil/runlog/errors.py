@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from pmsm_hil.errors import HilError
 
-class RunLogError(RuntimeError):
+
+class RunLogError(HilError, RuntimeError):
     """The run logger cannot do what was asked; the message names the field or the cause."""
 
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.runner.native_link import native_lib
@@ -20,7 +21,11 @@ from pmsm_hil.hil.runner.native_wire import WireHandle
 from pmsm_hil.protocol.links import open_link, parse_spec
 from pmsm_hil.sim_target.process import die_with_parent
 
-_REASONS = {1: "signal", 2: "parent exited", 3: "idle", 4: "link closed"}
+
+def _reasons(lib: Any) -> dict[int, str]:
+    """How nt_serve ended (its NT_END_* codes, read from C through cffi) -> the reason printed."""
+    return {int(lib.NT_END_SIGNAL): "signal", int(lib.NT_END_PARENT): "parent exited", int(lib.NT_END_IDLE): "idle",
+            int(lib.NT_END_CLOSED): "link closed"}
 
 
 @dataclass(slots=True)
@@ -51,7 +56,7 @@ def serve_native(link_spec: str, *, role: str = "target", max_idle_s: float | No
         if on_ready is not None:
             on_ready()
         if orphaned():
-            end = 2
+            end = int(lib.NT_END_PARENT)
         else:
             idle_ns = 0 if max_idle_s is None else int(max_idle_s * 1e9)
             end = int(lib.nt_serve(h.link, idle_ns, parent_pid or 0))
@@ -62,8 +67,8 @@ def serve_native(link_spec: str, *, role: str = "target", max_idle_s: float | No
         for name, value in h.counters().items():
             stats[name] += value
         stats.update(h.waits())
-        reason = _REASONS.get(end, "?")
-        if end == 3 and max_idle_s is not None:
+        reason = _reasons(lib).get(end, f"end code {end}")
+        if end == lib.NT_END_IDLE and max_idle_s is not None:
             reason = f"idle {max_idle_s:g} s"
         return NativeServed(counters, stats, reason)
     finally:

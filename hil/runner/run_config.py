@@ -12,6 +12,7 @@ from pmsm_hil.hil.machine_params import MachineParams
 from pmsm_hil.hil.motor_params import parse_set_options
 from pmsm_hil.hil.runner.scenario import Scenario
 from pmsm_hil.hil.sensors import SensorConfig
+from pmsm_hil.protocol.codec import MAX_DURATION_NS
 from pmsm_hil.protocol.errors import LinkSpecError
 from pmsm_hil.protocol.ids import CONTROLLER_NAMES, ParamId
 from pmsm_hil.protocol.links.faults import FaultSpec, parse_fault_spec
@@ -30,6 +31,10 @@ TARGET_PREFIXES = ("sil:", "qemu:")
 QEMU_LINK = "serial:qemu-uart0"
 QEMU_MAILBOX_LINK = "mailbox:qemu-psram"
 DEFAULT_MCU_CLOCK_HZ = 168e6
+
+#: Shortest control period [s]; the longest is what a Command's duration field carries (MAX_TS_S)
+MIN_TS_S = 5e-6
+MAX_TS_S = MAX_DURATION_NS * 1e-9
 
 #: The paper limits the starting torque to ~10 N·m for its 7 N·m machine: 10/7 of rated.
 TORQUE_LIMIT_PER_RATED = 10.0 / 7.0
@@ -76,6 +81,21 @@ def param_id(name: str) -> ParamId:
         raise ParameterError(f"unknown controller parameter '{name}' (known: {known})") from None
 
 
+def check_params_used(controller: str, names: list[str] | dict[str, float], *, option: str = "--param") -> None:
+    """ParameterError for a controller parameter the reference firmware's `controller` does not read, naming the
+    controllers that do (the firmware's table, CONTROLLERS); `external` (a foreign firmware's own) takes any."""
+    info = next((c for c in CONTROLLERS if c.name == controller), None)
+    if info is None:
+        return
+    for name in names:
+        pid = int(param_id(name))
+        if pid in info.params:
+            continue
+        users = [c.name for c in CONTROLLERS if pid in c.params]
+        where = f"used by {', '.join(users)}" if users else "no controller of the reference firmware reads it"
+        raise ParameterError(f"{option} {name}: controller '{controller}' does not use it ({where})")
+
+
 @dataclass(frozen=True, slots=True)
 class RunConfig:
     """A closed-loop run: motor, controller, scenario, period Ts [s], link and mode, outputs."""
@@ -120,8 +140,9 @@ class RunConfig:
             raise ParameterError(
                 f"controller '{self.controller}' needs a {words.get(needs, needs)}-phase motor, but "
                 f"'{self.motor.name}' is {words.get(has, has)}-phase (six-phase motors have lls > 0)")
-        if not (math.isfinite(self.ts_s) and 5e-6 <= self.ts_s <= 1e-2):
-            raise ParameterError(f"--ts must be between 5 µs and 10 ms, got {self.ts_s} s")
+        if not (math.isfinite(self.ts_s) and self.ts_s >= MIN_TS_S and round(self.ts_s * 1e9) <= MAX_DURATION_NS):
+            raise ParameterError(f"--ts must be between 5 µs and {MAX_DURATION_NS / 1e6:.6f} ms (a Command's duration "
+                                 f"field carries at most {MAX_DURATION_NS} ns), got {self.ts_s} s")
         if abs(round(self.ts_s * 1e9) - self.ts_s * 1e9) > 1e-3:
             raise ParameterError(f"--ts must be a whole number of ns, got {self.ts_s} s")
         if self.mode not in MODES:

@@ -13,6 +13,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from pmsm_hil.errors import HilError
+
 if TYPE_CHECKING:
     import numpy as np
     import numpy.typing as npt
@@ -41,7 +43,7 @@ SIGNALS: dict[str, tuple[str, float, str]] = {
 }
 
 
-class HilRunError(RuntimeError):
+class HilRunError(HilError, RuntimeError):
     """A run ended with an internal error of the tool (a bug: the traceback is chained)."""
 
 

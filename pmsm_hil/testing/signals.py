@@ -17,11 +17,13 @@ from typing import TYPE_CHECKING, Any, NoReturn, Protocol
 import numpy as np
 import numpy.typing as npt
 
+from pmsm_hil.errors import HilError
+
 if TYPE_CHECKING:
     from pmsm_hil.testing.report import PlotRequest, Reporter
 
 
-class SignalAssertionError(AssertionError):
+class SignalAssertionError(HilError, AssertionError):
     """A signal left its band (the message names the signal, the bound and the worst violation)."""
 
 

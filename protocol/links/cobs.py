@@ -6,6 +6,7 @@ from __future__ import annotations
 import binascii
 from collections.abc import Callable
 
+from pmsm_hil.protocol.errors import ProtocolError
 from pmsm_hil.protocol.links.stats import LinkStats
 from pmsm_hil.protocol.links.wire import HEADER, HEADER_SIZE, MAX_PAYLOAD
 
@@ -15,7 +16,7 @@ MAX_RAW = HEADER_SIZE + MAX_PAYLOAD + CRC_SIZE
 MAX_ENCODED = MAX_RAW + MAX_RAW // 254 + 1
 
 
-class CobsError(ValueError):
+class CobsError(ProtocolError, ValueError):
     """Malformed COBS block."""
 
 

@@ -47,3 +47,21 @@ def test_firmware_built_with_strict_flags(build_dir: Path) -> None:
     for flag in ("-std=c99", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion",
                  "-fsingle-precision-constant", "-O2"):
         assert flag in flags, flag
+
+
+#: UBSan with float-to-integer cast checks (GCC leaves float-cast-overflow out of `undefined`); any finding aborts
+UBSAN = "-fsanitize=undefined,float-cast-overflow -fno-sanitize-recover=all"
+
+
+def test_ctest_passes_under_ubsan(tmp_path: Path) -> None:
+    """The unit tests (NaN and out-of-range inputs to the generated encoders, a NaN flux sector, NaN/inf
+    parameters) run clean under UBSan: no NaN or out-of-range float is ever cast to an integer."""
+    cfg = subprocess.run(["cmake", "-S", str(FIRMWARE), "-B", str(tmp_path), f"-DCMAKE_C_FLAGS={UBSAN}",
+                          "-DCMAKE_EXE_LINKER_FLAGS=-fsanitize=undefined"], capture_output=True, text=True, timeout=300)
+    assert cfg.returncode == 0, cfg.stdout + cfg.stderr
+    out = subprocess.run(["cmake", "--build", str(tmp_path), "-j", "2"], capture_output=True, text=True, timeout=600)
+    if out.returncode != 0 and ("unrecognized" in out.stderr or "-lubsan" in out.stdout + out.stderr):
+        pytest.skip("the C toolchain has no UBSan")
+    assert out.returncode == 0, out.stdout + out.stderr
+    run = subprocess.run(["ctest", "--output-on-failure"], cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0 and "runtime error" not in run.stdout + run.stderr, run.stdout + run.stderr

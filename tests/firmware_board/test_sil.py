@@ -10,6 +10,7 @@ import pytest
 from pmsm_hil.hil.errors import HilError
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.protocol.codec import FrameCodec
+from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.messages import ConfigAck, ConfigParam, Fault, Heartbeat, Measurement, Setpoint
 from pmsm_hil.sim_target.firmware import FirmwareError
 from pmsm_hil.sim_target.sil import SilFirmware
@@ -55,6 +56,10 @@ def test_core_protocol_behaviour(reference_sil: Path) -> None:
     f32 = struct.unpack("<f", struct.pack("<f", 5e-5))[0]
     assert send(ConfigParam(param_id=6, value=5e-5)) == [ConfigAck(param_id=6, value=f32, status=0)]
     assert send(ConfigParam(param_id=1, value=-1.0))[0].status == 5  # type: ignore[attr-defined]
+    for pid, bits in ((2, 0x7FC12345), (6, 0xFF800000), (6, 0x3B03126F)):  # NaN, -inf, ts 2 ms: no Command carries it
+        raw = struct.pack("<I", bits)
+        [ack] = [r for r in fw.feed(Frame(0x210, bytes([pid]) + raw, False))]
+        assert ack.data[1:5] == raw and ack.data[5] == 5  # refused, the value echoed bit for bit
     fault = send(Setpoint(enable=True, mode=0, reference=1.0, controller_id=255))
     assert isinstance(fault[0], Fault) and fault[0].code == 6 and fault[0].detail == 255
     fault = send(Setpoint(enable=True, mode=7, reference=1.0, controller_id=1))

@@ -40,7 +40,7 @@ def test_bad_grid_items_name_the_key(item: str, match: str) -> None:
 @pytest.mark.parametrize(("grid", "message"), [
     ("load=3,x", "--grid load: --load must be a number, got 'x'"),
     ("controller=mpcc,nope", "--grid controller: unknown controller 'nope'"),
-    ("ts=1e-4,1", "--grid ts: --ts must be between 5 µs and 10 ms"),
+    ("ts=1e-4,1", "--grid ts: --ts must be between 5 µs and 1.048575 ms"),
     ("set.rs=4.5,abc", "--grid set.rs: --set rs: value 'abc' is not a number"),
     ("param.nope=1", "--grid param.nope: unknown controller parameter 'nope'"),
     ("mode=lockstep,fast", "--grid mode: invalid choice: 'fast'"),
