@@ -185,6 +185,15 @@ register_layout(THREE_PHASE)
 register_layout(DUAL_THREE_PHASE)
 
 
+def params_class_for_kind(kind: str) -> Any:
+    """The parameter class of a registered machine kind (a preset's `kind`); ParameterError naming `kind` and
+    the known kinds."""
+    try:
+        return LAYOUTS[kind].params_class
+    except KeyError:
+        raise ParameterError(f"kind: no machine kind {kind!r} (known: {', '.join(LAYOUTS)})") from None
+
+
 def layout_for_phases(phases: int) -> MachineLayout:
     """The first registered layout of a phase count (the PMSM layouts for 3 and 6); ParameterError naming
     `phases` for a count no layout has."""
@@ -244,4 +253,4 @@ def load_machine(name_or_path: str, overrides: dict[str, float] | None = None) -
 
 __all__ = ["DUAL_THREE_PHASE", "LAYOUTS", "MEAS_SIX", "MEAS_THREE", "NO_SECOND_SET", "THREE_PHASE", "Machine",
            "MachineLayout", "MeasurementFrames", "layout_for_phases", "layout_for_trace", "load_machine",
-           "machine_for", "register_layout", "unregister_layout"]
+           "machine_for", "params_class_for_kind", "register_layout", "unregister_layout"]

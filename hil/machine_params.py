@@ -7,7 +7,7 @@ Units: SI (V, A, kg·m², N·m·s/rad, s); speeds in rpm where named so.
 
 from __future__ import annotations
 
-from typing import Any, Protocol, Self, runtime_checkable
+from typing import Any, ClassVar, Protocol, Self, runtime_checkable
 
 from pmsm_hil.protocol.ids import ParamId
 
@@ -15,6 +15,14 @@ from pmsm_hil.protocol.ids import ParamId
 @runtime_checkable
 class MachineParams(Protocol):
     """The parameter class of a machine kind: a frozen dataclass validated at construction."""
+
+    #: names `--set` accepts, with their units (for help texts)
+    SETTABLE_UNITS: ClassVar[dict[str, str]]
+
+    @classmethod
+    def from_values(cls, values: dict[str, Any], name: str) -> Self:
+        """The parameters of a preset's `[parameters]` table (numbers by name, SI); ParameterError naming a
+        missing, unknown or invalid key."""
 
     @property
     def name(self) -> str:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields, replace
-from typing import Any
+from typing import Any, ClassVar
 
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.protocol.ids import ParamId
@@ -75,6 +75,30 @@ class PmsmParams:
     lls: float = 0.0
     speed_kp: float = 0.8
     speed_ki: float = 0.35
+
+    SETTABLE_UNITS: ClassVar[dict[str, str]] = SETTABLE_UNITS
+    #: keys a preset must give
+    REQUIRED: ClassVar[tuple[str, ...]] = ("rs", "ld", "lq", "psi_f", "pole_pairs", "vdc", "j")
+
+    @classmethod
+    def from_values(cls, values: dict[str, Any], name: str) -> PmsmParams:
+        """A PMSM from a preset's parameter values; ParameterError naming a missing, unknown or invalid key."""
+        known = set(cls.__dataclass_fields__) - {"name"}
+        unknown = set(values) - known
+        if unknown:
+            raise ParameterError(f"unknown parameter(s) {', '.join(sorted(unknown))}")
+        missing = set(cls.REQUIRED) - set(values)
+        if missing:
+            raise ParameterError(f"missing parameter(s) {', '.join(sorted(missing))}")
+        clean: dict[str, Any] = {}
+        for key, value in values.items():
+            if key == "pole_pairs":
+                if float(value) != int(value):
+                    raise ParameterError("'pole_pairs' must be an integer")
+                clean[key] = int(value)
+            else:
+                clean[key] = float(value)
+        return cls(name=name, **clean)
 
     def __post_init__(self) -> None:
         positive = ("rs", "ld", "lq", "vdc", "j", "i_trip", "speed_trip_rpm")

@@ -5,10 +5,13 @@ from __future__ import annotations
 from typing import Any
 
 from pmsm_hil.hil.errors import InputFileError, ParameterError
+from pmsm_hil.hil.machine_params import MachineParams
 from pmsm_hil.hil.motor_params import PmsmParams
 from pmsm_hil.hil.resources import bundled_names, load_toml
 
 _PRESET_PACKAGE = "pmsm_hil.hil.presets"
+#: the machine kind of a preset without `kind` (a PMSM: three- or dual three-phase by its lls)
+DEFAULT_KIND = "three-phase"
 
 
 def preset_names() -> list[str]:
@@ -16,32 +19,41 @@ def preset_names() -> list[str]:
     return bundled_names(_PRESET_PACKAGE)
 
 
-def load_motor(name_or_path: str, overrides: dict[str, float] | None = None) -> PmsmParams:
-    """Load a bundled preset by name or a TOML file, then apply overrides (SI units)."""
+def load_motor(name_or_path: str, overrides: dict[str, float] | None = None) -> MachineParams:
+    """Load a bundled preset by name or a TOML file, then apply overrides (SI units). The optional top-level
+    `kind` names the machine kind (`pmsm_hil.hil.machine.LAYOUTS`; default: a PMSM, three- or dual three-phase
+    by its lls) whose parameter class reads the `[parameters]` table. Returns that class's instance
+    (`MachineParams`)."""
+    from pmsm_hil.hil.machine import params_class_for_kind
+
     doc, origin = load_toml(name_or_path, _PRESET_PACKAGE, file_label="motor file", kind="motor preset")
     table = doc.get("parameters")
     if not isinstance(table, dict):
         raise InputFileError(f"motor file {origin}: missing [parameters] table")
+    kind = doc.get("kind", DEFAULT_KIND)
+    if not isinstance(kind, str):
+        raise InputFileError(f"motor file {origin}: 'kind' must be a string, got {kind!r}")
+    try:
+        params_class = params_class_for_kind(kind)
+    except ParameterError as exc:
+        raise InputFileError(f"motor file {origin}: {exc}") from None
     values: dict[str, Any] = {}
     for key, entry in table.items():
         value = entry.get("value") if isinstance(entry, dict) else entry
         if not isinstance(value, (int, float)) or isinstance(value, bool):
             raise InputFileError(f"motor file {origin}: parameter '{key}' needs a numeric value")
         values[key] = value
-    if "pole_pairs" in values:
-        if float(values["pole_pairs"]) != int(values["pole_pairs"]):
-            raise InputFileError(f"motor file {origin}: 'pole_pairs' must be an integer")
-        values["pole_pairs"] = int(values["pole_pairs"])
-    known = set(PmsmParams.__dataclass_fields__) - {"name"}
-    unknown = set(values) - known
-    if unknown:
-        raise InputFileError(f"motor file {origin}: unknown parameter(s) {', '.join(sorted(unknown))}")
-    missing = {"rs", "ld", "lq", "psi_f", "pole_pairs", "vdc", "j"} - set(values)
-    if missing:
-        raise InputFileError(f"motor file {origin}: missing parameter(s) {', '.join(sorted(missing))}")
-    floats: dict[str, Any] = {k: (v if k == "pole_pairs" else float(v)) for k, v in values.items()}
     try:
-        params = PmsmParams(name=str(doc.get("name", origin)), **floats)
+        params: MachineParams = params_class.from_values(values, str(doc.get("name", origin)))
     except ParameterError as exc:
         raise InputFileError(f"motor file {origin}: {exc}") from None
     return params.with_overrides(overrides) if overrides else params
+
+
+def load_pmsm(name_or_path: str, overrides: dict[str, float] | None = None) -> PmsmParams:
+    """`load_motor` for what only a PMSM has (benches against PMSM references): ParameterError naming the motor
+    when its preset is another machine kind."""
+    params = load_motor(name_or_path, overrides)
+    if not isinstance(params, PmsmParams):
+        raise ParameterError(f"--motor {name_or_path}: a {type(params).__name__} machine; this needs a PMSM")
+    return params

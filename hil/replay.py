@@ -15,8 +15,8 @@ from pathlib import Path
 from pmsm_hil.hil.atomic_write import atomic_path, refuse_inputs
 from pmsm_hil.hil.errors import InputFileError, ParameterError, SequenceError
 from pmsm_hil.hil.machine import DUAL_THREE_PHASE, THREE_PHASE, MachineLayout, machine_for
+from pmsm_hil.hil.machine_params import MachineParams
 from pmsm_hil.hil.mechanics import DynoMechanics
-from pmsm_hil.hil.motor_params import PmsmParams
 from pmsm_hil.hil.plant import MAX_SUBINTERVALS
 
 OUTPUT_COLUMNS = THREE_PHASE.replay_columns
@@ -116,7 +116,7 @@ def _parse_sequence_row(row: list[str], header: list[str], row_no: int, ts_ns: i
     return ReplayCommand(tuple(states), tuple(durs))
 
 
-def replay(params: PmsmParams, *, rpm: float, ts_s: float, input_path: Path, output_path: Path,
+def replay(params: MachineParams, *, rpm: float, ts_s: float, input_path: Path, output_path: Path,
            theta0_rad: float = 0.0) -> int:
     """Replay the input CSV through the plant in dyno mode; writes N+1 rows; returns N.
 

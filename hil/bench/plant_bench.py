@@ -18,7 +18,7 @@ from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.mechanics import DynoMechanics
 from pmsm_hil.hil.motor_params import PmsmParams
 from pmsm_hil.hil.plant import Plant
-from pmsm_hil.hil.presets_loader import load_motor
+from pmsm_hil.hil.presets_loader import load_pmsm
 
 TRACE_DT_S = 2e-6
 GEM_TIMING_METHOD = "physical_system.simulate(action) (no env reward/reference/visualisation layers)"
@@ -153,7 +153,7 @@ def run_plant_bench(periods: int = 20_000, repeats: int = 5, *, motor: str = "ni
             raise ParameterError(f"benchmark '{name}' must be an integer ≥ 1, got {value!r}")
     if not math.isfinite(speed_rpm):
         raise ParameterError(f"benchmark speed must be finite, got {speed_rpm!r} rpm")
-    params = load_motor(motor)
+    params = load_pmsm(motor)
     ts_ns = Plant(params, ts_s, DynoMechanics(speed_rpm), trace_dt_s=None).ts_ns  # validates ts
     rng = np.random.default_rng(seed)
     single = single_vector_commands(periods, ts_ns, rng)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from pmsm_hil.hil.presets_loader import load_motor
+from pmsm_hil.hil.presets_loader import load_pmsm
 from pmsm_hil.protocol.ids import ParamId
 from pmsm_hil.sim_target.firmware import CONTROLLERS
 
@@ -45,7 +45,7 @@ THREE_PHASE = BenchMachine("firmware default (niu2020 Table 3), 1500 rpm, i_q 7.
 
 def six_phase_machine() -> BenchMachine:
     """zhang2021-dtpmsm at 1500 rpm and 40 N·m (i_q = T / (3 p ψf))."""
-    m = load_motor("zhang2021-dtpmsm")
+    m = load_pmsm("zhang2021-dtpmsm")
     params = {int(ParamId.RS): m.rs, int(ParamId.LD): m.ld, int(ParamId.LQ): m.lq, int(ParamId.PSI_F): m.psi_f,
               int(ParamId.POLE_PAIRS): float(m.pole_pairs), int(ParamId.VDC): m.vdc, int(ParamId.LLS): m.lls,
               int(ParamId.TORQUE_LIMIT): 1.2 * m.rated_torque_nm}

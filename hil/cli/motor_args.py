@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-from pmsm_hil.hil.motor_params import SETTABLE_UNITS, PmsmParams, parse_set_options
+from pmsm_hil.hil.machine_params import MachineParams
+from pmsm_hil.hil.motor_params import SETTABLE_UNITS, parse_set_options
 from pmsm_hil.hil.presets_loader import load_motor, preset_names
 
 _SET_HELP = "override a motor parameter (SI units): " + ", ".join(
@@ -23,6 +24,6 @@ def add_motor_arguments(parser: argparse.ArgumentParser, default: str | None = "
                         help=_SET_HELP)
 
 
-def motor_from_args(args: argparse.Namespace) -> PmsmParams:
+def motor_from_args(args: argparse.Namespace) -> MachineParams:
     """Load the motor named by --motor with the --set overrides applied."""
     return load_motor(args.motor, parse_set_options(args.set_params))

@@ -57,6 +57,26 @@ def test_the_kind_lives_only_in_its_own_files(rl: Any) -> None:
     assert machine_for(rl.RlLoadParams(r=1.0, l=5e-3, vdc=300.0)).layout is LAYOUTS["rl-load"]
 
 
+def test_a_preset_of_the_kind_loads_through_its_parameter_class(rl: Any, tmp_path: Path) -> None:
+    """A motor TOML with `kind = "rl-load"` is read by the kind's parameter class; `--set` overrides apply; an
+    unknown kind or key is an error naming it."""
+    from pmsm_hil.hil.errors import InputFileError
+    from pmsm_hil.hil.presets_loader import load_motor
+
+    path = tmp_path / "rl.toml"
+    path.write_text('name = "bench-rl"\nkind = "rl-load"\n[parameters]\nr = 1.0\nl = { value = 5e-3, unit = "H" }\n'
+                    'vdc = 300.0\n', encoding="utf-8")
+    m = load_motor(str(path), {"r": 2.0})
+    assert isinstance(m, rl.RlLoadParams) and (m.r, m.l, m.vdc, m.name) == (2.0, 5e-3, 300.0, "bench-rl")
+    assert machine_for(m).layout.kind == "rl-load"
+    path.write_text('kind = "rl-lod"\n[parameters]\nr = 1.0\n', encoding="utf-8")
+    with pytest.raises(InputFileError, match="kind: no machine kind 'rl-lod'"):
+        load_motor(str(path))
+    path.write_text('kind = "rl-load"\n[parameters]\nr = 1.0\nl = 1e-3\nvdc = 1.0\nrs = 1.0\n', encoding="utf-8")
+    with pytest.raises(InputFileError, match="unknown R-L load parameter"):
+        load_motor(str(path))
+
+
 def test_the_rl_kernel_is_exact_over_one_sub_interval(rl: Any) -> None:
     """From rest, the active vector 100 for Ts: i_α(Ts) = (2/3·Vdc/R)(1 − e^(−R·Ts/L)), i_β = 0 (closed form)."""
     params = rl.RlLoadParams(r=1.0, l=5e-3, vdc=300.0)

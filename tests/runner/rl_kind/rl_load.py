@@ -57,6 +57,20 @@ class RlLoadParams:
     speed_ki: float = 0.35
     name: str = "rl-load"
 
+    SETTABLE_UNITS: ClassVar[dict[str, str]] = {"r": "Ω", "l": "H", "vdc": "V", "psi_model": "Wb", "i_trip": "A"}
+
+    @classmethod
+    def from_values(cls, values: dict[str, Any], name: str) -> RlLoadParams:
+        """From a preset's `[parameters]` (kind = "rl-load")."""
+        known = {f.name for f in fields(cls)} - {"name"}
+        unknown = set(values) - known
+        if unknown:
+            raise ParameterError(f"unknown R-L load parameter(s) {', '.join(sorted(unknown))}")
+        missing = {"r", "l", "vdc"} - set(values)
+        if missing:
+            raise ParameterError(f"missing R-L load parameter(s) {', '.join(sorted(missing))}")
+        return cls(name=name, **{k: int(v) if k == "pole_pairs" else float(v) for k, v in values.items()})
+
     def __post_init__(self) -> None:
         for key in ("r", "l", "vdc", "psi_model", "i_trip"):
             value = getattr(self, key)
