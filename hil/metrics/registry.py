@@ -88,13 +88,22 @@ METRICS: Final[tuple[Metric, ...]] = (
     _m("end_reason", "end", "", "`completed`, or why the run stopped (trip, watchdog, target fault)", "", CLI,
        REPORT, source=RUN),
     _m("end_code", "end code", "", "how the run ended = exit code of `hil run`: 0 completed, 1 internal error, "
-       "3 safety stop (watchdog, trip, target fault), 4 DUT contract violation, 130 interrupted", "d", CLI,
+       "3 safety stop (watchdog, trip, target fault, safe stop not confirmed), 4 DUT contract violation, "
+       "130 interrupted", "d", CLI,
        source=RUN),
     _m("end_period", "end period", "", "index of the last period run and logged (−1: none); the MCAP holds "
        "end_period + 1 periods", "d", source=RUN),
     _m("safe_state", "safe state", "", "true when the run ended in the safe state", "", source=RUN),
     _m("target_disabled", "target disabled", "", "true when the disabling Setpoint was sent at the end", "",
        source=RUN),
+    _m("safe_stop_confirmed", "safe stop confirmed", "", "true when the target answered the disabling Setpoint "
+       "with a HeartbeatTarget in state idle within 500 ms (docs/runner.md, 'Safe stop on every exit path'); "
+       "false: it did not (a completed run then ends with exit 3); null when the Setpoint could not be sent", "",
+       CLI, source=RUN),
+    _m("safe_stop_wait_ms", "safe stop wait", "ms", "wall time from the disabling Setpoint to its confirmation "
+       "(or the whole wait when unconfirmed)", ".3f", source=RUN),
+    _m("safe_stop_observed", "safe stop observed", "", "what followed the disabling Setpoint, one line: the "
+       "confirmation, or the HeartbeatTarget states and other frames received instead", "", source=RUN),
     _m("dut_violations", "DUT violations", "", "DUT contract findings (docs/runner.md, 'DUT contract'), all "
        "counted; the run ends at the first beyond `tolerate`", "d", CLI, source=RUN),
     _m("dut_violations_by_rule", "DUT violations by rule", "", "findings per rule: `{missing, sequence, "
