@@ -6,7 +6,8 @@ wrapper busy-polls `poll_frame`. Example: can.Bus(interface="hiludp", channel="4
 Datagram = session id (u32 LE) + `wire` header + payload. Session 0 marks a control datagram (HELLO /
 ACK, `CONTROL`): the first end that sends proposes a random session id, its peer adopts it and acks
 (on a clash the larger id wins); both then drop datagrams of any other session. Datagrams from any
-address but the peer's are dropped too. docs/protocol.md, "UDP datagrams and session handshake".
+address but the peer's are dropped too; once a session is agreed the socket is connect()ed to the peer, so the
+kernel drops them before they reach it. docs/protocol.md, "UDP datagrams and session handshake".
 """
 
 from __future__ import annotations
@@ -101,6 +102,8 @@ class UdpUnicastBus(FramedBus):
         self._next_hello = 0.0
         self._tx_prefix = b""
         self._rx_prefix = b""  # session bytes of the agreed session (b"": none, every datagram takes the slow path)
+        #: the socket is connect()ed to the peer (after the first agreed session): the kernel filters the senders
+        self.connected = False
         super().__init__(channel=channel, fd=fd, **kwargs)
 
     @property
@@ -132,6 +135,19 @@ class UdpUnicastBus(FramedBus):
         self._tx_prefix = SESSION.pack(sid)
         self._rx_prefix = self._tx_prefix if agreed else b""
         self._proposal = 0 if agreed else sid
+        if agreed:
+            self._connect()
+
+    def _connect(self) -> None:
+        """Connect the socket to the peer (once): from now on the kernel delivers only the peer's datagrams, so
+        junk from other addresses never fills the receive buffer (it is dropped before this socket)."""
+        if self.connected:
+            return
+        try:
+            self._sock.connect(self._remote)
+        except OSError:  # the address filter in `_pump` still applies
+            return
+        self.connected = True
 
     def propose(self) -> None:
         """Start the handshake with a fresh random session id (HELLO, repeated until acknowledged)."""
@@ -198,7 +214,12 @@ class UdpUnicastBus(FramedBus):
         if not self.session:
             self.propose()
         crc = binascii.crc_hqx(packet, CRC_INIT).to_bytes(CRC_SIZE, "big")
-        self._sock.sendto(self._tx_prefix + packet + crc, self._remote)
+        dgram = self._tx_prefix + packet + crc
+        try:
+            self._sock.sendto(dgram, self._remote)
+        except ConnectionRefusedError:  # an earlier datagram was refused (ICMP port unreachable): counted, resent
+            self.link_stats.send_errors += 1
+            self._sock.sendto(dgram, self._remote)
 
     def _pump(self) -> None:
         """Read datagrams until one frame is delivered or the socket is empty (never blocks)."""
@@ -214,7 +235,10 @@ class UdpUnicastBus(FramedBus):
                 dgram, addr = recvfrom(MAX_DATAGRAM)
             except (BlockingIOError, InterruptedError):
                 return
-            except OSError:  # e.g. ICMP port unreachable reported on some platforms
+            except ConnectionRefusedError:  # a datagram sent earlier was refused (ICMP port unreachable, connected)
+                stats.send_errors += 1
+                continue
+            except OSError:  # another ICMP error reported on some platforms
                 stats.framing_errors += 1
                 return
             if addr != peer:
