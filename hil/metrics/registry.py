@@ -96,6 +96,14 @@ METRICS: Final[tuple[Metric, ...]] = (
     _m("safe_state", "safe state", "", "true when the run ended in the safe state", "", source=RUN),
     _m("target_disabled", "target disabled", "", "true when the disabling Setpoint was sent at the end", "",
        source=RUN),
+    _m("target_link", "target link", "", "the target end's own link counters (LinkStats names; a spawned target's "
+       "as it printed them when stopped, with `socket_drops` over UDP and, native, its waits; an in-process "
+       "target's end of the link); null when the host cannot know them (external targets, the native loop's "
+       "in-process core)", "", source=RUN),
+    _m("link_losses", "link losses", "", "frames lost on the link `{to_target, to_host}`: gaps in the sender's link "
+       "sequence numbers plus socket buffer drops, as counted by the receiving end (null: not known); a run that "
+       "ends on a missing Command or the watchdog while they are non-zero says so in `end_reason`", "",
+       source=RUN),
     _m("safe_stop_confirmed", "safe stop confirmed", "", "true when the target answered the disabling Setpoint "
        "with a HeartbeatTarget in state idle within 500 ms (docs/runner.md, 'Safe stop on every exit path'); "
        "false: it did not (a completed run then ends with exit 3); null when the Setpoint could not be sent", "",
@@ -195,7 +203,8 @@ METRICS: Final[tuple[Metric, ...]] = (
     _m("late_periods", "late periods", "", "count of `late` flags"),
     _m("missed_periods", "missed periods", "", "count of `missed` flags"),
     _m("link", "link", "", "`{frames_tx, frames_rx, crc_errors, lost, late}` plus the link's own counters "
-       "(the native loop over a link: also `blocked`, `spin_backoffs`, `spin_early_ends`)"),
+       "(the native loop over a link: also `blocked`, `spin_backoffs`, `spin_early_ends`; UDP: `socket_drops`, "
+       "datagrams the kernel dropped for the host's socket, its receive buffer full)"),
     # computed by `hil compare` per row
     _m("exec_time_us_median", "exec median", "µs", "`exec_time_us.median` of the run", ".3f", COMPARE_ROW,
        source=COMPARE),

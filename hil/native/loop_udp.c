@@ -45,7 +45,7 @@ static void peer_address(const nl_udp_t *u, struct sockaddr_in *to)
 }
 
 /* An ECONNREFUSED reports an earlier datagram refused by the peer's host (ICMP port unreachable, on a connected
- * socket): counted as a send error, and this datagram is sent again once. */
+ * socket): counted as a send error once a session is agreed, and this datagram is sent again once. */
 static int send_to_peer(nl_udp_t *u, const uint8_t *buf, size_t n)
 {
     struct sockaddr_in to;
@@ -54,7 +54,9 @@ static int send_to_peer(nl_udp_t *u, const uint8_t *buf, size_t n)
     while (sendto(u->fd, buf, n, 0, (const struct sockaddr *)&to, sizeof to) < 0) {
         if (errno == ECONNREFUSED && !refused) {
             refused = 1;
-            u->stats.send_errors++;
+            if (u->session != 0u) {
+                u->stats.send_errors++;
+            }
         } else if (errno != EINTR) {
             u->stats.send_errors++;
             return -1;
@@ -63,8 +65,9 @@ static int send_to_peer(nl_udp_t *u, const uint8_t *buf, size_t n)
     return 0;
 }
 
-/* connect() the socket to the peer once a session is agreed: the kernel then drops datagrams from every other
- * address before they reach the socket (junk cannot fill its receive buffer). Idempotent. */
+/* connect() the socket to the peer on the HELLO the target adopts (Python's hiludp connects it already when it
+ * opens; this keeps a socket opened otherwise safe too): the kernel then drops datagrams from every other address
+ * before they reach the socket (junk cannot fill its receive buffer). Idempotent. */
 static void connect_peer(nl_udp_t *u)
 {
     struct sockaddr_in to;
@@ -172,7 +175,9 @@ int nl_udp_recv(nl_udp_t *u, hil_core_frame_t *f, int64_t deadline_ns)
             continue;
         }
         if (errno == ECONNREFUSED) { /* an earlier datagram refused (ICMP port unreachable): as udp_bus.py */
-            u->stats.send_errors++;
+            if (u->session != 0u) {
+                u->stats.send_errors++;
+            }
             continue;
         }
         if (errno != EAGAIN && errno != EWOULDBLOCK) { /* another ICMP error */

@@ -22,6 +22,8 @@ from pmsm_hil.hil.runner.budget_check import check_realtime_budget
 from pmsm_hil.hil.runner.closed_loop import ClosedLoop, LoopOutcome
 from pmsm_hil.hil.runner.contract import RULES, EndCode
 from pmsm_hil.hil.runner.fault_setup import install_faults
+from pmsm_hil.hil.runner.link_losses import attribute as attribute_losses
+from pmsm_hil.hil.runner.link_losses import target_link_stats
 from pmsm_hil.hil.runner.native_run import connect_loop_target, python_loop_reason, realtime_warnings, run_native
 from pmsm_hil.hil.runner.plant_setup import build_plant
 from pmsm_hil.hil.runner.recorder import frame_records, period_records
@@ -31,6 +33,7 @@ from pmsm_hil.hil.runner.run_metadata import run_metadata, tap_setup_frames
 from pmsm_hil.hil.runner.safe_stop import disable_and_confirm, settle_ending
 from pmsm_hil.hil.runner.target_client import DutViolationError
 from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target
+from pmsm_hil.protocol.links.udp_bus import link_socket_drops
 
 
 @dataclass(slots=True)
@@ -113,6 +116,8 @@ def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None,
             conn.close()
         if logger is not None:
             logger.close()
+    attribute_losses(metrics, target_link_stats(conn) if conn is not None else None)
+    outcome.end_reason = metrics["end_reason"]
     if cfg.out_dir is not None:
         write_text_atomic(cfg.out_dir / "metrics.json", json.dumps(metrics, indent=2) + "\n", option="metrics file")
     return RunResult(metrics=metrics, outcome=outcome, mcap_path=mcap_path)
@@ -160,6 +165,7 @@ def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection, sink: Ru
                   "late": out.late_commands}
     metrics = _window_metrics(cfg, out, sink, link_stats)
     metrics["link"].update({k: v for k, v in stats.items() if k not in metrics["link"]})
+    metrics["link"].update(link_socket_drops(conn.host_link))
     metrics["end_reason"] = out.end_reason
     metrics["end_code"] = out.end_code
     metrics["end_period"] = out.completed_periods - 1

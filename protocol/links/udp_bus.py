@@ -6,13 +6,14 @@ wrapper busy-polls `poll_frame`. Example: can.Bus(interface="hiludp", channel="4
 Datagram = session id (u32 LE) + `wire` header + payload. Session 0 marks a control datagram (HELLO /
 ACK, `CONTROL`): the first end that sends proposes a random session id, its peer adopts it and acks
 (on a clash the larger id wins); both then drop datagrams of any other session. Datagrams from any
-address but the peer's are dropped too; once a session is agreed the socket is connect()ed to the peer, so the
-kernel drops them before they reach it. docs/protocol.md, "UDP datagrams and session handshake".
+address but the peer's are dropped too: the socket is connect()ed to the peer when it opens, so the kernel drops
+them before they reach it. docs/protocol.md, "UDP datagrams and session handshake".
 """
 
 from __future__ import annotations
 
 import binascii
+import os
 import secrets
 import socket
 import struct
@@ -69,6 +70,27 @@ def free_udp_ports(n: int = 2, host: str = DEFAULT_HOST) -> list[int]:
             s.close()
 
 
+def udp_socket_drops(fd: int) -> int | None:
+    """`drops` of the UDP socket `fd` in /proc/net/udp (found by its inode), None where that is not known."""
+    try:
+        inode = str(os.fstat(fd).st_ino)
+        with open("/proc/net/udp", encoding="ascii") as table:
+            for line in table:
+                fields = line.split()
+                if len(fields) >= 13 and fields[9] == inode:
+                    return int(fields[12])
+    except (OSError, ValueError):
+        return None
+    return None
+
+
+def link_socket_drops(link: Any) -> dict[str, int]:
+    """{"socket_drops": N} for a link over hiludp whose kernel count is known, else {} (LinkStats extras)."""
+    bus = getattr(link, "bus", None)
+    drops = bus.socket_drops() if isinstance(bus, UdpUnicastBus) else None
+    return {} if drops is None else {"socket_drops": drops}
+
+
 def _new_session_id() -> int:
     while True:
         sid = secrets.randbits(32)
@@ -102,8 +124,9 @@ class UdpUnicastBus(FramedBus):
         self._next_hello = 0.0
         self._tx_prefix = b""
         self._rx_prefix = b""  # session bytes of the agreed session (b"": none, every datagram takes the slow path)
-        #: the socket is connect()ed to the peer (after the first agreed session): the kernel filters the senders
+        #: the socket is connect()ed to the peer: the kernel delivers only the peer's datagrams
         self.connected = False
+        self._connect()
         super().__init__(channel=channel, fd=fd, **kwargs)
 
     @property
@@ -115,6 +138,11 @@ class UdpUnicastBus(FramedBus):
         """Socket descriptor (for select-based python-can notifiers)."""
         return self._sock.fileno()
 
+    def socket_drops(self) -> int | None:
+        """Datagrams the kernel dropped for this socket (its receive buffer full: `drops` of /proc/net/udp), None
+        where that is not known (not Linux, a closed socket)."""
+        return udp_socket_drops(self._sock.fileno())
+
     @property
     def peer(self) -> tuple[str, int]:
         """The peer's (IPv4 address, port): the only sender accepted."""
@@ -124,6 +152,8 @@ class UdpUnicastBus(FramedBus):
     def _control(self, kind: int, sid: int) -> None:
         try:
             self._sock.sendto(CONTROL.pack(0, MAGIC, kind, VERSION, sid), self._remote)
+        except ConnectionRefusedError:  # an earlier HELLO refused (the peer not listening yet): resent later
+            self._refused()
         except OSError:
             self.link_stats.send_errors += 1
 
@@ -139,8 +169,9 @@ class UdpUnicastBus(FramedBus):
             self._connect()
 
     def _connect(self) -> None:
-        """Connect the socket to the peer (once): from now on the kernel delivers only the peer's datagrams, so
-        junk from other addresses never fills the receive buffer (it is dropped before this socket)."""
+        """Connect the socket to the peer (at open, the peer's address and port being configured; retried when a
+        session is agreed): the kernel then delivers only the peer's datagrams, so junk from other addresses never
+        fills the receive buffer (it is dropped before this socket) and `socket_drops` counts the peer's only."""
         if self.connected:
             return
         try:
@@ -148,6 +179,12 @@ class UdpUnicastBus(FramedBus):
         except OSError:  # the address filter in `_pump` still applies
             return
         self.connected = True
+
+    def _refused(self) -> None:
+        """ECONNREFUSED: the peer's host refused an earlier datagram (ICMP port unreachable, reported on a
+        connected socket): a send error once a session is agreed; before, a HELLO to a peer not listening yet."""
+        if self.established:
+            self.link_stats.send_errors += 1
 
     def propose(self) -> None:
         """Start the handshake with a fresh random session id (HELLO, repeated until acknowledged)."""
@@ -217,8 +254,8 @@ class UdpUnicastBus(FramedBus):
         dgram = self._tx_prefix + packet + crc
         try:
             self._sock.sendto(dgram, self._remote)
-        except ConnectionRefusedError:  # an earlier datagram was refused (ICMP port unreachable): counted, resent
-            self.link_stats.send_errors += 1
+        except ConnectionRefusedError:  # an earlier datagram was refused: counted, this one resent
+            self._refused()
             self._sock.sendto(dgram, self._remote)
 
     def _pump(self) -> None:
@@ -235,8 +272,8 @@ class UdpUnicastBus(FramedBus):
                 dgram, addr = recvfrom(MAX_DATAGRAM)
             except (BlockingIOError, InterruptedError):
                 return
-            except ConnectionRefusedError:  # a datagram sent earlier was refused (ICMP port unreachable, connected)
-                stats.send_errors += 1
+            except ConnectionRefusedError:  # a datagram sent earlier was refused
+                self._refused()
                 continue
             except OSError:  # another ICMP error reported on some platforms
                 stats.framing_errors += 1

@@ -93,19 +93,20 @@ def test_host_waits_for_the_peer_to_adopt_its_session(links: Opener, raw_peer: R
 
 def test_other_senders_and_other_sessions_are_dropped_and_counted(links: Opener, raw_peer: RawPeer,
                                                                   ports: list[int]) -> None:
-    """Before a session another sender's datagram reaches the socket and is counted (`foreign_dropped`); once the
-    session is agreed the socket is connect()ed and the kernel never delivers them."""
+    """The socket is connect()ed to the peer when it opens: the kernel never delivers another sender's datagrams,
+    before the session as after it (`foreign_dropped` stays 0: they never reach the socket)."""
     a, b, c = ports
     host = links(f"udp:{a}:{b}", "host")
     bus = host.bus
-    assert isinstance(bus, UdpUnicastBus)
+    assert isinstance(bus, UdpUnicastBus) and bus.connected
     forger = RawPeer(c, a)  # another local socket, even one that knows the session
     try:
-        forger.frame(7, 0x200, bytes(7), flags=0)
-        assert host.recv(0.05) is None and host.stats.foreign_dropped == 1 and not bus.connected
-        raw_peer.control(1, 7)  # HELLO: the host adopts session 7, acks and connects to the peer
+        forger.control(1, 6)  # a HELLO before the peer's
+        forger.frame(6, 0x200, bytes(7), flags=0)
+        assert host.recv(0.05) is None and bus.session == 0
+        raw_peer.control(1, 7)  # HELLO: the host adopts session 7 and acks
         assert host.recv(0.2) is None
-        assert raw_peer.read_control() == (2, 7) and bus.connected
+        assert raw_peer.read_control() == (2, 7)
         forger.frame(7, 0x200, bytes(7), flags=0)
         forger.control(1, 8)
         raw_peer.frame(9, 0x200, bytes(7), flags=0)  # the right peer, another session
@@ -116,7 +117,7 @@ def test_other_senders_and_other_sessions_are_dropped_and_counted(links: Opener,
     finally:
         forger.sock.close()
     s = host.stats
-    assert (s.foreign_dropped, s.session_dropped, s.framing_errors, s.frames_rx) == (1, 1, 1, 1)
+    assert (s.foreign_dropped, s.session_dropped, s.framing_errors, s.frames_rx) == (0, 1, 1, 1)
     raw_peer.control(1, 11)  # the peer starts a new run: the old session is stale from now on
     raw_peer.frame(11, 0x200, bytes(7), flags=0)
     raw_peer.frame(7, 0x210, bytes(5), flags=0)
@@ -129,7 +130,7 @@ def test_junk_from_another_address_cannot_crowd_out_the_peer(role: str, links: O
                                                              ports: list[int]) -> None:
     """5000 junk datagrams from another local socket, sent before the peer's frame and not read meanwhile (more
     than the socket buffer holds: unconnected, the kernel would drop the peer's frame) — the frame arrives and
-    the junk was never delivered. The issue's failure, without timing."""
+    the junk was never delivered nor counted as a drop of the socket. The issue's failure, without timing."""
     a, b, c = ports
     end = links(f"udp:{a}:{b}", role)
     bus = end.bus
@@ -154,7 +155,24 @@ def test_junk_from_another_address_cannot_crowd_out_the_peer(role: str, links: O
     raw_peer.frame(session, 0x210, bytes(5), flags=0)
     assert end.recv(1.0) == Frame(0x210, bytes(5), False)
     assert end.recv(0.05) is None
-    assert (end.stats.foreign_dropped, end.stats.frames_rx) == (0, 1)
+    assert (end.stats.foreign_dropped, end.stats.frames_rx, bus.socket_drops()) == (0, 1, 0)
+
+
+def test_junk_before_the_session_never_reaches_the_socket(links: Opener, raw_peer: RawPeer, ports: list[int]) -> None:
+    """The target's socket is connected before any HELLO: a flood before the handshake cannot crowd it out."""
+    a, b, c = ports
+    end = links(f"udp:{a}:{b}", "target")
+    bus = end.bus
+    assert isinstance(bus, UdpUnicastBus) and bus.connected
+    junk = RawPeer(c, a)
+    try:
+        for _ in range(5000):
+            junk.control(1, 99)
+    finally:
+        junk.sock.close()
+    raw_peer.control(1, 0x77)
+    assert end.recv(0.2) is None and raw_peer.read_control() == (2, 0x77) and bus.session == 0x77
+    assert end.stats.foreign_dropped == 0 and bus.socket_drops() == 0
 
 
 def test_a_refused_datagram_is_a_send_error_not_an_exception(links: Opener, raw_peer: RawPeer,

@@ -3,7 +3,8 @@ protocol/hil.dbc, no project code. Misbehaves on request so the host's DUT contr
 
 Usage: python foreign_target.py PORT LOGFILE [RULE=PERIOD ...]
 Rules: skip (no reply), future_seq (reply with seq + 1 instead), bad_sum (durations 1 ns short),
-bad_state (state code 9), second (two replies), bad_length (a 19-byte Command frame), fault (a FaultTarget
+bad_state (state code 9), second (two replies), bad_length (a 19-byte Command frame), lose (the reply lost on the
+wire: its link sequence number used up, nothing sent), fault (a FaultTarget
 frame), silent (stop replying from then on), bad_ack (echo ConfigParam values + 1.0), ignore_disable (never
 answer a disabling Setpoint with HeartbeatTarget idle: the safe stop is not confirmed; any PERIOD).
 A disabling Setpoint is otherwise answered with HeartbeatTarget state idle (the confirmed safe stop).
@@ -68,6 +69,8 @@ def main() -> int:
                 log.write(json.dumps({"frame": "Measurement", "seq": seq}) + "\n")
                 if rules.get("silent", 1 << 30) <= k or rules.get("skip") == k:
                     pass
+                elif rules.get("lose") == k:  # sent, and lost on the wire: its link sequence number is used up
+                    bus._tx_seq = (bus._tx_seq + 1) & 0xFF  # type: ignore[attr-defined]
                 elif rules.get("future_seq") == k:
                     reply((seq + 1) & 0xFFFF)
                 elif rules.get("bad_sum") == k:

@@ -116,6 +116,19 @@ def test_a_future_seq_never_displaces_the_genuine_reply(tmp_path: Path, pty: tup
     e.check_safe_and_complete()
 
 
+def test_a_reply_lost_on_the_link_is_attributed_to_the_link(tmp_path: Path, pty: tuple[int, str]) -> None:
+    """The target sent period 30's Command but the wire lost it: still the `missing` finding (exit 4), and the
+    gap in the target's link sequence numbers (seen when the safe stop's confirmation arrives) names the link."""
+    e = _run(tmp_path, pty, "lose=30")
+    m = e.metrics
+    assert e.rc == 4 and m["dut_violation_list"][0]["rule"] == "missing"
+    assert m["link"]["dropped"] == 1 and m["link_losses"] == {"to_target": None, "to_host": 1}
+    assert m["end_reason"].endswith("; the link lost 1 frame(s) to the host (link sequence gaps, socket buffer "
+                                    "drops): the loss is the link's, not necessarily the target's")
+    assert m["target_link"] is None  # an external target: its own counters are not the host's to read
+    e.check_safe_and_complete()
+
+
 def test_target_fault_is_a_safety_stop(tmp_path: Path, pty: tuple[int, str]) -> None:
     e = _run(tmp_path, pty, "fault=30")
     assert e.rc == 3 and e.metrics["end_reason"].startswith("target fault code 1")

@@ -34,7 +34,7 @@ from pmsm_hil.protocol.messages import Command, ConfigParam, Setpoint
 #: period-record fields measured on the wall clock (everything else of a lockstep run is deterministic)
 WALL_FIELDS = {"exec_time_ns", "exec_split_ns", "late", "missed"}
 WALL_METRICS = {"wall_time_s", "loop_rate_hz", "total_wall_time_s", "loop_rate_total_hz", "exec_time_us",
-                "exec_split_us", "command_wait_max_us", "link", "safe_stop_wait_ms"}
+                "exec_split_us", "command_wait_max_us", "link", "safe_stop_wait_ms", "target_link"}
 
 
 def _cfg(link: str) -> RunConfig:
@@ -119,7 +119,8 @@ def test_forged_datagrams_never_reach_the_sockets_and_change_nothing(monkeypatch
     assert res.metrics["loop"] == loop
     assert sent["host"] > 30 and sent["target"] > 7
     host = res.metrics["link"]
-    assert host["foreign_dropped"] == conn.target_link_stats["foreign_dropped"] == 0
+    assert host["foreign_dropped"] == res.metrics["target_link"]["foreign_dropped"] == 0
+    assert res.metrics["link_losses"] == {"to_target": 0, "to_host": 0}
     assert host["session_dropped"] == conn.target_link_stats["session_dropped"] == 0
     assert host["lost"] == 0 and res.outcome.end_reason == "completed"
     a_rec, b_rec = clean.outcome.periods.all(), res.outcome.periods.all()
