@@ -1,8 +1,9 @@
 """The confirmed safe stop (docs/runner.md, "Safe stop on every exit path"): on every ending the host sends the
 disabling Setpoint and the target must answer it with a HeartbeatTarget in state idle within
 `SAFE_STOP_TIMEOUT_S` (wall time). Unconfirmed, a completed run becomes a safety stop (exit 3, "safe stop not
-confirmed"); any other ending keeps its code and its reason says it too. metrics.json says what was observed
-(`safe_stop_confirmed`, `safe_stop_wait_ms`, `safe_stop_observed`).
+confirmed"; exit 130 when a Ctrl-C or SIGTERM ended the wait); any other ending keeps its code and its reason
+says it too. metrics.json says what was observed (`safe_stop_confirmed`, `safe_stop_wait_ms`,
+`safe_stop_observed`).
 """
 
 from __future__ import annotations
@@ -31,6 +32,8 @@ class SafeStop:
     confirmed: bool
     wait_ms: float
     observed: str
+    #: a Ctrl-C or SIGTERM ended the wait (the run still writes every output)
+    interrupted: bool = False
 
     def metrics(self) -> dict[str, Any]:
         """The metrics.json keys (`safe_stop_confirmed` is null when the Setpoint could not be sent)."""
@@ -58,21 +61,26 @@ def disable_and_confirm(client: TargetClient, controller_id: int, timeout_s: flo
     except Exception as exc:  # the link failed: said in the metrics
         return SafeStop(False, False, 0.0, f"disabling Setpoint not sent: {type(exc).__name__}: {exc}")
     seen: list[int] = []
-    while True:
-        try:
-            client.serve()
-        except Exception as exc:
+    try:
+        while True:
+            try:
+                client.serve()
+            except Exception as exc:
+                ms = (time.perf_counter() - t0) * 1e3
+                return SafeStop(True, False, ms, f"link failed while waiting for the confirmation: {exc}")
             ms = (time.perf_counter() - t0) * 1e3
-            return SafeStop(True, False, ms, f"link failed while waiting for the confirmation: {exc}")
+            while client.heartbeats:
+                hb = client.heartbeats.popleft()
+                if hb.state == int(NodeState.IDLE):
+                    return SafeStop(True, True, ms, "HeartbeatTarget state idle")
+                seen.append(hb.state)
+            if ms > timeout_s * 1e3:
+                break
+            time.sleep(_POLL_PAUSE_S)
+    except KeyboardInterrupt:  # a second Ctrl-C / SIGTERM ends the wait, never the outputs
         ms = (time.perf_counter() - t0) * 1e3
-        while client.heartbeats:
-            hb = client.heartbeats.popleft()
-            if hb.state == int(NodeState.IDLE):
-                return SafeStop(True, True, ms, "HeartbeatTarget state idle")
-            seen.append(hb.state)
-        if ms > timeout_s * 1e3:
-            break
-        time.sleep(_POLL_PAUSE_S)
+        return SafeStop(True, False, ms, f"interrupted (Ctrl-C or SIGTERM) after {ms:.0f} ms of waiting for the "
+                                         "confirmation", interrupted=True)
     other = client.frames_in - frames0 - len(seen)
     if seen or other:
         beats = f"{len(seen)} HeartbeatTarget (last state {_state_name(seen[-1])})" if seen else "no HeartbeatTarget"
@@ -93,7 +101,7 @@ def settle_ending(out: Any, stop: SafeStop) -> bool:
         return False
     note = f"safe stop not confirmed: {stop.observed}"
     if out.end_code == int(EndCode.COMPLETED):
-        out.end_code = int(EndCode.SAFETY_STOP)
+        out.end_code = int(EndCode.INTERRUPTED if stop.interrupted else EndCode.SAFETY_STOP)
         out.end_reason = f"{note}; inverter put in the safe state (zero vector)"
     else:
         out.end_reason = f"{out.end_reason}; {note}"

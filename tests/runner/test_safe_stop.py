@@ -4,15 +4,20 @@ disabling Setpoint: tests/runner/test_dut_contract.py."""
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import replace
 from typing import Any
 
+import numpy as np
 import pytest
 from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runlog.reader import read_frames
+from pmsm_hil.hil.runner.closed_loop import LoopOutcome
 from pmsm_hil.hil.runner.contract import EndCode
+from pmsm_hil.hil.runner.recorder import frame_records, period_records
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
+from pmsm_hil.hil.runner.safe_stop import disable_and_confirm, settle_ending
 from pmsm_hil.hil.runner.scenario import load_scenario
 from pmsm_hil.protocol.links.udp_bus import free_udp_ports
 from pmsm_hil.sim_target import target as sim_target
@@ -73,3 +78,30 @@ def test_a_heartbeat_in_another_state_is_no_confirmation(monkeypatch: pytest.Mon
     assert m["end_code"] == 3 and m["safe_stop_confirmed"] is False
     assert m["safe_stop_observed"] == ("no HeartbeatTarget in state idle within 500 ms of the disabling Setpoint (1 "
                                        "HeartbeatTarget (last state running (2)) and 0 other frame(s))")
+
+
+class _InterruptedClient:
+    """A TargetClient stand-in whose link is served until a Ctrl-C arrives in the wait."""
+
+    def __init__(self) -> None:
+        self.heartbeats: deque[Any] = deque()
+        self.frames_in = 0
+        self.serves = 0
+
+    def serve(self) -> None:
+        self.serves += 1
+        if self.serves == 3:
+            raise KeyboardInterrupt
+
+    def set_setpoint(self, **kw: Any) -> None:
+        assert kw["enable"] is False
+
+
+def test_a_second_interrupt_ends_the_wait_never_the_outputs() -> None:
+    stop = disable_and_confirm(_InterruptedClient(), 1)  # type: ignore[arg-type]
+    assert stop.sent and not stop.confirmed and stop.interrupted and stop.wait_ms < 100
+    assert stop.observed.startswith("interrupted (Ctrl-C or SIGTERM) after ")
+    out = LoopOutcome(period_records(), frame_records(), np.zeros(0), 0)
+    assert settle_ending(out, stop) is True  # the plant goes to the safe state now
+    assert out.end_code == int(EndCode.INTERRUPTED) and out.safe_state and out.target_disabled
+    assert out.end_reason.startswith("safe stop not confirmed: interrupted")
