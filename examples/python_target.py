@@ -2,9 +2,10 @@
 (`pmsm_hil.protocol.codec.FrameCodec`, `pmsm_hil.protocol.messages`) over any link, no reference firmware.
 
 It answers as a board would: every ConfigParam with a ConfigAck echoing the value (status 5 for NaN or ±inf),
-every Measurement with a Command echoing its seq (a full-period zero vector while disabled), and a Fault for a
-controller id it does not implement. Its control law uses only the documented conventions (θe = 0 with the d
-axis on phase a, positive speed turns a→b→c, amplitude-invariant Clarke, state code 4·Sa + 2·Sb + Sc with
+every Measurement with a Command echoing its seq (a full-period zero vector while disabled), every disabling
+Setpoint with a HeartbeatTarget in state idle (the confirmed safe stop), and a Fault for a controller id it does
+not implement. Its control law uses only the documented conventions (θe = 0 with the d axis on phase a,
+positive speed turns a→b→c, amplitude-invariant Clarke, state code 4·Sa + 2·Sb + Sc with
 S = 1 the upper switch on) and ConfigParam values: the speed PI of docs/algorithms/speed_pi.md (parallel form,
 forward rectangle, clamped integrator) feeding a one-step finite-control-set current controller in the stator
 frame (i_d = 0; it predicts over the period in flight, then picks the best of the 8 states). Three phases
@@ -21,13 +22,14 @@ import math
 from collections.abc import Callable
 
 from pmsm_hil.protocol.codec import FrameCodec
-from pmsm_hil.protocol.ids import ControllerId, Mode, ParamId, Status
+from pmsm_hil.protocol.ids import ControllerId, Mode, NodeState, ParamId, Status
 from pmsm_hil.protocol.links import Link, open_link
 from pmsm_hil.protocol.messages import (
     Command,
     ConfigAck,
     ConfigParam,
     Fault,
+    Heartbeat,
     Measurement,
     Measurement6,
     Message,
@@ -52,6 +54,7 @@ class ExampleTarget:
         self.setpoint: Setpoint | None = None
         self.integ = 0.0  # speed PI integrator [N·m]
         self.last_state = 0  # state code of the command in flight (applied during the current period)
+        self.beats = 0  # HeartbeatTarget frames sent (the counter of the next one, mod 256)
 
     def p(self, pid: ParamId, default: float = 0.0) -> float:
         """A ConfigParam value (SI units), or `default` before it was written."""
@@ -65,14 +68,11 @@ class ExampleTarget:
             self.params[msg.param_id] = msg.value
             return [ConfigAck(param_id=msg.param_id, value=msg.value, status=int(Status.OK))]
         if isinstance(msg, Setpoint):
-            if msg.controller_id not in (ControllerId.OFF, ControllerId.EXTERNAL):
-                self.setpoint = None
-                return [Fault(node=TARGET_NODE, code=int(Status.NOT_IMPLEMENTED), detail=msg.controller_id)]
-            rising = msg.enable and not (self.setpoint is not None and self.setpoint.enable)
-            if rising and msg.mode == Mode.SPEED:  # bumpless start: preset the integrator
-                self.integ = _clamp(self.p(ParamId.TORQUE_INTEGRATOR_INIT), self.p(ParamId.TORQUE_LIMIT))
-            self.setpoint = msg
-            return []
+            replies = self.on_setpoint(msg)
+            if not msg.enable:  # the confirmed safe stop: disabled now, and says so
+                replies.append(Heartbeat(node=TARGET_NODE, state=int(NodeState.IDLE), counter=self.beats & 0xFF))
+                self.beats += 1
+            return replies
         if isinstance(msg, Measurement6):
             return [Fault(node=TARGET_NODE, code=int(Status.INVALID_CONFIG), detail=6)]  # three phases only
         if isinstance(msg, Measurement):
@@ -81,6 +81,17 @@ class ExampleTarget:
             state = self.control(msg, sp) if sp is not None and sp.enable and sp.controller_id else 0
             self.last_state = state
             return [Command(seq=msg.seq, states=(state,), durations_ns=(ts_ns,), candidates=8 if state else 0)]
+        return []
+
+    def on_setpoint(self, msg: Setpoint) -> list[Message]:
+        """Take a Setpoint: a Fault for a controller id this target lacks (and disabled)."""
+        if msg.controller_id not in (ControllerId.OFF, ControllerId.EXTERNAL):
+            self.setpoint = None
+            return [Fault(node=TARGET_NODE, code=int(Status.NOT_IMPLEMENTED), detail=msg.controller_id)]
+        rising = msg.enable and not (self.setpoint is not None and self.setpoint.enable)
+        if rising and msg.mode == Mode.SPEED:  # bumpless start: preset the integrator
+            self.integ = _clamp(self.p(ParamId.TORQUE_INTEGRATOR_INIT), self.p(ParamId.TORQUE_LIMIT))
+        self.setpoint = msg
         return []
 
     def control(self, m: Measurement, sp: Setpoint) -> int:

@@ -55,6 +55,7 @@ class SimTarget:
         self.last_result: FirmwareCommand | None = None
         self._silent_after = silent_after
         self._k = 0
+        self._beats = 0  # HeartbeatTarget frames sent on its own (the counter of the next one, mod 256)
 
     def service(self) -> int:
         """Process all frames waiting on the link; returns the number of frames handled."""
@@ -123,6 +124,12 @@ class SimTarget:
         self._send(ConfigAck(param_id=c.param_id, value=c.value, status=status))
 
     def _on_setpoint(self, s: Setpoint) -> None:
+        self._apply_setpoint(s)
+        if not s.enable:  # the confirmed safe stop: disabled now, and says so
+            self._send(Heartbeat(node=TARGET_NODE, state=int(NodeState.IDLE), counter=self._beats & 0xFF))
+            self._beats += 1
+
+    def _apply_setpoint(self, s: Setpoint) -> None:
         if s.controller_id != self.controller_id:
             try:
                 self.firmware.select_controller(s.controller_id)

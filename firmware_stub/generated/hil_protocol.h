@@ -1391,6 +1391,8 @@ struct hil_protocol_heartbeat_host_t {
 /**
  * Signals in message HeartbeatTarget.
  *
+ * Target heartbeat. Periodic heartbeats are optional; every disabling Setpoint (enable 0) must be answered with one, state 1 idle, within 500 ms: the confirmed safe stop.
+ *
  * All signal values are as on the CAN bus.
  */
 struct hil_protocol_heartbeat_target_t {

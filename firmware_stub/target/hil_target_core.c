@@ -43,6 +43,7 @@ static struct {
     pending_meas_t pend6;
     hil_app_cmd_t last_cmd;
     uint32_t last_exec_ns;
+    uint8_t beats; /* HeartbeatTarget frames sent on its own: the counter of the next one (wraps) */
 } g;
 
 #if defined(__GNUC__)
@@ -247,49 +248,64 @@ static void on_config(const uint8_t *data)
     }
 }
 
-static void on_setpoint(const uint8_t *data)
+static void send_heartbeat(uint8_t state, uint8_t counter)
 {
-    struct hil_protocol_setpoint_t sp;
+    struct hil_protocol_heartbeat_target_t out;
+    hil_core_frame_t *f = tx_slot(HIL_PROTOCOL_HEARTBEAT_TARGET_FRAME_ID, HIL_PROTOCOL_HEARTBEAT_TARGET_LENGTH, 0u);
+    if (f == NULL) {
+        return;
+    }
+    out.node = HIL_CORE_NODE;
+    out.state = state;
+    out.counter = counter;
+    (void)hil_protocol_heartbeat_target_pack(f->data, &out, HIL_PROTOCOL_HEARTBEAT_TARGET_LENGTH);
+}
+
+static void apply_setpoint(const struct hil_protocol_setpoint_t *sp)
+{
     const uint8_t was = g.enabled;
-    uint8_t enable;
-    (void)hil_protocol_setpoint_unpack(&sp, data, HIL_PROTOCOL_SETPOINT_LENGTH);
-    enable = sp.enable != 0u ? 1u : 0u;
-    if (sp.controller_id != g.controller_id) {
-        if (hil_app_select(sp.controller_id) != HIL_APP_OK) {
+    const uint8_t enable = sp->enable != 0u ? 1u : 0u;
+    if (sp->controller_id != g.controller_id) {
+        if (hil_app_select(sp->controller_id) != HIL_APP_OK) {
             g.enabled = 0u;
-            send_fault(HIL_FW_STATUS_NOT_IMPLEMENTED, sp.controller_id);
+            send_fault(HIL_FW_STATUS_NOT_IMPLEMENTED, sp->controller_id);
             return;
         }
-        g.controller_id = sp.controller_id;
+        g.controller_id = sp->controller_id;
     }
     if (enable && !was) {
         hil_app_reset();
     }
-    if (hil_app_setpoint(enable, sp.mode, sp.reference) != HIL_APP_OK) {
+    if (hil_app_setpoint(enable, sp->mode, sp->reference) != HIL_APP_OK) {
         g.enabled = 0u;
-        send_fault(HIL_FW_STATUS_INVALID_CONFIG, sp.mode);
+        send_fault(HIL_FW_STATUS_INVALID_CONFIG, sp->mode);
         return;
     }
     g.enabled = enable;
 }
 
+/* The confirmed safe stop (docs/runner.md): every disabling Setpoint is answered with HeartbeatTarget idle,
+ * after the core is disabled, whatever else the Setpoint caused (a Fault for an unknown controller id). */
+static void on_setpoint(const uint8_t *data)
+{
+    struct hil_protocol_setpoint_t sp;
+    (void)hil_protocol_setpoint_unpack(&sp, data, HIL_PROTOCOL_SETPOINT_LENGTH);
+    apply_setpoint(&sp);
+    if (sp.enable == 0u) {
+        send_heartbeat(HIL_PROTOCOL_HEARTBEAT_TARGET_STATE_IDLE_CHOICE, g.beats);
+        g.beats++;
+    }
+}
+
 static void on_heartbeat(const uint8_t *data)
 {
     struct hil_protocol_heartbeat_host_t hb;
-    struct hil_protocol_heartbeat_target_t out;
-    hil_core_frame_t *f;
     (void)hil_protocol_heartbeat_host_unpack(&hb, data, HIL_PROTOCOL_HEARTBEAT_HOST_LENGTH);
     if (hb.node == HIL_CORE_NODE) {
         return;
     }
-    out.node = HIL_CORE_NODE;
-    out.state = g.enabled ? HIL_PROTOCOL_HEARTBEAT_TARGET_STATE_RUNNING_CHOICE
-                          : HIL_PROTOCOL_HEARTBEAT_TARGET_STATE_IDLE_CHOICE;
-    out.counter = hb.counter;
-    f = tx_slot(HIL_PROTOCOL_HEARTBEAT_TARGET_FRAME_ID, HIL_PROTOCOL_HEARTBEAT_TARGET_LENGTH, 0u);
-    if (f != NULL) {
-        (void)hil_protocol_heartbeat_target_pack(f->data, &out, HIL_PROTOCOL_HEARTBEAT_TARGET_LENGTH);
-    }
+    send_heartbeat(g.enabled ? HIL_PROTOCOL_HEARTBEAT_TARGET_STATE_RUNNING_CHOICE
+                             : HIL_PROTOCOL_HEARTBEAT_TARGET_STATE_IDLE_CHOICE, hb.counter);
 }
 
 /* Classic frames: a measurement is complete when its parts carry one seq (B only its low byte). */

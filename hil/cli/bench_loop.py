@@ -20,7 +20,6 @@ from typing import Any
 from pmsm_hil.hil.atomic_write import write_text_atomic
 from pmsm_hil.hil.cli.parsing import non_negative_int, positive_float
 from pmsm_hil.hil.presets_loader import load_motor
-from pmsm_hil.hil.runner.closed_loop import ClosedLoop
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import load_scenario
@@ -53,12 +52,13 @@ def _base(duration: float) -> RunConfig:
     return RunConfig(motor=load_motor("niu2020-ipmsm"), scenario=scenario, controller="mpcc", loop="python")
 
 
-def _median_rate(make: Callable[[], RunConfig], repeats: int, exclude_s: float = 0.0) -> dict[str, Any]:
+def _median_rate(make: Callable[[], RunConfig], repeats: int, exclude_safe_stop: bool = False) -> dict[str, Any]:
     rates: list[float] = []
     extra: dict[str, Any] = {}
     for _ in range(max(repeats, 1)):
         res = run_closed_loop(make())
-        rates.append(res.outcome.completed_periods / (res.outcome.wall_time_s - exclude_s))
+        excluded = (res.metrics.get("safe_stop_wait_ms") or 0.0) / 1e3 if exclude_safe_stop else 0.0
+        rates.append(res.outcome.completed_periods / (res.outcome.wall_time_s - excluded))
         extra = res.metrics
     return {"periods_per_s": statistics.median(rates), "runs": rates, "last_metrics": extra}
 
@@ -78,9 +78,9 @@ def _cpu_burner() -> Iterator[int]:
 def _native_pair_under_load(base: RunConfig, name: str, spec: str, repeats: int, runs: str,
                             progress: Callable[[str], None]) -> dict[str, Any]:
     """The native loop with the native target over link `spec` (udp, serial:pty) and the Python pair, idle and
-    beside a CPU burner, in this run: the rates (the 50 ms linger after the disabling Setpoint excluded, as in
-    both loops) as lockstep_{name}_native_hz / lockstep_{name}_python_hz (+ _loaded) and the loaded / idle
-    ratios."""
+    beside a CPU burner, in this run: the rates (the wait for the confirmation of the disabling Setpoint
+    excluded, as in both loops) as lockstep_{name}_native_hz / lockstep_{name}_python_hz (+ _loaded) and the
+    loaded / idle ratios."""
     out: dict[str, Any] = {}
     pairs = ((f"{name}_native", replace(base, link=spec, target="spawn", loop="native")),
              (f"{name}_python", replace(base, link=spec, target="spawn", loop="python")))
@@ -93,7 +93,7 @@ def _native_pair_under_load(base: RunConfig, name: str, spec: str, repeats: int,
                     return cfg
 
                 with _cpu_burner() if load else contextlib.nullcontext():
-                    res = _median_rate(make, repeats, exclude_s=ClosedLoop.LINGER_S)
+                    res = _median_rate(make, repeats, exclude_safe_stop=True)
                 out[f"lockstep_{key}{load}_hz"] = res["periods_per_s"]
             except Exception as exc:
                 out[f"lockstep_{key}{load}_error"] = str(exc)
@@ -126,8 +126,7 @@ def _pycan_pair(base: RunConfig, repeats: int, runs: str, progress: Callable[[st
                 return cfg
 
             try:
-                out[f"lockstep_pycan_{loop}_hz"] = _median_rate(make, repeats,
-                                                                exclude_s=ClosedLoop.LINGER_S)["periods_per_s"]
+                out[f"lockstep_pycan_{loop}_hz"] = _median_rate(make, repeats)["periods_per_s"]
             except Exception as exc:
                 out[f"lockstep_pycan_{loop}_error"] = str(exc)
     finally:

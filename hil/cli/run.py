@@ -40,8 +40,9 @@ DEFAULTS: dict[str, Any] = {"motor": "niu2020-ipmsm", "controller": "mpcc", "sce
 
 #: `hil run` exit codes (= metrics `end_code`), printed by --help.
 EXIT_CODES = ("exit codes: 0 completed, 1 internal error, 2 usage/config error, 3 safety stop (watchdog, plant "
-              "trip, target fault), 4 DUT contract violation, 130 interrupted (Ctrl-C/SIGTERM); every ending but "
-              "2 writes metrics.json (end_reason, end_period, end_code) and the log up to the last period")
+              "trip, target fault, safe stop not confirmed), 4 DUT contract violation, 130 interrupted "
+              "(Ctrl-C/SIGTERM); every ending but 2 writes metrics.json (end_reason, end_period, end_code) and the "
+              "log up to the last period")
 
 
 def add_run_arguments(p: argparse.ArgumentParser) -> None:

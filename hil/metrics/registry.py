@@ -88,13 +88,30 @@ METRICS: Final[tuple[Metric, ...]] = (
     _m("end_reason", "end", "", "`completed`, or why the run stopped (trip, watchdog, target fault)", "", CLI,
        REPORT, source=RUN),
     _m("end_code", "end code", "", "how the run ended = exit code of `hil run`: 0 completed, 1 internal error, "
-       "3 safety stop (watchdog, trip, target fault), 4 DUT contract violation, 130 interrupted", "d", CLI,
+       "3 safety stop (watchdog, trip, target fault, safe stop not confirmed), 4 DUT contract violation, "
+       "130 interrupted", "d", CLI,
        source=RUN),
     _m("end_period", "end period", "", "index of the last period run and logged (−1: none); the MCAP holds "
        "end_period + 1 periods", "d", source=RUN),
     _m("safe_state", "safe state", "", "true when the run ended in the safe state", "", source=RUN),
     _m("target_disabled", "target disabled", "", "true when the disabling Setpoint was sent at the end", "",
        source=RUN),
+    _m("target_link", "target link", "", "the target end's own link counters (LinkStats names; a spawned target's "
+       "as it printed them when stopped, with `socket_drops` over UDP and, native, its waits; an in-process "
+       "target's end of the link); null when the host cannot know them (external targets, the native loop's "
+       "in-process core)", "", source=RUN),
+    _m("link_losses", "link losses", "", "frames lost on the link `{to_target, to_host}`: gaps in the sender's link "
+       "sequence numbers plus socket buffer drops, as counted by the receiving end (null: not known); a run that "
+       "ends on a missing Command or the watchdog while they are non-zero says so in `end_reason`", "",
+       source=RUN),
+    _m("safe_stop_confirmed", "safe stop confirmed", "", "true when the target answered the disabling Setpoint "
+       "with a HeartbeatTarget in state idle within 500 ms (docs/runner.md, 'Safe stop on every exit path'); "
+       "false: it did not (a completed run then ends with exit 3); null when the Setpoint could not be sent", "",
+       CLI, source=RUN),
+    _m("safe_stop_wait_ms", "safe stop wait", "ms", "wall time from the disabling Setpoint to its confirmation "
+       "(or the whole wait when unconfirmed)", ".3f", source=RUN),
+    _m("safe_stop_observed", "safe stop observed", "", "what followed the disabling Setpoint, one line: the "
+       "confirmation, or the HeartbeatTarget states and other frames received instead", "", source=RUN),
     _m("dut_violations", "DUT violations", "", "DUT contract findings (docs/runner.md, 'DUT contract'), all "
        "counted; the run ends at the first beyond `tolerate`", "d", CLI, source=RUN),
     _m("dut_violations_by_rule", "DUT violations by rule", "", "findings per rule: `{missing, sequence, "
@@ -186,7 +203,8 @@ METRICS: Final[tuple[Metric, ...]] = (
     _m("late_periods", "late periods", "", "count of `late` flags"),
     _m("missed_periods", "missed periods", "", "count of `missed` flags"),
     _m("link", "link", "", "`{frames_tx, frames_rx, crc_errors, lost, late}` plus the link's own counters "
-       "(the native loop over a link: also `blocked`, `spin_backoffs`, `spin_early_ends`)"),
+       "(the native loop over a link: also `blocked`, `spin_backoffs`, `spin_early_ends`; UDP: `socket_drops`, "
+       "datagrams the kernel dropped for the host's socket, its receive buffer full)"),
     # computed by `hil compare` per row
     _m("exec_time_us_median", "exec median", "µs", "`exec_time_us.median` of the run", ".3f", COMPARE_ROW,
        source=COMPARE),

@@ -36,20 +36,43 @@ static uint32_t get_u32(const uint8_t *p)
     return (uint32_t)p[0] | ((uint32_t)p[1] << 8) | ((uint32_t)p[2] << 16) | ((uint32_t)p[3] << 24);
 }
 
+static void peer_address(const nl_udp_t *u, struct sockaddr_in *to)
+{
+    memset(to, 0, sizeof *to);
+    to->sin_family = AF_INET;
+    to->sin_addr.s_addr = u->peer_addr;
+    to->sin_port = u->peer_port;
+}
+
+/* An ECONNREFUSED reports an earlier datagram refused by the peer's host (ICMP port unreachable, on a connected
+ * socket): counted as a send error once a session is agreed, and this datagram is sent again once. */
 static int send_to_peer(nl_udp_t *u, const uint8_t *buf, size_t n)
 {
     struct sockaddr_in to;
-    memset(&to, 0, sizeof to);
-    to.sin_family = AF_INET;
-    to.sin_addr.s_addr = u->peer_addr;
-    to.sin_port = u->peer_port;
+    int refused = 0;
+    peer_address(u, &to);
     while (sendto(u->fd, buf, n, 0, (const struct sockaddr *)&to, sizeof to) < 0) {
-        if (errno != EINTR) {
+        if (errno == ECONNREFUSED && !refused) {
+            refused = 1;
+            if (u->session != 0u) {
+                u->stats.send_errors++;
+            }
+        } else if (errno != EINTR) {
             u->stats.send_errors++;
             return -1;
         }
     }
     return 0;
+}
+
+/* connect() the socket to the peer on the HELLO the target adopts (Python's hiludp connects it already when it
+ * opens; this keeps a socket opened otherwise safe too): the kernel then drops datagrams from every other address
+ * before they reach the socket (junk cannot fill its receive buffer). Idempotent. */
+static void connect_peer(nl_udp_t *u)
+{
+    struct sockaddr_in to;
+    peer_address(u, &to);
+    (void)connect(u->fd, (const struct sockaddr *)&to, sizeof to); /* failing, the address filter still applies */
 }
 
 int nl_udp_send(nl_udp_t *u, const hil_core_frame_t *f)
@@ -92,6 +115,7 @@ static void control(nl_udp_t *u, const uint8_t *d)
             u->rx_last = -1;
         }
         u->session = sid;
+        connect_peer(u);
         put_u32(ack, 0u);
         memcpy(ack + 4, "HILS", 4);
         ack[8] = CTRL_ACK;
@@ -150,7 +174,13 @@ int nl_udp_recv(nl_udp_t *u, hil_core_frame_t *f, int64_t deadline_ns)
         if (errno == EINTR) {
             continue;
         }
-        if (errno != EAGAIN && errno != EWOULDBLOCK) { /* e.g. ICMP port unreachable */
+        if (errno == ECONNREFUSED) { /* an earlier datagram refused (ICMP port unreachable): as udp_bus.py */
+            if (u->session != 0u) {
+                u->stats.send_errors++;
+            }
+            continue;
+        }
+        if (errno != EAGAIN && errno != EWOULDBLOCK) { /* another ICMP error */
             u->stats.framing_errors++;
         }
         if (nl_wait_readable(u->fd, deadline_ns, &u->spin, &spin_end, &u->stats) == 0) {

@@ -3,7 +3,9 @@
  * protocol/links/udp_bus.py (docs/protocol.md, "UDP datagrams and session handshake"). A data datagram is
  * session id (u32 LE) + header (id u32 LE, flags, link seq, payload length) + payload + CRC-16/CCITT (init
  * 0xFFFF, big endian, over header + payload); session 0 marks a control datagram (HELLO / ACK). Datagrams
- * from any address but the peer's and of any other session are dropped and counted.
+ * from any address but the peer's and of any other session are dropped and counted. The socket is connect()ed
+ * to the peer (by Python's hiludp when it opens; the target connects again on the HELLO it adopts), so the
+ * kernel drops other senders' datagrams before they reach it.
  *
  * The socket is the caller's (bound, non-blocking); the session was agreed before (the host: Python's
  * handshake) or is agreed here (the target: a HELLO from the peer is adopted and acknowledged). Waiting for

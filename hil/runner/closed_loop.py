@@ -18,6 +18,7 @@ from pmsm_hil.hil.plant_base import PeriodStats, PlantBase
 from pmsm_hil.hil.runner.contract import MISSING, EndCode, Violation, check_command, describe
 from pmsm_hil.hil.runner.recorder import KEEP_PERIODS_MAX, ByteRecords, FrameTap, frame_records, period_records
 from pmsm_hil.hil.runner.run_config import RunConfig
+from pmsm_hil.hil.runner.safe_stop import SafeStop, disable_and_confirm, settle_ending
 from pmsm_hil.hil.runner.target_client import TargetClient
 from pmsm_hil.hil.sensors import SensorModel
 from pmsm_hil.protocol.ids import Mode
@@ -59,6 +60,8 @@ class LoopOutcome:
     safe_state: bool = False
     #: the disabling Setpoint was sent at the end (every ending)
     target_disabled: bool = False
+    #: what followed the disabling Setpoint (its confirmation), None before the safe stop
+    safe_stop: SafeStop | None = None
     #: DUT contract findings: all counted, the first `MAX_KEPT_VIOLATIONS` kept
     violation_count: int = 0
     violations: list[Violation] = field(default_factory=list)
@@ -93,7 +96,6 @@ class ClosedLoop:
     kinds (frame, record fields, trace layout) is bound once from `cfg.machine` in `__init__`."""
 
     BLOCK = 1000  # periods per block handed to the sink (logger, metrics, live view)
-    LINGER_S = 0.05  # wall time the link stays open after the disabling Setpoint [s]
 
     def __init__(self, cfg: RunConfig, plant: PlantBase, client: TargetClient, controller_id: int,
                  *, inproc_result: Callable[[], object] | None = None, record_frames: bool = False,
@@ -442,7 +444,8 @@ class ClosedLoop:
 
     def _stop(self, out: LoopOutcome) -> None:
         """Every exit path: the zero vector (all lower switches on) after a protective ending, and the
-        disabling Setpoint to the target (recorded as a frame when frames are logged)."""
+        disabling Setpoint to the target (recorded as a frame when frames are logged), confirmed by the target
+        (hil/runner/safe_stop.py; unconfirmed: the zero vector now, and the ending says so)."""
         if out.safe_state:
             with contextlib.suppress(Exception):
                 self.plant.advance((0,), (self.cfg.ts_ns,))
@@ -451,11 +454,6 @@ class ClosedLoop:
                 self._tap.link = self.faulty.link
             else:
                 self.client.link = self.faulty.link
-        try:
-            self.client.set_setpoint(enable=False, mode=int(Mode.SPEED), reference=0.0,
-                                     controller_id=self.controller_id)
-            out.target_disabled = True
-            if self.inproc_result is None:  # a target in another process or on a board: let the frame arrive
-                self.client.linger(self.LINGER_S)  # before the runner closes the link (a pty drops unread data)
-        except Exception:  # the link itself failed: say so, do not hide the ending
-            out.target_disabled = False
+        if settle_ending(out, disable_and_confirm(self.client, self.controller_id)):
+            with contextlib.suppress(Exception):
+                self.plant.advance((0,), (self.cfg.ts_ns,))

@@ -24,7 +24,7 @@ class EndCode(IntEnum):
     COMPLETED = 0
     INTERNAL_ERROR = 1
     USAGE_ERROR = 2
-    SAFETY_STOP = 3  # watchdog, plant trip, target fault
+    SAFETY_STOP = 3  # watchdog, plant trip, target fault, safe stop not confirmed (safe_stop.py)
     DUT_VIOLATION = 4
     INTERRUPTED = 130
 

@@ -31,6 +31,7 @@ from pmsm_hil.hil.runner.native_pylink import NativePyLink
 from pmsm_hil.hil.runner.native_wire import NativeWireLink
 from pmsm_hil.hil.runner.recorder import FrameTap, frame_records, period_records
 from pmsm_hil.hil.runner.run_config import RunConfig
+from pmsm_hil.hil.runner.safe_stop import disable_and_confirm, settle_ending
 from pmsm_hil.hil.runner.target_client import TargetClient
 from pmsm_hil.hil.sensors import SensorModel
 from pmsm_hil.protocol.ids import Mode
@@ -47,8 +48,6 @@ class _TripSample(NamedTuple):
 
 class NativeLoop:
     """One run of the plant against the C target core through the C period loop (`run` as `ClosedLoop.run`)."""
-
-    LINGER_S = 0.0  # the core answers inside the call: nothing to wait for
 
     def __init__(self, cfg: RunConfig, plant: PlantBase, client: TargetClient,
                  link: NativeCoreLink | NativeWireLink | NativePyLink, controller_id: int, opts: NativeOptions, *,
@@ -301,17 +300,12 @@ class NativeLoop:
         out.safe_state = True
 
     def _stop(self, out: LoopOutcome) -> None:
-        """The zero vector after a protective ending and the disabling Setpoint (as `ClosedLoop._stop`)."""
+        """The zero vector after a protective ending and the confirmed disabling Setpoint (as `ClosedLoop._stop`)."""
         if out.safe_state:
             with contextlib.suppress(Exception):
                 self.plant.advance((0,), (self.cfg.ts_ns,))
         if isinstance(self.link, NativePyLink):  # the safe stop is not subject to the injected faults
             self.link.remove_faults()
-        try:
-            self.client.set_setpoint(enable=False, mode=int(Mode.SPEED), reference=0.0,
-                                     controller_id=self.controller_id)
-            out.target_disabled = True
-            if self._other_process():  # another process: let the frame arrive before the close
-                self.client.linger(closed_loop.ClosedLoop.LINGER_S)
-        except Exception:
-            out.target_disabled = False
+        if settle_ending(out, disable_and_confirm(self.client, self.controller_id)):
+            with contextlib.suppress(Exception):
+                self.plant.advance((0,), (self.cfg.ts_ns,))

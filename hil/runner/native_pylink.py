@@ -99,6 +99,14 @@ class NativePyLink(LinkFacade):
         self._pump_unfaulted = pump
 
     @property
+    def bus(self) -> Any:
+        """The python-can bus under the link (through a fault wrapper), None if it has none."""
+        link: Any = self.link
+        while link is not None and not hasattr(link, "bus"):
+            link = getattr(link, "link", None)
+        return getattr(link, "bus", None)
+
+    @property
     def other_process(self) -> bool:
         """The target runs in another process or on a board (no pump): replies take wall time."""
         return self.pump is None

@@ -22,14 +22,18 @@ from pmsm_hil.hil.runner.budget_check import check_realtime_budget
 from pmsm_hil.hil.runner.closed_loop import ClosedLoop, LoopOutcome
 from pmsm_hil.hil.runner.contract import RULES, EndCode
 from pmsm_hil.hil.runner.fault_setup import install_faults
+from pmsm_hil.hil.runner.link_losses import attribute as attribute_losses
+from pmsm_hil.hil.runner.link_losses import target_link_stats
 from pmsm_hil.hil.runner.native_run import connect_loop_target, python_loop_reason, realtime_warnings, run_native
 from pmsm_hil.hil.runner.plant_setup import build_plant
 from pmsm_hil.hil.runner.recorder import frame_records, period_records
 from pmsm_hil.hil.runner.run_config import RunConfig, controller_id
 from pmsm_hil.hil.runner.run_limits import check_run_limits
 from pmsm_hil.hil.runner.run_metadata import run_metadata, tap_setup_frames
+from pmsm_hil.hil.runner.safe_stop import disable_and_confirm, settle_ending
 from pmsm_hil.hil.runner.target_client import DutViolationError
 from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target
+from pmsm_hil.protocol.links.udp_bus import link_socket_drops
 
 
 @dataclass(slots=True)
@@ -100,10 +104,7 @@ def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None,
                                       0, end_reason=f"DUT contract violation while configuring: {exc}",
                                       end_code=int(EndCode.DUT_VIOLATION), safe_state=True)
                 with tap_setup_frames(conn.client, logger):  # the disabling Setpoint is logged too
-                    conn.client.set_setpoint(enable=False, mode=0, reference=0.0, controller_id=cid)
-                    if conn.inproc_result is None:  # let it arrive before the link closes
-                        conn.client.linger(ClosedLoop.LINGER_S)
-                outcome.target_disabled = True
+                    settle_ending(outcome, disable_and_confirm(conn.client, cid))
             if outcome is None:
                 outcome = (_loop(cfg, conn, cid, sink) if python_reason
                            else run_native(cfg, conn, cid, sink, silent_after))
@@ -115,6 +116,8 @@ def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None,
             conn.close()
         if logger is not None:
             logger.close()
+    attribute_losses(metrics, target_link_stats(conn) if conn is not None else None)
+    outcome.end_reason = metrics["end_reason"]
     if cfg.out_dir is not None:
         write_text_atomic(cfg.out_dir / "metrics.json", json.dumps(metrics, indent=2) + "\n", option="metrics file")
     return RunResult(metrics=metrics, outcome=outcome, mcap_path=mcap_path)
@@ -162,11 +165,14 @@ def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection, sink: Ru
                   "late": out.late_commands}
     metrics = _window_metrics(cfg, out, sink, link_stats)
     metrics["link"].update({k: v for k, v in stats.items() if k not in metrics["link"]})
+    metrics["link"].update(link_socket_drops(conn.host_link))
     metrics["end_reason"] = out.end_reason
     metrics["end_code"] = out.end_code
     metrics["end_period"] = out.completed_periods - 1
     metrics["safe_state"] = out.safe_state
     metrics["target_disabled"] = out.target_disabled
+    metrics.update(out.safe_stop.metrics() if out.safe_stop is not None else
+                   {"safe_stop_confirmed": None, "safe_stop_wait_ms": None, "safe_stop_observed": None})
     metrics["dut_violations"] = out.violation_count
     metrics["dut_violation_list"] = [v.as_dict() for v in out.violations]
     metrics["dut_violations_by_rule"] = {rule: out.violations_by_rule.get(rule, 0) for rule in RULES}

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import struct
 import time
+from collections import deque
 from collections.abc import Callable, Mapping
 
 from pmsm_hil.hil.errors import HilError
@@ -12,9 +13,20 @@ from pmsm_hil.hil.runner.contract import FRAME, SEQUENCE, describe
 from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.ids import ParamId, Status
 from pmsm_hil.protocol.links import Link
-from pmsm_hil.protocol.messages import Command, ConfigAck, ConfigParam, Fault, Measurement, Measurement6, Setpoint
+from pmsm_hil.protocol.messages import (
+    Command,
+    ConfigAck,
+    ConfigParam,
+    Fault,
+    Heartbeat,
+    Measurement,
+    Measurement6,
+    Setpoint,
+)
 
 _F32 = struct.Struct("<f")
+#: node id of the target (`Node` in the DBC)
+TARGET_NODE = 1
 
 
 class TargetError(HilError):
@@ -34,6 +46,10 @@ class TargetClient:
         self.decoder = codec.decoder(ordered=False)  # the contract checks each Command's seq itself
         self.pump = pump
         self.faults: list[Fault] = []
+        #: the last HeartbeatTarget frames received (the safe stop's confirmation, hil/runner/safe_stop.py)
+        self.heartbeats: deque[Heartbeat] = deque(maxlen=16)
+        #: frames received from the target so far (any kind)
+        self.frames_in = 0
         #: replies to the previous period that arrived after it was declared missing (late; not a new finding)
         self.stale_commands = 0
         #: contract findings since the last `take_anomalies()`: (rule, frame text, detail)
@@ -53,6 +69,7 @@ class TargetClient:
             frame = poll()
             if frame is None:
                 return
+            self.frames_in += 1
             msg = feed(frame)
             if msg is None:
                 continue
@@ -62,6 +79,12 @@ class TargetClient:
                 self._acks[msg.param_id] = msg
             elif isinstance(msg, Fault):
                 self.faults.append(msg)
+            elif isinstance(msg, Heartbeat) and msg.node == TARGET_NODE:
+                self.heartbeats.append(msg)
+
+    def serve(self) -> None:
+        """Take every frame waiting on the link (non-blocking; an in-process target is pumped first)."""
+        self._drain()
 
     def configure(self, params: Mapping[ParamId, float], timeout_s: float = 10.0,
                   resend_s: float = 0.25) -> None:

@@ -25,6 +25,8 @@ RULES: dict[str, str] = {
     "config_ack": "every ConfigParam acknowledged by a ConfigAck echoing the float32 value bit for bit, status 0",
     "setpoint_disabled": "while disabled, every Measurement answered with a full-period zero vector",
     "safe_state": "after a disabling Setpoint while running, the next Measurement already gets the zero vector",
+    "safe_stop": "every disabling Setpoint answered with a HeartbeatTarget in state idle within 500 ms (the "
+                 "confirmed safe stop; a run's end included)",
     "watchdog": "after the host's watchdog (Measurements stop, a disabling Setpoint follows) the next Measurement, "
                 "its seq jumped, gets the zero vector echoing the new seq",
     "speed_mode": "Setpoint mode 0: the speed follows the reference (rad/s) through the speed PI",

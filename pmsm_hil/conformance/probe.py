@@ -14,6 +14,7 @@ from pmsm_hil.hil.mechanics import RPM_TO_RAD_S
 from pmsm_hil.hil.runner.contract import check_command, describe
 from pmsm_hil.hil.runner.plant_setup import build_plant
 from pmsm_hil.hil.runner.run_config import RunConfig, controller_id
+from pmsm_hil.hil.runner.safe_stop import SafeStop, disable_and_confirm
 from pmsm_hil.hil.runner.target_client import TargetError
 from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target
 from pmsm_hil.hil.sensors import SensorModel
@@ -77,13 +78,15 @@ class Probe:
         self.torques: list[float] = []
 
     def close(self) -> None:
-        """Disable the target and close the link."""
+        """Disable the target (waiting for its confirmation) and close the link."""
         try:
-            self.setpoint(enable=False, mode=Mode.SPEED, reference=0.0)
-            if self.conn.inproc_result is None:
-                self.client.linger(0.05)
+            self.disable(Mode.SPEED)
         finally:
             self.conn.close()
+
+    def disable(self, mode: int) -> SafeStop:
+        """The disabling Setpoint in `mode`, and what confirmed it (hil/runner/safe_stop.py)."""
+        return disable_and_confirm(self.client, self.cid, mode=mode)
 
     def setpoint(self, *, enable: bool, mode: int, reference: float, cid: int | None = None) -> None:
         self.client.set_setpoint(enable=enable, mode=int(mode), reference=reference,
@@ -206,9 +209,13 @@ def _torque_phase(p: Probe, report: ProbeReport) -> None:
 
 
 def _safe_state_phase(p: Probe, report: ProbeReport) -> None:
-    """After a disabling Setpoint while running: the very next Measurement gets the zero vector, and so on."""
+    """A disabling Setpoint while running: confirmed by HeartbeatTarget idle (safe_stop), and the very next
+    Measurement gets the zero vector, and so on (safe_state)."""
+    report.start("safe_stop")
+    stop = p.disable(Mode.TORQUE)
+    if not stop.confirmed:
+        report.add("safe_stop", f"a disabling Setpoint while running in torque mode: {stop.observed}")
     report.start("safe_state")
-    p.setpoint(enable=False, mode=Mode.TORQUE, reference=0.0)
     _expect_zero_vectors(p, report, "safe_state", SAFE_PERIODS, "Measurement after the disabling Setpoint")
 
 

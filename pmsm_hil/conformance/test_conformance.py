@@ -91,7 +91,8 @@ def test_speed_mode(contract_run: HilResult | str) -> None:
     ref = run.signal("speed_ref_rpm").y[-1]
     t_end = float(speed.t[-1])
     mean = speed.mean(t_end - SPEED_TAIL_S, t_end)
-    if run.end_code != 0 or abs(mean - ref) > SPEED_TOLERANCE * ref:
+    ran_through = run.end_code == 0 or run.end_reason.startswith("safe stop not confirmed")  # that is safe_stop's
+    if not ran_through or abs(mean - ref) > SPEED_TOLERANCE * ref:
         pytest.fail(broken("speed_mode", f"reference {ref:.0f} rpm (step from 1000 rpm at 10 ms, 2 N·m load): mean "
                                          f"speed over the last {SPEED_TAIL_S * 1e3:g} ms {mean:.1f} rpm, allowed "
                                          f"± {SPEED_TOLERANCE:.0%}; run ended: {run.end_reason}"),
@@ -104,6 +105,16 @@ def test_probe_rule(rule: str, probe_report: ProbeReport) -> None:
     _probe_rule(probe_report, rule)
 
 
+def test_safe_stop(contract_run: HilResult | str, probe_report: ProbeReport) -> None:
+    """The disabling Setpoint of the probe (while running) and the one ending the run are both confirmed."""
+    if isinstance(contract_run, str):
+        pytest.fail(broken("safe_stop", f"not checked: the run could not start: {contract_run}"), pytrace=False)
+    if contract_run.metrics.get("safe_stop_confirmed") is not True:
+        pytest.fail(broken("safe_stop", f"at the end of the run: {contract_run.metrics.get('safe_stop_observed')}"),
+                    pytrace=False)
+    _probe_rule(probe_report, "safe_stop")
+
+
 def _probe_rule(report: ProbeReport, rule: str) -> None:
     if report.findings.get(rule):
         pytest.fail(broken(rule, "; ".join(report.findings[rule])), pytrace=False)
@@ -114,5 +125,5 @@ def _probe_rule(report: ProbeReport, rule: str) -> None:
 def test_every_rule_has_a_test() -> None:
     """The rule table and the tests above stay in step."""
     tested = {*CONTRACT_RULES, "config_ack", "speed_mode", "setpoint_disabled", "torque_mode", "safe_state",
-              "watchdog", "fault_mode", "fault_controller"}
+              "safe_stop", "watchdog", "fault_mode", "fault_controller"}
     assert tested == set(RULES), sorted(set(RULES) ^ tested)

@@ -6,12 +6,14 @@ wrapper busy-polls `poll_frame`. Example: can.Bus(interface="hiludp", channel="4
 Datagram = session id (u32 LE) + `wire` header + payload. Session 0 marks a control datagram (HELLO /
 ACK, `CONTROL`): the first end that sends proposes a random session id, its peer adopts it and acks
 (on a clash the larger id wins); both then drop datagrams of any other session. Datagrams from any
-address but the peer's are dropped too. docs/protocol.md, "UDP datagrams and session handshake".
+address but the peer's are dropped too: the socket is connect()ed to the peer when it opens, so the kernel drops
+them before they reach it. docs/protocol.md, "UDP datagrams and session handshake".
 """
 
 from __future__ import annotations
 
 import binascii
+import os
 import secrets
 import socket
 import struct
@@ -68,6 +70,27 @@ def free_udp_ports(n: int = 2, host: str = DEFAULT_HOST) -> list[int]:
             s.close()
 
 
+def udp_socket_drops(fd: int) -> int | None:
+    """`drops` of the UDP socket `fd` in /proc/net/udp (found by its inode), None where that is not known."""
+    try:
+        inode = str(os.fstat(fd).st_ino)
+        with open("/proc/net/udp", encoding="ascii") as table:
+            for line in table:
+                fields = line.split()
+                if len(fields) >= 13 and fields[9] == inode:
+                    return int(fields[12])
+    except (OSError, ValueError):
+        return None
+    return None
+
+
+def link_socket_drops(link: Any) -> dict[str, int]:
+    """{"socket_drops": N} for a link over hiludp whose kernel count is known, else {} (LinkStats extras)."""
+    bus = getattr(link, "bus", None)
+    drops = bus.socket_drops() if isinstance(bus, UdpUnicastBus) else None
+    return {} if drops is None else {"socket_drops": drops}
+
+
 def _new_session_id() -> int:
     while True:
         sid = secrets.randbits(32)
@@ -101,6 +124,9 @@ class UdpUnicastBus(FramedBus):
         self._next_hello = 0.0
         self._tx_prefix = b""
         self._rx_prefix = b""  # session bytes of the agreed session (b"": none, every datagram takes the slow path)
+        #: the socket is connect()ed to the peer: the kernel delivers only the peer's datagrams
+        self.connected = False
+        self._connect()
         super().__init__(channel=channel, fd=fd, **kwargs)
 
     @property
@@ -112,6 +138,11 @@ class UdpUnicastBus(FramedBus):
         """Socket descriptor (for select-based python-can notifiers)."""
         return self._sock.fileno()
 
+    def socket_drops(self) -> int | None:
+        """Datagrams the kernel dropped for this socket (its receive buffer full: `drops` of /proc/net/udp), None
+        where that is not known (not Linux, a closed socket)."""
+        return udp_socket_drops(self._sock.fileno())
+
     @property
     def peer(self) -> tuple[str, int]:
         """The peer's (IPv4 address, port): the only sender accepted."""
@@ -121,6 +152,8 @@ class UdpUnicastBus(FramedBus):
     def _control(self, kind: int, sid: int) -> None:
         try:
             self._sock.sendto(CONTROL.pack(0, MAGIC, kind, VERSION, sid), self._remote)
+        except ConnectionRefusedError:  # an earlier HELLO refused (the peer not listening yet): resent later
+            self._refused()
         except OSError:
             self.link_stats.send_errors += 1
 
@@ -132,6 +165,26 @@ class UdpUnicastBus(FramedBus):
         self._tx_prefix = SESSION.pack(sid)
         self._rx_prefix = self._tx_prefix if agreed else b""
         self._proposal = 0 if agreed else sid
+        if agreed:
+            self._connect()
+
+    def _connect(self) -> None:
+        """Connect the socket to the peer (at open, the peer's address and port being configured; retried when a
+        session is agreed): the kernel then delivers only the peer's datagrams, so junk from other addresses never
+        fills the receive buffer (it is dropped before this socket) and `socket_drops` counts the peer's only."""
+        if self.connected:
+            return
+        try:
+            self._sock.connect(self._remote)
+        except OSError:  # the address filter in `_pump` still applies
+            return
+        self.connected = True
+
+    def _refused(self) -> None:
+        """ECONNREFUSED: the peer's host refused an earlier datagram (ICMP port unreachable, reported on a
+        connected socket): a send error once a session is agreed; before, a HELLO to a peer not listening yet."""
+        if self.established:
+            self.link_stats.send_errors += 1
 
     def propose(self) -> None:
         """Start the handshake with a fresh random session id (HELLO, repeated until acknowledged)."""
@@ -198,7 +251,12 @@ class UdpUnicastBus(FramedBus):
         if not self.session:
             self.propose()
         crc = binascii.crc_hqx(packet, CRC_INIT).to_bytes(CRC_SIZE, "big")
-        self._sock.sendto(self._tx_prefix + packet + crc, self._remote)
+        dgram = self._tx_prefix + packet + crc
+        try:
+            self._sock.sendto(dgram, self._remote)
+        except ConnectionRefusedError:  # an earlier datagram was refused: counted, this one resent
+            self._refused()
+            self._sock.sendto(dgram, self._remote)
 
     def _pump(self) -> None:
         """Read datagrams until one frame is delivered or the socket is empty (never blocks)."""
@@ -214,7 +272,10 @@ class UdpUnicastBus(FramedBus):
                 dgram, addr = recvfrom(MAX_DATAGRAM)
             except (BlockingIOError, InterruptedError):
                 return
-            except OSError:  # e.g. ICMP port unreachable reported on some platforms
+            except ConnectionRefusedError:  # a datagram sent earlier was refused
+                self._refused()
+                continue
+            except OSError:  # another ICMP error reported on some platforms
                 stats.framing_errors += 1
                 return
             if addr != peer:

@@ -28,6 +28,7 @@ def test_reference_sil_equals_inproc(reference_sil: Path, tmp_path: Path) -> Non
         assert sil[key] == ref[key], key
     assert sil["dut_violations"] == 0
     assert sil["loop"] == "native"  # the C loop, the library served by its pump in the callback link
+    assert sil["safe_stop_confirmed"] is True and sil["safe_stop_observed"] == "HeartbeatTarget state idle"
     assert (tmp_path / "sil" / "run.mcap").stat().st_size > 0  # logging works as with any target
 
 
@@ -39,7 +40,7 @@ def test_sil_from_source_folder(reference_sil: Path) -> None:
 
 def test_core_protocol_behaviour(reference_sil: Path) -> None:
     """ConfigAck echoes bit for bit; unknown controller -> FaultTarget not_implemented; bad mode -> invalid_config;
-    heartbeat answered; disabled -> zero vector over Ts."""
+    heartbeat answered; disabled -> zero vector over Ts; a disabling Setpoint -> HeartbeatTarget idle."""
     fw = SilFirmware(reference_sil)
     codec = FrameCodec("canfd")
     dec = codec.decoder(ordered=False)
@@ -68,6 +69,12 @@ def test_core_protocol_behaviour(reference_sil: Path) -> None:
     assert hb == [Heartbeat(node=1, state=1, counter=42)]
     cmd = send(Measurement(seq=9, i_a=0.0, i_b=0.0, i_c=0.0, theta_e=0.0, omega_m=0.0, vdc=300.0, status=0))[0]
     assert cmd.seq == 9 and cmd.states == (0,) and cmd.durations_ns == (50_000,)  # type: ignore[attr-defined]
+    # the confirmed safe stop: every disabling Setpoint answered with HeartbeatTarget idle, its own counter (a
+    # Fault first when the Setpoint also names a controller it lacks)
+    assert send(Setpoint(enable=False, mode=0, reference=0.0, controller_id=1)) == [Heartbeat(node=1, state=1,
+                                                                                                   counter=0)]
+    got = send(Setpoint(enable=False, mode=0, reference=0.0, controller_id=255))
+    assert isinstance(got[0], Fault) and got[0].code == 6 and got[1:] == [Heartbeat(node=1, state=1, counter=1)]
 
 
 def test_sil_errors(tmp_path: Path) -> None:

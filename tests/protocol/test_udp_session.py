@@ -93,13 +93,20 @@ def test_host_waits_for_the_peer_to_adopt_its_session(links: Opener, raw_peer: R
 
 def test_other_senders_and_other_sessions_are_dropped_and_counted(links: Opener, raw_peer: RawPeer,
                                                                   ports: list[int]) -> None:
+    """The socket is connect()ed to the peer when it opens: the kernel never delivers another sender's datagrams,
+    before the session as after it (`foreign_dropped` stays 0: they never reach the socket)."""
     a, b, c = ports
     host = links(f"udp:{a}:{b}", "host")
-    raw_peer.control(1, 7)  # HELLO: the host adopts session 7 and acks
-    assert host.recv(0.2) is None
-    assert raw_peer.read_control() == (2, 7)
+    bus = host.bus
+    assert isinstance(bus, UdpUnicastBus) and bus.connected
     forger = RawPeer(c, a)  # another local socket, even one that knows the session
     try:
+        forger.control(1, 6)  # a HELLO before the peer's
+        forger.frame(6, 0x200, bytes(7), flags=0)
+        assert host.recv(0.05) is None and bus.session == 0
+        raw_peer.control(1, 7)  # HELLO: the host adopts session 7 and acks
+        assert host.recv(0.2) is None
+        assert raw_peer.read_control() == (2, 7)
         forger.frame(7, 0x200, bytes(7), flags=0)
         forger.control(1, 8)
         raw_peer.frame(9, 0x200, bytes(7), flags=0)  # the right peer, another session
@@ -110,12 +117,77 @@ def test_other_senders_and_other_sessions_are_dropped_and_counted(links: Opener,
     finally:
         forger.sock.close()
     s = host.stats
-    assert (s.foreign_dropped, s.session_dropped, s.framing_errors, s.frames_rx) == (2, 1, 1, 1)
+    assert (s.foreign_dropped, s.session_dropped, s.framing_errors, s.frames_rx) == (0, 1, 1, 1)
     raw_peer.control(1, 11)  # the peer starts a new run: the old session is stale from now on
     raw_peer.frame(11, 0x200, bytes(7), flags=0)
     raw_peer.frame(7, 0x210, bytes(5), flags=0)
     assert host.recv(1.0) == Frame(0x200, bytes(7), False)
     assert host.recv(0.05) is None and host.stats.session_dropped == 2
+
+
+@pytest.mark.parametrize("role", ["host", "target"])
+def test_junk_from_another_address_cannot_crowd_out_the_peer(role: str, links: Opener, raw_peer: RawPeer,
+                                                             ports: list[int]) -> None:
+    """5000 junk datagrams from another local socket, sent before the peer's frame and not read meanwhile (more
+    than the socket buffer holds: unconnected, the kernel would drop the peer's frame) — the frame arrives and
+    the junk was never delivered nor counted as a drop of the socket. The issue's failure, without timing."""
+    a, b, c = ports
+    end = links(f"udp:{a}:{b}", role)
+    bus = end.bus
+    assert isinstance(bus, UdpUnicastBus)
+    if role == "host":
+        bus.propose()
+        assert raw_peer.read_control() == (1, bus.session)
+        raw_peer.control(2, bus.session)
+        bus.wait_session(2.0)
+        session = bus.session
+    else:
+        session = 0x1234
+        raw_peer.control(1, session)  # the host's HELLO: the target adopts it, acks and connects
+        assert end.recv(0.2) is None and raw_peer.read_control() == (2, session)
+    assert bus.connected and bus.established
+    junk = RawPeer(c, a)
+    try:
+        for i in range(5000):
+            junk.frame(session, 0x100 + (i & 0xFF), bytes(64))
+    finally:
+        junk.sock.close()
+    raw_peer.frame(session, 0x210, bytes(5), flags=0)
+    assert end.recv(1.0) == Frame(0x210, bytes(5), False)
+    assert end.recv(0.05) is None
+    assert (end.stats.foreign_dropped, end.stats.frames_rx, bus.socket_drops()) == (0, 1, 0)
+
+
+def test_junk_before_the_session_never_reaches_the_socket(links: Opener, raw_peer: RawPeer, ports: list[int]) -> None:
+    """The target's socket is connected before any HELLO: a flood before the handshake cannot crowd it out."""
+    a, b, c = ports
+    end = links(f"udp:{a}:{b}", "target")
+    bus = end.bus
+    assert isinstance(bus, UdpUnicastBus) and bus.connected
+    junk = RawPeer(c, a)
+    try:
+        for _ in range(5000):
+            junk.control(1, 99)
+    finally:
+        junk.sock.close()
+    raw_peer.control(1, 0x77)
+    assert end.recv(0.2) is None and raw_peer.read_control() == (2, 0x77) and bus.session == 0x77
+    assert end.stats.foreign_dropped == 0 and bus.socket_drops() == 0
+
+
+def test_a_refused_datagram_is_a_send_error_not_an_exception(links: Opener, raw_peer: RawPeer,
+                                                             ports: list[int]) -> None:
+    """Connected, an ICMP port unreachable for an earlier datagram comes back as ECONNREFUSED: counted as a send
+    error, and the link goes on (the peer gone is the contract's business: a missing Command)."""
+    a, b, _ = ports
+    host = links(f"udp:{a}:{b}", "host")
+    raw_peer.control(1, 5)
+    assert host.recv(0.2) is None and raw_peer.read_control() == (2, 5)
+    raw_peer.sock.close()  # the peer's port is closed now
+    host.send([Frame(0x200, bytes(7), False)])  # refused by the kernel: ICMP port unreachable
+    assert host.recv(0.05) is None
+    host.send([Frame(0x200, bytes(7), False)])
+    assert host.stats.send_errors >= 1 and host.stats.framing_errors == 0 and host.stats.frames_tx == 2
 
 
 def test_a_proposal_clash_ends_in_one_session(ports: list[int]) -> None:

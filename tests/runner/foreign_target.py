@@ -3,8 +3,11 @@ protocol/hil.dbc, no project code. Misbehaves on request so the host's DUT contr
 
 Usage: python foreign_target.py PORT LOGFILE [RULE=PERIOD ...]
 Rules: skip (no reply), future_seq (reply with seq + 1 instead), bad_sum (durations 1 ns short),
-bad_state (state code 9), second (two replies), bad_length (a 19-byte Command frame), fault (a FaultTarget
-frame), silent (stop replying from then on), bad_ack (echo ConfigParam values + 1.0).
+bad_state (state code 9), second (two replies), bad_length (a 19-byte Command frame), lose (the reply lost on the
+wire: its link sequence number used up, nothing sent), fault (a FaultTarget
+frame), silent (stop replying from then on), bad_ack (echo ConfigParam values + 1.0), ignore_disable (never
+answer a disabling Setpoint with HeartbeatTarget idle: the safe stop is not confirmed; any PERIOD).
+A disabling Setpoint is otherwise answered with HeartbeatTarget state idle (the confirmed safe stop).
 Every frame received from the host is logged to LOGFILE as one JSON line, flushed at once.
 The "controller": the zero vector for the whole period (a dyno run at low speed stays within its limits).
 """
@@ -29,6 +32,7 @@ def main() -> int:
     meas, cmd = db.get_message_by_name("MeasFd"), db.get_message_by_name("CmdFd")
     setpoint, param = db.get_message_by_name("Setpoint"), db.get_message_by_name("ConfigParam")
     ack, fault = db.get_message_by_name("ConfigAck"), db.get_message_by_name("FaultTarget")
+    heartbeat = db.get_message_by_name("HeartbeatTarget")
     bus = can.Bus(interface="hilserial", channel=port)
     log = open(log_path, "w", encoding="utf-8")  # noqa: SIM115 - closed at exit
 
@@ -40,7 +44,7 @@ def main() -> int:
         send(cmd, seq=seq, state0=0, state1=0, state2=0, n_states=1, duration0=TS_NS, duration1=0, duration2=0,
              vector_id=0, candidates=1, exec_time_ns=1000, status=0, mirror=0)
 
-    k = 0
+    k = beats = 0
     timeout = 30.0
     try:
         while True:
@@ -52,6 +56,9 @@ def main() -> int:
                 log.write(json.dumps({"frame": "Setpoint", "enable": int(sp["enable"])}) + "\n")
                 if not sp["enable"]:
                     timeout = 0.3  # disabled: log what still comes, then end (a board would idle)
+                    if "ignore_disable" not in rules:  # the confirmed safe stop
+                        send(heartbeat, node=1, state=1, counter=beats & 0xFF)
+                        beats += 1
             elif msg.arbitration_id == param.frame_id:
                 p = param.decode(msg.data, decode_choices=False)
                 value = p["value"] + (1.0 if "bad_ack" in rules else 0.0)
@@ -62,6 +69,8 @@ def main() -> int:
                 log.write(json.dumps({"frame": "Measurement", "seq": seq}) + "\n")
                 if rules.get("silent", 1 << 30) <= k or rules.get("skip") == k:
                     pass
+                elif rules.get("lose") == k:  # sent, and lost on the wire: its link sequence number is used up
+                    bus._tx_seq = (bus._tx_seq + 1) & 0xFF  # type: ignore[attr-defined]
                 elif rules.get("future_seq") == k:
                     reply((seq + 1) & 0xFFFF)
                 elif rules.get("bad_sum") == k:

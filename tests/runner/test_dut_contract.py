@@ -38,10 +38,11 @@ class Ended:
         return [f["enable"] for f in self.received if f["frame"] == "Setpoint"]
 
     def check_safe_and_complete(self) -> None:
-        """metrics.json matches the exit code, the target got the disabling Setpoint last, the MCAP holds
-        every period up to end_period and the disabling Setpoint is logged as a frame."""
+        """metrics.json matches the exit code, the target got the disabling Setpoint last and confirmed it, the
+        MCAP holds every period up to end_period and the disabling Setpoint is logged as a frame."""
         assert self.metrics["end_code"] == self.rc
         assert self.setpoints()[-1] == 0 and self.metrics["target_disabled"] is True
+        assert self.metrics["safe_stop_confirmed"] is True, self.metrics["safe_stop_observed"]
         mcap = self.out / "run.mcap"
         assert len(read_periods(mcap)) == self.metrics["end_period"] + 1
         sent = [f for f in read_frames(mcap) if f["arbitration_id"] == 0x200 and f["direction"] == 0]
@@ -115,6 +116,19 @@ def test_a_future_seq_never_displaces_the_genuine_reply(tmp_path: Path, pty: tup
     e.check_safe_and_complete()
 
 
+def test_a_reply_lost_on_the_link_is_attributed_to_the_link(tmp_path: Path, pty: tuple[int, str]) -> None:
+    """The target sent period 30's Command but the wire lost it: still the `missing` finding (exit 4), and the
+    gap in the target's link sequence numbers (seen when the safe stop's confirmation arrives) names the link."""
+    e = _run(tmp_path, pty, "lose=30")
+    m = e.metrics
+    assert e.rc == 4 and m["dut_violation_list"][0]["rule"] == "missing"
+    assert m["link"]["dropped"] == 1 and m["link_losses"] == {"to_target": None, "to_host": 1}
+    assert m["end_reason"].endswith("; the link lost 1 frame(s) to the host (link sequence gaps, socket buffer "
+                                    "drops): the loss is the link's, not necessarily the target's")
+    assert m["target_link"] is None  # an external target: its own counters are not the host's to read
+    e.check_safe_and_complete()
+
+
 def test_target_fault_is_a_safety_stop(tmp_path: Path, pty: tuple[int, str]) -> None:
     e = _run(tmp_path, pty, "fault=30")
     assert e.rc == 3 and e.metrics["end_reason"].startswith("target fault code 1")
@@ -133,6 +147,28 @@ def test_plant_trip_is_a_safety_stop(tmp_path: Path, pty: tuple[int, str]) -> No
     e = _run(tmp_path, pty, extra=("--set", "i_trip=0.2"))
     assert e.rc == 3 and "plant trip: overcurrent" in e.metrics["end_reason"]
     e.check_safe_and_complete()
+
+
+@pytest.mark.parametrize("loop", ["native", "python"])
+def test_a_target_ignoring_the_disabling_setpoint_ends_with_exit_3(loop: str, tmp_path: Path,
+                                                                   pty: tuple[int, str]) -> None:
+    """A completed run whose disabling Setpoint gets no HeartbeatTarget idle: exit 3, and what was seen."""
+    e = _run(tmp_path, pty, "ignore_disable=0", extra=("--loop", loop))
+    m = e.metrics
+    assert e.rc == m["end_code"] == 3 and m["loop"] == loop
+    assert m["end_reason"] == ("safe stop not confirmed: no HeartbeatTarget in state idle within 500 ms of the "
+                               "disabling Setpoint (no frame at all); inverter put in the safe state (zero vector)")
+    assert m["safe_stop_confirmed"] is False and m["safe_state"] is True and m["target_disabled"] is True
+    assert m["safe_stop_wait_ms"] >= 500 and m["end_period"] == 99 and e.setpoints() == [1, 0]
+    assert len(read_periods(e.out / "run.mcap")) == 100
+
+
+def test_an_unconfirmed_safe_stop_after_a_violation_keeps_exit_4(tmp_path: Path, pty: tuple[int, str]) -> None:
+    e = _run(tmp_path, pty, "bad_sum=30", "ignore_disable=0")
+    assert e.rc == 4 and e.metrics["end_reason"].startswith("DUT contract violation at period 30")
+    assert e.metrics["end_reason"].endswith("; safe stop not confirmed: no HeartbeatTarget in state idle within "
+                                            "500 ms of the disabling Setpoint (no frame at all)")
+    assert e.metrics["safe_stop_confirmed"] is False
 
 
 def test_a_wrong_config_ack_is_a_violation_before_the_first_period(tmp_path: Path, pty: tuple[int, str]) -> None:

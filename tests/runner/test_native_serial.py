@@ -241,7 +241,7 @@ def test_bench_loop_names_the_serial_pairs_as_the_udp_pairs(monkeypatch: pytest.
 
     seen: list[tuple[str, str, str]] = []
 
-    def fake_rate(make: Any, repeats: int, exclude_s: float = 0.0) -> dict[str, Any]:
+    def fake_rate(make: Any, repeats: int, exclude_safe_stop: bool = False) -> dict[str, Any]:
         cfg = make()
         seen.append((cfg.link, cfg.target, cfg.loop))
         return {"periods_per_s": 1000.0 if cfg.loop == "native" else 500.0, "runs": [], "last_metrics": {}}

@@ -23,7 +23,8 @@ from tests.runner.test_native_loop import SENSORS, _assert_same_frames, _mirrore
 #: the link, so those are 0 / NaN in both loops alike and compared)
 WALL_FIELDS = {"exec_time_ns"}
 WALL_METRICS = {"exec_time_us", "exec_split_us", "total_wall_time_s", "loop_rate_total_hz", "loop_rate_hz",
-                "wall_time_s", "realtime_factor", "loop", "loop_note", "command_wait_max_us", "link_spec", "link"}
+                "wall_time_s", "realtime_factor", "loop", "loop_note", "command_wait_max_us", "link_spec", "link",
+                "safe_stop_wait_ms", "target_link"}
 #: the native links' counters of how receives waited (NativeWireLink.waits): the machine's timing
 WAIT_COUNTERS = {"blocked", "spin_backoffs", "spin_early_ends"}
 

@@ -2,7 +2,8 @@
 docs/protocol.md alone) plus the FaultTarget for an undefined Setpoint mode, which breaks one rule on request.
 
 Usage: python conformance_target.py LINKSPEC [--break RULE]
-Rule it can break: durations (the 30th Measurement answered with durations 1 ns short of Ts).
+Rules it can break: durations (the 30th Measurement answered with durations 1 ns short of Ts), safe_stop
+(a disabling Setpoint is never answered with HeartbeatTarget idle).
 """
 
 from __future__ import annotations
@@ -16,10 +17,10 @@ from typing import Any
 from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.ids import Mode, Status
 from pmsm_hil.protocol.links import open_link
-from pmsm_hil.protocol.messages import Command, Fault, Measurement, Message, Setpoint
+from pmsm_hil.protocol.messages import Command, Fault, Heartbeat, Measurement, Message, Setpoint
 
 EXAMPLE = runpy.run_path(str(Path(__file__).resolve().parents[2] / "examples" / "python_target.py"))
-BREAKS = ("durations",)
+BREAKS = ("durations", "safe_stop")
 
 
 class ConformanceTarget(EXAMPLE["ExampleTarget"]):  # type: ignore[misc]
@@ -30,11 +31,17 @@ class ConformanceTarget(EXAMPLE["ExampleTarget"]):  # type: ignore[misc]
         self.breaks = breaks
         self.measurements = 0
 
-    def handle(self, msg: Message) -> list[Any]:
-        if isinstance(msg, Setpoint) and msg.mode not in (Mode.SPEED, Mode.TORQUE):
+    def on_setpoint(self, msg: Setpoint) -> list[Any]:
+        if msg.mode not in (Mode.SPEED, Mode.TORQUE):
             self.setpoint = None
             return [Fault(node=EXAMPLE["TARGET_NODE"], code=int(Status.INVALID_CONFIG), detail=msg.mode)]
+        replies: list[Any] = super().on_setpoint(msg)
+        return replies
+
+    def handle(self, msg: Message) -> list[Any]:
         replies: list[Any] = super().handle(msg)
+        if self.breaks == "safe_stop":  # disables, but never confirms it
+            replies = [r for r in replies if not isinstance(r, Heartbeat)]
         if isinstance(msg, Measurement):
             self.measurements += 1
             if self.breaks == "durations" and self.measurements == 30:

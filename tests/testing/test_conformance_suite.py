@@ -21,7 +21,9 @@ from tests.testing.pytest_session import ROOT, Session, run_pytest
 TARGET = Path(__file__).with_name("conformance_target.py")
 #: the test ids of the suite, one per rule
 TEST_IDS = {*(f"test_contract_rule[{r}]" for r in CONTRACT_RULES), "test_config_ack", "test_speed_mode",
-            *(f"test_probe_rule[{r}]" for r in RULES if r not in (*CONTRACT_RULES, "config_ack", "speed_mode")),
+            "test_safe_stop",
+            *(f"test_probe_rule[{r}]" for r in RULES
+              if r not in (*CONTRACT_RULES, "config_ack", "speed_mode", "safe_stop")),
             "test_every_rule_has_a_test"}
 
 
@@ -88,3 +90,17 @@ def test_a_foreign_target_breaking_one_rule_fails_that_rule_only(tmp_path: Path,
     assert s.rc == 1 and s.failed() == ["test_contract_rule[durations]"], s.outcomes()
     message = s.cases["test_contract_rule[durations]"].message
     assert "conformance rule 'durations' broken" in message and "durations sum to 99999 ns" in message
+
+
+def test_a_foreign_target_that_never_confirms_the_safe_stop_fails_that_rule_only(
+        tmp_path: Path, pty_pair: tuple[int, str]) -> None:
+    """The same target ignoring every disabling Setpoint's confirmation: only `safe_stop` fails, naming what the
+    host saw."""
+    master, port = pty_pair
+    with _process([sys.executable, str(TARGET), f"serial:fd:{master}", "--break", "safe_stop"], pass_fds=(master,)):
+        s = _conformance(tmp_path, "--hil-target", f"external:serial:{port}", "--hil-controller", "external")
+    assert set(s.cases) == TEST_IDS, s.output[-3000:]
+    assert s.rc == 1 and s.failed() == ["test_safe_stop"], s.outcomes()
+    message = s.cases["test_safe_stop"].message
+    assert "conformance rule 'safe_stop' broken" in message
+    assert "no HeartbeatTarget in state idle within 500 ms of the disabling Setpoint" in message

@@ -40,8 +40,23 @@ def test_a_target_ignoring_a_disable_while_running(monkeypatch: pytest.MonkeyPat
 
     monkeypatch.setattr(sim_target.SimTarget, "_on_setpoint", keep_running)
     report = _probe()
-    assert _broken_rules(report) == {"safe_state", "watchdog"}
+    assert _broken_rules(report) == {"safe_state", "safe_stop", "watchdog"}
     assert "Measurement after the disabling Setpoint " in report.findings["safe_state"][0]
+    assert "no HeartbeatTarget in state idle within 500 ms" in report.findings["safe_stop"][0]
+
+
+def test_a_target_disabling_without_confirming(monkeypatch: pytest.MonkeyPatch) -> None:
+    real = sim_target.SimTarget._send
+
+    def no_heartbeat(self: sim_target.SimTarget, msg: Any) -> None:
+        if type(msg).__name__ != "Heartbeat":
+            real(self, msg)
+
+    monkeypatch.setattr(sim_target.SimTarget, "_send", no_heartbeat)
+    report = _probe()
+    assert _broken_rules(report) == {"safe_stop"}
+    assert report.findings["safe_stop"] == ["a disabling Setpoint while running in torque mode: no HeartbeatTarget in "
+                                            "state idle within 500 ms of the disabling Setpoint (no frame at all)"]
 
 
 def test_a_target_answering_a_disabled_measurement_with_an_active_vector(monkeypatch: pytest.MonkeyPatch) -> None:

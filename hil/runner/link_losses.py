@@ -1,0 +1,49 @@
+"""Losses attributed to the link: the target's own link counters beside the host's (metrics.json `target_link`),
+the frames each direction lost on the link (`link_losses`: link sequence gaps, receive-buffer drops of the
+kernel), and an ending that blames a missing Command or a silent target says when the link lost frames.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pmsm_hil.hil.runner.contract import MISSING, EndCode
+from pmsm_hil.hil.runner.target_setup import TargetConnection
+
+
+def target_link_stats(conn: TargetConnection) -> dict[str, int] | None:
+    """The target end's own link counters: a spawned target's (printed when it stopped), an in-process target's
+    end of the link; None when the host cannot know them (an external target, the native loop's core)."""
+    if conn.process is not None:
+        return dict(conn.target_link_stats) or None
+    if conn.target_link is not None:
+        stats: dict[str, int] = conn.target_link.stats.as_dict()
+        return stats
+    return None
+
+
+def _lost(stats: dict[str, Any] | None) -> int | None:
+    """Frames lost on the way to the end whose counters these are: gaps in the peer's link sequence numbers plus
+    datagrams its socket buffer dropped (None: not known)."""
+    if stats is None:
+        return None
+    return int(stats.get("dropped", 0)) + int(stats.get("socket_drops") or 0)
+
+
+def attribute(metrics: dict[str, Any], target_link: dict[str, int] | None) -> None:
+    """Add `target_link` and `link_losses` {to_target, to_host} to `metrics`; when the run ended on a missing
+    Command or the watchdog and the link lost frames, the end reason says so."""
+    metrics["target_link"] = target_link
+    to_target, to_host = _lost(target_link), _lost(metrics.get("link"))
+    metrics["link_losses"] = {"to_target": to_target, "to_host": to_host}
+    code = metrics.get("end_code")
+    missing = metrics.get("dut_violations_by_rule", {}).get(MISSING, 0)
+    silent = code == int(EndCode.SAFETY_STOP) and str(metrics.get("end_reason", "")).startswith("watchdog")
+    if not ((code == int(EndCode.DUT_VIOLATION) and missing) or silent) or not (to_target or to_host):
+        return
+    parts = [f"{n} frame(s) to the {where}" for n, where in ((to_target, "target"), (to_host, "host")) if n]
+    metrics["end_reason"] = (f"{metrics['end_reason']}; the link lost {' and '.join(parts)} (link sequence gaps, "
+                             f"socket buffer drops): the loss is the link's, not necessarily the target's")
+
+
+__all__ = ["attribute", "target_link_stats"]
