@@ -3,20 +3,19 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
+import signal
 import sys
-from types import ModuleType
+from types import FrameType, ModuleType
+from typing import Any
 
 # Nothing `hil` runs calls BLAS, but OpenBLAS starts a worker thread per extra core that spins ~0.05-0.1 s of
 # CPU after numpy is imported (in this process and in the logger process, which inherits the environment):
-# one thread unless the user chose otherwise. Set before the first numpy import (the imports below).
+# one thread unless the user chose otherwise. Set before the first numpy import (the subcommands, imported by
+# `build_parser`).
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-
-from pmsm_hil.hil.errors import HilError
-from pmsm_hil.hil.metrics.errors import MetricsError
-from pmsm_hil.hil.runlog.errors import RunLogError
-from pmsm_hil.protocol.errors import ProtocolError
 
 # (group or None, module): each module exposes add_parser(subparsers) that sets func=run.
 _TOP_LEVEL = ("run", "target", "link_budget", "mcap_repair", "compare", "sweep", "replay_mcap", "report")
@@ -32,6 +31,12 @@ _GROUP_HELP = {"plant": "offline plant tools", "bench": "benchmarks that print f
 
 def _user_errors() -> tuple[type[Exception], ...]:
     """Exception bases that mean bad input or a failed run: reported as one line, no traceback."""
+    # imported here, not at the top: Ctrl-C during `hil`'s first imports is then caught by `main` too
+    from pmsm_hil.hil.errors import HilError
+    from pmsm_hil.hil.metrics.errors import MetricsError
+    from pmsm_hil.hil.runlog.errors import RunLogError
+    from pmsm_hil.protocol.errors import ProtocolError
+
     errors: list[type[Exception]] = [HilError, ProtocolError, MetricsError, RunLogError]
     try:
         from pmsm_hil.sim_target.firmware import FirmwareError
@@ -86,8 +91,29 @@ def _usage(parser: argparse.ArgumentParser) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the `hil` command line; returns the process exit code."""
+    """Run the `hil` command line; returns the process exit code (130 on Ctrl-C or SIGTERM, no traceback).
+
+    SIGTERM is Ctrl-C for every subcommand (a KeyboardInterrupt, deferred by `hil run` while its loop and
+    outputs are written). Called as the `hil` command (`argv` None), both signals are ignored once the
+    subcommand returned: its exit code and files stand."""
+    cli = argv is None
     argv = sys.argv[1:] if argv is None else argv
+    previous = _terminate_as_interrupt()
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:
+        if cli:
+            _ignore_interrupts()
+        print("hil: interrupted", file=sys.stderr)
+        return 130
+    finally:
+        if cli:
+            _ignore_interrupts()
+        elif previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _main(argv: list[str]) -> int:
     if not argv or (argv[0] == "--debug" and len(argv) == 1):
         argv = [*argv, "run"]  # `hil` alone runs the embedded default
     parser = build_parser()
@@ -103,9 +129,27 @@ def main(argv: list[str] | None = None) -> int:
             raise
         print(f"hil: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("hil: interrupted", file=sys.stderr)
-        return 130
+
+
+def _raise_interrupt(signum: int, frame: FrameType | None) -> None:
+    raise KeyboardInterrupt
+
+
+def _terminate_as_interrupt() -> Any:
+    """SIGTERM raises KeyboardInterrupt (as Ctrl-C) where it would kill; returns the handler it replaced, None
+    if none was replaced (not the main thread, or SIGTERM ignored or handled already)."""
+    try:
+        if signal.getsignal(signal.SIGTERM) != signal.SIG_DFL:
+            return None
+        return signal.signal(signal.SIGTERM, _raise_interrupt)
+    except ValueError:  # not the main thread
+        return None
+
+
+def _ignore_interrupts() -> None:
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        with contextlib.suppress(ValueError):
+            signal.signal(sig, signal.SIG_IGN)
 
 
 if __name__ == "__main__":
