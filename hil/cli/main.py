@@ -98,10 +98,14 @@ def main(argv: list[str] | None = None) -> int:
     subcommand returned: its exit code and files stand."""
     cli = argv is None
     argv = sys.argv[1:] if argv is None else argv
-    previous = _terminate_as_interrupt()
+    _interrupted.clear()
+    previous = _interrupts_raise()
     try:
         return _main(argv)
-    except KeyboardInterrupt:
+    except BaseException as exc:
+        if not (isinstance(exc, KeyboardInterrupt) or _interrupted):
+            raise
+        # an import cut by the signal can surface as another error (numpy: ImportError): still an interrupt
         if cli:
             _ignore_interrupts()
         print("hil: interrupted", file=sys.stderr)
@@ -109,8 +113,11 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         if cli:
             _ignore_interrupts()
-        elif previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+            if _interrupted:
+                _forget_unhandled_interrupt()
+        else:
+            for signum, handler in previous.items():
+                signal.signal(signum, handler)
 
 
 def _main(argv: list[str]) -> int:
@@ -131,19 +138,40 @@ def _main(argv: list[str]) -> int:
         return 2
 
 
+#: signals that raised KeyboardInterrupt in this process (through `_raise_interrupt`)
+_interrupted: list[int] = []
+
+
 def _raise_interrupt(signum: int, frame: FrameType | None) -> None:
+    _interrupted.append(signum)
     raise KeyboardInterrupt
 
 
-def _terminate_as_interrupt() -> Any:
-    """SIGTERM raises KeyboardInterrupt (as Ctrl-C) where it would kill; returns the handler it replaced, None
-    if none was replaced (not the main thread, or SIGTERM ignored or handled already)."""
+def _interrupts_raise() -> dict[int, Any]:
+    """Ctrl-C raises KeyboardInterrupt as by default, and SIGTERM the same where it would kill, both through
+    `_raise_interrupt` (which records them); returns the handlers replaced (none off the main thread, or for a
+    signal ignored or handled by the caller)."""
+    replaced: dict[int, Any] = {}
+    for signum, default in ((signal.SIGINT, signal.default_int_handler), (signal.SIGTERM, signal.SIG_DFL)):
+        try:
+            if signal.getsignal(signum) == default:
+                replaced[signum] = signal.signal(signum, _raise_interrupt)
+        except ValueError:  # not the main thread
+            break
+    return replaced
+
+
+def _forget_unhandled_interrupt() -> None:
+    """CPython 3.11 marks a KeyboardInterrupt that left code run by exec() or eval() of a string (dataclasses
+    and namedtuple build their methods so, on import) as unhandled even when it is caught later, and then ends
+    the process by SIGINT instead of with its exit code (a subprocess caller sees -2, not 130). `hil` handled
+    it: clear the mark (a private flag; nothing is done where it does not exist)."""
     try:
-        if signal.getsignal(signal.SIGTERM) != signal.SIG_DFL:
-            return None
-        return signal.signal(signal.SIGTERM, _raise_interrupt)
-    except ValueError:  # not the main thread
-        return None
+        import ctypes
+
+        ctypes.c_int.in_dll(ctypes.pythonapi, "_Py_UnhandledKeyboardInterrupt").value = 0
+    except (ImportError, ValueError, OSError, AttributeError):
+        pass
 
 
 def _ignore_interrupts() -> None:

@@ -14,6 +14,7 @@ import multiprocessing
 import signal
 import time
 from collections.abc import Callable
+from multiprocessing import forkserver, resource_tracker
 from multiprocessing.process import BaseProcess
 from typing import Any
 
@@ -56,6 +57,9 @@ class WorkerClient:
         # Ctrl-C and SIGTERM wait (blocked) while the worker starts: one arriving while the runner writes the
         # worker's start-up data would leave it half-started (an EOFError traceback from the child); the child
         # starts with both blocked, so a terminal's Ctrl-C never reaches its imports either
+        resource_tracker.ensure_running()  # started first: starting it unblocks the signals again
+        if start_method == "forkserver":
+            forkserver.ensure_running()
         mask = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD)
         try:
             self._proc.start()

@@ -50,11 +50,19 @@ class Try:
 
 
     @property
+    def before_hil(self) -> bool:
+        """The signal came while the Python interpreter itself started, before `hil`'s code ran (the first
+        ~50 ms): killed by it, or Python's own "Fatal Python error: init_import_site"; nothing written."""
+        python_start = self.rc == 1 and "Fatal Python error: init_import_site" in self.stderr_tail
+        killed = self.rc == -getattr(signal, self.sig) and not self.stderr_tail
+        return not self.out_created and (killed or python_start)
+
+    @property
     def ok(self) -> bool:
         """MCAP periods = end_period + 1 = total_periods, seq 0..n-1 without a gap, exit 130 or 0, no traceback;
         or, interrupted before the target was connected, no metrics.json and no period in the MCAP (said on
-        stderr); or killed by the signal before the interpreter ran `hil` (the first ~30 ms: nothing written)."""
-        if self.rc == -getattr(signal, self.sig) and not self.out_created and not self.stderr_tail:
+        stderr); or `before_hil`."""
+        if self.before_hil:
             return True
         if "Traceback" in self.stderr_tail or self.rc not in (0, 130):
             return False
@@ -117,7 +125,7 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     rng = random.Random(args.seed)
     variants = args.variants.split(",")
-    bad = 0
+    bad = before_hil = 0
     by_variant: dict[str, list[int]] = {}
     for k in range(args.tries):
         variant = variants[k % len(variants)]
@@ -131,15 +139,16 @@ def main(argv: list[str] | None = None) -> int:
         tally[0] += 1
         tally[1] += 0 if t.ok else 1
         bad += 0 if t.ok else 1
+        before_hil += t.before_hil
         print(f"{k:3d} {variant:9s} {t.sig:7s} to {'group' if group else 'hil  '} after {delay:5.2f} s: "
-              f"exit {t.rc:3d}, mcap {t.mcap_periods}, "
+              f"exit {t.rc:3d}{' (before hil ran)' * t.before_hil}, mcap {t.mcap_periods}, "
               f"end_period+1 {None if t.end_period is None else t.end_period + 1}, total {t.metrics_periods}, "
               f"seq {'ok' if t.seq_ok else 'GAP'} -> {'ok' if t.ok else 'LOST'}", flush=True)
         if not t.ok:
             print("    " + t.stderr_tail.strip().replace("\n", "\n    "), flush=True)
     for variant, (n, lost) in by_variant.items():
         print(f"{variant}: {n - lost}/{n} consistent")
-    print(f"all: {args.tries - bad}/{args.tries} consistent")
+    print(f"all: {args.tries - bad}/{args.tries} consistent ({before_hil} signalled before hil ran: no file)")
     return 1 if bad else 0
 
 

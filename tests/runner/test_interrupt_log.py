@@ -70,3 +70,29 @@ def test_main_turns_an_early_interrupt_into_exit_130(monkeypatch: pytest.MonkeyP
     assert main(["run"]) == 130
     assert capsys.readouterr().err == "hil: interrupted\n"
     assert signal.getsignal(signal.SIGTERM) == signal.SIG_DFL  # main(argv) leaves the caller's handlers as found
+    assert signal.getsignal(signal.SIGINT) == signal.default_int_handler
+
+
+def test_an_error_an_interrupt_caused_is_still_an_interrupt(monkeypatch: pytest.MonkeyPatch,
+                                                            capsys: pytest.CaptureFixture[str]) -> None:
+    """numpy turns a KeyboardInterrupt inside its C import into an ImportError: after a signal, exit 130."""
+    from pmsm_hil.hil.cli import main as main_module
+
+    def import_cut_by_ctrl_c() -> None:
+        try:
+            main_module._raise_interrupt(signal.SIGINT, None)
+        except KeyboardInterrupt:
+            raise ImportError("PyCapsule_Import could not import module datetime") from None
+
+    monkeypatch.setattr(main_module, "_interrupted", [])
+    monkeypatch.setattr(main_module, "build_parser", import_cut_by_ctrl_c)
+    assert main(["run"]) == 130
+    assert capsys.readouterr().err == "hil: interrupted\n"
+    monkeypatch.setattr(main_module, "_interrupted", [])
+
+    def plain_bug() -> None:
+        raise ImportError("no interrupt here")
+
+    monkeypatch.setattr(main_module, "build_parser", plain_bug)
+    with pytest.raises(ImportError):
+        main(["run"])
