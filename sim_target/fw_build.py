@@ -144,13 +144,23 @@ def build_firmware(board: str = "host", src: Path | None = None, out: Path | Non
             raise FwBuildError(f"build of {src} produced no {ARTEFACT[board]}: does its CMakeLists.txt call "
                                       "hil_add_firmware()?")
         if out is not None:
-            out = Path(out)
-            if out.is_dir():
-                out = out / ARTEFACT[board]
-            out.parent.mkdir(parents=True, exist_ok=True)
-            tmp = out.with_name(out.name + ".tmp")
-            shutil.copyfile(artefact, tmp)
-            os.replace(tmp, out)
-            artefact = out
+            artefact = _copy_out(artefact, Path(out), board)
     sizes = elf_sizes(artefact) if board != "host" else None
     return BuildResult(artefact, board, src, sizes)
+
+
+def _copy_out(artefact: Path, out: Path, board: str) -> Path:
+    """Copy the artefact to `out` (a file, or a folder for the artefact's own name) through a temporary file;
+    FwBuildError naming -o if it cannot be written (/proc, a read-only folder, a full disk)."""
+    if out.is_dir():
+        out = out / ARTEFACT[board]
+    tmp = out.with_name(out.name + ".tmp")
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(artefact, tmp)
+        os.replace(tmp, out)
+    except OSError as exc:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise FwBuildError(f"-o {out}: cannot write the {ARTEFACT[board]} there ({exc.strerror or exc})") from None
+    return out

@@ -3,14 +3,18 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
+import signal
 import sys
-from types import ModuleType
+from types import FrameType, ModuleType
+from typing import Any
 
 # Nothing `hil` runs calls BLAS, but OpenBLAS starts a worker thread per extra core that spins ~0.05-0.1 s of
 # CPU after numpy is imported (in this process and in the logger process, which inherits the environment):
-# one thread unless the user chose otherwise. Set before the first numpy import (the imports below).
+# one thread unless the user chose otherwise. Set before the first numpy import (the subcommands, imported by
+# `build_parser`).
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from pmsm_hil.errors import HilError
@@ -73,8 +77,36 @@ def _usage(parser: argparse.ArgumentParser) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the `hil` command line; returns the process exit code."""
+    """Run the `hil` command line; returns the process exit code (130 on Ctrl-C or SIGTERM, no traceback).
+
+    SIGTERM is Ctrl-C for every subcommand (a KeyboardInterrupt, deferred by `hil run` while its loop and
+    outputs are written). Called as the `hil` command (`argv` None), both signals are ignored once the
+    subcommand returned: its exit code and files stand."""
+    cli = argv is None
     argv = sys.argv[1:] if argv is None else argv
+    _interrupted.clear()
+    previous = _interrupts_raise()
+    try:
+        return _main(argv)
+    except BaseException as exc:
+        if not (isinstance(exc, KeyboardInterrupt) or _interrupted):
+            raise
+        # an import cut by the signal can surface as another error (numpy: ImportError): still an interrupt
+        if cli:
+            _ignore_interrupts()
+        print("hil: interrupted", file=sys.stderr)
+        return 130
+    finally:
+        if cli:
+            _ignore_interrupts()
+            if _interrupted:
+                _forget_unhandled_interrupt()
+        else:
+            for signum, handler in previous.items():
+                signal.signal(signum, handler)
+
+
+def _main(argv: list[str]) -> int:
     if not argv or (argv[0] == "--debug" and len(argv) == 1):
         argv = [*argv, "run"]  # `hil` alone runs the embedded default
     parser = build_parser()
@@ -90,9 +122,48 @@ def main(argv: list[str] | None = None) -> int:
             raise
         print(f"hil: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("hil: interrupted", file=sys.stderr)
-        return 130
+
+
+#: signals that raised KeyboardInterrupt in this process (through `_raise_interrupt`)
+_interrupted: list[int] = []
+
+
+def _raise_interrupt(signum: int, frame: FrameType | None) -> None:
+    _interrupted.append(signum)
+    raise KeyboardInterrupt
+
+
+def _interrupts_raise() -> dict[int, Any]:
+    """Ctrl-C raises KeyboardInterrupt as by default, and SIGTERM the same where it would kill, both through
+    `_raise_interrupt` (which records them); returns the handlers replaced (none off the main thread, or for a
+    signal ignored or handled by the caller)."""
+    replaced: dict[int, Any] = {}
+    for signum, default in ((signal.SIGINT, signal.default_int_handler), (signal.SIGTERM, signal.SIG_DFL)):
+        try:
+            if signal.getsignal(signum) == default:
+                replaced[signum] = signal.signal(signum, _raise_interrupt)
+        except ValueError:  # not the main thread
+            break
+    return replaced
+
+
+def _forget_unhandled_interrupt() -> None:
+    """CPython 3.11 marks a KeyboardInterrupt that left code run by exec() or eval() of a string (dataclasses
+    and namedtuple build their methods so, on import) as unhandled even when it is caught later, and then ends
+    the process by SIGINT instead of with its exit code (a subprocess caller sees -2, not 130). `hil` handled
+    it: clear the mark (a private flag; nothing is done where it does not exist)."""
+    try:
+        import ctypes
+
+        ctypes.c_int.in_dll(ctypes.pythonapi, "_Py_UnhandledKeyboardInterrupt").value = 0
+    except (ImportError, ValueError, OSError, AttributeError):
+        pass
+
+
+def _ignore_interrupts() -> None:
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        with contextlib.suppress(ValueError):
+            signal.signal(sig, signal.SIG_IGN)
 
 
 if __name__ == "__main__":

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import functools
 import json
 import sys
@@ -23,6 +24,7 @@ from pmsm_hil.hil.motor_params import parse_set_options
 from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig, check_params_used, parse_param_options
+from pmsm_hil.hil.runner.run_dir_lock import run_dir_lock
 from pmsm_hil.hil.runner.run_limits import check_run_limits
 from pmsm_hil.hil.runner.run_metadata import RUN_FILES
 from pmsm_hil.hil.runner.scenario import load_scenario, scenario_names
@@ -228,9 +230,10 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
     return run_cfg
 
 
-def _check_outputs(args: argparse.Namespace, cfg: RunConfig) -> None:
+def _check_outputs(args: argparse.Namespace, cfg: RunConfig, held: contextlib.ExitStack) -> None:
     """--json and --rerun-save never name an input or a file of the run directory; the run directory is
-    created, and an earlier run in it refused unless --overwrite (which removes it first)."""
+    created and locked for the run (`held`: a second run into it is refused), and an earlier run in it refused
+    unless --overwrite (which removes it first)."""
     inputs = [Path(p) for p in (args.config, args.motor, args.scenario) if p is not None and Path(p).is_file()]
     if cfg.out_dir is not None:
         inputs += [cfg.out_dir / name for name in RUN_FILES]
@@ -238,6 +241,7 @@ def _check_outputs(args: argparse.Namespace, cfg: RunConfig) -> None:
         if path is not None:
             refuse_inputs(path, inputs, option=option)
     if cfg.out_dir is not None:
+        held.enter_context(run_dir_lock(cfg.out_dir, option="--out"))
         prepare_output_dir(cfg.out_dir, RUN_FILES, overwrite=bool(args.overwrite), option="--out")
 
 
@@ -252,14 +256,20 @@ def _fresh_dir(base: Path) -> Path:
 def run(args: argparse.Namespace) -> int:
     """Execute `hil run`."""
     cfg = config_from_args(args)
-    _check_outputs(args, cfg)
+    with contextlib.ExitStack() as held:
+        _check_outputs(args, cfg, held)
+        return _run_checked(args, cfg)
+
+
+def _run_checked(args: argparse.Namespace, cfg: RunConfig) -> int:
     try:
         with live_dashboard(args, cfg) as live:
             return _run_and_report(args, cfg, live)
-    except KeyboardInterrupt:  # before or after the loop (which ends itself on Ctrl-C)
+    except KeyboardInterrupt:  # before the target was connected (from then on the run ends itself on Ctrl-C)
         if cfg.out_dir is None or not (cfg.out_dir / "run.mcap").exists():
             raise
-        print(f"hil: interrupted; partial log: {cfg.out_dir / 'run.mcap'}", file=sys.stderr)
+        print(f"hil: interrupted; partial log: {cfg.out_dir / 'run.mcap'} (before the run started: no period, no "
+              f"metrics.json)", file=sys.stderr)
         return 130
 
 

@@ -67,7 +67,12 @@ class RunLogger(WorkerClient):
                                stall_timeout_s=stall_timeout_s)
         except OSError as exc:
             raise RunLogError(f"run logger: cannot start the logger process ({exc})") from None
-        if self._await_ready(start_timeout_s) is None:
+        try:
+            ready = self._await_ready(start_timeout_s)
+        except BaseException:  # Ctrl-C while the logger starts: no process or ring left behind
+            self._abort()
+            raise
+        if ready is None:
             raise LoggerDiedError(self._error or f"run logger: process did not start within {start_timeout_s} s")
 
     @staticmethod
@@ -99,6 +104,10 @@ class RunLogger(WorkerClient):
             self._push(kind, block, dtype.itemsize)
         except OSError:
             raise self._died() from None
+        except RunLogError:
+            if not self._proc.is_alive():  # it died while the ring was full: say why it died
+                raise self._died() from None
+            raise
 
     def submit_periods(self, block: np.ndarray) -> None:
         """Queue a PERIOD_DTYPE block (one MCAP message per period on /periods)."""

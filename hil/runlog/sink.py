@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 from collections.abc import Callable, Mapping, Sequence
@@ -15,6 +16,7 @@ from pmsm_hil.hil.records import FAULT_DTYPE, FRAME_DTYPE, PERIOD_DTYPE, TRACE_D
 from pmsm_hil.hil.runlog import cdr, encoding, topics
 from pmsm_hil.hil.runlog.bulk_messages import BulkMessages, message_records
 from pmsm_hil.hil.runlog.errors import RunLogError
+from pmsm_hil.hil.runlog.salvage import end_after_last_record
 
 COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
 CHUNK_BYTES = 8 * 1024 * 1024
@@ -28,6 +30,7 @@ class McapSink:
                  trace_dtype: np.dtype = TRACE_DTYPE) -> None:
         if compression not in COMPRESSIONS:
             raise RunLogError(f"compression: expected one of {sorted(COMPRESSIONS)}, got {compression!r}")
+        self._path = Path(path)
         self._file: BinaryIO = open(path, "wb", buffering=1024 * 1024)  # noqa: SIM115 - closed in close()
         self._writer = Writer(self._file, chunk_size=CHUNK_BYTES, compression=COMPRESSIONS[compression])
         self._writer.start(profile="", library=LIBRARY)
@@ -135,7 +138,8 @@ class McapSink:
         os.fsync(self._file.fileno())
 
     def close(self) -> None:
-        """Write the summary and footer, fsync and close the file (idempotent)."""
+        """Write the summary and footer, fsync and close the file (idempotent). A write that fails (a full
+        disk) ends the file as `abandon` does and raises RunLogError saying what was kept."""
         if self._closed:
             return
         self._closed = True
@@ -143,5 +147,31 @@ class McapSink:
             self._writer.finish()  # type: ignore[no-untyped-call]
             self._file.flush()
             os.fsync(self._file.fileno())
+        except OSError as exc:
+            self._closed = False
+            raise RunLogError(self.abandon(exc)) from None
         finally:
+            with contextlib.suppress(OSError):
+                self._file.close()
+
+    def abandon(self, exc: OSError) -> str:
+        """After a failed write (`exc`: a full disk, a file size limit): close the file without its summary and
+        keep it as a valid MCAP file up to its last complete record, or remove it if not even its header fitted.
+        Returns the cause and what became of the file, in words. Idempotent (later calls say nothing new)."""
+        if self._closed:
+            return f"cannot write {self._path}: {exc.strerror or exc}"
+        self._closed = True
+        with contextlib.suppress(OSError):  # the buffer that did not fit is dropped; the descriptor is closed
             self._file.close()
+        cause = f"cannot write {self._path} ({exc.strerror or exc})"
+        try:
+            kept = end_after_last_record(self._path, self._ch_periods)
+        except OSError as again:
+            return (f"{cause}; the file ends at its last complete record (no MCAP footer: {again.strerror or again}"
+                    f"; `hil mcap-repair` reads it)")
+        if kept.bytes == 0:
+            with contextlib.suppress(OSError):
+                self._path.unlink()
+            return f"{cause}; nothing of the log fitted: the file is removed"
+        return (f"{cause}; the file is kept as a valid MCAP up to its last complete chunk: the first "
+                f"{kept.messages} periods of the {self.counts['periods']} it received ({kept.bytes} bytes)")

@@ -11,14 +11,25 @@ from __future__ import annotations
 import contextlib
 import json
 import multiprocessing
+import signal
 import time
 from collections.abc import Callable
+from multiprocessing import forkserver, resource_tracker
 from multiprocessing.process import BaseProcess
 from typing import Any
 
 import numpy as np
 from pmsm_hil.hil.runlog.channel import NOTICE
 from pmsm_hil.hil.runlog.ring import RingProducer
+
+_HELD = {signal.SIGINT, signal.SIGTERM}
+
+
+def _worker_entry(target: Callable[..., None], *args: Any) -> None:
+    """The worker process's start: SIGTERM let through (it stops the worker), SIGINT left blocked (the runner
+    owns Ctrl-C; the worker ignores it too)."""
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGTERM})
+    target(*args)
 
 
 class WorkerClient:
@@ -41,14 +52,22 @@ class WorkerClient:
         notice_r, self._notices = ctx.Pipe(duplex=False)
         self._status, status_w = ctx.Pipe(duplex=False)
         self._proc: BaseProcess = ctx.Process(  # type: ignore[attr-defined]
-            target=target, name=name, daemon=True,
-            args=(notice_r, status_w, str(self._ring.path), ring_bytes, *args))
+            target=_worker_entry, name=name, daemon=True,
+            args=(target, notice_r, status_w, str(self._ring.path), ring_bytes, *args))
+        # Ctrl-C and SIGTERM wait (blocked) while the worker starts: one arriving while the runner writes the
+        # worker's start-up data would leave it half-started (an EOFError traceback from the child); the child
+        # starts with both blocked, so a terminal's Ctrl-C never reaches its imports either
+        resource_tracker.ensure_running()  # started first: starting it unblocks the signals again
+        if start_method == "forkserver":
+            forkserver.ensure_running()
+        mask = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD)
         try:
             self._proc.start()
         except OSError:
             self._ring.close()
             raise
         finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, mask)  # a signal held meanwhile arrives now
             notice_r.close()
             status_w.close()
         self._closed = False

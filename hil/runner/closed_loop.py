@@ -19,6 +19,7 @@ from pmsm_hil.hil.runner.contract import MISSING, EndCode, Violation, check_comm
 from pmsm_hil.hil.runner.recorder import KEEP_PERIODS_MAX, ByteRecords, FrameTap, frame_records, period_records
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.safe_stop import SafeStop, disable_and_confirm, settle_ending
+from pmsm_hil.hil.runner.stop_request import StopRequest, deferred_interrupts
 from pmsm_hil.hil.runner.target_client import TargetClient
 from pmsm_hil.hil.sensors import SensorModel
 from pmsm_hil.protocol.ids import Mode
@@ -132,14 +133,20 @@ class ClosedLoop:
 
         The cyclic garbage collector is paused for the loop (a gen-2 pass stalls it for milliseconds);
         the loop allocates no reference cycles, so memory stays bounded. Every `BLOCK` periods, and once
-        more at the end (the safe stop's frames included), the records go to the sink."""
+        more at the end (the safe stop's frames included), the records go to the sink. Ctrl-C and SIGTERM are
+        deferred (`deferred_interrupts`): the loop ends at the next period start, every record counted logged."""
+        with deferred_interrupts() as stop:
+            return self._run_deferred(stop)
+
+    def _run_deferred(self, stop: StopRequest) -> LoopOutcome:
         gc_was_enabled = gc.isenabled()
         gc.collect()
         gc.disable()
         out = self._start()
         try:
-            self._run(out)
-        except KeyboardInterrupt:
+            if self._run(out, stop.flag):
+                self._end(out, EndCode.INTERRUPTED, "interrupted (Ctrl-C or SIGTERM)")
+        except KeyboardInterrupt:  # a handler of the caller's own (signals are deferred only where they raise)
             self._end(out, EndCode.INTERRUPTED, "interrupted (Ctrl-C or SIGTERM)")
         except Exception as exc:  # a bug or a plant fault: still a safe stop and complete outputs
             out.error = exc
@@ -220,7 +227,9 @@ class ClosedLoop:
                                  controller_id=self.controller_id)
 
     # --- the period ---------------------------------------------------------------------------------
-    def _run(self, out: LoopOutcome) -> None:
+    def _run(self, out: LoopOutcome, stopped: list[int]) -> bool:
+        """The periods, until the end of the run, a protective ending or a stop request (`stopped` truthy: then
+        True)."""
         ts_s, ts_ns, realtime = self.cfg.ts_s, self.cfg.ts_ns, self._realtime
         pace, follow_reference, sample_and_send = self._pace, self._follow_reference, self._sample_and_send
         apply_and_trace, accept, record = self._apply_and_trace, self._accept, self._record
@@ -229,6 +238,8 @@ class ClosedLoop:
         check_end, flush, block = self._check_end, self._flush, self.BLOCK
         check, tolerate = self._check_contract, self.cfg.tolerate
         for k in range(self._n_total):
+            if stopped:
+                return True
             t = k * ts_s
             if realtime:
                 pace(out)
@@ -255,6 +266,7 @@ class ClosedLoop:
                 flush(out)
             if check_end(out, k, smp, st, extra):
                 break
+        return False
 
     def _pace(self, out: LoopOutcome) -> None:
         """Real time: busy-wait for the period start and record how late it began [ns]."""

@@ -32,6 +32,7 @@ from pmsm_hil.hil.runner.native_wire import NativeWireLink
 from pmsm_hil.hil.runner.recorder import FrameTap, frame_records, period_records
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.safe_stop import disable_and_confirm, settle_ending
+from pmsm_hil.hil.runner.stop_request import StopRequest, deferred_interrupts
 from pmsm_hil.hil.runner.target_client import TargetClient
 from pmsm_hil.hil.sensors import SensorModel
 from pmsm_hil.protocol.ids import Mode
@@ -90,7 +91,15 @@ class NativeLoop:
         self._last_period: Any = None
 
     def run(self) -> LoopOutcome:
-        """The whole run (settle + metrics window, or until a protective ending), then the safe stop."""
+        """The whole run (settle + metrics window, or until a protective ending), then the safe stop.
+
+        Ctrl-C and SIGTERM are deferred (`deferred_interrupts`): they stop the C loop (`nl_stop`), and the drain
+        goes on until the loop has ended and every full block went to the sink, so the log holds every period
+        counted."""
+        with deferred_interrupts() as stop:
+            return self._run(stop)
+
+    def _run(self, stop: StopRequest) -> LoopOutcome:
         lib, h = self._lib, self._h
         gc_was_enabled = gc.isenabled()
         gc.collect()
@@ -106,9 +115,10 @@ class NativeLoop:
         try:
             for _ in range(lib.NL_RING):
                 self._hand_back(self._blocks_filled % lib.NL_RING)
-            thread.start()
-            self._drain(out)
-        except KeyboardInterrupt:
+            with stop.hook(lambda: lib.nl_stop(h)):
+                thread.start()
+                self._drain(out)
+        except KeyboardInterrupt:  # a handler of the caller's own (signals are deferred only where they raise)
             interrupted = True
         except Exception as exc:  # the sink failed: still a safe stop and complete outputs
             out.error = exc

@@ -6,7 +6,7 @@ import json
 import math
 import signal
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType
@@ -28,9 +28,11 @@ from pmsm_hil.hil.runner.native_run import connect_loop_target, python_loop_reas
 from pmsm_hil.hil.runner.plant_setup import build_plant
 from pmsm_hil.hil.runner.recorder import frame_records, period_records
 from pmsm_hil.hil.runner.run_config import RunConfig, controller_id
+from pmsm_hil.hil.runner.run_dir_lock import run_dir_lock
 from pmsm_hil.hil.runner.run_limits import check_run_limits
 from pmsm_hil.hil.runner.run_metadata import run_metadata, tap_setup_frames
 from pmsm_hil.hil.runner.safe_stop import disable_and_confirm, settle_ending
+from pmsm_hil.hil.runner.stop_request import deferred_interrupts
 from pmsm_hil.hil.runner.target_client import DutViolationError
 from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target
 from pmsm_hil.protocol.links.udp_bus import link_socket_drops
@@ -88,14 +90,26 @@ def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None,
     if cfg.mode == "realtime":
         check_realtime_budget(cfg.link, cfg.ts_s, cfg.machine.phases)
     python_reason = python_loop_reason(cfg)
+    with ExitStack() as held:
+        if cfg.out_dir is not None:  # one run at a time in a run directory (the CLI holds it already)
+            held.enter_context(run_dir_lock(cfg.out_dir, option="out_dir"))
+        return _run_locked(cfg, cid, python_reason, silent_after, live)
+
+
+def _run_locked(cfg: RunConfig, cid: int, python_reason: str | None, silent_after: int | None,
+                live: Callable[[np.ndarray], None] | None) -> RunResult:
     logger, mcap_path = _open_logger(cfg)
     conn: TargetConnection | None = None
     outcome: LoopOutcome | None = None
     sink = RunSink(cfg, logger, live)
-    try:
-        with _terminate_as_interrupt():
+    with ExitStack() as signals:
+        try:
+            signals.enter_context(_terminate_as_interrupt())
             conn, python_reason = connect_loop_target(
                 cfg, python_reason, lambda: connect_target(cfg, silent_after=silent_after))
+            # from here on Ctrl-C/SIGTERM only ask the loop to end (at a period boundary; at once if the target
+            # is still being configured): every period run is logged and counted, the outputs written whole
+            signals.enter_context(deferred_interrupts())
             try:
                 with tap_setup_frames(conn.client, logger):
                     conn.client.configure(cfg.target_parameters())
@@ -108,18 +122,19 @@ def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None,
             if outcome is None:
                 outcome = (_loop(cfg, conn, cid, sink) if python_reason
                            else run_native(cfg, conn, cid, sink, silent_after))
-        metrics = summarize(cfg, outcome, conn, sink)
-        metrics["loop"], metrics["loop_note"] = "python" if python_reason else "native", python_reason
-        metrics["warnings"] += realtime_warnings(cfg, conn)
-    finally:
-        if conn is not None:
-            conn.close()
-        if logger is not None:
-            logger.close()
-    attribute_losses(metrics, target_link_stats(conn) if conn is not None else None)
-    outcome.end_reason = metrics["end_reason"]
-    if cfg.out_dir is not None:
-        write_text_atomic(cfg.out_dir / "metrics.json", json.dumps(metrics, indent=2) + "\n", option="metrics file")
+            metrics = summarize(cfg, outcome, conn, sink)
+            metrics["loop"], metrics["loop_note"] = "python" if python_reason else "native", python_reason
+            metrics["warnings"] += realtime_warnings(cfg, conn)
+        finally:
+            if conn is not None:
+                conn.close()
+            if logger is not None:
+                logger.close()
+        attribute_losses(metrics, target_link_stats(conn) if conn is not None else None)
+        outcome.end_reason = metrics["end_reason"]
+        if cfg.out_dir is not None:
+            write_text_atomic(cfg.out_dir / "metrics.json", json.dumps(metrics, indent=2) + "\n",
+                              option="metrics file")
     return RunResult(metrics=metrics, outcome=outcome, mcap_path=mcap_path)
 
 

@@ -114,7 +114,9 @@ def _spawn_target(spec: str, native: bool = False) -> tuple[subprocess.Popen[byt
     cmd = [sys.executable, "-m", "pmsm_hil.hil.cli.main", "target", "--link", spec, "--role", "target",
            "--parent-pid", str(os.getpid()), "--idle-timeout", repr(SPAWNED_IDLE_TIMEOUT_S), *(["--native"] * native)]
     err = tempfile.TemporaryFile()  # noqa: SIM115 (the connection owns it: `close` forwards it)
-    proc = subprocess.Popen(cmd, env=dict(os.environ), stdout=subprocess.PIPE, stderr=err)
+    # its own session: a terminal's Ctrl-C (or a SIGTERM to the run's process group) reaches the run, which
+    # stops the loop, sends the disabling Setpoint and then stops the target (`_stop`), not the target first
+    proc = subprocess.Popen(cmd, env=dict(os.environ), stdout=subprocess.PIPE, stderr=err, start_new_session=True)
     stdout = proc.stdout
     if stdout is not None and _read_line(stdout, SPAWN_READY_TIMEOUT_S).startswith(READY_LINE):
         return proc, err

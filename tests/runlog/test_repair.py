@@ -137,3 +137,26 @@ def test_cli_refuses_output_onto_its_input(chunked_file: Path, capsys: pytest.Ca
     err = capsys.readouterr().err
     assert err.startswith("hil: error: -o ") and "reads or writes itself" in err
     assert chunked_file.read_bytes() == before
+
+
+def test_cli_never_replaces_a_fuller_output_without_overwrite(
+    chunked_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    good = tmp_path / "good.mcap"
+    assert main(["mcap-repair", str(chunked_file), "-o", str(good)]) == 0
+    before = good.read_bytes()
+    empty = tmp_path / "empty.mcap"
+    empty.write_bytes(MAGIC)  # a valid start, no message
+    assert main(["mcap-repair", str(empty), "-o", str(good)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("hil: error: -o ") and "--overwrite" in err and len(err.strip().splitlines()) == 1
+    assert good.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["empty.mcap", "good.mcap"]  # no temporary left
+    half = tmp_path / "half.mcap"
+    half.write_bytes(chunked_file.read_bytes()[: chunked_file.stat().st_size // 2])
+    assert main(["mcap-repair", str(half), "-o", str(good)]) == 2  # fewer messages than the good file
+    assert good.read_bytes() == before
+    assert main(["mcap-repair", str(chunked_file), "-o", str(good)]) == 0  # as many: replaced
+    assert main(["mcap-repair", str(empty), "-o", str(good), "--overwrite"]) == 0
+    assert _count_with_standard_reader(good) == 0
+    capsys.readouterr()

@@ -1,0 +1,72 @@
+"""One run at a time in a run directory: a second run into the same --out is refused with exit 2 (issue 26)."""
+
+from __future__ import annotations
+
+import fcntl
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from pmsm_hil.hil.cli.main import main
+from pmsm_hil.hil.runlog.reader import read_periods
+from pmsm_hil.hil.runner.run_dir_lock import LOCK_NAME, RunDirLockedError, run_dir_lock
+
+SHORT = ["--duration", "0.05", "--settle", "0"]
+
+
+def test_a_second_run_into_a_locked_out_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "r"
+    out.mkdir()
+    fd = os.open(out / LOCK_NAME, os.O_RDWR | os.O_CREAT)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)  # another open file: conflicts as another process would
+        os.write(fd, b"4242\n")
+        assert main(["run", "--out", str(out), *SHORT]) == 2
+        assert main(["run", "--out", str(out), "--overwrite", *SHORT]) == 2
+    finally:
+        os.close(fd)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2 and all(line.startswith(f"hil: error: --out {out}: another run (pid 4242)") for line in err)
+    assert sorted(p.name for p in out.iterdir()) == [LOCK_NAME]  # nothing written, nothing removed
+    assert main(["run", "--out", str(out), *SHORT]) == 0  # the lock is released with the process's file
+    assert json.loads((out / "metrics.json").read_text())["total_periods"] == read_periods(out / "run.mcap").shape[0]
+
+
+def test_concurrent_runs_into_one_out(tmp_path: Path) -> None:
+    """Three `hil run` processes into one --out: one writes it, the others exit 2 without touching it."""
+    out = tmp_path / "r"
+    cmd = [sys.executable, "-m", "pmsm_hil.hil.cli.main", "run", "--out", str(out), "--overwrite",
+           "--duration", "3", "--settle", "0", "--loop", "python"]  # ~10k periods/s: ~3 s
+    first = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 60
+    while not (out / "run.mcap").exists() and time.monotonic() < deadline:
+        time.sleep(0.02)
+    procs = [subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    others = [(p.wait(timeout=120), p.communicate()[1]) for p in procs]
+    first_err = first.communicate(timeout=120)[1].decode()
+    assert first.returncode == 0, first_err
+    for rc, err in others:
+        assert rc == 2 and err.startswith(f"hil: error: --out {out}: another run (pid {first.pid})"), err
+        assert "Traceback" not in err
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["total_periods"] == read_periods(out / "run.mcap").shape[0] == 30_000
+
+
+def test_the_lock_nests_in_one_process(tmp_path: Path) -> None:
+    with run_dir_lock(tmp_path / "r"), run_dir_lock(tmp_path / "r" / ".." / "r"):  # the CLI, then the runner
+        pass
+    with run_dir_lock(tmp_path / "r"):
+        fd = os.open(tmp_path / "r" / LOCK_NAME, os.O_RDWR)
+        try:
+            with pytest.raises(BlockingIOError):
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        finally:
+            os.close(fd)
+    (tmp_path / "f").write_text("x")
+    with pytest.raises(Exception, match="exists and is not a directory"), run_dir_lock(tmp_path / "f"):
+        pass
+    assert issubclass(RunDirLockedError, Exception)
