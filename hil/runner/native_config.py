@@ -60,7 +60,8 @@ def support_problem(cfg: RunConfig, lib: Any) -> str | None:
     """Why this run cannot use the native loop, None when it can."""
     kind = parse_spec(cfg.link).kind
     in_process = cfg.target in ("auto", "inproc") and kind == "virtual"
-    over_link = cfg.target in ("auto", "spawn", "external") and kind.lower() in NATIVE_WIRES
+    spawned = cfg.target in ("auto", "spawn", "external") or cfg.sil_isolated  # SIL: its own process
+    over_link = spawned and kind.lower() in NATIVE_WIRES
     if not (in_process or over_link):
         target = cfg.target.partition(":")[0]
         return (f"the native loop runs the in-process target on the virtual link or a spawned or external target "

@@ -28,6 +28,7 @@ from pmsm_hil.hil.runner.recorder import frame_records, period_records
 from pmsm_hil.hil.runner.run_config import RunConfig, controller_id
 from pmsm_hil.hil.runner.run_limits import check_run_limits
 from pmsm_hil.hil.runner.run_metadata import run_metadata, tap_setup_frames
+from pmsm_hil.hil.runner.sil_watch import isolated_config
 from pmsm_hil.hil.runner.target_client import DutViolationError
 from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target
 
@@ -79,6 +80,7 @@ def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None,
     is `outcome.error`). A target that breaks the contract while being configured (ConfigAck missing or echoing
     another value) ends the run with `end_code` 4 and no periods.
     `live`: optional consumer of each PERIOD_DTYPE block (~1000 periods), e.g. the live dashboard."""
+    cfg = isolated_config(cfg)  # a SIL target in its own process: its link and --step-timeout
     cid = controller_id(cfg.controller)
     check_run_limits(cfg)
     if cfg.mode == "realtime":
@@ -107,6 +109,8 @@ def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None,
             if outcome is None:
                 outcome = (_loop(cfg, conn, cid, sink) if python_reason
                            else run_native(cfg, conn, cid, sink, silent_after))
+            if conn.ending is not None:  # e.g. a SIL target process that crashed or hung
+                conn.ending(outcome)
         metrics = summarize(cfg, outcome, conn, sink)
         metrics["loop"], metrics["loop_note"] = "python" if python_reason else "native", python_reason
         metrics["warnings"] += realtime_warnings(cfg, conn)
@@ -204,7 +208,7 @@ def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection, sink: Ru
     metrics["speed_reference_missed"] = missed
     if speed_warning is not None:
         warnings.append(speed_warning)
-    if out.violation_count and out.end_code != EndCode.DUT_VIOLATION:
+    if out.violation_count and out.end_code != EndCode.DUT_VIOLATION and out.violation_count <= cfg.tolerate:
         warnings.append(f"{out.violation_count} DUT contract violation(s) tolerated (--tolerate {cfg.tolerate}); "
                         f"first: {out.violations[0].message()}")
     metrics["warnings"] = warnings
