@@ -16,6 +16,7 @@ import dataclasses
 import signal
 import subprocess
 import threading
+import time
 from types import FrameType
 from typing import Any
 
@@ -29,28 +30,46 @@ SIL_LINK_KINDS = ("udp", "serial")
 #: the link of an isolated SIL run given `--link virtual` (the default): the serial framing over a Unix socket
 #: pair (the target process inherits one end), so the runner sees the target's death at once (end of file)
 SOCKETPAIR_LINK = "serial:socketpair"
+#: ... in real time: two free UDP ports on 127.0.0.1
+REALTIME_LINK = "udp"
 #: wall time [s] a SIL target process gets to end after SIGTERM before SIGKILL (an endless loop ignores
 #: SIGTERM; Ctrl-C must end the run within 1 s)
 SIL_STOP_WAIT_S = 0.2
-#: wall time [s] the ending waits for a silent SIL target process to exit before it is taken as hung
-SIL_EXIT_GRACE_S = 0.5
+#: lockstep: wall time [s] a SIL target process that left a Command missing (after --step-timeout) is watched
+#: before it is taken as hung: it must compute all along (never wait for a frame) and not exit
+HANG_CONFIRM_S = 0.3
+#: how often the watch samples the process [s]
+HANG_SAMPLE_S = 0.002
 #: after Ctrl-C/SIGTERM, wall time [s] before a SIL target process still running is killed (a loop waiting
 #: for a hung step's Command then ends at once on the closed socket)
 SIL_INTERRUPT_KILL_S = 0.25
 
 
 def isolated_config(cfg: RunConfig) -> RunConfig:
-    """The run's settings for an isolated SIL target: its link (a virtual one becomes UDP) and the wait for
-    each Command (`--step-timeout`); any other run unchanged."""
+    """The run's settings for an isolated SIL target: its link (a virtual one becomes the socket pair, UDP in
+    real time) and the wait for each Command (`--step-timeout`); any other run unchanged."""
     if not cfg.sil_isolated:
         return cfg
-    link = cfg.link if parse_spec(cfg.link).kind.lower() in SIL_LINK_KINDS else SOCKETPAIR_LINK
+    if parse_spec(cfg.link).kind.lower() in SIL_LINK_KINDS:
+        link = cfg.link
+    else:  # real time: UDP (the socket pair has no bit rate for the link budget; a miss is seen within Ts anyway)
+        link = SOCKETPAIR_LINK if cfg.mode == "lockstep" else REALTIME_LINK
     return dataclasses.replace(cfg, link=link, lockstep_timeout_s=cfg.step_timeout_s)
 
 
-def _missing_period(out: LoopOutcome) -> int | None:
-    """The first period whose Command was missing (kept findings), None if none."""
-    return next((v.period for v in out.violations if v.rule == MISSING), None)
+def _silent_since(out: LoopOutcome) -> int | None:
+    """The first period of the last unbroken run of missing Commands up to the end (the period the target fell
+    silent in: real-time misses before it do not count), None if none or beyond the kept findings."""
+    if out.violation_count > len(out.violations):
+        return None
+    since, last = None, None
+    for v in out.violations:
+        if v.rule != MISSING:
+            continue
+        if last is None or v.period != last + 1:
+            since = v.period
+        last = v.period
+    return since if last is not None and last >= out.completed_periods - 1 else None
 
 
 def _ended_silent(out: LoopOutcome) -> bool:
@@ -70,19 +89,46 @@ def describe_exit(returncode: int) -> str:
     return f"exit code {returncode}"
 
 
-def judge(proc: subprocess.Popen[bytes], out: LoopOutcome, step_timeout_s: float) -> bool:
-    """Name the SIL target's part in the ending `out` (rewritten in place): its process died (crashed) or it
-    left a Command missing while alive (hung). An interrupted run stays interrupted. True when the target is
-    hung (the caller kills it rather than waiting)."""
+def _state(pid: int) -> str | None:
+    """The scheduler state of process `pid` (R running, S sleeping, ...; Linux /proc), None if unknown."""
+    try:
+        with open(f"/proc/{pid}/stat", encoding="ascii", errors="replace") as f:
+            return f.read().rsplit(")", 1)[1].split()[0]
+    except (OSError, IndexError):
+        return None
+
+
+def _watch(proc: subprocess.Popen[bytes], seconds: float, unknown_busy: bool) -> tuple[int | None, bool]:
+    """Watch a target process that left a Command missing for up to `seconds`: (its exit status if it ended
+    meanwhile — a dying process closes its socket a little before it can be reaped —, whether it computed the
+    whole time without once waiting for a frame: hung). Without /proc: `unknown_busy`."""
+    deadline = time.monotonic() + seconds
+    known = False
+    while True:
+        rc = proc.poll()
+        if rc is not None:
+            return rc, False
+        state = _state(proc.pid)
+        known = known or state is not None
+        if state == "S":  # waiting in its link's poll: alive and idle, the frame was lost or ignored
+            return None, False
+        if time.monotonic() >= deadline:
+            return None, unknown_busy if not known else True
+        time.sleep(HANG_SAMPLE_S)
+
+
+def judge(proc: subprocess.Popen[bytes], out: LoopOutcome, step_timeout_s: float, realtime: bool = False) -> bool:
+    """Name the SIL target's part in the ending `out` (rewritten in place): its process died (crashed), or it
+    left a Command missing and is still computing (hung: lockstep, the wait was --step-timeout already, so
+    `HANG_CONFIRM_S` more; real time, a missed deadline, so --step-timeout more). A target that waits idle
+    keeps the ending (a contract violation), as does an interrupted run. True when the target is hung (the
+    caller kills it rather than waiting)."""
     if out.end_code == EndCode.INTERRUPTED:
         return False
-    rc = proc.poll()
-    if rc is None and _ended_silent(out):  # a dying process closes its socket a little before it can be reaped
-        try:
-            rc = proc.wait(timeout=SIL_EXIT_GRACE_S)
-        except subprocess.TimeoutExpired:
-            rc = None
-    period = _missing_period(out)
+    rc, hung = proc.poll(), False
+    if rc is None and _ended_silent(out):
+        rc, hung = _watch(proc, step_timeout_s if realtime else HANG_CONFIRM_S, unknown_busy=not realtime)
+    period = _silent_since(out)
     if period is not None:
         where = f"at period {period}"
     else:
@@ -93,12 +139,12 @@ def judge(proc: subprocess.Popen[bytes], out: LoopOutcome, step_timeout_s: float
                           f"(zero vector)")
         out.safe_state = True
         return False
-    if not _ended_silent(out):
+    if not hung:
         return False
     out.end_code = int(EndCode.SAFETY_STOP)
-    out.end_reason = (f"target hung: no Command for period {period if period is not None else '?'} within "
-                      f"--step-timeout {step_timeout_s:g} s (wall time); target process killed, inverter put in "
-                      f"the safe state (zero vector)")
+    out.end_reason = (f"target hung: its step for period {period if period is not None else '?'} did not return "
+                      f"within --step-timeout {step_timeout_s:g} s (wall time); target process killed, inverter "
+                      f"put in the safe state (zero vector)")
     return True
 
 

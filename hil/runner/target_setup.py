@@ -232,7 +232,7 @@ def _connect_sil_process(cfg: RunConfig, library: str) -> TargetConnection:
     conn.extra.insert(0, guard)  # disarmed first on close
 
     def ending(out: LoopOutcome) -> None:
-        if judge(proc, out, cfg.step_timeout_s):
+        if judge(proc, out, cfg.step_timeout_s, realtime=cfg.mode == "realtime"):
             proc.kill()
 
     conn.ending = ending

@@ -102,7 +102,7 @@ def test_an_endless_loop_ends_with_exit_3_and_the_target_killed(firmware: dict[s
     elapsed = time.monotonic() - t0
     assert proc.returncode == 3, err
     assert elapsed < 30.0
-    assert "target hung: no Command for period 500 within --step-timeout 1 s" in err
+    assert "target hung: its step for period 500 did not return within --step-timeout 1 s" in err
     metrics, periods = _outputs(out)
     assert metrics["end_code"] == 3 and len(periods) == metrics["end_period"] + 1 == 501
     assert _sil_processes(firmware["hang"]) == []  # killed, not left spinning
@@ -147,3 +147,12 @@ def test_in_process_is_explicit(firmware: dict[str, Path]) -> None:
     res = run_closed_loop(rated(f"sil:{firmware['crash']}", settle_s=0.01, duration_s=0.02,
                                 controller="external", sil_in_process=True))
     assert res.metrics["end_code"] == 0 and res.metrics["link_spec"] == "virtual"
+
+
+def test_an_idle_target_missing_a_command_is_not_hung(reference_sil: Path) -> None:
+    """A Measurement lost on the way (injected): the firmware waits idle for frames, so the missing Command stays
+    a contract violation (exit 4), not a hung target."""
+    res = run_closed_loop(rated(f"sil:{reference_sil}", settle_s=0.01, duration_s=0.05, faults="drop.up=0.01,seed=3",
+                                step_timeout_s=0.2))
+    assert res.metrics["end_code"] == 4, res.metrics["end_reason"]
+    assert "missing: no Command" in res.metrics["end_reason"]
