@@ -57,7 +57,7 @@ def isolated_config(cfg: RunConfig) -> RunConfig:
     return dataclasses.replace(cfg, link=link, lockstep_timeout_s=cfg.step_timeout_s)
 
 
-def _silent_since(out: LoopOutcome) -> int | None:
+def silent_since(out: LoopOutcome) -> int | None:
     """The first period of the last unbroken run of missing Commands up to the end (the period the target fell
     silent in: real-time misses before it do not count), None if none or beyond the kept findings."""
     if out.violation_count > len(out.violations):
@@ -72,7 +72,7 @@ def _silent_since(out: LoopOutcome) -> int | None:
     return since if last is not None and last >= out.completed_periods - 1 else None
 
 
-def _ended_silent(out: LoopOutcome) -> bool:
+def ended_silent(out: LoopOutcome) -> bool:
     """The loop ended because Commands went missing (contract `missing`, or the watchdog)."""
     if out.end_code == EndCode.DUT_VIOLATION:
         return bool(out.violations) and out.violations[-1].rule == MISSING
@@ -126,9 +126,10 @@ def judge(proc: subprocess.Popen[bytes], out: LoopOutcome, step_timeout_s: float
     if out.end_code == EndCode.INTERRUPTED:
         return False
     rc, hung = proc.poll(), False
-    if rc is None and _ended_silent(out):
+    link_failed = out.end_code == EndCode.INTERNAL_ERROR  # e.g. a broken pipe: the target's socket closed
+    if rc is None and (ended_silent(out) or link_failed):
         rc, hung = _watch(proc, step_timeout_s if realtime else HANG_CONFIRM_S, unknown_busy=not realtime)
-    period = _silent_since(out)
+    period = silent_since(out)
     if period is not None:
         where = f"at period {period}"
     else:
@@ -138,8 +139,9 @@ def judge(proc: subprocess.Popen[bytes], out: LoopOutcome, step_timeout_s: float
         out.end_reason = (f"target crashed ({describe_exit(rc)} {where}); inverter put in the safe state "
                           f"(zero vector)")
         out.safe_state = True
+        out.error = None  # the link's error was the target's death, not the tool's
         return False
-    if not hung:
+    if not hung or not ended_silent(out):
         return False
     out.end_code = int(EndCode.SAFETY_STOP)
     out.end_reason = (f"target hung: its step for period {period if period is not None else '?'} did not return "

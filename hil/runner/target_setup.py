@@ -298,8 +298,11 @@ def _connect_qemu(cfg: RunConfig, path: str) -> TargetConnection:
     except BaseException:
         qemu.close()
         raise
+    from pmsm_hil.hil.runner.qemu_ending import judge_qemu
+
     codec = FrameCodec("canfd")  # both transports carry the CAN FD layouts, as the serial link does
-    return TargetConnection(TargetClient(host_link, codec), host_link, extra=[qemu], extra_metrics=qemu.metrics)
+    return TargetConnection(TargetClient(host_link, codec), host_link, extra=[qemu], extra_metrics=qemu.metrics,
+                            ending=lambda out: judge_qemu(qemu, out, cfg.lockstep_timeout_s))
 
 
 def connect_target(cfg: RunConfig, *, silent_after: int | None = None, native_target: bool = False) -> TargetConnection:

@@ -2,8 +2,8 @@
  * A user firmware that misbehaves at control step MISBEHAVE_AT (tests of the SIL target's own process,
  * tests/firmware_board/test_sil_isolation.py). Until then it is a valid DUT: it acknowledges every parameter,
  * takes any controller and answers each Measurement with the zero vector over Ts. At step MISBEHAVE_AT it
- * writes through a null pointer (MISBEHAVE_CRASH: SIGSEGV), calls abort() (MISBEHAVE_ABORT: SIGABRT) or
- * never returns (MISBEHAVE_HANG).
+ * writes through a null pointer (MISBEHAVE_CRASH: SIGSEGV on the host; on the Cortex-M4F an undefined
+ * instruction, a fault), calls abort() (MISBEHAVE_ABORT: SIGABRT) or never returns (MISBEHAVE_HANG).
  */
 #include <stdint.h>
 #include <stdlib.h>
@@ -15,7 +15,9 @@
 
 static uint32_t g_ts_ns = 100000u;
 static uint32_t g_steps;
+#if !defined(__arm__)
 static int *volatile g_nowhere; /* NULL, and the compiler cannot prove it */
+#endif
 static volatile uint32_t g_spins;
 
 void hil_app_init(void)
@@ -54,7 +56,9 @@ void hil_app_step(const hil_app_meas_t *m, hil_app_cmd_t *cmd)
 {
     (void)m;
     if (g_steps++ == MISBEHAVE_AT) {
-#if defined(MISBEHAVE_CRASH)
+#if defined(MISBEHAVE_CRASH) && defined(__arm__)
+        __builtin_trap(); /* an undefined instruction: UsageFault, escalated to HardFault */
+#elif defined(MISBEHAVE_CRASH)
         *g_nowhere = 1;
 #elif defined(MISBEHAVE_ABORT)
         abort();
