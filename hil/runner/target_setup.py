@@ -153,7 +153,8 @@ def _spawn_target(spec: str, native: bool = False, sil: str | None = None,
         detail = f"exit code {proc.returncode}"
     if stdout is not None:
         stdout.close()
-    raise TargetError(f"spawned target on {spec!r} did not start: {detail}")
+    who = f"SIL target process for {sil}" if sil is not None else f"spawned target on {spec!r}"
+    raise TargetError(f"{who} did not start: {detail}")
 
 
 def _drain(err: IO[bytes]) -> str:

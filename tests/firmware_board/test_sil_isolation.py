@@ -1,7 +1,7 @@
-"""The SIL target in its own process (issue 26): a user firmware that crashes, aborts or never returns at step
-500 (tests/firmware_board/misbehave/, built with `hil fw build`) ends `hil run` with exit 3 and the cause named,
-metrics.json and an MCAP of end_period + 1 periods; Ctrl-C/SIGTERM end a hung run within 1 s; a pytest session
-survives the crash (its JUnit XML lists every test)."""
+"""The SIL target in its own process (issue 26): a user firmware that crashes, aborts, overflows its stack or
+never returns at step 500 (tests/firmware_board/misbehave/, built with `hil fw build`) ends `hil run` with exit 3
+and the cause named, metrics.json and an MCAP of end_period + 1 periods; Ctrl-C/SIGTERM end a hung run within
+1 s; a pytest session survives the crash (its JUnit XML lists every test)."""
 
 from __future__ import annotations
 
@@ -32,7 +32,7 @@ RUN = ["--controller=external", "--settle=0.02", "--duration=0.1"]  # 1200 perio
 @pytest.fixture(scope="module")
 def firmware() -> dict[str, Path]:
     need("host")
-    return {kind: build_firmware("host", MISBEHAVE / kind).path for kind in ("crash", "abort", "hang")}
+    return {kind: build_firmware("host", MISBEHAVE / kind).path for kind in ("crash", "abort", "overflow", "hang")}
 
 
 def _hil_run(args: list[str], **kw: Any) -> subprocess.Popen[str]:
@@ -85,12 +85,15 @@ def test_a_crash_at_step_500_ends_with_exit_3_and_every_period_logged(firmware: 
     assert metrics["safe_state"] is True and metrics["warnings"] == []
 
 
-def test_abort_is_named_too(firmware: dict[str, Path], tmp_path: Path) -> None:
-    """In this process (the runner's API): the abort() in the firmware's process leaves the caller standing."""
-    res = run_closed_loop(rated(f"sil:{firmware['abort']}", settle_s=0.02, duration_s=0.1, controller="external",
+@pytest.mark.parametrize(("kind", "signame"), [("abort", "SIGABRT"), ("overflow", "SIGSEGV")])
+def test_abort_and_stack_overflow_are_named_too(firmware: dict[str, Path], tmp_path: Path, kind: str,
+                                                signame: str) -> None:
+    """In this process (the runner's API): abort() or a stack overflow in the firmware's process leaves the
+    caller standing."""
+    res = run_closed_loop(rated(f"sil:{firmware[kind]}", settle_s=0.02, duration_s=0.1, controller="external",
                                 out_dir=tmp_path, step_timeout_s=5.0))
-    assert res.metrics["end_code"] == 3
-    assert res.metrics["end_reason"].startswith("target crashed (SIGABRT at period 500)")
+    assert res.metrics["end_code"] == 3 and res.outcome.error is None
+    assert res.metrics["end_reason"].startswith(f"target crashed ({signame} at period 500)")
     assert len(read_periods(tmp_path / "run.mcap")) == res.metrics["end_period"] + 1 == 501
 
 

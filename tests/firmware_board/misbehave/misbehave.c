@@ -3,7 +3,8 @@
  * tests/firmware_board/test_sil_isolation.py). Until then it is a valid DUT: it acknowledges every parameter,
  * takes any controller and answers each Measurement with the zero vector over Ts. At step MISBEHAVE_AT it
  * writes through a null pointer (MISBEHAVE_CRASH: SIGSEGV on the host; on the Cortex-M4F an undefined
- * instruction, a fault), calls abort() (MISBEHAVE_ABORT: SIGABRT) or never returns (MISBEHAVE_HANG).
+ * instruction, a fault), calls abort() (MISBEHAVE_ABORT: SIGABRT), recurses without end (MISBEHAVE_OVERFLOW: a
+ * stack overflow, SIGSEGV) or never returns (MISBEHAVE_HANG).
  */
 #include <stdint.h>
 #include <stdlib.h>
@@ -52,6 +53,21 @@ int hil_app_setpoint(uint8_t enable, uint8_t mode, float reference)
     return HIL_APP_OK;
 }
 
+#if defined(MISBEHAVE_OVERFLOW)
+static volatile uint32_t g_depth_limit; /* 0: none (the compiler cannot prove the recursion endless) */
+
+/* endless recursion with a frame the compiler keeps: a stack overflow */
+static uint32_t deeper(uint32_t depth)
+{
+    volatile uint8_t frame[256];
+    frame[depth % 256u] = (uint8_t)depth;
+    if (g_depth_limit != 0u && depth >= g_depth_limit) {
+        return frame[0];
+    }
+    return deeper(depth + 1u) + frame[(depth + 1u) % 256u];
+}
+#endif
+
 void hil_app_step(const hil_app_meas_t *m, hil_app_cmd_t *cmd)
 {
     (void)m;
@@ -62,6 +78,8 @@ void hil_app_step(const hil_app_meas_t *m, hil_app_cmd_t *cmd)
         *g_nowhere = 1;
 #elif defined(MISBEHAVE_ABORT)
         abort();
+#elif defined(MISBEHAVE_OVERFLOW)
+        (void)deeper(0u);
 #elif defined(MISBEHAVE_HANG)
         for (;;) {
             g_spins++;
