@@ -190,5 +190,6 @@ class InterruptGuard:
             self._timer.cancel()
         for signum, handler in self._previous.items():
             with contextlib.suppress(ValueError):
-                signal.signal(signum, handler)
+                if signal.getsignal(signum) == self._on_signal:  # not replaced since (the runner restores its own)
+                    signal.signal(signum, handler)
         self._previous.clear()

@@ -159,3 +159,10 @@ def test_an_idle_target_missing_a_command_is_not_hung(reference_sil: Path) -> No
                                 step_timeout_s=0.2))
     assert res.metrics["end_code"] == 4, res.metrics["end_reason"]
     assert "missing: no Command" in res.metrics["end_reason"]
+
+
+def test_signal_handlers_are_restored(reference_sil: Path) -> None:
+    before = (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM))
+    res = run_closed_loop(rated(f"sil:{reference_sil}", settle_s=0.01, duration_s=0.01))
+    assert res.metrics["end_code"] == 0
+    assert (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)) == before
