@@ -29,8 +29,9 @@ from pmsm_hil.hil.runner.run_config import RunConfig, controller_id
 from pmsm_hil.hil.runner.run_limits import check_run_limits
 from pmsm_hil.hil.runner.run_metadata import run_metadata, tap_setup_frames
 from pmsm_hil.hil.runner.sil_watch import isolated_config
-from pmsm_hil.hil.runner.target_client import DutViolationError
+from pmsm_hil.hil.runner.target_client import DutViolationError, TargetError
 from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target
+from pmsm_hil.protocol.errors import LinkError
 
 
 @dataclass(slots=True)
@@ -101,11 +102,14 @@ def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None,
                 outcome = LoopOutcome(period_records(), frame_records(), np.zeros(0, cfg.machine.layout.trace_dtype),
                                       0, end_reason=f"DUT contract violation while configuring: {exc}",
                                       end_code=int(EndCode.DUT_VIOLATION), safe_state=True)
-                with tap_setup_frames(conn.client, logger):  # the disabling Setpoint is logged too
-                    conn.client.set_setpoint(enable=False, mode=0, reference=0.0, controller_id=cid)
-                    if conn.inproc_result is None:  # let it arrive before the link closes
-                        conn.client.linger(ClosedLoop.LINGER_S)
-                outcome.target_disabled = True
+                try:
+                    with tap_setup_frames(conn.client, logger):  # the disabling Setpoint is logged too
+                        conn.client.set_setpoint(enable=False, mode=0, reference=0.0, controller_id=cid)
+                        if conn.inproc_result is None:  # let it arrive before the link closes
+                            conn.client.linger(ClosedLoop.LINGER_S)
+                    outcome.target_disabled = True
+                except (LinkError, TargetError):  # the target is gone (e.g. a SIL process that crashed)
+                    outcome.target_disabled = False
             if outcome is None:
                 outcome = (_loop(cfg, conn, cid, sink) if python_reason
                            else run_native(cfg, conn, cid, sink, silent_after))

@@ -32,7 +32,7 @@ from pmsm_hil.hil.runner.sil_watch import (
     isolated_config,
     judge,
 )
-from pmsm_hil.hil.runner.target_client import TargetClient, TargetError
+from pmsm_hil.hil.runner.target_client import DutViolationError, TargetClient, TargetError
 from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.links import Link, link_kind, open_link, parse_spec
 from pmsm_hil.protocol.links.udp_bus import UdpUnicastBus
@@ -236,7 +236,12 @@ def _connect_sil_process(cfg: RunConfig, library: str) -> TargetConnection:
         if judge(proc, out, cfg.step_timeout_s, realtime=cfg.mode == "realtime"):
             proc.kill()
 
+    def pump() -> None:  # waits of the client (configuration, safe stop, the Python loop) end on its death
+        if proc.poll() is not None:
+            raise DutViolationError(f"the SIL target process ended ({describe_exit(proc.returncode)})")
+
     conn.ending = ending
+    conn.client.pump = pump
     return conn
 
 

@@ -32,7 +32,8 @@ RUN = ["--controller=external", "--settle=0.02", "--duration=0.1"]  # 1200 perio
 @pytest.fixture(scope="module")
 def firmware() -> dict[str, Path]:
     need("host")
-    return {kind: build_firmware("host", MISBEHAVE / kind).path for kind in ("crash", "abort", "overflow", "hang")}
+    kinds = ("crash", "abort", "overflow", "hang", "config")
+    return {kind: build_firmware("host", MISBEHAVE / kind).path for kind in kinds}
 
 
 def _hil_run(args: list[str], **kw: Any) -> subprocess.Popen[str]:
@@ -166,3 +167,12 @@ def test_signal_handlers_are_restored(reference_sil: Path) -> None:
     res = run_closed_loop(rated(f"sil:{reference_sil}", settle_s=0.01, duration_s=0.01))
     assert res.metrics["end_code"] == 0
     assert (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)) == before
+
+
+def test_a_crash_while_being_configured(firmware: dict[str, Path], tmp_path: Path) -> None:
+    res = run_closed_loop(rated(f"sil:{firmware['config']}", controller="external", out_dir=tmp_path))
+    m = res.metrics
+    assert m["end_code"] == 3 and m["end_period"] == -1 and res.outcome.error is None
+    assert m["end_reason"].startswith("target crashed (SIGSEGV while being configured)")
+    assert m["target_disabled"] is False  # nobody left to disable
+    assert json.loads((tmp_path / "metrics.json").read_text())["end_code"] == 3

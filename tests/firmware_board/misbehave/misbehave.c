@@ -4,7 +4,7 @@
  * takes any controller and answers each Measurement with the zero vector over Ts. At step MISBEHAVE_AT it
  * writes through a null pointer (MISBEHAVE_CRASH: SIGSEGV on the host; on the Cortex-M4F an undefined
  * instruction, a fault), calls abort() (MISBEHAVE_ABORT: SIGABRT), recurses without end (MISBEHAVE_OVERFLOW: a
- * stack overflow, SIGSEGV) or never returns (MISBEHAVE_HANG).
+ * stack overflow, SIGSEGV) or never returns (MISBEHAVE_HANG). MISBEHAVE_CONFIG crashes on the ConfigParam Ts.
  */
 #include <stdint.h>
 #include <stdlib.h>
@@ -29,6 +29,11 @@ void hil_app_init(void)
 
 int hil_app_config(uint8_t param_id, float value)
 {
+#if defined(MISBEHAVE_CONFIG) && !defined(__arm__)
+    if (param_id == HIL_FW_P_TS) {
+        *g_nowhere = 1; /* crashes while being configured */
+    }
+#endif
     if (param_id == HIL_FW_P_TS) {
         g_ts_ns = (uint32_t)(value * 1e9f + 0.5f);
     }
