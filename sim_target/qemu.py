@@ -79,6 +79,20 @@ WAIT_SLICE_MS = 2
 MBOX_H2T_PATH, MBOX_T2H_PATH, MBOX_PATH_SIZE = 0x840, 0x940, 0x100
 
 
+#: QEMU's exit code after the firmware faulted: FAULT_EXIT_BASE + the exception number (board.h,
+#: HIL_BOARD_FAULT_EXIT_BASE; startup.c ends QEMU through semihosting SYS_EXIT_EXTENDED)
+FAULT_EXIT_BASE = 64
+FAULT_NAMES = {3: "HardFault", 4: "MemManage fault", 5: "BusFault", 6: "UsageFault"}
+
+
+def fault_name(returncode: int) -> str | None:
+    """The fault a QEMU exit code reports ("HardFault", ...), None when it reports none."""
+    exc = returncode - FAULT_EXIT_BASE
+    if exc in FAULT_NAMES:
+        return FAULT_NAMES[exc]
+    return f"fault exception {exc}" if 0 < exc < 16 else None
+
+
 class QemuError(FirmwareError):
     """QEMU or the plugin compiler is missing, the ELF lacks the core's symbols, or QEMU did not start."""
 
@@ -166,8 +180,10 @@ class QemuTarget:
             cmd[2:3] = [f"{MACHINE},memory-backend=psram", "-object",
                         f"memory-backend-file,id=psram,size={PSRAM_SIZE},mem-path={self.psram_path},share=on",
                         "-semihosting-config", "enable=on,target=native"]
+        else:  # semihosting for the fault handler's exit (the mailbox has it for its doorbells)
+            cmd += ["-semihosting-config", "enable=on,target=native"]
         cfg_words = (CFG_MAGIC, round(self.mcu_clock_hz), 1 << ICOUNT_SHIFT, round(CPI * 1000),
-                     TRANSPORTS.index(transport))
+                     TRANSPORTS.index(transport), 1)  # the last: fault_exit
         for offset, value in enumerate(cfg_words):
             cmd += ["-device", f"loader,addr={cfg_addr + 4 * offset:#x},data={value},data-len=4"]
         if self.counts_path is not None:
@@ -216,6 +232,12 @@ class QemuTarget:
             if time.monotonic() > deadline:
                 raise QemuError(f"QEMU did not open its UART socket within {START_TIMEOUT_S:g} s")
             time.sleep(0.005)
+
+    def stderr_tail(self, chars: int = 300) -> str:
+        """The end of what QEMU wrote to its stderr, on one line (without its start-up warning about the
+        board's unconnected network card)."""
+        lines = [line for line in self._stderr_text().splitlines() if "has no peer" not in line]
+        return " ".join(" ".join(lines)[-chars:].split())
 
     def _stderr_text(self) -> str:
         with contextlib.suppress(OSError, ValueError):

@@ -1,5 +1,7 @@
 """Software in the loop: a firmware of the HIL target core built for the host (`hil fw build --board host`)
-as a shared library, served in-process behind any link like the Python virtual target.
+as a shared library, loaded here and served by a `hil target --native --sil PATH` process (the default: the
+runner's process survives the firmware's crashes) or in the runner's process behind any link like the Python
+virtual target (`--sil-in-process`).
 
 The library exports the core (firmware_stub/target/hil_target_core.h): frames in (`hil_core_rx`), frames out
 (`hil_core_tx`). Each `SilFirmware` loads a private copy of the library, so two instances (two runs in one
@@ -102,6 +104,13 @@ class SilFirmware:
         while self._tx(self._out_ref):
             replies.append(Frame(out.id, bytes(out.data[:out.len]), bool(out.fd)))
         return replies
+
+    def entry_points(self) -> tuple[int, int]:
+        """Addresses of this copy's `hil_core_rx` and `hil_core_tx` (for a C serve loop in this process)."""
+        rx = ctypes.cast(self._rx, ctypes.c_void_p).value
+        tx = ctypes.cast(self._tx, ctypes.c_void_p).value
+        assert rx is not None and tx is not None
+        return rx, tx
 
     def counters(self) -> dict[str, int]:
         """The core's counters (hil_core_counters_t)."""

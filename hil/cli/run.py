@@ -38,13 +38,14 @@ DEFAULTS: dict[str, Any] = {"motor": "niu2020-ipmsm", "controller": "mpcc", "sce
                             "miss_policy": "hold", "watchdog_periods": 10, "adc_lsb": 0.0, "noise": 0.0,
                             "encoder_counts": 0, "no_log": False, "log_trace": False, "tolerate": 0,
                             "lockstep_timeout": 0.5, "overrun_threshold": None, "mcu_clock": 168e6,
-                            "loop": "auto", "rt_priority": 0, "cpu": None}
+                            "loop": "auto", "rt_priority": 0, "cpu": None, "step_timeout": 0.5,
+                            "sil_in_process": False}
 
 #: `hil run` exit codes (= metrics `end_code`), printed by --help.
 EXIT_CODES = ("exit codes: 0 completed, 1 internal error, 2 usage/config error, 3 safety stop (watchdog, plant "
-              "trip, target fault, safe stop not confirmed), 4 DUT contract violation, 130 interrupted "
-              "(Ctrl-C/SIGTERM); every ending but 2 writes metrics.json (end_reason, end_period, end_code) and the "
-              "log up to the last period")
+              "trip, target fault, safe stop not confirmed, SIL target crashed or hung), 4 DUT contract violation, "
+              "130 interrupted (Ctrl-C/SIGTERM); every ending but 2 writes metrics.json (end_reason, end_period, "
+              "end_code) and the log up to the last period")
 
 
 def add_run_arguments(p: argparse.ArgumentParser) -> None:
@@ -76,11 +77,18 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--target", metavar="KIND",
                    help="who runs the target: auto (virtual → in-process), inproc, spawn a `hil target` process, "
                         "external (a real board), sil:PATH (a firmware built with `hil fw build --board host`, or "
-                        "its source folder, in-process) or qemu:PATH.elf (a firmware built for mps2-an386, run in "
-                        f"QEMU over its emulated UART; docs/firmware_api.md){_default('target')}")
+                        "its source folder, served from its own process) or qemu:PATH.elf (a firmware built for "
+                        f"mps2-an386, run in QEMU over its emulated UART; docs/firmware_api.md){_default('target')}")
     p.add_argument("--mcu-clock", type=_clock_hz, metavar="HZ",
                    help="qemu targets: MCU clock of the execution-time estimate, Hz or with a unit (168MHz) "
                         "(default 168 MHz)")
+    p.add_argument("--step-timeout", type=positive_float("--step-timeout"), metavar="S",
+                   help="sil targets: wall time a firmware step may take before the target is 'hung' (exit 3) "
+                        "[s]; the wait for each Command of a SIL run, in place of --lockstep-timeout"
+                        f"{_default('step_timeout')}")
+    p.add_argument("--sil-in-process", action="store_true", default=None,
+                   help="sil targets: load the library into this process (UNPROTECTED: a crash of the firmware "
+                        "ends `hil run` without metrics, an endless loop hangs it) instead of its own process")
     p.add_argument("--seed", type=non_negative_int("--seed"), help=f"seed for sensor noise{_default('seed')}")
     p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                    help="controller parameter (SI units), e.g. lambda=0.5, t_thr=8e-6, speed_kp=0.8")
@@ -214,6 +222,7 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
                             miss_policy=str(pick("miss_policy")), watchdog_periods=int(pick("watchdog_periods")),
                             tolerate=int(pick("tolerate")), faults=str(pick("fault") or ""),
                             lockstep_timeout_s=float(pick("lockstep_timeout")),
+                            step_timeout_s=float(pick("step_timeout")), sil_in_process=bool(pick("sil_in_process")),
                             mcu_clock_hz=float(pick("mcu_clock")), loop=str(pick("loop")),
                             rt_priority=int(pick("rt_priority")),
                             cpu=None if pick("cpu") is None else int(pick("cpu")),

@@ -25,6 +25,9 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("--native", action="store_true",
                    help="serve from a C loop (udp links only; what `hil run --target spawn` starts for the native "
                         "loop)")
+    p.add_argument("--sil", metavar="PATH",
+                   help="serve this SIL library (`hil fw build --board host`) from the C loop instead of the "
+                        "reference firmware (implies --native; what `hil run --target sil:PATH` starts)")
     p.set_defaults(func=run)
 
 
@@ -42,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
     """Execute `hil target`."""
     from pmsm_hil.sim_target.process import LINK_STATS_LINE, READY_LINE, serve
 
-    if args.native:
+    if args.native or args.sil is not None:
         return _run_native(args)
 
     served = serve(args.link, args.controller, role=args.role, max_idle_s=args.idle_timeout,
@@ -62,9 +65,10 @@ def _run_native(args: argparse.Namespace) -> int:
     if args.controller is not None:
         raise ParameterError("--controller: not with --native (the host's Setpoint selects the controller)")
     served = serve_native(args.link, role=args.role, max_idle_s=args.idle_timeout, parent_pid=args.parent_pid,
-                          on_ready=lambda: print(f"{READY_LINE} {args.link}", flush=True))
+                          on_ready=lambda: print(f"{READY_LINE} {args.link}", flush=True), sil=args.sil)
     c = served.counters
     print(f"target stopped ({served.reason}): {c['measurements']} measurements, {c['commands']} commands, "
-          f"{c['config_writes']} config writes ({c['config_rejected']} rejected), {c['faults']} faults (native)")
+          f"{c['config_writes']} config writes ({c['config_rejected']} rejected), {c['faults']} faults "
+          f"({'sil' if args.sil is not None else 'native'})")
     print(f"{LINK_STATS_LINE} {json.dumps(served.link_stats)}", flush=True)
     return 0

@@ -252,6 +252,9 @@ int nl_socketcan_recv(nl_socketcan_t *s, hil_core_frame_t *f, int64_t deadline_n
 #define NT_END_IDLE ...
 #define NT_END_CLOSED ...
 int32_t nt_serve(const nl_link_t *l, int64_t idle_ns, int32_t parent_pid);
+typedef void (*nt_core_rx_fn)(uint32_t id, const uint8_t *data, uint8_t len, uint8_t fd);
+typedef int (*nt_core_tx_fn)(hil_core_frame_t *out);
+int32_t nt_serve_core(const nl_link_t *l, int64_t idle_ns, int32_t parent_pid, nt_core_rx_fn rx, nt_core_tx_fn tx);
 typedef struct {
     uint32_t frames_rx, measurements, commands, config_writes, config_rejected, faults, unknown_id, bad_length,
         tx_overflow, steps;

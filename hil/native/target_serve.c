@@ -1,4 +1,5 @@
-/* The native target's serve loop (target_serve.h): sim_target/process.py `serve` over the C target core. */
+/* The native target's serve loop (target_serve.h): sim_target/process.py `serve` over the C target core (linked in,
+ * or a SIL library's, through its function pointers). */
 #define _POSIX_C_SOURCE 200809L
 
 #include <signal.h>
@@ -21,6 +22,11 @@ static void on_signal(int signum)
 
 int32_t nt_serve(const nl_link_t *l, int64_t idle_ns, int32_t parent_pid)
 {
+    return nt_serve_core(l, idle_ns, parent_pid, hil_core_rx, hil_core_tx);
+}
+
+int32_t nt_serve_core(const nl_link_t *l, int64_t idle_ns, int32_t parent_pid, nt_core_rx_fn rx, nt_core_tx_fn tx)
+{
     struct sigaction sa;
     struct sigaction old_term;
     struct sigaction old_int;
@@ -39,8 +45,8 @@ int32_t nt_serve(const nl_link_t *l, int64_t idle_ns, int32_t parent_pid)
         int64_t now = nl_now_ns();
         const int got = l->recv(l->ctx, &in, now + CHECK_NS);
         if (got > 0) {
-            hil_core_rx(in.id, in.data, in.len, in.fd);
-            while (hil_core_tx(&out)) {
+            rx(in.id, in.data, in.len, in.fd);
+            while (tx(&out)) {
                 (void)l->send(l->ctx, &out);
             }
             now = nl_now_ns();

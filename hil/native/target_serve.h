@@ -10,6 +10,7 @@
 
 #include <stdint.h>
 
+#include "hil_target_core.h"
 #include "nl_link.h"
 
 #define NT_END_SIGNAL 1
@@ -19,5 +20,11 @@
 
 /* Serve until an ending (NT_END_*); idle_ns 0: never idle, parent_pid 0: no parent check. */
 int32_t nt_serve(const nl_link_t *l, int64_t idle_ns, int32_t parent_pid);
+
+/* The same loop over another copy of the core: a SIL library's hil_core_rx / hil_core_tx (`hil target --native
+ * --sil PATH`, the SIL target in its own process; the caller loaded the library and called its hil_core_init). */
+typedef void (*nt_core_rx_fn)(uint32_t id, const uint8_t *data, uint8_t len, uint8_t fd);
+typedef int (*nt_core_tx_fn)(hil_core_frame_t *out);
+int32_t nt_serve_core(const nl_link_t *l, int64_t idle_ns, int32_t parent_pid, nt_core_rx_fn rx, nt_core_tx_fn tx);
 
 #endif

@@ -129,7 +129,7 @@ class NativeLoop:
             restore_cpus()
             with contextlib.suppress(Exception):
                 self._drain(out)
-            self._finish(out, interrupted)
+            self._finish(out, interrupted or stop.requested)  # a stop asked by a signal ends as interrupted
             self._stop(out)
             out.wall_time_s = (time.perf_counter_ns() - self._t_wall0) / 1e9
             try:

@@ -65,9 +65,10 @@ def _define_callbacks(ffi: Any) -> None:
 
 class NativePyLink(LinkFacade):
     """A Python `link` the C loop drives through callbacks, usable by `TargetClient` between runs as the link
-    itself. `pump`: an in-process target's service (called before each receive; such a target answers inside
-    it, so a receive never waits); `inproc_result`: what that target says of its last step (stage split [ns],
-    torque reference [N·m], candidate miss), recorded with each reply as the Python loop does; `fd`: the host's
+    itself. `pump`: called before each receive (an in-process target's service, or a liveness check of a
+    target's process); `inproc_result`: given for an in-process target (which answers inside its pump, so a
+    receive never waits): what it says of its last step (stage split [ns], torque reference [N·m], candidate
+    miss), recorded with each reply as the Python loop does; `fd`: the host's
     frame profile is CAN FD. An exception in a callback (a bus error) stops the loop and is raised after it
     (`error`)."""
 
@@ -108,8 +109,8 @@ class NativePyLink(LinkFacade):
 
     @property
     def other_process(self) -> bool:
-        """The target runs in another process or on a board (no pump): replies take wall time."""
-        return self.pump is None
+        """The target runs in another process or on a board (no `inproc_result`): replies take wall time."""
+        return self.inproc_result is None
 
     def attach(self, c: Any, lockstep_timeout_s: float) -> None:
         """Give the loop's nl_config_t `c` this link."""
@@ -172,7 +173,7 @@ class NativePyLink(LinkFacade):
             if nxt is not None and nxt <= self._period_deadline_s:
                 self.clock_s = max(self.clock_s, nxt)  # the next delayed frame arrives
                 continue
-            if self.pump is not None or time.monotonic_ns() >= deadline_ns:
+            if self.inproc_result is not None or time.monotonic_ns() >= deadline_ns:
                 return None
 
     def detach(self) -> None:
@@ -195,10 +196,13 @@ class NativePyLink(LinkFacade):
         """The next frame into `f` (1), or 0 when none came before `deadline_ns` (CLOCK_MONOTONIC; 0: poll)."""
         if deadline_ns > 0 and self._delayed:
             frame = self._await_delayed(deadline_ns)
-        elif self.pump is not None:
-            self.pump()
+        elif self.inproc_result is not None:  # an in-process target answers inside its pump: no wait
+            if self.pump is not None:
+                self.pump()
             frame = self.link.poll()
         elif deadline_ns <= 0:
+            if self.pump is not None:  # e.g. a liveness check of the target's process
+                self.pump()
             frame = self.link.poll()
         else:  # spin on poll for up to spin_ns (a blocked thread on this kind of VM wakes tens of µs late), then block
             poll, now = self.link.poll, time.monotonic_ns

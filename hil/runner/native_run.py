@@ -52,13 +52,16 @@ def connect_native(cfg: RunConfig) -> TargetConnection:
         link = NativeCoreLink(fd=fd)
         client = TargetClient(link, FrameCodec(profile))
         return TargetConnection(client, link, inproc_result=lambda: None)
-    wire = NATIVE_WIRES.get(spec.kind.lower()) if cfg.target_path is None else None
+    # a SIL library in its own process is served by the native target on a wire; QEMU and an in-process SIL
+    # library are reached through their Python links
+    native_wire = cfg.target_path is None or cfg.sil_isolated
+    wire = NATIVE_WIRES.get(spec.kind.lower()) if native_wire else None
     if in_core(cfg) and cfg.fault_spec is not None:
         wire = None  # faults between the loop and the in-process Python target, as the Python loop injects them
     conn = connect_target(cfg, native_target=wire is not None and cfg.target in ("auto", "spawn"))
     bus = wire.bus_of(conn.host_link) if wire is not None else None
     native: NativeWireLink | NativePyLink
-    if wire is not None and bus is not None and conn.client.pump is None and cfg.fault_spec is None:
+    if wire is not None and bus is not None and conn.inproc_result is None and cfg.fault_spec is None:
         native = NativeWireLink(conn.host_link, bus, wire, ffi, lib, fd=fd)
     else:  # an in-process target served in Python, or no descriptor for C (serial:socket://...): through Python
         native = NativePyLink(conn.host_link, ffi, lib, fd=fd, pump=conn.client.pump, inproc_result=conn.inproc_result)

@@ -6,6 +6,10 @@ Python opens the link (the same binding, port set-up and one-line errors as the 
 ready line; C serves frames (over UDP it agrees each run's session from the host's HELLO) and stops on
 SIGTERM/SIGINT, the idle timeout, the death of the parent (PR_SET_PDEATHSIG, as `serve` in process.py, plus a
 getppid check) or the host closing the link (a pty's other end).
+
+With a SIL library (`hil target --native --sil PATH`) the same C loop serves that library's copy of the core
+through its function pointers: the SIL target in its own process, so a crash or an endless loop in the user's
+code cannot take the runner down (hil/runner/sil_watch.py tells the runner's ending).
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ from pmsm_hil.hil.runner.native_wire import WireHandle
 from pmsm_hil.protocol.links import open_link, parse_spec
 from pmsm_hil.protocol.links.udp_bus import link_socket_drops
 from pmsm_hil.sim_target.process import die_with_parent
+from pmsm_hil.sim_target.sil import SilFirmware
 
 
 def _reasons(lib: Any) -> dict[int, str]:
@@ -39,9 +44,12 @@ class NativeServed:
 
 
 def serve_native(link_spec: str, *, role: str = "target", max_idle_s: float | None = None,
-                 parent_pid: int | None = None, on_ready: Callable[[], None] | None = None) -> NativeServed:
-    """Serve the C target core on the link `link_spec` until an ending (see the module docstring)."""
+                 parent_pid: int | None = None, on_ready: Callable[[], None] | None = None,
+                 sil: str | None = None) -> NativeServed:
+    """Serve the C target core on the link `link_spec` until an ending (see the module docstring); `sil`: the
+    core of this SIL library instead of the reference firmware linked in (the SIL target's own process)."""
     ffi, lib = native_lib()
+    firmware = SilFirmware(sil) if sil is not None else None  # a bad library fails before the ready line
     wire = NATIVE_WIRES.get(parse_spec(link_spec).kind.lower())
     if wire is None:
         *kinds, last = NATIVE_WIRES
@@ -52,7 +60,8 @@ def serve_native(link_spec: str, *, role: str = "target", max_idle_s: float | No
         bus = wire.bus_of(link)
         if bus is None:
             raise ParameterError(f"--native: {link_spec!r} opened no port the C loop can serve")
-        lib.hil_core_init()
+        if firmware is None:
+            lib.hil_core_init()
         h = WireHandle(wire, ffi, lib, bus, target_role=True)
         if on_ready is not None:
             on_ready()
@@ -60,10 +69,18 @@ def serve_native(link_spec: str, *, role: str = "target", max_idle_s: float | No
             end = int(lib.NT_END_PARENT)
         else:
             idle_ns = 0 if max_idle_s is None else int(max_idle_s * 1e9)
-            end = int(lib.nt_serve(h.link, idle_ns, parent_pid or 0))
-        c = lib.hil_core_counters()
-        counters = {name: int(getattr(c, name)) for name in ("measurements", "commands", "config_writes",
-                                                              "config_rejected", "faults")}
+            if firmware is None:
+                end = int(lib.nt_serve(h.link, idle_ns, parent_pid or 0))
+            else:
+                rx, tx = firmware.entry_points()
+                end = int(lib.nt_serve_core(h.link, idle_ns, parent_pid or 0, ffi.cast("nt_core_rx_fn", rx),
+                                            ffi.cast("nt_core_tx_fn", tx)))
+        names = ("measurements", "commands", "config_writes", "config_rejected", "faults")
+        if firmware is None:
+            c = lib.hil_core_counters()
+            counters = {name: int(getattr(c, name)) for name in names}
+        else:
+            counters = {name: value for name, value in firmware.counters().items() if name in names}
         stats = link.stats.as_dict()
         for name, value in h.counters().items():
             stats[name] += value

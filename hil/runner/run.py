@@ -32,9 +32,11 @@ from pmsm_hil.hil.runner.run_dir_lock import run_dir_lock
 from pmsm_hil.hil.runner.run_limits import check_run_limits
 from pmsm_hil.hil.runner.run_metadata import run_metadata, tap_setup_frames
 from pmsm_hil.hil.runner.safe_stop import disable_and_confirm, settle_ending
+from pmsm_hil.hil.runner.sil_watch import InterruptGuard, isolated_config
 from pmsm_hil.hil.runner.stop_request import deferred_interrupts
-from pmsm_hil.hil.runner.target_client import DutViolationError
+from pmsm_hil.hil.runner.target_client import DutViolationError, TargetError
 from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target
+from pmsm_hil.protocol.errors import LinkError
 from pmsm_hil.protocol.links.udp_bus import link_socket_drops
 
 
@@ -85,6 +87,7 @@ def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None,
     is `outcome.error`). A target that breaks the contract while being configured (ConfigAck missing or echoing
     another value) ends the run with `end_code` 4 and no periods.
     `live`: optional consumer of each PERIOD_DTYPE block (~1000 periods), e.g. the live dashboard."""
+    cfg = isolated_config(cfg)  # a SIL target in its own process: its link and --step-timeout
     cid = controller_id(cfg.controller)
     check_run_limits(cfg)
     if cfg.mode == "realtime":
@@ -109,7 +112,12 @@ def _run_locked(cfg: RunConfig, cid: int, python_reason: str | None, silent_afte
                 cfg, python_reason, lambda: connect_target(cfg, silent_after=silent_after))
             # from here on Ctrl-C/SIGTERM only ask the loop to end (at a period boundary; at once if the target
             # is still being configured): every period run is logged and counted, the outputs written whole
-            signals.enter_context(deferred_interrupts())
+            guards = [item for item in conn.extra if isinstance(item, InterruptGuard)]
+            for guard in guards:  # the deferred stop request takes the signals over from a SIL target's guard
+                guard.release_handlers()
+            stop = signals.enter_context(deferred_interrupts())
+            for guard in guards:
+                signals.enter_context(stop.hook(guard.on_stop))
             try:
                 with tap_setup_frames(conn.client, logger):
                     conn.client.configure(cfg.target_parameters())
@@ -117,11 +125,17 @@ def _run_locked(cfg: RunConfig, cid: int, python_reason: str | None, silent_afte
                 outcome = LoopOutcome(period_records(), frame_records(), np.zeros(0, cfg.machine.layout.trace_dtype),
                                       0, end_reason=f"DUT contract violation while configuring: {exc}",
                                       end_code=int(EndCode.DUT_VIOLATION), safe_state=True)
-                with tap_setup_frames(conn.client, logger):  # the disabling Setpoint is logged too
-                    settle_ending(outcome, disable_and_confirm(conn.client, cid))
+                try:
+                    with tap_setup_frames(conn.client, logger):  # the disabling Setpoint is logged too
+                        settle_ending(outcome, disable_and_confirm(conn.client, cid))
+                except (LinkError, TargetError):  # the target is gone (e.g. a SIL process that crashed)
+                    outcome.target_disabled = False
             if outcome is None:
                 outcome = (_loop(cfg, conn, cid, sink) if python_reason
                            else run_native(cfg, conn, cid, sink, silent_after))
+            # e.g. a SIL target process that crashed or hung; not one the run's own stop killed (Ctrl-C/SIGTERM)
+            if conn.ending is not None and outcome.end_code != EndCode.INTERRUPTED:
+                conn.ending(outcome)
             metrics = summarize(cfg, outcome, conn, sink)
             metrics["loop"], metrics["loop_note"] = "python" if python_reason else "native", python_reason
             metrics["warnings"] += realtime_warnings(cfg, conn)
@@ -225,7 +239,7 @@ def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection, sink: Ru
     metrics["speed_reference_missed"] = missed
     if speed_warning is not None:
         warnings.append(speed_warning)
-    if out.violation_count and out.end_code != EndCode.DUT_VIOLATION:
+    if out.violation_count and out.end_code != EndCode.DUT_VIOLATION and out.violation_count <= cfg.tolerate:
         warnings.append(f"{out.violation_count} DUT contract violation(s) tolerated (--tolerate {cfg.tolerate}); "
                         f"first: {out.violations[0].message()}")
     metrics["warnings"] = warnings

@@ -129,6 +129,12 @@ class RunConfig:
     #: real time: SCHED_FIFO priority of the loop thread (`--rt-priority`, 0: none) and its CPU (`--cpu`)
     rt_priority: int = 0
     cpu: int | None = None
+    #: sil targets: wall time [s] a step may take before the target is "hung" (`--step-timeout`; the wait for
+    #: each Command of an isolated SIL run, in place of `lockstep_timeout_s`)
+    step_timeout_s: float = 0.5
+    #: sil targets: load the library into the runner's process (`--sil-in-process`: unprotected, a crash of
+    #: the firmware ends the runner) instead of serving it from its own process
+    sil_in_process: bool = False
 
     def __post_init__(self) -> None:
         cid = controller_id(self.controller)
@@ -178,6 +184,10 @@ class RunConfig:
             raise ParameterError(f"watchdog periods must be ≥ 1, got {self.watchdog_periods}")
         if not (math.isfinite(self.lockstep_timeout_s) and 0.0 < self.lockstep_timeout_s <= 3600.0):
             raise ParameterError(f"--lockstep-timeout must be in (0, 3600] s, got {self.lockstep_timeout_s}")
+        if not (math.isfinite(self.step_timeout_s) and 0.0 < self.step_timeout_s <= 3600.0):
+            raise ParameterError(f"--step-timeout must be in (0, 3600] s, got {self.step_timeout_s}")
+        if self.sil_in_process and not self.target.startswith("sil:"):
+            raise ParameterError(f"--sil-in-process: only with --target sil:PATH, got --target {self.target}")
         if self.faults:
             try:
                 parse_fault_spec(self.faults)
@@ -212,6 +222,11 @@ class RunConfig:
         """The PATH of `sil:PATH` / `qemu:PATH`, None for the other target kinds."""
         kind, sep, path = self.target.partition(":")
         return path.strip() if sep and kind + ":" in TARGET_PREFIXES else None
+
+    @property
+    def sil_isolated(self) -> bool:
+        """A SIL target served from its own process (the default for `sil:PATH`)."""
+        return self.target.startswith("sil:") and not self.sil_in_process
 
     @property
     def ts_ns(self) -> int:

@@ -1,5 +1,6 @@
 """Connects the runner to a target: in-process sim target, a spawned `hil target` process, external, a SIL
-firmware library in-process (`sil:PATH`) or a firmware ELF in QEMU (`qemu:PATH`).
+firmware library (`sil:PATH`: in a spawned `hil target --native --sil` process, or in-process with
+`--sil-in-process`) or a firmware ELF in QEMU (`qemu:PATH`).
 
 A spawned target gets `--parent-pid` (it exits with the host) and an idle timeout; the host waits for its
 "ready" line and ends the run with the target's own error if it cannot open its link (e.g. a UDP port in
@@ -12,6 +13,7 @@ import contextlib
 import json
 import os
 import selectors
+import socket
 import subprocess
 import sys
 import tempfile
@@ -20,8 +22,17 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
+from pmsm_hil.hil.runner.closed_loop import LoopOutcome
 from pmsm_hil.hil.runner.run_config import QEMU_MAILBOX_LINK, RunConfig
-from pmsm_hil.hil.runner.target_client import TargetClient, TargetError
+from pmsm_hil.hil.runner.sil_watch import (
+    SIL_STOP_WAIT_S,
+    SOCKETPAIR_LINK,
+    InterruptGuard,
+    describe_exit,
+    isolated_config,
+    judge,
+)
+from pmsm_hil.hil.runner.target_client import DutViolationError, TargetClient, TargetError
 from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.links import Link, link_kind, open_link, parse_spec
 from pmsm_hil.protocol.links.udp_bus import UdpUnicastBus
@@ -49,6 +60,11 @@ class TargetConnection:
     #: target-specific metrics merged into metrics.json after the run (e.g. an emulated MCU's instruction
     #: counts); called once, after the loop, before `close`
     extra_metrics: Callable[[], dict[str, Any]] = field(default=lambda: {})
+    #: names the target's part in the loop's ending (rewrites the outcome in place; a SIL target process that
+    #: crashed or hung), called once after the loop, before the metrics
+    ending: Callable[[LoopOutcome], None] | None = None
+    #: wall time [s] a spawned target gets to exit after SIGTERM before SIGKILL
+    stop_wait_s: float = 5.0
 
     def link_stats(self) -> dict[str, int]:
         """Host link counters plus decoder counters, plus how the native loop's receives waited (`blocked`,
@@ -64,7 +80,7 @@ class TargetConnection:
     def close(self) -> None:
         """Close links and stop a spawned target (reading its link counters)."""
         if self.process is not None:
-            _stop(self.process)
+            _stop(self.process, self.stop_wait_s)
             self.target_link_stats = _target_link_stats(self.process)
         if self.process_stderr is not None:
             with self.process_stderr as err:
@@ -79,15 +95,17 @@ class TargetConnection:
             if isinstance(item, int):
                 with contextlib.suppress(OSError):
                     os.close(item)
+            elif isinstance(item, InterruptGuard):
+                item.disarm()
             elif callable(getattr(item, "close", None)):  # a QEMU target: stopped on every exit path
                 item.close()
 
 
-def _stop(proc: subprocess.Popen[bytes]) -> None:
+def _stop(proc: subprocess.Popen[bytes], wait_s: float = 5.0) -> None:
     if proc.poll() is None:
         proc.terminate()
     try:
-        proc.wait(timeout=5)
+        proc.wait(timeout=wait_s)
     except subprocess.TimeoutExpired:
         proc.kill()
         proc.wait()
@@ -107,16 +125,20 @@ def _target_link_stats(proc: subprocess.Popen[bytes]) -> dict[str, int]:
     return {}
 
 
-def _spawn_target(spec: str, native: bool = False) -> tuple[subprocess.Popen[bytes], IO[bytes]]:
-    """Start `hil target` (`--native`: its C serve loop) on `spec` and wait for its ready line; raises
-    TargetError with its own error line if it exits first (a port in use) or does not get ready in time. Its
-    stderr goes to the returned file."""
+def _spawn_target(spec: str, native: bool = False, sil: str | None = None,
+                  pass_fds: tuple[int, ...] = ()) -> tuple[subprocess.Popen[bytes], IO[bytes]]:
+    """Start `hil target` (`--native`: its C serve loop; `sil`: serving that SIL library, in its own process
+    group so a terminal's Ctrl-C reaches the runner only, which stops it in order) on `spec` and wait for its
+    ready line; raises TargetError with its own error line if it exits first (a port in use, a bad library) or
+    does not get ready in time. Its stderr goes to the returned file."""
     cmd = [sys.executable, "-m", "pmsm_hil.hil.cli.main", "target", "--link", spec, "--role", "target",
-           "--parent-pid", str(os.getpid()), "--idle-timeout", repr(SPAWNED_IDLE_TIMEOUT_S), *(["--native"] * native)]
+           "--parent-pid", str(os.getpid()), "--idle-timeout", repr(SPAWNED_IDLE_TIMEOUT_S), *(["--native"] * native),
+           *(["--sil", sil] if sil is not None else [])]
     err = tempfile.TemporaryFile()  # noqa: SIM115 (the connection owns it: `close` forwards it)
     # its own session: a terminal's Ctrl-C (or a SIGTERM to the run's process group) reaches the run, which
     # stops the loop, sends the disabling Setpoint and then stops the target (`_stop`), not the target first
-    proc = subprocess.Popen(cmd, env=dict(os.environ), stdout=subprocess.PIPE, stderr=err, start_new_session=True)
+    proc = subprocess.Popen(cmd, env=dict(os.environ), stdout=subprocess.PIPE, stderr=err, pass_fds=pass_fds,
+                            start_new_session=True)
     stdout = proc.stdout
     if stdout is not None and _read_line(stdout, SPAWN_READY_TIMEOUT_S).startswith(READY_LINE):
         return proc, err
@@ -127,11 +149,14 @@ def _spawn_target(spec: str, native: bool = False) -> tuple[subprocess.Popen[byt
         detail = why[-1].removeprefix("hil: error: ")
     elif proc.returncode in (-15, -9):
         detail = f"no '{READY_LINE}' line within {SPAWN_READY_TIMEOUT_S:g} s"
+    elif proc.returncode < 0:  # e.g. a SIL library whose hil_app_init crashed
+        detail = f"killed by {describe_exit(proc.returncode)}"
     else:
         detail = f"exit code {proc.returncode}"
     if stdout is not None:
         stdout.close()
-    raise TargetError(f"spawned target on {spec!r} did not start: {detail}")
+    who = f"SIL target process for {sil}" if sil is not None else f"spawned target on {spec!r}"
+    raise TargetError(f"{who} did not start: {detail}")
 
 
 def _drain(err: IO[bytes]) -> str:
@@ -173,11 +198,84 @@ def _sil_library(path: str) -> str:
     return str(p)
 
 
+def _connect_spawned(cfg: RunConfig, codec: FrameCodec, native: bool, sil: str | None = None) -> TargetConnection:
+    """A `hil target` process on the mirror of the run's link (`sil`: serving that SIL library)."""
+    spec = parse_spec(cfg.link)
+    specs = link_kind(spec).mirror(cfg.link, spec)
+    host_link = open_link(specs.host, "host")
+    conn = TargetConnection(TargetClient(host_link, codec), host_link, extra=list(specs.keep_open))
+    try:
+        conn.process, conn.process_stderr = _spawn_target(specs.target, native, sil)
+        _await_session(host_link)
+    except BaseException:
+        conn.close()
+        raise
+    return conn
+
+
+def _connect_sil_process(cfg: RunConfig, library: str) -> TargetConnection:
+    """The SIL firmware served by its own process (`hil target --native --sil`); its crash or hang is told
+    in the ending (sil_watch.judge) and a hung one is killed."""
+    from pmsm_hil.sim_target.sil import SilError
+
+    if not Path(library).is_file():
+        raise SilError(f"SIL library {library} not found (build one with `hil fw build --board host`)")
+    cfg = isolated_config(cfg)
+    spec = parse_spec(cfg.link)
+    codec = FrameCodec(link_kind(spec).profile(spec))
+    if cfg.link == SOCKETPAIR_LINK:
+        conn = _connect_socketpair(codec, library)
+    else:
+        conn = _connect_spawned(cfg, codec, True, library)
+    conn.stop_wait_s = SIL_STOP_WAIT_S
+    proc = conn.process
+    assert proc is not None
+    guard = InterruptGuard(proc)
+    guard.arm()
+    conn.extra.insert(0, guard)  # disarmed first on close
+
+    def ending(out: LoopOutcome) -> None:
+        if judge(proc, out, cfg.step_timeout_s, realtime=cfg.mode == "realtime"):
+            proc.kill()
+
+    def pump() -> None:  # waits of the client (configuration, safe stop, the Python loop) end on its death
+        if proc.poll() is not None:
+            raise DutViolationError(f"the SIL target process ended ({describe_exit(proc.returncode)})")
+
+    conn.ending = ending
+    conn.client.pump = pump
+    return conn
+
+
+def _connect_socketpair(codec: FrameCodec, library: str) -> TargetConnection:
+    """The SIL target process on one end of a Unix socket pair (serial framing), the host's link on the other."""
+    host_end, target_end = socket.socketpair()
+    host_fd, target_fd = host_end.detach(), target_end.detach()
+    try:
+        host_link = open_link(f"serial:fd:{host_fd}", "host")
+    except BaseException:
+        os.close(host_fd)
+        os.close(target_fd)
+        raise
+    conn = TargetConnection(TargetClient(host_link, codec), host_link)
+    try:
+        conn.process, conn.process_stderr = _spawn_target(f"serial:fd:{target_fd}", True, library, (target_fd,))
+    except BaseException:
+        conn.close()
+        raise
+    finally:
+        os.close(target_fd)  # the target's end only in the target: its death is the host's end of file
+    return conn
+
+
 def _connect_sil(cfg: RunConfig, codec: FrameCodec, path: str) -> TargetConnection:
-    """The SIL firmware in this process behind both ends of the run's link (like the in-process target)."""
+    """The SIL firmware in its own process (default), or in this process behind both ends of the run's link
+    (`--sil-in-process`, like the in-process target: unprotected)."""
     from pmsm_hil.sim_target.sil import SilTarget
 
     library = _sil_library(path)
+    if not cfg.sil_in_process:
+        return _connect_sil_process(cfg, library)
     target_link = open_link(cfg.link, "target")
     try:
         host_link = open_link(cfg.link, "host")
@@ -208,8 +306,11 @@ def _connect_qemu(cfg: RunConfig, path: str) -> TargetConnection:
     except BaseException:
         qemu.close()
         raise
+    from pmsm_hil.hil.runner.qemu_ending import judge_qemu
+
     codec = FrameCodec("canfd")  # both transports carry the CAN FD layouts, as the serial link does
-    return TargetConnection(TargetClient(host_link, codec), host_link, extra=[qemu], extra_metrics=qemu.metrics)
+    return TargetConnection(TargetClient(host_link, codec), host_link, extra=[qemu], extra_metrics=qemu.metrics,
+                            ending=lambda out: judge_qemu(qemu, out, cfg.lockstep_timeout_s))
 
 
 def connect_target(cfg: RunConfig, *, silent_after: int | None = None, native_target: bool = False) -> TargetConnection:
@@ -233,16 +334,7 @@ def connect_target(cfg: RunConfig, *, silent_after: int | None = None, native_ta
         return TargetConnection(client, host_link, target_link=target_link,
                                 inproc_result=lambda: target.last_result, extra=[target])
     if kind == "spawn":
-        specs = link.mirror(cfg.link, spec)
-        host_link = open_link(specs.host, "host")
-        conn = TargetConnection(TargetClient(host_link, codec), host_link, extra=list(specs.keep_open))
-        try:
-            conn.process, conn.process_stderr = _spawn_target(specs.target, native_target)
-            _await_session(host_link)
-        except BaseException:
-            conn.close()
-            raise
-        return conn
+        return _connect_spawned(cfg, codec, native_target)
     host_link = open_link(cfg.link, "host")
     conn = TargetConnection(TargetClient(host_link, codec), host_link)
     try:

@@ -23,8 +23,9 @@ if TYPE_CHECKING:
     from pmsm_hil.testing.report import Reporter
     from pmsm_hil.testing.signals import Signal
 
-#: lockstep: wall time a test run waits for each Command [s] unless the test passes `lockstep_timeout`; `hil run`
-#: waits 0.5 s, but a loaded CI host can stall a target process longer than that (a false `missing` finding)
+#: lockstep: wall time a test run waits for each Command [s] unless the test passes `lockstep_timeout` (SIL targets:
+#: `step_timeout`); `hil run` waits 0.5 s, but a loaded CI host can stall a target process longer than that (a false
+#: `missing` finding, or a SIL target taken as hung)
 LOCKSTEP_TIMEOUT_S = 2.0
 #: `hil run` options the run's own set-up owns (target and link from --hil-target, outputs per run)
 _OWNED = frozenset({"target", "link", "out", "overwrite", "no_log", "json"})
@@ -100,6 +101,8 @@ def run_argv(settings: HilSettings, out_dir: Path | None, kwargs: Mapping[str, A
     argv += [f"--out={out_dir}"] if out_dir is not None else ["--no-log"]
     if "lockstep_timeout" not in kwargs:
         argv.append(f"--lockstep-timeout={LOCKSTEP_TIMEOUT_S}")
+    if "step_timeout" not in kwargs and settings.target.startswith("sil:"):  # a SIL run's wait for a Command
+        argv.append(f"--step-timeout={LOCKSTEP_TIMEOUT_S}")
     for name, value in kwargs.items():
         if name in _OWNED:
             raise TypeError(f"hil.run: '{name}' is set by the session (--hil-target, --hil-out), not per run")

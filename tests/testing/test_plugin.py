@@ -66,7 +66,9 @@ def test_choices_become_hil_run_arguments() -> None:
     # targets hil run has or will have: passed through as they are
     assert run_argv(HilSettings(target="external:socketcan:can0"), None, {})[1:3] == ["--target=external",
                                                                                       "--link=socketcan:can0"]
-    assert run_argv(HilSettings(target="sil:fw.so"), None, {})[1] == "--target=sil:fw.so"
+    sil = run_argv(HilSettings(target="sil:fw.so"), None, {})
+    assert sil[1] == "--target=sil:fw.so" and "--step-timeout=2.0" in sil  # a loaded host is no hung target
+    assert "--step-timeout=9" in run_argv(HilSettings(target="sil:fw.so"), None, {"step_timeout": 9})
     assert run_argv(HilSettings(target="qemu:fw.elf"), None, {})[1] == "--target=qemu:fw.elf"
 
 

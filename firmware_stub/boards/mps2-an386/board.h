@@ -12,7 +12,11 @@ typedef struct {
     uint32_t ns_per_insn;  /* QEMU -icount: 2^shift ns of virtual time per instruction */
     uint32_t cpi_milli;    /* cycle model: cycles per instruction x 1000 */
     uint32_t transport;    /* HIL_BOARD_UART (WFI on the UART RX interrupt) or HIL_BOARD_MAILBOX (PSRAM + doorbells) */
+    uint32_t fault_exit;   /* 1: a fault ends QEMU through semihosting (startup.c HardFault_Handler) */
 } hil_board_cfg_t;
+
+/* QEMU's exit code after a fault: this + the exception number (3 HardFault .. 6 UsageFault) */
+#define HIL_BOARD_FAULT_EXIT_BASE 64u
 
 #define HIL_BOARD_UART 0u
 #define HIL_BOARD_MAILBOX 1u

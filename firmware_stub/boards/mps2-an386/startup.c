@@ -35,9 +35,25 @@ void Default_Handler(void)
     }
 }
 
-/* A fault stops the firmware: the host sees no Command and its watchdog / lockstep timeout ends the run. */
+/* A fault stops the firmware. When the host asked for it (hil_board_cfg.fault_exit: QEMU runs with semihosting)
+ * the handler ends QEMU with exit code HIL_BOARD_FAULT_EXIT_BASE + the exception number (3 HardFault,
+ * 4 MemManage, 5 BusFault, 6 UsageFault): an Arm semihosting SYS_EXIT_EXTENDED, reason ApplicationExit, so the
+ * host tells a fault from a hang and from a dead QEMU. Otherwise it stops here and the host's lockstep timeout
+ * ends the run. */
 void HardFault_Handler(void)
 {
+    if (hil_board_cfg.magic == HIL_BOARD_CFG_MAGIC && hil_board_cfg.fault_exit != 0u) {
+        uint32_t ipsr;
+        uint32_t args[2];
+        __asm__ volatile("mrs %0, ipsr" : "=r"(ipsr));
+        args[0] = 0x20026u; /* ADP_Stopped_ApplicationExit: args[1] is the exit code */
+        args[1] = HIL_BOARD_FAULT_EXIT_BASE + (ipsr & 0x1FFu);
+        {
+            register uint32_t r0 __asm__("r0") = 0x20u; /* SYS_EXIT_EXTENDED */
+            register const uint32_t *r1 __asm__("r1") = args;
+            __asm__ volatile("bkpt 0xab" : : "r"(r0), "r"(r1) : "memory");
+        }
+    }
     for (;;) {
     }
 }

@@ -1,0 +1,97 @@
+/*
+ * A user firmware that misbehaves at control step MISBEHAVE_AT (tests of the SIL target's own process,
+ * tests/firmware_board/test_sil_isolation.py). Until then it is a valid DUT: it acknowledges every parameter,
+ * takes any controller and answers each Measurement with the zero vector over Ts. At step MISBEHAVE_AT it
+ * writes through a null pointer (MISBEHAVE_CRASH: SIGSEGV on the host; on the Cortex-M4F an undefined
+ * instruction, a fault), calls abort() (MISBEHAVE_ABORT: SIGABRT), recurses without end (MISBEHAVE_OVERFLOW: a
+ * stack overflow, SIGSEGV) or never returns (MISBEHAVE_HANG). MISBEHAVE_CONFIG crashes on the ConfigParam Ts.
+ */
+#include <stdint.h>
+#include <stdlib.h>
+
+#include "hil_app.h"
+#include "hil_ids.h"
+
+#define MISBEHAVE_AT 500u
+
+static uint32_t g_ts_ns = 100000u;
+static uint32_t g_steps;
+#if !defined(__arm__)
+static int *volatile g_nowhere; /* NULL, and the compiler cannot prove it */
+#endif
+static volatile uint32_t g_spins;
+
+void hil_app_init(void)
+{
+    g_ts_ns = 100000u;
+    g_steps = 0u;
+}
+
+int hil_app_config(uint8_t param_id, float value)
+{
+#if defined(MISBEHAVE_CONFIG) && !defined(__arm__)
+    if (param_id == HIL_FW_P_TS) {
+        *g_nowhere = 1; /* crashes while being configured */
+    }
+#endif
+    if (param_id == HIL_FW_P_TS) {
+        g_ts_ns = (uint32_t)(value * 1e9f + 0.5f);
+    }
+    return HIL_APP_OK;
+}
+
+int hil_app_select(uint8_t controller_id)
+{
+    (void)controller_id;
+    return HIL_APP_OK;
+}
+
+void hil_app_reset(void)
+{
+}
+
+int hil_app_setpoint(uint8_t enable, uint8_t mode, float reference)
+{
+    (void)enable;
+    (void)mode;
+    (void)reference;
+    return HIL_APP_OK;
+}
+
+#if defined(MISBEHAVE_OVERFLOW)
+static volatile uint32_t g_depth_limit; /* 0: none (the compiler cannot prove the recursion endless) */
+
+/* endless recursion with a frame the compiler keeps: a stack overflow */
+static uint32_t deeper(uint32_t depth)
+{
+    volatile uint8_t frame[256];
+    frame[depth % 256u] = (uint8_t)depth;
+    if (g_depth_limit != 0u && depth >= g_depth_limit) {
+        return frame[0];
+    }
+    return deeper(depth + 1u) + frame[(depth + 1u) % 256u];
+}
+#endif
+
+void hil_app_step(const hil_app_meas_t *m, hil_app_cmd_t *cmd)
+{
+    (void)m;
+    if (g_steps++ == MISBEHAVE_AT) {
+#if defined(MISBEHAVE_CRASH) && defined(__arm__)
+        __builtin_trap(); /* an undefined instruction: UsageFault, escalated to HardFault */
+#elif defined(MISBEHAVE_CRASH)
+        *g_nowhere = 1;
+#elif defined(MISBEHAVE_ABORT)
+        abort();
+#elif defined(MISBEHAVE_OVERFLOW)
+        (void)deeper(0u);
+#elif defined(MISBEHAVE_HANG)
+        for (;;) {
+            g_spins++;
+        }
+#endif
+    }
+    cmd->n_states = 1u;
+    cmd->states[0] = 0u;
+    cmd->durations_ns[0] = g_ts_ns;
+}
