@@ -48,13 +48,13 @@ class RunEnd:
             return "unknown code"
 
     def where(self) -> str:
-        """'period 309 (t = 30.900 ms)', or why it is not known."""
+        """'at period 309 (t = 30.900 ms)', 'before the first period' or 'at a period not recorded'."""
         if self.period is None:
-            return "period not recorded"
+            return "at a period not recorded"
         if self.period < 0:
             return "before the first period"
         at = f" (t = {self.t_s * 1e3:.3f} ms)" if self.t_s is not None else ""
-        return f"period {self.period}{at}"
+        return f"at period {self.period}{at}"
 
 
 def run_end(metrics: dict[str, Any], periods: np.ndarray, ts_s: float | None, where: str) -> RunEnd:
@@ -80,7 +80,7 @@ def end_box(label: str, end: RunEnd, anchor: str) -> str:
     if not end.early:
         return ""
     code = f"{end.code} ({end.code_name})" if end.code_name else str(end.code)
-    return (f"<div class=\"end\" id=\"{anchor}\"><b>{html.escape(label)} ended early</b> at "
+    return (f"<div class=\"end\" id=\"{anchor}\"><b>{html.escape(label)} ended early</b> "
             f"{html.escape(end.where())}: {html.escape(end.reason)}<br>"
             f"<span class=\"note\">end_code {html.escape(code)}, end_period {end.period}, "
             f"metrics-window periods {end.window_periods}</span></div>")
@@ -89,5 +89,5 @@ def end_box(label: str, end: RunEnd, anchor: str) -> str:
 def no_window_sentence(label: str, end: RunEnd) -> str:
     """Why a run has no metrics-window charts (it ended before its window began)."""
     if end.early:
-        return f"{label} ended at {end.where()}, before its metrics window began: {end.reason}."
+        return f"{label} ended {end.where()}, before its metrics window began: {end.reason}."
     return f"{label} logged no metrics-window period."

@@ -161,7 +161,7 @@ def whole_run(run: RunData, gid: str) -> str:
                        label=f"metrics window ({window} periods)" if k == 0 else None)
         if run.end.early and run.end.t_s is not None:
             mark = ax.axvline(run.end.t_s * scale, color="tab:red", lw=1.2, ls="--",
-                              label=f"end: {run.end.where()}" if k == 0 else None)
+                              label=f"run ended {run.end.where()}" if k == 0 else None)
             mark.set_gid(f"{gid}-{k}-end")
         ax.set_ylabel(panel.ylabel)
         ax.set_title(panel.title, loc="left", fontsize=8)

@@ -58,7 +58,7 @@ def whole_run_section(runs: Sequence[RunData]) -> list[str]:
             continue
         marks = (["shaded: the metrics window"] if run.has_window else ["the run never reached its metrics window"])
         if run.end.early and run.end.t_s is not None:
-            marks.append(f"dashed red line: where the run ended ({run.end.where()})")
+            marks.append(f"dashed red line: the run ended {run.end.where()}")
         parts.append(f"<figure class=\"whole-run\" id=\"whole-run-{k}\">{fig.whole_run(run, f'whole-{k}')}"
                      f"<figcaption class=\"note\">{html.escape(run.label)}: {html.escape(run.whole.note())}; "
                      f"{html.escape('; '.join(marks))}.</figcaption></figure>")

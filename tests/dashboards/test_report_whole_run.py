@@ -90,7 +90,7 @@ def test_tripped_run_report_says_where_and_why_and_draws_no_empty_chart(tripped:
     assert isinstance(end_period, int)
     t_end = float(read_periods(tripped / "run.mcap")["t"][end_period])
     for needle in (html.escape(reason), "end_code 3 (safety stop)", f"end_period {end_period}",
-                   f"period {end_period} (t = {t_end * 1e3:.3f} ms)"):
+                   f"at period {end_period} (t = {t_end * 1e3:.3f} ms)"):
         assert needle in box.group(1)
     # the whole-run plot is there, every trace drawn, the end marked; no window chart at all
     assert 'id="whole-run-0"' in text
@@ -186,3 +186,29 @@ def test_two_run_report_with_a_tripped_run(tripped: Path, watchdog: Path, second
     for chart in ('id="bars"', 'id="waveforms"', 'id="spectra"'):
         assert chart in text  # the completed run's (and the partial window's) charts
     assert "No spectrum for mpcc · run" in text  # the watchdog run's window is too short for one
+
+
+def _no_period_run(run_dir: Path, end_code: int) -> None:
+    """A run directory whose log holds the metadata but no period (as after an interrupt before period 0)."""
+    from mcap.writer import Writer
+
+    run_dir.mkdir()
+    with open(run_dir / "run.mcap", "wb") as f:
+        w = Writer(f)
+        w.start()
+        w.add_metadata("/run/metadata", {"controller": "mpcc", "ts_s": "0.0001"})
+        w.finish()
+    reason = "completed" if end_code == 0 else "interrupted (SIGINT)"
+    (run_dir / "metrics.json").write_text(json.dumps({"periods": 0, "end_reason": reason, "end_code": end_code,
+                                                      "end_period": -1}))
+
+
+def test_run_without_periods(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    _no_period_run(tmp_path / "early", 130)
+    text = _report(tmp_path / "early", tmp_path / "r.html")
+    assert "ended early</b> before the first period: interrupted (SIGINT)" in text
+    assert "end_code 130 (interrupted)" in text
+    assert "no period was logged" in text and "<svg" not in text
+    _no_period_run(tmp_path / "done", 0)  # completed yet empty: inconsistent, refused
+    assert main(["report", str(tmp_path / "done"), "-o", str(tmp_path / "d.html")]) == 2
+    assert "holds no periods" in capsys.readouterr().err
