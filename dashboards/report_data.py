@@ -59,9 +59,12 @@ def load_run(run_dir: Path) -> RunData:
     if not metrics_path.is_file() or not mcap_path.is_file():
         raise DashboardError(f"RUN_DIR: {run_dir} needs metrics.json and run.mcap (a `hil run --out` directory)")
     try:
-        metrics = dict(json.loads(metrics_path.read_text(encoding="utf-8")))
+        loaded = json.loads(metrics_path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise DashboardError(f"RUN_DIR: {metrics_path} is not readable JSON ({exc})") from None
+    if not isinstance(loaded, dict):
+        raise DashboardError(f"RUN_DIR: {metrics_path} must hold a JSON object, got {type(loaded).__name__}")
+    metrics: dict[str, Any] = loaded
     try:
         meta = read_metadata(mcap_path)
         periods = read_periods(mcap_path)

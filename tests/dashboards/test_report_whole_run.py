@@ -212,3 +212,20 @@ def test_run_without_periods(tmp_path: Path, capsys: pytest.CaptureFixture[str])
     _no_period_run(tmp_path / "done", 0)  # completed yet empty: inconsistent, refused
     assert main(["report", str(tmp_path / "done"), "-o", str(tmp_path / "d.html")]) == 2
     assert "holds no periods" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("content", "needle"), [
+    ("[1, 2]", "must hold a JSON object"),
+    ('{"end_code": 3, "end_period": 5, "periods": -1}', "'periods' must be a whole number ≥ 0"),
+    ('{"end_code": "3", "end_period": 5}', "'end_code' must be a whole number"),
+    ('{"end_code": 3, "end_period": 5, "end_reason": 7}', "'end_reason' must be a string"),
+])
+def test_malformed_metrics_are_one_line_errors(tripped: Path, tmp_path: Path, content: str, needle: str,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "run.mcap").write_bytes((tripped / "run.mcap").read_bytes())
+    (bad / "metrics.json").write_text(content)
+    assert main(["report", str(bad), "-o", str(tmp_path / "r.html")]) == 2
+    err = capsys.readouterr().err
+    assert needle in err and "metrics.json" in err and len(err.strip().splitlines()) == 1
