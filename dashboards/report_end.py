@@ -48,12 +48,15 @@ class RunEnd:
             return "unknown code"
 
     def where(self) -> str:
-        """'at period 309 (t = 30.900 ms)', 'before the first period' or 'at a period not recorded'."""
+        """'at period 309 (t = 30.900 ms)' (t ≥ 1 s: in s), 'before the first period' or 'at a period not
+        recorded'."""
         if self.period is None:
             return "at a period not recorded"
         if self.period < 0:
             return "before the first period"
-        at = f" (t = {self.t_s * 1e3:.3f} ms)" if self.t_s is not None else ""
+        at = ""
+        if self.t_s is not None:
+            at = f" (t = {self.t_s * 1e3:.3f} ms)" if abs(self.t_s) < 1.0 else f" (t = {self.t_s:.4f} s)"
         return f"at period {self.period}{at}"
 
 
