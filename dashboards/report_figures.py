@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 from pmsm_hil.dashboards.report_data import RunData
+from pmsm_hil.dashboards.report_whole_run import WholeRun
 from pmsm_hil.hil.metrics.registry import REPORT_BARS, in_view
 
 #: Harmonic orders shown in the spectra.
@@ -116,13 +117,19 @@ def _metric(run: RunData, key: str, sub: str | None) -> float:
     return float(value) if isinstance(value, (int, float)) else math.nan
 
 
+def bar_metrics(runs: Sequence[RunData]) -> tuple[tuple[str, str, str | None], ...]:
+    """The bar charts with a value for at least one run (a chart without any would be empty)."""
+    return tuple(b for b in BAR_METRICS if any(math.isfinite(_metric(r, b[0], b[2])) for r in runs))
+
+
 def bars(runs: Sequence[RunData]) -> str:
-    """Bar charts of ripple, THD, f_av and execution time per run."""
+    """Bar charts of ripple, THD, f_av and execution time per run (those of `bar_metrics`; at least one)."""
     plt = _plt()
-    fig, axes = plt.subplots(1, len(BAR_METRICS), figsize=(12, 3.0))
+    shown = bar_metrics(runs)
+    fig, axes = plt.subplots(1, len(shown), figsize=(3.0 * len(shown), 3.0), squeeze=False)
     labels = [r.label.split(" · ")[0] for r in runs]
     colors = [f"C{k % 10}" for k in range(len(runs))]
-    for ax, (key, title, sub) in zip(axes, BAR_METRICS, strict=True):
+    for ax, (key, title, sub) in zip(axes[0], shown, strict=True):
         values = [_metric(r, key, sub) for r in runs]
         ax.bar(range(len(runs)), values, color=colors)
         ax.set_xticks(range(len(runs)), labels, rotation=30, ha="right")
@@ -130,5 +137,36 @@ def bars(runs: Sequence[RunData]) -> str:
         for x, v in enumerate(values):
             if math.isfinite(v):
                 ax.annotate(f"{v:.3g}", (x, v), ha="center", va="bottom", fontsize=7)
+    fig.tight_layout()
+    return _svg(fig)
+
+
+def whole_run(run: RunData, gid: str) -> str:
+    """The whole run, one panel per `WholeRun` panel on a shared time axis: the metrics window shaded, the
+    end of a run that ended early marked; the decimation is said in the title. Line `gid`s (SVG ids):
+    `{gid}-{panel}-{trace}` (indices) and `{gid}-{panel}-end` (the end mark), for tests."""
+    plt = _plt()
+    w: WholeRun = run.whole
+    scale, unit = (1.0, "s") if w.t_stop_s > 1.0 else (1e3, "ms")
+    fig, axes = plt.subplots(len(w.panels), 1, figsize=(10, 1.7 * len(w.panels) + 0.6), sharex=True,
+                             squeeze=False)
+    window = run.end.window_periods
+    t_window = float(run.t[0]) if run.has_window else None
+    for k, (ax, panel) in enumerate(zip(axes[:, 0], w.panels, strict=True)):
+        for j, tr in enumerate(panel.traces):
+            (line,) = ax.plot(tr.t * scale, tr.y, lw=0.7, label=tr.label)
+            line.set_gid(f"{gid}-{k}-{j}")
+        if t_window is not None:
+            ax.axvspan(t_window * scale, w.t_stop_s * scale, color="tab:green", alpha=0.08,
+                       label=f"metrics window ({window} periods)" if k == 0 else None)
+        if run.end.early and run.end.t_s is not None:
+            mark = ax.axvline(run.end.t_s * scale, color="tab:red", lw=1.2, ls="--",
+                              label=f"run ended {run.end.where()}" if k == 0 else None)
+            mark.set_gid(f"{gid}-{k}-end")
+        ax.set_ylabel(panel.ylabel)
+        ax.set_title(panel.title, loc="left", fontsize=8)
+        ax.legend(loc="upper right", fontsize=7, ncol=4)
+    axes[-1, 0].set_xlabel(f"t [{unit}]")
+    fig.suptitle(f"{run.label}: {w.note()}", fontsize=9)
     fig.tight_layout()
     return _svg(fig)

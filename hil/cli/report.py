@@ -8,7 +8,7 @@ from pathlib import Path
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Register `hil report`."""
-    p = subparsers.add_parser("report", help="HTML report comparing runs (metrics, waveforms, spectra, bars)",
+    p = subparsers.add_parser("report", help="HTML report of runs (metrics, whole-run plots, waveforms, spectra, bars)",
                               description="Reads metrics.json and run.mcap of each `hil run --out` directory and "
                                           "writes one HTML file with inline SVG figures (no external resources).")
     p.add_argument("run_dirs", type=Path, nargs="+", metavar="RUN_DIR", help="output directory of `hil run`")

@@ -70,7 +70,7 @@ def test_html_report_renders(live_run: LiveRun, tmp_path: Path) -> None:
                                    ".map(s => s.getBoundingClientRect().width)")
         rows = browser.evaluate("document.querySelectorAll('#metrics tr').length")
         browser.screenshot(shot)
-    assert len(figures) == 3 and min(figures) > 300
+    assert len(figures) == 4 and min(figures) > 300  # whole run, bars, waveforms, spectra
     assert rows == len(TABLE) + 1
     std, saturated = _image_stats(shot)
     assert std > 0.1 and saturated > 0.005, f"report looks blank: std {std:.3f}, saturated {saturated:.4f}"

@@ -21,7 +21,8 @@ def test_report_is_self_contained_and_shows_the_metrics(live_run: LiveRun, secon
     assert main(["report", str(live_run.run_dir), str(second_run_dir), "-o", str(out)]) == 0
     text = out.read_text(encoding="utf-8")
     assert not re.search(r"""(src|href)=["']?https?:""", text)  # no external resources
-    assert text.count("<svg") == 3
+    assert text.count("<svg") == 5  # bars, waveforms, spectra + one whole-run plot per run
+    assert text.count("class=\"whole-run\"") == 2 and "class=\"end\"" not in text
     for run_dir in (live_run.run_dir, second_run_dir):
         metrics = json.loads((run_dir / "metrics.json").read_text())
         assert f"{metrics['torque_ripple_rms_nm']:.3f}" in text
