@@ -123,3 +123,59 @@ def test_every_module_has_a_layer() -> None:
 def test_the_exception_root_imports_nothing_and_every_layer_may_use_it() -> None:
     assert list(imports(ROOT / "pmsm_hil" / "errors.py")) == []
     assert all("base" in used for name, used in MAY_USE.items() if name != "base")
+
+
+# --- the C side: plant kernels below the runner's loop (docs/architecture.md, "Machine kernels") -----------------
+NATIVE = ROOT / "hil" / "native"
+#: the plant kernels and what they share: they know nothing of the loop, its links or the firmware
+KERNEL_FILES = {"plant.c", "plant.h", "plant6.c", "plant6.h", "dq_segment.c", "dq_segment.h", "gate_edges.c",
+                "gate_edges.h", "machine_kernel.h"}
+#: the only headers a kernel file may include
+KERNEL_MAY_INCLUDE = KERNEL_FILES - {"plant.c", "plant6.c", "dq_segment.c", "gate_edges.c"}
+#: kernel headers the loop may include: the interface, never a machine's own header
+LOOP_MAY_INCLUDE_OF_KERNELS = {"machine_kernel.h", "gate_edges.h", "dq_segment.h"}
+
+
+def c_includes(path: Path) -> list[tuple[int, str]]:
+    """(line, header) of every `#include "..."` in a C file."""
+    out = []
+    for no, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
+        text = line.strip()
+        if text.startswith("#include") and '"' in text:
+            out.append((no, text.split('"')[1]))
+    return out
+
+
+def test_c_plant_kernels_include_only_kernel_headers() -> None:
+    found = [p.name for p in NATIVE.glob("*.[ch]") if p.name in KERNEL_FILES]
+    assert set(found) == KERNEL_FILES
+    for name in sorted(KERNEL_FILES):
+        for no, header in c_includes(NATIVE / name):
+            assert header in KERNEL_MAY_INCLUDE, f"hil/native/{name}:{no}: a plant kernel includes {header}"
+
+
+def test_c_loop_reaches_the_plant_only_through_the_kernel_interface() -> None:
+    loop_files = sorted(p for p in NATIVE.glob("*.[ch]") if p.name not in KERNEL_FILES)
+    assert any(p.name == "loop.c" for p in loop_files)
+    for path in loop_files:
+        for no, header in c_includes(path):
+            if header in KERNEL_FILES:
+                assert header in LOOP_MAY_INCLUDE_OF_KERNELS, f"hil/native/{path.name}:{no}: includes {header}"
+
+
+def test_each_extension_compiles_its_own_layer() -> None:
+    """The plant extension compiles the kernels and nothing of the loop; the loop extension no kernel (it calls
+    the plant extension's through their tables)."""
+    import importlib.util
+
+    def builder(name: str) -> object:
+        spec = importlib.util.spec_from_file_location(name, NATIVE / f"{name}.py")
+        assert spec is not None and spec.loader is not None
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        return module
+
+    plant_sources = set(builder("_build_plant").PLANT_SOURCES)  # type: ignore[attr-defined]
+    assert plant_sources == {"dq_segment.c", "gate_edges.c", "plant.c", "plant6.c"}
+    loop_sources = set(builder("_build_loop").LOOP_SOURCES)  # type: ignore[attr-defined]
+    assert loop_sources and not (loop_sources & KERNEL_FILES)

@@ -74,12 +74,15 @@ def _source(name: str) -> str:
 #: stats struct, sample struct and the opaque table type, shared with every kernel (hil/kernel_build.py)
 CDEF_COMMON = (_HERE / "machine_kernel.cdef").read_text(encoding="utf-8")
 
+#: the plant kernels and their shared helpers (nothing of the loop: tests/test_layers.py)
+PLANT_SOURCES = ("dq_segment.c", "gate_edges.c", "plant.c", "plant6.c")
+
 ffibuilder = FFI()
 ffibuilder.cdef(CDEF_COMMON + CDEF + CDEF6 + CDEF_KERNELS)
 ffibuilder.set_source(
     "pmsm_hil.hil._plant_native",
     '#include "plant.h"\n#include "plant6.h"',
-    sources=[_source(name) for name in ("dq_segment.c", "gate_edges.c", "plant.c", "plant6.c")],
+    sources=[_source(name) for name in PLANT_SOURCES],
     include_dirs=[str(_HERE)],
     # the native loop calls these kernels too: no FMA contraction and no sin/cos fusion, so its records equal the
     # Python loop's bit for bit on every architecture
