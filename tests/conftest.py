@@ -5,8 +5,18 @@ tests off there."""
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 import pytest
+from pmsm_hil.hil.runner.reference_loop import ENV as REFERENCE_LOOP_ENV
+from pmsm_hil.hil.runner.reference_loop import register_reference_loop
+
+from tests.oracle.closed_loop import run_reference_loop
+
+# `--loop python`: the Python reference loop the C loop is proven against (not part of the product), in this
+# process and in the `hil` processes the tests start
+register_reference_loop(run_reference_loop)
+os.environ[REFERENCE_LOOP_ENV] = str(Path(__file__).resolve().parent / "oracle" / "closed_loop.py")
 
 #: Skip reasons CI accepts: hardware this kernel lacks, and the optional benchmark extra.
 CI_ALLOWED_SKIPS = (

@@ -20,6 +20,7 @@ from typing import Any
 from pmsm_hil.hil.atomic_write import write_text_atomic
 from pmsm_hil.hil.cli.parsing import non_negative_int, positive_float
 from pmsm_hil.hil.presets_loader import load_motor
+from pmsm_hil.hil.runner.reference_loop import reference_loop
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import load_scenario
@@ -82,8 +83,10 @@ def _native_pair_under_load(base: RunConfig, name: str, spec: str, repeats: int,
     excluded, as in both loops) as lockstep_{name}_native_hz / lockstep_{name}_python_hz (+ _loaded) and the
     loaded / idle ratios."""
     out: dict[str, Any] = {}
-    pairs = ((f"{name}_native", replace(base, link=spec, target="spawn", loop="native")),
-             (f"{name}_python", replace(base, link=spec, target="spawn", loop="python")))
+    pairs = tuple((key, cfg) for key, cfg in (
+        (f"{name}_native", replace(base, link=spec, target="spawn", loop="native")),
+        (f"{name}_python", replace(base, link=spec, target="spawn", loop="python")))
+        if cfg.loop == "native" or reference_loop() is not None)
     for load in ("", "_loaded"):
         for key, cfg in pairs:
             progress(f"lockstep over {spec}, {key.partition('_')[2]} pair{', a CPU burner beside it' if load else ''} "
@@ -118,7 +121,7 @@ def _pycan_pair(base: RunConfig, repeats: int, runs: str, progress: Callable[[st
     try:
         if proc.stdout is None or not proc.stdout.readline().startswith(b"ready"):
             return {"lockstep_pycan_error": "the native target did not start"}
-        for loop in ("python", "native"):
+        for loop in ("python", "native") if reference_loop() is not None else ("native",):
             progress(f"lockstep over a python-can adapter (hiludp) to the native target, {loop} loop ({runs})")
             cfg = replace(base, link=f"hiludp:{host}:{target}", target="external", loop=loop)
 
@@ -164,19 +167,25 @@ def _udp_floor(progress: Callable[[str], None], round_trips: int = 5000) -> dict
 
 def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
             progress: Callable[[str], None] = lambda _msg: None, qemu: Path | None = None) -> dict[str, Any]:
-    """All loop figures; keys documented in docs/benchmarks.md. `progress` gets one line per stage."""
-    base = _base(duration)
+    """All loop figures; keys documented in docs/benchmarks.md. `progress` gets one line per stage. The Python
+    loop's rows (and the native/python ratios) need the test suite's reference loop (tests/oracle; not part of
+    the product): without it they are left out and `python_loop` says so."""
+    python = reference_loop() is not None
+    base = _base(duration) if python else replace(_base(duration), loop="native")
     out: dict[str, Any] = {"duration_s": duration, "repeats": repeats}
     runs = f"{max(repeats, 1)} × {duration:g} s"
-    progress(f"lockstep in-process, logging off ({runs})")
-    off = _median_rate(lambda: base, repeats)
-    progress(f"lockstep in-process, logging on ({runs})")
-    with tempfile.TemporaryDirectory() as tmp:
-        counter = iter(range(1000))
-        on = _median_rate(lambda: replace(base, out_dir=Path(tmp) / f"run{next(counter)}"), repeats)
-    out["lockstep_inproc_log_off_hz"] = off["periods_per_s"]
-    out["lockstep_inproc_log_on_hz"] = on["periods_per_s"]
-    out["logging_cost_pct"] = 100.0 * (1.0 - on["periods_per_s"] / off["periods_per_s"])
+    if python:
+        progress(f"lockstep in-process, logging off ({runs})")
+        off = _median_rate(lambda: base, repeats)
+        progress(f"lockstep in-process, logging on ({runs})")
+        with tempfile.TemporaryDirectory() as tmp:
+            counter = iter(range(1000))
+            on = _median_rate(lambda: replace(base, out_dir=Path(tmp) / f"run{next(counter)}"), repeats)
+        out["lockstep_inproc_log_off_hz"] = off["periods_per_s"]
+        out["lockstep_inproc_log_on_hz"] = on["periods_per_s"]
+        out["logging_cost_pct"] = 100.0 * (1.0 - on["periods_per_s"] / off["periods_per_s"])
+    else:
+        out["python_loop"] = "left out: the Python loop is the test suite's reference (tests/oracle), not the product's"
     native = replace(base, loop="native")
     progress(f"lockstep in-process, native loop (C), logging off ({runs})")
     n_off = _median_rate(lambda: native, repeats)
@@ -186,14 +195,15 @@ def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
         n_on = _median_rate(lambda: replace(native, out_dir=Path(tmp) / f"run{next(counter)}"), repeats)
     out["lockstep_inproc_native_log_off_hz"] = n_off["periods_per_s"]
     out["lockstep_inproc_native_log_on_hz"] = n_on["periods_per_s"]
-    out["native_speedup_log_off"] = n_off["periods_per_s"] / off["periods_per_s"]
-    out["native_speedup_log_on"] = n_on["periods_per_s"] / on["periods_per_s"]
+    if python:
+        out["native_speedup_log_off"] = n_off["periods_per_s"] / off["periods_per_s"]
+        out["native_speedup_log_on"] = n_on["periods_per_s"] / on["periods_per_s"]
     from pmsm_hil.dashboards.bench import live_rerun_rate
 
     progress(f"lockstep in-process, live Rerun dashboard to an .rrd ({runs})")
     rerun = live_rerun_rate(base, repeats)
     out["lockstep_inproc_rerun_on_hz"] = rerun["periods_per_s"]
-    out["rerun_cost_pct"] = 100.0 * (1.0 - rerun["periods_per_s"] / off["periods_per_s"])
+    out["rerun_cost_pct"] = 100.0 * (1.0 - rerun["periods_per_s"] / (off if python else n_off)["periods_per_s"])
     for name in [c for c in cross if c != "pycan"]:
         spec = {"udp": "udp", "serial": "serial:pty"}.get(name, name)
         def make(spec: str = spec) -> RunConfig:

@@ -18,11 +18,18 @@ from pmsm_hil.hil.cli.parsing import non_negative_int, positive_float
 from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runner.native_config import rt_throttled
 from pmsm_hil.hil.runner.native_link import NativeLoopUnavailableError, native_lib
+from pmsm_hil.hil.runner.reference_loop import reference_loop
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import load_scenario
 
 LOOPS = ("python", "native")
+
+
+def loops() -> tuple[str, ...]:
+    """The loops to measure: the C loop, and the Python reference loop beside it where the test suite provides it
+    (tests/oracle; not part of the product)."""
+    return LOOPS if reference_loop() is not None else ("native",)
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -50,9 +57,9 @@ def measure(duration: float, ts: float, repeats: int, rt_priority: int = 0, cpu:
             log_dir: Path | None = None) -> dict[str, Any]:
     """Per loop: median lateness p50 / p99 / max [µs] over the runs, overruns per 100k periods over all runs,
     deadline misses, periods, and the warnings of the last run (e.g. a refused priority)."""
-    runs: dict[str, list[dict[str, Any]]] = {loop: [] for loop in LOOPS}
+    runs: dict[str, list[dict[str, Any]]] = {loop: [] for loop in loops()}
     for i in range(max(repeats, 1)):
-        for loop in LOOPS:  # alternately: both loops see the same machine load
+        for loop in runs:  # alternately: both loops see the same machine load
             cfg = _config(loop, duration, ts, rt_priority, cpu)
             if log_dir is not None:
                 cfg = replace(cfg, out_dir=log_dir / f"{loop}{i}")
@@ -105,7 +112,7 @@ def run(args: argparse.Namespace) -> int:
           f"{args.duration:g} s per loop (medians); load average {load[0]:.2f} / {load[1]:.2f} / {load[2]:.2f}")
     print(f"  {'loop':<8} {'p50 µs':>9} {'p99 µs':>9} {'max µs':>10} {'overruns/100k':>14} {'misses':>7} "
           f"{'periods':>8}")
-    for loop in LOOPS:
+    for loop in (name for name in LOOPS if name in figures):
         f = figures[loop]
         per = f["overruns_per_100k"]
         print(f"  {loop:<8} {f['lateness_p50_us']:>9.2f} {f['lateness_p99_us']:>9.2f} {f['lateness_max_us']:>10.1f} "

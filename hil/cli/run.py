@@ -105,9 +105,9 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="link fault injection on the host's link: drop=P,dup=P,corrupt=P,delay=D,jitter=D,"
                         "reorder=P,silence=T0:T1,seed=S (KEY.up / KEY.down per direction; docs/runner.md)")
     p.add_argument("--loop", choices=("auto", "native", "python"),
-                   help="the period loop: native (C, hil/native/loop.c: the in-process target on the virtual link, "
-                        "or a spawned/external target over udp, serial or socketcan; no --fault), python, or auto = "
-                        f"native where supported, else python with the reason in loop_note{_default('loop')}")
+                   help="the period loop: the C loop (hil/native/loop.c) runs every run (auto = native); python is "
+                        "the test suite's reference loop, not part of the product (an error outside the tests)"
+                        f"{_default('loop')}")
     p.add_argument("--rt-priority", type=non_negative_int("--rt-priority"), metavar="N",
                    help="real time, native loop: SCHED_FIFO priority 1..99 of the loop thread (default 0: none; "
                         "refused without CAP_SYS_NICE, said in the warnings)")

@@ -83,8 +83,8 @@ METRICS: Final[tuple[Metric, ...]] = (
     _m("mode", "mode", "", "lockstep or realtime", "", source=RUN),
     _m("link_spec", "link", "", "link SPEC of the run", "", source=RUN),
     _m("loop", "loop", "", "the period loop that ran: `native` (C, hil/native/loop.c) or `python`", "", source=RUN),
-    _m("loop_note", "loop note", "", "why the Python loop ran (`--loop auto` where the native loop does not "
-       "support the run, or `--loop python`); null for the native loop", "", source=RUN),
+    _m("loop_note", "loop note", "", "why the Python loop ran (`--loop python`: the test suite's reference loop "
+       "only); null for the native loop", "", source=RUN),
     _m("end_reason", "end", "", "`completed`, or why the run stopped (trip, watchdog, target fault)", "", CLI,
        REPORT, source=RUN),
     _m("end_code", "end code", "", "how the run ended = exit code of `hil run`: 0 completed, 1 internal error, "

@@ -1,4 +1,4 @@
-/* The native period loop (loop.h): the steps of hil/runner/closed_loop.py ClosedLoop._run in C. */
+/* The native period loop (loop.h): the steps of tests/oracle/closed_loop.py ClosedLoop._run in C. */
 #define _POSIX_C_SOURCE 200809L
 
 #include <math.h>

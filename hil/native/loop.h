@@ -1,7 +1,7 @@
 /*
  * The native period loop: plant sample, sensor model, Measurement encode (generated codec), the C target
  * core called with the frames, Command decode, DUT-contract checks, plant advance, the period record --
- * the same steps, in the same order and with the same arithmetic, as hil/runner/closed_loop.py.
+ * the same steps, in the same order and with the same arithmetic, as tests/oracle/closed_loop.py (the reference).
  *
  * The loop runs in its own thread over the whole run and writes each block of NL_BLOCK periods into a ring
  * of NL_RING slots (period records in PERIOD_DTYPE layout, raw frames in FRAME_DTYPE layout, metrics-window

@@ -20,10 +20,10 @@ import numpy as np
 from pmsm_hil.hil.mechanics import RPM_TO_RAD_S, DynoMechanics
 from pmsm_hil.hil.plant_base import PlantBase
 from pmsm_hil.hil.records import FRAME_DTYPE, PERIOD_DTYPE
-from pmsm_hil.hil.runner import closed_loop
-from pmsm_hil.hil.runner.closed_loop import MAX_KEPT_VIOLATIONS, BlockSink, LoopOutcome
+from pmsm_hil.hil.runner import recorder
 from pmsm_hil.hil.runner.contract import RULES, EndCode
 from pmsm_hil.hil.runner.cpu_isolation import isolate_cpu
+from pmsm_hil.hil.runner.loop_outcome import MAX_KEPT_VIOLATIONS, BlockSink, LoopOutcome
 from pmsm_hil.hil.runner.native_config import NativeOptions, fill_config
 from pmsm_hil.hil.runner.native_findings import internal_error, violation
 from pmsm_hil.hil.runner.native_link import NativeCoreLink
@@ -151,7 +151,7 @@ class NativeLoop:
 
     def _start(self) -> LoopOutcome:
         n_total = int(self._c.n_total)
-        keep = n_total <= closed_loop.KEEP_PERIODS_MAX  # type: ignore[attr-defined]  # ClosedLoop's, read now
+        keep = n_total <= recorder.KEEP_PERIODS_MAX  # read now (tests lower it)
         out = LoopOutcome(period_records(keep=keep), frame_records(keep=False), np.zeros(0, self._trace_dtype),
                           int(self._c.n_settle))
         self._tap: FrameTap | None = None

@@ -9,7 +9,7 @@ from collections.abc import Callable
 
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.runner.block_sink import RunSink
-from pmsm_hil.hil.runner.closed_loop import LoopOutcome
+from pmsm_hil.hil.runner.loop_outcome import LoopOutcome
 from pmsm_hil.hil.runner.native_config import NativeOptions, support_problem
 from pmsm_hil.hil.runner.native_link import NativeCoreLink, NativeLoopUnavailableError, native_lib
 from pmsm_hil.hil.runner.native_link_kinds import NATIVE_WIRES
@@ -17,6 +17,7 @@ from pmsm_hil.hil.runner.native_loop import NativeLoop
 from pmsm_hil.hil.runner.native_pylink import NativePyLink
 from pmsm_hil.hil.runner.native_wire import NativeWireLink
 from pmsm_hil.hil.runner.plant_setup import build_plant
+from pmsm_hil.hil.runner.reference_loop import require_reference_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.target_client import TargetClient
 from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target
@@ -25,18 +26,21 @@ from pmsm_hil.protocol.links import link_kind, parse_spec
 
 
 def python_loop_reason(cfg: RunConfig) -> str | None:
-    """None when the run uses the native loop, else why it uses the Python loop; `--loop native` on a run the
-    native loop cannot do is a ParameterError naming the reason."""
+    """None: the run uses the C loop (every run of the product); "--loop python" when the test suite's reference
+    loop was asked (ParameterError without one). A run the C loop cannot do (a machine kind without a native
+    kernel, the extension not built) is a ParameterError naming the reason: there is no other loop to fall back
+    to."""
     if cfg.loop == "python":
+        require_reference_loop()
         return "--loop python"
     try:
         _, lib = native_lib()
         problem = support_problem(cfg, lib)
     except NativeLoopUnavailableError as exc:
         problem = str(exc)
-    if problem is not None and cfg.loop == "native":
-        raise ParameterError(f"--loop native: {problem}")
-    return problem
+    if problem is not None:
+        raise ParameterError(f"--loop {cfg.loop}: {problem}")
+    return None
 
 
 def connect_native(cfg: RunConfig) -> TargetConnection:
@@ -49,9 +53,13 @@ def connect_native(cfg: RunConfig) -> TargetConnection:
     ffi, lib = native_lib()
     fd = profile == "canfd"
     if in_core(cfg) and cfg.fault_spec is None:
-        link = NativeCoreLink(fd=fd)
-        client = TargetClient(link, FrameCodec(profile))
-        return TargetConnection(client, link, inproc_result=lambda: None)
+        try:
+            link = NativeCoreLink(fd=fd)
+        except NativeLoopUnavailableError:  # the C core serves another run in this process: the Python target
+            pass
+        else:
+            client = TargetClient(link, FrameCodec(profile))
+            return TargetConnection(client, link, inproc_result=lambda: None)
     # a SIL library in its own process is served by the native target on a wire; QEMU and an in-process SIL
     # library are reached through their Python links
     native_wire = cfg.target_path is None or cfg.sil_isolated
@@ -76,15 +84,10 @@ def in_core(cfg: RunConfig) -> bool:
 
 def connect_loop_target(cfg: RunConfig, python_reason: str | None,
                         connect_python: Callable[[], TargetConnection]) -> tuple[TargetConnection, str | None]:
-    """The target of the loop `python_reason` chose; the Python loop's target (`connect_python`) and why, when
-    the C core is in use by another native run in this process (`--loop native`: that error)."""
+    """The target of the loop `python_reason` chose: the C loop's (`connect_native`), or the reference loop's
+    (`connect_python`, test suite only)."""
     if python_reason is None:
-        try:
-            return connect_native(cfg), None
-        except NativeLoopUnavailableError as exc:
-            if cfg.loop == "native":
-                raise
-            python_reason = str(exc)
+        return connect_native(cfg), None
     return connect_python(), python_reason
 
 

@@ -9,8 +9,8 @@ from __future__ import annotations
 import os
 import time
 
-from pmsm_hil.hil.runner.closed_loop import LoopOutcome
 from pmsm_hil.hil.runner.contract import EndCode
+from pmsm_hil.hil.runner.loop_outcome import LoopOutcome
 from pmsm_hil.hil.runner.sil_watch import describe_exit, ended_silent, silent_since
 from pmsm_hil.sim_target.qemu import QemuTarget, fault_name
 

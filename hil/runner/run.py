@@ -19,14 +19,13 @@ from pmsm_hil.hil.metrics.lateness import lateness_histogram
 from pmsm_hil.hil.metrics.registry import METRICS, WINDOW
 from pmsm_hil.hil.runner.block_sink import RunSink
 from pmsm_hil.hil.runner.budget_check import check_realtime_budget
-from pmsm_hil.hil.runner.closed_loop import ClosedLoop, LoopOutcome
 from pmsm_hil.hil.runner.contract import RULES, EndCode
-from pmsm_hil.hil.runner.fault_setup import install_faults
 from pmsm_hil.hil.runner.link_losses import attribute as attribute_losses
 from pmsm_hil.hil.runner.link_losses import target_link_stats
+from pmsm_hil.hil.runner.loop_outcome import LoopOutcome
 from pmsm_hil.hil.runner.native_run import connect_loop_target, python_loop_reason, realtime_warnings, run_native
-from pmsm_hil.hil.runner.plant_setup import build_plant
 from pmsm_hil.hil.runner.recorder import frame_records, period_records
+from pmsm_hil.hil.runner.reference_loop import require_reference_loop
 from pmsm_hil.hil.runner.run_config import RunConfig, controller_id
 from pmsm_hil.hil.runner.run_dir_lock import run_dir_lock
 from pmsm_hil.hil.runner.run_limits import check_run_limits
@@ -131,7 +130,7 @@ def _run_locked(cfg: RunConfig, cid: int, python_reason: str | None, silent_afte
                 except (LinkError, TargetError):  # the target is gone (e.g. a SIL process that crashed)
                     outcome.target_disabled = False
             if outcome is None:
-                outcome = (_loop(cfg, conn, cid, sink) if python_reason
+                outcome = (require_reference_loop()(cfg, conn, cid, sink) if python_reason
                            else run_native(cfg, conn, cid, sink, silent_after))
             # e.g. a SIL target process that crashed or hung; not one the run's own stop killed (Ctrl-C/SIGTERM)
             if conn.ending is not None and outcome.end_code != EndCode.INTERRUPTED:
@@ -150,21 +149,6 @@ def _run_locked(cfg: RunConfig, cid: int, python_reason: str | None, silent_afte
             write_text_atomic(cfg.out_dir / "metrics.json", json.dumps(metrics, indent=2) + "\n",
                               option="metrics file")
     return RunResult(metrics=metrics, outcome=outcome, mcap_path=mcap_path)
-
-
-def _loop(cfg: RunConfig, conn: TargetConnection, cid: int, sink: RunSink) -> LoopOutcome:
-    """The closed loop feeding `sink` block by block (the last block, with the frames of the safe stop, is
-    flushed whatever ended the loop)."""
-    spec = cfg.fault_spec
-    loop = ClosedLoop(cfg, build_plant(cfg), conn.client, cid, inproc_result=conn.inproc_result,
-                      record_frames=sink.logger is not None, sink=sink)
-    faulty = install_faults(conn.client, spec, loop.run_time_s) if spec is not None else None
-    loop.faulty = sink.faulty = faulty
-    outcome = loop.run()
-    if faulty is not None:
-        outcome.link_faults = dict(faulty.counts)
-    outcome.trace = sink.window.tail.array()
-    return outcome
 
 
 def _window_metrics(cfg: RunConfig, out: LoopOutcome, sink: RunSink, link_stats: dict[str, int]) -> dict[str, Any]:

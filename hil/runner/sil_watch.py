@@ -20,8 +20,8 @@ import time
 from types import FrameType
 from typing import Any
 
-from pmsm_hil.hil.runner.closed_loop import LoopOutcome
 from pmsm_hil.hil.runner.contract import MISSING, EndCode
+from pmsm_hil.hil.runner.loop_outcome import LoopOutcome
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.protocol.links import parse_spec
 

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
-from pmsm_hil.hil.runner.closed_loop import LoopOutcome
+from pmsm_hil.hil.runner.loop_outcome import LoopOutcome
 from pmsm_hil.hil.runner.run_config import QEMU_MAILBOX_LINK, RunConfig
 from pmsm_hil.hil.runner.sil_watch import (
     SIL_STOP_WAIT_S,

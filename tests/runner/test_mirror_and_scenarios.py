@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 from pmsm_hil.hil.errors import InputFileError, ParameterError
 from pmsm_hil.hil.presets_loader import load_motor
-from pmsm_hil.hil.runner.run import build_plant, run_closed_loop
+from pmsm_hil.hil.runner.plant_setup import build_plant
+from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import load_scenario
 

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runlog.reader import read_frames
-from pmsm_hil.hil.runner.closed_loop import LoopOutcome
 from pmsm_hil.hil.runner.contract import EndCode
+from pmsm_hil.hil.runner.loop_outcome import LoopOutcome
 from pmsm_hil.hil.runner.recorder import frame_records, period_records
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig

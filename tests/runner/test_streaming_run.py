@@ -11,7 +11,7 @@ import pytest
 from pmsm_hil.hil.metrics import compute_run_metrics
 from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runlog.reader import read_frames, read_periods, read_trace
-from pmsm_hil.hil.runner import closed_loop
+from pmsm_hil.hil.runner import recorder
 from pmsm_hil.hil.runner.recorder import RecordsNotKeptError
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
@@ -23,7 +23,7 @@ DETERMINISTIC = ("torque_mean_nm", "torque_ripple_rms_nm", "torque_ripple_pp_nm"
 
 
 def test_long_run_streams_and_its_log_gives_the_same_metrics(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(closed_loop, "KEEP_PERIODS_MAX", 1500)  # this run of 3500 periods counts as long
+    monkeypatch.setattr(recorder, "KEEP_PERIODS_MAX", 1500)  # this run of 3500 periods counts as long
     sc = load_scenario("steady").with_overrides(speed_rpm=1500.0, load_nm=7.0, settle_s=0.05, duration_s=0.3)
     cfg = RunConfig(motor=load_motor("niu2020-ipmsm"), scenario=sc, controller="mpcc", link="virtual",
                     target="inproc", mode="lockstep", out_dir=tmp_path / "run", log_trace=True)

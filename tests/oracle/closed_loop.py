@@ -1,4 +1,8 @@
-"""The closed loop: plant ↔ target each control period, in lockstep (virtual time) or real time."""
+"""The Python period loop: plant ↔ target each control period, in lockstep (virtual time) or real time.
+
+Not part of the product: the C loop (hil/native/loop.c) runs every run. This is the test suite's reference (the
+oracle the C loop is proven against, record for record, frame for frame): `run_reference_loop` is registered with
+the runner by tests/conftest.py (`--loop python`)."""
 
 from __future__ import annotations
 
@@ -7,86 +11,30 @@ import gc
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 from pmsm_hil.hil.mechanics import RPM_TO_RAD_S, DynoMechanics
-from pmsm_hil.hil.metrics.quantiles import IntQuantiles
 from pmsm_hil.hil.plant_base import PeriodStats, PlantBase
+from pmsm_hil.hil.runner import recorder
+from pmsm_hil.hil.runner.block_sink import RunSink
 from pmsm_hil.hil.runner.contract import MISSING, EndCode, Violation, check_command, describe
-from pmsm_hil.hil.runner.recorder import KEEP_PERIODS_MAX, ByteRecords, FrameTap, frame_records, period_records
+from pmsm_hil.hil.runner.fault_setup import install_faults
+from pmsm_hil.hil.runner.loop_outcome import MAX_KEPT_VIOLATIONS, BlockSink, LoopOutcome
+from pmsm_hil.hil.runner.plant_setup import build_plant
+from pmsm_hil.hil.runner.recorder import FrameTap, frame_records, period_records
 from pmsm_hil.hil.runner.run_config import RunConfig
-from pmsm_hil.hil.runner.safe_stop import SafeStop, disable_and_confirm, settle_ending
+from pmsm_hil.hil.runner.safe_stop import disable_and_confirm, settle_ending
 from pmsm_hil.hil.runner.stop_request import StopRequest, deferred_interrupts
 from pmsm_hil.hil.runner.target_client import TargetClient
+from pmsm_hil.hil.runner.target_setup import TargetConnection
 from pmsm_hil.hil.sensors import SensorModel
 from pmsm_hil.protocol.ids import Mode
 from pmsm_hil.protocol.links.faults import FaultyLink
 from pmsm_hil.protocol.messages import Command
 
 _NAN = math.nan
-
-
-@dataclass(slots=True)
-class LoopOutcome:
-    """What the loop produced: records, counters and how it ended.
-
-    `periods` keeps every period record for runs of up to `KEEP_PERIODS_MAX` periods (longer runs stream
-    them to the block sink only); `frames` are streamed to the sink, never kept; `trace` is the end of the
-    metrics-window trace (the runner sets it: the span the THD was computed over)."""
-
-    periods: ByteRecords
-    frames: ByteRecords
-    trace: npt.NDArray[np.void]
-    window_start_period: int
-    completed_periods: int = 0
-    #: wall time of the whole run [s]: start-up (enabling Setpoint, real-time set-up such as `mlockall`),
-    #: the periods, the safe stop
-    wall_time_s: float = 0.0
-    #: wall time of the periods alone [s]: from the first period's scheduled start to the end of the loop
-    #: (in real time, n·Ts plus the lateness of the last period when nothing started late)
-    paced_time_s: float = 0.0
-    deadline_misses: int = 0
-    late_commands: int = 0
-    lost_commands: int = 0
-    #: real time: lateness of the period starts not yet folded into `lateness_us` (at most one block) [ns]
-    lateness_ns: list[int] = field(default_factory=list)
-    #: real time: lateness of every period start [µs] (exact quantiles from counts)
-    lateness_us: IntQuantiles = field(default_factory=lambda: IntQuantiles(1e-3))
-    end_reason: str = "completed"
-    #: how the run ended (`EndCode`: the exit code of `hil run`)
-    end_code: int = EndCode.COMPLETED
-    safe_state: bool = False
-    #: the disabling Setpoint was sent at the end (every ending)
-    target_disabled: bool = False
-    #: what followed the disabling Setpoint (its confirmation), None before the safe stop
-    safe_stop: SafeStop | None = None
-    #: DUT contract findings: all counted, the first `MAX_KEPT_VIOLATIONS` kept
-    violation_count: int = 0
-    violations: list[Violation] = field(default_factory=list)
-    violations_by_rule: dict[str, int] = field(default_factory=dict)
-    #: real time: periods that started later than the overrun threshold
-    overruns: int = 0
-    #: longest wait for a Command [ns] (wall time)
-    max_wait_ns: int = 0
-    #: injected link faults by kind (`--fault`), None without fault injection
-    link_faults: dict[str, int] | None = None
-    #: the exception behind an internal-error ending (re-raised by the runner after the outputs are written)
-    error: BaseException | None = None
-    #: metrics-window periods with a restricted-vs-full candidate diagnostic, and those where the
-    #: restricted set missed the full-set optimum (in-process targets that report `full_miss`)
-    candidate_checked: int = 0
-    candidate_misses: int = 0
-
-
-#: violations kept in the outcome (all are counted)
-MAX_KEPT_VIOLATIONS = 100
-
-#: consumer of each block: (period records, raw frames or None when frames are not recorded, the block's
-#: metrics-window trace rows — a view valid during the call only)
-BlockSink = Callable[[np.ndarray, "np.ndarray | None", np.ndarray], None]
 
 
 class ClosedLoop:
@@ -190,7 +138,7 @@ class ClosedLoop:
         self._trace = trace
         self._trace_view = trace.view(np.float64).reshape(-1, self._trace_columns)
         self._trace_n = 0
-        keep = self._n_total <= KEEP_PERIODS_MAX
+        keep = self._n_total <= recorder.KEEP_PERIODS_MAX  # read now (tests lower it)
         out = LoopOutcome(period_records(keep=keep), frame_records(keep=False), trace[:0], n_settle)
         out.periods.reserve(self._n_total if keep else self.BLOCK)
         out.frames.reserve(4 * self.BLOCK)
@@ -469,3 +417,18 @@ class ClosedLoop:
         if settle_ending(out, disable_and_confirm(self.client, self.controller_id)):
             with contextlib.suppress(Exception):
                 self.plant.advance((0,), (self.cfg.ts_ns,))
+
+
+def run_reference_loop(cfg: RunConfig, conn: TargetConnection, cid: int, sink: RunSink) -> LoopOutcome:
+    """The run through the Python loop feeding `sink` block by block (the last block, with the frames of the safe
+    stop, is flushed whatever ended the loop): `--loop python` in the test suite."""
+    spec = cfg.fault_spec
+    loop = ClosedLoop(cfg, build_plant(cfg), conn.client, cid, inproc_result=conn.inproc_result,
+                      record_frames=sink.logger is not None, sink=sink)
+    faulty = install_faults(conn.client, spec, loop.run_time_s) if spec is not None else None
+    loop.faulty = sink.faulty = faulty
+    outcome = loop.run()
+    if faulty is not None:
+        outcome.link_faults = dict(faulty.counts)
+    outcome.trace = sink.window.tail.array()
+    return outcome

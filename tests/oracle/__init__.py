@@ -1,0 +1,1 @@
+"""The test suite's reference (oracle) Python period loop."""
