@@ -6,7 +6,7 @@ from setuptools import setup
 
 _BUILDERS = ["hil/native/_build_plant.py:ffibuilder", "sim_target/_build_firmware.py:ffibuilder",
              "hil/native/_build_loop.py:ffibuilder"]
-_FOLDERS = ("hil", "protocol", "sim_target", "dashboards")
+_FOLDERS = ("hil", "protocol", "sim_target", "dashboards", "app")
 
 
 def _packages() -> list[str]:
@@ -22,7 +22,7 @@ def _packages() -> list[str]:
 setup(
     packages=_packages(),
     package_data={"pmsm_hil.hil.presets": ["*.toml"], "pmsm_hil.hil.scenarios": ["*.toml"],
-                  "pmsm_hil.hil.compare.presets": ["*.toml"],
+                  "pmsm_hil.app.compare.presets": ["*.toml"],
                   "pmsm_hil.protocol": ["*.dbc"],
                   # the kernel headers and shared helpers kernel_build.py compiles a kind's kernel against
                   "pmsm_hil.hil": ["native/*.h", "native/*.cdef", "native/gate_edges.c", "native/dq_segment.c"]},

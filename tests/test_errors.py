@@ -65,7 +65,7 @@ def _exception_classes(modules: list[ModuleType]) -> dict[str, type[BaseExceptio
 def test_every_exception_class_derives_from_hil_error() -> None:
     modules, skipped = _modules()
     names = {m.__name__ for m in modules}
-    assert {"pmsm_hil.hil.cli.main", "pmsm_hil.protocol.codec", "pmsm_hil.sim_target.firmware",
+    assert {"pmsm_hil.app.cli.main", "pmsm_hil.protocol.codec", "pmsm_hil.sim_target.firmware",
             "pmsm_hil.dashboards.errors", "pmsm_hil.testing.signals", "pmsm_hil.hil.runlog.errors"} <= names
     assert len(modules) > 150, skipped  # the walk really saw the package
     classes = _exception_classes(modules)
@@ -104,7 +104,7 @@ def test_the_old_roots_are_the_one_root() -> None:
 ])
 def test_cli_reports_any_hil_error_in_one_line_exit_2(error: HilError, monkeypatch: pytest.MonkeyPatch,
                                                       capsys: pytest.CaptureFixture[str]) -> None:
-    from pmsm_hil.hil.cli import link_budget, main
+    from pmsm_hil.app.cli import link_budget, main
 
     def fail(args: object) -> int:
         raise error
@@ -116,7 +116,7 @@ def test_cli_reports_any_hil_error_in_one_line_exit_2(error: HilError, monkeypat
 
 def test_cli_other_endings_keep_their_codes(monkeypatch: pytest.MonkeyPatch) -> None:
     """Ctrl-C is 130; an error outside the tree is a bug: it propagates (a traceback, exit 1)."""
-    from pmsm_hil.hil.cli import link_budget, main
+    from pmsm_hil.app.cli import link_budget, main
 
     def interrupted(args: object) -> int:
         raise KeyboardInterrupt

@@ -11,9 +11,9 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 #: repository folder -> import name (pyproject.toml [tool.setuptools] package-dir)
-PACKAGES = {"hil": "pmsm_hil.hil", "protocol": "pmsm_hil.protocol", "sim_target": "pmsm_hil.sim_target",
-            "dashboards": "pmsm_hil.dashboards", "pmsm_hil/testing": "pmsm_hil.testing",
-            "pmsm_hil/conformance": "pmsm_hil.conformance"}
+PACKAGES = {"hil": "pmsm_hil.hil", "app": "pmsm_hil.app", "protocol": "pmsm_hil.protocol",
+            "sim_target": "pmsm_hil.sim_target", "dashboards": "pmsm_hil.dashboards",
+            "pmsm_hil/testing": "pmsm_hil.testing", "pmsm_hil/conformance": "pmsm_hil.conformance"}
 
 #: (module prefix, layer), most specific first
 LAYER_OF = (
@@ -22,10 +22,7 @@ LAYER_OF = (
     ("pmsm_hil.conformance", "application"),
     ("pmsm_hil.protocol", "protocol"),
     ("pmsm_hil.sim_target", "target"),
-    ("pmsm_hil.hil.cli", "application"),
-    ("pmsm_hil.hil.compare", "application"),
-    ("pmsm_hil.hil.bench", "application"),
-    ("pmsm_hil.hil.sweep", "application"),
+    ("pmsm_hil.app", "application"),
     ("pmsm_hil.dashboards", "dashboards"),
     ("pmsm_hil.hil.runner", "runner"),
     ("pmsm_hil.hil.runlog", "infrastructure"),
@@ -179,3 +176,11 @@ def test_each_extension_compiles_its_own_layer() -> None:
     assert plant_sources == {"dq_segment.c", "gate_edges.c", "plant.c", "plant6.c"}
     loop_sources = set(builder("_build_loop").LOOP_SOURCES)  # type: ignore[attr-defined]
     assert loop_sources and not (loop_sources & KERNEL_FILES)
+
+
+def test_folders_are_layers() -> None:
+    """The application lives in app/ (pmsm_hil.app), the model and runner in hil/: nothing under hil/ imports the
+    dashboards or the application (no folder-level cycle)."""
+    bad = [f"{file}:{line}: {dst}" for file, line, src, dst in _edges()
+           if src.startswith("pmsm_hil.hil") and dst.startswith(("pmsm_hil.dashboards", "pmsm_hil.app"))]
+    assert bad == []

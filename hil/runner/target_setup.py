@@ -131,7 +131,7 @@ def _spawn_target(spec: str, native: bool = False, sil: str | None = None,
     group so a terminal's Ctrl-C reaches the runner only, which stops it in order) on `spec` and wait for its
     ready line; raises TargetError with its own error line if it exits first (a port in use, a bad library) or
     does not get ready in time. Its stderr goes to the returned file."""
-    cmd = [sys.executable, "-m", "pmsm_hil.hil.cli.main", "target", "--link", spec, "--role", "target",
+    cmd = [sys.executable, "-m", "pmsm_hil.app.cli.main", "target", "--link", spec, "--role", "target",
            "--parent-pid", str(os.getpid()), "--idle-timeout", repr(SPAWNED_IDLE_TIMEOUT_S), *(["--native"] * native),
            *(["--sil", sil] if sil is not None else [])]
     err = tempfile.TemporaryFile()  # noqa: SIM115 (the connection owns it: `close` forwards it)

@@ -1,5 +1,5 @@
 """Closed-loop runs for tests: the choices of `hil run` as keyword arguments, built into a RunConfig by the
-CLI's own configuration path (`hil/cli/run.py` `config_from_args`: same defaults, config merging and
+CLI's own configuration path (`app/cli/run.py` `config_from_args`: same defaults, config merging and
 validation), run by `run_closed_loop`, signals read back from the run's MCAP (the log on disk is the source of
 truth)."""
 
@@ -82,7 +82,7 @@ class _RaisingParser(argparse.ArgumentParser):
 
 
 def _run_parser() -> argparse.ArgumentParser:
-    from pmsm_hil.hil.cli import run as run_cli
+    from pmsm_hil.app.cli import run as run_cli
 
     root: argparse.ArgumentParser = _RaisingParser(prog="hil")
     run_cli.add_parser(root.add_subparsers(dest="command"))
@@ -122,7 +122,7 @@ def run_argv(settings: HilSettings, out_dir: Path | None, kwargs: Mapping[str, A
 
 def build_config(settings: HilSettings, out_dir: Path | None, kwargs: Mapping[str, Any]) -> RunConfig:
     """The RunConfig `hil run` would build from these choices (ParameterError on a bad one)."""
-    from pmsm_hil.hil.cli.run import config_from_args
+    from pmsm_hil.app.cli.run import config_from_args
 
     args = _run_parser().parse_args(run_argv(settings, out_dir, kwargs))
     return config_from_args(args)
@@ -132,8 +132,8 @@ def execute(settings: HilSettings, out_dir: Path, kwargs: Mapping[str, Any],
             reporter: Reporter | None = None) -> HilResult:
     """Run in `out_dir` (created; must not hold a run) and return the result; prints the metrics table (pytest
     shows it with a failing test). An internal error of the tool is raised (HilRunError from it)."""
-    from pmsm_hil.hil.cli.report_table import format_metrics
-    from pmsm_hil.hil.cli.run import config_from_args
+    from pmsm_hil.app.cli.report_table import format_metrics
+    from pmsm_hil.app.cli.run import config_from_args
     from pmsm_hil.hil.runner.run import run_closed_loop
 
     argv = run_argv(settings, out_dir, kwargs)

@@ -8,12 +8,12 @@ import re
 from pathlib import Path
 
 import pytest
+from pmsm_hil.app.cli.main import main
+from pmsm_hil.app.compare import load_preset, run_preset
+from pmsm_hil.app.compare.preset import Variant
+from pmsm_hil.app.compare.report_runs import MAX_REPORT_RUNS, ReportSelection, dir_name, write_compare_report
 from pmsm_hil.dashboards.errors import DashboardError
 from pmsm_hil.dashboards.report_data import load_run
-from pmsm_hil.hil.cli.main import main
-from pmsm_hil.hil.compare import load_preset, run_preset
-from pmsm_hil.hil.compare.preset import Variant
-from pmsm_hil.hil.compare.report_runs import MAX_REPORT_RUNS, ReportSelection, dir_name, write_compare_report
 from pmsm_hil.hil.records import TRACE_DTYPE6
 from pmsm_hil.hil.runlog.reader import read_trace
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pmsm_hil.hil.compare import load_preset
+from pmsm_hil.app.compare import load_preset
 
 from tests.compare._presets import assert_rejected, run_text
 

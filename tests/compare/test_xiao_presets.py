@@ -5,9 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from pmsm_hil.hil.compare import load_preset
-from pmsm_hil.hil.compare.runs import evaluation_e
-from pmsm_hil.hil.compare.spread import aggregate
+from pmsm_hil.app.compare import load_preset
+from pmsm_hil.app.compare.runs import evaluation_e
+from pmsm_hil.app.compare.spread import aggregate
 
 from tests.compare._presets import assert_rejected, run_text
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pmsm_hil.hil.compare import load_preset
-from pmsm_hil.hil.compare.spread import aggregate
-from pmsm_hil.hil.compare.table import format_table
+from pmsm_hil.app.compare import load_preset
+from pmsm_hil.app.compare.spread import aggregate
+from pmsm_hil.app.compare.table import format_table
 
 from tests.compare._presets import run_text
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from pmsm_hil.hil.compare import load_preset
+from pmsm_hil.app.compare import load_preset
 
 
 def test_symmetric_preset_pairs_every_controller() -> None:

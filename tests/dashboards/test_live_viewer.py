@@ -19,9 +19,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from pmsm_hil.app.cli.main import main
 from pmsm_hil.dashboards.entities import APPLICATION_ID
 from pmsm_hil.dashboards.recording import RerunTargets, free_port, open_recording, viewer_executable
-from pmsm_hil.hil.cli.main import main
 
 HIL = Path(sys.executable).parent / "hil"
 

@@ -10,10 +10,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from pmsm_hil.app.cli.main import main
 from pmsm_hil.dashboards.decimate import minmax_decimate
 from pmsm_hil.dashboards.report_data import load_run
 from pmsm_hil.dashboards.report_whole_run import MAX_POINTS_PER_TRACE
-from pmsm_hil.hil.cli.main import main
 from pmsm_hil.hil.runlog import read_periods
 
 _SHORT = ["--duration", "0.05", "--settle", "0.02"]

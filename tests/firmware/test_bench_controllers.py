@@ -8,7 +8,7 @@ import shutil
 from pathlib import Path
 
 import pytest
-from pmsm_hil.hil.cli import bench_controllers
+from pmsm_hil.app.cli import bench_controllers
 
 
 def _parse(argv: list[str]) -> argparse.Namespace:

@@ -5,8 +5,8 @@ from __future__ import annotations
 import math
 
 import pytest
-from pmsm_hil.hil.cli import bench_controllers
-from pmsm_hil.hil.cli.bench_machines import SIX_PHASE_IDS, THREE_PHASE, inputs, machine_for
+from pmsm_hil.app.cli import bench_controllers
+from pmsm_hil.app.cli.bench_machines import SIX_PHASE_IDS, THREE_PHASE, inputs, machine_for
 
 
 def test_six_phase_inputs_are_a_balanced_q_current() -> None:

@@ -37,7 +37,7 @@ def firmware() -> dict[str, Path]:
 
 
 def _hil_run(args: list[str], **kw: Any) -> subprocess.Popen[str]:
-    return subprocess.Popen([sys.executable, "-m", "pmsm_hil.hil.cli.main", "run", *args], cwd=ROOT, text=True,
+    return subprocess.Popen([sys.executable, "-m", "pmsm_hil.app.cli.main", "run", *args], cwd=ROOT, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, **kw)
 
 

@@ -6,10 +6,10 @@ from __future__ import annotations
 from typing import Any
 
 import pytest
+from pmsm_hil.app.cli.report_table import format_metrics
+from pmsm_hil.app.compare.spread import SPREAD_METRICS
+from pmsm_hil.app.compare.table import COLUMNS
 from pmsm_hil.dashboards.report_html import TABLE
-from pmsm_hil.hil.cli.report_table import format_metrics
-from pmsm_hil.hil.compare.spread import SPREAD_METRICS
-from pmsm_hil.hil.compare.table import COLUMNS
 from pmsm_hil.hil.metrics.registry import (
     CLI,
     COMPARE,

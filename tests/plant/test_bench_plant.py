@@ -8,14 +8,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from pmsm_hil.hil.bench.gem_pmsm import gem_version
-from pmsm_hil.hil.bench.plant_bench import (
+from pmsm_hil.app.bench.gem_pmsm import gem_version
+from pmsm_hil.app.bench.plant_bench import (
     PlantBenchResult,
     format_result,
     run_plant_bench,
     three_vector_commands,
 )
-from pmsm_hil.hil.cli.main import main
+from pmsm_hil.app.cli.main import main
 from pmsm_hil.hil.errors import ParameterError
 
 PLANT_KEYS = ("periods_per_s_single", "periods_per_s_single_trace", "periods_per_s_three",

@@ -6,8 +6,8 @@ import argparse
 import json
 
 import pytest
-from pmsm_hil.hil.cli import bench_link
-from pmsm_hil.hil.cli.main import main
+from pmsm_hil.app.cli import bench_link
+from pmsm_hil.app.cli.main import main
 
 
 def test_bench_link_json(capsys: pytest.CaptureFixture[str]) -> None:

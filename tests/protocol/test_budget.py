@@ -6,8 +6,8 @@ import argparse
 import json
 
 import pytest
-from pmsm_hil.hil.cli import link_budget as cli
-from pmsm_hil.hil.cli.main import main
+from pmsm_hil.app.cli import link_budget as cli
+from pmsm_hil.app.cli.main import main
 from pmsm_hil.protocol.errors import BudgetError
 from pmsm_hil.protocol.links.budget import can_frame_bits, canfd_frame_bits, link_budget, serial_frame_bytes
 

@@ -84,7 +84,7 @@ def interrupt_once(out: Path, variant: str, sig: signal.Signals, delay_s: float,
     (`group`: as a terminal's Ctrl-C or `kill -- -PGID`; the logger and a spawned target get it too), wait for
     it and compare the files. `after_bytes`: count the delay from when run.mcap holds that many bytes (the
     loop runs)."""
-    cmd = [sys.executable, "-m", "pmsm_hil.hil.cli.main", "run", *VARIANTS[variant], "--out", str(out)]
+    cmd = [sys.executable, "-m", "pmsm_hil.app.cli.main", "run", *VARIANTS[variant], "--out", str(out)]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=group,
                             preexec_fn=_default_sigint)
     mcap = out / "run.mcap"

@@ -6,8 +6,8 @@ import json
 from pathlib import Path
 
 import pytest
-from pmsm_hil.hil.bench.memory import MemoryPoint, marginal_rates
-from pmsm_hil.hil.cli.main import main
+from pmsm_hil.app.bench.memory import MemoryPoint, marginal_rates
+from pmsm_hil.app.cli.main import main
 
 
 def test_bench_memory_prints_figures(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

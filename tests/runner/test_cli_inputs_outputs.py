@@ -8,8 +8,8 @@ import json
 from pathlib import Path
 
 import pytest
-from pmsm_hil.hil.cli.main import build_parser, main
-from pmsm_hil.hil.cli.run import config_schema
+from pmsm_hil.app.cli.main import build_parser, main
+from pmsm_hil.app.cli.run import config_schema
 from pmsm_hil.hil.runlog.reader import read_frames, read_metadata
 from pmsm_hil.protocol.ids import CONTROLLER_NAMES
 from pmsm_hil.protocol.links import LINK_KINDS
@@ -262,7 +262,7 @@ def test_debug_after_the_subcommand(tmp_path: Path, capsys: pytest.CaptureFixtur
 
 def test_interrupted_run_names_its_partial_log(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                                capsys: pytest.CaptureFixture[str]) -> None:
-    from pmsm_hil.hil.cli import run as run_cli
+    from pmsm_hil.app.cli import run as run_cli
 
     def interrupted(*args: object, **kwargs: object) -> object:
         (tmp_path / "r" / "run.mcap").write_bytes(b"partial")

@@ -147,7 +147,7 @@ def test_ts_validated_against_the_frame_format() -> None:
 
 
 def test_cli_ts_above_the_frame_format_exits_2(capsys: pytest.CaptureFixture[str]) -> None:
-    from pmsm_hil.hil.cli.main import main
+    from pmsm_hil.app.cli.main import main
 
     assert main(["run", "--ts", "2e-3", "--duration", "0.01", "--no-log"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
@@ -164,7 +164,7 @@ def test_cli_ts_above_the_frame_format_exits_2(capsys: pytest.CaptureFixture[str
 ])
 def test_cli_param_the_controller_does_not_use_exits_2(argv: list[str], message: str,
                                                        capsys: pytest.CaptureFixture[str]) -> None:
-    from pmsm_hil.hil.cli.main import main
+    from pmsm_hil.app.cli.main import main
 
     assert main(["run", *argv, "--duration", "0.01", "--no-log"]) == 2
     assert capsys.readouterr().err.strip() == f"hil: error: {message}"
@@ -179,7 +179,7 @@ def test_params_the_controller_uses_pass() -> None:
 
 
 def test_sweep_point_with_an_unused_param_names_the_grid(capsys: pytest.CaptureFixture[str]) -> None:
-    from pmsm_hil.hil.cli.main import main
+    from pmsm_hil.app.cli.main import main
 
     assert main(["sweep", "--grid", "controller=mpcc,mptc2", "--grid", "param.lambda=500", "--duration",
                  "0.01"]) == 2

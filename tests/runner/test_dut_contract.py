@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from pmsm_hil.hil.cli.main import main
+from pmsm_hil.app.cli.main import main
 from pmsm_hil.hil.plant_base import PlantBase
 from pmsm_hil.hil.runlog.reader import read_faults, read_frames, read_periods
 
@@ -201,7 +201,7 @@ def test_interrupt_stops_safely_with_exit_130(sig: signal.Signals, tmp_path: Pat
     master, port = pty
     log, out = tmp_path / "target.jsonl", tmp_path / "run"
     target = _start_target(port, log, ())
-    host = subprocess.Popen([sys.executable, "-m", "pmsm_hil.hil.cli.main", *RUN, "--link", f"serial:fd:{master}",
+    host = subprocess.Popen([sys.executable, "-m", "pmsm_hil.app.cli.main", *RUN, "--link", f"serial:fd:{master}",
                              "--duration", "30", "--out", str(out)], pass_fds=(master,))
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline:  # wait until periods flow

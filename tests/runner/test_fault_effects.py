@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from pmsm_hil.hil.bench.fault_effects import CASES, run_case
+from pmsm_hil.app.bench.fault_effects import CASES, run_case
 
 
 def test_cases_run_and_count_their_faults() -> None:

@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
-from pmsm_hil.hil.cli.main import main
+from pmsm_hil.app.cli.main import main
 
 from tests.runner.interrupt_runs import interrupt_once
 
@@ -47,7 +47,7 @@ def test_ctrl_c_in_the_first_second_is_one_line(tmp_path: Path, delay_s: float) 
 def test_ctrl_c_early_in_replay_is_one_line(tmp_path: Path) -> None:
     assert main(["run", "--duration", "0.05", "--settle", "0", "--out", str(tmp_path / "r")]) == 0
     for delay in (0.2, 0.6):
-        proc = subprocess.Popen([sys.executable, "-m", "pmsm_hil.hil.cli.main", "replay",
+        proc = subprocess.Popen([sys.executable, "-m", "pmsm_hil.app.cli.main", "replay",
                                  str(tmp_path / "r" / "run.mcap"), "--rerun-save", str(tmp_path / f"x{delay}.rrd")],
                                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
         time.sleep(delay)
@@ -61,7 +61,7 @@ def test_ctrl_c_early_in_replay_is_one_line(tmp_path: Path) -> None:
 def test_main_turns_an_early_interrupt_into_exit_130(monkeypatch: pytest.MonkeyPatch,
                                                      capsys: pytest.CaptureFixture[str]) -> None:
     """Ctrl-C while the parser imports the subcommands (the first ~0.5 s of every `hil` command)."""
-    from pmsm_hil.hil.cli import main as main_module
+    from pmsm_hil.app.cli import main as main_module
 
     def interrupted() -> None:
         raise KeyboardInterrupt
@@ -76,7 +76,7 @@ def test_main_turns_an_early_interrupt_into_exit_130(monkeypatch: pytest.MonkeyP
 def test_an_error_an_interrupt_caused_is_still_an_interrupt(monkeypatch: pytest.MonkeyPatch,
                                                             capsys: pytest.CaptureFixture[str]) -> None:
     """numpy turns a KeyboardInterrupt inside its C import into an ImportError: after a signal, exit 130."""
-    from pmsm_hil.hil.cli import main as main_module
+    from pmsm_hil.app.cli import main as main_module
 
     def import_cut_by_ctrl_c() -> None:
         try:

@@ -82,7 +82,7 @@ def test_realtime_refuses_a_link_that_cannot_carry_the_rate() -> None:
 def _start_logged_run(out: Path, min_bytes: int) -> tuple[subprocess.Popen[bytes], Path]:
     """A long `hil run` in a child process, returned once its MCAP holds min_bytes."""
     proc = subprocess.Popen(
-        [sys.executable, "-m", "pmsm_hil.hil.cli.main", "run", "--duration", "30", "--settle", "0",
+        [sys.executable, "-m", "pmsm_hil.app.cli.main", "run", "--duration", "30", "--settle", "0",
          "--out", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     mcap = out / "run.mcap"
     deadline = time.monotonic() + 60

@@ -229,7 +229,7 @@ def test_rt_options_on_the_python_loop_are_said_not_applied() -> None:
 
 
 def test_bench_realtime_prints_both_loops_side_by_side(capsys: pytest.CaptureFixture[str]) -> None:
-    from pmsm_hil.hil.cli.main import main
+    from pmsm_hil.app.cli.main import main
 
     assert main(["bench", "realtime", "--duration", "0.005", "--repeats", "1"]) == 0
     out = capsys.readouterr().out
@@ -240,7 +240,7 @@ def test_bench_realtime_prints_both_loops_side_by_side(capsys: pytest.CaptureFix
 
 
 def test_gap_probe_counts_the_time_a_busy_loop_did_not_run() -> None:
-    from pmsm_hil.hil.cli.bench_realtime import gap_floor
+    from pmsm_hil.app.cli.bench_realtime import gap_floor
 
     floor = gap_floor(0.05, 100e-6, 0, None)
     assert floor is not None and floor["refused_errno"] == 0

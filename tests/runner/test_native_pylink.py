@@ -37,7 +37,7 @@ def test_an_in_process_python_target_on_a_udp_link() -> None:
 def native_target_ports() -> Iterator[tuple[int, int]]:
     """A native target (`hil target --native`) on UDP; yields (host port, target port)."""
     host, target = free_udp_ports(2)
-    proc = subprocess.Popen([sys.executable, "-m", "pmsm_hil.hil.cli.main", "target", "--native", "--link",
+    proc = subprocess.Popen([sys.executable, "-m", "pmsm_hil.app.cli.main", "target", "--native", "--link",
                              f"udp:{target}:{host}"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
         assert proc.stdout is not None and proc.stdout.readline().startswith(b"ready")

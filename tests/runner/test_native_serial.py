@@ -207,7 +207,7 @@ def test_the_native_target_stops_when_the_host_closes_the_pty() -> None:
     master, slave = os.openpty()
     path = os.ttyname(slave)
     os.close(slave)
-    proc = subprocess.Popen([sys.executable, "-m", "pmsm_hil.hil.cli.main", "target", "--native", "--link",
+    proc = subprocess.Popen([sys.executable, "-m", "pmsm_hil.app.cli.main", "target", "--native", "--link",
                              f"serial:{path}", "--idle-timeout", "20"], stdout=subprocess.PIPE, text=True)
     try:
         assert proc.stdout is not None and proc.stdout.readline().startswith("ready serial:")
@@ -237,7 +237,7 @@ def test_ctrl_c_ends_a_native_serial_run_safely() -> None:
 def test_bench_loop_names_the_serial_pairs_as_the_udp_pairs(monkeypatch: pytest.MonkeyPatch) -> None:
     """`hil bench loop --cross-process udp,serial`: the same keys per link (the runs themselves faked here:
     the figures are in docs/benchmarks.md)."""
-    from pmsm_hil.hil.cli import bench_loop
+    from pmsm_hil.app.cli import bench_loop
 
     seen: list[tuple[str, str, str]] = []
 

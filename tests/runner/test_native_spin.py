@@ -157,7 +157,7 @@ def test_the_udp_floor_is_a_real_round_trip_between_two_processes() -> None:
 def test_bench_loop_prints_the_udp_floor_and_its_load_ratio(monkeypatch: pytest.MonkeyPatch) -> None:
     import contextlib
 
-    from pmsm_hil.hil.cli import bench_loop
+    from pmsm_hil.app.cli import bench_loop
     monkeypatch.setattr(bench_loop, "_cpu_burner", contextlib.nullcontext)  # the figure itself: docs/benchmarks.md
     out = bench_loop._udp_floor(lambda _msg: None, round_trips=200)
     assert set(out) == {"udp_floor_spin_us", "udp_floor_block_us", "udp_floor_spin_loaded_us",

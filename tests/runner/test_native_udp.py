@@ -75,7 +75,7 @@ def test_classic_can_mirrored_and_six_phases_over_udp(make: Any, link: str) -> N
 
 def test_native_target_serves_udp_only_and_stops_when_idle() -> None:
     port = free_udp_ports(1)[0]
-    cmd = [sys.executable, "-m", "pmsm_hil.hil.cli.main", "target", "--native"]
+    cmd = [sys.executable, "-m", "pmsm_hil.app.cli.main", "target", "--native"]
     out = subprocess.run([*cmd, "--link", f"udp:{port}:9", "--idle-timeout", "0.3"], capture_output=True, text=True,
                          timeout=60)
     assert out.returncode == 0 and "target stopped (idle 0.3 s)" in out.stdout and "(native)" in out.stdout

@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 
 import pytest
-from pmsm_hil.hil.cli.main import main
+from pmsm_hil.app.cli.main import main
 
 REQUIRED_KEYS = {
     "periods", "sim_time_s", "wall_time_s", "loop_rate_hz", "torque_mean_nm", "torque_ripple_rms_nm",

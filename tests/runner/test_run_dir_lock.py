@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 
 import pytest
-from pmsm_hil.hil.cli.main import main
+from pmsm_hil.app.cli.main import main
 from pmsm_hil.hil.runlog.reader import read_periods
 from pmsm_hil.hil.runner.run_dir_lock import LOCK_NAME, RunDirLockedError, run_dir_lock
 
@@ -39,7 +39,7 @@ def test_a_second_run_into_a_locked_out_is_refused(tmp_path: Path, capsys: pytes
 def test_concurrent_runs_into_one_out(tmp_path: Path) -> None:
     """Three `hil run` processes into one --out: one writes it, the others exit 2 without touching it."""
     out = tmp_path / "r"
-    cmd = [sys.executable, "-m", "pmsm_hil.hil.cli.main", "run", "--out", str(out), "--overwrite",
+    cmd = [sys.executable, "-m", "pmsm_hil.app.cli.main", "run", "--out", str(out), "--overwrite",
            "--duration", "3", "--settle", "0", "--loop", "python"]  # ~10k periods/s: ~3 s
     first = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     deadline = time.monotonic() + 60

@@ -179,7 +179,7 @@ def _has_socket(pid: int) -> bool:
 def test_kill_9_of_the_host_leaves_no_target(loop: str) -> None:
     """`--loop auto` spawns the native target (`hil target --native`, a C serve loop), `--loop python` the
     Python one: neither outlives its host."""
-    host = subprocess.Popen([sys.executable, "-m", "pmsm_hil.hil.cli.main", "run", "--link", "udp", "--target",
+    host = subprocess.Popen([sys.executable, "-m", "pmsm_hil.app.cli.main", "run", "--link", "udp", "--target",
                              "spawn", "--loop", loop, "--duration", "60", "--no-log"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
@@ -206,7 +206,7 @@ def test_kill_9_of_the_host_leaves_no_target(loop: str) -> None:
 
 def _target_cmd(*extra: str) -> list[str]:
     port = free_udp_ports(1)[0]
-    return [sys.executable, "-m", "pmsm_hil.hil.cli.main", "target", "--link", f"udp:{port}:9", *extra]
+    return [sys.executable, "-m", "pmsm_hil.app.cli.main", "target", "--link", f"udp:{port}:9", *extra]
 
 
 def test_idle_timeout_and_parent_check_stop_a_target() -> None:

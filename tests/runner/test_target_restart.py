@@ -39,7 +39,7 @@ def test_decoder_restart_accepts_a_new_sequence() -> None:
 
 def test_two_short_runs_against_one_udp_target() -> None:
     host, target = _free_udp_port(), _free_udp_port()
-    cmd = [sys.executable, "-m", "pmsm_hil.hil.cli.main", "target", "--link", f"udp:{target}:{host}",
+    cmd = [sys.executable, "-m", "pmsm_hil.app.cli.main", "target", "--link", f"udp:{target}:{host}",
            "--idle-timeout", "60"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True)
     try:

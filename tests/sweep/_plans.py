@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from pmsm_hil.hil.sweep.rows import deterministic_view
+from pmsm_hil.app.sweep.rows import deterministic_view
 
 #: base `hil run` options of every test run: 0.06 s simulated (settling 0.03 s, window 0.03 s)
 SHORT = ["--duration", "0.03", "--settle", "0.03"]

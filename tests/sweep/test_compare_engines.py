@@ -7,9 +7,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from pmsm_hil.hil.cli.main import main
-from pmsm_hil.hil.compare import load_preset, run_preset
-from pmsm_hil.hil.sweep.engines import LocalEngine
+from pmsm_hil.app.cli.main import main
+from pmsm_hil.app.compare import load_preset, run_preset
+from pmsm_hil.app.sweep.engines import LocalEngine
 
 from tests.compare._presets import preset_file
 

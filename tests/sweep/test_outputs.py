@@ -9,8 +9,8 @@ import json
 from pathlib import Path
 
 import pytest
-from pmsm_hil.hil.cli.main import main
-from pmsm_hil.hil.sweep import store as store_module
+from pmsm_hil.app.cli.main import main
+from pmsm_hil.app.sweep import store as store_module
 
 from tests.sweep._plans import SHORT, results
 

@@ -7,11 +7,11 @@ from dataclasses import replace
 from pathlib import Path
 
 import pytest
-from pmsm_hil.hil.cli.main import main
+from pmsm_hil.app.cli.main import main
+from pmsm_hil.app.sweep.configure import base_args, build_config, build_runs
+from pmsm_hil.app.sweep.plan import expand, load_plan, parse_grid, swept_keys
+from pmsm_hil.app.sweep.runid import run_id
 from pmsm_hil.hil.errors import InputFileError, ParameterError
-from pmsm_hil.hil.sweep.configure import base_args, build_config, build_runs
-from pmsm_hil.hil.sweep.plan import expand, load_plan, parse_grid, swept_keys
-from pmsm_hil.hil.sweep.runid import run_id
 
 
 def test_grid_product_last_key_fastest() -> None:

@@ -12,8 +12,8 @@ import sys
 import time
 from pathlib import Path
 
-from pmsm_hil.hil.sweep.engines import LocalEngine
-from pmsm_hil.hil.sweep.store import JOURNAL, ResultsStore
+from pmsm_hil.app.sweep.engines import LocalEngine
+from pmsm_hil.app.sweep.store import JOURNAL, ResultsStore
 
 from tests.sweep._plans import SHORT, results
 
@@ -29,7 +29,7 @@ def _journal_rows(out: Path) -> int:
 
 def test_sigint_keeps_finished_runs_and_the_rerun_skips_them(tmp_path: Path) -> None:
     out = tmp_path / "sweep"
-    cmd = [sys.executable, "-m", "pmsm_hil.hil.cli.main", "sweep", *PLAN, "--workers", "1", "--out", str(out)]
+    cmd = [sys.executable, "-m", "pmsm_hil.app.cli.main", "sweep", *PLAN, "--workers", "1", "--out", str(out)]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 120
     while _journal_rows(out) < 2 and proc.poll() is None and time.monotonic() < deadline:

@@ -62,7 +62,7 @@ def _process(cmd: list[str], pass_fds: tuple[int, ...] = ()) -> Iterator[subproc
 def test_an_external_hil_target_on_udp_conforms(tmp_path: Path) -> None:
     """A `hil target` process started here, the suite run with --hil-target external:udp:..."""
     host, target = free_udp_ports(2)
-    cmd = [sys.executable, "-m", "pmsm_hil.hil.cli.main", "target", "--link", f"udp:{target}:{host}",
+    cmd = [sys.executable, "-m", "pmsm_hil.app.cli.main", "target", "--link", f"udp:{target}:{host}",
            "--idle-timeout", "120"]
     with _process(cmd):
         _all_passed(_conformance(tmp_path, "--hil-target", f"external:udp:{host}:{target}"))

@@ -1,0 +1,170 @@
+"""Entry point of the `hil` command: builds the parser from one module per subcommand."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import importlib
+import os
+import signal
+import sys
+from types import FrameType, ModuleType
+from typing import Any
+
+# Nothing `hil` runs calls BLAS, but OpenBLAS starts a worker thread per extra core that spins ~0.05-0.1 s of
+# CPU after numpy is imported (in this process and in the logger process, which inherits the environment):
+# one thread unless the user chose otherwise. Set before the first numpy import (the subcommands, imported by
+# `build_parser`).
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+from pmsm_hil.errors import HilError
+
+# (group or None, module): each module exposes add_parser(subparsers) that sets func=run.
+_TOP_LEVEL = ("run", "target", "link_budget", "mcap_repair", "compare", "sweep", "replay_mcap", "report")
+_GROUPS = {
+    "plant": ("plant_replay",),
+    "bench": ("bench_plant", "bench_loop", "bench_realtime", "bench_controllers", "bench_link", "bench_sweep",
+              "bench_memory"),
+    "fw": ("fw_build",),
+}
+_GROUP_HELP = {"plant": "offline plant tools", "bench": "benchmarks that print figures",
+               "fw": "build firmware for the SIL and QEMU targets"}
+
+
+def _load(name: str) -> ModuleType | None:
+    full = f"pmsm_hil.app.cli.{name}"
+    try:
+        return importlib.import_module(full)
+    except ModuleNotFoundError as exc:
+        if exc.name == full:
+            return None  # subcommand not shipped in this build
+        raise
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The complete `hil` argument parser."""
+    parser = argparse.ArgumentParser(prog="hil", description="PMSM drive hardware-in-the-loop tester")
+    parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in _TOP_LEVEL:
+        module = _load(name)
+        if module is not None:
+            module.add_parser(sub)
+    for group, names in _GROUPS.items():
+        group_parser = sub.add_parser(group, help=_GROUP_HELP[group])
+        group_sub = group_parser.add_subparsers(dest=f"{group}_command", metavar="COMMAND")
+        for name in names:
+            module = _load(name)
+            if module is not None:
+                module.add_parser(group_sub)
+        group_parser.set_defaults(func=lambda args, p=group_parser: _usage(p))
+    _add_debug(sub)
+    return parser
+
+
+def _add_debug(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """`--debug` after any (sub)command too (`hil run --debug`); absent there, the top-level value stands."""
+    for p in set(sub.choices.values()):
+        p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks on errors")
+        for action in p._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                _add_debug(action)
+
+
+def _usage(parser: argparse.ArgumentParser) -> int:
+    parser.print_help()
+    return 2
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the `hil` command line; returns the process exit code (130 on Ctrl-C or SIGTERM, no traceback).
+
+    SIGTERM is Ctrl-C for every subcommand (a KeyboardInterrupt, deferred by `hil run` while its loop and
+    outputs are written). Called as the `hil` command (`argv` None), both signals are ignored once the
+    subcommand returned: its exit code and files stand."""
+    cli = argv is None
+    argv = sys.argv[1:] if argv is None else argv
+    _interrupted.clear()
+    previous = _interrupts_raise()
+    try:
+        return _main(argv)
+    except BaseException as exc:
+        if not (isinstance(exc, KeyboardInterrupt) or _interrupted):
+            raise
+        # an import cut by the signal can surface as another error (numpy: ImportError): still an interrupt
+        if cli:
+            _ignore_interrupts()
+        print("hil: interrupted", file=sys.stderr)
+        return 130
+    finally:
+        if cli:
+            _ignore_interrupts()
+            if _interrupted:
+                _forget_unhandled_interrupt()
+        else:
+            for signum, handler in previous.items():
+                signal.signal(signum, handler)
+
+
+def _main(argv: list[str]) -> int:
+    if not argv or (argv[0] == "--debug" and len(argv) == 1):
+        argv = [*argv, "run"]  # `hil` alone runs the embedded default
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    func = getattr(args, "func", None)
+    if func is None:
+        parser.print_help()
+        return 2
+    try:
+        return int(func(args))
+    except HilError as exc:  # the package's one root (pmsm_hil.errors): bad input or a failed run, one line
+        if args.debug:
+            raise
+        print(f"hil: error: {exc}", file=sys.stderr)
+        return 2
+
+
+#: signals that raised KeyboardInterrupt in this process (through `_raise_interrupt`)
+_interrupted: list[int] = []
+
+
+def _raise_interrupt(signum: int, frame: FrameType | None) -> None:
+    _interrupted.append(signum)
+    raise KeyboardInterrupt
+
+
+def _interrupts_raise() -> dict[int, Any]:
+    """Ctrl-C raises KeyboardInterrupt as by default, and SIGTERM the same where it would kill, both through
+    `_raise_interrupt` (which records them); returns the handlers replaced (none off the main thread, or for a
+    signal ignored or handled by the caller)."""
+    replaced: dict[int, Any] = {}
+    for signum, default in ((signal.SIGINT, signal.default_int_handler), (signal.SIGTERM, signal.SIG_DFL)):
+        try:
+            if signal.getsignal(signum) == default:
+                replaced[signum] = signal.signal(signum, _raise_interrupt)
+        except ValueError:  # not the main thread
+            break
+    return replaced
+
+
+def _forget_unhandled_interrupt() -> None:
+    """CPython 3.11 marks a KeyboardInterrupt that left code run by exec() or eval() of a string (dataclasses
+    and namedtuple build their methods so, on import) as unhandled even when it is caught later, and then ends
+    the process by SIGINT instead of with its exit code (a subprocess caller sees -2, not 130). `hil` handled
+    it: clear the mark (a private flag; nothing is done where it does not exist)."""
+    try:
+        import ctypes
+
+        ctypes.c_int.in_dll(ctypes.pythonapi, "_Py_UnhandledKeyboardInterrupt").value = 0
+    except (ImportError, ValueError, OSError, AttributeError):
+        pass
+
+
+def _ignore_interrupts() -> None:
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        with contextlib.suppress(ValueError):
+            signal.signal(sig, signal.SIG_IGN)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
