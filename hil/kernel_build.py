@@ -13,25 +13,32 @@ import importlib.util
 from pathlib import Path
 from types import ModuleType
 
+from pmsm_hil.hil.cdef_extract import declarations
 from pmsm_hil.hil.errors import ParameterError
 
 #: the kernel headers and shared helpers (hil/native beside this package's sources)
 NATIVE_DIR = Path(__file__).resolve().parent / "native"
 #: C sources every kernel may use: gate edges, dead time and the closed-form dq segment
 SHARED_SOURCES = ("gate_edges.c", "dq_segment.c")
-#: cffi declarations every kernel's cdef starts with: ge_period_stats_t, mk_sample_t, the opaque mk_kernel_t
-COMMON_CDEF_FILE = NATIVE_DIR / "machine_kernel.cdef"
 #: the bundled kernels' flags: no FMA contraction and no sin/cos fusion (the native loop's records equal the Python
 #: loop's bit for bit), warnings are errors
 KERNEL_FLAGS = ("-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion", "-ffp-contract=off",
                 "-fno-builtin-sin", "-fno-builtin-cos")
 
 
+def common_cdef() -> str:
+    """What every kernel's cdef starts with, from the headers: `ge_period_stats_t`, `mk_sample_t`, and the opaque
+    `mk_kernel_t` (the bundled plant extension declares the same, hil/native/_build_plant.py)."""
+    return (declarations(NATIVE_DIR / "gate_edges.h", ["ge_period_stats_t"])
+            + declarations(NATIVE_DIR / "machine_kernel.h", ["mk_sample_t"])
+            + "typedef struct mk_kernel mk_kernel_t;\n")
+
+
 def build_kernel_module(name: str, kernel_c: Path, cdef: str, build_dir: Path) -> ModuleType:
     """Compile the kernel's one C file `kernel_c` (structs, functions and its machine-kernel table) with the
     shared helpers into the extension `name` under `build_dir` and import it; `cdef` declares what Python uses
     (cffi syntax: the params/state structs, the advance, sample and table functions; `ge_period_stats_t`,
-    `mk_sample_t` and `mk_kernel_t` are declared before it, from hil/native/machine_kernel.cdef). Rebuilt only when
+    `mk_sample_t` and `mk_kernel_t` are declared before it: `common_cdef`). Rebuilt only when
     the C file, the cdef or a kernel header changed. ParameterError naming the file when it is missing; a
     compiler error is raised with the compiler's own message."""
     from cffi import FFI
@@ -43,14 +50,14 @@ def build_kernel_module(name: str, kernel_c: Path, cdef: str, build_dir: Path) -
         raise ParameterError(f"kernel module name {name!r} must be a Python identifier")
     text = kernel_c.read_text(encoding="utf-8")
     digest = hashlib.sha256(cdef.encode() + text.encode())
-    for path in [*(NATIVE_DIR / s for s in SHARED_SOURCES), *sorted(NATIVE_DIR.glob("*.h")), COMMON_CDEF_FILE]:
+    for path in [*(NATIVE_DIR / s for s in SHARED_SOURCES), *sorted(NATIVE_DIR.glob("*.h"))]:
         digest.update(path.read_bytes())
     out = Path(build_dir) / f"{name}_{digest.hexdigest()[:12]}"
     out.mkdir(parents=True, exist_ok=True)
     built = sorted(out.glob(f"{name}*.so"))
     if not built:
         builder = FFI()
-        builder.cdef(COMMON_CDEF_FILE.read_text(encoding="utf-8") + cdef)
+        builder.cdef(common_cdef() + cdef)
         builder.set_source(name, text, sources=[str(NATIVE_DIR / s) for s in SHARED_SOURCES],
                            include_dirs=[str(kernel_c.resolve().parent), str(NATIVE_DIR)],
                            extra_compile_args=list(KERNEL_FLAGS), libraries=["m"])
@@ -66,4 +73,4 @@ def build_kernel_module(name: str, kernel_c: Path, cdef: str, build_dir: Path) -
     return module
 
 
-__all__ = ["COMMON_CDEF_FILE", "KERNEL_FLAGS", "NATIVE_DIR", "SHARED_SOURCES", "build_kernel_module"]
+__all__ = ["KERNEL_FLAGS", "NATIVE_DIR", "SHARED_SOURCES", "build_kernel_module", "common_cdef"]

@@ -8,8 +8,10 @@ no sin/cos fusion, so every value equals the Python loop's bit for bit.
 
 from __future__ import annotations
 
+import importlib.util
 import tempfile
 from pathlib import Path
+from typing import Any
 
 from cffi import FFI
 
@@ -26,89 +28,22 @@ LOOP_FLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-Wdouble-promot
 LOOP_SOURCES = ("loop.c", "loop_frames.c", "loop_rt.c", "nl_link.c", "loop_udp.c", "loop_serial.c", "loop_socketcan.c",
                 "target_serve.c", "link_floor.c", "loop_board.c")
 
-CDEF = """
-#define NL_BLOCK ...
-#define NL_RING ...
-#define NL_FRAMES_PER_PERIOD ...
-#define NL_FINDINGS ...
-#define NL_REF_CHANGES ...
-#define NL_RULES ...
-#define NL_END_RUNNING ...
-#define NL_END_COMPLETED ...
-#define NL_END_VIOLATION ...
-#define NL_END_WATCHDOG ...
-#define NL_END_FAULT ...
-#define NL_END_TRIP ...
-#define NL_END_PLANT_ERROR ...
-#define NL_END_ENCODE_ERROR ...
-#define NL_END_INTERRUPTED ...
-#define NL_PLANT_E_BREAKPOINTS ...
-#define NL_PLANT_E_KERNEL ...
-#define NL_MEAS_3 ...
-#define NL_MEAS_6 ...
-#define MK_ABI_VERSION ...
-#define MK_MAX_LEGS ...
-#define NL_WHAT_MISSING ...
-#define NL_WHAT_SECOND ...
-#define NL_WHAT_OTHER_SEQ ...
-#define NL_WHAT_DECODER_SEQ ...
-#define NL_WHAT_DECODER_FRAME ...
-#define NL_WHAT_STATE_CODE ...
-#define NL_WHAT_DURATIONS ...
 
-typedef struct mk_kernel mk_kernel_t;
+def _load_extractor() -> Any:
+    """hil/cdef_extract.py by path (this script runs at build time, before the package is importable)."""
+    spec = importlib.util.spec_from_file_location("_cdef_extract", _HERE.parent / "cdef_extract.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
-typedef struct {
-    uint32_t period;
-    uint8_t rule;
-    uint8_t what;
-    uint8_t has_cmd;
-    uint8_t n_states;
-    uint8_t mirror;
-    uint8_t states[3];
-    uint16_t cmd_seq;
-    uint32_t durations_ns[3];
-    int64_t v[5];
-} nl_finding_t;
 
-typedef struct {
-    int32_t legs, fd, meas_format;
-    int64_t ts_ns;
-    double ts_s;
-    int64_t n_total, n_settle;
-    int32_t max_state, tolerate, watchdog_periods, miss_zero, controller_id, mode_speed;
-    int64_t silent_after;
-    int32_t record_frames;
-    double nan;
-    int32_t ideal;
-    double noise_std, adc_lsb, enc_step, two_pi, vdc;
-    double s_i, s_th, s_w, s_v;
-    int32_t i_min, i_max, w_min, w_max, v_min, v_max, th_mod;
-    const struct mk_kernel *kernel;
-    void *plant_params;
-    void *plant_state;
-    double *plant_trace;
-    int32_t trace_cap;
-    double trace_dt;
-    int32_t trace_columns;
-    double rpm_to_rad_s;
-    int32_t dyno, inertia, n_load;
-    const double *load_t;
-    const double *load_v;
-    int32_t n_ref;
-    int64_t ref_k[16];
-    double ref_rpm[16];
-    double i_trip, w_trip;
-    int32_t fault_pending;
-    uint8_t fault_code_in;
-    uint32_t fault_detail_in;
-    int32_t realtime;
-    int64_t overrun_ns, spin_ns;
-    int32_t rt_priority, cpu, lock_memory;
-    const struct nl_link *link;
-    int64_t lockstep_timeout_ns;
-} nl_config_t;
-
+_X = _load_extractor()
+#: loop.h and machine_kernel.h as cffi reads them: their integer constants, the finding, configuration and result
+#: structs and the handle's functions - taken from the headers, never restated
+LOOP_H_CDEF = (_X.cffi_constants(_HERE / "loop.h", "NL_") + _X.cffi_constants(_HERE / "machine_kernel.h", "MK_")
+               + "typedef struct mk_kernel mk_kernel_t;\n"
+               + _X.declarations(_HERE / "loop.h", ["nl_finding_t", "nl_config_t"]) + """
 typedef struct {
     double *trace;
     int64_t trace_rows_cap;
@@ -116,41 +51,11 @@ typedef struct {
     int64_t n_trace_rows;
     ...;
 } nl_slot_t;
+""" + _X.declarations(_HERE / "loop.h", ["nl_result_t", "nl_handle_t", "nl_handle_size", "nl_init", "nl_destroy",
+                                             "nl_config", "nl_slot", "nl_result", "nl_run", "nl_wait_full",
+                                             "nl_release", "nl_stop"]))
 
-typedef struct {
-    int32_t end;
-    int64_t completed_periods, end_period, lost_commands, deadline_misses, stale_commands, overruns, max_wait_ns,
-        violation_count;
-    int64_t by_rule[5];
-    int64_t candidate_checked, candidate_misses, silent;
-    uint8_t fault_code;
-    uint32_t fault_detail;
-    double peak_current;
-    int32_t plant_rc, plant_detail, encode_field;
-    double encode_value;
-    int64_t frames_tx, frames_rx;
-    int64_t dec_frames, dec_messages, dec_unknown_id, dec_bad_length, dec_bad_value, dec_stale, dec_duplicate,
-        dec_out_of_order, dec_mixed_seq;
-    double speed_ref_rpm;
-    double tap_t;
-    uint32_t tap_seq;
-    int64_t ring_waits, wall_ns;
-    int32_t rt_mlock_errno, rt_sched_errno, rt_affinity_errno;
-} nl_result_t;
-
-typedef struct nl_handle nl_handle_t;
-
-uint64_t nl_handle_size(void);
-int nl_init(nl_handle_t *h);
-void nl_destroy(nl_handle_t *h);
-nl_config_t *nl_config(nl_handle_t *h);
-nl_slot_t *nl_slot(nl_handle_t *h, int32_t i);
-const nl_result_t *nl_result(const nl_handle_t *h);
-void nl_run(nl_handle_t *h);
-int nl_wait_full(nl_handle_t *h, int32_t i, int64_t timeout_ns);
-void nl_release(nl_handle_t *h, int32_t i);
-void nl_stop(nl_handle_t *h);
-
+CDEF = LOOP_H_CDEF + """
 size_t nl_sizeof_period(void);
 size_t nl_sizeof_frame(void);
 void *nl_slot_periods(nl_handle_t *h, int32_t i);

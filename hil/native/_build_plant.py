@@ -2,67 +2,34 @@
 
 from __future__ import annotations
 
+import importlib.util
 from pathlib import Path
+from typing import Any
 
 from cffi import FFI
 
 _HERE = Path(__file__).resolve().parent
 
-CDEF = """
-typedef struct {
-    double rs, ld, lq, psi_f, vdc, j, b, t_dead, t_mpw, max_piece;
-    int32_t pole_pairs;
-    int32_t inertia_mode;
-} pl_params_t;
-typedef struct {
-    uint64_t t_ns;
-    uint64_t trace_k;
-    double i_d, i_q, theta_e, omega_m;
-    double last_edge_t[3];
-    double dead_until[3];
-    int32_t gate;
-    int32_t dead_level[3];
-} pl_state_t;
-typedef ge_period_stats_t pl_period_stats_t;
-int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const int64_t *durations_ns,
-               int32_t n, double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp,
-               double trace_dt, double *trace,
-               int32_t trace_cap, pl_period_stats_t *stats);
-double pl_torque(const pl_params_t *p, double i_d, double i_q);
-void pl_phase_currents(double i_d, double i_q, double theta_e, double *i_a, double *i_b, double *i_c);
-"""
 
-#: Second set of functions: the dual three-phase kernel (plant6.c), same extension module.
-CDEF6 = """
-typedef struct {
-    double rs, ld, lq, lls, psi_f, vdc, j, b, t_dead, t_mpw, max_piece;
-    int32_t pole_pairs;
-    int32_t inertia_mode;
-} p6_params_t;
-typedef struct {
-    uint64_t t_ns;
-    uint64_t trace_k;
-    double i_d, i_q, i_x, i_y, theta_e, omega_m;
-    double last_edge_t[6];
-    double dead_until[6];
-    int32_t gate;
-    int32_t dead_level[6];
-} p6_state_t;
-typedef ge_period_stats_t p6_period_stats_t;
-int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const int64_t *durations_ns,
-               int32_t n, double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp,
-               double trace_dt, double *trace,
-               int32_t trace_cap, p6_period_stats_t *stats);
-double p6_torque(const p6_params_t *p, double i_d, double i_q);
-void p6_phase_currents(double i_d, double i_q, double theta_e, double i_x, double i_y, double *i_phase);
-void p6_code_voltage(double vdc, int32_t code, double *v4);
-"""
+def _load_extractor() -> Any:
+    """hil/cdef_extract.py by path (this script runs at build time, before the package is importable)."""
+    spec = importlib.util.spec_from_file_location("_cdef_extract", _HERE.parent / "cdef_extract.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
-#: The machine-kernel tables (machine_kernel.h) of both plants, opaque here: the native loop calls them.
-CDEF_KERNELS = """
-const mk_kernel_t *pl_kernel(void);
-const mk_kernel_t *p6_kernel(void);
-"""
+
+_X = _load_extractor()
+#: what every kernel's extension declares first: the period stats, the sample and the opaque kernel table
+CDEF_COMMON = (_X.declarations(_HERE / "gate_edges.h", ["ge_period_stats_t"])
+               + _X.declarations(_HERE / "machine_kernel.h", ["mk_sample_t"])
+               + "typedef struct mk_kernel mk_kernel_t;\n")
+#: the three-phase kernel (plant.h) and the dual three-phase kernel (plant6.h), taken from their headers
+CDEF = _X.declarations(_HERE / "plant.h", ["pl_params_t", "pl_state_t", "pl_period_stats_t", "pl_advance",
+                                           "pl_torque", "pl_phase_currents", "pl_kernel"])
+CDEF6 = _X.declarations(_HERE / "plant6.h", ["p6_params_t", "p6_state_t", "p6_period_stats_t", "p6_advance",
+                                             "p6_torque", "p6_phase_currents", "p6_code_voltage", "p6_kernel"])
 
 
 def _source(name: str) -> str:
@@ -71,14 +38,11 @@ def _source(name: str) -> str:
     return str(path.relative_to(Path.cwd())) if path.is_relative_to(Path.cwd()) else str(path)
 
 
-#: stats struct, sample struct and the opaque table type, shared with every kernel (hil/kernel_build.py)
-CDEF_COMMON = (_HERE / "machine_kernel.cdef").read_text(encoding="utf-8")
-
 #: the plant kernels and their shared helpers (nothing of the loop: tests/test_layers.py)
 PLANT_SOURCES = ("dq_segment.c", "gate_edges.c", "plant.c", "plant6.c")
 
 ffibuilder = FFI()
-ffibuilder.cdef(CDEF_COMMON + CDEF + CDEF6 + CDEF_KERNELS)
+ffibuilder.cdef(CDEF_COMMON + CDEF + CDEF6)
 ffibuilder.set_source(
     "pmsm_hil.hil._plant_native",
     '#include "plant.h"\n#include "plant6.h"',
