@@ -25,6 +25,7 @@ setup(
                   "pmsm_hil.app.compare.presets": ["*.toml"],
                   "pmsm_hil.protocol": ["*.dbc"],
                   # the kernel headers and shared helpers kernel_build.py compiles a kind's kernel against
-                  "pmsm_hil.hil": ["native/*.h", "native/gate_edges.c", "native/dq_segment.c"]},
+                  "pmsm_hil.hil": ["native/kernels/*.h", "native/kernels/gate_edges.c",
+                                   "native/kernels/dq_segment.c"]},
     cffi_modules=[b for b in _BUILDERS if Path(b.split(":")[0]).exists()],
 )

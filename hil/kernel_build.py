@@ -17,7 +17,7 @@ from pmsm_hil.hil.cdef_extract import declarations
 from pmsm_hil.hil.errors import ParameterError
 
 #: the kernel headers and shared helpers (hil/native beside this package's sources)
-NATIVE_DIR = Path(__file__).resolve().parent / "native"
+NATIVE_DIR = Path(__file__).resolve().parent / "native" / "kernels"
 #: C sources every kernel may use: gate edges, dead time and the closed-form dq segment
 SHARED_SOURCES = ("gate_edges.c", "dq_segment.c")
 #: the bundled kernels' flags: no FMA contraction and no sin/cos fusion (the native loop's records equal the Python

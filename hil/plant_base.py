@@ -37,9 +37,9 @@ class PeriodStats(NamedTuple):
 
 class KernelView(NamedTuple):
     """The plant's C structs and trace buffer as addresses, for a native loop that advances the same plant:
-    the machine-kernel table (hil/native/machine_kernel.h, 0: the plant has none), params, state and trace-buffer
-    addresses, trace rows one period may write, trace step [s] (0: none), and whether the load profile applies
-    (inertia mode)."""
+    the machine-kernel table (hil/native/kernels/machine_kernel.h, 0: the plant has none), params, state and
+    trace-buffer addresses, trace rows one period may write, trace step [s] (0: none), and whether the load
+    profile applies (inertia mode)."""
 
     kernel: int
     params: int

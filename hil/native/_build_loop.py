@@ -41,7 +41,8 @@ def _load_extractor() -> Any:
 _X = _load_extractor()
 #: loop.h and machine_kernel.h as cffi reads them: their integer constants, the finding, configuration and result
 #: structs and the handle's functions - taken from the headers, never restated
-LOOP_H_CDEF = (_X.cffi_constants(_HERE / "loop.h", "NL_") + _X.cffi_constants(_HERE / "machine_kernel.h", "MK_")
+LOOP_H_CDEF = (_X.cffi_constants(_HERE / "loop.h", "NL_")
+               + _X.cffi_constants(_HERE / "kernels" / "machine_kernel.h", "MK_")
                + "typedef struct mk_kernel mk_kernel_t;\n"
                + _X.declarations(_HERE / "loop.h", ["nl_finding_t", "nl_config_t"]) + """
 typedef struct {
@@ -233,7 +234,7 @@ ffibuilder.set_source(
     "pmsm_hil.hil._loop_native",
     PREAMBLE,
     sources=[_rel(_HERE / name) for name in LOOP_SOURCES],
-    include_dirs=[_rel(_HERE), *(_rel(p) for p in _FW_INCLUDES)],
+    include_dirs=[_rel(_HERE), _rel(_HERE / "kernels"), *(_rel(p) for p in _FW_INCLUDES)],
     extra_compile_args=LOOP_FLAGS,
     extra_objects=_firmware_objects(),
     libraries=["m", "pthread"],

@@ -9,6 +9,8 @@ from typing import Any
 from cffi import FFI
 
 _HERE = Path(__file__).resolve().parent
+#: the plant kernels' own folder (the loop's files stay in hil/native)
+_KERNELS = _HERE / "kernels"
 
 
 def _load_extractor() -> Any:
@@ -22,19 +24,19 @@ def _load_extractor() -> Any:
 
 _X = _load_extractor()
 #: what every kernel's extension declares first: the period stats, the sample and the opaque kernel table
-CDEF_COMMON = (_X.declarations(_HERE / "gate_edges.h", ["ge_period_stats_t"])
-               + _X.declarations(_HERE / "machine_kernel.h", ["mk_sample_t"])
+CDEF_COMMON = (_X.declarations(_KERNELS / "gate_edges.h", ["ge_period_stats_t"])
+               + _X.declarations(_KERNELS / "machine_kernel.h", ["mk_sample_t"])
                + "typedef struct mk_kernel mk_kernel_t;\n")
 #: the three-phase kernel (plant.h) and the dual three-phase kernel (plant6.h), taken from their headers
-CDEF = _X.declarations(_HERE / "plant.h", ["pl_params_t", "pl_state_t", "pl_period_stats_t", "pl_advance",
+CDEF = _X.declarations(_KERNELS / "plant.h", ["pl_params_t", "pl_state_t", "pl_period_stats_t", "pl_advance",
                                            "pl_torque", "pl_phase_currents", "pl_kernel"])
-CDEF6 = _X.declarations(_HERE / "plant6.h", ["p6_params_t", "p6_state_t", "p6_period_stats_t", "p6_advance",
+CDEF6 = _X.declarations(_KERNELS / "plant6.h", ["p6_params_t", "p6_state_t", "p6_period_stats_t", "p6_advance",
                                              "p6_torque", "p6_phase_currents", "p6_code_voltage", "p6_kernel"])
 
 
 def _source(name: str) -> str:
     """Source path, relative to the working directory when possible (setuptools wants that)."""
-    path = _HERE / name
+    path = _KERNELS / name
     return str(path.relative_to(Path.cwd())) if path.is_relative_to(Path.cwd()) else str(path)
 
 
@@ -47,7 +49,7 @@ ffibuilder.set_source(
     "pmsm_hil.hil._plant_native",
     '#include "plant.h"\n#include "plant6.h"',
     sources=[_source(name) for name in PLANT_SOURCES],
-    include_dirs=[str(_HERE)],
+    include_dirs=[str(_KERNELS)],
     # the native loop calls these kernels too: no FMA contraction and no sin/cos fusion, so its records equal the
     # Python loop's bit for bit on every architecture
     extra_compile_args=["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion", "-ffp-contract=off",

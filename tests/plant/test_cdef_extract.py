@@ -45,7 +45,7 @@ def test_named_declarations_as_cffi_reads_them(tmp_path: Path) -> None:
 def test_the_bundled_headers_give_the_structs_the_plant_uses() -> None:
     from pmsm_hil.hil._plant_native import ffi
 
-    native = Path(__file__).resolve().parents[2] / "hil" / "native"
+    native = Path(__file__).resolve().parents[2] / "hil" / "native" / "kernels"
     text = declarations(native / "plant.h", ["pl_params_t", "pl_state_t"])
     assert "int32_t dead_level[3];" in text
     assert ffi.sizeof("pl_state_t") > 0 and ffi.sizeof("mk_sample_t") == 13 * 8
