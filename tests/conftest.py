@@ -5,6 +5,7 @@ tests off there."""
 from __future__ import annotations
 
 import os
+import signal
 from pathlib import Path
 
 import pytest
@@ -26,6 +27,15 @@ CI_ALLOWED_SKIPS = (
 )
 
 _unexpected: list[str] = []
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Give the session Python's own Ctrl-C handling when its launcher ignored SIGINT (a background job of a
+    non-interactive shell, `cmd &` in a script, starts with SIGINT ignored, and Python then installs no handler).
+    The suite tests Ctrl-C: `main()` must find `default_int_handler`, and the processes the tests interrupt with
+    SIGINT inherit the ignored disposition, so they would not stop (hil replay/sweep/run timed out or exited 0)."""
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def pytest_runtest_logreport(report: pytest.TestReport) -> None:
