@@ -36,11 +36,10 @@ class LiveRerun(WorkerClient):
         super().__init__()
         settings = {"vdc": float(vdc), "ts_s": float(ts_s), "phases": int(phases), "name": name}
         try:
-            self._start_worker(run_live_worker, (targets, settings), name="hil-rerun", start_method="spawn",
-                               ring_bytes=ring_bytes, stall_timeout_s=stall_timeout_s)
+            ready = self._start(run_live_worker, (targets, settings), name="hil-rerun", start_method="spawn",
+                                ring_bytes=ring_bytes, stall_timeout_s=stall_timeout_s, start_timeout_s=start_timeout_s)
         except OSError as exc:
             raise DashboardError(f"rerun: cannot start the dashboard process ({exc})") from None
-        ready = self._await_ready(start_timeout_s)
         if ready is None:
             raise DashboardError(self._error or f"rerun: dashboard process did not start within {start_timeout_s} s")
         self.url = ready.decode() or None

@@ -62,16 +62,11 @@ class RunLogger(WorkerClient):
         self.path = path
         self.trace_dtype = trace_dtype
         try:
-            self._start_worker(run_worker, (str(path), meta, float(flush_interval_s), compression, names),
-                               name="hil-runlog", start_method=start_method, ring_bytes=ring_bytes,
-                               stall_timeout_s=stall_timeout_s)
+            ready = self._start(run_worker, (str(path), meta, float(flush_interval_s), compression, names),
+                                name="hil-runlog", start_method=start_method, ring_bytes=ring_bytes,
+                                stall_timeout_s=stall_timeout_s, start_timeout_s=start_timeout_s)
         except OSError as exc:
             raise RunLogError(f"run logger: cannot start the logger process ({exc})") from None
-        try:
-            ready = self._await_ready(start_timeout_s)
-        except BaseException:  # Ctrl-C while the logger starts: no process or ring left behind
-            self._abort()
-            raise
         if ready is None:
             raise LoggerDiedError(self._error or f"run logger: process did not start within {start_timeout_s} s")
 

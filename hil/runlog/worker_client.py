@@ -45,32 +45,53 @@ class WorkerClient:
     def _start_worker(self, target: Callable[..., None], args: tuple[Any, ...], *, name: str,
                       start_method: str, ring_bytes: int, stall_timeout_s: float) -> None:
         """Create the ring (`ring_bytes`) and the pipes and start the worker. An OSError from the start
-        is re-raised after the ring is released. RunLogError if the ring cannot be created."""
+        is re-raised after the ring is released. RunLogError if the ring cannot be created.
+
+        Ctrl-C and SIGTERM wait (blocked) until the worker has started: one arriving while the ring is made
+        (its 64 MiB are touched) left its file in /dev/shm, one arriving while the runner writes the worker's
+        start-up data left a half-started child (an EOFError traceback); the child starts with both blocked,
+        so a terminal's Ctrl-C never reaches its imports either (`_worker_entry`)."""
         self._stall_timeout_s = stall_timeout_s
-        self._ring = RingProducer(ring_bytes)
+        resource_tracker.ensure_running()  # started first: starting it unblocks the signals again
+        if start_method == "forkserver":
+            forkserver.ensure_running()
+        mask = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD)
+        try:
+            self._ring = RingProducer(ring_bytes)
+            try:
+                self._spawn(target, args, name=name, start_method=start_method, ring_bytes=ring_bytes)
+            except BaseException:
+                self._ring.close()
+                raise
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, mask)  # a signal held meanwhile arrives now
+        self._closed = False
+
+    def _spawn(self, target: Callable[..., None], args: tuple[Any, ...], *, name: str, start_method: str,
+               ring_bytes: int) -> None:
         ctx = multiprocessing.get_context(start_method)
         notice_r, self._notices = ctx.Pipe(duplex=False)
         self._status, status_w = ctx.Pipe(duplex=False)
         self._proc: BaseProcess = ctx.Process(  # type: ignore[attr-defined]
             target=_worker_entry, name=name, daemon=True,
             args=(target, notice_r, status_w, str(self._ring.path), ring_bytes, *args))
-        # Ctrl-C and SIGTERM wait (blocked) while the worker starts: one arriving while the runner writes the
-        # worker's start-up data would leave it half-started (an EOFError traceback from the child); the child
-        # starts with both blocked, so a terminal's Ctrl-C never reaches its imports either
-        resource_tracker.ensure_running()  # started first: starting it unblocks the signals again
-        if start_method == "forkserver":
-            forkserver.ensure_running()
-        mask = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD)
         try:
             self._proc.start()
-        except OSError:
-            self._ring.close()
-            raise
         finally:
-            signal.pthread_sigmask(signal.SIG_SETMASK, mask)  # a signal held meanwhile arrives now
             notice_r.close()
             status_w.close()
-        self._closed = False
+
+    def _start(self, target: Callable[..., None], args: tuple[Any, ...], *, name: str, start_method: str,
+               ring_bytes: int, stall_timeout_s: float, start_timeout_s: float) -> bytes | None:
+        """`_start_worker`, then `_await_ready`. Ctrl-C or SIGTERM anywhere in it (a signal held while the worker
+        started arrives as soon as it has) leaves no process, pipe or ring file behind: `_abort()`, re-raised."""
+        try:
+            self._start_worker(target, args, name=name, start_method=start_method, ring_bytes=ring_bytes,
+                               stall_timeout_s=stall_timeout_s)
+            return self._await_ready(start_timeout_s)
+        except BaseException:
+            self._abort()
+            raise
 
     def _await_ready(self, timeout_s: float) -> bytes | None:
         """Wait up to `timeout_s` (s) for b"R"; return the text after it, or None after `_abort()`
@@ -136,8 +157,13 @@ class WorkerClient:
         return finished
 
     def _abort(self) -> None:
-        """Collect the last status messages, stop the process if needed and release the pipes and ring."""
+        """Collect the last status messages, stop the process if needed and release the pipes and ring (as far
+        as `_start_worker` got)."""
         self._closed = True
+        if not hasattr(self, "_proc"):  # stopped before the process was made: only the ring, if any
+            with contextlib.suppress(Exception):
+                self._ring.close()
+            return
         self._drain_status()
         if self._proc.is_alive():
             self._proc.terminate()
