@@ -71,11 +71,9 @@ def refuse_inputs(dest: Path, inputs: Iterable[Path], *, option: str) -> None:
                                  "choose another file")
 
 
-def prepare_output_dir(path: Path, files: Iterable[str], *, overwrite: bool, option: str) -> None:
-    """Make `path` ready to receive `files` (names): created if missing; if it holds any of them already
-    (an earlier output), refused unless `overwrite`, which removes them first (nothing else in the
-    folder is touched, so old and new outputs are never mixed). InputFileError naming `option` if `path`
-    is a file or cannot be created."""
+def ensure_dir(path: Path, *, option: str) -> Path:
+    """`path` as a directory, created if missing; InputFileError naming `option` if it is a file or cannot be
+    created."""
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise InputFileError(f"{option} {path}: exists and is not a directory")
@@ -83,6 +81,15 @@ def prepare_output_dir(path: Path, files: Iterable[str], *, overwrite: bool, opt
         path.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputFileError(f"{option} {path}: cannot create the directory ({exc.strerror})") from None
+    return path
+
+
+def prepare_output_dir(path: Path, files: Iterable[str], *, overwrite: bool, option: str) -> None:
+    """Make `path` ready to receive `files` (names): created if missing; if it holds any of them already
+    (an earlier output), refused unless `overwrite`, which removes them first (nothing else in the
+    folder is touched, so old and new outputs are never mixed). InputFileError naming `option` if `path`
+    is a file or cannot be created."""
+    path = ensure_dir(path, option=option)
     present = [name for name in files if (path / name).exists()]
     if not present:
         return
@@ -96,4 +103,4 @@ def prepare_output_dir(path: Path, files: Iterable[str], *, overwrite: bool, opt
             raise InputFileError(f"{option} {path}: cannot remove the old {name} ({exc.strerror})") from None
 
 
-__all__ = ["atomic_path", "prepare_output_dir", "refuse_inputs", "same_file", "write_text_atomic"]
+__all__ = ["atomic_path", "ensure_dir", "prepare_output_dir", "refuse_inputs", "same_file", "write_text_atomic"]

@@ -11,7 +11,7 @@ import time
 
 from pmsm_hil.hil.runner.contract import EndCode
 from pmsm_hil.hil.runner.loop_outcome import LoopOutcome
-from pmsm_hil.hil.runner.sil_watch import describe_exit, ended_silent, silent_since
+from pmsm_hil.hil.runner.sil_watch import describe_exit, ended_silent, ending_place, silent_since
 from pmsm_hil.sim_target.qemu import QemuTarget, fault_name
 
 #: a QEMU that used at least this share of one CPU while watched is executing (the firmware computes): a spinning
@@ -57,11 +57,7 @@ def judge_qemu(qemu: QemuTarget, out: LoopOutcome, timeout_s: float) -> None:
     link_failed = out.end_code == EndCode.INTERNAL_ERROR  # e.g. a broken pipe: QEMU's socket closed
     if rc is None and (ended_silent(out) or link_failed):
         rc, busy = _watch(qemu, WATCH_S)
-    period = silent_since(out)
-    if period is not None:
-        where = f"at period {period}"
-    else:
-        where = f"after period {out.completed_periods - 1}" if out.completed_periods else "while being configured"
+    period, where = silent_since(out), ending_place(out)
     if rc is not None:
         fault = fault_name(rc)
         if fault is not None:

@@ -16,6 +16,7 @@ import threading
 from collections.abc import Iterator
 from pathlib import Path
 
+from pmsm_hil.hil.atomic_write import ensure_dir
 from pmsm_hil.hil.errors import InputFileError
 
 LOCK_NAME = ".hil-run.lock"
@@ -33,13 +34,7 @@ def run_dir_lock(path: Path, *, option: str = "--out") -> Iterator[None]:
     """Hold the exclusive lock of run directory `path` (created if missing) inside; RunDirLockedError naming
     `option` if another process holds it, InputFileError if `path` is a file or cannot be created. Nested
     uses in one process share the lock."""
-    path = Path(path)
-    if path.exists() and not path.is_dir():
-        raise InputFileError(f"{option} {path}: exists and is not a directory")
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputFileError(f"{option} {path}: cannot create the directory ({exc.strerror})") from None
+    path = ensure_dir(path, option=option)
     key = path.resolve()
     with _held_guard:
         nested = key in _held

@@ -57,6 +57,15 @@ def isolated_config(cfg: RunConfig) -> RunConfig:
     return dataclasses.replace(cfg, link=link, lockstep_timeout_s=cfg.step_timeout_s)
 
 
+def ending_place(out: LoopOutcome) -> str:
+    """Where a target's process ended, for the run's reason: at the period its final silence began, after the
+    last period, or while being configured."""
+    period = silent_since(out)
+    if period is not None:
+        return f"at period {period}"
+    return f"after period {out.completed_periods - 1}" if out.completed_periods else "while being configured"
+
+
 def silent_since(out: LoopOutcome) -> int | None:
     """The first period of the last unbroken run of missing Commands up to the end (the period the target fell
     silent in: real-time misses before it do not count), None if none or beyond the kept findings."""
@@ -129,11 +138,7 @@ def judge(proc: subprocess.Popen[bytes], out: LoopOutcome, step_timeout_s: float
     link_failed = out.end_code == EndCode.INTERNAL_ERROR  # e.g. a broken pipe: the target's socket closed
     if rc is None and (ended_silent(out) or link_failed):
         rc, hung = _watch(proc, step_timeout_s if realtime else HANG_CONFIRM_S, unknown_busy=not realtime)
-    period = silent_since(out)
-    if period is not None:
-        where = f"at period {period}"
-    else:
-        where = f"after period {out.completed_periods - 1}" if out.completed_periods else "while being configured"
+    period, where = silent_since(out), ending_place(out)
     if rc is not None:
         out.end_code = int(EndCode.SAFETY_STOP)
         out.end_reason = (f"target crashed ({describe_exit(rc)} {where}); inverter put in the safe state "
