@@ -13,10 +13,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pmsm_hil.app.cli.config_file import ConfigKey, load_config, schema_from_parser
-from pmsm_hil.app.cli.motor_args import add_motor_arguments
-from pmsm_hil.app.cli.parsing import finite_float, non_negative_int, positive_float
+from pmsm_hil.app.cli.config_file import ConfigKey, load_config
 from pmsm_hil.app.cli.report_table import format_metrics
+from pmsm_hil.app.cli.run_options_cli import add_options, config_keys
 from pmsm_hil.dashboards.cli_live import add_rerun_arguments, live_dashboard
 from pmsm_hil.hil.atomic_write import prepare_output_dir, refuse_inputs, write_text_atomic
 from pmsm_hil.hil.errors import ParameterError
@@ -27,19 +26,10 @@ from pmsm_hil.hil.runner.run_config import RunConfig, check_params_used, parse_p
 from pmsm_hil.hil.runner.run_dir_lock import run_dir_lock
 from pmsm_hil.hil.runner.run_limits import check_run_limits
 from pmsm_hil.hil.runner.run_metadata import RUN_FILES
-from pmsm_hil.hil.runner.scenario import load_scenario, scenario_names
+from pmsm_hil.hil.runner.run_options import BY_FIELD, DEFAULTS, RUN_OPTIONS, check_values
+from pmsm_hil.hil.runner.scenario import load_scenario
 from pmsm_hil.hil.sensors import SensorConfig
-from pmsm_hil.protocol.ids import CONTROLLER_NAMES
-from pmsm_hil.protocol.links.kinds import LINK_KINDS, PYTHON_CAN_ADAPTER
 from pmsm_hil.protocol.links.spec import parse_spec
-
-DEFAULTS: dict[str, Any] = {"motor": "niu2020-ipmsm", "controller": "mpcc", "scenario": "steady", "ts": 100e-6,
-                            "link": "virtual", "mode": "lockstep", "target": "auto", "seed": 0,
-                            "miss_policy": "hold", "watchdog_periods": 10, "adc_lsb": 0.0, "noise": 0.0,
-                            "encoder_counts": 0, "no_log": False, "log_trace": False, "tolerate": 0,
-                            "lockstep_timeout": 0.5, "overrun_threshold": None, "mcu_clock": 168e6,
-                            "loop": "auto", "rt_priority": 0, "cpu": None, "step_timeout": 0.5,
-                            "sil_in_process": False}
 
 #: `hil run` exit codes (= metrics `end_code`), printed by --help.
 EXIT_CODES = ("exit codes: 0 completed, 1 internal error, 2 usage/config error, 3 safety stop (watchdog, plant "
@@ -49,101 +39,10 @@ EXIT_CODES = ("exit codes: 0 completed, 1 internal error, 2 usage/config error, 
 
 
 def add_run_arguments(p: argparse.ArgumentParser) -> None:
-    """Options shared by `hil run` and `hil bench loop`."""
+    """Options shared by `hil run` and `hil sweep` (its base options): --config, then the run-option schema's
+    (hil/runner/run_options.py)."""
     p.add_argument("--config", type=Path, help="TOML file with any of the options below (CLI wins)")
-    add_motor_arguments(p, default=None, shown_default=DEFAULTS["motor"])
-    p.add_argument("--controller", metavar="NAME",
-                   help=f"controller: {', '.join(CONTROLLER_NAMES.values())}{_default('controller')}")
-    steady = load_scenario(DEFAULTS["scenario"])
-    p.add_argument("--scenario", metavar="NAME|FILE.toml",
-                   help=f"{' | '.join(scenario_names())} | FILE.toml{_default('scenario')}")
-    p.add_argument("--speed", type=finite_float("--speed"), metavar="RPM",
-                   help=f"speed reference [rpm] (default: the scenario's; {steady.name}: {steady.speed_rpm:g})")
-    p.add_argument("--load", type=finite_float("--load"), metavar="NM",
-                   help=f"load torque [N·m] (default: the scenario's; {steady.name}: {steady.load_nm:g})")
-    p.add_argument("--duration", type=positive_float("--duration"), metavar="S",
-                   help=f"metrics window [s], settling on top (default: the scenario's; {steady.name}: "
-                        f"{steady.duration_s:g}); longer runs are refused when their buffers exceed half the "
-                        "memory available (docs/runner.md)")
-    p.add_argument("--settle", type=finite_float("--settle"), metavar="S",
-                   help=f"settling time before the window [s] (default: the scenario's; {steady.name}: "
-                        f"{steady.settle_s:g})")
-    p.add_argument("--ts", type=positive_float("--ts"), metavar="S", help=f"control period [s]{_default('ts')}")
-    p.add_argument("--link", metavar="SPEC",
-                   help="link: " + "; ".join(k.summary for k in LINK_KINDS.values()) + "; "
-                        + PYTHON_CAN_ADAPTER.summary + _default("link"))
-    p.add_argument("--mode", choices=("lockstep", "realtime"),
-                   help=f"virtual time or wall-clock pacing{_default('mode')}")
-    p.add_argument("--target", metavar="KIND",
-                   help="who runs the target: auto (virtual → in-process), inproc, spawn a `hil target` process, "
-                        "external (a real board), sil:PATH (a firmware built with `hil fw build --board host`, or "
-                        "its source folder, served from its own process) or qemu:PATH.elf (a firmware built for "
-                        f"mps2-an386, run in QEMU over its emulated UART; docs/firmware_api.md){_default('target')}")
-    p.add_argument("--mcu-clock", type=_clock_hz, metavar="HZ",
-                   help="qemu targets: MCU clock of the execution-time estimate, Hz or with a unit (168MHz) "
-                        "(default 168 MHz)")
-    p.add_argument("--step-timeout", type=positive_float("--step-timeout"), metavar="S",
-                   help="sil targets: wall time a firmware step may take before the target is 'hung' (exit 3) "
-                        "[s]; the wait for each Command of a SIL run, in place of --lockstep-timeout"
-                        f"{_default('step_timeout')}")
-    p.add_argument("--sil-in-process", action="store_true", default=None,
-                   help="sil targets: load the library into this process (UNPROTECTED: a crash of the firmware "
-                        "ends `hil run` without metrics, an endless loop hangs it) instead of its own process")
-    p.add_argument("--seed", type=non_negative_int("--seed"), help=f"seed for sensor noise{_default('seed')}")
-    p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
-                   help="controller parameter (SI units), e.g. lambda=0.5, t_thr=8e-6, speed_kp=0.8")
-    p.add_argument("--miss-policy", choices=("hold", "zero"),
-                   help=f"real time: a late command → hold last/zero{_default('miss_policy')}")
-    p.add_argument("--watchdog-periods", type=non_negative_int("--watchdog-periods"),
-                   help="silent-target periods before the safe state (default 10)")
-    p.add_argument("--tolerate", type=non_negative_int("--tolerate"),
-                   help="DUT contract violations accepted before the run ends as one (default 0; counted in "
-                        "dut_violations)")
-    p.add_argument("--lockstep-timeout", type=positive_float("--lockstep-timeout"),
-                   help="lockstep: wall time to wait for each Command before it is missing [s] (default 0.5)")
-    p.add_argument("--fault", metavar="SPEC",
-                   help="link fault injection on the host's link: drop=P,dup=P,corrupt=P,delay=D,jitter=D,"
-                        "reorder=P,silence=T0:T1,seed=S (KEY.up / KEY.down per direction; docs/runner.md)")
-    p.add_argument("--loop", choices=("auto", "native", "python"),
-                   help="the period loop: the C loop (hil/native/loop.c) runs every run (auto = native); python is "
-                        "the test suite's reference loop, not part of the product (an error outside the tests)"
-                        f"{_default('loop')}")
-    p.add_argument("--rt-priority", type=non_negative_int("--rt-priority"), metavar="N",
-                   help="real time, native loop: SCHED_FIFO priority 1..99 of the loop thread (default 0: none; "
-                        "refused without CAP_SYS_NICE, said in the warnings)")
-    p.add_argument("--cpu", type=non_negative_int("--cpu"), metavar="N",
-                   help="real time, native loop: pin the loop thread to this CPU (default: any)")
-    p.add_argument("--overrun-threshold", type=positive_float("--overrun-threshold"),
-                   help="real time: a period starting later than this is an overrun [s] (default Ts/2)")
-    p.add_argument("--adc-lsb", type=finite_float("--adc-lsb"),
-                   help="current quantisation step [A] (default 0: ideal)")
-    p.add_argument("--noise", type=finite_float("--noise"),
-                   help="current noise standard deviation [A] (default 0: none)")
-    p.add_argument("--encoder-counts", type=non_negative_int("--encoder-counts"),
-                   help="encoder counts/rev (default 0: ideal angle)")
-
-
-def _clock_hz(text: str) -> float:
-    """A clock frequency: Hz, or a number with kHz / MHz / GHz."""
-    raw = text.strip().lower().replace(" ", "")
-    scale = 1.0
-    for unit, factor in (("ghz", 1e9), ("mhz", 1e6), ("khz", 1e3), ("hz", 1.0)):
-        if raw.endswith(unit):
-            raw, scale = raw[: -len(unit)], factor
-            break
-    try:
-        value = float(raw) * scale
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"--mcu-clock: expected a frequency (e.g. 168e6 or 168MHz), got {text!r}") from None
-    if not (1e6 <= value <= 2e9):
-        raise argparse.ArgumentTypeError(f"--mcu-clock must be between 1 MHz and 2 GHz, got {text!r}")
-    return value
-
-
-def _default(name: str) -> str:
-    """" (default X)" for help texts, from DEFAULTS (the values a run really uses)."""
-    return f" (default {DEFAULTS[name]:g})" if isinstance(DEFAULTS[name], float) else f" (default {DEFAULTS[name]})"
+    add_options(p, ("run",))
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -157,26 +56,16 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
-    """Every `hil run` option (the --config schema is derived from these)."""
+    """Every `hil run` option: the run options, its outputs, the live dashboard's."""
     add_run_arguments(p)
-    p.add_argument("--out", type=Path, help="output directory for run.mcap and metrics.json "
-                                            "(default runs/<time>-<controller>); an existing run there is "
-                                            "refused unless --overwrite")
-    p.add_argument("--overwrite", action="store_true", default=None,
-                   help="replace the run in --out (its run.mcap and metrics.json are removed first)")
-    p.add_argument("--no-log", action="store_true", default=None, help="do not write an MCAP log")
-    p.add_argument("--log-trace", action="store_true", default=None, help="also log the 2 µs plant trace")
-    p.add_argument("--json", type=Path, help="write the metrics as JSON to this file")
+    add_options(p, ("output",))
     add_rerun_arguments(p)
 
 
 @functools.cache
 def config_schema() -> dict[str, ConfigKey]:
-    """Keys a --config file may set: every `hil run` option but --config and the live-dashboard ones."""
-    p = argparse.ArgumentParser(add_help=False)
-    _add_arguments(p)
-    rerun = {a.dest for a in p._actions if a.dest.startswith("rerun")}
-    return schema_from_parser(p, exclude={"config", *rerun})
+    """Keys a --config file may set: every option of the run-option schema (hil/runner/run_options.py)."""
+    return config_keys()
 
 
 def _load_config(path: Path | None) -> dict[str, Any]:
@@ -203,6 +92,7 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
     for name in ("json", "overwrite"):  # used after the run: the config file's value unless given
         if getattr(args, name, None) is None and name in cfg:
             setattr(args, name, cfg[name])
+    check_values({o.key: pick(o.key) for o in RUN_OPTIONS if o.kind in ("number", "integer", "frequency")})
     motor = load_motor(str(pick("motor")), parse_set_options([*cfg.get("set", []), *args.set_params]))
     scenario = load_scenario(str(pick("scenario"))).with_overrides(
         speed_rpm=pick("speed"), load_nm=pick("load"), duration_s=pick("duration"), settle_s=pick("settle"))
@@ -212,22 +102,15 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
     controller = str(pick("controller"))
     if out is None and not no_log:
         out = _fresh_dir(Path("runs") / f"{time.strftime('%Y%m%d-%H%M%S')}-{controller}")
+    # every RunConfig attribute with an option of the schema, from it (hil/runner/run_options.py)
+    fields: dict[str, Any] = {name: pick(option.key) for name, option in BY_FIELD.items()}
+    fields["faults"] = str(fields["faults"] or "")
+    fields["log_trace"] = bool(fields["log_trace"])
     try:
         sensors = SensorConfig(adc_lsb_a=float(pick("adc_lsb")), noise_std_a=float(pick("noise")),
                                encoder_counts=int(pick("encoder_counts")), seed=int(pick("seed")))
-        run_cfg = RunConfig(motor=motor, scenario=scenario, controller=controller, ts_s=float(pick("ts")),
-                            link=str(pick("link")), mode=str(pick("mode")), target=str(pick("target")),
-                            seed=int(pick("seed")), controller_params=controller_params, sensors=sensors,
-                            out_dir=None if no_log else Path(out), log_trace=bool(pick("log_trace")),
-                            miss_policy=str(pick("miss_policy")), watchdog_periods=int(pick("watchdog_periods")),
-                            tolerate=int(pick("tolerate")), faults=str(pick("fault") or ""),
-                            lockstep_timeout_s=float(pick("lockstep_timeout")),
-                            step_timeout_s=float(pick("step_timeout")), sil_in_process=bool(pick("sil_in_process")),
-                            mcu_clock_hz=float(pick("mcu_clock")), loop=str(pick("loop")),
-                            rt_priority=int(pick("rt_priority")),
-                            cpu=None if pick("cpu") is None else int(pick("cpu")),
-                            overrun_threshold_s=None if pick("overrun_threshold") is None
-                            else float(pick("overrun_threshold")))
+        run_cfg = RunConfig(motor=motor, scenario=scenario, controller_params=controller_params, sensors=sensors,
+                            out_dir=None if no_log else Path(out), **fields)
     except (TypeError, ValueError) as exc:
         if isinstance(exc, ParameterError):
             raise

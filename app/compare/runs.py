@@ -17,6 +17,7 @@ from pmsm_hil.hil.metrics.registry import RUN, WINDOW, row_keys
 from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
+from pmsm_hil.hil.runner.run_options import MAX_TS_S, MIN_TS_S
 from pmsm_hil.hil.runner.scenario import load_scenario
 
 #: metrics copied from the runner's metrics into a row (the registry's compare-row view, run sources)
@@ -227,7 +228,7 @@ def _equal_fav(p: ComparePreset, result: CompareResult, progress: Progress, engi
                 s["done"] = True
                 continue
             ts_new = round(ts * fav / target * 1e7) / 1e7  # f_av ∝ 1/Ts; 0.1 µs grid
-            ts_new = min(max(ts_new, 5e-6), 1e-2)
+            ts_new = min(max(ts_new, MIN_TS_S), MAX_TS_S)  # the run-option schema's --ts range
             if math.isclose(ts_new, ts):
                 s["done"] = True
                 continue

@@ -25,11 +25,12 @@ from typing import Any
 
 from pmsm_hil.app.cli.config_file import read_toml
 from pmsm_hil.hil.errors import InputFileError, ParameterError
+from pmsm_hil.hil.runner.run_options import RUN_OPTIONS
 
 Point = tuple[tuple[str, str], ...]
 
 #: `hil run` options that are outputs or per-run files, never swept (the sweep owns its outputs)
-OUTPUT_KEYS = frozenset({"out", "overwrite", "no_log", "json", "log_trace", "config"})
+OUTPUT_KEYS = frozenset({*(o.key for o in RUN_OPTIONS if o.scope == "output"), "config"})
 #: key prefixes for `--set NAME=VALUE` and `--param NAME=VALUE`
 TABLE_PREFIXES = ("set.", "param.")
 #: the initial electrical rotor angle [rad] (the scenario's `theta0_rad`)

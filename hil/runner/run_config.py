@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -10,18 +9,18 @@ from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.machine import Machine, machine_for
 from pmsm_hil.hil.machine_params import MachineParams
 from pmsm_hil.hil.motor_params import parse_set_options
+from pmsm_hil.hil.runner.run_options import (
+    BY_FIELD,
+    check_field,
+    default_of,
+)
 from pmsm_hil.hil.runner.scenario import Scenario
 from pmsm_hil.hil.sensors import SensorConfig
-from pmsm_hil.protocol.codec import MAX_DURATION_NS
 from pmsm_hil.protocol.errors import LinkSpecError
 from pmsm_hil.protocol.ids import CONTROLLER_NAMES, ParamId
 from pmsm_hil.protocol.links.faults import FaultSpec, parse_fault_spec
 from pmsm_hil.sim_target.firmware import CONTROLLERS, controller_phases
 
-MODES = ("lockstep", "realtime")
-#: the period loop: native where supported (else Python, with the reason in the metrics), native or Python
-LOOPS = ("auto", "native", "python")
-MISS_POLICIES = ("hold", "zero")
 TARGET_KINDS = ("auto", "inproc", "spawn", "external")
 #: targets that carry a path: a firmware of the HIL target core built for the host (SIL library, or a source
 #: folder built on the fly) or for the emulated MCU (QEMU mps2-an386 ELF); docs/firmware_api.md
@@ -30,11 +29,6 @@ TARGET_PREFIXES = ("sil:", "qemu:")
 #: or the faster mailbox in the board's PSRAM shared with the host (`--link mailbox`)
 QEMU_LINK = "serial:qemu-uart0"
 QEMU_MAILBOX_LINK = "mailbox:qemu-psram"
-DEFAULT_MCU_CLOCK_HZ = 168e6
-
-#: Shortest control period [s]; the longest is what a Command's duration field carries (MAX_TS_S)
-MIN_TS_S = 5e-6
-MAX_TS_S = MAX_DURATION_NS * 1e-9
 
 #: The paper limits the starting torque to ~10 N·m for its 7 N·m machine: 10/7 of rated.
 TORQUE_LIMIT_PER_RATED = 10.0 / 7.0
@@ -102,39 +96,39 @@ class RunConfig:
 
     motor: MachineParams
     scenario: Scenario
-    controller: str = "mpcc"
-    ts_s: float = 100e-6
-    link: str = "virtual"
-    mode: str = "lockstep"
-    target: str = "auto"
-    seed: int = 0
+    controller: str = default_of("controller")
+    ts_s: float = default_of("ts_s")
+    link: str = default_of("link")
+    mode: str = default_of("mode")
+    target: str = default_of("target")
+    seed: int = default_of("seed")
     controller_params: dict[str, float] = field(default_factory=dict)
     sensors: SensorConfig = field(default_factory=SensorConfig)
     out_dir: Path | None = None
-    log_trace: bool = False
+    log_trace: bool = default_of("log_trace")
     trace_dt_s: float = 2e-6
-    miss_policy: str = "hold"
-    watchdog_periods: int = 10
-    lockstep_timeout_s: float = 0.5
+    miss_policy: str = default_of("miss_policy")
+    watchdog_periods: int = default_of("watchdog_periods")
+    lockstep_timeout_s: float = default_of("lockstep_timeout_s")
     #: DUT contract findings accepted before the run ends as a violation (counted in `dut_violations`)
-    tolerate: int = 0
+    tolerate: int = default_of("tolerate")
     #: real time: a period starting later than this [s] is an overrun (None: Ts / 2)
-    overrun_threshold_s: float | None = None
+    overrun_threshold_s: float | None = default_of("overrun_threshold_s")
     #: link fault injection SPEC (`--fault`, docs/runner.md "Link fault injection"); "" = none
     faults: str = ""
     #: qemu targets: the MCU clock of the execution-time estimate [Hz] (`--mcu-clock`)
-    mcu_clock_hz: float = DEFAULT_MCU_CLOCK_HZ
+    mcu_clock_hz: float = default_of("mcu_clock_hz")
     #: the period loop (`--loop`, LOOPS): "auto" runs the C loop (hil/native/loop.c) where supported
-    loop: str = "auto"
+    loop: str = default_of("loop")
     #: real time: SCHED_FIFO priority of the loop thread (`--rt-priority`, 0: none) and its CPU (`--cpu`)
-    rt_priority: int = 0
-    cpu: int | None = None
+    rt_priority: int = default_of("rt_priority")
+    cpu: int | None = default_of("cpu")
     #: sil targets: wall time [s] a step may take before the target is "hung" (`--step-timeout`; the wait for
     #: each Command of an isolated SIL run, in place of `lockstep_timeout_s`)
-    step_timeout_s: float = 0.5
+    step_timeout_s: float = default_of("step_timeout_s")
     #: sil targets: load the library into the runner's process (`--sil-in-process`: unprotected, a crash of
     #: the firmware ends the runner) instead of serving it from its own process
-    sil_in_process: bool = False
+    sil_in_process: bool = default_of("sil_in_process")
 
     def __post_init__(self) -> None:
         cid = controller_id(self.controller)
@@ -146,15 +140,10 @@ class RunConfig:
             raise ParameterError(
                 f"controller '{self.controller}' needs a {words.get(needs, needs)}-phase motor, but "
                 f"'{self.motor.name}' is {words.get(has, has)}-phase (six-phase motors have lls > 0)")
-        if not (math.isfinite(self.ts_s) and self.ts_s >= MIN_TS_S and round(self.ts_s * 1e9) <= MAX_DURATION_NS):
-            raise ParameterError(f"--ts must be between 5 µs and {MAX_DURATION_NS / 1e6:.6f} ms (a Command's duration "
-                                 f"field carries at most {MAX_DURATION_NS} ns), got {self.ts_s} s")
+        for name in BY_FIELD:  # ranges and choices: the run-option schema's (hil/runner/run_options.py)
+            check_field(name, getattr(self, name))
         if abs(round(self.ts_s * 1e9) - self.ts_s * 1e9) > 1e-3:
             raise ParameterError(f"--ts must be a whole number of ns, got {self.ts_s} s")
-        if self.mode not in MODES:
-            raise ParameterError(f"--mode must be one of {', '.join(MODES)}, got {self.mode!r}")
-        if self.miss_policy not in MISS_POLICIES:
-            raise ParameterError(f"miss policy must be one of {', '.join(MISS_POLICIES)}, got {self.miss_policy!r}")
         if self.target not in TARGET_KINDS:
             prefix = next((p for p in TARGET_PREFIXES if self.target.startswith(p)), None)
             if prefix is None or not self.target[len(prefix):].strip():
@@ -171,21 +160,6 @@ class RunConfig:
                 if self.mode != "lockstep":
                     raise ParameterError("--target qemu:... runs lockstep only (the emulated MCU keeps virtual "
                                          "time, not wall time)")
-        if not (math.isfinite(self.mcu_clock_hz) and 1e6 <= self.mcu_clock_hz <= 2e9):
-            raise ParameterError(f"--mcu-clock must be between 1 MHz and 2 GHz, got {self.mcu_clock_hz:g} Hz")
-        if self.loop not in LOOPS:
-            raise ParameterError(f"--loop must be one of {', '.join(LOOPS)}, got {self.loop!r}")
-        if not 0 <= self.rt_priority <= 99:
-            raise ParameterError(f"--rt-priority must be 0 (none) or a SCHED_FIFO priority 1..99, "
-                                 f"got {self.rt_priority}")
-        if self.cpu is not None and self.cpu < 0:
-            raise ParameterError(f"--cpu must be a CPU number ≥ 0, got {self.cpu}")
-        if self.watchdog_periods < 1:
-            raise ParameterError(f"watchdog periods must be ≥ 1, got {self.watchdog_periods}")
-        if not (math.isfinite(self.lockstep_timeout_s) and 0.0 < self.lockstep_timeout_s <= 3600.0):
-            raise ParameterError(f"--lockstep-timeout must be in (0, 3600] s, got {self.lockstep_timeout_s}")
-        if not (math.isfinite(self.step_timeout_s) and 0.0 < self.step_timeout_s <= 3600.0):
-            raise ParameterError(f"--step-timeout must be in (0, 3600] s, got {self.step_timeout_s}")
         if self.sil_in_process and not self.target.startswith("sil:"):
             raise ParameterError(f"--sil-in-process: only with --target sil:PATH, got --target {self.target}")
         if self.faults:
@@ -193,11 +167,6 @@ class RunConfig:
                 parse_fault_spec(self.faults)
             except LinkSpecError as exc:
                 raise ParameterError(f"--fault: {exc}") from None
-        if self.tolerate < 0:
-            raise ParameterError(f"--tolerate must be ≥ 0, got {self.tolerate}")
-        if self.overrun_threshold_s is not None and not (
-                math.isfinite(self.overrun_threshold_s) and self.overrun_threshold_s > 0.0):
-            raise ParameterError(f"--overrun-threshold must be a positive time in s, got {self.overrun_threshold_s}")
         for name in self.controller_params:
             param_id(name)
 

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pmsm_hil.errors import HilError
+from pmsm_hil.hil.runner.run_options import OPTIONS, RunOption
 
 if TYPE_CHECKING:
     import numpy as np
@@ -106,18 +107,33 @@ def run_argv(settings: HilSettings, out_dir: Path | None, kwargs: Mapping[str, A
     for name, value in kwargs.items():
         if name in _OWNED:
             raise TypeError(f"hil.run: '{name}' is set by the session (--hil-target, --hil-out), not per run")
+        option = run_choice_option(name)
         if value is None:
             continue
-        if name in ("params", "sets"):
-            option = "--param" if name == "params" else "--set"
-            argv += [f"{option}={k}={v}" for k, v in dict(value).items()]
-        elif name == "faults":
-            argv.append(f"--fault={value}")
-        elif value is True:
-            argv.append(f"--{name.replace('_', '-')}")
-        elif value is not False:
-            argv.append(f"--{name.replace('_', '-')}={value}")
+        if option.kind == "table":
+            argv += [f"{option.option}={k}={v}" for k, v in dict(value).items()]
+        elif option.kind == "flag":
+            if value is True:
+                argv.append(option.option)
+            elif value is not False:
+                raise TypeError(f"hil.run: '{name}' is a flag (True or False), got {value!r}")
+        else:
+            argv.append(f"{option.option}={value}")
     return argv
+
+
+#: `hil.run` keyword arguments named for what they hold (tables) beside the option keys
+_ALIASES = {"params": "param", "sets": "set", "faults": "fault"}
+
+
+def run_choice_option(name: str) -> RunOption:
+    """The run option a `hil.run` keyword argument sets: a key of the run-option schema
+    (hil/runner/run_options.py) or `params`/`sets`/`faults`; TypeError naming the known ones if none."""
+    option = OPTIONS.get(_ALIASES.get(name, name))
+    if option is None or option.key in _OWNED:
+        known = sorted({*(k for k in OPTIONS if k not in _OWNED), *_ALIASES} - {"param", "set", "fault"})
+        raise TypeError(f"hil.run: unknown choice '{name}' (known: {', '.join(known)})")
+    return option
 
 
 def build_config(settings: HilSettings, out_dir: Path | None, kwargs: Mapping[str, Any]) -> RunConfig:
@@ -213,4 +229,4 @@ class HilResult:
 
 
 __all__ = ["LOCKSTEP_TIMEOUT_S", "SIGNALS", "HilResult", "HilRunError", "HilSettings", "build_config",
-           "execute", "run_argv"]
+           "execute", "run_argv", "run_choice_option"]

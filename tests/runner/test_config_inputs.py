@@ -13,7 +13,8 @@ import pytest
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runner.native_link import NativeCoreLink
-from pmsm_hil.hil.runner.run_config import MAX_TS_S, RunConfig, check_params_used
+from pmsm_hil.hil.runner.run_config import RunConfig, check_params_used
+from pmsm_hil.hil.runner.run_options import MAX_TS_S
 from pmsm_hil.hil.runner.scenario import load_scenario
 from pmsm_hil.protocol.codec import MAX_DURATION_NS, FrameCodec
 from pmsm_hil.protocol.frame import Frame
