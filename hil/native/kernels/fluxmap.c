@@ -1,0 +1,430 @@
+/* Saturated PMSM from a flux map + two-level inverter; see fluxmap.h. */
+#include "fluxmap.h"
+#include "dq_segment.h"
+#include "gate_edges.h"
+
+#include <math.h>
+#include <stddef.h>
+
+#define FM_SQRT3 1.7320508075688772935274463415059
+#define FM_MAX_EVENTS 64
+#define FM_NEWTON_MAX 60
+#define FM_H_MIN 1e-15
+
+/* Index of the cell [axis[k], axis[k+1]] holding x (x already clamped to the axis range). */
+static int32_t cell_of(const double *axis, int32_t n, double x)
+{
+    int32_t lo = 0, hi = n - 1;
+    while (hi - lo > 1) {
+        const int32_t mid = (lo + hi) / 2;
+        if (x >= axis[mid]) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    return lo;
+}
+
+/* Bicubic value and derivatives in the cell's unit coordinates (u, v). */
+static void bicubic(const double *a, double u, double v, double *f, double *fu, double *fv)
+{
+    double c[4], dc[4];
+    for (int m = 0; m < 4; m++) {
+        const double *r = a + 4 * m;
+        c[m] = ((r[3] * v + r[2]) * v + r[1]) * v + r[0];
+        dc[m] = (3.0 * r[3] * v + 2.0 * r[2]) * v + r[1];
+    }
+    *f = ((c[3] * u + c[2]) * u + c[1]) * u + c[0];
+    *fu = (3.0 * c[3] * u + 2.0 * c[2]) * u + c[1];
+    *fv = ((dc[3] * u + dc[2]) * u + dc[1]) * u + dc[0];
+}
+
+void fm_flux(const fm_params_t *p, double i_d, double i_q, double *psi_d, double *psi_q, double *l)
+{
+    const double x0 = p->id_axis[0], x1 = p->id_axis[p->nx - 1];
+    const double y0 = p->iq_axis[0], y1 = p->iq_axis[p->ny - 1];
+    const double xc = i_d < x0 ? x0 : (i_d > x1 ? x1 : i_d);
+    const double yc = i_q < y0 ? y0 : (i_q > y1 ? y1 : i_q);
+    const int32_t ix = cell_of(p->id_axis, p->nx, xc);
+    const int32_t iy = cell_of(p->iq_axis, p->ny, yc);
+    const double hx = p->id_axis[ix + 1] - p->id_axis[ix];
+    const double hy = p->iq_axis[iy + 1] - p->iq_axis[iy];
+    const double u = (xc - p->id_axis[ix]) / hx;
+    const double v = (yc - p->iq_axis[iy]) / hy;
+    const ptrdiff_t cell = ((ptrdiff_t)ix * (p->ny - 1) + iy) * FM_COEFS;
+    double fd, fdu, fdv, fq, fqu, fqv;
+    bicubic(p->coef_d + cell, u, v, &fd, &fdu, &fdv);
+    bicubic(p->coef_q + cell, u, v, &fq, &fqu, &fqv);
+    fdu /= hx;
+    fdv /= hy;
+    fqu /= hx;
+    fqv /= hy;
+    /* outside the grid: first-order continuation from the nearest grid point */
+    *psi_d = fd + fdu * (i_d - xc) + fdv * (i_q - yc);
+    *psi_q = fq + fqu * (i_d - xc) + fqv * (i_q - yc);
+    if (l != NULL) {
+        l[0] = fdu;
+        l[1] = fdv;
+        l[2] = fqu;
+        l[3] = fqv;
+    }
+}
+
+int fm_currents(const fm_params_t *p, double psi_d, double psi_q, double *i_d, double *i_q)
+{
+    double x = *i_d, y = *i_q, px = x, py = y, r_prev = INFINITY;
+    for (int it = 0; it < FM_NEWTON_MAX; it++) {
+        double fd, fq, l[4], rd, rq, r, det, dx, dy;
+        fm_flux(p, x, y, &fd, &fq, l);
+        rd = psi_d - fd;
+        rq = psi_q - fq;
+        r = fabs(rd) + fabs(rq);
+        if (!isfinite(r)) {
+            return FM_E_NEWTON;
+        }
+        if (r > r_prev && it > 0) { /* the full step went too far: halve it (backtracking) */
+            x = px + 0.5 * (x - px);
+            y = py + 0.5 * (y - py);
+            if (fabs(x - px) + fabs(y - py) < 1e-14 * (1.0 + fabs(px) + fabs(py))) {
+                break;
+            }
+            continue;
+        }
+        det = l[0] * l[3] - l[1] * l[2];
+        if (!(det > 0.0)) {
+            return FM_E_NEWTON;
+        }
+        dx = (l[3] * rd - l[1] * rq) / det;
+        dy = (-l[2] * rd + l[0] * rq) / det;
+        px = x;
+        py = y;
+        r_prev = r;
+        x += dx;
+        y += dy;
+        if (fabs(dx) + fabs(dy) <= 1e-13 * (1.0 + fabs(x) + fabs(y))) {
+            *i_d = x;
+            *i_q = y;
+            return 0;
+        }
+    }
+    /* backtracking stalled: accept only a residual at rounding level */
+    {
+        double fd, fq;
+        fm_flux(p, px, py, &fd, &fq, NULL);
+        if (fabs(psi_d - fd) + fabs(psi_q - fq) <= 1e-14 * (1.0 + fabs(psi_d) + fabs(psi_q))) {
+            *i_d = px;
+            *i_q = py;
+            return 0;
+        }
+    }
+    return FM_E_NEWTON;
+}
+
+static double fm_torque(const fm_params_t *p, double psi_d, double psi_q, double i_d, double i_q)
+{
+    return 1.5 * (double)p->pole_pairs * (psi_d * i_q - psi_q * i_d);
+}
+
+/* The flux ODE's right-hand side at tau into a sub-interval: voltage (v_alpha, v_beta) [V], angle theta0 + w tau. */
+typedef struct {
+    const fm_params_t *p;
+    double v_alpha, v_beta, theta0, omega_e;
+} fm_rhs_t;
+
+static int rhs(const fm_rhs_t *c, double tau, const double *psi, double *cur, double *dpsi)
+{
+    double sn, cs;
+    int rc = fm_currents(c->p, psi[0], psi[1], &cur[0], &cur[1]);
+    if (rc != 0) {
+        return rc;
+    }
+    dq_sincos(c->theta0 + c->omega_e * tau, &sn, &cs);
+    dpsi[0] = c->v_alpha * cs + c->v_beta * sn - c->p->rs * cur[0] + c->omega_e * psi[1];
+    dpsi[1] = -c->v_alpha * sn + c->v_beta * cs - c->p->rs * cur[1] - c->omega_e * psi[0];
+    return 0;
+}
+
+/* Dormand-Prince 5(4) tableau */
+static const double A21 = 1.0 / 5.0;
+static const double A31 = 3.0 / 40.0, A32 = 9.0 / 40.0;
+static const double A41 = 44.0 / 45.0, A42 = -56.0 / 15.0, A43 = 32.0 / 9.0;
+static const double A51 = 19372.0 / 6561.0, A52 = -25360.0 / 2187.0, A53 = 64448.0 / 6561.0, A54 = -212.0 / 729.0;
+static const double A61 = 9017.0 / 3168.0, A62 = -355.0 / 33.0, A63 = 46732.0 / 5247.0, A64 = 49.0 / 176.0,
+                    A65 = -5103.0 / 18656.0;
+static const double B1 = 35.0 / 384.0, B3 = 500.0 / 1113.0, B4 = 125.0 / 192.0, B5 = -2187.0 / 6784.0,
+                    B6 = 11.0 / 84.0;
+static const double E1 = 71.0 / 57600.0, E3 = -71.0 / 16695.0, E4 = 71.0 / 1920.0, E5 = -17253.0 / 339200.0,
+                    E6 = 22.0 / 525.0, E7 = -1.0 / 40.0;
+static const double C2 = 1.0 / 5.0, C3 = 3.0 / 10.0, C4 = 4.0 / 5.0, C5 = 8.0 / 9.0;
+
+/* Integrate the state's flux from tau = tau0 to tau1 (seconds into the sub-interval described by c) with error
+ * control; the state's currents follow. */
+static int integrate_to(const fm_rhs_t *c, fm_state_t *s, double tau0, double tau1)
+{
+    double tau = tau0;
+    double psi[2] = {s->psi_d, s->psi_q};
+    double cur[2] = {s->i_d, s->i_q};
+    double k1[2], k2[2], k3[2], k4[2], k5[2], k6[2], k7[2], y[2], ynew[2], cnew[2];
+    double h = s->h_last > 0.0 ? s->h_last : 1e-6;
+    int rc;
+    if (tau1 - tau0 <= 0.0) {
+        return 0;
+    }
+    rc = rhs(c, tau, psi, cur, k1);
+    if (rc != 0) {
+        return rc;
+    }
+    while (tau < tau1) {
+        const int last = h >= tau1 - tau;
+        double err, hs;
+        if (last) {
+            h = tau1 - tau;
+        }
+        cnew[0] = cur[0];
+        cnew[1] = cur[1];
+        for (int k = 0; k < 2; k++) y[k] = psi[k] + h * A21 * k1[k];
+        if ((rc = rhs(c, tau + C2 * h, y, cnew, k2)) != 0) return rc;
+        for (int k = 0; k < 2; k++) y[k] = psi[k] + h * (A31 * k1[k] + A32 * k2[k]);
+        if ((rc = rhs(c, tau + C3 * h, y, cnew, k3)) != 0) return rc;
+        for (int k = 0; k < 2; k++) y[k] = psi[k] + h * (A41 * k1[k] + A42 * k2[k] + A43 * k3[k]);
+        if ((rc = rhs(c, tau + C4 * h, y, cnew, k4)) != 0) return rc;
+        for (int k = 0; k < 2; k++) y[k] = psi[k] + h * (A51 * k1[k] + A52 * k2[k] + A53 * k3[k] + A54 * k4[k]);
+        if ((rc = rhs(c, tau + C5 * h, y, cnew, k5)) != 0) return rc;
+        for (int k = 0; k < 2; k++)
+            y[k] = psi[k] + h * (A61 * k1[k] + A62 * k2[k] + A63 * k3[k] + A64 * k4[k] + A65 * k5[k]);
+        if ((rc = rhs(c, tau + h, y, cnew, k6)) != 0) return rc;
+        for (int k = 0; k < 2; k++)
+            ynew[k] = psi[k] + h * (B1 * k1[k] + B3 * k3[k] + B4 * k4[k] + B5 * k5[k] + B6 * k6[k]);
+        if ((rc = rhs(c, tau + h, ynew, cnew, k7)) != 0) return rc;
+        err = 0.0;
+        for (int k = 0; k < 2; k++) {
+            const double e = fabs(h * (E1 * k1[k] + E3 * k3[k] + E4 * k4[k] + E5 * k5[k] + E6 * k6[k] + E7 * k7[k]));
+            err = e > err ? e : err;
+        }
+        err *= c->p->inv_l_max; /* flux error [Wb] -> bound on the current error [A] */
+        hs = err > 0.0 ? 0.9 * pow(c->p->tol_i / err, 0.2) : 5.0;
+        hs = hs > 5.0 ? 5.0 : (hs < 0.2 ? 0.2 : hs);
+        if (err <= c->p->tol_i) {
+            tau = last ? tau1 : tau + h;
+            psi[0] = ynew[0];
+            psi[1] = ynew[1];
+            cur[0] = cnew[0];
+            cur[1] = cnew[1];
+            k1[0] = k7[0];
+            k1[1] = k7[1];
+            s->steps++;
+            if (!last) {
+                s->h_last = h * hs;
+            }
+            h *= hs;
+        } else {
+            s->rejected++;
+            h *= hs;
+            if (h < FM_H_MIN) {
+                return FM_E_STEP;
+            }
+        }
+    }
+    s->psi_d = psi[0];
+    s->psi_q = psi[1];
+    s->i_d = cur[0];
+    s->i_q = cur[1];
+    return 0;
+}
+
+static void phase_currents_cs(double i_d, double i_q, double c, double sn, double *i)
+{
+    const double i_al = i_d * c - i_q * sn;
+    const double i_be = i_d * sn + i_q * c;
+    i[0] = i_al;
+    i[1] = -0.5 * i_al + 0.5 * FM_SQRT3 * i_be;
+    i[2] = -0.5 * i_al - 0.5 * FM_SQRT3 * i_be;
+}
+
+static int emit_row(const fm_params_t *p, fm_state_t *s, double tk, double theta, double *trace, int32_t trace_cap,
+                    fm_period_stats_t *stats)
+{
+    double sn, c, i[3], *row;
+    if (stats->trace_n >= trace_cap) {
+        return MK_E_TRACE_FULL;
+    }
+    dq_sincos(theta, &sn, &c);
+    phase_currents_cs(s->i_d, s->i_q, c, sn, i);
+    row = trace + (ptrdiff_t)stats->trace_n * FM_TRACE_COLUMNS;
+    row[0] = tk;
+    for (int k = 0; k < 3; k++) {
+        row[1 + k] = i[k];
+        if (fabs(i[k]) > stats->peak_current) {
+            stats->peak_current = fabs(i[k]);
+        }
+    }
+    row[4] = fm_torque(p, s->psi_d, s->psi_q, s->i_d, s->i_q);
+    row[5] = s->omega_m;
+    stats->trace_n++;
+    s->trace_k++;
+    return 0;
+}
+
+/* h seconds from absolute time t_abs with the legs at gate_level (no dead time). */
+static int integrate(const fm_params_t *p, fm_state_t *s, double t_abs, double h, double t_load0, double t_load_slope,
+                     double t_period0, double trace_dt, double *trace, int32_t trace_cap, fm_period_stats_t *stats,
+                     const int *gate_level)
+{
+    const double sa = (double)gate_level[0], sb = (double)gate_level[1], sc = (double)gate_level[2];
+    const double inv_j = p->inertia_mode ? 1.0 / p->j : 0.0;
+    double done = 0.0;
+    fm_rhs_t c;
+    c.p = p;
+    c.v_alpha = p->vdc / 3.0 * (2.0 * sa - sb - sc);
+    c.v_beta = p->vdc / FM_SQRT3 * (sb - sc);
+    while (done < h - 0.5e-9) {
+        double piece = h - done, tau = 0.0;
+        const double t0 = t_abs + done;
+        const double te0 = fm_torque(p, s->psi_d, s->psi_q, s->i_d, s->i_q);
+        int rc;
+        if (p->inertia_mode && p->max_piece > 0.0 && piece > p->max_piece) {
+            piece = p->max_piece;
+        }
+        c.theta0 = s->theta_e;
+        c.omega_e = (double)p->pole_pairs * s->omega_m;
+        while (trace_dt > 0.0 && trace != NULL) { /* rows at t = trace_k * trace_dt inside [t0, t0 + piece) */
+            const double tk = (double)s->trace_k * trace_dt;
+            double tau_k = tk - t0;
+            if (tau_k >= piece - 0.5e-9) {
+                break;
+            }
+            tau_k = tau_k < 0.0 ? 0.0 : tau_k;
+            if ((rc = integrate_to(&c, s, tau, tau_k)) != 0) {
+                return rc;
+            }
+            tau = tau_k > tau ? tau_k : tau;
+            if ((rc = emit_row(p, s, tk, c.theta0 + c.omega_e * tau, trace, trace_cap, stats)) != 0) {
+                return rc;
+            }
+        }
+        if ((rc = integrate_to(&c, s, tau, piece)) != 0) {
+            return rc;
+        }
+        s->theta_e = dq_wrap_angle(s->theta_e + c.omega_e * piece);
+        if (p->inertia_mode) {
+            const double te1 = fm_torque(p, s->psi_d, s->psi_q, s->i_d, s->i_q);
+            const double t_load = t_load0 + t_load_slope * (t0 + 0.5 * piece - t_period0);
+            const double k = 0.5 * piece * p->b * inv_j;
+            const double w1 = s->omega_m * (1.0 - k) + piece * (0.5 * (te0 + te1) - t_load) * inv_j;
+            s->omega_m = k != 0.0 ? w1 / (1.0 + k) : w1;
+        }
+        done += piece;
+    }
+    return 0;
+}
+
+typedef struct {
+    const fm_params_t *p;
+    fm_state_t *s;
+    double trace_dt;
+    double *trace;
+    int32_t trace_cap;
+    fm_period_stats_t *stats;
+} fm_ctx_t;
+
+static int integrate_cb(void *ctx, double t, double h, double load_val, double load_slope, double load_ref,
+                        const int *gate_level)
+{
+    fm_ctx_t *c = (fm_ctx_t *)ctx;
+    return integrate(c->p, c->s, t, h, load_val, load_slope, load_ref, c->trace_dt, c->trace, c->trace_cap, c->stats,
+                     gate_level);
+}
+
+static int dead_level_cb(void *ctx, int leg, int new_level)
+{
+    (void)ctx;
+    (void)leg;
+    return new_level; /* never called: t_dead = 0 (refused otherwise) */
+}
+
+int fm_advance(const fm_params_t *p, fm_state_t *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
+               double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp, double trace_dt,
+               double *trace, int32_t trace_cap, fm_period_stats_t *stats)
+{
+    dq_event_t ev[FM_MAX_EVENTS];
+    int n_ev;
+    const double t_start = (double)s->t_ns * 1e-9;
+    int64_t total_ns = 0;
+    ge_stats_reset(stats);
+    if (p->t_dead != 0.0) {
+        stats->error = FM_E_DEAD;
+        return FM_E_DEAD;
+    }
+    if (n < 1 || n > GE_MAX_SUBINTERVALS) {
+        stats->error = MK_E_ARGS;
+        return MK_E_ARGS;
+    }
+    for (int k = 0; k < n; k++) {
+        if (durations_ns[k] < 0 || states[k] < 0 || states[k] > 7) {
+            stats->error = MK_E_ARGS;
+            return MK_E_ARGS;
+        }
+    }
+    n_ev = ge_plan(3, s->gate, states, durations_ns, n, t_start, p->t_mpw, p->t_mpw, s->last_edge_t, ev, 0,
+                   FM_MAX_EVENTS, stats, &total_ns);
+    {
+        fm_ctx_t c = {p, s, trace_dt, trace, trace_cap, stats};
+        const int rc = ge_run_period(3, t_start, t_start + (double)total_ns * 1e-9, 0.0, ev, n_ev, FM_MAX_EVENTS,
+                                     t_load0, t_load_slope, load_bp, n_load_bp, &s->gate, s->dead_until,
+                                     s->dead_level, integrate_cb, dead_level_cb, &c);
+        if (rc != 0) {
+            stats->error = rc;
+            return rc;
+        }
+    }
+    s->t_ns += (uint64_t)total_ns;
+    return 0;
+}
+
+void fm_sample(const fm_params_t *p, const fm_state_t *s, mk_sample_t *out)
+{
+    const double co = cos(s->theta_e);
+    const double sn = sin(s->theta_e);
+    phase_currents_cs(s->i_d, s->i_q, co, sn, out->i);
+    out->i_d = s->i_d;
+    out->i_q = s->i_q;
+    out->theta_e = s->theta_e;
+    out->omega_m = s->omega_m;
+    out->torque = fm_torque(p, s->psi_d, s->psi_q, s->i_d, s->i_q);
+}
+
+/* --- the machine-kernel table (machine_kernel.h) ------------------------------------------------------------ */
+static int k_advance(const void *p, void *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
+                     double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp, double trace_dt,
+                     double *trace, int32_t trace_cap, ge_period_stats_t *stats)
+{
+    return fm_advance((const fm_params_t *)p, (fm_state_t *)s, states, durations_ns, n, t_load0, t_load_slope,
+                      load_bp, n_load_bp, trace_dt, trace, trace_cap, stats);
+}
+
+static void k_sample(const void *p, const void *s, mk_sample_t *out)
+{
+    fm_sample((const fm_params_t *)p, (const fm_state_t *)s, out);
+}
+
+static void k_hold_speed(void *p, void *s, double omega_m)
+{
+    ((fm_params_t *)p)->inertia_mode = 0;
+    ((fm_state_t *)s)->omega_m = omega_m;
+}
+
+static uint64_t k_time_ns(const void *s)
+{
+    return ((const fm_state_t *)s)->t_ns;
+}
+
+static const mk_kernel_t FM_KERNEL = {
+    MK_ABI_VERSION, "saturated PMSM (flux map)", 3, 7, FM_TRACE_COLUMNS, sizeof(fm_params_t), sizeof(fm_state_t),
+    k_advance, k_sample, k_hold_speed, k_time_ns,
+};
+
+const mk_kernel_t *fm_kernel(void)
+{
+    return &FM_KERNEL;
+}
