@@ -28,7 +28,6 @@ from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
-
 from pmsm_hil.hil.errors import InputFileError
 
 Array = npt.NDArray[np.float64]

@@ -28,7 +28,6 @@ from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
-
 from pmsm_hil.hil.fluxmap import FluxMap, write_csv_map
 
 Array = npt.NDArray[np.float64]
@@ -55,14 +54,14 @@ class SaturationModel:
     @property
     def i_f(self) -> float:
         """The magnet's MMF as a d current [A]: i_d = 0 at ψ = (ψf, 0)."""
-        return (self.a_d0 + self.a_dd * self.psi_f**self.s) * self.psi_f
+        return float((self.a_d0 + self.a_dd * self.psi_f**self.s) * self.psi_f)
 
     def currents(self, psi_d: Array, psi_q: Array) -> tuple[Array, Array, Array]:
         """(i_d, i_q) [A] and the Jacobian ∂i/∂ψ [1/H] (…, 2, 2) at fluxes [Wb]."""
         ad, aq = np.abs(psi_d), np.abs(psi_q)
         g_d = self.a_d0 + self.a_dd * ad**self.s + self.a_dq / (self.v + 2) * ad**self.u * aq ** (self.v + 2)
         g_q = self.a_q0 + self.a_qq * aq**self.t + self.a_dq / (self.u + 2) * ad ** (self.u + 2) * aq**self.v
-        j = np.empty(np.shape(psi_d) + (2, 2))
+        j = np.empty((*np.shape(psi_d), 2, 2))
         j[..., 0, 0] = g_d + self.a_dd * self.s * ad**self.s + self.a_dq / (self.v + 2) * self.u * ad**self.u * aq ** (
             self.v + 2)
         j[..., 0, 1] = self.a_dq * psi_d * ad**self.u * aq ** (self.v + 1) * np.sign(psi_q)

@@ -19,7 +19,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
 from pmsm_hil.hil.errors import InputFileError
 from pmsm_hil.hil.fluxmap import FluxMap, grid_from_points
 
