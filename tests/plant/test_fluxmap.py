@@ -207,8 +207,12 @@ def test_syre_mat_maps_load_in_pmsm_axes(tmp_path: Path) -> None:
     fd_sr, fq_sr = LQ * id_sr, -(LD * (-iq_sr) + PSI_F)
     savemat(tmp_path / "fdfq_idiq_n256.mat", {"Id": id_sr, "Iq": iq_sr, "Fd": fd_sr, "Fq": fq_sr, "T": 0 * id_sr})
     savemat(tmp_path / "motor.mat", {"motorModel": {"FluxMap_dq": {"Id": id_sr, "Iq": iq_sr, "Fd": fd_sr,
-                                                                    "Fq": fq_sr}}})
-    for name in ("fdfq_idiq_n256.mat", "motor.mat"):
+                                                                    "Fq": fq_sr}, "data": {"axisType": "SR"}}})
+    # a PM-axes model file (motorModel.data.axisType = 'PM'): taken as it is
+    id_pm, iq_pm = np.meshgrid(GRID, np.linspace(0.0, 36.0, 13))
+    savemat(tmp_path / "motor_pm.mat", {"motorModel": {"FluxMap_dq": {
+        "Id": id_pm, "Iq": iq_pm, "Fd": LD * id_pm + PSI_F, "Fq": LQ * iq_pm}, "data": {"axisType": "PM"}}})
+    for name in ("fdfq_idiq_n256.mat", "motor.mat", "motor_pm.mat"):
         interp, _ = load_interpolant(str(tmp_path / name))
         for i_d, i_q in ((0.0, 7.0), (-20.0, -13.0), (10.0, 30.0)):
             assert interp.flux(i_d, i_q)[:2] == pytest.approx(ref.flux(i_d, i_q)[:2], abs=1e-14)
