@@ -24,7 +24,8 @@ from pmsm_hil.protocol.ids import ParamId
 
 KIND = "pmsm-fluxmap"
 
-_SETTABLE: dict[str, str] = {"rs": "Ω", "pole_pairs": "", "vdc": "V", "j": "kg·m²", "b": "N·m·s/rad", "t_mpw": "s",
+_SETTABLE: dict[str, str] = {"rs": "Ω", "pole_pairs": "", "vdc": "V", "j": "kg·m²", "b": "N·m·s/rad", "t_dead": "s",
+                             "t_mpw": "s",
                              "i_trip": "A", "speed_trip_rpm": "rpm", "rated_speed_rpm": "rpm",
                              "rated_torque_nm": "N·m", "speed_kp": "N·m/(rad/s)", "speed_ki": "N·m/rad"}
 
@@ -32,7 +33,7 @@ _SETTABLE: dict[str, str] = {"rs": "Ω", "pole_pairs": "", "vdc": "V", "j": "kg�
 @dataclass(frozen=True, slots=True)
 class FluxMapParams:
     """A saturated PMSM: `flux_map` the map file's path (CSV or SyR-e .mat), rs [Ω], the drive facts every kind has
-    (MachineParams). `t_dead` must be 0: the kernel does not model dead time."""
+    (MachineParams)."""
 
     flux_map: str
     rs: float
@@ -69,7 +70,7 @@ class FluxMapParams:
 
     def __post_init__(self) -> None:
         positive = ("rs", "vdc", "j", "i_trip", "speed_trip_rpm")
-        non_negative = ("b", "t_mpw", "rated_speed_rpm", "rated_torque_nm", "speed_kp", "speed_ki")
+        non_negative = ("b", "t_dead", "t_mpw", "rated_speed_rpm", "rated_torque_nm", "speed_kp", "speed_ki")
         for key in positive + non_negative:
             value = getattr(self, key)
             if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
@@ -79,11 +80,8 @@ class FluxMapParams:
                                      f"got {value}")
         if isinstance(self.pole_pairs, bool) or not isinstance(self.pole_pairs, int) or self.pole_pairs < 1:
             raise ParameterError(f"motor parameter 'pole_pairs' must be an integer ≥ 1, got {self.pole_pairs!r}")
-        if self.t_dead != 0.0:
-            raise ParameterError(f"motor parameter 't_dead': the pmsm-fluxmap kernel does not model dead time "
-                                 f"(set 0), got {self.t_dead}")
-        if self.t_mpw > 1e-3:
-            raise ParameterError("motor parameter 't_mpw' is in seconds and must be < 1 ms")
+        if self.t_dead > 1e-3 or self.t_mpw > 1e-3:
+            raise ParameterError("motor parameters 't_dead'/'t_mpw' are in seconds and must be < 1 ms")
         checks = self.checks
         if not checks.covers(self.i_trip):
             raise ParameterError(

@@ -21,7 +21,8 @@ INV_L_MARGIN = 2.0
 
 class FluxMapPlant(PlantBase):
     """Saturated PMSM + two-level inverter: flux linkage as the state, currents by the inverted map, each
-    sub-interval integrated by Dormand–Prince 5(4) with error control (fluxmap.h)."""
+    sub-interval integrated by Dormand–Prince 5(4) with error control; dead time, diode blocking and open phases as
+    the PMSM kernel (fluxmap.h)."""
 
     KERNEL_PREFIX = "fm"
     KERNEL_TABLE = "fm_kernel"

@@ -10,7 +10,8 @@ Axes: SyR-e writes synchronous-reluctance ("SR") axes for IPM machines — d alo
 flux along −q — and PMSM ("PM") axes for surface and V-type machines. A motor-model file says which in
 `motorModel.data.axisType`; for a bare map the rule of SyR-e's own C_MMLut.m decides: a first id column that is
 negative means PM axes (the magnet on d, id ≤ 0 for field weakening), else SR axes. SR maps are turned into this
-package's PMSM convention (magnet on +d) as SyR-e's MMM_sr2pm.m does: i_d = −Iq, i_q = Id, ψd = −Fq, ψq = Fd. A map given for iq ≥ 0 only is completed by the d-axis symmetry (hil/fluxmap.py).
+package's PMSM convention (magnet on +d) as SyR-e's MMM_sr2pm.m does: i_d = −Iq, i_q = Id, ψd = −Fq, ψq = Fd.
+A map given for iq ≥ 0 only is completed by the d-axis symmetry (hil/fluxmap.py).
 """
 
 from __future__ import annotations

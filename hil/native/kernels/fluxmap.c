@@ -126,22 +126,58 @@ static double fm_torque(const fm_params_t *p, double psi_d, double psi_q, double
     return 1.5 * (double)p->pole_pairs * (psi_d * i_q - psi_q * i_d);
 }
 
-/* The flux ODE's right-hand side at tau into a sub-interval: voltage (v_alpha, v_beta) [V], angle theta0 + w tau. */
+#define FM_LEVEL_OPEN 2 /* dead_level value: diode blocked, phase open */
+static const double FM_EX[3] = {1.0, -0.5, -0.5};
+static const double FM_EY[3] = {0.0, 0.8660254037844386, -0.8660254037844386};
+
+/* The flux ODE of one piece: stator-frame voltage of the legs' levels (an open leg counted at the low rail) [V],
+ * angle theta0 + omega_e tau, and the phase held at zero current (-1: none). */
 typedef struct {
     const fm_params_t *p;
     double v_alpha, v_beta, theta0, omega_e;
+    int open_leg;
 } fm_rhs_t;
+
+/* Current of phase `leg` [A] from dq currents at angle theta [rad]. */
+static double leg_current(double i_d, double i_q, double theta, int leg)
+{
+    double sn, cs;
+    dq_sincos(theta, &sn, &cs);
+    return FM_EX[leg] * (i_d * cs - i_q * sn) + FM_EY[leg] * (i_d * sn + i_q * cs);
+}
 
 static int rhs(const fm_rhs_t *c, double tau, const double *psi, double *cur, double *dpsi)
 {
+    const fm_params_t *p = c->p;
     double sn, cs;
-    int rc = fm_currents(c->p, psi[0], psi[1], &cur[0], &cur[1]);
+    int rc = fm_currents(p, psi[0], psi[1], &cur[0], &cur[1]);
     if (rc != 0) {
         return rc;
     }
     dq_sincos(c->theta0 + c->omega_e * tau, &sn, &cs);
-    dpsi[0] = c->v_alpha * cs + c->v_beta * sn - c->p->rs * cur[0] + c->omega_e * psi[1];
-    dpsi[1] = -c->v_alpha * sn + c->v_beta * cs - c->p->rs * cur[1] - c->omega_e * psi[0];
+    dpsi[0] = c->v_alpha * cs + c->v_beta * sn - p->rs * cur[0] + c->omega_e * psi[1];
+    dpsi[1] = -c->v_alpha * sn + c->v_beta * cs - p->rs * cur[1] - c->omega_e * psi[0];
+    if (c->open_leg >= 0) {
+        /* The open terminal floats to the potential u [V] that keeps its current at zero: the rotor-frame voltage
+         * gains (2/3) u h, h = R(-theta) e_x the phase's direction, and d/dt (h . i) = 0 with di/dt = L_inc^-1
+         * dpsi/dt and dh/dt = omega_e (h_q, -h_d): u = -(omega_e (h_q i_d - h_d i_q) + h.G dpsi0) / ((2/3) h.G h). */
+        const int x = c->open_leg;
+        const double h_d = FM_EX[x] * cs + FM_EY[x] * sn;
+        const double h_q = -FM_EX[x] * sn + FM_EY[x] * cs;
+        double l[4], fd, fq, det, g_h_d, g_h_q, u;
+        fm_flux(p, cur[0], cur[1], &fd, &fq, l);
+        det = l[0] * l[3] - l[1] * l[2];
+        if (!(det > 0.0)) {
+            return FM_E_NEWTON;
+        }
+        /* G^T h, so that h.G v = (G^T h).v; G = L^-1 = [[l3, -l1], [-l2, l0]] / det */
+        g_h_d = (l[3] * h_d - l[2] * h_q) / det;
+        g_h_q = (-l[1] * h_d + l[0] * h_q) / det;
+        u = -(c->omega_e * (h_q * cur[0] - h_d * cur[1]) + g_h_d * dpsi[0] + g_h_q * dpsi[1])
+            / ((2.0 / 3.0) * (g_h_d * h_d + g_h_q * h_q));
+        dpsi[0] += (2.0 / 3.0) * u * h_d;
+        dpsi[1] += (2.0 / 3.0) * u * h_q;
+    }
     return 0;
 }
 
@@ -158,21 +194,71 @@ static const double E1 = 71.0 / 57600.0, E3 = -71.0 / 16695.0, E4 = 71.0 / 1920.
                     E6 = 22.0 / 525.0, E7 = -1.0 / 40.0;
 static const double C2 = 1.0 / 5.0, C3 = 3.0 / 10.0, C4 = 4.0 / 5.0, C5 = 8.0 / 9.0;
 
-/* Integrate the state's flux from tau = tau0 to tau1 (seconds into the sub-interval described by c) with error
- * control; the state's currents follow. */
-static int integrate_to(const fm_rhs_t *c, fm_state_t *s, double tau0, double tau1)
+/* One step of size h from (tau, psi, cur) with k1 = f(tau, psi): the new flux, its currents, f there (k7, FSAL)
+ * and the error estimate as a current [A]. */
+static int dopri_step(const fm_rhs_t *c, double tau, const double *psi, const double *cur, const double *k1, double h,
+                      double *ynew, double *cnew, double *k7, double *err)
+{
+    double k2[2], k3[2], k4[2], k5[2], k6[2], y[2];
+    int rc;
+    cnew[0] = cur[0];
+    cnew[1] = cur[1];
+    for (int k = 0; k < 2; k++) y[k] = psi[k] + h * A21 * k1[k];
+    if ((rc = rhs(c, tau + C2 * h, y, cnew, k2)) != 0) return rc;
+    for (int k = 0; k < 2; k++) y[k] = psi[k] + h * (A31 * k1[k] + A32 * k2[k]);
+    if ((rc = rhs(c, tau + C3 * h, y, cnew, k3)) != 0) return rc;
+    for (int k = 0; k < 2; k++) y[k] = psi[k] + h * (A41 * k1[k] + A42 * k2[k] + A43 * k3[k]);
+    if ((rc = rhs(c, tau + C4 * h, y, cnew, k4)) != 0) return rc;
+    for (int k = 0; k < 2; k++) y[k] = psi[k] + h * (A51 * k1[k] + A52 * k2[k] + A53 * k3[k] + A54 * k4[k]);
+    if ((rc = rhs(c, tau + C5 * h, y, cnew, k5)) != 0) return rc;
+    for (int k = 0; k < 2; k++)
+        y[k] = psi[k] + h * (A61 * k1[k] + A62 * k2[k] + A63 * k3[k] + A64 * k4[k] + A65 * k5[k]);
+    if ((rc = rhs(c, tau + h, y, cnew, k6)) != 0) return rc;
+    for (int k = 0; k < 2; k++)
+        ynew[k] = psi[k] + h * (B1 * k1[k] + B3 * k3[k] + B4 * k4[k] + B5 * k5[k] + B6 * k6[k]);
+    if ((rc = rhs(c, tau + h, ynew, cnew, k7)) != 0) return rc;
+    *err = 0.0;
+    for (int k = 0; k < 2; k++) {
+        const double e = fabs(h * (E1 * k1[k] + E3 * k3[k] + E4 * k4[k] + E5 * k5[k] + E6 * k6[k] + E7 * k7[k]));
+        *err = e > *err ? e : *err;
+    }
+    *err *= c->p->inv_l_max; /* flux error [Wb] -> bound on the current error [A] */
+    return 0;
+}
+
+/* The first leg of cond_mask (conducting through a diode during dead time) whose current has reached zero at angle
+ * theta, or -1. Low-rail diode (dead_level 0): the current flows out of the leg (> 0); high rail: < 0. */
+static int blocked_leg(const fm_state_t *s, int cond_mask, const double *cur, double theta)
+{
+    for (int leg = 0; leg < 3; leg++) {
+        if ((cond_mask >> leg) & 1) {
+            const double sign = s->dead_level[leg] == 0 ? 1.0 : -1.0;
+            if (sign * leg_current(cur[0], cur[1], theta, leg) <= 0.0) {
+                return leg;
+            }
+        }
+    }
+    return -1;
+}
+
+/* Integrate the state's flux from tau0 to tau1 (seconds into the piece described by c) with error control; the
+ * state's currents follow. A conducting diode of cond_mask whose current reaches zero stops the integration there
+ * (bisection to 1e-13 s): *blocked is that leg (else -1) and *tau_end the time reached. */
+static int integrate_to(const fm_rhs_t *c, fm_state_t *s, double tau0, double tau1, int cond_mask, int *blocked,
+                        double *tau_end)
 {
     double tau = tau0;
     double psi[2] = {s->psi_d, s->psi_q};
     double cur[2] = {s->i_d, s->i_q};
-    double k1[2], k2[2], k3[2], k4[2], k5[2], k6[2], k7[2], y[2], ynew[2], cnew[2];
+    double k1[2], k7[2], ynew[2], cnew[2];
     double h = s->h_last > 0.0 ? s->h_last : 1e-6;
     int rc;
+    *blocked = -1;
+    *tau_end = tau1;
     if (tau1 - tau0 <= 0.0) {
         return 0;
     }
-    rc = rhs(c, tau, psi, cur, k1);
-    if (rc != 0) {
+    if ((rc = rhs(c, tau, psi, cur, k1)) != 0) {
         return rc;
     }
     while (tau < tau1) {
@@ -181,50 +267,56 @@ static int integrate_to(const fm_rhs_t *c, fm_state_t *s, double tau0, double ta
         if (last) {
             h = tau1 - tau;
         }
-        cnew[0] = cur[0];
-        cnew[1] = cur[1];
-        for (int k = 0; k < 2; k++) y[k] = psi[k] + h * A21 * k1[k];
-        if ((rc = rhs(c, tau + C2 * h, y, cnew, k2)) != 0) return rc;
-        for (int k = 0; k < 2; k++) y[k] = psi[k] + h * (A31 * k1[k] + A32 * k2[k]);
-        if ((rc = rhs(c, tau + C3 * h, y, cnew, k3)) != 0) return rc;
-        for (int k = 0; k < 2; k++) y[k] = psi[k] + h * (A41 * k1[k] + A42 * k2[k] + A43 * k3[k]);
-        if ((rc = rhs(c, tau + C4 * h, y, cnew, k4)) != 0) return rc;
-        for (int k = 0; k < 2; k++) y[k] = psi[k] + h * (A51 * k1[k] + A52 * k2[k] + A53 * k3[k] + A54 * k4[k]);
-        if ((rc = rhs(c, tau + C5 * h, y, cnew, k5)) != 0) return rc;
-        for (int k = 0; k < 2; k++)
-            y[k] = psi[k] + h * (A61 * k1[k] + A62 * k2[k] + A63 * k3[k] + A64 * k4[k] + A65 * k5[k]);
-        if ((rc = rhs(c, tau + h, y, cnew, k6)) != 0) return rc;
-        for (int k = 0; k < 2; k++)
-            ynew[k] = psi[k] + h * (B1 * k1[k] + B3 * k3[k] + B4 * k4[k] + B5 * k5[k] + B6 * k6[k]);
-        if ((rc = rhs(c, tau + h, ynew, cnew, k7)) != 0) return rc;
-        err = 0.0;
-        for (int k = 0; k < 2; k++) {
-            const double e = fabs(h * (E1 * k1[k] + E3 * k3[k] + E4 * k4[k] + E5 * k5[k] + E6 * k6[k] + E7 * k7[k]));
-            err = e > err ? e : err;
+        if ((rc = dopri_step(c, tau, psi, cur, k1, h, ynew, cnew, k7, &err)) != 0) {
+            return rc;
         }
-        err *= c->p->inv_l_max; /* flux error [Wb] -> bound on the current error [A] */
         hs = err > 0.0 ? 0.9 * pow(c->p->tol_i / err, 0.2) : 5.0;
         hs = hs > 5.0 ? 5.0 : (hs < 0.2 ? 0.2 : hs);
-        if (err <= c->p->tol_i) {
-            tau = last ? tau1 : tau + h;
-            psi[0] = ynew[0];
-            psi[1] = ynew[1];
-            cur[0] = cnew[0];
-            cur[1] = cnew[1];
-            k1[0] = k7[0];
-            k1[1] = k7[1];
-            s->steps++;
-            if (!last) {
-                s->h_last = h * hs;
-            }
-            h *= hs;
-        } else {
+        if (err > c->p->tol_i) {
             s->rejected++;
             h *= hs;
             if (h < FM_H_MIN) {
                 return FM_E_STEP;
             }
+            continue;
         }
+        if (cond_mask && blocked_leg(s, cond_mask, cnew, c->theta0 + c->omega_e * (tau + h)) >= 0) {
+            double lo = 0.0, hi = h;
+            for (int it = 0; it < 80 && hi - lo > 1e-13; it++) {
+                const double mid = 0.5 * (lo + hi);
+                if ((rc = dopri_step(c, tau, psi, cur, k1, mid, ynew, cnew, k7, &err)) != 0) {
+                    return rc;
+                }
+                if (blocked_leg(s, cond_mask, cnew, c->theta0 + c->omega_e * (tau + mid)) >= 0) {
+                    hi = mid;
+                } else {
+                    lo = mid;
+                }
+            }
+            if ((rc = dopri_step(c, tau, psi, cur, k1, hi, ynew, cnew, k7, &err)) != 0) {
+                return rc;
+            }
+            *blocked = blocked_leg(s, cond_mask, cnew, c->theta0 + c->omega_e * (tau + hi));
+            *tau_end = tau + hi;
+            s->steps++;
+            s->psi_d = ynew[0];
+            s->psi_q = ynew[1];
+            s->i_d = cnew[0];
+            s->i_q = cnew[1];
+            return 0;
+        }
+        tau = last ? tau1 : tau + h;
+        psi[0] = ynew[0];
+        psi[1] = ynew[1];
+        cur[0] = cnew[0];
+        cur[1] = cnew[1];
+        k1[0] = k7[0];
+        k1[1] = k7[1];
+        s->steps++;
+        if (!last) {
+            s->h_last = h * hs;
+        }
+        h *= hs;
     }
     s->psi_d = psi[0];
     s->psi_q = psi[1];
@@ -266,47 +358,105 @@ static int emit_row(const fm_params_t *p, fm_state_t *s, double tk, double theta
     return 0;
 }
 
-/* h seconds from absolute time t_abs with the legs at gate_level (no dead time). */
+/* One piece of at most `piece` seconds from absolute time t0 with the ODE c: trace rows inside it, then the state
+ * at its end; a diode of cond_mask blocking inside it ends it early (*blocked, *piece_done). */
+static int run_piece(const fm_params_t *p, fm_state_t *s, const fm_rhs_t *c, double t0, double piece, int cond_mask,
+                     double trace_dt, double *trace, int32_t trace_cap, fm_period_stats_t *stats, int *blocked,
+                     double *piece_done)
+{
+    double tau = 0.0;
+    int rc;
+    while (trace_dt > 0.0 && trace != NULL) { /* rows at t = trace_k * trace_dt inside [t0, t0 + piece) */
+        const double tk = (double)s->trace_k * trace_dt;
+        double tau_k = tk - t0;
+        if (tau_k >= piece - 0.5e-9) {
+            break;
+        }
+        tau_k = tau_k < 0.0 ? 0.0 : tau_k;
+        if ((rc = integrate_to(c, s, tau, tau_k, cond_mask, blocked, piece_done)) != 0) {
+            return rc;
+        }
+        if (*blocked >= 0) {
+            return 0;
+        }
+        tau = tau_k > tau ? tau_k : tau;
+        if ((rc = emit_row(p, s, tk, c->theta0 + c->omega_e * tau, trace, trace_cap, stats)) != 0) {
+            return rc;
+        }
+    }
+    return integrate_to(c, s, tau, piece, cond_mask, blocked, piece_done);
+}
+
+/* No current can flow (two or three phases open): the flux rests at the map's zero-current flux. */
+static int run_open(const fm_params_t *p, fm_state_t *s, double t0, double piece, double omega_e, double trace_dt,
+                    double *trace, int32_t trace_cap, fm_period_stats_t *stats)
+{
+    s->i_d = 0.0;
+    s->i_q = 0.0;
+    fm_flux(p, 0.0, 0.0, &s->psi_d, &s->psi_q, NULL);
+    while (trace_dt > 0.0 && trace != NULL) {
+        const double tk = (double)s->trace_k * trace_dt;
+        int rc;
+        if (tk - t0 >= piece - 0.5e-9) {
+            break;
+        }
+        rc = emit_row(p, s, tk, s->theta_e + omega_e * (tk - t0 > 0.0 ? tk - t0 : 0.0), trace, trace_cap, stats);
+        if (rc != 0) {
+            return rc;
+        }
+    }
+    return 0;
+}
+
+/* h seconds from absolute time t_abs with the legs at gate_level; legs in dead time conduct through the diode their
+ * current's sign chose until that current reaches zero, then the phase opens. */
 static int integrate(const fm_params_t *p, fm_state_t *s, double t_abs, double h, double t_load0, double t_load_slope,
                      double t_period0, double trace_dt, double *trace, int32_t trace_cap, fm_period_stats_t *stats,
                      const int *gate_level)
 {
-    const double sa = (double)gate_level[0], sb = (double)gate_level[1], sc = (double)gate_level[2];
     const double inv_j = p->inertia_mode ? 1.0 / p->j : 0.0;
     double done = 0.0;
-    fm_rhs_t c;
-    c.p = p;
-    c.v_alpha = p->vdc / 3.0 * (2.0 * sa - sb - sc);
-    c.v_beta = p->vdc / FM_SQRT3 * (sb - sc);
     while (done < h - 0.5e-9) {
-        double piece = h - done, tau = 0.0;
+        double piece = h - done;
         const double t0 = t_abs + done;
         const double te0 = fm_torque(p, s->psi_d, s->psi_q, s->i_d, s->i_q);
-        int rc;
+        int lv[3], cond_mask = 0, n_open = 0, open_leg = -1, blocked = -1, rc;
+        fm_rhs_t c;
+        for (int leg = 0; leg < 3; leg++) {
+            lv[leg] = gate_level[leg];
+            if (t0 < s->dead_until[leg] - 0.5e-9) {
+                lv[leg] = s->dead_level[leg];
+                if (lv[leg] == FM_LEVEL_OPEN) {
+                    n_open++;
+                    open_leg = leg;
+                    lv[leg] = 0;
+                } else {
+                    cond_mask |= 1 << leg;
+                }
+            }
+        }
         if (p->inertia_mode && p->max_piece > 0.0 && piece > p->max_piece) {
             piece = p->max_piece;
         }
+        c.p = p;
+        c.v_alpha = p->vdc / 3.0 * (2.0 * lv[0] - lv[1] - lv[2]);
+        c.v_beta = p->vdc / FM_SQRT3 * (lv[1] - lv[2]);
         c.theta0 = s->theta_e;
         c.omega_e = (double)p->pole_pairs * s->omega_m;
-        while (trace_dt > 0.0 && trace != NULL) { /* rows at t = trace_k * trace_dt inside [t0, t0 + piece) */
-            const double tk = (double)s->trace_k * trace_dt;
-            double tau_k = tk - t0;
-            if (tau_k >= piece - 0.5e-9) {
-                break;
-            }
-            tau_k = tau_k < 0.0 ? 0.0 : tau_k;
-            if ((rc = integrate_to(&c, s, tau, tau_k)) != 0) {
-                return rc;
-            }
-            tau = tau_k > tau ? tau_k : tau;
-            if ((rc = emit_row(p, s, tk, c.theta0 + c.omega_e * tau, trace, trace_cap, stats)) != 0) {
-                return rc;
-            }
+        c.open_leg = n_open == 1 ? open_leg : -1;
+        if (n_open >= 2) {
+            rc = run_open(p, s, t0, piece, c.omega_e, trace_dt, trace, trace_cap, stats);
+        } else {
+            rc = run_piece(p, s, &c, t0, piece, cond_mask, trace_dt, trace, trace_cap, stats, &blocked, &piece);
         }
-        if ((rc = integrate_to(&c, s, tau, piece)) != 0) {
+        if (rc != 0) {
             return rc;
         }
         s->theta_e = dq_wrap_angle(s->theta_e + c.omega_e * piece);
+        if (blocked >= 0) {
+            s->dead_level[blocked] = FM_LEVEL_OPEN;
+            stats->open_phase_events++;
+        }
         if (p->inertia_mode) {
             const double te1 = fm_torque(p, s->psi_d, s->psi_q, s->i_d, s->i_q);
             const double t_load = t_load0 + t_load_slope * (t0 + 0.5 * piece - t_period0);
@@ -336,11 +486,14 @@ static int integrate_cb(void *ctx, double t, double h, double load_val, double l
                      gate_level);
 }
 
+/* Diode by the current's sign, as plant.c: out of the leg -> lower diode (low rail), into it -> upper diode (high
+ * rail); no current -> the phase is open. */
 static int dead_level_cb(void *ctx, int leg, int new_level)
 {
-    (void)ctx;
-    (void)leg;
-    return new_level; /* never called: t_dead = 0 (refused otherwise) */
+    fm_ctx_t *c = (fm_ctx_t *)ctx;
+    const double i_x = leg_current(c->s->i_d, c->s->i_q, c->s->theta_e, leg);
+    (void)new_level;
+    return i_x > 0.0 ? 0 : (i_x < 0.0 ? 1 : FM_LEVEL_OPEN);
 }
 
 int fm_advance(const fm_params_t *p, fm_state_t *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
@@ -352,10 +505,6 @@ int fm_advance(const fm_params_t *p, fm_state_t *s, const int32_t *states, const
     const double t_start = (double)s->t_ns * 1e-9;
     int64_t total_ns = 0;
     ge_stats_reset(stats);
-    if (p->t_dead != 0.0) {
-        stats->error = FM_E_DEAD;
-        return FM_E_DEAD;
-    }
     if (n < 1 || n > GE_MAX_SUBINTERVALS) {
         stats->error = MK_E_ARGS;
         return MK_E_ARGS;
@@ -366,11 +515,11 @@ int fm_advance(const fm_params_t *p, fm_state_t *s, const int32_t *states, const
             return MK_E_ARGS;
         }
     }
-    n_ev = ge_plan(3, s->gate, states, durations_ns, n, t_start, p->t_mpw, p->t_mpw, s->last_edge_t, ev, 0,
+    n_ev = ge_plan(3, s->gate, states, durations_ns, n, t_start, p->t_mpw, 2.0 * p->t_dead + p->t_mpw, s->last_edge_t, ev, 0,
                    FM_MAX_EVENTS, stats, &total_ns);
     {
         fm_ctx_t c = {p, s, trace_dt, trace, trace_cap, stats};
-        const int rc = ge_run_period(3, t_start, t_start + (double)total_ns * 1e-9, 0.0, ev, n_ev, FM_MAX_EVENTS,
+        const int rc = ge_run_period(3, t_start, t_start + (double)total_ns * 1e-9, p->t_dead, ev, n_ev, FM_MAX_EVENTS,
                                      t_load0, t_load_slope, load_bp, n_load_bp, &s->gate, s->dead_until,
                                      s->dead_level, integrate_cb, dead_level_cb, &c);
         if (rc != 0) {

@@ -9,7 +9,10 @@
  *     d psi_d/dt = v_d - Rs i_d + omega_e psi_q,   d psi_q/dt = v_q - Rs i_q - omega_e psi_d
  * with (v_d, v_q) the stator voltage rotated by -theta(t), theta(t) = theta0 + omega_e t; it is integrated by the
  * embedded Dormand-Prince 5(4) pair with error control: each step's error estimate, turned into current by the
- * map's largest inverse incremental inductance, stays below tol_i. Dead time is not modelled (t_dead must be 0).
+ * map's largest inverse incremental inductance, stays below tol_i. Dead time as plant.c: a leg in dead time
+ * conducts through the diode its current's sign chose until that current reaches zero (found by bisection to
+ * 1e-13 s), then its phase is open: its terminal floats to the potential that keeps its current at zero (solved
+ * inside the right-hand side); with two phases open no current flows and the flux rests at the map's psi(0, 0).
  *
  * The map arrays are not copied: the params struct points to arrays the Python plant keeps alive (any grid size).
  * Units: SI (A, V, Wb, Ohm, H, rad, rad/s, s), time in ns.
@@ -26,14 +29,13 @@
 #define FM_COEFS 16        /* bicubic coefficients a[4*m + n] of u^m v^n per cell and function */
 #define FM_E_NEWTON (-10)  /* no current found for a flux (Newton did not converge, or a singular map) */
 #define FM_E_STEP (-11)    /* the step size fell below 1e-15 s (error control could not be met) */
-#define FM_E_DEAD (-12)    /* dead time asked of a kernel that does not model it */
 
 typedef struct {
     double rs;        /* stator resistance [Ohm] */
     double vdc;       /* DC link [V] */
     double j;         /* inertia [kg*m^2] (inertia mode) */
     double b;         /* viscous friction [N*m*s/rad] (inertia mode) */
-    double t_dead;    /* must be 0 */
+    double t_dead;    /* dead time per leg [s] */
     double t_mpw;     /* minimum pulse width [s] */
     double max_piece; /* inertia mode: longest piece between speed updates [s] */
     double tol_i;     /* local error tolerance per step, in current [A] */
@@ -59,9 +61,9 @@ typedef struct {
     uint64_t steps;       /* accepted integration steps since the start */
     uint64_t rejected;    /* rejected steps since the start */
     double last_edge_t[3];/* time of the last gate edge per leg [s] (gate_edges.c) */
-    double dead_until[3]; /* leg in dead time until this absolute time [s] (unused: no dead time) */
+    double dead_until[3]; /* leg in dead time until this absolute time [s] */
     int32_t gate;         /* applied gate code 4*Sa + 2*Sb + Sc */
-    int32_t dead_level[3];
+    int32_t dead_level[3];/* leg level during its dead time (0: low rail, 1: high rail, 2: open) */
 } fm_state_t;
 
 typedef ge_period_stats_t fm_period_stats_t;
