@@ -103,11 +103,13 @@ class Interpolant:
         dv = np.array([0.0, 1.0, 2.0 * v, 3.0 * v * v])
         out = []
         jac = np.zeros((2, 2))
+        ddx, ddy = i_d - xc, i_q - yc
         for row, coef in enumerate((self.coef_d, self.coef_q)):
             a = coef[ix * (len(y) - 1) + iy].reshape(4, 4)
-            f, fx, fy = pu @ a @ pv, du @ a @ pv / hx, pu @ a @ dv / hy
-            out.append(float(f + fx * (i_d - xc) + fy * (i_q - yc)))
-            jac[row] = (fx, fy)
+            f, fx, fy, fxy = pu @ a @ pv, du @ a @ pv / hx, pu @ a @ dv / hy, du @ a @ dv / (hx * hy)
+            out.append(float(f + fx * ddx + fy * ddy))
+            # the continuation's exact Jacobian (fluxmap.c fm_flux)
+            jac[row] = (fx + (fxy * ddy if ddx == 0.0 else 0.0), fy + (fxy * ddx if ddy == 0.0 else 0.0))
         return out[0], out[1], jac
 
     def currents(self, psi_d: float, psi_q: float, guess: tuple[float, float] = (0.0, 0.0)) -> tuple[float, float]:
