@@ -21,7 +21,7 @@ def _packages() -> list[str]:
 
 setup(
     packages=_packages(),
-    package_data={"pmsm_hil.hil.presets": ["*.toml"], "pmsm_hil.hil.scenarios": ["*.toml"],
+    package_data={"pmsm_hil.hil.presets": ["*.toml", "*.csv"], "pmsm_hil.hil.scenarios": ["*.toml"],
                   "pmsm_hil.app.compare.presets": ["*.toml"],
                   "pmsm_hil.protocol": ["*.dbc"],
                   # the kernel headers and shared helpers kernel_build.py compiles a kind's kernel against

@@ -185,6 +185,20 @@ register_layout(THREE_PHASE)
 register_layout(DUAL_THREE_PHASE)
 
 
+def _register_fluxmap() -> None:
+    """The saturated PMSM of a flux map (kind "pmsm-fluxmap": hil/fluxmap_plant.py, docs/plant.md)."""
+    from pmsm_hil.hil.fluxmap_params import KIND, FluxMapParams
+    from pmsm_hil.hil.fluxmap_plant import FluxMapPlant
+
+    register_layout(MachineLayout(
+        kind=KIND, plant_class=FluxMapPlant, params_class=FluxMapParams, accepts=lambda p: True,
+        measurement=MEAS_THREE, measure=_measure3, replay_legs=THREE_PHASE.replay_legs,
+        replay_columns=THREE_PHASE.replay_columns, replay_row=_replay_row3, target_extras=_no_extras))
+
+
+_register_fluxmap()
+
+
 def params_class_for_kind(kind: str) -> Any:
     """The parameter class of a registered machine kind (a preset's `kind`); ParameterError naming `kind` and
     the known kinds."""

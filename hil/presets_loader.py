@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from importlib import resources
+from pathlib import Path
 from typing import Any
 
 from pmsm_hil.hil.errors import InputFileError, ParameterError
@@ -37,7 +39,7 @@ def load_motor(name_or_path: str, overrides: dict[str, float] | None = None) -> 
         params_class = params_class_for_kind(kind)
     except ParameterError as exc:
         raise InputFileError(f"motor file {origin}: {exc}") from None
-    values: dict[str, Any] = {}
+    values: dict[str, Any] = _file_keys(doc, origin, params_class)
     for key, entry in table.items():
         value = entry.get("value") if isinstance(entry, dict) else entry
         if not isinstance(value, (int, float)) or isinstance(value, bool):
@@ -48,6 +50,26 @@ def load_motor(name_or_path: str, overrides: dict[str, float] | None = None) -> 
     except ParameterError as exc:
         raise InputFileError(f"motor file {origin}: {exc}") from None
     return params.with_overrides(overrides) if overrides else params
+
+
+def _file_keys(doc: dict[str, Any], origin: str, params_class: Any) -> dict[str, Any]:
+    """The top-level keys naming files next to the TOML (a kind's `FILE_KEYS`, e.g. a flux map), as paths: relative
+    names are taken from the TOML's folder (a bundled preset's: the presets package)."""
+    out: dict[str, Any] = {}
+    for key in getattr(params_class, "FILE_KEYS", ()):
+        if key not in doc:
+            continue
+        name = doc[key]
+        if not isinstance(name, str) or not name:
+            raise InputFileError(f"motor file {origin}: '{key}' must be a file name, got {name!r}")
+        path = Path(name)
+        if not path.is_absolute():
+            origin_path = Path(origin)
+            base = (origin_path.parent if origin_path.suffix == ".toml" or origin_path.exists()
+                    else Path(str(resources.files(_PRESET_PACKAGE))))
+            path = base / path
+        out[key] = str(path.resolve())
+    return out
 
 
 def load_pmsm(name_or_path: str, overrides: dict[str, float] | None = None) -> PmsmParams:

@@ -22,7 +22,7 @@ from pmsm_hil.errors import HilError
 # (group or None, module): each module exposes add_parser(subparsers) that sets func=run.
 _TOP_LEVEL = ("run", "target", "link_budget", "mcap_repair", "compare", "sweep", "replay_mcap", "report")
 _GROUPS = {
-    "plant": ("plant_replay",),
+    "plant": ("plant_replay", "plant_fluxmap"),
     "bench": ("bench_plant", "bench_loop", "bench_realtime", "bench_controllers", "bench_link", "bench_sweep",
               "bench_memory"),
     "fw": ("fw_build",),

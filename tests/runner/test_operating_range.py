@@ -40,6 +40,8 @@ class MachineGrid:
     controllers: tuple[str, ...]
     settle_s: float
     window_s: float
+    #: test-id prefix when the controllers also run on another grid's machine
+    tag: str = ""
 
 
 GRIDS = (
@@ -50,6 +52,9 @@ GRIDS = (
     # (66.7 A rated < 300 A trip) limits of the preset. J = 0.1 kg·m² (77x niu2020): the window mean of the
     # torque follows the residual speed drift J·Δω/T, hence the longer window.
     MachineGrid("zhang2021-dtpmsm", 80.0, (750.0, 1500.0, 3000.0), ("mptc1", "mptc2", "mptc3"), 0.2, 0.2),
+    # the saturated flux-map machine (kind pmsm-fluxmap, docs/plant.md): the controllers see the linear model fitted
+    # at the rated point (Ld 10.2 mH, Lq 13.3 mH, ψf 0.2055 Wb), the plant the saturating map
+    MachineGrid("niu2020-ipmsm-sat", 7.0, (300.0, 1500.0), ("mpcc", "foc"), 0.05, 0.1, tag="sat-"),
 )
 
 # mptc1 neither predicts nor costs the x-y subspace: every G1 vector puts 52 V on L_ls = 80 µH and the x-y
@@ -91,7 +96,7 @@ class Point:
     @property
     def name(self) -> str:
         """Test id, e.g. mpcc-300rpm-40%."""
-        return f"{self.controller}-{self.speed_rpm:.0f}rpm-{100 * self.load_frac:.0f}%"
+        return f"{self.grid.tag}{self.controller}-{self.speed_rpm:.0f}rpm-{100 * self.load_frac:.0f}%"
 
 
 POINTS = [Point(g, c, n, f)
