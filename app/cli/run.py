@@ -20,6 +20,7 @@ from pmsm_hil.app.cli.report_table import format_metrics
 from pmsm_hil.dashboards.cli_live import add_rerun_arguments, live_dashboard
 from pmsm_hil.hil.atomic_write import prepare_output_dir, refuse_inputs, write_text_atomic
 from pmsm_hil.hil.errors import ParameterError
+from pmsm_hil.hil.load_fmu.spec import load_fmu_spec
 from pmsm_hil.hil.motor_params import parse_set_options
 from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runner.run import run_closed_loop
@@ -121,6 +122,16 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="current noise standard deviation [A] (default 0: none)")
     p.add_argument("--encoder-counts", type=non_negative_int("--encoder-counts"),
                    help="encoder counts/rev (default 0: ideal angle)")
+    # --- load FMU (issue 28 item 4; hil/load_fmu, docs/plant.md "Load as an FMU") -----------------------------
+    p.add_argument("--load-fmu", type=Path, metavar="PATH.fmu",
+                   help="the mechanical load as an FMU (FMI 2.0/3.0 Co-Simulation, replaces the scenario's load): "
+                        "input speed [rad/s], output torque [N·m], one doStep(Ts) per period in the C loop")
+    p.add_argument("--load-fmu-map", metavar="ROLE=NAME,...",
+                   help="the FMU's names for the speed input and torque output, e.g. speed=w_shaft,torque=T_load "
+                        "(default speed=speed,torque=torque)")
+    p.add_argument("--load-fmu-set", action="append", default=[], metavar="NAME=VALUE",
+                   help="a parameter of the load FMU set before its initialisation (repeatable)")
+    # --- end load FMU -------------------------------------------------------------------------------------------
 
 
 def _clock_hz(text: str) -> float:
@@ -207,6 +218,13 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
     scenario = load_scenario(str(pick("scenario"))).with_overrides(
         speed_rpm=pick("speed"), load_nm=pick("load"), duration_s=pick("duration"), settle_s=pick("settle"))
     controller_params = parse_param_options([*cfg.get("param", []), *args.param])
+    # --- load FMU (issue 28 item 4) ---
+    load_fmu = load_fmu_spec(pick("load_fmu"), pick("load_fmu_map"),
+                             [*cfg.get("load_fmu_set", []), *getattr(args, "load_fmu_set", [])])
+    if load_fmu is not None and pick("load") is not None:
+        raise ParameterError(f"{source('load', 'load')} and --load-fmu: one load at a time (the FMU replaces the "
+                             "scenario's load torque)")
+    # --- end load FMU ---
     out = pick("out")
     no_log = bool(pick("no_log"))
     controller = str(pick("controller"))
@@ -227,7 +245,8 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
                             rt_priority=int(pick("rt_priority")),
                             cpu=None if pick("cpu") is None else int(pick("cpu")),
                             overrun_threshold_s=None if pick("overrun_threshold") is None
-                            else float(pick("overrun_threshold")))
+                            else float(pick("overrun_threshold")),
+                            load_fmu=load_fmu)  # load FMU (issue 28 item 4)
     except (TypeError, ValueError) as exc:
         if isinstance(exc, ParameterError):
             raise

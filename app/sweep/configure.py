@@ -95,7 +95,7 @@ def point_argv(point: Point) -> list[str]:
             continue
         prefix = next((p for p in TABLE_PREFIXES if key.startswith(p)), None)
         if prefix is not None:
-            argv.append(f"--{prefix[:-1]}={key[len(prefix):]}={text}")
+            argv.append(f"--{prefix[:-1].replace('_', '-')}={key[len(prefix):]}={text}")
         else:
             argv.append(f"{config_schema()[key].option}={text}")
     return argv
@@ -105,7 +105,7 @@ def _option_of(key: str) -> str:
     from pmsm_hil.app.cli.run import config_schema
 
     if key.startswith(TABLE_PREFIXES):
-        return "--" + key.split(".", 1)[0]
+        return "--" + key.split(".", 1)[0].replace("_", "-")
     spec = config_schema().get(key)
     return spec.option if spec is not None else key
 
@@ -134,6 +134,7 @@ def build_config(base: argparse.Namespace, point: Point, *, where: str = "--grid
     ns = copy.copy(base)
     ns.set_params = list(getattr(base, "set_params", []) or [])
     ns.param = list(getattr(base, "param", []) or [])
+    ns.load_fmu_set = list(getattr(base, "load_fmu_set", []) or [])
     try:
         args = _run_parser().parse_args(point_argv(point), namespace=ns)
     except ParameterError as exc:
