@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
 from pmsm_hil.hil.errors import ParameterError
+from pmsm_hil.hil.motor_params import parse_set_options
 
 #: the FMU's variables the loop connects, by role: the speed input (mechanical rad/s) and the torque output (N·m)
 ROLES = ("speed", "torque")
@@ -45,24 +45,20 @@ def parse_map(text: str | None) -> dict[str, str]:
 
 
 def parse_sets(items: list[str] | None) -> tuple[tuple[str, float], ...]:
-    """`--load-fmu-set NAME=VALUE` items (repeatable; the last value of a name wins): numbers, or true/false."""
-    values: dict[str, float] = {}
+    """`--load-fmu-set NAME=VALUE` items (repeatable): numbers (as `--set`), or true/false for a Boolean."""
+    flags: dict[str, float] = {}
+    numbers: list[str] = []
     for item in items or []:
         name, sep, text = item.partition("=")
-        name, text = name.strip(), text.strip()
-        if not sep or not name:
-            raise ParameterError(f"--load-fmu-set expects NAME=VALUE, got {item!r}")
-        if text.lower() in ("true", "false"):
-            values[name] = 1.0 if text.lower() == "true" else 0.0
-            continue
-        try:
-            value = float(text)
-        except ValueError:
-            raise ParameterError(f"--load-fmu-set {name}: expected a number or true/false, got {text!r}") from None
-        if not math.isfinite(value):
-            raise ParameterError(f"--load-fmu-set {name}: must be finite, got {text!r}")
-        values[name] = value
-    return tuple(values.items())
+        if sep and name.strip() and text.strip().lower() in ("true", "false"):
+            flags[name.strip()] = 1.0 if text.strip().lower() == "true" else 0.0
+        else:
+            numbers.append(item)
+    try:
+        values = parse_set_options(numbers)
+    except ParameterError as exc:
+        raise ParameterError(str(exc).replace("--set", "--load-fmu-set", 1)) from None
+    return tuple({**values, **flags}.items())
 
 
 def load_fmu_spec(path: str | Path | None, mapping: str | None, sets: list[str] | None) -> LoadFmuSpec | None:

@@ -126,7 +126,7 @@ def _cli_config(argv: list[str]) -> RunConfig:
     ("ok", ["--load-fmu-map", "torque=k"], "variable 'k' (torque) has causality 'parameter', needs 'output'"),
     ("ok", ["--load-fmu-set", "nope=1"], "--load-fmu-set nope: no such variable (parameters: T0, fail_at, k, tau)"),
     ("ok", ["--load-fmu-set", "speed=1"], "--load-fmu-set speed: causality 'input'"),
-    ("ok", ["--load-fmu-set", "k=abc"], "--load-fmu-set k: expected a number or true/false, got 'abc'"),
+    ("ok", ["--load-fmu-set", "k=abc"], "--load-fmu-set k: value 'abc' is not a number"),
     ("ok", ["--load-fmu-map", "inertia=J"], "--load-fmu-map: unknown role 'inertia' (roles: speed, torque)"),
     ("ok", ["--load", "3"], "--load and --load-fmu: one load at a time"),
     ("ok", ["--loop", "python"], "--load-fmu: a load FMU runs in the C loop only"),
@@ -217,3 +217,12 @@ def test_the_c_loop_with_a_load_fmu_runs_at_least_50k_periods_per_second(fan_fmu
         assert res.metrics["end_code"] == 0
         rates.append(res.outcome.completed_periods / res.outcome.paced_time_s)
     assert sorted(rates)[1] >= 50_000.0, rates
+
+
+def test_an_fmu_that_refuses_to_instantiate_is_a_one_line_error(tmp_path: Path,
+                                                                capsys: pytest.CaptureFixture[str]) -> None:
+    """A guid the binary does not know: fmi2Instantiate returns NULL; `hil run` says so in one line (exit 2)."""
+    fmu = build_fan_fmu(tmp_path, 2, xml=lambda x: x.replace("fan-load-test}", "other-build}"))
+    assert main(["run", "--load-fmu", str(fmu), "--no-log", "--duration", "0.01", "--settle", "0"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "load FMU 'FanLoad'" in err[0] and "fmi2Instantiate at t = 0 s returned NULL" in err[0]
