@@ -81,7 +81,8 @@ METRICS: Final[tuple[Metric, ...]] = (
     _m("speed_ref_rpm", "speed ref", "rpm", "scenario speed reference", ".0f", REPORT, source=RUN),
     _m("load_nm", "load", "N·m", "scenario load torque (null with a load FMU)", ".2f", REPORT, source=RUN),
     _m("load_fmu", "load FMU", "", "the load FMU that ran (`--load-fmu`): `{path, fmi_version, model_name, guid | "
-       "instantiation_token, model_identifier, speed, torque, parameters}`; null without one", "", source=RUN),
+       "instantiation_token, model_identifier, speed, torque, parameters, steps, warnings}` (steps: doStep calls "
+       "that succeeded, warnings: calls that returned a warning); null without one", "", source=RUN),
     _m("mode", "mode", "", "lockstep or realtime", "", source=RUN),
     _m("link_spec", "link", "", "link SPEC of the run", "", source=RUN),
     _m("loop", "loop", "", "the period loop that ran: `native` (C, hil/native/loop.c) or `python`", "", source=RUN),

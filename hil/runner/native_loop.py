@@ -140,6 +140,7 @@ class NativeLoop:
             finally:
                 lib.nl_destroy(h)
                 if self.load_fmu is not None:
+                    out.load_fmu = self.load_fmu.metrics()
                     self.load_fmu.close()
                 if gc_was_enabled:
                     gc.enable()

@@ -53,6 +53,7 @@ def test_fan_at_1500_rpm_mean_load_is_the_steady_value(fan_fmus: dict[int, Path]
     assert fmu["fmi_version"] == f"{fmi}.0" and fmu["model_name"] == "FanLoad" and fmu["model_identifier"] == "fan_load"
     assert fmu[token] == "{7d3c51f0-2a9e-4c55-9e0a-fan-load-test}" and fmu["path"] == str(fan_fmus[fmi].resolve())
     assert fmu["parameters"] == {"T0": steady} and m["load_nm"] is None
+    assert fmu["steps"] == m["total_periods"] == 1500 and fmu["warnings"] == 0
 
 
 def test_recorded_load_follows_the_lag_from_the_recorded_speed(fan_fmus: dict[int, Path], tmp_path: Path) -> None:
@@ -100,7 +101,7 @@ def test_a_failing_do_step_ends_the_run_with_the_fmu_message_and_a_complete_log(
     assert m["end_code"] == 1 and m["safe_state"] is True
     reason = m["end_reason"]
     assert "fmi2DoStep at t = 0.05 s returned fmi2Error" in reason and "fan blade jammed" in reason
-    assert "\n" not in reason
+    assert "\n" not in reason and m["load_fmu"]["steps"] == 500
     periods = read_periods(tmp_path / "run.mcap")
     assert len(periods) == m["total_periods"] == 500
     assert json.loads((tmp_path / "metrics.json").read_text(encoding="utf-8"))["end_code"] == 1
