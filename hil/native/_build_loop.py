@@ -238,7 +238,7 @@ ffibuilder.set_source(
     "pmsm_hil.hil._loop_native",
     PREAMBLE,
     sources=[_rel(_HERE / name) for name in LOOP_SOURCES],
-    include_dirs=[_rel(_HERE), _rel(_HERE / "kernels"), _rel(_HERE / "fmi"), *(_rel(p) for p in _FW_INCLUDES)],
+    include_dirs=[_rel(_HERE), _rel(_HERE / "kernels"), *(_rel(p) for p in _FW_INCLUDES)],
     extra_compile_args=LOOP_FLAGS,
     extra_objects=_firmware_objects(),
     libraries=["m", "pthread", "dl"],

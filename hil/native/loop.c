@@ -462,8 +462,8 @@ static int32_t load_breakpoints(const nl_config_t *c, double t0, double t1, doub
 }
 
 /* The load FMU's period (loop_fmu.h): the speed sampled at the period start in, the torque out (held over the
- * period by advance), doStep(t, Ts); 0 ok, NL_PLANT_E_LOAD_FMU when the FMU failed. In dyno mechanics the FMU
- * still steps (its torque is recorded) but the held speed ignores it. */
+ * period by advance), doStep(t, Ts); 0 ok, NL_PLANT_E_LOAD_FMU when the FMU failed. (Under a dyno the FMU would
+ * still step and its torque be recorded, the held speed ignoring it; RunConfig refuses that combination.) */
 static int load_fmu_period(loop_t *L, double t, const sample_t *smp)
 {
     const nl_config_t *c = L->c;

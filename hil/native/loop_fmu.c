@@ -8,8 +8,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "fmi2FunctionTypes.h"
-#include "fmi3FunctionTypes.h"
+#include "fmi/fmi2FunctionTypes.h"
+#include "fmi/fmi3FunctionTypes.h"
 #include "loop_fmu.h"
 
 /* f->fn[] slots. FMI 2 names the first, FMI 3 the second. */
