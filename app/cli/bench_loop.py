@@ -19,6 +19,7 @@ from typing import Any
 
 from pmsm_hil.app.cli.parsing import non_negative_int, positive_float
 from pmsm_hil.hil.atomic_write import write_text_atomic
+from pmsm_hil.hil.load_fmu.spec import LoadFmuSpec
 from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runner.reference_loop import reference_loop
 from pmsm_hil.hil.runner.run import run_closed_loop
@@ -43,6 +44,9 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("--qemu", type=Path, metavar="ELF",
                    help="also measure a firmware for mps2-an386 in QEMU (hil fw build --board mps2-an386) over its "
                         "UART and its PSRAM mailbox (lockstep_qemu_uart_hz, lockstep_qemu_mailbox_hz)")
+    p.add_argument("--load-fmu", type=Path, metavar="PATH.fmu",
+                   help="also measure the native loop with this load FMU (FMI 2/3 Co-Simulation, inputs speed, "
+                        "output torque; lockstep_inproc_native_load_fmu_hz, logging off)")
     p.add_argument("--json", type=Path, help="write the figures as JSON")
     p.set_defaults(func=run)
 
@@ -166,7 +170,8 @@ def _udp_floor(progress: Callable[[str], None], round_trips: int = 5000) -> dict
 
 
 def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
-            progress: Callable[[str], None] = lambda _msg: None, qemu: Path | None = None) -> dict[str, Any]:
+            progress: Callable[[str], None] = lambda _msg: None, qemu: Path | None = None,
+            load_fmu: Path | None = None) -> dict[str, Any]:
     """All loop figures; keys documented in docs/benchmarks.md. `progress` gets one line per stage. The Python
     loop's rows (and the native/python ratios) need the test suite's reference loop (tests/oracle; not part of
     the product): without it they are left out and `python_loop` says so."""
@@ -195,6 +200,12 @@ def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
         n_on = _median_rate(lambda: replace(native, out_dir=Path(tmp) / f"run{next(counter)}"), repeats)
     out["lockstep_inproc_native_log_off_hz"] = n_off["periods_per_s"]
     out["lockstep_inproc_native_log_on_hz"] = n_on["periods_per_s"]
+    if load_fmu is not None:
+        progress(f"lockstep in-process, native loop (C), load FMU {load_fmu.name}, logging off ({runs})")
+        with_fmu = replace(native, load_fmu=LoadFmuSpec(load_fmu))
+        n_fmu = _median_rate(lambda: with_fmu, repeats)
+        out["lockstep_inproc_native_load_fmu_hz"] = n_fmu["periods_per_s"]
+        out["load_fmu_cost_pct"] = 100.0 * (1.0 - n_fmu["periods_per_s"] / n_off["periods_per_s"])
     if python:
         out["native_speedup_log_off"] = n_off["periods_per_s"] / off["periods_per_s"]
         out["native_speedup_log_on"] = n_on["periods_per_s"] / on["periods_per_s"]
@@ -250,7 +261,8 @@ def run(args: argparse.Namespace) -> int:
     def progress(msg: str) -> None:
         print(f"bench loop: {msg} ...", file=sys.stderr, flush=True)
 
-    figures = measure(args.duration, args.repeats, cross, not args.no_realtime, progress, qemu=args.qemu)
+    figures = measure(args.duration, args.repeats, cross, not args.no_realtime, progress, qemu=args.qemu,
+                      load_fmu=args.load_fmu)
     load1, load5, _ = os.getloadavg()
     print(f"closed loop, niu2020 IPMSM, MPCC, Ts = 100 µs, {args.duration} s simulated, median of {args.repeats}; "
           f"load average {load1:.2f} / {load5:.2f} (1 / 5 min) at the end")
@@ -261,7 +273,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"  {key:<40} {value:>10.0f} periods/s  ({value * 1e-4:.2f}× real time at 10 kHz)")
         elif key.endswith("_load_ratio"):
             print(f"  {key:<40} {value:>10.2f} ×  (beside a CPU burner / idle, same run)")
-        elif key in ("logging_cost_pct", "rerun_cost_pct"):
+        elif key in ("logging_cost_pct", "rerun_cost_pct", "load_fmu_cost_pct"):
             print(f"  {key:<40} {value:>10.1f} %")
         elif key.startswith("native_speedup") or key == "pycan_native_speedup":
             print(f"  {key:<40} {value:>10.2f} ×  (native / python, same run)")

@@ -19,6 +19,7 @@ from pmsm_hil.app.cli.run_options_cli import add_options, config_keys
 from pmsm_hil.dashboards.cli_live import add_rerun_arguments, live_dashboard
 from pmsm_hil.hil.atomic_write import prepare_output_dir, refuse_inputs, write_text_atomic
 from pmsm_hil.hil.errors import ParameterError
+from pmsm_hil.hil.load_fmu.spec import load_fmu_spec
 from pmsm_hil.hil.motor_params import parse_set_options
 from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runner.run import run_closed_loop
@@ -97,6 +98,13 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
     scenario = load_scenario(str(pick("scenario"))).with_overrides(
         speed_rpm=pick("speed"), load_nm=pick("load"), duration_s=pick("duration"), settle_s=pick("settle"))
     controller_params = parse_param_options([*cfg.get("param", []), *args.param])
+    # --- load FMU (issue 28 item 4) ---
+    load_fmu = load_fmu_spec(pick("load_fmu"), pick("load_fmu_map"),
+                             [*cfg.get("load_fmu_set", []), *getattr(args, "load_fmu_set", [])])
+    if load_fmu is not None and pick("load") is not None:
+        raise ParameterError(f"{source('load', 'load')} and --load-fmu: one load at a time (the FMU replaces the "
+                             "scenario's load torque)")
+    # --- end load FMU ---
     out = pick("out")
     no_log = bool(pick("no_log"))
     controller = str(pick("controller"))
@@ -110,7 +118,8 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
         sensors = SensorConfig(adc_lsb_a=float(pick("adc_lsb")), noise_std_a=float(pick("noise")),
                                encoder_counts=int(pick("encoder_counts")), seed=int(pick("seed")))
         run_cfg = RunConfig(motor=motor, scenario=scenario, controller_params=controller_params, sensors=sensors,
-                            out_dir=None if no_log else Path(out), **fields)
+                            out_dir=None if no_log else Path(out), load_fmu=load_fmu,
+                            **fields)
     except (TypeError, ValueError) as exc:
         if isinstance(exc, ParameterError):
             raise

@@ -28,6 +28,7 @@ from pmsm_hil.app.sweep.plan import TABLE_PREFIXES, THETA0, Point
 from pmsm_hil.app.sweep.runid import run_id
 from pmsm_hil.hil.errors import HilError, ParameterError
 from pmsm_hil.hil.runner.run_config import RunConfig
+from pmsm_hil.hil.runner.run_options import RUN_OPTIONS
 
 
 @dataclass(frozen=True, slots=True)
@@ -95,7 +96,7 @@ def point_argv(point: Point) -> list[str]:
             continue
         prefix = next((p for p in TABLE_PREFIXES if key.startswith(p)), None)
         if prefix is not None:
-            argv.append(f"--{prefix[:-1]}={key[len(prefix):]}={text}")
+            argv.append(f"--{prefix[:-1].replace('_', '-')}={key[len(prefix):]}={text}")
         else:
             argv.append(f"{config_schema()[key].option}={text}")
     return argv
@@ -105,7 +106,7 @@ def _option_of(key: str) -> str:
     from pmsm_hil.app.cli.run import config_schema
 
     if key.startswith(TABLE_PREFIXES):
-        return "--" + key.split(".", 1)[0]
+        return "--" + key.split(".", 1)[0].replace("_", "-")
     spec = config_schema().get(key)
     return spec.option if spec is not None else key
 
@@ -132,8 +133,9 @@ def build_config(base: argparse.Namespace, point: Point, *, where: str = "--grid
     from pmsm_hil.app.cli.run import config_from_args
 
     ns = copy.copy(base)
-    ns.set_params = list(getattr(base, "set_params", []) or [])
-    ns.param = list(getattr(base, "param", []) or [])
+    for option in RUN_OPTIONS:  # the tables (--set, --param, --load-fmu-set): the point's items on top of the base's
+        if option.kind == "table":
+            setattr(ns, option.target, list(getattr(base, option.target, []) or []))
     try:
         args = _run_parser().parse_args(point_argv(point), namespace=ns)
     except ParameterError as exc:

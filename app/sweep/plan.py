@@ -3,9 +3,10 @@
 A point is an ordered tuple of (key, text) pairs. Keys are the `hil run` config-file keys (`controller`,
 `load`, `speed`, `duration`, `ts`, `motor`, `scenario`, `seed`, `noise`, `fault`, ...: the option's long name
 without dashes, `-` as `_`), `set.NAME` (a `--set NAME=VALUE` plant parameter), `param.NAME` (a `--param`
-controller parameter) and `theta0` (the initial electrical rotor angle [rad]). Texts are what the option
-would receive on the command line; their meaning is checked later by the `hil run` parser itself
-(app/sweep/configure.py), so a bad value gets the option's own error.
+controller parameter), `load_fmu_set.NAME` (a `--load-fmu-set` load-FMU parameter) and `theta0` (the initial
+electrical rotor angle [rad]). Texts are what the option would receive on the command line; their meaning is
+checked later by the `hil run` parser itself (app/sweep/configure.py), so a bad value gets the option's own
+error.
 
 Sources, crossed with each other in this order: the `runs` of a plan file (TOML `[[runs]]` tables, or the
 rows of a CSV plan), the `[grid]` table of a TOML plan, then the `--grid KEY=V1,V2` options (the last
@@ -31,8 +32,8 @@ Point = tuple[tuple[str, str], ...]
 
 #: `hil run` options that are outputs or per-run files, never swept (the sweep owns its outputs)
 OUTPUT_KEYS = frozenset({*(o.key for o in RUN_OPTIONS if o.scope == "output"), "config"})
-#: key prefixes for `--set NAME=VALUE` and `--param NAME=VALUE`
-TABLE_PREFIXES = ("set.", "param.")
+#: key prefixes for `--set NAME=VALUE`, `--param NAME=VALUE` and `--load-fmu-set NAME=VALUE` (a load FMU's parameter)
+TABLE_PREFIXES = tuple(f"{o.key}." for o in RUN_OPTIONS if o.kind == "table" and o.scope == "run")
 #: the initial electrical rotor angle [rad] (the scenario's `theta0_rad`)
 THETA0 = "theta0"
 
@@ -42,7 +43,7 @@ def sweep_keys() -> list[str]:
     from pmsm_hil.app.cli.run import config_schema
 
     keys = [k for k, spec in config_schema().items() if k not in OUTPUT_KEYS and spec.kind != "table"]
-    return [*keys, "set.NAME", "param.NAME", THETA0]
+    return [*keys, *(f"{prefix}NAME" for prefix in TABLE_PREFIXES), THETA0]
 
 
 def check_key(key: str, where: str) -> str:

@@ -79,7 +79,10 @@ METRICS: Final[tuple[Metric, ...]] = (
     _m("controller", "controller", "", "controller name (`--controller`)", "", CLI, REPORT, source=RUN),
     _m("scenario", "scenario", "", "scenario name", "", CLI, REPORT, source=RUN),
     _m("speed_ref_rpm", "speed ref", "rpm", "scenario speed reference", ".0f", REPORT, source=RUN),
-    _m("load_nm", "load", "N·m", "scenario load torque", ".2f", REPORT, source=RUN),
+    _m("load_nm", "load", "N·m", "scenario load torque (null with a load FMU)", ".2f", REPORT, source=RUN),
+    _m("load_fmu", "load FMU", "", "the load FMU that ran (`--load-fmu`): `{path, fmi_version, model_name, guid | "
+       "instantiation_token, model_identifier, speed, torque, parameters, steps, warnings}` (steps: doStep calls "
+       "that succeeded, warnings: calls that returned a warning); null without one", "", source=RUN),
     _m("mode", "mode", "", "lockstep or realtime", "", source=RUN),
     _m("link_spec", "link", "", "link SPEC of the run", "", source=RUN),
     _m("loop", "loop", "", "the period loop that ran: `native` (C, hil/native/loop.c) or `python`", "", source=RUN),
@@ -157,6 +160,8 @@ METRICS: Final[tuple[Metric, ...]] = (
        "`torque_ref` values (torque mode), else `load_torque` (named in `torque_error_reference`)", "+.3f", CLI,
        COMPARE_ROW),
     _m("torque_error_reference", "torque error reference", "", "`torque_ref` or `load_torque`", ""),
+    _m("load_torque_mean_nm", "load torque mean", "N·m", "mean of the periods' `load_torque` (the scenario's "
+       "profile, or a load FMU's output held over each period)", ".3f", CLI),
     _m("speed_mean_rpm", "speed mean", "rpm", "time-weighted mean of trace `omega_m` · 60/2π", ".1f", CLI, REPORT,
        COMPARE_ROW),
     _m("current_thd_pct", "current THD (h2..40)", "%", "integer harmonics 2..40 of phase a (below)", ".2f", CLI,

@@ -158,6 +158,7 @@ class WindowMetrics:
             "torque_ripple_pp_nm": self.torque.maximum - self.torque.minimum,
             "torque_error_mean_nm": mean_torque - ref_mean,
             "torque_error_reference": ref_name,
+            "load_torque_mean_nm": self.load_sum / n,
             "speed_mean_rpm": self.speed.mean * RAD_S_TO_RPM,
         }
         metrics.update(self._thd(p))

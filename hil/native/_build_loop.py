@@ -26,7 +26,7 @@ FIRMWARE_FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion
 LOOP_FLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion", "-ffp-contract=off",
               "-fno-builtin-sin", "-fno-builtin-cos", "-pthread"]
 LOOP_SOURCES = ("loop.c", "loop_frames.c", "loop_rt.c", "nl_link.c", "loop_udp.c", "loop_serial.c", "loop_socketcan.c",
-                "target_serve.c", "link_floor.c", "loop_board.c")
+                "target_serve.c", "link_floor.c", "loop_board.c", "loop_fmu.c")
 
 
 def _load_extractor() -> Any:
@@ -41,7 +41,10 @@ def _load_extractor() -> Any:
 _X = _load_extractor()
 #: loop.h and machine_kernel.h as cffi reads them: their integer constants, the finding, configuration and result
 #: structs and the handle's functions - taken from the headers, never restated
-LOOP_H_CDEF = (_X.cffi_constants(_HERE / "loop.h", "NL_")
+LOOP_H_CDEF = (_X.cffi_constants(_HERE / "loop_fmu.h", "NL_FMU_")
+               + _X.declarations(_HERE / "loop_fmu.h", ["nl_fmu_t", "nl_fmu_open", "nl_fmu_enter_init", "nl_fmu_set",
+                                                        "nl_fmu_exit_init", "nl_fmu_period", "nl_fmu_close"])
+               + _X.cffi_constants(_HERE / "loop.h", "NL_")
                + _X.cffi_constants(_HERE / "kernels" / "machine_kernel.h", "MK_")
                + "typedef struct mk_kernel mk_kernel_t;\n"
                + _X.declarations(_HERE / "loop.h", ["nl_finding_t", "nl_config_t"]) + """
@@ -173,6 +176,7 @@ int hil_core_tx(hil_core_frame_t *out);
 PREAMBLE = """
 #include <stddef.h>
 #include "loop.h"
+#include "loop_fmu.h"
 #include "machine_kernel.h"
 #include "loop_frames.h"
 #include "loop_rt.h"
@@ -237,7 +241,7 @@ ffibuilder.set_source(
     include_dirs=[_rel(_HERE), _rel(_HERE / "kernels"), *(_rel(p) for p in _FW_INCLUDES)],
     extra_compile_args=LOOP_FLAGS,
     extra_objects=_firmware_objects(),
-    libraries=["m", "pthread"],
+    libraries=["m", "pthread", "dl"],
 )
 
 if __name__ == "__main__":

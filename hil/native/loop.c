@@ -7,6 +7,7 @@
 
 #include "hil_target_core.h"
 #include "loop.h"
+#include "loop_fmu.h"
 #include "loop_frames.h"
 #include "loop_rt.h"
 #include "machine_kernel.h"
@@ -460,6 +461,15 @@ static int32_t load_breakpoints(const nl_config_t *c, double t0, double t1, doub
     return n_bp > NL_LOAD_BREAKPOINTS ? -n_bp : n_bp;
 }
 
+/* The load FMU's period (loop_fmu.h): the speed sampled at the period start in, the torque out (held over the
+ * period by advance), doStep(t, Ts); 0 ok, NL_PLANT_E_LOAD_FMU when the FMU failed. (Under a dyno the FMU would
+ * still step and its torque be recorded, the held speed ignoring it; RunConfig refuses that combination.) */
+static int load_fmu_period(loop_t *L, double t, const sample_t *smp)
+{
+    const nl_config_t *c = L->c;
+    return nl_fmu_period(c->load_fmu, t, c->ts_s, smp->omega_m) == 0 ? 0 : NL_PLANT_E_LOAD_FMU;
+}
+
 /* ClosedLoop._apply_and_trace: one period with the pending command (mirrored when it is). */
 static int advance(loop_t *L, int64_t k, ge_period_stats_t *st)
 {
@@ -490,7 +500,9 @@ static int advance(loop_t *L, int64_t k, ge_period_stats_t *st)
     for (j = 0; j < n; ++j) {
         total += durs[j];
     }
-    if (L->inertia) {
+    if (L->inertia && c->load_fmu != NULL) {
+        load0 = c->load_fmu->torque; /* load_fmu_period: the FMU's output at the period start, held */
+    } else if (L->inertia) {
         const uint64_t t_ns = c->kernel->time_ns(c->plant_state);
         const double t0 = (double)t_ns / NS_PER_S;
         load_at(c, t0, &load0, &slope);
@@ -813,7 +825,10 @@ static int32_t period(loop_t *L, int64_t k)
     if (send_measurement(L, k, t, &smp) != 0) {
         return NL_END_ENCODE_ERROR;
     }
-    rc = advance(L, k, &st);
+    rc = c->load_fmu != NULL ? load_fmu_period(L, t, &smp) : 0;
+    if (rc == 0) {
+        rc = advance(L, k, &st);
+    }
     if (rc != 0) {
         r->plant_rc = rc;
         return NL_END_PLANT_ERROR;
@@ -826,7 +841,11 @@ static int32_t period(loop_t *L, int64_t k)
     }
     ok = check_contract(L, k, L->have_reply);
     watchdog = accept(L, k, ok);
-    load_at(c, t, &load_t, &unused_slope);
+    if (c->load_fmu != NULL) {
+        load_t = c->load_fmu->torque;
+    } else {
+        load_at(c, t, &load_t, &unused_slope);
+    }
     record(L, t, k, &smp, &st, !ok, load_t); /* missed: no Command applied (none, or one breaking the contract) */
     if (r->violation_count > c->tolerate) {
         return NL_END_VIOLATION;

@@ -52,6 +52,7 @@
 
 #define NL_PLANT_E_BREAKPOINTS (-100) /* more load breakpoints inside one period than NL_LOAD_BREAKPOINTS */
 #define NL_PLANT_E_KERNEL (-101)      /* no machine kernel, another MK_ABI_VERSION, or legs/format it cannot serve */
+#define NL_PLANT_E_LOAD_FMU (-102)    /* the load FMU failed (nl_fmu_t: failed_call, status, t_fail, message) */
 
 /* The Measurement frames a machine is measured with (nl_config_t.meas_format; loop_frames.c encodes them). */
 #define NL_MEAS_3 0              /* three currents: MeasA + MeasB (classic CAN) or MeasFd */
@@ -119,6 +120,8 @@ typedef struct {
     int32_t n_load;            /* load profile points (time [s], torque [N*m]), any number (the caller's arrays) */
     const double *load_t;
     const double *load_v;
+    struct nl_fmu *load_fmu;   /* the load as an FMU (loop_fmu.h), opened and initialised by the caller; NULL: the
+                                * load profile above. Each period: speed at its start in, torque held out, doStep */
     int32_t n_ref;             /* speed reference [rpm] from period ref_k[j] on */
     int64_t ref_k[NL_REF_CHANGES];
     double ref_rpm[NL_REF_CHANGES];

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -58,6 +59,8 @@ class LoopOutcome:
     max_wait_ns: int = 0
     #: injected link faults by kind (`--fault`), None without fault injection
     link_faults: dict[str, int] | None = None
+    #: the load FMU that ran (`LoadFmuSession.metrics`: model, parameters, doStep calls, warnings), None without
+    load_fmu: dict[str, Any] | None = None
     #: the exception behind an internal-error ending (re-raised by the runner after the outputs are written)
     error: BaseException | None = None
     #: metrics-window periods with a restricted-vs-full candidate diagnostic, and those where the

@@ -17,6 +17,7 @@ from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import numpy as np
+from pmsm_hil.hil.load_fmu.errors import LoadFmuStepError
 from pmsm_hil.hil.mechanics import RPM_TO_RAD_S, DynoMechanics
 from pmsm_hil.hil.plant_base import PlantBase
 from pmsm_hil.hil.records import FRAME_DTYPE, PERIOD_DTYPE
@@ -27,6 +28,7 @@ from pmsm_hil.hil.runner.loop_outcome import MAX_KEPT_VIOLATIONS, BlockSink, Loo
 from pmsm_hil.hil.runner.native_config import NativeOptions, fill_config
 from pmsm_hil.hil.runner.native_findings import internal_error, violation
 from pmsm_hil.hil.runner.native_link import NativeCoreLink
+from pmsm_hil.hil.runner.native_load_fmu import load_fmu_failed, open_load_fmu
 from pmsm_hil.hil.runner.native_pylink import NativePyLink
 from pmsm_hil.hil.runner.native_wire import NativeWireLink
 from pmsm_hil.hil.runner.recorder import FrameTap, frame_records, period_records
@@ -35,7 +37,7 @@ from pmsm_hil.hil.runner.safe_stop import disable_and_confirm, settle_ending
 from pmsm_hil.hil.runner.stop_request import StopRequest, deferred_interrupts
 from pmsm_hil.hil.runner.target_client import TargetClient
 from pmsm_hil.hil.sensors import SensorModel
-from pmsm_hil.protocol.ids import Mode
+from pmsm_hil.protocol.ids import Mode, ParamId
 
 _WAIT_NS = 50_000_000  # drain wait per try (Ctrl-C is seen between tries) [ns]
 
@@ -70,6 +72,7 @@ class NativeLoop:
         self._c = lib.nl_config(self._h)
         self._res = lib.nl_result(self._h)
         self._config_arrays = fill_config(self._c, ffi, lib, cfg, plant, controller_id, link.fd, opts)
+        self.load_fmu = open_load_fmu(cfg, ffi, lib, self._c)  # None: the scenario's load profile
         if lib.NL_FINDINGS < MAX_KEPT_VIOLATIONS:
             raise ImportError("native loop: NL_FINDINGS must keep at least MAX_KEPT_VIOLATIONS findings per block")
         self._period_size = int(lib.nl_sizeof_period())
@@ -136,6 +139,9 @@ class NativeLoop:
                 self._flush(out, None, 0)
             finally:
                 lib.nl_destroy(h)
+                if self.load_fmu is not None:
+                    out.load_fmu = self.load_fmu.metrics()
+                    self.load_fmu.close()
                 if gc_was_enabled:
                     gc.enable()
         return out
@@ -160,6 +166,8 @@ class NativeLoop:
             self.client.link = self._tap
         self._t_wall0 = time.perf_counter_ns()
         ref0 = float(self._c.ref_rpm[0])
+        if self.load_fmu is not None and self.cfg.scenario.preset_integrator:  # bumpless start on the FMU's torque
+            self.client.configure({ParamId.TORQUE_INTEGRATOR_INIT: self.load_fmu.torque0})
         self.client.set_setpoint(enable=True, mode=int(Mode.SPEED), reference=ref0 * RPM_TO_RAD_S,
                                  controller_id=self.controller_id)
         return out
@@ -265,6 +273,9 @@ class NativeLoop:
                                                 f"{int(res.fault_detail)}); inverter put in the safe state")
         elif end == lib.NL_END_TRIP:
             self._trip(out)
+        elif (fmu_failure := load_fmu_failed(self.load_fmu, res, lib)) is not None:
+            out.error = LoadFmuStepError(fmu_failure)
+            self._end(out, EndCode.INTERNAL_ERROR, f"{fmu_failure}; inverter put in the safe state")
         elif end in (lib.NL_END_PLANT_ERROR, lib.NL_END_ENCODE_ERROR):
             out.error = internal_error(res, lib, cfg.machine.phases)
             self._end(out, EndCode.INTERNAL_ERROR, f"internal error: {type(out.error).__name__}: {out.error}")

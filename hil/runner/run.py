@@ -198,7 +198,8 @@ def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection, sink: Ru
     metrics["controller"] = cfg.controller
     metrics["scenario"] = cfg.scenario.name
     metrics["speed_ref_rpm"] = cfg.scenario.speed_rpm
-    metrics["load_nm"] = cfg.scenario.load_nm
+    metrics["load_nm"] = cfg.scenario.load_nm if cfg.load_fmu is None else None
+    metrics["load_fmu"] = out.load_fmu
     metrics["mode"] = cfg.mode
     metrics["link_spec"] = cfg.link
     warnings: list[str] = []

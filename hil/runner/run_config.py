@@ -6,6 +6,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from pmsm_hil.hil.errors import ParameterError
+from pmsm_hil.hil.load_fmu.checks import check_load_fmu, read_load_fmu_cached
+from pmsm_hil.hil.load_fmu.description import LoadFmuModel
+from pmsm_hil.hil.load_fmu.spec import LoadFmuSpec
 from pmsm_hil.hil.machine import Machine, machine_for
 from pmsm_hil.hil.machine_params import MachineParams
 from pmsm_hil.hil.motor_params import parse_set_options
@@ -129,6 +132,11 @@ class RunConfig:
     #: sil targets: load the library into the runner's process (`--sil-in-process`: unprotected, a crash of
     #: the firmware ends the runner) instead of serving it from its own process
     sil_in_process: bool = default_of("sil_in_process")
+    # --- load FMU (issue 28 item 4; hil/load_fmu) -------------------------------------------------------------
+    #: the mechanical load as an FMU (`--load-fmu`, `--load-fmu-map`, `--load-fmu-set`): replaces the scenario's
+    #: load profile; None: the scenario's load
+    load_fmu: LoadFmuSpec | None = None
+    # --- end load FMU --------------------------------------------------------------------------------------------
 
     def __post_init__(self) -> None:
         cid = controller_id(self.controller)
@@ -169,6 +177,8 @@ class RunConfig:
                 raise ParameterError(f"--fault: {exc}") from None
         for name in self.controller_params:
             param_id(name)
+        if self.load_fmu is not None:  # load FMU (issue 28 item 4)
+            check_load_fmu(self)
 
     @property
     def machine(self) -> Machine:
@@ -198,6 +208,11 @@ class RunConfig:
         return self.target.startswith("sil:") and not self.sil_in_process
 
     @property
+    def load_fmu_model(self) -> LoadFmuModel | None:
+        """The checked model description of the load FMU (read once per file version), None without one."""
+        return None if self.load_fmu is None else read_load_fmu_cached(self.load_fmu)
+
+    @property
     def ts_ns(self) -> int:
         """Control period [ns]."""
         return round(self.ts_s * 1e9)
@@ -212,7 +227,9 @@ class RunConfig:
             ParamId.POLE_PAIRS: float(m.pole_pairs), ParamId.TS: self.ts_s, ParamId.VDC: m.vdc,
             ParamId.SPEED_KP: m.speed_kp, ParamId.SPEED_KI: m.speed_ki,
             ParamId.TORQUE_LIMIT: TORQUE_LIMIT_PER_RATED * rated,
-            ParamId.TORQUE_INTEGRATOR_INIT: sc.start_load_nm if sc.preset_integrator else 0.0,
+            # a load FMU: its torque after initialisation, written by the native loop before enabling
+            ParamId.TORQUE_INTEGRATOR_INIT: sc.start_load_nm if sc.preset_integrator and self.load_fmu is None
+            else 0.0,
             ParamId.CURRENT_LIMIT: 0.8 * m.i_trip,
             # the firmware is told the inverter's dead time and minimum pulse (for compensation)
             ParamId.T_DEAD: m.t_dead, ParamId.T_MPW: m.t_mpw,

@@ -6,7 +6,8 @@ mode, seed, speed_rpm, load_nm, pole_pairs, phases. JSON-valued keys: `motor_par
 inverter parameter as run, `--set` applied), `motor_set` (the parameters that differ from the named preset,
 i.e. the `--set` overrides), `controller_params` (`--param`), `target_parameters` (every ConfigParam
 written, by name), `scenario_params` (every scenario field, CLI overrides applied), `sensors`; and `target`,
-`miss_policy`, `watchdog_periods`, `log_trace`, `version` (the pmsm-hil package version)."""
+`miss_policy`, `watchdog_periods`, `log_trace`, `version` (the pmsm-hil package version); `load_fmu` (JSON, the
+load FMU as metrics.json says it) when the load is an FMU."""
 
 from __future__ import annotations
 
@@ -76,6 +77,9 @@ def run_metadata(cfg: RunConfig) -> dict[str, str]:
     motor_set = _motor_set(m)
     if motor_set is not None:
         meta["motor_set"] = _json(motor_set)
+    fmu = cfg.load_fmu_model
+    if fmu is not None:  # the load FMU that ran (issue 28 item 4), as metrics.json `load_fmu`
+        meta["load_fmu"] = _json(fmu.as_metrics())
     return meta
 
 

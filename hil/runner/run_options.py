@@ -284,6 +284,16 @@ RUN_OPTIONS: tuple[RunOption, ...] = (
     RunOption("noise", "number", "current noise standard deviation [A]", 0.0, unit="A", minimum=0.0,
               default_text="0: none"),
     RunOption("encoder_counts", "integer", "encoder counts/rev", 0, minimum=0, default_text="0: ideal angle"),
+    # the mechanical load as an FMU (issue 28 item 4; hil/load_fmu, docs/plant.md "Load as an FMU"): the three
+    # make RunConfig.load_fmu (a LoadFmuSpec)
+    RunOption("load_fmu", "path",
+              "the mechanical load as an FMU (FMI 2.0/3.0 Co-Simulation, replaces the scenario's load): input speed "
+              "[rad/s], output torque [N·m], one doStep(Ts) per period in the C loop", metavar="PATH.fmu"),
+    RunOption("load_fmu_map", "text",
+              "the FMU's names for the speed input and torque output, e.g. speed=w_shaft,torque=T_load",
+              metavar="ROLE=NAME,...", default_text="speed=speed,torque=torque"),
+    RunOption("load_fmu_set", "table", "a parameter of the load FMU set before its initialisation (repeatable)",
+              metavar="NAME=VALUE"),
     # `hil run`'s outputs
     RunOption("out", "path", "output directory for run.mcap and metrics.json; an existing run there is refused "
               "unless --overwrite", scope="output", default_text="runs/<time>-<controller>"),

@@ -1,0 +1,66 @@
+/*
+ * The mechanical load as an FMU (FMI 2.0 or 3.0 Co-Simulation) in the C period loop: the FMU's shared
+ * library is opened with dlopen, instantiated and initialised before the run (from Python, through cffi), and
+ * each period the loop sets its speed input [rad/s, mechanical] at the period start, reads its torque output
+ * [N*m] (held over the period) and calls doStep(t, Ts) -- the FMU's own C API, nothing of Python per period.
+ * Nothing is allocated per period; the struct is the caller's.
+ */
+#ifndef HIL_NATIVE_LOOP_FMU_H
+#define HIL_NATIVE_LOOP_FMU_H
+
+#include <stdint.h>
+
+#define NL_FMU_MESSAGE 512       /* bytes of the last message the FMU logged (or of our own error) */
+
+/* Value kinds --load-fmu-set writes (nl_fmu_set). */
+#define NL_FMU_REAL 0            /* fmi2Real / fmi3Float64 */
+#define NL_FMU_INTEGER 1         /* fmi2Integer / fmi3Int32 */
+#define NL_FMU_BOOLEAN 2         /* fmi2Boolean / fmi3Boolean */
+
+/* The FMI call that failed (nl_fmu_t.failed_call). */
+#define NL_FMU_CALL_NONE 0
+#define NL_FMU_CALL_DLOPEN 1
+#define NL_FMU_CALL_DLSYM 2
+#define NL_FMU_CALL_INSTANTIATE 3
+#define NL_FMU_CALL_SETUP 4      /* fmi2SetupExperiment */
+#define NL_FMU_CALL_ENTER_INIT 5
+#define NL_FMU_CALL_EXIT_INIT 6
+#define NL_FMU_CALL_SET 7        /* a parameter or the speed input */
+#define NL_FMU_CALL_GET 8        /* the torque output */
+#define NL_FMU_CALL_DO_STEP 9
+#define NL_FMU_CALL_NOT_FINITE 10 /* the torque output is NaN or infinite */
+
+typedef struct nl_fmu {
+    int32_t fmi_version;         /* 2 or 3 */
+    uint32_t vr_speed, vr_torque;
+    void *lib;                   /* dlopen handle */
+    void *instance;              /* fmi2Component / fmi3Instance */
+    void *fn[12];                /* the FMU's functions (loop_fmu.c's FN_* order) */
+    void *callbacks[8];          /* fmi2CallbackFunctions (FMI 2 keeps a pointer to it) */
+    int32_t initialised;
+    double torque;               /* the output read at the start of the last period [N*m] */
+    int64_t steps;               /* doStep calls that succeeded */
+    int64_t warnings;            /* calls that returned a warning */
+    int32_t failed_call;         /* NL_FMU_CALL_* of the first failure */
+    int32_t status;              /* its FMI status (fmi2Status / fmi3Status value) */
+    double t_fail;               /* communication point of the failure [s] */
+    char message[NL_FMU_MESSAGE];/* the last error or warning the FMU logged, or the dlopen/dlsym error */
+} nl_fmu_t;
+
+/* Open the FMU's binary and instantiate it (Co-Simulation); 0 ok, -1 with failed_call and message. `resource`:
+ * FMI 2 the resources folder as a file:// URI, FMI 3 its path with a trailing '/'. */
+int32_t nl_fmu_open(nl_fmu_t *f, int32_t fmi_version, const char *binary, const char *instance_name,
+                    const char *token, const char *resource, uint32_t vr_speed, uint32_t vr_torque);
+/* Enter initialisation mode at t0 [s] (FMI 2: fmi2SetupExperiment first); 0 ok. */
+int32_t nl_fmu_enter_init(nl_fmu_t *f, double t0);
+/* Write a parameter (in initialisation mode): kind NL_FMU_*; 0 ok. */
+int32_t nl_fmu_set(nl_fmu_t *f, uint32_t vr, int32_t kind, double value);
+/* Set the speed input [rad/s], leave initialisation mode and read the torque output [N*m] (f->torque); 0 ok. */
+int32_t nl_fmu_exit_init(nl_fmu_t *f, double speed);
+/* One period: speed [rad/s] at its start t [s], the torque output read (f->torque, held over the period),
+ * then doStep(t, dt); 0 ok, -1 with failed_call, status, t_fail and message. */
+int32_t nl_fmu_period(nl_fmu_t *f, double t, double dt, double speed);
+/* Terminate (when initialised), free the instance and close the library; safe to call twice. */
+void nl_fmu_close(nl_fmu_t *f);
+
+#endif

@@ -1,0 +1,55 @@
+"""The test suite's load FMU (fmu_src/fan_load.c: fan law with a first-order lag), built at test time with gcc
+against the official FMI headers (hil/native/fmi) and zipped as an FMI 2.0 or 3.0 Co-Simulation FMU."""
+
+from __future__ import annotations
+
+import math
+import shutil
+import subprocess
+import zipfile
+from collections.abc import Callable
+from pathlib import Path
+
+import pmsm_hil.hil
+
+SRC = Path(__file__).resolve().parent / "fmu_src"
+FMI_HEADERS = Path(pmsm_hil.hil.__file__).resolve().parent / "native" / "fmi"
+#: the FMU's defaults (modelDescription start values): k [N·m·s²/rad²], tau [s]
+K_DEFAULT, TAU_DEFAULT = 2.0e-4, 0.02
+#: binaries/<platform> of each FMI version on x86-64 Linux
+PLATFORM_DIR = {2: "linux64", 3: "x86_64-linux"}
+
+
+def fan_steady_torque(k: float, speed_rad_s: float) -> float:
+    """The fan law's steady torque k·ω·|ω| [N·m]."""
+    return k * speed_rad_s * abs(speed_rad_s)
+
+
+def have_gcc() -> bool:
+    """gcc is there to build the FMU."""
+    return shutil.which("gcc") is not None
+
+
+def build_fan_fmu(out_dir: Path, fmi: int = 2, *, name: str = "fan_load",
+                  xml: Callable[[str], str] | None = None, binary: bool = True) -> Path:
+    """Build the fan FMU (FMI `fmi` = 2 or 3) into out_dir/<name>.fmu; `xml` rewrites the model description
+    (the tests' broken variants), `binary=False` leaves the binary out."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    so = out_dir / f"{name}-fmi{fmi}.so"
+    subprocess.run(["gcc", "-std=c99", "-O2", "-fPIC", "-shared", "-Wall", "-Wextra", "-Werror", f"-DFAN_FMI={fmi}",
+                    f"-I{FMI_HEADERS}", str(SRC / "fan_load.c"), "-o", str(so), "-lm"], check=True)
+    text = (SRC / f"modelDescription_fmi{fmi}.xml").read_text(encoding="utf-8")
+    if xml is not None:
+        text = xml(text)
+    fmu = out_dir / f"{name}.fmu"
+    with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as zf:
+        zf.writestr("modelDescription.xml", text)
+        if binary:
+            zf.write(so, f"binaries/{PLATFORM_DIR[fmi]}/fan_load.so")
+        zf.writestr("resources/README.txt", "fan load test FMU\n")
+    return fmu
+
+
+def rad_s(rpm: float) -> float:
+    """rpm → rad/s."""
+    return rpm * 2.0 * math.pi / 60.0
