@@ -32,6 +32,7 @@ from pmsm_hil.hil.sensors import SensorConfig
 from pmsm_hil.protocol.ids import CONTROLLER_NAMES
 from pmsm_hil.protocol.links.kinds import LINK_KINDS, PYTHON_CAN_ADAPTER
 from pmsm_hil.protocol.links.spec import parse_spec
+from pmsm_hil.sim_target.fw_params import default_controller  # issue 27 (helper cxx)
 
 DEFAULTS: dict[str, Any] = {"motor": "niu2020-ipmsm", "controller": "mpcc", "scenario": "steady", "ts": 100e-6,
                             "link": "virtual", "mode": "lockstep", "target": "auto", "seed": 0,
@@ -210,6 +211,11 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
     out = pick("out")
     no_log = bool(pick("no_log"))
     controller = str(pick("controller"))
+    # --- issue 27 (helper cxx): a user firmware (`--target sil:PATH` / `qemu:PATH`, not the reference firmware)
+    # runs as controller `external` unless --controller (or the config file) names one
+    if getattr(args, "controller", None) is None and "controller" not in cfg:
+        controller = default_controller(str(pick("target")), controller)
+    # --- end issue 27
     if out is None and not no_log:
         out = _fresh_dir(Path("runs") / f"{time.strftime('%Y%m%d-%H%M%S')}-{controller}")
     try:

@@ -17,6 +17,7 @@ from pmsm_hil.protocol.errors import LinkSpecError
 from pmsm_hil.protocol.ids import CONTROLLER_NAMES, ParamId
 from pmsm_hil.protocol.links.faults import FaultSpec, parse_fault_spec
 from pmsm_hil.sim_target.firmware import CONTROLLERS, controller_phases
+from pmsm_hil.sim_target.fw_params import FirmwareParamError, FirmwareParamId, firmware_params  # issue 27
 
 MODES = ("lockstep", "realtime")
 #: the period loop: native where supported (else Python, with the reason in the metrics), native or Python
@@ -198,8 +199,7 @@ class RunConfig:
         if self.overrun_threshold_s is not None and not (
                 math.isfinite(self.overrun_threshold_s) and self.overrun_threshold_s > 0.0):
             raise ParameterError(f"--overrun-threshold must be a positive time in s, got {self.overrun_threshold_s}")
-        for name in self.controller_params:
-            param_id(name)
+        self.resolved_params()  # issue 27: firmware-declared names and ranges too
 
     @property
     def machine(self) -> Machine:
@@ -233,7 +233,31 @@ class RunConfig:
         """Control period [ns]."""
         return round(self.ts_s * 1e9)
 
-    def target_parameters(self) -> dict[ParamId, float]:
+    # --- issue 27 (helper cxx): firmware-declared parameters (hil_app_params.h, sim_target/fw_params.py)
+    def resolved_params(self) -> dict[ParamId | FirmwareParamId, float]:
+        """The --param values by ConfigParam id: a protocol parameter's name, or one the `sil:PATH` / `qemu:PATH`
+        firmware declares in its table (its range checked); ParameterError naming an unknown one."""
+        declared = {p.name: p for p in firmware_params(self.target_path)} if self.target_path else {}
+        out: dict[ParamId | FirmwareParamId, float] = {}
+        for name, value in self.controller_params.items():
+            fw = declared.get(name.strip().lower())
+            if fw is None:
+                try:
+                    out[param_id(name)] = value
+                except ParameterError as exc:
+                    if not declared:
+                        raise
+                    raise ParameterError(f"{exc}; the firmware declares: {', '.join(declared)}") from None
+                continue
+            try:
+                fw.check(value)
+            except FirmwareParamError as exc:
+                raise ParameterError(str(exc)) from None
+            out[fw.param_id] = value
+        return out
+    # --- end issue 27
+
+    def target_parameters(self) -> dict[ParamId | FirmwareParamId, float]:
         """Parameters written to the target before enabling: its model of the motor, the speed PI
         and limits, then the user's --param values (which may deliberately mismatch the plant)."""
         m, sc = self.motor, self.scenario
@@ -249,6 +273,6 @@ class RunConfig:
             ParamId.T_DEAD: m.t_dead, ParamId.T_MPW: m.t_mpw,
         }
         params.update(self.machine.layout.target_extras(m, rated))
-        for name, value in self.controller_params.items():
-            params[param_id(name)] = value
-        return params
+        out: dict[ParamId | FirmwareParamId, float] = dict(params.items())
+        out.update(self.resolved_params())  # issue 27 (helper cxx)
+        return out
