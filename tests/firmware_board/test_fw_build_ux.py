@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.sim_target.fw_build import FwBuildError, build_firmware, key_lines, parse_defines
-from pmsm_hil.sim_target.fw_params import firmware_params
+from pmsm_hil.sim_target.fw_params import FirmwareParamError, firmware_params
 
 from tests.firmware_board.conftest import ROOT, need
 
@@ -32,7 +32,7 @@ def test_first_error_has_its_caret(capsys: pytest.CaptureFixture[str]) -> None:
     need("host")
     assert main(["fw", "build", "--src", str(CASES / "syntax")]) == 2
     lines = capsys.readouterr().err.splitlines()
-    at = next(i for i, ln in enumerate(lines) if "cases.c:48:" in ln and "error:" in ln)
+    at = next(i for i, ln in enumerate(lines) if "cases.c:" in ln and "error:" in ln)
     assert "(void)m;" in lines[at + 1] and "^" in lines[at + 2]
 
 
@@ -73,3 +73,13 @@ def test_key_lines_of_a_link_failure() -> None:
            "`hil_app_reset'\ncollect2: error: ld returned 1 exit status\ngmake[2]: *** Error 1\n")
     assert key_lines(out) == ["core.c:(.text+0x1): undefined reference to `hil_app_step'",
                               "core.c:(.text+0x9): undefined reference to `hil_app_reset'"]
+
+
+def test_a_malformed_parameter_table_is_refused(capsys: pytest.CaptureFixture[str]) -> None:
+    need("host")
+    lib = build_firmware("host", CASES / "bad_params").path
+    with pytest.raises(FirmwareParamError, match=r"hil_app_params\[1\] 'offset': id 12 outside 128\.\.254"):
+        firmware_params(lib)
+    assert main(["run", "--target", f"sil:{lib}", "--no-log"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("hil: error: ") and "id 12 outside" in err and len(err.strip().splitlines()) == 1

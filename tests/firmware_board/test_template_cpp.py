@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 import pytest
 from pmsm_hil.hil.errors import ParameterError
+from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runlog.reader import read_periods
 from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.frame import Frame
@@ -94,3 +95,25 @@ def test_core_rejects_a_declared_parameter_out_of_range(cpp_sil: Path) -> None:
     assert ack(50.0).status == 5  # type: ignore[attr-defined]
     [nan_ack] = fw.feed(Frame(0x210, bytes([128]) + struct.pack("<I", 0x7FC00000), False))  # a NaN on the wire
     assert dec.feed(nan_ack).status == 5  # type: ignore[union-attr]
+
+
+def test_sweeps_and_the_pytest_plugin_take_firmware_parameters(cpp_sil: Path) -> None:
+    from pmsm_hil.app.sweep.configure import base_args, build_config
+    from pmsm_hil.testing.runs import HilSettings
+    from pmsm_hil.testing.runs import build_config as plugin_config
+
+    sweep = build_config(base_args(["--target", f"sil:{cpp_sil}"]), (("param.bandwidth", "2500"),))
+    plugin = plugin_config(HilSettings(target=f"sil:{cpp_sil}"), None, {"params": {"bandwidth": 2500.0}})
+    for cfg in (sweep, plugin):
+        assert cfg.controller == "external"  # a user firmware's default
+        sent = {int(k): (getattr(k, "name", ""), v) for k, v in cfg.target_parameters().items()}
+        assert sent[128] == ("bandwidth", 2500.0)
+    with pytest.raises(ParameterError, match=r"param\.bandwidth: .*outside the firmware's range"):
+        build_config(base_args(["--target", f"sil:{cpp_sil}"]), (("param.bandwidth", "1e6"),))
+
+
+def test_a_controller_the_firmware_lacks_names_the_option(cpp_sil: Path) -> None:
+    res = run_closed_loop(rated(f"sil:{cpp_sil}", controller="foc", settle_s=0.01, duration_s=0.01))
+    assert res.metrics["end_code"] == 3
+    assert "does not implement controller 'foc' (a firmware of your own runs as --controller external)" in \
+        res.metrics["end_reason"]

@@ -1,11 +1,17 @@
 /*
  * Firmware folders that a build must report well (tests/firmware_board/test_fw_build_ux.py): FW_NO_STEP leaves
  * out hil_app_step (the build fails naming it, on both boards), FW_WARNS compiles with a warning (shown, the
- * build succeeds), FW_SYNTAX has a syntax error (the first error with its caret context).
+ * build succeeds), FW_SYNTAX has a syntax error (the first error with its caret context), FW_BAD_PARAMS declares
+ * a parameter with an id outside 128..254 (the host refuses the table, naming the entry).
  */
 #include <stdint.h>
 
 #include "hil_app.h"
+#include "hil_app_params.h"
+
+#if defined(FW_BAD_PARAMS)
+HIL_APP_PARAMS({"gain", "", 128u, {0u, 0u, 0u}, 1.0f, 0.0f, 2.0f}, {"offset", "A", 12u, {0u, 0u, 0u}, 0.0f, -1.0f, 1.0f});
+#endif
 
 void hil_app_init(void)
 {
