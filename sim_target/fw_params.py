@@ -70,8 +70,13 @@ def _text(raw: bytes) -> str:
 
 def firmware_params(path: str | Path) -> tuple[FirmwareParam, ...]:
     """The parameters the firmware file `path` declares (none for a firmware without a table, or a file that is
-    not an ELF); FirmwareParamError for a malformed table."""
-    p = Path(path)
+    not an ELF); a source folder (`sil:FOLDER`) is built for the host first, as the run does (cached).
+    FirmwareParamError for a malformed table."""
+    p = Path(path).expanduser()
+    if p.is_dir():
+        from pmsm_hil.sim_target.fw_build import build_firmware
+
+        p = build_firmware("host", p).path
     try:
         st = p.stat()
     except OSError:
@@ -118,6 +123,11 @@ def default_controller(target: str, fallback: str) -> str:
     kind, sep, path = target.partition(":")
     if not sep or kind not in ("sil", "qemu"):
         return fallback
+    folder = Path(path.strip()).expanduser()
+    if folder.is_dir():  # a source folder, built by the run: the reference firmware's own, or a user's
+        from pmsm_hil.sim_target.fw_build import REFERENCE_SRC
+
+        return fallback if folder.resolve() == REFERENCE_SRC.resolve() else "external"
     try:
         symbols = elf_symbols(path.strip())
     except (ElfError, OSError, ValueError, struct.error):

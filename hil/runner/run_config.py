@@ -237,7 +237,11 @@ class RunConfig:
     def resolved_params(self) -> dict[ParamId | FirmwareParamId, float]:
         """The --param values by ConfigParam id: a protocol parameter's name, or one the `sil:PATH` / `qemu:PATH`
         firmware declares in its table (its range checked); ParameterError naming an unknown one."""
-        declared = {p.name: p for p in firmware_params(self.target_path)} if self.target_path else {}
+        protocol = {m.name.lower() for m in ParamId}
+        needed = self.target_path is not None and (  # a folder target is built only when its table is needed
+            any(n.strip().lower() not in protocol for n in self.controller_params)
+            or not Path(self.target_path).expanduser().is_dir())
+        declared = {p.name: p for p in firmware_params(self.target_path or "")} if needed else {}
         out: dict[ParamId | FirmwareParamId, float] = {}
         for name, value in self.controller_params.items():
             fw = declared.get(name.strip().lower())

@@ -12,8 +12,8 @@ from typing import Any
 import numpy as np
 import pytest
 from pmsm_hil.hil.errors import ParameterError
-from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runlog.reader import read_periods
+from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.messages import ConfigAck, ConfigParam
@@ -99,6 +99,7 @@ def test_core_rejects_a_declared_parameter_out_of_range(cpp_sil: Path) -> None:
 
 def test_sweeps_and_the_pytest_plugin_take_firmware_parameters(cpp_sil: Path) -> None:
     from pmsm_hil.app.sweep.configure import base_args, build_config
+
     from pmsm_hil.testing.runs import HilSettings
     from pmsm_hil.testing.runs import build_config as plugin_config
 
@@ -117,3 +118,15 @@ def test_a_controller_the_firmware_lacks_names_the_option(cpp_sil: Path) -> None
     assert res.metrics["end_code"] == 3
     assert "does not implement controller 'foc' (a firmware of your own runs as --controller external)" in \
         res.metrics["end_reason"]
+
+
+def test_default_controller_of_a_target(cpp_sil: Path, reference_sil: Path) -> None:
+    from pmsm_hil.sim_target.fw_build import REFERENCE_SRC
+    from pmsm_hil.sim_target.fw_params import default_controller
+
+    assert default_controller(f"sil:{cpp_sil}", "mpcc") == "external"
+    assert default_controller(f"sil:{CPP}", "mpcc") == "external"  # a source folder, built by the run
+    assert default_controller(f"sil:{reference_sil}", "mpcc") == "mpcc"
+    assert default_controller(f"sil:{REFERENCE_SRC}", "mpcc") == "mpcc"
+    assert default_controller("sil:/no/such.so", "mpcc") == "mpcc"  # the target's own check names it
+    assert default_controller("auto", "mpcc") == "mpcc"
