@@ -3,8 +3,10 @@
 (a shared library for `--target sil:PATH`) or the emulated Cortex-M4F board mps2-an386 (an ELF for
 `--target qemu:PATH`).
 
-Builds go to a per-user cache folder (one per source folder and board, incremental, locked while in use);
-`build_firmware` copies the artefact to `out` when given.
+Builds go to a per-user cache folder (one per source folder, board and set of `--define`s, incremental, locked
+while in use); `build_firmware` copies the artefact to `out` when given. What the compiler said is kept: the
+warnings of a build that succeeded (`BuildResult.warnings`), and of one that failed the key lines
+(`key_lines`: undefined references, the first error with its caret context) in the FwBuildError.
 """
 
 from __future__ import annotations
@@ -13,8 +15,10 @@ import contextlib
 import fcntl
 import hashlib
 import os
+import re
 import shutil
 import subprocess
+import sys
 import tempfile
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -29,6 +33,13 @@ BOARDS = ("host", "mps2-an386")
 BOARD_TOOLS: dict[str, tuple[str, ...]] = {"host": ("cmake",), "mps2-an386": ("cmake", "arm-none-eabi-gcc")}
 ARTEFACT = {"host": "libhil_firmware.so", "mps2-an386": "hil_firmware.elf"}
 BUILD_TIMEOUT_S = 600.0
+#: warning lines a build result shows (their count is always given)
+SHOWN_WARNINGS = 5
+#: `--define NAME=VALUE`: NAME a C identifier
+_DEFINE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+_WARNING = re.compile(r": warning: ")
+_ERROR = re.compile(r"(: (fatal )?error: )|(^CMake Error)|(\berror: ld returned)")
+_UNDEFINED = re.compile(r"undefined reference to|undefined symbol")
 
 
 class FwBuildError(FirmwareError):
@@ -62,6 +73,8 @@ class BuildResult:
     board: str
     src: Path
     sizes: Sizes | None = None
+    #: the compiler's warning lines (as printed, without their context lines)
+    warnings: tuple[str, ...] = ()
 
 
 def missing_tools(board: str) -> list[str]:
@@ -93,15 +106,76 @@ def _locked(path: Path) -> Iterator[None]:
             fcntl.flock(fh, fcntl.LOCK_UN)
 
 
-def _run(cmd: list[str], what: str) -> None:
+def key_lines(text: str, *, limit: int = 12) -> list[str]:
+    """What a failed build's output says broke: every undefined reference (the missing function named), then
+    the first compiler error with the lines after it that show the source and the caret; else the error lines;
+    else the output's last lines."""
+    lines = [ln.rstrip() for ln in text.splitlines()]
+    undefined = [ln.strip() for ln in lines if _UNDEFINED.search(ln)]
+    out = list(dict.fromkeys(undefined))
+    first = next((i for i, ln in enumerate(lines) if _ERROR.search(ln) and not _UNDEFINED.search(ln)
+                  and "ld returned" not in ln and "collect2" not in ln), None)
+    if first is not None:
+        out.append(lines[first].strip())
+        for ln in lines[first + 1:first + 4]:  # "   12 |   code" and "      |   ^~~~"
+            if re.match(r"\s*\d*\s*\|", ln):
+                out.append(ln)
+            else:
+                break
+    if not out:
+        out = [ln.strip() for ln in lines if "error" in ln.lower()] or [ln for ln in lines if ln.strip()][-6:]
+    return out[:limit]
+
+
+def warning_lines(text: str) -> list[str]:
+    """The compiler's warning lines (each once, in order)."""
+    return list(dict.fromkeys(ln.strip() for ln in text.splitlines() if _WARNING.search(ln)))
+
+
+def _run(cmd: list[str], what: str, *, verbose: bool = False) -> str:
+    """Run a build step; its whole output (stdout + stderr), echoed to stderr when `verbose`."""
+    if verbose:
+        print("+ " + " ".join(cmd), file=sys.stderr, flush=True)
     try:
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=BUILD_TIMEOUT_S)
+        proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                              timeout=BUILD_TIMEOUT_S)
     except (OSError, subprocess.SubprocessError) as exc:
         raise FwBuildError(f"{what}: {exc}") from None
+    if verbose and proc.stdout:
+        print(proc.stdout, file=sys.stderr, end="" if proc.stdout.endswith("\n") else "\n", flush=True)
     if proc.returncode != 0:
-        text = (proc.stderr.strip() or proc.stdout.strip()).splitlines()
-        errors = [ln for ln in text if "error" in ln.lower()] or text
-        raise FwBuildError(f"{what} failed: " + " | ".join(errors[:6])[:1500])
+        lines = key_lines(proc.stdout)
+        raise FwBuildError(f"{what} failed:\n    " + "\n    ".join(lines) + "\n(`hil fw build --verbose` shows "
+                           "the whole output)")
+    return proc.stdout
+
+
+def _remember_warnings(build: Path, output: str) -> tuple[str, ...]:
+    """The warnings of this build; when nothing was compiled (an up-to-date build), those of the last build that
+    compiled (kept in the build folder), so a warning does not vanish on the second `hil fw build`."""
+    store = build / "hil_warnings.txt"
+    compiled = re.search(r"Building (C|CXX|ASM) object", output) is not None
+    if compiled:
+        found = warning_lines(output)
+        with contextlib.suppress(OSError):
+            store.write_text("".join(w + "\n" for w in found))
+        return tuple(found)
+    with contextlib.suppress(OSError):
+        return tuple(ln for ln in store.read_text().splitlines() if ln)
+    return ()
+
+
+def parse_defines(items: list[str] | None) -> tuple[str, ...]:
+    """`--define NAME=VALUE` (or NAME alone: 1) items, validated; FwBuildError naming the item otherwise."""
+    out: list[str] = []
+    for item in items or []:
+        name, sep, value = item.partition("=")
+        if not _DEFINE_NAME.fullmatch(name):
+            raise FwBuildError(f"--define {item!r}: NAME must be a C identifier (NAME=VALUE)")
+        if "\n" in value or ";" in value:
+            raise FwBuildError(f"--define {item!r}: VALUE must be one line without ';'")
+        out.append(f"{name}={value}" if sep else f"{name}=1")
+    return tuple(out)
 
 
 def elf_sizes(elf: Path) -> Sizes | None:
@@ -118,9 +192,12 @@ def elf_sizes(elf: Path) -> Sizes | None:
 
 
 def build_firmware(board: str = "host", src: Path | None = None, out: Path | None = None,
-                   *, jobs: int | None = None) -> BuildResult:
+                   *, jobs: int | None = None, defines: list[str] | tuple[str, ...] = (),
+                   verbose: bool = False) -> BuildResult:
     """Configure and build `src` (a CMake folder using firmware_stub/target/hil_target.cmake; default: the
-    reference firmware) for `board`; copy the artefact to `out` if given. Raises FwBuildError."""
+    reference firmware) for `board`; copy the artefact to `out` if given. `defines` ("NAME=VALUE") become CMake
+    variables and preprocessor macros of the firmware (hil_target.cmake HIL_DEFINES); `verbose` echoes the
+    commands and the whole build output to stderr. Raises FwBuildError."""
     if board not in BOARDS:
         raise FwBuildError(f"--board must be one of {', '.join(BOARDS)}, got {board!r}")
     missing = missing_tools(board)
@@ -130,15 +207,20 @@ def build_firmware(board: str = "host", src: Path | None = None, out: Path | Non
     src = (src or REFERENCE_SRC).resolve()
     if not (src / "CMakeLists.txt").is_file():
         raise FwBuildError(f"--src {src}: no CMakeLists.txt (see examples/my_firmware/)")
-    key = hashlib.sha256(f"{src}\0{board}\0{FIRMWARE_DIR}".encode()).hexdigest()[:16]
+    defs = parse_defines(list(defines))
+    key = hashlib.sha256("\0".join((str(src), board, str(FIRMWARE_DIR), *defs)).encode()).hexdigest()[:16]
     build = cache_dir() / "fw-build" / f"{src.name}-{board}-{key}"
     cmd = ["cmake", "-S", str(src), "-B", str(build), f"-DHIL_SDK={FIRMWARE_DIR}", f"-DHIL_BOARD={board}",
-           "-DCMAKE_BUILD_TYPE=Release"]
+           "-DCMAKE_BUILD_TYPE=Release", f"-DHIL_DEFINES={';'.join(defs)}", *(f"-D{d}" for d in defs)]
     if board == "mps2-an386":
         cmd.append(f"-DCMAKE_TOOLCHAIN_FILE={FIRMWARE_DIR / 'boards' / 'mps2-an386' / 'toolchain.cmake'}")
+    build_cmd = ["cmake", "--build", str(build), "-j", str(jobs or os.cpu_count() or 1)]
+    if verbose:
+        build_cmd.append("--verbose")
     with _locked(build.with_suffix(".lock")):
-        _run(cmd, f"cmake configure of {src}")
-        _run(["cmake", "--build", str(build), "-j", str(jobs or os.cpu_count() or 1)], f"build of {src} for {board}")
+        _run(cmd, f"cmake configure of {src}", verbose=verbose)
+        output = _run(build_cmd, f"build of {src} for {board}", verbose=verbose)
+        warnings = _remember_warnings(build, output)
         artefact = build / "out" / ARTEFACT[board]
         if not artefact.is_file():
             raise FwBuildError(f"build of {src} produced no {ARTEFACT[board]}: does its CMakeLists.txt call "
@@ -146,7 +228,7 @@ def build_firmware(board: str = "host", src: Path | None = None, out: Path | Non
         if out is not None:
             artefact = _copy_out(artefact, Path(out), board)
     sizes = elf_sizes(artefact) if board != "host" else None
-    return BuildResult(artefact, board, src, sizes)
+    return BuildResult(artefact, board, src, sizes, warnings)
 
 
 def _copy_out(artefact: Path, out: Path, board: str) -> Path:

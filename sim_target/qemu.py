@@ -27,6 +27,7 @@ import ctypes
 import hashlib
 import mmap
 import os
+import re
 import select
 import shutil
 import signal
@@ -45,7 +46,7 @@ import numpy as np
 from pmsm_hil.protocol.errors import LinkError
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.links.stats import LinkStats
-from pmsm_hil.sim_target.elf import ElfError, elf_symbols
+from pmsm_hil.sim_target.elf import ElfError, elf_function_at, elf_symbols
 from pmsm_hil.sim_target.firmware import FirmwareError
 from pmsm_hil.sim_target.fw_build import FIRMWARE_DIR, cache_dir
 
@@ -83,6 +84,47 @@ MBOX_H2T_PATH, MBOX_T2H_PATH, MBOX_PATH_SIZE = 0x840, 0x940, 0x100
 #: HIL_BOARD_FAULT_EXIT_BASE; startup.c ends QEMU through semihosting SYS_EXIT_EXTENDED)
 FAULT_EXIT_BASE = 64
 FAULT_NAMES = {3: "HardFault", 4: "MemManage fault", 5: "BusFault", 6: "UsageFault"}
+
+
+#: the fault handler's report line on the semihosting console (startup.c hil_fault_report)
+_FAULT_LINE = re.compile(r"HIL-FAULT exc=(\d+) pc=([0-9a-f]{8}) lr=([0-9a-f]{8}) cfsr=([0-9a-f]{8}) "
+                         r"hfsr=([0-9a-f]{8}) mmfar=([0-9a-f]{8}) bfar=([0-9a-f]{8})")
+#: CFSR bits (Armv7-M: MMFSR 0-7, BFSR 8-15, UFSR 16-31) and HFSR bits, as the Arm reference manual names them
+CFSR_BITS = {0: "IACCVIOL", 1: "DACCVIOL", 3: "MUNSTKERR", 4: "MSTKERR", 5: "MLSPERR", 7: "MMARVALID",
+             8: "IBUSERR", 9: "PRECISERR", 10: "IMPRECISERR", 11: "UNSTKERR", 12: "STKERR", 13: "LSPERR",
+             15: "BFARVALID", 16: "UNDEFINSTR", 17: "INVSTATE", 18: "INVPC", 19: "NOCP", 24: "UNALIGNED",
+             25: "DIVBYZERO"}
+HFSR_BITS = {1: "VECTTBL", 30: "FORCED", 31: "DEBUGEVT"}
+
+
+def _bits(value: int, names: dict[int, str]) -> str:
+    found = [name for bit, name in names.items() if value >> bit & 1]
+    return f" ({' '.join(found)})" if found else ""
+
+
+def describe_fault(report: str, elf: str | Path | None = None) -> str | None:
+    """"HardFault at pc 0x... (function+0xOFF), lr 0x... (function+0xOFF), CFSR 0x... (bits), HFSR 0x... (bits)"
+    from the fault handler's report line in `report` (QEMU's stderr), the functions named from `elf`'s symbols;
+    None when `report` holds no such line."""
+    match = _FAULT_LINE.search(report)
+    if match is None:
+        return None
+    exc, pc, lr, cfsr, hfsr, mmfar, bfar = (int(g, 10 if i == 0 else 16) for i, g in enumerate(match.groups()))
+
+    def where(addr: str, value: int) -> str:
+        name = None
+        if elf is not None:
+            with contextlib.suppress(ElfError, OSError):
+                name = elf_function_at(elf, value)
+        return f"{addr} {value:#010x}" + (f" ({name})" if name else "")
+
+    text = (f"{FAULT_NAMES.get(exc, f'fault exception {exc}')} at {where('pc', pc)}, {where('lr', lr)}, "
+            f"CFSR {cfsr:#010x}{_bits(cfsr, CFSR_BITS)}, HFSR {hfsr:#010x}{_bits(hfsr, HFSR_BITS)}")
+    if cfsr >> 7 & 1:
+        text += f", MMFAR {mmfar:#010x}"
+    if cfsr >> 15 & 1:
+        text += f", BFAR {bfar:#010x}"
+    return text
 
 
 def fault_name(returncode: int) -> str | None:
@@ -238,6 +280,14 @@ class QemuTarget:
         board's unconnected network card)."""
         lines = [line for line in self._stderr_text().splitlines() if "has no peer" not in line]
         return " ".join(" ".join(lines)[-chars:].split())
+
+    def fault_description(self, returncode: int) -> str | None:
+        """What the firmware's fault handler reported ("HardFault at pc 0x... (hil_app_step+0x1c), ..."), or the
+        fault the exit code names when the report line is missing; None when `returncode` is no fault exit."""
+        name = fault_name(returncode)
+        if name is None:
+            return None
+        return describe_fault(self._stderr_text(), self.elf) or name
 
     def _stderr_text(self) -> str:
         with contextlib.suppress(OSError, ValueError):

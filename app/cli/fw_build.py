@@ -1,12 +1,15 @@
 """`hil fw build`: builds the reference firmware or a user's firmware (CMake, docs/firmware_api.md) for the
-host (a SIL library) or the emulated Cortex-M4F board mps2-an386 (an ELF for QEMU); prints the ELF's sizes."""
+host (a SIL library) or the emulated Cortex-M4F board mps2-an386 (an ELF for QEMU); prints the compiler's
+warnings (count and first lines), the ELF's sizes and the firmware's declared parameters."""
 
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
-from pmsm_hil.sim_target.fw_build import ARTEFACT, BOARDS, build_firmware
+from pmsm_hil.sim_target.fw_build import ARTEFACT, BOARDS, SHOWN_WARNINGS, build_firmware
+from pmsm_hil.sim_target.fw_params import firmware_params
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -14,23 +17,38 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p = subparsers.add_parser(
         "build", help="build a firmware for the SIL host library or the QEMU mps2-an386 board",
         description="Build the reference firmware (default) or a firmware source folder (a CMakeLists.txt calling "
-                    "hil_add_firmware(), e.g. examples/my_firmware/) for the host (shared library: hil run "
-                    "--target sil:OUT) or mps2-an386 (Cortex-M4F ELF: hil run --target qemu:OUT); prints the "
-                    "artefact's path and, for the ELF, its text/data/bss sizes.")
+                    "hil_add_firmware(), e.g. examples/my_firmware/ or the C++ examples/my_firmware_cpp/) for the "
+                    "host (shared library: hil run --target sil:OUT) or mps2-an386 (Cortex-M4F ELF: hil run "
+                    "--target qemu:OUT); prints the artefact's path, the compiler's warnings, for the ELF its "
+                    "text/data/bss sizes, and the parameters the firmware declares (hil_app_params.h).")
     p.add_argument("--board", choices=BOARDS, default="host", help="target board (default host)")
     p.add_argument("--src", type=Path, metavar="DIR", help="firmware source folder (default: the reference firmware)")
     p.add_argument("-o", "--out", type=Path, metavar="OUT",
                    help=f"output file or folder (default: {ARTEFACT['host']} / {ARTEFACT['mps2-an386']} in the "
                         "build cache)")
+    p.add_argument("--define", action="append", default=[], metavar="NAME=VALUE",
+                   help="preprocessor macro of the firmware and CMake variable (repeatable), e.g. "
+                        "MY_FW_BANDWIDTH=2000.0f or HIL_FP_CONTRACT=fast")
+    p.add_argument("--verbose", action="store_true", help="show the commands and the whole build output")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Execute `hil fw build`."""
-    result = build_firmware(args.board, args.src, args.out)
+    result = build_firmware(args.board, args.src, args.out, defines=args.define, verbose=args.verbose)
+    if result.warnings:
+        n = len(result.warnings)
+        print(f"{n} compiler warning{'s' if n != 1 else ''}:", file=sys.stderr)
+        for line in result.warnings[:SHOWN_WARNINGS]:
+            print(f"    {line}", file=sys.stderr)
+        if n > SHOWN_WARNINGS:
+            print(f"    ... and {n - SHOWN_WARNINGS} more (--verbose shows them all)", file=sys.stderr)
     print(f"built {result.path} ({result.board}, from {result.src})")
     if result.sizes is not None:
         s = result.sizes
         print(f"   text {s.text:>8} B   data {s.data:>6} B   bss {s.bss:>6} B   "
               f"(flash {s.flash} B, static RAM {s.ram} B incl. the stack)")
+    for p in firmware_params(result.path):
+        print(f"   firmware parameter {p.name} (id {p.id}, {p.unit or 'no unit'}): default {p.default:g}, "
+              f"range [{p.min:g}, {p.max:g}]  -> hil run --param {p.name}=VALUE")
     return 0

@@ -31,6 +31,7 @@ from pmsm_hil.hil.runner.run_options import BY_FIELD, DEFAULTS, RUN_OPTIONS, che
 from pmsm_hil.hil.runner.scenario import load_scenario
 from pmsm_hil.hil.sensors import SensorConfig
 from pmsm_hil.protocol.links.spec import parse_spec
+from pmsm_hil.sim_target.fw_params import default_controller
 
 #: `hil run` exit codes (= metrics `end_code`), printed by --help.
 EXIT_CODES = ("exit codes: 0 completed, 1 internal error, 2 usage/config error, 3 safety stop (watchdog, plant "
@@ -108,10 +109,15 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
     out = pick("out")
     no_log = bool(pick("no_log"))
     controller = str(pick("controller"))
+    # a user firmware (`--target sil:PATH` / `qemu:PATH`, not the reference firmware)
+    # runs as controller `external` unless --controller (or the config file) names one
+    if getattr(args, "controller", None) is None and "controller" not in cfg:
+        controller = default_controller(str(pick("target")), controller)
     if out is None and not no_log:
         out = _fresh_dir(Path("runs") / f"{time.strftime('%Y%m%d-%H%M%S')}-{controller}")
     # every RunConfig attribute with an option of the schema, from it (hil/runner/run_options.py)
     fields: dict[str, Any] = {name: pick(option.key) for name, option in BY_FIELD.items()}
+    fields["controller"] = controller  # a user firmware's default (above)
     fields["faults"] = str(fields["faults"] or "")
     fields["log_trace"] = bool(fields["log_trace"])
     try:

@@ -14,6 +14,10 @@
 
 #include <stdint.h>
 
+#ifdef __cplusplus
+extern "C" { /* a C++ firmware defines these functions with C linkage: the core (C) calls them */
+#endif
+
 #define HIL_APP_MAX_PHASES 6
 #define HIL_APP_MAX_STATES 3
 
@@ -71,5 +75,9 @@ int hil_app_setpoint(uint8_t enable, uint8_t mode, float reference);
 /* One control step while enabled: measurement k -> command k. The core measures its execution
  * (board clock; instruction counts on the emulated MCU) around this call only. */
 void hil_app_step(const hil_app_meas_t *m, hil_app_cmd_t *cmd);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

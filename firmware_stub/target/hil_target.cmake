@@ -7,12 +7,28 @@
 # HIL_BOARD mps2-an386: a Cortex-M4F ELF out/hil_firmware.elf for `hil run --target qemu:PATH` (configure
 # with -DCMAKE_TOOLCHAIN_FILE=${HIL_SDK}/boards/mps2-an386/toolchain.cmake). The core, the generated codec
 # and the board layer are compiled with the project's strict flags; STRICT applies them to SOURCES too.
+#
+# Languages: C sources get -std=c99, C++ sources (.cpp/.cc/.cxx; enable CXX in project()) -std=c++17
+# -fno-exceptions -fno-rtti; both boards build the same sources with the same language flags. The MCU start-up
+# runs the C++ static constructors (__libc_init_array) before main.
+# HIL_FP_CONTRACT (default off): -ffp-contract=off on every source, so the M4F does not fuse a*b+c into one
+# VFMA (x86-64 does not either) and SIL and QEMU runs of one firmware are bit-identical; `--define
+# HIL_FP_CONTRACT=fast` lets the compiler fuse again (a few % fewer instructions, SIL no longer an exact oracle).
+# `hil fw build --define NAME=VALUE` sets NAME both as a CMake variable and as a preprocessor macro of the
+# firmware (HIL_DEFINES). The host library links with --no-undefined: a missing hil_app_* is a build error.
 get_filename_component(HIL_SDK "${CMAKE_CURRENT_LIST_DIR}/.." ABSOLUTE)
 if(NOT HIL_BOARD)
     set(HIL_BOARD host)
 endif()
-set(HIL_STRICT_FLAGS -std=c99 -Wall -Wextra -Werror -Wdouble-promotion -fsingle-precision-constant -O2)
-set(HIL_USER_FLAGS -std=c99 -Wall -Wextra -O2)
+if(NOT HIL_FP_CONTRACT)
+    set(HIL_FP_CONTRACT off)
+endif()
+set(HIL_C_ONLY $<$<COMPILE_LANGUAGE:C>:-std=c99>)
+set(HIL_CXX_ONLY $<$<COMPILE_LANGUAGE:CXX>:-std=c++17> $<$<COMPILE_LANGUAGE:CXX>:-fno-exceptions>
+    $<$<COMPILE_LANGUAGE:CXX>:-fno-rtti>)
+set(HIL_STRICT_FLAGS ${HIL_C_ONLY} ${HIL_CXX_ONLY} -Wall -Wextra -Werror -Wdouble-promotion
+    -fsingle-precision-constant -O2 -ffp-contract=${HIL_FP_CONTRACT})
+set(HIL_USER_FLAGS ${HIL_C_ONLY} ${HIL_CXX_ONLY} -Wall -Wextra -O2 -ffp-contract=${HIL_FP_CONTRACT})
 
 function(hil_add_firmware name)
     cmake_parse_arguments(FW "STRICT" "" "SOURCES;INCLUDES" ${ARGN})
@@ -23,6 +39,7 @@ function(hil_add_firmware name)
         set_target_properties(${name} PROPERTIES OUTPUT_NAME hil_firmware PREFIX "lib" SUFFIX ".so"
                               LIBRARY_OUTPUT_DIRECTORY "${CMAKE_BINARY_DIR}/out")
         target_link_libraries(${name} PRIVATE m)
+        target_link_options(${name} PRIVATE -Wl,--no-undefined)
     elseif(HIL_BOARD STREQUAL "mps2-an386")
         set(board "${HIL_SDK}/boards/mps2-an386")
         list(APPEND core "${HIL_SDK}/target/hil_serial.c" "${board}/startup.c" "${board}/board.c")
@@ -37,6 +54,9 @@ function(hil_add_firmware name)
         message(FATAL_ERROR "HIL_BOARD must be host or mps2-an386, got '${HIL_BOARD}'")
     endif()
     target_include_directories(${name} PRIVATE ${FW_INCLUDES} "${HIL_SDK}/target" "${HIL_SDK}/generated")
+    if(HIL_DEFINES)
+        target_compile_definitions(${name} PRIVATE ${HIL_DEFINES})
+    endif()
     if(FW_STRICT)
         target_compile_options(${name} PRIVATE ${HIL_STRICT_FLAGS})
     else()

@@ -2,6 +2,7 @@
 #include <stddef.h>
 #include <string.h>
 
+#include "hil_app_params.h"
 #include "hil_ids.h"
 #include "hil_protocol.h"
 #include "hil_target_core.h"
@@ -223,6 +224,26 @@ static int ts_fits(const struct hil_protocol_config_param_t *cp)
     return hil_protocol_cmd_a_duration0_is_in_range((uint32_t)(ns + (double)0.5L)) ? 1 : 0;
 }
 
+/* Firmware parameters (hil_app_params.h): weak, so a firmware that declares none links (addresses 0). */
+extern const hil_app_param_t hil_app_params[] __attribute__((weak));
+extern const uint32_t hil_app_params_count __attribute__((weak));
+
+/* 0 for a value outside the [min, max] (or NaN) of a parameter the firmware declared in its table; 1 otherwise
+ * (ids the table does not name go to hil_app_config as they are). */
+static int in_declared_range(const struct hil_protocol_config_param_t *cp)
+{
+    uint32_t i;
+    if (cp->param_id < HIL_APP_PARAM_ID_FIRST || &hil_app_params_count == NULL || hil_app_params == NULL) {
+        return 1;
+    }
+    for (i = 0u; i < hil_app_params_count; ++i) {
+        if (hil_app_params[i].id == cp->param_id) {
+            return cp->value >= hil_app_params[i].min && cp->value <= hil_app_params[i].max;
+        }
+    }
+    return 1;
+}
+
 static void on_config(const uint8_t *data)
 {
     struct hil_protocol_config_param_t cp;
@@ -232,7 +253,7 @@ static void on_config(const uint8_t *data)
     g.counters.config_writes++;
     ack.param_id = cp.param_id;
     ack.value = cp.value; /* echoed bit for bit, NaN included (a float copy, no arithmetic) */
-    if (ts_fits(&cp) && hil_app_config(cp.param_id, cp.value) == HIL_APP_OK) {
+    if (ts_fits(&cp) && in_declared_range(&cp) && hil_app_config(cp.param_id, cp.value) == HIL_APP_OK) {
         ack.status = HIL_FW_STATUS_OK;
         if (cp.param_id == HIL_FW_P_TS) {
             const double ns = (double)cp.value * NS_PER_S;

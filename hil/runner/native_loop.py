@@ -269,8 +269,12 @@ class NativeLoop:
                       f"watchdog: target silent for {silent} periods ({silent * cfg.ts_s * 1e3:.1f} ms); inverter "
                       f"put in the safe state (zero vector, all lower switches on)")
         elif end == lib.NL_END_FAULT:
+            hint = ""
+            if int(res.fault_code) == 6:  # not_implemented: the firmware does not have the controller selected
+                hint = (f": the firmware does not implement controller '{cfg.controller}' (a firmware of your own "
+                        "runs as --controller external)")
             self._end(out, EndCode.SAFETY_STOP, f"target fault code {int(res.fault_code)} (detail "
-                                                f"{int(res.fault_detail)}); inverter put in the safe state")
+                                                f"{int(res.fault_detail)}){hint}; inverter put in the safe state")
         elif end == lib.NL_END_TRIP:
             self._trip(out)
         elif (fmu_failure := load_fmu_failed(self.load_fmu, res, lib)) is not None:

@@ -1,5 +1,6 @@
 """How a run on an emulated MCU (`--target qemu:FW.elf`) ended, told apart: the firmware faulted (its fault
-handler ends QEMU with exit code 64 + the exception number through semihosting, board.h), the firmware hung
+handler reports pc, lr, CFSR and HFSR on the semihosting console and ends QEMU with exit code 64 + the exception
+number, board.h; the reason names the function at the pc), the firmware hung
 (QEMU alive and executing all along, no Command), or QEMU itself died (a signal, another exit code: its stderr
 says why). Each is `EndCode.SAFETY_STOP` (exit 3) with its own reason; a dead QEMU is no longer an internal
 error. A QEMU that idles (the firmware waits for a frame that was lost) keeps the loop's ending."""
@@ -12,7 +13,7 @@ import time
 from pmsm_hil.hil.runner.contract import EndCode
 from pmsm_hil.hil.runner.loop_outcome import LoopOutcome
 from pmsm_hil.hil.runner.sil_watch import describe_exit, ended_silent, ending_place, silent_since
-from pmsm_hil.sim_target.qemu import QemuTarget, fault_name
+from pmsm_hil.sim_target.qemu import QemuTarget
 
 #: a QEMU that used at least this share of one CPU while watched is executing (the firmware computes): a spinning
 #: guest measured 30 % (QEMU -icount on a loaded 2-core machine), one waiting in WFI for a frame ~0
@@ -59,7 +60,7 @@ def judge_qemu(qemu: QemuTarget, out: LoopOutcome, timeout_s: float) -> None:
         rc, busy = _watch(qemu, WATCH_S)
     period, where = silent_since(out), ending_place(out)
     if rc is not None:
-        fault = fault_name(rc)
+        fault = qemu.fault_description(rc)
         if fault is not None:
             reason = f"target {fault} {where}: the firmware's fault handler stopped the MCU"
         else:

@@ -23,6 +23,7 @@ from pmsm_hil.protocol.errors import LinkSpecError
 from pmsm_hil.protocol.ids import CONTROLLER_NAMES, ParamId
 from pmsm_hil.protocol.links.faults import FaultSpec, parse_fault_spec
 from pmsm_hil.sim_target.firmware import CONTROLLERS, controller_phases
+from pmsm_hil.sim_target.fw_params import FirmwareParamError, FirmwareParamId, firmware_params  # issue 27
 
 TARGET_KINDS = ("auto", "inproc", "spawn", "external")
 #: targets that carry a path: a firmware of the HIL target core built for the host (SIL library, or a source
@@ -175,8 +176,7 @@ class RunConfig:
                 parse_fault_spec(self.faults)
             except LinkSpecError as exc:
                 raise ParameterError(f"--fault: {exc}") from None
-        for name in self.controller_params:
-            param_id(name)
+        self.resolved_params()  # issue 27: firmware-declared names and ranges too
         if self.load_fmu is not None:  # load FMU (issue 28 item 4)
             check_load_fmu(self)
 
@@ -217,7 +217,35 @@ class RunConfig:
         """Control period [ns]."""
         return round(self.ts_s * 1e9)
 
-    def target_parameters(self) -> dict[ParamId, float]:
+    # --- issue 27 (helper cxx): firmware-declared parameters (hil_app_params.h, sim_target/fw_params.py)
+    def resolved_params(self) -> dict[ParamId | FirmwareParamId, float]:
+        """The --param values by ConfigParam id: a protocol parameter's name, or one the `sil:PATH` / `qemu:PATH`
+        firmware declares in its table (its range checked); ParameterError naming an unknown one."""
+        protocol = {m.name.lower() for m in ParamId}
+        needed = self.target_path is not None and (  # a folder target is built only when its table is needed
+            any(n.strip().lower() not in protocol for n in self.controller_params)
+            or not Path(self.target_path).expanduser().is_dir())
+        declared = {p.name: p for p in firmware_params(self.target_path or "")} if needed else {}
+        out: dict[ParamId | FirmwareParamId, float] = {}
+        for name, value in self.controller_params.items():
+            fw = declared.get(name.strip().lower())
+            if fw is None:
+                try:
+                    out[param_id(name)] = value
+                except ParameterError as exc:
+                    if not declared:
+                        raise
+                    raise ParameterError(f"{exc}; the firmware declares: {', '.join(declared)}") from None
+                continue
+            try:
+                fw.check(value)
+            except FirmwareParamError as exc:
+                raise ParameterError(str(exc)) from None
+            out[fw.param_id] = value
+        return out
+    # --- end issue 27
+
+    def target_parameters(self) -> dict[ParamId | FirmwareParamId, float]:
         """Parameters written to the target before enabling: its model of the motor, the speed PI
         and limits, then the user's --param values (which may deliberately mismatch the plant)."""
         m, sc = self.motor, self.scenario
@@ -235,6 +263,6 @@ class RunConfig:
             ParamId.T_DEAD: m.t_dead, ParamId.T_MPW: m.t_mpw,
         }
         params.update(self.machine.layout.target_extras(m, rated))
-        for name, value in self.controller_params.items():
-            params[param_id(name)] = value
-        return params
+        out: dict[ParamId | FirmwareParamId, float] = dict(params.items())
+        out.update(self.resolved_params())  # issue 27 (helper cxx)
+        return out

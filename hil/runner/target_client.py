@@ -23,11 +23,21 @@ from pmsm_hil.protocol.messages import (
     Measurement6,
     Setpoint,
 )
+from pmsm_hil.sim_target.fw_params import FirmwareParamId
 
 _F32 = struct.Struct("<f")
 #: node id of the target (`Node` in the DBC)
 TARGET_NODE = 1
 
+
+
+def _param_name(pid: int) -> str:
+    """A parameter's name: a ParamId member's, a firmware-declared one's (sim_target/fw_params.FirmwareParamId
+    carries it), else `param_ID`."""
+    name = getattr(pid, "name", None)
+    if name is None and pid in ParamId._value2member_map_:
+        name = ParamId(pid).name
+    return str(name).lower() if name is not None else f"param_{int(pid)}"
 
 class TargetError(HilError):
     """The target rejected a configuration, reported a fault or did not answer."""
@@ -86,10 +96,12 @@ class TargetClient:
         """Take every frame waiting on the link (non-blocking; an in-process target is pumped first)."""
         self._drain()
 
-    def configure(self, params: Mapping[ParamId, float], timeout_s: float = 10.0,
+    def configure(self, parameters: Mapping[ParamId, float] | Mapping[ParamId | FirmwareParamId, float],
+                  timeout_s: float = 10.0,
                   resend_s: float = 0.25) -> None:
         """Write every parameter until acknowledged (resending every resend_s, so a target that is
         still starting up is caught); raises naming a rejected or unacknowledged parameter."""
+        params: dict[int, float] = dict(parameters.items())  # ParamId or FirmwareParamId keys (named)
         self._acks.clear()
         start = time.perf_counter()
         last_send = -math.inf
@@ -99,7 +111,7 @@ class TargetClient:
             if not pending:
                 break
             if now - start > timeout_s:
-                missing = ", ".join(ParamId(p).name.lower() for p in pending)
+                missing = ", ".join(_param_name(p) for p in pending)
                 raise DutViolationError(f"target did not acknowledge parameter(s) {missing} within {timeout_s} s "
                                         "(is a target running on this link?)")
             if now - last_send >= resend_s:
@@ -109,7 +121,7 @@ class TargetClient:
             self._drain()
         for pid in params:
             ack = self._acks[int(pid)]
-            name = ParamId(pid).name.lower()
+            name = _param_name(pid)
             if ack.status != int(Status.OK):
                 raise TargetError(f"target rejected parameter '{name}' = {params[pid]}")
             sent = _F32.unpack(_F32.pack(float(params[pid])))[0]

@@ -6,6 +6,7 @@ the last period; a firmware idle after a lost frame keeps its contract violation
 from __future__ import annotations
 
 import os
+import re
 import signal
 from pathlib import Path
 
@@ -38,7 +39,10 @@ def _run(target: str, out: Path, **kw: object) -> dict[str, object]:
 def test_a_fault_is_named(elf: dict[str, Path], tmp_path: Path) -> None:
     m = _run(f"qemu:{elf['crash']}", tmp_path, controller="external")
     assert m["end_code"] == 3 and m["end_period"] == 500
-    assert str(m["end_reason"]).startswith("target HardFault at period 500: the firmware's fault handler")
+    reason = str(m["end_reason"])
+    assert re.match(r"target HardFault at pc 0x[0-9a-f]{8} \(hil_app_step\+0x[0-9a-f]+\), lr 0x[0-9a-f]{8} "
+                    r"\(\w+\+0x[0-9a-f]+\), CFSR 0x00010000 \(UNDEFINSTR\), HFSR 0x40000000 \(FORCED\) "
+                    r"at period 500: the firmware's fault handler", reason), reason
 
 
 def test_a_hang_is_named(elf: dict[str, Path], tmp_path: Path) -> None:
@@ -76,3 +80,26 @@ def test_an_idle_firmware_keeps_its_violation(reference_elf: Path, tmp_path: Pat
 def test_fault_exit_codes() -> None:
     assert fault_name(64 + 3) == "HardFault" and fault_name(64 + 6) == "UsageFault"
     assert fault_name(1) is None and fault_name(0) is None and fault_name(-9) is None
+
+
+def test_fault_report_is_decoded() -> None:
+    from pmsm_hil.sim_target.qemu import describe_fault
+
+    line = ("qemu: warning: x\nHIL-FAULT exc=5 pc=0000021c lr=00000a41 cfsr=00008200 hfsr=40000000 mmfar=e000edf8 "
+            "bfar=20040000\n")
+    assert describe_fault(line) == ("BusFault at pc 0x0000021c, lr 0x00000a41, CFSR 0x00008200 (PRECISERR BFARVALID), "
+                                    "HFSR 0x40000000 (FORCED), BFAR 0x20040000")
+    assert describe_fault("no report") is None
+
+
+def test_cli_fault_exit_3_names_the_pc(elf: dict[str, Path], tmp_path: Path,
+                                       capsys: pytest.CaptureFixture[str]) -> None:
+    """`hil run --target qemu:USER.elf` runs controller external without being told, and a fault at step 500
+    ends with exit 3 and the faulting pc named."""
+    from pmsm_hil.app.cli.main import main
+
+    rc = main(["run", "--target", f"qemu:{elf['crash']}", "--duration", "0.05", "--settle", "0.02",
+               "--out", str(tmp_path / "run")])
+    out = capsys.readouterr()
+    assert rc == 3, out.err
+    assert re.search(r"target HardFault at pc 0x[0-9a-f]{8} \(hil_app_step\+0x[0-9a-f]+\)", out.out + out.err)

@@ -1,0 +1,59 @@
+/*
+ * Firmware folders that a build must report well (tests/firmware_board/test_fw_build_ux.py): FW_NO_STEP leaves
+ * out hil_app_step (the build fails naming it, on both boards), FW_WARNS compiles with a warning (shown, the
+ * build succeeds), FW_SYNTAX has a syntax error (the first error with its caret context), FW_BAD_PARAMS declares
+ * a parameter with an id outside 128..254 (the host refuses the table, naming the entry).
+ */
+#include <stdint.h>
+
+#include "hil_app.h"
+#include "hil_app_params.h"
+
+#if defined(FW_BAD_PARAMS)
+HIL_APP_PARAMS({"gain", "", 128u, {0u, 0u, 0u}, 1.0f, 0.0f, 2.0f}, {"offset", "A", 12u, {0u, 0u, 0u}, 0.0f, -1.0f, 1.0f});
+#endif
+
+void hil_app_init(void)
+{
+}
+
+int hil_app_config(uint8_t param_id, float value)
+{
+    (void)param_id;
+    (void)value;
+    return HIL_APP_OK;
+}
+
+int hil_app_select(uint8_t controller_id)
+{
+    (void)controller_id;
+    return HIL_APP_OK;
+}
+
+void hil_app_reset(void)
+{
+}
+
+int hil_app_setpoint(uint8_t enable, uint8_t mode, float reference)
+{
+    (void)enable;
+    (void)mode;
+    (void)reference;
+    return HIL_APP_OK;
+}
+
+#if !defined(FW_NO_STEP)
+void hil_app_step(const hil_app_meas_t *m, hil_app_cmd_t *cmd)
+{
+#if defined(FW_WARNS)
+    int unused_in_step;
+#endif
+#if defined(FW_SYNTAX)
+    cmd->n_states = 1u
+#endif
+    (void)m;
+    cmd->n_states = 1u;
+    cmd->states[0] = 0u;
+    cmd->durations_ns[0] = 100000u;
+}
+#endif

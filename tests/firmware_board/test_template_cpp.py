@@ -1,0 +1,136 @@
+"""The C++ template firmware (examples/my_firmware_cpp: classes, global objects built by static constructors, its
+own parameter `bandwidth`) builds for both boards, holds the rated point as controller `external` (the default
+for a user firmware), and its SIL and QEMU runs are bit-identical: -ffp-contract=off keeps the M4F from fusing
+multiply-adds (issue 27)."""
+
+from __future__ import annotations
+
+import struct
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from pmsm_hil.hil.errors import ParameterError
+from pmsm_hil.hil.runlog.reader import read_periods
+from pmsm_hil.hil.runner.run import run_closed_loop
+from pmsm_hil.protocol.codec import FrameCodec
+from pmsm_hil.protocol.frame import Frame
+from pmsm_hil.protocol.messages import ConfigAck, ConfigParam
+from pmsm_hil.sim_target.fw_build import build_firmware
+from pmsm_hil.sim_target.sil import SilFirmware
+
+from tests.firmware_board._runs import metrics, rated
+from tests.firmware_board.conftest import ROOT, need
+
+CPP = ROOT / "examples" / "my_firmware_cpp"
+#: metrics of the machinery, not of the firmware's control: wall time, link statistics, execution time
+TIMING = {"wall_time_s", "loop_rate_hz", "exec_time_us", "link", "safe_stop_wait_ms", "command_wait_max_us",
+          "total_wall_time_s", "loop_rate_total_hz", "link_spec", "target_link", "link_losses"}
+#: record columns of the machinery (the target's own execution time)
+TIMING_COLUMNS = {"exec_time_ns", "exec_split_ns"}
+
+
+@pytest.fixture(scope="module")
+def cpp_sil() -> Path:
+    need("host")
+    build = build_firmware("host", CPP)
+    assert build.warnings == ()  # C flags stay off C++ sources (-std=c99 on a C++ file is a warning)
+    return build.path
+
+
+@pytest.fixture(scope="module")
+def cpp_elf() -> Path:
+    need("mps2-an386")
+    build = build_firmware("mps2-an386", CPP)
+    assert build.warnings == ()
+    return build.path
+
+
+def _check(m: dict[str, Any]) -> None:
+    assert m["dut_violations"] == 0
+    assert m["speed_mean_rpm"] == pytest.approx(1500.0, rel=0.005)
+    assert m["torque_mean_nm"] == pytest.approx(7.0, rel=0.01)
+    assert m["torque_ripple_rms_nm"] < 0.2
+
+
+def test_cpp_template_sil_and_qemu_are_bit_identical(cpp_sil: Path, cpp_elf: Path, tmp_path: Path) -> None:
+    runs = {}
+    for kind, path in (("sil", cpp_sil), ("qemu", cpp_elf)):
+        out = tmp_path / kind
+        runs[kind] = (metrics(rated(f"{kind}:{path}", controller="external", settle_s=0.03, duration_s=0.07,
+                                    out_dir=out)), read_periods(out / "run.mcap"))
+    (m_sil, rec_sil), (m_qemu, rec_qemu) = runs["sil"], runs["qemu"]
+    _check(m_sil)
+    _check(m_qemu)
+    assert m_qemu["exec_instructions"]["median"] > 100
+    shared = sorted(set(m_sil) & set(m_qemu) - TIMING)
+    assert len(shared) > 30
+    assert {k: m_sil[k] for k in shared} == {k: m_qemu[k] for k in shared}
+    assert len(rec_sil) == len(rec_qemu) > 900
+    for name in rec_sil.dtype.names:
+        if name not in TIMING_COLUMNS:
+            assert np.array_equal(rec_sil[name], rec_qemu[name], equal_nan=True), name
+
+
+def test_firmware_parameter_is_applied_and_checked(cpp_sil: Path) -> None:
+    slow = metrics(rated(f"sil:{cpp_sil}", controller="external", controller_params={"bandwidth": 300.0}))
+    fast = metrics(rated(f"sil:{cpp_sil}", controller="external", controller_params={"bandwidth": 3000.0}))
+    _check(fast)
+    assert slow["torque_ripple_rms_nm"] != fast["torque_ripple_rms_nm"]  # the firmware got the values
+    with pytest.raises(ParameterError, match=r"--param bandwidth=50: outside the firmware's range \[100, 20000\]"):
+        rated(f"sil:{cpp_sil}", controller="external", controller_params={"bandwidth": 50.0})
+    with pytest.raises(ParameterError, match=r"unknown controller parameter 'bandwith'.*declares: bandwidth"):
+        rated(f"sil:{cpp_sil}", controller="external", controller_params={"bandwith": 500.0})
+
+
+def test_core_rejects_a_declared_parameter_out_of_range(cpp_sil: Path) -> None:
+    fw = SilFirmware(cpp_sil)
+    codec = FrameCodec("canfd")
+    dec = codec.decoder(ordered=False)
+
+    def ack(value: float) -> object:
+        [frame] = codec.encode(ConfigParam(param_id=128, value=value))  # type: ignore[arg-type]
+        [reply] = fw.feed(frame)
+        return dec.feed(reply)
+
+    f32 = struct.unpack("<f", struct.pack("<f", 2000.0))[0]
+    assert ack(2000.0) == ConfigAck(param_id=128, value=f32, status=0)
+    assert ack(50.0).status == 5  # type: ignore[attr-defined]
+    [nan_ack] = fw.feed(Frame(0x210, bytes([128]) + struct.pack("<I", 0x7FC00000), False))  # a NaN on the wire
+    assert dec.feed(nan_ack).status == 5  # type: ignore[union-attr]
+
+
+def test_sweeps_and_the_pytest_plugin_take_firmware_parameters(cpp_sil: Path) -> None:
+    from pmsm_hil.app.sweep.configure import base_args, build_config
+
+    from pmsm_hil.testing.runs import HilSettings
+    from pmsm_hil.testing.runs import build_config as plugin_config
+
+    sweep = build_config(base_args(["--target", f"sil:{cpp_sil}"]), (("param.bandwidth", "2500"),))
+    plugin = plugin_config(HilSettings(target=f"sil:{cpp_sil}"), None, {"params": {"bandwidth": 2500.0}})
+    for cfg in (sweep, plugin):
+        assert cfg.controller == "external"  # a user firmware's default
+        sent = {int(k): (getattr(k, "name", ""), v) for k, v in cfg.target_parameters().items()}
+        assert sent[128] == ("bandwidth", 2500.0)
+    with pytest.raises(ParameterError, match=r"param\.bandwidth: .*outside the firmware's range"):
+        build_config(base_args(["--target", f"sil:{cpp_sil}"]), (("param.bandwidth", "1e6"),))
+
+
+def test_a_controller_the_firmware_lacks_names_the_option(cpp_sil: Path) -> None:
+    res = run_closed_loop(rated(f"sil:{cpp_sil}", controller="foc", settle_s=0.01, duration_s=0.01))
+    assert res.metrics["end_code"] == 3
+    assert "does not implement controller 'foc' (a firmware of your own runs as --controller external)" in \
+        res.metrics["end_reason"]
+
+
+def test_default_controller_of_a_target(cpp_sil: Path, reference_sil: Path) -> None:
+    from pmsm_hil.sim_target.fw_build import REFERENCE_SRC
+    from pmsm_hil.sim_target.fw_params import default_controller
+
+    assert default_controller(f"sil:{cpp_sil}", "mpcc") == "external"
+    assert default_controller(f"sil:{CPP}", "mpcc") == "external"  # a source folder, built by the run
+    assert default_controller(f"sil:{reference_sil}", "mpcc") == "mpcc"
+    assert default_controller(f"sil:{REFERENCE_SRC}", "mpcc") == "mpcc"
+    assert default_controller("sil:/no/such.so", "mpcc") == "mpcc"  # the target's own check names it
+    assert default_controller("auto", "mpcc") == "mpcc"
