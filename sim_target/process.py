@@ -104,6 +104,7 @@ def serve(link_spec: str, controller: str | None = None, *, role: str = "target"
             on_ready()
         if not orphaned():
             target.run_forever(should_stop)
-        return Served(target, {**link.stats.as_dict(), **link_socket_drops(link), **link_kernel_drops(link)}, reason or "parent exited")
+        stats = {**link.stats.as_dict(), **link_socket_drops(link), **link_kernel_drops(link)}
+        return Served(target, stats, reason or "parent exited")
     finally:
         link.close()
