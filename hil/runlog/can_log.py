@@ -10,7 +10,6 @@ from typing import Any, Final
 
 import can
 import numpy as np
-
 from pmsm_hil.hil.errors import InputFileError
 from pmsm_hil.hil.runlog.reader import read_frames
 

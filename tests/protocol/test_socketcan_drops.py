@@ -8,7 +8,6 @@ import socket
 from pathlib import Path
 
 import pytest
-
 from pmsm_hil.protocol.errors import LinkError
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.links import open_link

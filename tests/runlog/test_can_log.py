@@ -8,7 +8,6 @@ from pathlib import Path
 import can
 import numpy as np
 import pytest
-
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.hil.runlog import read_frames
 
