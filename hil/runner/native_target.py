@@ -23,7 +23,7 @@ from pmsm_hil.hil.runner.native_link import native_lib
 from pmsm_hil.hil.runner.native_link_kinds import NATIVE_WIRES
 from pmsm_hil.hil.runner.native_wire import WireHandle
 from pmsm_hil.protocol.links import open_link, parse_spec
-from pmsm_hil.protocol.links.socketcan_bus import link_kernel_drops
+from pmsm_hil.protocol.links.kernel_drops import link_kernel_drops
 from pmsm_hil.protocol.links.udp_bus import link_socket_drops
 from pmsm_hil.sim_target.process import die_with_parent
 from pmsm_hil.sim_target.sil import SilFirmware

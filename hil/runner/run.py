@@ -36,7 +36,7 @@ from pmsm_hil.hil.runner.stop_request import deferred_interrupts
 from pmsm_hil.hil.runner.target_client import DutViolationError, TargetError
 from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target
 from pmsm_hil.protocol.errors import LinkError
-from pmsm_hil.protocol.links.socketcan_bus import link_kernel_drops
+from pmsm_hil.protocol.links.kernel_drops import link_kernel_drops
 from pmsm_hil.protocol.links.udp_bus import link_socket_drops
 
 

@@ -195,9 +195,9 @@ register_link_kind(LinkKind("can", "can[,opt=val...] python-can configuration fi
 
 def _open_socketcan(ls: LinkSpec, role: Role) -> tuple[can.BusABC, str]:
     """python-can's socketcan bus with its kernel receive drops counted (socketcan_bus.py)."""
-    from pmsm_hil.protocol.links.socketcan_bus import SocketcanLinkBus
-
-    if SocketcanLinkBus is None:
+    try:
+        from pmsm_hil.protocol.links.socketcan_bus import SocketcanLinkBus
+    except ImportError:  # python-can's socketcan interface is Linux only
         return _python_can_bus(ls, role)
     opts = dict(ls.options)
     return SocketcanLinkBus(channel=ls.channel or "", **opts), f"socketcan:{ls.channel or ''}"

@@ -20,12 +20,7 @@ import struct
 from typing import Any
 
 import can
-
-try:  # Linux only
-    from can.interfaces.socketcan.socketcan import SocketcanBus, capture_message
-except ImportError:  # pragma: no cover - not Linux
-    SocketcanBus = None
-    capture_message = None
+from can.interfaces.socketcan.socketcan import SocketcanBus, capture_message
 
 #: <asm-generic/socket.h> values (Python's socket module does not name them)
 SO_RCVBUFFORCE = 33
@@ -88,61 +83,47 @@ class _DropCountingSocket:
         return data, kept, msg_flags, addr
 
 
-if SocketcanBus is not None:
+class SocketcanLinkBus(SocketcanBus):
+    """python-can's SocketCAN bus with the receive buffer sized for `rx_frames` frames and the kernel's
+    receive drops counted (`kernel_dropped`); `rcvbuf_bytes`: the buffer the kernel granted [bytes]."""
 
-    class SocketcanLinkBus(SocketcanBus):  # type: ignore[misc,valid-type]
-        """python-can's SocketCAN bus with the receive buffer sized for `rx_frames` frames and the kernel's
-        receive drops counted (`kernel_dropped`); `rcvbuf_bytes`: the buffer the kernel granted [bytes]."""
+    def __init__(self, channel: str = "", *, rx_frames: int = DEFAULT_RX_FRAMES, **kwargs: Any) -> None:
+        super().__init__(channel=channel, **kwargs)
+        try:
+            frames = int(rx_frames)
+        except (TypeError, ValueError) as exc:
+            self.socket.close()
+            raise ValueError(f"link option rx_frames must be an integer, got {rx_frames!r}") from exc
+        if frames < 1:
+            self.socket.close()
+            raise ValueError(f"link option rx_frames must be at least 1, got {frames}")
+        self.rcvbuf_bytes = size_receive_buffer(self.socket, frames)
+        self.socket.setsockopt(socket.SOL_SOCKET, SO_RXQ_OVFL, 1)
+        self._counting = _DropCountingSocket(self.socket)
 
-        def __init__(self, channel: str = "", *, rx_frames: int = DEFAULT_RX_FRAMES, **kwargs: Any) -> None:
-            super().__init__(channel=channel, **kwargs)
-            try:
-                frames = int(rx_frames)
-            except (TypeError, ValueError) as exc:
-                self.socket.close()
-                raise ValueError(f"link option rx_frames must be an integer, got {rx_frames!r}") from exc
-            if frames < 1:
-                self.socket.close()
-                raise ValueError(f"link option rx_frames must be at least 1, got {frames}")
-            self.rcvbuf_bytes = size_receive_buffer(self.socket, frames)
-            self.socket.setsockopt(socket.SOL_SOCKET, SO_RXQ_OVFL, 1)
-            self._counting = _DropCountingSocket(self.socket)
+    def note_kernel_dropped(self, count: int) -> None:
+        """A count of this socket's kernel drops read elsewhere (the C loop on the same socket)."""
+        self._counting.dropped = max(self._counting.dropped, int(count))
 
-        def note_kernel_dropped(self, count: int) -> None:
-            """A count of this socket's kernel drops read elsewhere (the C loop on the same socket)."""
-            self._counting.dropped = max(self._counting.dropped, int(count))
+    def kernel_dropped(self) -> int:
+        """Frames the kernel dropped for this socket so far (its receive buffer full)."""
+        seen = self._counting.dropped
+        if self.socket.fileno() < 0:
+            return seen
+        later = meminfo_drops(self.socket)
+        return seen if later is None else max(seen, later)
 
-        def kernel_dropped(self) -> int:
-            """Frames the kernel dropped for this socket so far (its receive buffer full)."""
-            seen = self._counting.dropped
-            if self.socket.fileno() < 0:
-                return seen
-            later = meminfo_drops(self.socket)
-            return seen if later is None else max(seen, later)
-
-        def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
-            try:
-                ready, _, _ = select.select([self.socket], [], [], timeout)
-            except OSError as error:
-                raise can.CanOperationError(f"Failed to receive: {error.strerror}", error.errno) from error
-            if not ready:
-                return None, self._is_filtered
-            msg = capture_message(self._counting, self.channel == "")  # type: ignore[arg-type]
-            if msg is not None and not msg.channel and self.channel:
-                msg.channel = self.channel
-            return msg, self._is_filtered
-
-else:  # pragma: no cover - not Linux
-    SocketcanLinkBus = None
+    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        try:
+            ready, _, _ = select.select([self.socket], [], [], timeout)
+        except OSError as error:
+            raise can.CanOperationError(f"Failed to receive: {error.strerror}", error.errno) from error
+        if not ready:
+            return None, self._is_filtered
+        msg = capture_message(self._counting, self.channel == "")  # type: ignore[arg-type]
+        if msg is not None and not msg.channel and self.channel:
+            msg.channel = self.channel
+        return msg, self._is_filtered
 
 
-def link_kernel_drops(link: Any) -> dict[str, int]:
-    """{"kernel_dropped": N} for a link over SocketCAN (frames its host kernel dropped, receive buffer full),
-    else {} (LinkStats extras, metrics.json `link.kernel_dropped`)."""
-    bus = getattr(link, "bus", None)
-    if SocketcanLinkBus is None or not isinstance(bus, SocketcanLinkBus):
-        return {}
-    return {"kernel_dropped": bus.kernel_dropped()}
-
-
-__all__ = ["DEFAULT_RX_FRAMES", "SocketcanLinkBus", "link_kernel_drops", "meminfo_drops", "size_receive_buffer"]
+__all__ = ["DEFAULT_RX_FRAMES", "SocketcanLinkBus", "meminfo_drops", "size_receive_buffer"]

@@ -11,10 +11,10 @@ import pytest
 from pmsm_hil.protocol.errors import LinkError
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.links import open_link
+from pmsm_hil.protocol.links.kernel_drops import link_kernel_drops
 from pmsm_hil.protocol.links.socketcan_bus import (
     RCVBUF_BYTES_PER_FRAME,
     SocketcanLinkBus,
-    link_kernel_drops,
     meminfo_drops,
     size_receive_buffer,
 )
