@@ -42,8 +42,15 @@ def read_commands(path: Path, ts_ns: int, *, layout: MachineLayout = THREE_PHASE
 
     Forms: ``sa,sb,sc`` (one state for the whole period) or ``s0,t0,s1,t1,s2,t2`` (state codes and
     durations [s] summing to Ts; unused slots empty). Six phases: ``sa1,sb1,sc1,sa2,sb2,sc2`` or the
-    sequence form with codes 0..63 (`layout`: the machine's legs and largest state code).
+    sequence form with codes 0..63 (`layout`: the machine's legs and largest state code). A CAN log
+    (`replay_canlog.is_can_log`: .log, .asc, .blf, python-can .csv) gives the Commands it captured.
     """
+    from pmsm_hil.hil.replay_canlog import is_can_log, read_log_commands
+
+    if is_can_log(path):
+        for states, durations in read_log_commands(path, ts_ns, layout=layout):
+            yield ReplayCommand(states, durations)
+        return
     legs = layout.replay_legs
     max_code = layout.max_state_code
     try:

@@ -18,6 +18,7 @@ from types import FrameType
 
 from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.links import Link, link_profile, open_link
+from pmsm_hil.protocol.links.kernel_drops import link_kernel_drops
 from pmsm_hil.protocol.links.udp_bus import link_socket_drops
 from pmsm_hil.sim_target.firmware import controller_by_name
 from pmsm_hil.sim_target.target import SimTarget
@@ -103,6 +104,7 @@ def serve(link_spec: str, controller: str | None = None, *, role: str = "target"
             on_ready()
         if not orphaned():
             target.run_forever(should_stop)
-        return Served(target, {**link.stats.as_dict(), **link_socket_drops(link)}, reason or "parent exited")
+        stats = {**link.stats.as_dict(), **link_socket_drops(link), **link_kernel_drops(link)}
+        return Served(target, stats, reason or "parent exited")
     finally:
         link.close()

@@ -26,9 +26,10 @@ _GROUPS = {
     "bench": ("bench_plant", "bench_loop", "bench_realtime", "bench_controllers", "bench_link", "bench_sweep",
               "bench_memory"),
     "fw": ("fw_build",),
+    "mcap": ("mcap_export",),
 }
 _GROUP_HELP = {"plant": "offline plant tools", "bench": "benchmarks that print figures",
-               "fw": "build firmware for the SIL and QEMU targets"}
+               "fw": "build firmware for the SIL and QEMU targets", "mcap": "run log (MCAP) tools"}
 
 
 def _load(name: str) -> ModuleType | None:

@@ -209,7 +209,10 @@ METRICS: Final[tuple[Metric, ...]] = (
     _m("missed_periods", "missed periods", "", "count of `missed` flags"),
     _m("link", "link", "", "`{frames_tx, frames_rx, crc_errors, lost, late}` plus the link's own counters "
        "(the native loop over a link: also `blocked`, `spin_backoffs`, `spin_early_ends`; UDP: `socket_drops`, "
-       "datagrams the kernel dropped for the host's socket, its receive buffer full)"),
+       "datagrams the kernel dropped for the host's socket, its receive buffer full; SocketCAN: `kernel_dropped`)"),
+    _m("link", "kernel dropped", "", "SocketCAN: frames the host's kernel dropped for the link's socket, its "
+       "receive buffer full (`SO_RXQ_OVFL`, read on every receive; the buffer holds `rx_frames` frames, "
+       "docs/protocol.md); absent on other links", "d", sub="kernel_dropped"),
     # computed by `hil compare` per row
     _m("exec_time_us_median", "exec median", "µs", "`exec_time_us.median` of the run", ".3f", COMPARE_ROW,
        source=COMPARE),

@@ -144,6 +144,7 @@ typedef struct {
     int32_t fd_frames;
     nl_spin_t spin;
     nl_link_stats_t stats;
+    uint32_t kernel_dropped;
 } nl_socketcan_t;
 void nl_socketcan_link(nl_link_t *l, nl_socketcan_t *s);
 

@@ -82,13 +82,48 @@ static int message(nl_socketcan_t *s, const struct canfd_frame *fr, size_t n, hi
     return 1;
 }
 
+#ifndef SO_RXQ_OVFL
+#define SO_RXQ_OVFL 40
+#endif
+
+/* The kernel's drop count in a received message's ancillary data (SO_RXQ_OVFL), when there. */
+static void note_drops(nl_socketcan_t *s, struct msghdr *mh)
+{
+    struct cmsghdr *c;
+    for (c = CMSG_FIRSTHDR(mh); c != NULL; c = CMSG_NXTHDR(mh, c)) {
+        if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SO_RXQ_OVFL && c->cmsg_len >= CMSG_LEN(sizeof(uint32_t))) {
+            uint32_t dropped;
+            memcpy(&dropped, CMSG_DATA(c), sizeof dropped);
+            if (dropped > s->kernel_dropped) {
+                s->kernel_dropped = dropped;
+            }
+        }
+    }
+}
+
 int nl_socketcan_recv(nl_socketcan_t *s, hil_core_frame_t *f, int64_t deadline_ns)
 {
     int64_t spin_end = -1;
     for (;;) {
         struct canfd_frame fr;
-        const ssize_t n = recv(s->fd, &fr, sizeof fr, MSG_DONTWAIT | MSG_TRUNC);
+        /* room for the drop count and a timestamp (python-can turns SO_TIMESTAMPNS on for its socket) */
+        union {
+            char buf[CMSG_SPACE(sizeof(uint32_t)) + CMSG_SPACE(2 * sizeof(int64_t))];
+            struct cmsghdr align;
+        } control;
+        struct iovec iov;
+        struct msghdr mh;
+        ssize_t n;
+        iov.iov_base = &fr;
+        iov.iov_len = sizeof fr;
+        memset(&mh, 0, sizeof mh);
+        mh.msg_iov = &iov;
+        mh.msg_iovlen = 1;
+        mh.msg_control = control.buf;
+        mh.msg_controllen = sizeof control.buf;
+        n = recvmsg(s->fd, &mh, MSG_DONTWAIT | MSG_TRUNC);
         if (n > 0) {
+            note_drops(s, &mh);
             if (message(s, &fr, (size_t)n, f)) {
                 return 1;
             }

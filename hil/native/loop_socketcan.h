@@ -11,7 +11,9 @@
  * The socket is the caller's (bound, its options set; python-can's for the host): any descriptor carrying
  * the same structs one per message works (the tests use a SOCK_SEQPACKET socketpair). Sending never waits
  * (a full transmit queue is a send error, as python-can's send without a timeout); waiting for a frame
- * busy-polls for at most spin_ns, then blocks in ppoll until the deadline. No allocation.
+ * busy-polls for at most spin_ns, then blocks in ppoll until the deadline. Every receive reads the kernel's drop
+ * count of the socket (SO_RXQ_OVFL ancillary data, when the socket's owner turned it on) into kernel_dropped.
+ * No allocation.
  */
 #ifndef HIL_NATIVE_LOOP_SOCKETCAN_H
 #define HIL_NATIVE_LOOP_SOCKETCAN_H
@@ -25,6 +27,7 @@ typedef struct {
     int32_t fd_frames;         /* 1: CAN FD frames may be sent (CAN_RAW_FD_FRAMES is on) */
     nl_spin_t spin;            /* busy-poll, then block (adaptive, nl_link.h) */
     nl_link_stats_t stats;
+    uint32_t kernel_dropped;   /* the kernel's count of frames dropped for the socket (SO_RXQ_OVFL), last seen */
 } nl_socketcan_t;
 
 /* Send one frame; 0 ok, -1 counted error (an invalid length, an FD frame on a classic socket, a refused send). */

@@ -24,10 +24,22 @@ def target_link_stats(conn: TargetConnection) -> dict[str, int] | None:
 
 def _lost(stats: dict[str, Any] | None) -> int | None:
     """Frames lost on the way to the end whose counters these are: gaps in the peer's link sequence numbers plus
-    datagrams its socket buffer dropped (None: not known)."""
+    datagrams its socket buffer dropped plus frames its SocketCAN kernel dropped (None: not known)."""
     if stats is None:
         return None
-    return int(stats.get("dropped", 0)) + int(stats.get("socket_drops") or 0)
+    return int(stats.get("dropped", 0)) + int(stats.get("socket_drops") or 0) + int(stats.get("kernel_dropped") or 0)
+
+
+def _kernel_drops(metrics: dict[str, Any], target_link: dict[str, int] | None) -> str:
+    """'; the host kernel dropped N frame(s) received on LINK ...' when a SocketCAN receive buffer overflowed
+    (the host's end, the target's end), else ''."""
+    host = int((metrics.get("link") or {}).get("kernel_dropped") or 0)
+    target = int((target_link or {}).get("kernel_dropped") or 0)
+    if not (host or target):
+        return ""
+    ends = " and ".join(f"{n} frame(s) received by the {end}" for n, end in ((host, "host"), (target, "target")) if n)
+    return (f"; the kernel dropped {ends} on link {metrics.get('link_spec') or '?'} (SocketCAN receive buffer "
+            f"full: link.kernel_dropped)")
 
 
 def attribute(metrics: dict[str, Any], target_link: dict[str, int] | None) -> None:
@@ -43,7 +55,8 @@ def attribute(metrics: dict[str, Any], target_link: dict[str, int] | None) -> No
         return
     parts = [f"{n} frame(s) to the {where}" for n, where in ((to_target, "target"), (to_host, "host")) if n]
     metrics["end_reason"] = (f"{metrics['end_reason']}; the link lost {' and '.join(parts)} (link sequence gaps, "
-                             f"socket buffer drops): the loss is the link's, not necessarily the target's")
+                             f"socket buffer drops): the loss is the link's, not necessarily the target's"
+                             + _kernel_drops(metrics, target_link))
 
 
 __all__ = ["attribute", "target_link_stats"]

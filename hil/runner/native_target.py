@@ -23,6 +23,7 @@ from pmsm_hil.hil.runner.native_link import native_lib
 from pmsm_hil.hil.runner.native_link_kinds import NATIVE_WIRES
 from pmsm_hil.hil.runner.native_wire import WireHandle
 from pmsm_hil.protocol.links import open_link, parse_spec
+from pmsm_hil.protocol.links.kernel_drops import link_kernel_drops
 from pmsm_hil.protocol.links.udp_bus import link_socket_drops
 from pmsm_hil.sim_target.process import die_with_parent
 from pmsm_hil.sim_target.sil import SilFirmware
@@ -86,6 +87,8 @@ def serve_native(link_spec: str, *, role: str = "target", max_idle_s: float | No
             stats[name] += value
         stats.update(h.waits())
         stats.update(link_socket_drops(link))
+        h.hand_back()
+        stats.update(link_kernel_drops(link))
         reason = _reasons(lib).get(end, f"end code {end}")
         if end == lib.NT_END_IDLE and max_idle_s is not None:
             reason = f"idle {max_idle_s:g} s"

@@ -36,6 +36,7 @@ from pmsm_hil.hil.runner.stop_request import deferred_interrupts
 from pmsm_hil.hil.runner.target_client import DutViolationError, TargetError
 from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target
 from pmsm_hil.protocol.errors import LinkError
+from pmsm_hil.protocol.links.kernel_drops import link_kernel_drops
 from pmsm_hil.protocol.links.udp_bus import link_socket_drops
 
 
@@ -179,6 +180,7 @@ def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection, sink: Ru
     metrics = _window_metrics(cfg, out, sink, link_stats)
     metrics["link"].update({k: v for k, v in stats.items() if k not in metrics["link"]})
     metrics["link"].update(link_socket_drops(conn.host_link))
+    metrics["link"].update(link_kernel_drops(conn.host_link))
     metrics["end_reason"] = out.end_reason
     metrics["end_code"] = out.end_code
     metrics["end_period"] = out.completed_periods - 1

@@ -192,5 +192,19 @@ register_link_kind(LinkKind("hilserial", "hilserial:... the serial plugin throug
 register_link_kind(LinkKind("can", "can[,opt=val...] python-can configuration file and environment",
                             _open_can_config))
 
+
+def _open_socketcan(ls: LinkSpec, role: Role) -> tuple[can.BusABC, str]:
+    """python-can's socketcan bus with its kernel receive drops counted (socketcan_bus.py)."""
+    try:
+        from pmsm_hil.protocol.links.socketcan_bus import SocketcanLinkBus
+    except ImportError:  # python-can's socketcan interface is Linux only
+        return _python_can_bus(ls, role)
+    opts = dict(ls.options)
+    return SocketcanLinkBus(channel=ls.channel or "", **opts), f"socketcan:{ls.channel or ''}"
+
+
+register_link_kind(LinkKind("socketcan", "socketcan:IF[,fd=true][,rx_frames=N] Linux SocketCAN (can0, vcan0); "
+                            "the receive buffer holds N frames (4096), kernel drops counted", _open_socketcan))
+
 __all__ = ["LINK_KINDS", "PYTHON_CAN_ADAPTER", "LinkKind", "SpawnSpecs", "link_kind", "link_profile",
            "register_link_kind"]

@@ -27,3 +27,13 @@ def test_endings_the_link_did_not_cause_are_left_alone() -> None:
         reason = m["end_reason"]
         attribute(m, None)
         assert m["end_reason"] == reason and m["target_link"] is None and m["link_losses"]["to_target"] is None
+
+
+def test_a_missing_command_ending_names_the_socketcan_link_whose_kernel_dropped_frames() -> None:
+    m = _metrics(4, "DUT contract violation at period 12: missing", missing=1, kernel_dropped=7)
+    m["link_spec"] = "socketcan:vcan0,fd=true"
+    attribute(m, {"frames_rx": 5, "kernel_dropped": 2})
+    assert m["link_losses"] == {"to_target": 2, "to_host": 7}
+    assert m["end_reason"].endswith("; the kernel dropped 7 frame(s) received by the host and 2 frame(s) received "
+                                    "by the target on link socketcan:vcan0,fd=true (SocketCAN receive buffer full: "
+                                    "link.kernel_dropped)")

@@ -219,6 +219,9 @@ def test_native_loop_over_socketcan_frames_gives_the_python_loops_records(make: 
 def test_native_loop_over_vcan_gives_the_python_loops_records(link: str) -> None:
     """On a real SocketCAN interface: the Python loop + Python target and the native loop + native target
     (`hil target --native` on the same interface), each spawned."""
-    runs = [run_closed_loop(replace(_three(link=link), target="spawn", loop=loop)) for loop in ("python", "native")]
+    # a VM under TCG on a loaded host (.ci/vcan-vm) can stall the spawned target past the default 0.5 s: a false
+    # `missing` finding would make the two runs differ; lockstep makes the records independent of the wait
+    runs = [run_closed_loop(replace(_three(link=link), target="spawn", loop=loop, lockstep_timeout_s=10.0))
+            for loop in ("python", "native")]
     assert runs[1].metrics["loop"] == "native"
     _assert_same(*runs)

@@ -1,0 +1,110 @@
+"""`hil mcap export` (hil/runlog/can_log.py): a run's /frames written through python-can's log writers and read
+back by python-can's readers with the same frames and virtual times."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import can
+import numpy as np
+import pytest
+from pmsm_hil.app.cli.main import main
+from pmsm_hil.hil.runlog import read_frames
+
+
+@pytest.fixture(scope="module")
+def run_mcap(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("export") / "run"
+    assert main(["run", "--duration", "0.01", "--settle", "0.002", "--out", str(out)]) == 0
+    return out / "run.mcap"
+
+
+def _same(frames: np.ndarray, msgs: list[can.Message]) -> None:
+    assert len(msgs) == len(frames) > 100
+    for fr, msg in zip(frames, msgs, strict=True):
+        n = int(fr["length"])
+        assert (msg.arbitration_id, bytes(msg.data), msg.is_fd, msg.is_rx) == (
+            int(fr["arbitration_id"]), bytes(fr["data"][:n]), bool(fr["is_fd"]), int(fr["direction"]) == 1)
+        assert msg.timestamp == pytest.approx(float(fr["t"]), abs=1e-6)  # virtual time, µs resolution
+
+
+def test_asc_export_is_read_back_by_ascreader_with_the_same_frames(run_mcap: Path, tmp_path: Path) -> None:
+    out = tmp_path / "run.asc"
+    assert main(["mcap", "export", str(run_mcap), "--format", "asc", "-o", str(out)]) == 0
+    frames = read_frames(run_mcap)
+    assert {int(d) for d in frames["direction"]} == {0, 1}  # Commands and Measurements both
+    _same(frames, list(can.ASCReader(out)))
+
+
+@pytest.mark.parametrize(("fmt", "reader"), [("candump", can.CanutilsLogReader), ("blf", can.BLFReader)])
+def test_candump_and_blf_exports_read_back(run_mcap: Path, tmp_path: Path, fmt: str, reader: type) -> None:
+    out = tmp_path / f"run.{fmt}"
+    assert main(["mcap", "export", str(run_mcap), "--format", fmt, "-o", str(out)]) == 0
+    msgs = list(reader(out))
+    frames = read_frames(run_mcap)
+    if fmt == "candump":  # candump -L keeps no Tx/Rx distinction python-can reads back
+        for m, fr in zip(msgs, frames, strict=True):
+            m.is_rx = int(fr["direction"]) == 1
+    _same(frames, msgs)
+
+
+def test_csv_export_has_a_row_per_frame(run_mcap: Path, tmp_path: Path) -> None:
+    out = tmp_path / "run.csv"
+    assert main(["mcap", "export", str(run_mcap), "--format", "csv", "-o", str(out)]) == 0
+    msgs = list(can.CSVReader(out))
+    frames = read_frames(run_mcap)
+    assert [m.arbitration_id for m in msgs] == [int(i) for i in frames["arbitration_id"]]
+
+
+def test_bad_input_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["mcap", "export", str(tmp_path / "none.mcap"), "--format", "asc", "-o", str(tmp_path / "x")]) != 0
+    err = capsys.readouterr().err
+    assert "none.mcap" in err and "Traceback" not in err
+
+
+def _commands(run_mcap: Path) -> list[tuple[tuple[int, ...], tuple[int, ...]]]:
+    from pmsm_hil.protocol.codec import FrameDecoder
+    from pmsm_hil.protocol.frame import Frame
+    from pmsm_hil.protocol.messages import Command
+
+    dec = FrameDecoder()
+    out = []
+    for fr in read_frames(run_mcap):
+        msg = dec.feed(Frame(int(fr["arbitration_id"]), bytes(fr["data"][:int(fr["length"])]), bool(fr["is_fd"])))
+        if isinstance(msg, Command):
+            out.append(msg.expanded())
+    return out
+
+
+@pytest.mark.parametrize("fmt", ["asc", "candump"])
+def test_hil_replay_of_an_exported_log_drives_the_plant_with_the_runs_commands(
+        run_mcap: Path, tmp_path: Path, fmt: str) -> None:
+    """The CAN log's Commands through the plant give the same rows as the same Commands written as a replay CSV
+    (sequence form) through `hil plant replay`."""
+    log = tmp_path / ("run.asc" if fmt == "asc" else "run.log")
+    assert main(["mcap", "export", str(run_mcap), "--format", fmt, "-o", str(log)]) == 0
+    cmds = _commands(run_mcap)
+    slots = max(len(s) for s, _ in cmds)
+    csv_in = tmp_path / "commands.csv"
+    rows = [",".join(f"s{k},t{k}" for k in range(slots))]
+    for states, durs in cmds:
+        cells = [f"{s},{d * 1e-9!r}" for s, d in zip(states, durs, strict=True)] + [","] * (slots - len(states))
+        rows.append(",".join(cells))
+    csv_in.write_text("\n".join(rows) + "\n")
+    common = ["--rpm", "1000", "--ts", "1e-4"]
+    assert main(["replay", str(log), *common, "--output", str(tmp_path / "from_log.csv")]) == 0
+    assert main(["plant", "replay", "--motor", "niu2020-ipmsm", *common, "--input", str(csv_in),
+                 "--output", str(tmp_path / "from_csv.csv")]) == 0
+    from_log = (tmp_path / "from_log.csv").read_text().splitlines()
+    assert len(from_log) == len(cmds) + 2 > 50  # header, the initial state, one row per Command
+    assert from_log == (tmp_path / "from_csv.csv").read_text().splitlines()
+
+
+def test_hil_replay_of_a_can_log_needs_the_plant_options(run_mcap: Path, tmp_path: Path,
+                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    log = tmp_path / "run.asc"
+    assert main(["mcap", "export", str(run_mcap), "--format", "asc", "-o", str(log)]) == 0
+    assert main(["replay", str(log), "--ts", "1e-4", "--output", str(tmp_path / "o.csv")]) != 0
+    assert "--rpm is required" in capsys.readouterr().err
+    assert main(["replay", str(log), "--rpm", "0", "--ts", "2e-4", "--output", str(tmp_path / "o.csv")]) != 0
+    assert "expected Ts = 200000 ns (--ts)" in capsys.readouterr().err
