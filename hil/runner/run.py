@@ -36,6 +36,7 @@ from pmsm_hil.hil.runner.stop_request import deferred_interrupts
 from pmsm_hil.hil.runner.target_client import DutViolationError, TargetError
 from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target
 from pmsm_hil.protocol.errors import LinkError
+from pmsm_hil.protocol.links.spec import redact_spec
 from pmsm_hil.protocol.links.udp_bus import link_socket_drops
 
 
@@ -179,6 +180,7 @@ def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection, sink: Ru
     metrics = _window_metrics(cfg, out, sink, link_stats)
     metrics["link"].update({k: v for k, v in stats.items() if k not in metrics["link"]})
     metrics["link"].update(link_socket_drops(conn.host_link))
+    metrics["link_authenticated"] = getattr(getattr(conn.host_link, "bus", None), "auth", None) is not None
     metrics["end_reason"] = out.end_reason
     metrics["end_code"] = out.end_code
     metrics["end_period"] = out.completed_periods - 1
@@ -200,7 +202,7 @@ def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection, sink: Ru
     metrics["speed_ref_rpm"] = cfg.scenario.speed_rpm
     metrics["load_nm"] = cfg.scenario.load_nm
     metrics["mode"] = cfg.mode
-    metrics["link_spec"] = cfg.link
+    metrics["link_spec"] = redact_spec(cfg.link)  # issue 26: a key= never reaches metrics.json
     warnings: list[str] = []
     lat = out.lateness_us
     if cfg.mode == "realtime" and lat.n:
