@@ -143,3 +143,25 @@ def test_a_privileged_spoofer_with_the_genuine_addresses_changes_nothing_and_is_
     assert target["frames_rx"] == m["link"]["frames_tx"] and m["link"]["frames_rx"] == target["frames_tx"]
     # no genuine frame lost (the kernel may drop spoofed datagrams while a receive buffer is full: socket_drops)
     assert m["link"]["dropped"] == target["dropped"] == 0
+
+
+def test_serial_with_a_wrong_key_says_so_when_the_target_stays_silent() -> None:
+    """Serial has no handshake: a target with another key drops every frame and never answers; the host's error
+    names the key, and counts the frames of another key it dropped itself."""
+    from pmsm_hil.hil.runner.target_client import DutViolationError, TargetClient
+    from pmsm_hil.protocol.codec import FrameCodec
+    from pmsm_hil.protocol.ids import ParamId
+    from pmsm_hil.protocol.links import open_link
+    from pmsm_hil.protocol.links.auth import FrameAuth
+    from pmsm_hil.protocol.links.cobs import encode_packet
+    from pmsm_hil.protocol.links.wire import pack_frame
+
+    master, slave = os.openpty()
+    link = open_link(f"serial:fd:{master},key={KEY}", "host")
+    try:
+        os.write(slave, encode_packet(FrameAuth(bytes(32), "target").seal(pack_frame(0x211, bytes(6), 0, 0))))
+        with pytest.raises(DutViolationError, match=r"with the same key.*1 frame\(s\) from it failed authentication"):
+            TargetClient(link, FrameCodec("canfd")).configure({ParamId.RS: 0.1}, timeout_s=0.2)
+    finally:
+        link.close()
+        os.close(slave)
