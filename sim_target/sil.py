@@ -112,6 +112,12 @@ class SilFirmware:
         assert rx is not None and tx is not None
         return rx, tx
 
+    def debug_sources(self) -> tuple[int, int]:
+        """Addresses of this copy's step counter (u32) and last torque reference (float32, hil_app_cmd_t's debug
+        output): what the C serve loop copies after each step for the host (`nt_serve_core_debug`)."""
+        return (ctypes.addressof(self._counters) + _Counters.steps.offset,
+                ctypes.addressof(self._last) + _Cmd.torque_ref.offset)
+
     def counters(self) -> dict[str, int]:
         """The core's counters (hil_core_counters_t)."""
         return {name: int(getattr(self._counters, name)) for name in COUNTER_NAMES}

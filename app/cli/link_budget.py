@@ -34,6 +34,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
     p.add_argument("--baud", type=int, default=DEFAULT_BAUD, help="serial baud rate (8N1)")
     p.add_argument("--phases", type=int, choices=(3, 6), default=3, help="machine phases (default: %(default)s)")
     p.add_argument("--rate", type=float, default=DEFAULT_RATE_HZ, help="control rate, Hz (default: %(default)s)")
+    p.add_argument("--auth", action="store_true",
+                   help="serial frames carry the 6-byte authentication trailer (on by default for spawned targets; "
+                        "docs/protocol.md, 'Authenticated frames')")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=run)
 
@@ -47,7 +50,7 @@ def format_budget(b: LinkBudget) -> str:
     elif b.link == "canfd":
         speed = f"{b.bitrate} / {b.data_bitrate} bit/s"
     else:
-        speed = f"{b.baud} Bd 8N1"
+        speed = f"{b.baud} Bd 8N1" + (", authenticated frames" if b.auth else "")
     lines = [
         f"link {b.link} ({speed}), {b.phases} phases",
         f"  up   (measurement): {b.frames_per_period_up} frame(s), payload {list(b.payloads_up)} B, "
@@ -71,6 +74,7 @@ def run(args: argparse.Namespace) -> int:
         data_bitrate=args.data_bitrate,
         baud=args.baud,
         rate_hz=args.rate,
+        auth=args.auth,
     )
     print(json.dumps(b.as_dict(), indent=1) if args.json else format_budget(b))
     if b.feasible is False:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -28,6 +29,10 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("--sil", metavar="PATH",
                    help="serve this SIL library (`hil fw build --board host`) from the C loop instead of the "
                         "reference firmware (implies --native; what `hil run --target sil:PATH` starts)")
+    p.add_argument("--sil-debug-fd", type=int, default=None, help=argparse.SUPPRESS)  # set by `hil run` (sil:)
+    p.add_argument("--auth-key-stdin", action="store_true",
+                   help="read the frames' authentication key (hex) as a line from stdin: how `hil run` hands a "
+                        "spawned target its key (docs/protocol.md, 'Authenticated frames')")
     p.set_defaults(func=run)
 
 
@@ -41,15 +46,34 @@ def _positive(text: str) -> float:
     return value
 
 
+def _link_spec(args: argparse.Namespace) -> str:
+    """--link, with the key read from stdin when --auth-key-stdin (LinkSpecError naming it when not a key)."""
+    if not args.auth_key_stdin:
+        return str(args.link)
+    from pmsm_hil.protocol.links.auth import parse_key
+
+    key = parse_key(sys.stdin.readline(), "--auth-key-stdin")
+    head, *opts = str(args.link).split(",")
+    return ",".join([head, *(o for o in opts if o.partition("=")[0].strip() != "key"), f"key={key.hex()}"])
+
+
+def _ready(args: argparse.Namespace) -> None:
+    from pmsm_hil.protocol.links.spec import redact_spec
+    from pmsm_hil.sim_target.process import READY_LINE
+
+    print(f"{READY_LINE} {redact_spec(args.link)}", flush=True)
+
+
 def run(args: argparse.Namespace) -> int:
     """Execute `hil target`."""
-    from pmsm_hil.sim_target.process import LINK_STATS_LINE, READY_LINE, serve
+    from pmsm_hil.sim_target.process import LINK_STATS_LINE, serve
 
+    args.spec = _link_spec(args)
     if args.native or args.sil is not None:
         return _run_native(args)
 
-    served = serve(args.link, args.controller, role=args.role, max_idle_s=args.idle_timeout,
-                   parent_pid=args.parent_pid, on_ready=lambda: print(f"{READY_LINE} {args.link}", flush=True))
+    served = serve(args.spec, args.controller, role=args.role, max_idle_s=args.idle_timeout,
+                   parent_pid=args.parent_pid, on_ready=lambda: _ready(args))
     c = served.target.counters
     print(f"target stopped ({served.reason}): {c.measurements} measurements, {c.commands} commands, "
           f"{c.config_writes} config writes ({c.config_rejected} rejected), {c.faults} faults")
@@ -60,12 +84,12 @@ def run(args: argparse.Namespace) -> int:
 def _run_native(args: argparse.Namespace) -> int:
     from pmsm_hil.hil.errors import ParameterError
     from pmsm_hil.hil.runner.native_target import serve_native
-    from pmsm_hil.sim_target.process import LINK_STATS_LINE, READY_LINE
+    from pmsm_hil.sim_target.process import LINK_STATS_LINE
 
     if args.controller is not None:
         raise ParameterError("--controller: not with --native (the host's Setpoint selects the controller)")
-    served = serve_native(args.link, role=args.role, max_idle_s=args.idle_timeout, parent_pid=args.parent_pid,
-                          on_ready=lambda: print(f"{READY_LINE} {args.link}", flush=True), sil=args.sil)
+    served = serve_native(args.spec, role=args.role, max_idle_s=args.idle_timeout, parent_pid=args.parent_pid,
+                          on_ready=lambda: _ready(args), sil=args.sil, sil_debug_fd=args.sil_debug_fd)
     c = served.counters
     print(f"target stopped ({served.reason}): {c['measurements']} measurements, {c['commands']} commands, "
           f"{c['config_writes']} config writes ({c['config_rejected']} rejected), {c['faults']} faults "

@@ -74,12 +74,8 @@ void hil_serial_init(hil_serial_t *s)
     memset(s, 0, sizeof *s);
 }
 
-size_t hil_serial_encode(hil_serial_t *s, const hil_core_frame_t *f, uint8_t *out)
+size_t hil_serial_body(hil_serial_t *s, const hil_core_frame_t *f, uint8_t *raw)
 {
-    uint8_t raw[HIL_SERIAL_MAX_RAW];
-    const size_t n = HIL_SERIAL_HEADER + (size_t)f->len;
-    size_t m;
-    uint16_t crc;
     raw[0] = (uint8_t)(f->id & 0xFFu);
     raw[1] = (uint8_t)((f->id >> 8) & 0xFFu);
     raw[2] = (uint8_t)((f->id >> 16) & 0xFFu);
@@ -88,12 +84,24 @@ size_t hil_serial_encode(hil_serial_t *s, const hil_core_frame_t *f, uint8_t *ou
     raw[5] = s->tx_seq++;
     raw[6] = f->len;
     memcpy(&raw[HIL_SERIAL_HEADER], f->data, f->len);
-    crc = hil_serial_crc16(raw, n, 0xFFFFu);
+    return HIL_SERIAL_HEADER + (size_t)f->len;
+}
+
+size_t hil_serial_packet(uint8_t *raw, size_t n, uint8_t *out)
+{
+    const uint16_t crc = hil_serial_crc16(raw, n, 0xFFFFu);
+    size_t m;
     raw[n] = (uint8_t)(crc >> 8);
     raw[n + 1u] = (uint8_t)(crc & 0xFFu);
     m = hil_serial_cobs_encode(raw, n + 2u, out);
     out[m] = 0u;
     return m + 1u;
+}
+
+size_t hil_serial_encode(hil_serial_t *s, const hil_core_frame_t *f, uint8_t *out)
+{
+    uint8_t raw[HIL_SERIAL_MAX_RAW];
+    return hil_serial_packet(raw, hil_serial_body(s, f, raw), out);
 }
 
 static int valid_length(uint8_t len, int fd)

@@ -40,6 +40,12 @@ void hil_serial_init(hil_serial_t *s);
 /* One frame as a packet (delimiter included) into out[HIL_SERIAL_MAX_PACKET]; returns its length. */
 size_t hil_serial_encode(hil_serial_t *s, const hil_core_frame_t *f, uint8_t *out);
 
+/* hil_serial_encode in two steps, for a sender adding bytes after the payload (an authentication trailer):
+ * the header (taking the next link sequence number) and payload into raw (returns their length n), then the
+ * packet of raw's first n bytes: CRC-16 appended at raw[n..n+1] (room needed), COBS and delimiter into out. */
+size_t hil_serial_body(hil_serial_t *s, const hil_core_frame_t *f, uint8_t *raw);
+size_t hil_serial_packet(uint8_t *raw, size_t n, uint8_t *out);
+
 /* Feed one received byte: 1 when it completed a valid data frame (written to *f), else 0. */
 int hil_serial_feed(hil_serial_t *s, uint8_t byte, hil_core_frame_t *f);
 

@@ -107,6 +107,13 @@ METRICS: Final[tuple[Metric, ...]] = (
        "sequence numbers plus socket buffer drops, as counted by the receiving end (null: not known); a run that "
        "ends on a missing Command or the watchdog while they are non-zero says so in `end_reason`", "",
        source=RUN),
+    _m("link_authenticated", "link authenticated", "", "true when the run's frames carried a MAC and a freshness "
+       "value (UDP and serial links: on by default for spawned targets, `key=`/`keyfile=` for external ones; "
+       "docs/protocol.md, 'Authenticated frames')", "", source=RUN),
+    _m("link_auth_dropped", "link auth dropped", "", "frames dropped for their authentication `{to_target, "
+       "to_host}` (a MAC that failed or was missing, a replayed freshness value: `auth_failed` + `auth_replayed` "
+       "of the receiving end's link counters; null: not known): spoofed, altered or replayed frames", "",
+       source=RUN),
     _m("safe_stop_confirmed", "safe stop confirmed", "", "true when the target answered the disabling Setpoint "
        "with a HeartbeatTarget in state idle within 500 ms (docs/runner.md, 'Safe stop on every exit path'); "
        "false: it did not (a completed run then ends with exit 3); null when the Setpoint could not be sent", "",

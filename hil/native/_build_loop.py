@@ -47,7 +47,7 @@ LOOP_H_CDEF = (_X.cffi_constants(_HERE / "loop_fmu.h", "NL_FMU_")
                + _X.cffi_constants(_HERE / "loop.h", "NL_")
                + _X.cffi_constants(_HERE / "kernels" / "machine_kernel.h", "MK_")
                + "typedef struct mk_kernel mk_kernel_t;\n"
-               + _X.declarations(_HERE / "loop.h", ["nl_finding_t", "nl_config_t"]) + """
+               + _X.declarations(_HERE / "loop.h", ["nl_finding_t", "nl_sil_debug_t", "nl_config_t"]) + """
 typedef struct {
     double *trace;
     int64_t trace_rows_cap;
@@ -83,9 +83,24 @@ typedef struct nl_link {
 } nl_link_t;
 typedef struct {
     int64_t frames_tx, frames_rx, crc_errors, framing_errors, dropped, duplicate, out_of_order, send_errors,
-        ignored, foreign_dropped, session_dropped;
+        ignored, foreign_dropped, session_dropped, auth_failed, auth_replayed;
     int64_t blocked;
 } nl_link_stats_t;
+typedef struct {
+    int32_t on;
+    uint64_t tx_fresh;
+    uint64_t rx_fresh;
+    uint8_t tx_dir;
+    uint8_t rx_dir;
+    uint8_t ctx_n;
+    uint8_t ctx[8];
+    ...;
+} hil_auth_t;
+int hil_auth_init(hil_auth_t *a, const uint8_t *key, size_t key_n, int target_role);
+void hil_auth_set_context(hil_auth_t *a, const uint8_t *ctx, size_t n);
+void hil_auth_seal(hil_auth_t *a, uint8_t *body, size_t n);
+int hil_auth_open(hil_auth_t *a, const uint8_t *body, size_t n);
+void hil_hmac_sha256(const uint8_t *key, size_t key_n, const uint8_t *data, size_t n, uint8_t out[32]);
 typedef struct {
     int64_t spin_ns;
     int64_t window_wall_ns, window_cpu_ns, window_blocked_ns;
@@ -116,6 +131,8 @@ typedef struct {
     int32_t rx_last;
     nl_spin_t spin;
     nl_link_stats_t stats;
+    uint32_t nonce;
+    hil_auth_t auth;
 } nl_udp_t;
 void nl_udp_link(nl_link_t *l, nl_udp_t *u);
 typedef struct {
@@ -135,6 +152,7 @@ typedef struct {
     int32_t discarding;
     uint8_t rx[...];
     int32_t rx_at, rx_n;
+    hil_auth_t auth;
 } nl_serial_t;
 void nl_serial_link(nl_link_t *l, nl_serial_t *s);
 int nl_serial_send(nl_serial_t *s, const hil_core_frame_t *f);
@@ -165,6 +183,8 @@ int32_t nt_serve(const nl_link_t *l, int64_t idle_ns, int32_t parent_pid);
 typedef void (*nt_core_rx_fn)(uint32_t id, const uint8_t *data, uint8_t len, uint8_t fd);
 typedef int (*nt_core_tx_fn)(hil_core_frame_t *out);
 int32_t nt_serve_core(const nl_link_t *l, int64_t idle_ns, int32_t parent_pid, nt_core_rx_fn rx, nt_core_tx_fn tx);
+int32_t nt_serve_core_debug(const nl_link_t *l, int64_t idle_ns, int32_t parent_pid, nt_core_rx_fn rx,
+                            nt_core_tx_fn tx, const uint32_t *steps, const float *torque_ref, nl_sil_debug_t *debug);
 typedef struct {
     uint32_t frames_rx, measurements, commands, config_writes, config_rejected, faults, unknown_id, bad_length,
         tx_overflow, steps;
@@ -225,7 +245,7 @@ def _firmware_objects() -> list[str]:
     cc = new_compiler()
     customize_compiler(cc)
     sources = [*sorted((_FW / "src").glob("*.c")), _FW / "target" / "hil_target_core.c",
-               _FW / "target" / "hil_app_reference.c", _FW / "target" / "hil_serial.c",
+               _FW / "target" / "hil_app_reference.c", _FW / "target" / "hil_serial.c", _FW / "target" / "hil_auth.c",
                _FW / "generated" / "hil_protocol.c"]
     out = tempfile.mkdtemp(prefix="hil-loop-fw-")
     objects: list[str] = cc.compile([str(s) for s in sources], output_dir=out,

@@ -667,6 +667,11 @@ static int accept(loop_t *L, int64_t k, int ok)
             && k >= c->n_settle) { /* an in-process target behind a Python link */
             r->candidate_checked++;
             r->candidate_misses += full_miss;
+        } else if (c->sil_debug != NULL) { /* a SIL target in its own process: the slot it wrote before the Command */
+            const volatile nl_sil_debug_t *d = c->sil_debug;
+            if (d->steps > 0u) {
+                L->next.tref = (double)d->torque_ref;
+            }
         }
     }
     return 0;

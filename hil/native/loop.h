@@ -78,6 +78,14 @@ typedef struct {
 } nl_finding_t;
 
 /* Fixed for the run; written by Python before nl_run. */
+/* What a SIL target in its own process shares with the host (memory both map; target_serve.c writes it after
+ * each step, before the step's Command goes out, so the host reads it for the Command it just received): control
+ * steps run and the torque reference [N*m] of the last one (hil_app_cmd_t's debug output). */
+typedef struct {
+    uint32_t steps;
+    float torque_ref;
+} nl_sil_debug_t;
+
 typedef struct {
     int32_t legs;              /* measured phase currents = the kernel's legs (a loop bound, never a branch) */
     int32_t fd;                /* 1: CAN FD frames, 0: classic CAN parts */
@@ -141,6 +149,7 @@ typedef struct {
      * SocketCAN) */
     const struct nl_link *link;
     int64_t lockstep_timeout_ns; /* lockstep over a link: how long to wait for a Command [ns] (wall time) */
+    const nl_sil_debug_t *sil_debug; /* a SIL target in its own process: its debug outputs, NULL: none */
 } nl_config_t;
 
 /* One block of the ring. `trace` (rows x trace_columns doubles) is the caller's. */

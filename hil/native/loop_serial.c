@@ -31,9 +31,18 @@ static int wait_writable(int32_t fd, int64_t deadline_ns)
     return 1;
 }
 
+/* An authenticated frame as a packet (hil_serial_encode with the trailer before the CRC); returns its length. */
+static size_t encode_sealed(nl_serial_t *s, const hil_core_frame_t *f, uint8_t *out)
+{
+    uint8_t raw[HIL_SERIAL_MAX_RAW + HIL_AUTH_TRAILER];
+    const size_t n = hil_serial_body(&s->framer, f, raw);
+    hil_auth_seal(&s->auth, raw, n);
+    return hil_serial_packet(raw, n + HIL_AUTH_TRAILER, out);
+}
+
 int nl_serial_send(nl_serial_t *s, const hil_core_frame_t *f)
 {
-    uint8_t packet[HIL_SERIAL_MAX_PACKET];
+    uint8_t packet[NL_SERIAL_MAX_ENCODED + 1];
     size_t n;
     size_t at = 0u;
     int64_t deadline = -1;
@@ -41,7 +50,7 @@ int nl_serial_send(nl_serial_t *s, const hil_core_frame_t *f)
         s->stats.send_errors++;
         return -1;
     }
-    n = hil_serial_encode(&s->framer, f, packet);
+    n = s->auth.on ? encode_sealed(s, f, packet) : hil_serial_encode(&s->framer, f, packet);
     while (at < n) {
         const ssize_t w = write(s->fd, packet + at, n - at);
         if (w > 0) {
@@ -69,11 +78,12 @@ int nl_serial_send(nl_serial_t *s, const hil_core_frame_t *f)
  * frame for *f. */
 static int packet(nl_serial_t *s, hil_core_frame_t *f)
 {
-    uint8_t raw[HIL_SERIAL_MAX_ENCODED];
+    uint8_t raw[NL_SERIAL_MAX_ENCODED];
     const int n = hil_serial_cobs_decode(s->pkt, (size_t)s->pkt_n, raw);
+    const int trailer = s->auth.on ? (int)HIL_AUTH_TRAILER : 0;
     uint16_t crc;
     uint8_t len;
-    if (n < (int)(HIL_SERIAL_HEADER + CRC_SIZE)) { /* malformed COBS too (-1) */
+    if (n < (int)(HIL_SERIAL_HEADER + CRC_SIZE) + trailer) { /* malformed COBS too (-1) */
         s->stats.framing_errors++;
         return 0;
     }
@@ -83,8 +93,15 @@ static int packet(nl_serial_t *s, hil_core_frame_t *f)
         return 0;
     }
     len = raw[6];
-    if ((int)len != n - CRC_SIZE - (int)HIL_SERIAL_HEADER || len > HIL_CORE_MAX_PAYLOAD) {
+    if (trailer && (int)len == n - CRC_SIZE - (int)HIL_SERIAL_HEADER) { /* a frame without the trailer */
+        s->stats.auth_failed++;
+        return 0;
+    }
+    if ((int)len != n - CRC_SIZE - (int)HIL_SERIAL_HEADER - trailer || len > HIL_CORE_MAX_PAYLOAD) {
         s->stats.framing_errors++;
+        return 0;
+    }
+    if (trailer && !nl_auth_open(&s->auth, raw, (size_t)n - CRC_SIZE, &s->stats)) {
         return 0;
     }
     return nl_accept_framed(raw, &s->rx_last, &s->stats, f);
@@ -105,7 +122,8 @@ static int feed(nl_serial_t *s, uint8_t byte, hil_core_frame_t *f)
     if (s->discarding) {
         return 0;
     }
-    if (s->pkt_n >= (int32_t)HIL_SERIAL_MAX_ENCODED) { /* more than a packet can be without a delimiter */
+    if (s->pkt_n >= (int32_t)HIL_SERIAL_MAX_ENCODED + (s->auth.on ? (int32_t)HIL_AUTH_TRAILER : 0)) {
+        /* more than a packet can be without a delimiter */
         s->stats.framing_errors++;
         s->pkt_n = 0;
         s->discarding = 1;

@@ -10,16 +10,22 @@
  * The descriptor is the caller's (a tty in raw mode as pyserial sets it up, or a pty master; non-blocking);
  * so is the state a run continues from (link seqs, a packet half received). Waiting for a frame busy-polls
  * for at most spin_ns, then blocks in ppoll until the deadline. No allocation.
+ *
+ * Authenticated frames (auth.on, docs/protocol.md "Authenticated frames"): the hil_auth trailer follows the
+ * payload inside the COBS block (before the CRC); a run without a delimiter may then be 6 bytes longer.
  */
 #ifndef HIL_NATIVE_LOOP_SERIAL_H
 #define HIL_NATIVE_LOOP_SERIAL_H
 
 #include <stdint.h>
 
+#include "hil_auth.h"
 #include "hil_serial.h"
 #include "nl_link.h"
 
 #define NL_SERIAL_READ 4096        /* bytes per read (= serial_bus.READ_CHUNK) */
+/* the longest packet between delimiters: an authenticated frame's (the trailer inside the COBS block) */
+#define NL_SERIAL_MAX_ENCODED (HIL_SERIAL_MAX_ENCODED + HIL_AUTH_TRAILER)
 
 typedef struct {
     int32_t fd;                /* the port (tty, pty master) */
@@ -30,12 +36,13 @@ typedef struct {
     int64_t write_timeout_ns;  /* a full output buffer for this long: the frame is a send error */
     nl_link_stats_t stats;
     /* the deframer: the packet so far (pkt_n bytes), or discarding until the next 0x00 */
-    uint8_t pkt[HIL_SERIAL_MAX_ENCODED];
+    uint8_t pkt[NL_SERIAL_MAX_ENCODED];
     int32_t pkt_n;
     int32_t discarding;
     /* bytes read but not fed yet */
     uint8_t rx[NL_SERIAL_READ];
     int32_t rx_at, rx_n;
+    hil_auth_t auth;           /* authenticated frames (hil_auth.h; auth.on 0: off), no context */
 } nl_serial_t;
 
 /* Send one frame (FramedBus.send_frame: an invalid length or an FD frame on a classic link is a send error);

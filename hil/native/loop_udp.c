@@ -4,9 +4,11 @@
 #include <errno.h>
 #include <netinet/in.h>
 #include <string.h>
+#include <sys/random.h>
 #include <sys/socket.h>
 
 #include "hil_serial.h"
+#include "loop_rt.h"
 #include "loop_udp.h"
 
 #define SESSION_SIZE 4
@@ -15,6 +17,7 @@
 #define DATA_MIN (SESSION_SIZE + HEADER_SIZE + CRC_SIZE)
 #define LENGTH_AT (SESSION_SIZE + HEADER_SIZE - 1)
 #define CONTROL_SIZE 14
+#define AUTH_CONTROL_SIZE (CONTROL_SIZE + 4 + HIL_AUTH_MAC_SIZE) /* + nonce u32 + MAC */
 #define MAX_DATAGRAM 2048
 #define FLAG_FD 0x01u
 #define FLAG_BRS 0x02u
@@ -22,6 +25,8 @@
 #define CTRL_VERSION 1u
 #define CTRL_HELLO 1u
 #define CTRL_ACK 2u
+#define CTRL_REJECT_KEY 3u   /* this end authenticates and the HELLO's MAC failed */
+#define CTRL_REJECT_PLAIN 4u /* this end does not authenticate and the HELLO did */
 
 static void put_u32(uint8_t *p, uint32_t v)
 {
@@ -77,9 +82,11 @@ static void connect_peer(nl_udp_t *u)
 
 int nl_udp_send(nl_udp_t *u, const hil_core_frame_t *f)
 {
-    uint8_t buf[DATA_MIN + HIL_CORE_MAX_PAYLOAD];
+    uint8_t buf[DATA_MIN + HIL_CORE_MAX_PAYLOAD + HIL_AUTH_TRAILER];
     uint16_t crc;
     const uint8_t flags = f->fd ? (uint8_t)(FLAG_FD | FLAG_BRS) : 0u;
+    const size_t trailer = u->auth.on ? HIL_AUTH_TRAILER : 0u;
+    size_t body;
     if (!nl_valid_length(f->len, f->fd)) {
         u->stats.send_errors++;
         return -1;
@@ -90,54 +97,118 @@ int nl_udp_send(nl_udp_t *u, const hil_core_frame_t *f)
     buf[SESSION_SIZE + 5] = u->tx_seq;
     buf[SESSION_SIZE + 6] = f->len;
     memcpy(buf + SESSION_SIZE + HEADER_SIZE, f->data, f->len);
-    crc = hil_serial_crc16(buf + SESSION_SIZE, (size_t)(HEADER_SIZE + f->len), 0xFFFFu);
-    buf[SESSION_SIZE + HEADER_SIZE + f->len] = (uint8_t)(crc >> 8);
-    buf[SESSION_SIZE + HEADER_SIZE + f->len + 1] = (uint8_t)(crc & 0xFFu);
+    body = (size_t)(HEADER_SIZE + f->len);
+    if (trailer) {
+        hil_auth_seal(&u->auth, buf + SESSION_SIZE, body);
+        body += trailer;
+    }
+    crc = hil_serial_crc16(buf + SESSION_SIZE, body, 0xFFFFu);
+    buf[SESSION_SIZE + body] = (uint8_t)(crc >> 8);
+    buf[SESSION_SIZE + body + 1] = (uint8_t)(crc & 0xFFu);
     u->tx_seq = (uint8_t)(u->tx_seq + 1u);
-    if (send_to_peer(u, buf, (size_t)(DATA_MIN + f->len)) != 0) {
+    if (send_to_peer(u, buf, (size_t)(DATA_MIN + f->len) + trailer) != 0) {
         return -1;
     }
     u->stats.frames_tx++;
     return 0;
 }
 
-/* A control datagram (session 0): the target adopts a HELLO and acknowledges it. */
-static void control(nl_udp_t *u, const uint8_t *d)
+/* A control datagram of `kind` for session `sid` to the peer: a HELLO or ACK with the nonce and MAC when
+ * authenticating, a REJECT never authenticated. */
+static void send_control(nl_udp_t *u, uint8_t kind, uint32_t sid)
+{
+    uint8_t c[AUTH_CONTROL_SIZE];
+    size_t n = CONTROL_SIZE;
+    put_u32(c, 0u);
+    memcpy(c + 4, "HILS", 4);
+    c[8] = kind;
+    c[9] = CTRL_VERSION;
+    put_u32(c + 10, sid);
+    if (u->auth.on && (kind == CTRL_HELLO || kind == CTRL_ACK)) {
+        put_u32(c + CONTROL_SIZE, kind == CTRL_ACK ? u->nonce : 0u);
+        hil_auth_control_mac(&u->auth, u->auth.tx_dir, c, CONTROL_SIZE + 4u, c + CONTROL_SIZE + 4);
+        n = AUTH_CONTROL_SIZE;
+    }
+    (void)send_to_peer(u, c, n);
+}
+
+/* A fresh nonce for an adopted session (never 0). */
+static uint32_t new_nonce(void)
+{
+    uint32_t v = 0u;
+    while (v == 0u) {
+        if (getrandom(&v, sizeof v, 0) != (ssize_t)sizeof v) {
+            v = (uint32_t)nl_now_ns() ^ 0x9E3779B9u; /* no entropy source: still a value never reused in a run */
+        }
+    }
+    return v;
+}
+
+/* A control datagram (session 0) of n bytes: the target adopts a HELLO (authenticated when this end is) and
+ * acknowledges it; a HELLO refused for its authentication is answered with a REJECT. */
+static void control(nl_udp_t *u, const uint8_t *d, size_t n)
 {
     const uint32_t sid = get_u32(d + 10);
     const uint8_t kind = d[8];
-    if (memcmp(d + 4, "HILS", 4) != 0 || d[9] != CTRL_VERSION || (kind != CTRL_HELLO && kind != CTRL_ACK)
-        || sid == 0u) {
+    if (memcmp(d + 4, "HILS", 4) != 0 || d[9] != CTRL_VERSION || sid == 0u
+        || (kind != CTRL_HELLO && kind != CTRL_ACK && kind != CTRL_REJECT_KEY && kind != CTRL_REJECT_PLAIN)) {
         u->stats.framing_errors++;
-    } else if (kind == CTRL_HELLO && u->target_role) {
-        uint8_t ack[CONTROL_SIZE];
-        if (u->session != sid) {
-            u->rx_last = -1;
-        }
-        u->session = sid;
-        connect_peer(u);
-        put_u32(ack, 0u);
-        memcpy(ack + 4, "HILS", 4);
-        ack[8] = CTRL_ACK;
-        ack[9] = CTRL_VERSION;
-        put_u32(ack + 10, sid);
-        (void)send_to_peer(u, ack, sizeof ack);
-    } else {
-        u->stats.session_dropped++;
+        return;
     }
+    if (kind == CTRL_REJECT_KEY || kind == CTRL_REJECT_PLAIN || !u->target_role || kind != CTRL_HELLO) {
+        u->stats.session_dropped++;
+        return;
+    }
+    if ((n == AUTH_CONTROL_SIZE) != (u->auth.on != 0)) { /* authenticated on one end only */
+        u->stats.auth_failed++;
+        send_control(u, u->auth.on ? (uint8_t)CTRL_REJECT_KEY : (uint8_t)CTRL_REJECT_PLAIN, sid);
+        return;
+    }
+    if (u->auth.on) {
+        uint8_t mac[HIL_AUTH_MAC_SIZE];
+        uint8_t diff = 0u;
+        unsigned i;
+        hil_auth_control_mac(&u->auth, u->auth.rx_dir, d, CONTROL_SIZE + 4u, mac);
+        for (i = 0; i < HIL_AUTH_MAC_SIZE; i++) {
+            diff |= (uint8_t)(mac[i] ^ d[CONTROL_SIZE + 4u + i]);
+        }
+        if (diff != 0u) {
+            u->stats.auth_failed++;
+            send_control(u, CTRL_REJECT_KEY, sid);
+            return;
+        }
+    }
+    if (u->session != sid) { /* a new session (a repeated HELLO keeps the nonce and freshness of this one) */
+        uint8_t ctx[8];
+        u->rx_last = -1;
+        u->session = sid;
+        if (u->auth.on) {
+            u->nonce = new_nonce();
+            put_u32(ctx, sid);
+            put_u32(ctx + 4, u->nonce);
+            hil_auth_set_context(&u->auth, ctx, sizeof ctx);
+        }
+    }
+    connect_peer(u);
+    send_control(u, CTRL_ACK, sid);
 }
 
 /* One datagram from the peer: 1 when it delivered a data frame into *f. */
 static int datagram(nl_udp_t *u, const uint8_t *d, size_t n, hil_core_frame_t *f)
 {
     const uint8_t *body = d + SESSION_SIZE;
+    const size_t data_min = DATA_MIN + (u->auth.on ? HIL_AUTH_TRAILER : 0u);
+    size_t body_n;
     uint16_t crc;
-    uint8_t len;
-    if (n == CONTROL_SIZE && get_u32(d) == 0u) {
-        control(u, d);
+    if ((n == CONTROL_SIZE || n == AUTH_CONTROL_SIZE) && get_u32(d) == 0u) {
+        control(u, d, n);
         return 0;
     }
-    if (n < DATA_MIN || d[LENGTH_AT] != n - DATA_MIN) {
+    if (u->auth.on && n >= DATA_MIN && d[LENGTH_AT] == n - DATA_MIN) { /* a frame without the trailer */
+        u->stats.auth_failed++;
+        return 0;
+    }
+    if (n < data_min || d[LENGTH_AT] != n - data_min) {
         u->stats.framing_errors++;
         return 0;
     }
@@ -145,10 +216,13 @@ static int datagram(nl_udp_t *u, const uint8_t *d, size_t n, hil_core_frame_t *f
         u->stats.session_dropped++;
         return 0;
     }
-    len = d[LENGTH_AT];
+    body_n = n - SESSION_SIZE - CRC_SIZE;
     crc = (uint16_t)(((uint16_t)d[n - 2] << 8) | d[n - 1]);
-    if (hil_serial_crc16(body, (size_t)(HEADER_SIZE + len), 0xFFFFu) != crc) {
+    if (hil_serial_crc16(body, body_n, 0xFFFFu) != crc) {
         u->stats.crc_errors++;
+        return 0;
+    }
+    if (u->auth.on && !nl_auth_open(&u->auth, body, body_n, &u->stats)) {
         return 0;
     }
     return nl_accept_framed(body, &u->rx_last, &u->stats, f);

@@ -11,12 +11,19 @@
  * handshake) or is agreed here (the target: a HELLO from the peer is adopted and acknowledged). Waiting for
  * a frame busy-polls for at most spin_ns, then blocks in ppoll until the deadline, so a loaded machine
  * degrades instead of collapsing. No allocation.
+ *
+ * Authenticated frames (auth.on, docs/protocol.md "Authenticated frames"): every data datagram carries the
+ * hil_auth trailer between payload and CRC, control datagrams a nonce and a MAC (22 bytes); a HELLO whose MAC
+ * fails (or that is unauthenticated on an authenticating end, or authenticated on one that is not) is answered
+ * with a REJECT naming why, and counted in auth_failed; frames whose MAC fails or whose freshness is stale are
+ * dropped and counted (auth_failed, auth_replayed).
  */
 #ifndef HIL_NATIVE_LOOP_UDP_H
 #define HIL_NATIVE_LOOP_UDP_H
 
 #include <stdint.h>
 
+#include "hil_auth.h"
 #include "nl_link.h"
 
 typedef struct {
@@ -29,6 +36,8 @@ typedef struct {
     int32_t rx_last;           /* last link sequence number accepted, -1: none */
     nl_spin_t spin;            /* busy-poll, then block (adaptive, nl_link.h) */
     nl_link_stats_t stats;
+    uint32_t nonce;            /* the adopting end's nonce of the session (authenticated links; the target's) */
+    hil_auth_t auth;           /* authenticated frames (hil_auth.h; auth.on 0: off), context = session + nonce */
 } nl_udp_t;
 
 /* Send one frame (FD frames with the FD and BRS flags, as FramedBus.send_frame); 0 ok, -1 counted error. */

@@ -29,6 +29,20 @@ int nl_seq_accept(int32_t *last, uint8_t seq, nl_link_stats_t *st)
     return 1;
 }
 
+int nl_auth_open(hil_auth_t *a, const uint8_t *body, size_t n, nl_link_stats_t *st)
+{
+    const int verdict = hil_auth_open(a, body, n);
+    if (verdict == HIL_AUTH_OK) {
+        return 1;
+    }
+    if (verdict == HIL_AUTH_FAILED) {
+        st->auth_failed++;
+    } else {
+        st->auth_replayed++;
+    }
+    return 0;
+}
+
 int nl_valid_length(uint8_t n, int fd)
 {
     if (!fd) {

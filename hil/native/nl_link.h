@@ -10,8 +10,10 @@
 #ifndef HIL_NATIVE_NL_LINK_H
 #define HIL_NATIVE_NL_LINK_H
 
+#include <stddef.h>
 #include <stdint.h>
 
+#include "hil_auth.h"
 #include "hil_target_core.h"
 
 /* Send one frame: 0 ok, -1 a counted error (send_errors). */
@@ -60,12 +62,16 @@ typedef struct nl_link {
 /* LinkStats (protocol/links/stats.py), plus the waits that ended in ppoll. */
 typedef struct {
     int64_t frames_tx, frames_rx, crc_errors, framing_errors, dropped, duplicate, out_of_order, send_errors,
-        ignored, foreign_dropped, session_dropped;
+        ignored, foreign_dropped, session_dropped, auth_failed, auth_replayed;
     int64_t blocked;           /* waits that ended in ppoll (the spin found nothing) */
 } nl_link_stats_t;
 
 /* SeqTracker.accept on *last (-1: none yet): 1 deliver, 0 a repeat; dropped / duplicate / out_of_order counted. */
 int nl_seq_accept(int32_t *last, uint8_t seq, nl_link_stats_t *st);
+
+/* hil_auth_open on a received body of n bytes ending in its trailer: 1 accepted, 0 dropped and counted
+ * (auth_failed: a MAC that does not match; auth_replayed: a stale freshness value). */
+int nl_auth_open(hil_auth_t *a, const uint8_t *body, size_t n, nl_link_stats_t *st);
 
 /* valid_payload_length: a classic (<= 8) or CAN FD payload length. */
 int nl_valid_length(uint8_t n, int fd);

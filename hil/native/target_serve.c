@@ -27,6 +27,15 @@ int32_t nt_serve(const nl_link_t *l, int64_t idle_ns, int32_t parent_pid)
 
 int32_t nt_serve_core(const nl_link_t *l, int64_t idle_ns, int32_t parent_pid, nt_core_rx_fn rx, nt_core_tx_fn tx)
 {
+    return nt_serve_core_debug(l, idle_ns, parent_pid, rx, tx, NULL, NULL, NULL);
+}
+
+int32_t nt_serve_core_debug(const nl_link_t *l, int64_t idle_ns, int32_t parent_pid, nt_core_rx_fn rx,
+                            nt_core_tx_fn tx, const uint32_t *steps, const float *torque_ref, nl_sil_debug_t *debug)
+{
+    volatile nl_sil_debug_t *slot = debug;
+    const volatile uint32_t *step_count = steps;
+    const volatile float *tref = torque_ref;
     struct sigaction sa;
     struct sigaction old_term;
     struct sigaction old_int;
@@ -46,6 +55,11 @@ int32_t nt_serve_core(const nl_link_t *l, int64_t idle_ns, int32_t parent_pid, n
         const int got = l->recv(l->ctx, &in, now + CHECK_NS);
         if (got > 0) {
             rx(in.id, in.data, in.len, in.fd);
+            if (slot != NULL && step_count != NULL && tref != NULL && *step_count != slot->steps) {
+                slot->torque_ref = *tref; /* before the steps (the host reads a slot with steps > 0) */
+                slot->steps = *step_count;
+                __sync_synchronize(); /* both stores before the Command's send */
+            }
             while (tx(&out)) {
                 (void)l->send(l->ctx, &out);
             }

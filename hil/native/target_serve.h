@@ -11,6 +11,7 @@
 #include <stdint.h>
 
 #include "hil_target_core.h"
+#include "loop.h"
 #include "nl_link.h"
 
 #define NT_END_SIGNAL 1
@@ -26,5 +27,11 @@ int32_t nt_serve(const nl_link_t *l, int64_t idle_ns, int32_t parent_pid);
 typedef void (*nt_core_rx_fn)(uint32_t id, const uint8_t *data, uint8_t len, uint8_t fd);
 typedef int (*nt_core_tx_fn)(hil_core_frame_t *out);
 int32_t nt_serve_core(const nl_link_t *l, int64_t idle_ns, int32_t parent_pid, nt_core_rx_fn rx, nt_core_tx_fn tx);
+
+/* nt_serve_core, and after each step (the core's step counter at *steps moved) its torque reference (*torque_ref,
+ * the library's hil_app_cmd_t debug output) into *debug, memory the host maps too (loop.h nl_sil_debug_t), before
+ * the step's Command is sent: how an isolated SIL run logs torque_ref. */
+int32_t nt_serve_core_debug(const nl_link_t *l, int64_t idle_ns, int32_t parent_pid, nt_core_rx_fn rx,
+                            nt_core_tx_fn tx, const uint32_t *steps, const float *torque_ref, nl_sil_debug_t *debug);
 
 #endif

@@ -42,12 +42,22 @@ def _kernel_drops(metrics: dict[str, Any], target_link: dict[str, int] | None) -
             f"full: link.kernel_dropped)")
 
 
+def _auth_dropped(stats: dict[str, Any] | None) -> int | None:
+    """Frames the end whose counters these are dropped for their authentication: a MAC that failed or was missing,
+    a replayed freshness value (None: not known)."""
+    if stats is None:
+        return None
+    return int(stats.get("auth_failed", 0)) + int(stats.get("auth_replayed", 0))
+
+
 def attribute(metrics: dict[str, Any], target_link: dict[str, int] | None) -> None:
-    """Add `target_link` and `link_losses` {to_target, to_host} to `metrics`; when the run ended on a missing
-    Command or the watchdog and the link lost frames, the end reason says so."""
+    """Add `target_link`, `link_losses` and `link_auth_dropped` {to_target, to_host} to `metrics`; when the run
+    ended on a missing Command or the watchdog and the link lost frames, the end reason says so."""
     metrics["target_link"] = target_link
     to_target, to_host = _lost(target_link), _lost(metrics.get("link"))
     metrics["link_losses"] = {"to_target": to_target, "to_host": to_host}
+    metrics["link_auth_dropped"] = {"to_target": _auth_dropped(target_link),
+                                    "to_host": _auth_dropped(metrics.get("link"))}
     code = metrics.get("end_code")
     missing = metrics.get("dut_violations_by_rule", {}).get(MISSING, 0)
     silent = code == int(EndCode.SAFETY_STOP) and str(metrics.get("end_reason", "")).startswith("watchdog")

@@ -71,6 +71,8 @@ def connect_native(cfg: RunConfig) -> TargetConnection:
     native: NativeWireLink | NativePyLink
     if wire is not None and bus is not None and conn.inproc_result is None and cfg.fault_spec is None:
         native = NativeWireLink(conn.host_link, bus, wire, ffi, lib, fd=fd)
+        if conn.sil_debug is not None:  # an isolated SIL target: its torque reference through shared memory
+            native.sil_debug = conn.sil_debug.pointer(ffi)
     else:  # an in-process target served in Python, or no descriptor for C (serial:socket://...): through Python
         native = NativePyLink(conn.host_link, ffi, lib, fd=fd, pump=conn.client.pump, inproc_result=conn.inproc_result)
     conn.host_link = conn.client.link = native

@@ -14,6 +14,7 @@ code cannot take the runner down (hil/runner/sil_watch.py tells the runner's end
 
 from __future__ import annotations
 
+import mmap
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -22,6 +23,7 @@ from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.runner.native_link import native_lib
 from pmsm_hil.hil.runner.native_link_kinds import NATIVE_WIRES
 from pmsm_hil.hil.runner.native_wire import WireHandle
+from pmsm_hil.hil.runner.sil_debug import SIL_DEBUG_BYTES
 from pmsm_hil.protocol.links import open_link, parse_spec
 from pmsm_hil.protocol.links.kernel_drops import link_kernel_drops
 from pmsm_hil.protocol.links.udp_bus import link_socket_drops
@@ -35,6 +37,23 @@ def _reasons(lib: Any) -> dict[int, str]:
             int(lib.NT_END_CLOSED): "link closed"}
 
 
+def _serve_sil(ffi: Any, lib: Any, h: WireHandle, idle_ns: int, parent_pid: int, firmware: SilFirmware,
+               debug_fd: int | None) -> int:
+    """nt_serve_core over the SIL library's core, copying each step's torque reference to the memory of
+    `debug_fd` (shared with the host) when given."""
+    rx, tx = (ffi.cast(t, p) for t, p in zip(("nt_core_rx_fn", "nt_core_tx_fn"), firmware.entry_points(), strict=True))
+    if debug_fd is None:
+        return int(lib.nt_serve_core(h.link, idle_ns, parent_pid, rx, tx))
+    steps, torque_ref = firmware.debug_sources()
+    with mmap.mmap(debug_fd, SIL_DEBUG_BYTES) as shared:
+        slot = ffi.from_buffer("nl_sil_debug_t *", shared)
+        try:
+            return int(lib.nt_serve_core_debug(h.link, idle_ns, parent_pid, rx, tx, ffi.cast("uint32_t *", steps),
+                                               ffi.cast("float *", torque_ref), slot))
+        finally:
+            ffi.release(slot)
+
+
 @dataclass(slots=True)
 class NativeServed:
     """How a native serve ended: the core's counters, the link's counters and why it stopped."""
@@ -46,9 +65,10 @@ class NativeServed:
 
 def serve_native(link_spec: str, *, role: str = "target", max_idle_s: float | None = None,
                  parent_pid: int | None = None, on_ready: Callable[[], None] | None = None,
-                 sil: str | None = None) -> NativeServed:
+                 sil: str | None = None, sil_debug_fd: int | None = None) -> NativeServed:
     """Serve the C target core on the link `link_spec` until an ending (see the module docstring); `sil`: the
-    core of this SIL library instead of the reference firmware linked in (the SIL target's own process)."""
+    core of this SIL library instead of the reference firmware linked in (the SIL target's own process);
+    `sil_debug_fd`: memory shared with the host (loop.h nl_sil_debug_t) where each step's torque reference goes."""
     ffi, lib = native_lib()
     firmware = SilFirmware(sil) if sil is not None else None  # a bad library fails before the ready line
     wire = NATIVE_WIRES.get(parse_spec(link_spec).kind.lower())
@@ -73,9 +93,7 @@ def serve_native(link_spec: str, *, role: str = "target", max_idle_s: float | No
             if firmware is None:
                 end = int(lib.nt_serve(h.link, idle_ns, parent_pid or 0))
             else:
-                rx, tx = firmware.entry_points()
-                end = int(lib.nt_serve_core(h.link, idle_ns, parent_pid or 0, ffi.cast("nt_core_rx_fn", rx),
-                                            ffi.cast("nt_core_tx_fn", tx)))
+                end = _serve_sil(ffi, lib, h, idle_ns, parent_pid or 0, firmware, sil_debug_fd)
         names = ("measurements", "commands", "config_writes", "config_rejected", "faults")
         if firmware is None:
             c = lib.hil_core_counters()

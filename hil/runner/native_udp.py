@@ -30,6 +30,7 @@ def _fill(ffi: Any, u: Any, bus: UdpUnicastBus, target_role: bool) -> None:
     u.peer_port = socket.htons(port)
     u.tx_seq, u.rx_last = bus.link_seq
     u.target_role = 1 if target_role else 0
+    u.nonce = bus.nonce
 
 
 def _hand_back(ffi: Any, u: Any, bus: UdpUnicastBus) -> None:

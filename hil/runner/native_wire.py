@@ -35,6 +35,25 @@ def default_spin_ns() -> int:
 COUNTERS = tuple(LinkStats.__slots__)
 
 
+def _fill_auth(ffi: Any, lib: Any, state: Any, bus: Any, target_role: bool) -> None:
+    """A wire with authenticated frames (its C state has an `auth` field, its bus a FrameAuth): the key, the MAC
+    context and both freshness counters to C."""
+    auth = getattr(bus, "auth", None)
+    if auth is None or not hasattr(state, "auth"):
+        return
+    a = ffi.addressof(state, "auth")
+    lib.hil_auth_init(a, auth.key, len(auth.key), 1 if target_role else 0)
+    lib.hil_auth_set_context(a, auth.context, len(auth.context))
+    a.tx_fresh, a.rx_fresh = auth.tx_fresh, auth.rx_fresh
+
+
+def _hand_back_auth(state: Any, bus: Any) -> None:
+    """The freshness counters the C link reached, back to the bus's FrameAuth."""
+    auth = getattr(bus, "auth", None)
+    if auth is not None and hasattr(state, "auth") and state.auth.on:
+        auth.tx_fresh, auth.rx_fresh = int(state.auth.tx_fresh), int(state.auth.rx_fresh)
+
+
 def _nothing(ffi: Any, state: Any, bus: Any) -> None:
     """A wire with nothing to hand back but its counters."""
 
@@ -62,6 +81,7 @@ class WireHandle:
         self.state = ffi.new(f"{wire.struct} *")
         self.state.spin.spin_ns = default_spin_ns() if spin_ns is None else spin_ns
         wire.fill(ffi, self.state, bus, target_role)
+        _fill_auth(ffi, lib, self.state, bus, target_role)
         self.link = ffi.new("nl_link_t *")
         getattr(lib, wire.make_link)(self.link, self.state)
 
@@ -78,6 +98,7 @@ class WireHandle:
     def hand_back(self) -> None:
         """Give the bus what it continues from (link sequence numbers, bytes of a packet half received)."""
         self.wire.hand_back(self.ffi, self.state, self.bus)
+        _hand_back_auth(self.state, self.bus)
 
 
 class NativeWireLink(LinkFacade):
@@ -94,12 +115,15 @@ class NativeWireLink(LinkFacade):
         self.handle: WireHandle | None = None
         #: how the C loop's receives waited over its runs (`WireHandle.waits`)
         self.waits: dict[str, int] = {}
+        #: an `nl_sil_debug_t *` a SIL target process writes its torque references to (None: none)
+        self.sil_debug: Any = None
 
     def attach(self, c: Any, lockstep_timeout_s: float) -> None:
         """Give the loop's nl_config_t `c` the link as it is now."""
         self.handle = WireHandle(self.wire, self.ffi, self.lib, self.bus, target_role=False)
         c.link = self.handle.link
         c.lockstep_timeout_ns = int(lockstep_timeout_s * 1e9)
+        c.sil_debug = self.sil_debug if self.sil_debug is not None else self.ffi.NULL
 
     def detach(self) -> None:
         """After the run: the C link's counters into `stats`, its state back to the bus."""

@@ -37,6 +37,7 @@ from pmsm_hil.hil.runner.target_client import DutViolationError, TargetError
 from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target
 from pmsm_hil.protocol.errors import LinkError
 from pmsm_hil.protocol.links.kernel_drops import link_kernel_drops
+from pmsm_hil.protocol.links.spec import redact_spec
 from pmsm_hil.protocol.links.udp_bus import link_socket_drops
 
 
@@ -181,6 +182,7 @@ def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection, sink: Ru
     metrics["link"].update({k: v for k, v in stats.items() if k not in metrics["link"]})
     metrics["link"].update(link_socket_drops(conn.host_link))
     metrics["link"].update(link_kernel_drops(conn.host_link))
+    metrics["link_authenticated"] = getattr(getattr(conn.host_link, "bus", None), "auth", None) is not None
     metrics["end_reason"] = out.end_reason
     metrics["end_code"] = out.end_code
     metrics["end_period"] = out.completed_periods - 1
@@ -203,7 +205,7 @@ def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection, sink: Ru
     metrics["load_nm"] = cfg.scenario.load_nm if cfg.load_fmu is None else None
     metrics["load_fmu"] = out.load_fmu
     metrics["mode"] = cfg.mode
-    metrics["link_spec"] = cfg.link
+    metrics["link_spec"] = redact_spec(cfg.link)  # issue 26: a key= never reaches metrics.json
     warnings: list[str] = []
     lat = out.lateness_us
     if cfg.mode == "realtime" and lat.n:

@@ -23,6 +23,7 @@ from pmsm_hil.hil.machine_params import MachineParams
 from pmsm_hil.hil.runner.recorder import FrameTap, frame_records
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.target_client import TargetClient
+from pmsm_hil.protocol.links.spec import redact_spec
 
 #: the files a run writes into its output directory (`RunConfig.out_dir`)
 RUN_FILES = ("run.mcap", "metrics.json")
@@ -65,7 +66,7 @@ def run_metadata(cfg: RunConfig) -> dict[str, str]:
     """Metadata mapping (str → str) of a run (see the module docstring)."""
     sc, m = cfg.scenario, cfg.motor
     meta = {"motor": m.name, "controller": cfg.controller, "scenario": sc.name, "ts_s": repr(cfg.ts_s),
-            "link": cfg.link, "mode": cfg.mode, "seed": str(cfg.seed), "speed_rpm": repr(sc.speed_rpm),
+            "link": redact_spec(cfg.link), "mode": cfg.mode, "seed": str(cfg.seed), "speed_rpm": repr(sc.speed_rpm),
             "load_nm": repr(sc.load_nm), "pole_pairs": str(m.pole_pairs), "phases": str(cfg.machine.phases),
             "target": cfg.target, "miss_policy": cfg.miss_policy, "watchdog_periods": str(cfg.watchdog_periods),
             "log_trace": "true" if cfg.log_trace else "false", "version": package_version(),

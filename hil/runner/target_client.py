@@ -92,6 +92,16 @@ class TargetClient:
             elif isinstance(msg, Heartbeat) and msg.node == TARGET_NODE:
                 self.heartbeats.append(msg)
 
+    def _silence_hint(self) -> str:
+        """Why a target may not answer at all: none on the link, or (authenticated frames) another key."""
+        stats = getattr(self.link, "stats", None)
+        if getattr(getattr(self.link, "bus", None), "auth", None) is None:
+            return "is a target running on this link?"
+        failed = int(getattr(stats, "auth_failed", 0) or 0) + int(getattr(stats, "auth_replayed", 0) or 0)
+        seen = f"; {failed} frame(s) from it failed authentication here" if failed else ""
+        return ("is a target running on this link, with the same key? An authenticating target drops every frame "
+                f"of another key{seen}")
+
     def serve(self) -> None:
         """Take every frame waiting on the link (non-blocking; an in-process target is pumped first)."""
         self._drain()
@@ -113,7 +123,7 @@ class TargetClient:
             if now - start > timeout_s:
                 missing = ", ".join(_param_name(p) for p in pending)
                 raise DutViolationError(f"target did not acknowledge parameter(s) {missing} within {timeout_s} s "
-                                        "(is a target running on this link?)")
+                                        f"({self._silence_hint()})")
             if now - last_send >= resend_s:
                 for pid in pending:
                     self.link.send(self.codec.encode(ConfigParam(param_id=int(pid), value=float(params[pid]))))

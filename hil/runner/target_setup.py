@@ -24,6 +24,7 @@ from typing import IO, Any
 
 from pmsm_hil.hil.runner.loop_outcome import LoopOutcome
 from pmsm_hil.hil.runner.run_config import QEMU_MAILBOX_LINK, RunConfig
+from pmsm_hil.hil.runner.sil_debug import SilDebugSlot
 from pmsm_hil.hil.runner.sil_watch import (
     SIL_STOP_WAIT_S,
     SOCKETPAIR_LINK,
@@ -35,6 +36,7 @@ from pmsm_hil.hil.runner.sil_watch import (
 from pmsm_hil.hil.runner.target_client import DutViolationError, TargetClient, TargetError
 from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.links import Link, link_kind, open_link, parse_spec
+from pmsm_hil.protocol.links.spawn_auth import spawn_auth
 from pmsm_hil.protocol.links.udp_bus import UdpUnicastBus
 from pmsm_hil.sim_target.process import LINK_STATS_LINE, READY_LINE, SPAWNED_IDLE_TIMEOUT_S
 
@@ -65,6 +67,8 @@ class TargetConnection:
     ending: Callable[[LoopOutcome], None] | None = None
     #: wall time [s] a spawned target gets to exit after SIGTERM before SIGKILL
     stop_wait_s: float = 5.0
+    #: a SIL target process's debug outputs (each step's torque reference), shared memory
+    sil_debug: SilDebugSlot | None = None
 
     def link_stats(self) -> dict[str, int]:
         """Host link counters plus decoder counters, plus how the native loop's receives waited (`blocked`,
@@ -91,6 +95,8 @@ class TargetConnection:
         for link in (self.host_link, self.target_link):
             if link is not None:
                 link.close()
+        if self.sil_debug is not None:
+            self.sil_debug.close()
         for item in self.extra:
             if isinstance(item, int):
                 with contextlib.suppress(OSError):
@@ -126,19 +132,28 @@ def _target_link_stats(proc: subprocess.Popen[bytes]) -> dict[str, int]:
 
 
 def _spawn_target(spec: str, native: bool = False, sil: str | None = None,
-                  pass_fds: tuple[int, ...] = ()) -> tuple[subprocess.Popen[bytes], IO[bytes]]:
+                  pass_fds: tuple[int, ...] = (), key: bytes | None = None,
+                  sil_debug: SilDebugSlot | None = None) -> tuple[subprocess.Popen[bytes], IO[bytes]]:
     """Start `hil target` (`--native`: its C serve loop; `sil`: serving that SIL library, in its own process
     group so a terminal's Ctrl-C reaches the runner only, which stops it in order) on `spec` and wait for its
     ready line; raises TargetError with its own error line if it exits first (a port in use, a bad library) or
-    does not get ready in time. Its stderr goes to the returned file."""
+    does not get ready in time. Its stderr goes to the returned file. `key`: the frames' authentication key,
+    written to its stdin (`--auth-key-stdin`: never on its command line, which any user may read). `sil_debug`:
+    the memory where a SIL target's serve loop puts each step's torque reference (`--sil-debug-fd`)."""
+    if sil_debug is not None:
+        pass_fds = (*pass_fds, sil_debug.fd)
     cmd = [sys.executable, "-m", "pmsm_hil.app.cli.main", "target", "--link", spec, "--role", "target",
            "--parent-pid", str(os.getpid()), "--idle-timeout", repr(SPAWNED_IDLE_TIMEOUT_S), *(["--native"] * native),
-           *(["--sil", sil] if sil is not None else [])]
+           *(["--sil", sil] if sil is not None else []), *(["--auth-key-stdin"] if key is not None else []),
+           *(["--sil-debug-fd", str(sil_debug.fd)] if sil_debug is not None else [])]
     err = tempfile.TemporaryFile()  # noqa: SIM115 (the connection owns it: `close` forwards it)
     # its own session: a terminal's Ctrl-C (or a SIGTERM to the run's process group) reaches the run, which
     # stops the loop, sends the disabling Setpoint and then stops the target (`_stop`), not the target first
     proc = subprocess.Popen(cmd, env=dict(os.environ), stdout=subprocess.PIPE, stderr=err, pass_fds=pass_fds,
-                            start_new_session=True)
+                            start_new_session=True, stdin=subprocess.PIPE if key is not None else None)
+    if proc.stdin is not None and key is not None:
+        with proc.stdin, contextlib.suppress(OSError):  # a target that died at once is told below
+            proc.stdin.write(key.hex().encode("ascii") + b"\n")
     stdout = proc.stdout
     if stdout is not None and _read_line(stdout, SPAWN_READY_TIMEOUT_S).startswith(READY_LINE):
         return proc, err
@@ -198,14 +213,16 @@ def _sil_library(path: str) -> str:
     return str(p)
 
 
-def _connect_spawned(cfg: RunConfig, codec: FrameCodec, native: bool, sil: str | None = None) -> TargetConnection:
+def _connect_spawned(cfg: RunConfig, codec: FrameCodec, native: bool, sil: str | None = None,
+                     sil_debug: SilDebugSlot | None = None) -> TargetConnection:
     """A `hil target` process on the mirror of the run's link (`sil`: serving that SIL library)."""
     spec = parse_spec(cfg.link)
     specs = link_kind(spec).mirror(cfg.link, spec)
+    specs, key = spawn_auth(specs)  # issue 26: authenticated frames by default (protocol/links/auth.py)
     host_link = open_link(specs.host, "host")
     conn = TargetConnection(TargetClient(host_link, codec), host_link, extra=list(specs.keep_open))
     try:
-        conn.process, conn.process_stderr = _spawn_target(specs.target, native, sil)
+        conn.process, conn.process_stderr = _spawn_target(specs.target, native, sil, key=key, sil_debug=sil_debug)
         _await_session(host_link)
     except BaseException:
         conn.close()
@@ -223,10 +240,17 @@ def _connect_sil_process(cfg: RunConfig, library: str) -> TargetConnection:
     cfg = isolated_config(cfg)
     spec = parse_spec(cfg.link)
     codec = FrameCodec(link_kind(spec).profile(spec))
-    if cfg.link == SOCKETPAIR_LINK:
-        conn = _connect_socketpair(codec, library)
-    else:
-        conn = _connect_spawned(cfg, codec, True, library)
+    debug = SilDebugSlot()  # the torque reference of each step, which no frame carries
+    try:
+        if cfg.link == SOCKETPAIR_LINK:
+            conn = _connect_socketpair(codec, library, debug)
+        else:
+            conn = _connect_spawned(cfg, codec, True, library, debug)
+    except BaseException:
+        debug.close()
+        raise
+    debug.close_fd()  # the target process holds it now
+    conn.sil_debug = debug
     conn.stop_wait_s = SIL_STOP_WAIT_S
     proc = conn.process
     assert proc is not None
@@ -247,7 +271,7 @@ def _connect_sil_process(cfg: RunConfig, library: str) -> TargetConnection:
     return conn
 
 
-def _connect_socketpair(codec: FrameCodec, library: str) -> TargetConnection:
+def _connect_socketpair(codec: FrameCodec, library: str, sil_debug: SilDebugSlot | None = None) -> TargetConnection:
     """The SIL target process on one end of a Unix socket pair (serial framing), the host's link on the other."""
     host_end, target_end = socket.socketpair()
     host_fd, target_fd = host_end.detach(), target_end.detach()
@@ -259,7 +283,8 @@ def _connect_socketpair(codec: FrameCodec, library: str) -> TargetConnection:
         raise
     conn = TargetConnection(TargetClient(host_link, codec), host_link)
     try:
-        conn.process, conn.process_stderr = _spawn_target(f"serial:fd:{target_fd}", True, library, (target_fd,))
+        conn.process, conn.process_stderr = _spawn_target(f"serial:fd:{target_fd}", True, library, (target_fd,),
+                                                          sil_debug=sil_debug)
     except BaseException:
         conn.close()
         raise

@@ -7,7 +7,8 @@ EOF 7, IFS 3 = 34 bits at the nominal rate; BRS and the CRC delimiter counted at
 conservatively) and data phase (ESI + DLC 5 bits + 8n + the remaining dynamic stuff bits
 floor((22 + 8n - 1)/4) - 4, stuff count 4 bits, CRC 17 (n ≤ 16) or 21, fixed stuff bits
 ceil((4 + crc)/4)) at the data rate.
-Serial (8N1, 10 bits per byte): COBS(7-byte header + n + 2-byte CRC) + 0x00 delimiter.
+Serial (8N1, 10 bits per byte): COBS(7-byte header + n + 2-byte CRC) + 0x00 delimiter; authenticated frames
+(`auth`, protocol/links/auth.py) add their 6-byte trailer (freshness 2 + MAC 4) inside the COBS block.
 Six-phase uses the reserved layouts (classic: + MeasC 8 bytes; FD/serial: MeasFd6 24 bytes).
 """
 
@@ -19,6 +20,7 @@ from typing import Any, Literal
 
 from pmsm_hil.protocol.errors import BudgetError
 from pmsm_hil.protocol.layout import load_layouts
+from pmsm_hil.protocol.links.auth import TRAILER
 from pmsm_hil.protocol.links.cobs import CRC_SIZE
 from pmsm_hil.protocol.links.wire import HEADER_SIZE
 
@@ -46,9 +48,9 @@ def canfd_frame_bits(n: int) -> tuple[int, int]:
     return nominal, data
 
 
-def serial_frame_bytes(n: int) -> int:
-    """Bytes on the line for one frame: COBS(header + payload + CRC) + delimiter."""
-    raw = HEADER_SIZE + n + CRC_SIZE
+def serial_frame_bytes(n: int, auth: bool = False) -> int:
+    """Bytes on the line for one frame: COBS(header + payload [+ auth trailer] + CRC) + delimiter."""
+    raw = HEADER_SIZE + n + (TRAILER if auth else 0) + CRC_SIZE
     return int(raw + max(1, math.ceil(raw / 254)) + 1)
 
 
@@ -75,6 +77,7 @@ class LinkBudget:
     rate_hz: float | None
     bus_load_pct: float | None
     feasible: bool | None
+    auth: bool = False
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready dict."""
@@ -109,13 +112,15 @@ def link_budget(
     data_bitrate: int = DEFAULT_DATA_BITRATE,
     baud: int = DEFAULT_BAUD,
     rate_hz: float | None = None,
+    auth: bool = False,
 ) -> LinkBudget:
     """Worst-case budget of one control period on `link` ("can", "canfd" or "serial").
 
     `bitrate` is the (nominal) CAN bit rate [bit/s], `data_bitrate` the CAN FD data-phase rate,
     `baud` the serial line rate (8N1). The closed loop sends measurement then command sequentially,
     so max_rate_hz = 1 / (up + down wire time), compute time excluded. bus_load_pct: CAN shares one
-    medium (up + down)/Ts; serial is full duplex, max(up, down)/Ts."""
+    medium (up + down)/Ts; serial is full duplex, max(up, down)/Ts. `auth`: serial frames carry the
+    authentication trailer (CAN links are not authenticated)."""
     if link not in LINK_KINDS:
         raise BudgetError(f"link={link!r} unknown (expected one of {', '.join(LINK_KINDS)})")
     if phases not in (3, 6):
@@ -140,7 +145,7 @@ def link_budget(
                 bits += nom + dat
                 seconds += nom / bitrate + dat / data_bitrate
             else:
-                b = 10 * serial_frame_bytes(n)
+                b = 10 * serial_frame_bytes(n, auth)
                 bits += b
                 seconds += b / baud
         return bits, seconds * 1e6
@@ -174,4 +179,5 @@ def link_budget(
         rate_hz,
         load,
         feasible,
+        auth and link == "serial",
     )

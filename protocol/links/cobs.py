@@ -67,13 +67,15 @@ class Deframer:
     Garbage is counted (framing_errors / crc_errors in `stats`) and dropped; the deframer resumes at
     the next delimiter, so no input ever raises."""
 
-    __slots__ = ("_buf", "_discarding", "_on_frame", "_stats")
+    __slots__ = ("_buf", "_discarding", "_max_encoded", "_on_frame", "_stats", "_trailer")
 
-    def __init__(self, stats: LinkStats, on_frame: Callable[[bytes], None]) -> None:
+    def __init__(self, stats: LinkStats, on_frame: Callable[[bytes], None], trailer: int = 0) -> None:
         self._stats = stats
         self._on_frame = on_frame
         self._buf = bytearray()
         self._discarding = False
+        self._trailer = trailer  # bytes after the payload (the authentication trailer)
+        self._max_encoded = MAX_ENCODED + trailer
 
     def feed(self, chunk: bytes) -> None:
         """Consume received bytes."""
@@ -91,7 +93,7 @@ class Deframer:
             start = end + 1
         if start:
             del buf[:start]
-        if len(buf) > MAX_ENCODED:
+        if len(buf) > self._max_encoded:
             self._stats.framing_errors += 1
             buf.clear()
             self._discarding = True
@@ -109,7 +111,7 @@ class Deframer:
 
     def _packet(self, enc: bytes) -> None:
         stats = self._stats
-        if len(enc) > MAX_ENCODED:
+        if len(enc) > self._max_encoded:
             stats.framing_errors += 1
             return
         try:
@@ -117,7 +119,7 @@ class Deframer:
         except CobsError:
             stats.framing_errors += 1
             return
-        if len(raw) < HEADER_SIZE + CRC_SIZE:
+        if len(raw) < HEADER_SIZE + self._trailer + CRC_SIZE:
             stats.framing_errors += 1
             return
         body = raw[:-CRC_SIZE]
@@ -125,7 +127,10 @@ class Deframer:
             stats.crc_errors += 1
             return
         length = HEADER.unpack_from(body)[3]
-        if length != len(body) - HEADER_SIZE or length > MAX_PAYLOAD:
+        if self._trailer and length == len(body) - HEADER_SIZE:
+            stats.auth_failed += 1  # a frame without the authentication trailer
+            return
+        if length != len(body) - HEADER_SIZE - self._trailer or length > MAX_PAYLOAD:
             stats.framing_errors += 1
             return
         self._on_frame(body)

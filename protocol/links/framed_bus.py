@@ -11,6 +11,7 @@ from typing import Any
 import can
 from can import CanProtocol
 from pmsm_hil.protocol.frame import Frame
+from pmsm_hil.protocol.links.auth import AUTH_FAILED, AUTH_OK, TRAILER, FrameAuth
 from pmsm_hil.protocol.links.stats import LinkStats, SeqTracker
 from pmsm_hil.protocol.links.wire import (
     FLAG_BRS,
@@ -28,9 +29,15 @@ from pmsm_hil.protocol.links.wire import (
 class FramedBus(can.BusABC):
     """python-can bus moving header-framed frames; subclasses implement `_transmit`, `_pump`, `fileno`."""
 
-    def __init__(self, channel: Any, *, fd: bool = True, **kwargs: Any) -> None:
+    def __init__(self, channel: Any, *, fd: bool = True, auth_key: bytes | None = None,
+                 auth_role: str = "host", **kwargs: Any) -> None:
         super().__init__(channel=channel, **kwargs)
         self.link_stats = LinkStats()
+        #: authenticated frames (protocol/links/auth.py) with this key, None: off
+        self.auth: FrameAuth | None = None if auth_key is None else FrameAuth(
+            auth_key, "target" if auth_role == "target" else "host")
+        #: bytes after the payload of every frame (the authentication trailer, 0: none)
+        self.trailer = TRAILER if self.auth is not None else 0
         self.fd = bool(fd)
         self._can_protocol = CanProtocol.CAN_FD if self.fd else CanProtocol.CAN_20
         self._tx_seq = 0
@@ -60,15 +67,27 @@ class FramedBus(can.BusABC):
         self._tx_seq = tx_seq & 0xFF
         self._tracker.last = rx_last
 
+    def _before_seal(self) -> None:
+        """What must hold before a frame is authenticated (UDP: an agreed session, its MAC context)."""
+
     def _accept(self, packet: bytes, offset: int = 0) -> None:
-        """A header+payload whose length field matches arrived at `offset` of `packet`; a payload length
-        that is not a valid classic (≤ 8) or FD length is a framing error."""
+        """A header+payload (+ the authentication trailer) whose length field matches arrived at `offset` of
+        `packet`; one that fails authentication is dropped (auth_failed / auth_replayed); a payload length that is
+        not a valid classic (≤ 8) or FD length is a framing error."""
+        if self.auth is not None:
+            verdict = self.auth.open(memoryview(packet)[offset:])
+            if verdict != AUTH_OK:
+                if verdict == AUTH_FAILED:
+                    self.link_stats.auth_failed += 1
+                else:
+                    self.link_stats.auth_replayed += 1
+                return
         arb, flags, seq, length = HEADER.unpack_from(packet, offset)
         if not valid_payload_length(length, bool(flags & FLAG_FD)):
             self.link_stats.framing_errors += 1
         elif self._tracker.accept(seq):
             self.link_stats.frames_rx += 1
-            self._rx.append((arb, packet[offset + HEADER_SIZE:], flags))
+            self._rx.append((arb, packet[offset + HEADER_SIZE:offset + HEADER_SIZE + length], flags))
 
     def send_frame(self, arbitration_id: int, data: bytes, is_fd: bool, flags: int = 0) -> None:
         """Fast path send; raises can.CanOperationError on an invalid length or an I/O error."""
@@ -78,6 +97,9 @@ class FramedBus(can.BusABC):
         if is_fd:
             flags |= FLAG_FD | FLAG_BRS
         body = pack_frame(arbitration_id, data, flags, self._tx_seq)
+        if self.auth is not None:
+            self._before_seal()
+            body = self.auth.seal(body)
         self._tx_seq = (self._tx_seq + 1) & 0xFF
         try:
             self._transmit(self._encode(body))

@@ -16,6 +16,7 @@ from typing import Any, Literal
 import can
 from can import CanProtocol
 from pmsm_hil.protocol.errors import LinkSpecError
+from pmsm_hil.protocol.links.auth import key_of_options
 from pmsm_hil.protocol.links.budget import LinkBudget, link_budget
 from pmsm_hil.protocol.links.serial_bus import CobsSerialBus
 from pmsm_hil.protocol.links.spec import LinkSpec, Role, parse_spec
@@ -87,9 +88,19 @@ class LinkKind:
         if self.wire == "none":
             return None
         if self.wire == "serial":
-            return link_budget("serial", phases, baud=int(opts.get("baudrate", 3_000_000)), rate_hz=rate_hz)
+            return link_budget("serial", phases, baud=int(opts.get("baudrate", 3_000_000)), rate_hz=rate_hz,
+                               auth=authenticated(ls))
         return link_budget(self.profile(ls), phases, bitrate=int(opts.get("bitrate", 1_000_000)),
                            data_bitrate=int(opts.get("data_bitrate", 5_000_000)), rate_hz=rate_hz)
+
+
+def authenticated(ls: LinkSpec) -> bool:
+    """True when frames on this link will carry the authentication trailer: a key is given, or the link is a
+    spawned target's pty (authenticated unless `auth=off`)."""
+    opts = ls.options
+    if "key" in opts or "keyfile" in opts:
+        return True
+    return ls.channel == "pty" and str(opts.get("auth", "on")).lower() not in ("off", "false")
 
 
 LINK_KINDS: dict[str, LinkKind] = {}
@@ -138,7 +149,9 @@ def _open_udp(ls: LinkSpec, role: Role) -> tuple[can.BusABC, str]:
             parse_udp_channel(channel)
         except ValueError as exc:
             raise LinkSpecError(str(exc)) from exc
-    return UdpUnicastBus(channel=channel, **ls.options), f"udp:{channel}"
+    opts = dict(ls.options)
+    key = key_of_options(opts)
+    return UdpUnicastBus(channel=channel, auth_key=key, auth_role=role, **opts), f"udp:{channel}"
 
 
 def _mirror_udp(spec: str, ls: LinkSpec) -> SpawnSpecs:
@@ -157,7 +170,9 @@ def _mirror_udp(spec: str, ls: LinkSpec) -> SpawnSpecs:
 def _open_serial(ls: LinkSpec, role: Role) -> tuple[can.BusABC, str]:
     if ls.channel is None:
         raise LinkSpecError("link spec serial: needs a port, e.g. serial:/dev/ttyACM0,baudrate=3000000")
-    return CobsSerialBus(channel=ls.channel, **ls.options), f"serial:{ls.channel}"
+    opts = dict(ls.options)
+    key = key_of_options(opts)
+    return CobsSerialBus(channel=ls.channel, auth_key=key, auth_role=role, **opts), f"serial:{ls.channel}"
 
 
 def _mirror_serial(spec: str, ls: LinkSpec) -> SpawnSpecs:

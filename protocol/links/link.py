@@ -24,7 +24,7 @@ from pmsm_hil.protocol.errors import LinkError, LinkSpecError
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.links.framed_bus import FramedBus
 from pmsm_hil.protocol.links.kinds import link_kind
-from pmsm_hil.protocol.links.spec import Role, parse_spec
+from pmsm_hil.protocol.links.spec import Role, parse_spec, redact_spec
 from pmsm_hil.protocol.links.stats import LinkStats
 
 _perf = time.perf_counter
@@ -182,5 +182,5 @@ def open_link(spec: str = "virtual", role: Role = "host") -> BusLink:
         ImportError,
         KeyError,
     ) as exc:
-        raise LinkError(f"cannot open link {spec!r}: {exc}") from exc
+        raise LinkError(f"cannot open link {redact_spec(spec)!r}: {exc}") from exc
     return BusLink(bus, description)

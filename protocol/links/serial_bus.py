@@ -69,7 +69,7 @@ class CobsSerialBus(FramedBus):
             raise can.CanInitializationError(f"hilserial: cannot open {chan!r}: {exc}") from exc
         self.channel_info = f"hilserial {chan}"
         super().__init__(channel=channel, fd=fd, **kwargs)
-        self._deframer = Deframer(self.link_stats, self._accept)
+        self._deframer = Deframer(self.link_stats, self._accept, self.trailer)
 
     def fileno(self) -> int:
         """Descriptor of the port, or -1 when the transport has none (socket:// URLs)."""

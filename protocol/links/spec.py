@@ -11,6 +11,10 @@ Role = Literal["host", "target"]
 
 #: options that are rates: a positive whole number in these units (checked when the SPEC is parsed)
 RATE_OPTIONS = {"bitrate": "bit/s", "data_bitrate": "bit/s", "baudrate": "baud"}
+#: options kept as the text given (a hex key's leading zeros, a path): never read as numbers or booleans
+TEXT_OPTIONS = ("key", "keyfile")
+#: options whose value is secret: `redact_spec` hides it wherever a SPEC is shown or stored
+SECRET_OPTIONS = ("key",)
 
 
 @dataclass(frozen=True, slots=True)
@@ -52,11 +56,25 @@ def parse_spec(spec: str) -> LinkSpec:
         key, eq, value = opt.partition("=")
         if not eq or not key.strip():
             raise LinkSpecError(f"link spec {spec!r}: option {opt!r} is not key=value")
-        options[key.strip()] = _option_value(value.strip())
+        opt_name = key.strip()
+        options[opt_name] = value.strip() if opt_name in TEXT_OPTIONS else _option_value(value.strip())
     for key, unit in RATE_OPTIONS.items():
         if key in options:
             options[key] = _rate(spec, key, options[key], unit)
     return LinkSpec(name, channel or None, options)
+
+
+def redact_spec(spec: str) -> str:
+    """`spec` with the value of every secret option (`key=`) replaced by `***`: what is printed, logged or
+    written to metrics.json and the MCAP metadata."""
+    if not isinstance(spec, str):
+        return spec
+    head, *opts = spec.split(",")
+    for i, opt in enumerate(opts):
+        name, eq, _ = opt.partition("=")
+        if eq and name.strip() in SECRET_OPTIONS:
+            opts[i] = f"{name}=***"
+    return ",".join([head, *opts])
 
 
 def _rate(spec: str, key: str, value: Any, unit: str) -> int:

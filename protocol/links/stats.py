@@ -23,6 +23,8 @@ class LinkStats:
     ignored: int = 0  # remote/error frames or extended ids seen by the generic path
     foreign_dropped: int = 0  # UDP datagrams from an address other than the configured peer
     session_dropped: int = 0  # UDP datagrams from the peer outside the agreed session
+    auth_failed: int = 0  # authenticated links: frames (and UDP control datagrams) whose MAC failed or was missing
+    auth_replayed: int = 0  # authenticated links: frames with a valid MAC but a stale freshness value (a replay)
 
     def as_dict(self) -> dict[str, int]:
         """Counters by name."""

@@ -22,6 +22,7 @@ from typing import Any
 
 import can
 from pmsm_hil.protocol.errors import LinkError
+from pmsm_hil.protocol.links.auth import MAC_SIZE
 from pmsm_hil.protocol.links.cobs import CRC_INIT, CRC_SIZE
 from pmsm_hil.protocol.links.framed_bus import FramedBus
 from pmsm_hil.protocol.links.stats import SeqTracker
@@ -36,6 +37,15 @@ MAGIC = b"HILS"
 VERSION = 1
 HELLO = 1
 ACK = 2
+#: answers to a HELLO refused for its authentication: the refusing end authenticates and the MAC failed (its key
+#: differs), or it does not authenticate and the HELLO did (session = the refused proposal; never authenticated)
+REJECT_KEY = 3
+REJECT_PLAIN = 4
+#: an authenticated control datagram: CONTROL + nonce u32 (the adopting end's, 0 in a HELLO) + MAC (22 bytes)
+NONCE = struct.Struct("<I")
+AUTH_CONTROL_SIZE = CONTROL.size + NONCE.size + MAC_SIZE
+#: an authenticating end that sends a frame before a session is agreed waits this long for one [s]
+AUTH_SESSION_WAIT_S = 10.0
 HELLO_INTERVAL_S = 0.1  # a proposal is repeated until acknowledged
 #: data datagram: session + wire header + payload + CRC-16 (CCITT, init 0xFFFF, big endian, over header+payload)
 _DATA_MIN = SESSION.size + HEADER_SIZE + CRC_SIZE
@@ -126,8 +136,12 @@ class UdpUnicastBus(FramedBus):
         self._rx_prefix = b""  # session bytes of the agreed session (b"": none, every datagram takes the slow path)
         #: the socket is connect()ed to the peer: the kernel delivers only the peer's datagrams
         self.connected = False
+        self.nonce = 0  #: the adopting end's nonce of the session in use (authenticated links)
+        #: REJECT_KEY / REJECT_PLAIN when the peer refused our HELLO for its authentication (0: not refused)
+        self.rejected = 0
         self._connect()
         super().__init__(channel=channel, fd=fd, **kwargs)
+        self._data_min = _DATA_MIN + self.trailer
 
     @property
     def established(self) -> bool:
@@ -149,15 +163,19 @@ class UdpUnicastBus(FramedBus):
         return self._remote
 
     # -- session handshake --
-    def _control(self, kind: int, sid: int) -> None:
+    def _control(self, kind: int, sid: int, nonce: int = 0) -> None:
+        dgram = CONTROL.pack(0, MAGIC, kind, VERSION, sid)
+        if self.auth is not None and kind in (HELLO, ACK):
+            dgram += NONCE.pack(nonce)
+            dgram += self.auth.control_mac(self.auth.tx_dir, dgram)
         try:
-            self._sock.sendto(CONTROL.pack(0, MAGIC, kind, VERSION, sid), self._remote)
+            self._sock.sendto(dgram, self._remote)
         except ConnectionRefusedError:  # an earlier HELLO refused (the peer not listening yet): resent later
             self._refused()
         except OSError:
             self.link_stats.send_errors += 1
 
-    def _use(self, sid: int, agreed: bool) -> None:
+    def _use(self, sid: int, agreed: bool, nonce: int = 0) -> None:
         if self.session and sid != self.session:  # the peer started a new run: forget the old one's frames
             self._rx.clear()
             self._tracker = SeqTracker(self.link_stats)
@@ -166,6 +184,9 @@ class UdpUnicastBus(FramedBus):
         self._rx_prefix = self._tx_prefix if agreed else b""
         self._proposal = 0 if agreed else sid
         if agreed:
+            self.nonce = nonce
+            if self.auth is not None:  # the frames' MACs bind the session and nonce; freshness starts again
+                self.auth.set_context(SESSION.pack(sid) + NONCE.pack(nonce))
             self._connect()
 
     def _connect(self) -> None:
@@ -188,6 +209,7 @@ class UdpUnicastBus(FramedBus):
 
     def propose(self) -> None:
         """Start the handshake with a fresh random session id (HELLO, repeated until acknowledged)."""
+        self.rejected = 0
         self._use(_new_session_id(), agreed=False)
         self._control(HELLO, self._proposal)
         self._next_hello = time.perf_counter() + HELLO_INTERVAL_S
@@ -198,41 +220,90 @@ class UdpUnicastBus(FramedBus):
             self.propose()
         deadline = time.perf_counter() + timeout_s
         while not self.established:
+            if self.rejected:
+                raise LinkError(f"{self.channel_info}: no session agreed: {self._rejection()}")
             if time.perf_counter() > deadline:
                 peer = f"{self._remote[0]}:{self._remote[1]}"
                 s = self.link_stats
-                if s.session_dropped or s.framing_errors:
+                if s.auth_failed:
+                    why = (f"the peer at {peer} answers with authentication that fails ({s.auth_failed} datagrams "
+                           "dropped): " + ("its key differs from this end's" if self.auth is not None else
+                                           "it authenticates frames and this end does not (key=HEX or keyfile=PATH)"))
+                elif s.session_dropped or s.framing_errors:
                     why = (f"the peer at {peer} answers without the hiludp session handshake "
                            f"({s.session_dropped + s.framing_errors} datagrams dropped): an old or foreign target, "
                            "see docs/protocol.md")
                 else:
-                    why = f"no answer from the peer at {peer} within {timeout_s:g} s (is a target running there?)"
+                    why = f"no answer from the peer at {peer} within {timeout_s:g} s (is a target running there?"
+                    why += " Does it authenticate frames?)" if self.auth is not None else ")"
                 raise LinkError(f"{self.channel_info}: no session agreed: {why}")
             self._pump()
             self._wait_readable(0.01)
+
+    def _rejection(self) -> str:
+        peer = f"{self._remote[0]}:{self._remote[1]}"
+        if self.rejected == REJECT_KEY and self.auth is not None:
+            return (f"the peer at {peer} refused our HELLO: its authentication key differs from this end's "
+                    "(the same key=HEX / keyfile=PATH on both ends)")
+        if self.rejected == REJECT_KEY:
+            return (f"the peer at {peer} authenticates frames and this end does not: give this end its key "
+                    "(key=HEX or keyfile=PATH in the link SPEC)")
+        return (f"the peer at {peer} does not authenticate frames and this end does: start it with the same key "
+                "(key=HEX or keyfile=PATH), or drop the key here")
+
+    def _control_in(self, dgram: bytes) -> None:
+        """A control datagram (session 0) from the peer: HELLO, ACK or a REJECT of our HELLO."""
+        stats = self.link_stats
+        auth = self.auth
+        _, magic, kind, version, sid = CONTROL.unpack_from(dgram)
+        if magic != MAGIC or version != VERSION or kind not in (HELLO, ACK, REJECT_KEY, REJECT_PLAIN) or not sid:
+            stats.framing_errors += 1
+            return
+        if kind in (REJECT_KEY, REJECT_PLAIN):
+            if sid == self._proposal:
+                self.rejected = kind
+            else:
+                stats.session_dropped += 1
+            return
+        nonce = 0
+        if (len(dgram) == AUTH_CONTROL_SIZE) != (auth is not None):  # authenticated on one end only
+            stats.auth_failed += 1
+            if kind == HELLO:
+                self._control(REJECT_KEY if auth is not None else REJECT_PLAIN, sid)
+            return
+        if auth is not None:
+            signed = dgram[:CONTROL.size + NONCE.size]
+            if not secrets.compare_digest(auth.control_mac(auth.rx_dir, signed), dgram[len(signed):]):
+                stats.auth_failed += 1
+                if kind == HELLO:
+                    self._control(REJECT_KEY, sid)
+                return
+            nonce = NONCE.unpack_from(dgram, CONTROL.size)[0]
+        if kind == ACK:
+            if sid == self._proposal:
+                self._use(sid, agreed=True, nonce=nonce)
+            else:
+                stats.session_dropped += 1
+        elif self._proposal > sid:  # a clash: the larger id wins, the peer adopts ours
+            self._next_hello = 0.0
+        else:
+            if sid != self.session or not self.established:  # a repeated HELLO keeps the session's nonce
+                self._use(sid, agreed=True, nonce=_new_session_id() if auth is not None else 0)
+            self._control(ACK, sid, self.nonce)
 
     def _slow(self, dgram: bytes) -> None:
         """A datagram from the peer outside the agreed session: handshake, first frames or a drop."""
         stats = self.link_stats
         n = len(dgram)
-        if n == CONTROL.size and dgram[:4] == b"\0\0\0\0":
-            _, magic, kind, version, sid = CONTROL.unpack(dgram)
-            if magic != MAGIC or version != VERSION or kind not in (HELLO, ACK) or not sid:
-                stats.framing_errors += 1
-            elif kind == ACK:
-                if sid == self._proposal:
-                    self._use(sid, agreed=True)
-                else:
-                    stats.session_dropped += 1
-            elif self._proposal > sid:  # a clash: the larger id wins, the peer adopts ours
-                self._next_hello = 0.0
-            else:
-                self._use(sid, agreed=True)
-                self._control(ACK, sid)
+        if n in (CONTROL.size, AUTH_CONTROL_SIZE) and dgram[:4] == b"\0\0\0\0":
+            self._control_in(dgram)
             return
-        if n < _DATA_MIN or dgram[_LENGTH_AT] != n - _DATA_MIN:
+        if self.auth is not None and n >= _DATA_MIN and dgram[_LENGTH_AT] == n - _DATA_MIN:
+            stats.auth_failed += 1  # a frame without the authentication trailer
+        elif n < self._data_min or dgram[_LENGTH_AT] != n - self._data_min:
             stats.framing_errors += 1
-        elif self._proposal and dgram[:4] == self._tx_prefix:  # the peer adopted our proposal (its ACK is late)
+        elif self._proposal and dgram[:4] == self._tx_prefix and self.auth is None:
+            # the peer adopted our proposal (its ACK is late; an authenticated link needs the ACK's nonce)
             self._use(self._proposal, agreed=True)
             self._checked(dgram)
         else:
@@ -247,6 +318,11 @@ class UdpUnicastBus(FramedBus):
         self._accept(dgram[:-CRC_SIZE], SESSION.size)
 
     # -- FramedBus primitives --
+    def _before_seal(self) -> None:
+        """An authenticated frame needs the session's MAC context: agree one first."""
+        if not self.established:
+            self.wait_session(AUTH_SESSION_WAIT_S)
+
     def _transmit(self, packet: bytes) -> None:
         if not self.session:
             self.propose()
@@ -267,6 +343,7 @@ class UdpUnicastBus(FramedBus):
         stats = self.link_stats
         peer = self._remote
         rx = self._rx
+        data_min = self._data_min
         while not rx:  # one frame per call: an empty socket costs a BlockingIOError (~2 µs)
             try:
                 dgram, addr = recvfrom(MAX_DATAGRAM)
@@ -280,8 +357,8 @@ class UdpUnicastBus(FramedBus):
                 return
             if addr != peer:
                 stats.foreign_dropped += 1
-            elif (dgram[:4] == self._rx_prefix and (n := len(dgram)) >= _DATA_MIN
-                  and dgram[_LENGTH_AT] == n - _DATA_MIN):
+            elif (dgram[:4] == self._rx_prefix and (n := len(dgram)) >= data_min
+                  and dgram[_LENGTH_AT] == n - data_min):
                 self._checked(dgram)
             else:
                 self._slow(dgram)

@@ -10,7 +10,8 @@ from pathlib import Path
 import pytest
 
 FIRMWARE = Path(__file__).resolve().parents[2] / "firmware_stub"
-OWN_TESTS = {"test_config", "test_controllers", "test_mpcc", "test_speed_pi", "test_step", "test_transforms"}
+OWN_TESTS = {"test_auth", "test_config", "test_controllers", "test_mpcc", "test_speed_pi", "test_step",
+             "test_transforms"}
 
 pytestmark = pytest.mark.skipif(shutil.which("cmake") is None, reason="cmake not installed")
 

@@ -97,3 +97,26 @@ def test_sil_other_scenario_equals_inproc(reference_sil: Path) -> None:
     sil = metrics(replace(base, target=f"sil:{reference_sil}"))
     for key in ("speed_mean_rpm", "torque_mean_nm", "torque_ripple_rms_nm"):
         assert sil[key] == ref[key], key
+
+
+@pytest.mark.parametrize("link", ["default", "udp"])
+def test_an_isolated_sil_run_logs_the_torque_reference_as_the_in_process_one(reference_sil: Path,
+                                                                             link: str) -> None:
+    """The SIL target in its own process copies each step's torque reference (hil_app_cmd_t's debug output, no
+    frame carries it) to memory the host maps: the logged torque_ref is the in-process SIL run's, period by
+    period, not NaN (over the default socket pair and over UDP)."""
+    from dataclasses import replace
+
+    import numpy as np
+    from pmsm_hil.hil.runner.run import run_closed_loop
+
+    base = rated(f"sil:{reference_sil}", settle_s=0.01, duration_s=0.03)
+    isolated_cfg = base if link == "default" else replace(base, link="udp")
+    isolated = run_closed_loop(isolated_cfg)
+    inproc = run_closed_loop(replace(base, sil_in_process=True))
+    assert isolated.metrics["end_code"] == inproc.metrics["end_code"] == 0
+    assert isolated.metrics["loop"] == "native"
+    got, want = (r.outcome.periods.all()["torque_ref"] for r in (isolated, inproc))
+    assert got.shape == want.shape and np.all(np.isfinite(got[1:]))
+    np.testing.assert_array_equal(got, want)
+    assert isolated.metrics["torque_error_reference"] == inproc.metrics["torque_error_reference"]
