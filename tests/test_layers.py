@@ -173,7 +173,7 @@ def test_each_extension_compiles_its_own_layer() -> None:
         return module
 
     plant_sources = set(builder("_build_plant").PLANT_SOURCES)  # type: ignore[attr-defined]
-    assert plant_sources == {"dq_segment.c", "gate_edges.c", "plant.c", "plant6.c"}
+    assert plant_sources == {"dq_segment.c", "gate_edges.c", "plant.c", "plant6.c", "im.c"}
     loop_sources = set(builder("_build_loop").LOOP_SOURCES)  # type: ignore[attr-defined]
     assert loop_sources and not (loop_sources & KERNEL_FILES)
 

@@ -32,6 +32,9 @@ CDEF = _X.declarations(_KERNELS / "plant.h", ["pl_params_t", "pl_state_t", "pl_p
                                            "pl_torque", "pl_phase_currents", "pl_kernel"])
 CDEF6 = _X.declarations(_KERNELS / "plant6.h", ["p6_params_t", "p6_state_t", "p6_period_stats_t", "p6_advance",
                                              "p6_torque", "p6_phase_currents", "p6_code_voltage", "p6_kernel"])
+#: the induction machine kernel (im.h)
+CDEF_IM = _X.declarations(_KERNELS / "im.h", ["im_params_t", "im_state_t", "im_period_stats_t", "im_advance",
+                                           "im_sample", "im_kernel"])
 
 
 def _source(name: str) -> str:
@@ -41,13 +44,13 @@ def _source(name: str) -> str:
 
 
 #: the plant kernels and their shared helpers (nothing of the loop: tests/test_layers.py)
-PLANT_SOURCES = ("dq_segment.c", "gate_edges.c", "plant.c", "plant6.c")
+PLANT_SOURCES = ("dq_segment.c", "gate_edges.c", "plant.c", "plant6.c", "im.c")
 
 ffibuilder = FFI()
-ffibuilder.cdef(CDEF_COMMON + CDEF + CDEF6)
+ffibuilder.cdef(CDEF_COMMON + CDEF + CDEF6 + CDEF_IM)
 ffibuilder.set_source(
     "pmsm_hil.hil._plant_native",
-    '#include "plant.h"\n#include "plant6.h"',
+    '#include "plant.h"\n#include "plant6.h"\n#include "im.h"',
     sources=[_source(name) for name in PLANT_SOURCES],
     include_dirs=[str(_KERNELS)],
     # the native loop calls these kernels too: no FMA contraction and no sin/cos fusion, so its records equal the
