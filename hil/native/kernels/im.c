@@ -109,7 +109,221 @@ static int emit_row(const im_params_t *p, im_state_t *s, double tk, double compl
     return 0;
 }
 
-/* Integrate h seconds from t_abs with constant gate levels (legs in dead time at their diode level). */
+#define IM_LEVEL_OPEN 2     /* dead_level value: diode blocked, phase open */
+#define IM_OPEN_STEP 25e-9  /* RK4 step while a phase is open [s] */
+
+/* Unit phase directions a_k (stator frame) of phases a, b, c. */
+static const double IM_EX[3] = {1.0, -0.5, -0.5};
+static const double IM_EY[3] = {0.0, 0.8660254037844386, -0.8660254037844386};
+
+/* Phase current of `leg` [A] for the fluxes (psi_s, psi_r) [Wb]. */
+static double leg_current_of(const im_params_t *p, double complex psi_s, double complex psi_r, int leg)
+{
+    const double complex i_s = (psi_s - psi_r) / p->lsigma;
+    return IM_EX[leg] * creal(i_s) + IM_EY[leg] * cimag(i_s);
+}
+
+/* Earliest zero crossing in (0, piece] of the current of a leg conducting through a diode (8-point scan and
+ * bisection to 1e-13 s on the closed form), or piece; *leg_out the leg (-1: none). */
+static double first_blocking(const im_params_t *p, const im_seg_t *g, const double complex h0[2], double piece,
+                             int cond_mask, const int32_t *dead_level, int *leg_out)
+{
+    double best = piece;
+    *leg_out = -1;
+    for (int leg = 0; leg < 3; leg++) {
+        const double sign = dead_level[leg] == 0 ? 1.0 : -1.0; /* low rail: current out of the leg (> 0) */
+        double lo = 0.0, hi = -1.0;
+        double complex E[2][2], y[2];
+        if (!((cond_mask >> leg) & 1)) {
+            continue;
+        }
+        for (int q = 1; q <= 8; q++) {
+            const double tau = piece * (double)q / 8.0;
+            seg_exp(g, tau, E);
+            mat_vec(E, h0, y);
+            if (sign * leg_current_of(p, g->x_p[0] + y[0], g->x_p[1] + y[1], leg) <= 0.0) {
+                hi = tau;
+                break;
+            }
+            lo = tau;
+        }
+        if (hi < 0.0) {
+            continue;
+        }
+        for (int it = 0; it < 60 && hi - lo > 1e-13; it++) {
+            const double mid = 0.5 * (lo + hi);
+            seg_exp(g, mid, E);
+            mat_vec(E, h0, y);
+            if (sign * leg_current_of(p, g->x_p[0] + y[0], g->x_p[1] + y[1], leg) <= 0.0) {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        if (hi < best || (*leg_out < 0 && hi <= best)) {
+            best = hi;
+            *leg_out = leg;
+        }
+    }
+    return best;
+}
+
+/* No phase open: the closed form over *piece (shortened to the first diode blocking: *blocked its leg). */
+static int piece_closed(const im_params_t *p, im_state_t *s, double t0, double *piece, int levels, int cond_mask,
+                        double omega_e, double trace_dt, double *trace, int32_t trace_cap, im_period_stats_t *stats,
+                        int *blocked)
+{
+    double complex x[2], h0[2], E[2][2];
+    double u_al, u_be;
+    im_seg_t g;
+    x[0] = s->psi_s[0] + IM_J * s->psi_s[1];
+    x[1] = s->psi_r[0] + IM_J * s->psi_r[1];
+    leg_voltage(p->vdc, levels, &u_al, &u_be);
+    seg_setup(p, omega_e, u_al, u_be, &g);
+    h0[0] = x[0] - g.x_p[0];
+    h0[1] = x[1] - g.x_p[1];
+    if (cond_mask) {
+        *piece = first_blocking(p, &g, h0, *piece, cond_mask, s->dead_level, blocked);
+    }
+    if (trace_dt > 0.0 && trace != NULL) {
+        double complex y[2], E_dt[2][2];
+        int fresh = 1;
+        seg_exp(&g, trace_dt, E_dt);
+        for (;;) {
+            const double tk = (double)s->trace_k * trace_dt;
+            double tau = tk - t0;
+            int rc;
+            if (tau >= *piece - 0.5e-9) { /* grid and edges are ns-aligned */
+                break;
+            }
+            if (fresh) { /* the first row of the piece from the closed form, then steps of exp(A dt) */
+                tau = tau < 0.0 ? 0.0 : tau;
+                seg_exp(&g, tau, E);
+                mat_vec(E, h0, y);
+                fresh = 0;
+            } else {
+                mat_vec(E_dt, y, y);
+            }
+            rc = emit_row(p, s, tk, g.x_p[0] + y[0], g.x_p[1] + y[1], trace, trace_cap, stats);
+            if (rc != 0) {
+                return rc;
+            }
+        }
+    }
+    seg_exp(&g, *piece, E);
+    mat_vec(E, h0, x);
+    x[0] += g.x_p[0];
+    x[1] += g.x_p[1];
+    s->psi_s[0] = creal(x[0]);
+    s->psi_s[1] = cimag(x[0]);
+    s->psi_r[0] = creal(x[1]);
+    s->psi_r[1] = cimag(x[1]);
+    return 0;
+}
+
+/* d/dt of the loop current i (into phase y, out of z, h = a_y - a_z) and of psi_R with the third phase open:
+ * 2 L_sigma di/dt = v_yz - 2 (Rs + RR) i + Re{conj(h) (RR/L_M - j omega_e) psi_R},
+ * d psi_R/dt = (2/3) RR h i - (RR/L_M - j omega_e) psi_R. */
+static void open_deriv(const im_params_t *p, double complex h, double v_yz, double complex lam, double i,
+                       double complex psi_r, double *di, double complex *dpsi)
+{
+    *di = (v_yz - 2.0 * (p->rs + p->rr) * i + creal(conj(h) * lam * psi_r)) / (2.0 * p->lsigma);
+    *dpsi = (2.0 / 3.0) * p->rr * h * i - lam * psi_r;
+}
+
+/* One phase open: RK4 (steps <= 25 ns) of the loop current and psi_R over *piece; a connected leg conducting
+ * through its diode blocks when the loop current crosses zero (the piece ends there, *blocked its leg). */
+static int piece_one_open(const im_params_t *p, im_state_t *s, double t0, double *piece, int levels, int open_leg,
+                          int cond_mask, double omega_e, double trace_dt, double *trace, int32_t trace_cap,
+                          im_period_stats_t *stats, int *blocked)
+{
+    const int y = (open_leg + 1) % 3, z = (open_leg + 2) % 3;
+    const double complex h = (IM_EX[y] - IM_EX[z]) + IM_J * (IM_EY[y] - IM_EY[z]);
+    const double v_yz = p->vdc * (double)(((levels >> (2 - y)) & 1) - ((levels >> (2 - z)) & 1));
+    const double complex lam = p->rr / p->lm - IM_J * omega_e;
+    const int conducting = ((cond_mask >> y) & 1) ? y : (((cond_mask >> z) & 1) ? z : -1);
+    double complex psi_r = s->psi_r[0] + IM_J * s->psi_r[1];
+    const double complex i_s0 = ((s->psi_s[0] - s->psi_r[0]) + IM_J * (s->psi_s[1] - s->psi_r[1])) / p->lsigma;
+    double i = 0.5 * creal(conj(h) * i_s0); /* projection onto the loop (|h|^2 = 3) */
+    double tau = 0.0;
+    while (tau < *piece - 0.5e-9) {
+        double stop = *piece, hstep;
+        int n_sub, crossed = 0;
+        if (trace_dt > 0.0 && trace != NULL) {
+            double tk = (double)s->trace_k * trace_dt;
+            if (tk - (t0 + tau) < 0.5e-9) {
+                const int rc = emit_row(p, s, tk, p->lsigma * (2.0 / 3.0) * h * i + psi_r, psi_r, trace, trace_cap,
+                                        stats);
+                if (rc != 0) {
+                    return rc;
+                }
+                tk = (double)s->trace_k * trace_dt;
+            }
+            if (tk - t0 < stop) {
+                stop = tk - t0;
+            }
+        }
+        n_sub = (int)ceil((stop - tau) / IM_OPEN_STEP - 1e-9);
+        n_sub = n_sub < 1 ? 1 : n_sub;
+        hstep = (stop - tau) / (double)n_sub;
+        for (int k = 0; k < n_sub; k++) {
+            const double i_prev = i;
+            double k1, k2, k3, k4;
+            double complex m1, m2, m3, m4;
+            open_deriv(p, h, v_yz, lam, i, psi_r, &k1, &m1);
+            open_deriv(p, h, v_yz, lam, i + 0.5 * hstep * k1, psi_r + 0.5 * hstep * m1, &k2, &m2);
+            open_deriv(p, h, v_yz, lam, i + 0.5 * hstep * k2, psi_r + 0.5 * hstep * m2, &k3, &m3);
+            open_deriv(p, h, v_yz, lam, i + hstep * k3, psi_r + hstep * m3, &k4, &m4);
+            i += hstep / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+            psi_r += hstep / 6.0 * (m1 + 2.0 * m2 + 2.0 * m3 + m4);
+            if (conducting >= 0 && ((i_prev > 0.0 && i <= 0.0) || (i_prev < 0.0 && i >= 0.0))) {
+                i = 0.0; /* the diode blocks: no current from here */
+                *blocked = conducting;
+                *piece = tau + (double)(k + 1) * hstep;
+                crossed = 1;
+                break;
+            }
+        }
+        tau = crossed ? *piece : stop;
+    }
+    {
+        const double complex psi_s = p->lsigma * (2.0 / 3.0) * h * i + psi_r;
+        s->psi_s[0] = creal(psi_s);
+        s->psi_s[1] = cimag(psi_s);
+        s->psi_r[0] = creal(psi_r);
+        s->psi_r[1] = cimag(psi_r);
+    }
+    return 0;
+}
+
+/* Two or three phases open: no current; psi_R decays freely (exactly), psi_s = psi_R. */
+static int piece_no_current(const im_params_t *p, im_state_t *s, double t0, double piece, double omega_e,
+                            double trace_dt, double *trace, int32_t trace_cap, im_period_stats_t *stats)
+{
+    const double complex lam = -p->rr / p->lm + IM_J * omega_e;
+    const double complex psi0 = s->psi_r[0] + IM_J * s->psi_r[1];
+    double complex psi;
+    while (trace_dt > 0.0 && trace != NULL) {
+        const double tk = (double)s->trace_k * trace_dt;
+        const double tau = tk - t0 > 0.0 ? tk - t0 : 0.0;
+        int rc;
+        if (tk - t0 >= piece - 0.5e-9) {
+            break;
+        }
+        psi = cexp(lam * tau) * psi0;
+        rc = emit_row(p, s, tk, psi, psi, trace, trace_cap, stats);
+        if (rc != 0) {
+            return rc;
+        }
+    }
+    psi = cexp(lam * piece) * psi0;
+    s->psi_s[0] = s->psi_r[0] = creal(psi);
+    s->psi_s[1] = s->psi_r[1] = cimag(psi);
+    return 0;
+}
+
+/* Integrate h seconds from t_abs with constant gate levels; legs in dead time conduct through the diode the
+ * current's sign picked at the edge until that current reaches zero, then the phase is open. */
 static int integrate(const im_params_t *p, im_state_t *s, double t_abs, double h, double t_load0, double t_load_slope,
                      double t_period0, double trace_dt, double *trace, int32_t trace_cap, im_period_stats_t *stats,
                      const int *gate_level)
@@ -120,62 +334,47 @@ static int integrate(const im_params_t *p, im_state_t *s, double t_abs, double h
         double piece = h - done;
         const double omega_e = (double)p->pole_pairs * s->omega_m;
         const double t0 = t_abs + done;
-        double complex x[2], h0[2], E[2][2];
-        double u_al, u_be, te0 = 0.0;
-        int levels = 0;
-        im_seg_t g;
+        double te0 = 0.0;
+        int levels = 0, cond_mask = 0, n_open = 0, open_leg = -1, blocked = -1, rc;
         for (int leg = 0; leg < 3; leg++) {
-            const int lvl = t0 < s->dead_until[leg] - 0.5e-9 ? s->dead_level[leg] : gate_level[leg];
+            int lvl = gate_level[leg];
+            if (t0 < s->dead_until[leg] - 0.5e-9) {
+                lvl = s->dead_level[leg];
+                if (lvl == IM_LEVEL_OPEN) {
+                    n_open++;
+                    open_leg = leg;
+                    lvl = 0;
+                } else {
+                    cond_mask |= 1 << leg;
+                }
+            }
             levels |= lvl << (2 - leg);
         }
         if (p->inertia_mode && p->max_piece > 0.0 && piece > p->max_piece) {
             piece = p->max_piece;
         }
-        x[0] = s->psi_s[0] + IM_J * s->psi_s[1];
-        x[1] = s->psi_r[0] + IM_J * s->psi_r[1];
         if (p->inertia_mode) {
-            te0 = torque_of(p, x[0], x[1]);
+            te0 = torque_of(p, s->psi_s[0] + IM_J * s->psi_s[1], s->psi_r[0] + IM_J * s->psi_r[1]);
         }
-        leg_voltage(p->vdc, levels, &u_al, &u_be);
-        seg_setup(p, omega_e, u_al, u_be, &g);
-        h0[0] = x[0] - g.x_p[0];
-        h0[1] = x[1] - g.x_p[1];
-        if (trace_dt > 0.0 && trace != NULL) {
-            double complex y[2], E_dt[2][2];
-            int fresh = 1;
-            seg_exp(&g, trace_dt, E_dt);
-            for (;;) {
-                const double tk = (double)s->trace_k * trace_dt;
-                double tau = tk - t0;
-                int rc;
-                if (tau >= piece - 0.5e-9) { /* grid and edges are ns-aligned */
-                    break;
-                }
-                if (fresh) { /* the first row of the piece from the closed form, then steps of exp(A dt) */
-                    tau = tau < 0.0 ? 0.0 : tau;
-                    seg_exp(&g, tau, E);
-                    mat_vec(E, h0, y);
-                    fresh = 0;
-                } else {
-                    mat_vec(E_dt, y, y);
-                }
-                rc = emit_row(p, s, tk, g.x_p[0] + y[0], g.x_p[1] + y[1], trace, trace_cap, stats);
-                if (rc != 0) {
-                    return rc;
-                }
-            }
+        if (n_open == 0) {
+            rc = piece_closed(p, s, t0, &piece, levels, cond_mask, omega_e, trace_dt, trace, trace_cap, stats,
+                              &blocked);
+        } else if (n_open == 1) {
+            rc = piece_one_open(p, s, t0, &piece, levels, open_leg, cond_mask, omega_e, trace_dt, trace, trace_cap,
+                                stats, &blocked);
+        } else {
+            rc = piece_no_current(p, s, t0, piece, omega_e, trace_dt, trace, trace_cap, stats);
         }
-        seg_exp(&g, piece, E);
-        mat_vec(E, h0, x);
-        x[0] += g.x_p[0];
-        x[1] += g.x_p[1];
-        s->psi_s[0] = creal(x[0]);
-        s->psi_s[1] = cimag(x[0]);
-        s->psi_r[0] = creal(x[1]);
-        s->psi_r[1] = cimag(x[1]);
+        if (rc != 0) {
+            return rc;
+        }
+        if (blocked >= 0) {
+            s->dead_level[blocked] = IM_LEVEL_OPEN;
+            stats->open_phase_events++;
+        }
         s->theta_e = dq_wrap_angle(s->theta_e + omega_e * piece);
         if (p->inertia_mode) {
-            const double te1 = torque_of(p, x[0], x[1]);
+            const double te1 = torque_of(p, s->psi_s[0] + IM_J * s->psi_s[1], s->psi_r[0] + IM_J * s->psi_r[1]);
             const double t_load = t_load0 + t_load_slope * (t0 + 0.5 * piece - t_period0);
             /* trapezoidal torque, implicit friction: (1 + k) w1 = (1 - k) w0 + piece (Te - Tl) / J */
             const double k = 0.5 * piece * p->b * inv_j;
@@ -212,13 +411,14 @@ static int im_integrate_cb(void *ctx, double t, double h, double load_val, doubl
                      gate_level);
 }
 
-/* Sign rule (as the six-phase kernel): current out of the leg -> lower diode; into it -> upper diode; exactly
- * zero -> the new level (no open-phase model). */
+/* Diode by the current's sign (as the three-phase PMSM kernel): out of the leg -> lower diode (low rail), into it
+ * -> upper diode (high rail); no current -> no diode conducts and the phase is open. */
 static int im_dead_level_cb(void *ctx, int leg, int new_level)
 {
     im_run_ctx_t *c = (im_run_ctx_t *)ctx;
     const double i_ph = phase_current(c->p, c->s, leg);
-    return i_ph > 0.0 ? 0 : (i_ph < 0.0 ? 1 : new_level);
+    (void)new_level;
+    return i_ph > 0.0 ? 0 : (i_ph < 0.0 ? 1 : IM_LEVEL_OPEN);
 }
 
 int im_advance(const im_params_t *p, im_state_t *s, const int32_t *states, const int64_t *durations_ns, int32_t n,

@@ -10,8 +10,10 @@
  * over it (dyno mode: exactly) the system x' = A x + b, x = (psi_s, psi_R) complex, is linear time-invariant
  * and is solved in closed form: x(t) = x_p + exp(A t) (x0 - x_p), x_p = -A^-1 b, and the complex 2x2
  * exponential exp(A t) = exp(m t) (cosh(r t) I + sinh(r t) / r (A - m I)), m = tr(A) / 2, r^2 = m^2 - det(A).
- * Mechanics, dead time (the diode chosen by the phase current's sign at the gate edge conducts for the whole
- * dead time) and minimum pulse as the PMSM kernels (gate_edges.c). Units: SI, plant time in ns.
+ * Mechanics, minimum pulse and dead time as the three-phase PMSM kernel (gate_edges.c): in dead time the diode
+ * picked by the phase current's sign at the gate edge conducts until that current reaches zero (found on the
+ * closed form), then the phase is open and the other two carry one loop current, integrated by RK4 in <= 25 ns
+ * steps; two phases open: no current, psi_R decays freely (closed form). Units: SI, plant time in ns.
  */
 #ifndef HIL_IM_H
 #define HIL_IM_H
@@ -49,7 +51,7 @@ typedef struct {
     double last_edge_t[3];/* time of the last gate edge per leg [s] (absolute) */
     double dead_until[3]; /* leg in dead time until this absolute time [s] */
     int32_t gate;         /* commanded gate code currently applied, 4*Sa + 2*Sb + Sc */
-    int32_t dead_level[3];/* leg level during its dead time (0: low rail, 1: high rail) */
+    int32_t dead_level[3];/* leg level during its dead time (0: low rail, 1: high rail, 2: open) */
 } im_state_t;
 
 typedef ge_period_stats_t im_period_stats_t; /* see gate_edges.h */
