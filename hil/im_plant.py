@@ -8,8 +8,6 @@ flux itself. Units: SI (A, Wb, rad, rad/s, N·m, s).
 
 from __future__ import annotations
 
-from typing import Any
-
 from pmsm_hil.hil._plant_native import lib
 from pmsm_hil.hil.im_params import ImParams
 from pmsm_hil.hil.machine import MEAS_THREE, THREE_PHASE, MachineLayout, register_layout
@@ -71,13 +69,9 @@ class ImPlant(PlantBase):
                            o.torque, self._p.vdc)
 
 
-def _im_extras(params: Any, rated_nm: float) -> dict[Any, float]:
-    return {}
-
-
 #: The induction machine kind: three legs, the three-phase Measurement and replay layouts.
 INDUCTION = MachineLayout(
     kind="im", plant_class=ImPlant, params_class=ImParams, accepts=lambda p: True, measurement=MEAS_THREE,
     measure=THREE_PHASE.measure, replay_legs=THREE_PHASE.replay_legs, replay_columns=THREE_PHASE.replay_columns,
-    replay_row=THREE_PHASE.replay_row, target_extras=_im_extras)
+    replay_row=THREE_PHASE.replay_row, target_extras=THREE_PHASE.target_extras)
 register_layout(INDUCTION)
