@@ -183,6 +183,7 @@ def unregister_layout(kind: str) -> None:
 
 register_layout(THREE_PHASE)
 register_layout(DUAL_THREE_PHASE)
+from pmsm_hil.hil import im_plant as _im_plant  # noqa: E402,F401  the induction machine kind "im" registers itself
 
 
 def _register_fluxmap() -> None:

@@ -25,6 +25,7 @@ class ControllerId(IntEnum):
     MPTC3 = 9
     MPC_3V = 10
     HV_MPFC = 11
+    IM_FOC = 12
     EXTERNAL = 255
 
 
@@ -41,6 +42,7 @@ CONTROLLER_NAMES: dict[ControllerId, str] = {
     ControllerId.MPTC3: "mptc3",
     ControllerId.MPC_3V: "3vmpc",
     ControllerId.HV_MPFC: "hv-mpfc",
+    ControllerId.IM_FOC: "im-foc",
     ControllerId.EXTERNAL: "external",
 }
 
@@ -90,6 +92,10 @@ class ParamId(IntEnum):
     DT_COMP = 24
     FCS_READING = 25
     V3_SYMMETRIC = 26
+    RR = 32
+    LSIGMA = 33
+    LM = 34
+    PSI_R_REF = 35
 
 
 PARAM_NAMES: dict[ParamId, str] = {
@@ -119,6 +125,10 @@ PARAM_NAMES: dict[ParamId, str] = {
     ParamId.DT_COMP: "dt_comp",
     ParamId.FCS_READING: "fcs_reading",
     ParamId.V3_SYMMETRIC: "v3_symmetric",
+    ParamId.RR: "rr",
+    ParamId.LSIGMA: "lsigma",
+    ParamId.LM: "lm",
+    ParamId.PSI_R_REF: "psi_r_ref",
 }
 
 PARAM_UNITS: dict[ParamId, str] = {
@@ -148,6 +158,10 @@ PARAM_UNITS: dict[ParamId, str] = {
     ParamId.DT_COMP: "-",
     ParamId.FCS_READING: "-",
     ParamId.V3_SYMMETRIC: "-",
+    ParamId.RR: "Ohm",
+    ParamId.LSIGMA: "H",
+    ParamId.LM: "H",
+    ParamId.PSI_R_REF: "Wb",
 }
 
 PARAM_DOCS: dict[ParamId, str] = {
@@ -177,6 +191,10 @@ PARAM_DOCS: dict[ParamId, str] = {
     ParamId.DT_COMP: "pulse-based dead-time compensation in 3vmpc/hv-mpfc: 0 off, 1 on",
     ParamId.FCS_READING: "fcs-mpc-1/2 reading of Tables 1/2, bit flags (docs/algorithms/fcs_mpc_regions.md)",
     ParamId.V3_SYMMETRIC: "mptc2/mptc3 send each V3 as G1/2-G2-G1/2 (mirrored command): 0 off, 1 on",
+    ParamId.RR: "induction machine: rotor resistance RR of the inverse-Gamma model",
+    ParamId.LSIGMA: "induction machine: leakage inductance L_sigma (inverse-Gamma)",
+    ParamId.LM: "induction machine: magnetizing inductance L_M (inverse-Gamma)",
+    ParamId.PSI_R_REF: "induction machine: rotor-flux reference of im-foc",
 }
 
 

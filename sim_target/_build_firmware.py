@@ -81,7 +81,7 @@ typedef struct {
     const char *name;
     uint8_t id;
     uint8_t phases;
-    uint32_t params;
+    uint64_t params;
     ...;
 } hil_fw_controller_t;
 

@@ -119,7 +119,7 @@ def _read_table() -> tuple[ControllerInfo, ...]:
             mask = int(entry.params)
             out.append(ControllerInfo(ffi.string(entry.name).decode("ascii"), int(entry.id), int(entry.phases),
                                       bool(lib.hil_fw_controller_implemented(cid)),
-                                      frozenset(p for p in range(32) if mask >> p & 1)))
+                                      frozenset(p for p in range(64) if mask >> p & 1)))
     return tuple(out)
 
 

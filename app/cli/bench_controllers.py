@@ -300,7 +300,8 @@ def format_mcu(figures: list[McuFigures], sizes: Sizes | None, mcu_clock_hz: flo
                      f"     {est['median']:>8.2f} / {est['max']:>7.2f}        {own:>10}   "
                      f"{'-' if paper is None else f'{paper[3]:.2f}'}")
     if sizes is not None:
-        lines.append(f"image (all eleven controllers, target core, codec, serial framing, libm): flash {sizes.flash} B "
+        lines.append(f"image (every reference controller, target core, codec, serial framing, libm): "
+                     f"flash {sizes.flash} B "
                      f"(text {sizes.text} + data {sizes.data}), static RAM {sizes.ram} B (data + bss incl. the "
                      "16 KiB stack)")
     lines.append("own code: flash of the controller's source files (GNU ld map); shared files count for each user. "

@@ -30,7 +30,7 @@ CONTROLLER_FILES: dict[str, tuple[str, ...]] = {
     "dsvm-20": ("dsvm.c",), "dbcc-mpc": ("dbcc_mpc.c", "dsvm.c"), "foc": ("foc.c",),
     "mptc1": ("mptc1.c", "mptc_common.c", "six.c"), "mptc2": ("mptc2.c", "mptc_common.c", "six.c"),
     "mptc3": ("mptc3.c", "mptc_common.c", "six.c"), "3vmpc": ("three_vmpc.c", "hv_mpfc.c"),
-    "hv-mpfc": ("hv_mpfc.c",),
+    "hv-mpfc": ("hv_mpfc.c",), "im-foc": ("im_foc.c", "foc.c"),
 }
 REPLY_TIMEOUT_S = 5.0
 

@@ -28,7 +28,9 @@
 #define HIL_FW_CTRL_3VMPC_NAME     "3vmpc"
 #define HIL_FW_CTRL_HV_MPFC        11
 #define HIL_FW_CTRL_HV_MPFC_NAME   "hv-mpfc"
-#define HIL_FW_CTRL_COUNT          12 /* largest id + 1 (size of arrays indexed by id) */
+#define HIL_FW_CTRL_IM_FOC         12
+#define HIL_FW_CTRL_IM_FOC_NAME    "im-foc"
+#define HIL_FW_CTRL_COUNT          13 /* largest id + 1 (size of arrays indexed by id) */
 #define HIL_FW_CTRL_EXTERNAL       255 /* reserved (ControllerIdReserved): not counted in HIL_FW_CTRL_COUNT */
 #define HIL_FW_CTRL_EXTERNAL_NAME  "external"
 
@@ -92,7 +94,15 @@
 #define HIL_FW_P_FCS_READING_NAME            "fcs_reading"
 #define HIL_FW_P_V3_SYMMETRIC                26 /* mptc2/mptc3 send each V3 as G1/2-G2-G1/2 (mirrored command): 0 off, 1 on [-] */
 #define HIL_FW_P_V3_SYMMETRIC_NAME           "v3_symmetric"
-#define HIL_FW_P_COUNT                       27 /* largest id + 1 (size of arrays indexed by id) */
+#define HIL_FW_P_RR                          32 /* induction machine: rotor resistance RR of the inverse-Gamma model [Ohm] */
+#define HIL_FW_P_RR_NAME                     "rr"
+#define HIL_FW_P_LSIGMA                      33 /* induction machine: leakage inductance L_sigma (inverse-Gamma) [H] */
+#define HIL_FW_P_LSIGMA_NAME                 "lsigma"
+#define HIL_FW_P_LM                          34 /* induction machine: magnetizing inductance L_M (inverse-Gamma) [H] */
+#define HIL_FW_P_LM_NAME                     "lm"
+#define HIL_FW_P_PSI_R_REF                   35 /* induction machine: rotor-flux reference of im-foc [Wb] */
+#define HIL_FW_P_PSI_R_REF_NAME              "psi_r_ref"
+#define HIL_FW_P_COUNT                       36 /* largest id + 1 (size of arrays indexed by id) */
 
 /* Status: FaultHost.code, FaultTarget.code, MeasB.status, Meas6B.status, MeasFd.status, MeasFd6.status,
  * CmdC.status, CmdFd.status, ConfigAck.status */

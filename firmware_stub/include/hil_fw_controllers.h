@@ -19,7 +19,7 @@ typedef void (*hil_fw_reference_fn)(struct hil_fw_state *s);
 typedef void (*hil_fw_predict_fn)(struct hil_fw_state *s, hil_fw_cmd_t *cmd);
 
 /* Bit of parameter id p (HIL_FW_P_*) in a parameter mask. */
-#define HIL_FW_PARAM_BIT(p) (1UL << (p))
+#define HIL_FW_PARAM_BIT(p) ((uint64_t)1u << (p))
 
 /* Parameters the shared step reads for every controller: the motor model, Ts, Vdc, the speed PI, the torque
  * limit and integrator preset, and the torque -> current reference (id_ref, current_limit). */
@@ -37,7 +37,7 @@ typedef struct {
     hil_fw_reset_fn reset;         /* NULL: the zeroed state is its initial state */
     hil_fw_reference_fn reference; /* NULL: no reference-vector stage */
     hil_fw_predict_fn predict;     /* NULL: not implemented */
-    uint32_t params;               /* parameters it reads: HIL_FW_PARAMS_COMMON | its own (HIL_FW_PARAM_BIT);
+    uint64_t params;               /* parameters it reads: HIL_FW_PARAMS_COMMON | its own (HIL_FW_PARAM_BIT);
                                     * `hil run` refuses a --param outside it (off: none) */
 } hil_fw_controller_t;
 

@@ -31,6 +31,12 @@ typedef struct {
 uint8_t hil_fw_svpwm(float u_alpha, float u_beta, float vdc, uint32_t ts_ns, uint8_t *a, uint8_t *b,
                      uint32_t times_ns[3]);
 
+/* The 7-segment pattern of a stator-frame voltage [V] over one period: SVPWM at vdc [V] over ts_ns, the even
+ * half (a, b, 7) or the odd half (b, a, 0) by *parity (toggled), empty slots dropped; fills the command's
+ * states, durations, vector_id (the sector), candidates 0 and status ok; returns the sector 1..6. */
+uint8_t hil_fw_foc_modulate(float u_alpha, float u_beta, float vdc, uint32_t ts_ns, uint8_t *parity,
+                            hil_fw_cmd_t *cmd);
+
 /* Prediction stage of foc (PI + SVPWM). */
 void hil_fw_foc_predict(struct hil_fw_state *s, hil_fw_cmd_t *cmd);
 

@@ -10,6 +10,7 @@
 #include "hil_fw_dsvm.h"
 #include "hil_fw_foc.h"
 #include "hil_fw_hv_mpfc.h"
+#include "hil_fw_im_foc.h"
 #include "hil_fw_mpcc.h"
 #include "hil_fw_mptc.h"
 #include "hil_fw_speed_pi.h"
@@ -73,6 +74,7 @@ typedef struct hil_fw_state {
         hil_fw_dsvm_state_t dsvm; /* dsvm-20, fcs-mpc-1, fcs-mpc-2, dbcc-mpc */
         hil_fw_foc_state_t foc;
         hil_fw_hv_state_t hv; /* 3vmpc, hv-mpfc */
+        hil_fw_im_foc_state_t im_foc;
     } ctrl;
 } hil_fw_state_t;
 

@@ -40,6 +40,10 @@ static const param_rule_t rules[HIL_FW_P_COUNT] = {
     [HIL_FW_P_DT_COMP] = {0.0f, 1.0f, 0, 1},
     [HIL_FW_P_FCS_READING] = {0.0f, 255.0f, 0, 1},
     [HIL_FW_P_V3_SYMMETRIC] = {0.0f, 1.0f, 0, 1},
+    [HIL_FW_P_RR] = {0.0f, 1.0e3f, 1, 0},
+    [HIL_FW_P_LSIGMA] = {0.0f, 10.0f, 1, 0},
+    [HIL_FW_P_LM] = {0.0f, 10.0f, 1, 0},
+    [HIL_FW_P_PSI_R_REF] = {0.0f, 100.0f, 1, 0},
 };
 
 void hil_fw_params_defaults(hil_fw_params_t *p)
@@ -73,6 +77,11 @@ void hil_fw_params_defaults(hil_fw_params_t *p)
     p->value[HIL_FW_P_CURRENT_LIMIT] = 15.0f;
     /* each fcs controller's own reading, resolved per step (hil_fw_fcs_mpc.h) */
     p->value[HIL_FW_P_FCS_READING] = (float)HIL_FW_FCS_READING_CONTROLLER_DEFAULT;
+    /* im-foc's machine: the 2.2-kW induction motor of motulator's examples (preset im-2k2) */
+    p->value[HIL_FW_P_RR] = 2.1f;
+    p->value[HIL_FW_P_LSIGMA] = 0.021f;
+    p->value[HIL_FW_P_LM] = 0.224f;
+    p->value[HIL_FW_P_PSI_R_REF] = 0.9f;
     hil_fw_params_derive(p);
 }
 

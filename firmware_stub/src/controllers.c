@@ -9,6 +9,7 @@
 #include "hil_fw_fcs_mpc.h"
 #include "hil_fw_foc.h"
 #include "hil_fw_hv_mpfc.h"
+#include "hil_fw_im_foc.h"
 #include "hil_fw_mpcc.h"
 #include "hil_fw_mptc.h"
 #include "hil_fw_state.h"
@@ -19,11 +20,11 @@
  * no other one does). */
 #define ENTRY(ID, phases, reset, reference, predict, own)                                                     \
     [HIL_FW_CTRL_##ID] = {HIL_FW_CTRL_##ID##_NAME, HIL_FW_CTRL_##ID, phases, reset, reference, predict,       \
-                          (uint32_t)(HIL_FW_PARAMS_COMMON | (own))}
+                          (uint64_t)(HIL_FW_PARAMS_COMMON | (own))}
 #define P(name) HIL_FW_PARAM_BIT(HIL_FW_P_##name)
 
 /* a parameter mask holds every id */
-typedef char hil_fw_param_ids_fit_a_mask[HIL_FW_P_COUNT <= 32 ? 1 : -1];
+typedef char hil_fw_param_ids_fit_a_mask[HIL_FW_P_COUNT <= 64 ? 1 : -1];
 
 static const hil_fw_controller_t table[HIL_FW_CTRL_COUNT] = {
     [HIL_FW_CTRL_OFF] = {HIL_FW_CTRL_OFF_NAME, HIL_FW_CTRL_OFF, 0u, NULL, NULL, NULL, 0u},
@@ -40,6 +41,8 @@ static const hil_fw_controller_t table[HIL_FW_CTRL_COUNT] = {
     ENTRY(MPTC3, 6u, NULL, NULL, hil_fw_mptc3_predict, P(FLUX_REF) | P(V3_SYMMETRIC) | P(TORQUE_BAND)),
     ENTRY(3VMPC, 3u, NULL, NULL, hil_fw_3vmpc_predict, P(ZERO_SELECT) | P(DT_COMP) | P(T_DEAD)),
     ENTRY(HV_MPFC, 3u, NULL, NULL, hil_fw_hv_mpfc_predict, P(T_THR) | P(ZERO_SELECT) | P(DT_COMP) | P(T_DEAD)),
+    ENTRY(IM_FOC, 3u, NULL, hil_fw_im_foc_reference, hil_fw_im_foc_predict,
+          P(CURRENT_KP) | P(CURRENT_KI) | P(RR) | P(LSIGMA) | P(LM) | P(PSI_R_REF)),
 };
 
 const hil_fw_controller_t *hil_fw_controller_get(uint8_t controller_id)

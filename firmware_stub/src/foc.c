@@ -82,13 +82,6 @@ void hil_fw_foc_predict(struct hil_fw_state *s, hil_fw_cmd_t *cmd)
     float mag;
     float ua;
     float ub;
-    uint8_t a;
-    uint8_t b;
-    uint32_t t[3];
-    uint8_t states[3];
-    uint32_t durs[3];
-    uint8_t i;
-    uint8_t n = 0u;
     if (st->next_t_ns != me->t_ns) {
         /* a gap in time: restart the pattern and the integrators (all zero after reset already) */
         st->parity = 0u;
@@ -110,8 +103,21 @@ void hil_fw_foc_predict(struct hil_fw_state *s, hil_fw_cmd_t *cmd)
     st->v_d = vd;
     st->v_q = vq;
     hil_fw_park_inv(vd, vq, me->cos_th * c - me->sin_th * sn, me->sin_th * c + me->cos_th * sn, &ua, &ub);
-    st->sector = hil_fw_svpwm(ua, ub, me->vdc, s->params.model.ts_ns, &a, &b, t);
-    if (st->parity == 0u) {
+    st->sector = hil_fw_foc_modulate(ua, ub, me->vdc, s->params.model.ts_ns, &st->parity, cmd);
+}
+
+uint8_t hil_fw_foc_modulate(float u_alpha, float u_beta, float vdc, uint32_t ts_ns, uint8_t *parity,
+                            hil_fw_cmd_t *cmd)
+{
+    uint8_t a;
+    uint8_t b;
+    uint32_t t[3];
+    uint8_t states[3];
+    uint32_t durs[3];
+    uint8_t i;
+    uint8_t n = 0u;
+    const uint8_t sector = hil_fw_svpwm(u_alpha, u_beta, vdc, ts_ns, &a, &b, t);
+    if (*parity == 0u) {
         states[0] = a;
         states[1] = b;
         states[2] = 7u;
@@ -126,7 +132,7 @@ void hil_fw_foc_predict(struct hil_fw_state *s, hil_fw_cmd_t *cmd)
         durs[1] = t[0];
         durs[2] = t[2];
     }
-    st->parity ^= 1u;
+    *parity ^= 1u;
     for (i = 0u; i < 3u; ++i) { /* drop empty slots */
         if (durs[i] > 0u) {
             cmd->states[n] = states[i];
@@ -139,7 +145,8 @@ void hil_fw_foc_predict(struct hil_fw_state *s, hil_fw_cmd_t *cmd)
         cmd->durations_ns[i] = 0u;
     }
     cmd->n_states = n;
-    cmd->vector_id = st->sector;
+    cmd->vector_id = sector;
     cmd->candidates = 0u;
     cmd->status = HIL_FW_STATUS_OK;
+    return sector;
 }

@@ -72,7 +72,7 @@ static void test_controller_selection(void)
     hil_fw_init(&s);
     CHECK(hil_fw_select_controller(&s, HIL_FW_CTRL_MPCC) == 0, "mpcc selectable");
     CHECK(s.controller_id == HIL_FW_CTRL_MPCC, "mpcc selected");
-    CHECK(hil_fw_select_controller(&s, 12u) == HIL_FW_E_CONTROLLER_ID, "id 12 unknown");
+    CHECK(hil_fw_select_controller(&s, HIL_FW_CTRL_COUNT) == HIL_FW_E_CONTROLLER_ID, "id past the last unknown");
     CHECK(hil_fw_select_controller(&s, 200u) == HIL_FW_E_CONTROLLER_ID, "id 200 unknown");
     for (id = 2u; id < HIL_FW_CTRL_COUNT; ++id) {
         if (!hil_fw_controller_implemented(id)) {

@@ -35,6 +35,9 @@ CDEF6 = _X.declarations(_KERNELS / "plant6.h", ["p6_params_t", "p6_state_t", "p6
 #: the saturated PMSM of a flux map (fluxmap.h, kind "pmsm-fluxmap")
 CDEF_FM = _X.declarations(_KERNELS / "fluxmap.h", ["fm_params_t", "fm_state_t", "fm_period_stats_t", "fm_flux",
                                                 "fm_currents", "fm_advance", "fm_sample", "fm_kernel"])
+#: the induction machine kernel (im.h)
+CDEF_IM = _X.declarations(_KERNELS / "im.h", ["im_params_t", "im_state_t", "im_period_stats_t", "im_advance",
+                                           "im_sample", "im_kernel"])
 
 
 def _source(name: str) -> str:
@@ -44,13 +47,13 @@ def _source(name: str) -> str:
 
 
 #: the plant kernels and their shared helpers (nothing of the loop: tests/test_layers.py)
-PLANT_SOURCES = ("dq_segment.c", "gate_edges.c", "plant.c", "plant6.c", "fluxmap.c")
+PLANT_SOURCES = ("dq_segment.c", "gate_edges.c", "plant.c", "plant6.c", "fluxmap.c", "im.c")
 
 ffibuilder = FFI()
-ffibuilder.cdef(CDEF_COMMON + CDEF + CDEF6 + CDEF_FM)
+ffibuilder.cdef(CDEF_COMMON + CDEF + CDEF6 + CDEF_FM + CDEF_IM)
 ffibuilder.set_source(
     "pmsm_hil.hil._plant_native",
-    '#include "plant.h"\n#include "plant6.h"\n#include "fluxmap.h"',
+    '#include "plant.h"\n#include "plant6.h"\n#include "fluxmap.h"\n#include "im.h"',
     sources=[_source(name) for name in PLANT_SOURCES],
     include_dirs=[str(_KERNELS)],
     # the native loop calls these kernels too: no FMA contraction and no sin/cos fusion, so its records equal the

@@ -12,7 +12,8 @@ from pmsm_hil.sim_target.firmware import CONTROLLERS, MODE_TORQUE, ControllerInf
 
 COMMON = next(c for c in CONTROLLERS if c.name == "mpcc").params
 #: parameter -> (other parameters that make its code path run, changed value): fcs_reading flags 32 and 64 switch
-#: on the fcs torque band and the flux reference; mptc3 weighs the flux only inside its torque band;
+#: on the fcs torque band and the flux reference; mptc3 weighs the flux only inside its torque band; im-foc
+#: integrates its current errors only inside the voltage limit (a small current_kp);
 #: dead-time compensation needs both dt_comp and t_dead
 PROBES: dict[ParamId, tuple[dict[ParamId, float], float]] = {
     ParamId.LAMBDA: ({}, 40.0),
@@ -20,7 +21,7 @@ PROBES: dict[ParamId, tuple[dict[ParamId, float], float]] = {
     ParamId.FLUX_REF: ({ParamId.FCS_READING: 64.0 + 11.0, ParamId.TORQUE_BAND: 100.0}, 1.0),
     ParamId.TORQUE_BAND: ({ParamId.FCS_READING: 32.0 + 11.0}, 100.0),
     ParamId.CURRENT_KP: ({}, 300.0),
-    ParamId.CURRENT_KI: ({}, 1e3),
+    ParamId.CURRENT_KI: ({ParamId.CURRENT_KP: 5.0}, 1e3),  # a small kp keeps im-foc out of the voltage limit
     ParamId.ZERO_SELECT: ({}, 1.0),
     ParamId.DT_COMP: ({ParamId.T_DEAD: 3e-6}, 1.0),
     ParamId.T_DEAD: ({ParamId.DT_COMP: 1.0}, 3e-6),
@@ -28,6 +29,10 @@ PROBES: dict[ParamId, tuple[dict[ParamId, float], float]] = {
     ParamId.V3_SYMMETRIC: ({}, 1.0),
     ParamId.T_MPW: ({}, 5e-6),
     ParamId.LLS: ({}, 1e-3),
+    ParamId.RR: ({}, 4.0),
+    ParamId.LSIGMA: ({}, 0.05),
+    ParamId.LM: ({}, 0.4),
+    ParamId.PSI_R_REF: ({}, 0.5),
 }
 STEPS = 60
 

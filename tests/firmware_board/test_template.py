@@ -36,7 +36,7 @@ def test_fw_build_cli_prints_sizes(template_elf: Path, tmp_path: Path, capsys: p
     assert main(["fw", "build", "--src", str(tmp_path)]) == 2  # no CMakeLists.txt: one-line error
 
 
-def test_bench_controllers_mcu_prints_all_eleven(reference_elf: Path, tmp_path: Path,
+def test_bench_controllers_mcu_prints_all_twelve(reference_elf: Path, tmp_path: Path,
                                                  capsys: pytest.CaptureFixture[str]) -> None:
     import json
 
@@ -46,7 +46,7 @@ def test_bench_controllers_mcu_prints_all_eleven(reference_elf: Path, tmp_path: 
                  str(tmp_path / "b.json")]) == 0
     out = capsys.readouterr().out
     names = [c.name for c in CONTROLLERS if c.id >= 1 and c.implemented]
-    assert len(names) == 11
+    assert len(names) == 12
     for name in names:
         assert f" {name} " in out
     assert "ESTIMATE" in out and "55.83" in out  # beside the paper's Table 4

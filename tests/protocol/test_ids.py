@@ -80,7 +80,7 @@ def test_generated_ids_not_stale() -> None:
         macro = "HIL_FW_CTRL_" + name.upper().replace("-", "_")
         assert macros[macro] == str(int(cid)) and macros[macro + "_NAME"] == f'"{name}"'
     counted = set(ControllerId) - RESERVED_CONTROLLER_IDS
-    assert macros["HIL_FW_CTRL_COUNT"] == str(max(counted) + 1) == "12"  # 255 external does not size the tables
+    assert macros["HIL_FW_CTRL_COUNT"] == str(max(counted) + 1) == "13"  # 255 external does not size the tables
     assert macros["HIL_FW_CTRL_EXTERNAL"] == "255" and macros["HIL_FW_CTRL_EXTERNAL_NAME"] == '"external"'
     assert macros["HIL_FW_P_COUNT"] == str(max(ParamId) + 1)
     assert "/* stator resistance [Ohm] */" in header
@@ -97,15 +97,15 @@ def test_check_fails_on_a_stale_ids_module(tmp_path: Any) -> None:
 
 
 def test_a_new_controller_in_the_dbc_reaches_c_and_python() -> None:
-    text = DBC_PATH.read_text(encoding="utf-8").replace('11 "hv-mpfc" ;', '11 "hv-mpfc" 12 "my-ctrl" ;')
-    text = text.replace('11 "hv-mpfc" 255 "external" ;', '11 "hv-mpfc" 12 "my-ctrl" 255 "external" ;')
+    text = DBC_PATH.read_text(encoding="utf-8").replace('12 "im-foc" ;', '12 "im-foc" 13 "my-ctrl" ;')
+    text = text.replace('12 "im-foc" 255 "external" ;', '12 "im-foc" 13 "my-ctrl" 255 "external" ;')
     header, module = gen_ids.render(_db(text))
-    assert re.search(r"#define HIL_FW_CTRL_MY_CTRL +12\n#define HIL_FW_CTRL_MY_CTRL_NAME +\"my-ctrl\"", header)
-    assert re.search(r"#define HIL_FW_CTRL_COUNT +13", header)
-    assert "    MY_CTRL = 12\n" in module and 'ControllerId.MY_CTRL: "my-ctrl",' in module
+    assert re.search(r"#define HIL_FW_CTRL_MY_CTRL +13\n#define HIL_FW_CTRL_MY_CTRL_NAME +\"my-ctrl\"", header)
+    assert re.search(r"#define HIL_FW_CTRL_COUNT +14", header)
+    assert "    MY_CTRL = 13\n" in module and 'ControllerId.MY_CTRL: "my-ctrl",' in module
     namespace: dict[str, Any] = {}
     exec(compile(module, "ids.py", "exec"), namespace)  # the generated module runs
-    assert namespace["CONTROLLER_NAMES"][namespace["ControllerId"](12)] == "my-ctrl"
+    assert namespace["CONTROLLER_NAMES"][namespace["ControllerId"](13)] == "my-ctrl"
 
 
 @pytest.mark.parametrize(
@@ -114,12 +114,12 @@ def test_a_new_controller_in_the_dbc_reaches_c_and_python() -> None:
         # the signal's VAL_ no longer repeats the family table
         ('VAL_ 512 controller_id 0 "off" 1 "mpcc"', 'VAL_ 512 controller_id 0 "off" 1 "mpc"', "Setpoint.controller_id"),
         # the family gains an id that no signal knows
-        ('11 "hv-mpfc" ;', '11 "hv-mpfc" 12 "x" ;', "controller_id"),
+        ('12 "im-foc" ;', '12 "im-foc" 13 "x" ;', "controller_id"),
         ('VAL_TABLE_ Node 0 "host" 1 "target" ;', "", "Node missing"),
-        ('26 "v3_symmetric" ;\nVAL_TABLE_ ParamUnit', '26 "v3_symmetric" 27 "p" ;\nVAL_TABLE_ ParamUnit', "ParamUnit"),
+        ('35 "psi_r_ref" ;\nVAL_TABLE_ ParamUnit', '35 "psi_r_ref" 36 "p" ;\nVAL_TABLE_ ParamUnit', "ParamUnit"),
         ('VAL_TABLE_ Mode 0 "speed" 1 "torque" ;', 'VAL_TABLE_ Mode 0 "speed" 1 "Torque" ;', "Mode"),
         # the signal drops the reserved id, or the reserved id falls inside the counted range
-        ('11 "hv-mpfc" 255 "external" ;', '11 "hv-mpfc" ;', "Setpoint.controller_id"),
+        ('12 "im-foc" 255 "external" ;', '12 "im-foc" ;', "Setpoint.controller_id"),
         ('ControllerIdReserved 255 "external" ;', 'ControllerIdReserved 11 "external" ;', "not above the ids"),
         ('ControllerIdReserved 255 "external" ;', 'ControllerIdReserved 255 "mpcc" ;', "not unique"),
         ('VAL_TABLE_ Enable 0 "disabled" 1 "enabled" ;', "", "Enable missing"),

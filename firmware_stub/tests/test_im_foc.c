@@ -1,0 +1,121 @@
+/* im-foc: the current-model rotor-flux estimator against the model's exact steady states, the flux-frame
+ * references, the command shape and the reset to zero flux. Machine: im-2k2 (Rs 3.7, RR 2.1 Ohm, L_sigma 0.021,
+ * L_M 0.224 H, 2 pole pairs, 540 V). */
+#include <math.h>
+
+#include "fw_check.h"
+#include "fw_fixture.h"
+#include "hil_fw.h"
+#include "hil_fw_im_foc.h"
+
+#define TS_NS 100000u
+#define LM 0.224f
+#define RR 2.1f
+
+static void setup(hil_fw_state_t *s, float torque)
+{
+    hil_fw_init(s);
+    CHECK(hil_fw_set_param(s, HIL_FW_P_RS, 3.7f) == 0, "rs");
+    CHECK(hil_fw_set_param(s, HIL_FW_P_RR, RR) == 0, "rr");
+    CHECK(hil_fw_set_param(s, HIL_FW_P_LSIGMA, 0.021f) == 0, "lsigma");
+    CHECK(hil_fw_set_param(s, HIL_FW_P_LM, LM) == 0, "lm");
+    CHECK(hil_fw_set_param(s, HIL_FW_P_PSI_R_REF, 0.9f) == 0, "psi_r_ref");
+    CHECK(hil_fw_set_param(s, HIL_FW_P_POLE_PAIRS, 2.0f) == 0, "pole pairs");
+    CHECK(hil_fw_set_param(s, HIL_FW_P_VDC, 540.0f) == 0, "vdc");
+    CHECK(hil_fw_set_param(s, HIL_FW_P_CURRENT_KP, 66.0f) == 0, "kp");
+    CHECK(hil_fw_set_param(s, HIL_FW_P_CURRENT_KI, 18221.0f) == 0, "ki");
+    CHECK(hil_fw_set_param(s, HIL_FW_P_CURRENT_LIMIT, 12.0f) == 0, "current limit");
+    CHECK(hil_fw_set_param(s, HIL_FW_P_TORQUE_LIMIT, 22.0f) == 0, "torque limit");
+    CHECK(hil_fw_select_controller(s, HIL_FW_CTRL_IM_FOC) == 0, "im-foc selectable");
+    CHECK(hil_fw_set_setpoint(s, 1u, HIL_FW_MODE_TORQUE, torque) == 0, "torque mode");
+}
+
+/* One step with stator-frame current i_s = (i_d + j i_q) e^(j angle) [A] at speed omega_m [rad/s]. */
+static hil_fw_cmd_t step(hil_fw_state_t *s, uint32_t k, float i_d, float i_q, float angle, float omega_m)
+{
+    hil_fw_cmd_t cmd;
+    const hil_fw_meas_t m = fw_meas_dq((uint16_t)k, i_d, i_q, angle, omega_m, 540.0f);
+    hil_fw_step(s, &m, (uint64_t)k * TS_NS, &cmd);
+    return cmd;
+}
+
+static void test_flux_estimate_at_standstill(void)
+{
+    hil_fw_state_t s;
+    uint32_t k;
+    setup(&s, 0.0f);
+    for (k = 0u; k < 10000u; ++k) { /* 1 s = 9.3 rotor time constants L_M / RR */
+        (void)step(&s, k, 4.0f, 0.0f, 0.0f, 0.0f);
+    }
+    CHECK_NEAR(s.ctrl.im_foc.psi_a, LM * 4.0f, 2e-4f, "psi_R = L_M i_s at standstill");
+    CHECK_NEAR(s.ctrl.im_foc.psi_b, 0.0f, 1e-6f, "no flux across the current");
+}
+
+static void test_flux_estimate_in_the_rotating_steady_state(void)
+{
+    /* the model's steady state at 1000 rpm: psi_R = L_M i_d along the flux, turning at
+     * omega_s = omega_e + RR i_q / psi_R, with the current (i_d, i_q) in that frame */
+    hil_fw_state_t s;
+    const float omega_m = 1000.0f * 2.0f * HIL_FW_PI_F / 60.0f;
+    const float psi = 0.9f, i_d = psi / LM, i_q = 5.0f;
+    const float omega_s = 2.0f * omega_m + RR * i_q / psi;
+    float angle = 0.0f, err_angle;
+    uint32_t k;
+    hil_fw_cmd_t cmd;
+    setup(&s, 10.0f);
+    for (k = 0u; k < 10000u; ++k) {
+        angle = fmodf(omega_s * (float)k * 1.0e-4f, 2.0f * HIL_FW_PI_F);
+        cmd = step(&s, k, i_d, i_q, angle, omega_m);
+    }
+    CHECK_NEAR(s.ctrl.im_foc.psi, psi, 2e-3f, "|psi_R| of the steady state");
+    err_angle = atan2f(s.ctrl.im_foc.sin_f * cosf(angle) - s.ctrl.im_foc.cos_f * sinf(angle),
+                       s.ctrl.im_foc.cos_f * cosf(angle) + s.ctrl.im_foc.sin_f * sinf(angle));
+    CHECK(fabsf(err_angle) < 2e-3f, "flux angle error %g rad", (double)err_angle);
+    /* references in the flux frame: i_d = psi_ref / L_M at the reference flux, i_q = T / (1.5 p |psi_R|) */
+    CHECK_NEAR(s.ref.i_d, 0.9f / LM, 0.05f, "flux current at the reference flux");
+    CHECK_NEAR(s.ref.i_q, 10.0f / (3.0f * s.ctrl.im_foc.psi), 1e-3f, "torque current");
+    CHECK(cmd.status == HIL_FW_STATUS_OK && cmd.n_states >= 1u && cmd.n_states <= 3u, "a command");
+}
+
+static void test_command_shape_and_pattern(void)
+{
+    hil_fw_state_t s;
+    uint32_t k;
+    setup(&s, 5.0f);
+    for (k = 0u; k < 40u; ++k) {
+        const hil_fw_cmd_t cmd = step(&s, k, 1.0f, 0.5f, 0.3f * (float)k, 50.0f);
+        uint32_t sum = 0u;
+        uint8_t i;
+        for (i = 0u; i < cmd.n_states; ++i) {
+            sum += cmd.durations_ns[i];
+        }
+        CHECK(sum == TS_NS, "step %u: durations sum to Ts, got %u", k, sum);
+        CHECK(cmd.states[cmd.n_states - 1u] == ((k & 1u) ? 0u : 7u) || cmd.n_states < 3u,
+              "step %u: the half ends on its zero vector", k);
+    }
+}
+
+static void test_start_from_zero_flux_and_reset_on_enable(void)
+{
+    hil_fw_state_t s;
+    setup(&s, 10.0f);
+    (void)step(&s, 0u, 0.0f, 0.0f, 0.0f, 0.0f);
+    /* no flux yet: the flux current takes 0.8 of the limit, the torque current the rest */
+    CHECK_NEAR(s.ref.i_d, 0.8f * 12.0f, 1e-4f, "flux current limited while the flux builds");
+    CHECK_NEAR(s.ref.i_q, 0.6f * 12.0f, 1e-3f, "torque current gets the rest of the limit");
+    (void)step(&s, 1u, 5.0f, 0.0f, 0.0f, 0.0f);
+    CHECK(s.ctrl.im_foc.psi > 0.0f, "flux estimate builds");
+    CHECK(hil_fw_set_setpoint(&s, 0u, HIL_FW_MODE_TORQUE, 10.0f) == 0, "disable");
+    CHECK(hil_fw_set_setpoint(&s, 1u, HIL_FW_MODE_TORQUE, 10.0f) == 0, "enable");
+    CHECK(s.ctrl.im_foc.psi == 0.0f && s.ctrl.im_foc.psi_a == 0.0f && s.ctrl.im_foc.x_d == 0.0f,
+          "a rising enable starts from zero flux");
+}
+
+int main(void)
+{
+    test_flux_estimate_at_standstill();
+    test_flux_estimate_in_the_rotating_steady_state();
+    test_command_shape_and_pattern();
+    test_start_from_zero_flux_and_reset_on_enable();
+    return FW_REPORT("test_im_foc");
+}
