@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.load_fmu.checks import check_load_fmu, read_load_fmu_cached
@@ -79,6 +80,33 @@ def param_id(name: str) -> ParamId:
         raise ParameterError(f"unknown controller parameter '{name}' (known: {known})") from None
 
 
+#: ConfigParams that describe the machine itself (a kind's `model_parameters()` and layout extras give them): a
+#: controller reading one the motor's kind lacks was written for another kind of machine
+MACHINE_MODEL_PARAMS = frozenset({ParamId.RS, ParamId.LD, ParamId.LQ, ParamId.PSI_F, ParamId.LLS, ParamId.RR,
+                                  ParamId.LSIGMA, ParamId.LM, ParamId.PSI_R_REF})
+
+
+#: the PMSM model every controller of the firmware's common parameter set reads, unless it has a model of its own
+PMSM_MODEL_PARAMS = frozenset({ParamId.RS, ParamId.LD, ParamId.LQ, ParamId.PSI_F})
+
+
+def _model_params_read(info: Any) -> frozenset[ParamId]:
+    """The machine-model parameters the reference firmware's controller `info` works with: the model parameters
+    among its own (beyond the parameters every controller is sent, HIL_FW_PARAMS_COMMON) if it has any (im-foc:
+    RR, Lσ, LM, ψR_ref), else the PMSM model of the common set, plus L_ls where it reads it."""
+    implemented = [c.params for c in CONTROLLERS if c.implemented and c.name != "off"]
+    common = frozenset.intersection(*implemented) if implemented else frozenset()
+    own = {ParamId(p) for p in info.params - common if p in {int(m) for m in MACHINE_MODEL_PARAMS}}
+    return frozenset(own) if own - {ParamId.LLS} else PMSM_MODEL_PARAMS | own
+
+
+def _param_id_or_none(name: str) -> ParamId | None:
+    try:
+        return ParamId[name.strip().upper()]
+    except KeyError:
+        return None
+
+
 def check_params_used(controller: str, names: list[str] | dict[str, float], *, option: str = "--param") -> None:
     """ParameterError for a controller parameter the reference firmware's `controller` does not read, naming the
     controllers that do (the firmware's table, CONTROLLERS); `external` (a foreign firmware's own) takes any."""
@@ -149,6 +177,7 @@ class RunConfig:
             raise ParameterError(
                 f"controller '{self.controller}' needs a {words.get(needs, needs)}-phase motor, but "
                 f"'{self.motor.name}' is {words.get(has, has)}-phase (six-phase motors have lls > 0)")
+        self._check_machine_model(cid)
         for name in BY_FIELD:  # ranges and choices: the run-option schema's (hil/runner/run_options.py)
             check_field(name, getattr(self, name))
         if abs(round(self.ts_s * 1e9) - self.ts_s * 1e9) > 1e-3:
@@ -179,6 +208,30 @@ class RunConfig:
         self.resolved_params()  # issue 27: firmware-declared names and ranges too
         if self.load_fmu is not None:  # load FMU (issue 28 item 4)
             check_load_fmu(self)
+
+    def _check_machine_model(self, cid: int) -> None:
+        """ParameterError when the reference firmware's controller `cid` reads a machine-model parameter the motor's
+        kind does not give (a PMSM controller on an induction machine, im-foc on a PMSM), naming the controllers
+        that run on this motor. A user's --param value counts as given."""
+        info = next((c for c in CONTROLLERS if c.id == cid), None)
+        if info is None or info.name == "off":
+            return
+        rated = self.motor.torque_rating_nm
+        given = {*self.motor.model_parameters(), *self.machine.layout.target_extras(self.motor, rated)}
+        given |= {p for p in (_param_id_or_none(n) for n in self.controller_params) if p is not None}
+
+        def missing(c: Any) -> list[ParamId]:
+            return sorted(p for p in _model_params_read(c) if p not in given)
+
+        lacking = missing(info)
+        if lacking:
+            fits = [c.name for c in CONTROLLERS if c.implemented and c.phases in (0, self.machine.phases)
+                    and c.name != "off" and not missing(c)]
+            names = ", ".join(p.name.lower() for p in lacking)
+            raise ParameterError(
+                f"controller '{self.controller}' needs the machine model parameter(s) {names}, which motor "
+                f"'{self.motor.name}' (kind {self.machine.layout.kind}) does not have (controllers for it: "
+                f"{', '.join(fits) or 'none'})")
 
     @property
     def machine(self) -> Machine:

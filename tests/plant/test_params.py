@@ -87,6 +87,8 @@ def test_presets_give_every_parameter_a_value_unit_and_source(name: str) -> None
         assert isinstance(entry["unit"], str), key
         assert key == "pole_pairs" or entry["unit"], f"{key} needs a unit"
         assert isinstance(entry["source"], str) and len(entry["source"]) > 5, key
+    params = load_motor(name)  # the preset loads as its own kind's parameter class, with the file's values
+    assert isinstance(params, params_class)
     for key, entry in table.items():
         assert getattr(params, key) == entry["value"], key
     assert params.name == name

@@ -186,3 +186,19 @@ def test_sweep_point_with_an_unused_param_names_the_grid(capsys: pytest.CaptureF
                  "0.01"]) == 2
     err = capsys.readouterr().err
     assert "--grid param.lambda: --param lambda: controller 'mpcc' does not use it (used by mptc1, mptc2)" in err
+
+
+@pytest.mark.parametrize(("motor", "controller", "needs", "fits"), [
+    ("im-2k2", "mpcc", "ld, lq, psi_f", "im-foc"),
+    ("niu2020-ipmsm", "im-foc", "rr, lsigma, lm, psi_r_ref", "mpcc, fcs-mpc-1"),
+])
+def test_a_controller_for_another_kind_of_machine_is_refused(motor: str, controller: str, needs: str,
+                                                             fits: str) -> None:
+    from pmsm_hil.hil.presets_loader import load_motor
+    from pmsm_hil.hil.runner.scenario import load_scenario
+
+    with pytest.raises(ParameterError, match=f"controller '{controller}' needs the machine model parameter.s. "
+                                             f"{needs}, which motor '{motor}' .* \\(controllers for it: {fits}"):
+        RunConfig(motor=load_motor(motor), scenario=load_scenario("steady"), controller=controller)
+    for fine in ("off", "external"):  # no model, or a foreign firmware's own
+        RunConfig(motor=load_motor(motor), scenario=load_scenario("steady"), controller=fine)
