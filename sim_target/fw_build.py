@@ -151,18 +151,24 @@ def _run(cmd: list[str], what: str, *, verbose: bool = False) -> str:
 
 
 def _remember_warnings(build: Path, output: str) -> tuple[str, ...]:
-    """The warnings of this build; when nothing was compiled (an up-to-date build), those of the last build that
-    compiled (kept in the build folder), so a warning does not vanish on the second `hil fw build`."""
+    """The warnings of the firmware as built now: those of the sources compiled by this build, and for the sources
+    not compiled again (an up-to-date build, or a partial rebuild after another file changed) those of the build
+    that last compiled them (kept in the build folder), so a warning does not vanish on the next `hil fw build`."""
     store = build / "hil_warnings.txt"
-    compiled = re.search(r"Building (C|CXX|ASM) object", output) is not None
-    if compiled:
-        found = warning_lines(output)
-        with contextlib.suppress(OSError):
-            store.write_text("".join(w + "\n" for w in found))
-        return tuple(found)
+    compiled = [m.group(1) for m in _COMPILED.finditer(output)]
+    found = warning_lines(output)
+    kept: list[str] = []
     with contextlib.suppress(OSError):
-        return tuple(ln for ln in store.read_text().splitlines() if ln)
-    return ()
+        kept = [ln for ln in store.read_text().splitlines() if ln]
+    if compiled:
+        kept = [ln for ln in kept if not any(obj.endswith(ln.split(":", 1)[0].lstrip("/")) for obj in compiled)]
+        with contextlib.suppress(OSError):
+            store.write_text("".join(w + "\n" for w in [*kept, *found]))
+    return tuple(dict.fromkeys([*kept, *found]))
+
+
+#: an object a build compiled: "Building C object CMakeFiles/T.dir/<source path>.o" → the source path
+_COMPILED = re.compile(r"Building (?:C|CXX|ASM) object \S+?\.dir/(\S+)\.o\b")
 
 
 def parse_defines(items: list[str] | None) -> tuple[str, ...]:

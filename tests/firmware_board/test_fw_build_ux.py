@@ -44,6 +44,20 @@ def test_warnings_are_shown(capsys: pytest.CaptureFixture[str]) -> None:
         assert err.startswith("1 compiler warning:\n") and "unused variable" in err and "unused_in_step" in err
 
 
+def test_a_partial_rebuild_keeps_the_warnings_of_the_files_not_recompiled(tmp_path: Path) -> None:
+    from pmsm_hil.sim_target.fw_build import _remember_warnings
+
+    warn = "/src/app.c:3:5: warning: unused variable 'x' [-Wunused-variable]"
+    first = f"[ 50%] Building C object CMakeFiles/fw.dir/src/app.c.o\n{warn}\n[100%] Building C object " \
+            "CMakeFiles/fw.dir/sdk/core.c.o\n"
+    assert _remember_warnings(tmp_path, first) == (warn,)
+    core_only = "[100%] Building C object CMakeFiles/fw.dir/sdk/core.c.o\n"  # another file changed
+    assert _remember_warnings(tmp_path, core_only) == (warn,)
+    assert _remember_warnings(tmp_path, "") == (warn,)  # up to date
+    fixed = "[ 50%] Building C object CMakeFiles/fw.dir/src/app.c.o\n"  # app.c recompiled without the warning
+    assert _remember_warnings(tmp_path, fixed) == ()
+
+
 def test_define_changes_a_compiled_constant() -> None:
     need("host")
     plain = build_firmware("host", CPP_TEMPLATE).path

@@ -64,12 +64,15 @@ def test_cpp_template_sil_and_qemu_are_bit_identical(cpp_sil: Path, cpp_elf: Pat
     _check(m_sil)
     _check(m_qemu)
     assert m_qemu["exec_instructions"]["median"] > 100
-    shared = sorted(set(m_sil) & set(m_qemu) - TIMING)
+    # not the firmware's doing: SIL reports its torque reference (shared memory), QEMU cannot, so the torque error
+    # is taken against different references; link counters are the links' (socketpair vs emulated UART)
+    per_target = {"torque_error_mean_nm", "torque_error_reference", "link_auth_dropped"}
+    shared = sorted(set(m_sil) & set(m_qemu) - TIMING - per_target)
     assert len(shared) > 30
     assert {k: m_sil[k] for k in shared} == {k: m_qemu[k] for k in shared}
     assert len(rec_sil) == len(rec_qemu) > 900
     for name in rec_sil.dtype.names:
-        if name not in TIMING_COLUMNS:
+        if name not in TIMING_COLUMNS and name != "torque_ref":  # torque_ref: SIL's debug output only
             assert np.array_equal(rec_sil[name], rec_qemu[name], equal_nan=True), name
 
 
