@@ -40,6 +40,7 @@ static const param_rule_t rules[HIL_FW_P_COUNT] = {
     [HIL_FW_P_DT_COMP] = {0.0f, 1.0f, 0, 1},
     [HIL_FW_P_FCS_READING] = {0.0f, 255.0f, 0, 1},
     [HIL_FW_P_V3_SYMMETRIC] = {0.0f, 1.0f, 0, 1},
+    [HIL_FW_P_PWM_DUTIES] = {0.0f, 1.0f, 0, 1},
 };
 
 void hil_fw_params_defaults(hil_fw_params_t *p)
@@ -73,6 +74,7 @@ void hil_fw_params_defaults(hil_fw_params_t *p)
     p->value[HIL_FW_P_CURRENT_LIMIT] = 15.0f;
     /* each fcs controller's own reading, resolved per step (hil_fw_fcs_mpc.h) */
     p->value[HIL_FW_P_FCS_READING] = (float)HIL_FW_FCS_READING_CONTROLLER_DEFAULT;
+    p->value[HIL_FW_P_PWM_DUTIES] = 1.0f; /* foc ends in three duty cycles (0: the 5-segment states) */
     hil_fw_params_derive(p);
 }
 

@@ -129,6 +129,9 @@ class RunConfig:
     #: sil targets: load the library into the runner's process (`--sil-in-process`: unprotected, a crash of
     #: the firmware ends the runner) instead of serving it from its own process
     sil_in_process: bool = default_of("sil_in_process")
+    #: duty-cycle Commands (issue 27): `--pwm-update` single (carrier period Ts) or double (2·Ts, control at twice
+    #: the PWM rate: even periods the rising half of the carrier, odd periods the falling half)
+    pwm_update: str = default_of("pwm_update")
 
     def __post_init__(self) -> None:
         cid = controller_id(self.controller)
