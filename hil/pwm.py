@@ -13,6 +13,7 @@ period holds the rising half (high over [(1 − d)·Ts, Ts)), an odd one the fal
 from __future__ import annotations
 
 from collections.abc import Sequence
+from itertools import pairwise
 from typing import Final
 
 from pmsm_hil.protocol.codec_duty import DUTY_FULL, DUTY_NAN, DUTY_OUT_OF_RANGE, duty_raw, duty_value
@@ -61,7 +62,7 @@ def duty_sequence(raw: Sequence[int], ts_ns: int, half: int = SINGLE) -> tuple[t
     bounds = sorted({0, ts_ns, *(t for pair in iv for t in pair)})
     states: list[int] = []
     durs: list[int] = []
-    for a, b in zip(bounds, bounds[1:], strict=False):
+    for a, b in pairwise(bounds):
         if b == a:
             continue
         st = 0
@@ -92,5 +93,6 @@ def duties_record(cmd: Command) -> tuple[int, tuple[float, ...]]:
 
 _NAN = float("nan")
 
-__all__ = ["applied_sequence", "duties_record", "DUTY_FULL", "DUTY_NAN", "DUTY_OUT_OF_RANGE", "FALLING", "PWM_UPDATES", "RISING", "SINGLE",
-           "carrier_half", "duty_raw", "duty_sequence", "duty_value", "leg_intervals"]
+__all__ = ["DUTY_FULL", "DUTY_NAN", "DUTY_OUT_OF_RANGE", "FALLING", "PWM_UPDATES", "RISING", "SINGLE",
+           "applied_sequence", "carrier_half", "duties_record", "duty_raw", "duty_sequence", "duty_value",
+           "leg_intervals"]

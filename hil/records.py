@@ -64,7 +64,7 @@ PERIOD_DTYPE: Final = np.dtype(
         ("i_x", "f8"),
         ("i_y", "f8"),
         ("n_duties", "u1"),
-        ("duties", "f4", (6,)),
+        ("duties", "f8", (6,)),
     ]
 )
 

@@ -41,7 +41,7 @@ def duty_raw(d: float) -> int:
         return DUTY_NAN
     if not 0.0 <= d <= 1.0:
         return DUTY_OUT_OF_RANGE
-    return int(math.floor(d * DUTY_FULL + 0.5))
+    return math.floor(d * DUTY_FULL + 0.5)
 
 
 def duty_value(raw: int) -> float:

@@ -2721,12 +2721,14 @@ float hil_protocol_cmd_duty_a_duty0_decode(uint16_t value)
 
 bool hil_protocol_cmd_duty_a_duty0_is_in_range(uint16_t value)
 {
-    return (value <= 65534u);
+    (void)value;
+
+    return (true);
 }
 
 bool hil_protocol_cmd_duty_a_duty0_is_in_phys_range(float value)
 {
-    return ((value >= 0.0f) && (value <= 1.0002136752136752f));
+    return ((value >= 0.0f) && (value <= 1.0002289377289377f));
 }
 
 uint16_t hil_protocol_cmd_duty_a_duty1_encode(float value)
@@ -2741,12 +2743,14 @@ float hil_protocol_cmd_duty_a_duty1_decode(uint16_t value)
 
 bool hil_protocol_cmd_duty_a_duty1_is_in_range(uint16_t value)
 {
-    return (value <= 65534u);
+    (void)value;
+
+    return (true);
 }
 
 bool hil_protocol_cmd_duty_a_duty1_is_in_phys_range(float value)
 {
-    return ((value >= 0.0f) && (value <= 1.0002136752136752f));
+    return ((value >= 0.0f) && (value <= 1.0002289377289377f));
 }
 
 uint16_t hil_protocol_cmd_duty_a_duty2_encode(float value)
@@ -2761,12 +2765,14 @@ float hil_protocol_cmd_duty_a_duty2_decode(uint16_t value)
 
 bool hil_protocol_cmd_duty_a_duty2_is_in_range(uint16_t value)
 {
-    return (value <= 65534u);
+    (void)value;
+
+    return (true);
 }
 
 bool hil_protocol_cmd_duty_a_duty2_is_in_phys_range(float value)
 {
-    return ((value >= 0.0f) && (value <= 1.0002136752136752f));
+    return ((value >= 0.0f) && (value <= 1.0002289377289377f));
 }
 
 int hil_protocol_cmd_duty_b_pack(
@@ -2856,12 +2862,14 @@ float hil_protocol_cmd_duty_b_duty3_decode(uint16_t value)
 
 bool hil_protocol_cmd_duty_b_duty3_is_in_range(uint16_t value)
 {
-    return (value <= 65534u);
+    (void)value;
+
+    return (true);
 }
 
 bool hil_protocol_cmd_duty_b_duty3_is_in_phys_range(float value)
 {
-    return ((value >= 0.0f) && (value <= 1.0002136752136752f));
+    return ((value >= 0.0f) && (value <= 1.0002289377289377f));
 }
 
 uint16_t hil_protocol_cmd_duty_b_duty4_encode(float value)
@@ -2876,12 +2884,14 @@ float hil_protocol_cmd_duty_b_duty4_decode(uint16_t value)
 
 bool hil_protocol_cmd_duty_b_duty4_is_in_range(uint16_t value)
 {
-    return (value <= 65534u);
+    (void)value;
+
+    return (true);
 }
 
 bool hil_protocol_cmd_duty_b_duty4_is_in_phys_range(float value)
 {
-    return ((value >= 0.0f) && (value <= 1.0002136752136752f));
+    return ((value >= 0.0f) && (value <= 1.0002289377289377f));
 }
 
 uint16_t hil_protocol_cmd_duty_b_duty5_encode(float value)
@@ -2896,12 +2906,14 @@ float hil_protocol_cmd_duty_b_duty5_decode(uint16_t value)
 
 bool hil_protocol_cmd_duty_b_duty5_is_in_range(uint16_t value)
 {
-    return (value <= 65534u);
+    (void)value;
+
+    return (true);
 }
 
 bool hil_protocol_cmd_duty_b_duty5_is_in_phys_range(float value)
 {
-    return ((value >= 0.0f) && (value <= 1.0002136752136752f));
+    return ((value >= 0.0f) && (value <= 1.0002289377289377f));
 }
 
 int hil_protocol_cmd_duty_c_pack(
@@ -3178,12 +3190,14 @@ float hil_protocol_cmd_duty_fd_duty0_decode(uint16_t value)
 
 bool hil_protocol_cmd_duty_fd_duty0_is_in_range(uint16_t value)
 {
-    return (value <= 65534u);
+    (void)value;
+
+    return (true);
 }
 
 bool hil_protocol_cmd_duty_fd_duty0_is_in_phys_range(float value)
 {
-    return ((value >= 0.0f) && (value <= 1.0002136752136752f));
+    return ((value >= 0.0f) && (value <= 1.0002289377289377f));
 }
 
 uint16_t hil_protocol_cmd_duty_fd_duty1_encode(float value)
@@ -3198,12 +3212,14 @@ float hil_protocol_cmd_duty_fd_duty1_decode(uint16_t value)
 
 bool hil_protocol_cmd_duty_fd_duty1_is_in_range(uint16_t value)
 {
-    return (value <= 65534u);
+    (void)value;
+
+    return (true);
 }
 
 bool hil_protocol_cmd_duty_fd_duty1_is_in_phys_range(float value)
 {
-    return ((value >= 0.0f) && (value <= 1.0002136752136752f));
+    return ((value >= 0.0f) && (value <= 1.0002289377289377f));
 }
 
 uint16_t hil_protocol_cmd_duty_fd_duty2_encode(float value)
@@ -3218,12 +3234,14 @@ float hil_protocol_cmd_duty_fd_duty2_decode(uint16_t value)
 
 bool hil_protocol_cmd_duty_fd_duty2_is_in_range(uint16_t value)
 {
-    return (value <= 65534u);
+    (void)value;
+
+    return (true);
 }
 
 bool hil_protocol_cmd_duty_fd_duty2_is_in_phys_range(float value)
 {
-    return ((value >= 0.0f) && (value <= 1.0002136752136752f));
+    return ((value >= 0.0f) && (value <= 1.0002289377289377f));
 }
 
 uint16_t hil_protocol_cmd_duty_fd_duty3_encode(float value)
@@ -3238,12 +3256,14 @@ float hil_protocol_cmd_duty_fd_duty3_decode(uint16_t value)
 
 bool hil_protocol_cmd_duty_fd_duty3_is_in_range(uint16_t value)
 {
-    return (value <= 65534u);
+    (void)value;
+
+    return (true);
 }
 
 bool hil_protocol_cmd_duty_fd_duty3_is_in_phys_range(float value)
 {
-    return ((value >= 0.0f) && (value <= 1.0002136752136752f));
+    return ((value >= 0.0f) && (value <= 1.0002289377289377f));
 }
 
 uint16_t hil_protocol_cmd_duty_fd_duty4_encode(float value)
@@ -3258,12 +3278,14 @@ float hil_protocol_cmd_duty_fd_duty4_decode(uint16_t value)
 
 bool hil_protocol_cmd_duty_fd_duty4_is_in_range(uint16_t value)
 {
-    return (value <= 65534u);
+    (void)value;
+
+    return (true);
 }
 
 bool hil_protocol_cmd_duty_fd_duty4_is_in_phys_range(float value)
 {
-    return ((value >= 0.0f) && (value <= 1.0002136752136752f));
+    return ((value >= 0.0f) && (value <= 1.0002289377289377f));
 }
 
 uint16_t hil_protocol_cmd_duty_fd_duty5_encode(float value)
@@ -3278,12 +3300,14 @@ float hil_protocol_cmd_duty_fd_duty5_decode(uint16_t value)
 
 bool hil_protocol_cmd_duty_fd_duty5_is_in_range(uint16_t value)
 {
-    return (value <= 65534u);
+    (void)value;
+
+    return (true);
 }
 
 bool hil_protocol_cmd_duty_fd_duty5_is_in_phys_range(float value)
 {
-    return ((value >= 0.0f) && (value <= 1.0002136752136752f));
+    return ((value >= 0.0f) && (value <= 1.0002289377289377f));
 }
 
 uint8_t hil_protocol_cmd_duty_fd_vector_id_encode(float value)

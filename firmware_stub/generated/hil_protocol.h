@@ -1330,7 +1330,7 @@ struct hil_protocol_cmd_duty_a_t {
     /**
      * Duty of leg 0 (legs a, b, c, then u, v, w): the fraction of the carrier period its upper switch is on, centre-aligned PWM (docs/firmware_api.md, Duty-cycle commands); u16 x 1/65520, 0..65520 = 0..1; 65534 out of range (the firmware asked for a duty below 0 or above 1), 65535 not a number: both DUT-contract findings at the host; 0 for legs >= n_duties.
      *
-     * Range: 0..65534 (0..1.00021 -)
+     * Range: 0..65535 (0..1.00023 -)
      * Scale: 1.5262515262515263e-05
      * Offset: 0
      */
@@ -1339,7 +1339,7 @@ struct hil_protocol_cmd_duty_a_t {
     /**
      * Duty of leg 1 (legs a, b, c, then u, v, w): the fraction of the carrier period its upper switch is on, centre-aligned PWM (docs/firmware_api.md, Duty-cycle commands); u16 x 1/65520, 0..65520 = 0..1; 65534 out of range (the firmware asked for a duty below 0 or above 1), 65535 not a number: both DUT-contract findings at the host; 0 for legs >= n_duties.
      *
-     * Range: 0..65534 (0..1.00021 -)
+     * Range: 0..65535 (0..1.00023 -)
      * Scale: 1.5262515262515263e-05
      * Offset: 0
      */
@@ -1348,7 +1348,7 @@ struct hil_protocol_cmd_duty_a_t {
     /**
      * Duty of leg 2 (legs a, b, c, then u, v, w): the fraction of the carrier period its upper switch is on, centre-aligned PWM (docs/firmware_api.md, Duty-cycle commands); u16 x 1/65520, 0..65520 = 0..1; 65534 out of range (the firmware asked for a duty below 0 or above 1), 65535 not a number: both DUT-contract findings at the host; 0 for legs >= n_duties.
      *
-     * Range: 0..65534 (0..1.00021 -)
+     * Range: 0..65535 (0..1.00023 -)
      * Scale: 1.5262515262515263e-05
      * Offset: 0
      */
@@ -1375,7 +1375,7 @@ struct hil_protocol_cmd_duty_b_t {
     /**
      * Duty of leg 3 (legs a, b, c, then u, v, w): the fraction of the carrier period its upper switch is on, centre-aligned PWM (docs/firmware_api.md, Duty-cycle commands); u16 x 1/65520, 0..65520 = 0..1; 65534 out of range (the firmware asked for a duty below 0 or above 1), 65535 not a number: both DUT-contract findings at the host; 0 for legs >= n_duties.
      *
-     * Range: 0..65534 (0..1.00021 -)
+     * Range: 0..65535 (0..1.00023 -)
      * Scale: 1.5262515262515263e-05
      * Offset: 0
      */
@@ -1384,7 +1384,7 @@ struct hil_protocol_cmd_duty_b_t {
     /**
      * Duty of leg 4 (legs a, b, c, then u, v, w): the fraction of the carrier period its upper switch is on, centre-aligned PWM (docs/firmware_api.md, Duty-cycle commands); u16 x 1/65520, 0..65520 = 0..1; 65534 out of range (the firmware asked for a duty below 0 or above 1), 65535 not a number: both DUT-contract findings at the host; 0 for legs >= n_duties.
      *
-     * Range: 0..65534 (0..1.00021 -)
+     * Range: 0..65535 (0..1.00023 -)
      * Scale: 1.5262515262515263e-05
      * Offset: 0
      */
@@ -1393,7 +1393,7 @@ struct hil_protocol_cmd_duty_b_t {
     /**
      * Duty of leg 5 (legs a, b, c, then u, v, w): the fraction of the carrier period its upper switch is on, centre-aligned PWM (docs/firmware_api.md, Duty-cycle commands); u16 x 1/65520, 0..65520 = 0..1; 65534 out of range (the firmware asked for a duty below 0 or above 1), 65535 not a number: both DUT-contract findings at the host; 0 for legs >= n_duties.
      *
-     * Range: 0..65534 (0..1.00021 -)
+     * Range: 0..65535 (0..1.00023 -)
      * Scale: 1.5262515262515263e-05
      * Offset: 0
      */
@@ -1474,7 +1474,7 @@ struct hil_protocol_cmd_duty_fd_t {
     /**
      * Duty of leg 0 (legs a, b, c, then u, v, w): the fraction of the carrier period its upper switch is on, centre-aligned PWM (docs/firmware_api.md, Duty-cycle commands); u16 x 1/65520, 0..65520 = 0..1; 65534 out of range (the firmware asked for a duty below 0 or above 1), 65535 not a number: both DUT-contract findings at the host; 0 for legs >= n_duties.
      *
-     * Range: 0..65534 (0..1.00021 -)
+     * Range: 0..65535 (0..1.00023 -)
      * Scale: 1.5262515262515263e-05
      * Offset: 0
      */
@@ -1483,7 +1483,7 @@ struct hil_protocol_cmd_duty_fd_t {
     /**
      * Duty of leg 1 (legs a, b, c, then u, v, w): the fraction of the carrier period its upper switch is on, centre-aligned PWM (docs/firmware_api.md, Duty-cycle commands); u16 x 1/65520, 0..65520 = 0..1; 65534 out of range (the firmware asked for a duty below 0 or above 1), 65535 not a number: both DUT-contract findings at the host; 0 for legs >= n_duties.
      *
-     * Range: 0..65534 (0..1.00021 -)
+     * Range: 0..65535 (0..1.00023 -)
      * Scale: 1.5262515262515263e-05
      * Offset: 0
      */
@@ -1492,7 +1492,7 @@ struct hil_protocol_cmd_duty_fd_t {
     /**
      * Duty of leg 2 (legs a, b, c, then u, v, w): the fraction of the carrier period its upper switch is on, centre-aligned PWM (docs/firmware_api.md, Duty-cycle commands); u16 x 1/65520, 0..65520 = 0..1; 65534 out of range (the firmware asked for a duty below 0 or above 1), 65535 not a number: both DUT-contract findings at the host; 0 for legs >= n_duties.
      *
-     * Range: 0..65534 (0..1.00021 -)
+     * Range: 0..65535 (0..1.00023 -)
      * Scale: 1.5262515262515263e-05
      * Offset: 0
      */
@@ -1501,7 +1501,7 @@ struct hil_protocol_cmd_duty_fd_t {
     /**
      * Duty of leg 3 (legs a, b, c, then u, v, w): the fraction of the carrier period its upper switch is on, centre-aligned PWM (docs/firmware_api.md, Duty-cycle commands); u16 x 1/65520, 0..65520 = 0..1; 65534 out of range (the firmware asked for a duty below 0 or above 1), 65535 not a number: both DUT-contract findings at the host; 0 for legs >= n_duties.
      *
-     * Range: 0..65534 (0..1.00021 -)
+     * Range: 0..65535 (0..1.00023 -)
      * Scale: 1.5262515262515263e-05
      * Offset: 0
      */
@@ -1510,7 +1510,7 @@ struct hil_protocol_cmd_duty_fd_t {
     /**
      * Duty of leg 4 (legs a, b, c, then u, v, w): the fraction of the carrier period its upper switch is on, centre-aligned PWM (docs/firmware_api.md, Duty-cycle commands); u16 x 1/65520, 0..65520 = 0..1; 65534 out of range (the firmware asked for a duty below 0 or above 1), 65535 not a number: both DUT-contract findings at the host; 0 for legs >= n_duties.
      *
-     * Range: 0..65534 (0..1.00021 -)
+     * Range: 0..65535 (0..1.00023 -)
      * Scale: 1.5262515262515263e-05
      * Offset: 0
      */
@@ -1519,7 +1519,7 @@ struct hil_protocol_cmd_duty_fd_t {
     /**
      * Duty of leg 5 (legs a, b, c, then u, v, w): the fraction of the carrier period its upper switch is on, centre-aligned PWM (docs/firmware_api.md, Duty-cycle commands); u16 x 1/65520, 0..65520 = 0..1; 65534 out of range (the firmware asked for a duty below 0 or above 1), 65535 not a number: both DUT-contract findings at the host; 0 for legs >= n_duties.
      *
-     * Range: 0..65534 (0..1.00021 -)
+     * Range: 0..65535 (0..1.00023 -)
      * Scale: 1.5262515262515263e-05
      * Offset: 0
      */

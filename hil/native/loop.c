@@ -725,8 +725,7 @@ static void record(loop_t *L, double t, int64_t k, const sample_t *smp, const ge
     rec->i_y = smp->i_y;
     rec->n_duties = p->cmd.n_duties;
     for (j = 0; j < 6; ++j) {
-        rec->duties[j] = j < p->cmd.n_duties ? (float)((double)p->cmd.duty_raw[j] / (double)PWM_DUTY_FULL)
-                                             : (float)c->nan;
+        rec->duties[j] = j < p->cmd.n_duties ? (double)p->cmd.duty_raw[j] / (double)PWM_DUTY_FULL : c->nan;
     }
     L->r->completed_periods = k + 1;
     L->pending = L->next;

@@ -14,7 +14,7 @@
 /* C99 compile-time check: a negative array size when the condition fails. */
 #define NL_RECORD_CHECK(tag, cond) typedef char nl_record_check_##tag[(cond) ? 1 : -1]
 
-/* One period record (PERIOD_DTYPE): 210 bytes, packed. */
+/* One period record (PERIOD_DTYPE): 234 bytes, packed. */
 typedef struct NL_PACKED {
     double t;
     uint32_t seq;
@@ -49,10 +49,10 @@ typedef struct NL_PACKED {
     double i_x;
     double i_y;
     uint8_t n_duties;
-    float duties[6];
+    double duties[6];
 } nl_period_t;
 
-NL_RECORD_CHECK(nl_period_t_size, sizeof(nl_period_t) == 210);
+NL_RECORD_CHECK(nl_period_t_size, sizeof(nl_period_t) == 234);
 NL_RECORD_CHECK(nl_period_t_t, offsetof(nl_period_t, t) == 0);
 NL_RECORD_CHECK(nl_period_t_seq, offsetof(nl_period_t, seq) == 8);
 NL_RECORD_CHECK(nl_period_t_i_a, offsetof(nl_period_t, i_a) == 12);

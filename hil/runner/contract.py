@@ -3,11 +3,11 @@ the findings when it is broken, and how a run ends (end codes, the exit codes of
 
 Per period k (seq = k mod 65536) the target sends exactly one Command echoing seq, within the lockstep
 timeout (lockstep) or before the next period start (real time), with state codes of the machine
-(0..2^legs − 1) and durations summing to Ts (mirrored: 2·(d0+…+d(n−2)) + d(n−1) = Ts), or (duty-cycle form)
-one duty 0..1 per leg of the machine: a NaN or out-of-range duty is a finding, never a silent zero vector. Frames the decoder
-rejects (wrong length, impossible values, parts that do not assemble) count against the period they
-arrive in. A reply with another seq (a future one, or a second/late answer) is a violation and never
-displaces the genuine reply.
+(0..2^legs − 1) and durations summing to Ts (mirrored: 2·(d0+…+d(n−2)) + d(n−1) = Ts), or (duty-cycle
+form) one duty 0..1 per leg of the machine: a NaN or out-of-range duty is a finding, never a silent zero
+vector. Frames the decoder rejects (wrong length, impossible values, parts that do not assemble) count
+against the period they arrive in. A reply with another seq (a future one, or a second/late answer) is a
+violation and never displaces the genuine reply.
 """
 
 from __future__ import annotations

@@ -116,7 +116,7 @@ def test_a_new_controller_in_the_dbc_reaches_c_and_python() -> None:
         # the family gains an id that no signal knows
         ('11 "hv-mpfc" ;', '11 "hv-mpfc" 12 "x" ;', "controller_id"),
         ('VAL_TABLE_ Node 0 "host" 1 "target" ;', "", "Node missing"),
-        ('26 "v3_symmetric" ;\nVAL_TABLE_ ParamUnit', '26 "v3_symmetric" 27 "p" ;\nVAL_TABLE_ ParamUnit', "ParamUnit"),
+        ('27 "pwm_duties" ;\nVAL_TABLE_ ParamUnit', '27 "pwm_duties" 28 "p" ;\nVAL_TABLE_ ParamUnit', "ParamUnit"),
         ('VAL_TABLE_ Mode 0 "speed" 1 "torque" ;', 'VAL_TABLE_ Mode 0 "speed" 1 "Torque" ;', "Mode"),
         # the signal drops the reserved id, or the reserved id falls inside the counted range
         ('11 "hv-mpfc" 255 "external" ;', '11 "hv-mpfc" ;', "Setpoint.controller_id"),

@@ -91,6 +91,21 @@ def test_a_clean_run_completes_and_disables_the_target(tmp_path: Path, pty: tupl
     e.check_safe_and_complete()
 
 
+@pytest.mark.parametrize(("rule", "detail"), [("nan_duty", "duty 1 is NaN"),
+                                              ("range_duty", "duty 1 = inf outside 0..1")])
+def test_a_nan_or_out_of_range_duty_is_a_finding_not_a_zero_vector(rule: str, detail: str, tmp_path: Path,
+                                                                    pty: tuple[int, str]) -> None:
+    """A user's duty-cycle target (CmdDutyFd): clean periods apply, the bad duty ends the run with exit 4."""
+    e = _run(tmp_path, pty, "duties=0", f"{rule}=30")
+    assert e.rc == 4, e.metrics["end_reason"]
+    first = e.metrics["dut_violation_list"][0]
+    assert first["rule"] == "duty" and first["period"] == 30 and first["detail"] == detail
+    assert "duties=(0.5, " in first["frame"]
+    periods = read_periods(e.out / "run.mcap")
+    assert (periods["n_duties"][2:30] == 3).all() and (periods["n_states"][2:30] == 0).all()
+    e.check_safe_and_complete()
+
+
 @pytest.mark.parametrize(("rule", "expected"), [
     ("skip", "missing"), ("future_seq", "sequence"), ("bad_sum", "durations"), ("bad_state", "state_code"),
     ("second", "sequence"), ("bad_length", "frame"),
