@@ -45,6 +45,7 @@ UNITS: Final = {
     "exec_time_ns": "ns",
     "exec_split_ns": "ns (measure, reference, predict)",
     "states": "switching state codes 4·Sa+2·Sb+Sc (first n_states valid)",
+    "duties": "duty 0..1 per leg of a duty-cycle Command (first n_duties valid, NaN beyond)",
 }
 
 
