@@ -15,7 +15,7 @@
 #define SCALE_TH ((double)0x1.921fb54442d18p-14L)  /* 2*pi/65536 rad */
 #define NS_PER_S ((double)0x1.dcd65p+29L)          /* 1e9 */
 
-/* Duty wire codes (hil.dbc CmdDuty*; hil/native/kernels/pwm_duty.h, hil/pwm.py) */
+/* Duty wire codes (hil.dbc CmdDuty*; hil/native/pwm_duty.h, hil/pwm.py) */
 #define HIL_CORE_DUTY_FULL 65520u
 #define HIL_CORE_DUTY_OUT_OF_RANGE 65534u
 #define HIL_CORE_DUTY_NAN 65535u

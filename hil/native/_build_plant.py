@@ -32,8 +32,6 @@ CDEF = _X.declarations(_KERNELS / "plant.h", ["pl_params_t", "pl_state_t", "pl_p
                                            "pl_torque", "pl_phase_currents", "pl_kernel"])
 CDEF6 = _X.declarations(_KERNELS / "plant6.h", ["p6_params_t", "p6_state_t", "p6_period_stats_t", "p6_advance",
                                              "p6_torque", "p6_phase_currents", "p6_code_voltage", "p6_kernel"])
-#: the duty-cycle carrier comparison the native loop applies (pwm_duty.h), for the tests of its Python twin
-CDEF_PWM = _X.declarations(_KERNELS / "pwm_duty.h", ["pwm_duty_sequence"])
 
 
 def _source(name: str) -> str:
@@ -43,13 +41,13 @@ def _source(name: str) -> str:
 
 
 #: the plant kernels and their shared helpers (nothing of the loop: tests/test_layers.py)
-PLANT_SOURCES = ("dq_segment.c", "gate_edges.c", "plant.c", "plant6.c", "pwm_duty.c")
+PLANT_SOURCES = ("dq_segment.c", "gate_edges.c", "plant.c", "plant6.c")
 
 ffibuilder = FFI()
-ffibuilder.cdef(CDEF_COMMON + CDEF + CDEF6 + CDEF_PWM)
+ffibuilder.cdef(CDEF_COMMON + CDEF + CDEF6)
 ffibuilder.set_source(
     "pmsm_hil.hil._plant_native",
-    '#include "plant.h"\n#include "plant6.h"\n#include "pwm_duty.h"',
+    '#include "plant.h"\n#include "plant6.h"',
     sources=[_source(name) for name in PLANT_SOURCES],
     include_dirs=[str(_KERNELS)],
     # the native loop calls these kernels too: no FMA contraction and no sin/cos fusion, so its records equal the

@@ -143,7 +143,7 @@ typedef struct {
      * SocketCAN) */
     const struct nl_link *link;
     int64_t lockstep_timeout_ns; /* lockstep over a link: how long to wait for a Command [ns] (wall time) */
-    int32_t pwm_double;        /* duty-cycle Commands: 0 single update, 1 double (kernels/pwm_duty.h halves) */
+    int32_t pwm_double;        /* duty-cycle Commands: 0 single update, 1 double (pwm_duty.h halves) */
 } nl_config_t;
 
 /* One block of the ring. `trace` (rows x trace_columns doubles) is the caller's. */

@@ -1,6 +1,7 @@
-"""Duty cycles → switching sequence (hil/pwm.py and its C twin hil/native/kernels/pwm_duty.c): the switching
-instants equal a brute-force carrier comparison (the triangle evaluated at every ns, exact rational arithmetic),
-both implementations give the same ns, and dead time / minimum pulse act on duty sequences as on any other."""
+"""Duty cycles → switching sequence (hil/pwm.py and its C twin hil/native/pwm_duty.c, the native loop's command
+path): the switching instants equal a brute-force carrier comparison (the triangle evaluated at every ns, exact
+rational arithmetic), both implementations give the same ns, and dead time / minimum pulse act on duty sequences
+as on any other."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ from fractions import Fraction
 from itertools import pairwise
 
 import pytest
-from pmsm_hil.hil import _plant_native
+from pmsm_hil.hil import _loop_native  # type: ignore[attr-defined]
 from pmsm_hil.hil.mechanics import DynoMechanics
 from pmsm_hil.hil.plant import Plant
 from pmsm_hil.hil.plant6 import Plant6
@@ -100,7 +101,7 @@ def test_double_update_halves_join_into_one_carrier_period() -> None:
 
 
 def test_the_c_kernel_gives_the_same_ns() -> None:
-    ffi, lib = _plant_native.ffi, _plant_native.lib
+    ffi, lib = _loop_native.ffi, _loop_native.lib
     rng = random.Random(5)
     raw_c = ffi.new("uint16_t[6]")
     st_c = ffi.new("int32_t[13]")

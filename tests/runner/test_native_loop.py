@@ -114,7 +114,7 @@ def test_classic_can_and_six_phases(make: Any, link: str, sensors: SensorConfig)
     ("virtual", "single", 0.0), ("virtual,fd=false", "double", 0.0), ("virtual", "double", 1e-6),
 ])
 def test_foc_via_duty_cycles_logs_identically(link: str, pwm_update: str, t_dead: float) -> None:
-    """foc's duty-cycle Commands (CmdDutyFd, CmdDutyA/B/C): the carrier comparison in C (kernels/pwm_duty.c)
+    """foc's duty-cycle Commands (CmdDutyFd, CmdDutyA/B/C): the carrier comparison in C (hil/native/pwm_duty.c)
     gives the oracle's records (hil/pwm.py) bit for bit, single and double update, with dead time."""
     cfg = _three(link=link, sensors=SENSORS)
     cfg = replace(cfg, controller="foc", pwm_update=pwm_update, motor=replace(cfg.motor, t_dead=t_dead, t_mpw=0.5e-6))
