@@ -220,7 +220,7 @@ def _as_float(value: Any) -> float:
 
 
 #: Period fields added after the first logs were written: absent in older files, read as 0.
-LATE_FIELDS: Final = frozenset({"narrow_pulses_gated", "mirror"})
+LATE_FIELDS: Final = frozenset({"narrow_pulses_gated", "mirror", "n_duties", "duties"})
 
 
 def decode_json_records(messages: Sequence[bytes], dtype: np.dtype, field: str) -> np.ndarray:
