@@ -8,7 +8,8 @@ wire: its link sequence number used up, nothing sent), fault (a FaultTarget
 frame), silent (stop replying from then on), bad_ack (echo ConfigParam values + 1.0), ignore_disable (never
 answer a disabling Setpoint with HeartbeatTarget idle: the safe stop is not confirmed; any PERIOD), duties (answer
 with duty-cycle Commands, CmdDutyFd, duties 0.5: zero voltage; any PERIOD), nan_duty / range_duty (duty 1 sent as the
-NaN / out-of-range code; with duties).
+NaN / out-of-range code; with duties), duties6 (a dual three-phase machine: answer MeasFd6 with six distinct
+duties near 0.5, all 13 carrier segments; with duties3 only three of them: a duty finding; any PERIOD).
 A disabling Setpoint is otherwise answered with HeartbeatTarget state idle (the confirmed safe stop).
 Every frame received from the host is logged to LOGFILE as one JSON line, flushed at once.
 The "controller": the zero vector for the whole period (a dyno run at low speed stays within its limits).
@@ -36,6 +37,7 @@ def main() -> int:
     ack, fault = db.get_message_by_name("ConfigAck"), db.get_message_by_name("FaultTarget")
     heartbeat = db.get_message_by_name("HeartbeatTarget")
     duty_cmd = db.get_message_by_name("CmdDutyFd")
+    meas6 = db.get_message_by_name("MeasFd6")
     duty_full = 65520
     bus = can.Bus(interface="hilserial", channel=port)
     log = open(log_path, "w", encoding="utf-8")  # noqa: SIM115 - closed at exit
@@ -45,6 +47,11 @@ def main() -> int:
                              is_extended_id=False))
 
     def reply(seq: int, duty1_raw: int = duty_full // 2) -> None:
+        if "duties6" in rules:
+            n = 3 if "duties3" in rules else 6
+            send(duty_cmd, seq=seq, n_duties=n, **{f"duty{j}": 0.5 + 0.002 * (j - 2.5) for j in range(6)},
+                 vector_id=0, candidates=0, exec_time_ns=1000, status=0)
+            return
         if "duties" in rules:
             half = 0.5
             send(duty_cmd, seq=seq, n_duties=3, duty0=half, duty1=duty1_raw / duty_full, duty2=half, duty3=0, duty4=0,
@@ -73,8 +80,9 @@ def main() -> int:
                 value = p["value"] + (1.0 if "bad_ack" in rules else 0.0)
                 send(ack, param_id=p["param_id"], value=value, status=0)
                 log.write(json.dumps({"frame": "ConfigParam", "param_id": int(p["param_id"])}) + "\n")
-            elif msg.arbitration_id == meas.frame_id:
-                seq = int(meas.decode(msg.data, decode_choices=False)["seq"])
+            elif msg.arbitration_id in (meas.frame_id, meas6.frame_id):
+                seq = int((meas if msg.arbitration_id == meas.frame_id else meas6).decode(msg.data,
+                                                                                           decode_choices=False)["seq"])
                 log.write(json.dumps({"frame": "Measurement", "seq": seq}) + "\n")
                 if rules.get("silent", 1 << 30) <= k or rules.get("skip") == k:
                     pass
