@@ -54,6 +54,15 @@ def mean_voltage_ab(states: npt.ArrayLike, durations_ns: npt.ArrayLike, n_states
     return out
 
 
+def duty_voltage_ab(duties: npt.ArrayLike, vdc: float) -> FloatArray:
+    """Mean αβ voltage [V] of each period's duty cycles of legs a, b, c (shape (n, ≥3)): the leg voltages d·Vdc
+    through the amplitude-invariant Clarke transform (the common mode drops out)."""
+    d = np.asarray(duties, dtype=np.float64)[:, :3] * vdc
+    out: FloatArray = np.stack([(2.0 * d[:, 0] - d[:, 1] - d[:, 2]) / 3.0, (d[:, 1] - d[:, 2]) / np.sqrt(3.0)],
+                               axis=-1)
+    return out
+
+
 def hexagon(vdc: float) -> FloatArray:
     """Closed outline of the three-phase vector hexagon [V]: 7 points, V1..V6 and back to V1."""
     pts = state_voltage_ab(np.array([4, 6, 2, 3, 1, 5, 4]), vdc)

@@ -17,6 +17,7 @@ from pmsm_hil.dashboards import entities as ent
 from pmsm_hil.dashboards.errors import DashboardError
 from pmsm_hil.dashboards.geometry import (
     CANDIDATE_CODES_3PH,
+    duty_voltage_ab,
     hexagon,
     linear_limit_circle,
     mean_voltage_ab,
@@ -141,6 +142,9 @@ class PeriodStreamer:
                                    radii=np.full(vectors.shape[0], 0.004 * self.vdc, np.float32))
         self.rec.send_columns(ent.AB_CANDIDATES, indexes=[times], columns=cand.partition(counts))
         applied = mean_voltage_ab(block["states"], block["durations_ns"], block["n_states"], self.vdc)
+        duty = block["n_duties"] > 0  # duty-cycle Commands: the mean voltage of the duties
+        if duty.any():
+            applied[duty] = duty_voltage_ab(block["duties"][duty], self.vdc)
         sel = rr.Arrows2D.columns(vectors=applied, colors=np.tile(np.array(_RED, np.uint8), (n, 1)),
                                   radii=np.full(n, 0.012 * self.vdc, np.float32))
         self.rec.send_columns(ent.AB_SELECTED, indexes=[times], columns=sel)

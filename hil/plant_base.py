@@ -14,7 +14,8 @@ from pmsm_hil.hil.errors import ParameterError, PlantFaultError, SequenceError
 from pmsm_hil.hil.machine_params import MachineParams
 from pmsm_hil.hil.mechanics import DynoMechanics, InertiaMechanics, LoadProfile, Mechanics
 
-MAX_SUBINTERVALS = 8
+#: Sub-intervals one period may hold: the 13 segments of six duty cycles (hil/pwm.py) fit.
+MAX_SUBINTERVALS = 16
 #: Load-profile breakpoints honoured inside one control period (more are a ParameterError).
 MAX_LOAD_BREAKPOINTS = 8
 

@@ -12,7 +12,11 @@ T_lim = 2·T_dead + T_mpw requested in the period, `narrow_pulses_gated` those t
 `mirror` = 1: the command was sent mirrored (`Command.mirror`): the plant applied states[0..n-1] then
 states[n-2..0] with the same durations; `states`/`durations_ns` hold the slots as sent. Dual three-phase
 runs fill `i_u`, `i_v`, `i_w` (second set) and `i_x`, `i_y` (harmonic subspace); three-phase runs leave
-them NaN; `i_a`, `i_b`, `i_c` are the first set.
+them NaN; `i_a`, `i_b`, `i_c` are the first set. `n_duties` = 3 or 6: the command applied was a duty-cycle
+Command (`Command.duties`): `duties` holds its per-leg duties 0..1 (legs a, b, c, then u, v, w; NaN beyond
+n_duties), `n_states` is 0 and the plant applied the carrier comparison of the duties (hil/pwm.py:
+`duty_sequence` gives the applied states and durations); `n_duties` = 0: a switching-state Command, `duties` NaN
+(0 in logs written before the field existed: only the first n_duties are valid).
 
 `TRACE_DTYPE`: the plant's high-rate trace (one sample every ≤ 2 µs); `TRACE_DTYPE6` for six phases.
 
@@ -60,6 +64,8 @@ PERIOD_DTYPE: Final = np.dtype(
         ("i_w", "f8"),
         ("i_x", "f8"),
         ("i_y", "f8"),
+        ("n_duties", "u1"),
+        ("duties", "f8", (6,)),
     ]
 )
 

@@ -18,7 +18,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any, Literal, TypeVar
 
-from pmsm_hil.protocol import codec6
+from pmsm_hil.protocol import codec6, codec_duty
 from pmsm_hil.protocol.assembler import Assembler, DecodeStats
 from pmsm_hil.protocol.errors import DecodeError, EncodeError
 from pmsm_hil.protocol.frame import Frame
@@ -236,6 +236,11 @@ class FrameCodec:
 
     # -- command (strict) --
     def _enc_cmd_can(self, c: Command) -> list[Frame]:
+        if c.duties:
+            a, b, cc = codec_duty.raw_parts(c)
+            return [Frame(codec_duty.L_DUTY_A.frame_id, codec_duty.L_DUTY_A.pack(*a), False),
+                    Frame(codec_duty.L_DUTY_B.frame_id, codec_duty.L_DUTY_B.pack(*b), False),
+                    Frame(codec_duty.L_DUTY_C.frame_id, codec_duty.L_DUTY_C.pack(*cc), False)]
         seq, s0, s1, s2, n, d0, d1, d2, vid, cand, ex, st, mir = _cmd_raw(c)
         return [
             Frame(L_CMD_A.frame_id, L_CMD_A.pack(seq, s0, s1, s2, n, d0, vid), False),
@@ -244,6 +249,8 @@ class FrameCodec:
         ]
 
     def _enc_cmd_fd(self, c: Command) -> list[Frame]:
+        if c.duties:
+            return [Frame(codec_duty.L_DUTY_FD.frame_id, codec_duty.L_DUTY_FD.pack(*codec_duty.raw_fd(c)), True)]
         return [Frame(L_CMD_FD.frame_id, L_CMD_FD.pack(*_cmd_raw(c)), True)]
 
 
@@ -406,11 +413,11 @@ def _cmd(
 ) -> Command:
     m = mir == 1
     if n == 3:
-        return _new_cmd(seq, (s0, s1, s2), (d0, d1, d2), vid, cand, ex, st, m)
+        return _new_cmd(seq, (s0, s1, s2), (d0, d1, d2), vid, cand, ex, st, m, ())
     if n == 2:
-        return _new_cmd(seq, (s0, s1), (d0, d1), vid, cand, ex, st, m)
+        return _new_cmd(seq, (s0, s1), (d0, d1), vid, cand, ex, st, m, ())
     if n == 1:
-        return _new_cmd(seq, (s0,), (d0,), vid, cand, ex, st, m)
+        return _new_cmd(seq, (s0,), (d0,), vid, cand, ex, st, m, ())
     raise _BadValueError(f"n_states={n} (allowed 1..{MAX_STATES})")
 
 
@@ -425,6 +432,8 @@ class FrameDecoder:
         self._meas_fd = Assembler(1, st, ordered=ordered)
         self._cmd = Assembler(3, st, ordered=ordered)
         self._cmd_fd = Assembler(1, st, ordered=ordered)
+        self._duty = Assembler(3, st, ordered=ordered)
+        self._duty_fd = Assembler(1, st, ordered=ordered)
         self._meas6 = Assembler(3, st, ordered=ordered)
         self._meas6_fd = Assembler(1, st, ordered=ordered)
         h: dict[int, tuple[int, Callable[[bytes], Message | None]]] = {
@@ -435,6 +444,10 @@ class FrameDecoder:
             L_CMD_B.frame_id: (L_CMD_B.length, self._cmd_b),
             L_CMD_C.frame_id: (L_CMD_C.length, self._cmd_c),
             L_CMD_FD.frame_id: (L_CMD_FD.length, self._cmd_fd1),
+            codec_duty.L_DUTY_A.frame_id: (codec_duty.L_DUTY_A.length, self._duty_a),
+            codec_duty.L_DUTY_B.frame_id: (codec_duty.L_DUTY_B.length, self._duty_b),
+            codec_duty.L_DUTY_C.frame_id: (codec_duty.L_DUTY_C.length, self._duty_c),
+            codec_duty.L_DUTY_FD.frame_id: (codec_duty.L_DUTY_FD.length, self._duty_fd1),
             codec6.L_MEAS6_A.frame_id: (codec6.L_MEAS6_A.length, self._meas6_a),
             codec6.L_MEAS6_C.frame_id: (codec6.L_MEAS6_C.length, self._meas6_c),
             codec6.L_MEAS6_B.frame_id: (codec6.L_MEAS6_B.length, self._meas6_b),
@@ -447,7 +460,8 @@ class FrameDecoder:
     def restart(self) -> None:
         """Start the sequence tracking afresh (a new run): a Measurement seq lower than the last one is then
         accepted instead of counted as stale. The statistics are kept."""
-        for assembler in (self._meas, self._meas_fd, self._cmd, self._cmd_fd, self._meas6, self._meas6_fd):
+        for assembler in (self._meas, self._meas_fd, self._cmd, self._cmd_fd, self._meas6, self._meas6_fd,
+                          self._duty, self._duty_fd):
             assembler.restart()
 
     def feed(self, frame: Frame) -> Message | None:
@@ -534,6 +548,33 @@ class FrameDecoder:
             raise _BadValueError(f"CmdFd.n_states={raw[4]}")
         return None if self._cmd_fd.add(0, raw[0], 0xFFFF, raw) is None else _cmd(*raw)
 
+    def _duty_part(self, part: int, layout: FrameLayout, data: bytes) -> Message | None:
+        raw = layout.unpack(data)
+        if part == 2 and raw[3] not in codec_duty.N_DUTIES:
+            raise _BadValueError(f"CmdDutyC.n_duties={raw[3]}")
+        parts = self._duty.add(part, raw[0], 0xFFFF, raw)
+        if parts is None:
+            return None
+        a, b, c = parts
+        return codec_duty.command(a[0], c[3], (*a[1:], *b[1:]), 0, 0, c[1], c[2])
+
+    def _duty_a(self, data: bytes) -> Message | None:
+        return self._duty_part(0, codec_duty.L_DUTY_A, data)
+
+    def _duty_b(self, data: bytes) -> Message | None:
+        return self._duty_part(1, codec_duty.L_DUTY_B, data)
+
+    def _duty_c(self, data: bytes) -> Message | None:
+        return self._duty_part(2, codec_duty.L_DUTY_C, data)
+
+    def _duty_fd1(self, data: bytes) -> Message | None:
+        raw = codec_duty.L_DUTY_FD.unpack(data)
+        if raw[1] not in codec_duty.N_DUTIES:
+            raise _BadValueError(f"CmdDutyFd.n_duties={raw[1]}")
+        if self._duty_fd.add(0, raw[0], 0xFFFF, raw) is None:
+            return None
+        return codec_duty.command(raw[0], raw[1], raw[2:8], raw[8], raw[9], raw[10], raw[11])
+
 
 _SIMPLE: dict[FrameLayout, Callable[..., Message]] = {
     L_SETPOINT: lambda en, mode, ref, cid: Setpoint(bool(en), mode, ref, cid),
@@ -583,6 +624,8 @@ def decode_frame(frame: Frame) -> tuple[str, dict[str, int | float]]:
             out[sig.name] = r * sig.scale + sig.offset
     if "n_states" in out and not 1 <= int(out["n_states"]) <= MAX_STATES:
         raise DecodeError(f"{lay.name}.n_states={out['n_states']} out of range (1..{MAX_STATES})")
+    if "n_duties" in out and int(out["n_duties"]) not in codec_duty.N_DUTIES:
+        raise DecodeError(f"{lay.name}.n_duties={out['n_duties']} out of range (3 or 6)")
     return lay.name, out
 
 

@@ -92,6 +92,7 @@ class ParamId(IntEnum):
     DT_COMP = 24
     FCS_READING = 25
     V3_SYMMETRIC = 26
+    PWM_DUTIES = 27
     RR = 32
     LSIGMA = 33
     LM = 34
@@ -125,6 +126,7 @@ PARAM_NAMES: dict[ParamId, str] = {
     ParamId.DT_COMP: "dt_comp",
     ParamId.FCS_READING: "fcs_reading",
     ParamId.V3_SYMMETRIC: "v3_symmetric",
+    ParamId.PWM_DUTIES: "pwm_duties",
     ParamId.RR: "rr",
     ParamId.LSIGMA: "lsigma",
     ParamId.LM: "lm",
@@ -158,6 +160,7 @@ PARAM_UNITS: dict[ParamId, str] = {
     ParamId.DT_COMP: "-",
     ParamId.FCS_READING: "-",
     ParamId.V3_SYMMETRIC: "-",
+    ParamId.PWM_DUTIES: "-",
     ParamId.RR: "Ohm",
     ParamId.LSIGMA: "H",
     ParamId.LM: "H",
@@ -191,6 +194,7 @@ PARAM_DOCS: dict[ParamId, str] = {
     ParamId.DT_COMP: "pulse-based dead-time compensation in 3vmpc/hv-mpfc: 0 off, 1 on",
     ParamId.FCS_READING: "fcs-mpc-1/2 reading of Tables 1/2, bit flags (docs/algorithms/fcs_mpc_regions.md)",
     ParamId.V3_SYMMETRIC: "mptc2/mptc3 send each V3 as G1/2-G2-G1/2 (mirrored command): 0 off, 1 on",
+    ParamId.PWM_DUTIES: "foc output: 1 duty cycles (CmdDuty*), 0 the 5-segment switching states",
     ParamId.RR: "induction machine: rotor resistance RR of the inverse-Gamma model",
     ParamId.LSIGMA: "induction machine: leakage inductance L_sigma (inverse-Gamma)",
     ParamId.LM: "induction machine: magnetizing inductance L_M (inverse-Gamma)",

@@ -50,7 +50,12 @@ class Command:
     `states[j]` (6-bit switching state code) is applied for `durations_ns[j]` ns; the durations sum
     to Ts. With `mirror` the plant applies states[0..n-1] then states[n-2..0], the mirrored copies with
     the same durations, so 2·(d0 + … + d(n-2)) + d(n-1) = Ts (a symmetric sequence of 2n − 1 intervals,
-    see `expanded`). `seq` echoes the measurement's; `exec_time_ns` is clamped to 2^32 - 1 on encode."""
+    see `expanded`). `seq` echoes the measurement's; `exec_time_ns` is clamped to 2^32 - 1 on encode.
+
+    Duty-cycle form: `duties` holds 3 or 6 per-leg duties 0..1 of a centre-aligned PWM whose carrier period is
+    Ts (legs a, b, c, then u, v, w) and `states`/`durations_ns` are empty, `mirror` False; the plant applies
+    the carrier comparison (`pmsm_hil.hil.pwm`). A duty outside 0..1 or NaN is sent as a reserved code and
+    decoded as +inf / NaN: a DUT-contract finding at the host."""
 
     seq: int
     states: tuple[int, ...]
@@ -60,6 +65,7 @@ class Command:
     exec_time_ns: int = 0
     status: int = 0
     mirror: bool = False
+    duties: tuple[float, ...] = ()
 
     def expanded(self) -> tuple[tuple[int, ...], tuple[int, ...]]:
         """(states, durations_ns) as the plant applies them: unchanged, or mirrored when `mirror`."""

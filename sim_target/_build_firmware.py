@@ -62,6 +62,8 @@ typedef struct {
     float torque_ref;
     float id_ref;
     float iq_ref;
+    float duty[6];
+    uint8_t n_duties;
 } hil_fw_cmd_t;
 
 typedef struct {

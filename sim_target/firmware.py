@@ -68,6 +68,8 @@ class FirmwareCommand(NamedTuple):
     outside the timed stages: 1 if the full 19-vector DSVM set had a lower cost than the restricted
     set's choice this step, 0 if not, 255 not applicable. mirror: the plant applies states then
     states[-2::-1] with the same durations (2·(d0+…+d(n−2)) + d(n−1) = Ts; see `Command.mirror`).
+    duties: the duty-cycle form (3 or 6 per-leg duties 0..1 of the centre-aligned PWM, float32 values; states
+    and durations_ns empty then), () for the switching-state form.
     """
 
     seq: int
@@ -83,6 +85,7 @@ class FirmwareCommand(NamedTuple):
     iq_ref: float
     full_miss: int = 255
     mirror: bool = False
+    duties: tuple[float, ...] = ()
 
 
 @cache
@@ -159,9 +162,9 @@ def _error_text(rc: int) -> str:
     return texts.get(rc, f"error {rc}")
 
 # hil_fw_py_out_t: cmd {seq, n_states, vector_id, candidates, status, states[3], full_miss, mirror,
-# durations_ns[3], torque_ref, id_ref, iq_ref} then split_ns[3]; native alignment, checked against
-# cffi offsets.
-_OUT = struct.Struct("@HBBBB3BBB3I3f3I")
+# durations_ns[3], torque_ref, id_ref, iq_ref, duty[6], n_duties} then split_ns[3]; native alignment, checked
+# against cffi offsets.
+_OUT = struct.Struct("@HBBBB3BBB3I3f6fB3I")
 
 
 def _check_layout(ffi: Any) -> None:
@@ -172,6 +175,7 @@ def _check_layout(ffi: Any) -> None:
         and ffi.offsetof("hil_fw_cmd_t", "torque_ref") == 24
         and ffi.offsetof("hil_fw_cmd_t", "full_miss") == 9
         and ffi.offsetof("hil_fw_cmd_t", "mirror") == 10
+        and ffi.offsetof("hil_fw_cmd_t", "n_duties") == 60
     )
     if not ok:  # pragma: no cover - only on an exotic ABI
         raise FirmwareBuildError("hil_fw_py_out_t layout differs from the wrapper's struct format")
@@ -279,9 +283,10 @@ class Firmware:
             raise FirmwareInputError(detail) from None
         u = self._unpack(self._out_buf)
         ns = u[1]
+        nd = u[22]
         return FirmwareCommand(
-            u[0], u[5:5 + ns], u[10:10 + ns], u[2], u[3], u[4], u[16] + u[17] + u[18], (u[16], u[17], u[18]),
-            u[13], u[14], u[15], u[8], u[9] == 1,
+            u[0], u[5:5 + ns], u[10:10 + ns], u[2], u[3], u[4], u[23] + u[24] + u[25], (u[23], u[24], u[25]),
+            u[13], u[14], u[15], u[8], u[9] == 1, u[16:16 + nd] if nd in (3, 6) else (),
         )
 
 

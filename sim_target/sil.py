@@ -37,7 +37,7 @@ class _Cmd(ctypes.Structure):
     _fields_ = [("n_states", ctypes.c_uint8), ("states", ctypes.c_uint8 * 3), ("durations_ns", ctypes.c_uint32 * 3),
                 ("mirror", ctypes.c_uint8), ("vector_id", ctypes.c_uint8), ("candidates", ctypes.c_uint8),
                 ("status", ctypes.c_uint8), ("torque_ref", ctypes.c_float), ("id_ref", ctypes.c_float),
-                ("iq_ref", ctypes.c_float)]
+                ("iq_ref", ctypes.c_float), ("n_duties", ctypes.c_uint8), ("duty", ctypes.c_float * 6)]
 
 
 COUNTER_NAMES = ("frames_rx", "measurements", "commands", "config_writes", "config_rejected", "faults",

@@ -100,7 +100,7 @@ class SimTarget:
             self.last_result = res
             cmd = Command(seq=m.seq, states=res.states, durations_ns=res.durations_ns, vector_id=res.vector_id,
                           candidates=res.candidates, exec_time_ns=min(res.exec_time_ns, 0xFFFFFFFF),
-                          status=res.status, mirror=res.mirror)
+                          status=res.status, mirror=res.mirror, duties=res.duties)
         self.counters.commands += 1
         self._send(cmd)
 

@@ -7,6 +7,7 @@ import json
 import sys
 
 from pmsm_hil.protocol.links.budget import (
+    COMMAND_FORMS,
     DEFAULT_BAUD,
     DEFAULT_BITRATE,
     DEFAULT_DATA_BITRATE,
@@ -33,6 +34,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
     p.add_argument("--data-bitrate", type=int, default=DEFAULT_DATA_BITRATE, help="CAN FD data bit rate, bit/s")
     p.add_argument("--baud", type=int, default=DEFAULT_BAUD, help="serial baud rate (8N1)")
     p.add_argument("--phases", type=int, choices=(3, 6), default=3, help="machine phases (default: %(default)s)")
+    p.add_argument("--command", choices=COMMAND_FORMS, default="states",
+                   help="Command form: switching states (CmdA/B/C, CmdFd) or duty cycles (CmdDutyA/B/C, CmdDutyFd) "
+                        "(default: %(default)s)")
     p.add_argument("--rate", type=float, default=DEFAULT_RATE_HZ, help="control rate, Hz (default: %(default)s)")
     p.add_argument("--auth", action="store_true",
                    help="serial frames carry the 6-byte authentication trailer (on by default for spawned targets; "
@@ -75,6 +79,7 @@ def run(args: argparse.Namespace) -> int:
         baud=args.baud,
         rate_hz=args.rate,
         auth=args.auth,
+        command=args.command,
     )
     print(json.dumps(b.as_dict(), indent=1) if args.json else format_budget(b))
     if b.feasible is False:

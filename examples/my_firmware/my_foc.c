@@ -1,8 +1,8 @@
 /*
  * A user's firmware (template): field-oriented control of a three-phase PMSM written against the HIL
- * firmware API only (hil_app.h) -- its own speed PI, its own d/q current PI loops with decoupling, and a
- * five-segment space-vector modulation sent as one mirrored Command: V0 - Va - Vb - Va - V0, i.e.
- * states (0, a, b), durations (t0/2, ta/2, tb), mirror = 1, so 2*(t0/2 + ta/2) + tb = Ts.
+ * firmware API only (hil_app.h) -- its own speed PI, its own d/q current PI loops with decoupling, and
+ * space-vector modulation ending, as drive firmware does, in three duty cycles of a centre-aligned PWM
+ * (cmd->n_duties = 3, cmd->duty[0..2]): the plant applies the exact 7 segments 0-x-xy-7-xy-x-0.
  *
  * Runs as controller 255 `external` (`hil run --controller external --target sil:... | qemu:...`);
  * any other controller id is answered with HIL_APP_E_NOT_IMPLEMENTED (FaultTarget not_implemented).
@@ -150,53 +150,23 @@ static void zero_command(hil_app_cmd_t *cmd, uint32_t ts_ns, uint8_t status)
     cmd->status = status;
 }
 
-/* Five-segment SVPWM of (v_alpha, v_beta) [V] over one period, as a mirrored command. */
-static void modulate(float va, float vb, float vdc, uint32_t ts_ns, hil_app_cmd_t *cmd)
+/* Space-vector PWM of (v_alpha, v_beta) [V] as three duty cycles of a centre-aligned PWM (what a timer's compare
+ * registers take): min-max zero-sequence injection; beyond the linear range (|v| > vdc/sqrt(3)) the voltage is
+ * scaled back. The plant compares the duties with its carrier (docs/firmware_api.md, "Duty-cycle commands"). */
+static void modulate(float va, float vb, float vdc, hil_app_cmd_t *cmd)
 {
-    /* active vectors V1..V6 (codes 4, 6, 2, 3, 1, 5) at (j-1)*60 deg, length 2/3 Vdc */
-    static const uint8_t code[6] = {4u, 6u, 2u, 3u, 1u, 5u};
-    float angle = atan2f(vb, va);
-    float mag = sqrtf(va * va + vb * vb);
+    const float mag = sqrtf(va * va + vb * vb);
     const float vmax = vdc / SQRT3; /* linear range */
-    int sector;
-    float rel;
-    float ta;
-    float tb;
-    uint32_t d0;
-    uint32_t d1;
-    if (mag > vmax) {
-        mag = vmax;
+    const float k = mag > vmax ? vmax / mag : 1.0f;
+    const float v[3] = {k * va, k * (-0.5f * va + 0.5f * SQRT3 * vb), k * (-0.5f * va - 0.5f * SQRT3 * vb)};
+    const float hi = fmaxf(v[0], fmaxf(v[1], v[2]));
+    const float lo = fminf(v[0], fminf(v[1], v[2]));
+    int j;
+    cmd->n_duties = 3u;
+    for (j = 0; j < 3; ++j) {
+        const float d = 0.5f + (v[j] - 0.5f * (hi + lo)) / vdc;
+        cmd->duty[j] = d < 0.0f ? 0.0f : (d > 1.0f ? 1.0f : d); /* float rounding at the hexagon's edge */
     }
-    if (angle < 0.0f) {
-        angle += TWO_PI;
-    }
-    sector = (int)(angle / (TWO_PI / 6.0f));
-    if (sector > 5) {
-        sector = 5;
-    }
-    rel = angle - (float)sector * (TWO_PI / 6.0f);
-    /* time fractions of the two adjacent active vectors */
-    ta = SQRT3 * mag / vdc * sinf(TWO_PI / 6.0f - rel);
-    tb = SQRT3 * mag / vdc * sinf(rel);
-    if (ta + tb > 1.0f) {
-        const float s = 1.0f / (ta + tb);
-        ta *= s;
-        tb *= s;
-    }
-    d0 = (uint32_t)((1.0f - ta - tb) * 0.5f * (float)ts_ns);
-    d1 = (uint32_t)(ta * 0.5f * (float)ts_ns);
-    if (2u * (d0 + d1) > ts_ns) {
-        d1 = ts_ns / 2u - d0;
-    }
-    cmd->n_states = 3u;
-    cmd->states[0] = 0u;
-    cmd->states[1] = code[sector];
-    cmd->states[2] = code[(sector + 1) % 6];
-    cmd->durations_ns[0] = d0;
-    cmd->durations_ns[1] = d1;
-    cmd->durations_ns[2] = ts_ns - 2u * (d0 + d1);
-    cmd->mirror = 1u;
-    cmd->vector_id = (uint8_t)(sector + 1);
 }
 
 void hil_app_step(const hil_app_meas_t *m, hil_app_cmd_t *cmd)
@@ -250,7 +220,7 @@ void hil_app_step(const hil_app_meas_t *m, hil_app_cmd_t *cmd)
     th = m->theta_e + 1.5f * we * ts;
     c = cosf(th);
     s = sinf(th);
-    modulate(vd * c - vq * s, vd * s + vq * c, vdc, ts_ns, cmd);
+    modulate(vd * c - vq * s, vd * s + vq * c, vdc, cmd);
     cmd->torque_ref = torque;
     cmd->iq_ref = iq_ref;
     cmd->id_ref = 0.0f;

@@ -94,6 +94,8 @@
 #define HIL_FW_P_FCS_READING_NAME            "fcs_reading"
 #define HIL_FW_P_V3_SYMMETRIC                26 /* mptc2/mptc3 send each V3 as G1/2-G2-G1/2 (mirrored command): 0 off, 1 on [-] */
 #define HIL_FW_P_V3_SYMMETRIC_NAME           "v3_symmetric"
+#define HIL_FW_P_PWM_DUTIES                  27 /* foc output: 1 duty cycles (CmdDuty*), 0 the 5-segment switching states [-] */
+#define HIL_FW_P_PWM_DUTIES_NAME             "pwm_duties"
 #define HIL_FW_P_RR                          32 /* induction machine: rotor resistance RR of the inverse-Gamma model [Ohm] */
 #define HIL_FW_P_RR_NAME                     "rr"
 #define HIL_FW_P_LSIGMA                      33 /* induction machine: leakage inductance L_sigma (inverse-Gamma) [H] */
@@ -105,7 +107,7 @@
 #define HIL_FW_P_COUNT                       36 /* largest id + 1 (size of arrays indexed by id) */
 
 /* Status: FaultHost.code, FaultTarget.code, MeasB.status, Meas6B.status, MeasFd.status, MeasFd6.status,
- * CmdC.status, CmdFd.status, ConfigAck.status */
+ * CmdC.status, CmdFd.status, CmdDutyC.status, CmdDutyFd.status, ConfigAck.status */
 #define HIL_FW_STATUS_OK                   0
 #define HIL_FW_STATUS_OK_NAME              "ok"
 #define HIL_FW_STATUS_OVERCURRENT          1

@@ -2634,6 +2634,770 @@ bool hil_protocol_cmd_fd_mirror_is_in_phys_range(float value)
     return ((value >= 0.0f) && (value <= 1.0f));
 }
 
+int hil_protocol_cmd_duty_a_pack(
+    uint8_t *dst_p,
+    const struct hil_protocol_cmd_duty_a_t *src_p,
+    size_t size)
+{
+    if (size < 8u) {
+        return (-EINVAL);
+    }
+
+    memset(&dst_p[0], 0, 8);
+
+    dst_p[0] |= pack_left_shift_u16(src_p->seq, 0u, 0xffu);
+    dst_p[1] |= pack_right_shift_u16(src_p->seq, 8u, 0xffu);
+    dst_p[2] |= pack_left_shift_u16(src_p->duty0, 0u, 0xffu);
+    dst_p[3] |= pack_right_shift_u16(src_p->duty0, 8u, 0xffu);
+    dst_p[4] |= pack_left_shift_u16(src_p->duty1, 0u, 0xffu);
+    dst_p[5] |= pack_right_shift_u16(src_p->duty1, 8u, 0xffu);
+    dst_p[6] |= pack_left_shift_u16(src_p->duty2, 0u, 0xffu);
+    dst_p[7] |= pack_right_shift_u16(src_p->duty2, 8u, 0xffu);
+
+    return (8);
+}
+
+int hil_protocol_cmd_duty_a_unpack(
+    struct hil_protocol_cmd_duty_a_t *dst_p,
+    const uint8_t *src_p,
+    size_t size)
+{
+    if (size < 8u) {
+        return (-EINVAL);
+    }
+
+    dst_p->seq = unpack_right_shift_u16(src_p[0], 0u, 0xffu);
+    dst_p->seq |= unpack_left_shift_u16(src_p[1], 8u, 0xffu);
+    dst_p->duty0 = unpack_right_shift_u16(src_p[2], 0u, 0xffu);
+    dst_p->duty0 |= unpack_left_shift_u16(src_p[3], 8u, 0xffu);
+    dst_p->duty1 = unpack_right_shift_u16(src_p[4], 0u, 0xffu);
+    dst_p->duty1 |= unpack_left_shift_u16(src_p[5], 8u, 0xffu);
+    dst_p->duty2 = unpack_right_shift_u16(src_p[6], 0u, 0xffu);
+    dst_p->duty2 |= unpack_left_shift_u16(src_p[7], 8u, 0xffu);
+
+    return (0);
+}
+
+int hil_protocol_cmd_duty_a_init(struct hil_protocol_cmd_duty_a_t *msg_p)
+{
+    if (msg_p == NULL) return -1;
+
+    memset(msg_p, 0, sizeof(struct hil_protocol_cmd_duty_a_t));
+
+    return 0;
+}
+
+uint16_t hil_protocol_cmd_duty_a_seq_encode(float value)
+{
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 65535LL)));
+}
+
+float hil_protocol_cmd_duty_a_seq_decode(uint16_t value)
+{
+    return ((float)value);
+}
+
+bool hil_protocol_cmd_duty_a_seq_is_in_range(uint16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_cmd_duty_a_seq_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 65535.0f));
+}
+
+uint16_t hil_protocol_cmd_duty_a_duty0_encode(float value)
+{
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value / 1.5262515262515263e-05f), 0LL, 65535LL)));
+}
+
+float hil_protocol_cmd_duty_a_duty0_decode(uint16_t value)
+{
+    return ((float)value * 1.5262515262515263e-05f);
+}
+
+bool hil_protocol_cmd_duty_a_duty0_is_in_range(uint16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_cmd_duty_a_duty0_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 1.0002289377289377f));
+}
+
+uint16_t hil_protocol_cmd_duty_a_duty1_encode(float value)
+{
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value / 1.5262515262515263e-05f), 0LL, 65535LL)));
+}
+
+float hil_protocol_cmd_duty_a_duty1_decode(uint16_t value)
+{
+    return ((float)value * 1.5262515262515263e-05f);
+}
+
+bool hil_protocol_cmd_duty_a_duty1_is_in_range(uint16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_cmd_duty_a_duty1_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 1.0002289377289377f));
+}
+
+uint16_t hil_protocol_cmd_duty_a_duty2_encode(float value)
+{
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value / 1.5262515262515263e-05f), 0LL, 65535LL)));
+}
+
+float hil_protocol_cmd_duty_a_duty2_decode(uint16_t value)
+{
+    return ((float)value * 1.5262515262515263e-05f);
+}
+
+bool hil_protocol_cmd_duty_a_duty2_is_in_range(uint16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_cmd_duty_a_duty2_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 1.0002289377289377f));
+}
+
+int hil_protocol_cmd_duty_b_pack(
+    uint8_t *dst_p,
+    const struct hil_protocol_cmd_duty_b_t *src_p,
+    size_t size)
+{
+    if (size < 8u) {
+        return (-EINVAL);
+    }
+
+    memset(&dst_p[0], 0, 8);
+
+    dst_p[0] |= pack_left_shift_u16(src_p->seq, 0u, 0xffu);
+    dst_p[1] |= pack_right_shift_u16(src_p->seq, 8u, 0xffu);
+    dst_p[2] |= pack_left_shift_u16(src_p->duty3, 0u, 0xffu);
+    dst_p[3] |= pack_right_shift_u16(src_p->duty3, 8u, 0xffu);
+    dst_p[4] |= pack_left_shift_u16(src_p->duty4, 0u, 0xffu);
+    dst_p[5] |= pack_right_shift_u16(src_p->duty4, 8u, 0xffu);
+    dst_p[6] |= pack_left_shift_u16(src_p->duty5, 0u, 0xffu);
+    dst_p[7] |= pack_right_shift_u16(src_p->duty5, 8u, 0xffu);
+
+    return (8);
+}
+
+int hil_protocol_cmd_duty_b_unpack(
+    struct hil_protocol_cmd_duty_b_t *dst_p,
+    const uint8_t *src_p,
+    size_t size)
+{
+    if (size < 8u) {
+        return (-EINVAL);
+    }
+
+    dst_p->seq = unpack_right_shift_u16(src_p[0], 0u, 0xffu);
+    dst_p->seq |= unpack_left_shift_u16(src_p[1], 8u, 0xffu);
+    dst_p->duty3 = unpack_right_shift_u16(src_p[2], 0u, 0xffu);
+    dst_p->duty3 |= unpack_left_shift_u16(src_p[3], 8u, 0xffu);
+    dst_p->duty4 = unpack_right_shift_u16(src_p[4], 0u, 0xffu);
+    dst_p->duty4 |= unpack_left_shift_u16(src_p[5], 8u, 0xffu);
+    dst_p->duty5 = unpack_right_shift_u16(src_p[6], 0u, 0xffu);
+    dst_p->duty5 |= unpack_left_shift_u16(src_p[7], 8u, 0xffu);
+
+    return (0);
+}
+
+int hil_protocol_cmd_duty_b_init(struct hil_protocol_cmd_duty_b_t *msg_p)
+{
+    if (msg_p == NULL) return -1;
+
+    memset(msg_p, 0, sizeof(struct hil_protocol_cmd_duty_b_t));
+
+    return 0;
+}
+
+uint16_t hil_protocol_cmd_duty_b_seq_encode(float value)
+{
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 65535LL)));
+}
+
+float hil_protocol_cmd_duty_b_seq_decode(uint16_t value)
+{
+    return ((float)value);
+}
+
+bool hil_protocol_cmd_duty_b_seq_is_in_range(uint16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_cmd_duty_b_seq_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 65535.0f));
+}
+
+uint16_t hil_protocol_cmd_duty_b_duty3_encode(float value)
+{
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value / 1.5262515262515263e-05f), 0LL, 65535LL)));
+}
+
+float hil_protocol_cmd_duty_b_duty3_decode(uint16_t value)
+{
+    return ((float)value * 1.5262515262515263e-05f);
+}
+
+bool hil_protocol_cmd_duty_b_duty3_is_in_range(uint16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_cmd_duty_b_duty3_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 1.0002289377289377f));
+}
+
+uint16_t hil_protocol_cmd_duty_b_duty4_encode(float value)
+{
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value / 1.5262515262515263e-05f), 0LL, 65535LL)));
+}
+
+float hil_protocol_cmd_duty_b_duty4_decode(uint16_t value)
+{
+    return ((float)value * 1.5262515262515263e-05f);
+}
+
+bool hil_protocol_cmd_duty_b_duty4_is_in_range(uint16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_cmd_duty_b_duty4_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 1.0002289377289377f));
+}
+
+uint16_t hil_protocol_cmd_duty_b_duty5_encode(float value)
+{
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value / 1.5262515262515263e-05f), 0LL, 65535LL)));
+}
+
+float hil_protocol_cmd_duty_b_duty5_decode(uint16_t value)
+{
+    return ((float)value * 1.5262515262515263e-05f);
+}
+
+bool hil_protocol_cmd_duty_b_duty5_is_in_range(uint16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_cmd_duty_b_duty5_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 1.0002289377289377f));
+}
+
+int hil_protocol_cmd_duty_c_pack(
+    uint8_t *dst_p,
+    const struct hil_protocol_cmd_duty_c_t *src_p,
+    size_t size)
+{
+    if (size < 8u) {
+        return (-EINVAL);
+    }
+
+    memset(&dst_p[0], 0, 8);
+
+    dst_p[0] |= pack_left_shift_u16(src_p->seq, 0u, 0xffu);
+    dst_p[1] |= pack_right_shift_u16(src_p->seq, 8u, 0xffu);
+    dst_p[2] |= pack_left_shift_u32(src_p->exec_time_ns, 0u, 0xffu);
+    dst_p[3] |= pack_right_shift_u32(src_p->exec_time_ns, 8u, 0xffu);
+    dst_p[4] |= pack_right_shift_u32(src_p->exec_time_ns, 16u, 0xffu);
+    dst_p[5] |= pack_right_shift_u32(src_p->exec_time_ns, 24u, 0xffu);
+    dst_p[6] |= pack_left_shift_u8(src_p->status, 0u, 0xffu);
+    dst_p[7] |= pack_left_shift_u8(src_p->n_duties, 0u, 0xffu);
+
+    return (8);
+}
+
+int hil_protocol_cmd_duty_c_unpack(
+    struct hil_protocol_cmd_duty_c_t *dst_p,
+    const uint8_t *src_p,
+    size_t size)
+{
+    if (size < 8u) {
+        return (-EINVAL);
+    }
+
+    dst_p->seq = unpack_right_shift_u16(src_p[0], 0u, 0xffu);
+    dst_p->seq |= unpack_left_shift_u16(src_p[1], 8u, 0xffu);
+    dst_p->exec_time_ns = unpack_right_shift_u32(src_p[2], 0u, 0xffu);
+    dst_p->exec_time_ns |= unpack_left_shift_u32(src_p[3], 8u, 0xffu);
+    dst_p->exec_time_ns |= unpack_left_shift_u32(src_p[4], 16u, 0xffu);
+    dst_p->exec_time_ns |= unpack_left_shift_u32(src_p[5], 24u, 0xffu);
+    dst_p->status = unpack_right_shift_u8(src_p[6], 0u, 0xffu);
+    dst_p->n_duties = unpack_right_shift_u8(src_p[7], 0u, 0xffu);
+
+    return (0);
+}
+
+int hil_protocol_cmd_duty_c_init(struct hil_protocol_cmd_duty_c_t *msg_p)
+{
+    if (msg_p == NULL) return -1;
+
+    memset(msg_p, 0, sizeof(struct hil_protocol_cmd_duty_c_t));
+
+    return 0;
+}
+
+uint16_t hil_protocol_cmd_duty_c_seq_encode(float value)
+{
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 65535LL)));
+}
+
+float hil_protocol_cmd_duty_c_seq_decode(uint16_t value)
+{
+    return ((float)value);
+}
+
+bool hil_protocol_cmd_duty_c_seq_is_in_range(uint16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_cmd_duty_c_seq_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 65535.0f));
+}
+
+uint32_t hil_protocol_cmd_duty_c_exec_time_ns_encode(float value)
+{
+    return (uint32_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 4294967295LL)));
+}
+
+float hil_protocol_cmd_duty_c_exec_time_ns_decode(uint32_t value)
+{
+    return ((float)value);
+}
+
+bool hil_protocol_cmd_duty_c_exec_time_ns_is_in_range(uint32_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_cmd_duty_c_exec_time_ns_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 4294967295.0f));
+}
+
+uint8_t hil_protocol_cmd_duty_c_status_encode(float value)
+{
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
+}
+
+float hil_protocol_cmd_duty_c_status_decode(uint8_t value)
+{
+    return ((float)value);
+}
+
+bool hil_protocol_cmd_duty_c_status_is_in_range(uint8_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_cmd_duty_c_status_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 255.0f));
+}
+
+uint8_t hil_protocol_cmd_duty_c_n_duties_encode(float value)
+{
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
+}
+
+float hil_protocol_cmd_duty_c_n_duties_decode(uint8_t value)
+{
+    return ((float)value);
+}
+
+bool hil_protocol_cmd_duty_c_n_duties_is_in_range(uint8_t value)
+{
+    return ((value >= 3u) && (value <= 6u));
+}
+
+bool hil_protocol_cmd_duty_c_n_duties_is_in_phys_range(float value)
+{
+    return ((value >= 3.0f) && (value <= 6.0f));
+}
+
+int hil_protocol_cmd_duty_fd_pack(
+    uint8_t *dst_p,
+    const struct hil_protocol_cmd_duty_fd_t *src_p,
+    size_t size)
+{
+    if (size < 24u) {
+        return (-EINVAL);
+    }
+
+    memset(&dst_p[0], 0, 24);
+
+    dst_p[0] |= pack_left_shift_u16(src_p->seq, 0u, 0xffu);
+    dst_p[1] |= pack_right_shift_u16(src_p->seq, 8u, 0xffu);
+    dst_p[2] |= pack_left_shift_u8(src_p->n_duties, 0u, 0xffu);
+    dst_p[3] |= pack_left_shift_u16(src_p->duty0, 0u, 0xffu);
+    dst_p[4] |= pack_right_shift_u16(src_p->duty0, 8u, 0xffu);
+    dst_p[5] |= pack_left_shift_u16(src_p->duty1, 0u, 0xffu);
+    dst_p[6] |= pack_right_shift_u16(src_p->duty1, 8u, 0xffu);
+    dst_p[7] |= pack_left_shift_u16(src_p->duty2, 0u, 0xffu);
+    dst_p[8] |= pack_right_shift_u16(src_p->duty2, 8u, 0xffu);
+    dst_p[9] |= pack_left_shift_u16(src_p->duty3, 0u, 0xffu);
+    dst_p[10] |= pack_right_shift_u16(src_p->duty3, 8u, 0xffu);
+    dst_p[11] |= pack_left_shift_u16(src_p->duty4, 0u, 0xffu);
+    dst_p[12] |= pack_right_shift_u16(src_p->duty4, 8u, 0xffu);
+    dst_p[13] |= pack_left_shift_u16(src_p->duty5, 0u, 0xffu);
+    dst_p[14] |= pack_right_shift_u16(src_p->duty5, 8u, 0xffu);
+    dst_p[15] |= pack_left_shift_u8(src_p->vector_id, 0u, 0xffu);
+    dst_p[16] |= pack_left_shift_u8(src_p->candidates, 0u, 0xffu);
+    dst_p[17] |= pack_left_shift_u32(src_p->exec_time_ns, 0u, 0xffu);
+    dst_p[18] |= pack_right_shift_u32(src_p->exec_time_ns, 8u, 0xffu);
+    dst_p[19] |= pack_right_shift_u32(src_p->exec_time_ns, 16u, 0xffu);
+    dst_p[20] |= pack_right_shift_u32(src_p->exec_time_ns, 24u, 0xffu);
+    dst_p[21] |= pack_left_shift_u8(src_p->status, 0u, 0xffu);
+
+    return (24);
+}
+
+int hil_protocol_cmd_duty_fd_unpack(
+    struct hil_protocol_cmd_duty_fd_t *dst_p,
+    const uint8_t *src_p,
+    size_t size)
+{
+    if (size < 24u) {
+        return (-EINVAL);
+    }
+
+    dst_p->seq = unpack_right_shift_u16(src_p[0], 0u, 0xffu);
+    dst_p->seq |= unpack_left_shift_u16(src_p[1], 8u, 0xffu);
+    dst_p->n_duties = unpack_right_shift_u8(src_p[2], 0u, 0xffu);
+    dst_p->duty0 = unpack_right_shift_u16(src_p[3], 0u, 0xffu);
+    dst_p->duty0 |= unpack_left_shift_u16(src_p[4], 8u, 0xffu);
+    dst_p->duty1 = unpack_right_shift_u16(src_p[5], 0u, 0xffu);
+    dst_p->duty1 |= unpack_left_shift_u16(src_p[6], 8u, 0xffu);
+    dst_p->duty2 = unpack_right_shift_u16(src_p[7], 0u, 0xffu);
+    dst_p->duty2 |= unpack_left_shift_u16(src_p[8], 8u, 0xffu);
+    dst_p->duty3 = unpack_right_shift_u16(src_p[9], 0u, 0xffu);
+    dst_p->duty3 |= unpack_left_shift_u16(src_p[10], 8u, 0xffu);
+    dst_p->duty4 = unpack_right_shift_u16(src_p[11], 0u, 0xffu);
+    dst_p->duty4 |= unpack_left_shift_u16(src_p[12], 8u, 0xffu);
+    dst_p->duty5 = unpack_right_shift_u16(src_p[13], 0u, 0xffu);
+    dst_p->duty5 |= unpack_left_shift_u16(src_p[14], 8u, 0xffu);
+    dst_p->vector_id = unpack_right_shift_u8(src_p[15], 0u, 0xffu);
+    dst_p->candidates = unpack_right_shift_u8(src_p[16], 0u, 0xffu);
+    dst_p->exec_time_ns = unpack_right_shift_u32(src_p[17], 0u, 0xffu);
+    dst_p->exec_time_ns |= unpack_left_shift_u32(src_p[18], 8u, 0xffu);
+    dst_p->exec_time_ns |= unpack_left_shift_u32(src_p[19], 16u, 0xffu);
+    dst_p->exec_time_ns |= unpack_left_shift_u32(src_p[20], 24u, 0xffu);
+    dst_p->status = unpack_right_shift_u8(src_p[21], 0u, 0xffu);
+
+    return (0);
+}
+
+int hil_protocol_cmd_duty_fd_init(struct hil_protocol_cmd_duty_fd_t *msg_p)
+{
+    if (msg_p == NULL) return -1;
+
+    memset(msg_p, 0, sizeof(struct hil_protocol_cmd_duty_fd_t));
+
+    return 0;
+}
+
+uint16_t hil_protocol_cmd_duty_fd_seq_encode(float value)
+{
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 65535LL)));
+}
+
+float hil_protocol_cmd_duty_fd_seq_decode(uint16_t value)
+{
+    return ((float)value);
+}
+
+bool hil_protocol_cmd_duty_fd_seq_is_in_range(uint16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_cmd_duty_fd_seq_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 65535.0f));
+}
+
+uint8_t hil_protocol_cmd_duty_fd_n_duties_encode(float value)
+{
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
+}
+
+float hil_protocol_cmd_duty_fd_n_duties_decode(uint8_t value)
+{
+    return ((float)value);
+}
+
+bool hil_protocol_cmd_duty_fd_n_duties_is_in_range(uint8_t value)
+{
+    return ((value >= 3u) && (value <= 6u));
+}
+
+bool hil_protocol_cmd_duty_fd_n_duties_is_in_phys_range(float value)
+{
+    return ((value >= 3.0f) && (value <= 6.0f));
+}
+
+uint16_t hil_protocol_cmd_duty_fd_duty0_encode(float value)
+{
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value / 1.5262515262515263e-05f), 0LL, 65535LL)));
+}
+
+float hil_protocol_cmd_duty_fd_duty0_decode(uint16_t value)
+{
+    return ((float)value * 1.5262515262515263e-05f);
+}
+
+bool hil_protocol_cmd_duty_fd_duty0_is_in_range(uint16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_cmd_duty_fd_duty0_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 1.0002289377289377f));
+}
+
+uint16_t hil_protocol_cmd_duty_fd_duty1_encode(float value)
+{
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value / 1.5262515262515263e-05f), 0LL, 65535LL)));
+}
+
+float hil_protocol_cmd_duty_fd_duty1_decode(uint16_t value)
+{
+    return ((float)value * 1.5262515262515263e-05f);
+}
+
+bool hil_protocol_cmd_duty_fd_duty1_is_in_range(uint16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_cmd_duty_fd_duty1_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 1.0002289377289377f));
+}
+
+uint16_t hil_protocol_cmd_duty_fd_duty2_encode(float value)
+{
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value / 1.5262515262515263e-05f), 0LL, 65535LL)));
+}
+
+float hil_protocol_cmd_duty_fd_duty2_decode(uint16_t value)
+{
+    return ((float)value * 1.5262515262515263e-05f);
+}
+
+bool hil_protocol_cmd_duty_fd_duty2_is_in_range(uint16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_cmd_duty_fd_duty2_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 1.0002289377289377f));
+}
+
+uint16_t hil_protocol_cmd_duty_fd_duty3_encode(float value)
+{
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value / 1.5262515262515263e-05f), 0LL, 65535LL)));
+}
+
+float hil_protocol_cmd_duty_fd_duty3_decode(uint16_t value)
+{
+    return ((float)value * 1.5262515262515263e-05f);
+}
+
+bool hil_protocol_cmd_duty_fd_duty3_is_in_range(uint16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_cmd_duty_fd_duty3_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 1.0002289377289377f));
+}
+
+uint16_t hil_protocol_cmd_duty_fd_duty4_encode(float value)
+{
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value / 1.5262515262515263e-05f), 0LL, 65535LL)));
+}
+
+float hil_protocol_cmd_duty_fd_duty4_decode(uint16_t value)
+{
+    return ((float)value * 1.5262515262515263e-05f);
+}
+
+bool hil_protocol_cmd_duty_fd_duty4_is_in_range(uint16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_cmd_duty_fd_duty4_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 1.0002289377289377f));
+}
+
+uint16_t hil_protocol_cmd_duty_fd_duty5_encode(float value)
+{
+    return (uint16_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value / 1.5262515262515263e-05f), 0LL, 65535LL)));
+}
+
+float hil_protocol_cmd_duty_fd_duty5_decode(uint16_t value)
+{
+    return ((float)value * 1.5262515262515263e-05f);
+}
+
+bool hil_protocol_cmd_duty_fd_duty5_is_in_range(uint16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_cmd_duty_fd_duty5_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 1.0002289377289377f));
+}
+
+uint8_t hil_protocol_cmd_duty_fd_vector_id_encode(float value)
+{
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
+}
+
+float hil_protocol_cmd_duty_fd_vector_id_decode(uint8_t value)
+{
+    return ((float)value);
+}
+
+bool hil_protocol_cmd_duty_fd_vector_id_is_in_range(uint8_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_cmd_duty_fd_vector_id_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 255.0f));
+}
+
+uint8_t hil_protocol_cmd_duty_fd_candidates_encode(float value)
+{
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
+}
+
+float hil_protocol_cmd_duty_fd_candidates_decode(uint8_t value)
+{
+    return ((float)value);
+}
+
+bool hil_protocol_cmd_duty_fd_candidates_is_in_range(uint8_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_cmd_duty_fd_candidates_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 255.0f));
+}
+
+uint32_t hil_protocol_cmd_duty_fd_exec_time_ns_encode(float value)
+{
+    return (uint32_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 4294967295LL)));
+}
+
+float hil_protocol_cmd_duty_fd_exec_time_ns_decode(uint32_t value)
+{
+    return ((float)value);
+}
+
+bool hil_protocol_cmd_duty_fd_exec_time_ns_is_in_range(uint32_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_cmd_duty_fd_exec_time_ns_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 4294967295.0f));
+}
+
+uint8_t hil_protocol_cmd_duty_fd_status_encode(float value)
+{
+    return (uint8_t)(cantools_unsigned_from_double(hil_protocol_saturate((double)roundf(value), 0LL, 255LL)));
+}
+
+float hil_protocol_cmd_duty_fd_status_decode(uint8_t value)
+{
+    return ((float)value);
+}
+
+bool hil_protocol_cmd_duty_fd_status_is_in_range(uint8_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool hil_protocol_cmd_duty_fd_status_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 255.0f));
+}
+
 int hil_protocol_setpoint_pack(
     uint8_t *dst_p,
     const struct hil_protocol_setpoint_t *src_p,

@@ -58,6 +58,10 @@ extern "C" {
 #define HIL_PROTOCOL_CMD_B_FRAME_ID (0x111u)
 #define HIL_PROTOCOL_CMD_C_FRAME_ID (0x112u)
 #define HIL_PROTOCOL_CMD_FD_FRAME_ID (0x118u)
+#define HIL_PROTOCOL_CMD_DUTY_A_FRAME_ID (0x113u)
+#define HIL_PROTOCOL_CMD_DUTY_B_FRAME_ID (0x114u)
+#define HIL_PROTOCOL_CMD_DUTY_C_FRAME_ID (0x115u)
+#define HIL_PROTOCOL_CMD_DUTY_FD_FRAME_ID (0x119u)
 #define HIL_PROTOCOL_SETPOINT_FRAME_ID (0x200u)
 #define HIL_PROTOCOL_CONFIG_PARAM_FRAME_ID (0x210u)
 #define HIL_PROTOCOL_CONFIG_ACK_FRAME_ID (0x211u)
@@ -78,6 +82,10 @@ extern "C" {
 #define HIL_PROTOCOL_CMD_B_LENGTH (8u)
 #define HIL_PROTOCOL_CMD_C_LENGTH (8u)
 #define HIL_PROTOCOL_CMD_FD_LENGTH (20u)
+#define HIL_PROTOCOL_CMD_DUTY_A_LENGTH (8u)
+#define HIL_PROTOCOL_CMD_DUTY_B_LENGTH (8u)
+#define HIL_PROTOCOL_CMD_DUTY_C_LENGTH (8u)
+#define HIL_PROTOCOL_CMD_DUTY_FD_LENGTH (24u)
 #define HIL_PROTOCOL_SETPOINT_LENGTH (7u)
 #define HIL_PROTOCOL_CONFIG_PARAM_LENGTH (5u)
 #define HIL_PROTOCOL_CONFIG_ACK_LENGTH (6u)
@@ -98,6 +106,10 @@ extern "C" {
 #define HIL_PROTOCOL_CMD_B_IS_EXTENDED (0)
 #define HIL_PROTOCOL_CMD_C_IS_EXTENDED (0)
 #define HIL_PROTOCOL_CMD_FD_IS_EXTENDED (0)
+#define HIL_PROTOCOL_CMD_DUTY_A_IS_EXTENDED (0)
+#define HIL_PROTOCOL_CMD_DUTY_B_IS_EXTENDED (0)
+#define HIL_PROTOCOL_CMD_DUTY_C_IS_EXTENDED (0)
+#define HIL_PROTOCOL_CMD_DUTY_FD_IS_EXTENDED (0)
 #define HIL_PROTOCOL_SETPOINT_IS_EXTENDED (0)
 #define HIL_PROTOCOL_CONFIG_PARAM_IS_EXTENDED (0)
 #define HIL_PROTOCOL_CONFIG_ACK_IS_EXTENDED (0)
@@ -244,6 +256,28 @@ extern "C" {
 #define HIL_PROTOCOL_CMD_FD_MIRROR_PLAIN_CHOICE (0u)
 #define HIL_PROTOCOL_CMD_FD_MIRROR_MIRRORED_CHOICE (1u)
 
+#define HIL_PROTOCOL_CMD_DUTY_C_EXEC_TIME_NS_NOT_MEASURED_CHOICE (0u)
+#define HIL_PROTOCOL_CMD_DUTY_C_EXEC_TIME_NS_SATURATED_CHOICE (4294967295u)
+
+#define HIL_PROTOCOL_CMD_DUTY_C_STATUS_OK_CHOICE (0u)
+#define HIL_PROTOCOL_CMD_DUTY_C_STATUS_OVERCURRENT_CHOICE (1u)
+#define HIL_PROTOCOL_CMD_DUTY_C_STATUS_OVERSPEED_CHOICE (2u)
+#define HIL_PROTOCOL_CMD_DUTY_C_STATUS_WATCHDOG_CHOICE (3u)
+#define HIL_PROTOCOL_CMD_DUTY_C_STATUS_BAD_FRAME_CHOICE (4u)
+#define HIL_PROTOCOL_CMD_DUTY_C_STATUS_INVALID_CONFIG_CHOICE (5u)
+#define HIL_PROTOCOL_CMD_DUTY_C_STATUS_NOT_IMPLEMENTED_CHOICE (6u)
+
+#define HIL_PROTOCOL_CMD_DUTY_FD_EXEC_TIME_NS_NOT_MEASURED_CHOICE (0u)
+#define HIL_PROTOCOL_CMD_DUTY_FD_EXEC_TIME_NS_SATURATED_CHOICE (4294967295u)
+
+#define HIL_PROTOCOL_CMD_DUTY_FD_STATUS_OK_CHOICE (0u)
+#define HIL_PROTOCOL_CMD_DUTY_FD_STATUS_OVERCURRENT_CHOICE (1u)
+#define HIL_PROTOCOL_CMD_DUTY_FD_STATUS_OVERSPEED_CHOICE (2u)
+#define HIL_PROTOCOL_CMD_DUTY_FD_STATUS_WATCHDOG_CHOICE (3u)
+#define HIL_PROTOCOL_CMD_DUTY_FD_STATUS_BAD_FRAME_CHOICE (4u)
+#define HIL_PROTOCOL_CMD_DUTY_FD_STATUS_INVALID_CONFIG_CHOICE (5u)
+#define HIL_PROTOCOL_CMD_DUTY_FD_STATUS_NOT_IMPLEMENTED_CHOICE (6u)
+
 #define HIL_PROTOCOL_SETPOINT_ENABLE_DISABLED_CHOICE (0u)
 #define HIL_PROTOCOL_SETPOINT_ENABLE_ENABLED_CHOICE (1u)
 
@@ -291,6 +325,7 @@ extern "C" {
 #define HIL_PROTOCOL_CONFIG_PARAM_PARAM_ID_DT_COMP_CHOICE (24u)
 #define HIL_PROTOCOL_CONFIG_PARAM_PARAM_ID_FCS_READING_CHOICE (25u)
 #define HIL_PROTOCOL_CONFIG_PARAM_PARAM_ID_V3_SYMMETRIC_CHOICE (26u)
+#define HIL_PROTOCOL_CONFIG_PARAM_PARAM_ID_PWM_DUTIES_CHOICE (27u)
 #define HIL_PROTOCOL_CONFIG_PARAM_PARAM_ID_RR_CHOICE (32u)
 #define HIL_PROTOCOL_CONFIG_PARAM_PARAM_ID_LSIGMA_CHOICE (33u)
 #define HIL_PROTOCOL_CONFIG_PARAM_PARAM_ID_LM_CHOICE (34u)
@@ -322,6 +357,7 @@ extern "C" {
 #define HIL_PROTOCOL_CONFIG_ACK_PARAM_ID_DT_COMP_CHOICE (24u)
 #define HIL_PROTOCOL_CONFIG_ACK_PARAM_ID_FCS_READING_CHOICE (25u)
 #define HIL_PROTOCOL_CONFIG_ACK_PARAM_ID_V3_SYMMETRIC_CHOICE (26u)
+#define HIL_PROTOCOL_CONFIG_ACK_PARAM_ID_PWM_DUTIES_CHOICE (27u)
 #define HIL_PROTOCOL_CONFIG_ACK_PARAM_ID_RR_CHOICE (32u)
 #define HIL_PROTOCOL_CONFIG_ACK_PARAM_ID_LSIGMA_CHOICE (33u)
 #define HIL_PROTOCOL_CONFIG_ACK_PARAM_ID_LM_CHOICE (34u)
@@ -365,6 +401,10 @@ extern "C" {
 #define HIL_PROTOCOL_CMD_B_NAME "CmdB"
 #define HIL_PROTOCOL_CMD_C_NAME "CmdC"
 #define HIL_PROTOCOL_CMD_FD_NAME "CmdFd"
+#define HIL_PROTOCOL_CMD_DUTY_A_NAME "CmdDutyA"
+#define HIL_PROTOCOL_CMD_DUTY_B_NAME "CmdDutyB"
+#define HIL_PROTOCOL_CMD_DUTY_C_NAME "CmdDutyC"
+#define HIL_PROTOCOL_CMD_DUTY_FD_NAME "CmdDutyFd"
 #define HIL_PROTOCOL_SETPOINT_NAME "Setpoint"
 #define HIL_PROTOCOL_CONFIG_PARAM_NAME "ConfigParam"
 #define HIL_PROTOCOL_CONFIG_ACK_NAME "ConfigAck"
@@ -447,6 +487,30 @@ extern "C" {
 #define HIL_PROTOCOL_CMD_FD_EXEC_TIME_NS_NAME "exec_time_ns"
 #define HIL_PROTOCOL_CMD_FD_STATUS_NAME "status"
 #define HIL_PROTOCOL_CMD_FD_MIRROR_NAME "mirror"
+#define HIL_PROTOCOL_CMD_DUTY_A_SEQ_NAME "seq"
+#define HIL_PROTOCOL_CMD_DUTY_A_DUTY0_NAME "duty0"
+#define HIL_PROTOCOL_CMD_DUTY_A_DUTY1_NAME "duty1"
+#define HIL_PROTOCOL_CMD_DUTY_A_DUTY2_NAME "duty2"
+#define HIL_PROTOCOL_CMD_DUTY_B_SEQ_NAME "seq"
+#define HIL_PROTOCOL_CMD_DUTY_B_DUTY3_NAME "duty3"
+#define HIL_PROTOCOL_CMD_DUTY_B_DUTY4_NAME "duty4"
+#define HIL_PROTOCOL_CMD_DUTY_B_DUTY5_NAME "duty5"
+#define HIL_PROTOCOL_CMD_DUTY_C_SEQ_NAME "seq"
+#define HIL_PROTOCOL_CMD_DUTY_C_EXEC_TIME_NS_NAME "exec_time_ns"
+#define HIL_PROTOCOL_CMD_DUTY_C_STATUS_NAME "status"
+#define HIL_PROTOCOL_CMD_DUTY_C_N_DUTIES_NAME "n_duties"
+#define HIL_PROTOCOL_CMD_DUTY_FD_SEQ_NAME "seq"
+#define HIL_PROTOCOL_CMD_DUTY_FD_N_DUTIES_NAME "n_duties"
+#define HIL_PROTOCOL_CMD_DUTY_FD_DUTY0_NAME "duty0"
+#define HIL_PROTOCOL_CMD_DUTY_FD_DUTY1_NAME "duty1"
+#define HIL_PROTOCOL_CMD_DUTY_FD_DUTY2_NAME "duty2"
+#define HIL_PROTOCOL_CMD_DUTY_FD_DUTY3_NAME "duty3"
+#define HIL_PROTOCOL_CMD_DUTY_FD_DUTY4_NAME "duty4"
+#define HIL_PROTOCOL_CMD_DUTY_FD_DUTY5_NAME "duty5"
+#define HIL_PROTOCOL_CMD_DUTY_FD_VECTOR_ID_NAME "vector_id"
+#define HIL_PROTOCOL_CMD_DUTY_FD_CANDIDATES_NAME "candidates"
+#define HIL_PROTOCOL_CMD_DUTY_FD_EXEC_TIME_NS_NAME "exec_time_ns"
+#define HIL_PROTOCOL_CMD_DUTY_FD_STATUS_NAME "status"
 #define HIL_PROTOCOL_SETPOINT_ENABLE_NAME "enable"
 #define HIL_PROTOCOL_SETPOINT_MODE_NAME "mode"
 #define HIL_PROTOCOL_SETPOINT_REFERENCE_NAME "reference"
@@ -1253,6 +1317,258 @@ struct hil_protocol_cmd_fd_t {
      * Offset: 0
      */
     uint8_t mirror;
+};
+
+/**
+ * Signals in message CmdDutyA.
+ *
+ * Duty-cycle Command part A (classic CAN): seq and the duties of legs 0-2. Sent with CmdDutyB and CmdDutyC (always three parts) instead of CmdA/B/C; no vector_id or candidates in the classic duty form (0 at the host).
+ *
+ * All signal values are as on the CAN bus.
+ */
+struct hil_protocol_cmd_duty_a_t {
+    /**
+     * Echo of the seq of the Measurement this Command answers (the same value in every part).
+     *
+     * Range: 0..65535 (0..65535 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint16_t seq;
+
+    /**
+     * Duty of leg 0 (legs a, b, c, then u, v, w): the fraction of the carrier period its upper switch is on, centre-aligned PWM (docs/firmware_api.md, Duty-cycle commands); u16 x 1/65520, 0..65520 = 0..1; 65534 out of range (the firmware asked for a duty below 0 or above 1), 65535 not a number: both DUT-contract findings at the host; 0 for legs >= n_duties.
+     *
+     * Range: 0..65535 (0..1.00023 -)
+     * Scale: 1.5262515262515263e-05
+     * Offset: 0
+     */
+    uint16_t duty0;
+
+    /**
+     * Duty of leg 1 (legs a, b, c, then u, v, w): the fraction of the carrier period its upper switch is on, centre-aligned PWM (docs/firmware_api.md, Duty-cycle commands); u16 x 1/65520, 0..65520 = 0..1; 65534 out of range (the firmware asked for a duty below 0 or above 1), 65535 not a number: both DUT-contract findings at the host; 0 for legs >= n_duties.
+     *
+     * Range: 0..65535 (0..1.00023 -)
+     * Scale: 1.5262515262515263e-05
+     * Offset: 0
+     */
+    uint16_t duty1;
+
+    /**
+     * Duty of leg 2 (legs a, b, c, then u, v, w): the fraction of the carrier period its upper switch is on, centre-aligned PWM (docs/firmware_api.md, Duty-cycle commands); u16 x 1/65520, 0..65520 = 0..1; 65534 out of range (the firmware asked for a duty below 0 or above 1), 65535 not a number: both DUT-contract findings at the host; 0 for legs >= n_duties.
+     *
+     * Range: 0..65535 (0..1.00023 -)
+     * Scale: 1.5262515262515263e-05
+     * Offset: 0
+     */
+    uint16_t duty2;
+};
+
+/**
+ * Signals in message CmdDutyB.
+ *
+ * Duty-cycle Command part B (classic CAN): the duties of legs 3-5 (0 for a three-phase machine).
+ *
+ * All signal values are as on the CAN bus.
+ */
+struct hil_protocol_cmd_duty_b_t {
+    /**
+     * Echo of the seq of the Measurement this Command answers (the same value in every part).
+     *
+     * Range: 0..65535 (0..65535 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint16_t seq;
+
+    /**
+     * Duty of leg 3 (legs a, b, c, then u, v, w): the fraction of the carrier period its upper switch is on, centre-aligned PWM (docs/firmware_api.md, Duty-cycle commands); u16 x 1/65520, 0..65520 = 0..1; 65534 out of range (the firmware asked for a duty below 0 or above 1), 65535 not a number: both DUT-contract findings at the host; 0 for legs >= n_duties.
+     *
+     * Range: 0..65535 (0..1.00023 -)
+     * Scale: 1.5262515262515263e-05
+     * Offset: 0
+     */
+    uint16_t duty3;
+
+    /**
+     * Duty of leg 4 (legs a, b, c, then u, v, w): the fraction of the carrier period its upper switch is on, centre-aligned PWM (docs/firmware_api.md, Duty-cycle commands); u16 x 1/65520, 0..65520 = 0..1; 65534 out of range (the firmware asked for a duty below 0 or above 1), 65535 not a number: both DUT-contract findings at the host; 0 for legs >= n_duties.
+     *
+     * Range: 0..65535 (0..1.00023 -)
+     * Scale: 1.5262515262515263e-05
+     * Offset: 0
+     */
+    uint16_t duty4;
+
+    /**
+     * Duty of leg 5 (legs a, b, c, then u, v, w): the fraction of the carrier period its upper switch is on, centre-aligned PWM (docs/firmware_api.md, Duty-cycle commands); u16 x 1/65520, 0..65520 = 0..1; 65534 out of range (the firmware asked for a duty below 0 or above 1), 65535 not a number: both DUT-contract findings at the host; 0 for legs >= n_duties.
+     *
+     * Range: 0..65535 (0..1.00023 -)
+     * Scale: 1.5262515262515263e-05
+     * Offset: 0
+     */
+    uint16_t duty5;
+};
+
+/**
+ * Signals in message CmdDutyC.
+ *
+ * Duty-cycle Command part C (classic CAN): execution time, status and n_duties.
+ *
+ * All signal values are as on the CAN bus.
+ */
+struct hil_protocol_cmd_duty_c_t {
+    /**
+     * Echo of the seq of the Measurement this Command answers (the same value in every part).
+     *
+     * Range: 0..65535 (0..65535 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint16_t seq;
+
+    /**
+     * Controller execution time of this step in ns, u32 0..4294967295: 0 not measured, 4294967295 saturated (>= 4.29 s), as in CmdC.
+     *
+     * Range: 0..4294967295 (0..4294967295 ns)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint32_t exec_time_ns;
+
+    /**
+     * Target status (VAL_TABLE_ Status), as in CmdC.
+     *
+     * Range: 0..255 (0..255 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t status;
+
+    /**
+     * Number of legs with a duty: 3 (three-phase machine) or 6 (dual three-phase); any other value is an invalid frame.
+     *
+     * Range: 3..6 (3..6 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t n_duties;
+};
+
+/**
+ * Signals in message CmdDutyFd.
+ *
+ * Duty-cycle Command, CAN FD profile (one frame, 24 bytes, bytes 22-23 reserved). The plant applies the carrier comparison of the duties (hil/pwm.py, docs/protocol.md).
+ *
+ * All signal values are as on the CAN bus.
+ */
+struct hil_protocol_cmd_duty_fd_t {
+    /**
+     * Echo of the seq of the Measurement this Command answers (the same value in every part).
+     *
+     * Range: 0..65535 (0..65535 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint16_t seq;
+
+    /**
+     * Number of legs with a duty: 3 (three-phase machine) or 6 (dual three-phase); any other value is an invalid frame.
+     *
+     * Range: 3..6 (3..6 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t n_duties;
+
+    /**
+     * Duty of leg 0 (legs a, b, c, then u, v, w): the fraction of the carrier period its upper switch is on, centre-aligned PWM (docs/firmware_api.md, Duty-cycle commands); u16 x 1/65520, 0..65520 = 0..1; 65534 out of range (the firmware asked for a duty below 0 or above 1), 65535 not a number: both DUT-contract findings at the host; 0 for legs >= n_duties.
+     *
+     * Range: 0..65535 (0..1.00023 -)
+     * Scale: 1.5262515262515263e-05
+     * Offset: 0
+     */
+    uint16_t duty0;
+
+    /**
+     * Duty of leg 1 (legs a, b, c, then u, v, w): the fraction of the carrier period its upper switch is on, centre-aligned PWM (docs/firmware_api.md, Duty-cycle commands); u16 x 1/65520, 0..65520 = 0..1; 65534 out of range (the firmware asked for a duty below 0 or above 1), 65535 not a number: both DUT-contract findings at the host; 0 for legs >= n_duties.
+     *
+     * Range: 0..65535 (0..1.00023 -)
+     * Scale: 1.5262515262515263e-05
+     * Offset: 0
+     */
+    uint16_t duty1;
+
+    /**
+     * Duty of leg 2 (legs a, b, c, then u, v, w): the fraction of the carrier period its upper switch is on, centre-aligned PWM (docs/firmware_api.md, Duty-cycle commands); u16 x 1/65520, 0..65520 = 0..1; 65534 out of range (the firmware asked for a duty below 0 or above 1), 65535 not a number: both DUT-contract findings at the host; 0 for legs >= n_duties.
+     *
+     * Range: 0..65535 (0..1.00023 -)
+     * Scale: 1.5262515262515263e-05
+     * Offset: 0
+     */
+    uint16_t duty2;
+
+    /**
+     * Duty of leg 3 (legs a, b, c, then u, v, w): the fraction of the carrier period its upper switch is on, centre-aligned PWM (docs/firmware_api.md, Duty-cycle commands); u16 x 1/65520, 0..65520 = 0..1; 65534 out of range (the firmware asked for a duty below 0 or above 1), 65535 not a number: both DUT-contract findings at the host; 0 for legs >= n_duties.
+     *
+     * Range: 0..65535 (0..1.00023 -)
+     * Scale: 1.5262515262515263e-05
+     * Offset: 0
+     */
+    uint16_t duty3;
+
+    /**
+     * Duty of leg 4 (legs a, b, c, then u, v, w): the fraction of the carrier period its upper switch is on, centre-aligned PWM (docs/firmware_api.md, Duty-cycle commands); u16 x 1/65520, 0..65520 = 0..1; 65534 out of range (the firmware asked for a duty below 0 or above 1), 65535 not a number: both DUT-contract findings at the host; 0 for legs >= n_duties.
+     *
+     * Range: 0..65535 (0..1.00023 -)
+     * Scale: 1.5262515262515263e-05
+     * Offset: 0
+     */
+    uint16_t duty4;
+
+    /**
+     * Duty of leg 5 (legs a, b, c, then u, v, w): the fraction of the carrier period its upper switch is on, centre-aligned PWM (docs/firmware_api.md, Duty-cycle commands); u16 x 1/65520, 0..65520 = 0..1; 65534 out of range (the firmware asked for a duty below 0 or above 1), 65535 not a number: both DUT-contract findings at the host; 0 for legs >= n_duties.
+     *
+     * Range: 0..65535 (0..1.00023 -)
+     * Scale: 1.5262515262515263e-05
+     * Offset: 0
+     */
+    uint16_t duty5;
+
+    /**
+     * Controller-specific diagnostic, 0..255, as in CmdFd (reference foc: the sector).
+     *
+     * Range: 0..255 (0..255 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t vector_id;
+
+    /**
+     * Candidates evaluated, 0..255, as in CmdFd; 0 if not reported.
+     *
+     * Range: 0..255 (0..255 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t candidates;
+
+    /**
+     * Controller execution time of this step in ns, u32 0..4294967295: 0 not measured, 4294967295 saturated (>= 4.29 s), as in CmdC.
+     *
+     * Range: 0..4294967295 (0..4294967295 ns)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint32_t exec_time_ns;
+
+    /**
+     * Target status (VAL_TABLE_ Status), as in CmdC.
+     *
+     * Range: 0..255 (0..255 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t status;
 };
 
 /**
@@ -4913,6 +5229,1114 @@ bool hil_protocol_cmd_fd_mirror_is_in_range(uint8_t value);
  * @return true if in range, false otherwise.
  */
 bool hil_protocol_cmd_fd_mirror_is_in_phys_range(float value);
+
+/**
+ * Pack message CmdDutyA.
+ *
+ * @param[out] dst_p Buffer to pack the message into.
+ * @param[in] src_p Data to pack.
+ * @param[in] size Size of dst_p.
+ *
+ * @return Size of packed data, or negative error code.
+ */
+int hil_protocol_cmd_duty_a_pack(
+    uint8_t *dst_p,
+    const struct hil_protocol_cmd_duty_a_t *src_p,
+    size_t size);
+
+/**
+ * Unpack message CmdDutyA.
+ *
+ * @param[out] dst_p Object to unpack the message into.
+ * @param[in] src_p Message to unpack.
+ * @param[in] size Size of src_p.
+ *
+ * @return zero(0) or negative error code.
+ */
+int hil_protocol_cmd_duty_a_unpack(
+    struct hil_protocol_cmd_duty_a_t *dst_p,
+    const uint8_t *src_p,
+    size_t size);
+
+/**
+ * Init message fields to default values from CmdDutyA.
+ *
+ * @param[in] msg_p Message to init.
+ *
+ * @return zero(0) on success or (-1) in case of nullptr argument.
+ */
+int hil_protocol_cmd_duty_a_init(struct hil_protocol_cmd_duty_a_t *msg_p);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint16_t hil_protocol_cmd_duty_a_seq_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_cmd_duty_a_seq_decode(uint16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_a_seq_is_in_range(uint16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_a_seq_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint16_t hil_protocol_cmd_duty_a_duty0_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_cmd_duty_a_duty0_decode(uint16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_a_duty0_is_in_range(uint16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_a_duty0_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint16_t hil_protocol_cmd_duty_a_duty1_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_cmd_duty_a_duty1_decode(uint16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_a_duty1_is_in_range(uint16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_a_duty1_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint16_t hil_protocol_cmd_duty_a_duty2_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_cmd_duty_a_duty2_decode(uint16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_a_duty2_is_in_range(uint16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_a_duty2_is_in_phys_range(float value);
+
+/**
+ * Pack message CmdDutyB.
+ *
+ * @param[out] dst_p Buffer to pack the message into.
+ * @param[in] src_p Data to pack.
+ * @param[in] size Size of dst_p.
+ *
+ * @return Size of packed data, or negative error code.
+ */
+int hil_protocol_cmd_duty_b_pack(
+    uint8_t *dst_p,
+    const struct hil_protocol_cmd_duty_b_t *src_p,
+    size_t size);
+
+/**
+ * Unpack message CmdDutyB.
+ *
+ * @param[out] dst_p Object to unpack the message into.
+ * @param[in] src_p Message to unpack.
+ * @param[in] size Size of src_p.
+ *
+ * @return zero(0) or negative error code.
+ */
+int hil_protocol_cmd_duty_b_unpack(
+    struct hil_protocol_cmd_duty_b_t *dst_p,
+    const uint8_t *src_p,
+    size_t size);
+
+/**
+ * Init message fields to default values from CmdDutyB.
+ *
+ * @param[in] msg_p Message to init.
+ *
+ * @return zero(0) on success or (-1) in case of nullptr argument.
+ */
+int hil_protocol_cmd_duty_b_init(struct hil_protocol_cmd_duty_b_t *msg_p);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint16_t hil_protocol_cmd_duty_b_seq_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_cmd_duty_b_seq_decode(uint16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_b_seq_is_in_range(uint16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_b_seq_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint16_t hil_protocol_cmd_duty_b_duty3_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_cmd_duty_b_duty3_decode(uint16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_b_duty3_is_in_range(uint16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_b_duty3_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint16_t hil_protocol_cmd_duty_b_duty4_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_cmd_duty_b_duty4_decode(uint16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_b_duty4_is_in_range(uint16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_b_duty4_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint16_t hil_protocol_cmd_duty_b_duty5_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_cmd_duty_b_duty5_decode(uint16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_b_duty5_is_in_range(uint16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_b_duty5_is_in_phys_range(float value);
+
+/**
+ * Pack message CmdDutyC.
+ *
+ * @param[out] dst_p Buffer to pack the message into.
+ * @param[in] src_p Data to pack.
+ * @param[in] size Size of dst_p.
+ *
+ * @return Size of packed data, or negative error code.
+ */
+int hil_protocol_cmd_duty_c_pack(
+    uint8_t *dst_p,
+    const struct hil_protocol_cmd_duty_c_t *src_p,
+    size_t size);
+
+/**
+ * Unpack message CmdDutyC.
+ *
+ * @param[out] dst_p Object to unpack the message into.
+ * @param[in] src_p Message to unpack.
+ * @param[in] size Size of src_p.
+ *
+ * @return zero(0) or negative error code.
+ */
+int hil_protocol_cmd_duty_c_unpack(
+    struct hil_protocol_cmd_duty_c_t *dst_p,
+    const uint8_t *src_p,
+    size_t size);
+
+/**
+ * Init message fields to default values from CmdDutyC.
+ *
+ * @param[in] msg_p Message to init.
+ *
+ * @return zero(0) on success or (-1) in case of nullptr argument.
+ */
+int hil_protocol_cmd_duty_c_init(struct hil_protocol_cmd_duty_c_t *msg_p);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint16_t hil_protocol_cmd_duty_c_seq_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_cmd_duty_c_seq_decode(uint16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_c_seq_is_in_range(uint16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_c_seq_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint32_t hil_protocol_cmd_duty_c_exec_time_ns_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_cmd_duty_c_exec_time_ns_decode(uint32_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_c_exec_time_ns_is_in_range(uint32_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_c_exec_time_ns_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint8_t hil_protocol_cmd_duty_c_status_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_cmd_duty_c_status_decode(uint8_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_c_status_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_c_status_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint8_t hil_protocol_cmd_duty_c_n_duties_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_cmd_duty_c_n_duties_decode(uint8_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_c_n_duties_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_c_n_duties_is_in_phys_range(float value);
+
+/**
+ * Pack message CmdDutyFd.
+ *
+ * @param[out] dst_p Buffer to pack the message into.
+ * @param[in] src_p Data to pack.
+ * @param[in] size Size of dst_p.
+ *
+ * @return Size of packed data, or negative error code.
+ */
+int hil_protocol_cmd_duty_fd_pack(
+    uint8_t *dst_p,
+    const struct hil_protocol_cmd_duty_fd_t *src_p,
+    size_t size);
+
+/**
+ * Unpack message CmdDutyFd.
+ *
+ * @param[out] dst_p Object to unpack the message into.
+ * @param[in] src_p Message to unpack.
+ * @param[in] size Size of src_p.
+ *
+ * @return zero(0) or negative error code.
+ */
+int hil_protocol_cmd_duty_fd_unpack(
+    struct hil_protocol_cmd_duty_fd_t *dst_p,
+    const uint8_t *src_p,
+    size_t size);
+
+/**
+ * Init message fields to default values from CmdDutyFd.
+ *
+ * @param[in] msg_p Message to init.
+ *
+ * @return zero(0) on success or (-1) in case of nullptr argument.
+ */
+int hil_protocol_cmd_duty_fd_init(struct hil_protocol_cmd_duty_fd_t *msg_p);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint16_t hil_protocol_cmd_duty_fd_seq_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_cmd_duty_fd_seq_decode(uint16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_fd_seq_is_in_range(uint16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_fd_seq_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint8_t hil_protocol_cmd_duty_fd_n_duties_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_cmd_duty_fd_n_duties_decode(uint8_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_fd_n_duties_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_fd_n_duties_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint16_t hil_protocol_cmd_duty_fd_duty0_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_cmd_duty_fd_duty0_decode(uint16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_fd_duty0_is_in_range(uint16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_fd_duty0_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint16_t hil_protocol_cmd_duty_fd_duty1_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_cmd_duty_fd_duty1_decode(uint16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_fd_duty1_is_in_range(uint16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_fd_duty1_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint16_t hil_protocol_cmd_duty_fd_duty2_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_cmd_duty_fd_duty2_decode(uint16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_fd_duty2_is_in_range(uint16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_fd_duty2_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint16_t hil_protocol_cmd_duty_fd_duty3_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_cmd_duty_fd_duty3_decode(uint16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_fd_duty3_is_in_range(uint16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_fd_duty3_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint16_t hil_protocol_cmd_duty_fd_duty4_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_cmd_duty_fd_duty4_decode(uint16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_fd_duty4_is_in_range(uint16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_fd_duty4_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint16_t hil_protocol_cmd_duty_fd_duty5_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_cmd_duty_fd_duty5_decode(uint16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_fd_duty5_is_in_range(uint16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_fd_duty5_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint8_t hil_protocol_cmd_duty_fd_vector_id_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_cmd_duty_fd_vector_id_decode(uint8_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_fd_vector_id_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_fd_vector_id_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint8_t hil_protocol_cmd_duty_fd_candidates_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_cmd_duty_fd_candidates_decode(uint8_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_fd_candidates_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_fd_candidates_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint32_t hil_protocol_cmd_duty_fd_exec_time_ns_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_cmd_duty_fd_exec_time_ns_decode(uint32_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_fd_exec_time_ns_is_in_range(uint32_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_fd_exec_time_ns_is_in_phys_range(float value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint8_t hil_protocol_cmd_duty_fd_status_encode(float value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+float hil_protocol_cmd_duty_fd_status_decode(uint8_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_fd_status_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool hil_protocol_cmd_duty_fd_status_is_in_phys_range(float value);
 
 /**
  * Pack message Setpoint.

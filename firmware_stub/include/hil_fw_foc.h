@@ -5,6 +5,9 @@
  * 0-a-b-7-b-a-0 spans two control periods: even periods send (a, b, 7), odd periods (b, a, 0),
  * each with the dwell times of the whole voltage (ta, tb, t0), so every period's mean voltage is
  * the reference and every leg switches once per period. See docs/algorithms/dsvm.md.
+ * With pwm_duties = 1 (the default) foc ends as drive firmware does: three duty cycles of a
+ * centre-aligned PWM (min-max zero-sequence injection, the duty form of SVPWM), whose carrier the
+ * plant compares exactly: all 7 segments 0-x-xy-7-xy-x-0 in every period (docs/firmware_api.md).
  */
 #ifndef HIL_FW_FOC_H
 #define HIL_FW_FOC_H
@@ -36,6 +39,10 @@ uint8_t hil_fw_svpwm(float u_alpha, float u_beta, float vdc, uint32_t ts_ns, uin
  * states, durations, vector_id (the sector), candidates 0 and status ok; returns the sector 1..6. */
 uint8_t hil_fw_foc_modulate(float u_alpha, float u_beta, float vdc, uint32_t ts_ns, uint8_t *parity,
                             hil_fw_cmd_t *cmd);
+/* Duty cycles (0..1) of legs a, b, c for a stator-frame voltage [V] at DC link vdc [V]: min-max
+ * zero-sequence injection (centre-aligned SVPWM); beyond the hexagon the voltage is scaled onto it.
+ * A non-finite input gives 0.5 on every leg (zero voltage), never a NaN. */
+void hil_fw_svpwm_duties(float u_alpha, float u_beta, float vdc, float duty[3]);
 
 /* Prediction stage of foc (PI + SVPWM). */
 void hil_fw_foc_predict(struct hil_fw_state *s, hil_fw_cmd_t *cmd);

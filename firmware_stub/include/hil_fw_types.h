@@ -54,6 +54,9 @@ typedef struct {
     float torque_ref;                            /* debug: torque reference [N*m] */
     float id_ref;                                /* debug: d-axis current reference [A] */
     float iq_ref;                                /* debug: q-axis current reference [A] */
+    float duty[HIL_FW_MAX_PHASES];               /* duty-cycle form (n_duties 3 or 6): per-leg duty 0..1 of a
+                                                    centre-aligned PWM whose carrier period is Ts */
+    uint8_t n_duties;                            /* 0: the switching states above; 3 or 6: the duties */
 } hil_fw_cmd_t;
 
 #endif

@@ -44,6 +44,7 @@ static const param_rule_t rules[HIL_FW_P_COUNT] = {
     [HIL_FW_P_LSIGMA] = {0.0f, 10.0f, 1, 0},
     [HIL_FW_P_LM] = {0.0f, 10.0f, 1, 0},
     [HIL_FW_P_PSI_R_REF] = {0.0f, 100.0f, 1, 0},
+    [HIL_FW_P_PWM_DUTIES] = {0.0f, 1.0f, 0, 1},
 };
 
 void hil_fw_params_defaults(hil_fw_params_t *p)
@@ -82,6 +83,7 @@ void hil_fw_params_defaults(hil_fw_params_t *p)
     p->value[HIL_FW_P_LSIGMA] = 0.021f;
     p->value[HIL_FW_P_LM] = 0.224f;
     p->value[HIL_FW_P_PSI_R_REF] = 0.9f;
+    p->value[HIL_FW_P_PWM_DUTIES] = 1.0f; /* foc ends in three duty cycles (0: the 5-segment states) */
     hil_fw_params_derive(p);
 }
 

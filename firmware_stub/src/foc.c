@@ -60,6 +60,32 @@ uint8_t hil_fw_svpwm(float u_alpha, float u_beta, float vdc, uint32_t ts_ns, uin
     return (uint8_t)(k + 1);
 }
 
+void hil_fw_svpwm_duties(float u_alpha, float u_beta, float vdc, float duty[3])
+{
+    const float va = u_alpha;
+    const float vb = -0.5f * u_alpha + 0.5f * HIL_FW_SQRT3_F * u_beta;
+    const float vc = -0.5f * u_alpha - 0.5f * HIL_FW_SQRT3_F * u_beta;
+    const float hi = fmaxf(va, fmaxf(vb, vc));
+    const float lo = fminf(va, fminf(vb, vc));
+    const float mid = 0.5f * (hi + lo);
+    float span = (hi - lo) / vdc; /* line-to-line peak over vdc: > 1 outside the hexagon */
+    float k = 1.0f;
+    uint8_t j;
+    if (!(span <= 1.0e30f) || !(vdc > 0.0f)) { /* NaN or infinite voltage, no DC link: zero voltage */
+        duty[0] = duty[1] = duty[2] = 0.5f;
+        return;
+    }
+    if (span > 1.0f) {
+        k = 1.0f / span;
+    }
+    duty[0] = 0.5f + k * (va - mid) / vdc;
+    duty[1] = 0.5f + k * (vb - mid) / vdc;
+    duty[2] = 0.5f + k * (vc - mid) / vdc;
+    for (j = 0u; j < 3u; ++j) { /* float rounding at the hexagon's edge */
+        duty[j] = duty[j] < 0.0f ? 0.0f : (duty[j] > 1.0f ? 1.0f : duty[j]);
+    }
+}
+
 void hil_fw_foc_predict(struct hil_fw_state *s, hil_fw_cmd_t *cmd)
 {
     hil_fw_foc_state_t *st = &s->ctrl.foc;
@@ -103,6 +129,24 @@ void hil_fw_foc_predict(struct hil_fw_state *s, hil_fw_cmd_t *cmd)
     st->v_d = vd;
     st->v_q = vq;
     hil_fw_park_inv(vd, vq, me->cos_th * c - me->sin_th * sn, me->sin_th * c + me->cos_th * sn, &ua, &ub);
+    if (p[HIL_FW_P_PWM_DUTIES] >= 0.5f) { /* three duty cycles of a centre-aligned PWM (the default) */
+        uint8_t a;
+        uint8_t b;
+        uint32_t t[3];
+        uint8_t i;
+        st->sector = hil_fw_svpwm(ua, ub, me->vdc, s->params.model.ts_ns, &a, &b, t);
+        hil_fw_svpwm_duties(ua, ub, me->vdc, cmd->duty);
+        cmd->n_duties = 3u;
+        cmd->n_states = 0u;
+        for (i = 0u; i < 3u; ++i) {
+            cmd->states[i] = 0u;
+            cmd->durations_ns[i] = 0u;
+        }
+        cmd->vector_id = st->sector;
+        cmd->candidates = 0u;
+        cmd->status = HIL_FW_STATUS_OK;
+        return;
+    }
     st->sector = hil_fw_foc_modulate(ua, ub, me->vdc, s->params.model.ts_ns, &st->parity, cmd);
 }
 

@@ -144,6 +144,7 @@ void hil_fw_stage_predict(hil_fw_state_t *s, hil_fw_cmd_t *cmd)
     cmd->id_ref = s->ref.i_d;
     cmd->iq_ref = s->ref.i_q;
     cmd->mirror = 0u; /* controllers that send a mirrored sequence set it */
+    cmd->n_duties = 0u; /* controllers that send duty cycles set it (foc) */
     if (s->meas.fault != HIL_FW_STATUS_OK) {
         safe_command(s, cmd, s->meas.fault);
     } else if (c == NULL || (c->predict == NULL && s->controller_id != HIL_FW_CTRL_OFF)) {

@@ -39,7 +39,13 @@ typedef struct {
     float vdc;                      /* measured DC link [V] */
 } hil_app_meas_t;
 
-/* Command k, applied by the plant over [(k+1)Ts, (k+2)Ts). The core zeroes it before hil_app_step. */
+/* Command k, applied by the plant over [(k+1)Ts, (k+2)Ts). The core zeroes it before hil_app_step.
+ * Two forms: switching states (n_duties 0: n_states, states, durations_ns, mirror) or duty cycles
+ * (n_duties 3 or 6: duty[0..n_duties-1], legs a, b, c then u, v, w): the fraction of the carrier period
+ * each leg's upper switch is on, centre-aligned PWM whose carrier period is Ts, valley (all legs low) at
+ * the period start; the plant computes the switching instants of the carrier comparison (all 7 segments
+ * 0-x-xy-7-xy-x-0), dead time and minimum pulse included. A duty outside 0..1 or NaN is a DUT-contract
+ * finding at the host (never clamped silently). See docs/firmware_api.md, "Duty-cycle commands". */
 typedef struct {
     uint8_t n_states;                           /* 1..3 sub-intervals */
     uint8_t states[HIL_APP_MAX_STATES];         /* switching codes 4*Sa + 2*Sb + Sc (six phases: 6 bits) */
@@ -51,6 +57,8 @@ typedef struct {
     float torque_ref;                           /* debug outputs, not on the wire (SIL shows them) */
     float id_ref;
     float iq_ref;
+    uint8_t n_duties;                           /* 0: switching states above; 3 or 6: the duty form */
+    float duty[HIL_APP_MAX_PHASES];             /* per-leg duty 0..1 (the first n_duties are sent) */
 } hil_app_cmd_t;
 
 /* Once at boot (and again when the host's SIL loader starts a run). */

@@ -83,4 +83,8 @@ void hil_app_step(const hil_app_meas_t *m, hil_app_cmd_t *cmd)
     cmd->torque_ref = fc.torque_ref;
     cmd->id_ref = fc.id_ref;
     cmd->iq_ref = fc.iq_ref;
+    cmd->n_duties = fc.n_duties;
+    for (j = 0u; j < HIL_APP_MAX_PHASES; ++j) {
+        cmd->duty[j] = fc.n_duties > j ? fc.duty[j] : 0.0f;
+    }
 }

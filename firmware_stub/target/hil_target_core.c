@@ -16,6 +16,11 @@
 #define SCALE_TH ((double)0x1.921fb54442d18p-14L)  /* 2*pi/65536 rad */
 #define NS_PER_S ((double)0x1.dcd65p+29L)          /* 1e9 */
 
+/* Duty wire codes (hil.dbc CmdDuty*; hil/native/pwm_duty.h, hil/pwm.py) */
+#define HIL_CORE_DUTY_FULL 65520u
+#define HIL_CORE_DUTY_OUT_OF_RANGE 65534u
+#define HIL_CORE_DUTY_NAN 65535u
+
 #define PART_A 1u
 #define PART_B 2u
 #define PART_C 4u
@@ -108,10 +113,87 @@ static void send_fault(uint8_t code, uint32_t detail)
     (void)hil_protocol_fault_target_pack(f->data, &ft, HIL_PROTOCOL_FAULT_TARGET_LENGTH);
 }
 
+/* Wire code of a duty (hil.dbc CmdDuty*: u16 x 1/65520): NaN 65535, outside 0..1 65534 (DUT findings at
+ * the host, never clamped here), else round(d * 65520) half up, computed in double where d * 65520 is exact
+ * (24 x 16 bits), so every sender (protocol/codec_duty.py duty_raw) gives the same code. */
+static uint16_t duty_raw(float d)
+{
+    if (d != d) {
+        return HIL_CORE_DUTY_NAN;
+    }
+    if (!(d >= 0.0f && d <= 1.0f)) {
+        return HIL_CORE_DUTY_OUT_OF_RANGE;
+    }
+    return (uint16_t)((double)d * (double)HIL_CORE_DUTY_FULL + (double)0.5L); /* exact in double: the host's rounding */
+}
+
+/* The duty-cycle Command: CmdDutyFd, or CmdDutyA + CmdDutyB + CmdDutyC (legs 3-5 zero for three phases). */
+static void send_duty_command(uint16_t seq, const hil_app_cmd_t *c, uint32_t exec_ns, uint8_t fd)
+{
+    uint16_t r[HIL_APP_MAX_PHASES] = {0u, 0u, 0u, 0u, 0u, 0u};
+    hil_core_frame_t *f;
+    uint8_t j;
+    for (j = 0u; j < c->n_duties && j < HIL_APP_MAX_PHASES; ++j) {
+        r[j] = duty_raw(c->duty[j]);
+    }
+    if (fd) {
+        struct hil_protocol_cmd_duty_fd_t cf;
+        memset(&cf, 0, sizeof cf);
+        cf.seq = seq;
+        cf.n_duties = c->n_duties;
+        cf.duty0 = r[0];
+        cf.duty1 = r[1];
+        cf.duty2 = r[2];
+        cf.duty3 = r[3];
+        cf.duty4 = r[4];
+        cf.duty5 = r[5];
+        cf.vector_id = c->vector_id;
+        cf.candidates = c->candidates;
+        cf.exec_time_ns = exec_ns;
+        cf.status = c->status;
+        f = tx_slot(HIL_PROTOCOL_CMD_DUTY_FD_FRAME_ID, HIL_PROTOCOL_CMD_DUTY_FD_LENGTH, 1u);
+        if (f != NULL) {
+            (void)hil_protocol_cmd_duty_fd_pack(f->data, &cf, HIL_PROTOCOL_CMD_DUTY_FD_LENGTH);
+        }
+    } else {
+        struct hil_protocol_cmd_duty_a_t da;
+        struct hil_protocol_cmd_duty_b_t db;
+        struct hil_protocol_cmd_duty_c_t dc;
+        da.seq = seq;
+        da.duty0 = r[0];
+        da.duty1 = r[1];
+        da.duty2 = r[2];
+        db.seq = seq;
+        db.duty3 = r[3];
+        db.duty4 = r[4];
+        db.duty5 = r[5];
+        dc.seq = seq;
+        dc.exec_time_ns = exec_ns;
+        dc.status = c->status;
+        dc.n_duties = c->n_duties;
+        f = tx_slot(HIL_PROTOCOL_CMD_DUTY_A_FRAME_ID, HIL_PROTOCOL_CMD_DUTY_A_LENGTH, 0u);
+        if (f != NULL) {
+            (void)hil_protocol_cmd_duty_a_pack(f->data, &da, HIL_PROTOCOL_CMD_DUTY_A_LENGTH);
+        }
+        f = tx_slot(HIL_PROTOCOL_CMD_DUTY_B_FRAME_ID, HIL_PROTOCOL_CMD_DUTY_B_LENGTH, 0u);
+        if (f != NULL) {
+            (void)hil_protocol_cmd_duty_b_pack(f->data, &db, HIL_PROTOCOL_CMD_DUTY_B_LENGTH);
+        }
+        f = tx_slot(HIL_PROTOCOL_CMD_DUTY_C_FRAME_ID, HIL_PROTOCOL_CMD_DUTY_C_LENGTH, 0u);
+        if (f != NULL) {
+            (void)hil_protocol_cmd_duty_c_pack(f->data, &dc, HIL_PROTOCOL_CMD_DUTY_C_LENGTH);
+        }
+    }
+}
+
 static void send_command(uint16_t seq, const hil_app_cmd_t *c, uint32_t exec_ns, uint8_t fd)
 {
     hil_core_frame_t *f;
     g.counters.commands++;
+    if (c->n_duties != 0u) {
+        send_duty_command(seq, c, exec_ns, fd);
+        return;
+    }
     if (fd) {
         struct hil_protocol_cmd_fd_t cf;
         memset(&cf, 0, sizeof cf);

@@ -125,7 +125,7 @@ METRICS: Final[tuple[Metric, ...]] = (
     _m("dut_violations", "DUT violations", "", "DUT contract findings (docs/runner.md, 'DUT contract'), all "
        "counted; the run ends at the first beyond `tolerate`", "d", CLI, source=RUN),
     _m("dut_violations_by_rule", "DUT violations by rule", "", "findings per rule: `{missing, sequence, "
-       "state_code, durations, frame}`", "", source=RUN),
+       "state_code, durations, frame, duty}`", "", source=RUN),
     _m("dut_violation_list", "DUT violation list", "", "the first 100 findings: `{period, seq, rule, frame, "
        "detail}`", "", source=RUN),
     _m("tolerate", "tolerated violations", "", "`--tolerate N`: findings accepted before the run ends", "d",

@@ -26,7 +26,7 @@ FIRMWARE_FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion
 LOOP_FLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion", "-ffp-contract=off",
               "-fno-builtin-sin", "-fno-builtin-cos", "-pthread"]
 LOOP_SOURCES = ("loop.c", "loop_frames.c", "loop_rt.c", "nl_link.c", "loop_udp.c", "loop_serial.c", "loop_socketcan.c",
-                "target_serve.c", "link_floor.c", "loop_board.c", "loop_fmu.c")
+                "target_serve.c", "link_floor.c", "loop_board.c", "loop_fmu.c", "pwm_duty.c")
 
 
 def _load_extractor() -> Any:
@@ -59,7 +59,7 @@ typedef struct {
                                              "nl_config", "nl_slot", "nl_result", "nl_run", "nl_wait_full",
                                              "nl_release", "nl_stop"]))
 
-CDEF = LOOP_H_CDEF + """
+CDEF = LOOP_H_CDEF + _X.declarations(_HERE / "pwm_duty.h", ["pwm_duty_sequence"]) + """
 size_t nl_sizeof_period(void);
 size_t nl_sizeof_frame(void);
 void *nl_slot_periods(nl_handle_t *h, int32_t i);
@@ -198,6 +198,7 @@ PREAMBLE = """
 #include <stddef.h>
 #include "loop.h"
 #include "loop_fmu.h"
+#include "pwm_duty.h"
 #include "machine_kernel.h"
 #include "loop_frames.h"
 #include "loop_rt.h"

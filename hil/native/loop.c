@@ -12,6 +12,7 @@
 #include "loop_rt.h"
 #include "machine_kernel.h"
 #include "nl_link.h"
+#include "pwm_duty.h"
 
 /* The reference firmware's profiled step (hil_app_reference.c built with HIL_APP_REFERENCE_PROFILED): the
  * stage split [ns] and the restricted-vs-full candidate diagnostic of the last step. */
@@ -264,6 +265,8 @@ static void add_pending(loop_t *L, uint8_t rule, uint8_t what, const nl_cmd_t *c
         f->mirror = cmd->mirror;
         memcpy(f->states, cmd->states, sizeof f->states);
         memcpy(f->durations_ns, cmd->durations_ns, sizeof f->durations_ns);
+        f->n_duties = cmd->n_duties;
+        memcpy(f->duty_raw, cmd->duty_raw, sizeof f->duty_raw);
     }
 }
 
@@ -475,8 +478,8 @@ static int advance(loop_t *L, int64_t k, ge_period_stats_t *st)
 {
     const nl_config_t *c = L->c;
     const nl_cmd_t *cmd = &L->pending.cmd;
-    int32_t states[2 * 3];
-    int64_t durs[2 * 3];
+    int32_t states[PWM_MAX_SEGMENTS];
+    int64_t durs[PWM_MAX_SEGMENTS];
     int32_t n = cmd->n_states;
     int32_t j;
     int64_t total = 0;
@@ -486,7 +489,11 @@ static int advance(loop_t *L, int64_t k, ge_period_stats_t *st)
     int32_t n_bp = 0;
     double *trace = c->plant_trace;
     int rc;
-    for (j = 0; j < n; ++j) {
+    if (cmd->n_duties != 0u) { /* the carrier comparison of the duties (hil/pwm.py applied_sequence) */
+        const int half = !c->pwm_double ? PWM_SINGLE : ((k & 1) == 0 ? PWM_RISING : PWM_FALLING);
+        n = pwm_duty_sequence(c->legs, cmd->duty_raw, c->ts_ns, half, states, durs);
+    }
+    for (j = 0; j < n && cmd->n_duties == 0u; ++j) {
         states[j] = cmd->states[j];
         durs[j] = cmd->durations_ns[j];
     }
@@ -591,6 +598,19 @@ static int check_contract(loop_t *L, int64_t k, int have)
         const nl_cmd_t *cmd = &L->reply;
         int64_t total = 0;
         int bad = 0;
+        if (cmd->n_duties != 0u) { /* contract.check_duties */
+            if (cmd->n_duties != c->legs) {
+                add_pending(L, NL_RULE_DUTY, NL_WHAT_DUTY_COUNT, cmd, cmd->n_duties, c->legs);
+                bad = 1;
+            }
+            for (j = 0; !bad && j < cmd->n_duties; ++j) {
+                if (cmd->duty_raw[j] > PWM_DUTY_FULL) {
+                    add_pending(L, NL_RULE_DUTY, NL_WHAT_DUTY, cmd, j, cmd->duty_raw[j]);
+                    bad = 1;
+                }
+            }
+            total = c->ts_ns; /* the carrier fills Ts */
+        }
         for (j = 0; j < cmd->n_states; ++j) {
             if (cmd->states[j] > c->max_state) {
                 add_pending(L, NL_RULE_STATE_CODE, NL_WHAT_STATE_CODE, cmd, j, cmd->states[j]);
@@ -599,7 +619,7 @@ static int check_contract(loop_t *L, int64_t k, int have)
                 break;
             }
         }
-        if (!bad) {
+        if (!bad && cmd->n_duties == 0u) {
             if (cmd->mirror && cmd->n_states >= 2) {
                 for (j = 0; j < cmd->n_states - 1; ++j) {
                     total += cmd->durations_ns[j];
@@ -720,6 +740,10 @@ static void record(loop_t *L, double t, int64_t k, const sample_t *smp, const ge
     rec->i_w = smp->i[5];
     rec->i_x = smp->i_x;
     rec->i_y = smp->i_y;
+    rec->n_duties = p->cmd.n_duties;
+    for (j = 0; j < 6; ++j) {
+        rec->duties[j] = j < p->cmd.n_duties ? (double)p->cmd.duty_raw[j] / (double)PWM_DUTY_FULL : c->nan;
+    }
     L->r->completed_periods = k + 1;
     L->pending = L->next;
 }
@@ -793,6 +817,7 @@ static void loop_init(loop_t *L, nl_handle_t *h)
     L->expected = -1;
     L->prev_answered = 1;
     L->as.held_seq = -1;
+    L->as.duty.held_seq = -1;
     L->has_fault = c->fault_pending;
     L->fault_code = c->fault_code_in;
     L->fault_detail = c->fault_detail_in;

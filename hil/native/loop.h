@@ -21,7 +21,7 @@
                                       * first findings of a run are the Python loop's whatever a block holds */
 #define NL_REF_CHANGES 16          /* speed-reference changes per run */
 #define NL_LOAD_BREAKPOINTS 8      /* load breakpoints inside one period (= MAX_LOAD_BREAKPOINTS) */
-#define NL_RULES 5                 /* missing, sequence, state_code, durations, frame (contract.RULES order) */
+#define NL_RULES 6                 /* missing, sequence, state_code, durations, frame, duty (contract.RULES order) */
 
 /* The contract rules (index into nl_result_t.by_rule). */
 #define NL_RULE_MISSING 0
@@ -29,6 +29,7 @@
 #define NL_RULE_STATE_CODE 2
 #define NL_RULE_DURATIONS 3
 #define NL_RULE_FRAME 4
+#define NL_RULE_DUTY 5
 
 /* What a finding says (nl_finding_t.what). */
 #define NL_WHAT_MISSING 0        /* v[0] = seq */
@@ -38,6 +39,8 @@
 #define NL_WHAT_DECODER_FRAME 4  /* v[0] frames rejected; v[1] bad_length, v[2] bad_value */
 #define NL_WHAT_STATE_CODE 5     /* state v[0] = code v[1] outside 0..v[2] */
 #define NL_WHAT_DURATIONS 6      /* durations fill v[0] ns, Ts = v[1] ns (mirrored when the Command is) */
+#define NL_WHAT_DUTY_COUNT 7     /* v[0] duties for a machine with v[1] legs */
+#define NL_WHAT_DUTY 8           /* duty v[0] has the wire code v[1] (65535 NaN, else above 65520: outside 0..1) */
 
 /* How the run ended (nl_result_t.end). */
 #define NL_END_RUNNING 0
@@ -75,6 +78,8 @@ typedef struct {
     uint16_t cmd_seq;
     uint32_t durations_ns[3];
     int64_t v[5];
+    uint8_t n_duties;          /* the duty-cycle form: duty wire codes (loop_frames.h nl_cmd_t) */
+    uint16_t duty_raw[6];
 } nl_finding_t;
 
 /* Fixed for the run; written by Python before nl_run. */
@@ -150,6 +155,7 @@ typedef struct {
     const struct nl_link *link;
     int64_t lockstep_timeout_ns; /* lockstep over a link: how long to wait for a Command [ns] (wall time) */
     const nl_sil_debug_t *sil_debug; /* a SIL target in its own process: its debug outputs, NULL: none */
+    int32_t pwm_double;        /* duty-cycle Commands: 0 single update, 1 double (pwm_duty.h halves) */
 } nl_config_t;
 
 /* One block of the ring. `trace` (rows x trace_columns doubles) is the caller's. */

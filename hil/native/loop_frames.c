@@ -166,6 +166,10 @@ static uint8_t known_length(uint32_t id)
     case HIL_PROTOCOL_CMD_B_FRAME_ID: return HIL_PROTOCOL_CMD_B_LENGTH;
     case HIL_PROTOCOL_CMD_C_FRAME_ID: return HIL_PROTOCOL_CMD_C_LENGTH;
     case HIL_PROTOCOL_CMD_FD_FRAME_ID: return HIL_PROTOCOL_CMD_FD_LENGTH;
+    case HIL_PROTOCOL_CMD_DUTY_A_FRAME_ID: return HIL_PROTOCOL_CMD_DUTY_A_LENGTH;
+    case HIL_PROTOCOL_CMD_DUTY_B_FRAME_ID: return HIL_PROTOCOL_CMD_DUTY_B_LENGTH;
+    case HIL_PROTOCOL_CMD_DUTY_C_FRAME_ID: return HIL_PROTOCOL_CMD_DUTY_C_LENGTH;
+    case HIL_PROTOCOL_CMD_DUTY_FD_FRAME_ID: return HIL_PROTOCOL_CMD_DUTY_FD_LENGTH;
     case HIL_PROTOCOL_SETPOINT_FRAME_ID: return HIL_PROTOCOL_SETPOINT_LENGTH;
     case HIL_PROTOCOL_CONFIG_PARAM_FRAME_ID: return HIL_PROTOCOL_CONFIG_PARAM_LENGTH;
     case HIL_PROTOCOL_CONFIG_ACK_FRAME_ID: return HIL_PROTOCOL_CONFIG_ACK_LENGTH;
@@ -261,9 +265,100 @@ static int cmd_part(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r,
     cmd->exec_time_ns = as->c_exec;
     cmd->status = as->c_status;
     cmd->mirror = as->c_mirror == 1u ? 1u : 0u;
+    cmd->n_duties = 0u;
+    memset(cmd->duty_raw, 0, sizeof cmd->duty_raw);
     as->have = 0u;
     as->held_seq = -1;
     as->unordered = 0u;
+    return NL_MSG_COMMAND;
+}
+
+/* A duty-cycle Command's part (CmdDutyA/B/C; codec.py FrameDecoder._duty_part). */
+static int duty_part(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r, nl_cmd_t *cmd)
+{
+    nl_asm_held_t *h = &as->duty;
+    uint16_t seq;
+    uint8_t bit;
+    int j;
+    if (f->id == HIL_PROTOCOL_CMD_DUTY_A_FRAME_ID) {
+        struct hil_protocol_cmd_duty_a_t a;
+        (void)hil_protocol_cmd_duty_a_unpack(&a, f->data, f->len);
+        seq = a.seq;
+        bit = PART_A;
+    } else if (f->id == HIL_PROTOCOL_CMD_DUTY_B_FRAME_ID) {
+        struct hil_protocol_cmd_duty_b_t b;
+        (void)hil_protocol_cmd_duty_b_unpack(&b, f->data, f->len);
+        seq = b.seq;
+        bit = PART_B;
+    } else {
+        struct hil_protocol_cmd_duty_c_t c;
+        (void)hil_protocol_cmd_duty_c_unpack(&c, f->data, f->len);
+        if (c.n_duties != 3u && c.n_duties != 6u) {
+            r->dec_bad_value++;
+            return NL_MSG_NONE;
+        }
+        seq = c.seq;
+        bit = PART_C;
+    }
+    {
+        /* Assembler.add with ordered=False (asm_add on the duty kind's held parts) */
+        if (h->held_seq >= 0) {
+            if ((uint16_t)h->held_seq == seq) {
+                if (h->have & bit) {
+                    r->dec_duplicate++;
+                    return NL_MSG_NONE;
+                }
+            } else {
+                r->dec_mixed_seq++;
+                h->have = 0u;
+                h->held_seq = -1;
+                h->unordered = 0u;
+            }
+        }
+        if (h->held_seq < 0) {
+            h->held_seq = seq;
+        }
+        if (!h->unordered && (h->have & (uint8_t)~(uint8_t)((bit << 1) - 1u)) != 0u) {
+            h->unordered = 1u;
+        }
+        h->have |= bit;
+    }
+    if (bit == PART_A) {
+        struct hil_protocol_cmd_duty_a_t a;
+        (void)hil_protocol_cmd_duty_a_unpack(&a, f->data, f->len);
+        as->duty_raw[0] = a.duty0;
+        as->duty_raw[1] = a.duty1;
+        as->duty_raw[2] = a.duty2;
+    } else if (bit == PART_B) {
+        struct hil_protocol_cmd_duty_b_t b;
+        (void)hil_protocol_cmd_duty_b_unpack(&b, f->data, f->len);
+        as->duty_raw[3] = b.duty3;
+        as->duty_raw[4] = b.duty4;
+        as->duty_raw[5] = b.duty5;
+    } else {
+        struct hil_protocol_cmd_duty_c_t c;
+        (void)hil_protocol_cmd_duty_c_unpack(&c, f->data, f->len);
+        as->duty_exec = c.exec_time_ns;
+        as->duty_status = c.status;
+        as->duty_n = c.n_duties;
+    }
+    if (h->have != (PART_A | PART_B | PART_C)) {
+        return NL_MSG_NONE;
+    }
+    if (h->unordered) {
+        r->dec_out_of_order++;
+    }
+    memset(cmd, 0, sizeof *cmd);
+    cmd->seq = (uint16_t)h->held_seq;
+    cmd->exec_time_ns = as->duty_exec;
+    cmd->status = as->duty_status;
+    cmd->n_duties = as->duty_n;
+    for (j = 0; j < 6; ++j) {
+        cmd->duty_raw[j] = j < as->duty_n ? as->duty_raw[j] : 0u;
+    }
+    h->have = 0u;
+    h->held_seq = -1;
+    h->unordered = 0u;
     return NL_MSG_COMMAND;
 }
 
@@ -302,6 +397,8 @@ int nl_decode(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r, nl_cm
         cmd->exec_time_ns = c.exec_time_ns;
         cmd->status = c.status;
         cmd->mirror = c.mirror == 1u ? 1u : 0u;
+        cmd->n_duties = 0u;
+        memset(cmd->duty_raw, 0, sizeof cmd->duty_raw);
         msg = NL_MSG_COMMAND;
         break;
     }
@@ -309,6 +406,34 @@ int nl_decode(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r, nl_cm
     case HIL_PROTOCOL_CMD_B_FRAME_ID:
     case HIL_PROTOCOL_CMD_C_FRAME_ID:
         msg = cmd_part(as, f, r, cmd);
+        break;
+    case HIL_PROTOCOL_CMD_DUTY_FD_FRAME_ID: {
+        struct hil_protocol_cmd_duty_fd_t c;
+        (void)hil_protocol_cmd_duty_fd_unpack(&c, f->data, f->len);
+        if (c.n_duties != 3u && c.n_duties != 6u) {
+            r->dec_bad_value++;
+            return NL_MSG_NONE;
+        }
+        memset(cmd, 0, sizeof *cmd);
+        cmd->seq = c.seq;
+        cmd->n_duties = c.n_duties;
+        cmd->duty_raw[0] = c.duty0;
+        cmd->duty_raw[1] = c.duty1;
+        cmd->duty_raw[2] = c.duty2;
+        cmd->duty_raw[3] = c.n_duties > 3u ? c.duty3 : 0u;
+        cmd->duty_raw[4] = c.n_duties > 3u ? c.duty4 : 0u;
+        cmd->duty_raw[5] = c.n_duties > 3u ? c.duty5 : 0u;
+        cmd->vector_id = c.vector_id;
+        cmd->candidates = c.candidates;
+        cmd->exec_time_ns = c.exec_time_ns;
+        cmd->status = c.status;
+        msg = NL_MSG_COMMAND;
+        break;
+    }
+    case HIL_PROTOCOL_CMD_DUTY_A_FRAME_ID:
+    case HIL_PROTOCOL_CMD_DUTY_B_FRAME_ID:
+    case HIL_PROTOCOL_CMD_DUTY_C_FRAME_ID:
+        msg = duty_part(as, f, r, cmd);
         break;
     case HIL_PROTOCOL_FAULT_TARGET_FRAME_ID:
     case HIL_PROTOCOL_FAULT_HOST_FRAME_ID: {

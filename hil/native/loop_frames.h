@@ -22,7 +22,16 @@ typedef struct {
     uint8_t status;
     uint8_t mirror;
     uint32_t exec_time_ns;
+    uint8_t n_duties;          /* 0: switching states; 3 or 6: the duty-cycle form (duty_raw, codes of hil.dbc) */
+    uint16_t duty_raw[6];
 } nl_cmd_t;
+
+/* Held parts of one Command kind (protocol/assembler.py Assembler, unordered). */
+typedef struct {
+    int32_t held_seq;          /* -1: none held */
+    uint8_t have;              /* part bits */
+    uint8_t unordered;
+} nl_asm_held_t;
 
 /* The classic-CAN Command assembler (three parts, any order, a new seq replaces held parts). */
 typedef struct {
@@ -35,6 +44,11 @@ typedef struct {
     uint8_t b_candidates;
     uint32_t c_exec;
     uint8_t c_status, c_mirror;
+    /* the duty-cycle Command's parts (CmdDutyA/B/C), assembled apart as the Python decoder does */
+    nl_asm_held_t duty;
+    uint16_t duty_raw[6];
+    uint32_t duty_exec;
+    uint8_t duty_status, duty_n;
 } nl_cmd_asm_t;
 
 #define NL_MSG_NONE 0

@@ -14,7 +14,7 @@
 /* C99 compile-time check: a negative array size when the condition fails. */
 #define NL_RECORD_CHECK(tag, cond) typedef char nl_record_check_##tag[(cond) ? 1 : -1]
 
-/* One period record (PERIOD_DTYPE): 185 bytes, packed. */
+/* One period record (PERIOD_DTYPE): 234 bytes, packed. */
 typedef struct NL_PACKED {
     double t;
     uint32_t seq;
@@ -48,9 +48,11 @@ typedef struct NL_PACKED {
     double i_w;
     double i_x;
     double i_y;
+    uint8_t n_duties;
+    double duties[6];
 } nl_period_t;
 
-NL_RECORD_CHECK(nl_period_t_size, sizeof(nl_period_t) == 185);
+NL_RECORD_CHECK(nl_period_t_size, sizeof(nl_period_t) == 234);
 NL_RECORD_CHECK(nl_period_t_t, offsetof(nl_period_t, t) == 0);
 NL_RECORD_CHECK(nl_period_t_seq, offsetof(nl_period_t, seq) == 8);
 NL_RECORD_CHECK(nl_period_t_i_a, offsetof(nl_period_t, i_a) == 12);
@@ -83,6 +85,8 @@ NL_RECORD_CHECK(nl_period_t_i_v, offsetof(nl_period_t, i_v) == 153);
 NL_RECORD_CHECK(nl_period_t_i_w, offsetof(nl_period_t, i_w) == 161);
 NL_RECORD_CHECK(nl_period_t_i_x, offsetof(nl_period_t, i_x) == 169);
 NL_RECORD_CHECK(nl_period_t_i_y, offsetof(nl_period_t, i_y) == 177);
+NL_RECORD_CHECK(nl_period_t_n_duties, offsetof(nl_period_t, n_duties) == 185);
+NL_RECORD_CHECK(nl_period_t_duties, offsetof(nl_period_t, duties) == 186);
 
 /* One raw frame record (FRAME_DTYPE): 83 bytes, packed. */
 typedef struct NL_PACKED {

@@ -45,6 +45,7 @@ UNITS: Final = {
     "exec_time_ns": "ns",
     "exec_split_ns": "ns (measure, reference, predict)",
     "states": "switching state codes 4·Sa+2·Sb+Sc (first n_states valid)",
+    "duties": "duty 0..1 per leg of a duty-cycle Command (first n_duties valid, NaN beyond)",
 }
 
 
@@ -219,7 +220,7 @@ def _as_float(value: Any) -> float:
 
 
 #: Period fields added after the first logs were written: absent in older files, read as 0.
-LATE_FIELDS: Final = frozenset({"narrow_pulses_gated", "mirror"})
+LATE_FIELDS: Final = frozenset({"narrow_pulses_gated", "mirror", "n_duties", "duties"})
 
 
 def decode_json_records(messages: Sequence[bytes], dtype: np.dtype, field: str) -> np.ndarray:

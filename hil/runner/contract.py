@@ -3,14 +3,16 @@ the findings when it is broken, and how a run ends (end codes, the exit codes of
 
 Per period k (seq = k mod 65536) the target sends exactly one Command echoing seq, within the lockstep
 timeout (lockstep) or before the next period start (real time), with state codes of the machine
-(0..2^legs − 1) and durations summing to Ts (mirrored: 2·(d0+…+d(n−2)) + d(n−1) = Ts). Frames the decoder
-rejects (wrong length, impossible values, parts that do not assemble) count against the period they
-arrive in. A reply with another seq (a future one, or a second/late answer) is a violation and never
-displaces the genuine reply.
+(0..2^legs − 1) and durations summing to Ts (mirrored: 2·(d0+…+d(n−2)) + d(n−1) = Ts), or (duty-cycle
+form) one duty 0..1 per leg of the machine: a NaN or out-of-range duty is a finding, never a silent zero
+vector. Frames the decoder rejects (wrong length, impossible values, parts that do not assemble) count
+against the period they arrive in. A reply with another seq (a future one, or a second/late answer) is a
+violation and never displaces the genuine reply.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from enum import IntEnum
 from typing import Final
@@ -35,7 +37,8 @@ SEQUENCE: Final = "sequence"  # a Command whose seq is not the period's (future,
 STATE_CODE: Final = "state_code"  # a state code outside the machine's 0..2^legs − 1
 DURATIONS: Final = "durations"  # durations that do not fill Ts
 FRAME: Final = "frame"  # a frame the decoder rejected (length, value, assembly)
-RULES: Final = (MISSING, SEQUENCE, STATE_CODE, DURATIONS, FRAME)
+DUTY: Final = "duty"  # a duty-cycle Command with a duty outside 0..1, NaN, or another leg count than the machine's
+RULES: Final = (MISSING, SEQUENCE, STATE_CODE, DURATIONS, FRAME, DUTY)
 
 
 @dataclass(frozen=True, slots=True)
@@ -61,12 +64,28 @@ class Violation:
 
 def describe(cmd: Command) -> str:
     """Short text of a Command for a finding."""
+    if cmd.duties:
+        return f"Command seq={cmd.seq} duties=({', '.join(f'{d:.6g}' for d in cmd.duties)})"
     mirror = ", mirror" if cmd.mirror else ""
     return f"Command seq={cmd.seq} states={cmd.states} durations_ns={cmd.durations_ns}{mirror}"
 
 
+def check_duties(duties: tuple[float, ...], legs: int) -> tuple[str, str] | None:
+    """(DUTY, detail) when a duty-cycle Command cannot be applied to a machine with `legs` legs, else None."""
+    if len(duties) != legs:
+        return DUTY, f"{len(duties)} duties for a machine with {legs} legs"
+    for j, d in enumerate(duties):
+        if math.isnan(d):
+            return DUTY, f"duty {j} is NaN"
+        if not 0.0 <= d <= 1.0:
+            return DUTY, f"duty {j} = {d:g} outside 0..1"
+    return None
+
+
 def check_command(cmd: Command, ts_ns: int, max_state: int) -> tuple[str, str] | None:
-    """(rule, detail) when the Command's sequence cannot be applied, else None."""
+    """(rule, detail) when the Command's sequence (or duties) cannot be applied, else None."""
+    if cmd.duties:
+        return check_duties(cmd.duties, max_state.bit_length())
     for j, code in enumerate(cmd.states):
         if not 0 <= code <= max_state:
             return STATE_CODE, f"state {j} = {code} outside 0..{max_state}"
@@ -82,5 +101,5 @@ def check_command(cmd: Command, ts_ns: int, max_state: int) -> tuple[str, str] |
     return None
 
 
-__all__ = ["DURATIONS", "FRAME", "MISSING", "RULES", "SEQUENCE", "STATE_CODE", "EndCode", "Violation",
-           "check_command", "describe"]
+__all__ = ["DURATIONS", "DUTY", "FRAME", "MISSING", "RULES", "SEQUENCE", "STATE_CODE", "EndCode", "Violation",
+           "check_command", "check_duties", "describe"]

@@ -8,11 +8,15 @@ from typing import Any
 from pmsm_hil.hil.errors import ParameterError, PlantFaultError
 from pmsm_hil.hil.plant_base import MAX_LOAD_BREAKPOINTS
 from pmsm_hil.hil.runner.contract import RULES, Violation, describe
+from pmsm_hil.protocol.codec_duty import duty_value
 from pmsm_hil.protocol.errors import EncodeError
 from pmsm_hil.protocol.messages import Command
 
 
 def _command(f: Any) -> Command:
+    if int(f.n_duties):
+        return Command(seq=int(f.cmd_seq), states=(), durations_ns=(),
+                       duties=tuple(duty_value(int(r)) for r in f.duty_raw[0:int(f.n_duties)]))
     n = int(f.n_states)
     return Command(seq=int(f.cmd_seq), states=tuple(int(s) for s in f.states[0:n]),
                    durations_ns=tuple(int(d) for d in f.durations_ns[0:n]), mirror=bool(f.mirror))
@@ -36,6 +40,11 @@ def violation(f: Any, lib: Any, limit: str) -> Violation:
         detail = f"{v[0]} frame(s) rejected by the decoder (bad_length {v[1]}, bad_value {v[2]})"
     elif what == lib.NL_WHAT_STATE_CODE:
         detail = f"state {v[0]} = {v[1]} outside 0..{v[2]}"
+    elif what == lib.NL_WHAT_DUTY_COUNT:
+        detail = f"{v[0]} duties for a machine with {v[1]} legs"
+    elif what == lib.NL_WHAT_DUTY:
+        d = duty_value(v[1])
+        detail = f"duty {v[0]} is NaN" if d != d else f"duty {v[0]} = {d:g} outside 0..1"
     else:
         cmd = _command(f)
         if cmd.mirror and len(cmd.states) >= 2:

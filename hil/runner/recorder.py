@@ -13,7 +13,7 @@ from pmsm_hil.hil.records import FRAME_DTYPE, PERIOD_DTYPE
 from pmsm_hil.protocol.frame import Frame
 
 #: struct layout identical to PERIOD_DTYPE (numpy packs unaligned by default).
-PERIOD_STRUCT: Final = struct.Struct("<dI11dB3B3IBBI3I3H2BHB5d")
+PERIOD_STRUCT: Final = struct.Struct("<dI11dB3B3IBBI3I3H2BHB5dB6d")
 #: struct layout identical to FRAME_DTYPE.
 FRAME_STRUCT: Final = struct.Struct("<dIBIBB64s")
 

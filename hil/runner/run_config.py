@@ -166,6 +166,9 @@ class RunConfig:
     #: load profile; None: the scenario's load
     load_fmu: LoadFmuSpec | None = None
     # --- end load FMU --------------------------------------------------------------------------------------------
+    #: duty-cycle Commands (issue 27): `--pwm-update` single (carrier period Ts) or double (2·Ts, control at twice
+    #: the PWM rate: even periods the rising half of the carrier, odd periods the falling half)
+    pwm_update: str = default_of("pwm_update")
 
     def __post_init__(self) -> None:
         cid = controller_id(self.controller)

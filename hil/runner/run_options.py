@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 from pmsm_hil.hil.errors import ParameterError
+from pmsm_hil.hil.pwm import PWM_UPDATES
 from pmsm_hil.protocol.codec import MAX_DURATION_NS
 
 Kind = Literal["number", "integer", "frequency", "choice", "text", "path", "flag", "table"]
@@ -270,6 +271,10 @@ RUN_OPTIONS: tuple[RunOption, ...] = (
               "the period loop: the C loop (hil/native/loop.c) runs every run (auto = native); python is the test "
               "suite's reference loop, not part of the product (an error outside the tests)", "auto", field="loop",
               choices=LOOPS),
+    RunOption("pwm_update", "choice",
+              "duty-cycle Commands: the PWM timer's compare values loaded once per carrier period (single: carrier "
+              "period = Ts, valley at each period start) or twice (double: control at twice the PWM rate, carrier "
+              "period 2·Ts; docs/firmware_api.md)", "single", field="pwm_update", choices=PWM_UPDATES),
     RunOption("rt_priority", "integer",
               "real time, native loop: SCHED_FIFO priority 1..99 of the loop thread (refused without CAP_SYS_NICE, "
               "said in the warnings)", 0, default_text="0: none", field="rt_priority", metavar="N", minimum=0,

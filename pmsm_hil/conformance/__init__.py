@@ -13,7 +13,7 @@ unassigned controller id).
 
 from __future__ import annotations
 
-from pmsm_hil.hil.runner.contract import DURATIONS, FRAME, MISSING, SEQUENCE, STATE_CODE
+from pmsm_hil.hil.runner.contract import DURATIONS, DUTY, FRAME, MISSING, SEQUENCE, STATE_CODE
 
 #: rule → what the target must do (the test of each rule fails with its name and this text)
 RULES: dict[str, str] = {
@@ -22,6 +22,7 @@ RULES: dict[str, str] = {
     STATE_CODE: "state codes of the machine only (0..2^legs − 1)",
     DURATIONS: "durations filling Ts exactly (mirrored: 2·(d0+…+d(n−2)) + d(n−1) = Ts), none negative",
     FRAME: "well-formed frames (length, values, parts that assemble)",
+    DUTY: "duty-cycle Commands: one duty per leg of the machine, each 0..1 (never NaN)",
     "config_ack": "every ConfigParam acknowledged by a ConfigAck echoing the float32 value bit for bit, status 0",
     "setpoint_disabled": "while disabled, every Measurement answered with a full-period zero vector",
     "safe_state": "after a disabling Setpoint while running, the next Measurement already gets the zero vector",

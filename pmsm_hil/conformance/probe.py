@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 from pmsm_hil.hil.errors import HilError
 from pmsm_hil.hil.mechanics import RPM_TO_RAD_S
+from pmsm_hil.hil.pwm import applied_sequence, carrier_half
 from pmsm_hil.hil.runner.contract import check_command, describe
 from pmsm_hil.hil.runner.plant_setup import build_plant
 from pmsm_hil.hil.runner.run_config import RunConfig, controller_id
@@ -101,7 +102,7 @@ class Probe:
                                                   self.cfg.motor.vdc)
         self.client.send_measurement(meas)
         cmd = self.pending
-        self.plant.advance(*cmd.expanded()) if cmd.mirror else self.plant.advance(cmd.states, cmd.durations_ns)
+        self.plant.advance(*applied_sequence(cmd, self.cfg.ts_ns, carrier_half(self.cfg.pwm_update, self.k)))
         reply = self._await(self.k & 0xFFFF)
         self.client.take_anomalies()
         ok = reply is not None and check_command(reply, self.cfg.ts_ns, self.max_state) is None

@@ -10,6 +10,8 @@ ceil((4 + crc)/4)) at the data rate.
 Serial (8N1, 10 bits per byte): COBS(7-byte header + n + 2-byte CRC) + 0x00 delimiter; authenticated frames
 (`auth`, protocol/links/auth.py) add their 6-byte trailer (freshness 2 + MAC 4) inside the COBS block.
 Six-phase uses the reserved layouts (classic: + MeasC 8 bytes; FD/serial: MeasFd6 24 bytes).
+Commands: "states" (switching states: CmdA + CmdB + CmdC / CmdFd 20 bytes) or "duties" (duty-cycle form:
+CmdDutyA + CmdDutyB + CmdDutyC, 3 × 8 bytes / CmdDutyFd 24 bytes).
 """
 
 from __future__ import annotations
@@ -26,6 +28,8 @@ from pmsm_hil.protocol.links.wire import HEADER_SIZE
 
 LinkKind = Literal["can", "canfd", "serial"]
 LINK_KINDS: tuple[LinkKind, ...] = ("can", "canfd", "serial")
+#: the Command forms (`hil link-budget --command`)
+COMMAND_FORMS: tuple[str, ...] = ("states", "duties")
 DEFAULT_BITRATE = 1_000_000
 DEFAULT_DATA_BITRATE = 5_000_000
 DEFAULT_BAUD = 3_000_000
@@ -87,15 +91,17 @@ class LinkBudget:
         return d
 
 
-def payloads(link: str, phases: int) -> tuple[tuple[int, ...], tuple[int, ...]]:
-    """Payload lengths per period (up = measurement, down = command), from the DBC."""
+def payloads(link: str, phases: int, command: str = "states") -> tuple[tuple[int, ...], tuple[int, ...]]:
+    """Payload lengths per period (up = measurement, down = command in the `command` form), from the DBC."""
     lay = load_layouts()
+    duty = command == "duties"
     if link == "can":
         up = [lay["MeasA"].length, lay["MeasB"].length] + ([MEAS_C_LENGTH] if phases == 6 else [])
-        down = [lay["CmdA"].length, lay["CmdB"].length, lay["CmdC"].length]
+        parts = ("CmdDutyA", "CmdDutyB", "CmdDutyC") if duty else ("CmdA", "CmdB", "CmdC")
+        down = [lay[name].length for name in parts]
     else:
         up = [MEAS_FD6_LENGTH if phases == 6 else lay["MeasFd"].length]
-        down = [lay["CmdFd"].length]
+        down = [lay["CmdDutyFd" if duty else "CmdFd"].length]
     return tuple(up), tuple(down)
 
 
@@ -113,6 +119,7 @@ def link_budget(
     baud: int = DEFAULT_BAUD,
     rate_hz: float | None = None,
     auth: bool = False,
+    command: str = "states",
 ) -> LinkBudget:
     """Worst-case budget of one control period on `link` ("can", "canfd" or "serial").
 
@@ -125,12 +132,14 @@ def link_budget(
         raise BudgetError(f"link={link!r} unknown (expected one of {', '.join(LINK_KINDS)})")
     if phases not in (3, 6):
         raise BudgetError(f"phases={phases!r} (expected 3 or 6)")
+    if command not in COMMAND_FORMS:
+        raise BudgetError(f"command={command!r} unknown (expected one of {', '.join(COMMAND_FORMS)})")
     _positive("bitrate", bitrate)
     _positive("data_bitrate", data_bitrate)
     _positive("baud", baud)
     if rate_hz is not None:
         _positive("rate_hz", rate_hz)
-    up, down = payloads(link, phases)
+    up, down = payloads(link, phases, command)
 
     def cost(ns: tuple[int, ...]) -> tuple[int, float]:
         bits = 0

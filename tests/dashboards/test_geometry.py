@@ -47,3 +47,19 @@ def test_six_phase_vsd_sets_and_xy() -> None:
     assert abs(np.degrees(np.arctan2(ab[1][1], ab[1][0])) - 30.0) < 1e-9
     assert abs(np.degrees(np.arctan2(xy[1][1], xy[1][0])) - 150.0) < 1e-9
     assert np.allclose(ab[2:], 0.0) and np.allclose(xy[2:], 0.0)
+
+
+def test_duty_voltage_is_the_mean_of_the_carrier_comparison() -> None:
+    """Duty cycles (1, 0, 0) are V1 for the whole period; (0.5 + δ) on every leg is zero voltage; a 7-segment
+    period's duration-weighted mean state voltage equals the duties' voltage."""
+    from pmsm_hil.dashboards.geometry import duty_voltage_ab, state_voltage_ab
+    from pmsm_hil.hil.pwm import DUTY_FULL, duty_sequence
+    vdc = 300.0
+    np.testing.assert_allclose(duty_voltage_ab(np.array([[1.0, 0.0, 0.0]]), vdc)[0],
+                               state_voltage_ab(np.array(4), vdc))
+    np.testing.assert_allclose(duty_voltage_ab(np.array([[0.7, 0.7, 0.7]]), vdc)[0], [0.0, 0.0], atol=1e-12)
+    duties = (0.8, 0.5, 0.2)
+    states, durs = duty_sequence([round(d * DUTY_FULL) for d in duties], 100_000)
+    v = state_voltage_ab(np.array(states), vdc)
+    mean = (v * np.array(durs)[:, None]).sum(axis=0) / 100_000
+    np.testing.assert_allclose(duty_voltage_ab(np.array([duties]), vdc)[0], mean, atol=1e-2)

@@ -29,6 +29,7 @@ PROBES: dict[ParamId, tuple[dict[ParamId, float], float]] = {
     ParamId.V3_SYMMETRIC: ({}, 1.0),
     ParamId.T_MPW: ({}, 5e-6),
     ParamId.LLS: ({}, 1e-3),
+    ParamId.PWM_DUTIES: ({}, 0.0),
     ParamId.RR: ({}, 4.0),
     ParamId.LSIGMA: ({}, 0.05),
     ParamId.LM: ({}, 0.4),
@@ -51,7 +52,7 @@ def _commands(info: ControllerInfo, params: dict[ParamId, float]) -> list[tuple[
         i3 = [6.0 * math.cos(th + math.pi / 2 - j * 2 * math.pi / 3) for j in range(3)]
         i6 = [*i3, *(6.0 * math.cos(th + math.pi / 2 - math.pi / 6 - j * 2 * math.pi / 3) for j in range(3))]
         cmd = fw.step(k, i6 if info.phases == 6 else i3, th, omega_m, 300.0, k * 100_000)
-        out.append((cmd.states, cmd.durations_ns, cmd.mirror, cmd.status))
+        out.append((cmd.states, cmd.durations_ns, cmd.mirror, cmd.status, cmd.duties))
     return out
 
 

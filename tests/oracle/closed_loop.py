@@ -17,6 +17,7 @@ import numpy as np
 import numpy.typing as npt
 from pmsm_hil.hil.mechanics import RPM_TO_RAD_S, DynoMechanics
 from pmsm_hil.hil.plant_base import PeriodStats, PlantBase
+from pmsm_hil.hil.pwm import applied_sequence, carrier_half, duties_record
 from pmsm_hil.hil.runner import recorder
 from pmsm_hil.hil.runner.block_sink import RunSink
 from pmsm_hil.hil.runner.contract import MISSING, EndCode, Violation, check_command, describe
@@ -35,6 +36,11 @@ from pmsm_hil.protocol.links.faults import FaultyLink
 from pmsm_hil.protocol.messages import Command
 
 _NAN = math.nan
+
+
+def _flat_duties(cmd: Command) -> tuple[float, ...]:
+    n, duties = duties_record(cmd)
+    return (n, *duties)
 
 
 class ClosedLoop:
@@ -163,6 +169,7 @@ class ClosedLoop:
         self._take_anomalies = self.client.take_anomalies
         self._max_state = self.cfg.machine.layout.max_state_code
         self._ts_ns = cfg.ts_ns
+        self._pwm_update = cfg.pwm_update
         self._overrun_ns = cfg.overrun_threshold_ns
         self._timeout_ns = int(cfg.lockstep_timeout_s * 1e9)
         self._wait_ns = 0
@@ -250,7 +257,9 @@ class ClosedLoop:
     def _apply_and_trace(self, k: int) -> PeriodStats:
         """Advance the plant one period with the pending command; keep the trace of the metrics window."""
         pending = self._pending
-        if pending.mirror:  # symmetric command: s0..s(n-1), s(n-2)..s0 (same durations)
+        if pending.duties:  # duty-cycle command: the carrier comparison (hil/pwm.py)
+            st = self.plant.advance(*applied_sequence(pending, self._ts_ns, carrier_half(self._pwm_update, k)))
+        elif pending.mirror:  # symmetric command: s0..s(n-1), s(n-2)..s0 (same durations)
             st = self.plant.advance(*pending.expanded())
         else:
             st = self.plant.advance(pending.states, pending.durations_ns)
@@ -361,8 +370,8 @@ class ClosedLoop:
         to the next pending command."""
         periods = out.periods
         n_st = len(applied.states)
-        states3 = (*applied.states, 0, 0)[:3]
-        durs3 = (*applied.durations_ns, 0, 0)[:3]
+        states3 = (*applied.states, 0, 0, 0)[:3]
+        durs3 = (*applied.durations_ns, 0, 0, 0)[:3]
         load_t = self._load_value(t)[0]
         periods.pack_into(
             periods.buf, periods.end,
@@ -370,7 +379,7 @@ class ClosedLoop:
             self._pending_tref, self._speed_ref_rpm * RPM_TO_RAD_S, load_t, n_st, *states3, *durs3,
             applied.vector_id, applied.candidates, applied.exec_time_ns, *self._pending_split,
             st.leg_transitions, st.boundary_transitions, st.narrow_pulses, 0, int(missed),
-            st.narrow_pulses_gated, applied.mirror, *extra)
+            st.narrow_pulses_gated, applied.mirror, *extra, *_flat_duties(applied))
         periods.end += periods.size
         out.completed_periods = k + 1
         self._pending, self._pending_split, self._pending_tref = self._next_pending

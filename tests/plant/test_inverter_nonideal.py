@@ -68,7 +68,7 @@ def test_dead_time_does_not_delay_falling_edge_for_positive_current() -> None:
 @pytest.mark.parametrize(
     ("states", "durations", "field"),
     [([8], [TS_NS], "code 8"), ([1], [TS_NS - 1], "sum to 99999 ns"), ([1, 2], [-5, TS_NS + 5], "negative"),
-     ([], [], "1..8 states")],
+     ([], [], "1..16 states")],
 )
 def test_bad_sequences_raise_clear_errors(states: list[int], durations: list[int], field: str) -> None:
     with pytest.raises(SequenceError, match=field):

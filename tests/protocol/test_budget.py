@@ -97,3 +97,15 @@ def test_cli_too_slow_exits_1(capsys: pytest.CaptureFixture[str]) -> None:
     assert "TOO SLOW" in out and err.startswith("hil: link-budget: too slow: can carries at most 1481 Hz")
     assert main(["link-budget", "--link", "canfd", "--rate", "5000"]) == 0
     assert "(fits)" in capsys.readouterr().out
+
+
+def test_duty_cycle_commands_are_budgeted() -> None:
+    """--command duties: classic CmdDutyA/B/C (3 × 8 bytes, as CmdA/B/C), CAN FD one 24-byte CmdDutyFd."""
+    can = link_budget("can", command="duties")
+    assert can.payloads_down == (8, 8, 8) and can.bits_down_worst == 3 * can_frame_bits(8)
+    fd, fd_states = link_budget("canfd", command="duties"), link_budget("canfd")
+    assert fd.payloads_down == (24,) and fd_states.payloads_down == (20,)
+    assert fd.bits_down_worst == sum(canfd_frame_bits(24)) > fd_states.bits_down_worst
+    with pytest.raises(BudgetError, match="command='pwm'"):
+        link_budget("can", command="pwm")
+    assert main(["link-budget", "--link", "canfd", "--command", "duties", "--rate", "5000"]) == 0

@@ -20,9 +20,10 @@ FLT_MAX = 3.4028234663852886e38
 #: (message, signal) -> raw range in use, where it is narrower than the bits on purpose (other raw values are
 #: invalid frames or rejected values: n_states 0, an enable or mode byte other than 0/1)
 NARROWER = {("CmdA", "n_states"): (1, 3), ("CmdFd", "n_states"): (1, 3), ("Setpoint", "enable"): (0, 1),
-            ("Setpoint", "mode"): (0, 1)}
+            ("Setpoint", "mode"): (0, 1), ("CmdDutyC", "n_duties"): (3, 6), ("CmdDutyFd", "n_duties"): (3, 6)}
 #: messages sent once per control period
-PER_PERIOD = {"MeasA", "MeasB", "Meas6A", "Meas6B", "Meas6C", "MeasFd", "MeasFd6", "CmdA", "CmdB", "CmdC", "CmdFd"}
+PER_PERIOD = {"MeasA", "MeasB", "Meas6A", "Meas6B", "Meas6C", "MeasFd", "MeasFd6", "CmdA", "CmdB", "CmdC", "CmdFd",
+              "CmdDutyA", "CmdDutyB", "CmdDutyC", "CmdDutyFd"}
 
 
 def _raw_range(sig: Any) -> tuple[int, int]:
@@ -50,7 +51,7 @@ def _baseline(msg: Any) -> dict[str, float]:
 
 
 def test_loads_strict_and_fd_frames_are_marked() -> None:
-    assert len(MESSAGES) == 18 and sum(len(m.signals) for m in MESSAGES) == 90
+    assert len(MESSAGES) == 22 and sum(len(m.signals) for m in MESSAGES) == 114
     for msg in MESSAGES:
         assert msg.is_fd == (msg.length > 8), msg.name  # VFrameFormat StandardCAN_FD exactly on the long frames
 

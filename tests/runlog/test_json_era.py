@@ -23,7 +23,7 @@ def json_era_blocks() -> tuple[np.ndarray, np.ndarray]:
     periods["seq"] = 100 + k
     periods["t"] = periods["seq"] * 100e-6
     for j, name in enumerate(PERIOD_DTYPE.names or ()):
-        if name in ("t", "seq"):
+        if name in ("t", "seq", "n_duties", "duties"):  # duties came after the JSON era: absent, read as 0
             continue
         field = periods[name]
         width = field.shape[1] if field.ndim == 2 else 1

@@ -61,7 +61,7 @@ def test_file_is_complete_indexed_mcap_with_cdr_channels(tmp_path: Path) -> None
         assert counts[topics["/periods"].id] == 100 and counts[topics["/frames"].id] == 20
         periods = [m for _, _, m in reader.iter_messages(topics=["/periods"])]
         assert periods[0].log_time == 0 and periods[0].sequence == 0 and periods[1].sequence == 1
-        assert {len(m.data) for m in periods} == {196}  # fixed size: header + PERIOD_DTYPE fields, aligned
+        assert {len(m.data) for m in periods} == {252}  # fixed size: header + PERIOD_DTYPE fields, aligned
         frames = [m for _, _, m in reader.iter_messages(topics=["/frames"])]
         assert {len(m.data) for m in frames} == {90} and frames[0].data[:4] == b"\x00\x01\x00\x00"
 

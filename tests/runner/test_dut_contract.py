@@ -91,6 +91,44 @@ def test_a_clean_run_completes_and_disables_the_target(tmp_path: Path, pty: tupl
     e.check_safe_and_complete()
 
 
+@pytest.mark.parametrize(("rule", "detail"), [("nan_duty", "duty 1 is NaN"),
+                                              ("range_duty", "duty 1 = inf outside 0..1")])
+def test_a_nan_or_out_of_range_duty_is_a_finding_not_a_zero_vector(rule: str, detail: str, tmp_path: Path,
+                                                                    pty: tuple[int, str]) -> None:
+    """A user's duty-cycle target (CmdDutyFd): clean periods apply, the bad duty ends the run with exit 4."""
+    e = _run(tmp_path, pty, "duties=0", f"{rule}=30")
+    assert e.rc == 4, e.metrics["end_reason"]
+    first = e.metrics["dut_violation_list"][0]
+    assert first["rule"] == "duty" and first["period"] == 30 and first["detail"] == detail
+    assert "duties=(0.5, " in first["frame"]
+    periods = read_periods(e.out / "run.mcap")
+    assert (periods["n_duties"][2:30] == 3).all() and (periods["n_states"][2:30] == 0).all()
+    e.check_safe_and_complete()
+
+
+def test_six_duties_drive_the_dual_three_phase_plant_and_three_are_a_finding(tmp_path: Path,
+                                                                              pty: tuple[int, str]) -> None:
+    """A user's target for the dual three-phase machine sends six duties (13 carrier segments per period, every
+    leg switching twice); the same target sending only three is a `duty` finding at the first period."""
+    six = ("--motor", "zhang2021-dtpmsm", "--controller", "external")
+    (tmp_path / "six").mkdir()
+    (tmp_path / "three").mkdir()
+    e = _run(tmp_path / "six", pty, "duties6=0", extra=six)
+    assert e.rc == 0 and e.metrics["dut_violations"] == 0, e.metrics["end_reason"]
+    periods = read_periods(e.out / "run.mcap")
+    assert (periods["n_duties"][2:] == 6).all() and (periods["leg_transitions"][2:] == 12).all()
+    master, port = os.openpty()
+    try:
+        bad = _run(tmp_path / "three", (master, os.ttyname(port)), "duties6=0", "duties3=0", extra=six)
+    finally:
+        os.close(port)
+        with contextlib.suppress(OSError):
+            os.close(master)  # unless the host link closed it
+    assert bad.rc == 4
+    first = bad.metrics["dut_violation_list"][0]
+    assert first["rule"] == "duty" and first["detail"] == "3 duties for a machine with 6 legs"
+
+
 @pytest.mark.parametrize(("rule", "expected"), [
     ("skip", "missing"), ("future_seq", "sequence"), ("bad_sum", "durations"), ("bad_state", "state_code"),
     ("second", "sequence"), ("bad_length", "frame"),

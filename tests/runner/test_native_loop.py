@@ -110,6 +110,22 @@ def test_classic_can_and_six_phases(make: Any, link: str, sensors: SensorConfig)
         assert na.outcome.periods.all()["mirror"].any()
 
 
+@pytest.mark.parametrize(("link", "pwm_update", "t_dead"), [
+    ("virtual", "single", 0.0), ("virtual,fd=false", "double", 0.0), ("virtual", "double", 1e-6),
+])
+def test_foc_via_duty_cycles_logs_identically(link: str, pwm_update: str, t_dead: float) -> None:
+    """foc's duty-cycle Commands (CmdDutyFd, CmdDutyA/B/C): the carrier comparison in C (hil/native/pwm_duty.c)
+    gives the oracle's records (hil/pwm.py) bit for bit, single and double update, with dead time."""
+    cfg = _three(link=link, sensors=SENSORS)
+    cfg = replace(cfg, controller="foc", pwm_update=pwm_update, motor=replace(cfg.motor, t_dead=t_dead, t_mpw=0.5e-6))
+    py, na = _both(cfg)
+    periods = na.outcome.periods.all()
+    _assert_same_records(py.outcome.periods.all(), periods)
+    _assert_same_metrics(py.metrics, na.metrics)
+    assert (periods["n_duties"][2:] == 3).all() and (periods["n_states"][2:] == 0).all()
+    assert ((periods["duties"][2:, :3] > 0.0) & (periods["duties"][2:, :3] < 1.0)).all()
+
+
 def test_load_steps_in_inertia_mode() -> None:
     sc = load_scenario("load-steps").with_overrides(settle_s=0.005, duration_s=0.03, load_step_s=0.01,
                                                     load_steps=((0.02, 2.0),))

@@ -11,7 +11,7 @@
 #include "dq_segment.h"
 
 #define GE_MAX_LEGS 6
-#define GE_MAX_SUBINTERVALS 8
+#define GE_MAX_SUBINTERVALS 16 /* the 13 segments of six duty cycles (pwm_duty.h) fit */
 
 /* Statistics of one advanced period, shared by both plant kernels (pl_/p6_period_stats_t). */
 typedef struct {

@@ -14,7 +14,7 @@
 #include "gate_edges.h"
 #include "machine_kernel.h"
 
-#define PL_MAX_SUBINTERVALS 8
+#define PL_MAX_SUBINTERVALS 16 /* the 13 segments of six duty cycles (pwm_duty.h) fit */
 #define PL_TRACE_COLUMNS 6 /* t [s], i_a, i_b, i_c [A], torque [N*m], omega_m [rad/s] */
 
 typedef struct {

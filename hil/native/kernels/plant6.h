@@ -16,7 +16,7 @@
 #include "gate_edges.h"
 #include "machine_kernel.h"
 
-#define P6_MAX_SUBINTERVALS 8
+#define P6_MAX_SUBINTERVALS 16 /* the 13 segments of six duty cycles (pwm_duty.h) fit */
 #define P6_LEGS 6
 /* t [s], i_a, i_b, i_c, i_u, i_v, i_w [A], torque [N*m], omega_m [rad/s], i_x, i_y [A] */
 #define P6_TRACE_COLUMNS 11

@@ -1,0 +1,45 @@
+"""The DUT contract of duty-cycle Commands (hil/runner/contract.py `check_duties`): NaN, out-of-range and a duty
+count other than the machine's legs are findings of rule `duty`; valid duties pass, whatever the durations."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from pmsm_hil.hil.runner.contract import DUTY, check_command, describe
+from pmsm_hil.protocol.codec import FrameCodec, decode_message
+from pmsm_hil.protocol.codec_duty import DUTY_NAN, DUTY_OUT_OF_RANGE, duty_raw, duty_value
+from pmsm_hil.protocol.messages import Command
+
+
+def _cmd(*duties: float) -> Command:
+    return Command(seq=7, states=(), durations_ns=(), duties=duties)
+
+
+@pytest.mark.parametrize(("duties", "max_state", "detail"), [
+    ((0.5, math.nan, 0.5), 7, "duty 1 is NaN"),
+    ((0.5, 0.5, 1.2), 7, "duty 2 = 1.2 outside 0..1"),
+    ((-0.1, 0.5, 0.5), 7, "duty 0 = -0.1 outside 0..1"),
+    ((0.5, math.inf, 0.5), 7, "duty 1 = inf outside 0..1"),
+    ((0.5, 0.5, 0.5), 63, "3 duties for a machine with 6 legs"),
+    ((0.5,) * 6, 7, "6 duties for a machine with 3 legs"),
+])
+def test_bad_duties_are_duty_findings(duties: tuple[float, ...], max_state: int, detail: str) -> None:
+    assert check_command(_cmd(*duties), 100_000, max_state) == (DUTY, detail)
+
+
+def test_valid_duties_pass_and_are_described() -> None:
+    assert check_command(_cmd(0.0, 0.5, 1.0), 100_000, 7) is None
+    assert check_command(_cmd(*(0.1 * j for j in range(6))), 100_000, 63) is None
+    assert describe(_cmd(0.25, 0.5, 1.0)) == "Command seq=7 duties=(0.25, 0.5, 1)"
+
+
+@pytest.mark.parametrize("profile", ["can", "canfd"])
+def test_bad_duties_survive_the_wire_as_findings(profile: str) -> None:
+    """A sender never clamps: NaN and out-of-range duties reach the host as NaN / +inf (reserved codes)."""
+    back = decode_message(FrameCodec(profile).encode(_cmd(0.3, math.nan, 7.0)))
+    assert isinstance(back, Command)
+    assert back.duties[0] == duty_value(duty_raw(0.3)) and math.isnan(back.duties[1]) and back.duties[2] == math.inf
+    assert check_command(back, 100_000, 7) == (DUTY, "duty 1 is NaN")
+    assert (duty_raw(math.nan), duty_raw(-1e-9), duty_raw(1.0 + 1e-9)) == (DUTY_NAN, DUTY_OUT_OF_RANGE,
+                                                                           DUTY_OUT_OF_RANGE)
