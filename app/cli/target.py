@@ -28,7 +28,27 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("--sil", metavar="PATH",
                    help="serve this SIL library (`hil fw build --board host`) from the C loop instead of the "
                         "reference firmware (implies --native; what `hil run --target sil:PATH` starts)")
+    p.add_argument("--rt-priority", type=int, default=0, metavar="N",
+                   help="with --native: serve at SCHED_FIFO priority N (1-99; what `hil run --mode realtime "
+                        "--rt-priority N --target spawn` starts); refused without CAP_SYS_NICE: a warning, served at "
+                        "normal priority")
     p.set_defaults(func=run)
+
+
+def _fifo(priority: int) -> None:
+    """This thread at SCHED_FIFO `priority` (the C serve loop runs in it); a refusal is a warning on stderr."""
+    import os
+    import sys
+
+    from pmsm_hil.hil.errors import ParameterError
+
+    if not 1 <= priority <= 99:
+        raise ParameterError(f"--rt-priority must be 1..99, got {priority}")
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except OSError as exc:
+        print(f"hil: warning: --rt-priority {priority}: SCHED_FIFO not permitted ({exc.strerror}); serving at "
+              "normal priority", file=sys.stderr, flush=True)
 
 
 def _positive(text: str) -> float:
@@ -47,6 +67,10 @@ def run(args: argparse.Namespace) -> int:
 
     if args.native or args.sil is not None:
         return _run_native(args)
+    if args.rt_priority:
+        from pmsm_hil.hil.errors import ParameterError
+
+        raise ParameterError("--rt-priority: with --native only (the Python target is not a real-time loop)")
 
     served = serve(args.link, args.controller, role=args.role, max_idle_s=args.idle_timeout,
                    parent_pid=args.parent_pid, on_ready=lambda: print(f"{READY_LINE} {args.link}", flush=True))
@@ -64,6 +88,8 @@ def _run_native(args: argparse.Namespace) -> int:
 
     if args.controller is not None:
         raise ParameterError("--controller: not with --native (the host's Setpoint selects the controller)")
+    if args.rt_priority:
+        _fifo(args.rt_priority)
     served = serve_native(args.link, role=args.role, max_idle_s=args.idle_timeout, parent_pid=args.parent_pid,
                           on_ready=lambda: print(f"{READY_LINE} {args.link}", flush=True), sil=args.sil)
     c = served.counters

@@ -77,6 +77,20 @@ void nl_rt_setup(const nl_config_t *cfg, nl_result_t *r, nl_rt_saved_t *saved)
     }
 }
 
+void nl_late_count(nl_result_t *r, int64_t late_ns)
+{
+    int64_t bin = late_ns / 1000;
+    if (bin < 0) {
+        bin = 0;
+    } else if (bin >= NL_LATE_BINS) {
+        bin = NL_LATE_BINS - 1;
+    }
+    r->late_hist[bin]++;
+    if (late_ns > r->late_max_ns) {
+        r->late_max_ns = late_ns;
+    }
+}
+
 void nl_rt_restore(const nl_rt_saved_t *saved)
 {
     if (saved->sched_set) {
