@@ -79,7 +79,7 @@ def _print_point(point: dict[str, Any], links: list[str], duration: float) -> No
                   f"{_num(f['overruns_per_100k'], '.1f'):>14} {_num(f['floor_ratio'], '.2f'):>8} "
                   f"{f['deadline_misses']:>7} {f['periods']:>9}")
             for line in f["warnings"]:
-                print(f"    {link} {loop}: {line}")
+                print(f"    ({link}, {loop}) {line}")
     if floor is not None:
         print(f"  floor: a bare C busy loop ({duration:g} s, same CPU and priority) saw "
               f"{floor['gaps_over_threshold_per_100k']:.1f} gaps > Ts/2 per 100k periods, {floor['gaps_over_10us']} "

@@ -1,0 +1,109 @@
+"""Control periods of 25 and 50 µs (issue 30): the closed loop holds speed and torque in process and over UDP to
+the native target, every period of a logged run is in its MCAP, the C loop's lateness histogram counts every
+period start, and the link budget says which links carry 40 kHz."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pmsm_hil.hil.errors import ParameterError
+from pmsm_hil.hil.presets_loader import load_motor
+from pmsm_hil.hil.runlog.reader import read_periods
+from pmsm_hil.hil.runner.budget_check import check_realtime_budget
+from pmsm_hil.hil.runner.run import run_closed_loop
+from pmsm_hil.hil.runner.run_config import RunConfig
+from pmsm_hil.hil.runner.scenario import load_scenario
+
+
+def _steady(ts: float, duration: float = 0.1, settle: float = 0.1, **kw: object) -> RunConfig:
+    sc = load_scenario("steady").with_overrides(settle_s=settle, duration_s=duration)
+    return RunConfig(motor=load_motor("niu2020-ipmsm"), scenario=sc, controller="mpcc", ts_s=ts, loop="native",
+                     **kw)  # type: ignore[arg-type]
+
+
+def _holds(metrics: dict[str, object], ts: float, periods: int) -> None:
+    assert metrics["end_code"] == 0, metrics.get("end_reason")
+    assert metrics["total_periods"] == periods
+    assert metrics["speed_mean_rpm"] == pytest.approx(1500.0, rel=0.01)  # type: ignore[arg-type]
+    assert metrics["torque_mean_nm"] == pytest.approx(7.0, rel=0.03)  # type: ignore[arg-type]
+    # f_av and the THD window follow Ts: the switching frequency stays below the control rate, the THD is finite
+    assert 0.0 < metrics["switching_freq_khz"] < 1e-3 / ts  # type: ignore[operator]
+    assert 0.0 < metrics["current_thd_pct"] < 10.0  # type: ignore[operator]
+
+
+@pytest.mark.parametrize("ts", [25e-6, 50e-6])
+def test_closed_loop_in_process_holds_speed_and_torque(ts: float) -> None:
+    res = run_closed_loop(_steady(ts))
+    _holds(res.metrics, ts, round(0.2 / ts))
+
+
+@pytest.mark.parametrize("ts", [25e-6, 50e-6])
+def test_closed_loop_over_udp_to_the_native_target_holds_speed_and_torque(ts: float) -> None:
+    res = run_closed_loop(_steady(ts, duration=0.05, settle=0.1, link="udp", target="spawn"))
+    _holds(res.metrics, ts, round(0.15 / ts))
+    assert res.metrics["link_spec"] == "udp"
+
+
+def test_every_period_of_a_logged_run_at_25_us_is_in_the_mcap(tmp_path: Path) -> None:
+    """Lockstep and real time, in process, logging on: the MCAP holds end_period + 1 periods, in order."""
+    for mode in ("lockstep", "realtime"):
+        res = run_closed_loop(_steady(25e-6, duration=0.1, settle=0.05, mode=mode, out_dir=tmp_path / mode))
+        assert res.mcap_path is not None and res.metrics["end_code"] == 0
+        periods = read_periods(res.mcap_path)
+        assert len(periods) == res.outcome.completed_periods == round(0.15 / 25e-6)
+        np.testing.assert_array_equal(periods["seq"], np.arange(len(periods)))
+
+
+def test_the_c_loop_counts_every_period_start_in_its_lateness_histogram() -> None:
+    res = run_closed_loop(_steady(50e-6, duration=0.02, settle=0.0, mode="realtime"))
+    hist = res.outcome.lateness_hist_1us
+    assert hist is not None and hist.shape == (1024,)
+    assert int(hist.sum()) == res.outcome.completed_periods == res.outcome.lateness_us.n
+    worst = min(int(res.outcome.lateness_us.maximum()), 1023)  # [µs], the last bin open-ended
+    assert hist[worst] > 0 and not hist[worst + 1:].any()
+    # the bins hold what the per-block lateness holds
+    edges = np.array([*(1000 * np.arange(1024)), np.iinfo(np.int64).max], dtype=np.int64)
+    np.testing.assert_array_equal(res.outcome.lateness_us.histogram(edges), hist)
+
+
+def test_lockstep_run_has_no_lateness_histogram() -> None:
+    assert run_closed_loop(_steady(25e-6, duration=0.01, settle=0.0)).outcome.lateness_hist_1us is None
+
+
+@pytest.mark.parametrize(("spec", "ts", "refused"), [
+    ("socketcan:vcan0", 50e-6, "675 µs on the wire"),  # classic CAN, 1 Mbit/s: 5 frames
+    ("socketcan:vcan0", 25e-6, "675 µs on the wire"),
+    ("socketcan:vcan0,fd=true", 25e-6, "154 µs on the wire"),  # CAN FD 1 / 5 Mbit/s
+    ("serial:pty,baudrate=12000000", 25e-6, "48 µs on the wire"),
+    ("serial:pty,baudrate=12000000", 50e-6, None),
+])
+def test_realtime_link_budget_at_small_ts(spec: str, ts: float, refused: str | None) -> None:
+    if refused is None:
+        check_realtime_budget(spec, ts)
+    else:
+        with pytest.raises(ParameterError, match=refused):
+            check_realtime_budget(spec, ts)
+
+
+def test_a_realtime_run_on_classic_can_at_25_us_is_refused_with_the_reason() -> None:
+    with pytest.raises(ParameterError, match=r"--link socketcan:vcan0: 2 \+ 3 frames per period need 675 µs"):
+        run_closed_loop(replace(_steady(25e-6), link="socketcan:vcan0", target="external", mode="realtime"))
+
+
+def test_link_budget_cli_at_25_us(capsys: pytest.CaptureFixture[str]) -> None:
+    from pmsm_hil.app.cli.main import main
+
+    assert main(["link-budget", "--link", "can", "--ts", "25e-6"]) == 1
+    cap = capsys.readouterr()
+    assert "too slow: 2 + 3 frames per period need 675.0 µs on the can wire" in cap.err and "40000 Hz" in cap.err
+    assert main(["link-budget", "--link", "canfd", "--ts", "25e-6", "--json"]) == 1
+    assert '"wire_time_per_period_us"' in capsys.readouterr().out
+    assert main(["link-budget", "--link", "udp", "--ts", "25e-6"]) == 0  # 1 Gbit/s Ethernet: 1.6 µs
+    out = capsys.readouterr().out
+    assert "udp (Ethernet 1000000000 bit/s" in out and "1.6 µs on the wire" in out and "(fits)" in out
+    assert main(["link-budget", "--link", "serial", "--baud", "12000000", "--ts", "50e-6"]) == 0
+    assert main(["link-budget", "--link", "can", "--ts", "0"]) == 2
+    assert "--ts must be a positive number" in capsys.readouterr().err
