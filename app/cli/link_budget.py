@@ -90,8 +90,8 @@ def run(args: argparse.Namespace) -> int:
     print(json.dumps(b.as_dict(), indent=1) if args.json else format_budget(b))
     if b.feasible is False:
         asked = f"--ts {args.ts:g} s is {b.rate_hz:.0f} Hz" if args.ts is not None else f"--rate is {b.rate_hz:.0f} Hz"
-        print(f"hil: link-budget: too slow: {b.frames_per_period_up} + {b.frames_per_period_down} frames per period "
-              f"need {b.wire_time_per_period_us:.1f} µs on the {b.link} wire (worst case): it carries at most "
-              f"{b.max_rate_hz:.0f} Hz of closed loop, {asked}", file=sys.stderr)
+        print(f"hil: link-budget: too slow: {b.link} carries at most {b.max_rate_hz:.0f} Hz of closed loop, {asked}: "
+              f"{b.frames_per_period_up} + {b.frames_per_period_down} frames per period need "
+              f"{b.wire_time_per_period_us:.1f} µs on the wire (worst case)", file=sys.stderr)
         return 1
     return 0

@@ -98,7 +98,8 @@ def test_link_budget_cli_at_25_us(capsys: pytest.CaptureFixture[str]) -> None:
 
     assert main(["link-budget", "--link", "can", "--ts", "25e-6"]) == 1
     cap = capsys.readouterr()
-    assert "too slow: 2 + 3 frames per period need 675.0 µs on the can wire" in cap.err and "40000 Hz" in cap.err
+    assert "too slow: can carries at most 1481 Hz of closed loop, --ts 2.5e-05 s is 40000 Hz: 2 + 3 frames per " \
+        "period need 675.0 µs on the wire" in cap.err
     assert main(["link-budget", "--link", "canfd", "--ts", "25e-6", "--json"]) == 1
     assert '"wire_time_per_period_us"' in capsys.readouterr().out
     assert main(["link-budget", "--link", "udp", "--ts", "25e-6"]) == 0  # 1 Gbit/s Ethernet: 1.6 µs
