@@ -14,16 +14,21 @@ from pmsm_hil.hil.atomic_write import atomic_path, ensure_dir, write_text_atomic
 
 
 def series(figures: dict[str, Any]) -> dict[str, tuple[list[int], float]]:
-    """`{name: (counts per 1 µs bin, maximum lateness [µs])}` of every measured (Ts, link, loop) with a C-loop
-    histogram; the name says all three (e.g. 'Ts 25 µs inproc native')."""
+    """`{name: (counts per 1 µs bin, maximum [µs])}` of every measured (Ts, link, loop) with a C-loop lateness
+    histogram (e.g. 'Ts 25 µs inproc native'), and of each Ts's floor: the gaps between two clock reads of the
+    bare C busy loop (almost all in bin 0; the bins from 1 µs on are what the machine takes away)."""
     out: dict[str, tuple[list[int], float]] = {}
     for point in figures["points"]:
+        ts = f"Ts {point['ts_s'] * 1e6:g} µs"
         for link, loops in point.items():
             if not isinstance(loops, dict) or link == "floor":
                 continue
             for loop, f in loops.items():
                 if isinstance(f, dict) and f.get("histogram_1us") is not None:
-                    out[f"Ts {point['ts_s'] * 1e6:g} µs {link} {loop}"] = (f["histogram_1us"], f["lateness_max_us"])
+                    out[f"{ts} {link} {loop}"] = (f["histogram_1us"], f["lateness_max_us"])
+        floor = point.get("floor")
+        if floor is not None:
+            out[f"{ts} floor (bare C busy loop, gaps)"] = (floor["histogram_1us"], floor["max_gap_us"])
     return out
 
 
@@ -61,7 +66,8 @@ def histogram_png(path: Path, figures: dict[str, Any], data: dict[str, tuple[lis
         last = max((i for i, c in enumerate(counts) if c), default=0)
         top = max(top, last + 2)
         x = list(range(last + 2))
-        ax.step(x, [*counts[: last + 1], 0], where="post", label=f"{name} (max {max_us:.1f} µs)")
+        ax.step(x, [*counts[: last + 1], 0], where="post", label=f"{name} (max {max_us:.1f} µs)",
+                linestyle=":" if "floor" in name else "-")
     ax.set_yscale("log")
     ax.set_xlim(0, top)
     ax.set_ylim(0.8, None)

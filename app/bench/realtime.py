@@ -112,8 +112,9 @@ def measure_link(link: str, duration: float, ts: float, repeats: int, rt_priorit
 
 def gap_floor(duration: float, ts: float, rt_priority: int, cpu: int | None) -> dict[str, Any] | None:
     """What a bare C busy loop on the same CPU and priority sees for `duration` s: gaps between two clock reads
-    longer than Ts/2 (the default overrun threshold) per 100k periods, longer than 10 µs, the longest, and the
-    share of time lost in them — the floor under any loop's lateness here (None without the native extension)."""
+    longer than Ts/2 (the default overrun threshold) per 100k periods, longer than 10 µs, the longest, the
+    share of time lost in them and every gap per 1 µs bin (`histogram_1us`, the last open-ended) — the floor
+    under any loop's lateness here (None without the native extension)."""
     try:
         ffi, lib = native_lib()
     except NativeLoopUnavailableError:
@@ -124,7 +125,7 @@ def gap_floor(duration: float, ts: float, rt_priority: int, cpu: int | None) -> 
     periods = duration / ts
     return {"gaps_over_threshold_per_100k": 1e5 * int(probe.gaps) / periods, "gaps_over_10us": int(probe.gaps_10us),
             "max_gap_us": int(probe.max_gap_ns) / 1e3, "lost_pct": 100.0 * int(probe.lost_ns) / (duration * 1e9),
-            "refused_errno": refused}
+            "refused_errno": refused, "histogram_1us": [int(c) for c in probe.hist]}
 
 
 def floor_ratio(loop_per_100k: float | None, floor_per_100k: float) -> float | None:

@@ -129,7 +129,9 @@ int32_t nl_gap_probe(int64_t duration_ns, int64_t gap_ns, int32_t cpu, int32_t r
     while (last < end) {
         const int64_t t = nl_now_ns();
         const int64_t d = t - last;
+        const int64_t bin = d / 1000;
         out->reads++;
+        out->hist[bin < NL_LATE_BINS ? bin : NL_LATE_BINS - 1]++;
         if (d > 10000) {
             out->gaps_10us++;
         }

@@ -40,6 +40,7 @@ typedef struct {
     int64_t gaps_10us;         /* gaps longer than 10 µs */
     int64_t max_gap_ns;
     int64_t lost_ns;           /* total time in gaps longer than gap_ns */
+    int64_t hist[NL_LATE_BINS]; /* gaps per 1 us bin (the last open-ended), as the loop's lateness histogram */
 } nl_gap_probe_t;
 int32_t nl_gap_probe(int64_t duration_ns, int64_t gap_ns, int32_t cpu, int32_t rt_priority, nl_gap_probe_t *out);
 

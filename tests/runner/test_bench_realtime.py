@@ -41,6 +41,8 @@ def test_two_periods_both_links_histogram_and_load(tmp_path: Path, capsys: pytes
     assert sum(int(row[col]) for row in table[1:]) == 400  # every period start counted
     col = table[0].index("Ts 25 µs udp native")
     assert sum(int(row[col]) for row in table[1:]) == figures["points"][1]["udp"]["native"]["periods"]
+    col = table[0].index("Ts 25 µs floor (bare C busy loop, gaps)")  # the machine's own, beside the loops
+    assert sum(int(row[col]) for row in table[1:]) > 0
     assert prefix.with_suffix(".png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
@@ -70,3 +72,15 @@ def test_floor_ratio() -> None:
     assert floor_ratio(5.0, 0.0) == float("inf")
     assert floor_ratio(10.0, 5.0) == 2.0
     assert floor_ratio(None, 5.0) is None
+
+
+def test_the_floor_probe_bins_every_gap() -> None:
+    from pmsm_hil.app.bench.realtime import gap_floor
+
+    floor = gap_floor(0.02, 25e-6, 0, None)
+    assert floor is not None
+    hist = floor["histogram_1us"]
+    worst = min(int(floor["max_gap_us"]), 1023)
+    assert len(hist) == 1024 and hist[worst] > 0 and not any(hist[worst + 1:])
+    assert hist[0] > sum(hist[1:])  # almost every clock read follows the previous one within 1 µs
+    assert sum(hist[12:]) >= floor["gaps_over_threshold_per_100k"] * (0.02 / 25e-6) / 1e5  # gaps > 12.5 µs

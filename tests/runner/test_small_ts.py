@@ -108,3 +108,32 @@ def test_link_budget_cli_at_25_us(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["link-budget", "--link", "serial", "--baud", "12000000", "--ts", "50e-6"]) == 0
     assert main(["link-budget", "--link", "can", "--ts", "0"]) == 2
     assert "--ts must be a positive number" in capsys.readouterr().err
+
+
+def test_target_rt_priority_is_for_the_native_target_only(capsys: pytest.CaptureFixture[str]) -> None:
+    from pmsm_hil.app.cli.main import main
+
+    assert main(["target", "--link", "udp:47990:47991", "--rt-priority", "5"]) == 2
+    assert "--rt-priority: with --native only" in capsys.readouterr().err
+    assert main(["target", "--native", "--link", "udp:47990:47991", "--rt-priority", "100"]) == 2
+    assert "--rt-priority must be 1..99, got 100" in capsys.readouterr().err
+
+
+def test_a_spawned_native_target_runs_at_the_loops_priority(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Real time under --rt-priority over UDP: the spawned native target is asked for the same SCHED_FIFO
+    priority (its command line), so the pair is scheduled alike."""
+    from pmsm_hil.hil.runner import target_setup
+
+    seen: list[int] = []
+    spawn = target_setup._spawn_target
+
+    def record(*args: object, rt_priority: int = 0, **kw: object) -> object:
+        seen.append(rt_priority)
+        return spawn(*args, rt_priority=rt_priority, **kw)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(target_setup, "_spawn_target", record)
+    cfg = _steady(50e-6, duration=0.005, settle=0.0, link="udp", target="spawn", tolerate=10**6,
+                  watchdog_periods=10**6)
+    run_closed_loop(replace(cfg, mode="realtime", rt_priority=1))
+    run_closed_loop(cfg)  # lockstep: no priority asked
+    assert seen == [1, 0]
