@@ -154,3 +154,18 @@ def test_every_bundled_scenario_runs_at_25_us_as_at_100_us(name: str) -> None:
     assert fine["torque_mean_nm"] == pytest.approx(coarse["torque_mean_nm"], rel=0.02)
     assert fine["current_thd_pct"] < coarse["current_thd_pct"]
     assert fine["switching_freq_khz"] > coarse["switching_freq_khz"]
+
+
+def test_which_controllers_fit_a_period_on_the_mcu() -> None:
+    """`hil bench controllers --board mps2-an386` says per Ts which controllers fit: the worst estimated step
+    may take half the period (figures of the 2026-11-26 run: mpcc 6.58 µs max, mptc2 21.50 µs)."""
+    from pmsm_hil.app.cli.bench_controllers import format_mcu
+    from pmsm_hil.app.cli.bench_mcu import McuFigures, fits_ts
+
+    figs = [McuFigures(1, "mpcc", {"median": 1036, "p99": 1058, "max": 1106}, {"median": 6.17, "max": 6.58}),
+            McuFigures(8, "mptc2", {"median": 3557, "p99": 3599, "max": 3612}, {"median": 21.17, "max": 21.50})]
+    assert [[f.name for f in side] for side in fits_ts(figs, 25.0)] == [["mpcc"], ["mptc2"]]
+    assert [[f.name for f in side] for side in fits_ts(figs, 50.0)] == [["mpcc", "mptc2"], []]
+    lines = format_mcu(figs, None, 168e6, 200)
+    assert "  Ts = 25 µs (40 kHz) at 168 MHz: can mpcc; cannot mptc2 (needs ≥ 43.0 µs)" in lines
+    assert "  Ts = 50 µs (20 kHz) at 168 MHz: can mpcc, mptc2; cannot none" in lines
