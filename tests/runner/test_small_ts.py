@@ -169,3 +169,15 @@ def test_which_controllers_fit_a_period_on_the_mcu() -> None:
     lines = format_mcu(figs, None, 168e6, 200)
     assert "  Ts = 25 µs (40 kHz) at 168 MHz: can mpcc; cannot mptc2 (needs ≥ 43.0 µs)" in lines
     assert "  Ts = 50 µs (20 kHz) at 168 MHz: can mpcc, mptc2; cannot none" in lines
+
+
+@pytest.mark.timing
+def test_the_logger_keeps_up_with_real_time_at_25_us() -> None:
+    """The run logger takes period records and their frames faster than a real-time run at 40 kHz makes them,
+    with margin (measured 165–234k periods/s at load 8–16 on 2 vCPUs), so a real-time run at 25 µs never waits
+    for it; lockstep throughput with logging (the issue's 150k goal) is a quiet-machine figure (hil bench loop)."""
+    from pmsm_hil.app.bench.logger_limit import logger_limit
+
+    limit = logger_limit(100_000)
+    assert limit.periods_per_s > 40_000
+    assert 20.0 < limit.bytes_per_period < 400.0  # lz4-compressed records and frames, not an empty file
