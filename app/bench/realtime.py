@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import os
 import statistics
+import time
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
@@ -113,18 +114,21 @@ def measure_link(link: str, duration: float, ts: float, repeats: int, rt_priorit
 def gap_floor(duration: float, ts: float, rt_priority: int, cpu: int | None) -> dict[str, Any] | None:
     """What a bare C busy loop on the same CPU and priority sees for `duration` s: gaps between two clock reads
     longer than Ts/2 (the default overrun threshold) per 100k periods, longer than 10 µs, the longest, the
-    share of time lost in them and every gap per 1 µs bin (`histogram_1us`, the last open-ended) — the floor
-    under any loop's lateness here (None without the native extension)."""
+    share of the probe's time lost in them (its wall time: a stall may outlast `duration`) and every gap per
+    1 µs bin (`histogram_1us`, the last open-ended) — the floor under any loop's lateness here (None without the
+    native extension)."""
     try:
         ffi, lib = native_lib()
     except NativeLoopUnavailableError:
         return None
     probe = ffi.new("nl_gap_probe_t *")
+    t0 = time.monotonic_ns()
     refused = int(lib.nl_gap_probe(round(duration * 1e9), round(ts * 1e9 / 2), -1 if cpu is None else cpu,
                                    rt_priority, probe))
+    elapsed_ns = max(time.monotonic_ns() - t0, 1)  # ≥ duration: a stall can outlast the probe's own end
     periods = duration / ts
     return {"gaps_over_threshold_per_100k": 1e5 * int(probe.gaps) / periods, "gaps_over_10us": int(probe.gaps_10us),
-            "max_gap_us": int(probe.max_gap_ns) / 1e3, "lost_pct": 100.0 * int(probe.lost_ns) / (duration * 1e9),
+            "max_gap_us": int(probe.max_gap_ns) / 1e3, "lost_pct": 100.0 * int(probe.lost_ns) / elapsed_ns,
             "refused_errno": refused, "histogram_1us": [int(c) for c in probe.hist]}
 
 
