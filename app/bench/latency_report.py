@@ -72,7 +72,7 @@ def histogram_png(path: Path, figures: dict[str, Any], data: dict[str, tuple[lis
     ax.set_xlim(0, top)
     ax.set_ylim(0.8, None)
     ax.set_xlabel("lateness [µs] (1 µs bins; the last bin is 1023 µs and more)")
-    ax.set_ylabel("period starts")
+    ax.set_ylabel("period starts (floor: clock reads)")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
     ax.set_title(_title(figures, load_line), fontsize=9)
