@@ -27,7 +27,7 @@ from pmsm_hil.app.cli.bench_machines import (
     machine_for,
     six_phase_machine,
 )
-from pmsm_hil.app.cli.bench_mcu import McuFigures
+from pmsm_hil.app.cli.bench_mcu import STEP_SHARE, McuFigures, fits_ts, shortest_ts_us
 from pmsm_hil.app.cli.bench_mcu import measure as measure_mcu
 from pmsm_hil.app.cli.parsing import positive_int
 from pmsm_hil.hil.atomic_write import write_text_atomic
@@ -285,6 +285,10 @@ def format_figures(figures: list[ControllerFigures], note: str) -> list[str]:
     return lines
 
 
+#: the control periods `hil bench controllers --board mps2-an386` says each controller fits [µs]
+FITS_TS_US = (25.0, 50.0, 100.0)
+
+
 def format_mcu(figures: list[McuFigures], sizes: Sizes | None, mcu_clock_hz: float, steps: int) -> list[str]:
     """Printable table of the emulated-MCU figures beside the paper's Table 4."""
     mhz = mcu_clock_hz / 1e6
@@ -306,6 +310,13 @@ def format_mcu(figures: list[McuFigures], sizes: Sizes | None, mcu_clock_hz: flo
                      "16 KiB stack)")
     lines.append("own code: flash of the controller's source files (GNU ld map); shared files count for each user. "
                  "Instructions include the firmware API adapter (hil_app_step copying the measurement and command).")
+    lines.append(f"shortest Ts: the worst step may take {STEP_SHARE:.0%} of the period (the estimate is a lower bound; "
+                 "the rest is for the ADC/PWM interrupt and the link)")
+    for ts_us in FITS_TS_US:
+        can, cannot = fits_ts(figures, ts_us)
+        too_slow = ", ".join(f"{f.name} (needs ≥ {shortest_ts_us(f):.1f} µs)" for f in cannot) or "none"
+        lines.append(f"  Ts = {ts_us:g} µs ({1e3 / ts_us:g} kHz) at {mhz:g} MHz: can {', '.join(f.name for f in can)}"
+                     f"{'' if can else 'none'}; cannot {too_slow}")
     return lines
 
 

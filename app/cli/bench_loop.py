@@ -17,10 +17,12 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from pmsm_hil.app.bench.logger_limit import logger_limit
 from pmsm_hil.app.cli.parsing import non_negative_int, positive_float
 from pmsm_hil.hil.atomic_write import write_text_atomic
 from pmsm_hil.hil.load_fmu.spec import LoadFmuSpec
 from pmsm_hil.hil.presets_loader import load_motor
+from pmsm_hil.hil.runlog.reader import read_periods
 from pmsm_hil.hil.runner.reference_loop import reference_loop
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
@@ -33,6 +35,8 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("--duration", type=positive_float("--duration"), default=0.5,
                    help="simulated seconds per measurement (default 0.5)")
     p.add_argument("--repeats", type=non_negative_int("--repeats"), default=3, help="repeats (median)")
+    p.add_argument("--ts", type=positive_float("--ts"), default=100e-6, metavar="S",
+                   help="control period [s] of every measured run (default 100e-6; e.g. 25e-6 for 40 kHz)")
     p.add_argument("--cross-process", default="udp,serial,pycan",
                    help="comma list of cross-process links to measure (udp, serial, pycan; empty: none): the Python "
                         "pair, then the native pair (native loop + `hil target --native`) beside the Python pair, "
@@ -51,21 +55,27 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.set_defaults(func=run)
 
 
-def _base(duration: float) -> RunConfig:
-    """The Python loop's run (the issue-17 figures put the native loop beside it)."""
+def _base(duration: float, ts: float = 100e-6) -> RunConfig:
+    """The Python loop's run (the issue-17 figures put the native loop beside it), control period `ts` [s]."""
     scenario = load_scenario("steady").with_overrides(settle_s=0.0, duration_s=duration)
-    return RunConfig(motor=load_motor("niu2020-ipmsm"), scenario=scenario, controller="mpcc", loop="python")
+    return RunConfig(motor=load_motor("niu2020-ipmsm"), scenario=scenario, controller="mpcc", loop="python", ts_s=ts)
 
 
 def _median_rate(make: Callable[[], RunConfig], repeats: int, exclude_safe_stop: bool = False) -> dict[str, Any]:
     rates: list[float] = []
     extra: dict[str, Any] = {}
+    ring_waits = 0
+    logged_all = True
     for _ in range(max(repeats, 1)):
         res = run_closed_loop(make())
         excluded = (res.metrics.get("safe_stop_wait_ms") or 0.0) / 1e3 if exclude_safe_stop else 0.0
         rates.append(res.outcome.completed_periods / (res.outcome.wall_time_s - excluded))
         extra = res.metrics
-    return {"periods_per_s": statistics.median(rates), "runs": rates, "last_metrics": extra}
+        ring_waits += res.outcome.ring_waits
+        if res.mcap_path is not None:
+            logged_all = logged_all and len(read_periods(res.mcap_path)) == res.outcome.completed_periods
+    return {"periods_per_s": statistics.median(rates), "runs": rates, "last_metrics": extra,
+            "ring_waits": ring_waits, "logged_all": logged_all}
 
 
 @contextlib.contextmanager
@@ -171,13 +181,13 @@ def _udp_floor(progress: Callable[[str], None], round_trips: int = 5000) -> dict
 
 def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
             progress: Callable[[str], None] = lambda _msg: None, qemu: Path | None = None,
-            load_fmu: Path | None = None) -> dict[str, Any]:
+            load_fmu: Path | None = None, ts: float = 100e-6) -> dict[str, Any]:
     """All loop figures; keys documented in docs/benchmarks.md. `progress` gets one line per stage. The Python
     loop's rows (and the native/python ratios) need the test suite's reference loop (tests/oracle; not part of
     the product): without it they are left out and `python_loop` says so."""
     python = reference_loop() is not None
-    base = _base(duration) if python else replace(_base(duration), loop="native")
-    out: dict[str, Any] = {"duration_s": duration, "repeats": repeats}
+    base = _base(duration, ts) if python else replace(_base(duration, ts), loop="native")
+    out: dict[str, Any] = {"duration_s": duration, "repeats": repeats, "ts_s": ts}
     runs = f"{max(repeats, 1)} × {duration:g} s"
     if python:
         progress(f"lockstep in-process, logging off ({runs})")
@@ -200,6 +210,12 @@ def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
         n_on = _median_rate(lambda: replace(native, out_dir=Path(tmp) / f"run{next(counter)}"), repeats)
     out["lockstep_inproc_native_log_off_hz"] = n_off["periods_per_s"]
     out["lockstep_inproc_native_log_on_hz"] = n_on["periods_per_s"]
+    out["inproc_native_log_on_ring_waits"] = n_on["ring_waits"]
+    out["inproc_native_log_on_every_period_logged"] = n_on["logged_all"]
+    progress("the run logger's limit: period records and their frames fed to it as fast as it takes them")
+    limit = logger_limit()
+    out["logger_limit_hz"] = limit.periods_per_s
+    out["logger_limit_stall_s"] = limit.stall_s
     if load_fmu is not None:
         progress(f"lockstep in-process, native loop (C), load FMU {load_fmu.name}, logging off ({runs})")
         with_fmu = replace(native, load_fmu=LoadFmuSpec(load_fmu))
@@ -248,10 +264,11 @@ def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
             except Exception as exc:
                 out[f"lockstep_qemu_{transport}_error"] = str(exc)
     if realtime:
-        progress(f"real time in-process at 10 kHz ({duration:g} s)")
+        khz = f"{1e-3 / ts:g}khz"
+        progress(f"real time in-process at {khz} ({duration:g} s)")
         rt = run_closed_loop(replace(base, mode="realtime"))
-        out["realtime_inproc_10khz_lateness_us"] = rt.metrics.get("lateness_us")
-        out["realtime_inproc_10khz_deadline_misses"] = rt.metrics.get("deadline_misses")
+        out[f"realtime_inproc_{khz}_lateness_us"] = rt.metrics.get("lateness_us")
+        out[f"realtime_inproc_{khz}_deadline_misses"] = rt.metrics.get("deadline_misses")
     return out
 
 
@@ -262,22 +279,25 @@ def run(args: argparse.Namespace) -> int:
         print(f"bench loop: {msg} ...", file=sys.stderr, flush=True)
 
     figures = measure(args.duration, args.repeats, cross, not args.no_realtime, progress, qemu=args.qemu,
-                      load_fmu=args.load_fmu)
+                      load_fmu=args.load_fmu, ts=args.ts)
     load1, load5, _ = os.getloadavg()
-    print(f"closed loop, niu2020 IPMSM, MPCC, Ts = 100 µs, {args.duration} s simulated, median of {args.repeats}; "
-          f"load average {load1:.2f} / {load5:.2f} (1 / 5 min) at the end")
+    rate = 1.0 / args.ts
+    print(f"closed loop, niu2020 IPMSM, MPCC, Ts = {args.ts * 1e6:g} µs, {args.duration} s simulated, median of "
+          f"{args.repeats}; load average {load1:.2f} / {load5:.2f} (1 / 5 min) at the end")
     for key, value in figures.items():
         if key.startswith("udp_floor_") and key.endswith("_us"):
             print(f"  {key:<40} {value:>10.1f} µs per round trip (bare C, two processes)")
         elif key.endswith("_hz"):
-            print(f"  {key:<40} {value:>10.0f} periods/s  ({value * 1e-4:.2f}× real time at 10 kHz)")
+            print(f"  {key:<40} {value:>10.0f} periods/s  ({value / rate:.2f}× real time at {rate / 1e3:g} kHz)")
         elif key.endswith("_load_ratio"):
             print(f"  {key:<40} {value:>10.2f} ×  (beside a CPU burner / idle, same run)")
         elif key in ("logging_cost_pct", "rerun_cost_pct", "load_fmu_cost_pct"):
             print(f"  {key:<40} {value:>10.1f} %")
         elif key.startswith("native_speedup") or key == "pycan_native_speedup":
             print(f"  {key:<40} {value:>10.2f} ×  (native / python, same run)")
-        elif key not in ("duration_s", "repeats"):
+        elif key == "logger_limit_stall_s":
+            print(f"  {key:<40} {value:>10.3f} s  (the feeder waited for the logger's ring)")
+        elif key not in ("duration_s", "repeats", "ts_s"):
             print(f"  {key:<40} {value}")
     if args.json is not None:
         write_text_atomic(args.json, json.dumps(figures, indent=2, default=str) + "\n", option="--json")

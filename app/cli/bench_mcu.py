@@ -47,6 +47,22 @@ class McuFigures:
     own_files: list[str] = field(default_factory=list)
 
 
+#: share of the control period the controller's step may take on the MCU (docs/runner.md, "Control periods below
+#: 100 µs"): the estimate is a lower bound (1 cycle per instruction) and the rest of the period belongs to the
+#: ADC/PWM interrupt and the link
+STEP_SHARE = 0.5
+
+
+def shortest_ts_us(f: McuFigures) -> float:
+    """The shortest control period [µs] this controller's worst estimated step allows (max / STEP_SHARE)."""
+    return f.est_us["max"] / STEP_SHARE
+
+
+def fits_ts(figures: list[McuFigures], ts_us: float) -> tuple[list[McuFigures], list[McuFigures]]:
+    """(the controllers that can run at Ts = `ts_us` µs, those that cannot), in the order given."""
+    return ([f for f in figures if shortest_ts_us(f) <= ts_us], [f for f in figures if shortest_ts_us(f) > ts_us])
+
+
 def map_sizes(map_file: Path) -> dict[str, dict[str, int]]:
     """Per object file (by source name, e.g. 'mpcc.c'): bytes of text/rodata (flash), data, bss kept by the
     linker, from a GNU ld map file."""

@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 
+from pmsm_hil.protocol.errors import BudgetError
 from pmsm_hil.protocol.links.budget import (
     COMMAND_FORMS,
     DEFAULT_BAUD,
     DEFAULT_BITRATE,
     DEFAULT_DATA_BITRATE,
+    DEFAULT_ETHERNET_BITRATE,
     LINK_KINDS,
     LinkBudget,
     link_budget,
@@ -30,14 +33,19 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
         "2 bad arguments",
     )
     p.add_argument("--link", choices=LINK_KINDS, default="can", help="link type (default: %(default)s)")
-    p.add_argument("--bitrate", type=int, default=DEFAULT_BITRATE, help="CAN (nominal) bit rate, bit/s")
+    p.add_argument("--bitrate", type=int, default=None,
+                   help=f"CAN (nominal) bit rate, bit/s (default {DEFAULT_BITRATE}); udp: the Ethernet bit rate "
+                        f"(default {DEFAULT_ETHERNET_BITRATE})")
     p.add_argument("--data-bitrate", type=int, default=DEFAULT_DATA_BITRATE, help="CAN FD data bit rate, bit/s")
     p.add_argument("--baud", type=int, default=DEFAULT_BAUD, help="serial baud rate (8N1)")
     p.add_argument("--phases", type=int, choices=(3, 6), default=3, help="machine phases (default: %(default)s)")
     p.add_argument("--command", choices=COMMAND_FORMS, default="states",
                    help="Command form: switching states (CmdA/B/C, CmdFd) or duty cycles (CmdDutyA/B/C, CmdDutyFd) "
                         "(default: %(default)s)")
-    p.add_argument("--rate", type=float, default=DEFAULT_RATE_HZ, help="control rate, Hz (default: %(default)s)")
+    rate = p.add_mutually_exclusive_group()
+    rate.add_argument("--rate", type=float, default=None, help=f"control rate, Hz (default: {DEFAULT_RATE_HZ:g})")
+    rate.add_argument("--ts", type=float, default=None, metavar="S",
+                      help="control period [s] instead of --rate (e.g. 25e-6: 40 kHz)")
     p.add_argument("--auth", action="store_true",
                    help="serial frames carry the 6-byte authentication trailer (on by default for spawned targets; "
                         "docs/protocol.md, 'Authenticated frames')")
@@ -53,6 +61,8 @@ def format_budget(b: LinkBudget) -> str:
         speed = f"{b.bitrate} bit/s"
     elif b.link == "canfd":
         speed = f"{b.bitrate} / {b.data_bitrate} bit/s"
+    elif b.link == "udp":
+        speed = f"Ethernet {b.bitrate} bit/s; the host's network stack excluded"
     else:
         speed = f"{b.baud} Bd 8N1" + (", authenticated frames" if b.auth else "")
     lines = [
@@ -71,19 +81,26 @@ def format_budget(b: LinkBudget) -> str:
 def run(args: argparse.Namespace) -> int:
     """Print the budget; returns 0 if the link carries --rate, 1 if it is too slow (BudgetError on invalid
     arguments: `hil` prints it as one line, exit 2)."""
+    if args.ts is not None and not (math.isfinite(args.ts) and args.ts > 0):
+        raise BudgetError(f"--ts must be a positive number of seconds, got {args.ts!r}")
+    rate_hz = 1.0 / args.ts if args.ts is not None else DEFAULT_RATE_HZ if args.rate is None else args.rate
+    bitrate = args.bitrate if args.bitrate is not None else \
+        DEFAULT_ETHERNET_BITRATE if args.link == "udp" else DEFAULT_BITRATE
     b = link_budget(
         args.link,
         args.phases,
-        bitrate=args.bitrate,
+        bitrate=bitrate,
         data_bitrate=args.data_bitrate,
         baud=args.baud,
-        rate_hz=args.rate,
+        rate_hz=rate_hz,
         auth=args.auth,
         command=args.command,
     )
     print(json.dumps(b.as_dict(), indent=1) if args.json else format_budget(b))
     if b.feasible is False:
-        print(f"hil: link-budget: too slow: {b.link} carries at most {b.max_rate_hz:.0f} Hz of closed loop, "
-              f"--rate is {b.rate_hz:.0f} Hz", file=sys.stderr)
+        asked = f"--ts {args.ts:g} s is {b.rate_hz:.0f} Hz" if args.ts is not None else f"--rate is {b.rate_hz:.0f} Hz"
+        print(f"hil: link-budget: too slow: {b.link} carries at most {b.max_rate_hz:.0f} Hz of closed loop, {asked}: "
+              f"{b.frames_per_period_up} + {b.frames_per_period_down} frames per period need "
+              f"{b.wire_time_per_period_us:.1f} µs on the wire (worst case)", file=sys.stderr)
         return 1
     return 0

@@ -33,7 +33,27 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("--auth-key-stdin", action="store_true",
                    help="read the frames' authentication key (hex) as a line from stdin: how `hil run` hands a "
                         "spawned target its key (docs/protocol.md, 'Authenticated frames')")
+    p.add_argument("--rt-priority", type=int, default=0, metavar="N",
+                   help="with --native: serve at SCHED_FIFO priority N (1-99; what `hil run --mode realtime "
+                        "--rt-priority N --target spawn` starts); refused without CAP_SYS_NICE: a warning, served at "
+                        "normal priority")
     p.set_defaults(func=run)
+
+
+def _fifo(priority: int) -> None:
+    """This thread at SCHED_FIFO `priority` (the C serve loop runs in it); a refusal is a warning on stderr."""
+    import os
+    import sys
+
+    from pmsm_hil.hil.errors import ParameterError
+
+    if not 1 <= priority <= 99:
+        raise ParameterError(f"--rt-priority must be 1..99, got {priority}")
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except OSError as exc:
+        print(f"hil: warning: --rt-priority {priority}: SCHED_FIFO not permitted ({exc.strerror}); serving at "
+              "normal priority", file=sys.stderr, flush=True)
 
 
 def _positive(text: str) -> float:
@@ -71,6 +91,10 @@ def run(args: argparse.Namespace) -> int:
     args.spec = _link_spec(args)
     if args.native or args.sil is not None:
         return _run_native(args)
+    if args.rt_priority:
+        from pmsm_hil.hil.errors import ParameterError
+
+        raise ParameterError("--rt-priority: with --native only (the Python target is not a real-time loop)")
 
     served = serve(args.spec, args.controller, role=args.role, max_idle_s=args.idle_timeout,
                    parent_pid=args.parent_pid, on_ready=lambda: _ready(args))
@@ -88,6 +112,8 @@ def _run_native(args: argparse.Namespace) -> int:
 
     if args.controller is not None:
         raise ParameterError("--controller: not with --native (the host's Setpoint selects the controller)")
+    if args.rt_priority:
+        _fifo(args.rt_priority)
     served = serve_native(args.spec, role=args.role, max_idle_s=args.idle_timeout, parent_pid=args.parent_pid,
                           on_ready=lambda: _ready(args), sil=args.sil, sil_debug_fd=args.sil_debug_fd)
     c = served.counters

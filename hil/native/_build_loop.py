@@ -114,6 +114,7 @@ typedef struct {
 #define NL_SPIN_NEAR_MISS_NS ...
 typedef struct {
     int64_t reads, gaps, gaps_10us, max_gap_ns, lost_ns;
+    int64_t hist[1024];  /* NL_LATE_BINS: cffi checks the layout against loop_rt.h when it compiles */
 } nl_gap_probe_t;
 int32_t nl_gap_probe(int64_t duration_ns, int64_t gap_ns, int32_t cpu, int32_t rt_priority, nl_gap_probe_t *out);
 typedef struct {

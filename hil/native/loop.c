@@ -846,6 +846,7 @@ static int32_t period(loop_t *L, int64_t k)
         const int64_t now = nl_wait_until(L->next_start, c->spin_ns);
         const int64_t late = now - L->next_start;
         L->slot->lateness_ns[L->slot->n_periods] = late;
+        nl_late_count(r, late);
         if (late > c->overrun_ns) {
             r->overruns++;
         }

@@ -22,6 +22,7 @@
 #define NL_REF_CHANGES 16          /* speed-reference changes per run */
 #define NL_LOAD_BREAKPOINTS 8      /* load breakpoints inside one period (= MAX_LOAD_BREAKPOINTS) */
 #define NL_RULES 6                 /* missing, sequence, state_code, durations, frame, duty (contract.RULES order) */
+#define NL_LATE_BINS 1024          /* real time: lateness histogram bins of 1 us (0..1022 us, the last from 1023 us on) */
 
 /* The contract rules (index into nl_result_t.by_rule). */
 #define NL_RULE_MISSING 0
@@ -206,6 +207,9 @@ typedef struct {
     int64_t wall_ns;           /* wall time of the loop [ns] */
     /* real-time set-up: 0 ok / not asked, else the errno of the refused call */
     int32_t rt_mlock_errno, rt_sched_errno, rt_affinity_errno;
+    /* real time: period starts per 1 us lateness bin (nl_late_count: the last bin open-ended), the latest [ns] */
+    int64_t late_hist[NL_LATE_BINS];
+    int64_t late_max_ns;
 } nl_result_t;
 
 typedef struct nl_handle nl_handle_t;

@@ -77,6 +77,20 @@ void nl_rt_setup(const nl_config_t *cfg, nl_result_t *r, nl_rt_saved_t *saved)
     }
 }
 
+void nl_late_count(nl_result_t *r, int64_t late_ns)
+{
+    int64_t bin = late_ns / 1000;
+    if (bin < 0) {
+        bin = 0;
+    } else if (bin >= NL_LATE_BINS) {
+        bin = NL_LATE_BINS - 1;
+    }
+    r->late_hist[bin]++;
+    if (late_ns > r->late_max_ns) {
+        r->late_max_ns = late_ns;
+    }
+}
+
 void nl_rt_restore(const nl_rt_saved_t *saved)
 {
     if (saved->sched_set) {
@@ -115,7 +129,9 @@ int32_t nl_gap_probe(int64_t duration_ns, int64_t gap_ns, int32_t cpu, int32_t r
     while (last < end) {
         const int64_t t = nl_now_ns();
         const int64_t d = t - last;
+        const int64_t bin = d / 1000;
         out->reads++;
+        out->hist[bin < NL_LATE_BINS ? bin : NL_LATE_BINS - 1]++;
         if (d > 10000) {
             out->gaps_10us++;
         }

@@ -40,8 +40,13 @@ typedef struct {
     int64_t gaps_10us;         /* gaps longer than 10 µs */
     int64_t max_gap_ns;
     int64_t lost_ns;           /* total time in gaps longer than gap_ns */
+    int64_t hist[NL_LATE_BINS]; /* gaps per 1 us bin (the last open-ended), as the loop's lateness histogram */
 } nl_gap_probe_t;
 int32_t nl_gap_probe(int64_t duration_ns, int64_t gap_ns, int32_t cpu, int32_t rt_priority, nl_gap_probe_t *out);
+
+/* Count one period start `late_ns` late into r's lateness histogram (1 us bins, NL_LATE_BINS, the last open-ended;
+ * negative lateness counts in bin 0) and its maximum: a few instructions per period, no Python per period. */
+void nl_late_count(nl_result_t *r, int64_t late_ns);
 
 /* Undo what nl_rt_setup changed. */
 void nl_rt_restore(const nl_rt_saved_t *saved);

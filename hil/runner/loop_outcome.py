@@ -41,6 +41,11 @@ class LoopOutcome:
     lateness_ns: list[int] = field(default_factory=list)
     #: real time: lateness of every period start [µs] (exact quantiles from counts)
     lateness_us: IntQuantiles = field(default_factory=lambda: IntQuantiles(1e-3))
+    #: real time, the C loop: period starts per 1 µs lateness bin [i, i+1) µs, the last bin open-ended (counted
+    #: in C per period, hil/native/loop_rt.c nl_late_count); None for the reference loop and lockstep runs
+    lateness_hist_1us: npt.NDArray[np.int64] | None = None
+    #: the C loop: times it waited for its consumer (the drain to metrics and the logger) to hand a slot back
+    ring_waits: int = 0
     end_reason: str = "completed"
     #: how the run ended (`EndCode`: the exit code of `hil run`)
     end_code: int = EndCode.COMPLETED

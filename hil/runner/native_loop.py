@@ -246,6 +246,9 @@ class NativeLoop:
         out.violation_count = int(res.violation_count)
         out.violations_by_rule = {rule: int(res.by_rule[j]) for j, rule in enumerate(RULES) if res.by_rule[j]}
         out.candidate_checked, out.candidate_misses = int(res.candidate_checked), int(res.candidate_misses)
+        out.ring_waits = int(res.ring_waits)
+        if cfg.mode == "realtime":  # the C loop's own lateness histogram (1 µs bins), counted per period in C
+            out.lateness_hist_1us = np.frombuffer(self._ffi.buffer(res.late_hist), dtype=np.int64).copy()
         self._add_link_counters()
         self.link.rt_errnos = (int(res.rt_mlock_errno), int(res.rt_sched_errno), int(res.rt_affinity_errno))
         if self._tap is not None:

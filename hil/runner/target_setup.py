@@ -133,7 +133,8 @@ def _target_link_stats(proc: subprocess.Popen[bytes]) -> dict[str, int]:
 
 def _spawn_target(spec: str, native: bool = False, sil: str | None = None,
                   pass_fds: tuple[int, ...] = (), key: bytes | None = None,
-                  sil_debug: SilDebugSlot | None = None) -> tuple[subprocess.Popen[bytes], IO[bytes]]:
+                  sil_debug: SilDebugSlot | None = None,
+                  rt_priority: int = 0) -> tuple[subprocess.Popen[bytes], IO[bytes]]:
     """Start `hil target` (`--native`: its C serve loop; `sil`: serving that SIL library, in its own process
     group so a terminal's Ctrl-C reaches the runner only, which stops it in order) on `spec` and wait for its
     ready line; raises TargetError with its own error line if it exits first (a port in use, a bad library) or
@@ -145,7 +146,8 @@ def _spawn_target(spec: str, native: bool = False, sil: str | None = None,
     cmd = [sys.executable, "-m", "pmsm_hil.app.cli.main", "target", "--link", spec, "--role", "target",
            "--parent-pid", str(os.getpid()), "--idle-timeout", repr(SPAWNED_IDLE_TIMEOUT_S), *(["--native"] * native),
            *(["--sil", sil] if sil is not None else []), *(["--auth-key-stdin"] if key is not None else []),
-           *(["--sil-debug-fd", str(sil_debug.fd)] if sil_debug is not None else [])]
+           *(["--sil-debug-fd", str(sil_debug.fd)] if sil_debug is not None else []),
+           *(["--rt-priority", str(rt_priority)] if rt_priority else [])]  # the C serve loop at SCHED_FIFO
     err = tempfile.TemporaryFile()  # noqa: SIM115 (the connection owns it: `close` forwards it)
     # its own session: a terminal's Ctrl-C (or a SIGTERM to the run's process group) reaches the run, which
     # stops the loop, sends the disabling Setpoint and then stops the target (`_stop`), not the target first
@@ -222,7 +224,9 @@ def _connect_spawned(cfg: RunConfig, codec: FrameCodec, native: bool, sil: str |
     host_link = open_link(specs.host, "host")
     conn = TargetConnection(TargetClient(host_link, codec), host_link, extra=list(specs.keep_open))
     try:
-        conn.process, conn.process_stderr = _spawn_target(specs.target, native, sil, key=key, sil_debug=sil_debug)
+        rt = cfg.rt_priority if native and cfg.mode == "realtime" else 0  # the pair at the same priority
+        conn.process, conn.process_stderr = _spawn_target(specs.target, native, sil, key=key, sil_debug=sil_debug,
+                                                          rt_priority=rt)
         _await_session(host_link)
     except BaseException:
         conn.close()

@@ -8,8 +8,13 @@ conservatively) and data phase (ESI + DLC 5 bits + 8n + the remaining dynamic st
 floor((22 + 8n - 1)/4) - 4, stuff count 4 bits, CRC 17 (n ≤ 16) or 21, fixed stuff bits
 ceil((4 + crc)/4)) at the data rate.
 Serial (8N1, 10 bits per byte): COBS(7-byte header + n + 2-byte CRC) + 0x00 delimiter; authenticated frames
-(`auth`, protocol/links/auth.py) add their 6-byte trailer (freshness 2 + MAC 4) inside the COBS block.
-Six-phase uses the reserved layouts (classic: + MeasC 8 bytes; FD/serial: MeasFd6 24 bytes).
+(`auth`, protocol/links/auth.py) add their 6-byte trailer (freshness 2 + MAC 4) inside the COBS block (UDP: inside
+the datagram).
+UDP (one datagram per frame, CAN FD sized payloads): session id 4 + header + n + CRC 2 bytes of UDP payload, plus
+UDP 8, IPv4 20, Ethernet header and FCS 18 (padded to the 64-byte minimum frame), preamble/SFD 8 and the
+inter-frame gap 12 bytes on the wire, at `bitrate` (default for udp: 1 Gbit/s Ethernet). This is the wire only:
+the host's network stack costs more (a loopback round trip is ~10 µs here, `hil bench loop` udp_floor).
+Six-phase uses the reserved layouts (classic: + MeasC 8 bytes; FD/serial/udp: MeasFd6 24 bytes).
 Commands: "states" (switching states: CmdA + CmdB + CmdC / CmdFd 20 bytes) or "duties" (duty-cycle form:
 CmdDutyA + CmdDutyB + CmdDutyC, 3 × 8 bytes / CmdDutyFd 24 bytes).
 """
@@ -26,11 +31,20 @@ from pmsm_hil.protocol.links.auth import TRAILER
 from pmsm_hil.protocol.links.cobs import CRC_SIZE
 from pmsm_hil.protocol.links.wire import HEADER_SIZE
 
-LinkKind = Literal["can", "canfd", "serial"]
-LINK_KINDS: tuple[LinkKind, ...] = ("can", "canfd", "serial")
+LinkKind = Literal["can", "canfd", "serial", "udp"]
+LINK_KINDS: tuple[LinkKind, ...] = ("can", "canfd", "serial", "udp")
 #: the Command forms (`hil link-budget --command`)
 COMMAND_FORMS: tuple[str, ...] = ("states", "duties")
 DEFAULT_BITRATE = 1_000_000
+#: udp: the Ethernet bit rate when none is given [bit/s]
+DEFAULT_ETHERNET_BITRATE = 1_000_000_000
+#: udp: bytes per datagram beyond the frame: session id 4 (udp_bus.SESSION) + CRC 2
+UDP_FRAMING = 4 + 2
+#: Ethernet: UDP 8 + IPv4 20 bytes in the Ethernet payload; header 14 + FCS 4; preamble/SFD 8 + inter-frame gap 12
+UDP_IP_HEADERS = 8 + 20
+ETHERNET_FRAME_OVERHEAD = 14 + 4
+ETHERNET_WIRE_EXTRA = 8 + 12
+ETHERNET_MIN_FRAME = 64
 DEFAULT_DATA_BITRATE = 5_000_000
 DEFAULT_BAUD = 3_000_000
 MEAS_C_LENGTH = 8  # reserved 0x102: seq u16 + i_u, i_v, i_w int16
@@ -56,6 +70,14 @@ def serial_frame_bytes(n: int, auth: bool = False) -> int:
     """Bytes on the line for one frame: COBS(header + payload [+ auth trailer] + CRC) + delimiter."""
     raw = HEADER_SIZE + n + (TRAILER if auth else 0) + CRC_SIZE
     return int(raw + max(1, math.ceil(raw / 254)) + 1)
+
+
+def udp_frame_bytes(n: int, auth: bool = False) -> int:
+    """Bytes on an Ethernet wire for one frame with n payload bytes sent as a UDP datagram [+ auth trailer]
+    (module docstring)."""
+    payload = HEADER_SIZE + n + (TRAILER if auth else 0) + UDP_FRAMING
+    ethernet = max(payload + UDP_IP_HEADERS + ETHERNET_FRAME_OVERHEAD, ETHERNET_MIN_FRAME)
+    return ethernet + ETHERNET_WIRE_EXTRA
 
 
 @dataclass(frozen=True, slots=True)
@@ -121,13 +143,14 @@ def link_budget(
     auth: bool = False,
     command: str = "states",
 ) -> LinkBudget:
-    """Worst-case budget of one control period on `link` ("can", "canfd" or "serial").
+    """Worst-case budget of one control period on `link` ("can", "canfd", "serial" or "udp").
 
-    `bitrate` is the (nominal) CAN bit rate [bit/s], `data_bitrate` the CAN FD data-phase rate,
+    `bitrate` is the (nominal) CAN bit rate [bit/s] (udp: the Ethernet bit rate), `data_bitrate` the CAN FD
+    data-phase rate,
     `baud` the serial line rate (8N1). The closed loop sends measurement then command sequentially,
     so max_rate_hz = 1 / (up + down wire time), compute time excluded. bus_load_pct: CAN shares one
-    medium (up + down)/Ts; serial is full duplex, max(up, down)/Ts. `auth`: serial frames carry the
-    authentication trailer (CAN links are not authenticated)."""
+    medium (up + down)/Ts; serial and switched Ethernet are full duplex, max(up, down)/Ts. `auth`: serial and
+    UDP frames carry the authentication trailer (CAN links are not authenticated)."""
     if link not in LINK_KINDS:
         raise BudgetError(f"link={link!r} unknown (expected one of {', '.join(LINK_KINDS)})")
     if phases not in (3, 6):
@@ -153,6 +176,10 @@ def link_budget(
                 nom, dat = canfd_frame_bits(n)
                 bits += nom + dat
                 seconds += nom / bitrate + dat / data_bitrate
+            elif link == "udp":
+                b = 8 * udp_frame_bytes(n, auth)
+                bits += b
+                seconds += b / bitrate
             else:
                 b = 10 * serial_frame_bytes(n, auth)
                 bits += b
@@ -165,7 +192,7 @@ def link_budget(
     load = None
     feasible = None
     if rate_hz is not None:
-        busy = max(t_up, t_down) if link == "serial" else t_period
+        busy = max(t_up, t_down) if link in ("serial", "udp") else t_period  # full duplex
         load = busy * 1e-6 * rate_hz * 100.0
         feasible = t_period * 1e-6 * rate_hz <= 1.0
     return LinkBudget(
@@ -188,5 +215,5 @@ def link_budget(
         rate_hz,
         load,
         feasible,
-        auth and link == "serial",
+        auth and link in ("serial", "udp"),
     )

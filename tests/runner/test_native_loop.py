@@ -253,11 +253,11 @@ def test_rt_options_on_the_python_loop_are_said_not_applied() -> None:
 def test_bench_realtime_prints_both_loops_side_by_side(capsys: pytest.CaptureFixture[str]) -> None:
     from pmsm_hil.app.cli.main import main
 
-    assert main(["bench", "realtime", "--duration", "0.005", "--repeats", "1"]) == 0
+    assert main(["bench", "realtime", "--duration", "0.005", "--repeats", "1", "--links", "inproc"]) == 0
     out = capsys.readouterr().out
-    assert "load average" in out and "overruns/100k" in out
-    rows = [line.split() for line in out.splitlines() if line.strip().startswith(("python ", "native "))]
-    assert [r[0] for r in rows] == ["python", "native"] and all(r[-1] == "50" for r in rows)  # periods per loop
+    assert "load average" in out and "overruns/100k" in out and "p99.99 µs" in out
+    rows = [line.split() for line in out.splitlines() if line.strip().startswith("inproc ")]
+    assert [r[1] for r in rows] == ["python", "native"] and all(r[-1] == "50" for r in rows)  # periods per loop
     assert "floor: a bare C busy loop" in out  # what the machine itself allows, beside the loops
 
 
