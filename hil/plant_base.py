@@ -244,6 +244,11 @@ class PlantBase:
                           self._inertia)
 
     @property
+    def state_bytes(self) -> int:
+        """Size of the kernel's state struct [bytes] (a native loop's copy of the state: loop.c sample_adc)."""
+        return int(self._ffi.sizeof(self._s[0]))
+
+    @property
     def last_trace(self) -> npt.NDArray[np.float64]:
         """High-rate trace rows of the last period: columns TRACE_COLUMNS (view, copy to keep)."""
         return self._trace_np[: int(self._stats.trace_n)]

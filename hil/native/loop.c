@@ -351,7 +351,8 @@ static void from_target(loop_t *L)
 }
 
 /* --- plant and sensors --------------------------------------------------------------------------------- */
-static void sample(const loop_t *L, sample_t *smp)
+/* The kernel's exact sample of plant state `state` (fields a kind does not have: NaN). */
+static void sample_of(const loop_t *L, const void *state, sample_t *smp)
 {
     const nl_config_t *c = L->c;
     int j;
@@ -365,7 +366,12 @@ static void sample(const loop_t *L, sample_t *smp)
     smp->theta_e = c->nan;
     smp->omega_m = c->nan;
     smp->torque = c->nan;
-    c->kernel->sample(c->plant_params, c->plant_state, smp);
+    c->kernel->sample(c->plant_params, state, smp);
+}
+
+static void sample(const loop_t *L, sample_t *smp)
+{
+    sample_of(L, L->c->plant_state, smp);
 }
 
 /* Python's float % (the sign of the divisor). */
@@ -474,26 +480,19 @@ static int load_fmu_period(loop_t *L, double t, const sample_t *smp)
 }
 
 /* ClosedLoop._apply_and_trace: one period with the pending command (mirrored when it is). */
-static int advance(loop_t *L, int64_t k, ge_period_stats_t *st)
+/* The gate sequence of period k as the plant applies it: the pending Command's states (mirrored when asked) or
+ * the carrier comparison of its duties (hil/pwm.py applied_sequence); returns the number of segments. */
+static int32_t period_sequence(const loop_t *L, int64_t k, int32_t *states, int64_t *durs)
 {
     const nl_config_t *c = L->c;
     const nl_cmd_t *cmd = &L->pending.cmd;
-    int32_t states[PWM_MAX_SEGMENTS];
-    int64_t durs[PWM_MAX_SEGMENTS];
     int32_t n = cmd->n_states;
     int32_t j;
-    int64_t total = 0;
-    double load0 = 0.0;
-    double slope = 0.0;
-    double bp[3 * NL_LOAD_BREAKPOINTS];
-    int32_t n_bp = 0;
-    double *trace = c->plant_trace;
-    int rc;
-    if (cmd->n_duties != 0u) { /* the carrier comparison of the duties (hil/pwm.py applied_sequence) */
+    if (cmd->n_duties != 0u) {
         const int half = !c->pwm_double ? PWM_SINGLE : ((k & 1) == 0 ? PWM_RISING : PWM_FALLING);
-        n = pwm_duty_sequence(c->legs, cmd->duty_raw, c->ts_ns, half, states, durs);
+        return pwm_duty_sequence(c->legs, cmd->duty_raw, c->ts_ns, half, states, durs);
     }
-    for (j = 0; j < n && cmd->n_duties == 0u; ++j) {
+    for (j = 0; j < n; ++j) {
         states[j] = cmd->states[j];
         durs[j] = cmd->durations_ns[j];
     }
@@ -504,20 +503,52 @@ static int advance(loop_t *L, int64_t k, ge_period_stats_t *st)
             n++;
         }
     }
-    for (j = 0; j < n; ++j) {
-        total += durs[j];
-    }
+    return n;
+}
+
+/* The load over the next `total_ns` of plant time (inertia mode): torque at the start, slope and breakpoints;
+ * 0, or NL_PLANT_E_BREAKPOINTS. */
+static int period_load(loop_t *L, int64_t total_ns, double *load0, double *slope, double *bp, int32_t *n_bp)
+{
+    const nl_config_t *c = L->c;
+    *load0 = 0.0;
+    *slope = 0.0;
+    *n_bp = 0;
     if (L->inertia && c->load_fmu != NULL) {
-        load0 = c->load_fmu->torque; /* load_fmu_period: the FMU's output at the period start, held */
+        *load0 = c->load_fmu->torque; /* load_fmu_period: the FMU's output at the period start, held */
     } else if (L->inertia) {
         const uint64_t t_ns = c->kernel->time_ns(c->plant_state);
         const double t0 = (double)t_ns / NS_PER_S;
-        load_at(c, t0, &load0, &slope);
-        n_bp = load_breakpoints(c, t0, t0 + (double)total * 1e-9, bp);
-        if (n_bp < 0) {
-            L->r->plant_detail = -n_bp;
+        load_at(c, t0, load0, slope);
+        *n_bp = load_breakpoints(c, t0, t0 + (double)total_ns * 1e-9, bp);
+        if (*n_bp < 0) {
+            L->r->plant_detail = -*n_bp;
             return NL_PLANT_E_BREAKPOINTS;
         }
+    }
+    return 0;
+}
+
+static int advance(loop_t *L, int64_t k, ge_period_stats_t *st)
+{
+    const nl_config_t *c = L->c;
+    int32_t states[PWM_MAX_SEGMENTS];
+    int64_t durs[PWM_MAX_SEGMENTS];
+    const int32_t n = period_sequence(L, k, states, durs);
+    int32_t j;
+    int64_t total = 0;
+    double load0;
+    double slope;
+    double bp[3 * NL_LOAD_BREAKPOINTS];
+    int32_t n_bp;
+    double *trace = c->plant_trace;
+    int rc;
+    for (j = 0; j < n; ++j) {
+        total += durs[j];
+    }
+    rc = period_load(L, total, &load0, &slope, bp, &n_bp);
+    if (rc != 0) {
+        return rc;
     }
     if (k >= c->n_settle && c->trace_dt > 0.0) {
         nl_slot_t *s = L->slot;
@@ -532,6 +563,44 @@ static int advance(loop_t *L, int64_t k, ge_period_stats_t *st)
         L->slot->n_trace_rows += st->trace_n;
     }
     return rc;
+}
+
+/* The Measurement at the firmware's ADC instant, adc_delay_ns after the period start (--adc-delay): a copy of the
+ * plant (plant_scratch) advanced through the first adc_delay_ns of the period's gate sequence, then sampled; the
+ * plant itself is advanced over the whole period by `advance`, so the records stay the period-start samples. */
+static int sample_adc(loop_t *L, int64_t k, sample_t *smp)
+{
+    const nl_config_t *c = L->c;
+    int32_t states[PWM_MAX_SEGMENTS];
+    int64_t durs[PWM_MAX_SEGMENTS];
+    int32_t n = period_sequence(L, k, states, durs);
+    int32_t m = 0;
+    int64_t left = c->adc_delay_ns;
+    double load0;
+    double slope;
+    double bp[3 * NL_LOAD_BREAKPOINTS];
+    int32_t n_bp;
+    ge_period_stats_t st;
+    int rc;
+    while (m < n && left > 0) {
+        if (durs[m] >= left) {
+            durs[m] = left;
+        }
+        left -= durs[m];
+        ++m;
+    }
+    rc = period_load(L, c->adc_delay_ns, &load0, &slope, bp, &n_bp);
+    if (rc != 0) {
+        return rc;
+    }
+    memcpy(c->plant_scratch, c->plant_state, (size_t)c->kernel->state_size);
+    rc = c->kernel->advance(c->plant_params, c->plant_scratch, states, durs, m, load0, slope, bp, n_bp, 0.0, NULL, 0,
+                            &st);
+    if (rc != 0) {
+        return rc;
+    }
+    sample_of(L, c->plant_scratch, smp);
+    return 0;
 }
 
 /* --- the period -------------------------------------------------------------------------------------------- */
@@ -853,10 +922,26 @@ static int32_t period(loop_t *L, int64_t k)
     }
     follow_reference(L, k);
     sample(L, &smp);
-    if (send_measurement(L, k, t, &smp) != 0) {
-        return NL_END_ENCODE_ERROR;
+    rc = 0;
+    if (c->adc_delay_ns > 0) { /* the firmware's ADC samples later in the period than its start */
+        sample_t adc;
+        rc = c->load_fmu != NULL ? load_fmu_period(L, t, &smp) : 0; /* the period's load first: the copy sees it */
+        if (rc == 0) {
+            rc = sample_adc(L, k, &adc);
+        }
+        if (rc != 0) {
+            r->plant_rc = rc;
+            return NL_END_PLANT_ERROR;
+        }
+        if (send_measurement(L, k, t, &adc) != 0) {
+            return NL_END_ENCODE_ERROR;
+        }
+    } else {
+        if (send_measurement(L, k, t, &smp) != 0) {
+            return NL_END_ENCODE_ERROR;
+        }
+        rc = c->load_fmu != NULL ? load_fmu_period(L, t, &smp) : 0;
     }
-    rc = c->load_fmu != NULL ? load_fmu_period(L, t, &smp) : 0;
     if (rc == 0) {
         rc = advance(L, k, &st);
     }

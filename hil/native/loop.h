@@ -157,6 +157,8 @@ typedef struct {
     int64_t lockstep_timeout_ns; /* lockstep over a link: how long to wait for a Command [ns] (wall time) */
     const nl_sil_debug_t *sil_debug; /* a SIL target in its own process: its debug outputs, NULL: none */
     int32_t pwm_double;        /* duty-cycle Commands: 0 single update, 1 double (pwm_duty.h halves) */
+    int64_t adc_delay_ns;      /* the Measurement is sampled this long after the period start [ns] (0: at it) */
+    void *plant_scratch;       /* adc_delay_ns > 0: the kernel's state_size bytes for a copy of the plant state */
 } nl_config_t;
 
 /* One block of the ring. `trace` (rows x trace_columns doubles) is the caller's. */

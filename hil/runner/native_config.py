@@ -117,6 +117,9 @@ def fill_config(c: Any, ffi: Any, lib: Any, cfg: RunConfig, plant: PlantBase, co
     c.kernel = ffi.cast("mk_kernel_t *", view.kernel)
     c.plant_params, c.plant_state = ffi.cast("void *", view.params), ffi.cast("void *", view.state)
     c.plant_trace = ffi.cast("double *", view.trace)
+    c.adc_delay_ns = cfg.adc_delay_ns
+    scratch = ffi.new("char[]", plant.state_bytes) if cfg.adc_delay_ns > 0 else ffi.NULL
+    c.plant_scratch = scratch  # a copy of the plant state advanced to the ADC instant (loop.c sample_adc)
     c.trace_cap, c.trace_dt, c.trace_columns = view.trace_cap, view.trace_dt_s, len(plant.TRACE_COLUMNS)
     c.rpm_to_rad_s = RPM_TO_RAD_S
     c.dyno, c.inertia = 1 if sc.mechanics == "dyno" else 0, 1 if view.inertia else 0
@@ -137,7 +140,7 @@ def fill_config(c: Any, ffi: Any, lib: Any, cfg: RunConfig, plant: PlantBase, co
     c.rt_priority = cfg.rt_priority
     c.cpu = -1 if cfg.cpu is None else cfg.cpu
     c.lock_memory = 1 if cfg.mode == "realtime" else 0
-    return [load_t, load_v]
+    return [load_t, load_v, scratch]
 
 
 def rt_throttled() -> bool:

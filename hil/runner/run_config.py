@@ -169,6 +169,8 @@ class RunConfig:
     #: duty-cycle Commands (issue 27): `--pwm-update` single (carrier period Ts) or double (2·Ts, control at twice
     #: the PWM rate: even periods the rising half of the carrier, odd periods the falling half)
     pwm_update: str = default_of("pwm_update")
+    #: the firmware's ADC instant after the period start [s] (`--adc-delay`; 0: at the period start)
+    adc_delay_s: float = default_of("adc_delay_s")
 
     def __post_init__(self) -> None:
         cid = controller_id(self.controller)
@@ -185,6 +187,9 @@ class RunConfig:
             check_field(name, getattr(self, name))
         if abs(round(self.ts_s * 1e9) - self.ts_s * 1e9) > 1e-3:
             raise ParameterError(f"--ts must be a whole number of ns, got {self.ts_s} s")
+        if self.adc_delay_ns >= self.ts_ns:
+            raise ParameterError(f"--adc-delay must be shorter than the control period Ts = {self.ts_s:g} s (the "
+                                 f"Measurement of a period is sampled inside it), got {self.adc_delay_s:g} s")
         if self.target not in TARGET_KINDS:
             prefix = next((p for p in TARGET_PREFIXES if self.target.startswith(p)), None)
             if prefix is None or not self.target[len(prefix):].strip():
@@ -267,6 +272,11 @@ class RunConfig:
     def load_fmu_model(self) -> LoadFmuModel | None:
         """The checked model description of the load FMU (read once per file version), None without one."""
         return None if self.load_fmu is None else read_load_fmu_cached(self.load_fmu)
+
+    @property
+    def adc_delay_ns(self) -> int:
+        """The ADC instant after the period start [ns] (`--adc-delay`)."""
+        return round(self.adc_delay_s * 1e9)
 
     @property
     def ts_ns(self) -> int:

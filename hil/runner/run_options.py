@@ -275,6 +275,11 @@ RUN_OPTIONS: tuple[RunOption, ...] = (
               "duty-cycle Commands: the PWM timer's compare values loaded once per carrier period (single: carrier "
               "period = Ts, valley at each period start) or twice (double: control at twice the PWM rate, carrier "
               "period 2·Ts; docs/firmware_api.md)", "single", field="pwm_update", choices=PWM_UPDATES),
+    RunOption("adc_delay", "number",
+              "the firmware's ADC instant after the period start (the carrier valley; double update: valley or peak) "
+              "[s]: the Measurement is the plant sampled there, from the period's own gate sequence (the records "
+              "keep the period-start samples; docs/firmware_api.md)", 0.0, field="adc_delay_s", unit="s",
+              minimum=0.0, default_text="0: at the period start"),
     RunOption("rt_priority", "integer",
               "real time, native loop: SCHED_FIFO priority 1..99 of the loop thread (refused without CAP_SYS_NICE, "
               "said in the warnings)", 0, default_text="0: none", field="rt_priority", metavar="N", minimum=0,

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.mechanics import RPM_TO_RAD_S, DynoMechanics
 from pmsm_hil.hil.plant_base import PeriodStats, PlantBase
 from pmsm_hil.hil.pwm import applied_sequence, carrier_half, duties_record
@@ -170,6 +171,9 @@ class ClosedLoop:
         self._max_state = self.cfg.machine.layout.max_state_code
         self._ts_ns = cfg.ts_ns
         self._pwm_update = cfg.pwm_update
+        if cfg.adc_delay_ns:
+            raise ParameterError("--adc-delay: the reference loop samples at the period start only (the C loop "
+                                 "serves it)")
         self._overrun_ns = cfg.overrun_threshold_ns
         self._timeout_ns = int(cfg.lockstep_timeout_s * 1e9)
         self._wait_ns = 0
