@@ -136,6 +136,9 @@ METRICS: Final[tuple[Metric, ...]] = (
        "another process or on a board)", ".1f", source=RUN),
     _m("overruns", "overruns", "", "real time: periods that started later than `overrun_threshold_us`", "d", CLI,
        source=RUN),
+    _m("realtime_sync_us", "real-time sync", "µs", "real time over a link: period 0 is the synchronising exchange, "
+       "its Command awaited as in lockstep (a cold target's first answer); the wall clock of the periods starts "
+       "when it arrives; how long it took (null: in process, or no Command came)", ".1f", source=RUN),
     _m("overrun_threshold_us", "overrun threshold", "µs", "real time: `--overrun-threshold` (default Ts/2)", ".1f",
        source=RUN),
     _m("warnings", "warnings", "", "lines the summary warns with (overruns, tolerated violations)", "",

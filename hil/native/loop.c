@@ -325,7 +325,10 @@ static void from_link(loop_t *L)
         return;
     }
     t0 = nl_now_ns();
-    deadline = c->realtime ? L->next_start + c->ts_ns : t0 + c->lockstep_timeout_ns;
+    /* real time over a link: period 0 is the synchronising exchange, its Command awaited as in lockstep (a target
+     * in another process or on a board wakes from idle and runs its code the first time: cold); the wall clock of
+     * the periods starts when it arrives (period(): next_start) */
+    deadline = c->realtime && L->meas_sent > 1 ? L->next_start + c->ts_ns : t0 + c->lockstep_timeout_ns;
     while (!L->have_reply && l->recv(l->ctx, &f, deadline) > 0) {
         take_frame(L, &f);
     }
@@ -970,6 +973,13 @@ static int32_t period(loop_t *L, int64_t k)
         return NL_END_WATCHDOG;
     }
     L->next_start += c->ts_ns;
+    if (k == 0 && c->realtime && c->link != NULL) { /* the synchronising exchange done: real time starts now */
+        const int64_t now = nl_now_ns();
+        r->sync_ns = now - (L->next_start - c->ts_ns);
+        if (now > L->next_start) {
+            L->next_start = now;
+        }
+    }
     if ((k + 1) % NL_BLOCK == 0) {
         publish_slot(L, 0);
     }
@@ -1021,6 +1031,7 @@ void nl_run(nl_handle_t *h)
     }
     t_start = nl_now_ns();
     L.next_start = t_start;
+    h->res.sync_ns = -1;
     for (k = 0; k < h->cfg.n_total; ++k) {
         int32_t e;
         if (__atomic_load_n(&h->stop, __ATOMIC_ACQUIRE) || (L.slot == NULL && take_slot(&L) != 0)) {

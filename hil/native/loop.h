@@ -212,6 +212,8 @@ typedef struct {
     /* real time: period starts per 1 us lateness bin (nl_late_count: the last bin open-ended), the latest [ns] */
     int64_t late_hist[NL_LATE_BINS];
     int64_t late_max_ns;
+    /* real time over a link: wall time of the synchronising period 0, from its start to its Command [ns] (-1: none) */
+    int64_t sync_ns;
 } nl_result_t;
 
 typedef struct nl_handle nl_handle_t;

@@ -60,6 +60,8 @@ class LoopOutcome:
     violations_by_rule: dict[str, int] = field(default_factory=dict)
     #: real time: periods that started later than the overrun threshold
     overruns: int = 0
+    #: real time over a link: how long the synchronising period 0 waited for its Command [µs] (None: not synced)
+    realtime_sync_us: float | None = None
     #: longest wait for a Command [ns] (wall time)
     max_wait_ns: int = 0
     #: injected link faults by kind (`--fault`), None without fault injection

@@ -242,6 +242,7 @@ class NativeLoop:
         out.paced_time_s = int(res.wall_ns) / 1e9
         out.lost_commands, out.deadline_misses = int(res.lost_commands), int(res.deadline_misses)
         out.late_commands, out.overruns = int(res.stale_commands), int(res.overruns)
+        out.realtime_sync_us = int(res.sync_ns) / 1e3 if int(res.sync_ns) >= 0 else None
         out.max_wait_ns = int(res.max_wait_ns)
         out.violation_count = int(res.violation_count)
         out.violations_by_rule = {rule: int(res.by_rule[j]) for j, rule in enumerate(RULES) if res.by_rule[j]}

@@ -213,6 +213,7 @@ def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection, sink: Ru
         metrics["lateness_histogram_us"] = lateness_histogram(lat)
         threshold_us = cfg.overrun_threshold_ns / 1e3
         metrics["overruns"] = out.overruns
+        metrics["realtime_sync_us"] = out.realtime_sync_us
         metrics["overrun_threshold_us"] = threshold_us
         if out.overruns or metrics["lateness_us"]["p99"] > threshold_us:
             warnings.append(f"real time: {out.overruns} of {lat.n} periods started more than {threshold_us:g} µs "
