@@ -20,6 +20,7 @@ from typing import Any, ClassVar
 
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.fluxmap import Interpolant, MapChecks, load_interpolant
+from pmsm_hil.hil.machine_params import check_preset_keys
 from pmsm_hil.protocol.ids import ParamId
 
 KIND = "pmsm-fluxmap"
@@ -59,13 +60,7 @@ class FluxMapParams:
     @classmethod
     def from_values(cls, values: dict[str, Any], name: str) -> FluxMapParams:
         """From a preset's values (`flux_map` resolved by the loader); ParameterError naming a bad key."""
-        known = {f.name for f in fields(cls)} - {"name"}
-        unknown = set(values) - known
-        if unknown:
-            raise ParameterError(f"unknown pmsm-fluxmap parameter(s) {', '.join(sorted(unknown))}")
-        missing = set(cls.REQUIRED) - set(values)
-        if missing:
-            raise ParameterError(f"missing pmsm-fluxmap parameter(s) {', '.join(sorted(missing))}")
+        check_preset_keys(values, {f.name for f in fields(cls)} - {"name"}, cls.REQUIRED, "pmsm-fluxmap ")
         return cls(name=name, **{k: _clean(k, v) for k, v in values.items()})
 
     def __post_init__(self) -> None:

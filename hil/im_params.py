@@ -12,6 +12,7 @@ from dataclasses import dataclass, fields, replace
 from typing import Any, ClassVar
 
 from pmsm_hil.hil.errors import ParameterError
+from pmsm_hil.hil.machine_params import check_preset_keys
 from pmsm_hil.protocol.ids import ParamId
 
 #: Names `--set NAME=VALUE` accepts for an induction machine, with their units.
@@ -72,13 +73,7 @@ class ImParams:
     @classmethod
     def from_values(cls, values: dict[str, Any], name: str) -> ImParams:
         """From a preset's `[parameters]` (kind = "im"); ParameterError naming a missing, unknown or invalid key."""
-        known = {f.name for f in fields(cls)} - {"name"}
-        unknown = set(values) - known
-        if unknown:
-            raise ParameterError(f"unknown induction-machine parameter(s) {', '.join(sorted(unknown))}")
-        missing = set(cls.REQUIRED) - set(values)
-        if missing:
-            raise ParameterError(f"missing induction-machine parameter(s) {', '.join(sorted(missing))}")
+        check_preset_keys(values, {f.name for f in fields(cls)} - {"name"}, cls.REQUIRED, "induction-machine ")
         return cls(name=name, **_clean(values))
 
     def __post_init__(self) -> None:

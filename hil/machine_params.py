@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from typing import Any, ClassVar, Protocol, Self, runtime_checkable
 
+from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.protocol.ids import ParamId
 
 
@@ -87,4 +88,15 @@ class MachineParams(Protocol):
         """The machine model the target is told before enabling (DBC ConfigParam id → value, SI)."""
 
 
-__all__ = ["MachineParams"]
+def check_preset_keys(values: dict[str, Any], known: set[str], required: tuple[str, ...], kind: str = "") -> None:
+    """ParameterError naming the keys of a preset's `[parameters]` a kind's class does not know, then the required
+    ones missing (`kind`: how the message names the machine, e.g. "induction-machine ")."""
+    unknown = set(values) - known
+    if unknown:
+        raise ParameterError(f"unknown {kind}parameter(s) {', '.join(sorted(unknown))}")
+    missing = set(required) - set(values)
+    if missing:
+        raise ParameterError(f"missing {kind}parameter(s) {', '.join(sorted(missing))}")
+
+
+__all__ = ["MachineParams", "check_preset_keys"]

@@ -7,6 +7,7 @@ from dataclasses import dataclass, fields, replace
 from typing import Any, ClassVar
 
 from pmsm_hil.hil.errors import ParameterError
+from pmsm_hil.hil.machine_params import check_preset_keys
 from pmsm_hil.protocol.ids import ParamId
 
 #: Names accepted by ``--set NAME=VALUE`` on every command that takes a motor, with their units.
@@ -83,13 +84,7 @@ class PmsmParams:
     @classmethod
     def from_values(cls, values: dict[str, Any], name: str) -> PmsmParams:
         """A PMSM from a preset's parameter values; ParameterError naming a missing, unknown or invalid key."""
-        known = set(cls.__dataclass_fields__) - {"name"}
-        unknown = set(values) - known
-        if unknown:
-            raise ParameterError(f"unknown parameter(s) {', '.join(sorted(unknown))}")
-        missing = set(cls.REQUIRED) - set(values)
-        if missing:
-            raise ParameterError(f"missing parameter(s) {', '.join(sorted(missing))}")
+        check_preset_keys(values, set(cls.__dataclass_fields__) - {"name"}, cls.REQUIRED)
         clean: dict[str, Any] = {}
         for key, value in values.items():
             if key == "pole_pairs":
