@@ -22,6 +22,7 @@ import numpy as np
 from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runner.native_config import SPIN_NS_FIFO, rt_throttled
 from pmsm_hil.hil.runner.native_link import NativeLoopUnavailableError, native_lib
+from pmsm_hil.hil.runner.pm_qos import LEAVE, cpu_latency_held
 from pmsm_hil.hil.runner.reference_loop import reference_loop
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
@@ -44,11 +45,13 @@ def loops(link: str) -> tuple[str, ...]:
     return ("python", "native") if link == "inproc" and reference_loop() is not None else ("native",)
 
 
-def config(link: str, loop: str, duration: float, ts: float, rt_priority: int, cpu: int | None) -> RunConfig:
+def config(link: str, loop: str, duration: float, ts: float, rt_priority: int, cpu: int | None,
+           cpu_dma_latency_us: int | None = None) -> RunConfig:
     """The measured run: niu2020 IPMSM, MPCC, steady scenario without settling, `duration` s of real time."""
     scenario = load_scenario("steady").with_overrides(settle_s=0.0, duration_s=duration)
     cfg = RunConfig(motor=load_motor("niu2020-ipmsm"), scenario=scenario, controller="mpcc", ts_s=ts,
-                    mode="realtime", loop=loop, rt_priority=rt_priority, cpu=cpu)
+                    mode="realtime", loop=loop, rt_priority=rt_priority, cpu=cpu,
+                    cpu_dma_latency_us=cpu_dma_latency_us)
     if link == "udp":
         cfg = replace(cfg, link="udp", target="spawn", tolerate=_NEVER, watchdog_periods=_NEVER)
     return cfg
@@ -67,13 +70,15 @@ def _summary(metrics: list[dict[str, Any]], lateness: list[Any], hist: np.ndarra
         "deadline_misses": sum(int(m["deadline_misses"]) for m in metrics),
         "periods": periods,
         "warnings": metrics[-1]["warnings"],
+        "cpu_dma_latency_us": metrics[-1].get("cpu_dma_latency_us"),
         "histogram_1us": None if hist is None else [int(c) for c in hist],
     }
 
 
 def measure_link(link: str, duration: float, ts: float, repeats: int, rt_priority: int = 0, cpu: int | None = None,
                  log_dir: Path | None = None, loads: list[float] | None = None,
-                 progress: Callable[[str], None] = lambda _m: None) -> dict[str, Any]:
+                 progress: Callable[[str], None] = lambda _m: None, cpu_dma_latency_us: int | None = None
+                 ) -> dict[str, Any]:
     """Per loop on `link`: the figures of the module docstring; the loops run alternately so both see the same
     load. `loads` collects the 1-min load average after each run. A run that fails is an `error` entry."""
     names = loops(link)
@@ -86,7 +91,7 @@ def measure_link(link: str, duration: float, ts: float, repeats: int, rt_priorit
             if loop in errors:
                 continue
             progress(f"Ts = {ts * 1e6:g} µs, {link}, {loop} loop, run {i + 1} of {max(repeats, 1)} ({duration:g} s)")
-            cfg = config(link, loop, duration, ts, rt_priority, cpu)
+            cfg = config(link, loop, duration, ts, rt_priority, cpu, cpu_dma_latency_us)
             if log_dir is not None:
                 cfg = replace(cfg, out_dir=log_dir / f"{link}-{loop}-{round(ts * 1e9)}ns-{i}")
             try:
@@ -153,9 +158,21 @@ def verdict(figures: dict[str, Any], floor: dict[str, Any] | None) -> dict[str, 
 
 def measure(ts_list: list[float], links: list[str], duration: float, repeats: int, rt_priority: int = 0,
             cpu: int | None = None, log_dir: Path | None = None,
-            progress: Callable[[str], None] = lambda _m: None) -> dict[str, Any]:
+            progress: Callable[[str], None] = lambda _m: None, cpu_dma_latency_us: int | None = None
+            ) -> dict[str, Any]:
     """Every (Ts, link): the loops' figures, the floor of the same run (measured after the loops, for the same
-    duration), the ratio to it and the goal; the load average before, after each run and at the end."""
+    duration), the ratio to it and the goal; the load average before, after each run and at the end. The CPUs'
+    wake-up latency: as `hil run` holds it (None: 0 while a run's target is in another process, `held_by_run`
+    says which runs did), or held at `cpu_dma_latency_us` (pm_qos.py; -1: left) for the loops and the floor."""
+    with cpu_latency_held(LEAVE if cpu_dma_latency_us is None else cpu_dma_latency_us) as pm_qos:
+        out = _measure(ts_list, links, duration, repeats, rt_priority, cpu, log_dir, progress, cpu_dma_latency_us)
+    out["cpu_dma_latency_us"], out["cpu_dma_latency_refused"] = pm_qos.held_us, pm_qos.refused
+    return out
+
+
+def _measure(ts_list: list[float], links: list[str], duration: float, repeats: int, rt_priority: int,
+             cpu: int | None, log_dir: Path | None, progress: Callable[[str], None],
+             cpu_dma_latency_us: int | None) -> dict[str, Any]:
     loads: list[float] = [os.getloadavg()[0]]
     out: dict[str, Any] = {"duration_s": duration, "repeats": repeats, "rt_priority": rt_priority, "cpu": cpu,
                            "rt_throttled": rt_throttled(), "points": []}
@@ -163,7 +180,8 @@ def measure(ts_list: list[float], links: list[str], duration: float, repeats: in
         point: dict[str, Any] = {"ts_s": ts, "spins_whole_period": bool(rt_priority) and rt_throttled()
                                  and ts * 1e9 <= SPIN_NS_FIFO}
         for link in links:
-            point[link] = measure_link(link, duration, ts, repeats, rt_priority, cpu, log_dir, loads, progress)
+            point[link] = measure_link(link, duration, ts, repeats, rt_priority, cpu, log_dir, loads, progress,
+                                       cpu_dma_latency_us)
         progress(f"Ts = {ts * 1e6:g} µs, floor: a bare C busy loop ({duration:g} s)")
         floor = gap_floor(duration, ts, rt_priority, cpu)
         point["floor"] = floor

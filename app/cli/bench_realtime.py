@@ -16,9 +16,10 @@ from typing import Any
 from pmsm_hil.app.bench.latency_report import write_report
 from pmsm_hil.app.bench.load_process import load_beside
 from pmsm_hil.app.bench.realtime import GOAL_FLOOR_RATIO, GOAL_P99_US, LINKS, gap_floor, measure
-from pmsm_hil.app.cli.parsing import non_negative_int, positive_float
+from pmsm_hil.app.cli.parsing import int_at_least, non_negative_int, positive_float
 from pmsm_hil.hil.atomic_write import write_text_atomic
 from pmsm_hil.hil.errors import ParameterError
+from pmsm_hil.hil.runner.pm_qos import LEAVE
 
 __all__ = ["add_parser", "gap_floor", "run"]
 
@@ -38,6 +39,10 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
                    help="SCHED_FIFO priority of the native loop thread and of the spawned native target "
                         "(default 0: none)")
     p.add_argument("--cpu", type=non_negative_int("--cpu"), help="pin the native loop thread to this CPU")
+    p.add_argument("--cpu-dma-latency", type=_latency_us, default=None, metavar="US",
+                   help="hold every CPU's wake-up latency at most US µs during the runs and the floor (PM QoS through "
+                        "/dev/cpu_dma_latency, as cyclictest does; needs root; -1: leave the kernel's setting) "
+                        "(default: as `hil run`, 0 during the runs whose target is in another process)")
     p.add_argument("--histogram", type=Path, metavar="PATH_PREFIX",
                    help="write the lateness histogram (1 µs bins, every series) as PATH_PREFIX.csv and "
                         "PATH_PREFIX.png (log-scale counts, the maximum of each series, the load)")
@@ -47,6 +52,11 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("--log", action="store_true", help="log each run to MCAP as `hil run` does (default off)")
     p.add_argument("--json", type=Path, help="write the figures as JSON")
     p.set_defaults(func=run)
+
+
+def _latency_us(text: str) -> int:
+    return int_at_least(text, LEAVE, "--cpu-dma-latency must be a whole number of µs",
+                         "--cpu-dma-latency must be -1 (leave it) or ≥ 0 µs")
 
 
 def _links(text: str) -> list[str]:
@@ -68,7 +78,7 @@ def _print_point(point: dict[str, Any], links: list[str], duration: float) -> No
     floor = point["floor"]
     print(f"Ts = {ts_us:g} µs ({1e3 / ts_us:g} kHz)")
     print(f"  {'link':<7} {'loop':<7} {'p50 µs':>8} {'p99 µs':>8} {'p99.99 µs':>10} {'max µs':>9} "
-          f"{'overruns/100k':>14} {'× floor':>8} {'misses':>7} {'periods':>9}")
+          f"{'overruns/100k':>14} {'× floor':>8} {'qos µs':>7} {'misses':>7} {'periods':>9}")
     for link in links:
         for loop, f in point[link].items():
             if "error" in f:
@@ -77,7 +87,7 @@ def _print_point(point: dict[str, Any], links: list[str], duration: float) -> No
             print(f"  {link:<7} {loop:<7} {f['lateness_p50_us']:>8.2f} {f['lateness_p99_us']:>8.2f} "
                   f"{f['lateness_p9999_us']:>10.2f} {f['lateness_max_us']:>9.1f} "
                   f"{_num(f['overruns_per_100k'], '.1f'):>14} {_num(f['floor_ratio'], '.2f'):>8} "
-                  f"{f['deadline_misses']:>7} {f['periods']:>9}")
+                  f"{_num(f['cpu_dma_latency_us'], 'd'):>7} {f['deadline_misses']:>7} {f['periods']:>9}")
             for line in f["warnings"]:
                 print(f"    ({link}, {loop}) {line}")
     if floor is not None:
@@ -99,6 +109,19 @@ def _print_point(point: dict[str, Any], links: list[str], duration: float) -> No
               "(docs/runner.md, qualifying a bench PC)")
 
 
+def _pm_qos_line(figures: dict[str, Any], asked: int | None) -> str:
+    held, refused = figures["cpu_dma_latency_us"], figures["cpu_dma_latency_refused"]
+    if asked is None:
+        return ("CPU wake-up latency: as `hil run` holds it (PM QoS 0 µs while the target is in another process; "
+                "the column 'qos µs' says what each link's runs held, '-' none)")
+    if held is not None:
+        return f"CPU wake-up latency held at {held} µs (PM QoS, /dev/cpu_dma_latency) for the runs and the floor"
+    if refused is not None:
+        return (f"CPU wake-up latency NOT held ({refused}): idle CPUs sleep deep, a blocked receive may wake tens "
+                "of µs late")
+    return "CPU wake-up latency: the kernel's setting (--cpu-dma-latency -1)"
+
+
 def run(args: argparse.Namespace) -> int:
     """Execute `hil bench realtime`."""
     ts_list = args.ts or [100e-6]
@@ -108,7 +131,7 @@ def run(args: argparse.Namespace) -> int:
 
     with load_beside(args.load_cmd) as load:
         figures = measure(ts_list, links, args.duration, args.repeats, args.rt_priority, args.cpu,
-                          Path("runs") / "bench-realtime" if args.log else None, progress)
+                          Path("runs") / "bench-realtime" if args.log else None, progress, args.cpu_dma_latency)
     load_line = load.describe() if load is not None else None
     figures["load_cmd"] = None if load is None else {"command": load.command, "cpu_s": load.cpu_s,
                                                      "wall_s": load.wall_s, "exited_early": load.exited_early}
@@ -120,6 +143,7 @@ def run(args: argparse.Namespace) -> int:
           f"at the end")
     if load_line is not None:
         print(f"  {load_line}")
+    print(f"  {_pm_qos_line(figures, args.cpu_dma_latency)}")
     for point in figures["points"]:
         _print_point(point, links, args.duration)
     if args.rt_priority and not figures["rt_throttled"]:

@@ -32,7 +32,7 @@ def positive_float(name: str) -> Callable[[str], float]:
     return parse
 
 
-def _int_at_least(text: str, minimum: int, not_int: str, too_small: str) -> int:
+def int_at_least(text: str, minimum: int, not_int: str, too_small: str) -> int:
     """`int(text)` if ≥ `minimum`; else ArgumentTypeError "<not_int|too_small>, got '<text>'"."""
     try:
         value = int(text)
@@ -46,10 +46,10 @@ def _int_at_least(text: str, minimum: int, not_int: str, too_small: str) -> int:
 def non_negative_int(name: str) -> Callable[[str], int]:
     """Parser for an integer ≥ 0."""
     def parse(text: str) -> int:
-        return _int_at_least(text, 0, f"{name} must be an integer", f"{name} must be ≥ 0")
+        return int_at_least(text, 0, f"{name} must be an integer", f"{name} must be ≥ 0")
     return parse
 
 
 def positive_int(text: str) -> int:
     """Parser for a whole number ≥ 1 (counts: periods, steps, repeats)."""
-    return _int_at_least(text, 1, "expected a whole number ≥ 1", "expected a whole number ≥ 1")
+    return int_at_least(text, 1, "expected a whole number ≥ 1", "expected a whole number ≥ 1")

@@ -37,6 +37,10 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
                    help="with --native: serve at SCHED_FIFO priority N (1-99; what `hil run --mode realtime "
                         "--rt-priority N --target spawn` starts); refused without CAP_SYS_NICE: a warning, served at "
                         "normal priority")
+    p.add_argument("--spin-us", type=_spin_us, default=None, metavar="US",
+                   help="with --native: busy-poll at most US µs for a frame before blocking (default: 50, 0 on one "
+                        "CPU; 0: always block — what `hil run --mode realtime` starts on a machine with fewer than "
+                        "three CPUs, where a spinning target takes the CPU the run's logging needs)")
     p.set_defaults(func=run)
 
 
@@ -66,6 +70,16 @@ def _positive(text: str) -> float:
     return value
 
 
+def _spin_us(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--spin-us must be a number of µs, got {text!r}") from None
+    if not 0 <= value <= 1e6:
+        raise argparse.ArgumentTypeError(f"--spin-us must be 0..1000000 µs, got {text!r}")
+    return value
+
+
 def _link_spec(args: argparse.Namespace) -> str:
     """--link, with the key read from stdin when --auth-key-stdin (LinkSpecError naming it when not a key)."""
     if not args.auth_key_stdin:
@@ -91,10 +105,11 @@ def run(args: argparse.Namespace) -> int:
     args.spec = _link_spec(args)
     if args.native or args.sil is not None:
         return _run_native(args)
-    if args.rt_priority:
-        from pmsm_hil.hil.errors import ParameterError
+    for given, option in ((args.rt_priority, "--rt-priority"), (args.spin_us is not None, "--spin-us")):
+        if given:
+            from pmsm_hil.hil.errors import ParameterError
 
-        raise ParameterError("--rt-priority: with --native only (the Python target is not a real-time loop)")
+            raise ParameterError(f"{option}: with --native only (the Python target is not a real-time loop)")
 
     served = serve(args.spec, args.controller, role=args.role, max_idle_s=args.idle_timeout,
                    parent_pid=args.parent_pid, on_ready=lambda: _ready(args))
@@ -115,7 +130,8 @@ def _run_native(args: argparse.Namespace) -> int:
     if args.rt_priority:
         _fifo(args.rt_priority)
     served = serve_native(args.spec, role=args.role, max_idle_s=args.idle_timeout, parent_pid=args.parent_pid,
-                          on_ready=lambda: _ready(args), sil=args.sil, sil_debug_fd=args.sil_debug_fd)
+                          on_ready=lambda: _ready(args), sil=args.sil, sil_debug_fd=args.sil_debug_fd,
+                          spin_ns=None if args.spin_us is None else round(args.spin_us * 1e3))
     c = served.counters
     print(f"target stopped ({served.reason}): {c['measurements']} measurements, {c['commands']} commands, "
           f"{c['config_writes']} config writes ({c['config_rejected']} rejected), {c['faults']} faults "

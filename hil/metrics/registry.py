@@ -139,6 +139,9 @@ METRICS: Final[tuple[Metric, ...]] = (
     _m("realtime_sync_us", "real-time sync", "µs", "real time over a link: period 0 is the synchronising exchange, "
        "its Command awaited as in lockstep (a cold target's first answer); the wall clock of the periods starts "
        "when it arrives; how long it took (null: in process, or no Command came)", ".1f", source=RUN),
+    _m("cpu_dma_latency_us", "CPU wake-up latency held", "µs", "real time: the CPUs' wake-up latency the run held "
+       "through PM QoS (`--cpu-dma-latency`, /dev/cpu_dma_latency; null: not held, the warnings say why)", "d",
+       source=RUN),
     _m("overrun_threshold_us", "overrun threshold", "µs", "real time: `--overrun-threshold` (default Ts/2)", ".1f",
        source=RUN),
     _m("warnings", "warnings", "", "lines the summary warns with (overruns, tolerated violations)", "",

@@ -17,6 +17,7 @@ from pmsm_hil.hil.runner.native_loop import NativeLoop
 from pmsm_hil.hil.runner.native_pylink import NativePyLink
 from pmsm_hil.hil.runner.native_wire import NativeWireLink
 from pmsm_hil.hil.runner.plant_setup import build_plant
+from pmsm_hil.hil.runner.pm_qos import LEAVE
 from pmsm_hil.hil.runner.reference_loop import require_reference_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.target_client import TargetClient
@@ -110,6 +111,20 @@ def run_native(cfg: RunConfig, conn: TargetConnection, cid: int, sink: RunSink,
         outcome.link_faults = dict(faulty.counts)
     outcome.trace = sink.window.tail.array()
     return outcome
+
+
+def pm_qos_latency_us(cfg: RunConfig, conn: TargetConnection) -> int:
+    """The CPUs' wake-up latency a run holds [µs] (pm_qos.py; LEAVE: none): `--cpu-dma-latency`, by default 0 in
+    real time with the target in another process (each period then waits for a blocked process to wake: 40–60 µs
+    from a sleeping vCPU, ~5 µs from a polling one), else none (in process nothing on a period's path blocks, and
+    polling idle CPUs only give a hypervisor more to take back)."""
+    if cfg.mode != "realtime":
+        return LEAVE
+    if cfg.cpu_dma_latency_us is not None:
+        return cfg.cpu_dma_latency_us
+    link = conn.host_link
+    other = isinstance(link, NativeWireLink) or (isinstance(link, NativePyLink) and link.other_process)
+    return 0 if other else LEAVE
 
 
 def realtime_warnings(cfg: RunConfig, conn: TargetConnection) -> list[str]:

@@ -65,10 +65,12 @@ class NativeServed:
 
 def serve_native(link_spec: str, *, role: str = "target", max_idle_s: float | None = None,
                  parent_pid: int | None = None, on_ready: Callable[[], None] | None = None,
-                 sil: str | None = None, sil_debug_fd: int | None = None) -> NativeServed:
+                 sil: str | None = None, sil_debug_fd: int | None = None,
+                 spin_ns: int | None = None) -> NativeServed:
     """Serve the C target core on the link `link_spec` until an ending (see the module docstring); `sil`: the
     core of this SIL library instead of the reference firmware linked in (the SIL target's own process);
-    `sil_debug_fd`: memory shared with the host (loop.h nl_sil_debug_t) where each step's torque reference goes."""
+    `sil_debug_fd`: memory shared with the host (loop.h nl_sil_debug_t) where each step's torque reference goes;
+    `spin_ns`: how long a receive busy-polls before it blocks [ns] (None: the native wires' default, 0: block)."""
     ffi, lib = native_lib()
     firmware = SilFirmware(sil) if sil is not None else None  # a bad library fails before the ready line
     wire = NATIVE_WIRES.get(parse_spec(link_spec).kind.lower())
@@ -83,7 +85,7 @@ def serve_native(link_spec: str, *, role: str = "target", max_idle_s: float | No
             raise ParameterError(f"--native: {link_spec!r} opened no port the C loop can serve")
         if firmware is None:
             lib.hil_core_init()
-        h = WireHandle(wire, ffi, lib, bus, target_role=True)
+        h = WireHandle(wire, ffi, lib, bus, target_role=True, spin_ns=spin_ns)
         if on_ready is not None:
             on_ready()
         if orphaned():

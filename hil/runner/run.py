@@ -23,7 +23,14 @@ from pmsm_hil.hil.runner.contract import RULES, EndCode
 from pmsm_hil.hil.runner.link_losses import attribute as attribute_losses
 from pmsm_hil.hil.runner.link_losses import target_link_stats
 from pmsm_hil.hil.runner.loop_outcome import LoopOutcome
-from pmsm_hil.hil.runner.native_run import connect_loop_target, python_loop_reason, realtime_warnings, run_native
+from pmsm_hil.hil.runner.native_run import (
+    connect_loop_target,
+    pm_qos_latency_us,
+    python_loop_reason,
+    realtime_warnings,
+    run_native,
+)
+from pmsm_hil.hil.runner.pm_qos import cpu_latency_held
 from pmsm_hil.hil.runner.recorder import frame_records, period_records
 from pmsm_hil.hil.runner.reference_loop import require_reference_loop
 from pmsm_hil.hil.runner.run_config import RunConfig, controller_id
@@ -111,6 +118,7 @@ def _run_locked(cfg: RunConfig, cid: int, python_reason: str | None, silent_afte
             signals.enter_context(_terminate_as_interrupt())
             conn, python_reason = connect_loop_target(
                 cfg, python_reason, lambda: connect_target(cfg, silent_after=silent_after))
+            pm_qos = signals.enter_context(cpu_latency_held(pm_qos_latency_us(cfg, conn)))
             # from here on Ctrl-C/SIGTERM only ask the loop to end (at a period boundary; at once if the target
             # is still being configured): every period run is logged and counted, the outputs written whole
             guards = [item for item in conn.extra if isinstance(item, InterruptGuard)]
@@ -140,6 +148,9 @@ def _run_locked(cfg: RunConfig, cid: int, python_reason: str | None, silent_afte
             metrics = summarize(cfg, outcome, conn, sink)
             metrics["loop"], metrics["loop_note"] = "python" if python_reason else "native", python_reason
             metrics["warnings"] += realtime_warnings(cfg, conn)
+            if cfg.mode == "realtime":
+                metrics["cpu_dma_latency_us"] = pm_qos.held_us
+                metrics["warnings"] += [w for w in (pm_qos.warning(),) if w is not None]
         finally:
             if conn is not None:
                 conn.close()

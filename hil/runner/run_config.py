@@ -155,6 +155,9 @@ class RunConfig:
     #: real time: SCHED_FIFO priority of the loop thread (`--rt-priority`, 0: none) and its CPU (`--cpu`)
     rt_priority: int = default_of("rt_priority")
     cpu: int | None = default_of("cpu")
+    #: real time: the CPUs' wake-up latency held during the run [µs] (`--cpu-dma-latency`, PM QoS; -1: left;
+    #: None: 0 when the target runs in another process, where a blocked hand-off is on each period's path)
+    cpu_dma_latency_us: int | None = default_of("cpu_dma_latency_us")
     #: sil targets: wall time [s] a step may take before the target is "hung" (`--step-timeout`; the wait for
     #: each Command of an isolated SIL run, in place of `lockstep_timeout_s`)
     step_timeout_s: float = default_of("step_timeout_s")

@@ -287,6 +287,13 @@ RUN_OPTIONS: tuple[RunOption, ...] = (
               range_words="0 (none) or a SCHED_FIFO priority 1..99"),
     RunOption("cpu", "integer", "real time, native loop: pin the loop thread to this CPU", field="cpu", metavar="N",
               minimum=0, default_text="any"),
+    RunOption("cpu_dma_latency", "integer",
+              "real time: hold every CPU's wake-up latency at most US µs for the run (PM QoS through "
+              "/dev/cpu_dma_latency, as cyclictest does; 0: idle CPUs poll, a blocked receive wakes in µs instead "
+              "of tens of µs; needs root, refused: a warning); -1 leaves the kernel's setting",
+              None, field="cpu_dma_latency_us", metavar="US", minimum=-1, maximum=2_000_000_000,
+              default_text="0 when the target runs in another process, else -1",
+              range_words="-1 (leave it) or a latency of 0 µs or more"),
     RunOption("overrun_threshold", "number", "real time: a period starting later than this is an overrun [s]",
               field="overrun_threshold_s", unit="s", minimum=0.0, open_minimum=True, default_text="Ts/2"),
     RunOption("adc_lsb", "number", "current quantisation step [A]", 0.0, unit="A", minimum=0.0,

@@ -134,20 +134,22 @@ def _target_link_stats(proc: subprocess.Popen[bytes]) -> dict[str, int]:
 def _spawn_target(spec: str, native: bool = False, sil: str | None = None,
                   pass_fds: tuple[int, ...] = (), key: bytes | None = None,
                   sil_debug: SilDebugSlot | None = None,
-                  rt_priority: int = 0) -> tuple[subprocess.Popen[bytes], IO[bytes]]:
+                  rt_priority: int = 0, spin_us: float | None = None) -> tuple[subprocess.Popen[bytes], IO[bytes]]:
     """Start `hil target` (`--native`: its C serve loop; `sil`: serving that SIL library, in its own process
     group so a terminal's Ctrl-C reaches the runner only, which stops it in order) on `spec` and wait for its
     ready line; raises TargetError with its own error line if it exits first (a port in use, a bad library) or
     does not get ready in time. Its stderr goes to the returned file. `key`: the frames' authentication key,
     written to its stdin (`--auth-key-stdin`: never on its command line, which any user may read). `sil_debug`:
-    the memory where a SIL target's serve loop puts each step's torque reference (`--sil-debug-fd`)."""
+    the memory where a SIL target's serve loop puts each step's torque reference (`--sil-debug-fd`); `spin_us`:
+    its receives' busy-poll (`--spin-us`, None: its default)."""
     if sil_debug is not None:
         pass_fds = (*pass_fds, sil_debug.fd)
     cmd = [sys.executable, "-m", "pmsm_hil.app.cli.main", "target", "--link", spec, "--role", "target",
            "--parent-pid", str(os.getpid()), "--idle-timeout", repr(SPAWNED_IDLE_TIMEOUT_S), *(["--native"] * native),
            *(["--sil", sil] if sil is not None else []), *(["--auth-key-stdin"] if key is not None else []),
            *(["--sil-debug-fd", str(sil_debug.fd)] if sil_debug is not None else []),
-           *(["--rt-priority", str(rt_priority)] if rt_priority else [])]  # the C serve loop at SCHED_FIFO
+           *(["--rt-priority", str(rt_priority)] if rt_priority else []),  # the C serve loop at SCHED_FIFO
+           *(["--spin-us", f"{spin_us:g}"] if spin_us is not None else [])]
     err = tempfile.TemporaryFile()  # noqa: SIM115 (the connection owns it: `close` forwards it)
     # its own session: a terminal's Ctrl-C (or a SIGTERM to the run's process group) reaches the run, which
     # stops the loop, sends the disabling Setpoint and then stops the target (`_stop`), not the target first
@@ -215,6 +217,22 @@ def _sil_library(path: str) -> str:
     return str(p)
 
 
+#: real time over a link: a spawned native target spins for frames only with at least this many CPUs (the loop's,
+#: the target's, one for the rest: the drain, the logger, the system); below it blocks
+REALTIME_SPIN_MIN_CPUS = 3
+
+
+def realtime_target_spin_us(cfg: RunConfig, native: bool) -> float | None:
+    """How long the spawned target busy-polls for a frame [µs] (None: its default). In real time on a machine
+    with fewer than `REALTIME_SPIN_MIN_CPUS` CPUs it blocks (0): a SCHED_FIFO target spinning the whole period
+    keeps the run's drain and logger off the only other CPU, the loop's ring fills and periods start ms late
+    (docs/benchmarks.md, issue 30); blocked, it wakes in ~5 µs while the run holds the CPUs' wake-up latency
+    (`--cpu-dma-latency`, pm_qos.py)."""
+    if not native or cfg.mode != "realtime" or len(os.sched_getaffinity(0)) >= REALTIME_SPIN_MIN_CPUS:
+        return None
+    return 0.0
+
+
 def _connect_spawned(cfg: RunConfig, codec: FrameCodec, native: bool, sil: str | None = None,
                      sil_debug: SilDebugSlot | None = None) -> TargetConnection:
     """A `hil target` process on the mirror of the run's link (`sil`: serving that SIL library)."""
@@ -226,7 +244,7 @@ def _connect_spawned(cfg: RunConfig, codec: FrameCodec, native: bool, sil: str |
     try:
         rt = cfg.rt_priority if native and cfg.mode == "realtime" else 0  # the pair at the same priority
         conn.process, conn.process_stderr = _spawn_target(specs.target, native, sil, key=key, sil_debug=sil_debug,
-                                                          rt_priority=rt)
+                                                          rt_priority=rt, spin_us=realtime_target_spin_us(cfg, native))
         _await_session(host_link)
     except BaseException:
         conn.close()

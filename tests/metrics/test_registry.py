@@ -32,7 +32,7 @@ from pmsm_hil.hil.runner.scenario import load_scenario
 #: sub-keys only some links have: SocketCAN's kernel drop counter (runs here use the virtual bus)
 CONDITIONAL_SUBS = {("link", "kernel_dropped")}
 CONDITIONAL = {"lateness_us", "lateness_histogram_us", "overruns", "overrun_threshold_us",  # real time only
-               "realtime_sync_us",  # real time over a link only
+               "realtime_sync_us", "cpu_dma_latency_us",  # real time only
                "exec_instructions", "mcu_clock_hz", "exec_time_model"}  # qemu targets only (tests/firmware_board)
 
 
