@@ -28,10 +28,9 @@ KERNEL_FLAGS = ("-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-Wdouble-prom
 
 def common_cdef() -> str:
     """What every kernel's cdef starts with, from the headers: `ge_period_stats_t`, `mk_sample_t`, and the opaque
-    `mk_kernel_t` (the bundled plant extension declares the same, hil/native/_build_plant.py)."""
+    `mk_kernel_t` (the bundled plant extension takes the same from the same headers, hil/native/_build_plant.py)."""
     return (declarations(NATIVE_DIR / "gate_edges.h", ["ge_period_stats_t"])
-            + declarations(NATIVE_DIR / "machine_kernel.h", ["mk_sample_t"])
-            + "typedef struct mk_kernel mk_kernel_t;\n")
+            + declarations(NATIVE_DIR / "machine_kernel.h", ["mk_sample_t", "mk_kernel_t"], opaque=["mk_kernel_t"]))
 
 
 def build_kernel_module(name: str, kernel_c: Path, cdef: str, build_dir: Path) -> ModuleType:

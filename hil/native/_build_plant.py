@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import importlib.util
+import runpy
 from pathlib import Path
-from typing import Any
+from types import SimpleNamespace
 
 from cffi import FFI
 
@@ -13,20 +13,12 @@ _HERE = Path(__file__).resolve().parent
 _KERNELS = _HERE / "kernels"
 
 
-def _load_extractor() -> Any:
-    """hil/cdef_extract.py by path (this script runs at build time, before the package is importable)."""
-    spec = importlib.util.spec_from_file_location("_cdef_extract", _HERE.parent / "cdef_extract.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-_X = _load_extractor()
-#: what every kernel's extension declares first: the period stats, the sample and the opaque kernel table
+#: hil/cdef_extract.py by path (this script runs at build time, before the package is importable)
+_X = SimpleNamespace(**runpy.run_path(str(_HERE.parent / "cdef_extract.py")))
+#: what every kernel's extension declares first: the period stats, the sample and the opaque kernel table (the
+#: same as kernel_build.common_cdef: this script cannot import the package)
 CDEF_COMMON = (_X.declarations(_KERNELS / "gate_edges.h", ["ge_period_stats_t"])
-               + _X.declarations(_KERNELS / "machine_kernel.h", ["mk_sample_t"])
-               + "typedef struct mk_kernel mk_kernel_t;\n")
+               + _X.declarations(_KERNELS / "machine_kernel.h", ["mk_sample_t", "mk_kernel_t"], opaque=["mk_kernel_t"]))
 #: the three-phase kernel (plant.h) and the dual three-phase kernel (plant6.h), taken from their headers
 CDEF = _X.declarations(_KERNELS / "plant.h", ["pl_params_t", "pl_state_t", "pl_period_stats_t", "pl_advance",
                                            "pl_torque", "pl_phase_currents", "pl_kernel"])
