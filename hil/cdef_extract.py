@@ -2,16 +2,16 @@
 a constant (hil/native/_build_plant.py, _build_loop.py, sim_target/_build_firmware.py, and `kernel_build` for a
 kind's kernel).
 
-`declarations(header, names)` returns the named typedefs and prototypes of a header, in the order of `names`, with
-comments, preprocessor lines, `static` / `inline` and `NL_PACKED` removed and integer macros in array sizes replaced
-by their values. It cuts a struct down to the fields cffi needs (`partial`: the kept fields and `...;`, cffi then
-checks their offsets and the struct's size against the real header when it compiles), declares a tagged struct
-opaque (`opaque`: `typedef struct tag name;`), declares a function the cffi module defines in Python
-(`extern_python`), and takes a function's prototype from its definition (a glue header's `static` functions).
-`constants(*headers)` gives the integer `#define`s of headers (literals and integer expressions of other macros of
-the same headers), `cffi_constants(header, prefix)` the header's own as cffi `#define NAME ...` lines, and
-`declared_names(text)` what a piece of C declares (the test that no build script restates a header uses it).
-Pure text: importable by path from a build script (no package import).
+`declarations(header, names)` returns the named typedefs and prototypes of a header (or of a kind's one C file,
+tests/runner/rl_kind), in the order of `names`, with comments, preprocessor lines, `static` / `inline` and
+`NL_PACKED` removed and integer macros in array sizes replaced by their values. It cuts a struct down to the fields
+cffi needs (`partial`: the kept fields and `...;`, cffi then checks their offsets and the struct's size against the
+real header when it compiles), declares a tagged struct opaque (`opaque`: `typedef struct tag name;`), declares a
+function the cffi module defines in Python (`extern_python`), and takes a function's prototype from its definition
+(a glue header's `static` functions). `constants(*headers)` gives the integer `#define`s of headers (literals and
+integer expressions of other macros of the same headers, or of `known`), `cffi_constants(header, prefix)` the
+header's own as cffi `#define NAME ...` lines, and `declared_names(text)` what a piece of C declares (the test that
+no build script restates a header uses it). Pure text: importable by path from a build script (no package import).
 """
 
 from __future__ import annotations

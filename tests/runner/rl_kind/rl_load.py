@@ -13,6 +13,7 @@ from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
+from pmsm_hil.hil.cdef_extract import declarations
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.kernel_build import build_kernel_module
 from pmsm_hil.hil.machine import MEAS_THREE, THREE_PHASE, MachineLayout, register_layout
@@ -21,18 +22,9 @@ from pmsm_hil.hil.plant_base import PlantBase
 from pmsm_hil.protocol.ids import ParamId
 
 KERNEL_C = Path(__file__).with_name("rl_load.c")
-CDEF = """
-typedef struct { double r, l, vdc; int32_t pole_pairs; int32_t inertia_mode; } rl_params_t;
-typedef struct {
-    uint64_t t_ns; uint64_t trace_k; double i_al, i_be, theta_e, omega_m; int32_t gate;
-} rl_state_t;
-typedef ge_period_stats_t rl_period_stats_t;
-int rl_advance(const rl_params_t *p, rl_state_t *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
-               double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp, double trace_dt,
-               double *trace, int32_t trace_cap, rl_period_stats_t *stats);
-void rl_sample(const rl_params_t *p, const rl_state_t *s, mk_sample_t *out);
-const mk_kernel_t *rl_kernel(void);
-"""
+#: what Python reads of the kernel, taken from its C file (no declaration typed twice)
+CDEF = declarations(KERNEL_C, ["rl_params_t", "rl_state_t", "rl_period_stats_t", "rl_advance", "rl_sample",
+                               "rl_kernel"])
 
 
 @dataclass(frozen=True, slots=True)
