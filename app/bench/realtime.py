@@ -22,11 +22,13 @@ import numpy as np
 from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runner.native_config import SPIN_NS_FIFO, rt_throttled
 from pmsm_hil.hil.runner.native_link import NativeLoopUnavailableError, native_lib
+from pmsm_hil.hil.runner.native_wire import default_spin_ns
 from pmsm_hil.hil.runner.pm_qos import LEAVE, cpu_latency_held
 from pmsm_hil.hil.runner.reference_loop import reference_loop
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import load_scenario
+from pmsm_hil.hil.runner.target_setup import realtime_target_may_spin
 
 #: where the target runs: in process (the C target core called by the loop) or in its own process over UDP
 #: loopback (`--target spawn`: the native C target, `hil target --native`)
@@ -137,6 +139,28 @@ def gap_floor(duration: float, ts: float, rt_priority: int, cpu: int | None) -> 
             "refused_errno": refused, "histogram_1us": [int(c) for c in probe.hist]}
 
 
+def paced_udp_floor(duration: float, ts: float, rt_priority: int, cpu: int | None) -> dict[str, Any] | None:
+    """The floor under the deadline misses of the `udp` runs (hil/native/link_floor.c `nl_udp_paced_floor`): a
+    bare C exchange between two processes paced at Ts for `duration` s, this end on the loop's CPU and priority,
+    the echo at the same priority waiting for each datagram as the run's native target does (blocking on fewer
+    than three CPUs, else spinning): replies that had not come by the next period start (`late`, per 100k and
+    %), the median and longest round trip [µs] (None without the native extension, or when it failed)."""
+    try:
+        ffi, lib = native_lib()
+    except NativeLoopUnavailableError:
+        return None
+    out = ffi.new("nl_udp_paced_floor_t *")
+    echo_spin_ns = default_spin_ns() if realtime_target_may_spin() else 0
+    err = int(lib.nl_udp_paced_floor(max(round(duration / ts), 1), round(ts * 1e9), -1 if cpu is None else cpu,
+                                     rt_priority, echo_spin_ns, out))
+    periods = int(out.periods)
+    if err != 0 or periods == 0:
+        return None
+    late = int(out.late)
+    return {"periods": periods, "late": late, "late_per_100k": 1e5 * late / periods, "late_pct": 100.0 * late / periods,
+            "median_us": int(out.median_ns) / 1e3, "max_us": int(out.max_ns) / 1e3, "echo_spin_us": echo_spin_ns / 1e3}
+
+
 def floor_ratio(loop_per_100k: float | None, floor_per_100k: float) -> float | None:
     """How far above the floor the loop's overruns are (loop / floor, per 100k periods, same run): 1.0 when both
     are 0, inf when only the floor is 0; None without loop figures."""
@@ -185,10 +209,18 @@ def _measure(ts_list: list[float], links: list[str], duration: float, repeats: i
         progress(f"Ts = {ts * 1e6:g} µs, floor: a bare C busy loop ({duration:g} s)")
         floor = gap_floor(duration, ts, rt_priority, cpu)
         point["floor"] = floor
+        if "udp" in links:
+            progress(f"Ts = {ts * 1e6:g} µs, miss floor: a bare C UDP exchange paced at Ts ({duration:g} s)")
+            with cpu_latency_held(0 if cpu_dma_latency_us is None else LEAVE):  # as the udp runs held it
+                point["udp_miss_floor"] = paced_udp_floor(duration, ts, rt_priority, cpu)
         for link in links:
             for figures in point[link].values():
                 if "error" not in figures:
                     figures.update(verdict(figures, floor))
+                    miss_floor = point.get("udp_miss_floor") if link == "udp" else None
+                    figures["misses_per_100k"] = 1e5 * figures["deadline_misses"] / max(figures["periods"], 1)
+                    figures["miss_floor_ratio"] = (None if miss_floor is None else
+                                                   floor_ratio(figures["misses_per_100k"], miss_floor["late_per_100k"]))
         out["points"].append(point)
     loads.append(os.getloadavg()[0])
     out["load_average_1min"] = {"min": min(loads), "max": max(loads), "end": os.getloadavg()}

@@ -95,6 +95,15 @@ def _print_point(point: dict[str, Any], links: list[str], duration: float) -> No
               f"{floor['gaps_over_threshold_per_100k']:.1f} gaps > Ts/2 per 100k periods, {floor['gaps_over_10us']} "
               f"gaps > 10 µs, the longest {floor['max_gap_us']:.1f} µs, {floor['lost_pct']:.2f} % of the time lost "
               f"(interrupts, other tasks, the hypervisor: no loop here can do better)")
+    miss_floor = point.get("udp_miss_floor")
+    udp = point.get("udp", {}).get("native", {})
+    if miss_floor is not None and "error" not in udp:
+        how = "blocking" if miss_floor["echo_spin_us"] == 0 else f"spinning {miss_floor['echo_spin_us']:g} µs"
+        print(f"  miss floor (udp): a bare C UDP exchange paced at Ts (the loop's CPU and priority, the echo {how} "
+              f"as the target) had {miss_floor['late']} of {miss_floor['periods']} replies after the next period "
+              f"start ({miss_floor['late_pct']:.2f} %), round trip median {miss_floor['median_us']:.1f} µs, max "
+              f"{miss_floor['max_us']:.1f} µs; the C loop's misses: {udp['misses_per_100k'] / 1e3:.2f} % "
+              f"({_num(udp['miss_floor_ratio'], '.2f')}× that)")
     for link in links:
         for loop, f in point[link].items():
             if loop == "native" and "error" not in f:

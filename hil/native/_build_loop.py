@@ -77,7 +77,8 @@ LINKS_CDEF = (_decl(_TARGET / "hil_target_core.h", ["hil_core_frame_t", "hil_cor
               + _X.cffi_constants(_HERE / "nl_link.h", "NL_SPIN_")
               + _decl(_HERE / "nl_link.h", ["nl_spin_t", "nl_wait_readable"])
               + _decl(_HERE / "loop_rt.h", ["nl_gap_probe_t", "nl_gap_probe"])
-              + _decl(_HERE / "link_floor.h", ["nl_udp_floor_t", "nl_udp_floor"])
+              + _decl(_HERE / "link_floor.h", ["nl_udp_floor_t", "nl_udp_floor", "nl_udp_paced_floor_t",
+                                                 "nl_udp_paced_floor"])
               + _decl(_HERE / "loop_udp.h", ["nl_udp_t", "nl_udp_link"])
               + _decl(_TARGET / "hil_serial.h", ["hil_serial_t"], partial={"hil_serial_t": ["tx_seq"]})
               + _decl(_HERE / "loop_serial.h", ["nl_serial_t", "nl_serial_link", "nl_serial_send", "nl_serial_recv"])

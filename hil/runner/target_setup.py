@@ -228,9 +228,15 @@ def realtime_target_spin_us(cfg: RunConfig, native: bool) -> float | None:
     keeps the run's drain and logger off the only other CPU, the loop's ring fills and periods start ms late
     (docs/benchmarks.md, issue 30); blocked, it wakes in ~5 µs while the run holds the CPUs' wake-up latency
     (`--cpu-dma-latency`, pm_qos.py)."""
-    if not native or cfg.mode != "realtime" or len(os.sched_getaffinity(0)) >= REALTIME_SPIN_MIN_CPUS:
+    if not native or cfg.mode != "realtime" or realtime_target_may_spin():
         return None
     return 0.0
+
+
+def realtime_target_may_spin() -> bool:
+    """A real-time run's native target may spin for its frames: this process may run on at least
+    `REALTIME_SPIN_MIN_CPUS` CPUs."""
+    return len(os.sched_getaffinity(0)) >= REALTIME_SPIN_MIN_CPUS
 
 
 def _connect_spawned(cfg: RunConfig, codec: FrameCodec, native: bool, sil: str | None = None,

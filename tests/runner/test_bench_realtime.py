@@ -30,8 +30,14 @@ def test_two_periods_both_links_histogram_and_load(tmp_path: Path, capsys: pytes
             assert [r[-1] for r in native] == ["400", "800"]  # periods at 50 and 25 µs
         assert f"goal ({link}, C loop): p99 ≤ 2 µs" in out
     assert out.count("floor: a bare C busy loop") == 2
+    assert out.count("miss floor (udp): a bare C UDP exchange paced at Ts") == 2  # beside the udp rows' misses
     figures = json.loads((tmp_path / "f.json").read_text())
     assert [p["ts_s"] for p in figures["points"]] == [50e-6, 25e-6]
+    for point, periods in zip(figures["points"], (400, 800), strict=True):
+        miss_floor = point["udp_miss_floor"]  # paced for the runs' duration at their Ts
+        assert miss_floor["periods"] == periods and 0 <= miss_floor["late"] <= periods
+        udp = point["udp"]["native"]
+        assert udp["misses_per_100k"] == pytest.approx(1e5 * udp["deadline_misses"] / udp["periods"])
     assert figures["load_cmd"]["command"] == "sleep 60" and figures["load_cmd"]["exited_early"] is None
     with prefix.with_suffix(".csv").open(encoding="utf-8") as f:
         table = list(csv.reader(f))
