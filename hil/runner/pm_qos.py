@@ -41,8 +41,10 @@ class CpuLatencyHold:
 
 
 @contextlib.contextmanager
-def cpu_latency_held(latency_us: int, path: str = PM_QOS_FILE) -> Iterator[CpuLatencyHold]:
-    """Hold the CPUs' wake-up latency at most `latency_us` µs for the block (`LEAVE`: do nothing)."""
+def cpu_latency_held(latency_us: int, path: str | None = None) -> Iterator[CpuLatencyHold]:
+    """Hold the CPUs' wake-up latency at most `latency_us` µs for the block (`LEAVE`: do nothing) through `path`
+    (None: `PM_QOS_FILE`)."""
+    path = PM_QOS_FILE if path is None else path
     if latency_us == LEAVE:
         yield CpuLatencyHold(None)
         return

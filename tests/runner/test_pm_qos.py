@@ -105,3 +105,18 @@ def test_a_real_time_run_over_udp_holds_it_and_one_in_process_does_not() -> None
     assert any(w.startswith("--cpu-dma-latency") for w in res.metrics["warnings"]) is (not can_hold)
     inproc = run_closed_loop(_cfg(mode="realtime")).metrics
     assert inproc["cpu_dma_latency_us"] is None and not any("--cpu-dma-latency" in w for w in inproc["warnings"])
+
+
+def test_a_run_refused_the_request_says_so_and_goes_on(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Without the right to the PM QoS file (not root) a real-time run over a link still runs, and warns."""
+    from pmsm_hil.hil.runner import pm_qos
+    from pmsm_hil.hil.runner.run import run_closed_loop
+    from pmsm_hil.protocol.links.udp_bus import free_udp_ports
+
+    monkeypatch.setattr(pm_qos, "PM_QOS_FILE", str(tmp_path / "no-pm-qos-here"))
+    host, target = free_udp_ports(2)
+    res = run_closed_loop(_cfg(mode="realtime", link=f"udp:{host}:{target}", target="spawn", tolerate=10_000,
+                               watchdog_periods=10_000))
+    assert res.metrics["cpu_dma_latency_us"] is None and res.metrics["end_period"] >= 1
+    lines = [w for w in res.metrics["warnings"] if w.startswith("--cpu-dma-latency")]
+    assert len(lines) == 1 and str(tmp_path / "no-pm-qos-here") in lines[0], res.metrics["warnings"]
