@@ -38,12 +38,15 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("--ts", type=positive_float("--ts"), default=100e-6, metavar="S",
                    help="control period [s] of every measured run (default 100e-6; e.g. 25e-6 for 40 kHz)")
     p.add_argument("--cross-process", default="udp,serial,pycan",
-                   help="comma list of cross-process links to measure (udp, serial, pycan; empty: none): the Python "
+                   help="comma list of cross-process links to measure (udp, serial, pycan, socketcan; empty: none): "
+                        "the Python "
                         "pair, then the native pair (native loop + `hil target --native`) beside the Python pair, "
                         "idle and beside a CPU burner; for udp also the floor: a bare C ping-pong between two "
                         "processes, spinning and blocking, idle and beside the burner (udp_floor_*); pycan: the "
                         "host's end opened as a python-can adapter (the hiludp interface) to the native target, "
-                        "both loops (the C loop through its callback link)")
+                        "both loops (the C loop through its callback link); socketcan: python-can's socketcan "
+                        f"interface on {SOCKETCAN_BENCH_SPEC} (needs that interface: CI's vcan VM) to the native "
+                        "target, both loops (the C loop through its native SocketCAN wire)")
     p.add_argument("--no-realtime", action="store_true", help="skip the real-time lateness measurement")
     p.add_argument("--qemu", type=Path, metavar="ELF",
                    help="also measure a firmware for mps2-an386 in QEMU (hil fw build --board mps2-an386) over its "
@@ -121,36 +124,53 @@ def _native_pair_under_load(base: RunConfig, name: str, spec: str, repeats: int,
     return out
 
 
-def _pycan_pair(base: RunConfig, repeats: int, runs: str, progress: Callable[[str], None]) -> dict[str, Any]:
-    """A python-can adapter to a fast target: the host opens `hiludp` the way python-can opens any adapter (not a
-    registered link kind: the C loop drives it through its callback link), the other end is the native target
-    (`hil target --native`, started here). Both loops in this run: lockstep_pycan_{python,native}_hz and
-    pycan_native_speedup."""
+#: cross-process links measured as a python-can adapter to the native target (`_adapter_pair`)
+ADAPTER_PAIRS = ("pycan", "socketcan")
+#: `--cross-process socketcan`: python-can's socketcan interface on this CAN FD interface (a vcan in CI's VM)
+SOCKETCAN_BENCH_SPEC = "socketcan:vcan0,fd=true"
+
+
+def _adapter_pair(base: RunConfig, name: str, repeats: int, runs: str,
+                  progress: Callable[[str], None]) -> dict[str, Any]:
+    """A python-can adapter to a fast target, both loops in this run (lockstep_{name}_{python,native}_hz and
+    {name}_native_speedup); the other end is the native target (`hil target --native`, started here).
+    pycan: the host opens `hiludp` the way python-can opens any adapter whose I/O is a Python library (not a
+    registered link kind: the C loop drives it through its callback link). socketcan: python-can's socketcan
+    interface (`SOCKETCAN_BENCH_SPEC`; Linux's route to PEAK, Kvaser, gs_usb, ... adapters), which the C loop
+    drives through its native SocketCAN wire."""
     from pmsm_hil.protocol.links.udp_bus import free_udp_ports
 
-    host, target = free_udp_ports(2)
+    if name == "pycan":
+        host, target = free_udp_ports(2)
+        host_spec, target_spec = f"hiludp:{host}:{target}", f"udp:{target}:{host}"
+        what = "a python-can adapter (hiludp)"
+    else:
+        host_spec = target_spec = SOCKETCAN_BENCH_SPEC
+        what = f"python-can's socketcan interface ({SOCKETCAN_BENCH_SPEC})"
     proc = subprocess.Popen([sys.executable, "-m", "pmsm_hil.app.cli.main", "target", "--native", "--link",
-                             f"udp:{target}:{host}"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+                             target_spec], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     out: dict[str, Any] = {}
     try:
         if proc.stdout is None or not proc.stdout.readline().startswith(b"ready"):
-            return {"lockstep_pycan_error": "the native target did not start"}
+            why = proc.stderr.read().decode(errors="replace").strip().splitlines()[-1:] if proc.stderr else []
+            return {f"lockstep_{name}_error": f"the native target did not start on {target_spec}"
+                                              + (f": {why[0]}" if why else "")}
         for loop in ("python", "native") if reference_loop() is not None else ("native",):
-            progress(f"lockstep over a python-can adapter (hiludp) to the native target, {loop} loop ({runs})")
-            cfg = replace(base, link=f"hiludp:{host}:{target}", target="external", loop=loop)
+            progress(f"lockstep over {what} to the native target, {loop} loop ({runs})")
+            cfg = replace(base, link=host_spec, target="external", loop=loop)
 
             def make(cfg: RunConfig = cfg) -> RunConfig:
                 return cfg
 
             try:
-                out[f"lockstep_pycan_{loop}_hz"] = _median_rate(make, repeats)["periods_per_s"]
+                out[f"lockstep_{name}_{loop}_hz"] = _median_rate(make, repeats)["periods_per_s"]
             except Exception as exc:
-                out[f"lockstep_pycan_{loop}_error"] = str(exc)
+                out[f"lockstep_{name}_{loop}_error"] = str(exc)
     finally:
         proc.terminate()
         proc.wait(timeout=10)
-    if out.get("lockstep_pycan_python_hz") and out.get("lockstep_pycan_native_hz"):
-        out["pycan_native_speedup"] = out["lockstep_pycan_native_hz"] / out["lockstep_pycan_python_hz"]
+    if out.get(f"lockstep_{name}_python_hz") and out.get(f"lockstep_{name}_native_hz"):
+        out[f"{name}_native_speedup"] = out[f"lockstep_{name}_native_hz"] / out[f"lockstep_{name}_python_hz"]
     return out
 
 
@@ -231,7 +251,7 @@ def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
     rerun = live_rerun_rate(base, repeats)
     out["lockstep_inproc_rerun_on_hz"] = rerun["periods_per_s"]
     out["rerun_cost_pct"] = 100.0 * (1.0 - rerun["periods_per_s"] / (off if python else n_off)["periods_per_s"])
-    for name in [c for c in cross if c != "pycan"]:
+    for name in [c for c in cross if c not in ADAPTER_PAIRS]:
         spec = {"udp": "udp", "serial": "serial:pty"}.get(name, name)
         def make(spec: str = spec) -> RunConfig:
             return replace(base, link=spec, target="spawn")
@@ -245,8 +265,8 @@ def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
     for name, spec in (("udp", "udp"), ("serial", "serial:pty")):
         if name in cross:  # the native pair beside the Python pair (both spawned)
             out.update(_native_pair_under_load(base, name, spec, repeats, runs, progress))
-    if "pycan" in cross:
-        out.update(_pycan_pair(base, repeats, runs, progress))
+    for name in [c for c in cross if c in ADAPTER_PAIRS]:
+        out.update(_adapter_pair(base, name, repeats, runs, progress))
     if "udp" in cross:
         try:
             out.update(_udp_floor(progress))
@@ -293,7 +313,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"  {key:<40} {value:>10.2f} ×  (beside a CPU burner / idle, same run)")
         elif key in ("logging_cost_pct", "rerun_cost_pct", "load_fmu_cost_pct"):
             print(f"  {key:<40} {value:>10.1f} %")
-        elif key.startswith("native_speedup") or key == "pycan_native_speedup":
+        elif key.startswith("native_speedup") or key in {f"{n}_native_speedup" for n in ADAPTER_PAIRS}:
             print(f"  {key:<40} {value:>10.2f} ×  (native / python, same run)")
         elif key == "logger_limit_stall_s":
             print(f"  {key:<40} {value:>10.3f} s  (the feeder waited for the logger's ring)")
