@@ -188,8 +188,9 @@ def measure(ts_list: list[float], links: list[str], duration: float, repeats: in
             ) -> dict[str, Any]:
     """Every (Ts, link): the loops' figures, the floor of the same run (measured after the loops, for the same
     duration), the ratio to it and the goal; the load average before, after each run and at the end. The CPUs'
-    wake-up latency: as `hil run` holds it (None: 0 while a run's target is in another process, `held_by_run`
-    says which runs did), or held at `cpu_dma_latency_us` (pm_qos.py; -1: left) for the loops and the floor."""
+    wake-up latency: as `hil run` holds it (None: 0 while a run's target is in another process; each link's
+    `cpu_dma_latency_us` says what its runs held), or held at `cpu_dma_latency_us` (pm_qos.py; -1: left) for the
+    loops and the floors."""
     with cpu_latency_held(LEAVE if cpu_dma_latency_us is None else cpu_dma_latency_us) as pm_qos:
         out = _measure(ts_list, links, duration, repeats, rt_priority, cpu, log_dir, progress, cpu_dma_latency_us)
     out["cpu_dma_latency_us"], out["cpu_dma_latency_refused"] = pm_qos.held_us, pm_qos.refused
