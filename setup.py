@@ -26,8 +26,6 @@ setup(
                   "pmsm_hil.protocol": ["*.dbc"],
                   # the kernel headers and shared helpers kernel_build.py compiles a kind's kernel against
                   "pmsm_hil.hil": ["native/kernels/*.h", "native/kernels/gate_edges.c",
-                                   "native/kernels/dq_segment.c",
-                                   # the official FMI 2/3 headers (load FMUs; the test suite builds its FMUs on them)
-                                   "native/fmi/*.h", "native/fmi/README.md"]},
+                                   "native/kernels/dq_segment.c"]},
     cffi_modules=[b for b in _BUILDERS if Path(b.split(":")[0]).exists()],
 )

@@ -4,6 +4,7 @@ and the parameters `--load-fmu-set` writes. Every problem is one `LoadFmuError` 
 
 from __future__ import annotations
 
+import math
 import zipfile
 from dataclasses import dataclass
 from typing import Any
@@ -16,6 +17,8 @@ from pmsm_hil.hil.load_fmu.spec import LoadFmuSpec
 REAL, INTEGER, BOOLEAN = 0, 1, 2
 _KINDS = {"Real": REAL, "Float64": REAL, "Integer": INTEGER, "Int32": INTEGER, "Boolean": BOOLEAN}
 _REAL_TYPES = ("Real", "Float64")
+#: the range of an Integer / Int32 parameter (fmi2Integer, fmi3Int32)
+INT32_MIN, INT32_MAX = -(2**31), 2**31 - 1
 
 
 @dataclass(frozen=True, slots=True)
@@ -142,8 +145,10 @@ def _param(by_name: dict[str, Any], name: str, value: float, where: str) -> Load
     kind = _KINDS.get(str(var.type))
     if kind is None or var.dimensions:
         raise LoadFmuError(f"{option}: type {var.type} (Real/Float64, Integer/Int32 or Boolean can be set)")
-    if kind == INTEGER and value != int(value):
-        raise LoadFmuError(f"{option}: an Integer parameter, got {value:g}")
+    if kind != REAL and not math.isfinite(value):
+        raise LoadFmuError(f"{option}: an {'Integer' if kind == INTEGER else 'Boolean'} parameter, got {value:g}")
+    if kind == INTEGER and (value != int(value) or not INT32_MIN <= value <= INT32_MAX):
+        raise LoadFmuError(f"{option}: an Integer parameter (int32: {INT32_MIN} to {INT32_MAX}), got {value:g}")
     if kind == BOOLEAN and value not in (0.0, 1.0):
         raise LoadFmuError(f"{option}: a Boolean parameter (true/false, 1/0), got {value:g}")
     return LoadFmuParam(name, int(var.valueReference), kind, value)

@@ -10,21 +10,25 @@ from pmsm_hil.hil.motor_params import parse_set_options
 
 #: the FMU's variables the loop connects, by role: the speed input (mechanical rad/s) and the torque output (N·m)
 ROLES = ("speed", "torque")
+#: where the FMU runs (`--load-fmu-isolation`): its own process (contained), or the run's (unprotected)
+ISOLATIONS = ("process", "none")
 
 
 @dataclass(frozen=True, slots=True)
 class LoadFmuSpec:
     """An FMU load: the .fmu file, the names of its speed input [rad/s] and torque output [N·m], and parameter
-    values to set before initialisation (name, value; units the FMU's own)."""
+    values to set before initialisation (name, value; units the FMU's own), and where it runs (ISOLATIONS)."""
 
     path: Path
     speed: str = "speed"
     torque: str = "torque"
     params: tuple[tuple[str, float], ...] = ()
+    isolation: str = "process"
 
     def as_dict(self) -> dict[str, object]:
         """The options as metrics.json says them."""
-        return {"path": str(self.path), "speed": self.speed, "torque": self.torque, "parameters": dict(self.params)}
+        return {"path": str(self.path), "speed": self.speed, "torque": self.torque, "parameters": dict(self.params),
+                "isolation": self.isolation}
 
 
 def parse_map(text: str | None) -> dict[str, str]:
@@ -61,7 +65,8 @@ def parse_sets(items: list[str] | None) -> tuple[tuple[str, float], ...]:
     return tuple({**values, **flags}.items())
 
 
-def load_fmu_spec(path: str | Path | None, mapping: str | None, sets: list[str] | None) -> LoadFmuSpec | None:
+def load_fmu_spec(path: str | Path | None, mapping: str | None, sets: list[str] | None, *,
+                  isolation: str | None = None) -> LoadFmuSpec | None:
     """The spec of the options (None without --load-fmu; --load-fmu-map/--load-fmu-set alone are an error)."""
     if path is None or str(path) == "":
         if mapping or sets:
@@ -69,4 +74,8 @@ def load_fmu_spec(path: str | Path | None, mapping: str | None, sets: list[str] 
             raise ParameterError(f"{option}: only with --load-fmu PATH.fmu")
         return None
     names = parse_map(mapping)
-    return LoadFmuSpec(Path(path), speed=names["speed"], torque=names["torque"], params=parse_sets(sets))
+    where = isolation or "process"
+    if where not in ISOLATIONS:
+        raise ParameterError(f"--load-fmu-isolation must be one of {', '.join(ISOLATIONS)}, got {where!r}")
+    return LoadFmuSpec(Path(path), speed=names["speed"], torque=names["torque"], params=parse_sets(sets),
+                       isolation=where)

@@ -32,11 +32,14 @@ FIRMWARE_FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion
 LOOP_FLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion", "-ffp-contract=off",
               "-fno-builtin-sin", "-fno-builtin-cos", "-pthread"]
 LOOP_SOURCES = ("loop.c", "loop_frames.c", "loop_rt.c", "nl_link.c", "loop_udp.c", "loop_serial.c", "loop_socketcan.c",
-                "target_serve.c", "link_floor.c", "loop_board.c", "loop_fmu.c", "pwm_duty.c")
+                "target_serve.c", "link_floor.c", "loop_board.c", "loop_fmu.c", "loop_fmu_box.c", "pwm_duty.c")
 
 
 #: hil/cdef_extract.py by path (this script runs at build time, before the package is importable)
 _X = SimpleNamespace(**runpy.run_path(str(_HERE.parent / "cdef_extract.py")))
+#: the FMI 2.0 / 3.0 headers loop_fmu.c includes: the installed fmpy's (a build requirement, pyproject.toml), found
+#: by hil/load_fmu/headers.py (by path, as above); a clear error when fmpy is missing
+FMI_INCLUDE = runpy.run_path(str(_HERE.parent / "load_fmu" / "headers.py"))["fmi_include_dir"]()
 _TARGET = _FW / "target"
 #: every integer macro of the headers the loop's cdef reads: an array size in one header given by a macro of
 #: another (nl_gap_probe_t's NL_LATE_BINS of loop.h, nl_serial_t's NL_SERIAL_MAX_ENCODED of four headers) resolves
@@ -54,7 +57,9 @@ def _decl(header: Path, names: list[str], **options: Any) -> str:
 #: structs and the handle's functions - taken from the headers, never restated
 LOOP_H_CDEF = (_X.cffi_constants(_HERE / "loop_fmu.h", "NL_FMU_")
                + _decl(_HERE / "loop_fmu.h", ["nl_fmu_t", "nl_fmu_open", "nl_fmu_enter_init", "nl_fmu_set",
-                                               "nl_fmu_exit_init", "nl_fmu_period", "nl_fmu_close"])
+                                               "nl_fmu_exit_init", "nl_fmu_period", "nl_fmu_close", "nl_fmu_box_size",
+                                               "nl_fmu_box_attach", "nl_fmu_box_ready",
+                                               "nl_fmu_stop", "nl_fmu_serve"])
                + _X.cffi_constants(_HERE / "loop.h", "NL_")
                + _X.cffi_constants(_HERE / "kernels" / "machine_kernel.h", "MK_")
                + _decl(_HERE / "kernels" / "machine_kernel.h", ["mk_kernel_t"], opaque=["mk_kernel_t"])
@@ -141,7 +146,7 @@ ffibuilder.set_source(
     "pmsm_hil.hil._loop_native",
     PREAMBLE,
     sources=[_rel(_HERE / name) for name in LOOP_SOURCES],
-    include_dirs=[_rel(_HERE), _rel(_HERE / "kernels"), *(_rel(p) for p in _FW_INCLUDES)],
+    include_dirs=[_rel(_HERE), _rel(_HERE / "kernels"), *(_rel(p) for p in _FW_INCLUDES), str(FMI_INCLUDE)],
     extra_compile_args=LOOP_FLAGS,
     extra_objects=_firmware_objects(),
     libraries=["m", "pthread", "dl"],

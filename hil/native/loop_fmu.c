@@ -1,4 +1,6 @@
-/* The load FMU of the C period loop (loop_fmu.h): FMI 2.0 / 3.0 Co-Simulation through dlopen/dlsym. */
+/* The load FMU of the C period loop (loop_fmu.h) in this process: FMI 2.0 / 3.0 Co-Simulation through
+ * dlopen/dlsym (nl_fmu_local_*; loop_fmu_box.c calls them here, or in the FMU's own process). The FMI headers
+ * are fmpy's (its c-code folder, found at build time by hil/native/_build_loop.py). */
 #define _POSIX_C_SOURCE 200809L
 
 #include <dlfcn.h>
@@ -8,8 +10,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "fmi/fmi2FunctionTypes.h"
-#include "fmi/fmi3FunctionTypes.h"
+#include <stdint.h>
+
+#include "fmi2FunctionTypes.h"
+#include "fmi3FunctionTypes.h"
 #include "loop_fmu.h"
 
 /* f->fn[] slots. FMI 2 names the first, FMI 3 the second. */
@@ -112,12 +116,15 @@ static int32_t check(nl_fmu_t *f, int status, int32_t call, double t)
     return 0;
 }
 
-int32_t nl_fmu_open(nl_fmu_t *f, int32_t fmi_version, const char *binary, const char *instance_name,
+int32_t nl_fmu_local_open(nl_fmu_t *f, int32_t fmi_version, const char *binary, const char *instance_name,
                     const char *token, const char *resource, uint32_t vr_speed, uint32_t vr_torque)
 {
     const char *const *names = fmi_version == 3 ? FMI3_NAMES : FMI2_NAMES;
     int i;
+    const double torque_limit = f->torque_limit;
     memset(f, 0, sizeof *f);
+    f->torque_limit = torque_limit;
+    f->death_fd = -1;
     f->fmi_version = fmi_version;
     f->vr_speed = vr_speed;
     f->vr_torque = vr_torque;
@@ -135,10 +142,11 @@ int32_t nl_fmu_open(nl_fmu_t *f, int32_t fmi_version, const char *binary, const 
         if (f->fn[i] == NULL) {
             keep_message(f, NULL, names[i]);
             fail(f, NL_FMU_CALL_DLSYM, 0, 0.0);
-            nl_fmu_close(f);
+            nl_fmu_local_close(f);
             return -1;
         }
     }
+    f->in_call = NL_FMU_CALL_INSTANTIATE;
     if (fmi_version == 3) {
         f->instance = FN(f, FN_INSTANTIATE, fmi3InstantiateCoSimulationTYPE *)(
             instance_name, token, resource, fmi3False, fmi3False, fmi3False, fmi3False, NULL, 0, f, fmi3_logger,
@@ -155,22 +163,25 @@ int32_t nl_fmu_open(nl_fmu_t *f, int32_t fmi_version, const char *binary, const 
     }
     if (f->instance == NULL) {
         fail(f, NL_FMU_CALL_INSTANTIATE, 0, 0.0);
-        nl_fmu_close(f);
+        nl_fmu_local_close(f);
         return -1;
     }
     return 0;
 }
 
-int32_t nl_fmu_enter_init(nl_fmu_t *f, double t0)
+int32_t nl_fmu_local_enter_init(nl_fmu_t *f, double t0)
 {
+    f->in_call = NL_FMU_CALL_ENTER_INIT;
     if (f->fmi_version == 3) {
         return check(f, (int)FN(f, FN_ENTER_INIT, fmi3EnterInitializationModeTYPE *)(
                             f->instance, fmi3False, 0.0, t0, fmi3False, 0.0), NL_FMU_CALL_ENTER_INIT, t0);
     }
+    f->in_call = NL_FMU_CALL_SETUP;
     if (check(f, (int)FN(f, FN_SETUP, fmi2SetupExperimentTYPE *)(f->instance, fmi2False, 0.0, t0, fmi2False, 0.0),
               NL_FMU_CALL_SETUP, t0) != 0) {
         return -1;
     }
+    f->in_call = NL_FMU_CALL_ENTER_INIT;
     return check(f, (int)FN(f, FN_ENTER_INIT, fmi2EnterInitializationModeTYPE *)(f->instance),
                  NL_FMU_CALL_ENTER_INIT, t0);
 }
@@ -178,6 +189,7 @@ int32_t nl_fmu_enter_init(nl_fmu_t *f, double t0)
 static int32_t set_real(nl_fmu_t *f, uint32_t vr, double value, double t)
 {
     int status;
+    f->in_call = NL_FMU_CALL_SET;
     if (f->fmi_version == 3) {
         const fmi3ValueReference ref = vr;
         status = (int)FN(f, FN_SET_REAL, fmi3SetFloat64TYPE *)(f->instance, &ref, 1, &value, 1);
@@ -192,6 +204,7 @@ static int32_t get_torque(nl_fmu_t *f, double t)
 {
     int status;
     double value = 0.0;
+    f->in_call = NL_FMU_CALL_GET;
     if (f->fmi_version == 3) {
         const fmi3ValueReference ref = f->vr_torque;
         status = (int)FN(f, FN_GET_REAL, fmi3GetFloat64TYPE *)(f->instance, &ref, 1, &value, 1);
@@ -212,12 +225,19 @@ static int32_t get_torque(nl_fmu_t *f, double t)
     return 0;
 }
 
-int32_t nl_fmu_set(nl_fmu_t *f, uint32_t vr, int32_t kind, double value)
+int32_t nl_fmu_local_set(nl_fmu_t *f, uint32_t vr, int32_t kind, double value)
 {
     int status;
     if (kind == NL_FMU_REAL) {
         return set_real(f, vr, value, 0.0);
     }
+    if (kind == NL_FMU_INTEGER && !(value >= (double)INT32_MIN && value <= (double)INT32_MAX)) {
+        char text[80];
+        (void)snprintf(text, sizeof text, "Integer value %g outside int32", value);
+        keep_message(f, NULL, text);
+        return fail(f, NL_FMU_CALL_OUT_OF_RANGE, 0, 0.0);
+    }
+    f->in_call = NL_FMU_CALL_SET;
     if (f->fmi_version == 3) {
         const fmi3ValueReference ref = vr;
         if (kind == NL_FMU_INTEGER) {
@@ -240,12 +260,13 @@ int32_t nl_fmu_set(nl_fmu_t *f, uint32_t vr, int32_t kind, double value)
     return check(f, status, NL_FMU_CALL_SET, 0.0);
 }
 
-int32_t nl_fmu_exit_init(nl_fmu_t *f, double speed)
+int32_t nl_fmu_local_exit_init(nl_fmu_t *f, double speed)
 {
     int status;
     if (set_real(f, f->vr_speed, speed, 0.0) != 0) {
         return -1;
     }
+    f->in_call = NL_FMU_CALL_EXIT_INIT;
     if (f->fmi_version == 3) {
         status = (int)FN(f, FN_EXIT_INIT, fmi3ExitInitializationModeTYPE *)(f->instance);
     } else {
@@ -258,12 +279,13 @@ int32_t nl_fmu_exit_init(nl_fmu_t *f, double speed)
     return get_torque(f, 0.0);
 }
 
-int32_t nl_fmu_period(nl_fmu_t *f, double t, double dt, double speed)
+int32_t nl_fmu_local_period(nl_fmu_t *f, double t, double dt, double speed)
 {
     int status;
     if (set_real(f, f->vr_speed, speed, t) != 0 || get_torque(f, t) != 0) {
         return -1;
     }
+    f->in_call = NL_FMU_CALL_DO_STEP;
     if (f->fmi_version == 3) {
         fmi3Boolean event = fmi3False;
         fmi3Boolean terminate = fmi3False;
@@ -285,9 +307,10 @@ int32_t nl_fmu_period(nl_fmu_t *f, double t, double dt, double speed)
     return 0;
 }
 
-void nl_fmu_close(nl_fmu_t *f)
+void nl_fmu_local_close(nl_fmu_t *f)
 {
     if (f->instance != NULL) {
+        f->in_call = NL_FMU_CALL_NONE;
         if (f->fmi_version == 3) {
             if (f->initialised) {
                 (void)FN(f, FN_TERMINATE, fmi3TerminateTYPE *)(f->instance);

@@ -16,7 +16,8 @@ def open_load_fmu(cfg: RunConfig, ffi: Any, lib: Any, c: Any) -> LoadFmuSession 
     if model is None:
         c.load_fmu = ffi.NULL
         return None
-    session = LoadFmuSession(model, ffi, lib, cfg.scenario.start_speed_rpm * RPM_TO_RAD_S)
+    session = LoadFmuSession(model, ffi, lib, cfg.scenario.start_speed_rpm * RPM_TO_RAD_S, ts_s=cfg.ts_s,
+                             timeout_s=cfg.step_timeout_s)
     c.load_fmu = session.fmu
     return session
 

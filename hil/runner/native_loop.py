@@ -118,7 +118,7 @@ class NativeLoop:
         try:
             for _ in range(lib.NL_RING):
                 self._hand_back(self._blocks_filled % lib.NL_RING)
-            with stop.hook(lambda: lib.nl_stop(h)):
+            with stop.hook(self._stop_loop):
                 thread.start()
                 self._drain(out)
         except KeyboardInterrupt:  # a handler of the caller's own (signals are deferred only where they raise)
@@ -126,7 +126,7 @@ class NativeLoop:
         except Exception as exc:  # the sink failed: still a safe stop and complete outputs
             out.error = exc
         finally:
-            lib.nl_stop(h)
+            self._stop_loop()
             while thread.is_alive():
                 thread.join(0.05)
             restore_cpus()
@@ -145,6 +145,12 @@ class NativeLoop:
                 if gc_was_enabled:
                     gc.enable()
         return out
+
+    def _stop_loop(self) -> None:
+        """Stop the C loop, and any wait of it for the load FMU's process (that may never answer)."""
+        self._lib.nl_stop(self._h)
+        if self.load_fmu is not None:
+            self.load_fmu.stop()
 
     # --- set-up -------------------------------------------------------------------------------------
     def _isolate_cpu(self) -> Callable[[], None]:
@@ -282,6 +288,9 @@ class NativeLoop:
         elif end == lib.NL_END_TRIP:
             self._trip(out)
         elif (fmu_failure := load_fmu_failed(self.load_fmu, res, lib)) is not None:
+            if self.load_fmu is not None and self.load_fmu.contained_failure:  # its process crashed or hung
+                self._end(out, EndCode.SAFETY_STOP, f"{fmu_failure}; inverter put in the safe state (zero vector)")
+                return
             out.error = LoadFmuStepError(fmu_failure)
             self._end(out, EndCode.INTERNAL_ERROR, f"{fmu_failure}; inverter put in the safe state")
         elif end in (lib.NL_END_PLANT_ERROR, lib.NL_END_ENCODE_ERROR):

@@ -311,6 +311,10 @@ RUN_OPTIONS: tuple[RunOption, ...] = (
               metavar="ROLE=NAME,...", default_text="speed=speed,torque=torque"),
     RunOption("load_fmu_set", "table", "a parameter of the load FMU set before its initialisation (repeatable)",
               metavar="NAME=VALUE"),
+    RunOption("load_fmu_isolation", "choice",
+              "where the load FMU runs: process (its own process: a crash, exit or hang ends the run with exit 3, "
+              "the host unharmed) or none (in the run's process, unprotected: a crash kills the run)", "process",
+              choices=("process", "none")),
     # `hil run`'s outputs
     RunOption("out", "path", "output directory for run.mcap and metrics.json; an existing run there is refused "
               "unless --overwrite", scope="output", default_text="runs/<time>-<controller>"),

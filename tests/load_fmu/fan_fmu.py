@@ -1,5 +1,5 @@
 """The test suite's load FMU (fmu_src/fan_load.c: fan law with a first-order lag), built at test time with gcc
-against the official FMI headers (hil/native/fmi) and zipped as an FMI 2.0 or 3.0 Co-Simulation FMU."""
+against the FMI headers fmpy ships (hil/load_fmu/headers.py) and zipped as an FMI 2.0 or 3.0 Co-Simulation FMU."""
 
 from __future__ import annotations
 
@@ -10,10 +10,9 @@ import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
-import pmsm_hil.hil
+from pmsm_hil.hil.load_fmu.headers import fmi_include_dir
 
 SRC = Path(__file__).resolve().parent / "fmu_src"
-FMI_HEADERS = Path(pmsm_hil.hil.__file__).resolve().parent / "native" / "fmi"
 #: the FMU's defaults (modelDescription start values): k [N·m·s²/rad²], tau [s]
 K_DEFAULT, TAU_DEFAULT = 2.0e-4, 0.02
 #: binaries/<platform> of each FMI version on x86-64 Linux
@@ -37,7 +36,7 @@ def build_fan_fmu(out_dir: Path, fmi: int = 2, *, name: str = "fan_load",
     out_dir.mkdir(parents=True, exist_ok=True)
     so = out_dir / f"{name}-fmi{fmi}.so"
     subprocess.run(["gcc", "-std=c99", "-O2", "-fPIC", "-shared", "-Wall", "-Wextra", "-Werror", f"-DFAN_FMI={fmi}",
-                    f"-I{FMI_HEADERS}", str(SRC / "fan_load.c"), "-o", str(so), "-lm"], check=True)
+                    f"-I{fmi_include_dir()}", str(SRC / "fan_load.c"), "-o", str(so), "-lm"], check=True)
     text = (SRC / f"modelDescription_fmi{fmi}.xml").read_text(encoding="utf-8")
     if xml is not None:
         text = xml(text)

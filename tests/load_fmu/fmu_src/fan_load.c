@@ -4,7 +4,7 @@
  *     tau * dT/dt = k * w * |w| - T,   T(0) = T0,
  * each doStep integrated exactly with w held (T -> T_ss + (T - T_ss) * exp(-h / tau)). Parameters k
  * [N*m*s^2/rad^2], tau [s], T0 [N*m], fail_at [s] (a doStep at t >= fail_at fails: the test of a failing FMU;
- * < 0 never). Written for the test suite of this project against the official FMI headers (hil/native/fmi).
+ * < 0 never). Written for the test suite of this project against the FMI headers fmpy ships.
  */
 #include <math.h>
 #include <stdlib.h>
