@@ -145,6 +145,8 @@ class LoadFmuSession:
             return self._contained(name)
         message = self._ffi.string(f.message).decode("utf-8", "replace").strip()
         where = f"load FMU '{self.model.model_name}' ({self.model.spec.path})"
+        if call == 11:  # our own bound, not the FMU's log
+            return f"{where}: {name} at t = {float(f.t_fail):.6g} s: {message}"
         if call in (1, 2):
             what = "cannot open its binary" if call == 1 else "its binary lacks a function"
             return f"{where}: {what}: {message}"

@@ -29,13 +29,20 @@ def have_gcc() -> bool:
     return shutil.which("gcc") is not None
 
 
+#: FAN_BAD of fmu_src/fan_load.c: how a misbehaving fan FMU misbehaves at t >= fail_at
+BAD = {"segv": 1, "abort": 2, "stack": 3, "exit0": 4, "loop": 5, "block": 6, "huge": 7}
+
+
 def build_fan_fmu(out_dir: Path, fmi: int = 2, *, name: str = "fan_load",
-                  xml: Callable[[str], str] | None = None, binary: bool = True) -> Path:
+                  xml: Callable[[str], str] | None = None, binary: bool = True, bad: str | None = None,
+                  bad_in_init: bool = False) -> Path:
     """Build the fan FMU (FMI `fmi` = 2 or 3) into out_dir/<name>.fmu; `xml` rewrites the model description
-    (the tests' broken variants), `binary=False` leaves the binary out."""
+    (the tests' broken variants), `binary=False` leaves the binary out; `bad` (a BAD key) makes it misbehave at
+    t >= fail_at in doStep, or in ExitInitializationMode with `bad_in_init`."""
     out_dir.mkdir(parents=True, exist_ok=True)
     so = out_dir / f"{name}-fmi{fmi}.so"
     subprocess.run(["gcc", "-std=c99", "-O2", "-fPIC", "-shared", "-Wall", "-Wextra", "-Werror", f"-DFAN_FMI={fmi}",
+                    f"-DFAN_BAD={BAD[bad] if bad else 0}", f"-DFAN_BAD_IN_INIT={int(bad_in_init)}",
                     f"-I{fmi_include_dir()}", str(SRC / "fan_load.c"), "-o", str(so), "-lm"], check=True)
     text = (SRC / f"modelDescription_fmi{fmi}.xml").read_text(encoding="utf-8")
     if xml is not None:

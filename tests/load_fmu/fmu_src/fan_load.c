@@ -4,11 +4,19 @@
  *     tau * dT/dt = k * w * |w| - T,   T(0) = T0,
  * each doStep integrated exactly with w held (T -> T_ss + (T - T_ss) * exp(-h / tau)). Parameters k
  * [N*m*s^2/rad^2], tau [s], T0 [N*m], fail_at [s] (a doStep at t >= fail_at fails: the test of a failing FMU;
- * < 0 never). Written for the test suite of this project against the FMI headers fmpy ships.
+ * < 0 never). Built with -DFAN_BAD=N it misbehaves instead at t >= fail_at (in doStep; in
+ * ExitInitializationMode with -DFAN_BAD_IN_INIT=1): 1 SIGSEGV, 2 abort(), 3 stack overflow, 4 _exit(0),
+ * 5 an endless loop, 6 blocks for good, 7 a torque of 1e30 -- the containment tests' FMUs; with FAN_MARKER set
+ * in the environment it first creates that file (the test then knows the FMU is misbehaving). Written for the
+ * test suite of this project against the FMI headers fmpy ships.
  */
+#define _POSIX_C_SOURCE 200809L
+
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #if FAN_FMI == 3
 #include "fmi3Functions.h"
@@ -51,6 +59,60 @@ static void say_error(fan_t *f, const char *text)
         f->cb.logger(f->cb.componentEnvironment, f->name, fmi2Error, "logStatusError", "%s", text);
     }
 #endif
+}
+
+#ifndef FAN_BAD
+#define FAN_BAD 0
+#endif
+#ifndef FAN_BAD_IN_INIT
+#define FAN_BAD_IN_INIT 0
+#endif
+
+/* Deep enough to overflow any stack (bounded, so the compiler sees an ending). */
+static int deep(volatile char *up, long n)
+{
+    volatile char frame[4096];
+    frame[0] = (char)n;
+    frame[4095] = up != NULL ? up[0] : 0;
+    if (n > 100000000L) {
+        return frame[0];
+    }
+    return deep(frame, n + 1) + frame[4095];
+}
+
+/* The FAN_BAD misbehaviour (7, the absurd torque, is the step's own). */
+static void misbehave(fan_t *f)
+{
+    const char *marker = getenv("FAN_MARKER");
+    volatile int spin = 0;
+    if (marker != NULL) {
+        FILE *m = fopen(marker, "w");
+        if (m != NULL) {
+            fclose(m);
+        }
+    }
+    switch (FAN_BAD) {
+    case 1:
+        *(volatile int *)(void *)(size_t)f->v[0] = 1; /* v[0] is 0.0: a write to address 0 */
+        break;
+    case 2:
+        abort();
+    case 3:
+        (void)deep(NULL, 0);
+        break;
+    case 4:
+        _exit(0);
+    case 5:
+        for (;;) {
+            spin++;
+        }
+    case 6:
+        for (;;) {
+            pause();
+        }
+    default:
+        break;
+    }
 }
 
 static fan_t *fan_new(void)
@@ -96,6 +158,13 @@ static STATUS fan_step(fan_t *f, double t, double h)
     const double w = f->v[VR_SPEED];
     const double t_ss = f->v[VR_K] * w * fabs(w);
     if (f->v[VR_FAIL_AT] >= 0.0 && t >= f->v[VR_FAIL_AT]) {
+        if (FAN_BAD == 7) {
+            f->v[VR_TORQUE] = 1e30;
+            return OK;
+        }
+        if (FAN_BAD != 0 && !FAN_BAD_IN_INIT) {
+            misbehave(f);
+        }
         say_error(f, "fan blade jammed (fail_at reached)");
         return ERROR;
     }
@@ -143,6 +212,9 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
 fmi3Status fmi3ExitInitializationMode(fmi3Instance instance)
 {
     fan_t *f = (fan_t *)instance;
+    if (FAN_BAD_IN_INIT) {
+        misbehave(f);
+    }
     f->v[VR_TORQUE] = f->v[VR_T0];
     f->initialised = 1;
     return fmi3OK;
@@ -226,6 +298,9 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component c) { (void)c; return fmi2OK
 fmi2Status fmi2ExitInitializationMode(fmi2Component c)
 {
     fan_t *f = (fan_t *)c;
+    if (FAN_BAD_IN_INIT) {
+        misbehave(f);
+    }
     f->v[VR_TORQUE] = f->v[VR_T0];
     f->initialised = 1;
     return fmi2OK;
