@@ -53,7 +53,9 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
                         "UART and its PSRAM mailbox (lockstep_qemu_uart_hz, lockstep_qemu_mailbox_hz)")
     p.add_argument("--load-fmu", type=Path, metavar="PATH.fmu",
                    help="also measure the native loop with this load FMU (FMI 2/3 Co-Simulation, inputs speed, "
-                        "output torque; lockstep_inproc_native_load_fmu_hz, logging off)")
+                        "output torque; logging off): in its own process (lockstep_inproc_native_load_fmu_hz, the "
+                        "default) and in the run's (lockstep_inproc_native_load_fmu_unisolated_hz), "
+                        "load_fmu_isolation_cost_pct their ratio in the same run")
     p.add_argument("--json", type=Path, help="write the figures as JSON")
     p.set_defaults(func=run)
 
@@ -237,11 +239,17 @@ def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
     out["logger_limit_hz"] = limit.periods_per_s
     out["logger_limit_stall_s"] = limit.stall_s
     if load_fmu is not None:
-        progress(f"lockstep in-process, native loop (C), load FMU {load_fmu.name}, logging off ({runs})")
+        progress(f"lockstep in-process, native loop (C), load FMU {load_fmu.name} in its own process, logging off "
+                 f"({runs})")
         with_fmu = replace(native, load_fmu=LoadFmuSpec(load_fmu))
         n_fmu = _median_rate(lambda: with_fmu, repeats)
+        progress(f"the same, the load FMU in the run's process (--load-fmu-isolation none) ({runs})")
+        fmu_inproc = replace(native, load_fmu=LoadFmuSpec(load_fmu, isolation="none"))
+        n_fmu_inproc = _median_rate(lambda: fmu_inproc, repeats)
         out["lockstep_inproc_native_load_fmu_hz"] = n_fmu["periods_per_s"]
+        out["lockstep_inproc_native_load_fmu_unisolated_hz"] = n_fmu_inproc["periods_per_s"]
         out["load_fmu_cost_pct"] = 100.0 * (1.0 - n_fmu["periods_per_s"] / n_off["periods_per_s"])
+        out["load_fmu_isolation_cost_pct"] = 100.0 * (1.0 - n_fmu["periods_per_s"] / n_fmu_inproc["periods_per_s"])
     if python:
         out["native_speedup_log_off"] = n_off["periods_per_s"] / off["periods_per_s"]
         out["native_speedup_log_on"] = n_on["periods_per_s"] / on["periods_per_s"]
@@ -311,7 +319,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"  {key:<40} {value:>10.0f} periods/s  ({value / rate:.2f}× real time at {rate / 1e3:g} kHz)")
         elif key.endswith("_load_ratio"):
             print(f"  {key:<40} {value:>10.2f} ×  (beside a CPU burner / idle, same run)")
-        elif key in ("logging_cost_pct", "rerun_cost_pct", "load_fmu_cost_pct"):
+        elif key in ("logging_cost_pct", "rerun_cost_pct", "load_fmu_cost_pct", "load_fmu_isolation_cost_pct"):
             print(f"  {key:<40} {value:>10.1f} %")
         elif key.startswith("native_speedup") or key in {f"{n}_native_speedup" for n in ADAPTER_PAIRS}:
             print(f"  {key:<40} {value:>10.2f} ×  (native / python, same run)")

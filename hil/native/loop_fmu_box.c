@@ -3,7 +3,10 @@
  * its own through a mailbox in shared memory. Lock step: the host writes a request and bumps `req`, the FMU's
  * process (nl_fmu_serve) runs it on the nl_fmu_t inside the mailbox and bumps `ack`. Each side spins a little
  * for the other, then sleeps on the futex word, woken only when it said it sleeps (`*_waiting`), so a period
- * costs no system call while both have a CPU. The host wakes every WAIT_SLICE_NS to look at the process
+ * costs no system call while both have a CPU. On a contended CPU a spin only takes the core the other side needs
+ * (measured here at load 12 on 2 cores: 2.6k periods/s spinning 50 us, 15.5k blocking at once), so each side
+ * counts, over SPIN_WINDOW waits, those whose spin ran out; when more than half did, it blocks at once for
+ * SPIN_BACKOFF waits, then tries spinning again (spin_t). The host wakes every WAIT_SLICE_NS to look at the process
  * (death_fd hung up: crashed), the deadline (hung) and nl_fmu_stop (stopped), so it never blocks on the FMU.
  * Also the torque bound of both modes. No allocation.
  */
@@ -31,14 +34,21 @@
 #define OP_PERIOD 5
 #define OP_CLOSE 6
 
-#define HOST_SPIN_NS 50000        /* the host spins this long for an answer before it sleeps [ns] */
-#define SERVE_SPIN_NS 50000       /* the FMU's process spins this long for a request before it sleeps [ns] */
+#define SPIN_NS 50000             /* each side spins this long for the other before it sleeps [ns] */
+#define SPIN_WINDOW 64            /* waits over which the spins that ran out are counted */
+#define SPIN_BACKOFF 1024         /* waits that block at once after a window where most spins ran out */
 #define WAIT_SLICE_NS 1000000     /* a sleeping host looks at the process, its deadline and stop this often [ns] */
 #define SERVE_SLICE_NS 100000000  /* a sleeping FMU process looks at its parent this often [ns] */
 #define NS_PER_S 1000000000LL
 
+/* One side's spin policy (zero: spinning). */
+typedef struct {
+    int32_t waits, ran_out, block_left, pad;
+} spin_t;
+
 typedef struct {
     uint32_t req, ack;            /* futex words: requests sent, requests answered */
+    spin_t host_spin, serve_spin; /* each side's own */
     int32_t host_waiting, serve_waiting;
     int32_t op, kind, rc, ready;  /* ready: the FMU's process serves */
     uint32_t vr, vr_speed, vr_torque;
@@ -66,6 +76,30 @@ static void futex_wait(uint32_t *word, uint32_t value, int64_t ns)
 static void futex_wake(uint32_t *word)
 {
     (void)syscall(SYS_futex, word, FUTEX_WAKE, 1, NULL, NULL, 0);
+}
+
+/* How long this wait may spin [ns]. */
+static int64_t spin_budget(const spin_t *sp)
+{
+    return sp->block_left > 0 ? 0 : SPIN_NS;
+}
+
+/* A wait ended; `ran_out`: it had to sleep. */
+static void spin_count(spin_t *sp, int ran_out)
+{
+    if (sp->block_left > 0) {
+        sp->block_left--;
+        return;
+    }
+    sp->waits++;
+    sp->ran_out += ran_out ? 1 : 0;
+    if (sp->waits == SPIN_WINDOW) {
+        if (2 * sp->ran_out > SPIN_WINDOW) {
+            sp->block_left = SPIN_BACKOFF;
+        }
+        sp->waits = 0;
+        sp->ran_out = 0;
+    }
 }
 
 static void relax(void)
@@ -98,13 +132,15 @@ static int process_ended(const nl_fmu_t *f)
 static int32_t box_wait(nl_fmu_t *f, box_t *b, uint32_t seq)
 {
     const int64_t start = now_ns();
-    const int64_t spin_end = start + HOST_SPIN_NS;
+    const int64_t spin_end = start + spin_budget(&b->host_spin);
     const int64_t deadline = start + f->timeout_ns;
+    int slept = 0;
     for (;;) {
         uint32_t ack = __atomic_load_n(&b->ack, __ATOMIC_ACQUIRE);
         int64_t now;
         int64_t slice;
         if (ack == seq) {
+            spin_count(&b->host_spin, slept);
             return 0;
         }
         now = now_ns();
@@ -112,6 +148,7 @@ static int32_t box_wait(nl_fmu_t *f, box_t *b, uint32_t seq)
             relax();
             continue;
         }
+        slept = 1;
         if (__atomic_load_n(&f->stop, __ATOMIC_ACQUIRE)) {
             return NL_FMU_ENDED_STOPPED;
         }
@@ -311,16 +348,19 @@ void nl_fmu_close(nl_fmu_t *f)
 /* The next request after `seen` into *req: 1, or 0 once the parent went. */
 static int next_request(box_t *b, uint32_t seen, int32_t parent_pid, uint32_t *req)
 {
-    const int64_t spin_end = now_ns() + SERVE_SPIN_NS;
+    const int64_t spin_end = now_ns() + spin_budget(&b->serve_spin);
+    int slept = 0;
     for (;;) {
         *req = __atomic_load_n(&b->req, __ATOMIC_ACQUIRE);
         if (*req != seen) {
+            spin_count(&b->serve_spin, slept);
             return 1;
         }
         if (now_ns() < spin_end) {
             relax();
             continue;
         }
+        slept = 1;
         if (getppid() != parent_pid) {
             return 0;
         }
