@@ -63,8 +63,9 @@ def test_a_misbehaving_fmu_ends_the_run_with_exit_3(bad_fmus: dict[str, Path], b
                                                     capsys: pytest.CaptureFixture[str]) -> None:
     """`hil run` (in this process: the FMU's crash must not take it) returns 3, names the cause, writes
     metrics.json and an MCAP of end_period + 1 periods (every period before the FMU's), safe stop confirmed."""
-    out = tmp_path / "run"
+    out, before = tmp_path / "run", _fmu_temp_dirs()
     assert main(["run", "--load-fmu", str(bad_fmus[bad]), *RUN, "--step-timeout", "0.2", "--out", str(out)]) == 3
+    assert _fmu_temp_dirs() <= before and _serving(os.getpid()) == []  # folder removed, process gone
     metrics, periods = _outputs(out)
     assert metrics["end_code"] == 3 and cause in metrics["end_reason"], metrics["end_reason"]
     assert "\n" not in metrics["end_reason"] and metrics["safe_state"] is True
@@ -79,13 +80,30 @@ def test_a_crash_in_initialisation_is_one_line(bad_fmus: dict[str, Path], tmp_pa
                                                capsys: pytest.CaptureFixture[str]) -> None:
     """SIGSEGV in fmi2ExitInitializationMode (before the run: nothing enabled yet): one line, exit 2, no temp
     folder of the FMU left behind."""
-    before = set(Path(os.environ.get("TMPDIR", "/tmp")).glob("hil-load-fmu-*"))
+    before = _fmu_temp_dirs()
     assert main(["run", "--load-fmu", str(bad_fmus["init-segv"]), "--no-log", "--settle", "0", "--duration",
                  "0.01"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err == [f"hil: error: load FMU 'FanLoad' ({bad_fmus['init-segv']}) crashed (SIGSEGV in "
                    "fmi2ExitInitializationMode while initialising)"]
-    assert set(Path(os.environ.get("TMPDIR", "/tmp")).glob("hil-load-fmu-*")) <= before
+    assert _fmu_temp_dirs() <= before and _serving(os.getpid()) == []
+
+
+def _serving(parent_pid: int) -> list[int]:
+    """Pids of live load FMU processes of the run `parent_pid` (Linux /proc)."""
+    pids = []
+    for cmdline in Path("/proc").glob("[0-9]*/cmdline"):
+        try:
+            argv = cmdline.read_bytes().split(b"\0")
+        except OSError:
+            continue
+        if b"pmsm_hil.hil.load_fmu.serve" in argv and argv[-2:] == [str(parent_pid).encode(), b""]:
+            pids.append(int(cmdline.parent.name))
+    return pids
+
+
+def _fmu_temp_dirs() -> set[Path]:
+    return set(Path(os.environ.get("TMPDIR", "/tmp")).glob("hil-load-fmu-*"))
 
 
 def _hil_run(args: list[str], **kw: Any) -> subprocess.Popen[str]:
@@ -124,8 +142,7 @@ def test_ctrl_c_ends_an_endless_looping_fmu(bad_fmus: dict[str, Path], tmp_path:
     assert seconds < 30.0
     metrics, periods = _outputs(out)
     assert metrics["end_code"] == 130 and len(periods) == metrics["end_period"] + 1 == FAIL_PERIOD
-    serving = subprocess.run(["pgrep", "-f", f"load_fmu.serve [0-9]+ {pid}$"], capture_output=True, text=True)
-    assert serving.stdout == ""
+    assert _serving(pid) == []
 
 
 @pytest.mark.timing
