@@ -17,6 +17,7 @@ from typing import Any
 from pmsm_hil.hil.load_fmu.description import LoadFmuModel
 from pmsm_hil.hil.load_fmu.errors import LoadFmuStepError
 from pmsm_hil.hil.load_fmu.process import LoadFmuProcess, describe_exit
+from pmsm_hil.hil.runner.stop_request import deferred_interrupts
 
 #: |torque output| [N·m] beyond which the FMU's output is taken as absurd: the call fails, the run ends (far
 #: above any machine this tool models: a bound on nonsense such as 1e30, not a rating check)
@@ -84,21 +85,25 @@ class LoadFmuSession:
         self._running = True
 
     def _call(self, fn: Callable[..., int], *args: Any) -> int:
-        """An initialisation call; contained, made in a worker thread so that Ctrl-C is seen at once (it stops
-        the call's wait, `nl_fmu_stop`) whatever the FMU does."""
+        """An initialisation call; contained, made in a worker thread so that Ctrl-C/SIGTERM are seen at once
+        whatever the FMU does: they stop the call's wait (`nl_fmu_stop`) and raise KeyboardInterrupt here (the
+        run is not started yet: nothing to stop safely)."""
         if self.process is None:
             return int(fn(*args))
         result: list[int] = []
         worker = threading.Thread(target=lambda: result.append(int(fn(*args))), name="hil-load-fmu-init",
                                   daemon=True)
-        worker.start()
-        try:
-            while worker.is_alive():
-                worker.join(_JOIN_S)
-        except BaseException:
-            self.stop()
-            worker.join()
-            raise
+        with deferred_interrupts() as request, request.hook(self.stop):  # the run's, when it defers them
+            worker.start()
+            try:
+                while worker.is_alive():
+                    worker.join(_JOIN_S)
+            except BaseException:
+                self.stop()
+                worker.join()
+                raise
+        if request.requested:
+            raise KeyboardInterrupt
         return result[0] if result else -1
 
     @property

@@ -36,13 +36,14 @@ RUN = ["--load-fmu-set", f"fail_at={FAIL_AT_S}", "--speed", "1000", "--settle", 
 
 @pytest.fixture(scope="module")
 def bad_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    """A fan FMU per misbehaviour (tests/load_fmu/fan_fmu.py BAD), FMI 2; `init-segv`: SIGSEGV in
-    fmi2ExitInitializationMode; `fmi3-segv`: SIGSEGV in fmi3DoStep."""
+    """A fan FMU per misbehaviour (tests/load_fmu/fan_fmu.py BAD), FMI 2; `init-segv` / `init-loop`: SIGSEGV /
+    an endless loop in fmi2ExitInitializationMode; `fmi3-segv`: SIGSEGV in fmi3DoStep."""
     out = tmp_path_factory.mktemp("bad-fmu")
     fmus = {bad: build_fan_fmu(out / bad, 2, bad=bad) for bad in ("segv", "abort", "stack", "exit0", "loop",
                                                                     "block", "huge")}
     fmus["init-segv"] = build_fan_fmu(out / "init-segv", 2, bad="segv", bad_in_init=True)
     fmus["fmi3-segv"] = build_fan_fmu(out / "fmi3-segv", 3, bad="segv")
+    fmus["init-loop"] = build_fan_fmu(out / "init-loop", 2, bad="loop", bad_in_init=True)
     return fmus
 
 
@@ -143,6 +144,14 @@ def test_ctrl_c_ends_an_endless_looping_fmu(bad_fmus: dict[str, Path], tmp_path:
     metrics, periods = _outputs(out)
     assert metrics["end_code"] == 130 and len(periods) == metrics["end_period"] + 1 == FAIL_PERIOD
     assert _serving(pid) == []
+
+
+def test_ctrl_c_ends_an_fmu_looping_in_its_initialisation(bad_fmus: dict[str, Path], tmp_path: Path) -> None:
+    """An endless loop in fmi2ExitInitializationMode (before the run): Ctrl-C ends `hil run` (130, "before the run
+    started") long before the 100 s step timeout, the FMU's process gone."""
+    seconds, rc, err, _, pid = _interrupt_in_endless_loop(bad_fmus["init-loop"], tmp_path, signal.SIGINT)
+    assert rc == 130 and "interrupted" in err and "before the run started" in err, err
+    assert seconds < 30.0 and _serving(pid) == []
 
 
 @pytest.mark.timing
