@@ -202,7 +202,8 @@ METRICS: Final[tuple[Metric, ...]] = (
        CLI, REPORT, COMPARE_ROW),
     _m("current_fundamental_a", "current fundamental", "A", "fundamental amplitude of phase a", ".4g", CLI),
     _m("current_fundamental_hz", "fundamental frequency", "Hz", "f1: the stator electrical frequency measured from "
-       "the phase currents over the THD span (below; slip included for an induction machine); null when ~ 0",
+       "the phase currents over the THD span (below; slip included for an induction machine); null when ~ 0 or "
+       "changing (not applicable)",
        ".4g", CLI),
     _m("current_rotor_electrical_hz", "rotor electrical frequency", "Hz", "p·|ω̄_m|/2π over the THD span (= f1 for "
        "a synchronous machine; f1 − slip frequency for an induction machine)"),

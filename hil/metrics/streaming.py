@@ -227,6 +227,7 @@ class WindowMetrics:
         out["current_fundamental_hz"] = f1
         out["current_fundamental_change_pct"] = measured.change_pct
         if not measured.stationary:
+            out["current_fundamental_hz"] = None
             return _not_applicable(out, (
                 f"the stator frequency changes by {measured.change_pct:.3g} % over the THD span ("
                 f"{min(measured.segments_hz):.4g}–{max(measured.segments_hz):.4g} Hz, more than "
@@ -246,14 +247,14 @@ class WindowMetrics:
 
 
 #: the harmonic keys that are null together when the fundamental is not defined over the span
-HARMONIC_KEYS = ("current_thd_pct", "current_thd_total_pct", "current_fundamental_a", "current_thd_phases_pct",
-                 "current_distortion_rms_a")
+HARMONIC_KEYS = ("current_thd_pct", "current_thd_total_pct", "current_fundamental_a", "current_fundamental_hz",
+                 "current_thd_phases_pct", "current_distortion_rms_a")
 
 
 def _not_applicable(out: dict[str, Any], reason: str) -> dict[str, Any]:
     """`out` with the harmonic keys null and `reason` in `current_thd_note` and `not_applicable`."""
     out["current_thd_note"] = reason
-    out["not_applicable"] = {key: reason for key in HARMONIC_KEYS}
+    out["not_applicable"] = {key: reason for key in HARMONIC_KEYS if out.get(key) is None}
     return out
 
 

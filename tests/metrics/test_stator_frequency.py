@@ -60,8 +60,8 @@ def test_a_changing_fundamental_makes_the_harmonic_metrics_not_applicable() -> N
         tr[name] = 6.0 * np.sin(phase + shift)
     tr["torque"] = 5.0
     m = compute_run_metrics(make_periods(round(0.3 / TS), TS), tr, **ARGS)
-    for key in ("current_thd_pct", "current_thd_total_pct", "current_fundamental_a", "current_thd_phases_pct",
-                "current_distortion_rms_a"):
+    for key in ("current_thd_pct", "current_thd_total_pct", "current_fundamental_a", "current_fundamental_hz",
+                "current_thd_phases_pct", "current_distortion_rms_a"):
         assert m[key] is None
         assert "changes by" in m["not_applicable"][key]
     assert m["current_fundamental_change_pct"] > MAX_CHANGE_PCT
