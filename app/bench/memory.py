@@ -23,6 +23,8 @@ RSS_GOAL_MB = 500.0
 #: goal: wall time linear in duration — the marginal wall time per simulated second between consecutive
 #: durations may differ by at most this fraction (a fixed start-up cost is allowed; growth is not)
 LINEARITY_GOAL = 0.10
+#: goal of issue 36 (real time): the longest run's RSS within this fraction of the shortest's
+RT_GROWTH_GOAL = 0.10
 
 
 @dataclass(frozen=True)
@@ -65,12 +67,13 @@ def probe(argv: list[str]) -> dict[str, float]:
             "rss_logger_mb": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * kib / 1e6}
 
 
-def measure(duration_s: float, *, log: bool, log_trace: bool, controller: str, settle_s: float = 0.1) -> MemoryPoint:
-    """One probe run of `duration_s` s (plus `settle_s`) in a fresh interpreter."""
+def measure(duration_s: float, *, log: bool, log_trace: bool, controller: str, settle_s: float = 0.1,
+            mode: str = "lockstep") -> MemoryPoint:
+    """One probe run of `duration_s` s (plus `settle_s`) in a fresh interpreter, in `mode` (lockstep or realtime)."""
     with tempfile.TemporaryDirectory(prefix="hil-bench-memory-") as tmp:
         metrics = Path(tmp) / "metrics.json"
         argv = ["--duration", repr(duration_s), "--settle", repr(settle_s), "--controller", controller,
-                "--json", str(metrics)]
+                "--mode", mode, "--json", str(metrics)]
         argv += ["--out", str(Path(tmp) / "run")] if log else ["--no-log"]
         if log and log_trace:
             argv.append("--log-trace")
@@ -86,8 +89,20 @@ def measure(duration_s: float, *, log: bool, log_trace: bool, controller: str, s
                        int(fig["exit_code"]))
 
 
-def format_points(points: list[MemoryPoint]) -> list[str]:
-    """The table, the linearity figures and the verdict against the goals."""
+def realtime_growth(points: list[MemoryPoint]) -> tuple[float, float] | None:
+    """(RSS of the longest run / RSS of the shortest − 1, growth [MB per minute of run]) of host + logger; None with
+    fewer than two durations."""
+    if len(points) < 2:
+        return None
+    short, long = min(points, key=lambda p: p.duration_s), max(points, key=lambda p: p.duration_s)
+    a, b = short.rss_host_mb + short.rss_logger_mb, long.rss_host_mb + long.rss_logger_mb
+    minutes = (long.duration_s - short.duration_s) / 60.0
+    return b / a - 1.0, (b - a) / minutes if minutes > 0 else 0.0
+
+
+def format_points(points: list[MemoryPoint], *, realtime: bool = False) -> list[str]:
+    """The table, the linearity figures (lockstep) or the RSS growth (`realtime`) and the verdict against the
+    goals."""
     lines = [f"{'simulated s':>11}  {'wall s':>8}  {'wall/sim':>8}  {'CPU s':>8}  {'CPU/sim':>8}  {'host RSS MB':>11}  "
              f"{'logger RSS MB':>13}  exit"]
     for p in points:
@@ -98,7 +113,13 @@ def format_points(points: list[MemoryPoint]) -> list[str]:
         total = longest.rss_host_mb + longest.rss_logger_mb
         lines.append(f"peak RSS of the longest run ({longest.duration_s:g} s), host + logger: {total:.0f} MB "
                      f"(goal < {RSS_GOAL_MB:g} MB) — {'met' if total < RSS_GOAL_MB else 'NOT met'}")
-    for label, cpu in (("wall", False), ("CPU", True)):
+    growth = realtime_growth(points) if realtime else None
+    if growth is not None:
+        short, long = min(points, key=lambda p: p.duration_s), max(points, key=lambda p: p.duration_s)
+        lines.append(f"real time: RSS (host + logger) of the {long.duration_s:g} s run vs the {short.duration_s:g} s "
+                     f"run: {growth[0]:+.1%}, {growth[1]:+.2f} MB/min (goal within {RT_GROWTH_GOAL:.0%}) — "
+                     + ("met" if abs(growth[0]) <= RT_GROWTH_GOAL else "NOT met"))
+    for label, cpu in (() if realtime else (("wall", False), ("CPU", True))):
         rates = marginal_rates(points, cpu=cpu)
         if len(rates) >= 2:
             spread = max(rates) / min(rates) - 1.0 if min(rates) > 0 else float("inf")

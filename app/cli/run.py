@@ -36,8 +36,9 @@ from pmsm_hil.sim_target.fw_params import default_controller
 #: `hil run` exit codes (= metrics `end_code`), printed by --help.
 EXIT_CODES = ("exit codes: 0 completed, 1 internal error, 2 usage/config error, 3 safety stop (watchdog, plant "
               "trip, target fault, safe stop not confirmed, SIL target crashed or hung), 4 DUT contract violation, "
-              "130 interrupted (Ctrl-C/SIGTERM); every ending but 2 writes metrics.json (end_reason, end_period, "
-              "end_code) and the log up to the last period")
+              "5 setpoint not held (--expect-hold: a completed run with setpoint_held false), 130 interrupted "
+              "(Ctrl-C/SIGTERM); every ending but 2 writes metrics.json (end_reason, end_period, end_code) and the log "
+              "up to the last period")
 
 
 def add_run_arguments(p: argparse.ArgumentParser) -> None:
@@ -91,13 +92,14 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
             return spec.option
         return f"'{name}' in config file {args.config}" if name in cfg else fallback
 
-    for name in ("json", "overwrite"):  # used after the run: the config file's value unless given
+    for name in ("json", "overwrite", "expect_hold"):  # used after the run: the config file's value unless given
         if getattr(args, name, None) is None and name in cfg:
             setattr(args, name, cfg[name])
     check_values({o.key: pick(o.key) for o in RUN_OPTIONS if o.kind in ("number", "integer", "frequency")})
     motor = load_motor(str(pick("motor")), parse_set_options([*cfg.get("set", []), *args.set_params]))
     scenario = load_scenario(str(pick("scenario"))).with_overrides(
-        speed_rpm=pick("speed"), load_nm=pick("load"), duration_s=pick("duration"), settle_s=pick("settle"))
+        speed_rpm=pick("speed"), load_nm=pick("load"), duration_s=pick("duration"), settle_s=pick("settle"),
+        hold_tolerance_pct=pick("hold_tolerance"))
     controller_params = parse_param_options([*cfg.get("param", []), *args.param])
     # --- load FMU (issue 28 item 4) ---
     load_fmu = load_fmu_spec(pick("load_fmu"), pick("load_fmu_map"),
@@ -181,13 +183,31 @@ def _run_checked(args: argparse.Namespace, cfg: RunConfig) -> int:
         return 130
 
 
+#: exit code (= metrics `end_code`) of a completed run whose setpoint was not held under `--expect-hold`
+EXIT_SETPOINT_NOT_HELD = 5
+
+
+def _setpoint_missed(metrics: dict[str, Any], cfg: RunConfig) -> int:
+    """`--expect-hold` and the setpoint was not held: end_code 5 in the metrics (metrics.json rewritten)."""
+    metrics["end_code"] = EXIT_SETPOINT_NOT_HELD
+    err = metrics.get("setpoint_error") or {}
+    metrics["end_reason"] = (f"setpoint not held (--expect-hold): speed {err.get('measured', float('nan')):.1f} rpm "
+                             f"vs {err.get('reference', float('nan')):.1f} rpm, tolerance "
+                             f"±{metrics.get('hold_tolerance_pct')} %")
+    if cfg.out_dir is not None:
+        write_text_atomic(cfg.out_dir / "metrics.json", json.dumps(metrics, indent=2) + "\n", option="metrics file")
+    return EXIT_SETPOINT_NOT_HELD
+
+
 def _run_and_report(args: argparse.Namespace, cfg: RunConfig, live: Callable[[np.ndarray], None] | None) -> int:
     """One run (blocks also to the live dashboard if any); prints the metrics, writes --json."""
     result = run_closed_loop(cfg, live=live)
+    end_code = int(result.metrics["end_code"])
+    if end_code == 0 and getattr(args, "expect_hold", False) and result.metrics.get("setpoint_held") is False:
+        end_code = _setpoint_missed(result.metrics, cfg)
     print(format_metrics(result.metrics))
     for line in result.metrics.get("warnings", []):
         print(f"hil: warning: {line}", file=sys.stderr)
-    end_code = int(result.metrics["end_code"])
     if result.outcome.error is not None and args.debug:
         raise result.outcome.error
     if end_code != 0:

@@ -18,9 +18,9 @@ from typing import Any, Final
 #: Every other metric of a lockstep run is a pure function of the configuration and is bit-identical on
 #: every engine (tests/sweep/test_engines.py). Keys are metrics.json keys; their sub-keys are included.
 WALL_CLOCK_METRICS: Final = ("wall_time_s", "loop_rate_hz", "total_wall_time_s", "loop_rate_total_hz",
-                             "command_wait_max_us", "exec_time_us", "exec_split_us", "lateness_us",
-                             "lateness_histogram_us", "overruns", "deadline_misses", "late_periods", "missed_periods",
-                             "safe_stop_wait_ms")
+                             "command_wait_max_us", "exec_time_us", "exec_split_us", "exec_time_first_us",
+                             "lateness_us", "lateness_histogram_us", "overruns", "deadline_misses", "late_periods",
+                             "missed_periods", "safe_stop_wait_ms")
 #: Columns a sweep adds about where and how long a run ran (not metrics, not compared)
 RUN_FACTS: Final = ("host", "pid", "blas_threads", "run_wall_s", "mcap")
 

@@ -92,7 +92,8 @@ METRICS: Final[tuple[Metric, ...]] = (
        REPORT, source=RUN),
     _m("end_code", "end code", "", "how the run ended = exit code of `hil run`: 0 completed, 1 internal error, "
        "3 safety stop (watchdog, trip, target fault, safe stop not confirmed), 4 DUT contract violation, "
-       "130 interrupted", "d", CLI,
+       "5 setpoint not held (a completed run with `--expect-hold` and `setpoint_held` false), 130 interrupted", "d",
+       CLI,
        source=RUN),
     _m("end_period", "end period", "", "index of the last period run and logged (−1: none); the MCAP holds "
        "end_period + 1 periods", "d", source=RUN),
@@ -150,7 +151,8 @@ METRICS: Final[tuple[Metric, ...]] = (
     _m("total_wall_time_s", "total wall time", "s", "wall time of the whole loop", source=RUN),
     _m("loop_rate_total_hz", "loop rate (total)", "periods/s", "total_periods / total_wall_time_s", ".0f",
        source=RUN),
-    _m("lateness_us", "lateness", "µs", "real time: `{median, p99, max}` of how late each period started",
+    _m("lateness_us", "lateness", "µs", "real time: `{median, p99, max}` of how late each period started "
+       "(quantiles within 0.39 %, max exact, in fixed memory: below)",
        source=RUN),
     _m("lateness_histogram_us", "lateness histogram", "µs", "real time: `{edges_us, counts}`, period starts per "
        "lateness bin [edges_us[i], edges_us[i+1]) µs, the last bin open-ended", "", source=RUN),
@@ -158,6 +160,21 @@ METRICS: Final[tuple[Metric, ...]] = (
     _m("speed_reference_missed", "speed reference missed", "", "completed runs: true when the speed over the last "
        "10 % of the window is off the reference by more than 10 % (≥ 5 rpm; hil/runner/run_limits.py); null "
        "otherwise", "", source=RUN),
+    _m("setpoint_mode", "setpoint mode", "", "what the setpoint verdict judges: `speed` (`hil run` drives Setpoint "
+       "mode 0)", "", source=RUN),
+    _m("setpoint_held", "setpoint held", "", "completed runs: true when the mean speed over the hold span (the last "
+       "10 % of the metrics window) is within `hold_tolerance_pct` of the mean reference (at least 5 rpm); null "
+       "otherwise, the reason in `not_applicable` (hil/runner/setpoint_hold.py)", "", CLI, REPORT, source=RUN),
+    _m("setpoint_error", "setpoint error", "", "`{absolute, relative_pct, unit, reference, measured}`: measured − "
+       "reference over the hold span (rpm, % of the reference); null without a verdict", "", source=RUN),
+    _m("hold_tolerance_pct", "hold tolerance", "%", "tolerance of `setpoint_held` (`--hold-tolerance`, the "
+       "scenario's `hold_tolerance_pct`, default 2)", ".3g", source=RUN),
+    _m("not_applicable", "not applicable", "", "`{key: reason}` of the metrics that are not defined for this run or "
+       "window (null in metrics.json, never a number): the harmonic metrics when the stator frequency changes or is "
+       "~ 0, the setpoint verdict of a run that did not complete", "", source=RUN),
+    _m("exec_time_first_us", "exec time cold start", "µs", "`{periods, first, max}`: execution times of the run's "
+       "first 10 periods (cold start: first calls, page faults, caches), left out of `exec_time_us`", "",
+       source=RUN),
     # the metrics window
     _m("periods", "periods (window)", "", "N periods in the window", "d", CLI),
     _m("sim_time_s", "simulated time", "s", "N·Ts"),
@@ -169,10 +186,12 @@ METRICS: Final[tuple[Metric, ...]] = (
        COMPARE_ROW, COMPARE_BARS),
     _m("torque_ripple_pp_nm", "torque ripple p-p", "N·m", "max − min of the trace torque", ".3f", CLI, REPORT,
        COMPARE_ROW),
-    _m("torque_error_mean_nm", "torque error mean", "N·m", "T_av − mean reference; reference = finite "
-       "`torque_ref` values (torque mode), else `load_torque` (named in `torque_error_reference`)", "+.3f", CLI,
+    _m("torque_error_mean_nm", "torque error mean", "N·m", "T_av − T_hold: T_hold = mean of the torque the drive "
+       "must deliver to follow the host's speed reference, T_load + B·ω_ref + J·dω_ref/dt (inertia mechanics; "
+       "J term 0 on the dyno), from the records the host writes for every target (below)", "+.3f", CLI,
        COMPARE_ROW),
-    _m("torque_error_reference", "torque error reference", "", "`torque_ref` or `load_torque`", ""),
+    _m("torque_error_reference", "torque error reference", "", "what `torque_error_mean_nm` is against: "
+       "`hold: load + B·ω_ref + J·dω_ref/dt`", ""),
     _m("load_torque_mean_nm", "load torque mean", "N·m", "mean of the periods' `load_torque` (the scenario's "
        "profile, or a load FMU's output held over each period)", ".3f", CLI),
     _m("speed_mean_rpm", "speed mean", "rpm", "time-weighted mean of trace `omega_m` · 60/2π", ".1f", CLI, REPORT,
@@ -182,9 +201,16 @@ METRICS: Final[tuple[Metric, ...]] = (
     _m("current_thd_total_pct", "current THD (all)", "%", "all non-fundamental content of phase a (below)", ".2f",
        CLI, REPORT, COMPARE_ROW),
     _m("current_fundamental_a", "current fundamental", "A", "fundamental amplitude of phase a", ".4g", CLI),
-    _m("current_fundamental_hz", "fundamental frequency", "Hz", "f1 from the mean speed"),
+    _m("current_fundamental_hz", "fundamental frequency", "Hz", "f1: the stator electrical frequency measured from "
+       "the phase currents over the THD span (below; slip included for an induction machine); null when ~ 0 or "
+       "changing (not applicable)",
+       ".4g", CLI),
+    _m("current_rotor_electrical_hz", "rotor electrical frequency", "Hz", "p·|ω̄_m|/2π over the THD span (= f1 for "
+       "a synchronous machine; f1 − slip frequency for an induction machine)"),
+    _m("current_fundamental_change_pct", "fundamental change", "%", "spread of f1 over the THD span's 4 quarters, "
+       "% of f1; above 2 % the harmonic metrics are not applicable"),
     _m("current_thd_phases_pct", "THD per phase", "%", "both THD figures per phase a/b/c"),
-    _m("current_thd_note", "THD note", "", "reason when THD is null", ""),
+    _m("current_thd_note", "THD note", "", "reason when THD is null (also in `not_applicable`)", ""),
     _m("current_distortion_rms_a", "distortion RMS", "A", "fundamental RMS · THD_total: all non-fundamental "
        "content of phase a", ".1f", COMPARE_ROW),
     _m("xy_current_rms_a", "x-y current RMS", "A", "dual three-phase: RMS of the harmonic-subspace current "
@@ -196,7 +222,8 @@ METRICS: Final[tuple[Metric, ...]] = (
     _m("candidate_miss_rate", "miss rate", "", "fraction of window periods where a restricted-candidate "
        "controller (fcs-mpc-1/2, dbcc-mpc) missed the full 19-vector optimum (in-process targets; null otherwise)",
        ".3f", COMPARE_ROW, COMPARE_BARS, source=RUN),
-    _m("exec_time_us", "exec time", "µs", "`{median, p99, max}` of `exec_time_ns`"),
+    _m("exec_time_us", "exec time", "µs", "`{median, p99, max}` of `exec_time_ns` over the window, the run's first "
+       "10 periods (cold start, `exec_time_first_us`) left out"),
     _m("exec_time_us", "exec median", "µs", "median controller execution time", ".3f", REPORT, REPORT_BARS,
        sub="median"),
     _m("exec_time_us", "exec p99", "µs", "99th percentile of the controller execution time", ".3f", REPORT,

@@ -18,6 +18,7 @@ from pmsm_hil.hil.metrics._validate import require_fields, require_int, require_
 from pmsm_hil.hil.metrics.errors import MetricsError, MetricsWindowError
 from pmsm_hil.hil.metrics.moments import TrapezoidWeights, WeightedMoments, buffer_room
 from pmsm_hil.hil.metrics.quantiles import IntQuantiles
+from pmsm_hil.hil.metrics.stator_frequency import MAX_CHANGE_PCT, stator_frequency
 from pmsm_hil.hil.metrics.switching import SwitchingStats, switching_from_counts
 from pmsm_hil.hil.metrics.thd import current_thd, fundamental_hz
 from pmsm_hil.hil.metrics.timing import SPLIT_NAMES
@@ -27,6 +28,8 @@ from pmsm_hil.hil.records import PERIOD_DTYPE, TRACE_DTYPE
 #: THD span [s]: the last this-many seconds of the window trace (whole electrical periods of it)
 THD_SPAN_S = 1.0
 LINK_KEYS = ("frames_tx", "frames_rx", "crc_errors", "lost", "late")
+#: what `torque_error_mean_nm` is measured against (`torque_error_reference`)
+HOLD_TORQUE = "hold: load + B·ω_ref + J·dω_ref/dt"
 #: Below this electrical frequency (Hz) the speed is taken as zero and THD is reported as null.
 SPEED_ZERO_HZ = 0.1
 RAD_S_TO_RPM = 60.0 / (2.0 * math.pi)
@@ -58,11 +61,16 @@ class WindowMetrics:
         self.periods = 0
         self.transitions = self.boundary = self.narrow = self.narrow_gated = 0
         self.candidates = self.late = self.missed = 0
-        self.torque_ref_sum, self.torque_ref_n, self.load_sum = 0.0, 0, 0.0
+        self.load_sum = 0.0
+        #: the host's speed reference [rad/s] over the window: sum, count, first and last finite value
+        self.speed_ref_sum, self.speed_ref_n = 0.0, 0
+        self.speed_ref_first: float | None = None
+        self.speed_ref_last: float | None = None
         self._last_t = -math.inf
 
-    def add_periods(self, block: np.ndarray) -> None:
-        """Add a block of period records (PERIOD_DTYPE fields, in order)."""
+    def add_periods(self, block: np.ndarray, *, cold: int = 0) -> None:
+        """Add a block of period records (PERIOD_DTYPE fields, in order); the execution times of its first `cold`
+        records (the run's cold start, reported apart: `exec_time_first_us`) are left out of `exec_time_us`."""
         require_fields(block, _PERIOD_FIELDS, "periods")
         n = block.shape[0]
         if n == 0:
@@ -72,20 +80,22 @@ class WindowMetrics:
         self.boundary += int(np.sum(block["boundary_transitions"], dtype=np.int64))
         self.narrow += int(np.sum(block["narrow_pulses"], dtype=np.int64))
         self.narrow_gated += int(np.sum(block["narrow_pulses_gated"], dtype=np.int64))
-        self.exec_us.add(block["exec_time_ns"])
-        split = np.asarray(block["exec_split_ns"]).reshape(n, -1)
+        self.exec_us.add(block["exec_time_ns"][cold:])
+        split = np.asarray(block["exec_split_ns"][cold:]).reshape(n - min(cold, n), -1)
         for k, acc in enumerate(self.split_us[: split.shape[1]]):
             acc.add(split[:, k])
         self.candidates += int(np.sum(block["candidates"], dtype=np.int64))
         self.late += int(np.count_nonzero(block["late"]))
         self.missed += int(np.count_nonzero(block["missed"]))
-        ref = np.asarray(block["torque_ref"], dtype=np.float64)
+        ref = np.asarray(block["speed_ref"], dtype=np.float64)
         finite = np.isfinite(ref)
-        if finite.all():
-            self.torque_ref_sum += float(np.sum(ref))
-        elif finite.any():
-            self.torque_ref_sum += float(np.sum(ref[finite]))
-        self.torque_ref_n += int(np.count_nonzero(finite))
+        if finite.any():
+            kept = ref[finite]
+            self.speed_ref_sum += float(np.sum(kept))
+            self.speed_ref_n += int(kept.shape[0])
+            if self.speed_ref_first is None:
+                self.speed_ref_first = float(kept[0])
+            self.speed_ref_last = float(kept[-1])
         self.load_sum += float(np.sum(block["load_torque"], dtype=np.float64))
 
     def add_trace(self, block: np.ndarray) -> None:
@@ -120,14 +130,27 @@ class WindowMetrics:
         np.copyto(out, values, casting="unsafe")
         return out
 
+    def hold_torque(self, ts_s: float, friction_nms: float, inertia_kgm2: float) -> float:
+        """Mean torque [N·m] the drive must deliver over the window to follow the host's speed reference:
+        T_load + B·ω_ref + J·dω_ref/dt (means; the last term J·(ω_ref,last − ω_ref,first)/(N·Ts)). Only what the
+        host knows, for every target; without a speed reference in the records, the mean load."""
+        load = self.load_sum / self.periods
+        if not self.speed_ref_n or self.speed_ref_first is None or self.speed_ref_last is None:
+            return load
+        accel = (self.speed_ref_last - self.speed_ref_first) / (self.periods * ts_s)
+        return load + friction_nms * self.speed_ref_sum / self.speed_ref_n + inertia_kgm2 * accel
+
     def switching(self, ts_s: float, legs: int) -> SwitchingStats:
         """Switching statistics of the periods added so far."""
         return switching_from_counts(self.periods, self.transitions, self.boundary, self.narrow,
                                      self.narrow_gated, ts_s=ts_s, legs=legs)
 
     def result(self, *, ts_s: float, pole_pairs: int, legs: int = 3, wall_time_s: float,
-               link_stats: Mapping[str, int], deadline_misses: int) -> dict[str, Any]:
-        """The metrics dictionary; `MetricsWindowError` if no period or trace record was added."""
+               link_stats: Mapping[str, int], deadline_misses: int, friction_nms: float = 0.0,
+               inertia_kgm2: float = 0.0) -> dict[str, Any]:
+        """The metrics dictionary; `MetricsWindowError` if no period or trace record was added. `friction_nms`
+        (B [N·m·s/rad]) and `inertia_kgm2` (J [kg·m²]) of the mechanics give the torque the drive must deliver
+        to follow the speed reference (`torque_error_mean_nm`, `hold_torque`)."""
         if self.periods == 0:
             raise MetricsWindowError("periods: metrics window holds 0 record(s), at least 1 needed")
         if self.torque.samples == 0:
@@ -142,10 +165,7 @@ class WindowMetrics:
         if not math.isfinite(wall) or wall < 0.0:
             raise MetricsError(f"wall_time_s: expected a finite value ≥ 0, got {wall_time_s!r}")
         n = self.periods
-        if self.torque_ref_n:
-            ref_mean, ref_name = self.torque_ref_sum / self.torque_ref_n, "torque_ref"
-        else:
-            ref_mean, ref_name = self.load_sum / n, "load_torque"
+        ref_mean = self.hold_torque(ts, friction_nms, inertia_kgm2)
         mean_torque = self.torque.mean
         switching = self.switching(ts, legs)
         metrics: dict[str, Any] = {
@@ -157,7 +177,7 @@ class WindowMetrics:
             "torque_ripple_rms_nm": self.torque.rms_deviation,
             "torque_ripple_pp_nm": self.torque.maximum - self.torque.minimum,
             "torque_error_mean_nm": mean_torque - ref_mean,
-            "torque_error_reference": ref_name,
+            "torque_error_reference": HOLD_TORQUE,
             "load_torque_mean_nm": self.load_sum / n,
             "speed_mean_rpm": self.speed.mean * RAD_S_TO_RPM,
         }
@@ -169,8 +189,8 @@ class WindowMetrics:
             {
                 "switching_freq_khz": switching.freq_khz,
                 "switching_freq_intra_khz": switching.freq_intra_khz,
-                "exec_time_us": {"median": self.exec_us.median(), "p99": self.exec_us.percentile(99.0),
-                                 "max": self.exec_us.maximum()},
+                "exec_time_us": {"median": _finite(self.exec_us.median()),
+                                 "p99": _finite(self.exec_us.percentile(99.0)), "max": _finite(self.exec_us.maximum())},
                 "exec_split_us": {name: acc.median() for name, acc in zip(SPLIT_NAMES, self.split_us, strict=True)
                                   if acc.n},
                 "candidates_evaluated_mean": self.candidates / n,
@@ -185,25 +205,37 @@ class WindowMetrics:
         return metrics
 
     def _thd(self, pole_pairs: int) -> dict[str, Any]:
-        """THD block over the trace tail: phase a is the headline, b and c are listed; null with a note if
-        undefined."""
+        """THD block over the trace tail: phase a is the headline, b and c are listed. The fundamental is the
+        stator frequency measured from the currents (`stator_frequency.py`); null with the reason in
+        `current_thd_note` and `not_applicable` when undefined (speed ~ 0, a fundamental that changes)."""
         tail = self.tail.array()
         span_speed = WeightedMoments()
         span_speed.add(np.asarray(tail["t"], dtype=np.float64), tail["omega_m"])
         mean_omega = span_speed.mean
-        f1 = fundamental_hz(mean_omega, pole_pairs)
+        f_rotor = fundamental_hz(mean_omega, pole_pairs)
         out: dict[str, Any] = {"current_thd_pct": None, "current_thd_total_pct": None,
-                               "current_fundamental_a": None, "current_fundamental_hz": f1,
-                               "current_thd_phases_pct": None, "current_thd_note": None}
-        if f1 < SPEED_ZERO_HZ:
-            out["current_thd_note"] = (
-                f"current_thd_pct: speed ~ 0 (mean {mean_omega * RAD_S_TO_RPM:.3g} rpm), THD undefined")
-            return out
+                               "current_fundamental_a": None, "current_fundamental_hz": None,
+                               "current_thd_phases_pct": None, "current_thd_note": None,
+                               "current_rotor_electrical_hz": f_rotor, "current_fundamental_change_pct": None,
+                               "not_applicable": {}}
+        measured = stator_frequency(tail["t"], tail["i_a"], tail["i_b"], tail["i_c"])
+        f1 = measured.hz if measured is not None else 0.0
+        if measured is None or f1 < SPEED_ZERO_HZ:
+            why = "currents ~ 0 or span too short" if measured is None else f"{f1:.3g} Hz"
+            return _not_applicable(out, f"stator frequency ~ 0 ({why}; mean speed {mean_omega * RAD_S_TO_RPM:.3g} "
+                                        "rpm): no fundamental")
+        out["current_fundamental_hz"] = f1
+        out["current_fundamental_change_pct"] = measured.change_pct
+        if not measured.stationary:
+            out["current_fundamental_hz"] = None
+            return _not_applicable(out, (
+                f"the stator frequency changes by {measured.change_pct:.3g} % over the THD span ("
+                f"{min(measured.segments_hz):.4g}–{max(measured.segments_hz):.4g} Hz, more than "
+                f"{MAX_CHANGE_PCT:g} %: a speed step or an acceleration): no single fundamental"))
         try:
             results = [current_thd(tail["t"], tail[ph], f1, field=f"trace.{ph}") for ph in ("i_a", "i_b", "i_c")]
         except MetricsWindowError as exc:
-            out["current_thd_note"] = str(exc)
-            return out
+            return _not_applicable(out, str(exc))
         out.update(
             current_thd_pct=results[0].thd_pct,
             current_thd_total_pct=results[0].thd_total_pct,
@@ -212,6 +244,23 @@ class WindowMetrics:
                                     for ph, r in zip(("a", "b", "c"), results, strict=True)},
         )
         return out
+
+
+#: the harmonic keys that are null together when the fundamental is not defined over the span
+HARMONIC_KEYS = ("current_thd_pct", "current_thd_total_pct", "current_fundamental_a", "current_fundamental_hz",
+                 "current_thd_phases_pct", "current_distortion_rms_a")
+
+
+def _not_applicable(out: dict[str, Any], reason: str) -> dict[str, Any]:
+    """`out` with the harmonic keys null and `reason` in `current_thd_note` and `not_applicable`."""
+    out["current_thd_note"] = reason
+    out["not_applicable"] = {key: reason for key in HARMONIC_KEYS if out.get(key) is None}
+    return out
+
+
+def _finite(value: float) -> float | None:
+    """`value`, None when NaN (no samples)."""
+    return value if math.isfinite(value) else None
 
 
 def _distortion_rms(metrics: Mapping[str, Any]) -> float | None:

@@ -13,6 +13,10 @@ from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.run_limits import SpeedTail
 from pmsm_hil.protocol.links.faults import FaultyLink
 
+#: the run's first periods whose execution times are its cold start (first calls: page faults, caches, lazy
+#: binding): reported apart as `exec_time_first_us`, left out of `exec_time_us`
+COLD_START_PERIODS = 10
+
 
 class RunSink:
     """Consumes the loop's blocks (`ClosedLoop` BlockSink): period records, raw frames, window trace rows."""
@@ -31,13 +35,25 @@ class RunSink:
         self.faulty: FaultyLink | None = None
         #: period records seen so far
         self.periods_seen = 0
+        #: execution times [ns] of the run's first `COLD_START_PERIODS` periods
+        self.cold_exec_ns: list[int] = []
+
+    def exec_time_first(self) -> dict[str, Any] | None:
+        """`{periods, first, max}` [µs]: the execution times of the run's cold start (None: no period ran)."""
+        if not self.cold_exec_ns:
+            return None
+        return {"periods": len(self.cold_exec_ns), "first": self.cold_exec_ns[0] / 1e3,
+                "max": max(self.cold_exec_ns) / 1e3}
 
     def __call__(self, periods: np.ndarray, frames: np.ndarray | None, trace: np.ndarray) -> None:
         first = self.periods_seen
         self.periods_seen += periods.shape[0]
         in_window = max(self.window_start - first, 0)
+        if first < COLD_START_PERIODS:
+            self.cold_exec_ns += [int(v) for v in periods["exec_time_ns"][: COLD_START_PERIODS - first]]
         if in_window < periods.shape[0]:
-            self.window.add_periods(periods[in_window:])
+            cold = max(COLD_START_PERIODS - (first + in_window), 0)
+            self.window.add_periods(periods[in_window:], cold=cold)
         self.window.add_trace(trace)
         self.speed_tail.add(periods, first)
         if self.live is not None:

@@ -17,6 +17,7 @@ from pmsm_hil.hil.atomic_write import write_text_atomic
 from pmsm_hil.hil.metrics.errors import MetricsWindowError
 from pmsm_hil.hil.metrics.lateness import lateness_histogram
 from pmsm_hil.hil.metrics.registry import METRICS, WINDOW
+from pmsm_hil.hil.metrics.streaming import HARMONIC_KEYS
 from pmsm_hil.hil.runner.block_sink import RunSink
 from pmsm_hil.hil.runner.budget_check import check_realtime_budget
 from pmsm_hil.hil.runner.contract import RULES, EndCode
@@ -38,6 +39,7 @@ from pmsm_hil.hil.runner.run_dir_lock import run_dir_lock
 from pmsm_hil.hil.runner.run_limits import check_run_limits
 from pmsm_hil.hil.runner.run_metadata import run_metadata, tap_setup_frames
 from pmsm_hil.hil.runner.safe_stop import disable_and_confirm, settle_ending
+from pmsm_hil.hil.runner.setpoint_hold import setpoint_verdict
 from pmsm_hil.hil.runner.sil_watch import InterruptGuard, isolated_config
 from pmsm_hil.hil.runner.stop_request import deferred_interrupts
 from pmsm_hil.hil.runner.target_client import DutViolationError, TargetError
@@ -171,14 +173,16 @@ def _window_metrics(cfg: RunConfig, out: LoopOutcome, sink: RunSink, link_stats:
     if window.periods and window.torque.samples:
         try:
             return window.result(ts_s=cfg.ts_s, pole_pairs=cfg.motor.pole_pairs, legs=cfg.machine.phases,
-                                 wall_time_s=wall_window, link_stats=link_stats, deadline_misses=out.deadline_misses)
+                                 wall_time_s=wall_window, link_stats=link_stats, deadline_misses=out.deadline_misses,
+                                 friction_nms=cfg.motor.b,
+                                 inertia_kgm2=cfg.motor.j if cfg.scenario.mechanics == "inertia" else 0.0)
         except MetricsWindowError as exc:
             note = str(exc)
     else:
         note = f"run ended before the metrics window ({window.periods} window periods)"
     metrics: dict[str, Any] = {m.key: None for m in METRICS if m.source == WINDOW and m.sub is None}
     metrics.update(periods=window.periods, link=dict(link_stats), deadline_misses=out.deadline_misses,
-                   current_thd_note=note)
+                   current_thd_note=note, not_applicable={key: note for key in HARMONIC_KEYS})
     metrics.pop("xy_current_rms_a", None)
     return metrics
 
@@ -234,10 +238,18 @@ def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection, sink: Ru
     speed_err = (speed_mean - cfg.scenario.speed_rpm) if isinstance(speed_mean, float) else math.nan
     metrics["speed_error_pct"] = (100.0 * speed_err / cfg.scenario.speed_rpm
                                   if cfg.scenario.speed_rpm and math.isfinite(speed_err) else None)
+    metrics["exec_time_first_us"] = sink.exec_time_first()
     metrics["candidate_miss_rate"] = (out.candidate_misses / out.candidate_checked
                                       if out.candidate_checked else None)
     missed, speed_warning = sink.speed_tail.check() if out.end_code == EndCode.COMPLETED else (None, None)
     metrics["speed_reference_missed"] = missed
+    hold, hold_na = setpoint_verdict(sink.speed_tail, cfg.scenario.hold_tolerance_pct,
+                                     completed=out.end_code == EndCode.COMPLETED)
+    metrics.update(hold)
+    not_applicable = metrics.get("not_applicable")
+    metrics["not_applicable"] = dict(not_applicable) if isinstance(not_applicable, dict) else {}
+    if hold_na is not None:
+        metrics["not_applicable"].update({key: hold_na for key in ("setpoint_held", "setpoint_error")})
     if speed_warning is not None:
         warnings.append(speed_warning)
     if out.violation_count and out.end_code != EndCode.DUT_VIOLATION and out.violation_count <= cfg.tolerate:

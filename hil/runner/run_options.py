@@ -323,6 +323,12 @@ RUN_OPTIONS: tuple[RunOption, ...] = (
     RunOption("no_log", "flag", "do not write an MCAP log", False, scope="output"),
     RunOption("log_trace", "flag", "also log the 2 µs plant trace", False, field="log_trace", scope="output"),
     RunOption("json", "path", "write the metrics as JSON to this file", scope="output"),
+    # the setpoint verdict (issue 35 item 4; hil/runner/setpoint_hold.py)
+    RunOption("hold_tolerance", "number", "setpoint_held: largest error of the mean speed over the last 10 percent "
+              "of the metrics window [percent of the reference, at least 5 rpm]", metavar="PCT", unit="percent",
+              minimum=0.0, open_minimum=True, default_text="the scenario's hold_tolerance_pct, else 2"),
+    RunOption("expect_hold", "flag", "a completed run whose setpoint was not held (setpoint_held false) exits 5",
+              False, scope="output"),
 )
 
 #: options by key

@@ -12,6 +12,8 @@ from pmsm_hil.hil.mechanics import LoadProfile
 from pmsm_hil.hil.resources import bundled_names, load_toml
 
 _PACKAGE = "pmsm_hil.hil.scenarios"
+#: default tolerance of the setpoint verdict `setpoint_held` [% of the reference] (hil/runner/setpoint_hold.py)
+DEFAULT_HOLD_TOLERANCE_PCT = 2.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -25,7 +27,8 @@ class Scenario:
     initial load (bumpless start at the operating point). load_steps: further (time [s], N·m) load
     steps after the first, in time order (e.g. 0 → 4 → 2 N·m: load_step_s/load_nm = the 4 N·m step,
     load_steps = ((t2, 2.0),)); the load after the last step is the last step's torque. theta0_rad:
-    initial electrical rotor angle [rad].
+    initial electrical rotor angle [rad]. hold_tolerance_pct: tolerance of the setpoint verdict `setpoint_held`
+    [% of the reference] (`--hold-tolerance` wins).
     """
 
     name: str
@@ -42,6 +45,7 @@ class Scenario:
     description: str = ""
     load_steps: tuple[tuple[float, float], ...] = ()
     theta0_rad: float = 0.0
+    hold_tolerance_pct: float = DEFAULT_HOLD_TOLERANCE_PCT
 
     def __post_init__(self) -> None:
         if self.mechanics not in ("inertia", "dyno"):
@@ -54,6 +58,9 @@ class Scenario:
             raise ParameterError(f"scenario '{self.name}': duration must be > 0 s, got {self.duration_s}")
         if self.settle_s < 0:
             raise ParameterError(f"scenario '{self.name}': settle_s must be ≥ 0 s, got {self.settle_s}")
+        if not (math.isfinite(self.hold_tolerance_pct) and self.hold_tolerance_pct > 0.0):
+            raise ParameterError(f"scenario '{self.name}': hold_tolerance_pct must be a finite number > 0 (% of the "
+                                 f"reference), got {self.hold_tolerance_pct}")
         if not math.isfinite(self.theta0_rad):
             raise ParameterError(f"scenario '{self.name}': theta0_rad must be finite")
         last = self.load_step_s if self.load_step_s is not None else -math.inf

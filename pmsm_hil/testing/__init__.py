@@ -22,7 +22,7 @@ from pmsm_hil.testing.plugin import hil, hil_session, pytest_addoption
 
 if TYPE_CHECKING:
     from pmsm_hil.testing.report import PLOT_PROPERTY
-    from pmsm_hil.testing.runs import HilResult, HilRunError
+    from pmsm_hil.testing.runs import HilResult, HilRunError, SetpointNotHeldError
     from pmsm_hil.testing.signals import (
         Signal,
         SignalAssertionError,
@@ -41,6 +41,7 @@ _LAZY = {
                     "pmsm_hil.testing.signals"),
     "HilResult": "pmsm_hil.testing.runs",
     "HilRunError": "pmsm_hil.testing.runs",
+    "SetpointNotHeldError": "pmsm_hil.testing.runs",
     "PLOT_PROPERTY": "pmsm_hil.testing.report",
 }
 
@@ -55,6 +56,7 @@ def __getattr__(name: str) -> Any:
     return value
 
 
-__all__ = ["PLOT_PROPERTY", "HilResult", "HilRunError", "Signal", "SignalAssertionError", "StepInfo",
+__all__ = ["PLOT_PROPERTY", "HilResult", "HilRunError", "SetpointNotHeldError", "Signal", "SignalAssertionError",
+           "StepInfo",
            "assert_below", "assert_is_constant", "assert_ripple_below", "assert_settles", "assert_thd_below",
            "hil", "hil_session", "pytest_addoption", "stepinfo"]

@@ -49,6 +49,11 @@ class HilRunError(HilError, RuntimeError):
     """A run ended with an internal error of the tool (a bug: the traceback is chained)."""
 
 
+class SetpointNotHeldError(HilError, AssertionError):
+    """A completed run did not hold its setpoint (`setpoint_held` false) and the test expected it to
+    (`hil.run(..., expect_hold=False)` to run without the check)."""
+
+
 @dataclass(frozen=True, slots=True)
 class HilSettings:
     """The session's choices: `--hil-target`, `--hil-motor`, `--hil-controller`, `--hil-out`."""
@@ -147,12 +152,17 @@ def build_config(settings: HilSettings, out_dir: Path | None, kwargs: Mapping[st
 def execute(settings: HilSettings, out_dir: Path, kwargs: Mapping[str, Any],
             reporter: Reporter | None = None) -> HilResult:
     """Run in `out_dir` (created; must not hold a run) and return the result; prints the metrics table (pytest
-    shows it with a failing test). An internal error of the tool is raised (HilRunError from it)."""
+    shows it with a failing test). An internal error of the tool is raised (HilRunError from it); a completed run
+    that did not hold its setpoint raises SetpointNotHeldError unless `expect_hold=False` is among the choices."""
     from pmsm_hil.app.cli.report_table import format_metrics
     from pmsm_hil.app.cli.run import config_from_args
     from pmsm_hil.hil.runner.run import run_closed_loop
 
-    argv = run_argv(settings, out_dir, kwargs)
+    choices = dict(kwargs)
+    expect_hold = choices.pop("expect_hold", True)
+    if not isinstance(expect_hold, bool):
+        raise TypeError(f"hil.run: 'expect_hold' is True or False, got {expect_hold!r}")
+    argv = run_argv(settings, out_dir, choices)
     cfg = config_from_args(_run_parser().parse_args(argv))
     out_dir.mkdir(parents=True, exist_ok=True)
     result = run_closed_loop(cfg)
@@ -162,6 +172,12 @@ def execute(settings: HilSettings, out_dir: Path, kwargs: Mapping[str, Any],
         raise HilRunError(f"hil run ended with an internal error: {result.metrics['end_reason']}") \
             from result.outcome.error
     assert result.mcap_path is not None
+    if expect_hold and result.metrics.get("end_code") == 0 and result.metrics.get("setpoint_held") is False:
+        err = result.metrics.get("setpoint_error") or {}
+        raise SetpointNotHeldError(
+            f"setpoint not held: speed {err.get('measured', math.nan):.1f} rpm vs {err.get('reference', math.nan):.1f} "
+            f"rpm over the last 10 % of the window (tolerance ±{result.metrics.get('hold_tolerance_pct')} %); "
+            f"hil.run(..., expect_hold=False) runs without this check, hold_tolerance=PCT widens it")
     return HilResult(result.metrics, result.mcap_path, out_dir,
                      (cfg.scenario.settle_s, cfg.scenario.total_s), reporter)
 
@@ -228,5 +244,5 @@ class HilResult:
         return Signal(name, periods["t"].astype("f8"), y, unit, self.reporter)
 
 
-__all__ = ["LOCKSTEP_TIMEOUT_S", "SIGNALS", "HilResult", "HilRunError", "HilSettings", "build_config",
-           "execute", "run_argv", "run_choice_option"]
+__all__ = ["LOCKSTEP_TIMEOUT_S", "SIGNALS", "HilResult", "HilRunError", "HilSettings", "SetpointNotHeldError",
+           "build_config", "execute", "run_argv", "run_choice_option"]

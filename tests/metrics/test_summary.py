@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 from pmsm_hil.hil.metrics import MetricsError, MetricsWindowError, compute_run_metrics
+from pmsm_hil.hil.metrics.streaming import HOLD_TORQUE
 
 from tests.metrics._signals import make_periods, make_trace, three_phase
 
@@ -69,7 +70,7 @@ def test_metrics_on_synthetic_run() -> None:
     assert m["torque_ripple_rms_nm"] == pytest.approx(0.3 / math.sqrt(2), rel=1e-4)
     assert m["torque_ripple_pp_nm"] == pytest.approx(0.6, rel=1e-4)
     assert m["torque_error_mean_nm"] == pytest.approx(0.1, abs=1e-6)
-    assert m["torque_error_reference"] == "load_torque"
+    assert m["torque_error_reference"] == HOLD_TORQUE
     assert m["speed_mean_rpm"] == pytest.approx(1000.0)
     assert m["current_fundamental_a"] == pytest.approx(8.0, abs=1e-3)
     expected = 100 * math.hypot(0.4, 0.24) / 8.0
@@ -87,20 +88,32 @@ def test_metrics_on_synthetic_run() -> None:
     assert m["link"] == LINK
 
 
-def test_torque_error_uses_torque_reference_when_present() -> None:
+def test_torque_error_is_against_the_hold_torque_whatever_the_firmware_reports() -> None:
+    """One definition for every target: the firmware's debug `torque_ref` (SIL, in process) or its absence (NaN:
+    QEMU, boards) gives the same figure, against T_load + B·ω_ref + J·dω_ref/dt from the host's records."""
     p, tr = _run()
-    p["torque_ref"] = 4.5
-    m = compute_run_metrics(p, tr, ts_s=TS, pole_pairs=P, wall_time_s=1.0, link_stats={}, deadline_misses=0)
-    assert m["torque_error_mean_nm"] == pytest.approx(-0.5, abs=1e-6)
-    assert m["torque_error_reference"] == "torque_ref"
-    assert m["link"] == dict.fromkeys(LINK, 0)
+    p["speed_ref"] = OMEGA
+    args: dict[str, Any] = {"ts_s": TS, "pole_pairs": P, "wall_time_s": 1.0, "link_stats": {}, "deadline_misses": 0,
+                            "friction_nms": 1e-3, "inertia_kgm2": 0.01}
+    without = compute_run_metrics(p, tr, **args)
+    p["torque_ref"] = 4.5  # a firmware that reports its speed PI's output
+    with_ref = compute_run_metrics(p, tr, **args)
+    assert with_ref["torque_error_mean_nm"] == without["torque_error_mean_nm"]
+    assert without["torque_error_mean_nm"] == pytest.approx(4.0 - (3.9 + 1e-3 * OMEGA), abs=1e-6)
+    assert without["torque_error_reference"] == with_ref["torque_error_reference"] == HOLD_TORQUE
+    assert without["link"] == dict.fromkeys(LINK, 0)
+    p["speed_ref"] = np.linspace(0.0, OMEGA, p.shape[0])  # a ramp: J·dω_ref/dt to deliver too
+    ramp = compute_run_metrics(p, tr, **args)
+    accel = OMEGA / (p.shape[0] * TS)
+    assert ramp["torque_error_mean_nm"] == pytest.approx(4.0 - (3.9 + 1e-3 * OMEGA / 2 + 0.01 * accel), abs=1e-6)
 
 
 def test_zero_speed_reports_null_thd_with_reason() -> None:
     p, tr = _run(omega=0.0)
     m = compute_run_metrics(p, tr, ts_s=TS, pole_pairs=P, wall_time_s=0.0, link_stats={}, deadline_misses=0)
     assert m["current_thd_pct"] is None and m["current_thd_total_pct"] is None
-    assert "speed ~ 0" in m["current_thd_note"]
+    assert "stator frequency ~ 0" in m["current_thd_note"]
+    assert m["not_applicable"]["current_thd_pct"] == m["current_thd_note"]
     assert m["loop_rate_hz"] is None
 
 

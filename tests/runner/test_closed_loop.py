@@ -12,7 +12,7 @@ from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import load_scenario
 
 _WALL_KEYS = {"wall_time_s", "loop_rate_hz", "total_wall_time_s", "loop_rate_total_hz", "exec_time_us",
-              "exec_split_us", "safe_stop_wait_ms"}
+              "exec_split_us", "exec_time_first_us", "safe_stop_wait_ms"}
 
 
 def _cfg(**scenario: Any) -> RunConfig:

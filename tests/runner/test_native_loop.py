@@ -26,7 +26,8 @@ from pmsm_hil.protocol.frame import Frame
 #: measured on the host's clock: differ between any two runs (and the target end's link counters: the native
 #: loop's in-process core has no link)
 TIMING_FIELDS = {"exec_time_ns", "exec_split_ns"}
-TIMING_METRICS = {"exec_time_us", "exec_split_us", "total_wall_time_s", "loop_rate_total_hz", "loop_rate_hz",
+TIMING_METRICS = {"exec_time_us", "exec_split_us", "exec_time_first_us",
+                  "total_wall_time_s", "loop_rate_total_hz", "loop_rate_hz",
                   "wall_time_s", "realtime_factor", "loop", "loop_note", "safe_stop_wait_ms",
                   "target_link", "link_losses", "link_auth_dropped"}
 SENSORS = SensorConfig(adc_lsb_a=0.01, noise_std_a=0.05, encoder_counts=4096, seed=3)

@@ -22,7 +22,8 @@ from tests.runner.test_native_loop import SENSORS, _assert_same_frames, _mirrore
 #: measured on the wall clock (exec times come from the target's clock; no split or torque reference crosses
 #: the link, so those are 0 / NaN in both loops alike and compared)
 WALL_FIELDS = {"exec_time_ns"}
-WALL_METRICS = {"exec_time_us", "exec_split_us", "total_wall_time_s", "loop_rate_total_hz", "loop_rate_hz",
+WALL_METRICS = {"exec_time_us", "exec_split_us", "exec_time_first_us",
+                "total_wall_time_s", "loop_rate_total_hz", "loop_rate_hz",
                 "wall_time_s", "realtime_factor", "loop", "loop_note", "command_wait_max_us", "link_spec", "link",
                 "safe_stop_wait_ms", "target_link"}
 #: the native links' counters of how receives waited (NativeWireLink.waits): the machine's timing

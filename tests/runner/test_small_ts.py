@@ -155,7 +155,11 @@ def test_every_bundled_scenario_runs_at_25_us_as_at_100_us(name: str) -> None:
     assert fine["total_periods"] == 4 * coarse["total_periods"] == round((sc.settle_s + sc.duration_s) / 25e-6)
     assert fine["speed_mean_rpm"] == pytest.approx(coarse["speed_mean_rpm"], rel=0.005)
     assert fine["torque_mean_nm"] == pytest.approx(coarse["torque_mean_nm"], rel=0.02)
-    assert fine["current_thd_pct"] < coarse["current_thd_pct"]
+    if name in ("steady", "dyno-steady"):
+        assert fine["current_thd_pct"] < coarse["current_thd_pct"]
+    else:  # a speed step, an acceleration or a load step's speed dip in the window: no single fundamental
+        assert fine["current_thd_pct"] is None and coarse["current_thd_pct"] is None
+        assert "changes by" in coarse["not_applicable"]["current_thd_pct"]
     assert fine["switching_freq_khz"] > coarse["switching_freq_khz"]
 
 

@@ -34,7 +34,8 @@ from pmsm_hil.protocol.messages import Command, ConfigParam, Setpoint
 #: period-record fields measured on the wall clock (everything else of a lockstep run is deterministic)
 WALL_FIELDS = {"exec_time_ns", "exec_split_ns", "late", "missed"}
 WALL_METRICS = {"wall_time_s", "loop_rate_hz", "total_wall_time_s", "loop_rate_total_hz", "exec_time_us",
-                "exec_split_us", "command_wait_max_us", "link", "safe_stop_wait_ms", "target_link"}
+                "exec_split_us", "exec_time_first_us", "command_wait_max_us", "link", "safe_stop_wait_ms",
+                "target_link"}
 
 
 def _cfg(link: str) -> RunConfig:
