@@ -54,15 +54,18 @@ static void test_flux_estimate_at_standstill(void)
 static void test_flux_estimate_in_the_rotating_steady_state(void)
 {
     /* the model's steady state at 1000 rpm: psi_R = L_M i_d along the flux, turning at
-     * omega_s = omega_e + RR i_q / psi_R, with the current (i_d, i_q) in that frame */
+     * omega_s = omega_e + RR i_q / psi_R, with the current (i_d, i_q) in that frame (the one the references ask
+     * for). The currents are held, not driven by the voltage (open loop): the current PI's integrators would wind
+     * into the voltage limit, and field weakening would follow, so they are off here (current_ki 0) */
     hil_fw_state_t s;
     const float omega_m = 1000.0f * 2.0f * HIL_FW_PI_F / 60.0f;
-    const float psi = 0.9f, i_d = psi / LM, i_q = 5.0f;
+    const float psi = 0.9f, i_d = psi / LM, i_q = 10.0f / (3.0f * psi);
     const float omega_s = 2.0f * omega_m + RR * i_q / psi;
     float angle = 0.0f, err_angle;
     uint32_t k;
     hil_fw_cmd_t cmd;
     setup(&s, 10.0f);
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_CURRENT_KI, 0.0f) == 0, "ki");
     for (k = 0u; k < 10000u; ++k) {
         angle = fmodf(omega_s * (float)k * 1.0e-4f, 2.0f * HIL_FW_PI_F);
         cmd = step(&s, k, i_d, i_q, angle, omega_m);

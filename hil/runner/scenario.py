@@ -25,7 +25,8 @@ class Scenario:
     initial load (bumpless start at the operating point). load_steps: further (time [s], N·m) load
     steps after the first, in time order (e.g. 0 → 4 → 2 N·m: load_step_s/load_nm = the 4 N·m step,
     load_steps = ((t2, 2.0),)); the load after the last step is the last step's torque. theta0_rad:
-    initial electrical rotor angle [rad].
+    initial electrical rotor angle [rad]. at_rated: speed_rpm and load_nm are the motor's rated speed and
+    torque (`for_motor`; the file's values stand for a motor that states none).
     """
 
     name: str
@@ -42,6 +43,7 @@ class Scenario:
     description: str = ""
     load_steps: tuple[tuple[float, float], ...] = ()
     theta0_rad: float = 0.0
+    at_rated: bool = False
 
     def __post_init__(self) -> None:
         if self.mechanics not in ("inertia", "dyno"):
@@ -93,6 +95,14 @@ class Scenario:
             return LoadProfile.constant(self.load_nm)
         return LoadProfile.steps(self.start_load_nm, [*first, *self.load_steps])
 
+    def for_motor(self, rated_speed_rpm: float, rated_torque_nm: float) -> Scenario:
+        """An `at_rated` scenario's copy at the motor's rated speed [rpm] and torque [N·m] (each where > 0, else
+        the scenario's own value); any other scenario unchanged. Command-line overrides come after it."""
+        if not self.at_rated:
+            return self
+        return replace(self, speed_rpm=rated_speed_rpm if rated_speed_rpm > 0 else self.speed_rpm,
+                       load_nm=rated_torque_nm if rated_torque_nm > 0 else self.load_nm, at_rated=False)
+
     def with_overrides(self, **overrides: Any) -> Scenario:
         """Copy with CLI overrides (None values ignored)."""
         clean = {k: v for k, v in overrides.items() if v is not None}
@@ -115,7 +125,7 @@ def load_scenario(name_or_path: str) -> Scenario:
         if key in ("name", "mechanics", "description"):
             if not isinstance(value, str):
                 raise InputFileError(f"scenario file {origin}: '{key}' must be a string")
-        elif key == "preset_integrator":
+        elif key in ("preset_integrator", "at_rated"):
             if not isinstance(value, bool):
                 raise InputFileError(f"scenario file {origin}: '{key}' must be true or false")
         elif key == "load_steps":
