@@ -112,9 +112,10 @@ def test_the_default_scenario_runs_at_the_motors_ratings(motor: str, controller:
     options and other scenarios keep theirs (issue 35 item 5)."""
     from pmsm_hil.app.cli.run import config_from_args
 
-    sc = config_from_args(base_args(["--motor", motor, "--controller", controller])).scenario
+    base = ["--motor", motor, "--controller", controller]
+    sc = config_from_args(base_args(base)).scenario
     assert (sc.speed_rpm, sc.load_nm) == (speed_rpm, load_nm)
-    sc = config_from_args(base_args(["--motor", motor, "--controller", controller, "--speed", "900", "--load", "2"])).scenario
+    sc = config_from_args(base_args([*base, "--speed", "900", "--load", "2"])).scenario
     assert (sc.speed_rpm, sc.load_nm) == (900.0, 2.0)
-    sc = config_from_args(base_args(["--motor", motor, "--controller", controller, "--scenario", "dyno-steady"])).scenario
+    sc = config_from_args(base_args([*base, "--scenario", "dyno-steady"])).scenario
     assert (sc.speed_rpm, sc.load_nm) == (1000.0, 4.0)
