@@ -185,6 +185,8 @@ void hil_fw_foc_predict(struct hil_fw_state *s, hil_fw_cmd_t *cmd)
     vd = kp * ed + st->x_d + ff_d;
     vq = kp * eq + st->x_q + ff_q;
     mag = sqrtf(vd * vd + vq * vq);
+    /* the field-weakening feedback: the whole demand (in saturation the integrators stop, only the proportional part
+     * still says how far beyond the limit the currents' errors ask to go) */
     st->v_dem = mag;
     if (mag > vmax) {
         const float k = vmax / mag;

@@ -140,7 +140,7 @@ void hil_fw_im_foc_predict(struct hil_fw_state *s, hil_fw_cmd_t *cmd)
     vd = kp * (s->ref.i_d - i_d) + st->x_d - ws * ls * i_q - rr / p[HIL_FW_P_LM] * st->psi;
     vq = kp * (s->ref.i_q - i_q) + st->x_q + ws * ls * i_d + we * st->psi;
     mag = sqrtf(vd * vd + vq * vq);
-    st->v_dem = mag;
+    st->v_dem = mag; /* the field-weakening feedback: the whole demand, as foc's */
     if (mag > vmax) {
         const float k = vmax / mag;
         vd *= k;
