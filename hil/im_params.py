@@ -40,7 +40,8 @@ class ImParams:
         i_trip: overcurrent trip on any phase current magnitude [A], > 0.
         speed_trip_rpm: overspeed trip [rpm], > 0.
         rated_speed_rpm, rated_torque_nm: rated figures [rpm], [N·m] (0: not stated).
-        psi_r_ref: the rotor-flux reference the controller is told [Wb], > 0 (no field weakening).
+        psi_r_ref: the nominal rotor-flux reference the controller is told [Wb], > 0 (im-foc lowers it above base
+            speed: field weakening).
         speed_kp, speed_ki: speed-PI gains [N·m/(rad/s)], [N·m/rad] written to the target by default.
         current_bandwidth_hz: the current-loop bandwidth the controller's PI gains are set for [Hz], > 0.
         name: preset name or a label.

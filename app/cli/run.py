@@ -97,7 +97,8 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
             setattr(args, name, cfg[name])
     check_values({o.key: pick(o.key) for o in RUN_OPTIONS if o.kind in ("number", "integer", "frequency")})
     motor = load_motor(str(pick("motor")), parse_set_options([*cfg.get("set", []), *args.set_params]))
-    scenario = load_scenario(str(pick("scenario"))).with_overrides(
+    scenario = load_scenario(str(pick("scenario"))).for_motor(motor.rated_speed_rpm, motor.torque_rating_nm)
+    scenario = scenario.with_overrides(
         speed_rpm=pick("speed"), load_nm=pick("load"), duration_s=pick("duration"), settle_s=pick("settle"),
         hold_tolerance_pct=pick("hold_tolerance"))
     controller_params = parse_param_options([*cfg.get("param", []), *args.param])

@@ -8,6 +8,12 @@
  * With pwm_duties = 1 (the default) foc ends as drive firmware does: three duty cycles of a
  * centre-aligned PWM (min-max zero-sequence injection, the duty form of SVPWM), whose carrier the
  * plant compares exactly: all 7 segments 0-x-xy-7-xy-x-0 in every period (docs/firmware_api.md).
+ * Reference stage (hil_fw_foc_reference): the torque reference becomes (id, iq) on the MTPA curve of the
+ * controller's linear model (ld, lq, psi_f), id_ref (the parameter) added to it, and field weakening by
+ * voltage-limit feedback: an integrator lowers id while the last current-PI voltage demand |v_dq| exceeds
+ * FOC_FW_MARGIN of the linear reach vdc / sqrt(3), its gain scheduled by 1 / (|omega_e| ld) so that the loop's
+ * crossover stays FOC_FW_CROSSOVER; id stays above -psi_f / ld (the characteristic current) and the current
+ * limit; iq = T / (1.5 p (psi_f + (ld - lq) id)) under the current limit. See docs/algorithms/field_weakening.md.
  */
 #ifndef HIL_FW_FOC_H
 #define HIL_FW_FOC_H
@@ -26,6 +32,8 @@ typedef struct {
     float x_q;
     float v_d;          /* last dq voltage reference after limiting [V] */
     float v_q;
+    float v_dem;        /* last |v_dq| demand before limiting [V] (field-weakening feedback) */
+    float id_fw;        /* field-weakening d current [A], <= 0 */
 } hil_fw_foc_state_t;
 
 /* SVPWM of a stator-frame voltage [V] at DC link vdc [V] over ts_ns: sector (1..6) and the dwell
@@ -43,6 +51,14 @@ uint8_t hil_fw_foc_modulate(float u_alpha, float u_beta, float vdc, uint32_t ts_
  * zero-sequence injection (centre-aligned SVPWM); beyond the hexagon the voltage is scaled onto it.
  * A non-finite input gives 0.5 on every leg (zero voltage), never a NaN. */
 void hil_fw_svpwm_duties(float u_alpha, float u_beta, float vdc, float duty[3]);
+
+/* The MTPA d current [A] of a machine with inductances ld, lq [H] and magnet flux psi_f [Wb] at q current
+ * i_q [A]: -(lq - ld) i_q^2 / (psi_f / 2 + sqrt(psi_f^2 / 4 + (lq - ld)^2 i_q^2)) (the rationalised root of
+ * dT/did = 0 at constant |i|, exact for lq = ld); 0 when lq <= ld. */
+float hil_fw_mtpa_id(float ld, float lq, float psi_f, float i_q);
+
+/* Reference stage of foc: MTPA and field weakening (id, iq) from the torque reference. */
+void hil_fw_foc_reference(struct hil_fw_state *s);
 
 /* Prediction stage of foc (PI + SVPWM). */
 void hil_fw_foc_predict(struct hil_fw_state *s, hil_fw_cmd_t *cmd);

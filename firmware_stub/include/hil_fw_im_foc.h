@@ -8,9 +8,13 @@
  *   angle, is not needed).
  * - References (reference stage): the flux current from a model-based flux loop,
  *   i_d = |psi_R| / L_M + (psi_r_ref - |psi_R|) / (RR tau_psi), tau_psi = 20 ms, so that the estimated flux
- *   follows psi_r_ref with the time constant tau_psi (in steady state i_d = psi_r_ref / L_M; no field
- *   weakening), limited to 0.8 of the current limit; i_q = T / (1.5 p |psi_R|) under the current limit
+ *   follows the flux reference with the time constant tau_psi (in steady state i_d = psi_ref / L_M), limited
+ *   to 0.8 of the current limit; i_q = T / (1.5 p |psi_R|) under the current limit
  *   (|psi_R| bounded below by a tenth of the reference while the flux builds up).
+ * - Field weakening: the flux reference psi_ref is psi_r_ref, or less where the voltage demands it:
+ *   min(psi_r_ref, 0.95 vdc / sqrt(3) / (|omega_e| (1 + L_sigma / L_M))) (the no-load 1/omega feed-forward) plus
+ *   a voltage-limit feedback correction (an integrator of 0.95 vdc / sqrt(3) - |u| with a 15 rad/s crossover,
+ *   <= 0), never below a quarter of psi_r_ref (docs/algorithms/field_weakening.md).
  * - Current PI in the estimated rotor-flux frame (current_kp, current_ki) with the decoupling feed-forward
  *   u_d = -omega_s L_sigma i_q - (RR / L_M) |psi_R|, u_q = omega_s L_sigma i_d + omega_e |psi_R|
  *   (omega_s = omega_e + RR i_q / |psi_R|, the estimated flux speed), so both axes see L_sigma s + Rs + RR;
@@ -42,6 +46,9 @@ typedef struct {
     float x_q;
     float v_d;          /* last flux-frame voltage reference after limiting [V] */
     float v_q;
+    float v_dem;        /* last |u| demand before limiting [V] (field-weakening feedback) */
+    float dpsi_fw;      /* field-weakening flux-reference correction [Wb], <= 0 */
+    float psi_ref;      /* rotor-flux reference in use [Wb] (psi_r_ref, or less when field weakening) */
 } hil_fw_im_foc_state_t;
 
 /* Reference stage: flux estimate and the flux-frame current references. */

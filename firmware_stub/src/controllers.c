@@ -35,7 +35,7 @@ static const hil_fw_controller_t table[HIL_FW_CTRL_COUNT] = {
           P(FCS_READING) | P(FLUX_REF) | P(TORQUE_BAND)),
     ENTRY(DSVM_20, 3u, hil_fw_dsvm_reset, NULL, hil_fw_dsvm20_predict, 0u),
     ENTRY(DBCC_MPC, 3u, hil_fw_dsvm_reset, hil_fw_dbcc_reference, hil_fw_dsvm_restricted_predict, 0u),
-    ENTRY(FOC, 3u, NULL, NULL, hil_fw_foc_predict, P(CURRENT_KP) | P(CURRENT_KI) | P(PWM_DUTIES)),
+    ENTRY(FOC, 3u, NULL, hil_fw_foc_reference, hil_fw_foc_predict, P(CURRENT_KP) | P(CURRENT_KI) | P(PWM_DUTIES)),
     ENTRY(MPTC1, 6u, NULL, NULL, hil_fw_mptc1_predict, P(LAMBDA) | P(FLUX_REF)),
     ENTRY(MPTC2, 6u, NULL, NULL, hil_fw_mptc2_predict, P(LAMBDA) | P(FLUX_REF) | P(V3_SYMMETRIC)),
     ENTRY(MPTC3, 6u, NULL, NULL, hil_fw_mptc3_predict, P(FLUX_REF) | P(V3_SYMMETRIC) | P(TORQUE_BAND)),

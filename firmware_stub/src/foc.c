@@ -6,6 +6,22 @@
 #include "hil_fw_state.h"
 #include "hil_fw_transforms.h"
 
+/* Field weakening (docs/algorithms/field_weakening.md): the share of the linear SVPWM reach vdc / sqrt(3) the
+ * voltage demand is held to (the rest is the current loop's room for transients), the crossover of the
+ * voltage-feedback loop [rad/s] (a tenth of the default current loop's 2 pi 1 kHz: the two loops stay apart) and
+ * the electrical speed below which its gain is not raised further [rad/s]. */
+#define FOC_FW_MARGIN 0.95f
+#define FOC_FW_CROSSOVER 600.0f
+#define FOC_FW_OMEGA_FLOOR 50.0f
+/* MTPA: fixed-point iterations of iq = T / (tk (psi_f + (ld - lq) id)), id = mtpa(iq) (the reluctance share of
+ * the torque is small: each iteration gains more than a decade at the bundled machines' ratings). */
+#define FOC_MTPA_ITERATIONS 3
+
+static float clampf(float x, float lim)
+{
+    return x > lim ? lim : (x < -lim ? -lim : x);
+}
+
 uint8_t hil_fw_svpwm(float u_alpha, float u_beta, float vdc, uint32_t ts_ns, uint8_t *a, uint8_t *b,
                      uint32_t times_ns[3])
 {
@@ -86,6 +102,57 @@ void hil_fw_svpwm_duties(float u_alpha, float u_beta, float vdc, float duty[3])
     }
 }
 
+float hil_fw_mtpa_id(float ld, float lq, float psi_f, float i_q)
+{
+    const float dl = lq - ld;
+    if (!(dl > 0.0f)) {
+        return 0.0f;
+    }
+    return -dl * i_q * i_q / (0.5f * psi_f + sqrtf(0.25f * psi_f * psi_f + dl * dl * i_q * i_q));
+}
+
+void hil_fw_foc_reference(struct hil_fw_state *s)
+{
+    hil_fw_foc_state_t *st = &s->ctrl.foc;
+    const hil_fw_measured_t *me = &s->meas;
+    const float *p = s->params.value;
+    const float ld = p[HIL_FW_P_LD];
+    const float lq = p[HIL_FW_P_LQ];
+    const float psi_f = p[HIL_FW_P_PSI_F];
+    const float imax = p[HIL_FW_P_CURRENT_LIMIT];
+    const float tk = s->params.model.torque_k;
+    const float torque = s->ref.torque;
+    const float w_abs = fabsf(me->omega_e);
+    const float gain = FOC_FW_CROSSOVER / ((w_abs > FOC_FW_OMEGA_FLOOR ? w_abs : FOC_FW_OMEGA_FLOOR) * ld);
+    /* the lowest d current: the current limit, and -psi_f / ld, where the d flux changes sign and more negative
+     * id no longer lowers the voltage */
+    const float id_low = -(ld > 0.0f && psi_f / ld < imax ? psi_f / ld : imax);
+    float id = 0.0f;
+    float den;
+    int k;
+    if (st->next_t_ns != me->t_ns) { /* a gap in time: no field weakening carried over */
+        st->id_fw = 0.0f;
+        st->v_dem = 0.0f;
+    }
+    for (k = 0; k < FOC_MTPA_ITERATIONS; ++k) {
+        den = tk * (psi_f + (ld - lq) * id);
+        id = hil_fw_mtpa_id(ld, lq, psi_f, fabsf(den) > 1.0e-9f ? torque / den : 0.0f);
+    }
+    id += p[HIL_FW_P_ID_REF];
+    /* voltage-limit feedback: d(id_fw)/dt = gain (FOC_FW_MARGIN vdc / sqrt(3) - |v_dq|), id_fw in [id_low - id, 0] */
+    st->id_fw += gain * s->params.model.ts * (FOC_FW_MARGIN * me->vdc / HIL_FW_SQRT3_F - st->v_dem);
+    if (st->id_fw > 0.0f) {
+        st->id_fw = 0.0f;
+    }
+    if (st->id_fw < id_low - id) {
+        st->id_fw = id_low - id < 0.0f ? id_low - id : 0.0f;
+    }
+    id = clampf(id + st->id_fw, imax);
+    den = tk * (psi_f + (ld - lq) * id);
+    s->ref.i_d = id;
+    s->ref.i_q = fabsf(den) > 1.0e-9f ? clampf(torque / den, sqrtf(imax * imax - id * id)) : 0.0f;
+}
+
 void hil_fw_foc_predict(struct hil_fw_state *s, hil_fw_cmd_t *cmd)
 {
     hil_fw_foc_state_t *st = &s->ctrl.foc;
@@ -118,6 +185,9 @@ void hil_fw_foc_predict(struct hil_fw_state *s, hil_fw_cmd_t *cmd)
     vd = kp * ed + st->x_d + ff_d;
     vq = kp * eq + st->x_q + ff_q;
     mag = sqrtf(vd * vd + vq * vq);
+    /* the field-weakening feedback: the whole demand (in saturation the integrators stop, only the proportional part
+     * still says how far beyond the limit the currents' errors ask to go) */
+    st->v_dem = mag;
     if (mag > vmax) {
         const float k = vmax / mag;
         vd *= k;

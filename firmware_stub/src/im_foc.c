@@ -14,6 +14,16 @@
  * sqrt(1 - 0.8^2) = 0.6, is left to the torque current). */
 #define IM_FOC_FLUX_TAU_S 0.02f
 #define IM_FOC_ID_SHARE 0.8f
+/* Field weakening (docs/algorithms/field_weakening.md): the share of the linear SVPWM reach vdc / sqrt(3) the
+ * voltage demand is held to, the crossover of the voltage-feedback loop [rad/s] (below the flux loop's
+ * 1 / IM_FOC_FLUX_TAU_S = 50 rad/s), the electrical speed below which its gain is not raised further [rad/s] and
+ * the lowest flux reference as a share of psi_r_ref. */
+#define IM_FOC_FW_MARGIN 0.95f
+#define IM_FOC_FW_CROSSOVER 15.0f
+#define IM_FOC_FW_OMEGA_FLOOR 50.0f
+#define IM_FOC_FW_PSI_MIN 0.25f
+/* The share of the flux reference the estimate must have reached before the feedback lowers the reference. */
+#define IM_FOC_FW_BUILT 0.9f
 
 static float clampf(float x, float lim)
 {
@@ -57,15 +67,40 @@ void hil_fw_im_foc_reference(struct hil_fw_state *s)
     const hil_fw_measured_t *me = &s->meas;
     const float *p = s->params.value;
     const float imax = p[HIL_FW_P_CURRENT_LIMIT];
-    const float psi_ref = p[HIL_FW_P_PSI_R_REF];
-    const float psi_div = st->psi > IM_FOC_PSI_FLOOR * psi_ref ? st->psi : IM_FOC_PSI_FLOOR * psi_ref;
+    const float psi_nom = p[HIL_FW_P_PSI_R_REF];
+    const float psi_div = st->psi > IM_FOC_PSI_FLOOR * psi_nom ? st->psi : IM_FOC_PSI_FLOOR * psi_nom;
+    const float w_abs = fabsf(me->omega_e);
+    const float w_fw = w_abs > IM_FOC_FW_OMEGA_FLOOR ? w_abs : IM_FOC_FW_OMEGA_FLOOR;
+    const float vlim = IM_FOC_FW_MARGIN * me->vdc / HIL_FW_SQRT3_F;
+    /* d|u|/d psi_R ~ omega_e (1 + L_sigma / L_M) at the no-load steady state u_q = omega_s (L_sigma i_d + psi_R) */
+    const float dudpsi = w_fw * (1.0f + p[HIL_FW_P_LSIGMA] / p[HIL_FW_P_LM]);
+    const float psi_ff = vlim / dudpsi; /* the no-load flux the voltage allows (1 / omega feed-forward) */
+    float psi_ref;
     float i_d;
-    if (st->next_t_ns != me->t_ns) { /* a gap in time: restart the pattern and the current integrators */
+    if (st->next_t_ns != me->t_ns) { /* a gap in time: restart the pattern, the current integrators, the weakening */
         st->parity = 0u;
         st->x_d = 0.0f;
         st->x_q = 0.0f;
+        st->dpsi_fw = 0.0f;
+        st->v_dem = 0.0f;
     }
     update_flux(st, p, s->params.model.ts, me->omega_e, me->i_alpha, me->i_beta);
+    /* field weakening: psi_ref = min(psi_r_ref, psi_ff) + dpsi_fw, the voltage-limit feedback
+     * d(dpsi_fw)/dt = (IM_FOC_FW_CROSSOVER / dudpsi) (vlim - |u|) holding dpsi_fw <= 0 and psi_ref above
+     * IM_FOC_FW_PSI_MIN psi_r_ref; lowered only once the flux is built */
+    psi_ref = psi_ff < psi_nom ? psi_ff : psi_nom;
+    if (st->v_dem < vlim || st->psi >= IM_FOC_FW_BUILT * (psi_ref + st->dpsi_fw)) {
+        /* no weakening while the flux builds: the voltage demand then comes from the build-up current */
+        st->dpsi_fw += IM_FOC_FW_CROSSOVER / dudpsi * s->params.model.ts * (vlim - st->v_dem);
+    }
+    if (st->dpsi_fw > 0.0f) {
+        st->dpsi_fw = 0.0f;
+    }
+    if (psi_ref + st->dpsi_fw < IM_FOC_FW_PSI_MIN * psi_nom) {
+        st->dpsi_fw = IM_FOC_FW_PSI_MIN * psi_nom - psi_ref < 0.0f ? IM_FOC_FW_PSI_MIN * psi_nom - psi_ref : 0.0f;
+    }
+    psi_ref += st->dpsi_fw;
+    st->psi_ref = psi_ref;
     /* flux P control on the current model: d|psi_R|/dt = RR i_d - RR |psi_R| / L_M = (psi_ref - |psi_R|) / tau,
      * the flux current limited to IM_FOC_ID_SHARE of the current limit while it builds */
     i_d = st->psi / p[HIL_FW_P_LM] + (psi_ref - st->psi) / (p[HIL_FW_P_RR] * IM_FOC_FLUX_TAU_S);
@@ -105,6 +140,7 @@ void hil_fw_im_foc_predict(struct hil_fw_state *s, hil_fw_cmd_t *cmd)
     vd = kp * (s->ref.i_d - i_d) + st->x_d - ws * ls * i_q - rr / p[HIL_FW_P_LM] * st->psi;
     vq = kp * (s->ref.i_q - i_q) + st->x_q + ws * ls * i_d + we * st->psi;
     mag = sqrtf(vd * vd + vq * vq);
+    st->v_dem = mag; /* the field-weakening feedback: the whole demand, as foc's */
     if (mag > vmax) {
         const float k = vmax / mag;
         vd *= k;

@@ -54,15 +54,18 @@ static void test_flux_estimate_at_standstill(void)
 static void test_flux_estimate_in_the_rotating_steady_state(void)
 {
     /* the model's steady state at 1000 rpm: psi_R = L_M i_d along the flux, turning at
-     * omega_s = omega_e + RR i_q / psi_R, with the current (i_d, i_q) in that frame */
+     * omega_s = omega_e + RR i_q / psi_R, with the current (i_d, i_q) in that frame (the one the references ask
+     * for). The currents are held, not driven by the voltage (open loop): the current PI's integrators would wind
+     * into the voltage limit, and field weakening would follow, so they are off here (current_ki 0) */
     hil_fw_state_t s;
     const float omega_m = 1000.0f * 2.0f * HIL_FW_PI_F / 60.0f;
-    const float psi = 0.9f, i_d = psi / LM, i_q = 5.0f;
+    const float psi = 0.9f, i_d = psi / LM, i_q = 10.0f / (3.0f * psi);
     const float omega_s = 2.0f * omega_m + RR * i_q / psi;
     float angle = 0.0f, err_angle;
     uint32_t k;
     hil_fw_cmd_t cmd;
     setup(&s, 10.0f);
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_CURRENT_KI, 0.0f) == 0, "ki");
     for (k = 0u; k < 10000u; ++k) {
         angle = fmodf(omega_s * (float)k * 1.0e-4f, 2.0f * HIL_FW_PI_F);
         cmd = step(&s, k, i_d, i_q, angle, omega_m);
@@ -111,11 +114,41 @@ static void test_start_from_zero_flux_and_reset_on_enable(void)
           "a rising enable starts from zero flux");
 }
 
+static void test_field_weakening_above_base_speed(void)
+{
+    /* 1916 rpm = 1.5x the 1277 rpm base speed of the rated 14.6 N*m at 0.9 Wb: with an ideal current loop (the
+     * measured currents are the references, in the estimated flux frame) the flux reference falls until the
+     * voltage demand sits on 0.95 * 540 / sqrt(3) = 296.2 V, and the torque current makes up the torque. The
+     * currents are fed at the flux angle advanced by the flux's turn over the period; the current PI's integrators
+     * are off (current_ki 0): an open loop's small residual errors would wind them into the voltage limit */
+    hil_fw_state_t s;
+    const float omega_m = 1916.0f * 2.0f * HIL_FW_PI_F / 60.0f;
+    const float vlim = 0.95f * 540.0f / HIL_FW_SQRT3_F;
+    float i_d = 0.0f, i_q = 0.0f;
+    uint32_t k;
+    setup(&s, 14.6f);
+    CHECK(hil_fw_set_param(&s, HIL_FW_P_CURRENT_KI, 0.0f) == 0, "ki");
+    for (k = 0u; k < 20000u; ++k) {
+        const float psi = s.ctrl.im_foc.psi > 0.09f ? s.ctrl.im_foc.psi : 0.09f;
+        const float turn = (2.0f * omega_m + RR * i_q / psi) * 1.0e-4f;
+        (void)step(&s, k, i_d, i_q, atan2f(s.ctrl.im_foc.sin_f, s.ctrl.im_foc.cos_f) + turn, omega_m);
+        i_d = s.ref.i_d;
+        i_q = s.ref.i_q;
+    }
+    CHECK(s.ctrl.im_foc.psi_ref < 0.8f, "the flux reference is weakened, got %g Wb", (double)s.ctrl.im_foc.psi_ref);
+    CHECK(s.ctrl.im_foc.psi_ref > 0.25f * 0.9f, "above its floor");
+    CHECK_NEAR(s.ctrl.im_foc.psi, s.ctrl.im_foc.psi_ref, 0.01f, "the flux follows its reference");
+    CHECK_NEAR(s.ctrl.im_foc.v_dem, vlim, 0.02f * vlim, "the voltage demand settles on the limit");
+    CHECK_NEAR(3.0f * s.ctrl.im_foc.psi * s.ref.i_q, 14.6f, 0.05f, "the torque holds");
+    CHECK(s.ctrl.im_foc.dpsi_fw <= 0.0f, "the feedback only lowers the flux");
+}
+
 int main(void)
 {
     test_flux_estimate_at_standstill();
     test_flux_estimate_in_the_rotating_steady_state();
     test_command_shape_and_pattern();
     test_start_from_zero_flux_and_reset_on_enable();
+    test_field_weakening_above_base_speed();
     return FW_REPORT("test_im_foc");
 }

@@ -200,6 +200,10 @@ def _steady(what: str) -> Callable[[], str]:
         steady = load_scenario(str(DEFAULTS["scenario"]))
         value = {"speed": steady.speed_rpm, "load": steady.load_nm, "duration": steady.duration_s,
                  "settle": steady.settle_s}[what]
+        if steady.at_rated and what in ("speed", "load"):
+            rated = {"speed": "rated speed", "load": "rated torque"}[what]
+            return (f"{_SCENARIO_HELP[what]} (default: the scenario's; {steady.name}: the motor's {rated}, "
+                    f"{value:g} for {DEFAULTS['motor']})")
         return f"{_SCENARIO_HELP[what]} (default: the scenario's; {steady.name}: {value:g})"
     return text
 

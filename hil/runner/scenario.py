@@ -28,7 +28,8 @@ class Scenario:
     steps after the first, in time order (e.g. 0 → 4 → 2 N·m: load_step_s/load_nm = the 4 N·m step,
     load_steps = ((t2, 2.0),)); the load after the last step is the last step's torque. theta0_rad:
     initial electrical rotor angle [rad]. hold_tolerance_pct: tolerance of the setpoint verdict `setpoint_held`
-    [% of the reference] (`--hold-tolerance` wins).
+    [% of the reference] (`--hold-tolerance` wins). at_rated: speed_rpm and load_nm are the motor's rated speed and
+    torque (`for_motor`; the file's values stand for a motor that states none).
     """
 
     name: str
@@ -46,6 +47,7 @@ class Scenario:
     load_steps: tuple[tuple[float, float], ...] = ()
     theta0_rad: float = 0.0
     hold_tolerance_pct: float = DEFAULT_HOLD_TOLERANCE_PCT
+    at_rated: bool = False
 
     def __post_init__(self) -> None:
         if self.mechanics not in ("inertia", "dyno"):
@@ -100,6 +102,16 @@ class Scenario:
             return LoadProfile.constant(self.load_nm)
         return LoadProfile.steps(self.start_load_nm, [*first, *self.load_steps])
 
+    def for_motor(self, rated_speed_rpm: float, rated_torque_nm: float) -> Scenario:
+        """An `at_rated` scenario's copy at the motor's rated speed [rpm] and torque [N·m] (each where > 0, else
+        the scenario's own value); any other scenario unchanged. Command-line overrides come after it. `hil run`,
+        sweeps and the pytest plugin call it (app/cli/run.py); a RunConfig built by hand takes the scenario as
+        given."""
+        if not self.at_rated:
+            return self
+        return replace(self, speed_rpm=rated_speed_rpm if rated_speed_rpm > 0 else self.speed_rpm,
+                       load_nm=rated_torque_nm if rated_torque_nm > 0 else self.load_nm, at_rated=False)
+
     def with_overrides(self, **overrides: Any) -> Scenario:
         """Copy with CLI overrides (None values ignored)."""
         clean = {k: v for k, v in overrides.items() if v is not None}
@@ -122,7 +134,7 @@ def load_scenario(name_or_path: str) -> Scenario:
         if key in ("name", "mechanics", "description"):
             if not isinstance(value, str):
                 raise InputFileError(f"scenario file {origin}: '{key}' must be a string")
-        elif key == "preset_integrator":
+        elif key in ("preset_integrator", "at_rated"):
             if not isinstance(value, bool):
                 raise InputFileError(f"scenario file {origin}: '{key}' must be true or false")
         elif key == "load_steps":

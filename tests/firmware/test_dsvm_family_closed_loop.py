@@ -61,11 +61,15 @@ def test_foc_via_duties_holds_the_rated_point(pwm_update: str, f_sw_khz: float) 
 
 
 def test_foc_alternates_center_aligned_halves() -> None:
+    """The (a, b, 7), (b, a, 0) halves of one voltage vector. The held currents (open loop) leave a ~3 A error whose
+    demand, ~300 V, is beyond the voltage limit of 311 V (0.95·Vdc/√3 = 171 V) and of 600 V: field weakening would
+    then turn the vector between the halves, so the DC link is 2 kV here (the demand's angle does not depend on
+    Vdc while field weakening is off)."""
     fw = Firmware()
     fw.set_param(int(ParamId.PWM_DUTIES), 0.0)  # the switching-state form
     fw.select_controller(CONTROLLER_IDS["foc"])
     fw.set_setpoint(True, 1, 3.0)
-    cmds = [fw.step(k, (1.0, -0.5, -0.5), 0.001 * k, 50.0, 311.0, k * 100_000) for k in range(6)]
+    cmds = [fw.step(k, (1.0, -0.5, -0.5), 0.001 * k, 50.0, 2000.0, k * 100_000) for k in range(6)]
     for even, odd in zip(cmds[0::2], cmds[1::2], strict=True):
         assert even.states[-1] == 7 and odd.states[-1] == 0  # (a, b, 7) then (b, a, 0)
         assert sum(even.durations_ns) == sum(odd.durations_ns) == 100_000

@@ -245,7 +245,8 @@ def test_help_lists_controllers_links_and_real_defaults(capsys: pytest.CaptureFi
     for kind in LINK_KINDS.values():
         assert "".join(kind.summary.split()) in "".join(out.split())
     for default in ("(default niu2020-ipmsm)", "(default mpcc)", "(default steady)", "(default virtual)",
-                    "(default lockstep)", "(default 0.0001)", "steady: 1500", "(default 0: ideal)"):
+                    "(default lockstep)", "(default 0.0001)", "steady: the motor's rated speed, 1500 for niu2020-ipmsm",
+                    "(default 0: ideal)"):
         assert default in text
     assert "(default: None)" not in text
 

@@ -10,14 +10,18 @@ removed) and reports it as XFAIL with the measured miss, so nothing is skipped s
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import pytest
 from pmsm_hil.hil.errors import HilError
+from pmsm_hil.hil.im_params import ImParams
 from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import load_scenario
+from pmsm_hil.protocol.ids import ParamId
 from pmsm_hil.sim_target.firmware import CONTROLLERS
 
 #: Load points as fractions of the machine's rated torque.
@@ -44,21 +48,31 @@ class MachineGrid:
     tag: str = ""
 
 
+#: Field-weakening grids (issue 35 item 5): the reference FOCs at rated speed, at the base speed and at 1.5× it
+#: (`base_speed_rpm`: the corner of the rated torque at the firmware's voltage limit 0.95·Vdc/√3, rounded up).
 GRIDS = (
-    MachineGrid("niu2020-ipmsm", 7.0, (300.0, 1500.0),
-                ("mpcc", "dsvm-20", "fcs-mpc-1", "fcs-mpc-2", "dbcc-mpc", "foc"), 0.05, 0.1),
+    MachineGrid("niu2020-ipmsm", 7.0, (300.0, 1500.0), ("mpcc", "dsvm-20", "fcs-mpc-1", "fcs-mpc-2", "dbcc-mpc"),
+                0.05, 0.1),
+    # foc with MTPA and field weakening: base speed 1943 rpm, 1.5× = 2915 rpm (< the 3000 rpm trip)
+    MachineGrid("niu2020-ipmsm", 7.0, (300.0, 1500.0, 1943.0, 2915.0), ("foc",), 0.05, 0.1),
     MachineGrid("xiao2023-spmsm", 6.0, (500.0, 2000.0), ("3vmpc", "hv-mpfc"), 0.05, 0.1),
+    # the SPMSM with foc (MTPA is id = 0 there): base speed 2148 rpm, 1.5× = 3223 rpm
+    MachineGrid("xiao2023-spmsm", 6.0, (500.0, 2000.0, 2148.0, 3223.0), ("foc",), 0.05, 0.1, tag="xiao-"),
     # 750-3000 rpm, 8-80 N·m: inside the voltage (126 V back-EMF at 3000 rpm < 173 V linear reach) and current
     # (66.7 A rated < 300 A trip) limits of the preset. J = 0.1 kg·m² (77x niu2020): the window mean of the
-    # torque follows the residual speed drift J·Δω/T, hence the longer window.
+    # torque follows the residual speed drift J·Δω/T, hence the longer window. No field weakening (mptc*):
+    # the grid ends at the rated speed (docs/algorithms/field_weakening.md)
     MachineGrid("zhang2021-dtpmsm", 80.0, (750.0, 1500.0, 3000.0), ("mptc1", "mptc2", "mptc3"), 0.2, 0.2),
     # the saturated flux-map machine (kind pmsm-fluxmap, docs/plant.md): the controllers see the linear model fitted
     # at the rated point (Ld 10.2 mH, Lq 13.3 mH, ψf 0.2055 Wb), the plant the saturating map
-    MachineGrid("niu2020-ipmsm-sat", 7.0, (300.0, 1500.0), ("mpcc", "foc"), 0.05, 0.1, tag="sat-"),
-    # the induction machine starts at zero flux: im-foc's flux loop (20 ms) and the speed PI settle within 0.2 s;
-    # 500 and 1000 rpm stay inside the voltage reach at the 0.9 Wb rotor flux (the rated 1439 rpm needs field
-    # weakening, which im-foc does not do: docs/plant.md)
+    MachineGrid("niu2020-ipmsm-sat", 7.0, (300.0, 1500.0), ("mpcc",), 0.05, 0.1, tag="sat-"),
+    # foc on it up to 1.5× the base speed of that linear model: 1997 rpm, 1.5× = 2996 rpm (< the 3600 rpm trip)
+    MachineGrid("niu2020-ipmsm-sat", 7.0, (300.0, 1500.0, 1997.0, 2996.0), ("foc",), 0.05, 0.1, tag="sat-"),
+    # the induction machine starts at zero flux: im-foc's flux loop (20 ms) and the speed PI settle within 0.2 s
+    # below base speed (1277 rpm at the 0.9 Wb rotor flux); above it (the rated 1439 rpm, 1.5× base = 1916 rpm) the
+    # flux reference follows the voltage-limit loop (15 rad/s crossover), hence the longer settling
     MachineGrid("im-2k2", 14.6, (500.0, 1000.0), ("im-foc",), 0.2, 0.2, tag="im-"),
+    MachineGrid("im-2k2", 14.6, (1277.0, 1439.0, 1916.0), ("im-foc",), 0.3, 0.2, tag="im-"),
 )
 
 # mptc1 neither predicts nor costs the x-y subspace: every G1 vector puts 52 V on L_ls = 80 µH and the x-y
@@ -165,6 +179,106 @@ def test_the_machine_speed_pi_comes_from_the_preset() -> None:
     niu = RunConfig(motor=load_motor("niu2020-ipmsm"), scenario=sc).target_parameters()
     assert (zhang[ParamId.SPEED_KP], zhang[ParamId.SPEED_KI]) == (3.0, 5.0)
     assert (niu[ParamId.SPEED_KP], niu[ParamId.SPEED_KI]) == (0.8, 0.35)
+
+
+#: the firmware's field-weakening voltage limit: this share of the linear SVPWM reach Vdc/√3 (FOC_FW_MARGIN,
+#: IM_FOC_FW_MARGIN in firmware_stub/src/foc.c, im_foc.c)
+FW_MARGIN = 0.95
+#: the controllers with field weakening, and the grids that test them above base speed
+FW_CONTROLLERS = ("foc", "im-foc")
+
+
+def _bisect(f: Callable[[float], float], lo: float, hi: float) -> float:
+    """The x in [lo, hi] where the increasing f(x) crosses 0 (60 halvings)."""
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if f(mid) < 0 else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+def _pm_voltage(m: dict[ParamId, float], w_e: float, i_d: float, i_q: float) -> float:
+    """Steady-state |v| [V] of the linear PMSM model m at electrical speed w_e [rad/s] and currents [A]."""
+    rs, ld, lq, psi = m[ParamId.RS], m[ParamId.LD], m[ParamId.LQ], m[ParamId.PSI_F]
+    return math.hypot(rs * i_d - w_e * lq * i_q, rs * i_q + w_e * (ld * i_d + psi))
+
+
+def _im_voltage(im: ImParams, w_e: float, psi: float, i_q: float) -> float:
+    """Steady-state |u| [V] of the inverse-Γ induction machine in the rotor-flux frame at rotor flux psi [Wb]."""
+    i_d, w_s = psi / im.lm, w_e + im.rr * i_q / psi
+    return math.hypot(im.rs * i_d - w_s * im.lsigma * i_q, im.rs * i_q + w_s * (im.lsigma * i_d + psi))
+
+
+def _mtpa(m: dict[ParamId, float], torque: float, pole_pairs: int) -> tuple[float, float]:
+    """MTPA (id, iq) [A] of the linear PMSM model at torque [N·m], by fixed point as the firmware's."""
+    dl, psi_f, i_d, i_q = m[ParamId.LQ] - m[ParamId.LD], m[ParamId.PSI_F], 0.0, 0.0
+    for _ in range(20):
+        i_q = torque / (1.5 * pole_pairs * (psi_f - dl * i_d))
+        i_d = -dl * i_q * i_q / (0.5 * psi_f + math.sqrt(0.25 * psi_f ** 2 + dl * dl * i_q * i_q)) if dl > 0 else 0.0
+    return i_d, i_q
+
+
+def base_speed_rpm(motor_name: str) -> float:
+    """Base speed [rpm]: the highest speed at which the rated torque needs no field weakening — the PMSM's MTPA
+    currents, the induction machine's nominal flux psi_r_ref — at the firmware's voltage limit 0.95·Vdc/√3, in the
+    steady state of the model the controller is told."""
+    motor = load_motor(motor_name)
+    vlim, p, rated = FW_MARGIN * motor.vdc / math.sqrt(3.0), motor.pole_pairs, motor.torque_rating_nm
+    if isinstance(motor, ImParams):
+        psi = motor.psi_r_ref
+        i_q = rated / (1.5 * p * psi)
+        w_e = _bisect(lambda w: _im_voltage(motor, w, psi, i_q) - vlim, 0.0, 1e4)
+    else:
+        m = motor.model_parameters()
+        i_d, i_q = _mtpa(m, rated, p)
+        w_e = _bisect(lambda w: _pm_voltage(m, w, i_d, i_q) - vlim, 0.0, 1e5)
+    return w_e / p * 30.0 / math.pi
+
+
+def max_torque_nm(motor_name: str, speed_rpm: float) -> float:
+    """The torque the current limit (0.8·i_trip, what the runner tells the firmware) and the voltage limit allow
+    at speed_rpm [N·m], steady state of the controller's model: the best over 200 d currents (PMSM, down to
+    −ψf/Ld) or rotor fluxes (induction machine, down to a quarter of psi_r_ref)."""
+    motor = load_motor(motor_name)
+    vlim, p, imax = FW_MARGIN * motor.vdc / math.sqrt(3.0), motor.pole_pairs, 0.8 * motor.i_trip
+    w_e = speed_rpm * math.pi / 30.0 * p
+    best = 0.0
+    for k in range(1, 201):
+        if isinstance(motor, ImParams):
+            psi = motor.psi_r_ref * (0.25 + 0.75 * k / 200)
+            i_d, flux = psi / motor.lm, psi
+
+            def volt(iq: float, psi: float = psi, im: ImParams = motor) -> float:
+                return _im_voltage(im, w_e, psi, iq)
+        else:
+            m = motor.model_parameters()
+            i_d = -min(imax, m[ParamId.PSI_F] / m[ParamId.LD]) * k / 200
+            flux = m[ParamId.PSI_F] + (m[ParamId.LD] - m[ParamId.LQ]) * i_d
+
+            def volt(iq: float, i_d: float = i_d, m: dict[ParamId, float] = m) -> float:
+                return _pm_voltage(m, w_e, i_d, iq)
+        if abs(i_d) >= imax or volt(0.0) > vlim:
+            continue
+        i_q_max = math.sqrt(imax * imax - i_d * i_d)
+        i_q = i_q_max if volt(i_q_max) <= vlim else _bisect(lambda iq, f=volt: f(iq) - vlim, 0.0, i_q_max)
+        best = max(best, 1.5 * p * flux * i_q)
+    return best
+
+
+FW_GRIDS = [g for g in GRIDS if set(g.controllers) <= set(FW_CONTROLLERS)]
+
+
+@pytest.mark.parametrize("grid", FW_GRIDS, ids=lambda g: f"{g.motor}-{'-'.join(g.controllers)}-{g.speeds_rpm[-1]:.0f}")
+def test_the_field_weakening_grids_reach_rated_and_1_5x_base_speed(grid: MachineGrid) -> None:
+    """Every preset a reference FOC drives is tested at its rated speed and at 1.5× its base speed, where the
+    voltage and current limits still allow the rated torque (so 100 % load is inside the drive's range)."""
+    motor = load_motor(grid.motor)
+    if grid.speeds_rpm[-1] < base_speed_rpm(grid.motor):
+        return  # a below-base grid of the same machine (the one above base covers it)
+    top = grid.speeds_rpm[-1]
+    assert top >= 1.5 * base_speed_rpm(grid.motor), (top, base_speed_rpm(grid.motor))
+    assert any(n >= motor.rated_speed_rpm for g in FW_GRIDS if g.motor == grid.motor for n in g.speeds_rpm)
+    assert max_torque_nm(grid.motor, top) >= grid.rated_nm
+    assert top < motor.speed_trip_rpm
 
 
 def test_every_controller_is_in_the_grid() -> None:

@@ -101,3 +101,21 @@ def test_help_shows_the_schemas_defaults(capsys: pytest.CaptureFixture[str]) -> 
     for option in RUN_OPTIONS:
         assert option.option in text
     assert "(default lockstep)" in text and "(default 0.5)" in text and "(default Ts/2)" in text
+
+
+@pytest.mark.parametrize(("motor", "controller", "speed_rpm", "load_nm"),
+                         [("niu2020-ipmsm", "mpcc", 1500.0, 7.0), ("im-2k2", "im-foc", 1439.0, 14.6),
+                          ("xiao2023-spmsm", "3vmpc", 2000.0, 6.0)])
+def test_the_default_scenario_runs_at_the_motors_ratings(motor: str, controller: str, speed_rpm: float,
+                                                         load_nm: float) -> None:
+    """The default (steady, `at_rated`) scenario's speed and load are the motor's rated speed and torque; the
+    options and other scenarios keep theirs (issue 35 item 5)."""
+    from pmsm_hil.app.cli.run import config_from_args
+
+    base = ["--motor", motor, "--controller", controller]
+    sc = config_from_args(base_args(base)).scenario
+    assert (sc.speed_rpm, sc.load_nm) == (speed_rpm, load_nm)
+    sc = config_from_args(base_args([*base, "--speed", "900", "--load", "2"])).scenario
+    assert (sc.speed_rpm, sc.load_nm) == (900.0, 2.0)
+    sc = config_from_args(base_args([*base, "--scenario", "dyno-steady"])).scenario
+    assert (sc.speed_rpm, sc.load_nm) == (1000.0, 4.0)
