@@ -62,6 +62,63 @@ def test_bad_input_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str
     assert "none.mcap" in err and "Traceback" not in err
 
 
+def _one_line(capsys: pytest.CaptureFixture[str], *needles: str) -> None:
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and err.startswith("hil: error: ") and "Traceback" not in err, err
+    for needle in needles:
+        assert needle in err, err
+
+
+def _corrupt_copies(good: Path, folder: Path) -> dict[str, Path]:
+    """`good` truncated at half its size, with garbage bytes instead of its middle third, and with bit flips
+    spread over it (after its first 64 bytes)."""
+    data = good.read_bytes()
+    n = len(data)
+    flipped = bytearray(data)
+    for i in range(64, n, max(1, n // 16)):
+        flipped[i] ^= 0x24
+    variants = {"truncated": data[: n // 2],
+                "garbage": data[: n // 3] + bytes((7 * i + 3) % 251 for i in range(n // 3)) + data[2 * n // 3:],
+                "bitflips": bytes(flipped)}
+    out = {}
+    for name, content in variants.items():
+        path = folder / f"{name}{good.suffix}"
+        path.write_bytes(content)
+        out[name] = path
+    return out
+
+
+def test_export_refuses_a_corrupt_run_log_and_writes_nothing(run_mcap: Path, tmp_path: Path,
+                                                             capsys: pytest.CaptureFixture[str]) -> None:
+    for kind, bad in _corrupt_copies(run_mcap, tmp_path).items():
+        out = tmp_path / f"{kind}.log"
+        assert main(["mcap", "export", str(bad), "--format", "candump", "-o", str(out)]) == 2, kind
+        _one_line(capsys, f"RUN.mcap {bad}: cut or corrupt after", "hil mcap-repair")
+        assert not out.exists()
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(b"not an mcap at all" * 10)
+    assert main(["mcap", "export", str(junk), "--format", "csv", "-o", str(tmp_path / "j.csv")]) == 2
+    _one_line(capsys, "not an MCAP file")
+    # this short run is one chunk: the prefix `hil mcap-repair` recovers holds no channel, and says so
+    repaired = tmp_path / "repaired.mcap"
+    assert main(["mcap-repair", str(tmp_path / "truncated.mcap"), "-o", str(repaired)]) == 0
+    capsys.readouterr()
+    assert main(["mcap", "export", str(repaired), "--format", "candump", "-o", str(tmp_path / "r.log")]) == 2
+    _one_line(capsys, "has no /frames channel")
+
+
+def test_export_never_replaces_a_file_without_overwrite(run_mcap: Path, tmp_path: Path,
+                                                        capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "other_run.log"
+    out.write_text("another run's capture\n")
+    assert main(["mcap", "export", str(run_mcap), "--format", "candump", "-o", str(out)]) == 2
+    _one_line(capsys, f"-o {out}: exists; give --overwrite")
+    assert out.read_text() == "another run's capture\n"
+    assert main(["mcap", "export", str(run_mcap), "--format", "candump", "-o", str(out), "--overwrite"]) == 0
+    assert len(list(can.CanutilsLogReader(out))) == len(read_frames(run_mcap))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["other_run.log"]  # no temporary file left
+
+
 def _commands(run_mcap: Path) -> list[tuple[tuple[int, ...], tuple[int, ...]]]:
     from pmsm_hil.protocol.codec import FrameDecoder
     from pmsm_hil.protocol.frame import Frame
