@@ -159,10 +159,10 @@ def _read_fixed(path: Path, topic: str, dtype: np.dtype, renames: dict[str, str]
     return out
 
 
-def read_periods(path: Path) -> np.ndarray:
+def read_periods(path: Path, state: ScanState | None = None) -> np.ndarray:
     """PERIOD_DTYPE array of all /periods messages (CDR, or JSON in older logs: null → NaN; truncated files:
-    the valid prefix)."""
-    found = _read_fixed(path, topics.TOPIC_PERIODS, PERIOD_DTYPE, {})
+    the valid prefix); `state` as for `read_topic`."""
+    found = _read_fixed(path, topics.TOPIC_PERIODS, PERIOD_DTYPE, {}, state)
     if isinstance(found, np.ndarray):
         return found
     out: np.ndarray = encoding.decode_json_records([m.data for m in found.messages], PERIOD_DTYPE,

@@ -165,3 +165,49 @@ def test_hil_replay_of_a_can_log_needs_the_plant_options(run_mcap: Path, tmp_pat
     assert "--rpm is required" in capsys.readouterr().err
     assert main(["replay", str(log), "--rpm", "0", "--ts", "2e-4", "--output", str(tmp_path / "o.csv")]) != 0
     assert "expected Ts = 200000 ns (--ts)" in capsys.readouterr().err
+
+
+_EXPORT_SUFFIX = {"candump": ".log", "asc": ".asc", "blf": ".blf", "csv": ".csv"}
+
+
+@pytest.mark.parametrize("fmt", ["candump", "asc", "blf", "csv"])
+def test_hil_replay_refuses_a_corrupt_can_log_in_one_line(run_mcap: Path, tmp_path: Path, fmt: str,
+                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    good = tmp_path / f"run{_EXPORT_SUFFIX[fmt]}"
+    assert main(["mcap", "export", str(run_mcap), "--format", fmt, "-o", str(good)]) == 0
+    common = ["--rpm", "1000", "--ts", "1e-4"]
+    assert main(["replay", str(good), *common, "--output", str(tmp_path / "good.csv")]) == 0
+    capsys.readouterr()
+    for kind, bad in _corrupt_copies(good, tmp_path).items():
+        out = tmp_path / f"{kind}.out.csv"
+        assert main(["replay", str(bad), *common, "--output", str(out)]) == 2, kind
+        _one_line(capsys, f"CAN log {bad}: ")
+        assert not out.exists()
+
+
+@pytest.mark.parametrize("change", ["reversed", "duplicated", "repeated line", "lost Command"])
+def test_hil_replay_refuses_a_reordered_capture_naming_the_seq(run_mcap: Path, tmp_path: Path, change: str,
+                                                               capsys: pytest.CaptureFixture[str]) -> None:
+    good = tmp_path / "run.log"
+    assert main(["mcap", "export", str(run_mcap), "--format", "candump", "-o", str(good)]) == 0
+    capsys.readouterr()
+    lines = good.read_text().splitlines()
+    cmd_lines = [i for i, line in enumerate(lines) if " can0 " in line and line.split()[2].startswith(_cmd_ids_hex())]
+    k = cmd_lines[len(cmd_lines) // 2]
+    edited = {"reversed": lines[::-1], "duplicated": lines + lines,
+              "repeated line": [*lines[:k + 1], lines[k], *lines[k + 1:]],
+              "lost Command": [line for i, line in enumerate(lines) if i not in cmd_lines[10:13]]}[change]
+    bad = tmp_path / "bad.log"
+    bad.write_text("\n".join(edited) + "\n")
+    assert main(["replay", str(bad), "--rpm", "1000", "--ts", "1e-4", "--output", str(tmp_path / "o.csv")]) == 2
+    needle = {"reversed": "goes back", "duplicated": "goes back", "repeated line": "appears twice",
+              "lost Command": "missing"}[change]
+    _one_line(capsys, "Command seq ", needle)
+    assert not (tmp_path / "o.csv").exists()
+
+
+def _cmd_ids_hex() -> tuple[str, ...]:
+    """candump -L prefixes of the Command frames (classic first part, CAN FD)."""
+    from pmsm_hil.protocol.codec import L_CMD_A, L_CMD_FD
+
+    return tuple(f"{lay.frame_id:03X}#" for lay in (L_CMD_A, L_CMD_FD))
