@@ -11,8 +11,8 @@ import math
 from collections.abc import Sequence
 from typing import Final
 
-from pmsm_hil.protocol.errors import EncodeError
-from pmsm_hil.protocol.layout import expect_layout
+from pmsm_hil.protocol.errors import DatabaseError, EncodeError
+from pmsm_hil.protocol.layout import DBC_PATH, expect_layout, locate_in_dbc
 from pmsm_hil.protocol.messages import Command
 
 L_DUTY_A = expect_layout("CmdDutyA", ("seq", "duty0", "duty1", "duty2"))
@@ -32,7 +32,7 @@ N_DUTIES: Final = (3, 6)
 _U32_MAX: Final = 0xFFFFFFFF
 
 if abs(L_DUTY_A.signal("duty0").scale * DUTY_FULL - 1.0) > 1e-12:  # pragma: no cover - a DBC edit
-    raise ImportError("hil.dbc CmdDutyA.duty0 scale is not 1/65520")
+    raise DatabaseError(locate_in_dbc(DBC_PATH, "CmdDutyA.duty0: scale is not 1/65520 (the duty wire code)"))
 
 
 def duty_raw(d: float) -> int:
