@@ -102,9 +102,11 @@ def raw_parts(c: Command) -> tuple[tuple[int, ...], tuple[int, ...], tuple[int, 
 
 
 def command(seq: int, n: int, raw: Sequence[int], vid: int, cand: int, ex: int, st: int) -> Command:
-    """The Command of decoded raw values (n: n_duties, already checked to be 3 or 6)."""
+    """The Command of decoded raw values (n: n_duties ≥ 1). A count other than 3 or 6 is kept as the length of
+    `duties` (NaN beyond the six the frames carry) for the host's `duty` finding."""
+    duties = tuple(duty_value(r) for r in raw[:n]) + (math.nan,) * max(0, n - len(raw))
     return Command(seq=seq, states=(), durations_ns=(), vector_id=vid, candidates=cand, exec_time_ns=ex, status=st,
-                   duties=tuple(duty_value(r) for r in raw[:n]))
+                   duties=duties)
 
 
 __all__ = ["DUTY_FULL", "DUTY_NAN", "DUTY_OUT_OF_RANGE", "L_DUTY_A", "L_DUTY_B", "L_DUTY_C", "L_DUTY_FD",
