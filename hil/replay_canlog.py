@@ -48,9 +48,12 @@ def _check_complete(path: Path) -> None:
     """InputFileError if the log `path` was cut: a BLF whose size or object count differs from its header's, a
     text log (.log, .asc, .csv) whose last line has no end of line, an ASC log without its closing
     `End TriggerBlock` line."""
-    data = path.read_bytes()
     if path.suffix.lower() == ".blf":
         return  # checked while reading (`_blf_cut`)
+    with path.open("rb") as f:
+        size = f.seek(0, 2)
+        f.seek(max(0, size - 4096))
+        data = f.read()  # the end of the file is enough
     if data and not data.endswith(b"\n"):
         raise InputFileError(f"CAN log {path}: cut: its last line has no end of line")
     if path.suffix.lower() == ".asc":
