@@ -12,7 +12,7 @@ from pmsm_hil.dashboards.recording import RerunTargets, flush_recording, open_re
 from pmsm_hil.dashboards.streamer import PeriodStreamer
 from pmsm_hil.hil.errors import HilError
 from pmsm_hil.hil.machine import layout_for_phases, load_machine
-from pmsm_hil.hil.runlog.reader import read_metadata, read_periods
+from pmsm_hil.hil.runlog.reader import ScanState, read_metadata, read_periods
 
 BLOCK = 1000
 
@@ -33,7 +33,12 @@ def load_source(path: Path, *, vdc: float | None = None) -> ReplaySource:
     if not path.is_file():
         raise DashboardError(f"RUN.mcap: {path} is not a file")
     meta = read_metadata(path)
-    periods = read_periods(path)
+    state = ScanState()
+    periods = read_periods(path, state)
+    if not state.complete:
+        raise DashboardError(f"RUN.mcap: {path} is cut or corrupt after {state.valid_bytes} of {state.file_bytes} "
+                             f"bytes ({state.stop_reason}); `hil mcap-repair {path}` writes its valid prefix as a "
+                             "complete file to replay")
     if len(periods) == 0:
         raise DashboardError(f"RUN.mcap: {path} holds no /periods messages")
     try:

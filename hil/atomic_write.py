@@ -71,6 +71,17 @@ def refuse_inputs(dest: Path, inputs: Iterable[Path], *, option: str) -> None:
                                  "choose another file")
 
 
+def refuse_existing(dest: Path, *, overwrite: bool, option: str) -> None:
+    """InputFileError naming `option` if `dest` exists and `overwrite` is false: a command never replaces a
+    file (another run's report, log or export) without `--overwrite`."""
+    dest = Path(dest)
+    if overwrite or not (dest.exists() or dest.is_symlink()):
+        return
+    if dest.is_dir():
+        raise InputFileError(f"{option} {dest}: is a directory")
+    raise InputFileError(f"{option} {dest}: exists; give --overwrite to replace it or choose another file")
+
+
 def ensure_dir(path: Path, *, option: str) -> Path:
     """`path` as a directory, created if missing; InputFileError naming `option` if it is a file or cannot be
     created."""
@@ -103,4 +114,5 @@ def prepare_output_dir(path: Path, files: Iterable[str], *, overwrite: bool, opt
             raise InputFileError(f"{option} {path}: cannot remove the old {name} ({exc.strerror})") from None
 
 
-__all__ = ["atomic_path", "ensure_dir", "prepare_output_dir", "refuse_inputs", "same_file", "write_text_atomic"]
+__all__ = ["atomic_path", "ensure_dir", "prepare_output_dir", "refuse_existing", "refuse_inputs", "same_file",
+           "write_text_atomic"]

@@ -11,8 +11,8 @@ import math
 from collections.abc import Sequence
 from typing import Final
 
-from pmsm_hil.protocol.errors import EncodeError
-from pmsm_hil.protocol.layout import expect_layout
+from pmsm_hil.protocol.errors import DatabaseError, EncodeError
+from pmsm_hil.protocol.layout import DBC_PATH, expect_layout, locate_in_dbc
 from pmsm_hil.protocol.messages import Command
 
 L_DUTY_A = expect_layout("CmdDutyA", ("seq", "duty0", "duty1", "duty2"))
@@ -32,7 +32,7 @@ N_DUTIES: Final = (3, 6)
 _U32_MAX: Final = 0xFFFFFFFF
 
 if abs(L_DUTY_A.signal("duty0").scale * DUTY_FULL - 1.0) > 1e-12:  # pragma: no cover - a DBC edit
-    raise ImportError("hil.dbc CmdDutyA.duty0 scale is not 1/65520")
+    raise DatabaseError(locate_in_dbc(DBC_PATH, "CmdDutyA.duty0: scale is not 1/65520 (the duty wire code)"))
 
 
 def duty_raw(d: float) -> int:
@@ -102,9 +102,11 @@ def raw_parts(c: Command) -> tuple[tuple[int, ...], tuple[int, ...], tuple[int, 
 
 
 def command(seq: int, n: int, raw: Sequence[int], vid: int, cand: int, ex: int, st: int) -> Command:
-    """The Command of decoded raw values (n: n_duties, already checked to be 3 or 6)."""
+    """The Command of decoded raw values (n: n_duties ≥ 1). A count other than 3 or 6 is kept as the length of
+    `duties` (NaN beyond the six the frames carry) for the host's `duty` finding."""
+    duties = tuple(duty_value(r) for r in raw[:n]) + (math.nan,) * max(0, n - len(raw))
     return Command(seq=seq, states=(), durations_ns=(), vector_id=vid, candidates=cand, exec_time_ns=ex, status=st,
-                   duties=tuple(duty_value(r) for r in raw[:n]))
+                   duties=duties)
 
 
 __all__ = ["DUTY_FULL", "DUTY_NAN", "DUTY_OUT_OF_RANGE", "L_DUTY_A", "L_DUTY_B", "L_DUTY_C", "L_DUTY_FD",

@@ -8,6 +8,7 @@ interpretation of the layout), which keeps a frame at ~1 µs.
 
 from __future__ import annotations
 
+import re
 import struct
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -17,6 +18,7 @@ from typing import Any
 
 import cantools
 from cantools.database.can import Database as CanDatabase
+from cantools.database.errors import Error as CantoolsError
 from cantools.database.errors import UnsupportedDatabaseFormatError
 from pmsm_hil.protocol.errors import DatabaseError
 
@@ -182,23 +184,110 @@ def _sign_extend(value: int, bits: int) -> int:
 
 @cache
 def load_layouts(path: Path = DBC_PATH) -> dict[str, FrameLayout]:
-    """Parse the DBC once and compile every message; keyed by DBC message name."""
+    """Parse the DBC once and compile every message; keyed by DBC message name. A DBC that cantools cannot
+    parse or this codec cannot compile is a DatabaseError of one line naming the file, the line and the
+    message.signal where they can be found."""
     try:
         db = cantools.database.load_file(str(path))
-    except (OSError, UnsupportedDatabaseFormatError) as exc:
-        raise DatabaseError(f"cannot load {path}: {exc}") from exc
+    except OSError as exc:
+        raise DatabaseError(f"cannot load {path}: {exc.strerror or exc}") from None
+    except (UnsupportedDatabaseFormatError, CantoolsError, ValueError, KeyError, IndexError) as exc:
+        raise DatabaseError(locate_in_dbc(path, _one_line(str(exc)))) from None
     if not isinstance(db, CanDatabase):
         raise DatabaseError(f"{path} is not a CAN database")
     layouts: dict[str, FrameLayout] = {}
     for msg in db.messages:
-        if msg.is_extended_frame:
-            raise DatabaseError(f"{msg.name}: only 11-bit identifiers are used")
-        sigs = tuple(_signal_info(s, msg.name) for s in msg.signals)
-        fmt, pack, unpack = _compile(msg.name, int(msg.length), sigs)
+        try:
+            if msg.is_extended_frame:
+                raise DatabaseError(f"{msg.name}: only 11-bit identifiers are used")
+            sigs = tuple(_signal_info(s, msg.name) for s in msg.signals)
+            fmt, pack, unpack = _compile(msg.name, int(msg.length), sigs)
+        except DatabaseError as exc:
+            raise DatabaseError(locate_in_dbc(path, str(exc))) from None
         layouts[msg.name] = FrameLayout(
             msg.name, int(msg.frame_id), int(msg.length), bool(msg.is_fd), sigs, fmt, pack, unpack
         )
     return layouts
+
+
+def _one_line(text: str) -> str:
+    """cantools' message on one line (its syntax errors quote the line; some list entries on new lines)."""
+    text = text.strip()
+    text = text.removeprefix("DBC:").strip().strip('"')
+    return " ".join(part.strip() for part in text.splitlines() if part.strip())
+
+
+_AT_LINE = re.compile(r"at line (\d+)")
+_MSG_SIG = re.compile(r"^(\w+)\.(\w+):")
+_MSG = re.compile(r"^(\w+):")
+_CANTOOLS_NAMES = (re.compile(r"signal (\w+) does not fit in message (\w+)"),
+                   re.compile(r"signals (\w+) and \w+ are overlapping in message (\w+)"))
+_VAL_ENTRY = re.compile(r"VAL_ (\d+) (\w+)")
+
+
+def locate_in_dbc(path: Path, reason: str) -> str:
+    """`reason` prefixed with `path` and the DBC line it concerns ("hil.dbc line 34: FaultHost.node: ...")."""
+    if at := _AT_LINE.search(reason):
+        field = _field_at(path, int(at.group(1)))
+        return f"{path} line {at.group(1)}{f' ({field})' if field else ''}: {reason}"
+    message = signal = None
+    frame_id: int | None = None
+    if m := _MSG_SIG.match(reason):
+        message, signal = m.group(1), m.group(2)
+    elif m := _MSG.match(reason):
+        message = m.group(1)
+    elif m := _CANTOOLS_NAMES[0].search(reason) or _CANTOOLS_NAMES[1].search(reason):
+        signal, message = m.group(1), m.group(2)
+        reason = f"{message}.{signal}: {reason}"
+    elif m := _VAL_ENTRY.search(reason):
+        frame_id, signal = int(m.group(1)), m.group(2)
+    line = _dbc_line(path, message, signal, frame_id)
+    if line is None and m is not None and m.re is _VAL_ENTRY:
+        line = _first_line(path, lambda words: words[:3] == ["VAL_", str(frame_id), signal])
+    return f"{path} line {line}: {reason}" if line is not None else f"{path}: {reason}"
+
+
+def _lines(path: Path) -> list[str]:
+    try:
+        return path.read_text(encoding="utf-8", errors="replace").splitlines()
+    except OSError:
+        return []
+
+
+def _first_line(path: Path, test: Callable[[list[str]], bool]) -> int | None:
+    """1-based number of the first line of `path` whose words pass `test`."""
+    return next((n for n, line in enumerate(_lines(path), start=1) if test(line.split())), None)
+
+
+def _field_at(path: Path, number: int) -> str:
+    """"Message.signal" (or "Message") of DBC line `number`, '' if it is neither a BO_ nor an SG_ line."""
+    message = ""
+    for line in _lines(path)[:number]:
+        words = line.split()
+        if words[:1] == ["BO_"] and len(words) >= 3:
+            message = words[2].rstrip(":")
+    words = (_lines(path)[number - 1:number] or [""])[0].split()
+    if words[:1] == ["SG_"] and len(words) >= 2:
+        return f"{message}.{words[1]}" if message else words[1]
+    if words[:1] == ["BO_"]:
+        return message
+    return ""
+
+
+def _dbc_line(path: Path, message: str | None, signal: str | None, frame_id: int | None = None) -> int | None:
+    """1-based line of `BO_ ... message` (by name or id), or of its signal `signal`, in the DBC `path`."""
+    if message is None and frame_id is None:
+        return None
+    inside = False
+    for number, line in enumerate(_lines(path), start=1):
+        words = line.split()
+        if words[:1] == ["BO_"] and len(words) >= 3:
+            inside = words[2].rstrip(":") == message or words[1] == str(frame_id)
+            if inside and signal is None:
+                return number
+        elif inside and signal is not None and words[:1] == ["SG_"] and len(words) >= 2 and words[1] == signal:
+            return number
+    return None
 
 
 def expect_layout(name: str, signals: tuple[str, ...]) -> FrameLayout:
@@ -206,10 +295,10 @@ def expect_layout(name: str, signals: tuple[str, ...]) -> FrameLayout:
     the signals `signals`, in that order (what the hand-written codec relies on)."""
     layout = load_layouts().get(name)
     if layout is None:
-        raise DatabaseError(f"hil.dbc lacks message {name}")
+        raise DatabaseError(f"{DBC_PATH}: lacks message {name}")
     found = tuple(s.name for s in layout.signals)
     if found != signals:
-        raise DatabaseError(f"hil.dbc {name}: signals {found}, codec expects {signals}")
+        raise DatabaseError(locate_in_dbc(DBC_PATH, f"{name}: signals {found}, codec expects {signals}"))
     return layout
 
 

@@ -231,10 +231,23 @@ def build_firmware(board: str = "host", src: Path | None = None, out: Path | Non
         if not artefact.is_file():
             raise FwBuildError(f"build of {src} produced no {ARTEFACT[board]}: does its CMakeLists.txt call "
                                       "hil_add_firmware()?")
+        _check_param_table(artefact)
         if out is not None:
             artefact = _copy_out(artefact, Path(out), board)
     sizes = elf_sizes(artefact) if board != "host" else None
     return BuildResult(artefact, board, src, sizes, warnings)
+
+
+def _check_param_table(artefact: Path) -> None:
+    """FwBuildError naming the entry if the firmware's parameter table (`hil_app_params`, hil_app_params.h) is
+    malformed: a name or unit not NUL-terminated, an id outside 128..254, a non-finite default or range, ...
+    (checked when it is built, not first when a run reads it)."""
+    from pmsm_hil.sim_target.fw_params import FirmwareParamError, firmware_params
+
+    try:
+        firmware_params(artefact)
+    except FirmwareParamError as exc:
+        raise FwBuildError(f"{exc} (hil_app_params.h)") from None
 
 
 def _copy_out(artefact: Path, out: Path, board: str) -> Path:

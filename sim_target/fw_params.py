@@ -101,6 +101,15 @@ def _read(path: str, _mtime_ns: int, _size: int) -> tuple[FirmwareParam, ...]:
         name_b, unit_b, pid, default, lo, hi = _ENTRY.unpack_from(raw, k * _ENTRY.size)
         param = FirmwareParam(_text(name_b), _text(unit_b), pid, default, lo, hi)
         where = f"{os.path.basename(path)}: {TABLE_SYMBOL}[{k}] '{param.name}'"
+        for field, value, size in (("name", name_b, 24), ("unit", unit_b, 12)):
+            if b"\0" not in value:
+                raise FirmwareParamError(f"{where}: {field} is not NUL-terminated within its {size} bytes "
+                                         f"(at most {size - 1} characters)")
+        for field, number in (("default", default), ("min", lo), ("max", hi)):
+            if not math.isfinite(number):
+                raise FirmwareParamError(f"{where}: {field} {number:g} is not a finite number")
+        if not lo <= hi:
+            raise FirmwareParamError(f"{where}: min {lo:g} above max {hi:g}")
         if not _NAME.fullmatch(param.name) or param.name in protocol_names:
             raise FirmwareParamError(f"{where}: a name is lower case [a-z0-9_] and not a protocol parameter's")
         if not (ID_FIRST <= pid <= ID_LAST):

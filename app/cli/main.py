@@ -110,7 +110,13 @@ def main(argv: list[str] | None = None) -> int:
 def _main(argv: list[str]) -> int:
     if not argv or (argv[0] == "--debug" and len(argv) == 1):
         argv = [*argv, "run"]  # `hil` alone runs the embedded default
-    parser = build_parser()
+    try:
+        parser = build_parser()  # imports the subcommands: the protocol's layouts are compiled from hil.dbc here
+    except HilError as exc:  # a malformed hil.dbc (DatabaseError naming the line and field): one line too
+        if "--debug" in argv:
+            raise
+        print(f"hil: error: {exc}", file=sys.stderr)
+        return 2
     args = parser.parse_args(argv)
     func = getattr(args, "func", None)
     if func is None:

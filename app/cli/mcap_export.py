@@ -18,15 +18,17 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("mcap", type=Path, metavar="RUN.mcap", help="run log written by `hil run`")
     p.add_argument("--format", choices=tuple(FORMATS), required=True, help="log format")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="FILE", help="the log to write")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing -o file (refused without it)")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Execute `hil mcap export`."""
-    from pmsm_hil.hil.atomic_write import refuse_inputs
+    from pmsm_hil.hil.atomic_write import refuse_existing, refuse_inputs
     from pmsm_hil.hil.runlog.can_log import export_frames
 
     refuse_inputs(args.output, [args.mcap], option="-o")
+    refuse_existing(args.output, overwrite=args.overwrite, option="-o")
     n = export_frames(args.mcap, args.format, args.output)
     print(f"exported {n} frames of {args.mcap} -> {args.output} ({args.format})")
     return 0

@@ -22,15 +22,14 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("input", type=Path, metavar="IN.mcap", help="MCAP file to repair")
     parser.add_argument("-o", "--output", type=Path, metavar="OUT.mcap", default=None, help="output file")
     parser.add_argument("--overwrite", action="store_true",
-                        help="replace OUT even if it holds more messages than the repair recovers (without it such "
-                             "an OUT is kept and the command exits 2)")
+                        help="replace an existing OUT (without it any existing OUT is kept and the command exits 2)")
     parser.set_defaults(func=run)
     return parser
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the repair; prints a one-paragraph report. Returns 0; errors (RunLogError, InputFileError; an OUT
-    with more messages than recovered, without --overwrite) are printed by `hil` as one line, exit 2, and
+    """Run the repair; prints a one-paragraph report. Returns 0; errors (RunLogError, InputFileError; an
+    existing OUT without --overwrite) are printed by `hil` as one line, exit 2, and
     leave an existing OUT untouched."""
     src: Path = args.input
     dst: Path = args.output if args.output is not None else src.with_suffix(".repaired.mcap")

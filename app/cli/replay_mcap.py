@@ -47,6 +47,7 @@ def run(args: argparse.Namespace) -> int:
 
     if is_can_log(args.mcap):
         return _replay_can_log(args)
+    _refuse_non_mcap(args.mcap)
     targets = rerun_targets(args)
     if targets.save is not None:
         refuse_inputs(targets.save, [args.mcap], option="--rerun-save")
@@ -61,6 +62,24 @@ def run(args: argparse.Namespace) -> int:
         hold_serving(url)
     rec.disconnect()
     return 0
+
+
+def _refuse_non_mcap(path: Path) -> None:
+    """DashboardError (one line) unless `path` starts as an MCAP file: a .csv that is not python-can's CAN log
+    (an empty file, a replay CSV of `hil plant replay`) or any other file is named as what it is."""
+    from pmsm_hil.dashboards.errors import DashboardError
+    from pmsm_hil.hil.runlog.reader import MAGIC
+
+    with path.open("rb") as f:
+        head = f.read(len(MAGIC))
+    if head == MAGIC:
+        return
+    if path.suffix.lower() == ".csv":
+        what = "is empty" if not head else "does not start with python-can's CSV header 'timestamp,arbitration_id,...'"
+        raise DashboardError(f"hil replay: CSV {path} {what}: not a CAN log to replay (a replay CSV of switching "
+                             "states goes to `hil plant replay --input`)")
+    raise DashboardError(f"hil replay: {path} is neither an MCAP run log (bad magic) nor a CAN log "
+                         "(.log, .asc, .blf, python-can .csv)")
 
 
 def _replay_can_log(args: argparse.Namespace) -> int:

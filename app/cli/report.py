@@ -13,6 +13,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
                                           "writes one HTML file with inline SVG figures (no external resources).")
     p.add_argument("run_dirs", type=Path, nargs="+", metavar="RUN_DIR", help="output directory of `hil run`")
     p.add_argument("-o", "--output", type=Path, default=Path("report.html"), help="HTML file (default report.html)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing -o file (refused without it)")
     p.add_argument("--title", default="PMSM HIL run comparison", help="page title")
     p.set_defaults(func=run)
 
@@ -20,10 +21,11 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 def run(args: argparse.Namespace) -> int:
     """Execute `hil report`."""
     from pmsm_hil.dashboards.report_html import write_report
-    from pmsm_hil.hil.atomic_write import atomic_path, refuse_inputs
+    from pmsm_hil.hil.atomic_write import atomic_path, refuse_existing, refuse_inputs
     from pmsm_hil.hil.runner.run_metadata import RUN_FILES
 
     refuse_inputs(args.output, [Path(d) / name for d in args.run_dirs for name in RUN_FILES], option="-o")
+    refuse_existing(args.output, overwrite=args.overwrite, option="-o")
     with atomic_path(args.output, option="-o") as tmp:
         runs = write_report(args.run_dirs, tmp, args.title)
     print(f"report: {args.output} ({len(runs)} run{'s' if len(runs) != 1 else ''})")

@@ -293,7 +293,7 @@ static int duty_part(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r
     } else {
         struct hil_protocol_cmd_duty_c_t c;
         (void)hil_protocol_cmd_duty_c_unpack(&c, f->data, f->len);
-        if (c.n_duties != 3u && c.n_duties != 6u) {
+        if (c.n_duties == 0u) { /* another count than the machine's legs is a `duty` finding (loop.c) */
             r->dec_bad_value++;
             return NL_MSG_NONE;
         }
@@ -410,7 +410,7 @@ int nl_decode(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r, nl_cm
     case HIL_PROTOCOL_CMD_DUTY_FD_FRAME_ID: {
         struct hil_protocol_cmd_duty_fd_t c;
         (void)hil_protocol_cmd_duty_fd_unpack(&c, f->data, f->len);
-        if (c.n_duties != 3u && c.n_duties != 6u) {
+        if (c.n_duties == 0u) { /* another count than the machine's legs is a `duty` finding (loop.c) */
             r->dec_bad_value++;
             return NL_MSG_NONE;
         }

@@ -10,8 +10,11 @@ from typing import Any, Final
 
 import can
 import numpy as np
+from pmsm_hil.hil.atomic_write import atomic_path
 from pmsm_hil.hil.errors import InputFileError
-from pmsm_hil.hil.runlog.reader import read_frames
+from pmsm_hil.hil.runlog import topics
+from pmsm_hil.hil.runlog.errors import McapFormatError
+from pmsm_hil.hil.runlog.reader import ScanState, read_frames
 
 #: --format NAME: python-can writer class; CAN channel the frames are written on
 FORMATS: Final[dict[str, tuple[type[Any], str | int]]] = {
@@ -34,22 +37,37 @@ def frame_messages(frames: np.ndarray, channel: str | int = "can0") -> Iterator[
 
 
 def export_frames(mcap: Path, fmt: str, out: Path) -> int:
-    """Write the /frames of run log `mcap` to `out` as `fmt` (a FORMATS name); returns the frame count."""
+    """Write the /frames of run log `mcap` to `out` as `fmt` (a FORMATS name); returns the frame count.
+
+    Only a complete run log is exported: a file that is not an MCAP, is cut or corrupt before its data end
+    (a failed chunk CRC, a truncated record) or has no /frames channel is a McapFormatError naming the reason,
+    and nothing is written (a cut file's valid prefix is recovered by `hil mcap-repair` first). `out` is
+    written through a temporary file: a failed export leaves an existing `out` as it was."""
     if fmt not in FORMATS:
         raise InputFileError(f"--format: {fmt!r} is not one of {', '.join(FORMATS)}")
     if not mcap.is_file():
         raise InputFileError(f"RUN.mcap {mcap} does not exist or is not a file")
-    frames = read_frames(mcap)
+    state = ScanState()
+    frames = read_frames(mcap, state)
+    if not state.complete:
+        raise McapFormatError(
+            f"RUN.mcap {mcap}: cut or corrupt after {state.valid_bytes} of {state.file_bytes} bytes "
+            f"({state.stop_reason}); nothing exported (`hil mcap-repair {mcap}` writes its valid prefix as a "
+            "complete file to export)")
+    if topics.TOPIC_FRAMES not in state.topics:
+        raise McapFormatError(f"RUN.mcap {mcap}: has no {topics.TOPIC_FRAMES} channel (not a run log of `hil run`); "
+                              "nothing exported")
     writer_class, channel = FORMATS[fmt]
-    try:
-        writer = writer_class(out)
-    except OSError as exc:
-        raise InputFileError(f"-o {out}: cannot write: {exc.strerror or exc}") from exc
-    try:
-        for msg in frame_messages(frames, channel):
-            writer.on_message_received(msg)
-    finally:
-        writer.stop()
+    with atomic_path(out, option="-o") as tmp:
+        try:
+            writer = writer_class(tmp)
+        except OSError as exc:
+            raise InputFileError(f"-o {out}: cannot write: {exc.strerror or exc}") from exc
+        try:
+            for msg in frame_messages(frames, channel):
+                writer.on_message_received(msg)
+        finally:
+            writer.stop()
     return len(frames)
 
 

@@ -38,6 +38,8 @@ class ScanState:
     chunks: int = 0
     stop_reason: str = ""
     skipped_opcodes: dict[int, int] = field(default_factory=dict)
+    #: topics of the channels seen (filled by `read_topic`)
+    topics: set[str] = field(default_factory=set)
 
 
 def _parse(opcode: int, body: bytes) -> McapRecord | None:
@@ -113,16 +115,21 @@ class TopicMessages:
     schema: bytes | None = None
 
 
-def read_topic(path: Path, topic: str) -> TopicMessages:
+def read_topic(path: Path, topic: str, state: ScanState | None = None) -> TopicMessages:
     """All messages of `topic` in the valid prefix of `path` (McapFormatError if its channels disagree on
-    the message encoding or schema)."""
+    the message encoding or schema); `state`, if given, receives what the scan found (complete or cut, the
+    topics of all channels)."""
     schemas: dict[int, bytes] = {}
     channels: dict[int, tuple[str, bytes | None]] = {}
     out = TopicMessages([])
-    for record in scan_records(Path(path), ScanState()):
+    state = ScanState() if state is None else state
+    for record in scan_records(Path(path), state):
         if isinstance(record, Schema):
             schemas[record.id] = record.data
-        elif isinstance(record, Channel) and record.topic == topic:
+        elif isinstance(record, Channel):
+            state.topics.add(record.topic)
+            if record.topic != topic:
+                continue
             channels[record.id] = (record.message_encoding, schemas.get(record.schema_id))
             if len(set(channels.values())) > 1:
                 raise McapFormatError(f"{topic}: channels with different encodings or schemas")
@@ -137,10 +144,11 @@ def read_topic_messages(path: Path, topic: str) -> list[Message]:
     return read_topic(path, topic).messages
 
 
-def _read_fixed(path: Path, topic: str, dtype: np.dtype, renames: dict[str, str]) -> TopicMessages | np.ndarray:
+def _read_fixed(path: Path, topic: str, dtype: np.dtype, renames: dict[str, str],
+                state: ScanState | None = None) -> TopicMessages | np.ndarray:
     """`dtype` records of a CDR `topic` (decoded with the file's own schema), or its messages if the topic is
     not CDR (a JSON-era log)."""
-    found = read_topic(path, topic)
+    found = read_topic(path, topic, state)
     if found.message_encoding != MessageEncoding.CDR:
         return found
     if found.schema is None:
@@ -151,10 +159,10 @@ def _read_fixed(path: Path, topic: str, dtype: np.dtype, renames: dict[str, str]
     return out
 
 
-def read_periods(path: Path) -> np.ndarray:
+def read_periods(path: Path, state: ScanState | None = None) -> np.ndarray:
     """PERIOD_DTYPE array of all /periods messages (CDR, or JSON in older logs: null → NaN; truncated files:
-    the valid prefix)."""
-    found = _read_fixed(path, topics.TOPIC_PERIODS, PERIOD_DTYPE, {})
+    the valid prefix); `state` as for `read_topic`."""
+    found = _read_fixed(path, topics.TOPIC_PERIODS, PERIOD_DTYPE, {}, state)
     if isinstance(found, np.ndarray):
         return found
     out: np.ndarray = encoding.decode_json_records([m.data for m in found.messages], PERIOD_DTYPE,
@@ -169,10 +177,10 @@ def read_faults(path: Path) -> np.ndarray:
     return out
 
 
-def read_frames(path: Path) -> np.ndarray:
+def read_frames(path: Path, state: ScanState | None = None) -> np.ndarray:
     """FRAME_DTYPE array of all /frames messages (CDR, or JSON with a hex payload in older logs: padded with
-    zeros)."""
-    found = _read_fixed(path, topics.TOPIC_FRAMES, FRAME_DTYPE, cdr.FRAME_RENAMES)
+    zeros); `state` as for `read_topic`."""
+    found = _read_fixed(path, topics.TOPIC_FRAMES, FRAME_DTYPE, cdr.FRAME_RENAMES, state)
     if isinstance(found, np.ndarray):
         return found
     return encoding.decode_frames_json([m.data for m in found.messages], topics.TOPIC_FRAMES)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from mcap.records import Channel, Message, Metadata, Schema
 from mcap.writer import CompressionType, Writer
-from pmsm_hil.hil.atomic_write import atomic_path, same_file
+from pmsm_hil.hil.atomic_write import atomic_path, refuse_existing, same_file
 from pmsm_hil.hil.runlog.errors import McapFormatError
 from pmsm_hil.hil.runlog.reader import ScanState, scan_records
 
@@ -35,13 +35,13 @@ def repair_mcap(src: Path, dst: Path, *, overwrite: bool = False) -> RepairRepor
     """Read the valid prefix of `src` chunk by chunk and write it to `dst` as a complete, indexed MCAP.
 
     `dst` is written through a temporary file and replaced only when complete: a failed repair leaves an
-    existing `dst` untouched. An existing `dst` MCAP with more messages than the repair recovered is kept
-    (McapFormatError) unless `overwrite`. Raises McapFormatError if `src` is not an MCAP file or `dst` is `src`
+    existing `dst` untouched. An existing `dst` (any file) is replaced only if `overwrite` (InputFileError
+    otherwise, before `src` is read). Raises McapFormatError if `src` is not an MCAP file or `dst` is `src`
     (InputFileError if `dst` cannot be written)."""
     src, dst = Path(src), Path(dst)
     if same_file(dst, src):
         raise McapFormatError(f"dst: {dst} is the source {src} (the source is read while writing)")
-    dst_messages = 0 if overwrite else _messages_in(dst)
+    refuse_existing(dst, overwrite=overwrite, option="-o")
     state = ScanState()
     schema_ids: dict[int, int] = {}
     channel_ids: dict[int, int] = {}
@@ -81,9 +81,6 @@ def repair_mcap(src: Path, dst: Path, *, overwrite: bool = False) -> RepairRepor
                 writer.add_metadata(record.name, dict(record.metadata))
                 metadata += 1
         writer.finish()  # type: ignore[no-untyped-call]
-        if messages < dst_messages:  # checked before the temporary file replaces dst
-            raise McapFormatError(f"-o {dst}: holds {dst_messages} messages, more than the {messages} recovered "
-                                  f"from {src}; kept (give --overwrite to replace it, or choose another -o)")
     return RepairReport(
         src_bytes=state.file_bytes,
         valid_bytes=state.valid_bytes,
@@ -95,12 +92,3 @@ def repair_mcap(src: Path, dst: Path, *, overwrite: bool = False) -> RepairRepor
         stop_reason=state.stop_reason,
     )
 
-
-def _messages_in(path: Path) -> int:
-    """Messages in the valid prefix of an existing MCAP file `path` (0 if it is absent or not an MCAP file)."""
-    if not path.is_file():
-        return 0
-    try:
-        return sum(1 for record in scan_records(path, ScanState()) if isinstance(record, Message))
-    except McapFormatError:
-        return 0

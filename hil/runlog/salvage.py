@@ -10,6 +10,7 @@ space the truncation freed, unless the cut record was shorter than them.
 from __future__ import annotations
 
 import errno
+import io
 import os
 import struct
 from dataclasses import dataclass
@@ -36,9 +37,12 @@ class Kept:
 
 
 def last_record_end(path: Path, channel: int | None = None) -> Kept:
-    """Where the last complete record of `path` ends, and how many messages of `channel` the Message Index
-    records before it list."""
-    messages = 0
+    """Where the last complete record of `path` ends, and how many messages of `channel` its complete chunks
+    hold: from the Message Index records of every chunk but the last, and by reading the last chunk itself (a
+    write that failed right after it may have cut its Message Index records, which would count its messages
+    as none)."""
+    messages = after_last_chunk = 0
+    last_chunk: tuple[int, int] | None = None  # (body offset, length) of the last complete Chunk record
     with open(path, "rb") as f:
         size = f.seek(0, os.SEEK_END)
         f.seek(0)
@@ -51,12 +55,35 @@ def last_record_end(path: Path, channel: int | None = None) -> Kept:
             end = pos + _HEAD.size + length
             if end > size or opcode in (Opcode.DATA_END, Opcode.FOOTER):
                 break
-            if opcode == Opcode.MESSAGE_INDEX and channel is not None and length >= _INDEX.size:
+            if opcode == Opcode.CHUNK:
+                last_chunk, after_last_chunk = (pos + _HEAD.size, length), 0
+            elif opcode == Opcode.MESSAGE_INDEX and channel is not None and length >= _INDEX.size:
                 index_channel, entries_bytes = _INDEX.unpack(f.read(_INDEX.size))
                 if index_channel == channel:
                     messages += entries_bytes // 16  # (log_time, offset) per message
+                    after_last_chunk += entries_bytes // 16
             pos = end
+        if channel is not None and last_chunk is not None:
+            f.seek(last_chunk[0])
+            in_chunk = _messages_in_chunk(f.read(last_chunk[1]), channel)
+            if in_chunk is not None:
+                messages += in_chunk - after_last_chunk
     return Kept(pos, messages) if pos > len(MAGIC) else Kept(0, 0)
+
+
+def _messages_in_chunk(body: bytes, channel: int) -> int | None:
+    """Messages of `channel` in a Chunk record's `body` (decompressed, CRC checked); None if it cannot be read."""
+    from mcap.data_stream import ReadDataStream
+    from mcap.exceptions import McapError
+    from mcap.records import Chunk, Message
+    from mcap.stream_reader import breakup_chunk
+
+    try:
+        chunk = Chunk.read(ReadDataStream(io.BytesIO(body)))
+        return sum(1 for r in breakup_chunk(chunk, validate_crc=True)
+                   if isinstance(r, Message) and r.channel_id == channel)
+    except (McapError, ValueError, struct.error, RuntimeError):
+        return None
 
 
 def end_after_last_record(path: Path, channel: int | None = None) -> Kept:

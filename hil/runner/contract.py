@@ -37,7 +37,8 @@ SEQUENCE: Final = "sequence"  # a Command whose seq is not the period's (future,
 STATE_CODE: Final = "state_code"  # a state code outside the machine's 0..2^legs − 1
 DURATIONS: Final = "durations"  # durations that do not fill Ts
 FRAME: Final = "frame"  # a frame the decoder rejected (length, value, assembly)
-DUTY: Final = "duty"  # a duty-cycle Command with a duty outside 0..1, NaN, or another leg count than the machine's
+DUTY: Final = "duty"  # a duty-cycle Command with a duty outside 0..1, NaN, another leg count than the machine's
+#                       (n_duties 4 or 200 too), or both forms set (duties and a switching sequence)
 RULES: Final = (MISSING, SEQUENCE, STATE_CODE, DURATIONS, FRAME, DUTY)
 
 
@@ -65,7 +66,8 @@ class Violation:
 def describe(cmd: Command) -> str:
     """Short text of a Command for a finding."""
     if cmd.duties:
-        return f"Command seq={cmd.seq} duties=({', '.join(f'{d:.6g}' for d in cmd.duties)})"
+        more = f", … {len(cmd.duties)} in all" if len(cmd.duties) > 6 else ""
+        return f"Command seq={cmd.seq} duties=({', '.join(f'{d:.6g}' for d in cmd.duties[:6])}{more})"
     mirror = ", mirror" if cmd.mirror else ""
     return f"Command seq={cmd.seq} states={cmd.states} durations_ns={cmd.durations_ns}{mirror}"
 
@@ -84,6 +86,9 @@ def check_duties(duties: tuple[float, ...], legs: int) -> tuple[str, str] | None
 
 def check_command(cmd: Command, ts_ns: int, max_state: int) -> tuple[str, str] | None:
     """(rule, detail) when the Command's sequence (or duties) cannot be applied, else None."""
+    if cmd.duties and (cmd.states or cmd.durations_ns):
+        return DUTY, (f"both forms set: {len(cmd.duties)} duties and a switching sequence of {len(cmd.states)} "
+                      "state(s); a Command carries one")
     if cmd.duties:
         return check_duties(cmd.duties, max_state.bit_length())
     for j, code in enumerate(cmd.states):

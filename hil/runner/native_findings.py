@@ -16,7 +16,7 @@ from pmsm_hil.protocol.messages import Command
 def _command(f: Any) -> Command:
     if int(f.n_duties):
         return Command(seq=int(f.cmd_seq), states=(), durations_ns=(),
-                       duties=tuple(duty_value(int(r)) for r in f.duty_raw[0:int(f.n_duties)]))
+                       duties=tuple(duty_value(int(r)) for r in f.duty_raw[0:min(int(f.n_duties), len(f.duty_raw))]))
     n = int(f.n_states)
     return Command(seq=int(f.cmd_seq), states=tuple(int(s) for s in f.states[0:n]),
                    durations_ns=tuple(int(d) for d in f.durations_ns[0:n]), mirror=bool(f.mirror))

@@ -13,6 +13,7 @@ from pmsm_hil.hil.load_fmu.spec import LoadFmuSpec
 from pmsm_hil.hil.machine import Machine, machine_for
 from pmsm_hil.hil.machine_params import MachineParams
 from pmsm_hil.hil.motor_params import parse_set_options
+from pmsm_hil.hil.runner.param_values import check_model_value, check_wire_value
 from pmsm_hil.hil.runner.run_options import (
     BY_FIELD,
     check_field,
@@ -297,14 +298,17 @@ class RunConfig:
         declared = {p.name: p for p in firmware_params(self.target_path or "")} if needed else {}
         out: dict[ParamId | FirmwareParamId, float] = {}
         for name, value in self.controller_params.items():
+            check_wire_value(name, value)  # float32 on the wire (hil/runner/param_values.py)
             fw = declared.get(name.strip().lower())
             if fw is None:
                 try:
-                    out[param_id(name)] = value
+                    pid = param_id(name)
                 except ParameterError as exc:
                     if not declared:
                         raise
                     raise ParameterError(f"{exc}; the firmware declares: {', '.join(declared)}") from None
+                check_model_value(pid, name, value)  # a singular controller model is refused
+                out[pid] = value
                 continue
             try:
                 fw.check(value)

@@ -1,6 +1,6 @@
 """Firmware CI in pytest: the `hil` fixture, signal assertions with plots on failure (docs/ci.md).
 
-This module is the pytest plugin (entry point `pytest11`: options `--hil-target`, `--hil-motor`,
+This module is the pytest plugin (entry point `pytest11`: options `--hil-target` (checked at start-up), `--hil-motor`,
 `--hil-controller`, `--hil-out`; fixtures `hil`, `hil_session`) and the API a test imports::
 
     from pmsm_hil.testing import assert_settles, stepinfo
@@ -18,7 +18,7 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
-from pmsm_hil.testing.plugin import hil, hil_session, pytest_addoption
+from pmsm_hil.testing.plugin import hil, hil_session, pytest_addoption, pytest_configure
 
 if TYPE_CHECKING:
     from pmsm_hil.testing.report import PLOT_PROPERTY
@@ -59,4 +59,4 @@ def __getattr__(name: str) -> Any:
 __all__ = ["PLOT_PROPERTY", "HilResult", "HilRunError", "SetpointNotHeldError", "Signal", "SignalAssertionError",
            "StepInfo",
            "assert_below", "assert_is_constant", "assert_ripple_below", "assert_settles", "assert_thd_below",
-           "hil", "hil_session", "pytest_addoption", "stepinfo"]
+           "hil", "hil_session", "pytest_addoption", "pytest_configure", "stepinfo"]

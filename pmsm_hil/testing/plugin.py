@@ -34,6 +34,43 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                          "temporary folders)")
 
 
+#: what `--hil-target` accepts
+TARGET_FORMS = "inproc, spawn, sil:PATH, qemu:PATH.elf or external:LINKSPEC"
+
+
+def target_problem(target: str, base: Path) -> str | None:
+    """Why `--hil-target` `target` cannot be run (one line), or None: an unknown kind, a sil:/qemu: PATH that is
+    not a file (relative to `base`, pytest's invocation folder), external without a valid link spec."""
+    kind, sep, rest = target.partition(":")
+    if target in ("inproc", "spawn"):
+        return None
+    if kind in ("sil", "qemu") and sep:
+        if not rest.strip():
+            return f"--hil-target {target}: {kind}: needs the firmware's path ({kind}:PATH)"
+        path = Path(rest) if Path(rest).is_absolute() else base / rest
+        return None if path.is_file() else f"--hil-target {target}: {path} is not a file"
+    if kind == "external":
+        if not (sep and rest.strip()):
+            return "--hil-target external needs a link: external:LINKSPEC, e.g. external:socketcan:can0"
+        from pmsm_hil.protocol.errors import LinkSpecError
+        from pmsm_hil.protocol.links.spec import parse_spec
+
+        try:
+            parse_spec(rest)
+        except LinkSpecError as exc:
+            return f"--hil-target {target}: {exc}"
+        return None
+    return f"--hil-target {target!r}: not one of {TARGET_FORMS}"
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """A `--hil-target` that cannot be run is a usage error of the session (one line, pytest exit 4), not a
+    failure of every test that uses `hil`."""
+    problem = target_problem(str(config.getoption("--hil-target")), config.invocation_params.dir)
+    if problem is not None:
+        raise pytest.UsageError(problem)
+
+
 def _settings(config: pytest.Config) -> HilSettings:
     from pmsm_hil.testing.runs import HilSettings
 
@@ -122,4 +159,5 @@ def hil(request: pytest.FixtureRequest, hil_session: HilSession, tmp_path: Path)
         pop_reporter(reporter)
 
 
-__all__ = ["Hil", "HilSession", "hil", "hil_session", "pytest_addoption"]
+__all__ = ["TARGET_FORMS", "Hil", "HilSession", "hil", "hil_session", "pytest_addoption", "pytest_configure",
+           "target_problem"]

@@ -64,4 +64,15 @@ def test_replay_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixtur
     assert "is not a file" in capsys.readouterr().err
     (tmp_path / "run.mcap").write_bytes(b"x")
     assert main(["replay", str(tmp_path / "run.mcap")]) == 2
+    assert "neither an MCAP run log (bad magic) nor a CAN log" in capsys.readouterr().err
+    (tmp_path / "run.mcap").write_bytes(b"\x89MCAP0\r\n")
+    assert main(["replay", str(tmp_path / "run.mcap")]) == 2
     assert "--rerun-save" in capsys.readouterr().err
+    assert main(["replay", str(tmp_path / "run.mcap"), "--rerun-save", str(tmp_path / "x.rrd")]) == 2
+    err = capsys.readouterr().err
+    assert "is cut or corrupt after 8 of 8 bytes" in err and "hil mcap-repair" in err
+    assert len(err.strip().splitlines()) == 1
+    (tmp_path / "empty.csv").write_bytes(b"")
+    assert main(["replay", str(tmp_path / "empty.csv")]) == 2
+    err = capsys.readouterr().err
+    assert "CSV" in err and "is empty: not a CAN log" in err and len(err.strip().splitlines()) == 1

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 from pmsm_hil.app.cli.main import main
-from pmsm_hil.sim_target.fw_build import FwBuildError, build_firmware, key_lines, parse_defines
+from pmsm_hil.sim_target.fw_build import ARTEFACT, FwBuildError, build_firmware, cache_dir, key_lines, parse_defines
 from pmsm_hil.sim_target.fw_params import FirmwareParamError, firmware_params
 
 from tests.firmware_board.conftest import ROOT, need
@@ -89,11 +89,32 @@ def test_key_lines_of_a_link_failure() -> None:
                               "core.c:(.text+0x9): undefined reference to `hil_app_reset'"]
 
 
-def test_a_malformed_parameter_table_is_refused(capsys: pytest.CaptureFixture[str]) -> None:
+def _built_artefact(case: str) -> Path:
+    """The library a refused build of fw_cases/`case` left in its build folder (a prebuilt firmware with that
+    table, as a run may be given one)."""
+    found = sorted((cache_dir() / "fw-build").glob(f"{case}-host-*/out/{ARTEFACT['host']}"),
+                   key=lambda p: p.stat().st_mtime)
+    assert found, case
+    return found[-1]
+
+
+@pytest.mark.parametrize(("case", "message"), [
+    ("bad_params", r"hil_app_params\[1\] 'offset': id 12 outside 128\.\.254"),
+    ("bad_params_name", r"hil_app_params\[0\] 'gain_of_the_speed_filter': name is not NUL-terminated within its "
+                        r"24 bytes"),
+    ("bad_params_inf", r"hil_app_params\[1\] 'offset': min -inf is not a finite number"),
+])
+def test_a_malformed_parameter_table_is_refused(case: str, message: str,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
     need("host")
-    lib = build_firmware("host", CASES / "bad_params").path
-    with pytest.raises(FirmwareParamError, match=r"hil_app_params\[1\] 'offset': id 12 outside 128\.\.254"):
+    with pytest.raises(FwBuildError, match=message):  # at build time
+        build_firmware("host", CASES / case)
+    assert main(["fw", "build", "--src", str(CASES / case)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("hil: error: ") and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    lib = _built_artefact(case)  # and by a run given such a library built elsewhere
+    with pytest.raises(FirmwareParamError, match=message):
         firmware_params(lib)
     assert main(["run", "--target", f"sil:{lib}", "--no-log"]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("hil: error: ") and "id 12 outside" in err and len(err.strip().splitlines()) == 1
+    assert err.startswith("hil: error: ") and len(err.strip().splitlines()) == 1

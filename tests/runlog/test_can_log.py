@@ -62,6 +62,63 @@ def test_bad_input_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str
     assert "none.mcap" in err and "Traceback" not in err
 
 
+def _one_line(capsys: pytest.CaptureFixture[str], *needles: str) -> None:
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and err.startswith("hil: error: ") and "Traceback" not in err, err
+    for needle in needles:
+        assert needle in err, err
+
+
+def _corrupt_copies(good: Path, folder: Path) -> dict[str, Path]:
+    """`good` truncated at half its size, with garbage bytes instead of its middle third, and with bit flips
+    spread over it (after its first 64 bytes)."""
+    data = good.read_bytes()
+    n = len(data)
+    flipped = bytearray(data)
+    for i in range(64, n, max(1, n // 16)):
+        flipped[i] ^= 0x24
+    variants = {"truncated": data[: n // 2],
+                "garbage": data[: n // 3] + bytes((7 * i + 3) % 251 for i in range(n // 3)) + data[2 * n // 3:],
+                "bitflips": bytes(flipped)}
+    out = {}
+    for name, content in variants.items():
+        path = folder / f"{name}{good.suffix}"
+        path.write_bytes(content)
+        out[name] = path
+    return out
+
+
+def test_export_refuses_a_corrupt_run_log_and_writes_nothing(run_mcap: Path, tmp_path: Path,
+                                                             capsys: pytest.CaptureFixture[str]) -> None:
+    for kind, bad in _corrupt_copies(run_mcap, tmp_path).items():
+        out = tmp_path / f"{kind}.log"
+        assert main(["mcap", "export", str(bad), "--format", "candump", "-o", str(out)]) == 2, kind
+        _one_line(capsys, f"RUN.mcap {bad}: cut or corrupt after", "hil mcap-repair")
+        assert not out.exists()
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(b"not an mcap at all" * 10)
+    assert main(["mcap", "export", str(junk), "--format", "csv", "-o", str(tmp_path / "j.csv")]) == 2
+    _one_line(capsys, "not an MCAP file")
+    # this short run is one chunk: the prefix `hil mcap-repair` recovers holds no channel, and says so
+    repaired = tmp_path / "repaired.mcap"
+    assert main(["mcap-repair", str(tmp_path / "truncated.mcap"), "-o", str(repaired)]) == 0
+    capsys.readouterr()
+    assert main(["mcap", "export", str(repaired), "--format", "candump", "-o", str(tmp_path / "r.log")]) == 2
+    _one_line(capsys, "has no /frames channel")
+
+
+def test_export_never_replaces_a_file_without_overwrite(run_mcap: Path, tmp_path: Path,
+                                                        capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "other_run.log"
+    out.write_text("another run's capture\n")
+    assert main(["mcap", "export", str(run_mcap), "--format", "candump", "-o", str(out)]) == 2
+    _one_line(capsys, f"-o {out}: exists; give --overwrite")
+    assert out.read_text() == "another run's capture\n"
+    assert main(["mcap", "export", str(run_mcap), "--format", "candump", "-o", str(out), "--overwrite"]) == 0
+    assert len(list(can.CanutilsLogReader(out))) == len(read_frames(run_mcap))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["other_run.log"]  # no temporary file left
+
+
 def _commands(run_mcap: Path) -> list[tuple[tuple[int, ...], tuple[int, ...]]]:
     from pmsm_hil.protocol.codec import FrameDecoder
     from pmsm_hil.protocol.frame import Frame
@@ -108,3 +165,49 @@ def test_hil_replay_of_a_can_log_needs_the_plant_options(run_mcap: Path, tmp_pat
     assert "--rpm is required" in capsys.readouterr().err
     assert main(["replay", str(log), "--rpm", "0", "--ts", "2e-4", "--output", str(tmp_path / "o.csv")]) != 0
     assert "expected Ts = 200000 ns (--ts)" in capsys.readouterr().err
+
+
+_EXPORT_SUFFIX = {"candump": ".log", "asc": ".asc", "blf": ".blf", "csv": ".csv"}
+
+
+@pytest.mark.parametrize("fmt", ["candump", "asc", "blf", "csv"])
+def test_hil_replay_refuses_a_corrupt_can_log_in_one_line(run_mcap: Path, tmp_path: Path, fmt: str,
+                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    good = tmp_path / f"run{_EXPORT_SUFFIX[fmt]}"
+    assert main(["mcap", "export", str(run_mcap), "--format", fmt, "-o", str(good)]) == 0
+    common = ["--rpm", "1000", "--ts", "1e-4"]
+    assert main(["replay", str(good), *common, "--output", str(tmp_path / "good.csv")]) == 0
+    capsys.readouterr()
+    for kind, bad in _corrupt_copies(good, tmp_path).items():
+        out = tmp_path / f"{kind}.out.csv"
+        assert main(["replay", str(bad), *common, "--output", str(out)]) == 2, kind
+        _one_line(capsys, f"CAN log {bad}: ")
+        assert not out.exists()
+
+
+@pytest.mark.parametrize("change", ["reversed", "duplicated", "repeated line", "lost Command"])
+def test_hil_replay_refuses_a_reordered_capture_naming_the_seq(run_mcap: Path, tmp_path: Path, change: str,
+                                                               capsys: pytest.CaptureFixture[str]) -> None:
+    good = tmp_path / "run.log"
+    assert main(["mcap", "export", str(run_mcap), "--format", "candump", "-o", str(good)]) == 0
+    capsys.readouterr()
+    lines = good.read_text().splitlines()
+    cmd_lines = [i for i, line in enumerate(lines) if " can0 " in line and line.split()[2].startswith(_cmd_ids_hex())]
+    k = cmd_lines[len(cmd_lines) // 2]
+    edited = {"reversed": lines[::-1], "duplicated": lines + lines,
+              "repeated line": [*lines[:k + 1], lines[k], *lines[k + 1:]],
+              "lost Command": [line for i, line in enumerate(lines) if i not in cmd_lines[10:13]]}[change]
+    bad = tmp_path / "bad.log"
+    bad.write_text("\n".join(edited) + "\n")
+    assert main(["replay", str(bad), "--rpm", "1000", "--ts", "1e-4", "--output", str(tmp_path / "o.csv")]) == 2
+    needle = {"reversed": "goes back", "duplicated": "goes back", "repeated line": "appears twice",
+              "lost Command": "missing"}[change]
+    _one_line(capsys, "Command seq ", needle)
+    assert not (tmp_path / "o.csv").exists()
+
+
+def _cmd_ids_hex() -> tuple[str, ...]:
+    """candump -L prefixes of the Command frames (classic first part, CAN FD)."""
+    from pmsm_hil.protocol.codec import L_CMD_A, L_CMD_FD
+
+    return tuple(f"{lay.frame_id:03X}#" for lay in (L_CMD_A, L_CMD_FD))

@@ -97,3 +97,39 @@ def test_nothing_to_keep(tmp_path: Path) -> None:
     stub = tmp_path / "x.mcap"
     stub.write_bytes(b"\x89MCAP0\r\n\x01")  # the magic and a cut Header record
     assert end_after_last_record(stub).bytes == 0 and stub.read_bytes() == b"\x89MCAP0\r\n\x01"
+
+
+def _chunk_ends(path: Path) -> list[int]:
+    """File offsets where each Chunk record of `path` ends (record headers only)."""
+    import struct
+
+    from mcap.opcode import Opcode
+
+    data, pos, ends = path.read_bytes(), 8, []
+    while pos + 9 <= len(data):
+        opcode, length = struct.unpack_from("<BQ", data, pos)
+        pos += 9 + length
+        if opcode == Opcode.CHUNK:
+            ends.append(pos)
+        if opcode == Opcode.DATA_END:
+            break
+    return ends
+
+
+@pytest.mark.parametrize("extra", [0, 5])
+def test_a_file_cut_before_its_last_message_index_counts_what_it_holds(tmp_path: Path, extra: int) -> None:
+    """A disk that fills right after a chunk (its Message Index records cut or missing): the count said is the
+    periods the file holds, not those the surviving indexes list (issue 36: "the first 0 periods" of 16 000)."""
+    whole = tmp_path / "whole.mcap"
+    with RunLogger(whole, metadata={"run": "cut"}, flush_interval_s=0.01) as lg:
+        for k in range(0, 6000, 500):
+            lg.submit_periods(period_block(k, 500))
+            time.sleep(0.03)
+    ends = _chunk_ends(whole)
+    assert len(ends) >= 2
+    for end in (ends[0], ends[-1]):
+        cut = tmp_path / f"cut{end}.mcap"
+        cut.write_bytes(whole.read_bytes()[:end + extra])
+        held = read_periods(cut).shape[0]
+        kept = end_after_last_record(cut, channel=1)
+        assert held > 0 and kept.messages == held == _standard_periods(cut).shape[0]

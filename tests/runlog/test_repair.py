@@ -139,7 +139,7 @@ def test_cli_refuses_output_onto_its_input(chunked_file: Path, capsys: pytest.Ca
     assert chunked_file.read_bytes() == before
 
 
-def test_cli_never_replaces_a_fuller_output_without_overwrite(
+def test_cli_never_replaces_an_existing_output_without_overwrite(
     chunked_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     good = tmp_path / "good.mcap"
@@ -152,11 +152,14 @@ def test_cli_never_replaces_a_fuller_output_without_overwrite(
     assert err.startswith("hil: error: -o ") and "--overwrite" in err and len(err.strip().splitlines()) == 1
     assert good.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["empty.mcap", "good.mcap"]  # no temporary left
-    half = tmp_path / "half.mcap"
-    half.write_bytes(chunked_file.read_bytes()[: chunked_file.stat().st_size // 2])
-    assert main(["mcap-repair", str(half), "-o", str(good)]) == 2  # fewer messages than the good file
+    assert main(["mcap-repair", str(chunked_file), "-o", str(good)]) == 2  # as many messages: still refused
     assert good.read_bytes() == before
-    assert main(["mcap-repair", str(chunked_file), "-o", str(good)]) == 0  # as many: replaced
+    notes = tmp_path / "notes.txt"  # not an MCAP file: kept as well
+    notes.write_text("my notes\n")
+    assert main(["mcap-repair", str(chunked_file), "-o", str(notes)]) == 2
+    assert notes.read_text() == "my notes\n"
+    err = capsys.readouterr().err
+    assert "notes.txt: exists; give --overwrite" in err and len(err.strip().splitlines()) == 2
     assert main(["mcap-repair", str(empty), "-o", str(good), "--overwrite"]) == 0
     assert _count_with_standard_reader(good) == 0
     capsys.readouterr()

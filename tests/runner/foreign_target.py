@@ -9,7 +9,8 @@ frame), silent (stop replying from then on), bad_ack (echo ConfigParam values + 
 answer a disabling Setpoint with HeartbeatTarget idle: the safe stop is not confirmed; any PERIOD), duties (answer
 with duty-cycle Commands, CmdDutyFd, duties 0.5: zero voltage; any PERIOD), nan_duty / range_duty (duty 1 sent as the
 NaN / out-of-range code; with duties), duties6 (a dual three-phase machine: answer MeasFd6 with six distinct
-duties near 0.5, all 13 carrier segments; with duties3 only three of them: a duty finding; any PERIOD).
+duties near 0.5, all 13 carrier segments; with duties3 only three of them: a duty finding; any PERIOD),
+n_duties4 / n_duties200 (a CmdDutyFd whose n_duties is 4 / 200: a duty finding, not a missing Command).
 A disabling Setpoint is otherwise answered with HeartbeatTarget state idle (the confirmed safe stop).
 Every frame received from the host is logged to LOGFILE as one JSON line, flushed at once.
 The "controller": the zero vector for the whole period (a dyno run at low speed stays within its limits).
@@ -42,8 +43,8 @@ def main() -> int:
     bus = can.Bus(interface="hilserial", channel=port)
     log = open(log_path, "w", encoding="utf-8")  # noqa: SIM115 - closed at exit
 
-    def send(message: cantools.database.Message, **values: float) -> None:
-        bus.send(can.Message(arbitration_id=message.frame_id, data=message.encode(values), is_fd=True,
+    def send(message: cantools.database.Message, strict: bool = True, **values: float) -> None:
+        bus.send(can.Message(arbitration_id=message.frame_id, data=message.encode(values, strict=strict), is_fd=True,
                              is_extended_id=False))
 
     def reply(seq: int, duty1_raw: int = duty_full // 2) -> None:
@@ -100,6 +101,9 @@ def main() -> int:
                     reply(seq, 65535)
                 elif rules.get("range_duty") == k:
                     reply(seq, 65534)
+                elif k in (rules.get("n_duties4"), rules.get("n_duties200")):  # a duty count of no machine
+                    send(duty_cmd, strict=False, seq=seq, n_duties=4 if rules.get("n_duties4") == k else 200,
+                         **{f"duty{j}": 0.5 for j in range(6)}, vector_id=0, candidates=0, exec_time_ns=1000, status=0)
                 elif rules.get("bad_length") == k:
                     bus.send(can.Message(arbitration_id=cmd.frame_id, data=bytes(24), is_fd=True,
                                          is_extended_id=False))

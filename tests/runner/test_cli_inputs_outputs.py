@@ -148,7 +148,9 @@ def test_report_never_writes_onto_a_run(tmp_path: Path, capsys: pytest.CaptureFi
     (run_dir / "metrics.json").write_text(json.dumps({**metrics, "periods": "many"}))
     good = tmp_path / "good.html"
     good.write_text("previous report")
-    assert main(["report", str(run_dir), "-o", str(good)]) == 2
+    assert main(["report", str(run_dir), "-o", str(good)]) == 2  # another report: never replaced unasked
+    _one_line_error(capsys, f"-o {good}: exists; give --overwrite to replace it")
+    assert main(["report", str(run_dir), "-o", str(good), "--overwrite"]) == 2
     _one_line_error(capsys, "metrics.json: 'periods' must be a whole number ≥ 0, got 'many'")
     assert good.read_text() == "previous report"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["good.html", "r"]  # no temporary file left

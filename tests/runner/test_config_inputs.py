@@ -202,3 +202,26 @@ def test_a_controller_for_another_kind_of_machine_is_refused(motor: str, control
         RunConfig(motor=load_motor(motor), scenario=load_scenario("steady"), controller=controller)
     for fine in ("off", "external"):  # no model, or a foreign firmware's own
         RunConfig(motor=load_motor(motor), scenario=load_scenario("steady"), controller=fine)
+
+
+@pytest.mark.parametrize(("param", "message"), [
+    ("rs=1e-46", "--param rs=1e-46: rounds to 0 in float32 (the target receives 0)"),
+    ("lambda=-1e-50", "--param lambda=-1e-50: rounds to 0 in float32"),
+    ("lambda=1e39", "--param lambda=1e+39: beyond the float32 range"),
+    ("ld=1e-45", "--param ld=1e-45: the controller's model would be singular: ld must be > 0 and a normal float32"),
+    ("lq=0", "--param lq=0.0: the controller's model would be singular"),
+    ("ld=-0.001", "--param ld=-0.001: the controller's model would be singular"),
+])
+def test_a_param_the_target_cannot_hold_or_a_singular_model_exits_2(param: str, message: str,
+                                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    from pmsm_hil.app.cli.main import main
+
+    assert main(["run", "--param", param, "--duration", "0.01", "--no-log"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"hil: error: {message}") and len(err.splitlines()) == 1, err
+
+
+def test_small_but_representable_params_pass() -> None:
+    cfg = RunConfig(motor=load_motor("niu2020-ipmsm"), scenario=load_scenario("steady"),
+                    controller_params={"rs": 0.0, "id_ref": 1e-44, "ld": 2e-38})
+    assert cfg.resolved_params() == {ParamId.RS: 0.0, ParamId.ID_REF: 1e-44, ParamId.LD: 2e-38}

@@ -106,6 +106,17 @@ def test_a_nan_or_out_of_range_duty_is_a_finding_not_a_zero_vector(rule: str, de
     e.check_safe_and_complete()
 
 
+@pytest.mark.parametrize("n", [4, 200])
+def test_a_duty_count_of_no_machine_is_a_duty_finding(n: int, tmp_path: Path, pty: tuple[int, str]) -> None:
+    """n_duties 4 or 200 on the wire: the Command is taken and found wrong by rule `duty` (not `missing`)."""
+    e = _run(tmp_path, pty, "duties=0", f"n_duties{n}=30")
+    assert e.rc == 4, e.metrics["end_reason"]
+    first = e.metrics["dut_violation_list"][0]
+    assert first["rule"] == "duty" and first["period"] == 30, first
+    assert first["detail"] == f"{n} duties for a machine with 3 legs"
+    e.check_safe_and_complete()
+
+
 def test_six_duties_drive_the_dual_three_phase_plant_and_three_are_a_finding(tmp_path: Path,
                                                                               pty: tuple[int, str]) -> None:
     """A user's target for the dual three-phase machine sends six duties (13 carrier segments per period, every

@@ -28,6 +28,38 @@ def test_bad_duties_are_duty_findings(duties: tuple[float, ...], max_state: int,
     assert check_command(_cmd(*duties), 100_000, max_state) == (DUTY, detail)
 
 
+def test_both_forms_at_once_are_a_duty_finding() -> None:
+    both = Command(seq=7, states=(7, 0), durations_ns=(50_000, 50_000), duties=(0.5, 0.5, 0.5))
+    assert check_command(both, 100_000, 7) == (
+        DUTY, "both forms set: 3 duties and a switching sequence of 2 state(s); a Command carries one")
+
+
+@pytest.mark.parametrize(("profile", "n"), [("can", 4), ("canfd", 4), ("can", 200), ("canfd", 200)])
+def test_a_duty_count_of_no_machine_decodes_to_a_duty_finding(profile: str, n: int) -> None:
+    """n_duties 4 or 200 on the wire: the host decodes the Command (not a rejected frame, which would end as a
+    missing Command) and finds it wrong by rule `duty`."""
+    from pmsm_hil.protocol.codec import FrameDecoder
+    from pmsm_hil.protocol.codec_duty import L_DUTY_C, L_DUTY_FD
+
+    frames = FrameCodec(profile).encode(_cmd(0.5, 0.5, 0.5))
+    patched = []
+    for fr in frames:
+        if fr[0] == L_DUTY_FD.frame_id:
+            raw = list(L_DUTY_FD.unpack(fr[1]))
+            raw[1] = n
+            fr = type(fr)(fr[0], L_DUTY_FD.pack(*raw), fr[2])
+        elif fr[0] == L_DUTY_C.frame_id:
+            raw = list(L_DUTY_C.unpack(fr[1]))
+            raw[3] = n
+            fr = type(fr)(fr[0], L_DUTY_C.pack(*raw), fr[2])
+        patched.append(fr)
+    dec = FrameDecoder()
+    got = [m for m in (dec.feed(fr) for fr in patched) if m is not None]
+    assert len(got) == 1 and isinstance(got[0], Command) and len(got[0].duties) == n
+    assert check_command(got[0], 100_000, 7) == (DUTY, f"{n} duties for a machine with 3 legs")
+    assert describe(got[0]).endswith(f", … {n} in all)") == (n > 6)
+
+
 def test_valid_duties_pass_and_are_described() -> None:
     assert check_command(_cmd(0.0, 0.5, 1.0), 100_000, 7) is None
     assert check_command(_cmd(*(0.1 * j for j in range(6))), 100_000, 63) is None

@@ -106,3 +106,20 @@ def test_a_result_reads_its_signals_from_the_log(tmp_path: Path) -> None:
     again = HilResult.load(r.out_dir)
     assert again.window == r.window and again.metrics == r.metrics
     assert np.array_equal(again.signal("i_q").y, r.signal("i_q").y)
+
+
+@pytest.mark.parametrize(("target", "expected"), [
+    ("qemux:fw.elf", "--hil-target 'qemux:fw.elf': not one of inproc, spawn, sil:PATH, qemu:PATH.elf"),
+    ("sil:missing.so", "missing.so is not a file"),
+    ("external", "--hil-target external needs a link: external:LINKSPEC"),
+])
+def test_a_bad_hil_target_is_one_usage_error(tmp_path: Path, target: str, expected: str) -> None:
+    """A mistyped --hil-target stops the session at start-up with one line (pytest's usage error, exit 4) instead
+    of failing every test that uses `hil` with a traceback."""
+    (tmp_path / "test_user.py").write_text("def test_a(hil):\n    hil.run(duration=0.01)\n\n\n"
+                                           "def test_b(hil):\n    hil.run(duration=0.01)\n")
+    proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--hil-target", target,
+                           "test_user.py"], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    out = (proc.stdout + proc.stderr).strip().splitlines()
+    assert proc.returncode == pytest.ExitCode.USAGE_ERROR, out
+    assert out == [f"ERROR: {out[0].removeprefix('ERROR: ')}"] and expected in out[0], out
