@@ -90,6 +90,11 @@ class TargetConsole:
             else:
                 self._pending.append((time.monotonic() - self._t0, kind, line[:MAX_LINE_BYTES]))
 
+    def feed(self, text: str, kind: int = STREAM_STDERR) -> None:
+        """Take `text` as console lines of stream `kind` (a console read from a file: QEMU's)."""
+        for line in text.splitlines():
+            self._line(line.encode(errors="replace"), kind)
+
     def wait_ready(self, timeout_s: float) -> bool:
         """Wait up to `timeout_s` for the ready line: True when it came (False: timeout or end of file)."""
         self.ready.wait(timeout_s)

@@ -74,6 +74,9 @@ class TargetConnection:
     #: the process that runs the target when it is not `process` (QEMU), 0: none
     other_pid: Callable[[], int] = field(default=lambda: 0)
 
+    #: called by `close` before the target is stopped (QEMU: its console file into `console`)
+    before_close: Callable[[], None] | None = None
+
     def target_pid(self) -> int:
         """The process the target runs in, which the loop observes for host stalls (a spawned `hil target`, a SIL
         target process, QEMU); 0: none the host can observe (in process, a board, an external target)."""
@@ -94,6 +97,10 @@ class TargetConnection:
 
     def close(self) -> None:
         """Close links and stop a spawned target (reading its link counters)."""
+        if self.before_close is not None:
+            with contextlib.suppress(Exception):
+                self.before_close()
+            self.before_close = None
         if self.process is not None:
             _stop(self.process, self.stop_wait_s)
             if self.console is not None:
@@ -367,9 +374,11 @@ def _connect_qemu(cfg: RunConfig, path: str) -> TargetConnection:
     from pmsm_hil.hil.runner.qemu_ending import judge_qemu
 
     codec = FrameCodec("canfd")  # both transports carry the CAN FD layouts, as the serial link does
+    console = TargetConsole(None, None, ready_prefix=READY_LINE, stats_prefix=LINK_STATS_LINE, verbose=cfg.verbose)
     return TargetConnection(TargetClient(host_link, codec), host_link, extra=[qemu], extra_metrics=qemu.metrics,
                             ending=lambda out: judge_qemu(qemu, out, cfg.lockstep_timeout_s),
-                            other_pid=lambda: qemu.process.pid if qemu.process is not None else 0)
+                            other_pid=lambda: qemu.process.pid if qemu.process is not None else 0,
+                            console=console, before_close=lambda: console.feed(qemu.console_text()))
 
 
 def connect_target(cfg: RunConfig, *, silent_after: int | None = None, native_target: bool = False) -> TargetConnection:

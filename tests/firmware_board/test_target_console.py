@@ -54,3 +54,15 @@ def test_verbose_prints_the_lines_on_the_terminal(printing: Path, tmp_path: Path
                             "--controller=external", "--settle=0.01", "--duration=0.01", "--no-log"],
                            cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert quiet.returncode == 0 and "[target]" not in quiet.stderr
+
+
+def test_qemus_console_is_logged_too(tmp_path: Path) -> None:
+    """QEMU's semihosting console (a file: it never blocks) goes to `/target/console` at the end of the run: the
+    fault handler's report line of a firmware that faults at step 500."""
+    need("mps2-an386")
+    elf = build_firmware("mps2-an386", PRINT.with_name("crash")).path
+    res = run_closed_loop(rated(f"qemu:{elf}", controller="external", settle_s=0.02, duration_s=0.05,
+                                out_dir=tmp_path))
+    assert res.metrics["end_code"] == 3, res.metrics["end_reason"]
+    lines = [json.loads(msg.data) for msg in read_topic_messages(tmp_path / "run.mcap", TOPIC_CONSOLE)]
+    assert any(line["text"].startswith("HIL-FAULT exc=3 pc=") and line["stream"] == "stderr" for line in lines), lines
