@@ -367,7 +367,7 @@ static void await_lockstep(loop_t *L, int64_t t0)
             L->wait_end = NL_END_INTERRUPTED;
             break;
         }
-        if (t - t0 >= c->stall_limit_ns) {
+        if (t - t0 >= c->stall_limit_ns && t - t0 >= timeout) { /* past both: the host took the difference */
             L->wait_end = NL_END_HOST_STALL;
             L->r->host_stall_wait_ns = t - t0;
             break;
