@@ -26,6 +26,10 @@ from tests.firmware_board._runs import rated
 #: record fields that are the host's own wall-clock measurements (a SIL step's execution time on the host)
 _HOST_TIMED = ("exec_time_ns", "exec_split_ns")
 STOP_S = 3.0
+#: a run longer than the C loop's ring (NL_RING x NL_BLOCK = 8000 periods): the loop cannot have run every period
+#: before the first block reaches `live`, so the target is stopped mid-run; QEMU (~1 ms a period here) cannot
+#: outrun the drain by 2000 periods, and a shorter run keeps the test's time down
+DURATION_S = {"sil": 0.9, "spawn": 0.9, "qemu": 0.3}
 
 
 def _stopper(marker: bytes, stop_s: float, stopped: list[int]) -> Callable[[np.ndarray], None]:
@@ -79,7 +83,7 @@ def test_a_target_stopped_for_3_s_is_a_host_stall_and_the_run_completes(kind: st
     for name in ("calm", "stopped"):
         stopped: list[int] = []
         out = tmp_path / name
-        res = run_closed_loop(rated(target, link=link, settle_s=0.02, duration_s=0.1, out_dir=out),
+        res = run_closed_loop(rated(target, link=link, settle_s=0.02, duration_s=DURATION_S[kind], out_dir=out),
                               live=_stopper(marker, STOP_S, stopped) if name == "stopped" else None)
         m = res.metrics
         assert m["end_code"] == 0, m["end_reason"]
@@ -93,7 +97,7 @@ def test_a_target_stopped_for_3_s_is_a_host_stall_and_the_run_completes(kind: st
 
 def test_a_stall_past_the_limit_is_the_hosts_error_not_the_firmwares(reference_sil: Path, tmp_path: Path) -> None:
     stopped: list[int] = []
-    res = run_closed_loop(rated(f"sil:{reference_sil}", settle_s=0.02, duration_s=0.1, out_dir=tmp_path,
+    res = run_closed_loop(rated(f"sil:{reference_sil}", settle_s=0.02, duration_s=DURATION_S["sil"], out_dir=tmp_path,
                                 host_stall_limit_s=1.0), live=_stopper(b"--sil", STOP_S, stopped))
     m = res.metrics
     assert stopped
