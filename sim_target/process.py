@@ -28,6 +28,9 @@ SPAWNED_IDLE_TIMEOUT_S = 30.0
 #: `hil target` prints "ready SPEC" once its link is open (the runner waits for it) and, when it stops,
 #: "link stats: {json}" with its link counters (the runner reads it after stopping a spawned target)
 READY_LINE = "ready"
+#: a SIL target process prints this line once the firmware's `hil_app_init` returned (after the ready line: the
+#: host then tells a hang in hil_app_init from one in hil_app_config)
+SIL_INIT_LINE = "sil initialised"
 LINK_STATS_LINE = "link stats:"
 _PR_SET_PDEATHSIG = 1
 

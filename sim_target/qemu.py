@@ -289,6 +289,10 @@ class QemuTarget:
             return None
         return describe_fault(self._stderr_text(), self.elf) or name
 
+    def console_text(self) -> str:
+        """Everything QEMU wrote to its stderr so far (the semihosting console: the fault handler's report)."""
+        return self._stderr_text()
+
     def _stderr_text(self) -> str:
         with contextlib.suppress(OSError, ValueError):
             self._stderr.flush()

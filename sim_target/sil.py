@@ -60,7 +60,7 @@ class SilStep(NamedTuple):
 class SilFirmware:
     """One loaded copy of a SIL library."""
 
-    def __init__(self, library: str | Path) -> None:
+    def __init__(self, library: str | Path, *, init: bool = True) -> None:
         path = Path(library)
         if not path.is_file():
             raise SilError(f"SIL library {path} not found (build one with `hil fw build --board host`)")
@@ -93,7 +93,12 @@ class SilFirmware:
         self._counters = lib.hil_core_counters().contents
         self._last = lib.hil_core_last_cmd().contents
         self.path = path
-        lib.hil_core_init()
+        if init:
+            lib.hil_core_init()
+
+    def init(self) -> None:
+        """Initialise the core and the firmware (`hil_app_init`): for a copy loaded with `init=False`."""
+        self._lib.hil_core_init()
 
     def feed(self, frame: Frame) -> list[Frame]:
         """One received frame; the frames the core answers with."""

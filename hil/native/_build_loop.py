@@ -32,7 +32,8 @@ FIRMWARE_FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion
 LOOP_FLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion", "-ffp-contract=off",
               "-fno-builtin-sin", "-fno-builtin-cos", "-pthread"]
 LOOP_SOURCES = ("loop.c", "loop_frames.c", "loop_rt.c", "nl_link.c", "loop_udp.c", "loop_serial.c", "loop_socketcan.c",
-                "target_serve.c", "link_floor.c", "loop_board.c", "loop_fmu.c", "loop_fmu_box.c", "pwm_duty.c")
+                "target_serve.c", "link_floor.c", "loop_board.c", "loop_fmu.c", "loop_fmu_box.c", "pwm_duty.c",
+                "loop_stall.c")
 
 
 #: hil/cdef_extract.py by path (this script runs at build time, before the package is importable)

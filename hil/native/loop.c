@@ -10,6 +10,7 @@
 #include "loop_fmu.h"
 #include "loop_frames.h"
 #include "loop_rt.h"
+#include "loop_stall.h"
 #include "machine_kernel.h"
 #include "nl_link.h"
 #include "pwm_duty.h"
@@ -75,6 +76,7 @@ typedef struct {
     int32_t inertia;
     int64_t next_start;
     int64_t wait_ns;
+    int32_t wait_end;           /* NL_END_RUNNING, or how a lockstep wait ended the run (a host stall, nl_stop) */
 } loop_t;
 
 static const double NS_PER_S = 1e9;
@@ -308,16 +310,88 @@ static void take_frame(loop_t *L, const hil_core_frame_t *f)
     }
 }
 
+/* Frames until the reply or `deadline_ns`; -1 when the peer closed the link, else 0. */
+static int receive_until(loop_t *L, int64_t deadline_ns)
+{
+    const nl_link_t *l = L->c->link;
+    hil_core_frame_t f;
+    int got = 0;
+    while (!L->have_reply && (got = l->recv(l->ctx, &f, deadline_ns)) > 0) {
+        take_frame(L, &f);
+    }
+    return got < 0 ? -1 : 0;
+}
+
+/* Lockstep: frames until the reply, or until the target had lockstep_timeout_ns to answer. Without a process to
+ * observe that is wall time. With one (target_pid), after the first slice the wait goes on in slices and counts
+ * only the time the process could run (loop_stall.h): time the host kept it stopped or off the CPUs is a host
+ * stall (counted; the wait goes on, up to stall_limit_ns of wall time: NL_END_HOST_STALL). nl_stop() ends it. */
+static void await_lockstep(loop_t *L, int64_t t0)
+{
+    const nl_config_t *c = L->c;
+    const int64_t timeout = c->lockstep_timeout_ns;
+    const int64_t slice = c->target_pid <= 0 ? timeout : timeout / 4 < NL_STALL_SLICE_NS ? timeout / 4 : NL_STALL_SLICE_NS;
+    nl_proc_sample_t prev;
+    nl_proc_sample_t now;
+    int64_t had = 0;    /* the target's own time to answer so far [ns] */
+    int64_t t_prev = t0;
+    int watching = 0;
+    for (;;) {
+        const int64_t left = timeout - had;
+        int64_t t;
+        if (receive_until(L, t_prev + (left < slice ? left : slice)) < 0 || L->have_reply) {
+            break;
+        }
+        t = nl_now_ns();
+        if (c->target_pid <= 0) {
+            break; /* wall time: one slice, the whole timeout */
+        }
+        if (!watching) { /* the first slice counts in full: the process is read from its end on */
+            had += t - t_prev;
+            watching = nl_proc_sample(c->target_pid, &prev) == 0;
+            if (!watching) {
+                break; /* gone (the ending names the crash) or not observable */
+            }
+        } else {
+            if (nl_proc_sample(c->target_pid, &now) != 0) {
+                break;
+            }
+            had += nl_proc_available(&prev, &now, t - t_prev);
+            prev = now;
+        }
+        t_prev = t;
+        if (had >= timeout) {
+            break; /* it had its time: the Command is missing */
+        }
+        if (__atomic_load_n(&L->h->stop, __ATOMIC_ACQUIRE)) {
+            L->wait_end = NL_END_INTERRUPTED;
+            break;
+        }
+        if (t - t0 >= c->stall_limit_ns && t - t0 >= timeout) { /* past both: the host took the difference */
+            L->wait_end = NL_END_HOST_STALL;
+            L->r->host_stall_wait_ns = t - t0;
+            break;
+        }
+    }
+    if (watching) { /* the host's part of a wait the lockstep timeout alone would have ended */
+        const int64_t wall = nl_now_ns() - t0;
+        const int64_t lost = wall - (had < wall ? had : wall);
+        if (wall > timeout && lost >= slice) {
+            L->r->host_stalls++;
+            L->r->host_stall_ns += lost;
+        }
+    }
+}
+
 /* ClosedLoop._await_command over a link to another process: what is queued, then frames until the reply or the
- * deadline (the period end in real time, the lockstep timeout else), then what came with the reply
- * (poll_command drains it all). */
+ * deadline (the period end in real time, the lockstep timeout else: await_lockstep), then what came with the
+ * reply (poll_command drains it all). */
 static void from_link(loop_t *L)
 {
     const nl_config_t *c = L->c;
     const nl_link_t *l = c->link;
     hil_core_frame_t f;
     int64_t t0;
-    int64_t deadline;
     while (l->recv(l->ctx, &f, 0) > 0) {
         take_frame(L, &f);
     }
@@ -328,9 +402,10 @@ static void from_link(loop_t *L)
     /* real time over a link: period 0 is the synchronising exchange, its Command awaited as in lockstep (a target
      * in another process or on a board wakes from idle and runs its code the first time: cold); the wall clock of
      * the periods starts when it arrives (period(): next_start) */
-    deadline = c->realtime && L->meas_sent > 1 ? L->next_start + c->ts_ns : t0 + c->lockstep_timeout_ns;
-    while (!L->have_reply && l->recv(l->ctx, &f, deadline) > 0) {
-        take_frame(L, &f);
+    if (c->realtime && L->meas_sent > 1) {
+        (void)receive_until(L, L->next_start + c->ts_ns);
+    } else {
+        await_lockstep(L, t0);
     }
     if (L->have_reply) {
         while (l->recv(l->ctx, &f, 0) > 0) {
@@ -953,6 +1028,9 @@ static int32_t period(loop_t *L, int64_t k)
         return NL_END_PLANT_ERROR;
     }
     from_target(L);
+    if (L->wait_end != NL_END_RUNNING) { /* the wait for this period's Command ended the run, no verdict on it */
+        return L->wait_end;
+    }
     if (!L->have_reply && c->realtime && c->link == NULL) { /* nothing more will come in process: wait it out */
         const int64_t t0 = nl_now_ns();
         const int64_t now = nl_wait_until(L->next_start + c->ts_ns, 0);

@@ -53,6 +53,7 @@
 #define NL_END_PLANT_ERROR 6     /* the plant kernel refused the period: plant_rc */
 #define NL_END_ENCODE_ERROR 7    /* a Measurement value the codec cannot encode: encode_field, encode_value */
 #define NL_END_INTERRUPTED 8     /* nl_stop() */
+#define NL_END_HOST_STALL 9      /* lockstep: the target's process could not run for stall_limit_ns (host_stall_wait_ns) */
 
 #define NL_PLANT_E_BREAKPOINTS (-100) /* more load breakpoints inside one period than NL_LOAD_BREAKPOINTS */
 #define NL_PLANT_E_KERNEL (-101)      /* no machine kernel, another MK_ABI_VERSION, or legs/format it cannot serve */
@@ -154,7 +155,11 @@ typedef struct {
     /* the link: NULL the in-process C target core, else a link to another process (nl_link.h: UDP, serial,
      * SocketCAN) */
     const struct nl_link *link;
-    int64_t lockstep_timeout_ns; /* lockstep over a link: how long to wait for a Command [ns] (wall time) */
+    int64_t lockstep_timeout_ns; /* lockstep over a link: how long to wait for a Command [ns]: the target's own time
+                                  * when target_pid is set (loop_stall.h), else wall time */
+    int32_t target_pid;        /* the target's process the host can observe (0: none, e.g. a board: wall time) */
+    int64_t stall_limit_ns;    /* lockstep: the longest wall time one wait for a Command may last while the host
+                                * stalls the target's process (then NL_END_HOST_STALL) [ns] */
     const nl_sil_debug_t *sil_debug; /* a SIL target in its own process: its debug outputs, NULL: none */
     int32_t pwm_double;        /* duty-cycle Commands: 0 single update, 1 double (pwm_duty.h halves) */
     int64_t adc_delay_ns;      /* the Measurement is sampled this long after the period start [ns] (0: at it) */
@@ -186,6 +191,10 @@ typedef struct {
     int64_t stale_commands;
     int64_t overruns;
     int64_t max_wait_ns;
+    int64_t host_stalls;       /* lockstep waits the lockstep timeout did not end because the host stopped or starved
+                                * the target's process */
+    int64_t host_stall_ns;     /* the time the target could not run in those waits [ns] */
+    int64_t host_stall_wait_ns; /* NL_END_HOST_STALL: the wall time of the wait that ended the run [ns] */
     int64_t violation_count;
     int64_t by_rule[NL_RULES];
     int64_t candidate_checked;

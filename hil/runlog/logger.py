@@ -15,6 +15,7 @@ from types import TracebackType
 import numpy as np
 from pmsm_hil.hil.records import FAULT_DTYPE, FRAME_DTYPE, PERIOD_DTYPE, TRACE_DTYPE
 from pmsm_hil.hil.runlog import topics
+from pmsm_hil.hil.runlog.console import CONSOLE_DTYPE
 from pmsm_hil.hil.runlog.errors import LoggerDiedError, RunLogError
 from pmsm_hil.hil.runlog.sink import COMPRESSIONS
 from pmsm_hil.hil.runlog.worker import run_worker
@@ -115,6 +116,10 @@ class RunLogger(WorkerClient):
     def submit_faults(self, block: np.ndarray) -> None:
         """Queue a FAULT_DTYPE block (one MCAP message per injected link fault on /link_faults)."""
         self._submit(topics.KIND_FAULTS, block, FAULT_DTYPE, "faults")
+
+    def submit_console(self, block: np.ndarray) -> None:
+        """Queue a CONSOLE_DTYPE block (one MCAP message per target console line on /target/console)."""
+        self._submit(topics.KIND_CONSOLE, block, CONSOLE_DTYPE, "console")
 
     def submit_trace(self, block: np.ndarray) -> None:
         """Queue a block of the logger's `trace_dtype` (one CDR message per block on /trace)."""

@@ -13,7 +13,7 @@ import numpy as np
 from mcap.well_known import MessageEncoding, SchemaEncoding
 from mcap.writer import CompressionType, Writer
 from pmsm_hil.hil.records import FAULT_DTYPE, FRAME_DTYPE, PERIOD_DTYPE, TRACE_DTYPE
-from pmsm_hil.hil.runlog import cdr, encoding, topics
+from pmsm_hil.hil.runlog import cdr, console, encoding, topics
 from pmsm_hil.hil.runlog.bulk_messages import BulkMessages, message_records
 from pmsm_hil.hil.runlog.errors import RunLogError
 from pmsm_hil.hil.runlog.salvage import end_after_last_record
@@ -56,6 +56,11 @@ class McapSink:
             MessageEncoding.JSON,
             w.register_schema(topics.SCHEMA_FAULTS, json_enc, encoding.json_schema(FAULT_DTYPE, "link fault")),
         )
+        self._ch_console = w.register_channel(
+            topics.TOPIC_CONSOLE,
+            MessageEncoding.JSON,
+            w.register_schema(topics.SCHEMA_CONSOLE, json_enc, console.CONSOLE_JSON_SCHEMA),
+        )
         ch_meta = w.register_channel(
             topics.TOPIC_METADATA,
             MessageEncoding.JSON,
@@ -64,7 +69,7 @@ class McapSink:
         meta = dict(metadata)
         w.add_metadata(topics.TOPIC_METADATA, meta)
         w.add_message(ch_meta, 0, json.dumps(meta).encode(), 0)
-        self.counts = {"periods": 0, "frames": 0, "trace_blocks": 0, "trace_samples": 0, "faults": 0}
+        self.counts = {"periods": 0, "frames": 0, "trace_blocks": 0, "trace_samples": 0, "faults": 0, "console": 0}
         self._bulk = BulkMessages.of(self._writer)
         self._closed = False
         self._trace_dtype = trace_dtype
@@ -103,6 +108,11 @@ class McapSink:
         """Write one message per injected link fault of the FAULT_DTYPE block `raw` on /link_faults."""
         self._write_records(np.frombuffer(raw, dtype=FAULT_DTYPE), encoding.encode_faults, self._ch_faults,
                             "faults")
+
+    def write_console(self, raw: bytes) -> None:
+        """Write one message per target console line of the CONSOLE_DTYPE block `raw` on /target/console."""
+        self._write_records(np.frombuffer(raw, dtype=console.CONSOLE_DTYPE), console.encode_console,
+                            self._ch_console, "console")
 
     def _write_records(self, block: np.ndarray, encode: Callable[[np.ndarray], Sequence[bytes]], channel: int,
                        count_key: str) -> None:

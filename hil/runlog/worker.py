@@ -65,6 +65,7 @@ def run_worker(
         topics.KIND_FRAMES: sink.write_frames,
         topics.KIND_TRACE: sink.write_trace,
         topics.KIND_FAULTS: sink.write_faults,
+        topics.KIND_CONSOLE: sink.write_console,
     }
     next_flush = time.monotonic() + flush_interval_s
     parent = os.getppid()

@@ -11,6 +11,7 @@ from pmsm_hil.hil.metrics.streaming import WindowMetrics
 from pmsm_hil.hil.runner.fault_setup import fault_records
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.run_limits import SpeedTail
+from pmsm_hil.hil.runner.target_console import TargetConsole
 from pmsm_hil.protocol.links.faults import FaultyLink
 
 #: the run's first periods whose execution times are its cold start (first calls: page faults, caches, lazy
@@ -35,6 +36,8 @@ class RunSink:
         self.faulty: FaultyLink | None = None
         #: period records seen so far
         self.periods_seen = 0
+        #: a spawned target's console (its lines go to the log with each block)
+        self.console: TargetConsole | None = None
         #: execution times [ns] of the run's first `COLD_START_PERIODS` periods
         self.cold_exec_ns: list[int] = []
 
@@ -69,3 +72,11 @@ class RunSink:
             logger.submit_faults(faults)
         if self.log_trace and trace.shape[0]:
             logger.submit_trace(trace)
+        self.flush_console()
+
+    def flush_console(self) -> None:
+        """Give the logger the target's console lines that came since the last block."""
+        if self.console is not None and self.logger is not None:
+            lines = self.console.take()
+            if lines.shape[0]:
+                self.logger.submit_console(lines)

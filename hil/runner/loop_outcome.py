@@ -64,6 +64,10 @@ class LoopOutcome:
     realtime_sync_us: float | None = None
     #: longest wait for a Command [ns] (wall time)
     max_wait_ns: int = 0
+    #: lockstep: waits for a Command the lockstep timeout did not end because the host kept the target's process
+    #: stopped or off the CPUs (host stalls), and the time it could not run in them [s]
+    host_stalls: int = 0
+    host_stall_s: float = 0.0
     #: injected link faults by kind (`--fault`), None without fault injection
     link_faults: dict[str, int] | None = None
     #: the load FMU that ran (`LoadFmuSession.metrics`: model, parameters, doStep calls, warnings), None without

@@ -29,11 +29,13 @@ RT_RUNTIME_FILE = "/proc/sys/kernel/sched_rt_runtime_us"
 class NativeOptions:
     """How the native loop runs beside the RunConfig: frames recorded, a target silent after this many
     Measurements (fault injection of the tests, None: never), a Fault the target sent while being
-    configured (code, detail)."""
+    configured (code, detail), the target's process."""
 
     record_frames: bool
     silent_after: int | None = None
     fault: tuple[int, int] | None = None
+    #: the target's process the loop observes in lockstep (host stalls; 0: none, the timeout is wall time)
+    target_pid: int = 0
 
 
 def reference_changes(sc: Scenario, ts_s: float, n_total: int) -> list[tuple[int, float]]:

@@ -35,7 +35,7 @@ from pmsm_hil.hil.runner.recorder import FrameTap, frame_records, period_records
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.safe_stop import disable_and_confirm, settle_ending
 from pmsm_hil.hil.runner.stop_request import StopRequest, deferred_interrupts
-from pmsm_hil.hil.runner.target_client import TargetClient
+from pmsm_hil.hil.runner.target_client import HostStallError, TargetClient
 from pmsm_hil.hil.sensors import SensorModel
 from pmsm_hil.protocol.ids import Mode, ParamId
 
@@ -110,6 +110,8 @@ class NativeLoop:
         out = self._start()
         if not isinstance(self.link, NativeCoreLink):  # the link as the enabling Setpoint left it
             self.link.attach(self._c, self.cfg.lockstep_timeout_s)
+            self._c.target_pid = self.opts.target_pid  # host stalls (loop_stall.h): the target's own time counts
+            self._c.stall_limit_ns = int(self.cfg.host_stall_limit_s * 1e9)
         if isinstance(self.link, NativePyLink):  # a bus error in a callback ends the run
             self.link.on_error = lambda: lib.nl_stop(h)
         thread = threading.Thread(target=lib.nl_run, args=(h,), name="hil-native-loop", daemon=True)
@@ -237,7 +239,8 @@ class NativeLoop:
         if self.cfg.mode == "realtime":
             return "before the next period start (real time)"
         if self._other_process():
-            return f"within the lockstep timeout {self.cfg.lockstep_timeout_s:g} s (wall time)"
+            clock = "of the target process's own time" if self.opts.target_pid else "wall time"
+            return f"within the lockstep timeout {self.cfg.lockstep_timeout_s:g} s ({clock})"
         return "from the in-process target"
 
     # --- the ending ---------------------------------------------------------------------------------
@@ -250,6 +253,7 @@ class NativeLoop:
         out.late_commands, out.overruns = int(res.stale_commands), int(res.overruns)
         out.realtime_sync_us = int(res.sync_ns) / 1e3 if int(res.sync_ns) >= 0 else None
         out.max_wait_ns = int(res.max_wait_ns)
+        out.host_stalls, out.host_stall_s = int(res.host_stalls), int(res.host_stall_ns) / 1e9
         out.violation_count = int(res.violation_count)
         out.violations_by_rule = {rule: int(res.by_rule[j]) for j, rule in enumerate(RULES) if res.by_rule[j]}
         out.candidate_checked, out.candidate_misses = int(res.candidate_checked), int(res.candidate_misses)
@@ -269,6 +273,13 @@ class NativeLoop:
             self._end(out, EndCode.INTERNAL_ERROR, f"internal error: {type(out.error).__name__}: {out.error}")
         elif interrupted or end == lib.NL_END_INTERRUPTED:
             self._end(out, EndCode.INTERRUPTED, "interrupted (Ctrl-C or SIGTERM)")
+        elif end == lib.NL_END_HOST_STALL:
+            wait_s = int(res.host_stall_wait_ns) / 1e9
+            out.error = HostStallError(
+                f"host stall: the target's process (pid {self.opts.target_pid}) was kept stopped or off the CPUs "
+                f"while the run waited {wait_s:.1f} s for the Command of period {int(res.end_period)} "
+                f"(--host-stall-limit {cfg.host_stall_limit_s:g} s); the host's fault, not the firmware's")
+            self._end(out, EndCode.INTERNAL_ERROR, f"{out.error}; inverter put in the safe state")
         elif end == lib.NL_END_VIOLATION:
             v = out.violations[-1] if out.violation_count <= MAX_KEPT_VIOLATIONS else None
             reason = v.message() if v is not None else f"{out.violation_count} DUT contract violations"

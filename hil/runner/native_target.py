@@ -27,7 +27,7 @@ from pmsm_hil.hil.runner.sil_debug import SIL_DEBUG_BYTES
 from pmsm_hil.protocol.links import open_link, parse_spec
 from pmsm_hil.protocol.links.kernel_drops import link_kernel_drops
 from pmsm_hil.protocol.links.udp_bus import link_socket_drops
-from pmsm_hil.sim_target.process import die_with_parent
+from pmsm_hil.sim_target.process import SIL_INIT_LINE, die_with_parent
 from pmsm_hil.sim_target.sil import SilFirmware
 
 
@@ -72,7 +72,8 @@ def serve_native(link_spec: str, *, role: str = "target", max_idle_s: float | No
     `sil_debug_fd`: memory shared with the host (loop.h nl_sil_debug_t) where each step's torque reference goes;
     `spin_ns`: how long a receive busy-polls before it blocks [ns] (None: the native wires' default, 0: block)."""
     ffi, lib = native_lib()
-    firmware = SilFirmware(sil) if sil is not None else None  # a bad library fails before the ready line
+    # a bad library fails before the ready line; its hil_app_init runs after it, under the host's watch
+    firmware = SilFirmware(sil, init=False) if sil is not None else None
     wire = NATIVE_WIRES.get(parse_spec(link_spec).kind.lower())
     if wire is None:
         *kinds, last = NATIVE_WIRES
@@ -88,6 +89,9 @@ def serve_native(link_spec: str, *, role: str = "target", max_idle_s: float | No
         h = WireHandle(wire, ffi, lib, bus, target_role=True, spin_ns=spin_ns)
         if on_ready is not None:
             on_ready()
+        if firmware is not None:
+            firmware.init()
+            print(SIL_INIT_LINE, flush=True)
         if orphaned():
             end = int(lib.NT_END_PARENT)
         else:

@@ -7,12 +7,11 @@ error. A QEMU that idles (the firmware waits for a frame that was lost) keeps th
 
 from __future__ import annotations
 
-import os
 import time
 
 from pmsm_hil.hil.runner.contract import EndCode
 from pmsm_hil.hil.runner.loop_outcome import LoopOutcome
-from pmsm_hil.hil.runner.sil_watch import describe_exit, ended_silent, ending_place, silent_since
+from pmsm_hil.hil.runner.sil_watch import cpu_s, describe_exit, ended_silent, ending_place, silent_since
 from pmsm_hil.sim_target.qemu import QemuTarget
 
 #: a QEMU that used at least this share of one CPU while watched is executing (the firmware computes): a spinning
@@ -22,28 +21,18 @@ BUSY_SHARE = 0.1
 WATCH_S = 0.5
 
 
-def _cpu_s(pid: int) -> float | None:
-    """CPU time [s] process `pid` used so far, all threads (Linux /proc), None if unknown."""
-    try:
-        with open(f"/proc/{pid}/stat", encoding="ascii", errors="replace") as f:
-            fields = f.read().rsplit(")", 1)[1].split()
-        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-    except (OSError, IndexError, ValueError):
-        return None
-
-
 def _watch(qemu: QemuTarget, seconds: float) -> tuple[int | None, bool]:
     """(QEMU's exit status if it ends within `seconds`, whether it executed at least BUSY_SHARE meanwhile)."""
     proc = qemu.process
     assert proc is not None
-    t0, cpu0 = time.monotonic(), _cpu_s(proc.pid)
+    t0, cpu0 = time.monotonic(), cpu_s(proc.pid)
     deadline = t0 + seconds
     while time.monotonic() < deadline:
         rc = proc.poll()
         if rc is not None:
             return rc, False
         time.sleep(0.01)
-    cpu1 = _cpu_s(proc.pid)
+    cpu1 = cpu_s(proc.pid)
     busy = cpu0 is not None and cpu1 is not None and cpu1 - cpu0 >= BUSY_SHARE * (time.monotonic() - t0)
     return proc.poll(), busy
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import signal
@@ -43,6 +44,7 @@ from pmsm_hil.hil.runner.setpoint_hold import setpoint_verdict
 from pmsm_hil.hil.runner.sil_watch import InterruptGuard, isolated_config
 from pmsm_hil.hil.runner.stop_request import deferred_interrupts
 from pmsm_hil.hil.runner.target_client import DutViolationError, TargetError
+from pmsm_hil.hil.runner.target_console import MAX_LINES
 from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target
 from pmsm_hil.protocol.errors import LinkError
 from pmsm_hil.protocol.links.kernel_drops import link_kernel_drops
@@ -120,6 +122,7 @@ def _run_locked(cfg: RunConfig, cid: int, python_reason: str | None, silent_afte
             signals.enter_context(_terminate_as_interrupt())
             conn, python_reason = connect_loop_target(
                 cfg, python_reason, lambda: connect_target(cfg, silent_after=silent_after))
+            sink.console = conn.console
             pm_qos = signals.enter_context(cpu_latency_held(pm_qos_latency_us(cfg, conn)))
             # from here on Ctrl-C/SIGTERM only ask the loop to end (at a period boundary; at once if the target
             # is still being configured): every period run is logged and counted, the outputs written whole
@@ -156,6 +159,8 @@ def _run_locked(cfg: RunConfig, cid: int, python_reason: str | None, silent_afte
         finally:
             if conn is not None:
                 conn.close()
+                with contextlib.suppress(Exception):  # what the target wrote after the last block
+                    sink.flush_console()
             if logger is not None:
                 logger.close()
         attribute_losses(metrics, target_link_stats(conn) if conn is not None else None)
@@ -211,6 +216,8 @@ def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection, sink: Ru
     metrics["tolerate"] = cfg.tolerate
     metrics["link_faults"] = out.link_faults
     metrics["command_wait_max_us"] = out.max_wait_ns / 1e3
+    metrics["host_stalls"] = out.host_stalls
+    metrics["host_stall_s"] = out.host_stall_s
     metrics["total_periods"] = out.completed_periods
     metrics["total_wall_time_s"] = out.wall_time_s
     metrics["loop_rate_total_hz"] = out.completed_periods / out.wall_time_s if out.wall_time_s else None
@@ -255,6 +262,13 @@ def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection, sink: Ru
     if out.violation_count and out.end_code != EndCode.DUT_VIOLATION and out.violation_count <= cfg.tolerate:
         warnings.append(f"{out.violation_count} DUT contract violation(s) tolerated (--tolerate {cfg.tolerate}); "
                         f"first: {out.violations[0].message()}")
+    if conn.console is not None and conn.console.dropped:
+        warnings.append(f"target console: {conn.console.lines} lines, the first {MAX_LINES} logged "
+                        f"(/target/console), {conn.console.dropped} dropped")
+    if out.host_stalls:
+        warnings.append(f"host stall: {out.host_stalls} wait(s) for a Command went past the lockstep timeout because "
+                        f"the host kept the target's process stopped or off the CPUs ({out.host_stall_s:.3f} s in "
+                        f"all); not counted against the firmware")
     metrics["warnings"] = warnings
     metrics.update(conn.extra_metrics())
     return metrics

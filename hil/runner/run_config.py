@@ -143,6 +143,9 @@ class RunConfig:
     miss_policy: str = default_of("miss_policy")
     watchdog_periods: int = default_of("watchdog_periods")
     lockstep_timeout_s: float = default_of("lockstep_timeout_s")
+    #: lockstep: wall time [s] one wait for a Command may last while the host stalls the target's process
+    #: (`--host-stall-limit`; then the run ends as a host stall, not the firmware's violation)
+    host_stall_limit_s: float = default_of("host_stall_limit_s")
     #: DUT contract findings accepted before the run ends as a violation (counted in `dut_violations`)
     tolerate: int = default_of("tolerate")
     #: real time: a period starting later than this [s] is an overrun (None: Ts / 2)
@@ -162,6 +165,8 @@ class RunConfig:
     #: sil targets: wall time [s] a step may take before the target is "hung" (`--step-timeout`; the wait for
     #: each Command of an isolated SIL run, in place of `lockstep_timeout_s`)
     step_timeout_s: float = default_of("step_timeout_s")
+    #: print a target process's console lines on the terminal as they come (`--verbose`; logged either way)
+    verbose: bool = default_of("verbose")
     #: sil targets: load the library into the runner's process (`--sil-in-process`: unprotected, a crash of
     #: the firmware ends the runner) instead of serving it from its own process
     sil_in_process: bool = default_of("sil_in_process")

@@ -255,6 +255,9 @@ RUN_OPTIONS: tuple[RunOption, ...] = (
               "sil targets: load the library into this process (UNPROTECTED: a crash of the firmware ends `hil run` "
               "without metrics, an endless loop hangs it) instead of its own process", False,
               field="sil_in_process"),
+    RunOption("verbose", "flag",
+              "print what a target process writes (a SIL firmware's printf, its stderr) on the terminal as it comes; "
+              "it is in the run's MCAP (/target/console) either way", False, field="verbose"),
     RunOption("seed", "integer", "seed for sensor noise", 0, field="seed", minimum=0),
     RunOption("param", "table", "controller parameter (SI units), e.g. lambda=0.5, t_thr=8e-6, speed_kp=0.8",
               metavar="NAME=VALUE", table_text=True),
@@ -265,8 +268,15 @@ RUN_OPTIONS: tuple[RunOption, ...] = (
     RunOption("tolerate", "integer",
               "DUT contract violations accepted before the run ends as one (counted in dut_violations)", 0,
               field="tolerate", minimum=0),
-    RunOption("lockstep_timeout", "number", "lockstep: wall time to wait for each Command before it is missing [s]",
-              0.5, field="lockstep_timeout_s", unit="s", minimum=0.0, maximum=MAX_WAIT_S, open_minimum=True),
+    RunOption("lockstep_timeout", "number",
+              "lockstep: time to wait for each Command before it is missing [s]; a target process the host can "
+              "observe (sil, qemu, spawn) counts only the time it could run (a host stall does not count), a "
+              "board wall time", 0.5, field="lockstep_timeout_s", unit="s", minimum=0.0, maximum=MAX_WAIT_S,
+              open_minimum=True),
+    RunOption("host_stall_limit", "number",
+              "lockstep: wall time one wait for a Command may last while the host keeps the target's process "
+              "stopped or off the CPUs before the run ends as a host stall (exit 1) [s]", 60.0,
+              field="host_stall_limit_s", unit="s", minimum=0.0, maximum=MAX_WAIT_S, open_minimum=True),
     RunOption("fault", "text",
               "link fault injection on the host's link: drop=P,dup=P,corrupt=P,delay=D,jitter=D,reorder=P,"
               "silence=T0:T1,seed=S (KEY.up / KEY.down per direction; docs/runner.md)", field="faults",

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import os
 import signal
 import subprocess
 import threading
@@ -40,6 +41,8 @@ SIL_STOP_WAIT_S = 0.2
 HANG_CONFIRM_S = 0.3
 #: how often the watch samples the process [s]
 HANG_SAMPLE_S = 0.002
+#: how often a `BusyWatch` samples it while the host waits for a ConfigAck [s]
+HANG_SAMPLE_BUSY_S = 0.02
 #: after Ctrl-C/SIGTERM, wall time [s] before a SIL target process still running is killed (a loop waiting
 #: for a hung step's Command then ends at once on the closed socket)
 SIL_INTERRUPT_KILL_S = 0.25
@@ -107,6 +110,49 @@ def _state(pid: int) -> str | None:
         return None
 
 
+def cpu_s(pid: int) -> float | None:
+    """CPU time [s] process `pid` used so far, all threads (Linux /proc), None if unknown."""
+    try:
+        with open(f"/proc/{pid}/stat", encoding="ascii", errors="replace") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        return None
+
+
+class BusyWatch:
+    """Whether a target process computes without once waiting for a frame while the host waits for its answer
+    (a configuration's ConfigAck): `hung()` is true once it stayed runnable (state R at every sample) and used
+    `limit_s` of CPU time meanwhile — its own time, so a host that starves it is never taken for a hang."""
+
+    def __init__(self, pid: int, limit_s: float) -> None:
+        self.pid, self.limit_s = pid, limit_s
+        self._cpu0: float | None = None
+        self._next = 0.0
+
+    def hung(self) -> bool:
+        """Sample the process (at most every `HANG_SAMPLE_BUSY_S`); True once it is hung."""
+        now = time.monotonic()
+        if now < self._next:
+            return False
+        self._next = now + HANG_SAMPLE_BUSY_S
+        if _state(self.pid) != "R":
+            self._cpu0 = None
+            return False
+        cpu = cpu_s(self.pid)
+        if cpu is None:
+            return False
+        if self._cpu0 is None:
+            self._cpu0 = cpu
+        return cpu - self._cpu0 >= self.limit_s
+
+    @property
+    def cpu_used_s(self) -> float:
+        """CPU time [s] of the current busy spell (0 when none)."""
+        cpu = cpu_s(self.pid) if self._cpu0 is not None else None
+        return cpu - self._cpu0 if cpu is not None and self._cpu0 is not None else 0.0
+
+
 def _watch(proc: subprocess.Popen[bytes], seconds: float, unknown_busy: bool) -> tuple[int | None, bool]:
     """Watch a target process that left a Command missing for up to `seconds`: (its exit status if it ended
     meanwhile — a dying process closes its socket a little before it can be reaped —, whether it computed the
@@ -124,6 +170,34 @@ def _watch(proc: subprocess.Popen[bytes], seconds: float, unknown_busy: bool) ->
         if time.monotonic() >= deadline:
             return None, unknown_busy if not known else True
         time.sleep(HANG_SAMPLE_S)
+
+
+def judge_setup(proc: subprocess.Popen[bytes], out: LoopOutcome, hung_in: str | None, initialised: bool,
+                step_timeout_s: float) -> bool:
+    """Name the SIL target's part in an ending while it was being set up (rewritten in place): hung in
+    hil_app_init or hil_app_config (`hung_in`: its `BusyWatch` fired), or crashed in hil_app_init (not yet
+    `initialised`). True when it is hung (the caller kills it)."""
+    if out.end_code != EndCode.DUT_VIOLATION or out.completed_periods:
+        return False
+    if hung_in is not None and proc.poll() is None:
+        out.end_code = int(EndCode.SAFETY_STOP)
+        out.end_reason = (f"target hung in {hung_in}: it computed for --step-timeout {step_timeout_s:g} s of its own "
+                          f"CPU time without answering; target process killed, inverter put in the safe state "
+                          f"(zero vector)")
+        out.safe_state = True
+        return True
+    if not initialised:
+        rc = proc.poll()
+        if rc is None:
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                rc = proc.wait(HANG_CONFIRM_S)
+        if rc is not None:
+            out.end_code = int(EndCode.SAFETY_STOP)
+            out.end_reason = (f"target crashed ({describe_exit(rc)} in hil_app_init); inverter put in the safe "
+                              f"state (zero vector)")
+            out.safe_state = True
+            out.error = None
+    return False
 
 
 def judge(proc: subprocess.Popen[bytes], out: LoopOutcome, step_timeout_s: float, realtime: bool = False) -> bool:

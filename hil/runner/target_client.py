@@ -47,6 +47,11 @@ class DutViolationError(TargetError):
     """The target broke the contract while being configured (no ConfigAck, or an echo of another value)."""
 
 
+class HostStallError(HilError):
+    """Lockstep: the host kept the target's process stopped or off the CPUs longer than `--host-stall-limit`
+    while the run waited for a Command (the host's fault, not the firmware's: exit 1)."""
+
+
 class TargetClient:
     """Talks to one target over a link. ``pump`` (in-process target) is called while waiting."""
 

@@ -12,15 +12,13 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-import selectors
 import socket
 import subprocess
 import sys
-import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 from pmsm_hil.hil.runner.loop_outcome import LoopOutcome
 from pmsm_hil.hil.runner.run_config import QEMU_MAILBOX_LINK, RunConfig
@@ -28,12 +26,15 @@ from pmsm_hil.hil.runner.sil_debug import SilDebugSlot
 from pmsm_hil.hil.runner.sil_watch import (
     SIL_STOP_WAIT_S,
     SOCKETPAIR_LINK,
+    BusyWatch,
     InterruptGuard,
     describe_exit,
     isolated_config,
     judge,
+    judge_setup,
 )
 from pmsm_hil.hil.runner.target_client import DutViolationError, TargetClient, TargetError
+from pmsm_hil.hil.runner.target_console import TargetConsole
 from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.links import Link, link_kind, open_link, parse_spec
 from pmsm_hil.protocol.links.spawn_auth import spawn_auth
@@ -56,7 +57,6 @@ class TargetConnection:
     process: subprocess.Popen[bytes] | None = None
     inproc_result: Callable[[], object] | None = None
     extra: list[Any] = field(default_factory=list)
-    process_stderr: IO[bytes] | None = None
     #: a spawned target's own link counters (its last stdout line), filled by `close`
     target_link_stats: dict[str, int] = field(default_factory=dict)
     #: target-specific metrics merged into metrics.json after the run (e.g. an emulated MCU's instruction
@@ -69,6 +69,20 @@ class TargetConnection:
     stop_wait_s: float = 5.0
     #: a SIL target process's debug outputs (each step's torque reference), shared memory
     sil_debug: SilDebugSlot | None = None
+    #: a spawned target's stdout and stderr, drained all the time (its console lines go to the run's log)
+    console: TargetConsole | None = None
+    #: the process that runs the target when it is not `process` (QEMU), 0: none
+    other_pid: Callable[[], int] = field(default=lambda: 0)
+
+    #: called by `close` before the target is stopped (QEMU: its console file into `console`)
+    before_close: Callable[[], None] | None = None
+
+    def target_pid(self) -> int:
+        """The process the target runs in, which the loop observes for host stalls (a spawned `hil target`, a SIL
+        target process, QEMU); 0: none the host can observe (in process, a board, an external target)."""
+        if self.process is not None:
+            return self.process.pid
+        return self.other_pid()
 
     def link_stats(self) -> dict[str, int]:
         """Host link counters plus decoder counters, plus how the native loop's receives waited (`blocked`,
@@ -83,15 +97,18 @@ class TargetConnection:
 
     def close(self) -> None:
         """Close links and stop a spawned target (reading its link counters)."""
+        if self.before_close is not None:
+            with contextlib.suppress(Exception):
+                self.before_close()
+            self.before_close = None
         if self.process is not None:
             _stop(self.process, self.stop_wait_s)
-            self.target_link_stats = _target_link_stats(self.process)
-        if self.process_stderr is not None:
-            with self.process_stderr as err:
-                text = _drain(err)
-            self.process_stderr = None
-            if text:  # what the target said (a warning, a crash) is not lost
-                print(text, file=sys.stderr)
+            if self.console is not None:
+                self.console.join()
+                self.target_link_stats = _target_link_stats(self.console.stats_line)
+                text = self.console.stderr_text()
+                if text and not self.console.verbose:  # what the target said (a warning, a crash) is not lost
+                    print(text, file=sys.stderr)
         for link in (self.host_link, self.target_link):
             if link is not None:
                 link.close()
@@ -117,28 +134,24 @@ def _stop(proc: subprocess.Popen[bytes], wait_s: float = 5.0) -> None:
         proc.wait()
 
 
-def _target_link_stats(proc: subprocess.Popen[bytes]) -> dict[str, int]:
-    """The counters a stopped `hil target` printed last ({} if it printed none)."""
-    if proc.stdout is None:
-        return {}
-    with proc.stdout:
-        lines = proc.stdout.read().decode(errors="replace").splitlines()
-    for line in reversed(lines):
-        if line.startswith(LINK_STATS_LINE):
-            with contextlib.suppress(ValueError):
-                stats = json.loads(line[len(LINK_STATS_LINE):])
-                return {str(k): int(v) for k, v in stats.items()} if isinstance(stats, dict) else {}
+def _target_link_stats(line: str) -> dict[str, int]:
+    """The counters of a stopped `hil target`'s last "link stats:" line ({} if it printed none)."""
+    with contextlib.suppress(ValueError):
+        stats = json.loads(line) if line else {}
+        return {str(k): int(v) for k, v in stats.items()} if isinstance(stats, dict) else {}
     return {}
 
 
 def _spawn_target(spec: str, native: bool = False, sil: str | None = None,
                   pass_fds: tuple[int, ...] = (), key: bytes | None = None,
                   sil_debug: SilDebugSlot | None = None,
-                  rt_priority: int = 0, spin_us: float | None = None) -> tuple[subprocess.Popen[bytes], IO[bytes]]:
+                  rt_priority: int = 0, spin_us: float | None = None,
+                  verbose: bool = False) -> tuple[subprocess.Popen[bytes], TargetConsole]:
     """Start `hil target` (`--native`: its C serve loop; `sil`: serving that SIL library, in its own process
     group so a terminal's Ctrl-C reaches the runner only, which stops it in order) on `spec` and wait for its
     ready line; raises TargetError with its own error line if it exits first (a port in use, a bad library) or
-    does not get ready in time. Its stderr goes to the returned file. `key`: the frames' authentication key,
+    does not get ready in time. Its stdout and stderr are drained all the time by the returned console
+    (`verbose`: its lines on the terminal too). `key`: the frames' authentication key,
     written to its stdin (`--auth-key-stdin`: never on its command line, which any user may read). `sil_debug`:
     the memory where a SIL target's serve loop puts each step's torque reference (`--sil-debug-fd`); `spin_us`:
     its receives' busy-poll (`--spin-us`, None: its default)."""
@@ -150,20 +163,21 @@ def _spawn_target(spec: str, native: bool = False, sil: str | None = None,
            *(["--sil-debug-fd", str(sil_debug.fd)] if sil_debug is not None else []),
            *(["--rt-priority", str(rt_priority)] if rt_priority else []),  # the C serve loop at SCHED_FIFO
            *(["--spin-us", f"{spin_us:g}"] if spin_us is not None else [])]
-    err = tempfile.TemporaryFile()  # noqa: SIM115 (the connection owns it: `close` forwards it)
     # its own session: a terminal's Ctrl-C (or a SIGTERM to the run's process group) reaches the run, which
     # stops the loop, sends the disabling Setpoint and then stops the target (`_stop`), not the target first
-    proc = subprocess.Popen(cmd, env=dict(os.environ), stdout=subprocess.PIPE, stderr=err, pass_fds=pass_fds,
-                            start_new_session=True, stdin=subprocess.PIPE if key is not None else None)
+    proc = subprocess.Popen(cmd, env=dict(os.environ), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            pass_fds=pass_fds, start_new_session=True,
+                            stdin=subprocess.PIPE if key is not None else None)
+    console = TargetConsole(proc.stdout, proc.stderr, ready_prefix=READY_LINE, stats_prefix=LINK_STATS_LINE,
+                            verbose=verbose)
     if proc.stdin is not None and key is not None:
         with proc.stdin, contextlib.suppress(OSError):  # a target that died at once is told below
             proc.stdin.write(key.hex().encode("ascii") + b"\n")
-    stdout = proc.stdout
-    if stdout is not None and _read_line(stdout, SPAWN_READY_TIMEOUT_S).startswith(READY_LINE):
-        return proc, err
+    if console.wait_ready(SPAWN_READY_TIMEOUT_S):
+        return proc, console
     _stop(proc)
-    with err:
-        why = _drain(err).splitlines()
+    console.join()
+    why = console.stderr_text().splitlines()
     if why:
         detail = why[-1].removeprefix("hil: error: ")
     elif proc.returncode in (-15, -9):
@@ -172,25 +186,8 @@ def _spawn_target(spec: str, native: bool = False, sil: str | None = None,
         detail = f"killed by {describe_exit(proc.returncode)}"
     else:
         detail = f"exit code {proc.returncode}"
-    if stdout is not None:
-        stdout.close()
     who = f"SIL target process for {sil}" if sil is not None else f"spawned target on {spec!r}"
     raise TargetError(f"{who} did not start: {detail}")
-
-
-def _drain(err: IO[bytes]) -> str:
-    """What a spawned target wrote to its stderr file, stripped."""
-    err.seek(0)
-    return err.read().decode(errors="replace").strip()
-
-
-def _read_line(stream: IO[bytes], timeout_s: float) -> str:
-    """One line from a child's stdout, or '' on end of file / timeout."""
-    with selectors.DefaultSelector() as sel:
-        sel.register(stream, selectors.EVENT_READ)
-        if not sel.select(timeout_s):
-            return ""
-    return stream.readline().decode(errors="replace").strip()
 
 
 def _await_session(link: Link) -> None:
@@ -249,8 +246,9 @@ def _connect_spawned(cfg: RunConfig, codec: FrameCodec, native: bool, sil: str |
     conn = TargetConnection(TargetClient(host_link, codec), host_link, extra=list(specs.keep_open))
     try:
         rt = cfg.rt_priority if native and cfg.mode == "realtime" else 0  # the pair at the same priority
-        conn.process, conn.process_stderr = _spawn_target(specs.target, native, sil, key=key, sil_debug=sil_debug,
-                                                          rt_priority=rt, spin_us=realtime_target_spin_us(cfg, native))
+        conn.process, conn.console = _spawn_target(specs.target, native, sil, key=key, sil_debug=sil_debug,
+                                                   rt_priority=rt, spin_us=realtime_target_spin_us(cfg, native),
+                                                   verbose=cfg.verbose)
         _await_session(host_link)
     except BaseException:
         conn.close()
@@ -271,7 +269,7 @@ def _connect_sil_process(cfg: RunConfig, library: str) -> TargetConnection:
     debug = SilDebugSlot()  # the torque reference of each step, which no frame carries
     try:
         if cfg.link == SOCKETPAIR_LINK:
-            conn = _connect_socketpair(codec, library, debug)
+            conn = _connect_socketpair(codec, library, debug, verbose=cfg.verbose)
         else:
             conn = _connect_spawned(cfg, codec, True, library, debug)
     except BaseException:
@@ -286,20 +284,34 @@ def _connect_sil_process(cfg: RunConfig, library: str) -> TargetConnection:
     guard.arm()
     conn.extra.insert(0, guard)  # disarmed first on close
 
+    console = conn.console
+    busy = BusyWatch(proc.pid, cfg.step_timeout_s)
+    hung_in: list[str] = []
+
+    def initialised() -> bool:
+        return console is None or console.initialised.is_set()
+
     def ending(out: LoopOutcome) -> None:
-        if judge(proc, out, cfg.step_timeout_s, realtime=cfg.mode == "realtime"):
+        if console is not None and proc.poll() is not None:
+            console.join(0.5)  # every line it wrote read (its "sil initialised" line)
+        hung = judge_setup(proc, out, hung_in[0] if hung_in else None, initialised(), cfg.step_timeout_s)
+        if hung or judge(proc, out, cfg.step_timeout_s, realtime=cfg.mode == "realtime"):
             proc.kill()
 
     def pump() -> None:  # waits of the client (configuration, safe stop, the Python loop) end on its death
         if proc.poll() is not None:
             raise DutViolationError(f"the SIL target process ended ({describe_exit(proc.returncode)})")
+        if busy.hung():  # computing all along without answering: hung in its set-up (or in a step)
+            hung_in[:] = ["hil_app_config" if initialised() else "hil_app_init"]
+            raise DutViolationError(f"the SIL target process is hung in {hung_in[0]}")
 
     conn.ending = ending
     conn.client.pump = pump
     return conn
 
 
-def _connect_socketpair(codec: FrameCodec, library: str, sil_debug: SilDebugSlot | None = None) -> TargetConnection:
+def _connect_socketpair(codec: FrameCodec, library: str, sil_debug: SilDebugSlot | None = None, *,
+                        verbose: bool = False) -> TargetConnection:
     """The SIL target process on one end of a Unix socket pair (serial framing), the host's link on the other."""
     host_end, target_end = socket.socketpair()
     host_fd, target_fd = host_end.detach(), target_end.detach()
@@ -311,8 +323,8 @@ def _connect_socketpair(codec: FrameCodec, library: str, sil_debug: SilDebugSlot
         raise
     conn = TargetConnection(TargetClient(host_link, codec), host_link)
     try:
-        conn.process, conn.process_stderr = _spawn_target(f"serial:fd:{target_fd}", True, library, (target_fd,),
-                                                          sil_debug=sil_debug)
+        conn.process, conn.console = _spawn_target(f"serial:fd:{target_fd}", True, library, (target_fd,),
+                                                   sil_debug=sil_debug, verbose=verbose)
     except BaseException:
         conn.close()
         raise
@@ -362,8 +374,11 @@ def _connect_qemu(cfg: RunConfig, path: str) -> TargetConnection:
     from pmsm_hil.hil.runner.qemu_ending import judge_qemu
 
     codec = FrameCodec("canfd")  # both transports carry the CAN FD layouts, as the serial link does
+    console = TargetConsole(None, None, ready_prefix=READY_LINE, stats_prefix=LINK_STATS_LINE, verbose=cfg.verbose)
     return TargetConnection(TargetClient(host_link, codec), host_link, extra=[qemu], extra_metrics=qemu.metrics,
-                            ending=lambda out: judge_qemu(qemu, out, cfg.lockstep_timeout_s))
+                            ending=lambda out: judge_qemu(qemu, out, cfg.lockstep_timeout_s),
+                            other_pid=lambda: qemu.process.pid if qemu.process is not None else 0,
+                            console=console, before_close=lambda: console.feed(qemu.console_text()))
 
 
 def connect_target(cfg: RunConfig, *, silent_after: int | None = None, native_target: bool = False) -> TargetConnection:

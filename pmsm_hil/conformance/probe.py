@@ -29,6 +29,9 @@ DISABLED_PERIODS, TORQUE_PERIODS, TORQUE_MEAN_PERIODS, SAFE_PERIODS = 10, 150, 5
 TORQUE_TOLERANCE = 0.1
 #: how long a Fault may take to arrive [s] (wall time)
 FAULT_TIMEOUT_S = 1.0
+#: how long the probe waits for each Command [s] (wall time: its Python loop does not tell a host stall from a
+#: silent target, as the runs' C loop does, so it keeps a loaded CI host's margin)
+PROBE_LOCKSTEP_TIMEOUT_S = 2.0
 #: a mode the protocol does not define (0 speed, 1 torque)
 UNKNOWN_MODE = 2
 #: seq of the probe's first Measurement: half the 16-bit space away from a run just before (which starts at 0),

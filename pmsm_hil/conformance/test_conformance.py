@@ -47,10 +47,11 @@ def contract_run(hil_session: HilSession) -> HilResult | str:
 @pytest.fixture(scope="module")
 def probe_report(hil_session: HilSession) -> ProbeReport:
     """The probe's findings (dyno plant at 500 rpm)."""
-    from pmsm_hil.conformance.probe import probe_target
+    from pmsm_hil.conformance.probe import PROBE_LOCKSTEP_TIMEOUT_S, probe_target
     from pmsm_hil.testing.runs import build_config
 
-    cfg = build_config(hil_session.settings, None, {"scenario": "dyno-steady", "speed": 500, "load": 0, "settle": 0})
+    cfg = build_config(hil_session.settings, None, {"scenario": "dyno-steady", "speed": 500, "load": 0, "settle": 0,
+                                                    "lockstep_timeout": PROBE_LOCKSTEP_TIMEOUT_S})
     return probe_target(cfg)
 
 

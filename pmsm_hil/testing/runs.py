@@ -24,10 +24,10 @@ if TYPE_CHECKING:
     from pmsm_hil.testing.report import Reporter
     from pmsm_hil.testing.signals import Signal
 
-#: lockstep: wall time a test run waits for each Command [s] unless the test passes `lockstep_timeout` (SIL targets:
-#: `step_timeout`); `hil run` waits 0.5 s, but a loaded CI host can stall a target process longer than that (a false
-#: `missing` finding, or a SIL target taken as hung)
-LOCKSTEP_TIMEOUT_S = 2.0
+#: lockstep: how long a test run waits for each Command [s] = `hil run`'s (one policy for the CLI, the plugin and
+#: sweeps): a target process the host observes (sil, qemu, spawn) counts only the time it could run, so a loaded
+#: CI host stalling it is a host stall, never a false `missing` finding (docs/runner.md "Host stalls")
+LOCKSTEP_TIMEOUT_S = float(OPTIONS["lockstep_timeout"].default)
 #: `hil run` options the run's own set-up owns (target and link from --hil-target, outputs per run)
 _OWNED = frozenset({"target", "link", "out", "overwrite", "no_log", "json"})
 _RAD_S_TO_RPM = 60.0 / (2.0 * math.pi)
@@ -105,10 +105,6 @@ def run_argv(settings: HilSettings, out_dir: Path | None, kwargs: Mapping[str, A
     if settings.controller is not None and "controller" not in kwargs:
         argv.append(f"--controller={settings.controller}")
     argv += [f"--out={out_dir}"] if out_dir is not None else ["--no-log"]
-    if "lockstep_timeout" not in kwargs:
-        argv.append(f"--lockstep-timeout={LOCKSTEP_TIMEOUT_S}")
-    if "step_timeout" not in kwargs and settings.target.startswith("sil:"):  # a SIL run's wait for a Command
-        argv.append(f"--step-timeout={LOCKSTEP_TIMEOUT_S}")
     for name, value in kwargs.items():
         if name in _OWNED:
             raise TypeError(f"hil.run: '{name}' is set by the session (--hil-target, --hil-out), not per run")

@@ -5,9 +5,14 @@
  * writes through a null pointer (MISBEHAVE_CRASH: SIGSEGV on the host; on the Cortex-M4F an undefined
  * instruction, a fault), calls abort() (MISBEHAVE_ABORT: SIGABRT), recurses without end (MISBEHAVE_OVERFLOW: a
  * stack overflow, SIGSEGV) or never returns (MISBEHAVE_HANG). MISBEHAVE_CONFIG crashes on the ConfigParam Ts.
+ * MISBEHAVE_PRINT misbehaves not at all but prints 1 kB per step on its stdout (8 lines of 128 bytes).
+ * MISBEHAVE_INIT_HANG never returns from hil_app_init, MISBEHAVE_CONFIG_HANG from hil_app_config (on Ts).
  */
 #include <stdint.h>
 #include <stdlib.h>
+#if defined(MISBEHAVE_PRINT) && !defined(__arm__)
+#include <stdio.h>
+#endif
 
 #include "hil_app.h"
 #include "hil_ids.h"
@@ -23,6 +28,11 @@ static volatile uint32_t g_spins;
 
 void hil_app_init(void)
 {
+#if defined(MISBEHAVE_INIT_HANG)
+    for (;;) {
+        g_spins++;
+    }
+#endif
     g_ts_ns = 100000u;
     g_steps = 0u;
 }
@@ -32,6 +42,13 @@ int hil_app_config(uint8_t param_id, float value)
 #if defined(MISBEHAVE_CONFIG) && !defined(__arm__)
     if (param_id == HIL_FW_P_TS) {
         *g_nowhere = 1; /* crashes while being configured */
+    }
+#endif
+#if defined(MISBEHAVE_CONFIG_HANG)
+    if (param_id == HIL_FW_P_TS) {
+        for (;;) {
+            g_spins++;
+        }
     }
 #endif
     if (param_id == HIL_FW_P_TS) {
@@ -76,6 +93,14 @@ static uint32_t deeper(uint32_t depth)
 void hil_app_step(const hil_app_meas_t *m, hil_app_cmd_t *cmd)
 {
     (void)m;
+#if defined(MISBEHAVE_PRINT) && !defined(__arm__)
+    {
+        int line;
+        for (line = 0; line < 8; ++line) { /* 127 characters and the newline */
+            printf("step %06u line %d: %0107u\n", (unsigned)g_steps, line, 0u);
+        }
+    }
+#endif
     if (g_steps++ == MISBEHAVE_AT) {
 #if defined(MISBEHAVE_CRASH) && defined(__arm__)
         __builtin_trap(); /* an undefined instruction: UsageFault, escalated to HardFault */

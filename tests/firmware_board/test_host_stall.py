@@ -1,0 +1,124 @@
+"""Lockstep never blames the firmware for the host (issue 35): a target process the host stops (SIGSTOP) for 3 s
+in mid-run is a host stall — the run waits on and completes with the same records as an undisturbed run,
+`host_stalls` >= 1 — for a SIL target process, QEMU and a spawned native target; a stall longer than
+`--host-stall-limit` ends as the host's error (exit 1), not the firmware's (exit 4); a firmware that had its
+time and did not answer keeps its verdict at the same period (the endless loop at step 500: "target hung",
+tests/firmware_board/test_sil_isolation.py and test_qemu_endings.py)."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import threading
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from pmsm_hil.hil.runlog.reader import read_periods
+from pmsm_hil.hil.runner.run import run_closed_loop
+from pmsm_hil.hil.runner.target_client import HostStallError
+
+from tests.firmware_board._runs import rated
+
+#: record fields that are the host's own wall-clock measurements (a SIL step's execution time on the host)
+_HOST_TIMED = ("exec_time_ns", "exec_split_ns")
+STOP_S = 3.0
+#: a run longer than the C loop's ring (NL_RING x NL_BLOCK = 8000 periods): the loop cannot have run every period
+#: before the first block reaches `live`, so the target is stopped mid-run; QEMU (~1 ms a period here) cannot
+#: outrun the drain by 2000 periods, and a shorter run keeps the test's time down
+DURATION_S = {"sil": 0.9, "spawn": 0.9, "qemu": 0.3}
+
+
+def _stopper(marker: bytes, stop_s: float, stopped: list[int]) -> Callable[[np.ndarray], None]:
+    """A `live` hook that stops this process's child whose command line holds `marker` after the first block of
+    periods and continues it `stop_s` later."""
+
+    def live(block: np.ndarray) -> None:
+        if stopped:
+            return
+        me = os.getpid()
+        for pid in Path(f"/proc/{me}/task/{me}/children").read_text().split():
+            if marker in Path(f"/proc/{pid}/cmdline").read_bytes():
+                os.kill(int(pid), signal.SIGSTOP)
+                stopped.append(int(pid))
+                timer = threading.Timer(stop_s, _continue, (int(pid),))
+                timer.daemon = True
+                timer.start()
+                return
+
+    return live
+
+
+def _continue(pid: int) -> None:
+    with contextlib.suppress(ProcessLookupError):  # a run that ended meanwhile stopped it
+        os.kill(pid, signal.SIGCONT)
+
+
+def _same_records(a: np.ndarray, b: np.ndarray) -> None:
+    assert len(a) == len(b)
+    for name in a.dtype.names or ():
+        if name not in _HOST_TIMED:
+            np.testing.assert_array_equal(a[name], b[name], err_msg=name)
+
+
+def _targets(kind: str, reference_sil: Path, reference_elf: Path) -> tuple[dict[str, Any], bytes]:
+    if kind == "sil":
+        return {"target": f"sil:{reference_sil}"}, b"--sil"
+    if kind == "qemu":
+        return {"target": f"qemu:{reference_elf}"}, b"qemu-system-arm"
+    return {"target": "spawn", "link": "udp"}, b"--native"
+
+
+@pytest.mark.parametrize("kind", ["sil", "qemu", "spawn"])
+def test_a_target_stopped_for_3_s_is_a_host_stall_and_the_run_completes(kind: str, request: pytest.FixtureRequest,
+                                                                        tmp_path: Path) -> None:
+    sil = request.getfixturevalue("reference_sil") if kind == "sil" else Path()
+    elf = request.getfixturevalue("reference_elf") if kind == "qemu" else Path()
+    where, marker = _targets(kind, sil, elf)
+    target, link = where["target"], where.get("link", "virtual")
+    runs = {}
+    for name in ("calm", "stopped"):
+        stopped: list[int] = []
+        out = tmp_path / name
+        res = run_closed_loop(rated(target, link=link, settle_s=0.02, duration_s=DURATION_S[kind], out_dir=out),
+                              live=_stopper(marker, STOP_S, stopped) if name == "stopped" else None)
+        m = res.metrics
+        assert m["end_code"] == 0, m["end_reason"]
+        runs[name] = (m, read_periods(out / "run.mcap"), stopped)
+    stalled = runs["stopped"][0]
+    assert runs["stopped"][2], "the target's process was not found"
+    assert stalled["host_stalls"] >= 1 and stalled["host_stall_s"] >= 1.0
+    assert any(w.startswith("host stall:") for w in stalled["warnings"])
+    _same_records(runs["calm"][1], runs["stopped"][1])
+
+
+def test_a_stall_past_the_limit_is_the_hosts_error_not_the_firmwares(reference_sil: Path, tmp_path: Path) -> None:
+    stopped: list[int] = []
+    res = run_closed_loop(rated(f"sil:{reference_sil}", settle_s=0.02, duration_s=DURATION_S["sil"], out_dir=tmp_path,
+                                host_stall_limit_s=1.0), live=_stopper(b"--sil", STOP_S, stopped))
+    m = res.metrics
+    assert stopped
+    assert m["end_code"] == 1, m["end_reason"]
+    assert isinstance(res.outcome.error, HostStallError)
+    assert m["end_reason"].startswith("host stall: the target's process"), m["end_reason"]
+    assert "--host-stall-limit 1 s" in m["end_reason"] and m["dut_violations"] == 0
+    assert len(read_periods(tmp_path / "run.mcap")) == m["end_period"] + 1
+
+
+@pytest.mark.parametrize("kind", ["sil", "qemu"])
+def test_a_target_that_had_its_time_keeps_its_violation_at_the_same_period(kind: str,
+                                                                           request: pytest.FixtureRequest) -> None:
+    """A Measurement lost on the way (injected): the firmware runs on, idle, and never answers that period; the
+    verdict is the same `missing` finding at the same period as with the in-process target (no wall time)."""
+    lib = request.getfixturevalue("reference_sil" if kind == "sil" else "reference_elf")
+    faults = "drop.up=0.01,seed=3"
+    inproc = run_closed_loop(rated(settle_s=0.01, duration_s=0.05, faults=faults)).metrics
+    m = run_closed_loop(rated(f"{kind}:{lib}", settle_s=0.01, duration_s=0.05, faults=faults,
+                              step_timeout_s=0.2, lockstep_timeout_s=0.2)).metrics
+    assert inproc["end_code"] == m["end_code"] == 4, m["end_reason"]
+    assert "missing: no Command" in m["end_reason"] and "target process's own time" in m["end_reason"]
+    assert m["end_period"] == inproc["end_period"]
+
