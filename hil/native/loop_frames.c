@@ -2,6 +2,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "hil_ids.h"
 #include "hil_protocol.h"
 #include "loop_frames.h"
 
@@ -458,4 +459,47 @@ int nl_decode(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r, nl_cm
         r->dec_messages++;
     }
     return msg;
+}
+
+int nl_bus_frame(const hil_core_frame_t *f, int32_t expected, int32_t have_reply, int32_t prev_answered,
+                 int32_t controller_id)
+{
+    int32_t seq;
+    switch (f->id) {
+    case HIL_PROTOCOL_CMD_A_FRAME_ID:
+    case HIL_PROTOCOL_CMD_B_FRAME_ID:
+    case HIL_PROTOCOL_CMD_C_FRAME_ID:
+    case HIL_PROTOCOL_CMD_FD_FRAME_ID:
+    case HIL_PROTOCOL_CMD_DUTY_A_FRAME_ID:
+    case HIL_PROTOCOL_CMD_DUTY_B_FRAME_ID:
+    case HIL_PROTOCOL_CMD_DUTY_C_FRAME_ID:
+    case HIL_PROTOCOL_CMD_DUTY_FD_FRAME_ID:
+        if (f->len < 2u) {
+            return NL_BUS_SUSPECT;
+        }
+        seq = (int32_t)((uint32_t)f->data[0] | ((uint32_t)f->data[1] << 8)); /* every Command part: seq 0|16@1+ */
+        if (seq == expected && !have_reply) {
+            return NL_BUS_TARGET;
+        }
+        if (expected >= 0 && seq == ((expected - 1) & 0xFFFF) && !prev_answered) {
+            return NL_BUS_TARGET;
+        }
+        return NL_BUS_SUSPECT;
+    case HIL_PROTOCOL_FAULT_TARGET_FRAME_ID:
+        if (f->len != HIL_PROTOCOL_FAULT_TARGET_LENGTH || f->data[0] != 1u || f->data[1] < 1u || f->data[1] > 6u) {
+            return NL_BUS_SUSPECT;
+        }
+        /* not_implemented names the controller id of the Setpoint it answers: another one is no Setpoint of ours */
+        if (f->data[1] == HIL_FW_STATUS_NOT_IMPLEMENTED
+            && ((uint32_t)f->data[2] | ((uint32_t)f->data[3] << 8) | ((uint32_t)f->data[4] << 16)
+                | ((uint32_t)f->data[5] << 24)) != (uint32_t)controller_id) {
+            return NL_BUS_SUSPECT;
+        }
+        return NL_BUS_TARGET;
+    case HIL_PROTOCOL_CONFIG_ACK_FRAME_ID:
+    case HIL_PROTOCOL_HEARTBEAT_TARGET_FRAME_ID:
+        return NL_BUS_TARGET;
+    default:
+        return NL_BUS_FOREIGN;
+    }
 }

@@ -22,7 +22,7 @@ from pmsm_hil.hil.mechanics import RPM_TO_RAD_S, DynoMechanics
 from pmsm_hil.hil.plant_base import PlantBase
 from pmsm_hil.hil.records import FRAME_DTYPE, PERIOD_DTYPE
 from pmsm_hil.hil.runner import recorder
-from pmsm_hil.hil.runner.contract import RULES, EndCode
+from pmsm_hil.hil.runner.contract import MISSING, RULES, EndCode
 from pmsm_hil.hil.runner.cpu_isolation import isolate_cpu
 from pmsm_hil.hil.runner.loop_outcome import MAX_KEPT_VIOLATIONS, BlockSink, LoopOutcome
 from pmsm_hil.hil.runner.native_config import NativeOptions, fill_config
@@ -38,6 +38,8 @@ from pmsm_hil.hil.runner.stop_request import StopRequest, deferred_interrupts
 from pmsm_hil.hil.runner.target_client import TargetClient
 from pmsm_hil.hil.sensors import SensorModel
 from pmsm_hil.protocol.ids import Mode, ParamId
+from pmsm_hil.protocol.links.shared_bus import bus_starved_reason
+from pmsm_hil.protocol.links.spec import redact_spec
 
 _WAIT_NS = 50_000_000  # drain wait per try (Ctrl-C is seen between tries) [ns]
 
@@ -110,6 +112,7 @@ class NativeLoop:
         out = self._start()
         if not isinstance(self.link, NativeCoreLink):  # the link as the enabling Setpoint left it
             self.link.attach(self._c, self.cfg.lockstep_timeout_s)
+            self._c.shared_bus = 1 if self.client.shared else 0
         if isinstance(self.link, NativePyLink):  # a bus error in a callback ends the run
             self.link.on_error = lambda: lib.nl_stop(h)
         thread = threading.Thread(target=lib.nl_run, args=(h,), name="hil-native-loop", daemon=True)
@@ -251,6 +254,7 @@ class NativeLoop:
         if cfg.mode == "realtime":  # the C loop's own lateness histogram (1 µs bins), counted per period in C
             out.lateness_hist_1us = np.frombuffer(self._ffi.buffer(res.late_hist), dtype=np.int64).copy()
         self._add_link_counters()
+        self._add_bus_counters(out)
         self.link.rt_errnos = (int(res.rt_mlock_errno), int(res.rt_sched_errno), int(res.rt_affinity_errno))
         if self._tap is not None:
             self._tap.t, self._tap.seq = float(res.tap_t), int(res.tap_seq)
@@ -263,6 +267,8 @@ class NativeLoop:
             self._end(out, EndCode.INTERNAL_ERROR, f"internal error: {type(out.error).__name__}: {out.error}")
         elif interrupted or end == lib.NL_END_INTERRUPTED:
             self._end(out, EndCode.INTERRUPTED, "interrupted (Ctrl-C or SIGTERM)")
+        elif (bus := self._bus_starved(out, end)) is not None:  # other nodes' frames kept the Commands out
+            self._end(out, EndCode.SAFETY_STOP, f"{bus}; inverter put in the safe state")
         elif end == lib.NL_END_VIOLATION:
             v = out.violations[-1] if out.violation_count <= MAX_KEPT_VIOLATIONS else None
             reason = v.message() if v is not None else f"{out.violation_count} DUT contract violations"
@@ -304,6 +310,28 @@ class NativeLoop:
         reason = self.plant.check_trips(smp) or (
             f"overcurrent: peak |i| = {peak:.2f} A inside the period > i_trip = {i_trip:.2f} A")
         self._end(out, EndCode.SAFETY_STOP, f"plant trip: {reason}; inverter put in the safe state (zero vector)")
+
+    def _add_bus_counters(self, out: LoopOutcome) -> None:
+        """A shared bus: other nodes' frames of the set-up (TargetClient) and of the loop (C) in `out`."""
+        if not self._c.shared_bus:
+            return
+        res, bus = self._res, self.client.bus
+        out.bus_foreign_frames = bus.foreign + int(res.bus_foreign_frames)
+        out.bus_suspect_frames = bus.suspect + int(res.bus_suspect_frames)
+
+    def _bus_starved(self, out: LoopOutcome, end: int) -> str | None:
+        """The reason naming the bus when the run ended for want of Commands (the watchdog, or rule `missing`)
+        while other nodes' frames came at BUS_STARVE_FPS or more since the last Command; else None."""
+        lib, res = self._lib, self._res
+        missing = end == lib.NL_END_VIOLATION and bool(out.violations) and out.violations[-1].rule == MISSING
+        if not self._c.shared_bus or not (end == lib.NL_END_WATCHDOG or missing):
+            return None
+        seq = int(res.end_period) & 0xFFFF
+        mode = "real time" if self.cfg.mode == "realtime" else "lockstep"
+        return bus_starved_reason(redact_spec(self.cfg.link), int(res.bus_silent_frames), int(res.bus_silent_ns) / 1e9,
+                                  f"{mode}: no Command for seq {seq} {self._missing_limit()}; "
+                                  f"{out.bus_foreign_frames} foreign and {out.bus_suspect_frames} suspect frame(s) "
+                                  f"in the run")
 
     def _add_link_counters(self) -> None:
         res, stats = self._res, self.link.stats
