@@ -461,10 +461,33 @@ int nl_decode(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r, nl_cm
     return msg;
 }
 
+/* An id whose sender in hil.dbc is the target. */
+static int target_sends(uint32_t id)
+{
+    switch (id) {
+    case HIL_PROTOCOL_CMD_A_FRAME_ID:
+    case HIL_PROTOCOL_CMD_B_FRAME_ID:
+    case HIL_PROTOCOL_CMD_C_FRAME_ID:
+    case HIL_PROTOCOL_CMD_FD_FRAME_ID:
+    case HIL_PROTOCOL_CMD_DUTY_A_FRAME_ID:
+    case HIL_PROTOCOL_CMD_DUTY_B_FRAME_ID:
+    case HIL_PROTOCOL_CMD_DUTY_C_FRAME_ID:
+    case HIL_PROTOCOL_CMD_DUTY_FD_FRAME_ID:
+    case HIL_PROTOCOL_FAULT_TARGET_FRAME_ID:
+    case HIL_PROTOCOL_CONFIG_ACK_FRAME_ID:
+    case HIL_PROTOCOL_HEARTBEAT_TARGET_FRAME_ID: return 1;
+    default: return 0;
+    }
+}
+
 int nl_bus_frame(const hil_core_frame_t *f, int32_t expected, int32_t have_reply, int32_t prev_answered,
                  int32_t controller_id)
 {
     int32_t seq;
+    const uint8_t want = known_length(f->id);
+    if (want != 0u && f->len != want) {
+        return target_sends(f->id) ? NL_BUS_SUSPECT : NL_BUS_FOREIGN; /* the target's frames have their length */
+    }
     switch (f->id) {
     case HIL_PROTOCOL_CMD_A_FRAME_ID:
     case HIL_PROTOCOL_CMD_B_FRAME_ID:
@@ -474,9 +497,6 @@ int nl_bus_frame(const hil_core_frame_t *f, int32_t expected, int32_t have_reply
     case HIL_PROTOCOL_CMD_DUTY_B_FRAME_ID:
     case HIL_PROTOCOL_CMD_DUTY_C_FRAME_ID:
     case HIL_PROTOCOL_CMD_DUTY_FD_FRAME_ID:
-        if (f->len < 2u) {
-            return NL_BUS_SUSPECT;
-        }
         seq = (int32_t)((uint32_t)f->data[0] | ((uint32_t)f->data[1] << 8)); /* every Command part: seq 0|16@1+ */
         if (seq == expected && !have_reply) {
             return NL_BUS_TARGET;
@@ -486,7 +506,7 @@ int nl_bus_frame(const hil_core_frame_t *f, int32_t expected, int32_t have_reply
         }
         return NL_BUS_SUSPECT;
     case HIL_PROTOCOL_FAULT_TARGET_FRAME_ID:
-        if (f->len != HIL_PROTOCOL_FAULT_TARGET_LENGTH || f->data[0] != 1u || f->data[1] < 1u || f->data[1] > 6u) {
+        if (f->data[0] != 1u || f->data[1] < 1u || f->data[1] > 6u) {
             return NL_BUS_SUSPECT;
         }
         /* not_implemented names the controller id of the Setpoint it answers: another one is no Setpoint of ours */

@@ -20,7 +20,7 @@ from pmsm_hil.protocol.links.shared_bus import (
     command_ids,
     command_seq,
     fault_target_id,
-    target_ids,
+    target_lengths,
 )
 from pmsm_hil.protocol.messages import (
     Command,
@@ -74,7 +74,7 @@ class TargetClient:
         #: that cannot be the target's are counted in `bus`, never taken as its or as findings
         self.shared: bool = bool(getattr(link, "shared", False)) if shared is None else shared
         self.bus = BusTraffic()
-        self._target_ids, self._command_ids, self._fault_id = target_ids(), command_ids(), fault_target_id()
+        self._target_lengths, self._command_ids, self._fault_id = target_lengths(), command_ids(), fault_target_id()
         self._written: dict[int, float] = {}  # parameters being configured: the float32 written
         self._controller_id: int | None = None  # of the last Setpoint sent
         self.codec = codec
@@ -126,15 +126,16 @@ class TargetClient:
         """A shared bus: can `frame` be the target's? (protocol/links/shared_bus.py; the C loop's nl_bus_frame.)
         Else it is counted as bus traffic."""
         fid = frame.arbitration_id
-        if fid not in self._target_ids:
+        want = self._target_lengths.get(fid)
+        if want is None:
             self.bus.foreign += 1
             return False
-        ok = True
-        if fid in self._command_ids:
+        ok = len(frame.data) == want  # the target's frames have their length
+        if ok and fid in self._command_ids:
             seq, expected = command_seq(frame), self._expected
             ok = (seq == expected and self._reply is None) or (
                 expected >= 0 and seq == (expected - 1) & 0xFFFF and not self._prev_answered)
-        elif fid == self._fault_id:
+        elif ok and fid == self._fault_id:
             ok = self.bus.fault_plausible(frame, self._controller_id)
         if not ok:
             self.bus.suspect += 1

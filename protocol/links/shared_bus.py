@@ -47,6 +47,12 @@ def command_ids() -> frozenset[int]:
     return frozenset(m.frame_id for m in load_database().messages if m.name.startswith("Cmd"))
 
 
+@lru_cache(maxsize=1)
+def target_lengths() -> dict[int, int]:
+    """The payload length of each id the target sends (hil.dbc): a frame of another length is not its."""
+    return {m.frame_id: m.length for m in load_database().messages if "Target" in (m.senders or [])}
+
+
 def fault_target_id() -> int:
     return int(load_database().get_message_by_name("FaultTarget").frame_id)
 
@@ -112,4 +118,5 @@ __all__ = [
     "is_shared_bus",
     "rate_text",
     "target_ids",
+    "target_lengths",
 ]

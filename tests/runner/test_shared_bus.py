@@ -7,6 +7,7 @@ cangen)."""
 
 from __future__ import annotations
 
+import contextlib
 import random
 import threading
 import time
@@ -203,3 +204,84 @@ def test_open_link_takes_the_shared_option_off_the_bus() -> None:
 def _no_leaked_threads() -> Iterator[None]:
     yield
     assert not any(t.name == "bus-flood" and t.is_alive() for t in threading.enumerate())
+
+
+class ThreadTarget:
+    """A Python target (SimTarget) in a thread on a virtual channel, answering its first `silent_after`
+    Measurements: to the host a target in another process (`--target external`), whose replies take wall time."""
+
+    def __init__(self, spec: str, silent_after: int | None) -> None:
+        from pmsm_hil.sim_target.target import SimTarget
+
+        self.link = open_link(spec, "target")
+        self.target = SimTarget(self.link, FrameCodec("canfd"), silent_after=silent_after)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self.target.run_forever, args=(self._stop.is_set,),
+                                        name="bus-target", daemon=True)
+
+    def __enter__(self) -> ThreadTarget:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join(10.0)
+        self.link.close()
+
+
+@pytest.mark.parametrize("flood", [True, False])
+def test_a_silent_target_on_a_flooded_bus_ends_naming_the_bus(flood: bool) -> None:
+    """The target stops answering while other nodes flood the bus at full rate: the ending names the bus and its
+    rate (exit 3), not the target; on a quiet shared bus the same silence is the target's (rule `missing`)."""
+    spec = f"virtual:starved{flood},shared=true"
+    cfg = replace(_three(link=spec, target="external", loop="native"), lockstep_timeout_s=0.2)
+    with ThreadTarget(spec, silent_after=100), contextlib.ExitStack() as stack:
+        if flood:
+            stack.enter_context(Flood(f"starved{flood}", "random", 0.0))
+        m = run_closed_loop(cfg).metrics
+    if flood:
+        assert m["end_code"] == EndCode.SAFETY_STOP, m["end_reason"]
+        assert m["end_reason"].startswith(f"bus {spec}: "), m["end_reason"]
+        assert "starved the run (lockstep: no Command for seq 100 " in m["end_reason"]
+        assert m["bus_foreign_frames"] > 0
+    else:
+        assert m["end_code"] == EndCode.DUT_VIOLATION and "missing: no Command for seq 100" in m["end_reason"]
+        assert m["bus_foreign_frames"] == 0
+    assert m["dut_violations_by_rule"]["frame"] == 0 and m["dut_violations_by_rule"]["sequence"] == 0
+
+
+def test_the_c_socketcan_receive_ends_on_a_queue_that_never_empties() -> None:
+    """The C SocketCAN link (on a socketpair carrying its frames): past the deadline it returns at most
+    NL_DRAIN_MAX frames in a row, then 0, however many are queued (the issue's full-rate flood that never
+    ended: the loop's receives kept finding frames)."""
+    import socket
+
+    from can.interfaces.socketcan.socketcan import build_can_frame
+    from pmsm_hil.hil.runner.native_link import native_lib
+
+    ffi, lib = native_lib()
+    a, b = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+    with a, b:
+        a.setblocking(False)
+        b.setblocking(False)
+        frame = build_can_frame(can.Message(arbitration_id=0x123, data=bytes(8), is_extended_id=False))
+        queued = 0
+        try:
+            while queued < 4 * lib.NL_DRAIN_MAX:
+                a.send(frame)
+                queued += 1
+        except BlockingIOError:
+            pass
+        assert queued > lib.NL_DRAIN_MAX  # more than one drain's worth
+        s = ffi.new("nl_socketcan_t *")
+        s.fd, s.fd_frames = b.fileno(), 1
+        f = ffi.new("hil_core_frame_t *")
+        got = 0
+        while lib.nl_socketcan_recv(s, f, 0) > 0:
+            got += 1
+        assert got == lib.NL_DRAIN_MAX  # a drain (deadline 0) ends with frames still queued
+        past = time.clock_gettime_ns(time.CLOCK_MONOTONIC) - 1
+        got = 0
+        while lib.nl_socketcan_recv(s, f, past) > 0:
+            got += 1
+        assert got == min(lib.NL_DRAIN_MAX, queued - lib.NL_DRAIN_MAX)
