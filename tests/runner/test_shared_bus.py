@@ -20,7 +20,7 @@ import pytest
 from pmsm_hil.hil.runner import native_run
 from pmsm_hil.hil.runner.contract import EndCode
 from pmsm_hil.hil.runner.run import run_closed_loop
-from pmsm_hil.hil.runner.target_client import TargetClient
+from pmsm_hil.hil.runner.target_client import DRAIN_MAX, TargetClient
 from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.links.link import open_link
@@ -252,8 +252,8 @@ def test_a_silent_target_on_a_flooded_bus_ends_naming_the_bus(flood: bool) -> No
 
 def test_the_c_socketcan_receive_ends_on_a_queue_that_never_empties() -> None:
     """The C SocketCAN link (on a socketpair carrying its frames): past the deadline it returns at most
-    NL_DRAIN_MAX frames in a row, then 0, however many are queued (the issue's full-rate flood that never
-    ended: the loop's receives kept finding frames)."""
+    NL_DRAIN_MAX (= the Python links' DRAIN_MAX) frames in a row, then 0, however many are queued (the issue's
+    full-rate flood that never ended: the loop's receives kept finding frames)."""
     import socket
 
     from can.interfaces.socketcan.socketcan import build_can_frame
@@ -267,21 +267,21 @@ def test_the_c_socketcan_receive_ends_on_a_queue_that_never_empties() -> None:
         frame = build_can_frame(can.Message(arbitration_id=0x123, data=bytes(8), is_extended_id=False))
         queued = 0
         try:
-            while queued < 4 * lib.NL_DRAIN_MAX:
+            while queued < 4 * DRAIN_MAX:
                 a.send(frame)
                 queued += 1
         except BlockingIOError:
             pass
-        assert queued > lib.NL_DRAIN_MAX  # more than one drain's worth
+        assert queued > DRAIN_MAX  # more than one drain's worth
         s = ffi.new("nl_socketcan_t *")
         s.fd, s.fd_frames = b.fileno(), 1
         f = ffi.new("hil_core_frame_t *")
         got = 0
         while lib.nl_socketcan_recv(s, f, 0) > 0:
             got += 1
-        assert got == lib.NL_DRAIN_MAX  # a drain (deadline 0) ends with frames still queued
+        assert got == DRAIN_MAX  # a drain (deadline 0) ends with frames still queued
         past = time.clock_gettime_ns(time.CLOCK_MONOTONIC) - 1
         got = 0
         while lib.nl_socketcan_recv(s, f, past) > 0:
             got += 1
-        assert got == min(lib.NL_DRAIN_MAX, queued - lib.NL_DRAIN_MAX)
+        assert got == min(DRAIN_MAX, queued - DRAIN_MAX)
