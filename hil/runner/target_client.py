@@ -74,6 +74,10 @@ class TargetClient:
         #: that cannot be the target's are counted in `bus`, never taken as its or as findings
         self.shared: bool = bool(getattr(link, "shared", False)) if shared is None else shared
         self.bus = BusTraffic()
+        #: the last drain stopped at DRAIN_MAX frames with the queue not seen empty (a flood outpacing the host)
+        self.backlog = False
+        #: the link's name in an ending the bus caused ("bus socketcan:vcan0: …")
+        self.bus_name: str = str(getattr(link, "description", "") or "the link")
         self._target_lengths, self._command_ids, self._fault_id = target_lengths(), command_ids(), fault_target_id()
         self._written: dict[int, float] = {}  # parameters being configured: the float32 written
         self._controller_id: int | None = None  # of the last Setpoint sent
@@ -100,9 +104,11 @@ class TargetClient:
         if self.pump is not None:
             self.pump()
         poll, feed, shared = self.link.poll, self.decoder.feed, self.shared
+        self.backlog = True  # until the queue is seen empty
         for _ in range(DRAIN_MAX):
             frame = poll()
             if frame is None:
+                self.backlog = False
                 return
             self.frames_in += 1
             if shared and not self._from_target(frame):
@@ -179,9 +185,9 @@ class TargetClient:
                 break
             if now - start > timeout_s:
                 missing = ", ".join(_param_name(p) for p in pending)
-                starved = bus_starved_reason(
-                    getattr(self.link, "description", "?"), self.bus.frames - bus_before, now - start,
-                    f"no ConfigAck for parameter(s) {missing} within {timeout_s} s") if self.shared else None
+                waited = f"no ConfigAck for parameter(s) {missing} within {timeout_s} s"
+                starved = bus_starved_reason(self.bus_name, self.bus.frames - bus_before, now - start, waited,
+                                             self.backlog) if self.shared else None
                 if starved is not None:
                     raise BusStarvedError(starved)
                 raise DutViolationError(f"target did not acknowledge parameter(s) {missing} within {timeout_s} s "

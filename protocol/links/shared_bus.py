@@ -98,13 +98,16 @@ def rate_text(frames_per_s: float) -> str:
     return f"{frames_per_s / 1e3:.1f} k frames/s" if frames_per_s >= 1e3 else f"{frames_per_s:.0f} frames/s"
 
 
-def bus_starved_reason(link: str, frames: int, seconds: float, waiting_for: str) -> str | None:
+def bus_starved_reason(link: str, frames: int, seconds: float, waiting_for: str, backlog: bool = False) -> str | None:
     """The ending's reason when the bus starved the run: `frames` of other nodes' traffic over `seconds` of wall
-    time without what the run waited for (`waiting_for`), at BUS_STARVE_FPS or more; else None (the target's)."""
-    if seconds <= 0.0 or frames <= 0 or frames / seconds < BUS_STARVE_FPS:
+    time without what the run waited for (`waiting_for`), at BUS_STARVE_FPS or more, or any while the receive
+    queue never emptied (`backlog`: the last drain was cut at its bound, what was awaited may be queued behind
+    them); else None (the target's)."""
+    if seconds <= 0.0 or frames <= 0 or (frames / seconds < BUS_STARVE_FPS and not backlog):
         return None
-    return (f"bus {link}: {rate_text(frames / seconds)} of other nodes' frames ({frames} in {seconds:.1f} s) "
-            f"starved the run ({waiting_for})")
+    queue = "; the receive queue never emptied" if backlog else ""
+    return (f"bus {link}: {rate_text(frames / seconds)} of other nodes' frames ({frames} in {seconds:.1f} s"
+            f"{queue}) starved the run ({waiting_for})")
 
 
 __all__ = [

@@ -285,3 +285,24 @@ def test_the_c_socketcan_receive_ends_on_a_queue_that_never_empties() -> None:
         while lib.nl_socketcan_recv(s, f, past) > 0:
             got += 1
         assert got == min(DRAIN_MAX, queued - DRAIN_MAX)
+
+
+class _Endless(_Quiet):
+    """A shared bus whose receive queue never empties: another node's frame on every poll."""
+
+    def poll(self) -> Frame | None:
+        return Frame(0x123, b"\x00" * 8, False)
+
+
+def test_a_safe_stop_behind_a_flood_names_the_bus() -> None:
+    """The confirmation may be queued behind other nodes' frames the host cannot read fast enough: the safe stop
+    is not confirmed (exit 3 stands) but the reason names the bus, not a silent target; on a quiet bus it stays
+    the target's."""
+    from pmsm_hil.hil.runner.safe_stop import disable_and_confirm
+
+    stop = disable_and_confirm(TargetClient(_Endless([]), FrameCodec("canfd")), 1,  # type: ignore[arg-type]
+                               timeout_s=0.05)
+    assert not stop.confirmed and stop.observed.startswith("bus test:bus: "), stop.observed
+    assert "the receive queue never emptied" in stop.observed and "HeartbeatTarget" in stop.observed
+    quiet = disable_and_confirm(_client([]), 1, timeout_s=0.05)
+    assert not quiet.confirmed and quiet.observed.startswith("no HeartbeatTarget"), quiet.observed
