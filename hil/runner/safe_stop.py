@@ -55,7 +55,8 @@ def disable_and_confirm(client: TargetClient, controller_id: int, timeout_s: flo
     with contextlib.suppress(Exception):  # a broken link is reported by the send below
         client.serve()  # frames already on their way are not the answer
     client.heartbeats.clear()
-    frames0, bus0 = client.frames_in, client.bus.frames
+    shared = bool(getattr(client, "shared", False))  # a client of a shared bus (TargetClient.shared)
+    frames0, bus0 = client.frames_in, client.bus.frames if shared else 0
     t0 = time.perf_counter()
     try:
         client.set_setpoint(enable=False, mode=int(mode), reference=0.0, controller_id=controller_id)
@@ -83,7 +84,7 @@ def disable_and_confirm(client: TargetClient, controller_id: int, timeout_s: flo
         return SafeStop(True, False, ms, f"interrupted (Ctrl-C or SIGTERM) after {ms:.0f} ms of waiting for the "
                                          "confirmation", interrupted=True)
     other = client.frames_in - frames0 - len(seen)
-    starved = _bus_starved(client, bus0, ms, timeout_s) if client.shared else None
+    starved = _bus_starved(client, bus0, ms, timeout_s) if shared else None
     if starved is not None:  # other nodes' frames, not the target, kept the confirmation from being read
         return SafeStop(True, False, ms, starved)
     if seen or other:
