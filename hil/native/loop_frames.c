@@ -509,11 +509,17 @@ int nl_bus_frame(const hil_core_frame_t *f, int32_t expected, int32_t have_reply
         if (f->data[0] != 1u || f->data[1] < 1u || f->data[1] > 6u) {
             return NL_BUS_SUSPECT;
         }
-        /* not_implemented names the controller id of the Setpoint it answers: another one is no Setpoint of ours */
-        if (f->data[1] == HIL_FW_STATUS_NOT_IMPLEMENTED
-            && ((uint32_t)f->data[2] | ((uint32_t)f->data[3] << 8) | ((uint32_t)f->data[4] << 16)
-                | ((uint32_t)f->data[5] << 24)) != (uint32_t)controller_id) {
-            return NL_BUS_SUSPECT;
+        {
+            const uint32_t detail = (uint32_t)f->data[2] | ((uint32_t)f->data[3] << 8) | ((uint32_t)f->data[4] << 16)
+                                    | ((uint32_t)f->data[5] << 24);
+            /* the answers to a Setpoint name what it asked: not_implemented its controller id, invalid_config its
+             * mode; another controller id, or a mode that is no Mode value, answered no Setpoint of ours */
+            if (f->data[1] == HIL_FW_STATUS_NOT_IMPLEMENTED && detail != (uint32_t)controller_id) {
+                return NL_BUS_SUSPECT;
+            }
+            if (f->data[1] == HIL_FW_STATUS_INVALID_CONFIG && detail > 1u) {
+                return NL_BUS_SUSPECT;
+            }
         }
         return NL_BUS_TARGET;
     case HIL_PROTOCOL_CONFIG_ACK_FRAME_ID:

@@ -75,8 +75,9 @@ int nl_decode(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r, nl_cm
 #define NL_BUS_SUSPECT 2  /* a target id with content the target cannot have sent */
 /* A Command part is the target's when it answers the open Measurement seq `expected` before its reply is complete
  * (`have_reply` 0), or the previous seq still unanswered (`prev_answered` 0); a FaultTarget when it has its length,
- * node 1 (target), a Status code 1..6 and, for not_implemented, the run's `controller_id` as detail (the target
- * answered our Setpoint, not another node's); ConfigAck and HeartbeatTarget by their id. */
+ * node 1 (target), a Status code 1..6 and, for not_implemented, the run's `controller_id` as detail, for
+ * invalid_config a Mode value (0, 1) (the target answered our Setpoint, not another node's); ConfigAck and
+ * HeartbeatTarget by their id. */
 int nl_bus_frame(const hil_core_frame_t *f, int32_t expected, int32_t have_reply, int32_t prev_answered,
                  int32_t controller_id);
 

@@ -29,6 +29,9 @@ FAULT_CODES = range(1, 7)
 TARGET_NODE_ID = 1
 #: Status not_implemented: its detail is the controller id of the Setpoint it answers
 NOT_IMPLEMENTED = 6
+#: Status invalid_config: its detail is the mode of the Setpoint it answers, one of the Mode values
+INVALID_CONFIG = 5
+MODES = (0, 1)
 #: bus frames per second, in the stretch without a Command that ended a run, from which the ending is the bus's:
 #: a CAN bus at 1 Mbit/s carries at most ~8 k classic frames/s, so 500/s of other nodes' frames is a bus at
 #: a sixteenth of its capacity or more, taken up by what the run did not send
@@ -86,11 +89,15 @@ class BusTraffic:
     @staticmethod
     def fault_plausible(frame: Frame, controller_id: int | None) -> bool:
         """A FaultTarget the target can have sent: its length, node 1, a Status code 1..6; not_implemented names
-        the controller id of the host's last Setpoint (`controller_id`; None: none sent yet)."""
+        the controller id of the host's last Setpoint (`controller_id`; None: none sent yet), invalid_config a Mode
+        value (another node's Setpoint answered, else)."""
         data = bytes(frame.data)
         if len(data) != 6 or data[0] != TARGET_NODE_ID or data[1] not in FAULT_CODES:
             return False
-        return data[1] != NOT_IMPLEMENTED or int.from_bytes(data[2:6], "little") == controller_id
+        detail = int.from_bytes(data[2:6], "little")
+        if data[1] == INVALID_CONFIG:  # its detail is the Setpoint's mode: the host sends Mode values only
+            return detail in MODES
+        return data[1] != NOT_IMPLEMENTED or detail == controller_id
 
 
 def rate_text(frames_per_s: float) -> str:

@@ -158,15 +158,17 @@ def _client(frames: list[Frame]) -> TargetClient:
 
 
 def test_a_random_fault_frame_is_not_the_targets() -> None:
-    """FaultTarget's id with another node, a code outside Status, or not_implemented naming another
-    controller: suspect, not a target fault (the issue's "target fault code 116")."""
+    """FaultTarget's id with another node, a code outside Status, not_implemented naming another controller or
+    invalid_config naming no Mode (the VM's "target fault code 5 (detail 28)": the target answering another
+    node's Setpoint): suspect, not a target fault (the issue's "target fault code 116")."""
     fid = fault_target_id()
     frames = [Frame(fid, bytes([1, 116, 0, 0, 0, 0]), False), Frame(fid, bytes([9, 1, 0, 0, 0, 0]), False),
-              Frame(fid, bytes([1, 6, 77, 0, 0, 0]), False), Frame(fid, bytes([1, 6, 1, 0, 0, 0]), False)]
+              Frame(fid, bytes([1, 6, 77, 0, 0, 0]), False), Frame(fid, bytes([1, 6, 1, 0, 0, 0]), False),
+              Frame(fid, bytes([1, 5, 28, 0, 0, 0]), False), Frame(fid, bytes([1, 5, 1, 0, 0, 0]), False)]
     client = _client(frames)
     client._controller_id = 1
     client.serve()
-    assert [f.code for f in client.faults] == [6] and client.bus.suspect == 3
+    assert [f.code for f in client.faults] == [6, 5] and client.bus.suspect == 4
 
 
 def test_commands_for_no_open_seq_are_suspect_not_findings() -> None:
