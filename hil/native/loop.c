@@ -281,6 +281,7 @@ static void on_command(loop_t *L, const nl_cmd_t *cmd)
             L->have_reply = 1;
             if (L->c->shared_bus) {
                 L->r->bus_silent_frames = 0;
+                L->r->bus_host_silent = 0;
                 L->bus_reply_ns = nl_now_ns();
             }
         } else {
@@ -305,6 +306,7 @@ static int from_target_node(loop_t *L, const hil_core_frame_t *f)
     }
     if (who == NL_BUS_FOREIGN) {
         r->bus_foreign_frames++;
+        r->bus_host_silent += nl_host_id(f->id);
     } else {
         r->bus_suspect_frames++;
     }

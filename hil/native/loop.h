@@ -220,6 +220,8 @@ typedef struct {
      * cannot be its own (suspect: a Command for no open seq, a second reply, an implausible FaultTarget); those
      * since the last reply taken and the wall time since it [ns] (the start if none) */
     int64_t bus_foreign_frames, bus_suspect_frames, bus_silent_frames, bus_silent_ns;
+    int64_t bus_host_silent;   /* of the foreign frames since the last reply: the host's ids (another node posing as
+                                * the host: its Setpoint or ConfigParam reaches the target too) */
 } nl_result_t;
 
 typedef struct nl_handle nl_handle_t;

@@ -529,3 +529,8 @@ int nl_bus_frame(const hil_core_frame_t *f, int32_t expected, int32_t have_reply
         return NL_BUS_FOREIGN;
     }
 }
+
+int nl_host_id(uint32_t id)
+{
+    return known_length(id) != 0u && !target_sends(id);
+}

@@ -81,4 +81,7 @@ int nl_decode(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r, nl_cm
 int nl_bus_frame(const hil_core_frame_t *f, int32_t expected, int32_t have_reply, int32_t prev_answered,
                  int32_t controller_id);
 
+/* 1: an id hil.dbc gives the host (Measurement, Setpoint, ConfigParam, FaultHost, HeartbeatHost). */
+int nl_host_id(uint32_t id);
+
 #endif

@@ -328,10 +328,14 @@ class NativeLoop:
             return None
         seq = int(res.end_period) & 0xFFFF
         mode = "real time" if self.cfg.mode == "realtime" else "lockstep"
-        return bus_starved_reason(redact_spec(self.cfg.link), int(res.bus_silent_frames), int(res.bus_silent_ns) / 1e9,
-                                  f"{mode}: no Command for seq {seq} {self._missing_limit()}; "
-                                  f"{out.bus_foreign_frames} foreign and {out.bus_suspect_frames} suspect frame(s) "
-                                  f"in the run")
+        link = redact_spec(self.cfg.link)
+        waiting_for = (f"{mode}: no Command for seq {seq} {self._missing_limit()}; {out.bus_foreign_frames} foreign "
+                       f"and {out.bus_suspect_frames} suspect frame(s) in the run")
+        posing = int(res.bus_host_silent)
+        if posing:  # another node sent the host's frames (a Setpoint disables or reconfigures the target)
+            return (f"bus {link}: {posing} frame(s) of the host's ids (Setpoint, ConfigParam, Measurement) from "
+                    f"another node since the last Command reached the target too ({waiting_for})")
+        return bus_starved_reason(link, int(res.bus_silent_frames), int(res.bus_silent_ns) / 1e9, waiting_for)
 
     def _add_link_counters(self) -> None:
         res, stats = self._res, self.link.stats

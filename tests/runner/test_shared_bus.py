@@ -244,7 +244,9 @@ def test_a_silent_target_on_a_flooded_bus_ends_naming_the_bus(flood: bool) -> No
     if flood:
         assert m["end_code"] == EndCode.SAFETY_STOP, m["end_reason"]
         assert m["end_reason"].startswith(f"bus {spec}: "), m["end_reason"]
-        assert "starved the run (lockstep: no Command for seq " in m["end_reason"]  # 100, or earlier under load
+        # the flood's rate, or (random ids) frames of the host's ids from another node that reached the target
+        assert "(lockstep: no Command for seq " in m["end_reason"]  # 100, or earlier under load
+        assert "starved the run" in m["end_reason"] or "of the host's ids" in m["end_reason"]
         assert m["bus_foreign_frames"] > 0
     else:
         assert m["end_code"] == EndCode.DUT_VIOLATION and "missing: no Command for seq " in m["end_reason"]
