@@ -35,7 +35,8 @@ from pmsm_hil.sim_target.fw_params import default_controller
 
 #: `hil run` exit codes (= metrics `end_code`), printed by --help.
 EXIT_CODES = ("exit codes: 0 completed, 1 internal error, 2 usage/config error, 3 safety stop (watchdog, plant "
-              "trip, target fault, safe stop not confirmed, SIL target crashed or hung), 4 DUT contract violation, "
+              "trip, target fault, safe stop not confirmed, SIL target crashed or hung, a shared bus flooded by other "
+              "nodes: end_reason \"bus ...\"), 4 DUT contract violation, "
               "5 setpoint not held (--expect-hold: a completed run with setpoint_held false), 130 interrupted "
               "(Ctrl-C/SIGTERM); every ending but 2 writes metrics.json (end_reason, end_period, end_code) and the log "
               "up to the last period")

@@ -115,6 +115,12 @@ METRICS: Final[tuple[Metric, ...]] = (
        "to_host}` (a MAC that failed or was missing, a replayed freshness value: `auth_failed` + `auth_replayed` "
        "of the receiving end's link counters; null: not known): spoofed, altered or replayed frames", "",
        source=RUN),
+    _m("bus_foreign_frames", "bus foreign frames", "", "a shared CAN bus (socketcan, python-can adapters, a link "
+       "with `shared=true`): frames of ids the target never sends (another node's), counted, never taken as the "
+       "target's (docs/protocol.md, 'A shared bus'); null: not a shared bus", "d", source=RUN),
+    _m("bus_suspect_frames", "bus suspect frames", "", "a shared CAN bus: frames of the target's ids it cannot "
+       "have sent (a Command for no open seq or a second reply, an implausible FaultTarget or ConfigAck), counted "
+       "as another node's, not findings; null: not a shared bus", "d", source=RUN),
     _m("safe_stop_confirmed", "safe stop confirmed", "", "true when the target answered the disabling Setpoint "
        "with a HeartbeatTarget in state idle within 500 ms (docs/runner.md, 'Safe stop on every exit path'); "
        "false: it did not (a completed run then ends with exit 3); null when the Setpoint could not be sent", "",

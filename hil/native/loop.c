@@ -77,6 +77,7 @@ typedef struct {
     int64_t next_start;
     int64_t wait_ns;
     int32_t wait_end;           /* NL_END_RUNNING, or how a lockstep wait ended the run (a host stall, nl_stop) */
+    int64_t bus_reply_ns;      /* shared bus: when the last reply was taken (CLOCK_MONOTONIC [ns]), 0: none yet */
 } loop_t;
 
 static const double NS_PER_S = 1e9;
@@ -280,6 +281,11 @@ static void on_command(loop_t *L, const nl_cmd_t *cmd)
         if (!L->have_reply) {
             L->reply = *cmd;
             L->have_reply = 1;
+            if (L->c->shared_bus) {
+                L->r->bus_silent_frames = 0;
+                L->r->bus_host_silent = 0;
+                L->bus_reply_ns = nl_now_ns();
+            }
         } else {
             add_pending(L, NL_RULE_SEQUENCE, NL_WHAT_SECOND, cmd, seq, 0);
         }
@@ -291,6 +297,25 @@ static void on_command(loop_t *L, const nl_cmd_t *cmd)
     }
 }
 
+/* On a shared bus, 1 when frame f can be the target's (loop_frames.h nl_bus_frame); else it is another node's:
+ * counted as bus traffic and not decoded. */
+static int from_target_node(loop_t *L, const hil_core_frame_t *f)
+{
+    nl_result_t *r = L->r;
+    const int who = nl_bus_frame(f, L->expected, L->have_reply, L->prev_answered, L->c->controller_id);
+    if (who == NL_BUS_TARGET) {
+        return 1;
+    }
+    if (who == NL_BUS_FOREIGN) {
+        r->bus_foreign_frames++;
+        r->bus_host_silent += nl_host_id(f->id);
+    } else {
+        r->bus_suspect_frames++;
+    }
+    r->bus_silent_frames++;
+    return 0;
+}
+
 /* One frame from the target (TargetClient._drain's body). */
 static void take_frame(loop_t *L, const hil_core_frame_t *f)
 {
@@ -300,6 +325,9 @@ static void take_frame(loop_t *L, const hil_core_frame_t *f)
     int msg;
     L->r->frames_rx++;
     record_frame(L, 1u, f);
+    if (L->c->shared_bus && !from_target_node(L, f)) {
+        return;
+    }
     msg = nl_decode(&L->as, f, L->r, &cmd, &code, &detail);
     if (msg == NL_MSG_COMMAND) {
         on_command(L, &cmd);
@@ -1125,6 +1153,7 @@ void nl_run(nl_handle_t *h)
         }
     }
     h->res.wall_ns = nl_now_ns() - t_start;
+    h->res.bus_silent_ns = nl_now_ns() - (L.bus_reply_ns > 0 ? L.bus_reply_ns : t_start);
     h->res.speed_ref_rpm = L.speed_ref_rpm;
     h->res.tap_t = L.tap_t;
     h->res.tap_seq = L.tap_seq;

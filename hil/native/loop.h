@@ -164,6 +164,8 @@ typedef struct {
     int32_t pwm_double;        /* duty-cycle Commands: 0 single update, 1 double (pwm_duty.h halves) */
     int64_t adc_delay_ns;      /* the Measurement is sampled this long after the period start [ns] (0: at it) */
     void *plant_scratch;       /* adc_delay_ns > 0: the kernel's state_size bytes for a copy of the plant state */
+    int32_t shared_bus;        /* 1: a CAN bus other nodes may share (loop.c from_target_node): a frame that cannot be
+                                * the target's is bus traffic (bus_foreign_frames, bus_suspect_frames), no finding */
 } nl_config_t;
 
 /* One block of the ring. `trace` (rows x trace_columns doubles) is the caller's. */
@@ -223,6 +225,12 @@ typedef struct {
     int64_t late_max_ns;
     /* real time over a link: wall time of the synchronising period 0, from its start to its Command [ns] (-1: none) */
     int64_t sync_ns;
+    /* a shared bus (nl_config_t.shared_bus): frames of ids the target never sends (foreign), frames of its ids that
+     * cannot be its own (suspect: a Command for no open seq, a second reply, an implausible FaultTarget); those
+     * since the last reply taken and the wall time since it [ns] (the start if none) */
+    int64_t bus_foreign_frames, bus_suspect_frames, bus_silent_frames, bus_silent_ns;
+    int64_t bus_host_silent;   /* of the foreign frames since the last reply: the host's ids (another node posing as
+                                * the host: its Setpoint or ConfigParam reaches the target too) */
 } nl_result_t;
 
 typedef struct nl_handle nl_handle_t;

@@ -2,6 +2,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "hil_ids.h"
 #include "hil_protocol.h"
 #include "loop_frames.h"
 
@@ -458,4 +459,78 @@ int nl_decode(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r, nl_cm
         r->dec_messages++;
     }
     return msg;
+}
+
+/* An id whose sender in hil.dbc is the target. */
+static int target_sends(uint32_t id)
+{
+    switch (id) {
+    case HIL_PROTOCOL_CMD_A_FRAME_ID:
+    case HIL_PROTOCOL_CMD_B_FRAME_ID:
+    case HIL_PROTOCOL_CMD_C_FRAME_ID:
+    case HIL_PROTOCOL_CMD_FD_FRAME_ID:
+    case HIL_PROTOCOL_CMD_DUTY_A_FRAME_ID:
+    case HIL_PROTOCOL_CMD_DUTY_B_FRAME_ID:
+    case HIL_PROTOCOL_CMD_DUTY_C_FRAME_ID:
+    case HIL_PROTOCOL_CMD_DUTY_FD_FRAME_ID:
+    case HIL_PROTOCOL_FAULT_TARGET_FRAME_ID:
+    case HIL_PROTOCOL_CONFIG_ACK_FRAME_ID:
+    case HIL_PROTOCOL_HEARTBEAT_TARGET_FRAME_ID: return 1;
+    default: return 0;
+    }
+}
+
+int nl_bus_frame(const hil_core_frame_t *f, int32_t expected, int32_t have_reply, int32_t prev_answered,
+                 int32_t controller_id)
+{
+    int32_t seq;
+    const uint8_t want = known_length(f->id);
+    if (want != 0u && f->len != want) {
+        return target_sends(f->id) ? NL_BUS_SUSPECT : NL_BUS_FOREIGN; /* the target's frames have their length */
+    }
+    switch (f->id) {
+    case HIL_PROTOCOL_CMD_A_FRAME_ID:
+    case HIL_PROTOCOL_CMD_B_FRAME_ID:
+    case HIL_PROTOCOL_CMD_C_FRAME_ID:
+    case HIL_PROTOCOL_CMD_FD_FRAME_ID:
+    case HIL_PROTOCOL_CMD_DUTY_A_FRAME_ID:
+    case HIL_PROTOCOL_CMD_DUTY_B_FRAME_ID:
+    case HIL_PROTOCOL_CMD_DUTY_C_FRAME_ID:
+    case HIL_PROTOCOL_CMD_DUTY_FD_FRAME_ID:
+        seq = (int32_t)((uint32_t)f->data[0] | ((uint32_t)f->data[1] << 8)); /* every Command part: seq 0|16@1+ */
+        if (seq == expected && !have_reply) {
+            return NL_BUS_TARGET;
+        }
+        if (expected >= 0 && seq == ((expected - 1) & 0xFFFF) && !prev_answered) {
+            return NL_BUS_TARGET;
+        }
+        return NL_BUS_SUSPECT;
+    case HIL_PROTOCOL_FAULT_TARGET_FRAME_ID:
+        if (f->data[0] != 1u || f->data[1] < 1u || f->data[1] > 6u) {
+            return NL_BUS_SUSPECT;
+        }
+        {
+            const uint32_t detail = (uint32_t)f->data[2] | ((uint32_t)f->data[3] << 8) | ((uint32_t)f->data[4] << 16)
+                                    | ((uint32_t)f->data[5] << 24);
+            /* the answers to a Setpoint name what it asked: not_implemented its controller id, invalid_config its
+             * mode; another controller id, or a mode that is no Mode value, answered no Setpoint of ours */
+            if (f->data[1] == HIL_FW_STATUS_NOT_IMPLEMENTED && detail != (uint32_t)controller_id) {
+                return NL_BUS_SUSPECT;
+            }
+            if (f->data[1] == HIL_FW_STATUS_INVALID_CONFIG && detail > 1u) {
+                return NL_BUS_SUSPECT;
+            }
+        }
+        return NL_BUS_TARGET;
+    case HIL_PROTOCOL_CONFIG_ACK_FRAME_ID:
+    case HIL_PROTOCOL_HEARTBEAT_TARGET_FRAME_ID:
+        return NL_BUS_TARGET;
+    default:
+        return NL_BUS_FOREIGN;
+    }
+}
+
+int nl_host_id(uint32_t id)
+{
+    return known_length(id) != 0u && !target_sends(id);
 }

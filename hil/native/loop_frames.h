@@ -69,4 +69,19 @@ void nl_encode_setpoint(uint8_t enable, uint8_t mode, double reference, uint8_t 
 int nl_decode(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r, nl_cmd_t *cmd, uint8_t *fault_code,
               uint32_t *fault_detail);
 
+/* Who sent a frame the host received on a shared bus (hil.dbc; protocol/links/shared_bus.py): */
+#define NL_BUS_TARGET 0   /* it can be the target's */
+#define NL_BUS_FOREIGN 1  /* an id the target never sends (hil.dbc: sender not Target) */
+#define NL_BUS_SUSPECT 2  /* a target id with content the target cannot have sent */
+/* A Command part is the target's when it answers the open Measurement seq `expected` before its reply is complete
+ * (`have_reply` 0), or the previous seq still unanswered (`prev_answered` 0); a FaultTarget when it has its length,
+ * node 1 (target), a Status code 1..6 and, for not_implemented, the run's `controller_id` as detail, for
+ * invalid_config a Mode value (0, 1) (the target answered our Setpoint, not another node's); ConfigAck and
+ * HeartbeatTarget by their id. */
+int nl_bus_frame(const hil_core_frame_t *f, int32_t expected, int32_t have_reply, int32_t prev_answered,
+                 int32_t controller_id);
+
+/* 1: an id hil.dbc gives the host (Measurement, Setpoint, ConfigParam, FaultHost, HeartbeatHost). */
+int nl_host_id(uint32_t id);
+
 #endif

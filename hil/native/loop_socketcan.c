@@ -6,6 +6,7 @@
 #include <string.h>
 #include <sys/socket.h>
 
+#include "loop_rt.h"
 #include "loop_socketcan.h"
 
 #define SFF_MASK 0x7FFu
@@ -104,6 +105,15 @@ static void note_drops(nl_socketcan_t *s, struct msghdr *mh)
 int nl_socketcan_recv(nl_socketcan_t *s, hil_core_frame_t *f, int64_t deadline_ns)
 {
     int64_t spin_end = -1;
+    /* past the deadline (a drain, or a wait whose time is up): only NL_DRAIN_MAX frames in a row */
+    const int late = deadline_ns <= 0 || nl_now_ns() >= deadline_ns;
+    if (late && s->burst >= NL_DRAIN_MAX) {
+        s->burst = 0;
+        return 0;
+    }
+    if (!late) {
+        s->burst = 0;
+    }
     for (;;) {
         struct canfd_frame fr;
         /* room for the drop count and a timestamp (python-can turns SO_TIMESTAMPNS on for its socket) */
@@ -125,6 +135,7 @@ int nl_socketcan_recv(nl_socketcan_t *s, hil_core_frame_t *f, int64_t deadline_n
         if (n > 0) {
             note_drops(s, &mh);
             if (message(s, &fr, (size_t)n, f)) {
+                s->burst += late;
                 return 1;
             }
             continue;
@@ -139,6 +150,7 @@ int nl_socketcan_recv(nl_socketcan_t *s, hil_core_frame_t *f, int64_t deadline_n
             s->stats.framing_errors++;
         }
         if (nl_wait_readable(s->fd, deadline_ns, &s->spin, &spin_end, &s->stats) == 0) {
+            s->burst = 0;
             return 0;
         }
     }

@@ -28,13 +28,15 @@ typedef struct {
     nl_spin_t spin;            /* busy-poll, then block (adaptive, nl_link.h) */
     nl_link_stats_t stats;
     uint32_t kernel_dropped;   /* the kernel's count of frames dropped for the socket (SO_RXQ_OVFL), last seen */
+    int32_t burst;             /* frames returned in a row at or past the deadline (NL_DRAIN_MAX bounds it) */
 } nl_socketcan_t;
 
 /* Send one frame; 0 ok, -1 counted error (an invalid length, an FD frame on a classic socket, a refused send). */
 int nl_socketcan_send(nl_socketcan_t *s, const hil_core_frame_t *f);
 
 /* The next 11-bit data frame into *f: 1; 0 when none came before deadline_ns; -1 when the peer closed (a
- * socketpair end: a zero-length read). */
+ * socketpair end: a zero-length read). At or past the deadline at most NL_DRAIN_MAX frames in a row come back
+ * (then 0 once): a bus flooded by other nodes never empties, and the caller's deadline must still end its wait. */
 int nl_socketcan_recv(nl_socketcan_t *s, hil_core_frame_t *f, int64_t deadline_ns);
 
 /* *l: the link on *s. */

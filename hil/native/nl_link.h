@@ -22,6 +22,10 @@ typedef int (*nl_send_fn)(void *ctx, const hil_core_frame_t *f);
  * (CLOCK_MONOTONIC; a deadline in the past: only what is queued now); -1 when the peer closed the link. */
 typedef int (*nl_recv_fn)(void *ctx, hil_core_frame_t *f, int64_t deadline_ns);
 
+/* A link that can be flooded by other nodes (SocketCAN) returns at most this many frames in a row at or past a
+ * receive's deadline, then 0 once: a drain or a wait ends even when the queue never empties. */
+#define NL_DRAIN_MAX 256
+
 /* What an in-process target says of the step that produced the last reply (the Python loop's `inproc_result`):
  * its stage split [ns], torque reference [N*m] and restricted-vs-full candidate miss (255: not checked);
  * 1 filled, 0 nothing to say. NULL on links to another process. */

@@ -72,6 +72,10 @@ class LoopOutcome:
     link_faults: dict[str, int] | None = None
     #: the load FMU that ran (`LoadFmuSession.metrics`: model, parameters, doStep calls, warnings), None without
     load_fmu: dict[str, Any] | None = None
+    #: a shared CAN bus (protocol/links/shared_bus.py): other nodes' frames the host received, never taken as the
+    #: target's: ids the target never sends, and frames of its ids it cannot have sent (None: not a shared bus)
+    bus_foreign_frames: int | None = None
+    bus_suspect_frames: int | None = None
     #: the exception behind an internal-error ending (re-raised by the runner after the outputs are written)
     error: BaseException | None = None
     #: metrics-window periods with a restricted-vs-full candidate diagnostic, and those where the

@@ -22,7 +22,7 @@ from pmsm_hil.hil.mechanics import RPM_TO_RAD_S, DynoMechanics
 from pmsm_hil.hil.plant_base import PlantBase
 from pmsm_hil.hil.records import FRAME_DTYPE, PERIOD_DTYPE
 from pmsm_hil.hil.runner import recorder
-from pmsm_hil.hil.runner.contract import RULES, EndCode
+from pmsm_hil.hil.runner.contract import MISSING, RULES, EndCode
 from pmsm_hil.hil.runner.cpu_isolation import isolate_cpu
 from pmsm_hil.hil.runner.loop_outcome import MAX_KEPT_VIOLATIONS, BlockSink, LoopOutcome
 from pmsm_hil.hil.runner.native_config import NativeOptions, fill_config
@@ -38,6 +38,8 @@ from pmsm_hil.hil.runner.stop_request import StopRequest, deferred_interrupts
 from pmsm_hil.hil.runner.target_client import HostStallError, TargetClient
 from pmsm_hil.hil.sensors import SensorModel
 from pmsm_hil.protocol.ids import Mode, ParamId
+from pmsm_hil.protocol.links.shared_bus import bus_starved_reason
+from pmsm_hil.protocol.links.spec import redact_spec
 
 _WAIT_NS = 50_000_000  # drain wait per try (Ctrl-C is seen between tries) [ns]
 
@@ -112,6 +114,7 @@ class NativeLoop:
             self.link.attach(self._c, self.cfg.lockstep_timeout_s)
             self._c.target_pid = self.opts.target_pid  # host stalls (loop_stall.h): the target's own time counts
             self._c.stall_limit_ns = int(self.cfg.host_stall_limit_s * 1e9)
+            self._c.shared_bus = 1 if self.client.shared else 0
         if isinstance(self.link, NativePyLink):  # a bus error in a callback ends the run
             self.link.on_error = lambda: lib.nl_stop(h)
         thread = threading.Thread(target=lib.nl_run, args=(h,), name="hil-native-loop", daemon=True)
@@ -261,6 +264,7 @@ class NativeLoop:
         if cfg.mode == "realtime":  # the C loop's own lateness histogram (1 µs bins), counted per period in C
             out.lateness_hist_1us = np.frombuffer(self._ffi.buffer(res.late_hist), dtype=np.int64).copy()
         self._add_link_counters()
+        self._add_bus_counters(out)
         self.link.rt_errnos = (int(res.rt_mlock_errno), int(res.rt_sched_errno), int(res.rt_affinity_errno))
         if self._tap is not None:
             self._tap.t, self._tap.seq = float(res.tap_t), int(res.tap_seq)
@@ -280,6 +284,8 @@ class NativeLoop:
                 f"while the run waited {wait_s:.1f} s for the Command of period {int(res.end_period)} "
                 f"(--host-stall-limit {cfg.host_stall_limit_s:g} s); the host's fault, not the firmware's")
             self._end(out, EndCode.INTERNAL_ERROR, f"{out.error}; inverter put in the safe state")
+        elif (bus := self._bus_starved(out, end)) is not None:  # other nodes' frames kept the Commands out
+            self._end(out, EndCode.SAFETY_STOP, f"{bus}; inverter put in the safe state")
         elif end == lib.NL_END_VIOLATION:
             v = out.violations[-1] if out.violation_count <= MAX_KEPT_VIOLATIONS else None
             reason = v.message() if v is not None else f"{out.violation_count} DUT contract violations"
@@ -324,6 +330,32 @@ class NativeLoop:
         reason = self.plant.check_trips(smp) or (
             f"overcurrent: peak |i| = {peak:.2f} A inside the period > i_trip = {i_trip:.2f} A")
         self._end(out, EndCode.SAFETY_STOP, f"plant trip: {reason}; inverter put in the safe state (zero vector)")
+
+    def _add_bus_counters(self, out: LoopOutcome) -> None:
+        """A shared bus: other nodes' frames of the set-up (TargetClient) and of the loop (C) in `out`."""
+        if not self._c.shared_bus:
+            return
+        res, bus = self._res, self.client.bus
+        out.bus_foreign_frames = bus.foreign + int(res.bus_foreign_frames)
+        out.bus_suspect_frames = bus.suspect + int(res.bus_suspect_frames)
+
+    def _bus_starved(self, out: LoopOutcome, end: int) -> str | None:
+        """The reason naming the bus when the run ended for want of Commands (the watchdog, or rule `missing`)
+        while other nodes' frames came at BUS_STARVE_FPS or more since the last Command; else None."""
+        lib, res = self._lib, self._res
+        missing = end == lib.NL_END_VIOLATION and bool(out.violations) and out.violations[-1].rule == MISSING
+        if not self._c.shared_bus or not (end == lib.NL_END_WATCHDOG or missing):
+            return None
+        seq = int(res.end_period) & 0xFFFF
+        mode = "real time" if self.cfg.mode == "realtime" else "lockstep"
+        link = redact_spec(self.cfg.link)
+        waiting_for = (f"{mode}: no Command for seq {seq} {self._missing_limit()}; {out.bus_foreign_frames} foreign "
+                       f"and {out.bus_suspect_frames} suspect frame(s) in the run")
+        posing = int(res.bus_host_silent)
+        if posing:  # another node sent the host's frames (a Setpoint disables or reconfigures the target)
+            return (f"bus {link}: {posing} frame(s) of the host's ids (Setpoint, ConfigParam, Measurement) from "
+                    f"another node since the last Command reached the target too ({waiting_for})")
+        return bus_starved_reason(link, int(res.bus_silent_frames), int(res.bus_silent_ns) / 1e9, waiting_for)
 
     def _add_link_counters(self) -> None:
         res, stats = self._res, self.link.stats

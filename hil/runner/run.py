@@ -43,7 +43,7 @@ from pmsm_hil.hil.runner.safe_stop import disable_and_confirm, settle_ending
 from pmsm_hil.hil.runner.setpoint_hold import setpoint_verdict
 from pmsm_hil.hil.runner.sil_watch import InterruptGuard, isolated_config
 from pmsm_hil.hil.runner.stop_request import deferred_interrupts
-from pmsm_hil.hil.runner.target_client import DutViolationError, TargetError
+from pmsm_hil.hil.runner.target_client import BusStarvedError, DutViolationError, TargetError
 from pmsm_hil.hil.runner.target_console import MAX_LINES
 from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target
 from pmsm_hil.protocol.errors import LinkError
@@ -135,10 +135,13 @@ def _run_locked(cfg: RunConfig, cid: int, python_reason: str | None, silent_afte
             try:
                 with tap_setup_frames(conn.client, logger):
                     conn.client.configure(cfg.target_parameters())
-            except DutViolationError as exc:
+            except (DutViolationError, BusStarvedError) as exc:  # the bus's: a safety stop naming it, not exit 4
+                bus = isinstance(exc, BusStarvedError)
                 outcome = LoopOutcome(period_records(), frame_records(), np.zeros(0, cfg.machine.layout.trace_dtype),
-                                      0, end_reason=f"DUT contract violation while configuring: {exc}",
-                                      end_code=int(EndCode.DUT_VIOLATION), safe_state=True)
+                                      0, end_reason=f"{exc} while configuring" if bus else
+                                      f"DUT contract violation while configuring: {exc}",
+                                      end_code=int(EndCode.SAFETY_STOP if bus else EndCode.DUT_VIOLATION),
+                                      safe_state=True)
                 try:
                     with tap_setup_frames(conn.client, logger):  # the disabling Setpoint is logged too
                         settle_ending(outcome, disable_and_confirm(conn.client, cid))
@@ -192,6 +195,16 @@ def _window_metrics(cfg: RunConfig, out: LoopOutcome, sink: RunSink, link_stats:
     return metrics
 
 
+def _bus_traffic(out: LoopOutcome, conn: TargetConnection) -> dict[str, int | None]:
+    """`bus_foreign_frames`, `bus_suspect_frames`: the loop's count, else the set-up's (None: not a shared bus)."""
+    client = conn.client
+    if not client.shared:
+        return {"bus_foreign_frames": None, "bus_suspect_frames": None}
+    foreign, suspect = out.bus_foreign_frames, out.bus_suspect_frames
+    return {"bus_foreign_frames": client.bus.foreign if foreign is None else foreign,
+            "bus_suspect_frames": client.bus.suspect if suspect is None else suspect}
+
+
 def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection, sink: RunSink) -> dict[str, Any]:
     """Metrics over the metrics window plus run-level facts (ending, contract findings, lateness, link)."""
     stats = conn.link_stats()
@@ -228,6 +241,7 @@ def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection, sink: Ru
     metrics["load_fmu"] = out.load_fmu
     metrics["mode"] = cfg.mode
     metrics["link_spec"] = redact_spec(cfg.link)  # issue 26: a key= never reaches metrics.json
+    metrics.update(_bus_traffic(out, conn))
     warnings: list[str] = []
     lat = out.lateness_us
     if cfg.mode == "realtime" and lat.n:

@@ -16,6 +16,7 @@ from typing import Any, Final
 from pmsm_hil.hil.runner.contract import EndCode
 from pmsm_hil.hil.runner.target_client import TargetClient
 from pmsm_hil.protocol.ids import NODE_STATE_NAMES, Mode, NodeState
+from pmsm_hil.protocol.links.shared_bus import bus_starved_reason
 
 #: how long the target may take to confirm the disabling Setpoint [s] (wall time)
 SAFE_STOP_TIMEOUT_S: Final = 0.5
@@ -54,7 +55,8 @@ def disable_and_confirm(client: TargetClient, controller_id: int, timeout_s: flo
     with contextlib.suppress(Exception):  # a broken link is reported by the send below
         client.serve()  # frames already on their way are not the answer
     client.heartbeats.clear()
-    frames0 = client.frames_in
+    shared = bool(getattr(client, "shared", False))  # a client of a shared bus (TargetClient.shared)
+    frames0, bus0 = client.frames_in, client.bus.frames if shared else 0
     t0 = time.perf_counter()
     try:
         client.set_setpoint(enable=False, mode=int(mode), reference=0.0, controller_id=controller_id)
@@ -82,6 +84,9 @@ def disable_and_confirm(client: TargetClient, controller_id: int, timeout_s: flo
         return SafeStop(True, False, ms, f"interrupted (Ctrl-C or SIGTERM) after {ms:.0f} ms of waiting for the "
                                          "confirmation", interrupted=True)
     other = client.frames_in - frames0 - len(seen)
+    starved = _bus_starved(client, bus0, ms, timeout_s) if shared else None
+    if starved is not None:  # other nodes' frames, not the target, kept the confirmation from being read
+        return SafeStop(True, False, ms, starved)
     if seen or other:
         beats = f"{len(seen)} HeartbeatTarget (last state {_state_name(seen[-1])})" if seen else "no HeartbeatTarget"
         got = f"{beats} and {other} other frame(s)"
@@ -89,6 +94,14 @@ def disable_and_confirm(client: TargetClient, controller_id: int, timeout_s: flo
         got = "no frame at all"
     return SafeStop(True, False, ms, f"no HeartbeatTarget in state idle within {timeout_s * 1e3:g} ms of the "
                                      f"disabling Setpoint ({got})")
+
+
+def _bus_starved(client: TargetClient, bus0: int, ms: float, timeout_s: float) -> str | None:
+    """A shared bus: the reason naming the bus when other nodes' frames came at BUS_STARVE_FPS or more during
+    the wait (the confirmation may be queued behind them), else None."""
+    return bus_starved_reason(client.bus_name, client.bus.frames - bus0, ms / 1e3,
+                              f"no HeartbeatTarget in state idle read within {timeout_s * 1e3:g} ms of the "
+                              "disabling Setpoint", client.backlog)
 
 
 def settle_ending(out: Any, stop: SafeStop) -> bool:
@@ -102,7 +115,9 @@ def settle_ending(out: Any, stop: SafeStop) -> bool:
     note = f"safe stop not confirmed: {stop.observed}"
     if out.end_code == int(EndCode.COMPLETED):
         out.end_code = int(EndCode.INTERRUPTED if stop.interrupted else EndCode.SAFETY_STOP)
-        out.end_reason = f"{note}; inverter put in the safe state (zero vector)"
+        bus = stop.observed.startswith("bus ")  # the bus's ending: its name first
+        out.end_reason = (f"{stop.observed}; safe stop not confirmed" if bus else note) + \
+            "; inverter put in the safe state (zero vector)"
     else:
         out.end_reason = f"{out.end_reason}; {note}"
     was_safe = bool(out.safe_state)

@@ -11,8 +11,17 @@ from collections.abc import Callable, Mapping
 from pmsm_hil.hil.errors import HilError
 from pmsm_hil.hil.runner.contract import FRAME, SEQUENCE, describe
 from pmsm_hil.protocol.codec import FrameCodec
+from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.ids import ParamId, Status
 from pmsm_hil.protocol.links import Link
+from pmsm_hil.protocol.links.shared_bus import (
+    BusTraffic,
+    bus_starved_reason,
+    command_ids,
+    command_seq,
+    fault_target_id,
+    target_lengths,
+)
 from pmsm_hil.protocol.messages import (
     Command,
     ConfigAck,
@@ -28,6 +37,9 @@ from pmsm_hil.sim_target.fw_params import FirmwareParamId
 _F32 = struct.Struct("<f")
 #: node id of the target (`Node` in the DBC)
 TARGET_NODE = 1
+#: frames one drain takes at most: a bus flooded by other nodes never empties, and the caller's deadline must
+#: still be checked (the C loop's NL_DRAIN_MAX, hil/native/nl_link.h)
+DRAIN_MAX = 256
 
 
 
@@ -52,11 +64,28 @@ class HostStallError(HilError):
     while the run waited for a Command (the host's fault, not the firmware's: exit 1)."""
 
 
+class BusStarvedError(HilError):
+    """Other nodes' frames on a shared bus kept the target's answers out (the message names the bus); not the
+    target's fault."""
+
+
 class TargetClient:
     """Talks to one target over a link. ``pump`` (in-process target) is called while waiting."""
 
-    def __init__(self, link: Link, codec: FrameCodec, pump: Callable[[], object] | None = None) -> None:
+    def __init__(self, link: Link, codec: FrameCodec, pump: Callable[[], object] | None = None,
+                 shared: bool | None = None) -> None:
         self.link = link
+        #: other nodes may share the bus (protocol/links/shared_bus.py; default: the link's own `shared`): frames
+        #: that cannot be the target's are counted in `bus`, never taken as its or as findings
+        self.shared: bool = bool(getattr(link, "shared", False)) if shared is None else shared
+        self.bus = BusTraffic()
+        #: the last drain stopped at DRAIN_MAX frames with the queue not seen empty (a flood outpacing the host)
+        self.backlog = False
+        #: the link's name in an ending the bus caused ("bus socketcan:vcan0: …")
+        self.bus_name: str = str(getattr(link, "description", "") or "the link")
+        self._target_lengths, self._command_ids, self._fault_id = target_lengths(), command_ids(), fault_target_id()
+        self._written: dict[int, float] = {}  # parameters being configured: the float32 written
+        self._controller_id: int | None = None  # of the last Setpoint sent
         self.codec = codec
         self.decoder = codec.decoder(ordered=False)  # the contract checks each Command's seq itself
         self.pump = pump
@@ -79,23 +108,55 @@ class TargetClient:
     def _drain(self) -> None:
         if self.pump is not None:
             self.pump()
-        poll, feed = self.link.poll, self.decoder.feed
-        while True:
+        poll, feed, shared = self.link.poll, self.decoder.feed, self.shared
+        self.backlog = True  # until the queue is seen empty
+        for _ in range(DRAIN_MAX):
             frame = poll()
             if frame is None:
+                self.backlog = False
                 return
             self.frames_in += 1
+            if shared and not self._from_target(frame):
+                continue
             msg = feed(frame)
             if msg is None:
                 continue
             if isinstance(msg, Command):
                 self._on_command(msg)
             elif isinstance(msg, ConfigAck):
+                if shared and not self._ack_plausible(msg):
+                    self.bus.suspect += 1
+                    continue
                 self._acks[msg.param_id] = msg
             elif isinstance(msg, Fault):
                 self.faults.append(msg)
             elif isinstance(msg, Heartbeat) and msg.node == TARGET_NODE:
                 self.heartbeats.append(msg)
+
+    def _from_target(self, frame: Frame) -> bool:
+        """A shared bus: can `frame` be the target's? (protocol/links/shared_bus.py; the C loop's nl_bus_frame.)
+        Else it is counted as bus traffic."""
+        fid = frame.arbitration_id
+        want = self._target_lengths.get(fid)
+        if want is None:
+            self.bus.foreign += 1
+            return False
+        ok = len(frame.data) == want  # the target's frames have their length
+        if ok and fid in self._command_ids:
+            seq, expected = command_seq(frame), self._expected
+            ok = (seq == expected and self._reply is None) or (
+                expected >= 0 and seq == (expected - 1) & 0xFFFF and not self._prev_answered)
+        elif ok and fid == self._fault_id:
+            ok = self.bus.fault_plausible(frame, self._controller_id)
+        if not ok:
+            self.bus.suspect += 1
+        return ok
+
+    def _ack_plausible(self, ack: ConfigAck) -> bool:
+        """A ConfigAck the target can have sent: for a parameter being written, echoing its float32 (or a
+        rejection)."""
+        sent = self._written.get(ack.param_id)
+        return sent is not None and (ack.value == sent or ack.status != int(Status.OK))
 
     def _silence_hint(self) -> str:
         """Why a target may not answer at all: none on the link, or (authenticated frames) another key."""
@@ -118,6 +179,8 @@ class TargetClient:
         still starting up is caught); raises naming a rejected or unacknowledged parameter."""
         params: dict[int, float] = dict(parameters.items())  # ParamId or FirmwareParamId keys (named)
         self._acks.clear()
+        self._written = {int(p): _F32.unpack(_F32.pack(float(v)))[0] for p, v in params.items()}
+        bus_before = self.bus.frames
         start = time.perf_counter()
         last_send = -math.inf
         while True:
@@ -127,6 +190,11 @@ class TargetClient:
                 break
             if now - start > timeout_s:
                 missing = ", ".join(_param_name(p) for p in pending)
+                waited = f"no ConfigAck for parameter(s) {missing} within {timeout_s} s"
+                starved = bus_starved_reason(self.bus_name, self.bus.frames - bus_before, now - start, waited,
+                                             self.backlog) if self.shared else None
+                if starved is not None:
+                    raise BusStarvedError(starved)
                 raise DutViolationError(f"target did not acknowledge parameter(s) {missing} within {timeout_s} s "
                                         f"({self._silence_hint()})")
             if now - last_send >= resend_s:
@@ -146,6 +214,7 @@ class TargetClient:
 
     def set_setpoint(self, *, enable: bool, mode: int, reference: float, controller_id: int) -> None:
         """Send a setpoint (enable, mode, reference in rad/s or N·m, controller id)."""
+        self._controller_id = controller_id
         self.link.send(self.codec.encode(Setpoint(enable=enable, mode=mode, reference=reference,
                                                   controller_id=controller_id)))
 

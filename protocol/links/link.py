@@ -24,10 +24,12 @@ from pmsm_hil.protocol.errors import LinkError, LinkSpecError
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.links.framed_bus import FramedBus
 from pmsm_hil.protocol.links.kinds import link_kind
+from pmsm_hil.protocol.links.shared_bus import SHARED_OPTION, is_shared_bus
 from pmsm_hil.protocol.links.spec import Role, parse_spec, redact_spec
 from pmsm_hil.protocol.links.stats import LinkStats
 
 _perf = time.perf_counter
+_TRUE = ("true", "1", "yes", "on")
 
 
 @runtime_checkable
@@ -77,6 +79,9 @@ class BusLink:
         self.stats: LinkStats = self._fast.link_stats if self._fast is not None else LinkStats()
         self.fd = bus.protocol in (CanProtocol.CAN_FD, CanProtocol.CAN_FD_NON_ISO) or bool(getattr(bus, "fd", False))
         self._closed = False
+        #: other nodes may share this bus (protocol/links/shared_bus.py): frames that cannot be the target's are
+        #: bus traffic, not findings; set by open_link from the SPEC
+        self.shared = False
         # python-can's virtual bus deep-copies every Message per receiver (~10 µs); in-process we hand each
         # receiver queue its own freshly built Message instead: same semantics, a fraction of the cost.
         self._virtual: VirtualBus | None = bus if type(bus) is VirtualBus else None
@@ -169,6 +174,7 @@ def open_link(spec: str = "virtual", role: Role = "host") -> BusLink:
     if role not in ("host", "target"):
         raise LinkSpecError(f"role={role!r} (expected 'host' or 'target')")
     ls = parse_spec(spec)
+    shared = ls.options.pop(SHARED_OPTION, None)  # how the host reads the bus (shared_bus.py): not python-can's
     try:
         bus, description = link_kind(ls).open_bus(ls, role)
     except LinkError:
@@ -183,4 +189,6 @@ def open_link(spec: str = "virtual", role: Role = "host") -> BusLink:
         KeyError,
     ) as exc:
         raise LinkError(f"cannot open link {redact_spec(spec)!r}: {exc}") from exc
-    return BusLink(bus, description)
+    link = BusLink(bus, description)
+    link.shared = is_shared_bus(spec) if shared is None else shared is True or str(shared).lower() in _TRUE
+    return link
