@@ -106,3 +106,18 @@ def test_a_result_reads_its_signals_from_the_log(tmp_path: Path) -> None:
     again = HilResult.load(r.out_dir)
     assert again.window == r.window and again.metrics == r.metrics
     assert np.array_equal(again.signal("i_q").y, r.signal("i_q").y)
+
+
+def test_an_external_target_runs_without_xdist_workers() -> None:
+    """`-n auto` (the repository's addopts) gives one board's tests no parallel workers; other targets keep xdist's
+    count (None: the next implementation, xdist's own, decides)."""
+    from types import SimpleNamespace
+
+    from pmsm_hil.testing.plugin import pytest_xdist_auto_num_workers
+
+    def config(target: str) -> pytest.Config:
+        return SimpleNamespace(getoption=lambda name: {"--hil-target": target}[name])  # type: ignore[return-value]
+
+    assert pytest_xdist_auto_num_workers(config("external:socketcan:can0")) == 0
+    for target in ("inproc", "spawn", "sil:x.so", "qemu:x.elf"):
+        assert pytest_xdist_auto_num_workers(config(target)) is None
