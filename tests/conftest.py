@@ -38,53 +38,6 @@ def pytest_configure(config: pytest.Config) -> None:
         signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
-def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Under pytest-xdist (`-n`, in pyproject's addopts) keep the tests that share a module- or session-scoped
-    fixture of this suite on one worker (an `xdist_group` per connected set, `--dist loadgroup`), so a shared run
-    or build is made once, not once per worker; every other test goes to whichever worker is free."""
-    if not config.pluginmanager.hasplugin("xdist") or config.getoption("dist", "no") != "loadgroup":
-        return
-    for item, group in shared_fixture_groups(items).items():
-        item.add_marker(pytest.mark.xdist_group(group))
-
-
-# before xdist's own hook, which turns the `xdist_group` marks into the node ids' `@group` suffix
-pytest_collection_modifyitems = pytest.hookimpl(tryfirst=True)(pytest_collection_modifyitems)
-
-
-def shared_fixture_groups(items: list[pytest.Item]) -> dict[pytest.Item, str]:
-    """item → group name, for the items that use a non-function-scoped fixture defined under tests/ (the firmware
-    builds excepted: fw_build caches them across processes, under a lock). Items sharing such a fixture, directly
-    or through another item, are in one group (union-find over items and fixtures)."""
-    parent: dict[str, str] = {}
-
-    def find(key: str) -> str:
-        while parent.setdefault(key, key) != key:
-            parent[key] = parent[parent[key]]
-            key = parent[key]
-        return key
-
-    shared: dict[pytest.Item, list[str]] = {}
-    for item in items:
-        info = getattr(item, "_fixtureinfo", None)
-        if info is None:
-            continue
-        keys = []
-        for name in info.names_closure:
-            for fdef in info.name2fixturedefs.get(name, ()):
-                if fdef.scope != "function" and fdef.baseid.startswith("tests") and name not in CROSS_PROCESS_CACHED:
-                    keys.append(f"{fdef.baseid}::{name}")
-        if keys:
-            shared[item] = keys
-            for key in keys[1:]:
-                parent[find(key)] = find(keys[0])
-    return {item: find(keys[0]) for item, keys in shared.items()}
-
-
-#: session fixtures whose artefact is cached across processes (sim_target.fw_build's locked build cache)
-CROSS_PROCESS_CACHED = frozenset({"reference_sil", "reference_elf", "template_sil", "template_elf"})
-
-
 def pytest_runtest_logreport(report: pytest.TestReport) -> None:
     """Collect skips whose reason is not allowed in CI."""
     if os.environ.get("HIL_CI") != "1" or not report.skipped or hasattr(report, "wasxfail"):
