@@ -71,6 +71,13 @@ def pytest_configure(config: pytest.Config) -> None:
         raise pytest.UsageError(problem)
 
 
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_auto_num_workers(config: pytest.Config) -> int | None:
+    """pytest-xdist's `-n auto` (this repository's addopts): no workers for an `external:` target, whose one board
+    cannot take two tests' runs at once; other targets start one per run, xdist's own count holds."""
+    return 0 if str(config.getoption("--hil-target")).startswith("external") else None
+
+
 def _settings(config: pytest.Config) -> HilSettings:
     from pmsm_hil.testing.runs import HilSettings
 

@@ -105,7 +105,7 @@ def test_an_endless_loop_ends_with_exit_3_and_the_target_killed(firmware: dict[s
     _, err = proc.communicate(timeout=120)
     elapsed = time.monotonic() - t0
     assert proc.returncode == 3, err
-    assert elapsed < 30.0
+    assert elapsed < 100.0  # a bound, not a speed: 45 s at load 12 (two `hil` start-ups, the 1 s step timeout)
     assert "target hung: its step for period 500 did not return within --step-timeout 1 s" in err
     metrics, periods = _outputs(out)
     assert metrics["end_code"] == 3 and len(periods) == metrics["end_period"] + 1 == 501

@@ -195,7 +195,9 @@ def _run_over_pair(cfg: RunConfig, loop: str, target: str) -> RunResult:
     opts = cfg.link.partition(",")[2]
     tail = f",{opts}" if opts else ""
     with _target_on(f"seqcan:{b.detach()}{tail}", target):
-        return run_closed_loop(replace(cfg, link=f"seqcan:{a.detach()}{tail}", target="external", loop=loop))
+        # a generous lockstep timeout (as below): at load 12 the default's wall-time wait ended runs early
+        return run_closed_loop(replace(cfg, link=f"seqcan:{a.detach()}{tail}", target="external", loop=loop,
+                                       lockstep_timeout_s=10.0))
 
 
 @pytest.mark.usefixtures("seqcan")

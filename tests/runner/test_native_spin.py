@@ -156,15 +156,24 @@ def test_the_udp_floor_is_a_real_round_trip_between_two_processes() -> None:
 
 def test_the_paced_udp_floor_paces_every_period_and_counts_late_replies() -> None:
     """`nl_udp_paced_floor` (the floor under `hil bench realtime`'s UDP misses): one datagram per period, each
-    reply timed; at a period far longer than any round trip here none is late, at 1 µs (shorter than two system
-    calls) nearly all are — and the schedule goes on after each late one."""
+    reply timed; at 1 µs (shorter than two system calls) nearly all are late — and the schedule goes on after each
+    late one. (None late at a long period holds on an idle machine only: the `timing` test below.)"""
     ffi, lib = native_lib()
     out = ffi.new("nl_udp_paced_floor_t *")
     for spin_ns in (50_000, 0):  # the echo spinning as the target on three CPUs, blocking as on fewer
         assert lib.nl_udp_paced_floor(20, 20_000_000, -1, 0, spin_ns, out) == 0
-        assert out.periods == 20 and out.late == 0 and 0 < out.median_ns <= out.max_ns + 1_000
+        assert out.periods == 20 and 0 <= out.late <= 20 and 0 < out.median_ns <= out.max_ns + 1_000
     assert lib.nl_udp_paced_floor(200, 1_000, -1, 0, 0, out) == 0
     assert out.periods == 200 and out.late >= 150 and out.median_ns >= 1_000
+
+
+@pytest.mark.timing  # a 20 ms period with no late reply: a busy machine leaves the echo unscheduled that long
+def test_the_paced_udp_floor_has_no_late_reply_at_a_long_period() -> None:
+    ffi, lib = native_lib()
+    out = ffi.new("nl_udp_paced_floor_t *")
+    for spin_ns in (50_000, 0):
+        assert lib.nl_udp_paced_floor(20, 20_000_000, -1, 0, spin_ns, out) == 0
+        assert out.periods == 20 and out.late == 0
 
 
 def test_bench_loop_prints_the_udp_floor_and_its_load_ratio(monkeypatch: pytest.MonkeyPatch) -> None:

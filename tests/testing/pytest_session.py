@@ -46,10 +46,12 @@ class Session:
 
 def run_pytest(args: Sequence[str], tmp_path: Path, *, timeout_s: float = 240.0,
                pass_fds: Sequence[int] = ()) -> Session:
-    """`python -m pytest ARGS --junitxml` from the repository root (HIL_CI unset: the inner session is a user's)."""
+    """`python -m pytest ARGS --junitxml` from the repository root (HIL_CI unset: the inner session is a user's), in
+    one process (`-n 0`: the repository's addopts ask for pytest-xdist workers)."""
     junit = tmp_path / f"junit-{len(list(tmp_path.glob('junit-*.xml')))}.xml"
     env = {k: v for k, v in os.environ.items() if k not in ("HIL_CI", "PYTEST_ADDOPTS")}
-    proc = subprocess.run([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-q", f"--junitxml={junit}",
+    proc = subprocess.run([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-q", "-n", "0",
+                           f"--junitxml={junit}",
                            f"--basetemp={tmp_path / 'inner'}", *args], cwd=ROOT, env=env, capture_output=True,
                           text=True, timeout=timeout_s, pass_fds=tuple(pass_fds))
     output = proc.stdout + proc.stderr

@@ -124,3 +124,18 @@ def test_a_bad_hil_target_is_one_usage_error(tmp_path: Path, target: str, expect
     out = (proc.stdout + proc.stderr).strip().splitlines()
     assert proc.returncode == pytest.ExitCode.USAGE_ERROR, out
     assert out == [f"ERROR: {out[0].removeprefix('ERROR: ')}"] and expected in out[0], out
+
+
+def test_an_external_target_runs_without_xdist_workers() -> None:
+    """`-n auto` (the repository's addopts) gives one board's tests no parallel workers; other targets keep xdist's
+    count (None: the next implementation, xdist's own, decides)."""
+    from types import SimpleNamespace
+
+    from pmsm_hil.testing.plugin import pytest_xdist_auto_num_workers
+
+    def config(target: str) -> pytest.Config:
+        return SimpleNamespace(getoption=lambda name: {"--hil-target": target}[name])  # type: ignore[return-value]
+
+    assert pytest_xdist_auto_num_workers(config("external:socketcan:can0")) == 0
+    for target in ("inproc", "spawn", "sil:x.so", "qemu:x.elf"):
+        assert pytest_xdist_auto_num_workers(config(target)) is None
