@@ -54,6 +54,18 @@ def marginal_rates(points: list[MemoryPoint], *, cpu: bool = False) -> list[floa
             for i, (a, b) in enumerate(itertools.pairwise(ordered)) if b.duration_s > a.duration_s]
 
 
+def _own_peak_rss_kib(fallback_kib: float) -> float:
+    """This process's own peak RSS [KiB]: Linux's VmHWM, which starts anew at exec. `ru_maxrss` does not: a process
+    forked from a big one (a pytest worker that ran a browser test) and exec'd keeps its parent's peak."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("VmHWM:"):
+                return float(line.split()[1])
+    except OSError:
+        pass
+    return fallback_kib
+
+
 def probe(argv: list[str]) -> dict[str, float]:
     """Run `hil run ARGV` here and return wall time, exit code and peak RSS of this process and its children."""
     from pmsm_hil.app.cli.main import main
@@ -63,7 +75,8 @@ def probe(argv: list[str]) -> dict[str, float]:
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     kib = 1024.0 if sys.platform != "darwin" else 1.0
     return {"exit_code": float(code), "wall_s": wall, "cpu_s": cpu,
-            "rss_host_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * kib / 1e6,
+            "rss_host_mb": _own_peak_rss_kib(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * kib / 1024.0)
+            * 1024.0 / 1e6,
             "rss_logger_mb": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * kib / 1e6}
 
 

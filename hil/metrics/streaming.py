@@ -81,9 +81,11 @@ class WindowMetrics:
         self.narrow += int(np.sum(block["narrow_pulses"], dtype=np.int64))
         self.narrow_gated += int(np.sum(block["narrow_pulses_gated"], dtype=np.int64))
         self.exec_us.add(block["exec_time_ns"][cold:])
-        split = np.asarray(block["exec_split_ns"][cold:]).reshape(n - min(cold, n), -1)
-        for k, acc in enumerate(self.split_us[: split.shape[1]]):
-            acc.add(split[:, k])
+        warm = np.asarray(block["exec_split_ns"][cold:])
+        if warm.shape[0]:  # a block all cold start (a run ended within its first periods) has no split to add
+            split = warm.reshape(warm.shape[0], -1)
+            for k, acc in enumerate(self.split_us[: split.shape[1]]):
+                acc.add(split[:, k])
         self.candidates += int(np.sum(block["candidates"], dtype=np.int64))
         self.late += int(np.count_nonzero(block["late"]))
         self.missed += int(np.count_nonzero(block["missed"]))

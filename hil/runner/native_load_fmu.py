@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from pmsm_hil.hil.load_fmu.session import LoadFmuSession
 from pmsm_hil.hil.mechanics import RPM_TO_RAD_S
+from pmsm_hil.hil.runner.load_fmu_session import LoadFmuSession
 from pmsm_hil.hil.runner.run_config import RunConfig
 
 

@@ -78,6 +78,15 @@ def test_any_block_split_gives_the_whole_array_metrics(cuts: list[int]) -> None:
             assert streamed[key] == value, key
 
 
+def test_a_block_that_is_all_cold_start_adds_no_execution_split() -> None:
+    """A run that ends within its cold start (a trip at period 5) gives a block whose every period is cold."""
+    p, _ = _run(0.01)
+    acc = WindowMetrics()
+    acc.add_periods(p[:5], cold=10)
+    acc.add_periods(p[5:8], cold=2)
+    assert acc.periods == 8
+
+
 def test_exec_quantiles_are_numpys_exactly() -> None:
     rng = np.random.default_rng(5)
     for n in (1, 2, 3, 10, 999, 4321):

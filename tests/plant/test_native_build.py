@@ -7,18 +7,21 @@ import subprocess
 from pathlib import Path
 
 import pytest
+from pmsm_hil.hil.load_fmu.headers import fmi_include_dir
 
 NATIVE = Path(__file__).resolve().parents[2] / "hil" / "native"
 STRICT = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion", "-pedantic", "-O2"]
 #: the native loop (loop*.c) includes the HIL target core and the generated codec
 FIRMWARE = NATIVE.parents[1] / "firmware_stub"
 INCLUDES = [f"-I{FIRMWARE / d}" for d in ("target", "generated", "include")]
+#: the load FMU's part of the loop includes the FMI standard headers of the installed fmpy (as the build does)
+FMI = f"-I{fmi_include_dir()}"
 
 
 @pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed")
 @pytest.mark.parametrize("source", sorted(str(p.relative_to(NATIVE)) for p in NATIVE.rglob("*.c")))
 def test_kernel_compiles_with_strict_flags(source: str, tmp_path: Path) -> None:
-    result = subprocess.run(["gcc", *STRICT, *INCLUDES, f"-I{NATIVE / 'kernels'}", "-c", str(NATIVE / source), "-o",
+    result = subprocess.run(["gcc", *STRICT, *INCLUDES, FMI, f"-I{NATIVE / 'kernels'}", "-c", str(NATIVE / source), "-o",
                              str(tmp_path / "x.o")],
                             capture_output=True, text=True, check=False)
     assert result.returncode == 0, result.stderr

@@ -4,7 +4,7 @@ run; the session goes on and its JUnit XML lists all three tests. No project imp
 
 
 def test_before_the_crash(hil):
-    r = hil.run(settle=0.01, duration=0.02)  # 300 periods: the crash at step 500 is not reached
+    r = hil.run(settle=0.01, duration=0.02, expect_hold=False)  # 300 periods: the crash at step 500 is not reached
     assert r.end_code == 0, r.end_reason
 
 
@@ -15,5 +15,5 @@ def test_the_crash(hil):
 
 
 def test_after_the_crash(hil):
-    r = hil.run(settle=0.01, duration=0.02)  # a fresh target process: a fresh firmware
+    r = hil.run(settle=0.01, duration=0.02, expect_hold=False)  # a fresh target process: a fresh firmware
     assert r.end_code == 0, r.end_reason

@@ -16,7 +16,7 @@ from typing import Any
 
 from pmsm_hil.hil.load_fmu.description import LoadFmuModel
 from pmsm_hil.hil.load_fmu.errors import LoadFmuStepError
-from pmsm_hil.hil.load_fmu.process import LoadFmuProcess, describe_exit
+from pmsm_hil.hil.runner.load_fmu_process import LoadFmuProcess, describe_exit
 from pmsm_hil.hil.runner.stop_request import deferred_interrupts
 
 #: |torque output| [N·m] beyond which the FMU's output is taken as absurd: the call fails, the run ends (far
