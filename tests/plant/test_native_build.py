@@ -21,7 +21,7 @@ FMI = f"-I{fmi_include_dir()}"
 @pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed")
 @pytest.mark.parametrize("source", sorted(str(p.relative_to(NATIVE)) for p in NATIVE.rglob("*.c")))
 def test_kernel_compiles_with_strict_flags(source: str, tmp_path: Path) -> None:
-    result = subprocess.run(["gcc", *STRICT, *INCLUDES, FMI, f"-I{NATIVE / 'kernels'}", "-c", str(NATIVE / source), "-o",
-                             str(tmp_path / "x.o")],
+    result = subprocess.run(["gcc", *STRICT, *INCLUDES, FMI, f"-I{NATIVE / 'kernels'}", "-c", str(NATIVE / source),
+                             "-o", str(tmp_path / "x.o")],
                             capture_output=True, text=True, check=False)
     assert result.returncode == 0, result.stderr
