@@ -119,7 +119,9 @@ def test_ctrl_c_and_sigterm_end_a_hung_run_within_1_s(firmware: dict[str, Path],
     out = tmp_path / "run"
     proc = _hil_run([f"--target=sil:{firmware['hang']}", *RUN, f"--out={out}", "--step-timeout=60"])
     deadline = time.monotonic() + 60.0
-    while _cpu_s(_sil_processes(firmware["hang"])) < 0.5:  # spinning in its endless loop: the run waits for it
+    # spinning in its endless loop: the run waits for it (2 s of CPU: the SIL process's own start-up, an
+    # interpreter with numpy, takes up to ~1 s of CPU before period 0)
+    while _cpu_s(_sil_processes(firmware["hang"])) < 2.0:
         assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()[1]
         time.sleep(0.05)
     t0 = time.monotonic()
@@ -130,7 +132,9 @@ def test_ctrl_c_and_sigterm_end_a_hung_run_within_1_s(firmware: dict[str, Path],
     assert elapsed < 1.0, err
     assert (out / "metrics.json").is_file(), err
     metrics, periods = _outputs(out)
-    assert metrics["end_code"] == 130 and len(periods) == metrics["end_period"] + 1 == 501
+    # the interrupt comes while the run waits for step 500's Command: the log ends with period 499 (the waited-for
+    # period is not kept: as a crash of a load FMU) or 500; either way it holds every period metrics.json counts
+    assert metrics["end_code"] == 130 and len(periods) == metrics["end_period"] + 1 in (500, 501)
     assert _sil_processes(firmware["hang"]) == []
 
 
