@@ -86,6 +86,7 @@ class TargetClient:
         self._target_lengths, self._command_ids, self._fault_id = target_lengths(), command_ids(), fault_target_id()
         self._written: dict[int, float] = {}  # parameters being configured: the float32 written
         self._controller_id: int | None = None  # of the last Setpoint sent
+        self._mode: int | None = None  # of the last Setpoint sent
         self.codec = codec
         self.decoder = codec.decoder(ordered=False)  # the contract checks each Command's seq itself
         self.pump = pump
@@ -147,7 +148,7 @@ class TargetClient:
             ok = (seq == expected and self._reply is None) or (
                 expected >= 0 and seq == (expected - 1) & 0xFFFF and not self._prev_answered)
         elif ok and fid == self._fault_id:
-            ok = self.bus.fault_plausible(frame, self._controller_id)
+            ok = self.bus.fault_plausible(frame, self._controller_id, self._mode)
         if not ok:
             self.bus.suspect += 1
         return ok
@@ -214,7 +215,7 @@ class TargetClient:
 
     def set_setpoint(self, *, enable: bool, mode: int, reference: float, controller_id: int) -> None:
         """Send a setpoint (enable, mode, reference in rad/s or N·m, controller id)."""
-        self._controller_id = controller_id
+        self._controller_id, self._mode = controller_id, mode
         self.link.send(self.codec.encode(Setpoint(enable=enable, mode=mode, reference=reference,
                                                   controller_id=controller_id)))
 

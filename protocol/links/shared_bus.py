@@ -87,16 +87,17 @@ class BusTraffic:
         return self.foreign + self.suspect
 
     @staticmethod
-    def fault_plausible(frame: Frame, controller_id: int | None) -> bool:
+    def fault_plausible(frame: Frame, controller_id: int | None, mode: int | None = None) -> bool:
         """A FaultTarget the target can have sent: its length, node 1, a Status code 1..6; not_implemented names
         the controller id of the host's last Setpoint (`controller_id`; None: none sent yet), invalid_config a Mode
-        value (another node's Setpoint answered, else)."""
+        value or the mode of the host's last Setpoint (`mode`: the conformance probe sends an undefined one on
+        purpose) (another node's Setpoint answered, else)."""
         data = bytes(frame.data)
         if len(data) != 6 or data[0] != TARGET_NODE_ID or data[1] not in FAULT_CODES:
             return False
         detail = int.from_bytes(data[2:6], "little")
         if data[1] == INVALID_CONFIG:  # its detail is the Setpoint's mode: the host sends Mode values only
-            return detail in MODES
+            return detail in MODES or detail == mode
         return data[1] != NOT_IMPLEMENTED or detail == controller_id
 
 
