@@ -8,7 +8,7 @@ emulated CMSDK UART0 through a Unix socket (`-chardev socket,...,server=on -seri
 The faster transport (`transport="mailbox"`): frames in the board's PSRAM, backed by a file shared with the host,
 and two host FIFOs as doorbells that the firmware reads and writes with Arm semihosting calls (blocking QEMU's
 vCPU thread in read(2) until the host rings): neither end spins, so the pair does not stall for scheduler time
-slices on a busy machine (docs/firmware_api.md, docs/benchmarks.md issue 14).
+slices on a busy machine (docs/firmware_api.md, docs/benchmarks.md).
 
 Execution cost: a QEMU TCG plugin (firmware_stub/boards/mps2-an386/qemu/hil_insn_plugin.c, built on first
 use) counts the instructions between the firmware's step markers exactly; `metrics()` turns the counts of the

@@ -18,12 +18,12 @@ import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-#: goal of issue 13: a 600 s run under this peak RSS [MB]
+#: goal: a 600 s run under this peak RSS [MB]
 RSS_GOAL_MB = 500.0
 #: goal: wall time linear in duration — the marginal wall time per simulated second between consecutive
 #: durations may differ by at most this fraction (a fixed start-up cost is allowed; growth is not)
 LINEARITY_GOAL = 0.10
-#: goal of issue 36 (real time): the longest run's RSS within this fraction of the shortest's
+#: goal in real time: the longest run's RSS within this fraction of the shortest's
 RT_GROWTH_GOAL = 0.10
 
 

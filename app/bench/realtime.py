@@ -35,7 +35,7 @@ from pmsm_hil.hil.runner.target_setup import realtime_target_may_spin
 LINKS = ("inproc", "udp")
 #: a real-time run over a link goes on through missed Commands: the bench counts them, it does not stop at one
 _NEVER = 1_000_000_000
-#: issue 30's goal on a quiet machine: lateness p99 at most this [µs] ...
+#: the goal on a quiet machine: lateness p99 at most this [µs] ...
 GOAL_P99_US = 2.0
 #: ... and overruns at most this many times the floor's gaps of the same run
 GOAL_FLOOR_RATIO = 2.0
@@ -174,7 +174,7 @@ def floor_ratio(loop_per_100k: float | None, floor_per_100k: float) -> float | N
 
 
 def verdict(figures: dict[str, Any], floor: dict[str, Any] | None) -> dict[str, Any]:
-    """Issue 30's goal for one loop's figures: lateness p99 ≤ 2 µs and overruns ≤ 2× the floor of the same run."""
+    """The real-time goal for one loop's figures: lateness p99 ≤ 2 µs and overruns ≤ 2× the floor of the same run."""
     ratio = None if floor is None else floor_ratio(figures.get("overruns_per_100k"),
                                                    floor["gaps_over_threshold_per_100k"])
     p99 = figures.get("lateness_p99_us")

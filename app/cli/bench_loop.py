@@ -61,7 +61,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 
 def _base(duration: float, ts: float = 100e-6) -> RunConfig:
-    """The Python loop's run (the issue-17 figures put the native loop beside it), control period `ts` [s]."""
+    """The Python reference loop's run (the figures put the native loop beside it), control period `ts` [s]."""
     scenario = load_scenario("steady").with_overrides(settle_s=0.0, duration_s=duration)
     return RunConfig(motor=load_motor("niu2020-ipmsm"), scenario=scenario, controller="mpcc", loop="python", ts_s=ts)
 

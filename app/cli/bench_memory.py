@@ -33,7 +33,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("--controller", default="mpcc", metavar="NAME", help="controller (default %(default)s)")
     p.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep",
                    help="lockstep (default) or realtime: wall-clock paced runs (a 600 s run takes 600 s); the goal "
-                        "there is the longest run's RSS within 10 %% of the shortest's (issue 36), with the growth "
+                        "there is the longest run's RSS within 10 %% of the shortest's, with the growth "
                         "rate in MB/min")
     p.add_argument("--json", type=Path, metavar="FILE", help="also write the figures as JSON")
     p.set_defaults(func=run)

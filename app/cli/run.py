@@ -103,14 +103,13 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
         speed_rpm=pick("speed"), load_nm=pick("load"), duration_s=pick("duration"), settle_s=pick("settle"),
         hold_tolerance_pct=pick("hold_tolerance"))
     controller_params = parse_param_options([*cfg.get("param", []), *args.param])
-    # --- load FMU (issue 28 item 4) ---
+    # the mechanical load as an FMU (replaces the scenario's load torque)
     load_fmu = load_fmu_spec(pick("load_fmu"), pick("load_fmu_map"),
                              [*cfg.get("load_fmu_set", []), *getattr(args, "load_fmu_set", [])],
                              isolation=pick("load_fmu_isolation"))
     if load_fmu is not None and pick("load") is not None:
         raise ParameterError(f"{source('load', 'load')} and --load-fmu: one load at a time (the FMU replaces the "
                              "scenario's load torque)")
-    # --- end load FMU ---
     out = pick("out")
     no_log = bool(pick("no_log"))
     controller = str(pick("controller"))

@@ -11,8 +11,9 @@ Fixed-size messages (`/periods`, `/frames`: CDR, one size per topic) go through 
 builds a block's Message records as one numpy structured array (`message_records`, header fields and
 payload at their byte offsets), written with one `write` and indexed with numpy, no per-message Python.
 
-This reaches into the Writer's private state (mcap 1.x, `_Writer__…`); `BulkMessages.of` returns None when
-that state is not there, and the caller then uses `add_message`.
+The Writer's private state (its open chunk, statistics, chunk size) is reached through
+`mcap_writer_internals`, the one module that reads it; `BulkMessages.of` returns None when the installed mcap
+lacks it, and the caller then uses `add_message`.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
 from mcap.records import MessageIndex
 from mcap.writer import Writer
+from pmsm_hil.hil.runlog.mcap_writer_internals import McapLayoutError, writer_internals
 
 #: MCAP Message record header: opcode, record length (after these 9 bytes), channel id, sequence, log time,
 #: publish time
@@ -68,20 +70,19 @@ class BulkMessages:
     """Adds blocks of messages to `writer` as repeated `add_message` calls would."""
 
     def __init__(self, writer: Writer) -> None:
-        self._w: Any = writer
-        self._chunk: Any = writer._Writer__chunk_builder  # type: ignore[attr-defined]
-        self._stats: Any = writer._Writer__statistics  # type: ignore[attr-defined]
-        self._limit = int(writer._Writer__chunk_size)  # type: ignore[attr-defined]
-        self._finalize = writer._Writer__finalize_chunk  # type: ignore[attr-defined]
-        if self._chunk is None:
-            raise AttributeError("writer without chunks")
+        state = writer_internals(writer)
+        self._chunk: Any = state.chunk
+        self._stats: Any = state.statistics
+        self._limit = state.chunk_size
+        self._finalize = state.finalize_chunk
 
     @classmethod
     def of(cls, writer: Writer) -> BulkMessages | None:
-        """A BulkMessages for `writer`, or None if this mcap version's Writer is not laid out as expected."""
+        """A BulkMessages for `writer`, or None if this mcap version's Writer is not laid out as expected (or
+        does not chunk)."""
         try:
             return cls(writer)
-        except AttributeError:
+        except McapLayoutError:
             return None
 
     def add(self, channel: int, times: Sequence[int], msgs: Sequence[bytes], seqs: Sequence[int]) -> None:

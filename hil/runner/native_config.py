@@ -102,7 +102,7 @@ def fill_config(c: Any, ffi: Any, lib: Any, cfg: RunConfig, plant: PlantBase, co
     c.n_total, c.n_settle = n_total, round(sc.settle_s / cfg.ts_s)
     c.max_state, c.tolerate, c.watchdog_periods = cfg.machine.layout.max_state_code, cfg.tolerate, cfg.watchdog_periods
     c.miss_zero = 1 if cfg.miss_policy == "zero" else 0
-    c.pwm_double = 1 if cfg.pwm_update == "double" else 0  # issue 27: duty-cycle Commands
+    c.pwm_double = 1 if cfg.pwm_update == "double" else 0  # duty-cycle Commands
     c.controller_id, c.mode_speed = controller_id, int(Mode.SPEED)
     c.silent_after = -1 if opts.silent_after is None else opts.silent_after
     c.record_frames = 1 if opts.record_frames else 0

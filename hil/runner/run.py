@@ -240,7 +240,7 @@ def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection, sink: Ru
     metrics["load_nm"] = cfg.scenario.load_nm if cfg.load_fmu is None else None
     metrics["load_fmu"] = out.load_fmu
     metrics["mode"] = cfg.mode
-    metrics["link_spec"] = redact_spec(cfg.link)  # issue 26: a key= never reaches metrics.json
+    metrics["link_spec"] = redact_spec(cfg.link)  # a key= never reaches metrics.json
     metrics.update(_bus_traffic(out, conn))
     warnings: list[str] = []
     lat = out.lateness_us

@@ -79,7 +79,7 @@ def run_metadata(cfg: RunConfig) -> dict[str, str]:
     if motor_set is not None:
         meta["motor_set"] = _json(motor_set)
     fmu = cfg.load_fmu_model
-    if fmu is not None:  # the load FMU that ran (issue 28 item 4), as metrics.json `load_fmu`
+    if fmu is not None:  # the load FMU that ran, as metrics.json `load_fmu`
         meta["load_fmu"] = _json(fmu.as_metrics())
     return meta
 

@@ -1,4 +1,4 @@
-"""The debug outputs of a SIL target in its own process (issue 26): after each step the target's C serve loop
+"""The debug outputs of a SIL target in its own process: after each step the target's C serve loop
 copies the step's torque reference (the library's hil_app_cmd_t debug output, which no frame carries) into memory
 it shares with the host (a memfd passed to `hil target --sil-debug-fd`), before the step's Command is sent; the
 host's C loop reads it for the Command it received (loop.h `nl_sil_debug_t`), so an isolated SIL run logs

@@ -223,7 +223,7 @@ def realtime_target_spin_us(cfg: RunConfig, native: bool) -> float | None:
     """How long the spawned target busy-polls for a frame [µs] (None: its default). In real time on a machine
     with fewer than `REALTIME_SPIN_MIN_CPUS` CPUs it blocks (0): a SCHED_FIFO target spinning the whole period
     keeps the run's drain and logger off the only other CPU, the loop's ring fills and periods start ms late
-    (docs/benchmarks.md, issue 30); blocked, it wakes in ~5 µs while the run holds the CPUs' wake-up latency
+    (docs/benchmarks.md); blocked, it wakes in ~5 µs while the run holds the CPUs' wake-up latency
     (`--cpu-dma-latency`, pm_qos.py)."""
     if not native or cfg.mode != "realtime" or realtime_target_may_spin():
         return None
@@ -241,7 +241,7 @@ def _connect_spawned(cfg: RunConfig, codec: FrameCodec, native: bool, sil: str |
     """A `hil target` process on the mirror of the run's link (`sil`: serving that SIL library)."""
     spec = parse_spec(cfg.link)
     specs = link_kind(spec).mirror(cfg.link, spec)
-    specs, key = spawn_auth(specs)  # issue 26: authenticated frames by default (protocol/links/auth.py)
+    specs, key = spawn_auth(specs)  # authenticated frames by default (protocol/links/auth.py)
     host_link = open_link(specs.host, "host")
     conn = TargetConnection(TargetClient(host_link, codec), host_link, extra=list(specs.keep_open))
     try:

@@ -1,4 +1,4 @@
-"""Compare presets of issue 7: variants with controller parameters, rotor-angle spread, eq. (12)."""
+"""Compare presets of the Xiao paper: variants with controller parameters, rotor-angle spread, eq. (12)."""
 
 from __future__ import annotations
 

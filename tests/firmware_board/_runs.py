@@ -24,7 +24,7 @@ def metrics(cfg: RunConfig) -> dict[str, Any]:
 
 
 def assert_like(m: dict[str, Any], ref: dict[str, Any]) -> None:
-    """The issue's acceptance: speed within 0.5 %, torque mean within 1 %, ripple RMS within 10 %."""
+    """The acceptance: speed within 0.5 %, torque mean within 1 %, ripple RMS within 10 %."""
     assert abs(m["speed_mean_rpm"] - ref["speed_mean_rpm"]) <= 0.005 * ref["speed_mean_rpm"]
     assert abs(m["torque_mean_nm"] - ref["torque_mean_nm"]) <= 0.01 * abs(ref["torque_mean_nm"])
     assert abs(m["torque_ripple_rms_nm"] - ref["torque_ripple_rms_nm"]) <= 0.10 * ref["torque_ripple_rms_nm"]

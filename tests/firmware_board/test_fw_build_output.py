@@ -1,4 +1,4 @@
-"""`hil fw build -o` onto a path it cannot write: one line naming -o, exit 2, no traceback (issue 26)."""
+"""`hil fw build -o` onto a path it cannot write: one line naming -o, exit 2, no traceback."""
 
 from __future__ import annotations
 

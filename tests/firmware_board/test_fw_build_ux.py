@@ -1,4 +1,4 @@
-"""`hil fw build` says what broke (issue 27): a missing hil_app_* is a build error naming it on both boards (the
+"""`hil fw build` says what broke: a missing hil_app_* is a build error naming it on both boards (the
 SIL library links with --no-undefined), the first compiler error comes with its caret context, warnings are shown
 (count and lines, also when the build was up to date), `--define NAME=VALUE` reaches the compiler, `--verbose`
 shows the commands."""

@@ -1,4 +1,4 @@
-"""Lockstep never blames the firmware for the host (issue 35): a target process the host stops (SIGSTOP) for 3 s
+"""Lockstep never blames the firmware for the host: a target process the host stops (SIGSTOP) for 3 s
 in mid-run is a host stall — the run waits on and completes with the same records as an undisturbed run,
 `host_stalls` >= 1 — for a SIL target process, QEMU and a spawned native target; a stall longer than
 `--host-stall-limit` ends as the host's error (exit 1), not the firmware's (exit 4); a firmware that had its

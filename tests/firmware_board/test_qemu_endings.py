@@ -1,4 +1,4 @@
-"""The emulated MCU's endings told apart (issue 26): a firmware fault (startup.c's handler ends QEMU with exit
+"""The emulated MCU's endings told apart: a firmware fault (startup.c's handler ends QEMU with exit
 code 64 + exception number through semihosting), a firmware that never returns from its step (QEMU alive and
 executing), and a QEMU that dies (SIGKILL) each end with exit 3 and their own reason, the log complete up to
 the last period; a firmware idle after a lost frame keeps its contract violation."""

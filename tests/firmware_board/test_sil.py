@@ -120,5 +120,5 @@ def test_an_isolated_sil_run_logs_the_torque_reference_as_the_in_process_one(ref
     assert got.shape == want.shape and np.all(np.isfinite(got[1:]))
     np.testing.assert_array_equal(got, want)
     assert isolated.metrics["torque_error_reference"] == inproc.metrics["torque_error_reference"]
-    # one torque error for every target (issue 35): from the host's records, the same records give the same number
+    # one torque error for every target: from the host's records, the same records give the same number
     assert isolated.metrics["torque_error_mean_nm"] == inproc.metrics["torque_error_mean_nm"]

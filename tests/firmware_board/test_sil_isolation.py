@@ -1,4 +1,4 @@
-"""The SIL target in its own process (issue 26): a user firmware that crashes, aborts, overflows its stack or
+"""The SIL target in its own process: a user firmware that crashes, aborts, overflows its stack or
 never returns at step 500 (tests/firmware_board/misbehave/, built with `hil fw build`) ends `hil run` with exit 3
 and the cause named, metrics.json and an MCAP of end_period + 1 periods; Ctrl-C/SIGTERM end a hung run within
 1 s; a pytest session survives the crash (its JUnit XML lists every test)."""

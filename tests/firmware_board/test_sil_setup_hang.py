@@ -1,8 +1,7 @@
-"""A SIL firmware that never returns from `hil_app_init` or `hil_app_config` (issue 36): "target hung in
-hil_app_init" / "target hung in hil_app_config", exit 3, within a few --step-timeout of its own CPU time (was:
-exit 2 after the 60 s ready-line timeout, and a ConfigAck contract violation after ~17 s), metrics.json written,
-the process killed. A firmware whose hil_app_init returns keeps its crash in hil_app_config named as before
-(test_sil_isolation.py)."""
+"""A SIL firmware that never returns from `hil_app_init` or `hil_app_config`: "target hung in
+hil_app_init" / "target hung in hil_app_config", exit 3, within a few --step-timeout of its own CPU time,
+metrics.json written, the process killed. A firmware whose hil_app_init returns keeps its crash in hil_app_config
+named as before (test_sil_isolation.py)."""
 
 from __future__ import annotations
 

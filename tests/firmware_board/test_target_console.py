@@ -1,4 +1,4 @@
-"""A SIL target's stdout and stderr are drained all the time (issue 36): a firmware printing 1 kB per step
+"""A SIL target's stdout and stderr are drained all the time: a firmware printing 1 kB per step
 (tests/firmware_board/misbehave/print) completes — undrained, its 64 KiB pipe filled within ~60 periods and the
 run ended as a false `missing` violation — and its lines are in the run's MCAP (`/target/console`)."""
 

@@ -1,7 +1,7 @@
 """The C++ template firmware (examples/my_firmware_cpp: classes, global objects built by static constructors, its
 own parameter `bandwidth`) builds for both boards, holds the rated point as controller `external` (the default
 for a user firmware), and its SIL and QEMU runs are bit-identical: -ffp-contract=off keeps the M4F from fusing
-multiply-adds (issue 27)."""
+multiply-adds."""
 
 from __future__ import annotations
 
@@ -65,7 +65,7 @@ def test_cpp_template_sil_and_qemu_are_bit_identical(cpp_sil: Path, cpp_elf: Pat
     _check(m_qemu)
     assert m_qemu["exec_instructions"]["median"] > 100
     # not the firmware's doing: link counters are the links' (socketpair vs emulated UART); the torque error is
-    # the host's (against T_load + B·ω_ref + J·dω_ref/dt), the same for both (issue 35)
+    # the host's (against T_load + B·ω_ref + J·dω_ref/dt), the same for both
     per_target = {"link_auth_dropped"}
     shared = sorted(set(m_sil) & set(m_qemu) - TIMING - per_target)
     assert len(shared) > 30

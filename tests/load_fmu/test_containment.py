@@ -1,4 +1,4 @@
-"""The load FMU in its own process (issue 36 items 1): an FMU that crashes (SIGSEGV, abort, stack overflow),
+"""The load FMU in its own process: an FMU that crashes (SIGSEGV, abort, stack overflow),
 exits (`_exit(0)`), loops forever or blocks ends the run with exit 3 naming the cause, the call and the period;
 metrics.json is written, the MCAP holds end_period + 1 periods and the safe stop is confirmed. Ctrl-C ends an
 endless-looping FMU's run; a pytest session survives a crashing FMU; absurd torques and out-of-range integer

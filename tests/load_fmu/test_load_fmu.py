@@ -1,4 +1,4 @@
-"""The mechanical load as an FMU (issue 28 item 4): a third-party FMU (a fan law with a first-order lag, built
+"""The mechanical load as an FMU: a third-party FMU (a fan law with a first-order lag, built
 here from C) loads in the C loop, FMI 2.0 and 3.0; at 1500 rpm the mean load torque equals its steady value;
 the recorded load follows the FMU's lag from the recorded speed (speed at each period start, torque held); a
 failing doStep ends the run with a clear reason and a complete log; bad FMUs and options are one-line errors."""

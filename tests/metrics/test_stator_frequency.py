@@ -1,5 +1,5 @@
 """The harmonic metrics take the stator frequency measured from the currents (slip included), and are not
-applicable, with the reason, over a span whose fundamental changes (issue 35 item 3)."""
+applicable, with the reason, over a span whose fundamental changes."""
 
 from __future__ import annotations
 

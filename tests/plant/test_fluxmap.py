@@ -1,4 +1,4 @@
-"""Saturated PMSM from a flux map (kind "pmsm-fluxmap", issue 28 item 3): the map's interpolant and checks, its
+"""Saturated PMSM from a flux map (kind "pmsm-fluxmap"): the map's interpolant and checks, its
 loaders (CSV, SyR-e .mat), the linear map replaying niu2020 through `hil plant replay`, and the kernel's
 integration against scipy's solve_ivp on the shipped saturated map."""
 

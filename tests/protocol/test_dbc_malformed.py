@@ -1,4 +1,4 @@
-"""A malformed hil.dbc is one line naming the file, the line and the message.signal (issue 35): `load_layouts`
+"""A malformed hil.dbc is one line naming the file, the line and the message.signal: `load_layouts`
 on edited copies, and `hil` itself when the protocol's layouts fail at import (no traceback, exit 2)."""
 
 from __future__ import annotations

@@ -83,7 +83,7 @@ def test_ranges_cover_the_raw_values_in_use(msg: Any) -> None:
 
 def test_angles_up_to_the_largest_raw_value_encode_strict() -> None:
     msg = DB.get_message_by_name("MeasFd")
-    for theta in (6.2830894, 65535 * 2 * math.pi / 65536):  # the angle; raw 65535
+    for theta in (6.2830894, 65535 * 2 * math.pi / 65536):  # the reported angle; raw 65535
         data = msg.encode({**_baseline(msg), "theta_e": theta}, strict=True)
         assert msg.decode(data, scaling=False)["theta_e"] == 65535
     with pytest.raises(EncodeError):  # rounds to raw 65536: a sender wraps it to 0 (docs/protocol.md)

@@ -130,7 +130,7 @@ def test_junk_from_another_address_cannot_crowd_out_the_peer(role: str, links: O
                                                              ports: list[int]) -> None:
     """5000 junk datagrams from another local socket, sent before the peer's frame and not read meanwhile (more
     than the socket buffer holds: unconnected, the kernel would drop the peer's frame) — the frame arrives and
-    the junk was never delivered nor counted as a drop of the socket. The issue's failure, without timing."""
+    the junk was never delivered nor counted as a drop of the socket. The reported failure, without timing."""
     a, b, c = ports
     end = links(f"udp:{a}:{b}", role)
     bus = end.bus

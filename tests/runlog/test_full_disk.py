@@ -1,5 +1,5 @@
 """A full disk (here: a file size limit on the logger process) ends the run with one clear line and an MCAP
-that is valid up to what fitted, or none, said so (issue 26)."""
+that is valid up to what fitted, or none, said so."""
 
 from __future__ import annotations
 
@@ -119,7 +119,7 @@ def _chunk_ends(path: Path) -> list[int]:
 @pytest.mark.parametrize("extra", [0, 5])
 def test_a_file_cut_before_its_last_message_index_counts_what_it_holds(tmp_path: Path, extra: int) -> None:
     """A disk that fills right after a chunk (its Message Index records cut or missing): the count said is the
-    periods the file holds, not those the surviving indexes list (issue 36: "the first 0 periods" of 16 000)."""
+    periods the file holds, not those the surviving indexes list (never "the first 0 periods" of 16 000)."""
     whole = tmp_path / "whole.mcap"
     with RunLogger(whole, metadata={"run": "cut"}, flush_interval_s=0.01) as lg:
         for k in range(0, 6000, 500):

@@ -1,6 +1,6 @@
 """Interrupt `hil run` at random moments and compare what the MCAP holds with what metrics.json counts.
 
-`python -m tests.runner.interrupt_runs --tries 100` runs the 100-try check of issue 26 (in-process native
+`python -m tests.runner.interrupt_runs --tries 100` runs the 100-try check (in-process native
 loop, native loop over UDP to a spawned target, Python loop; SIGINT or SIGTERM, to `hil` or to its process
 group as a terminal's Ctrl-C, at a moment drawn at random) and prints
 one line per try and the tally; exit 1 if any try lost or invented a period. The test suite runs a few tries

@@ -1,4 +1,4 @@
-"""`hil bench loop --cross-process pycan,socketcan` (issue 25): a python-can adapter to the native target, the
+"""`hil bench loop --cross-process pycan,socketcan`: a python-can adapter to the native target, the
 Python reference loop against the C loop in the same run — through the callback link (pycan: an adapter whose I/O
 is a Python library) and through the native SocketCAN wire (python-can's socketcan interface; needs vcan0, which
 `.ci/vcan-vm` provides)."""

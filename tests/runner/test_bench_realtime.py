@@ -1,4 +1,4 @@
-"""`hil bench realtime` at several control periods (issue 30): in process and over UDP to the native target,
+"""`hil bench realtime` at several control periods: in process and over UDP to the native target,
 beside the floor of the same run, the OSADL-style histogram (CSV and PNG) and a load started beside it."""
 
 from __future__ import annotations

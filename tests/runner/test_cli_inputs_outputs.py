@@ -1,4 +1,4 @@
-"""Issue 13 items 2, 3, 5 and 6 at the command line: every bad input is one line naming the field, outputs are
+"""Inputs and outputs at the command line: every bad input is one line naming the field, outputs are
 written whole or not at all and never onto an input, `--out` never mixes runs, the run log records the
 configuration and its set-up frames, and the messages and help are the same everywhere."""
 

@@ -286,7 +286,7 @@ def test_each_fault_class_is_survived_per_the_contract(fault: str, counter: str,
 
 @pytest.mark.parametrize("fault", ["drop=0.01,seed=1", "corrupt=0.001,seed=1"])
 def test_spawned_udp_target_with_faults_ends_with_a_report(fault: str, tmp_path: Path) -> None:
-    """The issue's commands, `hil run --link udp --target spawn --fault ...`: a report, never a traceback."""
+    """The reported commands, `hil run --link udp --target spawn --fault ...`: a report, never a traceback."""
     out = tmp_path / "run"
     rc = main(["run", "--link", "udp", "--target", "spawn", "--duration", "0.2", "--out", str(out), "--fault", fault])
     m = json.loads((out / "metrics.json").read_text(encoding="utf-8"))

@@ -1,4 +1,4 @@
-"""The saturated flux-map preset in the C period loop (issue 28 item 3). Its closed-loop operating range (mpcc and
+"""The saturated flux-map preset in the C period loop. Its closed-loop operating range (mpcc and
 foc, 300 and 1500 rpm, 10-100 % of the rated 7 N·m, the operating-range tolerances) is a grid of
 tests/runner/test_operating_range.py; here: the C loop runs the kind as the Python loop does, record for record."""
 

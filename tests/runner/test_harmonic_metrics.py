@@ -1,5 +1,5 @@
 """The harmonic metrics of real closed-loop runs against an independent FFT of the logged currents, for each
-machine kind (issue 35 item 3): the PMSM, the dual three-phase PMSM and the induction machine (whose stator
+machine kind: the PMSM, the dual three-phase PMSM and the induction machine (whose stator
 runs at p·ω_m + ω_slip). A speed step in the window: no THD number, the reason instead."""
 
 from __future__ import annotations

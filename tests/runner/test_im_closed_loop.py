@@ -1,4 +1,4 @@
-"""The induction machine closed loop (issue 28): `hil run --motor im-2k2 --controller im-foc --speed 1000
+"""The induction machine closed loop: `hil run --motor im-2k2 --controller im-foc --speed 1000
 --load 10` from zero flux holds the speed within 0.5 % and the mean torque within 1 % of the load; the C period
 loop runs the kind through its kernel table with the Python loop's records bit for bit."""
 

@@ -1,5 +1,5 @@
 """Ctrl-C and SIGTERM at any moment of `hil run`: the MCAP holds every period metrics.json counts, no
-traceback, exit 130 (issue 26). A few tries here; `python -m tests.runner.interrupt_runs --tries 100` runs the
+traceback, exit 130. A few tries here; `python -m tests.runner.interrupt_runs --tries 100` runs the
 100-try check (figures in docs/runner.md)."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Authenticated frames in runs (issue 26, item 4): on by default for spawned targets over UDP and serial, a
+"""Authenticated frames in runs: on by default for spawned targets over UDP and serial, a
 pre-shared key for external ones; Python and C ends interoperate; a wrong key is a clear error; a privileged
 spoofer on the loopback (raw sockets: forged, stripped and replayed datagrams with the genuine addresses) changes
 nothing and is counted."""

@@ -1,4 +1,4 @@
-"""Operating range of every controller's defaults, each on its own machine (issue 18).
+"""Operating range of every controller's defaults, each on its own machine.
 
 Steady scenario (start at the operating point, speed PI closed), firmware and runner defaults (no
 --param): over the metrics window the mean speed must be within 1 % of the reference and the mean
@@ -48,7 +48,7 @@ class MachineGrid:
     tag: str = ""
 
 
-#: Field-weakening grids (issue 35 item 5): the reference FOCs at rated speed, at the base speed and at 1.5× it
+#: Field-weakening grids: the reference FOCs at rated speed, at the base speed and at 1.5× it
 #: (`base_speed_rpm`: the corner of the rated torque at the firmware's voltage limit 0.95·Vdc/√3, rounded up).
 GRIDS = (
     MachineGrid("niu2020-ipmsm", 7.0, (300.0, 1500.0), ("mpcc", "dsvm-20", "fcs-mpc-1", "fcs-mpc-2", "dbcc-mpc"),

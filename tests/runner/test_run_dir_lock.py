@@ -1,4 +1,4 @@
-"""One run at a time in a run directory: a second run into the same --out is refused with exit 2 (issue 26)."""
+"""One run at a time in a run directory: a second run into the same --out is refused with exit 2."""
 
 from __future__ import annotations
 

@@ -109,7 +109,7 @@ def test_help_shows_the_schemas_defaults(capsys: pytest.CaptureFixture[str]) -> 
 def test_the_default_scenario_runs_at_the_motors_ratings(motor: str, controller: str, speed_rpm: float,
                                                          load_nm: float) -> None:
     """The default (steady, `at_rated`) scenario's speed and load are the motor's rated speed and torque; the
-    options and other scenarios keep theirs (issue 35 item 5)."""
+    options and other scenarios keep theirs."""
     from pmsm_hil.app.cli.run import config_from_args
 
     base = ["--motor", motor, "--controller", controller]

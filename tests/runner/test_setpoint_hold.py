@@ -1,4 +1,4 @@
-"""The setpoint verdict (issue 35 item 4): `setpoint_held` and `setpoint_error` in metrics.json, the summary's
+"""The setpoint verdict: `setpoint_held` and `setpoint_error` in metrics.json, the summary's
 line, `hil run --expect-hold` → exit 5, `--hold-tolerance` / the scenario's `hold_tolerance_pct`, and the pytest
 API's check."""
 

@@ -160,7 +160,7 @@ def _client(frames: list[Frame]) -> TargetClient:
 def test_a_random_fault_frame_is_not_the_targets() -> None:
     """FaultTarget's id with another node, a code outside Status, not_implemented naming another controller or
     invalid_config naming no Mode (the VM's "target fault code 5 (detail 28)": the target answering another
-    node's Setpoint): suspect, not a target fault (the issue's "target fault code 116")."""
+    node's Setpoint): suspect, not a target fault (the reported "target fault code 116")."""
     fid = fault_target_id()
     frames = [Frame(fid, bytes([1, 116, 0, 0, 0, 0]), False), Frame(fid, bytes([9, 1, 0, 0, 0, 0]), False),
               Frame(fid, bytes([1, 6, 77, 0, 0, 0]), False), Frame(fid, bytes([1, 6, 1, 0, 0, 0]), False),
@@ -256,7 +256,7 @@ def test_a_silent_target_on_a_flooded_bus_ends_naming_the_bus(flood: bool) -> No
 
 def test_the_c_socketcan_receive_ends_on_a_queue_that_never_empties() -> None:
     """The C SocketCAN link (on a socketpair carrying its frames): past the deadline it returns at most
-    NL_DRAIN_MAX (= the Python links' DRAIN_MAX) frames in a row, then 0, however many are queued (the issue's
+    NL_DRAIN_MAX (= the Python links' DRAIN_MAX) frames in a row, then 0, however many are queued (a
     full-rate flood that never ended: the loop's receives kept finding frames)."""
     import socket
 

@@ -1,4 +1,4 @@
-"""Control periods of 25 and 50 µs (issue 30): the closed loop holds speed and torque in process and over UDP to
+"""Control periods of 25 and 50 µs: the closed loop holds speed and torque in process and over UDP to
 the native target, every period of a logged run is in its MCAP, the C loop's lateness histogram counts every
 period start, and the link budget says which links carry 40 kHz."""
 
@@ -182,7 +182,7 @@ def test_which_controllers_fit_a_period_on_the_mcu() -> None:
 def test_the_logger_keeps_up_with_real_time_at_25_us() -> None:
     """The run logger takes period records and their frames faster than a real-time run at 40 kHz makes them,
     with margin (measured 165–234k periods/s at load 8–16 on 2 vCPUs), so a real-time run at 25 µs never waits
-    for it; lockstep throughput with logging (the issue's 150k goal) is a quiet-machine figure (hil bench loop)."""
+    for it; lockstep throughput with logging (the 150k goal) is a quiet-machine figure (hil bench loop)."""
     from pmsm_hil.app.bench.logger_limit import logger_limit
 
     limit = logger_limit(100_000)

@@ -44,7 +44,7 @@ def _cfg(link: str) -> RunConfig:
 
 
 def _forged_datagrams(session: int) -> tuple[list[bytes], list[bytes]]:
-    """(to the target, to the host): the frames of the issue, in the old format, with a guessed session and
+    """(to the target, to the host): the reported frames, in the old format, with a guessed session and
     with the run's real session (as if it had leaked); a HELLO trying to start a new session."""
     codec = FrameCodec("canfd")
     to_target = codec.encode(Setpoint(enable=False, mode=0, reference=0.0, controller_id=int(ControllerId.MPCC)))

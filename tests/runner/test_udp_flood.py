@@ -1,4 +1,4 @@
-"""Links that junk cannot stop (issue 26): a spawned target over UDP beside a local flood of ~100k junk
+"""Links that junk cannot stop: a spawned target over UDP beside a local flood of ~100k junk
 datagrams/s to both ports completes at the right speed and torque with no frame lost (both sockets are
 connect()ed to their peer, so the kernel drops the junk before them). Timing-dependent: the flood takes a core."""
 
