@@ -21,20 +21,11 @@ import argparse
 import math
 from collections.abc import Callable
 
+from pmsm_hil.protocol import Command, ConfigAck, ConfigParam, Fault, Heartbeat, Measurement, Measurement6, Setpoint
 from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.ids import ControllerId, Mode, NodeState, ParamId, Status
 from pmsm_hil.protocol.links import Link, open_link
-from pmsm_hil.protocol.messages import (
-    Command,
-    ConfigAck,
-    ConfigParam,
-    Fault,
-    Heartbeat,
-    Measurement,
-    Measurement6,
-    Message,
-    Setpoint,
-)
+from pmsm_hil.protocol.messages import Message
 
 TARGET_NODE = 1
 #: (v_alpha, v_beta) per volt of Vdc of state code 4·Sa + 2·Sb + Sc (amplitude-invariant Clarke)

@@ -16,20 +16,11 @@ from pathlib import Path
 from typing import Any
 
 from cantools.database.can.c_source import camel_to_snake_case
+from pmsm_hil.protocol import Command, ConfigAck, ConfigParam, Fault, Heartbeat, Measurement, Measurement6, Setpoint
 from pmsm_hil.protocol.codec import PROFILES, FrameCodec, decode_message, layout_for_id
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.layout import FrameLayout
-from pmsm_hil.protocol.messages import (
-    Command,
-    ConfigAck,
-    ConfigParam,
-    Fault,
-    Heartbeat,
-    Measurement,
-    Measurement6,
-    Message,
-    Setpoint,
-)
+from pmsm_hil.protocol.messages import Message
 from pmsm_hil.protocol.paths import GOLDEN_C_HEADER, GOLDEN_JSON
 
 CASES: tuple[tuple[str, Message], ...] = (

@@ -6,19 +6,10 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from pmsm_hil.protocol import Command, ConfigAck, ConfigParam, Fault, Heartbeat, Measurement, Measurement6, Setpoint
 from pmsm_hil.protocol.codec import MAX_DURATION_NS, FrameCodec
 from pmsm_hil.protocol.ids import ControllerId, NodeState, ParamId, Status
 from pmsm_hil.protocol.links import Link
-from pmsm_hil.protocol.messages import (
-    Command,
-    ConfigAck,
-    ConfigParam,
-    Fault,
-    Heartbeat,
-    Measurement,
-    Measurement6,
-    Setpoint,
-)
 from pmsm_hil.sim_target.firmware import Firmware, FirmwareCommand, FirmwareConfigError
 
 TARGET_NODE = 1

@@ -120,15 +120,22 @@ def _rtt_summary(rtts_us: list[float]) -> dict[str, float]:
     }
 
 
-def _round_trips(link: Link, count: int) -> dict[str, float]:
+def _round_trips(link: Link, count: int, echo: Link | None = None) -> dict[str, float]:
+    """Round trips [µs] of one frame sent on `link` and answered by a peer process, or by `echo` (the other end
+    in this process, which sends back what it receives)."""
+    lost = "round trip timed out after 1 s" if echo is None else "virtual round trip lost a frame"
     frame = _BENCH_FRAME
     rtts = []
     for _ in range(count):
         t0 = time.perf_counter_ns()
         link.send([frame])
-        back = link.recv(1.0)
-        if back is None:
-            raise ProtocolError("round trip timed out after 1 s")
+        if echo is not None:
+            got = echo.recv(1.0)
+            if got is None:
+                raise ProtocolError(lost)
+            echo.send([got])
+        if link.recv(1.0) is None:
+            raise ProtocolError(lost)
         rtts.append((time.perf_counter_ns() - t0) / 1000.0)
     return _rtt_summary(rtts)
 
@@ -137,19 +144,7 @@ def _virtual(count: int) -> dict[str, float]:
     host = open_link("virtual:bench_link", "host")
     target = open_link("virtual:bench_link", "target")
     try:
-        frame = _BENCH_FRAME
-        rtts = []
-        for _ in range(count):
-            t0 = time.perf_counter_ns()
-            host.send([frame])
-            got = target.recv(1.0)
-            if got is None:
-                raise ProtocolError("virtual round trip lost a frame")
-            target.send([got])
-            if host.recv(1.0) is None:
-                raise ProtocolError("virtual round trip lost a frame")
-            rtts.append((time.perf_counter_ns() - t0) / 1000.0)
-        return _rtt_summary(rtts)
+        return _round_trips(host, count, echo=target)
     finally:
         host.close()
         target.close()

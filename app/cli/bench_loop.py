@@ -66,6 +66,19 @@ def _base(duration: float, ts: float = 100e-6) -> RunConfig:
     return RunConfig(motor=load_motor("niu2020-ipmsm"), scenario=scenario, controller="mpcc", loop="python", ts_s=ts)
 
 
+def _log_off_and_on(cfg: RunConfig, repeats: int,
+                    stage: Callable[[str], None]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """`_median_rate` of `cfg` with logging off, then on (each logged run into a fresh folder); `stage` is told
+    "logging off" / "logging on" before each."""
+    stage("logging off")
+    off = _median_rate(lambda: cfg, repeats)
+    stage("logging on")
+    with tempfile.TemporaryDirectory() as tmp:
+        counter = iter(range(1000))
+        on = _median_rate(lambda: replace(cfg, out_dir=Path(tmp) / f"run{next(counter)}"), repeats)
+    return off, on
+
+
 def _median_rate(make: Callable[[], RunConfig], repeats: int, exclude_safe_stop: bool = False) -> dict[str, Any]:
     rates: list[float] = []
     extra: dict[str, Any] = {}
@@ -212,24 +225,15 @@ def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
     out: dict[str, Any] = {"duration_s": duration, "repeats": repeats, "ts_s": ts}
     runs = f"{max(repeats, 1)} × {duration:g} s"
     if python:
-        progress(f"lockstep in-process, logging off ({runs})")
-        off = _median_rate(lambda: base, repeats)
-        progress(f"lockstep in-process, logging on ({runs})")
-        with tempfile.TemporaryDirectory() as tmp:
-            counter = iter(range(1000))
-            on = _median_rate(lambda: replace(base, out_dir=Path(tmp) / f"run{next(counter)}"), repeats)
+        off, on = _log_off_and_on(base, repeats, lambda what: progress(f"lockstep in-process, {what} ({runs})"))
         out["lockstep_inproc_log_off_hz"] = off["periods_per_s"]
         out["lockstep_inproc_log_on_hz"] = on["periods_per_s"]
         out["logging_cost_pct"] = 100.0 * (1.0 - on["periods_per_s"] / off["periods_per_s"])
     else:
         out["python_loop"] = "left out: the Python loop is the test suite's reference (tests/oracle), not the product's"
     native = replace(base, loop="native")
-    progress(f"lockstep in-process, native loop (C), logging off ({runs})")
-    n_off = _median_rate(lambda: native, repeats)
-    progress(f"lockstep in-process, native loop (C), logging on ({runs})")
-    with tempfile.TemporaryDirectory() as tmp:
-        counter = iter(range(1000))
-        n_on = _median_rate(lambda: replace(native, out_dir=Path(tmp) / f"run{next(counter)}"), repeats)
+    n_off, n_on = _log_off_and_on(native, repeats,
+                                  lambda what: progress(f"lockstep in-process, native loop (C), {what} ({runs})"))
     out["lockstep_inproc_native_log_off_hz"] = n_off["periods_per_s"]
     out["lockstep_inproc_native_log_on_hz"] = n_on["periods_per_s"]
     out["inproc_native_log_on_ring_waits"] = n_on["ring_waits"]

@@ -11,6 +11,11 @@ from pmsm_hil.hil.runner.setpoint_hold import hold_line
 _ROWS = tuple((m.key, m.label, m.unit) for m in in_view(CLI) if m.sub is None)
 
 
+def _med_p99_max(figures: dict[str, Any]) -> str:
+    """"median / p99 / max" of a quantile mapping, each as `_fmt` prints it."""
+    return f"{_fmt(figures.get('median'))} / {_fmt(figures.get('p99'))} / {_fmt(figures.get('max'))}"
+
+
 def _fmt(value: Any) -> str:
     if value is None:
         return "n/a"
@@ -39,16 +44,13 @@ def format_metrics(metrics: dict[str, Any]) -> str:
     clock = metrics.get("mcu_clock_hz")
     if isinstance(ex, dict):  # an emulated MCU's figure is an estimate at its clock (qemu targets)
         label = f"exec est. @{clock / 1e6:g} MHz" if isinstance(clock, int | float) else "exec time med/p99/max"
-        lines.append(f"  {label:<24} {_fmt(ex.get('median'))} / {_fmt(ex.get('p99'))} / "
-                     f"{_fmt(ex.get('max'))} µs")
+        lines.append(f"  {label:<24} {_med_p99_max(ex)} µs")
     ins = metrics.get("exec_instructions")
     if isinstance(ins, dict):
-        lines.append(f"  {'exec instructions':<24} {_fmt(ins.get('median'))} / {_fmt(ins.get('p99'))} / "
-                     f"{_fmt(ins.get('max'))} per step (med/p99/max)")
+        lines.append(f"  {'exec instructions':<24} {_med_p99_max(ins)} per step (med/p99/max)")
     lat = metrics.get("lateness_us")
     if isinstance(lat, dict):
-        lines.append(f"  {'lateness med/p99/max':<24} {_fmt(lat.get('median'))} / {_fmt(lat.get('p99'))} / "
-                     f"{_fmt(lat.get('max'))} µs")
+        lines.append(f"  {'lateness med/p99/max':<24} {_med_p99_max(lat)} µs")
     link = metrics.get("link")
     if isinstance(link, dict):
         lines.append(f"  {'link tx/rx/crc/lost/late':<24} {link.get('frames_tx')} / {link.get('frames_rx')} / "

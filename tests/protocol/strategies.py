@@ -5,15 +5,7 @@ from __future__ import annotations
 import math
 
 from hypothesis import strategies as st
-from pmsm_hil.protocol.messages import (
-    Command,
-    ConfigAck,
-    ConfigParam,
-    Fault,
-    Heartbeat,
-    Measurement,
-    Setpoint,
-)
+from pmsm_hil.protocol import Command, ConfigAck, ConfigParam, Fault, Heartbeat, Measurement, Setpoint
 
 u8 = st.integers(0, 255)
 u16 = st.integers(0, 0xFFFF)

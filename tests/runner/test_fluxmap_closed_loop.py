@@ -5,21 +5,15 @@ tests/runner/test_operating_range.py; here: the C loop runs the kind as the Pyth
 from __future__ import annotations
 
 from pmsm_hil.hil.presets_loader import load_motor
-from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import load_scenario
 
-TIMING_FIELDS = {"exec_time_ns", "exec_split_ns"}
+from tests.runner.loop_pairs import assert_bit_identical, reference_and_c_records
 
 
 def test_the_c_loop_runs_the_kind_as_the_python_loop() -> None:
     sc = load_scenario("dyno-steady").with_overrides(settle_s=0.01, duration_s=0.01, load_nm=3.0)
-    runs = [run_closed_loop(RunConfig(motor=load_motor("niu2020-ipmsm-sat"), scenario=sc, controller="mpcc",
-                                      loop=loop)) for loop in ("python", "native")]
-    assert [r.metrics["loop"] for r in runs] == ["python", "native"]
-    py, na = (r.outcome.periods.all() for r in runs)
-    assert py.shape == na.shape and py.shape[0] > 100
-    for name in py.dtype.names or ():
-        if name not in TIMING_FIELDS:
-            assert py[name].tobytes() == na[name].tobytes(), name
+    py, na = reference_and_c_records(RunConfig(motor=load_motor("niu2020-ipmsm-sat"), scenario=sc, controller="mpcc"))
+    assert py.shape[0] > 100
+    assert_bit_identical(py, na)
     assert abs(na["i_q"][-50:].mean()) > 1.0

@@ -9,11 +9,10 @@ from pathlib import Path
 
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.hil.presets_loader import load_motor
-from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import load_scenario
 
-TIMING_FIELDS = {"exec_time_ns", "exec_split_ns"}
+from tests.runner.loop_pairs import assert_bit_identical, reference_and_c_records
 
 
 def test_hil_run_im_foc_holds_speed_and_torque(tmp_path: Path) -> None:
@@ -32,12 +31,7 @@ def test_hil_run_im_foc_holds_speed_and_torque(tmp_path: Path) -> None:
 
 def test_the_c_loop_runs_the_im_as_the_python_loop_does() -> None:
     sc = load_scenario("steady").with_overrides(speed_rpm=1000.0, load_nm=5.0, settle_s=0.02, duration_s=0.03)
-    runs = [run_closed_loop(RunConfig(motor=load_motor("im-2k2"), scenario=sc, controller="im-foc", loop=loop))
-            for loop in ("python", "native")]
-    assert [r.metrics["loop"] for r in runs] == ["python", "native"]
-    py, na = (r.outcome.periods.all() for r in runs)
-    assert py.shape == na.shape and py.shape[0] == 500
-    for name in py.dtype.names or ():
-        if name not in TIMING_FIELDS:
-            assert py[name].tobytes() == na[name].tobytes(), name
+    py, na = reference_and_c_records(RunConfig(motor=load_motor("im-2k2"), scenario=sc, controller="im-foc"))
+    assert py.shape[0] == 500
+    assert_bit_identical(py, na)
     assert abs(na["i_d"][-100:].mean()) > 1.0  # the flux current flows (flux-frame i_d of the plant's sample)

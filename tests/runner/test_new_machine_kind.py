@@ -22,9 +22,10 @@ from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import load_scenario
 
+from tests.runner.loop_pairs import assert_bit_identical, reference_and_c_records
+
 KIND_DIR = Path(__file__).with_name("rl_kind")
 REPO = Path(__file__).resolve().parents[2]
-TIMING_FIELDS = {"exec_time_ns", "exec_split_ns"}
 
 
 @pytest.fixture(scope="module")
@@ -90,13 +91,9 @@ def test_the_rl_kernel_is_exact_over_one_sub_interval(rl: Any) -> None:
 
 
 def test_the_c_loop_runs_the_new_kind_as_the_python_loop_does(rl: Any) -> None:
-    runs = [run_closed_loop(_cfg(rl, loop)) for loop in ("python", "native")]
-    assert [r.metrics["loop"] for r in runs] == ["python", "native"]
-    py, na = (r.outcome.periods.all() for r in runs)
-    assert py.shape == na.shape and py.shape[0] == 500
-    for name in py.dtype.names or ():
-        if name not in TIMING_FIELDS:
-            assert py[name].tobytes() == na[name].tobytes(), name
+    py, na = reference_and_c_records(_cfg(rl, "auto"))
+    assert py.shape[0] == 500
+    assert_bit_identical(py, na)
     # the controller regulates the load's currents: FOC's i_q reference is T*/(1.5·p·ψ) = 2/(1.5·2·0.1) A
     window = na[200:]
     i_q_ref = window["torque_ref"].mean() / (1.5 * 2 * 0.1)
