@@ -125,19 +125,21 @@ class SimTarget:
             try:
                 self.firmware.select_controller(s.controller_id)
             except FirmwareConfigError:
-                self.counters.faults += 1
-                self.enabled = False
-                self._send(Fault(node=TARGET_NODE, code=int(Status.NOT_IMPLEMENTED), detail=s.controller_id))
+                self._refuse(Status.NOT_IMPLEMENTED, s.controller_id)
                 return
             self.controller_id = s.controller_id
         try:
             self.firmware.set_setpoint(s.enable, s.mode, s.reference)
         except FirmwareConfigError:
-            self.counters.faults += 1
-            self.enabled = False
-            self._send(Fault(node=TARGET_NODE, code=int(Status.INVALID_CONFIG), detail=s.mode))
+            self._refuse(Status.INVALID_CONFIG, s.mode)
             return
         self.enabled = s.enable
+
+    def _refuse(self, code: Status, detail: int) -> None:
+        """A Setpoint the firmware refused: disabled, a Fault with `code` and `detail` sent and counted."""
+        self.counters.faults += 1
+        self.enabled = False
+        self._send(Fault(node=TARGET_NODE, code=int(code), detail=detail))
 
     def run_forever(self, should_stop: Callable[[], bool], idle_sleep_s: float = 0.0) -> None:
         """Busy-poll the link until should_stop() is true (checked every ~1000 empty polls)."""

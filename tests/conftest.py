@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 import signal
 from pathlib import Path
+from typing import Any
 
 import pytest
 from pmsm_hil.hil.runner.reference_loop import ENV as REFERENCE_LOOP_ENV
@@ -55,3 +56,17 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     if _unexpected:
         print("\nunexpected skips in CI (install what they need in .ci/run):\n  " + "\n  ".join(_unexpected))
         session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
+@pytest.fixture
+def target_without_heartbeats(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The Python sim target sends every frame but its HeartbeatTargets: it never confirms a safe stop."""
+    from pmsm_hil.sim_target.target import SimTarget
+
+    real = SimTarget._send
+
+    def without_heartbeats(self: SimTarget, msg: Any) -> None:
+        if type(msg).__name__ != "Heartbeat":
+            real(self, msg)
+
+    monkeypatch.setattr(SimTarget, "_send", without_heartbeats)

@@ -56,6 +56,7 @@ def _plot(interp: Interpolant, out: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from pmsm_hil.app.compare.plot import save_figure
 
     fmap = interp.fmap
     fig, (ax_d, ax_q) = plt.subplots(1, 2, figsize=(10, 4))
@@ -68,13 +69,7 @@ def _plot(interp: Interpolant, out: Path) -> None:
     for ax in (ax_d, ax_q):
         ax.grid(True)
         ax.legend(fontsize=7)
-    fig.tight_layout()
-    try:
-        fig.savefig(out, dpi=100)
-    except OSError as exc:
-        raise InputFileError(f"--png {out}: {exc.strerror}") from None
-    finally:
-        plt.close(fig)
+    save_figure(plt, fig, out, 100, f"--png {out}")
 
 
 def run(args: argparse.Namespace) -> int:

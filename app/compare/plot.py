@@ -100,11 +100,17 @@ def write_png(result: CompareResult, path: Path) -> bool:
     else:
         fig = _accel(result, plt)
     fig.suptitle(f"hil compare --preset {result.preset.name}", fontsize=10)
+    save_figure(plt, fig, path, 110, f"png file {path}")
+    return True
+
+
+def save_figure(plt: Any, fig: Any, path: Path, dpi: int, field: str) -> None:
+    """Lay out `fig`, write it to `path` at `dpi` and close it; a write that fails is InputFileError naming
+    `field`."""
     fig.tight_layout()
     try:
-        fig.savefig(path, dpi=110)
+        fig.savefig(path, dpi=dpi)
     except OSError as exc:
-        raise InputFileError(f"png file {path}: {exc.strerror}") from None
+        raise InputFileError(f"{field}: {exc.strerror}") from None
     finally:
         plt.close(fig)
-    return True

@@ -16,6 +16,15 @@ def _plant(t_dead: float = 0.0, t_mpw: float = 0.0) -> Plant:
     return Plant(params, 1e-4, DynoMechanics(0.0), trace_dt_s=None)
 
 
+def _i_d_after(states: list[int], durations_ns: list[int], i_d: float, gate: int | None = None,
+              t_dead: float = 0.0) -> float:
+    """i_d [A] at the end of one period of `states` for `durations_ns`, from i_d and `gate` at standstill."""
+    plant = _plant(t_dead=t_dead)
+    plant.set_state(i_d=i_d, gate=gate)
+    plant.advance(states, durations_ns)
+    return plant.sample().i_d
+
+
 def test_pulse_shorter_than_tmpw_never_reaches_the_gate() -> None:
     with_pulse = _plant(t_mpw=3e-6)
     stats = with_pulse.advance([0, 4, 0], [49_000, 2_000, 49_000])
@@ -38,31 +47,15 @@ def test_pulse_longer_than_tmpw_is_applied_and_counted_as_narrow_below_tlim() ->
 def test_dead_time_delays_rising_edge_for_positive_current() -> None:
     """Current out of leg a (i_a > 0): during dead time the lower diode clamps a to the low rail,
     so a 0→1 command edge takes effect t_dead later: equal to an ideal pulse shortened by t_dead."""
-    ideal = _plant()
-    ideal.set_state(i_d=2.0)
-    ideal.advance([0, 4], [50_000, 50_000])
-    deadtime = _plant(t_dead=2.5e-6)
-    deadtime.set_state(i_d=2.0)
-    deadtime.advance([0, 4], [50_000, 50_000])
-    shifted = _plant()
-    shifted.set_state(i_d=2.0)
-    shifted.advance([0, 4], [52_500, 47_500])
-    assert deadtime.sample().i_d == pytest.approx(shifted.sample().i_d, abs=1e-9)
-    assert deadtime.sample().i_d != pytest.approx(ideal.sample().i_d, abs=1e-6)
+    deadtime = _i_d_after([0, 4], [50_000, 50_000], 2.0, t_dead=2.5e-6)
+    assert deadtime == pytest.approx(_i_d_after([0, 4], [52_500, 47_500], 2.0), abs=1e-9)
+    assert deadtime != pytest.approx(_i_d_after([0, 4], [50_000, 50_000], 2.0), abs=1e-6)
 
 
 def test_dead_time_does_not_delay_falling_edge_for_positive_current() -> None:
-    ideal = _plant()
-    ideal.set_state(i_d=2.0)
-    ideal.advance([4, 0], [50_000, 50_000])
-    deadtime = _plant(t_dead=2.5e-6)
-    deadtime.set_state(i_d=2.0)
-    deadtime.advance([4, 0], [50_000, 50_000])
+    deadtime = _i_d_after([4, 0], [50_000, 50_000], 2.0, t_dead=2.5e-6)
     # the first edge (0→1 at t = 0) is delayed, the falling edge is not
-    shifted = _plant()
-    shifted.set_state(i_d=2.0)
-    shifted.advance([0, 4, 0], [2_500, 47_500, 50_000])
-    assert deadtime.sample().i_d == pytest.approx(shifted.sample().i_d, abs=1e-9)
+    assert deadtime == pytest.approx(_i_d_after([0, 4, 0], [2_500, 47_500, 50_000], 2.0), abs=1e-9)
 
 
 @pytest.mark.parametrize(
@@ -78,13 +71,8 @@ def test_bad_sequences_raise_clear_errors(states: list[int], durations: list[int
 def test_dead_time_delays_falling_edge_for_negative_current() -> None:
     """Current into leg a (i_a < 0): the upper diode holds a at +Vdc for t_dead after a 1→0 command:
     the pulse is widened by t_dead (hand calculation: +Vdc·t_dead volt-seconds on leg a)."""
-    deadtime = _plant(t_dead=2.5e-6)
-    deadtime.set_state(i_d=-3.0, gate=4)
-    deadtime.advance([4, 0], [40_000, 60_000])
-    widened = _plant()
-    widened.set_state(i_d=-3.0, gate=4)
-    widened.advance([4, 0], [42_500, 57_500])
-    assert deadtime.sample().i_d == pytest.approx(widened.sample().i_d, abs=1e-9)
+    deadtime = _i_d_after([4, 0], [40_000, 60_000], -3.0, gate=4, t_dead=2.5e-6)
+    assert deadtime == pytest.approx(_i_d_after([4, 0], [42_500, 57_500], -3.0, gate=4), abs=1e-9)
 
 
 def test_current_reaching_zero_in_dead_time_leaves_the_phase_open() -> None:

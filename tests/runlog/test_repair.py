@@ -117,12 +117,17 @@ def test_cli_bad_input_returns_error_without_traceback(
     assert "IN.mcap" in lines[0] and "bad magic" in lines[1] and "Traceback" not in err
 
 
+def _repaired(chunked_file: Path, out_dir: Path) -> tuple[Path, bytes]:
+    """`hil mcap-repair chunked_file -o out_dir/good.mcap`: the output and its bytes."""
+    good = out_dir / "good.mcap"
+    assert main(["mcap-repair", str(chunked_file), "-o", str(good)]) == 0
+    return good, good.read_bytes()
+
+
 def test_cli_failed_repair_leaves_existing_output_untouched(
     chunked_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    good = tmp_path / "good.mcap"
-    assert main(["mcap-repair", str(chunked_file), "-o", str(good)]) == 0
-    before = good.read_bytes()
+    good, before = _repaired(chunked_file, tmp_path)
     junk = tmp_path / "junk.mcap"
     junk.write_bytes(b"x" * 100)
     assert main(["mcap-repair", str(junk), "-o", str(good)]) == 2
@@ -142,9 +147,7 @@ def test_cli_refuses_output_onto_its_input(chunked_file: Path, capsys: pytest.Ca
 def test_cli_never_replaces_an_existing_output_without_overwrite(
     chunked_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    good = tmp_path / "good.mcap"
-    assert main(["mcap-repair", str(chunked_file), "-o", str(good)]) == 0
-    before = good.read_bytes()
+    good, before = _repaired(chunked_file, tmp_path)
     empty = tmp_path / "empty.mcap"
     empty.write_bytes(MAGIC)  # a valid start, no message
     assert main(["mcap-repair", str(empty), "-o", str(good)]) == 2

@@ -26,7 +26,17 @@ def _one_line_error(capsys: pytest.CaptureFixture[str], *needles: str) -> str:
     return err
 
 
-# --- item 3: input errors --------------------------------------------------------------------------------
+def _refused_onto(capsys: pytest.CaptureFixture[str], target: Path, argv: list[str], option: str) -> None:
+    """`hil ARGV` writing onto `target`, a file it reads or writes itself: exit 2, one line naming `option`, the
+    file unchanged."""
+    before = target.read_bytes()
+    capsys.readouterr()
+    assert main(argv) == 2
+    _one_line_error(capsys, f"{option} {target}: names a file this command reads or writes itself")
+    assert target.read_bytes() == before
+
+
+# input errors
 @pytest.mark.parametrize(("text", "needles"), [
     ('speed = "fast"\n', ["'speed' must be a number", "'fast'"]),
     ('duration = "long"\n', ["'duration' must be a number", "'long'"]),
@@ -107,7 +117,7 @@ def test_out_that_is_a_file_or_cannot_be_created(tmp_path: Path, capsys: pytest.
     assert not (a_file / "sub").exists() and a_file.read_text() == "x"
 
 
-# --- item 2: outputs --------------------------------------------------------------------------------------
+# outputs
 def test_out_of_an_existing_run_is_refused_unless_overwrite(tmp_path: Path,
                                                             capsys: pytest.CaptureFixture[str]) -> None:
     run_dir = tmp_path / "r"
@@ -139,11 +149,7 @@ def test_report_never_writes_onto_a_run(tmp_path: Path, capsys: pytest.CaptureFi
     run_dir = tmp_path / "r"
     assert main(["run", "--out", str(run_dir), "--duration", "0.02", "--settle", "0"]) == 0
     mcap = run_dir / "run.mcap"
-    before = mcap.read_bytes()
-    capsys.readouterr()
-    assert main(["report", str(run_dir), "-o", str(mcap)]) == 2
-    _one_line_error(capsys, f"-o {mcap}: names a file this command reads or writes itself")
-    assert mcap.read_bytes() == before
+    _refused_onto(capsys, mcap, ["report", str(run_dir), "-o", str(mcap)], "-o")
     metrics = json.loads((run_dir / "metrics.json").read_text())
     (run_dir / "metrics.json").write_text(json.dumps({**metrics, "periods": "many"}))
     good = tmp_path / "good.html"
@@ -160,11 +166,7 @@ def test_rerun_save_onto_the_replayed_log_is_refused(tmp_path: Path, capsys: pyt
     run_dir = tmp_path / "r"
     assert main(["run", "--out", str(run_dir), *SHORT]) == 0
     mcap = run_dir / "run.mcap"
-    before = mcap.read_bytes()
-    capsys.readouterr()
-    assert main(["replay", str(mcap), "--rerun-save", str(mcap)]) == 2
-    _one_line_error(capsys, f"--rerun-save {mcap}: names a file this command reads or writes itself")
-    assert mcap.read_bytes() == before
+    _refused_onto(capsys, mcap, ["replay", str(mcap), "--rerun-save", str(mcap)], "--rerun-save")
 
 
 def _replay(tmp_path: Path, rows: list[str], *extra: str, rpm: str = "1500") -> int:
@@ -198,7 +200,7 @@ def test_replay_output_onto_its_input_is_refused(tmp_path: Path, capsys: pytest.
     assert src.read_text() == "sa,sb,sc\n1,0,0\n"
 
 
-# --- item 5: the log records the configuration ------------------------------------------------------------
+# the log records the configuration
 def test_log_records_the_run_configuration_and_setup_frames(tmp_path: Path,
                                                             capsys: pytest.CaptureFixture[str]) -> None:
     run_dir = tmp_path / "r"
@@ -224,7 +226,7 @@ def test_log_records_the_run_configuration_and_setup_frames(tmp_path: Path,
     capsys.readouterr()
 
 
-# --- item 6: messages and help ----------------------------------------------------------------------------
+# messages and help
 def test_speed_reference_missed_is_flagged(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "m.json"
     assert main(["run", "--speed", "2900", "--duration", "0.05", "--settle", "0.3", "--no-log",

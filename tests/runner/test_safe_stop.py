@@ -50,14 +50,8 @@ def test_a_spawned_target_over_udp_confirms(loop: str) -> None:
     assert m["safe_stop_confirmed"] is True and m["safe_stop_wait_ms"] < 500
 
 
-def test_an_in_process_target_that_does_not_confirm_ends_with_exit_3(monkeypatch: pytest.MonkeyPatch) -> None:
-    real = sim_target.SimTarget._send
-
-    def without_heartbeats(self: sim_target.SimTarget, msg: Any) -> None:
-        if type(msg).__name__ != "Heartbeat":
-            real(self, msg)
-
-    monkeypatch.setattr(sim_target.SimTarget, "_send", without_heartbeats)
+@pytest.mark.usefixtures("target_without_heartbeats")
+def test_an_in_process_target_that_does_not_confirm_ends_with_exit_3() -> None:
     res = run_closed_loop(_cfg(loop="python"))
     m = res.metrics
     assert m["end_code"] == int(EndCode.SAFETY_STOP) and res.outcome.safe_state and m["safe_state"] is True

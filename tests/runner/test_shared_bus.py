@@ -11,9 +11,9 @@ import contextlib
 import random
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import replace
-from typing import Any
+from typing import Any, Self
 
 import can
 import pytest
@@ -39,7 +39,29 @@ from tests.runner.test_native_loop import _three
 TARGET_IDS = sorted(target_ids())
 
 
-class Flood:
+class _InThread:
+    """`run` in a daemon thread from `with` entry; on exit `_stop` is set, the thread joined (up to `join_s` [s])
+    and `close()` called."""
+
+    def __init__(self, run: Callable[[], None], name: str, join_s: float) -> None:
+        self._stop = threading.Event()
+        self._join_s = join_s
+        self._thread = threading.Thread(target=run, name=name, daemon=True)
+
+    def close(self) -> None:
+        """Release what the thread used (after it has ended)."""
+
+    def __enter__(self) -> Self:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join(self._join_s)
+        self.close()
+
+
+class Flood(_InThread):
     """A thread sending random frames on a virtual channel: `ids` "random" (any 11-bit id) or "protocol" (the
     target's ids), `rate` frames/s (0: as fast as it can)."""
 
@@ -47,8 +69,7 @@ class Flood:
         self.bus = can.Bus(interface="virtual", channel=channel, protocol=can.CanProtocol.CAN_FD)
         self.ids, self.rate, self.rng = ids, rate, random.Random(seed)
         self.sent = 0
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="bus-flood", daemon=True)
+        super().__init__(self._run, "bus-flood", 5.0)
 
     def _frame(self) -> can.Message:
         rng = self.rng
@@ -71,13 +92,7 @@ class Flood:
             elif self.sent % 64 == 0:
                 time.sleep(0)  # let the loop's Python callbacks have the GIL
 
-    def __enter__(self) -> Flood:
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self._stop.set()
-        self._thread.join(5.0)
+    def close(self) -> None:
         self.bus.shutdown()
 
 
@@ -208,7 +223,7 @@ def _no_leaked_threads() -> Iterator[None]:
     assert not any(t.name == "bus-flood" and t.is_alive() for t in threading.enumerate())
 
 
-class ThreadTarget:
+class ThreadTarget(_InThread):
     """A Python target (SimTarget) in a thread on a virtual channel, answering its first `silent_after`
     Measurements: to the host a target in another process (`--target external`), whose replies take wall time."""
 
@@ -217,17 +232,9 @@ class ThreadTarget:
 
         self.link = open_link(spec, "target")
         self.target = SimTarget(self.link, FrameCodec("canfd"), silent_after=silent_after)
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self.target.run_forever, args=(self._stop.is_set,),
-                                        name="bus-target", daemon=True)
+        super().__init__(lambda: self.target.run_forever(self._stop.is_set), "bus-target", 10.0)
 
-    def __enter__(self) -> ThreadTarget:
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self._stop.set()
-        self._thread.join(10.0)
+    def close(self) -> None:
         self.link.close()
 
 

@@ -79,14 +79,20 @@ def pty_pair() -> Iterator[tuple[int, str]]:
             os.close(fd)
 
 
+def _breaking_target(tmp_path: Path, pty_pair: tuple[int, str], rule: str) -> Session:
+    """The conformance suite against examples/python_target.py on a pty, breaking `rule` (`--break`)."""
+    master, port = pty_pair
+    with _process([sys.executable, str(TARGET), f"serial:fd:{master}", "--break", rule], pass_fds=(master,)):
+        s = _conformance(tmp_path, "--hil-target", f"external:serial:{port}", "--hil-controller", "external")
+    assert set(s.cases) == TEST_IDS, s.output[-3000:]
+    return s
+
+
 def test_a_foreign_target_breaking_one_rule_fails_that_rule_only(tmp_path: Path,
                                                                    pty_pair: tuple[int, str]) -> None:
     """examples/python_target.py's control law (+ the undefined-mode fault) on a pty, answering its 30th
     Measurement with durations 1 ns short: every test passes but `durations`, whose message names the rule."""
-    master, port = pty_pair
-    with _process([sys.executable, str(TARGET), f"serial:fd:{master}", "--break", "durations"], pass_fds=(master,)):
-        s = _conformance(tmp_path, "--hil-target", f"external:serial:{port}", "--hil-controller", "external")
-    assert set(s.cases) == TEST_IDS, s.output[-3000:]
+    s = _breaking_target(tmp_path, pty_pair, "durations")
     assert s.rc == 1 and s.failed() == ["test_contract_rule[durations]"], s.outcomes()
     message = s.cases["test_contract_rule[durations]"].message
     assert "conformance rule 'durations' broken" in message and "durations sum to 99999 ns" in message
@@ -96,10 +102,7 @@ def test_a_foreign_target_that_never_confirms_the_safe_stop_fails_that_rule_only
         tmp_path: Path, pty_pair: tuple[int, str]) -> None:
     """The same target ignoring every disabling Setpoint's confirmation: only `safe_stop` fails, naming what the
     host saw."""
-    master, port = pty_pair
-    with _process([sys.executable, str(TARGET), f"serial:fd:{master}", "--break", "safe_stop"], pass_fds=(master,)):
-        s = _conformance(tmp_path, "--hil-target", f"external:serial:{port}", "--hil-controller", "external")
-    assert set(s.cases) == TEST_IDS, s.output[-3000:]
+    s = _breaking_target(tmp_path, pty_pair, "safe_stop")
     assert s.rc == 1 and s.failed() == ["test_safe_stop"], s.outcomes()
     message = s.cases["test_safe_stop"].message
     assert "conformance rule 'safe_stop' broken" in message

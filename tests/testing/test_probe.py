@@ -46,14 +46,8 @@ def test_a_target_ignoring_a_disable_while_running(monkeypatch: pytest.MonkeyPat
     assert "no HeartbeatTarget in state idle within 500 ms" in report.findings["safe_stop"][0]
 
 
-def test_a_target_disabling_without_confirming(monkeypatch: pytest.MonkeyPatch) -> None:
-    real = sim_target.SimTarget._send
-
-    def no_heartbeat(self: sim_target.SimTarget, msg: Any) -> None:
-        if type(msg).__name__ != "Heartbeat":
-            real(self, msg)
-
-    monkeypatch.setattr(sim_target.SimTarget, "_send", no_heartbeat)
+@pytest.mark.usefixtures("target_without_heartbeats")
+def test_a_target_disabling_without_confirming() -> None:
     report = _probe()
     assert _broken_rules(report) == {"safe_stop"}
     assert report.findings["safe_stop"] == ["a disabling Setpoint while running in torque mode: no HeartbeatTarget in "
