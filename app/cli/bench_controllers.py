@@ -132,9 +132,9 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     """Register `controllers` under `hil bench`."""
     p = subparsers.add_parser(
         "controllers", help="C firmware ns/step per controller (and instructions/step under valgrind)",
-        description="Time every implemented controller of the C reference firmware on a rotating "
-                    "rated-current vector at 1500 rpm (C-side CLOCK_MONOTONIC per stage, medians over "
-                    "repeats); with valgrind installed also count instructions per step (callgrind).")
+        description="""Time every implemented controller of the C reference firmware on a rotating rated-current vector
+                       at 1500 rpm (C-side CLOCK_MONOTONIC per stage, medians over repeats); with valgrind installed
+                       also count instructions per step (callgrind).""")
     p.add_argument("--steps", type=positive_int, default=20_000, metavar="N", help="steps per repeat (%(default)s)")
     p.add_argument("--repeats", type=positive_int, default=5, metavar="R", help="repeats (%(default)s)")
     p.add_argument("--valgrind-steps", type=positive_int, default=2000, metavar="N",

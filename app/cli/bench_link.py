@@ -38,8 +38,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
     p = subparsers.add_parser(
         "link",
         help="codec cost and link round-trip latency",
-        description="Encode/decode cost per frame (Python codec vs cantools) and "
-        "round-trip latency over virtual, UDP and serial (pty) links.",
+        description="""Encode/decode cost per frame (Python codec vs cantools) and round-trip latency over virtual, UDP
+                       and serial (pty) links.""",
     )
     p.add_argument("--repeats", type=int, default=7, help="timing repeats (median reported)")
     p.add_argument("--count", type=int, default=2000, help="operations / round trips per repeat")

@@ -21,11 +21,10 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     """Register `memory` under `hil bench`."""
     p = subparsers.add_parser(
         "memory", help="peak RSS and wall time of hil run against its simulated duration",
-        description="Run `hil run` (default controller and motor, lockstep, in-process target) for each "
-                    "duration in a fresh interpreter and print its peak resident memory (host process and MCAP "
-                    "logger process) and wall time per simulated second. Goal: a 600 s run under 500 MB, wall "
-                    "time linear in duration within 10 %; --mode realtime: the longest run's RSS within 10 % of the "
-                    "shortest's.")
+        description="""Run `hil run` (default controller and motor, lockstep, in-process target) for each duration in a
+                       fresh interpreter and print its peak resident memory (host process and MCAP logger process) and
+                       wall time per simulated second. Goal: a 600 s run under 500 MB, wall time linear in duration
+                       within 10 %; --mode realtime: the longest run's RSS within 10 % of the shortest's.""")
     p.add_argument("--durations", type=_durations, default=[10.0, 60.0, 600.0], metavar="S,S,...",
                    help="simulated durations [s] (default 10,60,600)")
     p.add_argument("--no-log", action="store_true", help="runs without the MCAP log (default: logged)")

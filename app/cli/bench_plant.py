@@ -15,9 +15,9 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     """Register `plant` under `hil bench`."""
     p = subparsers.add_parser(
         "plant", help="plant periods per second (and the ratio against gym-electric-motor)",
-        description="Time the plant (niu2020-ipmsm, 1500 rpm dyno, Ts = 100 µs) for single-vector and "
-                    "three-sub-interval periods with the 2 µs trace on and off; when gym-electric-motor is "
-                    "installed, time its PMSM step and compare its currents with ours.")
+        description="""Time the plant (niu2020-ipmsm, 1500 rpm dyno, Ts = 100 µs) for single-vector and
+                       three-sub-interval periods with the 2 µs trace on and off; when gym-electric-motor is installed,
+                       time its PMSM step and compare its currents with ours.""")
     p.add_argument("--periods", type=positive_int, default=20_000, metavar="N",
                    help="periods per repeat (default %(default)s)")
     p.add_argument("--repeats", type=positive_int, default=5, metavar="R",

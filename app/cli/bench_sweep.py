@@ -20,16 +20,16 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     """Register `bench sweep`."""
     p = subparsers.add_parser(
         "sweep", help="speed-up of `hil sweep` with 2 local workers against 1 (same 16-run plan)",
-        description="Runs one 16-run sweep plan (controllers mpcc, dsvm-20 × load 3, 7 N·m × 4 initial rotor "
-                    "angles; --sim seconds simulated each, half settling) on the local process pool with 1 and "
-                    "with 2 workers, alternately, --repeat times (worker start-up included; one untimed "
-                    "warm-up run first starts the pool's fork server), and prints the median "
-                    "wall times, the ratio 2 workers / 1 worker (ideal 0.5; the goal is ≤ 0.6 on an idle 2-core "
-                    "machine) and the load average before and after: a shared machine makes the figures noisy. "
-                    "Also checks that both give the same metrics (wall-clock ones aside), and prints how many "
-                    "cores were busy during the 1-worker rounds (/proc/stat): the native loop runs its periods "
-                    "in a thread of its own beside the Python side, so one worker uses more than one core and 2 "
-                    "workers on 2 cores cannot reach 0.5 (`--loop python` measures the pool with one-thread runs).")
+        description="""Runs one 16-run sweep plan (controllers mpcc, dsvm-20 × load 3, 7 N·m × 4 initial rotor angles;
+                       --sim seconds simulated each, half settling) on the local process pool with 1 and with 2 workers,
+                       alternately, --repeat times (worker start-up included; one untimed warm-up run first starts the
+                       pool's fork server), and prints the median wall times, the ratio 2 workers / 1 worker (ideal 0.5;
+                       the goal is ≤ 0.6 on an idle 2-core machine) and the load average before and after: a shared
+                       machine makes the figures noisy. Also checks that both give the same metrics (wall-clock ones
+                       aside), and prints how many cores were busy during the 1-worker rounds (/proc/stat): the native
+                       loop runs its periods in a thread of its own beside the Python side, so one worker uses more than
+                       one core and 2 workers on 2 cores cannot reach 0.5 (`--loop python` measures the pool with
+                       one-thread runs).""")
     p.add_argument("--repeat", type=positive_int, default=3, metavar="N", help="rounds (default %(default)s)")
     p.add_argument("--sim", type=positive_float("--sim"), default=0.2, metavar="S",
                    help="simulated seconds per run (default %(default)s)")

@@ -16,11 +16,11 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     """Register `build` under `hil fw`."""
     p = subparsers.add_parser(
         "build", help="build a firmware for the SIL host library or the QEMU mps2-an386 board",
-        description="Build the reference firmware (default) or a firmware source folder (a CMakeLists.txt calling "
-                    "hil_add_firmware(), e.g. examples/my_firmware/ or the C++ examples/my_firmware_cpp/) for the "
-                    "host (shared library: hil run --target sil:OUT) or mps2-an386 (Cortex-M4F ELF: hil run "
-                    "--target qemu:OUT); prints the artefact's path, the compiler's warnings, for the ELF its "
-                    "text/data/bss sizes, and the parameters the firmware declares (hil_app_params.h).")
+        description="""Build the reference firmware (default) or a firmware source folder (a CMakeLists.txt calling
+                       hil_add_firmware(), e.g. examples/my_firmware/ or the C++ examples/my_firmware_cpp/) for the host
+                       (shared library: hil run --target sil:OUT) or mps2-an386 (Cortex-M4F ELF: hil run --target
+                       qemu:OUT); prints the artefact's path, the compiler's warnings, for the ELF its text/data/bss
+                       sizes, and the parameters the firmware declares (hil_app_params.h).""")
     p.add_argument("--board", choices=BOARDS, default="host", help="target board (default host)")
     p.add_argument("--src", type=Path, metavar="DIR", help="firmware source folder (default: the reference firmware)")
     p.add_argument("-o", "--out", type=Path, metavar="OUT",

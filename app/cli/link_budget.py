@@ -27,8 +27,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
     p = subparsers.add_parser(
         "link-budget",
         help="worst-case link budget of one control period",
-        description="Frames, worst-case bits (bit stuffing) and wire time per control "
-        "period; bus load at --rate and the maximum closed-loop rate.",
+        description="""Frames, worst-case bits (bit stuffing) and wire time per control period; bus load at --rate and
+                       the maximum closed-loop rate.""",
         epilog="exit codes: 0 the link carries --rate, 1 too slow for --rate (the figures are still printed), "
         "2 bad arguments",
     )

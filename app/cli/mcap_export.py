@@ -11,10 +11,10 @@ from pmsm_hil.hil.runlog.can_log import FORMATS
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Register `export` under `hil mcap`."""
     p = subparsers.add_parser("export", help="write a run's /frames as a CAN log (candump, ASC, BLF, CSV)",
-                              description="The frames of a run log at their virtual times (run time, s) through "
-                                          "python-can's log writers: candump -L (can-utils, SavvyCAN), Vector ASC "
-                                          "and BLF (CANalyzer-style tools), python-can CSV. Host-sent frames are "
-                                          "written as Tx, received ones as Rx.")
+                              description="""The frames of a run log at their virtual times (run time, s) through
+                                             python-can's log writers: candump -L (can-utils, SavvyCAN), Vector ASC and
+                                             BLF (CANalyzer-style tools), python-can CSV. Host-sent frames are written
+                                             as Tx, received ones as Rx.""")
     p.add_argument("mcap", type=Path, metavar="RUN.mcap", help="run log written by `hil run`")
     p.add_argument("--format", choices=tuple(FORMATS), required=True, help="log format")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="FILE", help="the log to write")

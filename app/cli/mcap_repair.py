@@ -16,8 +16,8 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser: argparse.ArgumentParser = subparsers.add_parser(
         "mcap-repair",
         help="rewrite the valid prefix of a cut MCAP run log as a complete file",
-        description="Read IN.mcap chunk by chunk up to the first incomplete or corrupt record and "
-        "write a complete, indexed MCAP file (default OUT: IN.repaired.mcap).",
+        description="""Read IN.mcap chunk by chunk up to the first incomplete or corrupt record and write a complete,
+                       indexed MCAP file (default OUT: IN.repaired.mcap).""",
     )
     parser.add_argument("input", type=Path, metavar="IN.mcap", help="MCAP file to repair")
     parser.add_argument("-o", "--output", type=Path, metavar="OUT.mcap", default=None, help="output file")

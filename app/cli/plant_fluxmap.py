@@ -14,10 +14,10 @@ from pmsm_hil.hil.presets_loader import load_motor
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Register `fluxmap` under `hil plant`."""
     p = subparsers.add_parser("fluxmap", help="check a flux map (CSV, SyR-e .mat, or a pmsm-fluxmap motor)",
-                              description="Print a flux map's load checks: grid, monotonicity, incremental "
-                                          "inductances, reciprocity residual |∂ψd/∂iq − ∂ψq/∂id|; with a "
-                                          "pmsm-fluxmap motor (preset or TOML) also the trip-current coverage, "
-                                          "the torque 1.5·p·(ψd·iq − ψq·id) and the controllers' linear model.")
+                              description="""Print a flux map's load checks: grid, monotonicity, incremental
+                                             inductances, reciprocity residual |∂ψd/∂iq − ∂ψq/∂id|; with a pmsm-fluxmap
+                                             motor (preset or TOML) also the trip-current coverage, the torque
+                                             1.5·p·(ψd·iq − ψq·id) and the controllers' linear model.""")
     p.add_argument("path", help="flux map (.csv with id,iq,psi_d,psi_q or SyR-e .mat), motor TOML or preset name")
     p.add_argument("--png", type=Path, default=None, help="also plot ψd, ψq against the currents to this PNG")
     p.set_defaults(func=run)

@@ -14,11 +14,11 @@ from pmsm_hil.hil.replay import replay
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Register `replay` under `hil plant`."""
     p = subparsers.add_parser("replay", help="replay a CSV of switching commands in dyno mode",
-                              description="Replay switching commands (sa,sb,sc or s0,t0,s1,t1,s2,t2 rows) "
-                                          "through the plant at a held speed; writes t,i_a,...,omega_m. "
-                                          "A dual three-phase motor (lls > 0) takes sa1,sb1,sc1,sa2,sb2,sc2 "
-                                          "or 6-bit codes 0..63 [S_A S_B S_C S_U S_V S_W] and writes "
-                                          "t,i_a1,...,i_c2,i_d,i_q,i_x,i_y,torque,theta_e,omega_m.")
+                              description="""Replay switching commands (sa,sb,sc or s0,t0,s1,t1,s2,t2 rows) through the
+                                             plant at a held speed; writes t,i_a,...,omega_m. A dual three-phase motor
+                                             (lls > 0) takes sa1,sb1,sc1,sa2,sb2,sc2 or 6-bit codes 0..63 [S_A S_B S_C
+                                             S_U S_V S_W] and writes
+                                             t,i_a1,...,i_c2,i_d,i_q,i_x,i_y,torque,theta_e,omega_m.""")
     add_motor_arguments(p, default=None)
     p.add_argument("--rpm", type=finite_float("--rpm"), required=True, help="held shaft speed [rpm]")
     p.add_argument("--ts", type=finite_float("--ts"), required=True, help="control period [s]")

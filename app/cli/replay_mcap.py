@@ -16,11 +16,11 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     from pmsm_hil.dashboards.cli_live import add_rerun_arguments
 
     p = subparsers.add_parser("replay", help="replay a recorded run (MCAP) into the Rerun dashboard",
-                              description="Any run.mcap of `hil run` into the same blueprint as the live "
-                                          "dashboard. Give --rerun, --rerun-save FILE.rrd and/or --rerun-serve. "
-                                          "A CAN log instead (.log candump -L, .asc, .blf, python-can .csv, e.g. "
-                                          "from `hil mcap export`): its Commands drive the plant offline at a "
-                                          "held speed (--rpm, --ts, --output; as `hil plant replay`).")
+                              description="""Any run.mcap of `hil run` into the same blueprint as the live dashboard.
+                                             Give --rerun, --rerun-save FILE.rrd and/or --rerun-serve. A CAN log instead
+                                             (.log candump -L, .asc, .blf, python-can .csv, e.g. from `hil mcap
+                                             export`): its Commands drive the plant offline at a held speed (--rpm,
+                                             --ts, --output; as `hil plant replay`).""")
     p.add_argument("mcap", type=Path, metavar="RUN.mcap|CAPTURE.log",
                    help="run log written by `hil run`, or a CAN log whose Commands to replay through the plant")
     p.add_argument("--vdc", type=positive_float("--vdc"), help="DC-link voltage [V] (default: the run's motor)")

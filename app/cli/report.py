@@ -9,8 +9,8 @@ from pathlib import Path
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Register `hil report`."""
     p = subparsers.add_parser("report", help="HTML report of runs (metrics, whole-run plots, waveforms, spectra, bars)",
-                              description="Reads metrics.json and run.mcap of each `hil run --out` directory and "
-                                          "writes one HTML file with inline SVG figures (no external resources).")
+                              description="""Reads metrics.json and run.mcap of each `hil run --out` directory and
+                                             writes one HTML file with inline SVG figures (no external resources).""")
     p.add_argument("run_dirs", type=Path, nargs="+", metavar="RUN_DIR", help="output directory of `hil run`")
     p.add_argument("-o", "--output", type=Path, default=Path("report.html"), help="HTML file (default report.html)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing -o file (refused without it)")

@@ -10,10 +10,10 @@ import sys
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Register `hil target`."""
     p = subparsers.add_parser("target", help="run the virtual target on a link (its own process)",
-                              description="Serve the C reference firmware over a link until SIGTERM/Ctrl-C. "
-                                          "The host selects the controller with its setpoint; --controller "
-                                          "preselects one. Prints 'ready LINK' once the link is open; a link "
-                                          "that cannot open (e.g. a UDP port in use) is a one-line error, exit 2.")
+                              description="""Serve the C reference firmware over a link until SIGTERM/Ctrl-C. The host
+                                             selects the controller with its setpoint; --controller preselects one.
+                                             Prints 'ready LINK' once the link is open; a link that cannot open (e.g. a
+                                             UDP port in use) is a one-line error, exit 2.""")
     p.add_argument("--link", required=True, help="link SPEC, e.g. udp:LOCAL:REMOTE, serial:/dev/pts/3, socketcan:can0")
     p.add_argument("--controller", help="controller to preselect (e.g. mpcc)")
     p.add_argument("--role", default="target", choices=("target", "host"),
