@@ -3,10 +3,21 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterator
+from typing import Any
 
 import numpy as np
 from pmsm_hil.hil.motor_params import PmsmParams
 from scipy.integrate import solve_ivp
+
+
+def rows_and_references(rows: np.ndarray, t0: float, reference: Callable[[int], Any]) -> Iterator[tuple[Any, Any]]:
+    """Trace rows at least 1 µs (the shortest plant period) after `t0` [s], each with `reference(offset_ns)`: the
+    sample of a second plant whose period ends at the row's time."""
+    for row in rows:
+        offset_ns = round((row[0] - t0) * 1e9)
+        if offset_ns >= 1000:
+            yield row, reference(offset_ns)
 
 
 def stator_voltage(state: int, vdc: float) -> tuple[float, float]:

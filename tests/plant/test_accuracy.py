@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import pytest
@@ -10,7 +11,7 @@ from pmsm_hil.hil.mechanics import DynoMechanics
 from pmsm_hil.hil.plant import Plant
 from pmsm_hil.hil.presets_loader import load_motor
 
-from tests.plant.reference_solver import solve_period
+from tests.plant.reference_solver import rows_and_references, solve_period
 
 TS = 100e-6
 TS_NS = 100_000
@@ -123,15 +124,15 @@ def test_trace_rows_equal_the_closed_form_at_their_times(motor: str, trace_dt_ns
     traced.advance([4], [TS_NS])  # same vector as before: no gate edge inside the period
     rows = traced.last_trace.copy()
     assert rows.shape[0] == -(-TS_NS // trace_dt_ns)
-    checked, worst = 0, 0.0
-    for row in rows:
-        offset_ns = round((row[0] - start.t) * 1e9)
-        if offset_ns < 1000:  # a plant period is at least 1 µs
-            continue
+
+    def reference(offset_ns: int) -> Any:
         ref_plant = Plant(params, offset_ns * 1e-9, DynoMechanics(1500.0), trace_dt_s=None)
         ref_plant.set_state(i_d=start.i_d, i_q=start.i_q, theta_e=start.theta_e, gate=4)
         ref_plant.advance([4], [offset_ns])
-        ref = ref_plant.sample()
+        return ref_plant.sample()
+
+    checked, worst = 0, 0.0
+    for row, ref in rows_and_references(rows, start.t, reference):
         worst = max(worst, abs(row[1] - ref.i_a), abs(row[2] - ref.i_b), abs(row[3] - ref.i_c))
         assert row[4] == pytest.approx(ref.torque, rel=1e-12, abs=1e-12)
         checked += 1

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import pytest
@@ -12,6 +13,7 @@ from pmsm_hil.hil.mechanics import DynoMechanics, InertiaMechanics, LoadProfile
 from pmsm_hil.hil.plant6 import TRACE_COLUMNS6, Plant6
 from pmsm_hil.hil.presets_loader import load_motor
 
+from tests.plant.reference_solver import rows_and_references
 from tests.plant.reference_solver6 import VSD, VSD_ROWS, code_voltage, solve_period6
 
 TS = 100e-6
@@ -165,16 +167,16 @@ def test_trace_rows_equal_the_closed_form_at_their_times() -> None:
     start = traced.sample()
     traced.advance([code], [ts_ns])  # same vector as before: no gate edge inside the period
     rows = traced.last_trace.copy()
-    checked, worst = 0, 0.0
-    for row in rows:
-        offset_ns = round((row[0] - start.t) * 1e9)
-        if offset_ns < 1000:  # a plant period is at least 1 µs
-            continue
+
+    def reference(offset_ns: int) -> Any:
         ref_plant = Plant6(params, offset_ns * 1e-9, DynoMechanics(1000.0), trace_dt_s=None)
         ref_plant.set_state(i_d=start.i_d, i_q=start.i_q, i_x=start.i_x, i_y=start.i_y, theta_e=start.theta_e,
                             gate=code)
         ref_plant.advance([code], [offset_ns])
-        ref = ref_plant.sample()
+        return ref_plant.sample()
+
+    checked, worst = 0, 0.0
+    for row, ref in rows_and_references(rows, start.t, reference):
         worst = max(worst, *(abs(row[1 + k] - ref.phase_currents[k]) for k in range(6)),
                     abs(row[9] - ref.i_x), abs(row[10] - ref.i_y))
         assert row[7] == pytest.approx(ref.torque, rel=1e-11)

@@ -46,12 +46,10 @@ def test_two_load_steps_and_theta0(tmp_path: Path) -> None:
     prof = sc.load_profile()
     assert [prof.value_and_slope(t)[0] for t in (0.1, 0.25, 0.35)] == [0.0, 4.0, 2.0]
     path = tmp_path / "s.toml"
-    path.write_text('load_steps = [[0.1, 1.0], [0.05, 2.0]]\n', encoding="utf-8")
-    with pytest.raises(InputFileError, match="load_steps"):
-        load_scenario(str(path))
-    path.write_text('load_steps = [0.1, 1.0]\n', encoding="utf-8")
-    with pytest.raises(InputFileError, match="load_steps"):
-        load_scenario(str(path))
+    for bad in ("[[0.1, 1.0], [0.05, 2.0]]", "[0.1, 1.0]"):  # times going back; not [time, N·m] pairs
+        path.write_text(f"load_steps = {bad}\n", encoding="utf-8")
+        with pytest.raises(InputFileError, match="load_steps"):
+            load_scenario(str(path))
     with pytest.raises(ParameterError, match="theta0_rad"):
         sc.with_overrides(theta0_rad=float("nan"))
     cfg = RunConfig(motor=load_motor("xiao2023-spmsm"), scenario=sc.with_overrides(theta0_rad=1.25),
