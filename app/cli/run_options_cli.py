@@ -15,7 +15,7 @@ from pmsm_hil.hil.runner.run_options import RUN_OPTIONS, RunOption, Scope
 
 def argparse_type(option: RunOption, *, check: bool = False) -> Callable[[str], Any]:
     """An argparse `type=` for `option`: its own parse (and with `check` its range check), errors as argparse's.
-    The command line leaves ranges to `config_from_args` (one-line errors naming the option)."""
+    The command line leaves ranges to `RunConfig.from_options` (one-line errors naming the option)."""
     def parse(text: str) -> Any:
         try:
             return option.parse(text, check=check)

@@ -96,8 +96,8 @@ class RunOption:
 
     def parse(self, text: str, *, check: bool = True) -> Any:
         """The value of `text` as this option holds it; ParameterError naming the option if it is not one (or,
-        with `check`, out of range: the command line checks ranges later, in `check_values`, for one-line
-        errors)."""
+        with `check`, out of range: the command line checks ranges later, in `RunConfig.from_options`, for one-line
+        errors naming where the value came from)."""
         raw = text.strip()
         if self.kind == "number":
             value: Any = _float(raw, self.option, self.key)
@@ -377,16 +377,10 @@ def default_of(field: str) -> Any:
     return BY_FIELD[field].default
 
 
-def check_values(values: dict[str, Any]) -> None:
-    """Every value of `values` (option key → value, None: not set) checked against its option."""
-    for key, value in values.items():
-        OPTIONS[key].check(value)
-
-
 def check_field(field: str, value: Any) -> Any:
     """`value` of the RunConfig attribute `field` checked against its option (ParameterError naming it)."""
     return BY_FIELD[field].check(value)
 
 
 __all__ = ["BY_FIELD", "DEFAULTS", "DEFAULT_MCU_CLOCK_HZ", "LOOPS", "MAX_TS_S", "MAX_WAIT_S", "MIN_TS_S",
-           "MISS_POLICIES", "MODES", "OPTIONS", "RUN_OPTIONS", "RunOption", "check_field", "check_values", "default_of"]
+           "MISS_POLICIES", "MODES", "OPTIONS", "RUN_OPTIONS", "RunOption", "check_field", "default_of"]

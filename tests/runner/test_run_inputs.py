@@ -170,3 +170,38 @@ def test_a_missing_file_is_one_line_naming_it() -> None:
     with pytest.raises(InputFileError, match=r"^--grid motor: .*nope"):
         build_config(base_options(), (("motor", "nope.toml"),))
     assert DEFAULT == "default"
+
+
+def _exit_code(argv: list[str]) -> int:
+    from pmsm_hil.app.cli.main import main
+
+    try:
+        return main(argv)
+    except SystemExit as exc:  # argparse's own errors
+        return int(exc.code or 0)
+
+
+@pytest.mark.parametrize("argv", [["bench", "loop", "--ts", "1"], ["bench", "realtime", "--ts", "1"],
+                                  ["run", "--ts", "1"], ["bench", "loop", "--ts", "1.00000005e-4"]])
+def test_the_benches_declare_ts_as_hil_run_does(argv: list[str], capsys: pytest.CaptureFixture[str]) -> None:
+    """`--ts` has one declaration and one check (hil/control_period.py) wherever a period is chosen."""
+    assert _exit_code(argv) == 2
+    err = capsys.readouterr().err
+    assert "--ts must be between 5 µs and 1.048575 ms" in err or "--ts must be a whole number of ns" in err
+
+
+def test_the_plant_checks_its_period_with_the_same_range() -> None:
+    from pmsm_hil.hil.control_period import MAX_TS_S, MIN_TS_S
+    from pmsm_hil.hil.machine import machine_for
+    from pmsm_hil.hil.mechanics import InertiaMechanics, LoadProfile
+
+    m = load_motor("niu2020-ipmsm")
+    mech = InertiaMechanics(LoadProfile.constant(0.0))
+    for ts in (MIN_TS_S, MAX_TS_S, 1e-4):
+        assert RunConfig(motor=m, scenario=load_scenario("steady"), ts_s=ts).ts_s == ts
+        machine_for(m).build_plant(ts, mech, trace_dt_s=None)
+    for ts in (MIN_TS_S / 2, 2 * MAX_TS_S):
+        with pytest.raises(ParameterError, match="control period 'ts' must be between 5 µs"):
+            machine_for(m).build_plant(ts, mech, trace_dt_s=None)
+        with pytest.raises(ParameterError, match="--ts must be between 5 µs"):
+            RunConfig(motor=m, scenario=load_scenario("steady"), ts_s=ts)
