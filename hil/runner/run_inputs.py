@@ -104,7 +104,8 @@ def source_of(key: str, sources: Mapping[str, str]) -> str:
 
 def label(key: str, sources: Mapping[str, str], fallback: str | None = None) -> str:
     """How an error names the field `key` by its source: `--load`, `config file c.toml: 'load'`, `--grid load`,
-    `plan file p.toml: load`, `hil.run(load=...)`, else `fallback` (default: the option) for a default value."""
+    `plan file p.toml: load`, `hil.run(load=...)`, `--load (SOURCE)` for another source, else `fallback` (default:
+    the option) for a default value."""
     source = source_of(key, sources)
     option = option_of(key).option + (f" {key.split('.', 1)[1]}" if "." in key else "")
     if source.startswith("config file "):
@@ -116,7 +117,9 @@ def label(key: str, sources: Mapping[str, str], fallback: str | None = None) -> 
         return f"plan file {path}: {grid_key}"
     if source == DEFAULT:
         return fallback or option
-    return source if source.startswith("--") else f"{source} {option}"
+    if source.startswith(("--", "hil.run(")):
+        return source
+    return f"{option} ({source})"
 
 
 def locate(message: str, key: str, sources: Mapping[str, str]) -> str:

@@ -162,6 +162,12 @@ def test_the_plugin_builds_from_a_dict() -> None:
     assert sources["param"] == "hil.run(params=...)"
     with pytest.raises(ParameterError, match=r"^hil.run\(speed=...\): --speed must be a number, got 'fast'"):
         plugin_config(HilSettings(), None, {"speed": "fast"})
+    with pytest.raises(ParameterError, match=r"^hil.run\(speed=...\): 5000 rpm is at or beyond the motor's overspeed"):
+        plugin_config(HilSettings(), None, {"speed": 5000})
+    with pytest.raises(ParameterError, match=r"^--grid speed: 5000 rpm is at or beyond"):
+        build_config(base_options(), (("speed", "5000"),))
+    with pytest.raises(ParameterError, match=r"^scenario 'steady' speed_rpm: 1500 rpm is at or beyond"):
+        RunConfig.from_options({"set": {"speed_trip_rpm": 1000.0}, "no_log": True})
     cfg = plugin_config(HilSettings(), None, {"duration": 0.01, "ts": 5e-5})
     assert cfg.timing.ts_s == 5e-5 and cfg.out_dir is None
 
