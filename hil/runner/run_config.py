@@ -35,7 +35,7 @@ from pmsm_hil.protocol.ids import CONTROLLER_NAMES, ParamId
 from pmsm_hil.protocol.links.faults import FaultSpec, parse_fault_spec
 from pmsm_hil.protocol.links.spec import LinkSpec, parse_spec
 from pmsm_hil.sim_target.firmware import CONTROLLERS, controller_phases
-from pmsm_hil.sim_target.fw_params import FirmwareParamError, FirmwareParamId, firmware_params  # issue 27
+from pmsm_hil.sim_target.fw_params import FirmwareParamError, FirmwareParamId, firmware_params
 
 TARGET_KINDS = ("auto", "inproc", "spawn", "external")
 #: targets that carry a path: a firmware of the HIL target core built for the host (SIL library, or a source
@@ -189,12 +189,10 @@ class RunConfig:
     #: sil targets: load the library into the runner's process (`--sil-in-process`: unprotected, a crash of
     #: the firmware ends the runner) instead of serving it from its own process
     sil_in_process: bool = default_of("sil_in_process")
-    # --- load FMU (issue 28 item 4; hil/load_fmu) -------------------------------------------------------------
     #: the mechanical load as an FMU (`--load-fmu`, `--load-fmu-map`, `--load-fmu-set`): replaces the scenario's
     #: load profile; None: the scenario's load
     load_fmu: LoadFmuSpec | None = None
-    # --- end load FMU --------------------------------------------------------------------------------------------
-    #: duty-cycle Commands (issue 27): `--pwm-update` single (carrier period Ts) or double (2·Ts, control at twice
+    #: duty-cycle Commands: `--pwm-update` single (carrier period Ts) or double (2·Ts, control at twice
     #: the PWM rate: even periods the rising half of the carrier, odd periods the falling half)
     pwm_update: str = default_of("pwm_update")
     #: the firmware's ADC instant after the period start [s] (`--adc-delay`; 0: at the period start)
@@ -259,8 +257,8 @@ class RunConfig:
                 parse_fault_spec(self.faults)
             except LinkSpecError as exc:
                 raise ParameterError(f"--fault: {exc}", key="fault") from None
-        self.resolved_params()  # issue 27: firmware-declared names and ranges too
-        if self.load_fmu is not None:  # load FMU (issue 28 item 4)
+        self.resolved_params()  # firmware-declared names and ranges too
+        if self.load_fmu is not None:  # the load FMU
             try:
                 check_load_fmu(self)
             except ParameterError as exc:
@@ -355,7 +353,7 @@ class RunConfig:
         """Control period [ns]."""
         return round(self.ts_s * 1e9)
 
-    # --- issue 27 (helper cxx): firmware-declared parameters (hil_app_params.h, sim_target/fw_params.py)
+    # firmware-declared parameters (hil_app_params.h, sim_target/fw_params.py)
     def resolved_params(self) -> dict[ParamId | FirmwareParamId, float]:
         """The --param values by ConfigParam id: a protocol parameter's name, or one the `sil:PATH` / `qemu:PATH`
         firmware declares in its table (its range checked); ParameterError naming an unknown one."""
@@ -371,7 +369,6 @@ class RunConfig:
             except ParameterError as exc:
                 raise ParameterError(str(exc), key=f"param.{name}") from None
         return out
-    # --- end issue 27
 
     @staticmethod
     def _resolved_param(declared: dict[str, Any], name: str, value: float) -> dict[ParamId | FirmwareParamId, float]:
@@ -412,5 +409,5 @@ class RunConfig:
         }
         params.update(self.machine.layout.target_extras(m, rated))
         out: dict[ParamId | FirmwareParamId, float] = dict(params.items())
-        out.update(self.resolved_params())  # issue 27 (helper cxx)
+        out.update(self.resolved_params())  # firmware-declared parameters
         return out

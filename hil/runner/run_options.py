@@ -332,7 +332,7 @@ RUN_OPTIONS: tuple[RunOption, ...] = (
               default_text="0: none", part="sensors.noise_std_a"),
     RunOption("encoder_counts", "integer", "encoder counts/rev", 0, minimum=0, default_text="0: ideal angle",
               part="sensors.encoder_counts"),
-    # the mechanical load as an FMU (issue 28 item 4; hil/load_fmu, docs/plant.md "Load as an FMU"): the three
+    # the mechanical load as an FMU (hil/load_fmu, docs/plant.md "Load as an FMU"): the three
     # make RunConfig.load_fmu (a LoadFmuSpec)
     RunOption("load_fmu", "path",
               "the mechanical load as an FMU (FMI 2.0/3.0 Co-Simulation, replaces the scenario's load): input speed "
@@ -355,7 +355,7 @@ RUN_OPTIONS: tuple[RunOption, ...] = (
     RunOption("no_log", "flag", "do not write an MCAP log", False, scope="output", part="out_dir"),
     RunOption("log_trace", "flag", "also log the 2 µs plant trace", False, field="log_trace", scope="output"),
     RunOption("json", "path", "write the metrics as JSON to this file", scope="output", cli_only=True),
-    # the setpoint verdict (issue 35 item 4; hil/runner/setpoint_hold.py)
+    # the setpoint verdict (hil/runner/setpoint_hold.py)
     RunOption("hold_tolerance", "number", "setpoint_held: largest error of the mean speed over the last 10 percent "
               "of the metrics window [percent of the reference, at least 5 rpm]", metavar="PCT", unit="percent",
               minimum=0.0, open_minimum=True, default_text="the scenario's hold_tolerance_pct, else 2",
