@@ -22,10 +22,10 @@ from pmsm_hil.app.cli.parsing import non_negative_int, positive_float
 from pmsm_hil.app.cli.run_options_cli import add_option
 from pmsm_hil.hil.atomic_write import write_text_atomic
 from pmsm_hil.hil.runlog.reader import read_periods
+from pmsm_hil.hil.runner.option_values import coerce
 from pmsm_hil.hil.runner.reference_loop import reference_loop
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
-from pmsm_hil.hil.runner.run_inputs import coerce
 from pmsm_hil.hil.runner.run_options import DEFAULTS, OPTIONS
 
 #: how an error names a value of the bench's own run (not an option of the command line)

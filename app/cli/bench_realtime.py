@@ -20,7 +20,7 @@ from pmsm_hil.app.cli.parsing import non_negative_int, positive_float
 from pmsm_hil.app.cli.run_options_cli import add_option
 from pmsm_hil.hil.atomic_write import write_text_atomic
 from pmsm_hil.hil.errors import ParameterError
-from pmsm_hil.hil.runner.run_inputs import coerce
+from pmsm_hil.hil.runner.option_values import coerce
 from pmsm_hil.hil.runner.run_options import DEFAULTS, OPTIONS
 
 __all__ = ["add_parser", "gap_floor", "run"]

@@ -17,10 +17,10 @@ from pmsm_hil.app.cli.report_table import format_metrics
 from pmsm_hil.app.cli.run_options_cli import add_options, config_keys
 from pmsm_hil.dashboards.cli_live import add_rerun_arguments, live_dashboard
 from pmsm_hil.hil.atomic_write import prepare_output_dir, refuse_inputs, write_text_atomic
+from pmsm_hil.hil.runner.option_values import layer, option_of
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.run_dir_lock import run_dir_lock
-from pmsm_hil.hil.runner.run_inputs import layer, option_of
 from pmsm_hil.hil.runner.run_metadata import RUN_FILES
 from pmsm_hil.hil.runner.run_options import RUN_OPTIONS, Scope
 

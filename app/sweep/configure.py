@@ -24,8 +24,8 @@ from pmsm_hil.app.cli.parsing import finite_float
 from pmsm_hil.app.sweep.plan import THETA0, Point
 from pmsm_hil.app.sweep.runid import run_id
 from pmsm_hil.hil.errors import ParameterError
+from pmsm_hil.hil.runner.option_values import layer, option_of, source_of
 from pmsm_hil.hil.runner.run_config import RunConfig
-from pmsm_hil.hil.runner.run_inputs import layer, option_of, source_of
 
 
 @dataclass(frozen=True, slots=True)

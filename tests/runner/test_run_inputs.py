@@ -14,9 +14,9 @@ from pmsm_hil.app.sweep.configure import base_options, build_config, build_runs
 from pmsm_hil.app.sweep.plan import expand, parse_grid
 from pmsm_hil.hil.errors import InputFileError, ParameterError
 from pmsm_hil.hil.presets_loader import load_motor
+from pmsm_hil.hil.runner.option_values import DEFAULT, layer
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.run_groups import GROUPS
-from pmsm_hil.hil.runner.run_inputs import DEFAULT, layer
 from pmsm_hil.hil.runner.run_options import RUN_OPTIONS
 from pmsm_hil.hil.runner.scenario import load_scenario
 
