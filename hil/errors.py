@@ -9,7 +9,13 @@ __all__ = ["HilError", "InputFileError", "ParameterError", "PlantFaultError", "S
 
 
 class ParameterError(HilError, ValueError):
-    """A motor, inverter or run parameter is missing, unknown or non-physical (message names it)."""
+    """A motor, inverter or run parameter is missing, unknown or non-physical (message names it). `key`: the run
+    option the value came from when the raiser knows it (`RunConfig.from_options` then names where the value was
+    set: the command line, a config file, a sweep's grid key, ...)."""
+
+    def __init__(self, *args: object, key: str | None = None) -> None:
+        super().__init__(*args)
+        self.key = key
 
 
 class SequenceError(HilError, ValueError):

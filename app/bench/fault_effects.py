@@ -11,10 +11,8 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
-from pmsm_hil.hil.runner.scenario import load_scenario
 
 #: (label, --fault spec) of the table rows; seed 1 each
 CASES = (
@@ -33,10 +31,11 @@ CASES = (
 
 def run_case(spec: str, *, controller: str, duration_s: float) -> dict[str, Any]:
     """Metrics of one run with fault `spec` ("" = none)."""
-    sc = load_scenario("steady").with_overrides(speed_rpm=1500.0, load_nm=7.0, settle_s=0.1, duration_s=duration_s)
-    cfg = RunConfig(motor=load_motor("niu2020-ipmsm"), scenario=sc, controller=controller,
-                    faults=f"{spec},seed=1" if spec else "", tolerate=10**9, watchdog_periods=10**9)
-    return run_closed_loop(cfg).metrics
+    values = {"motor": "niu2020-ipmsm", "speed": 1500.0, "load": 7.0, "settle": 0.1, "duration": duration_s,
+              "controller": controller, "fault": f"{spec},seed=1" if spec else "", "tolerate": 10**9,
+              "watchdog_periods": 10**9, "no_log": True}
+    sources = {key: "fault_effects case" for key in values if key not in ("duration", "controller")}  # else options
+    return run_closed_loop(RunConfig.from_options(values, sources)).metrics
 
 
 def _cell(value: Any, fmt: str) -> str:

@@ -19,7 +19,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runner.native_config import SPIN_NS_FIFO, rt_throttled
 from pmsm_hil.hil.runner.native_link import NativeLoopUnavailableError, native_lib
 from pmsm_hil.hil.runner.native_wire import default_spin_ns
@@ -27,7 +26,6 @@ from pmsm_hil.hil.runner.pm_qos import LEAVE, cpu_latency_held
 from pmsm_hil.hil.runner.reference_loop import reference_loop
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
-from pmsm_hil.hil.runner.scenario import load_scenario
 from pmsm_hil.hil.runner.target_setup import realtime_target_may_spin
 
 #: where the target runs: in process (the C target core called by the loop) or in its own process over UDP
@@ -52,13 +50,15 @@ def config(link: str, loop: str, duration: float, ts: float, rt_priority: int, c
     """The measured run: niu2020 IPMSM, MPCC, steady scenario without settling, `duration` s of real time; over
     UDP a missed Command applies the zero vector (`--miss-policy zero`): the bench measures timing, and with the
     last command held a burst of misses ends the series in an overcurrent trip (docs/benchmarks.md)."""
-    scenario = load_scenario("steady").with_overrides(settle_s=0.0, duration_s=duration)
-    cfg = RunConfig(motor=load_motor("niu2020-ipmsm"), scenario=scenario, controller="mpcc", ts_s=ts,
-                    mode="realtime", loop=loop, rt_priority=rt_priority, cpu=cpu,
-                    cpu_dma_latency_us=cpu_dma_latency_us)
+    values: dict[str, Any] = {"motor": "niu2020-ipmsm", "controller": "mpcc", "settle": 0.0, "duration": duration,
+                              "ts": ts, "mode": "realtime", "loop": loop, "rt_priority": rt_priority, "cpu": cpu,
+                              "cpu_dma_latency": cpu_dma_latency_us, "no_log": True}
     if link == "udp":  # a burst of misses must not end a timing series with an overcurrent trip (`hold` did here)
-        cfg = replace(cfg, link="udp", target="spawn", tolerate=_NEVER, watchdog_periods=_NEVER, miss_policy="zero")
-    return cfg
+        values.update(link="udp", target="spawn", tolerate=_NEVER, watchdog_periods=_NEVER, miss_policy="zero")
+    return RunConfig.from_options(values, {key: "hil bench realtime" for key in ("motor", "controller", "settle",
+                                                                                 "mode", "no_log", "link", "target",
+                                                                                 "tolerate", "watchdog_periods",
+                                                                                 "miss_policy")})
 
 
 def _summary(metrics: list[dict[str, Any]], lateness: list[Any], hist: np.ndarray | None) -> dict[str, Any]:

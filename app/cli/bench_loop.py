@@ -19,14 +19,18 @@ from typing import Any
 
 from pmsm_hil.app.bench.logger_limit import logger_limit
 from pmsm_hil.app.cli.parsing import non_negative_int, positive_float
+from pmsm_hil.app.cli.run_options_cli import add_option
 from pmsm_hil.hil.atomic_write import write_text_atomic
-from pmsm_hil.hil.load_fmu.spec import LoadFmuSpec
-from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runlog.reader import read_periods
+from pmsm_hil.hil.runner.option_values import coerce
 from pmsm_hil.hil.runner.reference_loop import reference_loop
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
-from pmsm_hil.hil.runner.scenario import load_scenario
+from pmsm_hil.hil.runner.run_options import DEFAULTS, OPTIONS
+
+#: how an error names a value of the bench's own run (not an option of the command line)
+BENCH_SOURCES = {"motor": "hil bench", "controller": "hil bench", "loop": "hil bench", "settle": "hil bench",
+                 "no_log": "hil bench"}
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -35,8 +39,8 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("--duration", type=positive_float("--duration"), default=0.5,
                    help="simulated seconds per measurement (default 0.5)")
     p.add_argument("--repeats", type=non_negative_int("--repeats"), default=3, help="repeats (median)")
-    p.add_argument("--ts", type=positive_float("--ts"), default=100e-6, metavar="S",
-                   help="control period [s] of every measured run (default 100e-6; e.g. 25e-6 for 40 kHz)")
+    add_option(p, OPTIONS["ts"], help="control period [s] of every measured run (default 100e-6; e.g. 25e-6 for "
+                                      "40 kHz)")
     p.add_argument("--cross-process", default="udp,serial,pycan",
                    help="comma list of cross-process links to measure (udp, serial, pycan, socketcan; empty: none): "
                         "the Python "
@@ -51,19 +55,20 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("--qemu", type=Path, metavar="ELF",
                    help="also measure a firmware for mps2-an386 in QEMU (hil fw build --board mps2-an386) over its "
                         "UART and its PSRAM mailbox (lockstep_qemu_uart_hz, lockstep_qemu_mailbox_hz)")
-    p.add_argument("--load-fmu", type=Path, metavar="PATH.fmu",
-                   help="also measure the native loop with this load FMU (FMI 2/3 Co-Simulation, inputs speed, "
-                        "output torque; logging off): in its own process (lockstep_inproc_native_load_fmu_hz, the "
-                        "default) and in the run's (lockstep_inproc_native_load_fmu_unisolated_hz), "
-                        "load_fmu_isolation_cost_pct their ratio in the same run")
+    add_option(p, OPTIONS["load_fmu"],
+               help="also measure the native loop with this load FMU (FMI 2/3 Co-Simulation, inputs speed, output "
+                    "torque; logging off): in its own process (lockstep_inproc_native_load_fmu_hz, the default) and "
+                    "in the run's (lockstep_inproc_native_load_fmu_unisolated_hz), load_fmu_isolation_cost_pct their "
+                    "ratio in the same run")
     p.add_argument("--json", type=Path, help="write the figures as JSON")
     p.set_defaults(func=run)
 
 
-def _base(duration: float, ts: float = 100e-6) -> RunConfig:
-    """The Python reference loop's run (the figures put the native loop beside it), control period `ts` [s]."""
-    scenario = load_scenario("steady").with_overrides(settle_s=0.0, duration_s=duration)
-    return RunConfig(motor=load_motor("niu2020-ipmsm"), scenario=scenario, controller="mpcc", loop="python", ts_s=ts)
+def _base(duration: float, ts: float = 100e-6, loop: str = "python", **options: Any) -> RunConfig:
+    """The measured run: niu2020 IPMSM, MPCC, steady without settling, `duration` [s], control period `ts` [s],
+    the `loop` (the Python reference loop: the native loop's figures are put beside it), further run `options`."""
+    return RunConfig.from_options({"motor": "niu2020-ipmsm", "controller": "mpcc", "loop": loop, "ts": ts,
+                                   "settle": 0.0, "duration": duration, "no_log": True, **options}, BENCH_SOURCES)
 
 
 def _log_off_and_on(cfg: RunConfig, repeats: int,
@@ -221,7 +226,7 @@ def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
     loop's rows (and the native/python ratios) need the test suite's reference loop (tests/oracle; not part of
     the product): without it they are left out and `python_loop` says so."""
     python = reference_loop() is not None
-    base = _base(duration, ts) if python else replace(_base(duration, ts), loop="native")
+    base = _base(duration, ts, "python" if python else "native")
     out: dict[str, Any] = {"duration_s": duration, "repeats": repeats, "ts_s": ts}
     runs = f"{max(repeats, 1)} × {duration:g} s"
     if python:
@@ -245,10 +250,10 @@ def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
     if load_fmu is not None:
         progress(f"lockstep in-process, native loop (C), load FMU {load_fmu.name} in its own process, logging off "
                  f"({runs})")
-        with_fmu = replace(native, load_fmu=LoadFmuSpec(load_fmu))
+        with_fmu = _base(duration, ts, "native", load_fmu=load_fmu)
         n_fmu = _median_rate(lambda: with_fmu, repeats)
         progress(f"the same, the load FMU in the run's process (--load-fmu-isolation none) ({runs})")
-        fmu_inproc = replace(native, load_fmu=LoadFmuSpec(load_fmu, isolation="none"))
+        fmu_inproc = _base(duration, ts, "native", load_fmu=load_fmu, load_fmu_isolation="none")
         n_fmu_inproc = _median_rate(lambda: fmu_inproc, repeats)
         out["lockstep_inproc_native_load_fmu_hz"] = n_fmu["periods_per_s"]
         out["lockstep_inproc_native_load_fmu_unisolated_hz"] = n_fmu_inproc["periods_per_s"]
@@ -310,11 +315,12 @@ def run(args: argparse.Namespace) -> int:
     def progress(msg: str) -> None:
         print(f"bench loop: {msg} ...", file=sys.stderr, flush=True)
 
+    ts = float(coerce(OPTIONS["ts"], DEFAULTS["ts"] if args.ts is None else args.ts))
     figures = measure(args.duration, args.repeats, cross, not args.no_realtime, progress, qemu=args.qemu,
-                      load_fmu=args.load_fmu, ts=args.ts)
+                      load_fmu=args.load_fmu, ts=ts)
     load1, load5, _ = os.getloadavg()
-    rate = 1.0 / args.ts
-    print(f"closed loop, niu2020 IPMSM, MPCC, Ts = {args.ts * 1e6:g} µs, {args.duration} s simulated, median of "
+    rate = 1.0 / ts
+    print(f"closed loop, niu2020 IPMSM, MPCC, Ts = {ts * 1e6:g} µs, {args.duration} s simulated, median of "
           f"{args.repeats}; load average {load1:.2f} / {load5:.2f} (1 / 5 min) at the end")
     for key, value in figures.items():
         if key.startswith("udp_floor_") and key.endswith("_us"):

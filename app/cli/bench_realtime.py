@@ -16,10 +16,12 @@ from typing import Any
 from pmsm_hil.app.bench.latency_report import write_report
 from pmsm_hil.app.bench.load_process import load_beside
 from pmsm_hil.app.bench.realtime import GOAL_FLOOR_RATIO, GOAL_P99_US, LINKS, gap_floor, measure
-from pmsm_hil.app.cli.parsing import int_at_least, non_negative_int, positive_float
+from pmsm_hil.app.cli.parsing import non_negative_int, positive_float
+from pmsm_hil.app.cli.run_options_cli import add_option
 from pmsm_hil.hil.atomic_write import write_text_atomic
 from pmsm_hil.hil.errors import ParameterError
-from pmsm_hil.hil.runner.pm_qos import LEAVE
+from pmsm_hil.hil.runner.option_values import coerce
+from pmsm_hil.hil.runner.run_options import DEFAULTS, OPTIONS
 
 __all__ = ["add_parser", "gap_floor", "run"]
 
@@ -29,20 +31,19 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p = subparsers.add_parser("realtime", help="real-time lateness and overruns per Ts and link, beside the floor")
     p.add_argument("--duration", type=positive_float("--duration"), default=1.0,
                    help="seconds of real time per run (default 1.0; e.g. 300 for a long-run latency report)")
-    p.add_argument("--ts", type=positive_float("--ts"), action="append", metavar="S",
-                   help="control period [s], repeatable (--ts 50e-6 --ts 25e-6; default 100e-6)")
+    add_option(p, OPTIONS["ts"], repeatable=True,
+               help="control period [s], repeatable (--ts 50e-6 --ts 25e-6; default 100e-6)")
     p.add_argument("--links", default="inproc,udp",
                    help="comma list of where the target runs: inproc (the C target core in the loop's process), udp "
                         "(the native C target in its own process, UDP loopback) (default inproc,udp)")
     p.add_argument("--repeats", type=non_negative_int("--repeats"), default=3, help="runs per loop (median)")
-    p.add_argument("--rt-priority", type=non_negative_int("--rt-priority"), default=0,
-                   help="SCHED_FIFO priority of the native loop thread and of the spawned native target "
-                        "(default 0: none)")
-    p.add_argument("--cpu", type=non_negative_int("--cpu"), help="pin the native loop thread to this CPU")
-    p.add_argument("--cpu-dma-latency", type=_latency_us, default=None, metavar="US",
-                   help="hold every CPU's wake-up latency at most US µs during the runs and the floor (PM QoS through "
-                        "/dev/cpu_dma_latency, as cyclictest does; needs root; -1: leave the kernel's setting) "
-                        "(default: as `hil run`, 0 during the runs whose target is in another process)")
+    add_option(p, OPTIONS["rt_priority"], help="SCHED_FIFO priority 1..99 of the native loop thread and of the "
+                                               "spawned native target (default 0: none)")
+    add_option(p, OPTIONS["cpu"])
+    add_option(p, OPTIONS["cpu_dma_latency"],
+               help="hold every CPU's wake-up latency at most US µs during the runs and the floor (PM QoS through "
+                    "/dev/cpu_dma_latency, as cyclictest does; needs root; -1: leave the kernel's setting) (default: "
+                    "as `hil run`, 0 during the runs whose target is in another process)")
     p.add_argument("--histogram", type=Path, metavar="PATH_PREFIX",
                    help="write the lateness histogram (1 µs bins, every series) as PATH_PREFIX.csv and "
                         "PATH_PREFIX.png (log-scale counts, the maximum of each series, the load)")
@@ -52,11 +53,6 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("--log", action="store_true", help="log each run to MCAP as `hil run` does (default off)")
     p.add_argument("--json", type=Path, help="write the figures as JSON")
     p.set_defaults(func=run)
-
-
-def _latency_us(text: str) -> int:
-    return int_at_least(text, LEAVE, "--cpu-dma-latency must be a whole number of µs",
-                         "--cpu-dma-latency must be -1 (leave it) or ≥ 0 µs")
 
 
 def _links(text: str) -> list[str]:
@@ -133,7 +129,11 @@ def _pm_qos_line(figures: dict[str, Any], asked: int | None) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Execute `hil bench realtime`."""
-    ts_list = args.ts or [100e-6]
+    for key in ("rt_priority", "cpu", "cpu_dma_latency"):  # the run options' own checks, as `hil run` makes them
+        if getattr(args, key) is not None:
+            coerce(OPTIONS[key], getattr(args, key))
+    args.rt_priority = args.rt_priority or DEFAULTS["rt_priority"]
+    ts_list = args.ts or [DEFAULTS["ts"]]
     links = _links(args.links)
     def progress(msg: str) -> None:
         print(f"bench realtime: {msg} ...", file=sys.stderr, flush=True)

@@ -56,14 +56,14 @@ def _load() -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Execute `hil bench sweep`."""
-    from pmsm_hil.app.sweep.configure import base_args, build_runs
+    from pmsm_hil.app.sweep.configure import base_options, build_runs
     from pmsm_hil.app.sweep.engines import LocalEngine
     from pmsm_hil.app.sweep.execute import tasks_for
     from pmsm_hil.app.sweep.rows import deterministic_view
     from pmsm_hil.app.sweep.task import run_task
 
-    half = repr(args.sim / 2)
-    base = base_args(["--duration", half, "--settle", half, "--loop", args.loop])
+    half = args.sim / 2
+    base = base_options({"duration": half, "settle": half, "loop": args.loop})
     runs = build_runs(base, [(("controller", c), ("load", x)) for c in CONTROLLERS for x in LOADS], ANGLES)
     tasks = tasks_for(runs, None)
     print(f"hil bench sweep: {len(tasks)} runs ({', '.join(CONTROLLERS)} × load {', '.join(LOADS)} N·m × {ANGLES} "

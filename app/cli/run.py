@@ -7,7 +7,6 @@ import contextlib
 import functools
 import json
 import sys
-import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -18,20 +17,12 @@ from pmsm_hil.app.cli.report_table import format_metrics
 from pmsm_hil.app.cli.run_options_cli import add_options, config_keys
 from pmsm_hil.dashboards.cli_live import add_rerun_arguments, live_dashboard
 from pmsm_hil.hil.atomic_write import prepare_output_dir, refuse_inputs, write_text_atomic
-from pmsm_hil.hil.errors import ParameterError
-from pmsm_hil.hil.load_fmu.spec import load_fmu_spec
-from pmsm_hil.hil.motor_params import parse_set_options
-from pmsm_hil.hil.presets_loader import load_motor
+from pmsm_hil.hil.runner.option_values import layer, option_of
 from pmsm_hil.hil.runner.run import run_closed_loop
-from pmsm_hil.hil.runner.run_config import RunConfig, check_params_used, parse_param_options
+from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.run_dir_lock import run_dir_lock
-from pmsm_hil.hil.runner.run_limits import check_run_limits
 from pmsm_hil.hil.runner.run_metadata import RUN_FILES
-from pmsm_hil.hil.runner.run_options import BY_FIELD, DEFAULTS, RUN_OPTIONS, check_values
-from pmsm_hil.hil.runner.scenario import load_scenario
-from pmsm_hil.hil.sensors import SensorConfig
-from pmsm_hil.protocol.links.spec import parse_spec
-from pmsm_hil.sim_target.fw_params import default_controller
+from pmsm_hil.hil.runner.run_options import RUN_OPTIONS, Scope
 
 #: `hil run` exit codes (= metrics `end_code`), printed by --help.
 EXIT_CODES = ("exit codes: 0 completed, 1 internal error, 2 usage/config error, 3 safety stop (watchdog, plant "
@@ -76,69 +67,29 @@ def _load_config(path: Path | None) -> dict[str, Any]:
     return {} if path is None else load_config(path, config_schema())
 
 
+def options_from_args(args: argparse.Namespace, scopes: tuple[Scope, ...] = ("run", "output")
+                      ) -> tuple[dict[str, Any], dict[str, str]]:
+    """The run-option values of a parsed command line over its --config file, with their sources ("config file
+    PATH", "--option"): defaults < --config file < command line (hil/runner/run_inputs.py). Options of `scopes`
+    only (`hil sweep` has an --out of its own)."""
+    path = getattr(args, "config", None)
+    cfg = _load_config(path)
+    given = {o.key: getattr(args, o.target) for o in RUN_OPTIONS if o.scope in scopes and hasattr(args, o.target)}
+    return layer((cfg, f"config file {path}"), ({k: v for k, v in given.items() if v != []}, _option_source))
+
+
+def _option_source(key: str) -> str:
+    return option_of(key).option
+
+
 def config_from_args(args: argparse.Namespace) -> RunConfig:
-    """Merge defaults < --config file < command line into a validated RunConfig."""
-    cfg = _load_config(args.config)
-
-    def pick(name: str, attr: str | None = None) -> Any:
-        value = getattr(args, attr or name, None)
-        if value is not None and value != []:
-            return value
-        return cfg.get(name, DEFAULTS.get(name))
-
-    def source(name: str, fallback: str) -> str:
-        """How an error names where a value came from: its option, its config key, else `fallback`."""
-        spec = config_schema()[name]
-        if getattr(args, spec.dest, None) is not None:
-            return spec.option
-        return f"'{name}' in config file {args.config}" if name in cfg else fallback
-
-    for name in ("json", "overwrite", "expect_hold"):  # used after the run: the config file's value unless given
-        if getattr(args, name, None) is None and name in cfg:
-            setattr(args, name, cfg[name])
-    check_values({o.key: pick(o.key) for o in RUN_OPTIONS if o.kind in ("number", "integer", "frequency")})
-    motor = load_motor(str(pick("motor")), parse_set_options([*cfg.get("set", []), *args.set_params]))
-    scenario = load_scenario(str(pick("scenario"))).for_motor(motor.rated_speed_rpm, motor.torque_rating_nm)
-    scenario = scenario.with_overrides(
-        speed_rpm=pick("speed"), load_nm=pick("load"), duration_s=pick("duration"), settle_s=pick("settle"),
-        hold_tolerance_pct=pick("hold_tolerance"))
-    controller_params = parse_param_options([*cfg.get("param", []), *args.param])
-    # the mechanical load as an FMU (replaces the scenario's load torque)
-    load_fmu = load_fmu_spec(pick("load_fmu"), pick("load_fmu_map"),
-                             [*cfg.get("load_fmu_set", []), *getattr(args, "load_fmu_set", [])],
-                             isolation=pick("load_fmu_isolation"))
-    if load_fmu is not None and pick("load") is not None:
-        raise ParameterError(f"{source('load', 'load')} and --load-fmu: one load at a time (the FMU replaces the "
-                             "scenario's load torque)")
-    out = pick("out")
-    no_log = bool(pick("no_log"))
-    controller = str(pick("controller"))
-    # a user firmware (`--target sil:PATH` / `qemu:PATH`, not the reference firmware)
-    # runs as controller `external` unless --controller (or the config file) names one
-    if getattr(args, "controller", None) is None and "controller" not in cfg:
-        controller = default_controller(str(pick("target")), controller)
-    if out is None and not no_log:
-        out = _fresh_dir(Path("runs") / f"{time.strftime('%Y%m%d-%H%M%S')}-{controller}")
-    # every RunConfig attribute with an option of the schema, from it (hil/runner/run_options.py)
-    fields: dict[str, Any] = {name: pick(option.key) for name, option in BY_FIELD.items()}
-    fields["controller"] = controller  # a user firmware's default (above)
-    fields["faults"] = str(fields["faults"] or "")
-    fields["log_trace"] = bool(fields["log_trace"])
-    try:
-        sensors = SensorConfig(adc_lsb_a=float(pick("adc_lsb")), noise_std_a=float(pick("noise")),
-                               encoder_counts=int(pick("encoder_counts")), seed=int(pick("seed")))
-        run_cfg = RunConfig(motor=motor, scenario=scenario, controller_params=controller_params, sensors=sensors,
-                            out_dir=None if no_log else Path(out), load_fmu=load_fmu,
-                            **fields)
-    except (TypeError, ValueError) as exc:
-        if isinstance(exc, ParameterError):
-            raise
-        raise ParameterError(f"bad option value: {exc}") from None
-    check_params_used(run_cfg.controller, run_cfg.controller_params)
-    check_run_limits(run_cfg, speed_option=source("speed", f"scenario '{scenario.name}' speed_rpm"),
-                     duration_option=source("duration", f"scenario '{scenario.name}' duration_s"))
-    parse_spec(run_cfg.link)  # a bad --link fails here, before any output is created
-    return run_cfg
+    """Merge defaults < --config file < command line into a validated RunConfig (`RunConfig.from_options`); the
+    outputs used after the run (--json, --overwrite, --expect-hold) are taken from the config file unless given."""
+    values, sources = options_from_args(args)
+    for name in ("json", "overwrite", "expect_hold"):
+        if getattr(args, name, None) is None and name in values:
+            setattr(args, name, values[name])
+    return RunConfig.from_options(values, sources)
 
 
 def _check_outputs(args: argparse.Namespace, cfg: RunConfig, held: contextlib.ExitStack) -> None:
@@ -154,14 +105,6 @@ def _check_outputs(args: argparse.Namespace, cfg: RunConfig, held: contextlib.Ex
     if cfg.out_dir is not None:
         held.enter_context(run_dir_lock(cfg.out_dir, option="--out"))
         prepare_output_dir(cfg.out_dir, RUN_FILES, overwrite=bool(args.overwrite), option="--out")
-
-
-def _fresh_dir(base: Path) -> Path:
-    """`base`, or `base-2`, `base-3`, ... if a run of the same second already took it."""
-    path, n = base, 2
-    while path.exists():
-        path, n = base.with_name(f"{base.name}-{n}"), n + 1
-    return path
 
 
 def run(args: argparse.Namespace) -> int:

@@ -15,7 +15,7 @@ from pmsm_hil.hil.runner.run_options import RUN_OPTIONS, RunOption, Scope
 
 def argparse_type(option: RunOption, *, check: bool = False) -> Callable[[str], Any]:
     """An argparse `type=` for `option`: its own parse (and with `check` its range check), errors as argparse's.
-    The command line leaves ranges to `config_from_args` (one-line errors naming the option)."""
+    The command line leaves ranges to `RunConfig.from_options` (one-line errors naming the option)."""
     def parse(text: str) -> Any:
         try:
             return option.parse(text, check=check)
@@ -25,11 +25,17 @@ def argparse_type(option: RunOption, *, check: bool = False) -> Callable[[str], 
     return parse
 
 
-def add_option(parser: argparse.ArgumentParser, option: RunOption) -> None:
-    """`option` on `parser`; every default is None (or [] for tables) so a config file can fill it in later."""
-    names: dict[str, Any] = {"dest": option.target, "help": option.help_text()}
+def add_option(parser: argparse.ArgumentParser | argparse._ArgumentGroup, option: RunOption, *,
+               help: str | None = None, repeatable: bool = False) -> None:
+    """`option` on `parser`; every default is None (or [] for tables) so a config file can fill it in later.
+    `help`: a command's own words for what the option does there (a bench); `repeatable`: a list of values (a bench
+    measuring several)."""
+    names: dict[str, Any] = {"dest": option.target, "help": help or option.help_text()}
     metavar = option.metavar or ("N" if option.kind == "integer" else {"s": "S", "A": "A"}.get(option.unit))
-    if option.kind == "flag":
+    if repeatable:
+        parser.add_argument(option.option, type=argparse_type(option, check=True), action="append", metavar=metavar,
+                            **names)
+    elif option.kind == "flag":
         parser.add_argument(option.option, action="store_true", default=None, **names)
     elif option.kind == "table":
         parser.add_argument(option.option, action="append", default=[], metavar=option.metavar, **names)

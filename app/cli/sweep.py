@@ -12,7 +12,7 @@ from pathlib import Path
 from types import FrameType
 
 from pmsm_hil.app.cli.parsing import non_negative_int, positive_int
-from pmsm_hil.app.cli.run import EXIT_CODES, add_run_arguments
+from pmsm_hil.app.cli.run import EXIT_CODES, add_run_arguments, options_from_args
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -89,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
         raise ParameterError("hil sweep: give --grid KEY=V1,V2 and/or --plan FILE")
     points = expand(plan.runs if plan else (), [*(plan.grid if plan else ()), *grid])
     repeat = args.repeat or (plan.repeat if plan and plan.repeat else 1)
-    runs = build_runs(args, points, repeat, where=f"plan file {args.plan}:" if plan and not grid else "--grid")
+    runs = build_runs(options_from_args(args, ("run",)), points, repeat, plan=args.plan if plan and not grid else None)
     keys = swept_keys(points) + (["repeat"] if repeat > 1 else [])
     if args.list:
         for r in runs:

@@ -1,10 +1,9 @@
-"""Sweep points as run configurations, through `hil run`'s own parser and `config_from_args`.
+"""Sweep points as run configurations, through `RunConfig.from_options` (the path of every run).
 
-Each point becomes the command-line options it stands for (`load=3` → `--load=3`, `set.rs=4.5` →
-`--set=rs=4.5`), parsed by a parser holding exactly `hil run`'s run options on top of the sweep's own
-options (the base of every run), then merged with defaults and `--config` by `config_from_args`. So every
-value is checked by the option's own parser and message: a bad grid value is a one-line ParameterError
-naming the key (`--grid load: --load must be a number, got 'x'`).
+Each point's values (`load=3`, `set.rs=4.5`: the texts of the grid or plan) go on top of the sweep's base options
+(defaults < `--config` < the sweep's command line), each remembered as "sweep grid key K" (or "plan file PATH key
+K"). So every value is checked by its option's own check, and an error names the key through that source, not by
+reading the message: `--grid load: --load must be a number, got 'x'`.
 
 Repeats: `--repeat N` gives run k (0..N-1) the initial electrical rotor angle theta0 + 2πk/N (theta0: the
 point's, else the scenario's `theta0_rad`) and the seed seed + k (seed: the point's `--seed`, else the base
@@ -14,21 +13,19 @@ one, default 0), so every repeat of every controller sees the same angles and no
 from __future__ import annotations
 
 import argparse
-import copy
-import functools
 import json
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
 from pmsm_hil.app.cli.parsing import finite_float
-from pmsm_hil.app.sweep.plan import TABLE_PREFIXES, THETA0, Point
+from pmsm_hil.app.sweep.plan import THETA0, Point
 from pmsm_hil.app.sweep.runid import run_id
-from pmsm_hil.hil.errors import HilError, ParameterError
+from pmsm_hil.hil.errors import ParameterError
+from pmsm_hil.hil.runner.option_values import layer, option_of, source_of
 from pmsm_hil.hil.runner.run_config import RunConfig
-from pmsm_hil.hil.runner.run_options import RUN_OPTIONS
 
 
 @dataclass(frozen=True, slots=True)
@@ -62,97 +59,48 @@ def _value(text: str) -> Any:
     return value if math.isfinite(value) else text
 
 
-class _RaisingParser(argparse.ArgumentParser):
-    """argparse that raises ParameterError instead of exiting (a bad grid value is a one-line error)."""
-
-    def error(self, message: str) -> NoReturn:
-        raise ParameterError(message)
-
-
-@functools.cache
-def _run_parser() -> argparse.ArgumentParser:
-    from pmsm_hil.app.cli.run import add_run_arguments
-
-    p = _RaisingParser(prog="hil sweep", add_help=False)
-    add_run_arguments(p)
-    return p
+#: a sweep's base options: run-option values and their sources (`layer`, hil/runner/run_inputs.py)
+BaseOptions = tuple[dict[str, Any], dict[str, str]]
+#: what a sweep owns: its runs are never logged by `out`, and `hil run`'s after-run outputs do not apply
+_SWEEP_OWNED = ("out", "no_log", "json", "overwrite", "expect_hold")
 
 
-def base_args(argv: Sequence[str] = ()) -> argparse.Namespace:
-    """Base options of every run from `hil run` option strings (e.g. ["--duration", "0.1"])."""
-    try:
-        return _run_parser().parse_args(list(argv))
-    except ParameterError as exc:
-        raise ParameterError(str(exc).removeprefix("argument ")) from None
+def base_options(values: Mapping[str, Any] | None = None, source: str | Callable[[str], str] = "--option"
+                 ) -> BaseOptions:
+    """The base options of every run of a sweep from run-option values by key (e.g. {"duration": 0.1}); `source`
+    names where they came from (default: the command line's option of each)."""
+    where = (lambda key: option_of(key).option) if source == "--option" else source
+    return layer((dict(values or {}), where))
 
 
-def point_argv(point: Point) -> list[str]:
-    """The `hil run` options a point stands for (theta0 excluded: the scenario's angle, set separately)."""
-    from pmsm_hil.app.cli.run import config_schema
-
-    argv: list[str] = []
-    for key, text in point:
-        if key == THETA0:
-            continue
-        prefix = next((p for p in TABLE_PREFIXES if key.startswith(p)), None)
-        if prefix is not None:
-            argv.append(f"--{prefix[:-1].replace('_', '-')}={key[len(prefix):]}={text}")
-        else:
-            argv.append(f"{config_schema()[key].option}={text}")
-    return argv
+def point_source(key: str, plan: Path | None = None) -> str:
+    """The source of a point's value: "sweep grid key K", or "plan file PATH key K"."""
+    return f"plan file {plan} key {key}" if plan is not None else f"sweep grid key {key}"
 
 
-def _option_of(key: str) -> str:
-    from pmsm_hil.app.cli.run import config_schema
-
-    if key.startswith(TABLE_PREFIXES):
-        return "--" + key.split(".", 1)[0].replace("_", "-")
-    spec = config_schema().get(key)
-    return spec.option if spec is not None else key
-
-
-def _grid_error(message: str, point: Point, where: str) -> ParameterError:
-    """'<where> <key>: <message>' naming the key whose option the message is about, else the point."""
-    text = message.removeprefix("argument ")
-    for key, _ in point:
-        option = _option_of(key)
-        if text.startswith(f"{option}: ") or text.startswith(f"{option}/"):
-            return ParameterError(f"{where} {key}: {text.split(': ', 1)[1]}")
-        if option in text or f"'{key}'" in text:
-            return ParameterError(f"{where} {key}: {text}")
-    for key, value in point:  # a configuration error quoting the value or the name (unknown controller 'x')
-        name = key.split(".", 1)[1] if key.startswith(TABLE_PREFIXES) else None
-        if f"'{value}'" in text or (name is not None and f"'{name}'" in text):
-            return ParameterError(f"{where} {key}: {text}")
-    shown = ", ".join(f"{k}={v}" for k, v in point) or "(base options)"
-    return ParameterError(f"{where} {shown}: {text}")
-
-
-def build_config(base: argparse.Namespace, point: Point, *, where: str = "--grid") -> RunConfig:
-    """The validated RunConfig of one point over the base options (the sweep's run options)."""
-    from pmsm_hil.app.cli.run import config_from_args
-
-    ns = copy.copy(base)
-    for option in RUN_OPTIONS:  # the tables (--set, --param, --load-fmu-set): the point's items on top of the base's
-        if option.kind == "table":
-            setattr(ns, option.target, list(getattr(base, option.target, []) or []))
-    try:
-        args = _run_parser().parse_args(point_argv(point), namespace=ns)
-    except ParameterError as exc:
-        raise _grid_error(str(exc), point, where) from None
-    args.no_log, args.out, args.json, args.overwrite = True, None, None, None
-    try:
-        cfg = config_from_args(args)
-    except HilError as exc:
-        raise _grid_error(str(exc), point, where) from None
+def build_config(base: BaseOptions, point: Point, *, plan: Path | None = None) -> RunConfig:
+    """The validated RunConfig of one point over the base options (the sweep's run options); an error names the
+    point's key (`--grid load: --load must be a number, got 'x'`) or the base option, through the values' sources."""
+    values, sources = layer(
+        (base[0], lambda key: source_of(key, base[1])),
+        ({key: text for key, text in point if key != THETA0}, lambda key: point_source(key, plan)))
+    for key in _SWEEP_OWNED:
+        values.pop(key, None)
+    values["no_log"] = True
+    cfg = RunConfig.from_options(values, sources)
     theta = dict(point).get(THETA0)
     if theta is not None:
         try:
             angle = finite_float(THETA0)(theta)
         except argparse.ArgumentTypeError as exc:
-            raise ParameterError(f"{where} {THETA0}: {exc}") from None
+            raise ParameterError(f"{label_of_theta0(plan)}: {exc}") from None
         cfg = replace(cfg, scenario=cfg.scenario.with_overrides(theta0_rad=angle))
     return cfg
+
+
+def label_of_theta0(plan: Path | None) -> str:
+    """How an error names the theta0 key of a point."""
+    return f"plan file {plan}: {THETA0}" if plan is not None else f"--grid {THETA0}"
 
 
 def with_repeat(cfg: RunConfig, k: int, n: int) -> RunConfig:
@@ -164,14 +112,14 @@ def with_repeat(cfg: RunConfig, k: int, n: int) -> RunConfig:
                    scenario=cfg.scenario.with_overrides(theta0_rad=cfg.scenario.theta0_rad + 2.0 * math.pi * k / n))
 
 
-def build_runs(base: argparse.Namespace, points: Sequence[Point], repeat: int, *,
-               where: str = "--grid") -> list[SweepRun]:
+def build_runs(base: BaseOptions, points: Sequence[Point], repeat: int, *,
+               plan: Path | None = None) -> list[SweepRun]:
     """Every point × repeat as a SweepRun (all validated before anything runs); duplicate configurations
     (two points that resolve to the same run) are kept once."""
     runs: list[SweepRun] = []
     seen: set[str] = set()
     for point in points:
-        cfg = build_config(base, point, where=where)
+        cfg = build_config(base, point, plan=plan)
         for k in range(repeat):
             rcfg = with_repeat(cfg, k, repeat)
             rid = run_id(rcfg)
@@ -191,5 +139,5 @@ def store_dir(store: Path, rid: str) -> Path:
     return store / rid
 
 
-__all__ = ["SweepRun", "base_args", "build_config", "build_runs", "config_text", "point_argv", "store_dir",
-           "with_repeat"]
+__all__ = ["BaseOptions", "SweepRun", "base_options", "build_config", "build_runs", "config_text", "point_source",
+           "store_dir", "with_repeat"]

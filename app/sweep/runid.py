@@ -16,8 +16,8 @@ from typing import Any
 
 from pmsm_hil.hil.runner.run_config import RunConfig
 
-#: RunConfig fields that do not change what is simulated
-_LOGGING_FIELDS = ("out_dir", "log_trace", "trace_dt_s")
+#: RunConfig fields that do not change what is simulated (or restate another: `link_spec` is `link` parsed)
+_LOGGING_FIELDS = ("out_dir", "log_trace", "trace_dt_s", "link_spec")
 #: hex digits of a run id (64 bits: collisions are negligible for any sweep that fits a disk)
 ID_LENGTH = 16
 

@@ -6,7 +6,7 @@ import contextlib
 import json
 import math
 import signal
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -109,6 +109,14 @@ def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None,
         if cfg.out_dir is not None:  # one run at a time in a run directory (the CLI holds it already)
             held.enter_context(run_dir_lock(cfg.out_dir, option="out_dir"))
         return _run_locked(cfg, cid, python_reason, silent_after, live)
+
+
+def run_from_options(values: Mapping[str, Any], sources: Mapping[str, str] | None = None, *,
+                     live: Callable[[np.ndarray], None] | None = None) -> RunResult:
+    """One run of run-option values by key (`RunConfig.from_options`, the path of `hil run`, sweeps and the pytest
+    plugin: the same defaults, checks and errors naming each value's source), e.g.
+    `run_from_options({"controller": "foc", "speed": 900, "no_log": True})`."""
+    return run_closed_loop(RunConfig.from_options(values, sources), live=live)
 
 
 def _run_locked(cfg: RunConfig, cid: int, python_reason: str | None, silent_after: int | None,

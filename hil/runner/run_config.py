@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -14,6 +15,14 @@ from pmsm_hil.hil.machine import Machine, machine_for
 from pmsm_hil.hil.machine_params import MachineParams
 from pmsm_hil.hil.motor_params import parse_set_options
 from pmsm_hil.hil.runner.param_values import check_model_value, check_wire_value
+from pmsm_hil.hil.runner.run_groups import (
+    GROUPS,
+    OperationGroup,
+    OutputGroup,
+    TargetLinkGroup,
+    TimingGroup,
+    group_of,
+)
 from pmsm_hil.hil.runner.run_options import (
     BY_FIELD,
     check_field,
@@ -24,6 +33,7 @@ from pmsm_hil.hil.sensors import SensorConfig
 from pmsm_hil.protocol.errors import LinkSpecError
 from pmsm_hil.protocol.ids import CONTROLLER_NAMES, ParamId
 from pmsm_hil.protocol.links.faults import FaultSpec, parse_fault_spec
+from pmsm_hil.protocol.links.spec import LinkSpec, parse_spec
 from pmsm_hil.sim_target.firmware import CONTROLLERS, controller_phases
 from pmsm_hil.sim_target.fw_params import FirmwareParamError, FirmwareParamId, firmware_params
 
@@ -45,7 +55,8 @@ def controller_id(name: str) -> int:
     for cid, cname in CONTROLLER_NAMES.items():
         if cname == name:
             return int(cid)
-    raise ParameterError(f"unknown controller '{name}' (known: {', '.join(CONTROLLER_NAMES.values())})")
+    raise ParameterError(f"unknown controller '{name}' (known: {', '.join(CONTROLLER_NAMES.values())})",
+                         key="controller")
 
 
 #: Named values accepted by --param for enumerated controller parameters.
@@ -68,7 +79,7 @@ def parse_param_options(items: list[str] | None) -> dict[str, float]:
     try:
         parsed = parse_set_options(numeric)
     except ParameterError as exc:
-        raise ParameterError(str(exc).replace("--set", "--param")) from None
+        raise ParameterError(str(exc).replace("--set", "--param"), key="param") from None
     return {**parsed, **result}
 
 
@@ -78,7 +89,7 @@ def param_id(name: str) -> ParamId:
         return ParamId[name.upper()]
     except KeyError:
         known = ", ".join(p.name.lower() for p in ParamId)
-        raise ParameterError(f"unknown controller parameter '{name}' (known: {known})") from None
+        raise ParameterError(f"unknown controller parameter '{name}' (known: {known})", key=f"param.{name}") from None
 
 
 #: ConfigParams that describe the machine itself (a kind's `model_parameters()` and layout extras give them): a
@@ -120,12 +131,20 @@ def check_params_used(controller: str, names: list[str] | dict[str, float], *, o
             continue
         users = [c.name for c in CONTROLLERS if pid in c.params]
         where = f"used by {', '.join(users)}" if users else "no controller of the reference firmware reads it"
-        raise ParameterError(f"{option} {name}: controller '{controller}' does not use it ({where})")
+        raise ParameterError(f"{option} {name}: controller '{controller}' does not use it ({where})",
+                             key=f"param.{name}")
 
 
 @dataclass(frozen=True, slots=True)
 class RunConfig:
-    """A closed-loop run: motor, controller, scenario, period Ts [s], link and mode, outputs."""
+    """A closed-loop run: motor, controller, scenario, period Ts [s], link and mode, outputs.
+
+    Built from option values by `RunConfig.from_options` (the one path of `hil run`, sweeps, the pytest plugin and
+    the benches), or by hand with the keyword arguments below. Read by group (hil/runner/run_groups.py):
+    `machine` (the motor and its kind), `operation` (scenario and load), `target_link` (target, link parsed once
+    into `link_spec`, controller, contract and timeouts), `timing` (period, mode, loop, real time), `sensors`,
+    `outputs`; each field also reads as an attribute of its own (`cfg.ts_s`).
+    """
 
     motor: MachineParams
     scenario: Scenario
@@ -178,8 +197,22 @@ class RunConfig:
     pwm_update: str = default_of("pwm_update")
     #: the firmware's ADC instant after the period start [s] (`--adc-delay`; 0: at the period start)
     adc_delay_s: float = default_of("adc_delay_s")
+    #: `link` parsed once (set by the checks; not an argument)
+    link_spec: LinkSpec = field(init=False, repr=False, compare=False)
+
+    @classmethod
+    def from_options(cls, values: Mapping[str, Any], sources: Mapping[str, str] | None = None) -> RunConfig:
+        """The checked RunConfig of run-option values by key (hil/runner/run_options.py; tables as dicts or
+        `KEY.NAME` items), each value's source by key ("default" when missing) named in errors; see
+        hil/runner/run_inputs.py."""
+        from pmsm_hil.hil.runner.run_inputs import from_options
+
+        return from_options(values, sources)
 
     def __post_init__(self) -> None:
+        if self.scenario.rated:  # the one place the motor's ratings become the operating point
+            object.__setattr__(self, "scenario",
+                               self.scenario.for_motor(self.motor.rated_speed_rpm, self.motor.torque_rating_nm))
         cid = controller_id(self.controller)
         # the firmware's controller table; an id it lacks (external: a foreign firmware's own controller) fits any motor
         needs = controller_phases(cid) if any(c.id == cid for c in CONTROLLERS) else 0
@@ -188,20 +221,19 @@ class RunConfig:
             has = self.machine.phases
             raise ParameterError(
                 f"controller '{self.controller}' needs a {words.get(needs, needs)}-phase motor, but "
-                f"'{self.motor.name}' is {words.get(has, has)}-phase (six-phase motors have lls > 0)")
+                f"'{self.motor.name}' is {words.get(has, has)}-phase (six-phase motors have lls > 0)", key="controller")
         self._check_machine_model(cid)
         for name in BY_FIELD:  # ranges and choices: the run-option schema's (hil/runner/run_options.py)
             check_field(name, getattr(self, name))
-        if abs(round(self.ts_s * 1e9) - self.ts_s * 1e9) > 1e-3:
-            raise ParameterError(f"--ts must be a whole number of ns, got {self.ts_s} s")
         if self.adc_delay_ns >= self.ts_ns:
             raise ParameterError(f"--adc-delay must be shorter than the control period Ts = {self.ts_s:g} s (the "
-                                 f"Measurement of a period is sampled inside it), got {self.adc_delay_s:g} s")
+                                 f"Measurement of a period is sampled inside it), got {self.adc_delay_s:g} s",
+                                 key="adc_delay")
         if self.target not in TARGET_KINDS:
             prefix = next((p for p in TARGET_PREFIXES if self.target.startswith(p)), None)
             if prefix is None or not self.target[len(prefix):].strip():
                 raise ParameterError(f"--target must be one of {', '.join(TARGET_KINDS)}, sil:PATH or qemu:PATH.elf, "
-                                     f"got {self.target!r}")
+                                     f"got {self.target!r}", key="target")
             if prefix == "qemu:":
                 if self.link == "virtual":  # the default: the emulated UART is the link
                     object.__setattr__(self, "link", QEMU_LINK)
@@ -209,20 +241,30 @@ class RunConfig:
                     object.__setattr__(self, "link", QEMU_MAILBOX_LINK)
                 elif self.link not in (QEMU_LINK, QEMU_MAILBOX_LINK):
                     raise ParameterError(f"--target qemu:... talks over the emulated UART (leave --link out) or the "
-                                         f"PSRAM mailbox (--link mailbox), got --link {self.link!r}")
+                                         f"PSRAM mailbox (--link mailbox), got --link {self.link!r}", key="link")
                 if self.mode != "lockstep":
                     raise ParameterError("--target qemu:... runs lockstep only (the emulated MCU keeps virtual "
-                                         "time, not wall time)")
+                                         "time, not wall time)", key="mode")
+        try:
+            object.__setattr__(self, "link_spec", parse_spec(self.link))
+        except LinkSpecError as exc:
+            raise ParameterError(f"--link: {exc}", key="link") from None
         if self.sil_in_process and not self.target.startswith("sil:"):
-            raise ParameterError(f"--sil-in-process: only with --target sil:PATH, got --target {self.target}")
+            raise ParameterError(f"--sil-in-process: only with --target sil:PATH, got --target {self.target}",
+                                 key="sil_in_process")
         if self.faults:
             try:
                 parse_fault_spec(self.faults)
             except LinkSpecError as exc:
-                raise ParameterError(f"--fault: {exc}") from None
+                raise ParameterError(f"--fault: {exc}", key="fault") from None
         self.resolved_params()  # firmware-declared names and ranges too
         if self.load_fmu is not None:  # the load FMU
-            check_load_fmu(self)
+            try:
+                check_load_fmu(self)
+            except ParameterError as exc:
+                if exc.key is None:
+                    exc.key = "load_fmu"
+                raise
 
     def _check_machine_model(self, cid: int) -> None:
         """ParameterError when the reference firmware's controller `cid` reads a machine-model parameter the motor's
@@ -246,12 +288,33 @@ class RunConfig:
             raise ParameterError(
                 f"controller '{self.controller}' needs the machine model parameter(s) {names}, which motor "
                 f"'{self.motor.name}' (kind {self.machine.layout.kind}) does not have (controllers for it: "
-                f"{', '.join(fits) or 'none'})")
+                f"{', '.join(fits) or 'none'})", key="controller")
 
     @property
     def machine(self) -> Machine:
-        """The machine descriptor of the motor (phase count, plant class, frames, record layouts)."""
+        """The machine group: the motor's parameters and its kind's descriptor (phase count, plant class, frames,
+        record layouts)."""
         return machine_for(self.motor)
+
+    @property
+    def operation(self) -> OperationGroup:
+        """The scenario and the load group: scenario (operating point, profiles, window), load FMU."""
+        return OperationGroup(**group_of(self, GROUPS["operation"]))
+
+    @property
+    def target_link(self) -> TargetLinkGroup:
+        """The target and link group: who runs the controller, over which link (parsed), its contract and waits."""
+        return TargetLinkGroup(**group_of(self, GROUPS["target_link"]))
+
+    @property
+    def timing(self) -> TimingGroup:
+        """The timing and real-time group: period, mode, loop, PWM update, ADC instant, real-time settings."""
+        return TimingGroup(**group_of(self, GROUPS["timing"]))
+
+    @property
+    def outputs(self) -> OutputGroup:
+        """The outputs group: run directory, trace logging, console echo."""
+        return OutputGroup(**group_of(self, GROUPS["outputs"]))
 
     @property
     def fault_spec(self) -> FaultSpec | None:
@@ -301,24 +364,31 @@ class RunConfig:
         declared = {p.name: p for p in firmware_params(self.target_path or "")} if needed else {}
         out: dict[ParamId | FirmwareParamId, float] = {}
         for name, value in self.controller_params.items():
-            check_wire_value(name, value)  # float32 on the wire (hil/runner/param_values.py)
-            fw = declared.get(name.strip().lower())
-            if fw is None:
-                try:
-                    pid = param_id(name)
-                except ParameterError as exc:
-                    if not declared:
-                        raise
-                    raise ParameterError(f"{exc}; the firmware declares: {', '.join(declared)}") from None
-                check_model_value(pid, name, value)  # a singular controller model is refused
-                out[pid] = value
-                continue
             try:
-                fw.check(value)
-            except FirmwareParamError as exc:
-                raise ParameterError(str(exc)) from None
-            out[fw.param_id] = value
+                out.update(self._resolved_param(declared, name, value))
+            except ParameterError as exc:
+                raise ParameterError(str(exc), key=f"param.{name}") from None
         return out
+
+    @staticmethod
+    def _resolved_param(declared: dict[str, Any], name: str, value: float) -> dict[ParamId | FirmwareParamId, float]:
+        """One --param value by its ConfigParam id (see `resolved_params`)."""
+        check_wire_value(name, value)  # float32 on the wire (hil/runner/param_values.py)
+        fw = declared.get(name.strip().lower())
+        if fw is None:
+            try:
+                pid = param_id(name)
+            except ParameterError as exc:
+                if not declared:
+                    raise
+                raise ParameterError(f"{exc}; the firmware declares: {', '.join(declared)}") from None
+            check_model_value(pid, name, value)  # a singular controller model is refused
+            return {pid: value}
+        try:
+            fw.check(value)
+        except FirmwareParamError as exc:
+            raise ParameterError(str(exc)) from None
+        return {fw.param_id: value}
 
     def target_parameters(self) -> dict[ParamId | FirmwareParamId, float]:
         """Parameters written to the target before enabling: its model of the motor, the speed PI

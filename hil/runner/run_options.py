@@ -6,6 +6,9 @@ options (app/cli/run.py), the `--config FILE.toml` keys and the sweep keys (app/
 app/sweep/plan.py), the keyword arguments of the pytest plugin's `hil.run(...)` (pmsm_hil/testing/runs.py),
 the defaults a run uses (`DEFAULTS`, also the defaults of `RunConfig`'s fields) and `RunConfig`'s range checks
 (`check_field`). A key is the option's long name without dashes, `-` as `_` (`--miss-policy` → `miss_policy`).
+Every option is held by the `RunConfig` (`field`, or `part`: the attribute it goes into with others, e.g. `--speed`
+into `scenario.speed_rpm`) or is `cli_only` (what `hil run` does after the run: `--json`, `--overwrite`,
+`--expect-hold`); `RunConfig.from_options` (hil/runner/run_inputs.py) turns option values into a RunConfig.
 """
 
 from __future__ import annotations
@@ -16,9 +19,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
+from pmsm_hil.hil.control_period import MAX_TS_S, MIN_TS_S, TS_RANGE_WORDS, check_control_period
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.pwm import PWM_UPDATES
-from pmsm_hil.protocol.codec import MAX_DURATION_NS
 
 Kind = Literal["number", "integer", "frequency", "choice", "text", "path", "flag", "table"]
 #: run: every command that runs the closed loop (`hil run`, `hil bench loop`, `hil sweep`, `hil.run`);
@@ -30,9 +33,6 @@ MODES = ("lockstep", "realtime")
 LOOPS = ("auto", "native", "python")
 MISS_POLICIES = ("hold", "zero")
 
-#: Shortest control period [s]; the longest is what a Command's duration field carries
-MIN_TS_S = 5e-6
-MAX_TS_S = MAX_DURATION_NS * 1e-9
 DEFAULT_MCU_CLOCK_HZ = 168e6
 #: the longest wall-time wait for one Command [s] (lockstep and SIL step timeouts)
 MAX_WAIT_S = 3600.0
@@ -65,6 +65,14 @@ class RunOption:
     table_text: bool = False
     #: the accepted range in words when the bounds alone do not say it (why they are what they are)
     range_words: str | None = None
+    #: the RunConfig attribute (dotted: inside it) the value goes into with other options' values, when `field` is
+    #: None: `--speed` → "scenario.speed_rpm", `--set` → "motor"
+    part: str | None = None
+    #: used by `hil run` after the run only (not part of a run's configuration): --json, --overwrite, --expect-hold
+    cli_only: bool = False
+    #: the check of a value when the bounds alone are not it (`--ts`: hil/control_period.py, its one check):
+    #: called with the value and the option's name, raises ParameterError
+    validate: Callable[[Any, str], object] | None = None
 
     @property
     def option(self) -> str:
@@ -88,18 +96,18 @@ class RunOption:
 
     def parse(self, text: str, *, check: bool = True) -> Any:
         """The value of `text` as this option holds it; ParameterError naming the option if it is not one (or,
-        with `check`, out of range: the command line checks ranges later, in `check_values`, for one-line
-        errors)."""
+        with `check`, out of range: the command line checks ranges later, in `RunConfig.from_options`, for one-line
+        errors naming where the value came from)."""
         raw = text.strip()
         if self.kind == "number":
-            value: Any = _float(raw, self.option)
+            value: Any = _float(raw, self.option, self.key)
         elif self.kind == "integer":
             try:
                 value = int(raw)
             except ValueError:
-                raise ParameterError(f"{self.option} must be an integer, got {text!r}") from None
+                raise ParameterError(f"{self.option} must be an integer, got {text!r}", key=self.key) from None
         elif self.kind == "frequency":
-            value = _frequency(raw, self.option, text)
+            value = _frequency(raw, self.option, text, self.key)
         elif self.kind == "path":
             value = Path(raw)
         else:
@@ -112,17 +120,24 @@ class RunOption:
             return value
         if self.kind == "choice":
             if value not in self.choices:
-                raise ParameterError(f"{self.option} must be one of {', '.join(self.choices)}, got {value!r}")
+                raise ParameterError(f"{self.option} must be one of {', '.join(self.choices)}, got {value!r}",
+                                     key=self.key)
             return value
         if self.kind not in ("number", "integer", "frequency"):
             return value
+        if self.validate is not None:
+            try:
+                self.validate(value, self.option)
+            except ParameterError as exc:
+                raise ParameterError(str(exc), key=self.key) from None
+            return value
         if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-            raise ParameterError(f"{self.option} must be {self.range_text()}, got {value!r}")
+            raise ParameterError(f"{self.option} must be {self.range_text()}, got {value!r}", key=self.key)
         low, high = self.minimum, self.maximum
         too_low = low is not None and (value <= low if self.open_minimum else value < low)
         too_high = high is not None and value > high
         if too_low or too_high:
-            raise ParameterError(f"{self.option} must be {self.range_text()}, got {value!r}")
+            raise ParameterError(f"{self.option} must be {self.range_text()}, got {value!r}", key=self.key)
         return value
 
     def range_text(self) -> str:
@@ -140,20 +155,20 @@ class RunOption:
         return "a finite number"
 
 
-def _float(raw: str, option: str) -> float:
+def _float(raw: str, option: str, key: str | None = None) -> float:
     try:
         value = float(raw)
     except ValueError:
-        raise ParameterError(f"{option} must be a number, got {raw!r}") from None
+        raise ParameterError(f"{option} must be a number, got {raw!r}", key=key) from None
     if not math.isfinite(value):
-        raise ParameterError(f"{option} must be finite, got {raw!r}")
+        raise ParameterError(f"{option} must be finite, got {raw!r}", key=key)
     return value
 
 
 _FREQUENCY_UNITS = (("ghz", 1e9), ("mhz", 1e6), ("khz", 1e3), ("hz", 1.0))
 
 
-def _frequency(raw: str, option: str, text: str) -> float:
+def _frequency(raw: str, option: str, text: str, key: str | None = None) -> float:
     """Hz, or a number with kHz / MHz / GHz."""
     number, scale = raw.lower().replace(" ", ""), 1.0
     for unit, factor in _FREQUENCY_UNITS:
@@ -163,7 +178,8 @@ def _frequency(raw: str, option: str, text: str) -> float:
     try:
         value = float(number) * scale
     except ValueError:
-        raise ParameterError(f"{option}: expected a frequency (e.g. 168e6 or 168MHz), got {text!r}") from None
+        raise ParameterError(f"{option}: expected a frequency (e.g. 168e6 or 168MHz), got {text!r}",
+                             key=key) from None
     return value
 
 
@@ -224,18 +240,18 @@ def _links() -> str:
 
 
 RUN_OPTIONS: tuple[RunOption, ...] = (
-    RunOption("motor", "text", _motors, "niu2020-ipmsm", metavar="PRESET|FILE"),
-    RunOption("set", "table", _settable, metavar="NAME=VALUE", dest="set_params"),
+    RunOption("motor", "text", _motors, "niu2020-ipmsm", metavar="PRESET|FILE", part="motor"),
+    RunOption("set", "table", _settable, metavar="NAME=VALUE", dest="set_params", part="motor"),
     RunOption("controller", "text", _controllers, "mpcc", field="controller", metavar="NAME"),
-    RunOption("scenario", "text", _scenarios, "steady", metavar="NAME|FILE.toml"),
-    RunOption("speed", "number", _steady("speed"), metavar="RPM", unit="rpm"),
-    RunOption("load", "number", _steady("load"), metavar="NM", unit="N·m"),
-    RunOption("duration", "number", _steady("duration"), metavar="S", unit="s", minimum=0.0, open_minimum=True),
-    RunOption("settle", "number", _steady("settle"), metavar="S", unit="s", minimum=0.0),
+    RunOption("scenario", "text", _scenarios, "steady", metavar="NAME|FILE.toml", part="scenario"),
+    RunOption("speed", "number", _steady("speed"), metavar="RPM", unit="rpm", part="scenario.speed_rpm"),
+    RunOption("load", "number", _steady("load"), metavar="NM", unit="N·m", part="scenario.load_nm"),
+    RunOption("duration", "number", _steady("duration"), metavar="S", unit="s", minimum=0.0, open_minimum=True,
+              part="scenario.duration_s"),
+    RunOption("settle", "number", _steady("settle"), metavar="S", unit="s", minimum=0.0, part="scenario.settle_s"),
     RunOption("ts", "number", "control period [s], a whole number of ns", 100e-6, field="ts_s", metavar="S",
-              unit="s", minimum=MIN_TS_S, maximum=MAX_TS_S,
-              range_words=f"between 5 µs and {MAX_DURATION_NS / 1e6:.6f} ms (a Command's duration field carries at "
-                          f"most {MAX_DURATION_NS} ns)"),
+              unit="s", minimum=MIN_TS_S, maximum=MAX_TS_S, range_words=TS_RANGE_WORDS,
+              validate=check_control_period),
     RunOption("link", "text", _links, "virtual", field="link", metavar="SPEC"),
     RunOption("mode", "choice", "virtual time or wall-clock pacing", "lockstep", field="mode", choices=MODES),
     RunOption("target", "text",
@@ -260,7 +276,7 @@ RUN_OPTIONS: tuple[RunOption, ...] = (
               "it is in the run's MCAP (/target/console) either way", False, field="verbose"),
     RunOption("seed", "integer", "seed for sensor noise", 0, field="seed", minimum=0),
     RunOption("param", "table", "controller parameter (SI units), e.g. lambda=0.5, t_thr=8e-6, speed_kp=0.8",
-              metavar="NAME=VALUE", table_text=True),
+              metavar="NAME=VALUE", table_text=True, part="controller_params"),
     RunOption("miss_policy", "choice", "real time: a late command → hold last/zero", "hold", field="miss_policy",
               choices=MISS_POLICIES),
     RunOption("watchdog_periods", "integer", "silent-target periods before the safe state", 10,
@@ -311,38 +327,41 @@ RUN_OPTIONS: tuple[RunOption, ...] = (
     RunOption("overrun_threshold", "number", "real time: a period starting later than this is an overrun [s]",
               field="overrun_threshold_s", unit="s", minimum=0.0, open_minimum=True, default_text="Ts/2"),
     RunOption("adc_lsb", "number", "current quantisation step [A]", 0.0, unit="A", minimum=0.0,
-              default_text="0: ideal"),
+              default_text="0: ideal", part="sensors.adc_lsb_a"),
     RunOption("noise", "number", "current noise standard deviation [A]", 0.0, unit="A", minimum=0.0,
-              default_text="0: none"),
-    RunOption("encoder_counts", "integer", "encoder counts/rev", 0, minimum=0, default_text="0: ideal angle"),
+              default_text="0: none", part="sensors.noise_std_a"),
+    RunOption("encoder_counts", "integer", "encoder counts/rev", 0, minimum=0, default_text="0: ideal angle",
+              part="sensors.encoder_counts"),
     # the mechanical load as an FMU (hil/load_fmu, docs/plant.md "Load as an FMU"): the three
     # make RunConfig.load_fmu (a LoadFmuSpec)
     RunOption("load_fmu", "path",
               "the mechanical load as an FMU (FMI 2.0/3.0 Co-Simulation, replaces the scenario's load): input speed "
-              "[rad/s], output torque [N·m], one doStep(Ts) per period in the C loop", metavar="PATH.fmu"),
+              "[rad/s], output torque [N·m], one doStep(Ts) per period in the C loop", metavar="PATH.fmu",
+              part="load_fmu"),
     RunOption("load_fmu_map", "text",
               "the FMU's names for the speed input and torque output, e.g. speed=w_shaft,torque=T_load",
-              metavar="ROLE=NAME,...", default_text="speed=speed,torque=torque"),
+              metavar="ROLE=NAME,...", default_text="speed=speed,torque=torque", part="load_fmu"),
     RunOption("load_fmu_set", "table", "a parameter of the load FMU set before its initialisation (repeatable)",
-              metavar="NAME=VALUE"),
+              metavar="NAME=VALUE", part="load_fmu"),
     RunOption("load_fmu_isolation", "choice",
               "where the load FMU runs: process (its own process: a crash, exit or hang ends the run with exit 3, "
               "the host unharmed) or none (in the run's process, unprotected: a crash kills the run)", "process",
-              choices=("process", "none")),
+              choices=("process", "none"), part="load_fmu"),
     # `hil run`'s outputs
     RunOption("out", "path", "output directory for run.mcap and metrics.json; an existing run there is refused "
-              "unless --overwrite", scope="output", default_text="runs/<time>-<controller>"),
+              "unless --overwrite", scope="output", default_text="runs/<time>-<controller>", part="out_dir"),
     RunOption("overwrite", "flag", "replace the run in --out (its run.mcap and metrics.json are removed first)",
-              False, scope="output"),
-    RunOption("no_log", "flag", "do not write an MCAP log", False, scope="output"),
+              False, scope="output", cli_only=True),
+    RunOption("no_log", "flag", "do not write an MCAP log", False, scope="output", part="out_dir"),
     RunOption("log_trace", "flag", "also log the 2 µs plant trace", False, field="log_trace", scope="output"),
-    RunOption("json", "path", "write the metrics as JSON to this file", scope="output"),
+    RunOption("json", "path", "write the metrics as JSON to this file", scope="output", cli_only=True),
     # the setpoint verdict (hil/runner/setpoint_hold.py)
     RunOption("hold_tolerance", "number", "setpoint_held: largest error of the mean speed over the last 10 percent "
               "of the metrics window [percent of the reference, at least 5 rpm]", metavar="PCT", unit="percent",
-              minimum=0.0, open_minimum=True, default_text="the scenario's hold_tolerance_pct, else 2"),
+              minimum=0.0, open_minimum=True, default_text="the scenario's hold_tolerance_pct, else 2",
+              part="scenario.hold_tolerance_pct"),
     RunOption("expect_hold", "flag", "a completed run whose setpoint was not held (setpoint_held false) exits 5",
-              False, scope="output"),
+              False, scope="output", cli_only=True),
 )
 
 #: options by key
@@ -358,16 +377,10 @@ def default_of(field: str) -> Any:
     return BY_FIELD[field].default
 
 
-def check_values(values: dict[str, Any]) -> None:
-    """Every value of `values` (option key → value, None: not set) checked against its option."""
-    for key, value in values.items():
-        OPTIONS[key].check(value)
-
-
 def check_field(field: str, value: Any) -> Any:
     """`value` of the RunConfig attribute `field` checked against its option (ParameterError naming it)."""
     return BY_FIELD[field].check(value)
 
 
 __all__ = ["BY_FIELD", "DEFAULTS", "DEFAULT_MCU_CLOCK_HZ", "LOOPS", "MAX_TS_S", "MAX_WAIT_S", "MIN_TS_S",
-           "MISS_POLICIES", "MODES", "OPTIONS", "RUN_OPTIONS", "RunOption", "check_field", "check_values", "default_of"]
+           "MISS_POLICIES", "MODES", "OPTIONS", "RUN_OPTIONS", "RunOption", "check_field", "default_of"]

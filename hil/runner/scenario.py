@@ -14,6 +14,8 @@ from pmsm_hil.hil.resources import bundled_names, load_toml
 _PACKAGE = "pmsm_hil.hil.scenarios"
 #: default tolerance of the setpoint verdict `setpoint_held` [% of the reference] (hil/runner/setpoint_hold.py)
 DEFAULT_HOLD_TOLERANCE_PCT = 2.0
+#: the fields of a scenario that may stand for the motor's ratings (`at_rated = true` in a scenario file)
+RATED_FIELDS = ("speed_rpm", "load_nm")
 
 
 @dataclass(frozen=True, slots=True)
@@ -28,8 +30,10 @@ class Scenario:
     steps after the first, in time order (e.g. 0 → 4 → 2 N·m: load_step_s/load_nm = the 4 N·m step,
     load_steps = ((t2, 2.0),)); the load after the last step is the last step's torque. theta0_rad:
     initial electrical rotor angle [rad]. hold_tolerance_pct: tolerance of the setpoint verdict `setpoint_held`
-    [% of the reference] (`--hold-tolerance` wins). at_rated: speed_rpm and load_nm are the motor's rated speed and
-    torque (`for_motor`; the file's values stand for a motor that states none).
+    [% of the reference] (`--hold-tolerance` wins). rated: the fields among speed_rpm and load_nm that stand for
+    the motor's rated speed and torque (a file's `at_rated = true`: both; the file's values stand for a motor that
+    states none); `RunConfig` resolves them for its motor (`for_motor`), an override (`with_overrides`) takes its
+    field out.
     """
 
     name: str
@@ -47,7 +51,7 @@ class Scenario:
     load_steps: tuple[tuple[float, float], ...] = ()
     theta0_rad: float = 0.0
     hold_tolerance_pct: float = DEFAULT_HOLD_TOLERANCE_PCT
-    at_rated: bool = False
+    rated: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if self.mechanics not in ("inertia", "dyno"):
@@ -65,6 +69,9 @@ class Scenario:
                                  f"reference), got {self.hold_tolerance_pct}")
         if not math.isfinite(self.theta0_rad):
             raise ParameterError(f"scenario '{self.name}': theta0_rad must be finite")
+        if not set(self.rated) <= set(RATED_FIELDS):
+            raise ParameterError(f"scenario '{self.name}': rated names fields of {', '.join(RATED_FIELDS)}, "
+                                 f"got {self.rated!r}")
         last = self.load_step_s if self.load_step_s is not None else -math.inf
         for t, nm in self.load_steps:
             if not (math.isfinite(t) and math.isfinite(nm)):
@@ -73,6 +80,11 @@ class Scenario:
                 raise ParameterError(
                     f"scenario '{self.name}': load_steps times must increase and follow load_step_s, got {t} s")
             last = t
+
+    @property
+    def at_rated(self) -> bool:
+        """Some of speed_rpm / load_nm stand for the motor's ratings until `for_motor` resolves them."""
+        return bool(self.rated)
 
     @property
     def start_speed_rpm(self) -> float:
@@ -103,19 +115,21 @@ class Scenario:
         return LoadProfile.steps(self.start_load_nm, [*first, *self.load_steps])
 
     def for_motor(self, rated_speed_rpm: float, rated_torque_nm: float) -> Scenario:
-        """An `at_rated` scenario's copy at the motor's rated speed [rpm] and torque [N·m] (each where > 0, else
-        the scenario's own value); any other scenario unchanged. Command-line overrides come after it. `hil run`,
-        sweeps and the pytest plugin call it (app/cli/run.py); a RunConfig built by hand takes the scenario as
-        given."""
-        if not self.at_rated:
+        """The copy with the `rated` fields at the motor's rated speed [rpm] and torque [N·m] (each where > 0, else
+        the scenario's own value); a scenario without rated fields unchanged. `RunConfig` calls it for its motor
+        (the one place that decides), so `hil run`, sweeps, the pytest plugin and a RunConfig built by hand get the
+        same operating point."""
+        if not self.rated:
             return self
-        return replace(self, speed_rpm=rated_speed_rpm if rated_speed_rpm > 0 else self.speed_rpm,
-                       load_nm=rated_torque_nm if rated_torque_nm > 0 else self.load_nm, at_rated=False)
+        speed = rated_speed_rpm if "speed_rpm" in self.rated and rated_speed_rpm > 0 else self.speed_rpm
+        load = rated_torque_nm if "load_nm" in self.rated and rated_torque_nm > 0 else self.load_nm
+        return replace(self, speed_rpm=speed, load_nm=load, rated=())
 
     def with_overrides(self, **overrides: Any) -> Scenario:
-        """Copy with CLI overrides (None values ignored)."""
+        """Copy with CLI overrides (None values ignored); an overridden rated field is the motor's no longer."""
         clean = {k: v for k, v in overrides.items() if v is not None}
-        return replace(self, **clean)
+        rated = tuple(name for name in self.rated if name not in clean)
+        return replace(self, **clean, rated=rated)
 
 
 def scenario_names() -> list[str]:
@@ -126,7 +140,7 @@ def scenario_names() -> list[str]:
 def load_scenario(name_or_path: str) -> Scenario:
     """Load a bundled scenario by name or a TOML scenario file; errors name the key."""
     doc, origin = load_toml(name_or_path, _PACKAGE, file_label="scenario file", kind="scenario")
-    known = {f.name for f in fields(Scenario)}
+    known = ({f.name for f in fields(Scenario)} - {"rated"}) | {"at_rated"}
     unknown = set(doc) - known
     if unknown:
         raise InputFileError(f"scenario file {origin}: unknown key(s) {', '.join(sorted(unknown))}")
@@ -143,6 +157,7 @@ def load_scenario(name_or_path: str) -> Scenario:
             raise InputFileError(f"scenario file {origin}: '{key}' must be a number")
     path = Path(name_or_path)
     doc.setdefault("name", path.stem if path.suffix else name_or_path)
+    doc["rated"] = RATED_FIELDS if doc.pop("at_rated", False) else ()
     try:
         values: dict[str, Any] = {k: (float(v) if isinstance(v, int) and not isinstance(v, bool) else v)
                                   for k, v in doc.items()}

@@ -24,7 +24,6 @@ from typing import Any
 from pmsm_hil.hil.runner.contract import MISSING, EndCode
 from pmsm_hil.hil.runner.loop_outcome import LoopOutcome
 from pmsm_hil.hil.runner.run_config import RunConfig
-from pmsm_hil.protocol.links import parse_spec
 
 #: link kinds an isolated SIL target can be served over (the native target's C loop) when `--link` names one
 SIL_LINK_KINDS = ("udp", "serial")
@@ -53,7 +52,7 @@ def isolated_config(cfg: RunConfig) -> RunConfig:
     real time) and the wait for each Command (`--step-timeout`); any other run unchanged."""
     if not cfg.sil_isolated:
         return cfg
-    if parse_spec(cfg.link).kind.lower() in SIL_LINK_KINDS:
+    if cfg.link_spec.kind.lower() in SIL_LINK_KINDS:
         link = cfg.link
     else:  # real time: UDP (the socket pair has no bit rate for the link budget; a miss is seen within Ts anyway)
         link = SOCKETPAIR_LINK if cfg.mode == "lockstep" else REALTIME_LINK

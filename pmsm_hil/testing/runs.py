@@ -1,11 +1,10 @@
-"""Closed-loop runs for tests: the choices of `hil run` as keyword arguments, built into a RunConfig by the
-CLI's own configuration path (`app/cli/run.py` `config_from_args`: same defaults, config merging and
-validation), run by `run_closed_loop`, signals read back from the run's MCAP (the log on disk is the source of
+"""Closed-loop runs for tests: the choices of `hil run` as keyword arguments, built into a RunConfig by the path
+of every run (`RunConfig.from_options`: the same defaults and checks as `hil run`, each value's source named in
+errors), run by `run_closed_loop`, signals read back from the run's MCAP (the log on disk is the source of
 truth)."""
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 from collections.abc import Mapping
@@ -63,64 +62,47 @@ class HilSettings:
     controller: str | None = None
     out: Path | None = None
 
-    def target_options(self) -> list[str]:
-        """`hil run` options selecting the target: inproc (virtual bus), spawn (a `hil target` process on UDP),
-        external:LINKSPEC (a board on that link), anything else (sil:PATH, qemu:PATH.elf) as `--target` itself."""
+    def target_values(self) -> dict[str, str]:
+        """The run options selecting the target: inproc (virtual bus), spawn (a `hil target` process on UDP),
+        external:LINKSPEC (a board on that link), anything else (sil:PATH, qemu:PATH.elf) as the target itself."""
         kind, sep, rest = self.target.partition(":")
         if self.target == "inproc":
-            return ["--target=inproc", "--link=virtual"]
+            return {"target": "inproc", "link": "virtual"}
         if self.target == "spawn":
-            return ["--target=spawn", "--link=udp"]
+            return {"target": "spawn", "link": "udp"}
         if kind == "external" and sep and rest:
-            return ["--target=external", f"--link={rest}"]
+            return {"target": "external", "link": rest}
         if kind == "external":
             raise ValueError("--hil-target external needs a link: external:LINKSPEC, e.g. external:socketcan:can0")
-        return [f"--target={self.target}"]
+        return {"target": self.target}
 
 
-class _RaisingParser(argparse.ArgumentParser):
-    """`hil run`'s parser, raising instead of exiting on a bad value (a test gets a one-line error)."""
-
-    def error(self, message: str) -> Any:
-        from pmsm_hil.hil.errors import ParameterError
-
-        raise ParameterError(f"hil.run: {message}")
-
-
-def _run_parser() -> argparse.ArgumentParser:
-    from pmsm_hil.app.cli import run as run_cli
-
-    root: argparse.ArgumentParser = _RaisingParser(prog="hil")
-    run_cli.add_parser(root.add_subparsers(dest="command"))
-    return root
-
-
-def run_argv(settings: HilSettings, out_dir: Path | None, kwargs: Mapping[str, Any]) -> list[str]:
-    """`hil run` arguments of a run: the session's target/motor/controller, then the keyword arguments (each
-    `name=value` is `--name value`; `params={k: v}` → `--param k=v`, `sets={k: v}` → `--set k=v`,
-    `faults=SPEC` → `--fault SPEC`, `flag=True` → `--flag`)."""
-    argv = ["run", *settings.target_options()]
+def run_values(settings: HilSettings, out_dir: Path | None, kwargs: Mapping[str, Any]
+               ) -> tuple[dict[str, Any], dict[str, str]]:
+    """The run-option values of a run and their sources: the session's target and link (`--hil-target`), motor
+    (`--hil-motor`), controller (`--hil-controller`) and output folder, then the keyword arguments (each
+    `name=value` the option `name`; `params={k: v}` → `param`, `sets={k: v}` → `set`, `faults=SPEC` → `fault`;
+    None: not set), each named "hil.run(NAME=...)" in errors."""
+    values: dict[str, Any] = dict(settings.target_values())
+    sources = {key: "--hil-target" for key in values}
     if settings.motor is not None:
-        argv.append(f"--motor={settings.motor}")
+        values["motor"], sources["motor"] = settings.motor, "--hil-motor"
     if settings.controller is not None and "controller" not in kwargs:
-        argv.append(f"--controller={settings.controller}")
-    argv += [f"--out={out_dir}"] if out_dir is not None else ["--no-log"]
+        values["controller"], sources["controller"] = settings.controller, "--hil-controller"
+    if out_dir is not None:
+        values["out"], sources["out"] = out_dir, "--hil-out"
+    else:
+        values["no_log"], sources["no_log"] = True, "--hil-out"
     for name, value in kwargs.items():
         if name in _OWNED:
             raise TypeError(f"hil.run: '{name}' is set by the session (--hil-target, --hil-out), not per run")
         option = run_choice_option(name)
         if value is None:
             continue
-        if option.kind == "table":
-            argv += [f"{option.option}={k}={v}" for k, v in dict(value).items()]
-        elif option.kind == "flag":
-            if value is True:
-                argv.append(option.option)
-            elif value is not False:
-                raise TypeError(f"hil.run: '{name}' is a flag (True or False), got {value!r}")
-        else:
-            argv.append(f"{option.option}={value}")
-    return argv
+        if option.kind == "flag" and not isinstance(value, bool):
+            raise TypeError(f"hil.run: '{name}' is a flag (True or False), got {value!r}")
+        values[option.key], sources[option.key] = value, f"hil.run({name}=...)"
+    return values, sources
 
 
 #: `hil.run` keyword arguments named for what they hold (tables) beside the option keys
@@ -139,10 +121,9 @@ def run_choice_option(name: str) -> RunOption:
 
 def build_config(settings: HilSettings, out_dir: Path | None, kwargs: Mapping[str, Any]) -> RunConfig:
     """The RunConfig `hil run` would build from these choices (ParameterError on a bad one)."""
-    from pmsm_hil.app.cli.run import config_from_args
+    from pmsm_hil.hil.runner.run_config import RunConfig
 
-    args = _run_parser().parse_args(run_argv(settings, out_dir, kwargs))
-    return config_from_args(args)
+    return RunConfig.from_options(*run_values(settings, out_dir, kwargs))
 
 
 def execute(settings: HilSettings, out_dir: Path, kwargs: Mapping[str, Any],
@@ -151,18 +132,18 @@ def execute(settings: HilSettings, out_dir: Path, kwargs: Mapping[str, Any],
     shows it with a failing test). An internal error of the tool is raised (HilRunError from it); a completed run
     that did not hold its setpoint raises SetpointNotHeldError unless `expect_hold=False` is among the choices."""
     from pmsm_hil.app.cli.report_table import format_metrics
-    from pmsm_hil.app.cli.run import config_from_args
     from pmsm_hil.hil.runner.run import run_closed_loop
+    from pmsm_hil.hil.runner.run_config import RunConfig
 
     choices = dict(kwargs)
     expect_hold = choices.pop("expect_hold", True)
     if not isinstance(expect_hold, bool):
         raise TypeError(f"hil.run: 'expect_hold' is True or False, got {expect_hold!r}")
-    argv = run_argv(settings, out_dir, choices)
-    cfg = config_from_args(_run_parser().parse_args(argv))
+    values, sources = run_values(settings, out_dir, choices)
+    cfg = RunConfig.from_options(values, sources)
     out_dir.mkdir(parents=True, exist_ok=True)
     result = run_closed_loop(cfg)
-    print(f"hil {' '.join(argv)}")
+    print("hil.run: " + ", ".join(f"{key}={value}" for key, value in values.items()))
     print(format_metrics(result.metrics))
     if result.outcome.error is not None:
         raise HilRunError(f"hil run ended with an internal error: {result.metrics['end_reason']}") \
@@ -241,4 +222,4 @@ class HilResult:
 
 
 __all__ = ["LOCKSTEP_TIMEOUT_S", "SIGNALS", "HilResult", "HilRunError", "HilSettings", "SetpointNotHeldError",
-           "build_config", "execute", "run_argv", "run_choice_option"]
+           "build_config", "execute", "run_choice_option", "run_values"]

@@ -105,19 +105,19 @@ def test_core_rejects_a_declared_parameter_out_of_range(cpp_sil: Path) -> None:
 
 
 def test_sweeps_and_the_pytest_plugin_take_firmware_parameters(cpp_sil: Path) -> None:
-    from pmsm_hil.app.sweep.configure import base_args, build_config
+    from pmsm_hil.app.sweep.configure import base_options, build_config
 
     from pmsm_hil.testing.runs import HilSettings
     from pmsm_hil.testing.runs import build_config as plugin_config
 
-    sweep = build_config(base_args(["--target", f"sil:{cpp_sil}"]), (("param.bandwidth", "2500"),))
+    sweep = build_config(base_options({"target": f"sil:{cpp_sil}"}), (("param.bandwidth", "2500"),))
     plugin = plugin_config(HilSettings(target=f"sil:{cpp_sil}"), None, {"params": {"bandwidth": 2500.0}})
     for cfg in (sweep, plugin):
         assert cfg.controller == "external"  # a user firmware's default
         sent = {int(k): (getattr(k, "name", ""), v) for k, v in cfg.target_parameters().items()}
         assert sent[128] == ("bandwidth", 2500.0)
     with pytest.raises(ParameterError, match=r"param\.bandwidth: .*outside the firmware's range"):
-        build_config(base_args(["--target", f"sil:{cpp_sil}"]), (("param.bandwidth", "1e6"),))
+        build_config(base_options({"target": f"sil:{cpp_sil}"}), (("param.bandwidth", "1e6"),))
 
 
 def test_a_controller_the_firmware_lacks_names_the_option(cpp_sil: Path) -> None:

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.app.cli.run import add_run_arguments, config_from_args
-from pmsm_hil.app.sweep.configure import base_args, build_config
+from pmsm_hil.app.sweep.configure import base_options, build_config
 from pmsm_hil.hil.errors import HilError
 from pmsm_hil.hil.load_fmu.spec import LoadFmuSpec
 from pmsm_hil.hil.presets_loader import load_motor
@@ -157,10 +157,10 @@ def test_cli_error_is_one_line_exit_2(capsys: pytest.CaptureFixture[str]) -> Non
 
 def test_a_sweep_varies_the_fmu_and_its_parameters(fan_fmus: dict[int, Path], tmp_path: Path) -> None:
     """`load_fmu` and `load_fmu_set.NAME` are sweep keys; the base options stay untouched by a point."""
-    base = base_args(["--load-fmu", str(fan_fmus[2]), "--load-fmu-set", "tau=0.01"])
+    base = base_options({"load_fmu": str(fan_fmus[2]), "load_fmu_set": ["tau=0.01"]})
     cfg = build_config(base, (("load_fmu_set.k", "3e-4"),))
     assert cfg.load_fmu is not None and dict(cfg.load_fmu.params) == {"tau": 0.01, "k": 3e-4}
-    assert base.load_fmu_set == ["tau=0.01"]
+    assert base[0]["load_fmu_set"] == {"tau": "0.01"}
     other = build_config(base, (("load_fmu", str(fan_fmus[3])),))
     assert other.load_fmu_model is not None and other.load_fmu_model.fmi_version == 3
     out = tmp_path / "sweep"

@@ -37,7 +37,7 @@ CONDITIONAL = {"lateness_us", "lateness_histogram_us", "overruns", "overrun_thre
 
 
 def _metrics(motor: str, controller: str, load: float) -> dict[str, Any]:
-    sc = load_scenario("steady").with_overrides(load_nm=load, settle_s=0.005, duration_s=0.01)
+    sc = load_scenario("steady").with_overrides(speed_rpm=1500.0, load_nm=load, settle_s=0.005, duration_s=0.01)
     return run_closed_loop(RunConfig(motor=load_motor(motor), scenario=sc, controller=controller)).metrics
 
 

@@ -82,7 +82,7 @@ def _mirrored(**overrides: Any) -> RunConfig:
 
 
 def _six(**overrides: Any) -> RunConfig:
-    sc = load_scenario("steady").with_overrides(load_nm=40.0, settle_s=0.005, duration_s=0.015)
+    sc = load_scenario("steady").with_overrides(speed_rpm=1500.0, load_nm=40.0, settle_s=0.005, duration_s=0.015)
     return RunConfig(motor=load_motor("zhang2021-dtpmsm"), scenario=sc, controller="mptc2", **overrides)
 
 

@@ -89,8 +89,11 @@ def test_run_and_target_options_refuse_bad_values(capsys: pytest.CaptureFixture[
     assert "--spin-us must be 0..1000000 µs" in capsys.readouterr().err
     assert _exit_code(["target", "--link", "udp", "--spin-us", "0"]) == 2
     assert "--spin-us: with --native only" in capsys.readouterr().err
+    # the bench declares it as `hil run` does (the run-option schema): the same parse and range
     assert _exit_code(["bench", "realtime", "--cpu-dma-latency", "x"]) == 2
-    assert "--cpu-dma-latency must be a whole number of µs" in capsys.readouterr().err
+    assert "--cpu-dma-latency must be an integer, got 'x'" in capsys.readouterr().err
+    assert _exit_code(["bench", "realtime", "--cpu-dma-latency", "-5", "--links", "inproc"]) == 2
+    assert "--cpu-dma-latency must be -1 (leave it) or a latency of 0 µs or more" in capsys.readouterr().err
 
 
 def test_a_real_time_run_over_udp_holds_it_and_one_in_process_does_not() -> None:

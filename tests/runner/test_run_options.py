@@ -10,7 +10,8 @@ from pathlib import Path
 import pytest
 from pmsm_hil.app.cli.main import build_parser, main
 from pmsm_hil.app.cli.run import config_schema
-from pmsm_hil.app.sweep.configure import base_args
+from pmsm_hil.app.sweep.configure import base_options
+from pmsm_hil.app.sweep.configure import build_config as sweep_config
 from pmsm_hil.app.sweep.plan import OUTPUT_KEYS, sweep_keys
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.runner.run_config import RunConfig
@@ -88,10 +89,10 @@ def test_out_of_range_is_refused_everywhere_naming_the_option(option: RunOption,
     # hil.run(...) of the pytest plugin and a sweep's base options: the same check
     with pytest.raises(ParameterError, match=f"{option.option} must be"):
         build_config(HilSettings(), None, {"duration": 0.01, option.key: text})
-    from pmsm_hil.app.cli.run import config_from_args
-
     with pytest.raises(ParameterError, match=f"{option.option} must be"):
-        config_from_args(base_args(["--duration=0.01", f"{option.option}={text}"]))
+        sweep_config(base_options({"duration": 0.01, option.key: text}), ())
+    with pytest.raises(ParameterError, match=f"--grid {option.key}: {option.option} must be"):
+        sweep_config(base_options({"duration": 0.01}), ((option.key, text),))
 
 
 def test_help_shows_the_schemas_defaults(capsys: pytest.CaptureFixture[str]) -> None:
@@ -110,12 +111,10 @@ def test_the_default_scenario_runs_at_the_motors_ratings(motor: str, controller:
                                                          load_nm: float) -> None:
     """The default (steady, `at_rated`) scenario's speed and load are the motor's rated speed and torque; the
     options and other scenarios keep theirs."""
-    from pmsm_hil.app.cli.run import config_from_args
-
-    base = ["--motor", motor, "--controller", controller]
-    sc = config_from_args(base_args(base)).scenario
+    base = {"motor": motor, "controller": controller, "no_log": True}
+    sc = RunConfig.from_options(base).scenario
     assert (sc.speed_rpm, sc.load_nm) == (speed_rpm, load_nm)
-    sc = config_from_args(base_args([*base, "--speed", "900", "--load", "2"])).scenario
+    sc = RunConfig.from_options({**base, "speed": "900", "load": 2}).scenario
     assert (sc.speed_rpm, sc.load_nm) == (900.0, 2.0)
-    sc = config_from_args(base_args([*base, "--scenario", "dyno-steady"])).scenario
+    sc = RunConfig.from_options({**base, "scenario": "dyno-steady"}).scenario
     assert (sc.speed_rpm, sc.load_nm) == (1000.0, 4.0)

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 from pmsm_hil.app.cli.main import main
-from pmsm_hil.app.sweep.configure import base_args, build_config, build_runs
+from pmsm_hil.app.sweep.configure import base_options, build_config, build_runs
 from pmsm_hil.app.sweep.plan import expand, load_plan, parse_grid, swept_keys
 from pmsm_hil.app.sweep.runid import run_id
 from pmsm_hil.hil.errors import InputFileError, ParameterError
@@ -43,13 +43,14 @@ def test_bad_grid_items_name_the_key(item: str, match: str) -> None:
     ("ts=1e-4,1", "--grid ts: --ts must be between 5 µs and 1.048575 ms"),
     ("set.rs=4.5,abc", "--grid set.rs: --set rs: value 'abc' is not a number"),
     ("param.nope=1", "--grid param.nope: unknown controller parameter 'nope'"),
-    ("mode=lockstep,fast", "--grid mode: invalid choice: 'fast'"),
+    ("mode=lockstep,fast", "--grid mode: --mode must be one of lockstep, realtime, got 'fast'"),
     ("theta0=0,x", "--grid theta0: theta0 must be a number"),
 ])
 def test_bad_values_get_the_run_options_own_error(grid: str, message: str) -> None:
-    """A grid value goes through `hil run`'s parser and configuration: the option's message, the key named."""
+    """A grid value goes through the run options' own checks (`RunConfig.from_options`): the option's message, the
+    key named through the value's source."""
     with pytest.raises(ParameterError) as err:
-        build_runs(base_args(), expand((), parse_grid([grid])), 1)
+        build_runs(base_options(), expand((), parse_grid([grid])), 1)
     assert str(err.value).startswith(message)
 
 
@@ -61,7 +62,7 @@ def test_cli_bad_grid_value_is_one_line_exit_2(tmp_path: Path, capsys: pytest.Ca
 
 
 def test_run_ids_are_stable_and_follow_the_configuration() -> None:
-    base = base_args(["--duration", "0.1"])
+    base = base_options({"duration": "0.1"})
     a = build_config(base, (("controller", "mpcc"), ("load", "3")))
     b = build_config(base, (("load", "3.0"), ("controller", "mpcc")))
     assert run_id(a) == run_id(b)  # same configuration, however written
@@ -70,11 +71,11 @@ def test_run_ids_are_stable_and_follow_the_configuration() -> None:
     assert run_id(build_config(base, (("controller", "mpcc"), ("load", "3"), ("set.rs", "4.6")))) != run_id(a)
     assert len(run_id(a)) == 16 and int(run_id(a), 16) >= 0  # 16 hex digits
     # a value given by the base options or by the point is the same run
-    assert run_id(build_config(base_args(["--duration", "0.1", "--load", "3"]), (("controller", "mpcc"),))) == run_id(a)
+    assert run_id(build_config(base_options({"duration": "0.1", "load": "3"}), (("controller", "mpcc"),))) == run_id(a)
 
 
 def test_repeats_turn_the_rotor_and_the_seed() -> None:
-    runs = build_runs(base_args(["--seed", "5"]), [(("controller", "mpcc"),)], 4)
+    runs = build_runs(base_options({"seed": 5}), [(("controller", "mpcc"),)], 4)
     assert [r.repeat for r in runs] == [0, 1, 2, 3]
     assert [r.cfg.seed for r in runs] == [5, 6, 7, 8]
     assert [r.cfg.sensors.seed for r in runs] == [5, 6, 7, 8]
@@ -83,12 +84,12 @@ def test_repeats_turn_the_rotor_and_the_seed() -> None:
     cols = runs[1].columns()
     assert cols["controller"] == "mpcc" and cols["repeat"] == 1 and cols["seed"] == 6
     assert cols["theta0"] == pytest.approx(math.pi / 2)
-    offset = build_runs(base_args(), [(("theta0", "0.5"),)], 2)
+    offset = build_runs(base_options(), [(("theta0", "0.5"),)], 2)
     assert [r.cfg.scenario.theta0_rad for r in offset] == pytest.approx([0.5, 0.5 + math.pi])
 
 
 def test_duplicate_configurations_run_once() -> None:
-    runs = build_runs(base_args(), expand((), parse_grid(["load=7,7.0"])), 1)
+    runs = build_runs(base_options(), expand((), parse_grid(["load=7,7.0"])), 1)
     assert len(runs) == 1
 
 

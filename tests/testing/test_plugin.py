@@ -16,7 +16,7 @@ from pmsm_hil.hil.runlog.reader import read_metadata
 
 from pmsm_hil.testing import PLOT_PROPERTY, HilResult
 from pmsm_hil.testing.plugin import HilSession
-from pmsm_hil.testing.runs import HilSettings, build_config, run_argv
+from pmsm_hil.testing.runs import HilSettings, build_config, run_values
 from tests.testing.pytest_session import ROOT, Session
 
 
@@ -54,27 +54,32 @@ def test_the_plugin_imports_cheaply() -> None:
     assert out.stdout.strip() == "[]"
 
 
-def test_choices_become_hil_run_arguments() -> None:
-    argv = run_argv(HilSettings(target="spawn", motor="zhang2021-dtpmsm", controller="mptc3"), Path("/o"),
-                    {"speed": 1200, "load": -3.5, "params": {"lambda": 0.5}, "sets": {"j": 0.1},
-                     "faults": "drop=0.01", "log_trace": True, "settle": None})
-    assert argv == ["run", "--target=spawn", "--link=udp", "--motor=zhang2021-dtpmsm", "--controller=mptc3",
-                    "--out=/o", "--speed=1200", "--load=-3.5", "--param=lambda=0.5",
-                    "--set=j=0.1", "--fault=drop=0.01", "--log-trace"]
-    assert run_argv(HilSettings(controller="foc"), None, {"controller": "mpcc", "lockstep_timeout": 5})[3:] == [
-        "--no-log", "--controller=mpcc", "--lockstep-timeout=5"]
+def test_choices_become_run_option_values() -> None:
+    """`hil.run`'s choices are run-option values (a dict, no command line), each with its source."""
+    choices = {"speed": 1200, "load": -3.5, "params": {"lambda": 0.5}, "sets": {"j": 0.1}, "faults": "drop=0.01",
+               "log_trace": True, "settle": None}
+    values, sources = run_values(HilSettings(target="spawn", motor="zhang2021-dtpmsm", controller="mptc3"),
+                                 Path("/o"), choices)
+    assert values == {"target": "spawn", "link": "udp", "motor": "zhang2021-dtpmsm", "controller": "mptc3",
+                      "out": Path("/o"), "speed": 1200, "load": -3.5, "param": {"lambda": 0.5}, "set": {"j": 0.1},
+                      "fault": "drop=0.01", "log_trace": True}
+    assert sources["load"] == "hil.run(load=...)" and sources["set"] == "hil.run(sets=...)"
+    assert sources["motor"] == "--hil-motor" and sources["link"] == "--hil-target"
+    values, _ = run_values(HilSettings(controller="foc"), None, {"controller": "mpcc", "lockstep_timeout": 5})
+    assert values == {"target": "inproc", "link": "virtual", "no_log": True, "controller": "mpcc",
+                      "lockstep_timeout": 5}
     # targets hil run has or will have: passed through as they are
-    assert run_argv(HilSettings(target="external:socketcan:can0"), None, {})[1:3] == ["--target=external",
-                                                                                      "--link=socketcan:can0"]
-    sil = run_argv(HilSettings(target="sil:fw.so"), None, {})
-    assert sil[1] == "--target=sil:fw.so" and not any(a.startswith(("--step-timeout", "--lockstep-timeout"))
-                                                      for a in sil)  # hil run's timeouts: host stalls do not count
-    assert "--step-timeout=9" in run_argv(HilSettings(target="sil:fw.so"), None, {"step_timeout": 9})
-    assert run_argv(HilSettings(target="qemu:fw.elf"), None, {})[1] == "--target=qemu:fw.elf"
+    values, _ = run_values(HilSettings(target="external:socketcan:can0"), None, {})
+    assert (values["target"], values["link"]) == ("external", "socketcan:can0")
+    sil, _ = run_values(HilSettings(target="sil:fw.so"), None, {})
+    assert sil["target"] == "sil:fw.so" and "link" not in sil  # hil run's own link and timeouts
+    assert not {"step_timeout", "lockstep_timeout"} & set(sil)  # hil run's timeouts: host stalls do not count
+    assert run_values(HilSettings(target="sil:fw.so"), None, {"step_timeout": 9})[0]["step_timeout"] == 9
+    assert run_values(HilSettings(target="qemu:fw.elf"), None, {})[0]["target"] == "qemu:fw.elf"
 
 
 def test_bad_choices_fail_as_hil_run_does() -> None:
-    with pytest.raises(ParameterError, match=r"argument --speed: .*'fast'"):
+    with pytest.raises(ParameterError, match=r"hil.run\(speed=...\): --speed must be a number, got 'fast'"):
         build_config(HilSettings(), None, {"speed": "fast"})
     with pytest.raises(TypeError, match=r"unknown choice 'speedd' \(known: .*speed, step_timeout"):
         build_config(HilSettings(), None, {"speedd": 1})  # the run-option schema's keys, named
