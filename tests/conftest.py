@@ -5,7 +5,9 @@ tests off there."""
 from __future__ import annotations
 
 import os
+import resource
 import signal
+from collections.abc import Generator
 from pathlib import Path
 
 import pytest
@@ -55,3 +57,38 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     if _unexpected:
         print("\nunexpected skips in CI (install what they need in .ci/run):\n  " + "\n  ".join(_unexpected))
         session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object:
+    """`--dist loadfile` (pyproject.toml's addopts): xdist's loadfile, longest units first and the files sharing a
+    session fixture on one worker (tests/xdist_scheduling.py). Other `--dist` modes: xdist's own."""
+    if config.getvalue("dist") != "loadfile":
+        return None
+    from tests.xdist_scheduling import CostOrderedFileScheduling
+
+    return CostOrderedFileScheduling(config, log)  # type: ignore[arg-type]
+
+
+def _cpu_s() -> float:
+    """CPU seconds of this process and of its children it has waited for (user + system)."""
+    own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> Generator[None, object, object]:
+    """With `HIL_CPU_REPORT=FILE`, append "CPU-s wall-s node-id" per test (setup, call and teardown; the CPU of the
+    worker and of the processes it started and waited for): the suite's cost independent of the machine's load
+    (docs/ci.md, "The project's own suite")."""
+    path = os.environ.get("HIL_CPU_REPORT")
+    if not path:
+        return (yield)
+    import time
+
+    cpu0, t0 = _cpu_s(), time.monotonic()
+    try:
+        return (yield)
+    finally:
+        with open(path, "a", encoding="utf-8") as f:
+            f.write(f"{_cpu_s() - cpu0:.3f} {time.monotonic() - t0:.3f} {item.nodeid}\n")
