@@ -38,6 +38,8 @@ def pytest_configure(config: pytest.Config) -> None:
     SIGINT inherit the ignored disposition, so they would not stop (hil replay/sweep/run timed out or exited 0)."""
     if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
         signal.signal(signal.SIGINT, signal.default_int_handler)
+    if os.environ.get("HIL_CPU_REPORT") and _CPU_REPORT_OWNER not in os.environ:
+        os.environ[_CPU_REPORT_OWNER] = str(os.getpid())
 
 
 def pytest_runtest_logreport(report: pytest.TestReport) -> None:
@@ -70,6 +72,10 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object:
     return CostOrderedFileScheduling(config, log)  # type: ignore[arg-type]
 
 
+#: the pid of the pytest process that saw HIL_CPU_REPORT first: it and its xdist workers write the report
+_CPU_REPORT_OWNER = "HIL_CPU_REPORT_SESSION"
+
+
 def _cpu_s() -> float:
     """CPU seconds of this process and of its children it has waited for (user + system)."""
     own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -82,8 +88,10 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> 
     worker and of the processes it started and waited for): the suite's cost independent of the machine's load
     (docs/ci.md, "The project's own suite")."""
     path = os.environ.get("HIL_CPU_REPORT")
-    if not path:
-        return (yield)
+    owner = os.environ.get(_CPU_REPORT_OWNER)
+    worker = "PYTEST_XDIST_WORKER" in os.environ and owner == str(os.getppid())
+    if not path or not (owner == str(os.getpid()) or worker):
+        return (yield)  # not asked, or a pytest session a test started (its CPU is that test's)
     import time
 
     cpu0, t0 = _cpu_s(), time.monotonic()
