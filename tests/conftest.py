@@ -5,7 +5,9 @@ tests off there."""
 from __future__ import annotations
 
 import os
+import resource
 import signal
+from collections.abc import Generator
 from pathlib import Path
 from typing import Any
 
@@ -37,6 +39,8 @@ def pytest_configure(config: pytest.Config) -> None:
     SIGINT inherit the ignored disposition, so they would not stop (hil replay/sweep/run timed out or exited 0)."""
     if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
         signal.signal(signal.SIGINT, signal.default_int_handler)
+    if os.environ.get("HIL_CPU_REPORT") and _CPU_REPORT_OWNER not in os.environ:
+        os.environ[_CPU_REPORT_OWNER] = str(os.getpid())
 
 
 def pytest_runtest_logreport(report: pytest.TestReport) -> None:
@@ -70,3 +74,44 @@ def target_without_heartbeats(monkeypatch: pytest.MonkeyPatch) -> None:
             real(self, msg)
 
     monkeypatch.setattr(SimTarget, "_send", without_heartbeats)
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object:
+    """`--dist loadfile` (pyproject.toml's addopts): xdist's loadfile, longest units first and the files sharing a
+    session fixture on one worker (tests/xdist_scheduling.py). Other `--dist` modes: xdist's own."""
+    if config.getvalue("dist") != "loadfile":
+        return None
+    from tests.xdist_scheduling import CostOrderedFileScheduling
+
+    return CostOrderedFileScheduling(config, log)  # type: ignore[arg-type]
+
+
+#: the pid of the pytest process that saw HIL_CPU_REPORT first: it and its xdist workers write the report
+_CPU_REPORT_OWNER = "HIL_CPU_REPORT_SESSION"
+
+
+def _cpu_s() -> float:
+    """CPU seconds of this process and of its children it has waited for (user + system)."""
+    own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> Generator[None, object, object]:
+    """With `HIL_CPU_REPORT=FILE`, append "CPU-s wall-s node-id" per test (setup, call and teardown; the CPU of the
+    worker and of the processes it started and waited for): the suite's cost independent of the machine's load
+    (docs/ci.md, "The project's own suite")."""
+    path = os.environ.get("HIL_CPU_REPORT")
+    owner = os.environ.get(_CPU_REPORT_OWNER)
+    worker = "PYTEST_XDIST_WORKER" in os.environ and owner == str(os.getppid())
+    if not path or not (owner == str(os.getpid()) or worker):
+        return (yield)  # not asked, or a pytest session a test started (its CPU is that test's)
+    import time
+
+    cpu0, t0 = _cpu_s(), time.monotonic()
+    try:
+        return (yield)
+    finally:
+        with open(path, "a", encoding="utf-8") as f:
+            f.write(f"{_cpu_s() - cpu0:.3f} {time.monotonic() - t0:.3f} {item.nodeid}\n")

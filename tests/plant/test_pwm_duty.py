@@ -10,6 +10,7 @@ from dataclasses import replace
 from fractions import Fraction
 from itertools import pairwise
 
+import numpy as np
 import pytest
 from pmsm_hil.hil import _loop_native  # type: ignore[attr-defined]
 from pmsm_hil.hil.mechanics import DynoMechanics
@@ -29,21 +30,33 @@ def _carrier(t: Fraction, ts: int, half: int) -> Fraction:
     return t / ts if half == RISING else 1 - t / ts
 
 
-def _brute_levels(raw: list[int], ts: int, half: int) -> list[list[int]]:
-    """Per leg, the gate level in each ns [n, n+1): the carrier compared at the ns's middle (c > 1 − d)."""
-    out = []
-    for r in raw:
-        thr = 1 - Fraction(r, DUTY_FULL)
-        out.append([1 if _carrier(Fraction(2 * n + 1, 2), ts, half) > thr else 0 for n in range(ts)])
-    return out
+def _brute_levels(raw: list[int], ts: int, half: int) -> np.ndarray:
+    """Per leg (rows), the gate level in each ns [n, n+1): the carrier compared at the ns's middle t = n + 1/2
+    (c(t) > 1 − d, d = raw/DUTY_FULL), exactly: both sides multiplied by 2·ts·DUTY_FULL, in integers
+    (`_carrier` in rationals is the same comparison; `test_the_integer_comparison_is_the_rational_one`)."""
+    m = 2 * np.arange(ts, dtype=np.int64) + 1  # 2t
+    # single: c = 2t/ts up to the peak, 2 − 2t/ts after it (c·2·ts = 2·2t or 4·ts − 2·2t); rising: c = t/ts
+    # (c·2·ts = 2t); falling: c = 1 − t/ts (c·2·ts = 2·ts − 2t)
+    rising_or_falling = m if half == RISING else 2 * ts - m
+    c2ts = np.where(m <= ts, 2 * m, 4 * ts - 2 * m) if half == SINGLE else rising_or_falling
+    thr2ts = 2 * ts * (DUTY_FULL - np.asarray(raw, dtype=np.int64))  # (1 − d)·2·ts·DUTY_FULL
+    return (c2ts[None, :] * DUTY_FULL > thr2ts[:, None]).astype(np.int8)
 
 
-def _levels_of(states: tuple[int, ...], durs: tuple[int, ...], legs: int) -> list[list[int]]:
-    out: list[list[int]] = [[] for _ in range(legs)]
-    for st, d in zip(states, durs, strict=True):
-        for leg in range(legs):
-            out[leg] += [(st >> (legs - 1 - leg)) & 1] * d
-    return out
+def _levels_of(states: tuple[int, ...], durs: tuple[int, ...], legs: int) -> np.ndarray:
+    """Per leg (rows), the gate level in each ns of the switching sequence."""
+    st = np.repeat(np.asarray(states, dtype=np.int64), durs)
+    return np.stack([(st >> (legs - 1 - leg)) & 1 for leg in range(legs)]).astype(np.int8)
+
+
+def test_the_integer_comparison_is_the_rational_one() -> None:
+    rng = random.Random(5)
+    for half in HALVES:
+        for ts in (997, 1000, 2001):
+            raw = [0, DUTY_FULL, *(rng.randrange(DUTY_FULL + 1) for _ in range(4))]
+            rational = [[1 if _carrier(Fraction(2 * n + 1, 2), ts, half) > 1 - Fraction(r, DUTY_FULL) else 0
+                         for n in range(ts)] for r in raw]
+            assert _brute_levels(raw, ts, half).tolist() == rational
 
 
 def _exact_edges(r: int, ts: int, half: int) -> list[Fraction]:
@@ -66,12 +79,10 @@ def test_switching_instants_equal_a_brute_force_carrier_comparison(legs: int, ha
         assert len(states) <= 2 * legs + 1
         assert all(a != b for a, b in pairwise(states))  # merged: every boundary is an edge
         got, brute = _levels_of(states, durs, legs), _brute_levels(raw, ts, half)
-        for leg in range(legs):
-            for n in range(ts):
-                if got[leg][n] != brute[leg][n]:
-                    # only the ns an exact instant falls in may differ (rounding to the ns grid, ≤ 0.5 ns)
-                    assert any(abs(Fraction(2 * n + 1, 2) - e) <= Fraction(1, 2)
-                               for e in _exact_edges(raw[leg], ts, half)), (trial, leg, n, raw, ts)
+        for leg, n in zip(*np.nonzero(got != brute), strict=True):
+            # only the ns an exact instant falls in may differ (rounding to the ns grid, ≤ 0.5 ns)
+            assert any(abs(Fraction(2 * int(n) + 1, 2) - e) <= Fraction(1, 2)
+                       for e in _exact_edges(raw[leg], ts, half)), (trial, leg, n, raw, ts)
         for leg, (on, off) in enumerate(leg_intervals(raw, ts, half)):  # each instant within 0.5 ns of the exact one
             exact = _exact_edges(raw[leg], ts, half)
             inside = [t for t in (on, off) if 0 < t < ts]

@@ -78,12 +78,30 @@ def _default_sigint() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
+def cpu_seconds(pid: int) -> float:
+    """CPU seconds (user + system) process `pid` has used; 0.0 once it is gone."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return 0.0
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime, stime
+
+
+def wait_cpu(proc: subprocess.Popen[bytes], cpu_s: float, timeout_s: float) -> None:
+    """Until `proc` has used `cpu_s` CPU seconds (or ended, or `timeout_s` of wall time passed): a delay that
+    means the same progress on an idle and on a busy machine."""
+    deadline = time.monotonic() + timeout_s
+    while proc.poll() is None and cpu_seconds(proc.pid) < cpu_s and time.monotonic() < deadline:
+        time.sleep(0.005)
+
+
 def interrupt_once(out: Path, variant: str, sig: signal.Signals, delay_s: float, *, group: bool = False,
-                   after_bytes: int = 0, timeout_s: float = 120.0) -> Try:
+                   after_bytes: int = 0, timeout_s: float = 120.0, cpu_clock: bool = False) -> Try:
     """Start `hil` with `variant` into `out`, send `sig` after `delay_s` (s) to it, or to its whole process group
     (`group`: as a terminal's Ctrl-C or `kill -- -PGID`; the logger and a spawned target get it too), wait for
     it and compare the files. `after_bytes`: count the delay from when run.mcap holds that many bytes (the
-    loop runs)."""
+    loop runs). `cpu_clock`: the delay is `hil`'s own CPU time (its start-up is CPU-bound: on an idle machine
+    about the wall time; on a busy one, the wall time would end while Python itself still starts)."""
     cmd = [sys.executable, "-m", "pmsm_hil.app.cli.main", "run", *VARIANTS[variant], "--out", str(out)]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=group,
                             preexec_fn=_default_sigint)
@@ -92,7 +110,10 @@ def interrupt_once(out: Path, variant: str, sig: signal.Signals, delay_s: float,
     while after_bytes and proc.poll() is None and time.monotonic() < deadline and not (
             mcap.exists() and mcap.stat().st_size >= after_bytes):
         time.sleep(0.01)
-    time.sleep(delay_s)
+    if cpu_clock:
+        wait_cpu(proc, delay_s, timeout_s)
+    else:
+        time.sleep(delay_s)
     with contextlib.suppress(ProcessLookupError):  # it ended before the signal
         if group:
             os.killpg(proc.pid, sig)
