@@ -43,7 +43,8 @@ def build_kernel_module(name: str, kernel_c: Path, cdef: str, build_dir: Path) -
     (cffi syntax: the params/state structs, the advance, sample and table functions, best taken from the C file by
     `cdef_extract.declarations(kernel_c, names)`; `ge_period_stats_t`, the mechanics' structs, `mk_sample_t` and
     `mk_kernel_t` are declared before it: `common_cdef`). Rebuilt only when the C file, the cdef or a kernel header
-    changed. ParameterError naming the file when it is missing; a compiler error is raised with the compiler's own message."""
+    changed. ParameterError naming the file when it is missing; a compiler error is raised with the compiler's own
+    message."""
     from cffi import FFI
 
     kernel_c = Path(kernel_c)
