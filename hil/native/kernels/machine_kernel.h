@@ -3,6 +3,8 @@
  * pointers. A machine kind's C file (plant.c, plant6.c, ...) defines one const table and a function returning
  * its address; the Python plant class hands that address, with its own params and state structs, to the loop.
  * The loop calls only through the table: it never knows the machine type, its parameters or its state layout.
+ * A kernel is its electrical model: its params and state structs hold the drive's mechanics (mechanics.h), and
+ * mech_integrate moves the speed between the kernel's constant-speed pieces; the load reaches only the mechanics.
  *
  * Units: SI (A, rad electrical, rad/s mechanical, N*m, s); plant time in ns.
  */
