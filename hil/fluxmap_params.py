@@ -15,9 +15,10 @@ Units: SI (Ω, V, kg·m², N·m·s/rad, s, A, Wb, H); speeds in rpm where named 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
+from pmsm_hil.hil.drive_params import DriveParams, WithDrive
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.fluxmap import Interpolant, MapChecks, load_interpolant
 from pmsm_hil.hil.machine_params import check_preset_keys
@@ -32,24 +33,15 @@ _SETTABLE: dict[str, str] = {"rs": "Ω", "pole_pairs": "", "vdc": "V", "j": "kg�
 
 
 @dataclass(frozen=True, slots=True)
-class FluxMapParams:
-    """A saturated PMSM: `flux_map` the map file's path (CSV or SyR-e .mat), rs [Ω], the drive facts every kind has
-    (MachineParams)."""
+class FluxMapParams(WithDrive):
+    """A saturated PMSM: `flux_map` the map file's path (CSV or SyR-e .mat), rs [Ω], pole pairs, and the drive every
+    kind has (`drive`: DriveParams, its fields also read as attributes: `params.j`). Build one from flat values with
+    `FluxMapParams.build(flux_map=..., rs=..., pole_pairs=..., vdc=..., j=...)`."""
 
     flux_map: str
     rs: float
     pole_pairs: int
-    vdc: float
-    j: float
-    b: float = 0.0
-    t_dead: float = 0.0
-    t_mpw: float = 0.0
-    i_trip: float = 30.0
-    speed_trip_rpm: float = 6000.0
-    rated_speed_rpm: float = 0.0
-    rated_torque_nm: float = 0.0
-    speed_kp: float = 0.8
-    speed_ki: float = 0.35
+    drive: DriveParams
     name: str = "fluxmap"
 
     SETTABLE_UNITS: ClassVar[dict[str, str]] = _SETTABLE
@@ -60,23 +52,16 @@ class FluxMapParams:
     @classmethod
     def from_values(cls, values: dict[str, Any], name: str) -> FluxMapParams:
         """From a preset's values (`flux_map` resolved by the loader); ParameterError naming a bad key."""
-        check_preset_keys(values, {f.name for f in fields(cls)} - {"name"}, cls.REQUIRED, "pmsm-fluxmap ")
-        return cls(name=name, **{k: _clean(k, v) for k, v in values.items()})
+        check_preset_keys(values, cls.parameter_names(), cls.REQUIRED, "pmsm-fluxmap ")
+        return cls.build(name=name, **{k: _clean(k, v) for k, v in values.items()})
 
     def __post_init__(self) -> None:
-        positive = ("rs", "vdc", "j", "i_trip", "speed_trip_rpm")
-        non_negative = ("b", "t_dead", "t_mpw", "rated_speed_rpm", "rated_torque_nm", "speed_kp", "speed_ki")
-        for key in positive + non_negative:
-            value = getattr(self, key)
-            if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-                raise ParameterError(f"motor parameter '{key}' must be a finite number, got {value!r}")
-            if (key in positive and value <= 0) or value < 0:
-                raise ParameterError(f"motor parameter '{key}' must be {'>' if key in positive else '≥'} 0, "
-                                     f"got {value}")
+        if isinstance(self.rs, bool) or not isinstance(self.rs, int | float) or not math.isfinite(self.rs):
+            raise ParameterError(f"motor parameter 'rs' must be a finite number, got {self.rs!r}")
+        if self.rs <= 0:
+            raise ParameterError(f"motor parameter 'rs' must be > 0, got {self.rs}")
         if isinstance(self.pole_pairs, bool) or not isinstance(self.pole_pairs, int) or self.pole_pairs < 1:
             raise ParameterError(f"motor parameter 'pole_pairs' must be an integer ≥ 1, got {self.pole_pairs!r}")
-        if self.t_dead > 1e-3 or self.t_mpw > 1e-3:
-            raise ParameterError("motor parameters 't_dead'/'t_mpw' are in seconds and must be < 1 ms")
         checks = self.checks
         if not checks.covers(self.i_trip):
             raise ParameterError(
@@ -132,7 +117,7 @@ class FluxMapParams:
         if unknown:
             raise ParameterError(f"unknown motor parameter(s) {', '.join(sorted(unknown))} for a pmsm-fluxmap "
                                  f"machine (known: {', '.join(sorted(_SETTABLE))})")
-        return replace(self, **{k: _clean(k, v) for k, v in overrides.items()})
+        return self.with_values(**{k: _clean(k, v) for k, v in overrides.items()})
 
 
 def _clean(key: str, value: Any) -> Any:

@@ -41,8 +41,8 @@ class FluxMapPlant(PlantBase):
                             ffi.new("double[]", interp.coef_q.ravel().tolist()))
         p.id_axis, p.iq_axis, p.coef_d, p.coef_q = self._map_arrays
         p.nx, p.ny = len(fmap.id_axis), len(fmap.iq_axis)
-        p.rs, p.vdc, p.j, p.b = params.rs, params.vdc, params.j, params.b
-        p.t_dead, p.t_mpw, p.max_piece = params.t_dead, params.t_mpw, self._max_piece_s
+        p.rs, p.vdc = params.rs, params.vdc
+        p.t_dead, p.t_mpw = params.t_dead, params.t_mpw
         p.tol_i = STEP_TOLERANCE_A
         p.inv_l_max = INV_L_MARGIN * checks.inv_l_max
         p.pole_pairs = params.pole_pairs

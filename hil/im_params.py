@@ -8,9 +8,10 @@ docs/plant.md ("Induction machine"). Units: SI (Ω, H, Wb, V, A, kg·m², N·m·
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
+from pmsm_hil.hil.drive_params import DriveParams, WithDrive
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.machine_params import check_preset_keys
 from pmsm_hil.protocol.ids import ParamId
@@ -24,7 +25,7 @@ IM_SETTABLE_UNITS: dict[str, str] = {
 
 
 @dataclass(frozen=True, slots=True)
-class ImParams:
+class ImParams(WithDrive):
     """Squirrel-cage induction machine, inverse-Γ equivalent circuit, on a two-level inverter.
 
     Attributes:
@@ -33,18 +34,15 @@ class ImParams:
         lsigma: leakage inductance Lσ [H], > 0.
         lm: magnetizing inductance LM [H], > 0.
         pole_pairs: n_p, integer ≥ 1.
-        vdc: DC-link voltage [V], > 0.
-        j: rotor + load inertia [kg·m²], > 0.
-        b: viscous friction [N·m·s/rad], ≥ 0.
-        t_dead, t_mpw: inverter dead time and minimum pulse width [s], ≥ 0.
-        i_trip: overcurrent trip on any phase current magnitude [A], > 0.
-        speed_trip_rpm: overspeed trip [rpm], > 0.
-        rated_speed_rpm, rated_torque_nm: rated figures [rpm], [N·m] (0: not stated).
+        drive: the drive around the machine (DriveParams: vdc, j, b, t_dead, t_mpw, trips, rated figures, speed
+            PI; an induction machine's trips default to 15 A and 3000 rpm), its fields also read as attributes of
+            this class (`params.j`).
         psi_r_ref: the nominal rotor-flux reference the controller is told [Wb], > 0 (im-foc lowers it above base
             speed: field weakening).
-        speed_kp, speed_ki: speed-PI gains [N·m/(rad/s)], [N·m/rad] written to the target by default.
         current_bandwidth_hz: the current-loop bandwidth the controller's PI gains are set for [Hz], > 0.
         name: preset name or a label.
+
+    Build one from flat values with `ImParams.build(rs=..., rr=..., ..., vdc=..., j=...)`.
     """
 
     rs: float
@@ -52,20 +50,12 @@ class ImParams:
     lsigma: float
     lm: float
     pole_pairs: int
-    vdc: float
-    j: float
-    b: float = 0.0
-    t_dead: float = 0.0
-    t_mpw: float = 0.0
-    i_trip: float = 15.0
-    speed_trip_rpm: float = 3000.0
-    rated_speed_rpm: float = 0.0
-    rated_torque_nm: float = 0.0
+    drive: DriveParams
     psi_r_ref: float = 0.9
-    speed_kp: float = 0.8
-    speed_ki: float = 0.35
     current_bandwidth_hz: float = 500.0
     name: str = "custom-im"
+
+    DRIVE_DEFAULTS: ClassVar[dict[str, float]] = {"i_trip": 15.0, "speed_trip_rpm": 3000.0}
 
     SETTABLE_UNITS: ClassVar[dict[str, str]] = IM_SETTABLE_UNITS
     #: keys a preset must give
@@ -74,36 +64,30 @@ class ImParams:
     @classmethod
     def from_values(cls, values: dict[str, Any], name: str) -> ImParams:
         """From a preset's `[parameters]` (kind = "im"); ParameterError naming a missing, unknown or invalid key."""
-        check_preset_keys(values, {f.name for f in fields(cls)} - {"name"}, cls.REQUIRED, "induction-machine ")
-        return cls(name=name, **_clean(values))
+        check_preset_keys(values, cls.parameter_names(), cls.REQUIRED, "induction-machine ")
+        return cls.build(name=name, **_clean(values))
 
     def __post_init__(self) -> None:
-        positive = ("rs", "rr", "lsigma", "lm", "vdc", "j", "i_trip", "speed_trip_rpm", "psi_r_ref",
-                    "current_bandwidth_hz")
-        non_negative = ("b", "t_dead", "t_mpw", "rated_speed_rpm", "rated_torque_nm", "speed_kp", "speed_ki")
-        for key in positive + non_negative:
+        positive = ("rs", "rr", "lsigma", "lm", "psi_r_ref", "current_bandwidth_hz")
+        for key in positive:
             value = getattr(self, key)
             if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
                 raise ParameterError(f"induction-machine parameter '{key}' must be a finite number, got {value!r}")
-            if key in positive and value <= 0:
+            if value <= 0:
                 raise ParameterError(f"induction-machine parameter '{key}' must be > 0 "
                                      f"{IM_SETTABLE_UNITS.get(key, '')}, got {value}")
-            if key in non_negative and value < 0:
-                raise ParameterError(f"induction-machine parameter '{key}' must be ≥ 0, got {value}")
         if isinstance(self.pole_pairs, bool) or not isinstance(self.pole_pairs, int) or self.pole_pairs < 1:
             raise ParameterError(f"induction-machine parameter 'pole_pairs' must be an integer ≥ 1, "
                                  f"got {self.pole_pairs!r}")
-        if self.t_dead > 1e-3 or self.t_mpw > 1e-3:
-            raise ParameterError("induction-machine parameters 't_dead'/'t_mpw' are in seconds and must be < 1 ms")
 
     def with_overrides(self, overrides: dict[str, Any]) -> ImParams:
         """A copy with `--set` overrides (SI units); ParameterError naming an unknown or invalid name."""
-        known = {f.name for f in fields(self)} - {"name"}
+        known = self.parameter_names()
         unknown = set(overrides) - known
         if unknown:
             raise ParameterError(f"unknown induction-machine parameter '{sorted(unknown)[0]}' "
                                  f"(known: {', '.join(sorted(known))})")
-        return replace(self, **_clean(overrides))
+        return self.with_values(**_clean(overrides))
 
     @property
     def torque_rating_nm(self) -> float:

@@ -33,8 +33,7 @@ class ImPlant(PlantBase):
     def _set_kernel_params(self, params: ImParams) -> None:
         p = self._p
         p.rs, p.rr, p.lsigma, p.lm, p.vdc = params.rs, params.rr, params.lsigma, params.lm, params.vdc
-        p.j, p.b, p.t_dead, p.t_mpw = params.j, params.b, params.t_dead, params.t_mpw
-        p.max_piece = self._max_piece_s
+        p.t_dead, p.t_mpw = params.t_dead, params.t_mpw
         p.pole_pairs = params.pole_pairs
         self._out = self._ffi.new("mk_sample_t *")
 

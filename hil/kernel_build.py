@@ -13,13 +13,13 @@ import importlib.util
 from pathlib import Path
 from types import ModuleType
 
-from pmsm_hil.hil.cdef_extract import declarations
+from pmsm_hil.hil.cdef_extract import cffi_constants, declarations
 from pmsm_hil.hil.errors import ParameterError
 
 #: the kernel headers and shared helpers (hil/native beside this package's sources)
 NATIVE_DIR = Path(__file__).resolve().parent / "native" / "kernels"
-#: C sources every kernel may use: gate edges, dead time and the closed-form dq segment
-SHARED_SOURCES = ("gate_edges.c", "dq_segment.c")
+#: C sources every kernel may use: gate edges, dead time, the closed-form dq segment and the mechanics
+SHARED_SOURCES = ("gate_edges.c", "dq_segment.c", "mechanics.c")
 #: the bundled kernels' flags: no FMA contraction and no sin/cos fusion (the native loop's records equal the Python
 #: loop's bit for bit), warnings are errors
 KERNEL_FLAGS = ("-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion", "-ffp-contract=off",
@@ -27,9 +27,13 @@ KERNEL_FLAGS = ("-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-Wdouble-prom
 
 
 def common_cdef() -> str:
-    """What every kernel's cdef starts with, from the headers: `ge_period_stats_t`, `mk_sample_t`, and the opaque
+    """What every kernel's cdef starts with, from the headers: `ge_period_stats_t`, the mechanics (`mech_params_t`,
+    `mech_state_t`, `mech_load_t`, `mech_step`, `mech_hold`, the MECH_ modes), `mk_sample_t`, and the opaque
     `mk_kernel_t` (the bundled plant extension takes the same from the same headers, hil/native/_build_plant.py)."""
     return (declarations(NATIVE_DIR / "gate_edges.h", ["ge_period_stats_t"])
+            + cffi_constants(NATIVE_DIR / "mechanics.h", "MECH_")
+            + declarations(NATIVE_DIR / "mechanics.h", ["mech_params_t", "mech_state_t", "mech_load_t", "mech_step",
+                                                         "mech_hold"])
             + declarations(NATIVE_DIR / "machine_kernel.h", ["mk_sample_t", "mk_kernel_t"], opaque=["mk_kernel_t"]))
 
 
@@ -37,9 +41,10 @@ def build_kernel_module(name: str, kernel_c: Path, cdef: str, build_dir: Path) -
     """Compile the kernel's one C file `kernel_c` (structs, functions and its machine-kernel table) with the
     shared helpers into the extension `name` under `build_dir` and import it; `cdef` declares what Python uses
     (cffi syntax: the params/state structs, the advance, sample and table functions, best taken from the C file by
-    `cdef_extract.declarations(kernel_c, names)`; `ge_period_stats_t`, `mk_sample_t` and `mk_kernel_t` are declared
-    before it: `common_cdef`). Rebuilt only when the C file, the cdef or a kernel header changed. ParameterError
-    naming the file when it is missing; a compiler error is raised with the compiler's own message."""
+    `cdef_extract.declarations(kernel_c, names)`; `ge_period_stats_t`, the mechanics' structs, `mk_sample_t` and
+    `mk_kernel_t` are declared before it: `common_cdef`). Rebuilt only when the C file, the cdef or a kernel header
+    changed. ParameterError naming the file when it is missing; a compiler error is raised with the compiler's own
+    message."""
     from cffi import FFI
 
     kernel_c = Path(kernel_c)

@@ -1,6 +1,7 @@
 """What every machine kind's parameter class offers the runner (one `…Params` class per kind, as
-`pmsm_hil.hil.motor_params.PmsmParams`): the drive-level facts (DC link, mechanics, trips, speed PI), the
-`--set` overrides, and the machine's own model parameters the target is told (DBC ConfigParam ids).
+`pmsm_hil.hil.motor_params.PmsmParams`): the drive-level facts (DC link, mechanics, trips, speed PI: the bundled
+kinds hold them in one `DriveParams`, hil/drive_params.py, and read them as their own attributes), the `--set`
+overrides, and the machine's own model parameters the target is told (DBC ConfigParam ids).
 
 Units: SI (V, A, kg·m², N·m·s/rad, s); speeds in rpm where named so.
 """

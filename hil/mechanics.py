@@ -1,4 +1,5 @@
-"""Mechanical side of the plant: dyno mode (speed held) or inertia mode with a load torque profile."""
+"""Mechanical side of the plant: dyno mode (speed held), inertia mode with a load torque profile, or two masses on
+an elastic shaft (the C side: hil/native/kernels/mechanics.h, shared by every machine kernel)."""
 
 from __future__ import annotations
 
@@ -93,4 +94,39 @@ class InertiaMechanics:
     initial_speed_rpm: float = 0.0
 
 
-Mechanics = DynoMechanics | InertiaMechanics
+@dataclass(frozen=True, slots=True)
+class TwoMassMechanics:
+    """Two masses on an elastic shaft, starting untwisted at ``initial_speed_rpm`` [rpm]:
+
+        J_m·dω/dt   = Te − B·ω − k·Δθ − c·(ω − ω_l)        (the motor mass, B the machine's friction)
+        J_l·dω_l/dt = k·Δθ + c·(ω − ω_l) − T_load(t)        dΔθ/dt = ω − ω_l
+
+    ``j_motor``, ``j_load`` [kg·m²] > 0, shaft stiffness ``k_shaft`` [N·m/rad] > 0 and damping ``c_shaft``
+    [N·m·s/rad] ≥ 0. The machine's own inertia parameter `j` is not used (the two masses replace it); the torsional
+    resonance is at sqrt(k·(J_m + J_l)/(J_m·J_l)) [rad/s]."""
+
+    load: LoadProfile
+    j_motor: float
+    j_load: float
+    k_shaft: float
+    c_shaft: float = 0.0
+    initial_speed_rpm: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("j_motor", "j_load", "k_shaft", "c_shaft", "initial_speed_rpm"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+                raise ParameterError(f"two-mass mechanics '{name}' must be a finite number, got {value!r}")
+        for name in ("j_motor", "j_load", "k_shaft"):
+            if getattr(self, name) <= 0:
+                raise ParameterError(f"two-mass mechanics '{name}' must be > 0, got {getattr(self, name)}")
+        if self.c_shaft < 0:
+            raise ParameterError(f"two-mass mechanics 'c_shaft' must be ≥ 0, got {self.c_shaft}")
+
+    @property
+    def resonance_rad_s(self) -> float:
+        """Torsional resonance of the undamped shaft sqrt(k·(J_m + J_l)/(J_m·J_l)) [rad/s]."""
+        return math.sqrt(self.k_shaft * (self.j_motor + self.j_load) / (self.j_motor * self.j_load))
+
+
+Mechanics = DynoMechanics | InertiaMechanics | TwoMassMechanics

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
+from pmsm_hil.hil.drive_params import DriveParams, WithDrive
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.machine_params import check_preset_keys
 from pmsm_hil.protocol.ids import ParamId
@@ -31,7 +32,7 @@ SETTABLE_UNITS: dict[str, str] = {
 
 
 @dataclass(frozen=True, slots=True)
-class PmsmParams:
+class PmsmParams(WithDrive):
     """Three-phase PMSM in the rotor dq frame (d on the magnet) fed by a two-level inverter.
 
     Attributes:
@@ -40,22 +41,15 @@ class PmsmParams:
         lq: q-axis inductance [H], > 0 (ld == lq: SPMSM).
         psi_f: permanent-magnet flux linkage [Wb], ≥ 0.
         pole_pairs: number of pole pairs, integer ≥ 1.
-        vdc: DC-link voltage [V], > 0.
-        j: rotor + load inertia [kg·m²], > 0 (inertia mode).
-        b: viscous friction [N·m·s/rad], ≥ 0.
-        t_dead: inverter dead time per leg [s], ≥ 0.
-        t_mpw: minimum gate pulse width [s], ≥ 0.
-        i_trip: overcurrent trip threshold on any phase current magnitude [A], > 0.
-        speed_trip_rpm: overspeed trip threshold [rpm], > 0.
-        rated_speed_rpm: rated speed [rpm] (informational, for scenarios).
-        rated_torque_nm: rated torque [N·m] (informational, for scenarios).
+        drive: the drive around the machine (DriveParams: vdc, j, b, t_dead, t_mpw, trips, rated figures, speed
+            PI), its fields also read as attributes of this class (`params.j`); the speed-PI gains belong with the
+            inertia: a machine with another inertia than niu2020's states its own in its preset.
         name: preset name or a label.
         lls: leakage inductance of the x-y subspace of a dual three-phase machine [H], ≥ 0; 0 (the
             default) for a three-phase machine. `pmsm_hil.hil.plant6.Plant6` requires lls > 0.
-        speed_kp, speed_ki: the outer speed-PI gains the runner writes to the target by default
-            [N·m/(rad/s)], [N·m/rad], ≥ 0 — a drive setting that belongs with the inertia: the defaults are the
-            niu2020 paper's (0.8, 0.35), tuned for J ≈ 1.3e-3 kg·m²; a machine with another inertia states
-            its own in its preset (`--param speed_kp=...` still overrides per run).
+
+    Build one from flat values with `PmsmParams.build(rs=..., ld=..., lq=..., psi_f=..., pole_pairs=..., vdc=...,
+    j=...)`; change values with `with_values(...)`.
     """
 
     rs: float
@@ -63,19 +57,9 @@ class PmsmParams:
     lq: float
     psi_f: float
     pole_pairs: int
-    vdc: float
-    j: float
-    b: float = 0.0
-    t_dead: float = 0.0
-    t_mpw: float = 0.0
-    i_trip: float = 30.0
-    speed_trip_rpm: float = 6000.0
-    rated_speed_rpm: float = 0.0
-    rated_torque_nm: float = 0.0
+    drive: DriveParams
     name: str = "custom"
     lls: float = 0.0
-    speed_kp: float = 0.8
-    speed_ki: float = 0.35
 
     SETTABLE_UNITS: ClassVar[dict[str, str]] = SETTABLE_UNITS
     #: keys a preset must give
@@ -84,7 +68,7 @@ class PmsmParams:
     @classmethod
     def from_values(cls, values: dict[str, Any], name: str) -> PmsmParams:
         """A PMSM from a preset's parameter values; ParameterError naming a missing, unknown or invalid key."""
-        check_preset_keys(values, set(cls.__dataclass_fields__) - {"name"}, cls.REQUIRED)
+        check_preset_keys(values, cls.parameter_names(), cls.REQUIRED)
         clean: dict[str, Any] = {}
         for key, value in values.items():
             if key == "pole_pairs":
@@ -93,12 +77,11 @@ class PmsmParams:
                 clean[key] = int(value)
             else:
                 clean[key] = float(value)
-        return cls(name=name, **clean)
+        return cls.build(name=name, **clean)
 
     def __post_init__(self) -> None:
-        positive = ("rs", "ld", "lq", "vdc", "j", "i_trip", "speed_trip_rpm")
-        non_negative = ("psi_f", "b", "t_dead", "t_mpw", "rated_speed_rpm", "rated_torque_nm", "lls", "speed_kp",
-                        "speed_ki")
+        positive = ("rs", "ld", "lq")
+        non_negative = ("psi_f", "lls")
         for name in positive + non_negative:
             value = getattr(self, name)
             if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
@@ -111,8 +94,6 @@ class PmsmParams:
                 raise ParameterError(f"motor parameter '{name}' must be ≥ 0, got {value}")
         if isinstance(self.pole_pairs, bool) or not isinstance(self.pole_pairs, int) or self.pole_pairs < 1:
             raise ParameterError(f"motor parameter 'pole_pairs' must be an integer ≥ 1, got {self.pole_pairs!r}")
-        if self.t_dead > 1e-3 or self.t_mpw > 1e-3:
-            raise ParameterError("motor parameters 't_dead'/'t_mpw' are in seconds and must be < 1 ms")
 
     @property
     def is_six_phase(self) -> bool:
@@ -126,7 +107,7 @@ class PmsmParams:
 
     def with_overrides(self, overrides: dict[str, Any]) -> PmsmParams:
         """Return a copy with ``--set`` style overrides applied (values already parsed)."""
-        valid = {f.name for f in fields(self)} - {"name"}
+        valid = self.parameter_names()
         clean: dict[str, Any] = {}
         for key, value in overrides.items():
             if key not in valid:
@@ -134,7 +115,7 @@ class PmsmParams:
             clean[key] = int(value) if key == "pole_pairs" else float(value)
             if key == "pole_pairs" and float(value) != int(value):
                 raise ParameterError(f"motor parameter 'pole_pairs' must be an integer, got {value!r}")
-        return replace(self, **clean)
+        return self.with_values(**clean)
 
     @property
     def torque_rating_nm(self) -> float:

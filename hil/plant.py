@@ -55,7 +55,7 @@ class Plant(PlantBase):
     _kernel_advance = staticmethod(lib.pl_advance)
 
     def _set_kernel_params(self, params: PmsmParams) -> None:
-        set_inverter_pmsm_params(self._p, params, self._max_piece_s)
+        set_inverter_pmsm_params(self._p, params)
         self._torque_k = 1.5 * params.pole_pairs
         self._psi_f = params.psi_f
         self._dl = params.ld - params.lq
@@ -77,5 +77,5 @@ class Plant(PlantBase):
         i_al = i_d * c - i_q * sn
         i_be = i_d * sn + i_q * c
         return PlantSample(int(s.t_ns) / 1e9, i_al, -0.5 * i_al + _SQRT3_2 * i_be, -0.5 * i_al - _SQRT3_2 * i_be,
-                           i_d, i_q, th, s.omega_m, self._torque_k * (self._psi_f + self._dl * i_d) * i_q,
+                           i_d, i_q, th, s.mech.omega_m, self._torque_k * (self._psi_f + self._dl * i_d) * i_q,
                            self._vdc)

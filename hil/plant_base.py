@@ -13,7 +13,7 @@ from pmsm_hil.hil import _plant_native
 from pmsm_hil.hil.control_period import check_control_period
 from pmsm_hil.hil.errors import ParameterError, PlantFaultError, SequenceError
 from pmsm_hil.hil.machine_params import MachineParams
-from pmsm_hil.hil.mechanics import DynoMechanics, InertiaMechanics, LoadProfile, Mechanics
+from pmsm_hil.hil.mechanics import DynoMechanics, InertiaMechanics, LoadProfile, Mechanics, TwoMassMechanics
 
 #: Sub-intervals one period may hold: the 13 segments of six duty cycles (hil/pwm.py) fit.
 MAX_SUBINTERVALS = 16
@@ -56,12 +56,11 @@ class KernelView(NamedTuple):
 _STATS_STRUCT = struct.Struct("=6Idii")
 
 
-def set_inverter_pmsm_params(p: Any, params: Any, max_piece_s: float) -> None:
-    """The fields the PMSM kernels' params structs share (pl_params_t / p6_params_t): motor, inverter and
-    mechanics parameters [SI], the longest piece between speed updates [s]."""
+def set_inverter_pmsm_params(p: Any, params: Any) -> None:
+    """The fields the PMSM kernels' params structs share (pl_params_t / p6_params_t): motor and inverter
+    parameters [SI] (the mechanics are PlantBase's)."""
     p.rs, p.ld, p.lq, p.psi_f, p.vdc = params.rs, params.ld, params.lq, params.psi_f, params.vdc
-    p.j, p.b, p.t_dead, p.t_mpw = params.j, params.b, params.t_dead, params.t_mpw
-    p.max_piece = max_piece_s
+    p.t_dead, p.t_mpw = params.t_dead, params.t_mpw
     p.pole_pairs = params.pole_pairs
 
 
@@ -115,6 +114,8 @@ class PlantBase:
         self._states = ffi.new("int32_t[]", MAX_SUBINTERVALS)
         self._durations = ffi.new("int64_t[]", MAX_SUBINTERVALS)
         self._load_bp = ffi.new("double[]", 3 * MAX_LOAD_BREAKPOINTS)
+        self._load_c: Any = ffi.new("mech_load_t *")
+        self._load_c.bp = self._load_bp
         columns = len(self.TRACE_COLUMNS)
         rows = 0 if trace_dt_s is None else math.ceil(ts_s / trace_dt_s) + 2
         self._trace_cap = rows
@@ -125,10 +126,12 @@ class PlantBase:
         self._trace_ptr = self._trace_buf if trace_dt_s is not None else ffi.NULL
         self._load = LoadProfile.constant(0.0)
         self._set_kernel_params(params)
+        self._p.mech.j, self._p.mech.b, self._p.mech.max_piece = params.j, params.b, max_piece_s
         self.mechanics = mechanics
         self._s.theta_e = theta0_rad % (2.0 * math.pi)
-        if isinstance(mechanics, InertiaMechanics):
-            self._s.omega_m = mechanics.initial_speed_rpm * 2.0 * math.pi / 60.0
+        if isinstance(mechanics, InertiaMechanics | TwoMassMechanics):
+            omega0 = mechanics.initial_speed_rpm * 2.0 * math.pi / 60.0
+            self._s.mech.omega_m, self._s.mech.omega_l, self._s.mech.twist = omega0, omega0, 0.0
         self._init_kernel_state()
 
     def _set_kernel_params(self, params: Any) -> None:
@@ -148,17 +151,45 @@ class PlantBase:
 
     @mechanics.setter
     def mechanics(self, mechanics: Mechanics) -> None:
+        lib, mech = self.NATIVE_MODULE.lib, self._p.mech
         if isinstance(mechanics, DynoMechanics):
-            self._p.inertia_mode = 0
+            lib.mech_hold(self._p_mech, self._s_mech, mechanics.omega_m)
             self._inertia = False
-            self._s.omega_m = mechanics.omega_m
         elif isinstance(mechanics, InertiaMechanics):
-            self._p.inertia_mode = 1
+            mech.mode, mech.j = lib.MECH_INERTIA, self.params.j
+            self._inertia = True
+            self._load = mechanics.load
+        elif isinstance(mechanics, TwoMassMechanics):
+            mech.mode = lib.MECH_TWO_MASS
+            mech.j, mech.j_load = mechanics.j_motor, mechanics.j_load
+            mech.k_shaft, mech.c_shaft = mechanics.k_shaft, mechanics.c_shaft
+            self._s.mech.omega_l, self._s.mech.twist = self._s.mech.omega_m, 0.0
             self._inertia = True
             self._load = mechanics.load
         else:
             raise ParameterError(f"unknown mechanics mode {mechanics!r}")
         self._mechanics = mechanics
+
+    @property
+    def _p_mech(self) -> Any:
+        """The kernel's mechanics params (mech_params_t *)."""
+        return self._ffi.addressof(self._p, "mech")
+
+    @property
+    def _s_mech(self) -> Any:
+        """The kernel's mechanics state (mech_state_t *)."""
+        return self._ffi.addressof(self._s, "mech")
+
+    @property
+    def load_speed(self) -> float:
+        """Load-side speed [rad/s]: with a two-mass shaft the load mass's, else the rotor's."""
+        s = self._s.mech
+        return float(s.omega_l if isinstance(self._mechanics, TwoMassMechanics) else s.omega_m)
+
+    @property
+    def shaft_twist(self) -> float:
+        """Shaft twist, rotor angle minus load angle [rad] (0 unless a two-mass shaft)."""
+        return float(self._s.mech.twist)
 
     def _set_common_state(self, theta_e: float | None, omega_m: float | None, gate: int | None,
                           **currents: float | None) -> None:
@@ -172,7 +203,7 @@ class PlantBase:
         if theta_e is not None:
             self._s.theta_e = theta_e % (2.0 * math.pi)
         if omega_m is not None:
-            self._s.omega_m = omega_m
+            self._s.mech.omega_m = omega_m
 
     @property
     def time_s(self) -> float:
@@ -217,8 +248,10 @@ class PlantBase:
                 n_bp = self._set_load_breakpoints(inside)
         else:
             load0, slope = 0.0, 0.0
-        rc = self._kernel_advance(self._p, self._s, c_states, c_durations, n, load0, slope, self._load_bp,
-                                  n_bp, self._trace_dt, self._trace_ptr, self._trace_cap, self._stats)
+        load = self._load_c
+        load.value, load.slope, load.n_bp = load0, slope, n_bp
+        rc = self._kernel_advance(self._p, self._s, c_states, c_durations, n, load, self._trace_dt, self._trace_ptr,
+                                  self._trace_cap, self._stats)
         if rc != 0:
             raise PlantFaultError(f"plant kernel rejected the period (code {rc})")
         return tuple.__new__(PeriodStats, _STATS_STRUCT.unpack_from(self._stats_buf))

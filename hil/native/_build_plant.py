@@ -15,9 +15,12 @@ _KERNELS = _HERE / "kernels"
 
 #: hil/cdef_extract.py by path (this script runs at build time, before the package is importable)
 _X = SimpleNamespace(**runpy.run_path(str(_HERE.parent / "cdef_extract.py")))
-#: what every kernel's extension declares first: the period stats, the sample and the opaque kernel table (the
-#: same as kernel_build.common_cdef: this script cannot import the package)
+#: what every kernel's extension declares first: the period stats, the mechanics, the sample and the opaque kernel
+#: table (the same as kernel_build.common_cdef: this script cannot import the package)
 CDEF_COMMON = (_X.declarations(_KERNELS / "gate_edges.h", ["ge_period_stats_t"])
+               + _X.cffi_constants(_KERNELS / "mechanics.h", "MECH_")
+               + _X.declarations(_KERNELS / "mechanics.h", ["mech_params_t", "mech_state_t", "mech_load_t",
+                                                            "mech_step", "mech_hold"])
                + _X.declarations(_KERNELS / "machine_kernel.h", ["mk_sample_t", "mk_kernel_t"], opaque=["mk_kernel_t"]))
 #: the three-phase kernel (plant.h) and the dual three-phase kernel (plant6.h), taken from their headers
 CDEF = _X.declarations(_KERNELS / "plant.h", ["pl_params_t", "pl_state_t", "pl_period_stats_t", "pl_advance",
@@ -39,7 +42,7 @@ def _source(name: str) -> str:
 
 
 #: the plant kernels and their shared helpers (nothing of the loop: tests/test_layers.py)
-PLANT_SOURCES = ("dq_segment.c", "gate_edges.c", "plant.c", "plant6.c", "fluxmap.c", "im.c")
+PLANT_SOURCES = ("dq_segment.c", "gate_edges.c", "mechanics.c", "plant.c", "plant6.c", "fluxmap.c", "im.c")
 
 ffibuilder = FFI()
 ffibuilder.cdef(CDEF_COMMON + CDEF + CDEF6 + CDEF_FM + CDEF_IM)

@@ -612,23 +612,24 @@ static int32_t period_sequence(const loop_t *L, int64_t k, int32_t *states, int6
     return n;
 }
 
-/* The load over the next `total_ns` of plant time (inertia mode): torque at the start, slope and breakpoints;
- * 0, or NL_PLANT_E_BREAKPOINTS. */
-static int period_load(loop_t *L, int64_t total_ns, double *load0, double *slope, double *bp, int32_t *n_bp)
+/* The load torque over the next `total_ns` of plant time for the mechanics (inertia mode): torque at the start,
+ * slope and breakpoints (into bp); 0, or NL_PLANT_E_BREAKPOINTS. */
+static int period_load(loop_t *L, int64_t total_ns, mech_load_t *load, double *bp)
 {
     const nl_config_t *c = L->c;
-    *load0 = 0.0;
-    *slope = 0.0;
-    *n_bp = 0;
+    load->value = 0.0;
+    load->slope = 0.0;
+    load->bp = bp;
+    load->n_bp = 0;
     if (L->inertia && c->load_fmu != NULL) {
-        *load0 = c->load_fmu->torque; /* load_fmu_period: the FMU's output at the period start, held */
+        load->value = c->load_fmu->torque; /* load_fmu_period: the FMU's output at the period start, held */
     } else if (L->inertia) {
         const uint64_t t_ns = c->kernel->time_ns(c->plant_state);
         const double t0 = (double)t_ns / NS_PER_S;
-        load_at(c, t0, load0, slope);
-        *n_bp = load_breakpoints(c, t0, t0 + (double)total_ns * 1e-9, bp);
-        if (*n_bp < 0) {
-            L->r->plant_detail = -*n_bp;
+        load_at(c, t0, &load->value, &load->slope);
+        load->n_bp = load_breakpoints(c, t0, t0 + (double)total_ns * 1e-9, bp);
+        if (load->n_bp < 0) {
+            L->r->plant_detail = -load->n_bp;
             return NL_PLANT_E_BREAKPOINTS;
         }
     }
@@ -643,16 +644,14 @@ static int advance(loop_t *L, int64_t k, ge_period_stats_t *st)
     const int32_t n = period_sequence(L, k, states, durs);
     int32_t j;
     int64_t total = 0;
-    double load0;
-    double slope;
+    mech_load_t load;
     double bp[3 * NL_LOAD_BREAKPOINTS];
-    int32_t n_bp;
     double *trace = c->plant_trace;
     int rc;
     for (j = 0; j < n; ++j) {
         total += durs[j];
     }
-    rc = period_load(L, total, &load0, &slope, bp, &n_bp);
+    rc = period_load(L, total, &load, bp);
     if (rc != 0) {
         return rc;
     }
@@ -663,7 +662,7 @@ static int advance(loop_t *L, int64_t k, ge_period_stats_t *st)
         }
         trace = s->trace + s->n_trace_rows * c->trace_columns;
     }
-    rc = c->kernel->advance(c->plant_params, c->plant_state, states, durs, n, load0, slope, bp, n_bp, c->trace_dt,
+    rc = c->kernel->advance(c->plant_params, c->plant_state, states, durs, n, &load, c->trace_dt,
                             c->trace_dt > 0.0 ? trace : NULL, c->trace_cap, st);
     if (rc == 0 && k >= c->n_settle && c->trace_dt > 0.0) {
         L->slot->n_trace_rows += st->trace_n;
@@ -682,10 +681,8 @@ static int sample_adc(loop_t *L, int64_t k, sample_t *smp)
     int32_t n = period_sequence(L, k, states, durs);
     int32_t m = 0;
     int64_t left = c->adc_delay_ns;
-    double load0;
-    double slope;
+    mech_load_t load;
     double bp[3 * NL_LOAD_BREAKPOINTS];
-    int32_t n_bp;
     ge_period_stats_t st;
     int rc;
     while (m < n && left > 0) {
@@ -695,13 +692,12 @@ static int sample_adc(loop_t *L, int64_t k, sample_t *smp)
         left -= durs[m];
         ++m;
     }
-    rc = period_load(L, c->adc_delay_ns, &load0, &slope, bp, &n_bp);
+    rc = period_load(L, c->adc_delay_ns, &load, bp);
     if (rc != 0) {
         return rc;
     }
     memcpy(c->plant_scratch, c->plant_state, (size_t)c->kernel->state_size);
-    rc = c->kernel->advance(c->plant_params, c->plant_scratch, states, durs, m, load0, slope, bp, n_bp, 0.0, NULL, 0,
-                            &st);
+    rc = c->kernel->advance(c->plant_params, c->plant_scratch, states, durs, m, &load, 0.0, NULL, 0, &st);
     if (rc != 0) {
         return rc;
     }

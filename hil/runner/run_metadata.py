@@ -18,6 +18,7 @@ from contextlib import contextmanager
 from importlib import metadata as importlib_metadata
 from typing import Any
 
+from pmsm_hil.hil.drive_params import flat_values
 from pmsm_hil.hil.errors import HilError
 from pmsm_hil.hil.machine_params import MachineParams
 from pmsm_hil.hil.runner.recorder import FrameTap, frame_records
@@ -38,10 +39,10 @@ def package_version() -> str:
 
 
 def _params_dict(motor: MachineParams) -> dict[str, Any]:
-    """The motor's parameter dataclass as a dict."""
+    """The motor's parameter dataclass as a flat dict (the drive's fields beside the machine's)."""
     if not dataclasses.is_dataclass(motor) or isinstance(motor, type):
         raise TypeError(f"{type(motor).__name__}: a machine's parameter class must be a dataclass")
-    return dataclasses.asdict(motor)
+    return flat_values(motor)
 
 
 def _motor_set(motor: MachineParams) -> dict[str, Any] | None:
@@ -54,8 +55,8 @@ def _motor_set(motor: MachineParams) -> dict[str, Any] | None:
         return None
     if type(base) is not type(motor) or not dataclasses.is_dataclass(motor):
         return None
-    return {f.name: getattr(motor, f.name) for f in dataclasses.fields(motor)
-            if f.name != "name" and getattr(motor, f.name) != getattr(base, f.name)}
+    values, base_values = flat_values(motor), flat_values(base)
+    return {k: v for k, v in values.items() if k != "name" and v != base_values[k]}
 
 
 def _json(value: Any) -> str:

@@ -224,9 +224,9 @@ def test_map_checks_refuse_bad_maps(tmp_path: Path) -> None:
     with pytest.raises(InputFileError, match="missing column"):
         load_interpolant(str(tmp_path / "cols.csv"))
     with pytest.raises(ParameterError, match="does not reach i_trip = 40 A"):
-        FluxMapParams(flux_map=str(path), rs=1.0, pole_pairs=3, vdc=300.0, j=1e-3, i_trip=40.0)
+        FluxMapParams.build(flux_map=str(path), rs=1.0, pole_pairs=3, vdc=300.0, j=1e-3, i_trip=40.0)
     with pytest.raises(ParameterError, match="t_dead"):
-        FluxMapParams(flux_map=str(path), rs=1.0, pole_pairs=3, vdc=300.0, j=1e-3, t_dead=1e-2)
+        FluxMapParams.build(flux_map=str(path), rs=1.0, pole_pairs=3, vdc=300.0, j=1e-3, t_dead=1e-2)
 
 
 def test_a_half_map_is_completed_by_symmetry(tmp_path: Path) -> None:

@@ -4,27 +4,27 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import fields, replace
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import pytest
+from pmsm_hil.hil.drive_params import DRIVE_FIELDS, DriveParams, flat_values
 from pmsm_hil.hil.errors import HilError, InputFileError, ParameterError
 from pmsm_hil.hil.machine import params_class_for_kind
 from pmsm_hil.hil.motor_params import SETTABLE_UNITS, PmsmParams, parse_set_options
 from pmsm_hil.hil.presets_loader import load_motor, preset_names
 
-BASE = PmsmParams(rs=1.0, ld=0.01, lq=0.012, psi_f=0.2, pole_pairs=3, vdc=300.0, j=0.001)
+BASE = PmsmParams.build(rs=1.0, ld=0.01, lq=0.012, psi_f=0.2, pole_pairs=3, vdc=300.0, j=0.001)
 POSITIVE = ("rs", "ld", "lq", "vdc", "j", "i_trip", "speed_trip_rpm")
 NON_NEGATIVE = ("psi_f", "b", "t_dead", "t_mpw", "rated_speed_rpm", "rated_torque_nm", "lls", "speed_kp", "speed_ki")
-NUMERIC_FIELDS = [f.name for f in fields(PmsmParams) if f.name != "name"]
+NUMERIC_FIELDS = sorted(PmsmParams.parameter_names())
 
 
 def _make(**changes: Any) -> PmsmParams:
-    values = {f.name: getattr(BASE, f.name) for f in fields(PmsmParams)}
+    values = flat_values(BASE)
     values.update(changes)
-    return PmsmParams(**values)
+    return PmsmParams.build(**values)
 
 
 def test_every_numeric_field_is_covered_by_a_rule() -> None:
@@ -66,6 +66,19 @@ def test_dead_time_and_min_pulse_are_seconds_below_1ms(name: str) -> None:
     assert getattr(_make(**{name: 2.5e-6}), name) == 2.5e-6
 
 
+def test_every_kind_contains_one_drive_whose_fields_read_as_its_own() -> None:
+    """PMSM (both layouts), induction machine and flux map: one DriveParams each; `params.j` is `params.drive.j`."""
+    for name in preset_names():
+        params = load_motor(name)
+        assert isinstance(params.drive, DriveParams), name
+        assert {k: getattr(params, k) for k in DRIVE_FIELDS} == {k: getattr(params.drive, k) for k in DRIVE_FIELDS}
+        assert set(DRIVE_FIELDS) <= params.parameter_names()
+    assert load_motor("im-2k2").drive.speed_trip_rpm == 3000.0  # the kind's own defaults
+    changed = BASE.with_values(j=0.002, rs=2.0)
+    assert (changed.j, changed.drive.j, changed.rs, changed.vdc) == (0.002, 0.002, 2.0, BASE.vdc)
+    assert BASE.with_overrides({"j": 0.003}).drive.j == 0.003
+
+
 def test_saliency_and_torque() -> None:
     assert BASE.is_salient and not _make(lq=0.01).is_salient
     # Te = 1.5 p (ψf iq + (Ld − Lq) id iq)
@@ -80,7 +93,7 @@ def test_presets_give_every_parameter_a_value_unit_and_source(name: str) -> None
     table = doc["parameters"]
     params_class = params_class_for_kind(doc.get("kind", "three-phase"))
     file_keys = getattr(params_class, "FILE_KEYS", ())
-    assert set(table) == {f.name for f in fields(params_class) if f.name != "name" and f.name not in file_keys}
+    assert set(table) == params_class.parameter_names() - set(file_keys)
     for key, entry in table.items():
         assert isinstance(entry, dict), key
         assert isinstance(entry["value"], (int, float)) and not isinstance(entry["value"], bool), key
@@ -118,7 +131,7 @@ def test_overrides_replace_values_and_keep_the_rest() -> None:
     base = load_motor("niu2020-ipmsm")
     assert (p.rs, p.pole_pairs, p.t_dead) == (3.0, 4, 1e-6)
     assert isinstance(p.pole_pairs, int)
-    assert replace(p, rs=base.rs, pole_pairs=base.pole_pairs, t_dead=base.t_dead) == base
+    assert p.with_values(rs=base.rs, pole_pairs=base.pole_pairs, t_dead=base.t_dead) == base
 
 
 @pytest.mark.parametrize(

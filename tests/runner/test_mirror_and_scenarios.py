@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +17,7 @@ from pmsm_hil.hil.runner.scenario import load_scenario
 def _xiao(controller: str, ideal: bool, **params: float) -> RunConfig:
     motor = load_motor("xiao2023-spmsm")
     if ideal:
-        motor = replace(motor, t_dead=0.0, t_mpw=0.0)
+        motor = motor.with_values(t_dead=0.0, t_mpw=0.0)
     sc = load_scenario("steady").with_overrides(speed_rpm=1000.0, load_nm=4.0, settle_s=0.03, duration_s=0.05)
     return RunConfig(motor=motor, scenario=sc, controller=controller, controller_params=params)
 

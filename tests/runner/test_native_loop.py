@@ -118,7 +118,8 @@ def test_foc_via_duty_cycles_logs_identically(link: str, pwm_update: str, t_dead
     """foc's duty-cycle Commands (CmdDutyFd, CmdDutyA/B/C): the carrier comparison in C (hil/native/pwm_duty.c)
     gives the oracle's records (hil/pwm.py) bit for bit, single and double update, with dead time."""
     cfg = _three(link=link, sensors=SENSORS)
-    cfg = replace(cfg, controller="foc", pwm_update=pwm_update, motor=replace(cfg.motor, t_dead=t_dead, t_mpw=0.5e-6))
+    motor = cfg.motor.with_values(t_dead=t_dead, t_mpw=0.5e-6)
+    cfg = replace(cfg, controller="foc", pwm_update=pwm_update, motor=motor)
     py, na = _both(cfg)
     periods = na.outcome.periods.all()
     _assert_same_records(py.outcome.periods.all(), periods)

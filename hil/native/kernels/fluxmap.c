@@ -294,7 +294,7 @@ static int emit_row(const fm_params_t *p, fm_state_t *s, const fm_trace_t *tr, d
         }
     }
     row[4] = fm_torque(p, psi[0], psi[1], cur[0], cur[1]);
-    row[5] = s->omega_m;
+    row[5] = s->mech.omega_m;
     tr->stats->trace_n++;
     s->trace_k++;
     return 0;
@@ -451,73 +451,8 @@ static int run_open(const fm_params_t *p, fm_state_t *s, const fm_trace_t *tr, d
     return 0;
 }
 
-/* h seconds from absolute time t_abs with the legs at gate_level; legs in dead time conduct through the diode their
- * current's sign chose until that current reaches zero, then the phase opens. */
-static int integrate(const fm_params_t *p, fm_state_t *s, double t_abs, double h, double t_load0, double t_load_slope,
-                     double t_period0, double trace_dt, double *trace, int32_t trace_cap, fm_period_stats_t *stats,
-                     const int *gate_level)
-{
-    const double inv_j = p->inertia_mode ? 1.0 / p->j : 0.0;
-    double done = 0.0;
-    while (done < h - 0.5e-9) {
-        double piece = h - done;
-        const double t0 = t_abs + done;
-        const double te0 = fm_torque(p, s->psi_d, s->psi_q, s->i_d, s->i_q);
-        int lv[3], cond_mask = 0, n_open = 0, open_leg = -1, blocked = -1, rc;
-        fm_rhs_t c;
-        fm_trace_t tr;
-        for (int leg = 0; leg < 3; leg++) {
-            lv[leg] = gate_level[leg];
-            if (t0 < s->dead_until[leg] - 0.5e-9) {
-                lv[leg] = s->dead_level[leg];
-                if (lv[leg] == FM_LEVEL_OPEN) {
-                    n_open++;
-                    open_leg = leg;
-                    lv[leg] = 0;
-                } else {
-                    cond_mask |= 1 << leg;
-                }
-            }
-        }
-        if (p->inertia_mode && p->max_piece > 0.0 && piece > p->max_piece) {
-            piece = p->max_piece;
-        }
-        c.p = p;
-        c.v_alpha = p->vdc / 3.0 * (2.0 * lv[0] - lv[1] - lv[2]);
-        c.v_beta = p->vdc / FM_SQRT3 * (lv[1] - lv[2]);
-        c.theta0 = s->theta_e;
-        c.omega_e = (double)p->pole_pairs * s->omega_m;
-        c.open_leg = n_open == 1 ? open_leg : -1;
-        tr.t0 = t0;
-        tr.dt = trace_dt;
-        tr.buf = trace;
-        tr.cap = trace_cap;
-        tr.stats = stats;
-        if (n_open >= 2) {
-            rc = run_open(p, s, &tr, piece, c.omega_e);
-        } else {
-            rc = integrate_to(&c, s, &tr, 0.0, piece, cond_mask, &blocked, &piece);
-        }
-        if (rc != 0) {
-            return rc;
-        }
-        s->theta_e = dq_wrap_angle(s->theta_e + c.omega_e * piece);
-        if (blocked >= 0) {
-            s->dead_level[blocked] = FM_LEVEL_OPEN;
-            stats->open_phase_events++;
-        }
-        if (p->inertia_mode) {
-            const double te1 = fm_torque(p, s->psi_d, s->psi_q, s->i_d, s->i_q);
-            const double t_load = t_load0 + t_load_slope * (t0 + 0.5 * piece - t_period0);
-            const double k = 0.5 * piece * p->b * inv_j;
-            const double w1 = s->omega_m * (1.0 - k) + piece * (0.5 * (te0 + te1) - t_load) * inv_j;
-            s->omega_m = k != 0.0 ? w1 / (1.0 + k) : w1;
-        }
-        done += piece;
-    }
-    return 0;
-}
-
+/* One interval of constant gate levels (gate_edges.c) as the mechanics cuts it into constant-speed pieces
+ * (mechanics.h): the kernel's part of the state and the trace. */
 typedef struct {
     const fm_params_t *p;
     fm_state_t *s;
@@ -525,14 +460,74 @@ typedef struct {
     double *trace;
     int32_t trace_cap;
     fm_period_stats_t *stats;
+    const int *gate_level; /* the interval's gate levels per leg */
 } fm_ctx_t;
 
-static int integrate_cb(void *ctx, double t, double h, double load_val, double load_slope, double load_ref,
-                        const int *gate_level)
+static double torque_cb(const void *ctx)
 {
-    fm_ctx_t *c = (fm_ctx_t *)ctx;
-    return integrate(c->p, c->s, t, h, load_val, load_slope, load_ref, c->trace_dt, c->trace, c->trace_cap, c->stats,
-                     gate_level);
+    const fm_ctx_t *x = (const fm_ctx_t *)ctx;
+    const fm_state_t *s = x->s;
+    return fm_torque(x->p, s->psi_d, s->psi_q, s->i_d, s->i_q);
+}
+
+/* One piece from absolute time t0 [s] at the constant speed omega_m [rad/s]; legs in dead time conduct through the
+ * diode their current's sign chose until that current reaches zero (the piece then ends there), then the phase
+ * opens. */
+static int piece_cb(void *ctx, double t0, double *piece_io, double omega_m)
+{
+    fm_ctx_t *x = (fm_ctx_t *)ctx;
+    const fm_params_t *p = x->p;
+    fm_state_t *s = x->s;
+    double piece = *piece_io;
+    int lv[3], cond_mask = 0, n_open = 0, open_leg = -1, blocked = -1, rc;
+    fm_rhs_t c;
+    fm_trace_t tr;
+    for (int leg = 0; leg < 3; leg++) {
+        lv[leg] = x->gate_level[leg];
+        if (t0 < s->dead_until[leg] - 0.5e-9) {
+            lv[leg] = s->dead_level[leg];
+            if (lv[leg] == FM_LEVEL_OPEN) {
+                n_open++;
+                open_leg = leg;
+                lv[leg] = 0;
+            } else {
+                cond_mask |= 1 << leg;
+            }
+        }
+    }
+    c.p = p;
+    c.v_alpha = p->vdc / 3.0 * (2.0 * lv[0] - lv[1] - lv[2]);
+    c.v_beta = p->vdc / FM_SQRT3 * (lv[1] - lv[2]);
+    c.theta0 = s->theta_e;
+    c.omega_e = (double)p->pole_pairs * omega_m;
+    c.open_leg = n_open == 1 ? open_leg : -1;
+    tr.t0 = t0;
+    tr.dt = x->trace_dt;
+    tr.buf = x->trace;
+    tr.cap = x->trace_cap;
+    tr.stats = x->stats;
+    if (n_open >= 2) {
+        rc = run_open(p, s, &tr, piece, c.omega_e);
+    } else {
+        rc = integrate_to(&c, s, &tr, 0.0, piece, cond_mask, &blocked, &piece);
+    }
+    if (rc != 0) {
+        return rc;
+    }
+    s->theta_e = dq_wrap_angle(s->theta_e + c.omega_e * piece);
+    if (blocked >= 0) {
+        s->dead_level[blocked] = FM_LEVEL_OPEN;
+        x->stats->open_phase_events++;
+    }
+    *piece_io = piece;
+    return 0;
+}
+
+static int integrate_cb(void *ctx, double t, double h, const mech_segment_t *load, const int *gate_level)
+{
+    fm_ctx_t *x = (fm_ctx_t *)ctx;
+    x->gate_level = gate_level;
+    return mech_integrate(&x->p->mech, &x->s->mech, load, t, h, piece_cb, torque_cb, x);
 }
 
 /* Diode by the current's sign, as plant.c: out of the leg -> lower diode (low rail), into it -> upper diode (high
@@ -546,8 +541,7 @@ static int dead_level_cb(void *ctx, int leg, int new_level)
 }
 
 int fm_advance(const fm_params_t *p, fm_state_t *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
-               double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp, double trace_dt,
-               double *trace, int32_t trace_cap, fm_period_stats_t *stats)
+               const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap, fm_period_stats_t *stats)
 {
     dq_event_t ev[FM_MAX_EVENTS];
     int n_ev;
@@ -567,10 +561,9 @@ int fm_advance(const fm_params_t *p, fm_state_t *s, const int32_t *states, const
     n_ev = ge_plan(3, s->gate, states, durations_ns, n, t_start, p->t_mpw, 2.0 * p->t_dead + p->t_mpw, s->last_edge_t, ev, 0,
                    FM_MAX_EVENTS, stats, &total_ns);
     {
-        fm_ctx_t c = {p, s, trace_dt, trace, trace_cap, stats};
+        fm_ctx_t c = {p, s, trace_dt, trace, trace_cap, stats, NULL};
         const int rc = ge_run_period(3, t_start, t_start + (double)total_ns * 1e-9, p->t_dead, ev, n_ev, FM_MAX_EVENTS,
-                                     t_load0, t_load_slope, load_bp, n_load_bp, &s->gate, s->dead_until,
-                                     s->dead_level, integrate_cb, dead_level_cb, &c);
+                                     load, &s->gate, s->dead_until, s->dead_level, integrate_cb, dead_level_cb, &c);
         if (rc != 0) {
             stats->error = rc;
             return rc;
@@ -588,17 +581,17 @@ void fm_sample(const fm_params_t *p, const fm_state_t *s, mk_sample_t *out)
     out->i_d = s->i_d;
     out->i_q = s->i_q;
     out->theta_e = s->theta_e;
-    out->omega_m = s->omega_m;
+    out->omega_m = s->mech.omega_m;
     out->torque = fm_torque(p, s->psi_d, s->psi_q, s->i_d, s->i_q);
 }
 
 /* --- the machine-kernel table (machine_kernel.h) ------------------------------------------------------------ */
 static int k_advance(const void *p, void *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
-                     double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp, double trace_dt,
-                     double *trace, int32_t trace_cap, ge_period_stats_t *stats)
+                     const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap,
+                     ge_period_stats_t *stats)
 {
-    return fm_advance((const fm_params_t *)p, (fm_state_t *)s, states, durations_ns, n, t_load0, t_load_slope,
-                      load_bp, n_load_bp, trace_dt, trace, trace_cap, stats);
+    return fm_advance((const fm_params_t *)p, (fm_state_t *)s, states, durations_ns, n, load, trace_dt, trace,
+                      trace_cap, stats);
 }
 
 static void k_sample(const void *p, const void *s, mk_sample_t *out)
@@ -608,8 +601,7 @@ static void k_sample(const void *p, const void *s, mk_sample_t *out)
 
 static void k_hold_speed(void *p, void *s, double omega_m)
 {
-    ((fm_params_t *)p)->inertia_mode = 0;
-    ((fm_state_t *)s)->omega_m = omega_m;
+    mech_hold(&((fm_params_t *)p)->mech, &((fm_state_t *)s)->mech, omega_m);
 }
 
 static uint64_t k_time_ns(const void *s)

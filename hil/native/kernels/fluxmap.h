@@ -24,6 +24,7 @@
 
 #include "gate_edges.h"
 #include "machine_kernel.h"
+#include "mechanics.h"
 
 #define FM_TRACE_COLUMNS 6 /* t [s], i_a, i_b, i_c [A], torque [N*m], omega_m [rad/s] */
 #define FM_COEFS 16        /* bicubic coefficients a[4*m + n] of u^m v^n per cell and function */
@@ -33,11 +34,9 @@
 typedef struct {
     double rs;        /* stator resistance [Ohm] */
     double vdc;       /* DC link [V] */
-    double j;         /* inertia [kg*m^2] (inertia mode) */
-    double b;         /* viscous friction [N*m*s/rad] (inertia mode) */
     double t_dead;    /* dead time per leg [s] */
     double t_mpw;     /* minimum pulse width [s] */
-    double max_piece; /* inertia mode: longest piece between speed updates [s] */
+    mech_params_t mech; /* the drive's mechanics (mechanics.h) */
     double tol_i;     /* local error tolerance per step, in current [A] */
     double inv_l_max; /* largest inf-norm of the inverse incremental inductance matrix over the grid [1/H] */
     const double *id_axis; /* nx ascending grid currents [A] */
@@ -47,7 +46,6 @@ typedef struct {
     int32_t nx;
     int32_t ny;
     int32_t pole_pairs;
-    int32_t inertia_mode; /* 0: dyno (speed held), 1: inertia (J, B, load torque) */
 } fm_params_t;
 
 typedef struct {
@@ -56,7 +54,7 @@ typedef struct {
     double psi_d, psi_q;  /* rotor-frame flux linkage [Wb]: the state */
     double i_d, i_q;      /* the currents of that flux [A] (inverse map) */
     double theta_e;       /* electrical angle [rad], wrapped to [0, 2*pi) */
-    double omega_m;       /* mechanical speed [rad/s] */
+    mech_state_t mech;    /* the shaft's speed (mechanics.h) */
     double h_last;        /* last accepted step [s] (the next step's first try) */
     uint64_t steps;       /* accepted integration steps since the start */
     uint64_t rejected;    /* rejected steps since the start */
@@ -77,8 +75,7 @@ int fm_currents(const fm_params_t *p, double psi_d, double psi_q, double *i_d, d
 
 /* Advance one control period (see plant.h pl_advance for the load and trace arguments). */
 int fm_advance(const fm_params_t *p, fm_state_t *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
-               double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp, double trace_dt,
-               double *trace, int32_t trace_cap, fm_period_stats_t *stats);
+               const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap, fm_period_stats_t *stats);
 
 /* The exact state at the plant time: phase currents, dq currents, angle, speed, torque 1.5 p (psi_d i_q - psi_q i_d). */
 void fm_sample(const fm_params_t *p, const fm_state_t *s, mk_sample_t *out);

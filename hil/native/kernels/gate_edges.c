@@ -72,14 +72,19 @@ int ge_plan(int legs, int32_t gate, const int32_t *states, const int64_t *durati
 }
 
 int ge_run_period(int legs, double t_start, double t_end, double t_dead, dq_event_t *ev, int n_ev, int cap,
-                  double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp, int32_t *gate,
+                  const mech_load_t *load, int32_t *gate,
                   double *dead_until, int32_t *dead_level, ge_integrate_fn integrate, ge_dead_level_fn dead_level_of,
                   void *ctx)
 {
     int gate_level[GE_MAX_LEGS];
     double t = t_start;
-    double load_ref = t_start, load_val = t_load0, load_slope = t_load_slope; /* load segment in force */
+    const double *load_bp = load->bp;
+    const int32_t n_load_bp = load->n_bp;
+    mech_segment_t seg; /* the load segment in force */
     int32_t g = *gate;
+    seg.t_ref = t_start;
+    seg.value = load->value;
+    seg.slope = load->slope;
     for (int leg = 0; leg < legs; leg++) {
         gate_level[leg] = (g >> (legs - 1 - leg)) & 1;
         if (dead_until[leg] > t && dead_until[leg] < t_end) {
@@ -94,7 +99,7 @@ int ge_run_period(int legs, double t_start, double t_end, double t_dead, dq_even
     for (int k = 0; k <= n_ev; k++) {
         double t_next = (k < n_ev) ? ev[k].t : t_end;
         if (t_next > t) {
-            int rc = integrate(ctx, t, t_next - t, load_val, load_slope, load_ref, gate_level);
+            int rc = integrate(ctx, t, t_next - t, &seg, gate_level);
             if (rc != 0) {
                 *gate = g;
                 return rc;
@@ -106,9 +111,9 @@ int ge_run_period(int legs, double t_start, double t_end, double t_dead, dq_even
         }
         if (ev[k].kind == 2) { /* a load-profile breakpoint inside the period */
             const double *bp = load_bp + 3 * ev[k].leg;
-            load_ref = bp[0];
-            load_val = bp[1];
-            load_slope = bp[2];
+            seg.t_ref = bp[0];
+            seg.value = bp[1];
+            seg.slope = bp[2];
         } else if (ev[k].kind == 0) {
             int leg = ev[k].leg;
             int bit = legs - 1 - leg;

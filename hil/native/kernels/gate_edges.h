@@ -9,6 +9,7 @@
 #include <stdint.h>
 
 #include "dq_segment.h"
+#include "mechanics.h"
 
 #define GE_MAX_LEGS 6
 #define GE_MAX_SUBINTERVALS 16 /* the 13 segments of six duty cycles (pwm_duty.h) fit */
@@ -37,18 +38,17 @@ int ge_plan(int legs, int32_t gate, const int32_t *states, const int64_t *durati
             double t_mpw, double t_lim, double *last_edge_t, dq_event_t *ev, int n_ev, int cap, ge_period_stats_t *counts,
             int64_t *total_ns);
 
-/* Integrate h seconds from absolute time t [s] with the given leg gate levels; the load torque in force is
- * load_val + load_slope * (time - load_ref) [N*m]. Returns 0 or a kernel error code. */
-typedef int (*ge_integrate_fn)(void *ctx, double t, double h, double load_val, double load_slope, double load_ref,
-                               const int *gate_level);
+/* Integrate h seconds from absolute time t [s] with the given leg gate levels under the load segment in force
+ * (for the mechanics). Returns 0 or a kernel error code. */
+typedef int (*ge_integrate_fn)(void *ctx, double t, double h, const mech_segment_t *load, const int *gate_level);
 /* Leg output level during the dead time that starts now for `leg` switching to `new_level`. */
 typedef int (*ge_dead_level_fn)(void *ctx, int leg, int new_level);
 
-/* Run the period's events (gate edges from ge_plan, dead-time ends, load breakpoints: n_load_bp triplets of
- * absolute time [s], value [N*m], slope [N*m/s]) from t_start to t_end [s], integrating between them.
+/* Run the period's events (gate edges from ge_plan, dead-time ends, the load's breakpoints) from t_start to t_end [s],
+ * integrating between them.
  * Updates the applied gate code and the per-leg dead-time state; returns 0 or the integrator's error. */
 int ge_run_period(int legs, double t_start, double t_end, double t_dead, dq_event_t *ev, int n_ev, int cap,
-                  double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp, int32_t *gate,
+                  const mech_load_t *load, int32_t *gate,
                   double *dead_until, int32_t *dead_level, ge_integrate_fn integrate, ge_dead_level_fn dead_level_of,
                   void *ctx);
 

@@ -103,7 +103,7 @@ static int emit_row(const im_params_t *p, im_state_t *s, double tk, double compl
         }
     }
     row[4] = torque_of(p, psi_s, psi_r);
-    row[5] = s->omega_m;
+    row[5] = s->mech.omega_m;
     stats->trace_n++;
     s->trace_k++;
     return 0;
@@ -322,67 +322,66 @@ static int piece_no_current(const im_params_t *p, im_state_t *s, double t0, doub
     return 0;
 }
 
-/* Integrate h seconds from t_abs with constant gate levels; legs in dead time conduct through the diode the
- * current's sign picked at the edge until that current reaches zero, then the phase is open. */
-static int integrate(const im_params_t *p, im_state_t *s, double t_abs, double h, double t_load0, double t_load_slope,
-                     double t_period0, double trace_dt, double *trace, int32_t trace_cap, im_period_stats_t *stats,
-                     const int *gate_level)
+/* One interval of constant gate levels (gate_edges.c) as the mechanics cuts it into constant-speed pieces
+ * (mechanics.h): the kernel's part of the state and the trace. */
+typedef struct {
+    const im_params_t *p;
+    im_state_t *s;
+    double trace_dt;
+    double *trace;
+    int32_t trace_cap;
+    im_period_stats_t *stats;
+    const int *gate_level; /* the interval's gate levels per leg */
+} im_run_ctx_t;
+
+static double im_torque_cb(const void *ctx)
 {
-    double done = 0.0;
-    const double inv_j = p->inertia_mode ? 1.0 / p->j : 0.0; /* [1/(kg*m^2)] */
-    while (done < h - 0.5e-9) {
-        double piece = h - done;
-        const double omega_e = (double)p->pole_pairs * s->omega_m;
-        const double t0 = t_abs + done;
-        double te0 = 0.0;
-        int levels = 0, cond_mask = 0, n_open = 0, open_leg = -1, blocked = -1, rc;
-        for (int leg = 0; leg < 3; leg++) {
-            int lvl = gate_level[leg];
-            if (t0 < s->dead_until[leg] - 0.5e-9) {
-                lvl = s->dead_level[leg];
-                if (lvl == IM_LEVEL_OPEN) {
-                    n_open++;
-                    open_leg = leg;
-                    lvl = 0;
-                } else {
-                    cond_mask |= 1 << leg;
-                }
+    const im_run_ctx_t *c = (const im_run_ctx_t *)ctx;
+    const im_state_t *s = c->s;
+    return torque_of(c->p, s->psi_s[0] + IM_J * s->psi_s[1], s->psi_r[0] + IM_J * s->psi_r[1]);
+}
+
+/* One piece from absolute time t0 [s] at the constant speed omega_m [rad/s]; legs in dead time conduct through the
+ * diode the current's sign picked at the edge until that current reaches zero (the piece then ends there), then
+ * the phase is open. */
+static int im_piece_cb(void *ctx, double t0, double *piece, double omega_m)
+{
+    im_run_ctx_t *c = (im_run_ctx_t *)ctx;
+    const im_params_t *p = c->p;
+    im_state_t *s = c->s;
+    const double omega_e = (double)p->pole_pairs * omega_m;
+    int levels = 0, cond_mask = 0, n_open = 0, open_leg = -1, blocked = -1, rc;
+    for (int leg = 0; leg < 3; leg++) {
+        int lvl = c->gate_level[leg];
+        if (t0 < s->dead_until[leg] - 0.5e-9) {
+            lvl = s->dead_level[leg];
+            if (lvl == IM_LEVEL_OPEN) {
+                n_open++;
+                open_leg = leg;
+                lvl = 0;
+            } else {
+                cond_mask |= 1 << leg;
             }
-            levels |= lvl << (2 - leg);
         }
-        if (p->inertia_mode && p->max_piece > 0.0 && piece > p->max_piece) {
-            piece = p->max_piece;
-        }
-        if (p->inertia_mode) {
-            te0 = torque_of(p, s->psi_s[0] + IM_J * s->psi_s[1], s->psi_r[0] + IM_J * s->psi_r[1]);
-        }
-        if (n_open == 0) {
-            rc = piece_closed(p, s, t0, &piece, levels, cond_mask, omega_e, trace_dt, trace, trace_cap, stats,
-                              &blocked);
-        } else if (n_open == 1) {
-            rc = piece_one_open(p, s, t0, &piece, levels, open_leg, cond_mask, omega_e, trace_dt, trace, trace_cap,
-                                stats, &blocked);
-        } else {
-            rc = piece_no_current(p, s, t0, piece, omega_e, trace_dt, trace, trace_cap, stats);
-        }
-        if (rc != 0) {
-            return rc;
-        }
-        if (blocked >= 0) {
-            s->dead_level[blocked] = IM_LEVEL_OPEN;
-            stats->open_phase_events++;
-        }
-        s->theta_e = dq_wrap_angle(s->theta_e + omega_e * piece);
-        if (p->inertia_mode) {
-            const double te1 = torque_of(p, s->psi_s[0] + IM_J * s->psi_s[1], s->psi_r[0] + IM_J * s->psi_r[1]);
-            const double t_load = t_load0 + t_load_slope * (t0 + 0.5 * piece - t_period0);
-            /* trapezoidal torque, implicit friction: (1 + k) w1 = (1 - k) w0 + piece (Te - Tl) / J */
-            const double k = 0.5 * piece * p->b * inv_j;
-            const double w1 = s->omega_m * (1.0 - k) + piece * (0.5 * (te0 + te1) - t_load) * inv_j;
-            s->omega_m = k != 0.0 ? w1 / (1.0 + k) : w1;
-        }
-        done += piece;
+        levels |= lvl << (2 - leg);
     }
+    if (n_open == 0) {
+        rc = piece_closed(p, s, t0, piece, levels, cond_mask, omega_e, c->trace_dt, c->trace, c->trace_cap, c->stats,
+                          &blocked);
+    } else if (n_open == 1) {
+        rc = piece_one_open(p, s, t0, piece, levels, open_leg, cond_mask, omega_e, c->trace_dt, c->trace,
+                            c->trace_cap, c->stats, &blocked);
+    } else {
+        rc = piece_no_current(p, s, t0, *piece, omega_e, c->trace_dt, c->trace, c->trace_cap, c->stats);
+    }
+    if (rc != 0) {
+        return rc;
+    }
+    if (blocked >= 0) {
+        s->dead_level[blocked] = IM_LEVEL_OPEN;
+        c->stats->open_phase_events++;
+    }
+    s->theta_e = dq_wrap_angle(s->theta_e + omega_e * *piece);
     return 0;
 }
 
@@ -393,22 +392,11 @@ static double phase_current(const im_params_t *p, const im_state_t *s, int leg)
     return i[leg];
 }
 
-/* Callbacks for the shared period driver (gate_edges.c). */
-typedef struct {
-    const im_params_t *p;
-    im_state_t *s;
-    double trace_dt;
-    double *trace;
-    int32_t trace_cap;
-    im_period_stats_t *stats;
-} im_run_ctx_t;
-
-static int im_integrate_cb(void *ctx, double t, double h, double load_val, double load_slope, double load_ref,
-                           const int *gate_level)
+static int im_integrate_cb(void *ctx, double t, double h, const mech_segment_t *load, const int *gate_level)
 {
     im_run_ctx_t *c = (im_run_ctx_t *)ctx;
-    return integrate(c->p, c->s, t, h, load_val, load_slope, load_ref, c->trace_dt, c->trace, c->trace_cap, c->stats,
-                     gate_level);
+    c->gate_level = gate_level;
+    return mech_integrate(&c->p->mech, &c->s->mech, load, t, h, im_piece_cb, im_torque_cb, c);
 }
 
 /* Diode by the current's sign (as the three-phase PMSM kernel): out of the leg -> lower diode (low rail), into it
@@ -422,8 +410,7 @@ static int im_dead_level_cb(void *ctx, int leg, int new_level)
 }
 
 int im_advance(const im_params_t *p, im_state_t *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
-               double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp, double trace_dt,
-               double *trace, int32_t trace_cap, im_period_stats_t *stats)
+               const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap, im_period_stats_t *stats)
 {
     dq_event_t ev[IM_MAX_EVENTS];
     int n_ev = 0;
@@ -446,10 +433,10 @@ int im_advance(const im_params_t *p, im_state_t *s, const int32_t *states, const
     n_ev = ge_plan(3, s->gate, states, durations_ns, n, t_start, p->t_mpw, t_lim, s->last_edge_t, ev, n_ev,
                    IM_MAX_EVENTS, stats, &total_ns);
     {
-        im_run_ctx_t c = {p, s, trace_dt, trace, trace_cap, stats};
+        im_run_ctx_t c = {p, s, trace_dt, trace, trace_cap, stats, NULL};
         const int rc = ge_run_period(3, t_start, t_start + (double)total_ns * 1e-9, p->t_dead, ev, n_ev, IM_MAX_EVENTS,
-                                     t_load0, t_load_slope, load_bp, n_load_bp, &s->gate, s->dead_until,
-                                     s->dead_level, im_integrate_cb, im_dead_level_cb, &c);
+                                     load, &s->gate, s->dead_until, s->dead_level, im_integrate_cb, im_dead_level_cb,
+                                     &c);
         if (rc != 0) {
             stats->error = rc;
             return rc;
@@ -476,17 +463,17 @@ void im_sample(const im_params_t *p, const im_state_t *s, mk_sample_t *out)
     out->i_d = i_al * co + i_be * sn;
     out->i_q = -i_al * sn + i_be * co;
     out->theta_e = s->theta_e;
-    out->omega_m = s->omega_m;
+    out->omega_m = s->mech.omega_m;
     out->torque = 1.5 * (double)p->pole_pairs * (s->psi_s[0] * i_be - s->psi_s[1] * i_al);
 }
 
 /* --- the machine-kernel table (machine_kernel.h) ------------------------------------------------------------ */
 static int im_k_advance(const void *p, void *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
-                        double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp,
-                        double trace_dt, double *trace, int32_t trace_cap, ge_period_stats_t *stats)
+                        const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap,
+                        ge_period_stats_t *stats)
 {
-    return im_advance((const im_params_t *)p, (im_state_t *)s, states, durations_ns, n, t_load0, t_load_slope,
-                      load_bp, n_load_bp, trace_dt, trace, trace_cap, stats);
+    return im_advance((const im_params_t *)p, (im_state_t *)s, states, durations_ns, n, load, trace_dt, trace,
+                      trace_cap, stats);
 }
 
 static void im_k_sample(const void *p, const void *s, mk_sample_t *out)
@@ -496,8 +483,7 @@ static void im_k_sample(const void *p, const void *s, mk_sample_t *out)
 
 static void im_k_hold_speed(void *params, void *state, double omega_m)
 {
-    ((im_params_t *)params)->inertia_mode = 0;
-    ((im_state_t *)state)->omega_m = omega_m;
+    mech_hold(&((im_params_t *)params)->mech, &((im_state_t *)state)->mech, omega_m);
 }
 
 static uint64_t im_k_time_ns(const void *state)

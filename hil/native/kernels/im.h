@@ -10,7 +10,7 @@
  * over it (dyno mode: exactly) the system x' = A x + b, x = (psi_s, psi_R) complex, is linear time-invariant
  * and is solved in closed form: x(t) = x_p + exp(A t) (x0 - x_p), x_p = -A^-1 b, and the complex 2x2
  * exponential exp(A t) = exp(m t) (cosh(r t) I + sinh(r t) / r (A - m I)), m = tr(A) / 2, r^2 = m^2 - det(A).
- * Mechanics, minimum pulse and dead time as the three-phase PMSM kernel (gate_edges.c): in dead time the diode
+ * Mechanics (mechanics.h), minimum pulse and dead time as the three-phase PMSM kernel (gate_edges.c): in dead time the diode
  * picked by the phase current's sign at the gate edge conducts until that current reaches zero (found on the
  * closed form), then the phase is open and the other two carry one loop current, integrated by RK4 in <= 25 ns
  * steps; two phases open: no current, psi_R decays freely (closed form). Units: SI, plant time in ns.
@@ -22,6 +22,7 @@
 
 #include "gate_edges.h"
 #include "machine_kernel.h"
+#include "mechanics.h"
 
 #define IM_MAX_SUBINTERVALS 8
 #define IM_TRACE_COLUMNS 6 /* t [s], i_a, i_b, i_c [A], torque [N*m], omega_m [rad/s] */
@@ -32,13 +33,10 @@ typedef struct {
     double lsigma;    /* leakage inductance [H], > 0 */
     double lm;        /* magnetizing inductance [H], > 0 */
     double vdc;       /* DC-link voltage [V] */
-    double j;         /* inertia [kg*m^2] (inertia mode) */
-    double b;         /* viscous friction [N*m*s/rad] (inertia mode) */
     double t_dead;    /* dead time per leg [s] */
     double t_mpw;     /* minimum pulse width [s] */
-    double max_piece; /* inertia mode: longest piece between speed updates [s] */
+    mech_params_t mech; /* the drive's mechanics (mechanics.h) */
     int32_t pole_pairs;
-    int32_t inertia_mode; /* 0: dyno (speed held), 1: inertia (J, B, load torque) */
 } im_params_t;
 
 typedef struct {
@@ -47,7 +45,7 @@ typedef struct {
     double psi_s[2];      /* stator flux, stator frame (alpha, beta) [Wb] */
     double psi_r[2];      /* rotor flux of the inverse-Gamma model, stator frame [Wb] */
     double theta_e;       /* rotor electrical angle n_p * theta_m [rad], wrapped to [0, 2*pi) */
-    double omega_m;       /* mechanical speed [rad/s] */
+    mech_state_t mech;    /* the shaft's speed (mechanics.h) */
     double last_edge_t[3];/* time of the last gate edge per leg [s] (absolute) */
     double dead_until[3]; /* leg in dead time until this absolute time [s] */
     int32_t gate;         /* commanded gate code currently applied, 4*Sa + 2*Sb + Sc */
@@ -59,8 +57,7 @@ typedef ge_period_stats_t im_period_stats_t; /* see gate_edges.h */
 /* Advance one control period of n sub-intervals (state codes, durations [ns]); load torque and trace
  * arguments as pl_advance (plant.h). Returns 0 or MK_E_ARGS / MK_E_TRACE_FULL. */
 int im_advance(const im_params_t *p, im_state_t *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
-               double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp, double trace_dt,
-               double *trace, int32_t trace_cap, im_period_stats_t *stats);
+               const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap, im_period_stats_t *stats);
 
 /* The exact sample at the plant time: phase currents, the currents in the rotor-flux frame (i_d along psi_R,
  * i_q ahead of it; the rotor frame theta_e while |psi_R| < 1e-9 Wb), rotor angle, speed, torque. */

@@ -3,6 +3,8 @@
  * pointers. A machine kind's C file (plant.c, plant6.c, ...) defines one const table and a function returning
  * its address; the Python plant class hands that address, with its own params and state structs, to the loop.
  * The loop calls only through the table: it never knows the machine type, its parameters or its state layout.
+ * A kernel is its electrical model: its params and state structs hold the drive's mechanics (mechanics.h), and
+ * mech_integrate moves the speed between the kernel's constant-speed pieces; the load reaches only the mechanics.
  *
  * Units: SI (A, rad electrical, rad/s mechanical, N*m, s); plant time in ns.
  */
@@ -12,9 +14,10 @@
 #include <stdint.h>
 
 #include "gate_edges.h"
+#include "mechanics.h"
 
 /* Bumped whenever mk_kernel_t or mk_sample_t changes; the loop refuses a table of another version. */
-#define MK_ABI_VERSION 1
+#define MK_ABI_VERSION 2
 /* Kernel error codes every kernel uses (its own codes are other negative values). */
 #define MK_E_ARGS (-1)       /* bad arguments (state code, durations, n) */
 #define MK_E_TRACE_FULL (-2) /* more trace rows than trace_cap */
@@ -33,11 +36,11 @@ typedef struct {
     double torque;              /* electromagnetic torque [N*m] */
 } mk_sample_t;
 
-/* Advance one control period of n sub-intervals (gate codes, durations [ns]): see plant.h pl_advance for the
- * load torque and trace arguments. Returns 0, or a negative kernel error code. */
+/* Advance one control period of n sub-intervals (gate codes, durations [ns]) under the load torque `load` (which
+ * only the kernel's mechanics reads, mechanics.h); see plant.h pl_advance for the trace arguments. Returns 0, or
+ * a negative kernel error code. */
 typedef int (*mk_advance_fn)(const void *params, void *state, const int32_t *states, const int64_t *durations_ns,
-                             int32_t n, double t_load0, double t_load_slope, const double *load_bp,
-                             int32_t n_load_bp, double trace_dt, double *trace, int32_t trace_cap,
+                             int32_t n, const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap,
                              ge_period_stats_t *stats);
 
 typedef struct mk_kernel {
@@ -51,7 +54,7 @@ typedef struct mk_kernel {
     mk_advance_fn advance;
     /* the exact sample at the current plant time (the period start) */
     void (*sample)(const void *params, const void *state, mk_sample_t *out);
-    /* dyno: hold the speed at omega_m [rad/s] from now on (speed no longer integrated) */
+    /* dyno: hold the speed at omega_m [rad/s] from now on (mech_hold on the kernel's mechanics) */
     void (*hold_speed)(void *params, void *state, double omega_m);
     /* plant time [ns] */
     uint64_t (*time_ns)(const void *state);

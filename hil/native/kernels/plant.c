@@ -2,6 +2,7 @@
 #include "plant.h"
 #include "dq_segment.h"
 #include "gate_edges.h"
+#include "mechanics.h"
 
 #include <math.h>
 #include <stddef.h>
@@ -72,7 +73,7 @@ static int emit_row_cs(const pl_params_t *p, pl_state_t *s, double tk, double i_
         }
     }
     row[4] = pl_torque(p, i_d, i_q);
-    row[5] = s->omega_m;
+    row[5] = s->mech.omega_m;
     stats->trace_n++;
     s->trace_k++;
     return PL_OK;
@@ -118,13 +119,12 @@ static double open_didt(const pl_params_t *p, int y, int z, double v_yz, double 
 }
 
 /* One phase open: integrate the loop current of the two connected phases by RK4 (steps <= 25 ns). */
-static int integrate_open(const pl_params_t *p, pl_state_t *s, double t0, double piece, int levels, int open_leg,
-                          int cond_mask, double trace_dt, double *trace, int32_t trace_cap, pl_period_stats_t *stats,
-                          int *newly_open)
+static int integrate_open(const pl_params_t *p, pl_state_t *s, double t0, double piece, double omega_e, int levels,
+                          int open_leg, int cond_mask, double trace_dt, double *trace, int32_t trace_cap,
+                          pl_period_stats_t *stats, int *newly_open)
 {
     int y = (open_leg + 1) % 3, z = (open_leg + 2) % 3;
     double v_yz = p->vdc * (double)(((levels >> (2 - y)) & 1) - ((levels >> (2 - z)) & 1));
-    double omega_e = (double)p->pole_pairs * s->omega_m;
     double theta = s->theta_e, tau = 0.0, h_d, h_q, i;
     loop_direction(y, z, theta, &h_d, &h_q);
     i = 0.5 * (h_d * s->i_d + h_q * s->i_q); /* project onto the loop (|h|^2 = 3) */
@@ -221,122 +221,8 @@ static double first_blocking(const dq_segment_t *g, double theta0, double omega_
     return best;
 }
 
-/* Integrate from the state's time over h seconds with constant leg levels (open legs float);
- * legs in dead time conduct through a diode until their current reaches zero, then open. */
-static int integrate(const pl_params_t *p, pl_state_t *s, double t_abs, double h, double t_load0,
-                     double t_load_slope, double t_period0, double trace_dt, double *trace, int32_t trace_cap,
-                     pl_period_stats_t *stats, const int *gate_level)
-{
-    double done = 0.0;
-    dq_machine_t mc;
-    double em_step;
-    const double inv_j = p->inertia_mode ? 1.0 / p->j : 0.0; /* [1/(kg*m^2)] */
-    dq_machine_init(p->rs, p->ld, p->lq, p->psi_f, &mc);
-    em_step = trace_dt > 0.0 ? exp(mc.m * trace_dt) : 1.0; /* exp(m dt) of the trace walker */
-    while (done < h - 0.5e-9) {
-        double piece = h - done;
-        double omega_e = (double)p->pole_pairs * s->omega_m;
-        double t0 = t_abs + done;
-        double te0 = pl_torque(p, s->i_d, s->i_q);
-        int levels = 0, open_mask = 0, cond_mask = 0, n_open = 0, open_leg = -1, blocked = -1;
-        for (int leg = 0; leg < 3; leg++) {
-            int lvl = gate_level[leg];
-            if (t0 < s->dead_until[leg] - 0.5e-9) {
-                lvl = s->dead_level[leg];
-                if (lvl == PL_LEVEL_OPEN) {
-                    open_mask |= 1 << leg;
-                    n_open++;
-                    open_leg = leg;
-                    lvl = 0;
-                } else {
-                    cond_mask |= 1 << leg;
-                }
-            }
-            levels |= lvl << (2 - leg);
-        }
-        if (p->inertia_mode && p->max_piece > 0.0 && piece > p->max_piece) {
-            piece = p->max_piece;
-        }
-        if (n_open == 0) {
-            dq_segment_t g;
-            double v_alpha, v_beta, i_d1, i_q1;
-            leg_voltage(p->vdc, levels, &v_alpha, &v_beta);
-            dq_segment_setup(&mc, omega_e, s->theta_e, v_alpha, v_beta, s->i_d, s->i_q, &g);
-            if (cond_mask) {
-                piece = first_blocking(&g, s->theta_e, omega_e, piece, cond_mask, s->dead_level, &blocked);
-            }
-            if (trace_dt > 0.0 && trace != NULL) {
-                dq_walk_t w;
-                int fresh = 1;
-                for (;;) {
-                    double tk = (double)s->trace_k * trace_dt;
-                    double tau = tk - t0, id, iq;
-                    int rc, clamped = 0;
-                    if (tau >= piece - 0.5e-9) { /* grid and edges are ns-aligned */
-                        break;
-                    }
-                    if (tau < 0.0) {
-                        tau = 0.0;
-                        clamped = 1;
-                    }
-                    if (fresh) {
-                        dq_walk_start(&g, tau, trace_dt, em_step, &w);
-                    }
-                    dq_walk_eval(&g, &w, &id, &iq);
-                    rc = emit_row_cs(p, s, tk, id, iq, w.cos_th, w.sin_th, trace, trace_cap, stats);
-                    if (rc != PL_OK) {
-                        return rc;
-                    }
-                    fresh = clamped || !dq_walk_next(&g, &w);
-                }
-            }
-            dq_segment_eval(&g, piece, &i_d1, &i_q1);
-            s->theta_e = dq_wrap_angle(s->theta_e + omega_e * piece);
-            s->i_d = i_d1;
-            s->i_q = i_q1;
-        } else if (n_open == 1) {
-            int rc = integrate_open(p, s, t0, piece, levels, open_leg, cond_mask, trace_dt, trace, trace_cap, stats,
-                                    &blocked);
-            if (rc != PL_OK) {
-                return rc;
-            }
-        } else {
-            /* two or three phases open: no current can flow */
-            s->i_d = 0.0;
-            s->i_q = 0.0;
-            while (trace_dt > 0.0 && trace != NULL) {
-                double tk = (double)s->trace_k * trace_dt;
-                int rc;
-                if (tk - t0 >= piece - 0.5e-9) {
-                    break;
-                }
-                rc = emit_row(p, s, tk, 0.0, 0.0, s->theta_e + omega_e * (tk - t0 > 0.0 ? tk - t0 : 0.0), trace,
-                              trace_cap, stats);
-                if (rc != PL_OK) {
-                    return rc;
-                }
-            }
-            s->theta_e = dq_wrap_angle(s->theta_e + omega_e * piece);
-        }
-        if (blocked >= 0) {
-            s->dead_level[blocked] = PL_LEVEL_OPEN;
-            stats->open_phase_events++;
-        }
-        if (p->inertia_mode) {
-            double te1 = pl_torque(p, s->i_d, s->i_q);
-            double t_mid = t0 + 0.5 * piece - t_period0;
-            double t_load = t_load0 + t_load_slope * t_mid;
-            /* trapezoidal torque, implicit friction: (1 + k) w1 = (1 - k) w0 + piece (Te - Tl) / J */
-            const double k = 0.5 * piece * p->b * inv_j;
-            const double w1 = s->omega_m * (1.0 - k) + piece * (0.5 * (te0 + te1) - t_load) * inv_j;
-            s->omega_m = k != 0.0 ? w1 / (1.0 + k) : w1;
-        }
-        done += piece;
-    }
-    return PL_OK;
-}
-
-/* Callbacks for the shared period driver (gate_edges.c). */
+/* One interval of constant gate levels (gate_edges.c) as the mechanics cuts it into constant-speed pieces
+ * (mechanics.h): the kernel's part of the state, the trace and the machine's closed-form constants. */
 typedef struct {
     const pl_params_t *p;
     pl_state_t *s;
@@ -344,14 +230,120 @@ typedef struct {
     double *trace;
     int32_t trace_cap;
     pl_period_stats_t *stats;
+    const int *gate_level; /* the interval's gate levels per leg */
+    dq_machine_t mc;       /* the closed-form constants of the machine */
+    double em_step;        /* exp(m trace_dt) of the trace walker */
 } pl_run_ctx_t;
 
-static int pl_integrate_cb(void *ctx, double t, double h, double load_val, double load_slope, double load_ref,
-                           const int *gate_level)
+static double pl_torque_cb(const void *ctx)
+{
+    const pl_run_ctx_t *c = (const pl_run_ctx_t *)ctx;
+    return pl_torque(c->p, c->s->i_d, c->s->i_q);
+}
+
+/* One piece from absolute time t0 [s] at the constant speed omega_m [rad/s] (open legs float); legs in dead time
+ * conduct through a diode until their current reaches zero (the piece then ends there), then open. */
+static int pl_piece_cb(void *ctx, double t0, double *piece_io, double omega_m)
 {
     pl_run_ctx_t *c = (pl_run_ctx_t *)ctx;
-    return integrate(c->p, c->s, t, h, load_val, load_slope, load_ref, c->trace_dt, c->trace, c->trace_cap, c->stats,
-                     gate_level);
+    const pl_params_t *p = c->p;
+    pl_state_t *s = c->s;
+    const double trace_dt = c->trace_dt;
+    double *trace = c->trace;
+    const int32_t trace_cap = c->trace_cap;
+    pl_period_stats_t *stats = c->stats;
+    double piece = *piece_io;
+    const double omega_e = (double)p->pole_pairs * omega_m;
+    int levels = 0, open_mask = 0, cond_mask = 0, n_open = 0, open_leg = -1, blocked = -1;
+    for (int leg = 0; leg < 3; leg++) {
+        int lvl = c->gate_level[leg];
+        if (t0 < s->dead_until[leg] - 0.5e-9) {
+            lvl = s->dead_level[leg];
+            if (lvl == PL_LEVEL_OPEN) {
+                open_mask |= 1 << leg;
+                n_open++;
+                open_leg = leg;
+                lvl = 0;
+            } else {
+                cond_mask |= 1 << leg;
+            }
+        }
+        levels |= lvl << (2 - leg);
+    }
+    if (n_open == 0) {
+        dq_segment_t g;
+        double v_alpha, v_beta, i_d1, i_q1;
+        leg_voltage(p->vdc, levels, &v_alpha, &v_beta);
+        dq_segment_setup(&c->mc, omega_e, s->theta_e, v_alpha, v_beta, s->i_d, s->i_q, &g);
+        if (cond_mask) {
+            piece = first_blocking(&g, s->theta_e, omega_e, piece, cond_mask, s->dead_level, &blocked);
+        }
+        if (trace_dt > 0.0 && trace != NULL) {
+            dq_walk_t w;
+            int fresh = 1;
+            for (;;) {
+                double tk = (double)s->trace_k * trace_dt;
+                double tau = tk - t0, id, iq;
+                int rc, clamped = 0;
+                if (tau >= piece - 0.5e-9) { /* grid and edges are ns-aligned */
+                    break;
+                }
+                if (tau < 0.0) {
+                    tau = 0.0;
+                    clamped = 1;
+                }
+                if (fresh) {
+                    dq_walk_start(&g, tau, trace_dt, c->em_step, &w);
+                }
+                dq_walk_eval(&g, &w, &id, &iq);
+                rc = emit_row_cs(p, s, tk, id, iq, w.cos_th, w.sin_th, trace, trace_cap, stats);
+                if (rc != PL_OK) {
+                    return rc;
+                }
+                fresh = clamped || !dq_walk_next(&g, &w);
+            }
+        }
+        dq_segment_eval(&g, piece, &i_d1, &i_q1);
+        s->theta_e = dq_wrap_angle(s->theta_e + omega_e * piece);
+        s->i_d = i_d1;
+        s->i_q = i_q1;
+    } else if (n_open == 1) {
+        int rc = integrate_open(p, s, t0, piece, omega_e, levels, open_leg, cond_mask, trace_dt, trace, trace_cap,
+                                stats, &blocked);
+        if (rc != PL_OK) {
+            return rc;
+        }
+    } else {
+        /* two or three phases open: no current can flow */
+        s->i_d = 0.0;
+        s->i_q = 0.0;
+        while (trace_dt > 0.0 && trace != NULL) {
+            double tk = (double)s->trace_k * trace_dt;
+            int rc;
+            if (tk - t0 >= piece - 0.5e-9) {
+                break;
+            }
+            rc = emit_row(p, s, tk, 0.0, 0.0, s->theta_e + omega_e * (tk - t0 > 0.0 ? tk - t0 : 0.0), trace,
+                          trace_cap, stats);
+            if (rc != PL_OK) {
+                return rc;
+            }
+        }
+        s->theta_e = dq_wrap_angle(s->theta_e + omega_e * piece);
+    }
+    if (blocked >= 0) {
+        s->dead_level[blocked] = PL_LEVEL_OPEN;
+        stats->open_phase_events++;
+    }
+    *piece_io = piece;
+    return PL_OK;
+}
+
+static int pl_integrate_cb(void *ctx, double t, double h, const mech_segment_t *load, const int *gate_level)
+{
+    pl_run_ctx_t *c = (pl_run_ctx_t *)ctx;
+    c->gate_level = gate_level;
+    return mech_integrate(&c->p->mech, &c->s->mech, load, t, h, pl_piece_cb, pl_torque_cb, c);
 }
 
 /* Diode by the current's sign: out of the leg -> lower diode (low rail), into it -> upper diode (high rail);
@@ -365,9 +357,8 @@ static int pl_dead_level_cb(void *ctx, int leg, int new_level)
 }
 
 int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const int64_t *durations_ns,
-               int32_t n, double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp,
-               double trace_dt, double *trace,
-               int32_t trace_cap, pl_period_stats_t *stats)
+               int32_t n, const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap,
+               pl_period_stats_t *stats)
 {
     dq_event_t ev[PL_MAX_EVENTS];
     int n_ev = 0;
@@ -389,10 +380,19 @@ int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const
     n_ev = ge_plan(3, s->gate, states, durations_ns, n, t_start, p->t_mpw, t_lim, s->last_edge_t, ev, n_ev,
                    PL_MAX_EVENTS, stats, &total_ns);
     {
-        pl_run_ctx_t c = {p, s, trace_dt, trace, trace_cap, stats};
-        int rc = ge_run_period(3, t_start, t_start + (double)total_ns * 1e-9, p->t_dead, ev, n_ev, PL_MAX_EVENTS,
-                               t_load0, t_load_slope, load_bp, n_load_bp, &s->gate, s->dead_until, s->dead_level,
-                               pl_integrate_cb, pl_dead_level_cb, &c);
+        pl_run_ctx_t c;
+        int rc;
+        c.p = p;
+        c.s = s;
+        c.trace_dt = trace_dt;
+        c.trace = trace;
+        c.trace_cap = trace_cap;
+        c.stats = stats;
+        c.gate_level = NULL;
+        dq_machine_init(p->rs, p->ld, p->lq, p->psi_f, &c.mc);
+        c.em_step = trace_dt > 0.0 ? exp(c.mc.m * trace_dt) : 1.0;
+        rc = ge_run_period(3, t_start, t_start + (double)total_ns * 1e-9, p->t_dead, ev, n_ev, PL_MAX_EVENTS, load,
+                           &s->gate, s->dead_until, s->dead_level, pl_integrate_cb, pl_dead_level_cb, &c);
         if (rc != PL_OK) {
             stats->error = rc;
             return rc;
@@ -404,11 +404,11 @@ int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const
 
 /* --- the machine-kernel table (machine_kernel.h) ------------------------------------------------------------ */
 static int pl_k_advance(const void *p, void *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
-                        double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp,
-                        double trace_dt, double *trace, int32_t trace_cap, ge_period_stats_t *stats)
+                        const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap,
+                        ge_period_stats_t *stats)
 {
-    return pl_advance((const pl_params_t *)p, (pl_state_t *)s, states, durations_ns, n, t_load0, t_load_slope,
-                      load_bp, n_load_bp, trace_dt, trace, trace_cap, stats);
+    return pl_advance((const pl_params_t *)p, (pl_state_t *)s, states, durations_ns, n, load, trace_dt, trace,
+                      trace_cap, stats);
 }
 
 /* Plant.sample (hil/plant.py) with the same expressions, so the native loop's records equal the Python
@@ -432,14 +432,13 @@ static void pl_k_sample(const void *params, const void *state, mk_sample_t *out)
     out->i_d = i_d;
     out->i_q = i_q;
     out->theta_e = s->theta_e;
-    out->omega_m = s->omega_m;
+    out->omega_m = s->mech.omega_m;
     out->torque = torque_k * (p->psi_f + (p->ld - p->lq) * i_d) * i_q;
 }
 
 static void pl_k_hold_speed(void *params, void *state, double omega_m)
 {
-    ((pl_params_t *)params)->inertia_mode = 0;
-    ((pl_state_t *)state)->omega_m = omega_m;
+    mech_hold(&((pl_params_t *)params)->mech, &((pl_state_t *)state)->mech, omega_m);
 }
 
 static uint64_t pl_k_time_ns(const void *state)

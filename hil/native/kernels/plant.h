@@ -13,6 +13,7 @@
 
 #include "gate_edges.h"
 #include "machine_kernel.h"
+#include "mechanics.h"
 
 #define PL_MAX_SUBINTERVALS 16 /* the 13 segments of six duty cycles (pwm_duty.h) fit */
 #define PL_TRACE_COLUMNS 6 /* t [s], i_a, i_b, i_c [A], torque [N*m], omega_m [rad/s] */
@@ -23,13 +24,10 @@ typedef struct {
     double lq;        /* q-axis inductance [H] */
     double psi_f;     /* permanent-magnet flux linkage [Wb] */
     double vdc;       /* DC-link voltage [V] */
-    double j;         /* inertia [kg*m^2] (inertia mode) */
-    double b;         /* viscous friction [N*m*s/rad] (inertia mode) */
     double t_dead;    /* dead time per leg [s] */
     double t_mpw;     /* minimum pulse width [s]; shorter pulses never reach the gate */
-    double max_piece; /* inertia mode: longest electrical piece between speed updates [s] */
+    mech_params_t mech; /* the drive's mechanics (mechanics.h) */
     int32_t pole_pairs;
-    int32_t inertia_mode; /* 0: dyno (speed held), 1: inertia (J, B, load torque) */
 } pl_params_t;
 
 typedef struct {
@@ -37,7 +35,7 @@ typedef struct {
     uint64_t trace_k;     /* index of the next trace sample (t = trace_k * trace_dt) */
     double i_d, i_q;      /* rotor-frame currents [A] */
     double theta_e;       /* electrical angle [rad], wrapped to [0, 2*pi) */
-    double omega_m;       /* mechanical speed [rad/s] */
+    mech_state_t mech;    /* the shaft's speed (mechanics.h) */
     double last_edge_t[3];/* time of the last gate edge per leg [s] (absolute) */
     double dead_until[3]; /* leg in dead time until this absolute time [s] */
     int32_t gate;         /* commanded gate code currently applied, 4*Sa + 2*Sb + Sc */
@@ -50,15 +48,12 @@ typedef ge_period_stats_t pl_period_stats_t; /* see gate_edges.h */
 #define PL_E_ARGS MK_E_ARGS
 #define PL_E_TRACE_FULL MK_E_TRACE_FULL
 
-/* Advance the plant over one control period made of n sub-intervals (state codes, durations [ns]).
- * Load torque in inertia mode: t_load0 [N*m] at the period start plus t_load_slope [N*m/s], then from each
- * breakpoint inside the period (load_bp: n_load_bp triplets of absolute time [s], value [N*m], slope [N*m/s])
- * the segment it starts.
+/* Advance the plant over one control period made of n sub-intervals (state codes, durations [ns]) under the load
+ * torque `load` (mechanics.h; the mechanics reads it, under a dyno it has no effect).
  * Trace rows (PL_TRACE_COLUMNS doubles each) are written at t = k * trace_dt (trace_dt <= 0: none). */
 int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const int64_t *durations_ns,
-               int32_t n, double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp,
-               double trace_dt, double *trace,
-               int32_t trace_cap, pl_period_stats_t *stats);
+               int32_t n, const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap,
+               pl_period_stats_t *stats);
 
 /* Electromagnetic torque [N*m] for rotor-frame currents [A]. */
 double pl_torque(const pl_params_t *p, double i_d, double i_q);

@@ -6,6 +6,7 @@
 #include "plant6.h"
 #include "dq_segment.h"
 #include "gate_edges.h"
+#include "mechanics.h"
 
 #include <math.h>
 #include <stddef.h>
@@ -75,7 +76,7 @@ static int emit_row(const p6_params_t *p, p6_state_t *s, double tk, double i_d, 
         }
     }
     row[7] = p6_torque(p, i_d, i_q);
-    row[8] = s->omega_m;
+    row[8] = s->mech.omega_m;
     row[9] = i_x;
     row[10] = i_y;
     stats->trace_n++;
@@ -83,88 +84,90 @@ static int emit_row(const p6_params_t *p, p6_state_t *s, double tk, double i_d, 
     return P6_OK;
 }
 
-/* Integrate h seconds from t_abs with constant gate levels (legs in dead time at their diode level). */
-static int integrate(const p6_params_t *p, p6_state_t *s, double t_abs, double h, double t_load0,
-                     double t_load_slope, double t_period0, double trace_dt, double *trace, int32_t trace_cap,
-                     p6_period_stats_t *stats, const int *gate_level)
+/* One interval of constant gate levels (gate_edges.c) as the mechanics cuts it into constant-speed pieces
+ * (mechanics.h): the kernel's part of the state, the trace and the machine's closed-form constants. */
+typedef struct {
+    const p6_params_t *p;
+    p6_state_t *s;
+    double trace_dt;
+    double *trace;
+    int32_t trace_cap;
+    p6_period_stats_t *stats;
+    const int *gate_level; /* the interval's gate levels per leg */
+    dq_machine_t mc;       /* the closed-form constants of the dq subspace */
+    double em_step;        /* exp(m trace_dt) of the trace walker */
+} p6_run_ctx_t;
+
+static double p6_torque_cb(const void *ctx)
 {
-    double done = 0.0;
-    dq_machine_t mc;
-    double em_step;
-    const double inv_j = p->inertia_mode ? 1.0 / p->j : 0.0; /* [1/(kg*m^2)] */
-    dq_machine_init(p->rs, p->ld, p->lq, p->psi_f, &mc);
-    em_step = trace_dt > 0.0 ? exp(mc.m * trace_dt) : 1.0; /* exp(m dt) of the trace walker */
-    while (done < h - 0.5e-9) {
-        double piece = h - done;
-        double omega_e = (double)p->pole_pairs * s->omega_m;
-        double t0 = t_abs + done;
-        double te0 = p6_torque(p, s->i_d, s->i_q);
-        double v[4], ix_inf, iy_inf, kxy, i_d1, i_q1;
-        int levels = 0;
-        dq_segment_t g;
-        for (int leg = 0; leg < P6_LEGS; leg++) {
-            int lvl = gate_level[leg];
-            if (t0 < s->dead_until[leg] - 0.5e-9) {
-                lvl = s->dead_level[leg];
-            }
-            levels |= lvl << (P6_LEGS - 1 - leg);
+    const p6_run_ctx_t *c = (const p6_run_ctx_t *)ctx;
+    return p6_torque(c->p, c->s->i_d, c->s->i_q);
+}
+
+/* One piece from absolute time t0 [s] at the constant speed omega_m [rad/s] (legs in dead time at their diode
+ * level). */
+static int p6_piece_cb(void *ctx, double t0, double *piece_io, double omega_m)
+{
+    p6_run_ctx_t *c = (p6_run_ctx_t *)ctx;
+    const p6_params_t *p = c->p;
+    p6_state_t *s = c->s;
+    const double trace_dt = c->trace_dt;
+    double *trace = c->trace;
+    const double piece = *piece_io;
+    const double omega_e = (double)p->pole_pairs * omega_m;
+    double v[4], ix_inf, iy_inf, kxy, i_d1, i_q1;
+    int levels = 0;
+    dq_segment_t g;
+    for (int leg = 0; leg < P6_LEGS; leg++) {
+        int lvl = c->gate_level[leg];
+        if (t0 < s->dead_until[leg] - 0.5e-9) {
+            lvl = s->dead_level[leg];
         }
-        if (p->inertia_mode && p->max_piece > 0.0 && piece > p->max_piece) {
-            piece = p->max_piece;
-        }
-        p6_code_voltage(p->vdc, levels, v);
-        dq_segment_setup(&mc, omega_e, s->theta_e, v[0], v[1], s->i_d, s->i_q, &g);
-        ix_inf = v[2] / p->rs;
-        iy_inf = v[3] / p->rs;
-        kxy = -p->rs / p->lls;
-        if (trace_dt > 0.0 && trace != NULL) {
-            dq_walk_t w;
-            double ex = 1.0, ex_step = exp(kxy * trace_dt);
-            int fresh = 1;
-            for (;;) {
-                double tk = (double)s->trace_k * trace_dt;
-                double tau = tk - t0, id, iq;
-                int rc, clamped = 0;
-                if (tau >= piece - 0.5e-9) {
-                    break;
-                }
-                if (tau < 0.0) {
-                    tau = 0.0;
-                    clamped = 1;
-                }
-                if (fresh) {
-                    dq_walk_start(&g, tau, trace_dt, em_step, &w);
-                    ex = exp(kxy * tau);
-                }
-                dq_walk_eval(&g, &w, &id, &iq);
-                rc = emit_row(p, s, tk, id, iq, w.cos_th, w.sin_th, ix_inf + (s->i_x - ix_inf) * ex,
-                              iy_inf + (s->i_y - iy_inf) * ex, trace, trace_cap, stats);
-                if (rc != P6_OK) {
-                    return rc;
-                }
-                fresh = clamped || !dq_walk_next(&g, &w);
-                ex *= ex_step;
-            }
-        }
-        dq_segment_eval(&g, piece, &i_d1, &i_q1);
-        {
-            double ex = exp(kxy * piece);
-            s->i_x = ix_inf + (s->i_x - ix_inf) * ex;
-            s->i_y = iy_inf + (s->i_y - iy_inf) * ex;
-        }
-        s->theta_e = dq_wrap_angle(s->theta_e + omega_e * piece);
-        s->i_d = i_d1;
-        s->i_q = i_q1;
-        if (p->inertia_mode) {
-            double te1 = p6_torque(p, s->i_d, s->i_q);
-            double t_load = t_load0 + t_load_slope * (t0 + 0.5 * piece - t_period0);
-            /* trapezoidal torque, implicit friction: (1 + k) w1 = (1 - k) w0 + piece (Te - Tl) / J */
-            const double k = 0.5 * piece * p->b * inv_j;
-            const double w1 = s->omega_m * (1.0 - k) + piece * (0.5 * (te0 + te1) - t_load) * inv_j;
-            s->omega_m = k != 0.0 ? w1 / (1.0 + k) : w1;
-        }
-        done += piece;
+        levels |= lvl << (P6_LEGS - 1 - leg);
     }
+    p6_code_voltage(p->vdc, levels, v);
+    dq_segment_setup(&c->mc, omega_e, s->theta_e, v[0], v[1], s->i_d, s->i_q, &g);
+    ix_inf = v[2] / p->rs;
+    iy_inf = v[3] / p->rs;
+    kxy = -p->rs / p->lls;
+    if (trace_dt > 0.0 && trace != NULL) {
+        dq_walk_t w;
+        double ex = 1.0, ex_step = exp(kxy * trace_dt);
+        int fresh = 1;
+        for (;;) {
+            double tk = (double)s->trace_k * trace_dt;
+            double tau = tk - t0, id, iq;
+            int rc, clamped = 0;
+            if (tau >= piece - 0.5e-9) {
+                break;
+            }
+            if (tau < 0.0) {
+                tau = 0.0;
+                clamped = 1;
+            }
+            if (fresh) {
+                dq_walk_start(&g, tau, trace_dt, c->em_step, &w);
+                ex = exp(kxy * tau);
+            }
+            dq_walk_eval(&g, &w, &id, &iq);
+            rc = emit_row(p, s, tk, id, iq, w.cos_th, w.sin_th, ix_inf + (s->i_x - ix_inf) * ex,
+                          iy_inf + (s->i_y - iy_inf) * ex, trace, c->trace_cap, c->stats);
+            if (rc != P6_OK) {
+                return rc;
+            }
+            fresh = clamped || !dq_walk_next(&g, &w);
+            ex *= ex_step;
+        }
+    }
+    dq_segment_eval(&g, piece, &i_d1, &i_q1);
+    {
+        double ex = exp(kxy * piece);
+        s->i_x = ix_inf + (s->i_x - ix_inf) * ex;
+        s->i_y = iy_inf + (s->i_y - iy_inf) * ex;
+    }
+    s->theta_e = dq_wrap_angle(s->theta_e + omega_e * piece);
+    s->i_d = i_d1;
+    s->i_q = i_q1;
     return P6_OK;
 }
 
@@ -175,22 +178,11 @@ static double phase_current(const p6_state_t *s, int leg)
     return ip[leg];
 }
 
-/* Callbacks for the shared period driver (gate_edges.c). */
-typedef struct {
-    const p6_params_t *p;
-    p6_state_t *s;
-    double trace_dt;
-    double *trace;
-    int32_t trace_cap;
-    p6_period_stats_t *stats;
-} p6_run_ctx_t;
-
-static int p6_integrate_cb(void *ctx, double t, double h, double load_val, double load_slope, double load_ref,
-                           const int *gate_level)
+static int p6_integrate_cb(void *ctx, double t, double h, const mech_segment_t *load, const int *gate_level)
 {
     p6_run_ctx_t *c = (p6_run_ctx_t *)ctx;
-    return integrate(c->p, c->s, t, h, load_val, load_slope, load_ref, c->trace_dt, c->trace, c->trace_cap, c->stats,
-                     gate_level);
+    c->gate_level = gate_level;
+    return mech_integrate(&c->p->mech, &c->s->mech, load, t, h, p6_piece_cb, p6_torque_cb, c);
 }
 
 /* Sign rule: current out of the leg -> lower diode; into it -> upper diode; exactly zero -> the new level
@@ -203,9 +195,8 @@ static int p6_dead_level_cb(void *ctx, int leg, int new_level)
 }
 
 int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const int64_t *durations_ns,
-               int32_t n, double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp,
-               double trace_dt, double *trace,
-               int32_t trace_cap, p6_period_stats_t *stats)
+               int32_t n, const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap,
+               p6_period_stats_t *stats)
 {
     dq_event_t ev[P6_MAX_EVENTS];
     int n_ev = 0;
@@ -227,10 +218,19 @@ int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const
     n_ev = ge_plan(P6_LEGS, s->gate, states, durations_ns, n, t_start, p->t_mpw, t_lim, s->last_edge_t, ev, n_ev,
                    P6_MAX_EVENTS, stats, &total_ns);
     {
-        p6_run_ctx_t c = {p, s, trace_dt, trace, trace_cap, stats};
-        int rc = ge_run_period(P6_LEGS, t_start, t_start + (double)total_ns * 1e-9, p->t_dead, ev, n_ev, P6_MAX_EVENTS,
-                               t_load0, t_load_slope, load_bp, n_load_bp, &s->gate, s->dead_until, s->dead_level,
-                               p6_integrate_cb, p6_dead_level_cb, &c);
+        p6_run_ctx_t c;
+        int rc;
+        c.p = p;
+        c.s = s;
+        c.trace_dt = trace_dt;
+        c.trace = trace;
+        c.trace_cap = trace_cap;
+        c.stats = stats;
+        c.gate_level = NULL;
+        dq_machine_init(p->rs, p->ld, p->lq, p->psi_f, &c.mc);
+        c.em_step = trace_dt > 0.0 ? exp(c.mc.m * trace_dt) : 1.0;
+        rc = ge_run_period(P6_LEGS, t_start, t_start + (double)total_ns * 1e-9, p->t_dead, ev, n_ev, P6_MAX_EVENTS,
+                           load, &s->gate, s->dead_until, s->dead_level, p6_integrate_cb, p6_dead_level_cb, &c);
         if (rc != P6_OK) {
             stats->error = rc;
             return rc;
@@ -242,11 +242,11 @@ int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const
 
 /* --- the machine-kernel table (machine_kernel.h) ------------------------------------------------------------ */
 static int p6_k_advance(const void *p, void *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
-                        double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp,
-                        double trace_dt, double *trace, int32_t trace_cap, ge_period_stats_t *stats)
+                        const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap,
+                        ge_period_stats_t *stats)
 {
-    return p6_advance((const p6_params_t *)p, (p6_state_t *)s, states, durations_ns, n, t_load0, t_load_slope,
-                      load_bp, n_load_bp, trace_dt, trace, trace_cap, stats);
+    return p6_advance((const p6_params_t *)p, (p6_state_t *)s, states, durations_ns, n, load, trace_dt, trace,
+                      trace_cap, stats);
 }
 
 /* Plant6.sample (hil/plant6.py): the same kernel functions. */
@@ -259,14 +259,13 @@ static void p6_k_sample(const void *params, const void *state, mk_sample_t *out)
     out->i_x = s->i_x;
     out->i_y = s->i_y;
     out->theta_e = s->theta_e;
-    out->omega_m = s->omega_m;
+    out->omega_m = s->mech.omega_m;
     out->torque = p6_torque((const p6_params_t *)params, s->i_d, s->i_q);
 }
 
 static void p6_k_hold_speed(void *params, void *state, double omega_m)
 {
-    ((p6_params_t *)params)->inertia_mode = 0;
-    ((p6_state_t *)state)->omega_m = omega_m;
+    mech_hold(&((p6_params_t *)params)->mech, &((p6_state_t *)state)->mech, omega_m);
 }
 
 static uint64_t p6_k_time_ns(const void *state)

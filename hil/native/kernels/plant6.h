@@ -15,6 +15,7 @@
 
 #include "gate_edges.h"
 #include "machine_kernel.h"
+#include "mechanics.h"
 
 #define P6_MAX_SUBINTERVALS 16 /* the 13 segments of six duty cycles (pwm_duty.h) fit */
 #define P6_LEGS 6
@@ -27,13 +28,10 @@ typedef struct {
     double lls;       /* leakage inductance of the x-y subspace [H], > 0 */
     double psi_f;     /* permanent-magnet flux linkage [Wb] */
     double vdc;       /* DC-link voltage [V] */
-    double j;         /* inertia [kg*m^2] (inertia mode) */
-    double b;         /* viscous friction [N*m*s/rad] (inertia mode) */
     double t_dead;    /* dead time per leg [s] */
     double t_mpw;     /* minimum pulse width [s]; shorter pulses never reach the gate */
-    double max_piece; /* inertia mode: longest electrical piece between speed updates [s] */
+    mech_params_t mech; /* the drive's mechanics (mechanics.h) */
     int32_t pole_pairs;
-    int32_t inertia_mode; /* 0: dyno (speed held), 1: inertia (J, B, load torque) */
 } p6_params_t;
 
 typedef struct {
@@ -42,7 +40,7 @@ typedef struct {
     double i_d, i_q;          /* rotor-frame currents [A] */
     double i_x, i_y;          /* stationary x-y currents [A] */
     double theta_e;           /* electrical angle [rad], [0, 2*pi) */
-    double omega_m;           /* mechanical speed [rad/s] */
+    mech_state_t mech;        /* the shaft's speed (mechanics.h) */
     double last_edge_t[P6_LEGS]; /* time of the last gate edge per leg [s] */
     double dead_until[P6_LEGS];  /* leg in dead time until this absolute time [s] */
     int32_t gate;                /* applied gate code (6 bits) */
@@ -57,9 +55,8 @@ typedef ge_period_stats_t p6_period_stats_t; /* see gate_edges.h */
 
 /* Advance one control period of n sub-intervals (6-bit state codes, durations [ns]); see plant.h. */
 int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const int64_t *durations_ns,
-               int32_t n, double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp,
-               double trace_dt, double *trace,
-               int32_t trace_cap, p6_period_stats_t *stats);
+               int32_t n, const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap,
+               p6_period_stats_t *stats);
 
 /* Electromagnetic torque 3*p*(psi_d*i_q - psi_q*i_d) [N*m]. */
 double p6_torque(const p6_params_t *p, double i_d, double i_q);

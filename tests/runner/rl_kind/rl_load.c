@@ -12,6 +12,7 @@
 
 #include "gate_edges.h"
 #include "machine_kernel.h"
+#include "mechanics.h"
 
 #define RL_TRACE_COLUMNS 6 /* t [s], i_a, i_b, i_c [A], torque [N*m], omega_m [rad/s] */
 
@@ -19,8 +20,8 @@ typedef struct {
     double r;           /* phase resistance [Ohm] */
     double l;           /* phase inductance [H] */
     double vdc;         /* DC link [V] */
+    mech_params_t mech; /* written by PlantBase (mechanics.h); unused: the load makes no torque, its speed stays */
     int32_t pole_pairs; /* turns the dq view: theta_e = pole_pairs * mechanical angle */
-    int32_t inertia_mode; /* written by PlantBase; unused: the load makes no torque, its speed is held */
 } rl_params_t;
 
 typedef struct {
@@ -28,7 +29,7 @@ typedef struct {
     uint64_t trace_k;   /* next trace row index */
     double i_al, i_be;  /* stationary-frame currents [A] */
     double theta_e;     /* [rad] */
-    double omega_m;     /* held speed [rad/s] */
+    mech_state_t mech;  /* the shaft's speed [rad/s] (mechanics.h) */
     int32_t gate;       /* applied gate code */
 } rl_state_t;
 
@@ -62,7 +63,7 @@ static void solve(const rl_params_t *p, const rl_state_t *s, double v_al, double
     const double e = exp(-p->r * h / p->l);
     *i_al = v_al / p->r + (s->i_al - v_al / p->r) * e;
     *i_be = v_be / p->r + (s->i_be - v_be / p->r) * e;
-    *theta = fmod(s->theta_e + (double)p->pole_pairs * s->omega_m * h, RL_TWO_PI);
+    *theta = fmod(s->theta_e + (double)p->pole_pairs * s->mech.omega_m * h, RL_TWO_PI);
 }
 
 static int bits(int32_t x)
@@ -71,16 +72,12 @@ static int bits(int32_t x)
 }
 
 static int rl_advance(const rl_params_t *p, rl_state_t *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
-               double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp, double trace_dt,
-               double *trace, int32_t trace_cap, ge_period_stats_t *stats)
+               const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap, ge_period_stats_t *stats)
 {
     int32_t k;
     int32_t rows = 0;
     double peak = 0.0;
-    (void)t_load0;
-    (void)t_load_slope;
-    (void)load_bp;
-    (void)n_load_bp;
+    (void)load;
     ge_stats_reset(stats);
     if (n < 1 || n > GE_MAX_SUBINTERVALS) {
         return MK_E_ARGS;
@@ -120,7 +117,7 @@ static int rl_advance(const rl_params_t *p, rl_state_t *s, const int32_t *states
                     peak = fabs(i[j]) > peak ? fabs(i[j]) : peak;
                 }
                 trace[rows * RL_TRACE_COLUMNS + 4] = 0.0;
-                trace[rows * RL_TRACE_COLUMNS + 5] = s->omega_m;
+                trace[rows * RL_TRACE_COLUMNS + 5] = s->mech.omega_m;
                 rows++;
                 s->trace_k++;
             }
@@ -142,17 +139,17 @@ void rl_sample(const rl_params_t *p, const rl_state_t *s, mk_sample_t *out)
     out->i_d = s->i_al * co + s->i_be * sn;
     out->i_q = -s->i_al * sn + s->i_be * co;
     out->theta_e = s->theta_e;
-    out->omega_m = s->omega_m;
+    out->omega_m = s->mech.omega_m;
     out->torque = 0.0;
 }
 
 /* --- the machine-kernel table ------------------------------------------------------------------------------- */
 static int k_advance(const void *p, void *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
-                     double t_load0, double t_load_slope, const double *load_bp, int32_t n_load_bp, double trace_dt,
-                     double *trace, int32_t trace_cap, ge_period_stats_t *stats)
+                     const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap,
+                     ge_period_stats_t *stats)
 {
-    return rl_advance((const rl_params_t *)p, (rl_state_t *)s, states, durations_ns, n, t_load0, t_load_slope,
-                      load_bp, n_load_bp, trace_dt, trace, trace_cap, stats);
+    return rl_advance((const rl_params_t *)p, (rl_state_t *)s, states, durations_ns, n, load, trace_dt, trace,
+                      trace_cap, stats);
 }
 
 static void k_sample(const void *p, const void *s, mk_sample_t *out)
@@ -162,8 +159,7 @@ static void k_sample(const void *p, const void *s, mk_sample_t *out)
 
 static void k_hold_speed(void *p, void *s, double omega_m)
 {
-    (void)p;
-    ((rl_state_t *)s)->omega_m = omega_m;
+    mech_hold(&((rl_params_t *)p)->mech, &((rl_state_t *)s)->mech, omega_m);
 }
 
 static uint64_t k_time_ns(const void *s)
