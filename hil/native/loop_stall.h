@@ -32,4 +32,16 @@ int nl_proc_sample(int32_t pid, nl_proc_sample_t *s);
  * stopped, its CPU time while runnable but starved, else the wall time less what it waited for a CPU. */
 int64_t nl_proc_available(const nl_proc_sample_t *a, const nl_proc_sample_t *b, int64_t wall_ns);
 
+/* A QEMU guest (an emulated MCU running on virtual time) is judged by its own progress, not by its process's CPU
+ * time: QEMU accumulates CPU (its main loop, translation, a vCPU thread kicked but starved) without the guest
+ * executing, so the process's time over-credits a guest on a loaded host. Of the wall time `wall_ns` between
+ * readings `a` and `b` of QEMU's process, the guest's own time [ns]: the instructions it executed (`insns`, counted
+ * exactly by the instruction-count plugin) times the virtual time of one (`ns_per_insn`, -icount), plus, when the
+ * whole process slept at both readings (no thread runnable or stopped: nothing for QEMU to do, every run-queue wait
+ * between them already counted), the time it slept in between -- the guest idle by its own choice (WFI, a blocking
+ * doorbell read) with everything the host sent either taken or refused by the guest. Starved or stopped time
+ * counts for nothing. */
+int64_t nl_guest_available(const nl_proc_sample_t *a, const nl_proc_sample_t *b, int64_t insns, int64_t ns_per_insn,
+                           int64_t wall_ns);
+
 #endif
