@@ -1,8 +1,9 @@
 """How a run on an emulated MCU (`--target qemu:FW.elf`) ended, told apart: the firmware faulted (its fault
 handler reports pc, lr, CFSR and HFSR on the semihosting console and ends QEMU with exit code 64 + the exception
 number, board.h; the reason names the function at the pc), the firmware hung (QEMU alive and the guest executing
-instructions all along, no Command), or QEMU itself died (a signal, another exit code: its stderr says why). Each is `EndCode.SAFETY_STOP` (exit 3) with its own reason; a dead QEMU is no longer an internal
-error. A QEMU that idles (the firmware waits for a frame that was lost) keeps the loop's ending."""
+instructions all along, no Command), or QEMU itself died (a signal, another exit code: its stderr says why). Each
+is `EndCode.SAFETY_STOP` (exit 3) with its own reason; a dead QEMU is no longer an internal error. A QEMU that idles
+(the firmware waits for a frame that was lost) keeps the loop's ending."""
 
 from __future__ import annotations
 
