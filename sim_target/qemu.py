@@ -10,6 +10,10 @@ and two host FIFOs as doorbells that the firmware reads and writes with Arm semi
 vCPU thread in read(2) until the host rings): neither end spins, so the pair does not stall for scheduler time
 slices on a busy machine (docs/firmware_api.md, docs/benchmarks.md).
 
+Guest progress: the plugin's running instruction count lives in a file mapped by both QEMU and the host
+(`progress_address`): in lockstep the host judges the guest by its own progress, not by QEMU's CPU time
+(hil/native/loop_stall.h `nl_guest_available`, docs/runner.md "Host stalls").
+
 Execution cost: a QEMU TCG plugin (firmware_stub/boards/mps2-an386/qemu/hil_insn_plugin.c, built on first
 use) counts the instructions between the firmware's step markers exactly; `metrics()` turns the counts of the
 metrics window into `exec_instructions` and the estimate `exec_time_us` at `mcu_clock_hz` with the cycle
@@ -207,6 +211,10 @@ class QemuTarget:
         self._dir = Path(tempfile.mkdtemp(prefix="hil-qemu-"))
         self.socket_path = self._dir / "uart0.sock"
         self.counts_path: Path | None = self._dir / "insns.u32" if count_instructions else None
+        #: the plugin's running instruction count (first 8 bytes, native order), mapped here while QEMU runs
+        self.progress_path: Path | None = self._dir / "progress.u64" if count_instructions else None
+        self._progress_map: mmap.mmap | None = None
+        self._progress: ctypes.c_uint64 | None = None
         self.process: subprocess.Popen[bytes] | None = None
         self._stderr = open(self._dir / "qemu.stderr", "w+b")  # noqa: SIM115 (closed in close())
         self._sock: socket.socket | None = None
@@ -230,15 +238,40 @@ class QemuTarget:
             cmd += ["-device", f"loader,addr={cfg_addr + 4 * offset:#x},data={value},data-len=4"]
         if self.counts_path is not None:
             begin, end = syms["hil_core_step_begin"] & ~1, syms["hil_core_step_end"] & ~1
-            cmd += ["-plugin", f"{plugin_path()},begin={begin:#x},end={end:#x},out={self.counts_path}"]
+            cmd += ["-plugin", f"{plugin_path()},begin={begin:#x},end={end:#x},out={self.counts_path},"
+                    f"live={self.progress_path}"]
         self.command = cmd
         try:
+            self._map_progress()
             self.process = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                                             stderr=self._stderr, preexec_fn=_die_with_parent)
             self._sock = self._connect()
         except BaseException:
             self.close()
             raise
+
+    def _map_progress(self) -> None:
+        """Create the progress file (one page of zeros: the plugin maps the same page) and map it here."""
+        if self.progress_path is None:
+            return
+        with open(self.progress_path, "w+b") as fh:
+            fh.truncate(mmap.PAGESIZE)
+            self._progress_map = mmap.mmap(fh.fileno(), mmap.PAGESIZE)
+        self._progress = ctypes.c_uint64.from_buffer(self._progress_map)
+
+    @property
+    def ns_per_instruction(self) -> int:
+        """Virtual time of one guest instruction [ns] (-icount shift)."""
+        return 1 << ICOUNT_SHIFT
+
+    def progress_address(self) -> int:
+        """Address (in this process) of the guest's running instruction count, a u64 the plugin adds to as
+        the guest executes; 0 without the plugin. Valid until `close()`."""
+        return ctypes.addressof(self._progress) if self._progress is not None else 0
+
+    def executed_instructions(self) -> int | None:
+        """Instructions the guest executed so far; None without the plugin."""
+        return int(self._progress.value) if self._progress is not None else None
 
     def _make_bells(self) -> tuple[int, int]:
         """The PSRAM file with the doorbell FIFO paths in it, and the host's ends of the two FIFOs (opened
@@ -363,6 +396,11 @@ class QemuTarget:
                 proc.kill()
                 proc.wait()
         self.process = None
+        self._progress = None
+        if self._progress_map is not None:
+            with contextlib.suppress(BufferError, ValueError):
+                self._progress_map.close()
+            self._progress_map = None
         with contextlib.suppress(OSError, ValueError):
             self._stderr.close()
         shutil.rmtree(self._dir, ignore_errors=True)

@@ -48,6 +48,18 @@ typedef struct {
     float lambda;     /* weighting factor of eq. (10) [N*m/Wb] */
 } hil_fw_mptc_ctx_t;
 
+/* Field weakening (docs/algorithms/field_weakening.md, "mptc1..3"): the stator flux reference (the automatic one;
+ * a user's flux_ref param is taken as given) is held to
+ * what the voltage allows at the speed, psi_ref <= HIL_FW_MPTC_FW_MARGIN * (vdc / sqrt(3)) / |omega_e|: the
+ * steady-state stator voltage of a machine whose resistive drop is negligible is |omega_e| * |psi_s|, and
+ * vdc / sqrt(3) is the circle inside the V3 12-gon (0.598 vdc * cos 15 deg) the controllers can hold on average.
+ * The margin leaves the predictive choice voltage to move the torque within a period. */
+#define HIL_FW_MPTC_FW_MARGIN 0.9f
+
+/* The flux reference psi_ref [Wb] capped by the voltage limit at DC link vdc [V] and electrical speed omega_e
+ * [rad/s]; psi_ref itself (the same float) wherever the cap is not reached. */
+float hil_fw_mptc_flux_cap(float psi_ref, float vdc, float omega_e);
+
 void hil_fw_mptc_begin(struct hil_fw_state *s, hil_fw_mptc_ctx_t *c);
 
 /* 1 if the measurement is six-phase; else writes a zero command with HIL_FW_STATUS_INVALID_CONFIG. */

@@ -4,6 +4,7 @@
 #include "hil_fw_mptc.h"
 #include "hil_fw_six.h"
 #include "hil_fw_state.h"
+#include "hil_fw_transforms.h"
 
 const float hil_fw_mptc_dir_c[12] = {0.96592583f, 0.70710678f, 0.25881905f, -0.25881905f, -0.70710678f,
                                      -0.96592583f, -0.96592583f, -0.70710678f, -0.25881905f, 0.25881905f,
@@ -28,6 +29,16 @@ void hil_fw_mptc_euler(const struct hil_fw_state *s, float h, float vd, float vq
     const float iq = *i_q;
     *i_d = id + h / v[HIL_FW_P_LD] * (vd - v[HIL_FW_P_RS] * id + w * v[HIL_FW_P_LQ] * iq);
     *i_q = iq + h / v[HIL_FW_P_LQ] * (vq - v[HIL_FW_P_RS] * iq - w * v[HIL_FW_P_LD] * id - w * v[HIL_FW_P_PSI_F]);
+}
+
+float hil_fw_mptc_flux_cap(float psi_ref, float vdc, float omega_e)
+{
+    const float w = fabsf(omega_e);
+    const float v_lim = HIL_FW_MPTC_FW_MARGIN * vdc / HIL_FW_SQRT3_F;
+    if (w * psi_ref > v_lim) { /* only above the speed where the reference meets the limit: below it unchanged */
+        return v_lim / w;
+    }
+    return psi_ref;
 }
 
 void hil_fw_mptc_begin(struct hil_fw_state *s, hil_fw_mptc_ctx_t *c)
@@ -56,12 +67,13 @@ void hil_fw_mptc_begin(struct hil_fw_state *s, hil_fw_mptc_ctx_t *c)
     c->c2 = me->cos_th * cosf(wts) - me->sin_th * sinf(wts); /* angle at k+1 */
     c->s2 = me->sin_th * cosf(wts) + me->cos_th * sinf(wts);
     c->te_ref = s->ref.torque;
-    if (v[HIL_FW_P_FLUX_REF] > 0.0f) {
+    if (v[HIL_FW_P_FLUX_REF] > 0.0f) { /* the user's fixed reference, as given (no field weakening) */
         c->psi_ref = v[HIL_FW_P_FLUX_REF];
-    } else { /* i_d = 0: |psi*| = sqrt(psi_f^2 + (Lq iq*)^2), iq* = T* / (3 p psi_f) */
+    } else { /* i_d = 0: |psi*| = sqrt(psi_f^2 + (Lq iq*)^2), iq* = T* / (3 p psi_f); weakened at high speed */
         const float iq_ref = v[HIL_FW_P_PSI_F] > 0.0f ? c->te_ref / (p3 * v[HIL_FW_P_PSI_F]) : 0.0f;
         const float lqi = v[HIL_FW_P_LQ] * iq_ref;
-        c->psi_ref = sqrtf(v[HIL_FW_P_PSI_F] * v[HIL_FW_P_PSI_F] + lqi * lqi);
+        c->psi_ref = hil_fw_mptc_flux_cap(sqrtf(v[HIL_FW_P_PSI_F] * v[HIL_FW_P_PSI_F] + lqi * lqi), me->vdc,
+                                          me->omega_e);
     }
     c->lambda = v[HIL_FW_P_LAMBDA] > 0.0f ? v[HIL_FW_P_LAMBDA]
                 : (v[HIL_FW_P_PSI_F] > 0.0f ? v[HIL_FW_P_TORQUE_LIMIT] / v[HIL_FW_P_PSI_F] : 0.0f);

@@ -350,10 +350,18 @@ static int receive_until(loop_t *L, int64_t deadline_ns)
     return got < 0 ? -1 : 0;
 }
 
+/* The emulated MCU's executed instructions so far (QEMU's plugin adds to the shared word as the guest runs). */
+static int64_t guest_insns_now(const nl_config_t *c)
+{
+    return (int64_t)__atomic_load_n(c->guest_insns, __ATOMIC_RELAXED);
+}
+
 /* Lockstep: frames until the reply, or until the target had lockstep_timeout_ns to answer. Without a process to
  * observe that is wall time. With one (target_pid), after the first slice the wait goes on in slices and counts
  * only the time the process could run (loop_stall.h): time the host kept it stopped or off the CPUs is a host
- * stall (counted; the wait goes on, up to stall_limit_ns of wall time: NL_END_HOST_STALL). nl_stop() ends it. */
+ * stall (counted; the wait goes on, up to stall_limit_ns of wall time: NL_END_HOST_STALL). nl_stop() ends it.
+ * An emulated MCU (guest_insns) counts its own progress instead: its executed instructions from the start of the
+ * wait, and the time QEMU slept with nothing to do (nl_guest_available). */
 static void await_lockstep(loop_t *L, int64_t t0)
 {
     const nl_config_t *c = L->c;
@@ -364,6 +372,7 @@ static void await_lockstep(loop_t *L, int64_t t0)
     int64_t had = 0;    /* the target's own time to answer so far [ns] */
     int64_t t_prev = t0;
     int watching = 0;
+    int64_t insns_prev = c->guest_insns != NULL ? guest_insns_now(c) : 0;
     for (;;) {
         const int64_t left = timeout - had;
         int64_t t;
@@ -374,8 +383,15 @@ static void await_lockstep(loop_t *L, int64_t t0)
         if (c->target_pid <= 0) {
             break; /* wall time: one slice, the whole timeout */
         }
-        if (!watching) { /* the first slice counts in full: the process is read from its end on */
-            had += t - t_prev;
+        if (!watching) { /* the first slice counts in full (a guest: its instructions): the process is read from
+                          * its end on */
+            if (c->guest_insns != NULL) {
+                const int64_t insns = guest_insns_now(c);
+                had += (insns - insns_prev) * c->guest_ns_per_insn;
+                insns_prev = insns;
+            } else {
+                had += t - t_prev;
+            }
             watching = nl_proc_sample(c->target_pid, &prev) == 0;
             if (!watching) {
                 break; /* gone (the ending names the crash) or not observable */
@@ -384,7 +400,13 @@ static void await_lockstep(loop_t *L, int64_t t0)
             if (nl_proc_sample(c->target_pid, &now) != 0) {
                 break;
             }
-            had += nl_proc_available(&prev, &now, t - t_prev);
+            if (c->guest_insns != NULL) {
+                const int64_t insns = guest_insns_now(c);
+                had += nl_guest_available(&prev, &now, insns - insns_prev, c->guest_ns_per_insn, t - t_prev);
+                insns_prev = insns;
+            } else {
+                had += nl_proc_available(&prev, &now, t - t_prev);
+            }
             prev = now;
         }
         t_prev = t;

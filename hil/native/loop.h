@@ -158,6 +158,9 @@ typedef struct {
     int64_t lockstep_timeout_ns; /* lockstep over a link: how long to wait for a Command [ns]: the target's own time
                                   * when target_pid is set (loop_stall.h), else wall time */
     int32_t target_pid;        /* the target's process the host can observe (0: none, e.g. a board: wall time) */
+    const uint64_t *guest_insns; /* an emulated MCU's executed instructions, counted by QEMU's plugin in shared memory
+                                  * (NULL: none): its lockstep time is its own progress (nl_guest_available) */
+    int64_t guest_ns_per_insn; /* the virtual time of one of its instructions [ns] (-icount shift) */
     int64_t stall_limit_ns;    /* lockstep: the longest wall time one wait for a Command may last while the host
                                 * stalls the target's process (then NL_END_HOST_STALL) [ns] */
     const nl_sil_debug_t *sil_debug; /* a SIL target in its own process: its debug outputs, NULL: none */

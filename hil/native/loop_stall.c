@@ -66,6 +66,8 @@ static int add_thread(int32_t pid, long tid, nl_proc_sample_t *s)
         s->runnable = 1;
     } else if (state == 'T' || state == 't') {
         s->stopped = 1;
+    } else if (state == 'D') {
+        s->disk_wait = 1;
     } else if (state == 'Z' || state == 'X' || state == '?') {
         return -1;
     }
@@ -124,4 +126,17 @@ int64_t nl_proc_available(const nl_proc_sample_t *a, const nl_proc_sample_t *b, 
         return 0;
     }
     return had > wall_ns ? wall_ns : had;
+}
+
+int64_t nl_guest_available(const nl_proc_sample_t *a, const nl_proc_sample_t *b, int64_t insns, int64_t ns_per_insn,
+                           int64_t wall_ns)
+{
+    int64_t had = insns > 0 && ns_per_insn > 0 ? insns * ns_per_insn : 0;
+    if (wall_ns > 0 && !a->runnable && !a->stopped && !a->disk_wait && !b->runnable && !b->stopped && !b->disk_wait) {
+        const int64_t slept = wall_ns - (b->exec_ns - a->exec_ns) - (b->delay_ns - a->delay_ns);
+        if (slept > 0) {
+            had += slept;
+        }
+    }
+    return had;
 }

@@ -23,6 +23,7 @@ typedef struct {
     int64_t delay_ns;      /* time its threads waited on a run queue so far [ns] (counted when they got a CPU) */
     int32_t runnable;      /* a thread is running or waiting for a CPU (state R) */
     int32_t stopped;       /* a thread is stopped (state T or t: SIGSTOP, a debugger) */
+    int32_t disk_wait;     /* a thread waits in the kernel uninterruptibly (state D: disk I/O, page faults) */
 } nl_proc_sample_t;
 
 /* Read process `pid`: 0, or -1 when it is gone (no such process, a zombie) or /proc cannot say. */
@@ -31,5 +32,17 @@ int nl_proc_sample(int32_t pid, nl_proc_sample_t *s);
 /* Of the wall time `wall_ns` between readings `a` and `b`, how long the target could run [ns]: none while
  * stopped, its CPU time while runnable but starved, else the wall time less what it waited for a CPU. */
 int64_t nl_proc_available(const nl_proc_sample_t *a, const nl_proc_sample_t *b, int64_t wall_ns);
+
+/* A QEMU guest (an emulated MCU running on virtual time) is judged by its own progress, not by its process's CPU
+ * time: QEMU accumulates CPU (its main loop, translation, a vCPU thread kicked but starved) without the guest
+ * executing, so the process's time over-credits a guest on a loaded host. Of the wall time `wall_ns` between
+ * readings `a` and `b` of QEMU's process, the guest's own time [ns]: the instructions it executed (`insns`, counted
+ * exactly by the instruction-count plugin) times the virtual time of one (`ns_per_insn`, -icount), plus, when the
+ * whole process slept at both readings (no thread runnable, stopped or in disk wait: nothing for QEMU to do, every
+ * run-queue wait between them already counted), the time it slept in between -- the guest idle by its own choice
+ * (WFI, a blocking doorbell read) with everything the host sent either taken or refused by the guest. Starved,
+ * stopped or disk-bound time counts for nothing. */
+int64_t nl_guest_available(const nl_proc_sample_t *a, const nl_proc_sample_t *b, int64_t insns, int64_t ns_per_insn,
+                           int64_t wall_ns);
 
 #endif

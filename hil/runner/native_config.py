@@ -36,6 +36,10 @@ class NativeOptions:
     fault: tuple[int, int] | None = None
     #: the target's process the loop observes in lockstep (host stalls; 0: none, the timeout is wall time)
     target_pid: int = 0
+    #: an emulated MCU's running instruction count (its address in this process, 0: none) and the virtual time of
+    #: one instruction [ns]: its lockstep time is its own progress
+    guest_insns_address: int = 0
+    guest_ns_per_insn: int = 0
 
 
 def reference_changes(sc: Scenario, ts_s: float, n_total: int) -> list[tuple[int, float]]:

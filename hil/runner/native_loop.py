@@ -114,6 +114,9 @@ class NativeLoop:
             self.link.attach(self._c, self.cfg.lockstep_timeout_s)
             self._c.target_pid = self.opts.target_pid  # host stalls (loop_stall.h): the target's own time counts
             self._c.stall_limit_ns = int(self.cfg.host_stall_limit_s * 1e9)
+            if self.opts.guest_insns_address:  # an emulated MCU: its own progress counts (nl_guest_available)
+                self._c.guest_insns = self._ffi.cast("const uint64_t *", self.opts.guest_insns_address)
+                self._c.guest_ns_per_insn = self.opts.guest_ns_per_insn
             self._c.shared_bus = 1 if self.client.shared else 0
         if isinstance(self.link, NativePyLink):  # a bus error in a callback ends the run
             self.link.on_error = lambda: lib.nl_stop(h)
@@ -242,7 +245,8 @@ class NativeLoop:
         if self.cfg.mode == "realtime":
             return "before the next period start (real time)"
         if self._other_process():
-            clock = "of the target process's own time" if self.opts.target_pid else "wall time"
+            clock = ("of the emulated MCU's own time: its instructions and idle time" if self.opts.guest_insns_address
+                     else "of the target process's own time" if self.opts.target_pid else "wall time")
             return f"within the lockstep timeout {self.cfg.lockstep_timeout_s:g} s ({clock})"
         return "from the in-process target"
 

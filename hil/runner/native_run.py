@@ -100,8 +100,10 @@ def run_native(cfg: RunConfig, conn: TargetConnection, cid: int, sink: RunSink,
     link = conn.host_link
     assert isinstance(link, NativeCoreLink | NativeWireLink | NativePyLink)
     fault = conn.client.faults[0] if conn.client.faults else None
+    guest_address, ns_per_insn = conn.guest_progress()
     opts = NativeOptions(record_frames=sink.logger is not None, silent_after=silent_after,
-                         fault=(fault.code, fault.detail) if fault is not None else None, target_pid=conn.target_pid())
+                         fault=(fault.code, fault.detail) if fault is not None else None, target_pid=conn.target_pid(),
+                         guest_insns_address=guest_address, guest_ns_per_insn=ns_per_insn)
     loop = NativeLoop(cfg, build_plant(cfg), conn.client, link, cid, opts, sink=sink)
     spec = cfg.fault_spec
     faulty = link.install_faults(spec) if spec is not None and isinstance(link, NativePyLink) else None

@@ -74,6 +74,10 @@ class TargetConnection:
     #: the process that runs the target when it is not `process` (QEMU), 0: none
     other_pid: Callable[[], int] = field(default=lambda: 0)
 
+    #: an emulated MCU's progress the loop reads in lockstep: (address of its running instruction count, virtual
+    #: time of one instruction [ns]); (0, 0): none (the process's time counts)
+    guest_progress: Callable[[], tuple[int, int]] = field(default=lambda: (0, 0))
+
     #: called by `close` before the target is stopped (QEMU: its console file into `console`)
     before_close: Callable[[], None] | None = None
 
@@ -378,6 +382,7 @@ def _connect_qemu(cfg: RunConfig, path: str) -> TargetConnection:
     return TargetConnection(TargetClient(host_link, codec), host_link, extra=[qemu], extra_metrics=qemu.metrics,
                             ending=lambda out: judge_qemu(qemu, out, cfg.lockstep_timeout_s),
                             other_pid=lambda: qemu.process.pid if qemu.process is not None else 0,
+                            guest_progress=lambda: (qemu.progress_address(), qemu.ns_per_instruction),
                             console=console, before_close=lambda: console.feed(qemu.console_text()))
 
 

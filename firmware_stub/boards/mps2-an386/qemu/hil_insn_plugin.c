@@ -7,10 +7,16 @@
  * u32. The firmware calls the pair once at boot with nothing between: the first record is the markers'
  * own cost, which the host subtracts.
  *
+ * The counter itself lives in the first 8 bytes of the file live= (mapped shared, native byte order): the host
+ * reads the guest's progress there while it waits for a Command (hil/native/loop_stall.h: a guest that executed
+ * its time and did not answer is the firmware's fault, a QEMU the host did not schedule is not). Without live=
+ * it is private.
+ *
  * Debian ships no qemu-plugin.h: the few API declarations below are written from QEMU's documented
  * plugin API (docs/devel/tcg-plugins), not copied from its header.
  */
 #include <fcntl.h>
+#include <sys/mman.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -39,7 +45,9 @@ void qemu_plugin_register_atexit_cb(qemu_plugin_id_t id, qemu_plugin_udata_cb_t 
 
 __attribute__((visibility("default"))) int qemu_plugin_version = 1;
 
-static uint64_t executed;
+static uint64_t own_counter;
+/* instructions executed so far: own_counter, or the first word of the shared file live= */
+static uint64_t *executed = &own_counter;
 static uint64_t begin_at;
 static int began;
 static uint64_t addr_begin = UINT64_MAX;
@@ -50,10 +58,10 @@ static void on_marker(unsigned int vcpu_index, void *userdata)
 {
     (void)vcpu_index;
     if (userdata == NULL) {
-        begin_at = executed;
+        begin_at = *executed;
         began = 1;
     } else if (began) {
-        const uint64_t n = executed - begin_at;
+        const uint64_t n = *executed - begin_at;
         uint8_t le[4];
         le[0] = (uint8_t)(n & 0xFFu);
         le[1] = (uint8_t)((n >> 8) & 0xFFu);
@@ -81,7 +89,7 @@ static void on_tb(qemu_plugin_id_t id, struct qemu_plugin_tb *tb)
         } else if (pc == addr_end) {
             qemu_plugin_register_vcpu_insn_exec_cb(insn, on_marker, QEMU_PLUGIN_CB_NO_REGS, (void *)1);
         }
-        qemu_plugin_register_vcpu_insn_exec_inline(insn, QEMU_PLUGIN_INLINE_ADD_U64, &executed, 1);
+        qemu_plugin_register_vcpu_insn_exec_inline(insn, QEMU_PLUGIN_INLINE_ADD_U64, executed, 1);
     }
 }
 
@@ -93,6 +101,30 @@ static void on_exit_cb(qemu_plugin_id_t id, void *userdata)
         close(out_fd);
         out_fd = -1;
     }
+}
+
+/* The counter into the first 8 bytes of `path` (created if missing, at least one page long), mapped shared: 0 or -1. */
+static int map_live(const char *path)
+{
+    const long page = sysconf(_SC_PAGESIZE);
+    const size_t size = page > 0 ? (size_t)page : 4096u;
+    void *map;
+    const int fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0600);
+    if (fd < 0) {
+        return -1;
+    }
+    if (ftruncate(fd, (off_t)size) != 0) {
+        close(fd);
+        return -1;
+    }
+    map = mmap(NULL, size, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
+    close(fd);
+    if (map == MAP_FAILED) {
+        return -1;
+    }
+    executed = (uint64_t *)map;
+    *executed = 0;
+    return 0;
 }
 
 __attribute__((visibility("default"))) int qemu_plugin_install(qemu_plugin_id_t id, const qemu_info_t *info,
@@ -107,6 +139,10 @@ __attribute__((visibility("default"))) int qemu_plugin_install(qemu_plugin_id_t 
             addr_end = strtoull(argv[i] + 4, NULL, 0);
         } else if (strncmp(argv[i], "out=", 4) == 0) {
             out_fd = open(argv[i] + 4, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
+        } else if (strncmp(argv[i], "live=", 5) == 0) {
+            if (map_live(argv[i] + 5) != 0) {
+                return -1;
+            }
         } else {
             return -1;
         }

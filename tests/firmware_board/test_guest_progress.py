@@ -1,0 +1,109 @@
+"""An emulated MCU's lockstep time is its own progress (hil/native/loop_stall.h `nl_guest_available`): the
+instructions it executed at the virtual time of one, plus the time QEMU slept with nothing to do; a starved or
+stopped QEMU adds nothing. Checked in C (compiled here with loop_stall.c), and end to end: the instruction-count
+plugin's running count is mapped by the host and grows only while the guest executes."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+from pmsm_hil.sim_target.qemu import QemuTarget
+
+NATIVE = Path(__file__).resolve().parents[2] / "hil" / "native"
+
+_CHECK = r"""
+#include <stdio.h>
+#include "loop_stall.h"
+
+static int failures;
+static void expect(const char *what, long long got, long long want)
+{
+    if (got != want) {
+        printf("%s: got %lld, want %lld\n", what, got, want);
+        failures++;
+    }
+}
+
+int main(void)
+{
+    /* QEMU asleep at both readings: 20 ms of wall, 1 ms of CPU, 0.5 ms waiting for one: slept 18.5 ms */
+    nl_proc_sample_t a = {100000000, 5000000, 0, 0, 0};
+    nl_proc_sample_t b = {101000000, 5500000, 0, 0, 0};
+    const long long ms = 1000000;
+    expect("idle guest", nl_guest_available(&a, &b, 0, 64, 20 * ms), 18500000);
+    /* ... with 1000 instructions of its own on top */
+    expect("idle and busy", nl_guest_available(&a, &b, 1000, 64, 20 * ms), 18500000 + 64000);
+    /* runnable at the end (a vCPU thread kicked, waiting for a CPU): only its instructions count */
+    b.runnable = 1;
+    expect("starved", nl_guest_available(&a, &b, 0, 64, 20 * ms), 0);
+    expect("starved, some progress", nl_guest_available(&a, &b, 10, 64, 20 * ms), 640);
+    /* runnable at the start: the wait then may not be counted yet */
+    b.runnable = 0;
+    a.runnable = 1;
+    expect("runnable at the start", nl_guest_available(&a, &b, 0, 64, 20 * ms), 0);
+    /* a thread in disk wait (the plugin's write under writeback pressure): not idle by choice */
+    b.disk_wait = 1;
+    expect("disk wait", nl_guest_available(&a, &b, 0, 64, 20 * ms), 0);
+    b.disk_wait = 0;
+    /* stopped (SIGSTOP) at either reading */
+    a.runnable = 0;
+    b.stopped = 1;
+    expect("stopped", nl_guest_available(&a, &b, 0, 64, 20 * ms), 0);
+    b.stopped = 0;
+    a.stopped = 1;
+    expect("continued", nl_guest_available(&a, &b, 0, 64, 20 * ms), 0);
+    /* the process's threads ran and waited more than the wall time between (several threads): no sleep */
+    a.stopped = 0;
+    b.exec_ns = a.exec_ns + 15 * ms;
+    b.delay_ns = a.delay_ns + 10 * ms;
+    expect("busy threads", nl_guest_available(&a, &b, 0, 64, 20 * ms), 0);
+    /* a spinning guest: its instructions, however little wall time */
+    expect("spinning", nl_guest_available(&a, &b, 1000000, 64, 20 * ms), 64000000);
+    expect("no wall time", nl_guest_available(&a, &b, 0, 64, 0), 0);
+    return failures;
+}
+"""
+
+
+def test_the_guest_time_counts_instructions_and_idle_sleep_only(tmp_path: Path) -> None:
+    cc = shutil.which("cc") or shutil.which("gcc")
+    if cc is None:
+        pytest.skip("no host C compiler")
+    src = tmp_path / "check.c"
+    src.write_text(_CHECK)
+    exe = tmp_path / "check"
+    subprocess.run([cc, "-std=c99", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion", "-I", str(NATIVE), "-o",
+                    str(exe), str(src), str(NATIVE / "loop_stall.c")], check=True, capture_output=True, text=True)
+    proc = subprocess.run([str(exe)], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stdout
+
+
+@pytest.mark.timing
+def test_the_hosts_map_of_the_count_grows_while_the_guest_runs(reference_elf: Path) -> None:
+    """The guest boots and then waits in WFI for a frame: its count grows, then stays put (timing: a QEMU starved
+    for 50 ms in mid-boot looks settled)."""
+    qemu = QemuTarget(reference_elf)
+    try:
+        assert qemu.progress_address() != 0
+        deadline = time.monotonic() + 30.0
+        while (qemu.executed_instructions() or 0) == 0 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        booted = qemu.executed_instructions()
+        assert booted is not None and booted > 0
+        settled = booted
+        for _ in range(300):  # until the boot code is done: two readings 50 ms apart that agree
+            time.sleep(0.05)
+            now = qemu.executed_instructions()
+            assert now is not None
+            if now == settled:
+                break
+            settled = now
+        time.sleep(0.2)
+        assert qemu.executed_instructions() == settled, "the count moved while the guest waited for a frame"
+    finally:
+        qemu.close()
+    assert qemu.executed_instructions() is None and qemu.progress_address() == 0
