@@ -155,6 +155,41 @@ def test_cli_error_is_one_line_exit_2(capsys: pytest.CaptureFixture[str]) -> Non
     assert err == ["hil: error: --load-fmu /nonexistent/fan.fmu: no such file"]
 
 
+@pytest.mark.parametrize(("make", "argv", "expected"), [
+    ("notzip", [], "not an FMU (not a zip archive)"),
+    ("fmi1", [], "FMI version 1.0 (FMI 2.0 and 3.0 Co-Simulation are supported)"),
+    ("ok", ["--load-fmu-map", "speed=w_shaft"], "no variable 'w_shaft' for the speed input"),
+    ("junkbinary", [], "cannot open its binary"),
+])
+def test_a_bad_fmu_file_is_one_line_exit_2_without_outputs(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                           make: str, argv: list[str], expected: str) -> None:
+    """A bad FMU file (not an FMU, another FMI version, a variable it lacks, a binary that is not a shared
+    library) is the user's input error, not a safety stop: `hil run` exits 2 with one line naming it, and writes
+    no metrics.json (the contained crash tests: tests/load_fmu/test_containment.py)."""
+    path = tmp_path / "fan.fmu"
+    if make == "notzip":
+        path.write_text("not a zip\n", encoding="utf-8")
+    elif make == "fmi1":
+        path = build_fan_fmu(tmp_path, 2, xml=lambda x: x.replace('fmiVersion="2.0"', 'fmiVersion="1.0"'))
+    else:
+        path = build_fan_fmu(tmp_path, 2)
+    if make == "junkbinary":  # the same archive, its binary replaced by text
+        import zipfile
+
+        junk = tmp_path / "junk.fmu"
+        with zipfile.ZipFile(path) as src, zipfile.ZipFile(junk, "w") as dst:
+            for item in src.infolist():
+                data = src.read(item)
+                dst.writestr(item, b"not an ELF file\n" if item.filename.endswith(".so") else data)
+        path = junk
+    out = tmp_path / "run"
+    assert main(["run", "--load-fmu", str(path), *argv, "--settle", "0", "--duration", "0.01", "--out",
+                 str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("hil: error: ") and expected in err[0], err
+    assert not (out / "metrics.json").exists()
+
+
 def test_a_sweep_varies_the_fmu_and_its_parameters(fan_fmus: dict[int, Path], tmp_path: Path) -> None:
     """`load_fmu` and `load_fmu_set.NAME` are sweep keys; the base options stay untouched by a point."""
     base = base_args(["--load-fmu", str(fan_fmus[2]), "--load-fmu-set", "tau=0.01"])
