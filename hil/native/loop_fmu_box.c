@@ -168,22 +168,27 @@ static int32_t box_wait(nl_fmu_t *f, box_t *b, uint32_t seq)
     }
 }
 
-/* Send the request prepared in the box and wait: its rc, or -1 with f->ended and failed_call (the FMI call the
- * process was in) at time t. */
-static int32_t box_call(nl_fmu_t *f, int32_t op, double t)
+/* Send the request prepared in the box (the FMU's process starts on it while this one goes on). */
+static void box_send(nl_fmu_t *f, int32_t op)
 {
     box_t *b = (box_t *)f->box;
     const uint32_t seq = b->req + 1u; /* the host alone writes req */
-    int32_t ended;
-    if (f->ended != NL_FMU_ENDED_NONE) {
-        return -1;
-    }
     b->op = op;
     __atomic_store_n(&b->req, seq, __ATOMIC_SEQ_CST);
     if (__atomic_load_n(&b->serve_waiting, __ATOMIC_SEQ_CST)) {
         futex_wake(&b->req);
     }
-    ended = box_wait(f, b, seq);
+    f->in_flight = 1;
+}
+
+/* Wait for the answer to the request box_send sent: its rc, or -1 with f->ended and failed_call (the FMI call the
+ * process was in) at time t. */
+static int32_t box_finish(nl_fmu_t *f, double t)
+{
+    box_t *b = (box_t *)f->box;
+    int32_t ended;
+    f->in_flight = 0;
+    ended = box_wait(f, b, b->req);
     f->in_call = b->fmu.in_call;
     if (ended != 0) {
         f->ended = ended;
@@ -206,6 +211,16 @@ static int32_t box_call(nl_fmu_t *f, int32_t op, double t)
         f->message[sizeof f->message - 1u] = '\0';
     }
     return b->rc;
+}
+
+/* Send the request prepared in the box and wait for its answer (box_finish). */
+static int32_t box_call(nl_fmu_t *f, int32_t op, double t)
+{
+    if (f->ended != NL_FMU_ENDED_NONE) {
+        return -1;
+    }
+    box_send(f, op);
+    return box_finish(f, t);
 }
 
 int64_t nl_fmu_box_size(void)
@@ -312,29 +327,62 @@ int32_t nl_fmu_exit_init(nl_fmu_t *f, double speed)
     return bounded(f, rc, previous, 0.0);
 }
 
-int32_t nl_fmu_period(nl_fmu_t *f, double t, double dt, double speed)
+int32_t nl_fmu_period_send(nl_fmu_t *f, double t, double dt, double speed)
 {
     box_t *b = (box_t *)f->box;
-    const double previous = f->torque;
-    int32_t rc;
-    if (b == NULL) {
-        rc = nl_fmu_local_period(f, t, dt, speed);
-    } else {
-        b->t = t;
-        b->dt = dt;
-        b->value = speed;
-        rc = box_call(f, OP_PERIOD, t);
+    f->t_sent = t;
+    f->torque_before = f->torque;
+    if (b == NULL) { /* in this process: the call itself, its rc kept for nl_fmu_period_wait */
+        f->rc_sent = nl_fmu_local_period(f, t, dt, speed);
+        f->in_flight = 1;
+        return 0;
     }
-    return bounded(f, rc, previous, t);
+    if (f->ended != NL_FMU_ENDED_NONE) {
+        f->rc_sent = -1;
+        return -1;
+    }
+    b->t = t;
+    b->dt = dt;
+    b->value = speed;
+    box_send(f, OP_PERIOD);
+    return 0;
+}
+
+int32_t nl_fmu_period_wait(nl_fmu_t *f)
+{
+    int32_t rc;
+    if (!f->in_flight) {
+        return f->ended != NL_FMU_ENDED_NONE || f->failed_call != NL_FMU_CALL_NONE ? -1 : 0;
+    }
+    if (f->box == NULL) {
+        f->in_flight = 0;
+        rc = f->rc_sent;
+    } else {
+        rc = box_finish(f, f->t_sent);
+    }
+    return bounded(f, rc, f->torque_before, f->t_sent);
+}
+
+int32_t nl_fmu_period(nl_fmu_t *f, double t, double dt, double speed)
+{
+    if (nl_fmu_period_send(f, t, dt, speed) != 0) {
+        return -1;
+    }
+    return nl_fmu_period_wait(f);
 }
 
 void nl_fmu_close(nl_fmu_t *f)
 {
     box_t *b = (box_t *)f->box;
     if (b == NULL) {
+        f->in_flight = 0;
         nl_fmu_local_close(f);
         return;
     }
+    if (f->in_flight && f->ended == NL_FMU_ENDED_NONE) { /* a period sent, never waited for (the run ended) */
+        (void)box_finish(f, f->t_sent);
+    }
+    f->in_flight = 0;
     if (f->ended == NL_FMU_ENDED_NONE) {
         (void)box_call(f, OP_CLOSE, 0.0);
     }

@@ -245,12 +245,10 @@ def test_operating_range_with_a_fan_load(fan_fmus: dict[int, Path], speed_rpm: f
 @pytest.mark.timing
 def test_the_c_loop_with_a_load_fmu_runs_at_least_50k_periods_per_second(fan_fmus: dict[int, Path]) -> None:
     """Lockstep, in-process target, logging off: the C loop's own rate (periods over the loop thread's wall time,
-    set-up and safe stop left out), median of 3 runs of 0.5 s. With the FMU in the run's process (unprotected) the
-    loop makes >= 50 000 periods/s; the contained default (the FMU in its own process, a shared-memory mailbox each
-    period) keeps at least 0.3 of that rate, measured in the same test (a ratio: the machine's speed cancels), a
-    floor against a regression of the mailbox. Measured on 2 cores (2026-11-28): unprotected 137k periods/s,
-    contained 56k (0.41x) at load 0.8, and 46.7k in a CI run at load ~2: the contained default does not reliably
-    reach the 50k the loop's goal names (`hil bench loop --load-fmu` prints both)."""
+    set-up and safe stop left out), median of 3 runs of 0.5 s, with the FMU in its own process (the contained
+    default: a shared-memory mailbox each period, its request sent before the target's step so that the two
+    overlap) and in the run's process (unprotected): >= 50 000 periods/s both. `hil bench loop --load-fmu`
+    prints both rates and their ratio in one run (docs/benchmarks.md)."""
     rates: dict[str, float] = {}
     for isolation in ("none", "process"):
         spec = replace(_config(fan_fmus[2]).load_fmu, isolation=isolation)  # type: ignore[type-var]
@@ -262,7 +260,7 @@ def test_the_c_loop_with_a_load_fmu_runs_at_least_50k_periods_per_second(fan_fmu
             runs.append(res.outcome.completed_periods / res.outcome.paced_time_s)
         rates[isolation] = sorted(runs)[1]
     assert rates["none"] >= 50_000.0, rates
-    assert rates["process"] >= 0.3 * rates["none"], rates
+    assert rates["process"] >= 50_000.0, rates
 
 
 def test_an_fmu_that_refuses_to_instantiate_is_a_one_line_error(tmp_path: Path,
