@@ -105,8 +105,8 @@ def main(argv: list[str] | None = None) -> int:
         else:
             for signum, handler in previous.items():
                 signal.signal(signum, handler)
-    if cli and code == 130:
-        _exit_at_once(code)
+    if cli and code == 130 and next((a for a in argv if not a.startswith("-")), "run") == "run":
+        _exit_at_once(code)  # `hil run` (also `hil` alone): its outputs are written, the user wants it gone
     return code
 
 
@@ -171,9 +171,9 @@ def _forget_unhandled_interrupt() -> None:
 
 
 def _exit_at_once(code: int) -> None:
-    """End the `hil` process now, its outputs written and closed (Ctrl-C/SIGTERM: the user wants it gone): stdio
-    flushed, the interpreter's teardown skipped (module and object finalisation took 1–1.5 s of wall time on a
-    loaded 2-core machine)."""
+    """End the `hil` process now, an interrupted run's outputs written and closed: stdio flushed, the
+    interpreter's teardown skipped (module and object finalisation took 1–1.5 s of wall time on a loaded 2-core
+    machine, against Ctrl-C/SIGTERM's 1 s)."""
     with contextlib.suppress(Exception):
         sys.stdout.flush()
     with contextlib.suppress(Exception):

@@ -2,8 +2,11 @@
  * The load FMU's calls (loop_fmu.h nl_fmu_*): in this process (nl_fmu_local_*), or contained in a process of
  * its own through a mailbox in shared memory. Lock step: the host writes a request and bumps `req`, the FMU's
  * process (nl_fmu_serve) runs it on the nl_fmu_t inside the mailbox and bumps `ack`. Each side spins a little
- * for the other, then sleeps on the futex word, woken only when it said it sleeps (`*_waiting`), so a period
- * costs no system call while both have a CPU. On a contended CPU a spin only takes the core the other side needs
+ * for the other -- the host HOST_SPIN_NS (a running peer answers within a microsecond: a longer spin only keeps
+ * a peer sharing its CPU off it), the FMU's process SERVE_SPIN_NS (longer than the host's own work of a period
+ * on an idle machine) -- then sleeps on the futex word, woken only when it said it sleeps (`*_waiting`), so a
+ * period costs no system call while both have a CPU, and a spinning side's CPU use stays bounded. On a
+ * contended CPU a spin only takes the core the other side needs
  * (measured here at load 12 on 2 cores: 2.6k periods/s spinning 50 us, 15.5k blocking at once), so each side
  * counts, over SPIN_WINDOW waits, those whose spin ran out; when more than half did, it blocks at once for
  * SPIN_BACKOFF waits, then tries spinning again (spin_t). The host wakes every WAIT_SLICE_NS to look at the process
@@ -34,7 +37,8 @@
 #define OP_PERIOD 5
 #define OP_CLOSE 6
 
-#define SPIN_NS 50000             /* each side spins this long for the other before it sleeps [ns] */
+#define HOST_SPIN_NS 5000         /* the host spins this long for an answer before it sleeps [ns] */
+#define SERVE_SPIN_NS 20000       /* the FMU's process spins this long for the next request before it sleeps [ns] */
 #define SPIN_WINDOW 64            /* waits over which the spins that ran out are counted */
 #define SPIN_BACKOFF 1024         /* waits that block at once after a window where most spins ran out */
 #define WAIT_SLICE_NS 1000000     /* a sleeping host looks at the process, its deadline and stop this often [ns] */
@@ -78,10 +82,10 @@ static void futex_wake(uint32_t *word)
     (void)syscall(SYS_futex, word, FUTEX_WAKE, 1, NULL, NULL, 0);
 }
 
-/* How long this wait may spin [ns]. */
-static int64_t spin_budget(const spin_t *sp)
+/* How long this wait may spin [ns]: `spin_ns`, or 0 while backing off. */
+static int64_t spin_budget(const spin_t *sp, int64_t spin_ns)
 {
-    return sp->block_left > 0 ? 0 : SPIN_NS;
+    return sp->block_left > 0 ? 0 : spin_ns;
 }
 
 /* A wait ended; `ran_out`: it had to sleep. */
@@ -132,7 +136,7 @@ static int process_ended(const nl_fmu_t *f)
 static int32_t box_wait(nl_fmu_t *f, box_t *b, uint32_t seq)
 {
     const int64_t start = now_ns();
-    const int64_t spin_end = start + spin_budget(&b->host_spin);
+    const int64_t spin_end = start + spin_budget(&b->host_spin, HOST_SPIN_NS);
     const int64_t deadline = start + f->timeout_ns;
     int slept = 0;
     for (;;) {
@@ -396,7 +400,7 @@ void nl_fmu_close(nl_fmu_t *f)
 /* The next request after `seen` into *req: 1, or 0 once the parent went. */
 static int next_request(box_t *b, uint32_t seen, int32_t parent_pid, uint32_t *req)
 {
-    const int64_t spin_end = now_ns() + spin_budget(&b->serve_spin);
+    const int64_t spin_end = now_ns() + spin_budget(&b->serve_spin, SERVE_SPIN_NS);
     int slept = 0;
     for (;;) {
         *req = __atomic_load_n(&b->req, __ATOMIC_ACQUIRE);
