@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from pmsm_hil.hil.errors import ParameterError, PlantFaultError
 
 
@@ -12,3 +14,12 @@ class LoadFmuError(ParameterError):
 
 class LoadFmuStepError(PlantFaultError):
     """The FMU failed during the run (instantiation, initialisation, a doStep, a non-finite torque)."""
+
+
+class LoadFmuCrashError(LoadFmuStepError):
+    """The FMU's own process crashed, exited or hung while the FMU was instantiated or initialised (before the
+    first period): a safety stop (exit 3), not a bad file. `metrics`: metrics.json `load_fmu` of the instance."""
+
+    def __init__(self, message: str, metrics: dict[str, Any]) -> None:
+        super().__init__(message)
+        self.metrics = metrics

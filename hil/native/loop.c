@@ -1060,11 +1060,14 @@ static int32_t period(loop_t *L, int64_t k)
         if (send_measurement(L, k, t, &adc) != 0) {
             return NL_END_ENCODE_ERROR;
         }
-    } else {
+    } else { /* the load FMU's period is sent first: contained, its process steps while the target does */
+        const int sent = c->load_fmu != NULL ? nl_fmu_period_send(c->load_fmu, t, c->ts_s, smp.omega_m) : 0;
         if (send_measurement(L, k, t, &smp) != 0) {
             return NL_END_ENCODE_ERROR;
         }
-        rc = c->load_fmu != NULL ? load_fmu_period(L, t, &smp) : 0;
+        if (c->load_fmu != NULL && (sent != 0 || nl_fmu_period_wait(c->load_fmu) != 0)) {
+            rc = NL_PLANT_E_LOAD_FMU;
+        }
     }
     if (rc == 0) {
         rc = advance(L, k, &st);

@@ -128,6 +128,7 @@ int32_t nl_fmu_local_open(nl_fmu_t *f, int32_t fmi_version, const char *binary, 
     f->fmi_version = fmi_version;
     f->vr_speed = vr_speed;
     f->vr_torque = vr_torque;
+    f->in_call = NL_FMU_CALL_DLOPEN; /* the library's constructors run here: a crash or hang in them is named */
     f->lib = dlopen(binary, RTLD_NOW | RTLD_LOCAL);
     if (f->lib == NULL) {
         const char *why = dlerror();

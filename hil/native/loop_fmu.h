@@ -8,8 +8,9 @@
  * Contained (the default, loop_fmu_box.c): the FMU runs in a process of its own (nl_fmu_serve) and each nl_fmu_*
  * call of this process is a request in a mailbox both map (a lock-step exchange: a short spin, then a futex
  * wait); a crash or exit of that process, a call longer than timeout_ns or nl_fmu_stop ends the call at once
- * with `ended` set, so nothing the FMU does can take or hold the loop. Without nl_fmu_box_attach the FMU's
- * functions are called in this process (`--load-fmu-isolation none`: unprotected).
+ * with `ended` set, so nothing the FMU does can take or hold the loop. A period can be sent and awaited apart
+ * (nl_fmu_period_send / _wait), so that the loop does other work while the FMU's process steps. Without
+ * nl_fmu_box_attach the FMU's functions are called in this process (`--load-fmu-isolation none`: unprotected).
  */
 #ifndef HIL_NATIVE_LOOP_FMU_H
 #define HIL_NATIVE_LOOP_FMU_H
@@ -69,6 +70,11 @@ typedef struct nl_fmu {
     int32_t ended;               /* NL_FMU_ENDED_* */
     int64_t timeout_ns;          /* wall time a call may take [ns] */
     int32_t stop;                /* nl_fmu_stop: a wait ends at once */
+    /* A period sent (nl_fmu_period_send) and not yet waited for (nl_fmu_period_wait). */
+    int32_t in_flight;
+    int32_t rc_sent;             /* in this process: the period's rc, made at once */
+    double t_sent;               /* its time [s] */
+    double torque_before;        /* the torque output before it [N*m] (kept when the new one is out of bounds) */
 } nl_fmu_t;
 
 /* Open the FMU's binary and instantiate it (Co-Simulation); 0 ok, -1 with failed_call and message. `resource`:
@@ -84,6 +90,11 @@ int32_t nl_fmu_exit_init(nl_fmu_t *f, double speed);
 /* One period: speed [rad/s] at its start t [s], the torque output read (f->torque, held over the period),
  * then doStep(t, dt); 0 ok, -1 with failed_call, status, t_fail and message. */
 int32_t nl_fmu_period(nl_fmu_t *f, double t, double dt, double speed);
+/* nl_fmu_period in two halves: send the period's request (contained: the FMU's process starts on it while the
+ * caller goes on, e.g. with the target's step), then wait for its answer; nl_fmu_period_wait returns what
+ * nl_fmu_period would have. In this process the send makes the call itself. 0 / -1 as nl_fmu_period. */
+int32_t nl_fmu_period_send(nl_fmu_t *f, double t, double dt, double speed);
+int32_t nl_fmu_period_wait(nl_fmu_t *f);
 /* Terminate (when initialised), free the instance and close the library; safe to call twice. Contained: asks
  * the FMU's process to do so (unless it ended) and unmaps the mailbox; the process then exits. */
 void nl_fmu_close(nl_fmu_t *f);

@@ -2,8 +2,11 @@
  * The load FMU's calls (loop_fmu.h nl_fmu_*): in this process (nl_fmu_local_*), or contained in a process of
  * its own through a mailbox in shared memory. Lock step: the host writes a request and bumps `req`, the FMU's
  * process (nl_fmu_serve) runs it on the nl_fmu_t inside the mailbox and bumps `ack`. Each side spins a little
- * for the other, then sleeps on the futex word, woken only when it said it sleeps (`*_waiting`), so a period
- * costs no system call while both have a CPU. On a contended CPU a spin only takes the core the other side needs
+ * for the other -- the host HOST_SPIN_NS (a running peer answers within a microsecond: a longer spin only keeps
+ * a peer sharing its CPU off it), the FMU's process SERVE_SPIN_NS (longer than the host's own work of a period
+ * on an idle machine) -- then sleeps on the futex word, woken only when it said it sleeps (`*_waiting`), so a
+ * period costs no system call while both have a CPU, and a spinning side's CPU use stays bounded. On a
+ * contended CPU a spin only takes the core the other side needs
  * (measured here at load 12 on 2 cores: 2.6k periods/s spinning 50 us, 15.5k blocking at once), so each side
  * counts, over SPIN_WINDOW waits, those whose spin ran out; when more than half did, it blocks at once for
  * SPIN_BACKOFF waits, then tries spinning again (spin_t). The host wakes every WAIT_SLICE_NS to look at the process
@@ -34,7 +37,8 @@
 #define OP_PERIOD 5
 #define OP_CLOSE 6
 
-#define SPIN_NS 50000             /* each side spins this long for the other before it sleeps [ns] */
+#define HOST_SPIN_NS 5000         /* the host spins this long for an answer before it sleeps [ns] */
+#define SERVE_SPIN_NS 20000       /* the FMU's process spins this long for the next request before it sleeps [ns] */
 #define SPIN_WINDOW 64            /* waits over which the spins that ran out are counted */
 #define SPIN_BACKOFF 1024         /* waits that block at once after a window where most spins ran out */
 #define WAIT_SLICE_NS 1000000     /* a sleeping host looks at the process, its deadline and stop this often [ns] */
@@ -78,10 +82,10 @@ static void futex_wake(uint32_t *word)
     (void)syscall(SYS_futex, word, FUTEX_WAKE, 1, NULL, NULL, 0);
 }
 
-/* How long this wait may spin [ns]. */
-static int64_t spin_budget(const spin_t *sp)
+/* How long this wait may spin [ns]: `spin_ns`, or 0 while backing off. */
+static int64_t spin_budget(const spin_t *sp, int64_t spin_ns)
 {
-    return sp->block_left > 0 ? 0 : SPIN_NS;
+    return sp->block_left > 0 ? 0 : spin_ns;
 }
 
 /* A wait ended; `ran_out`: it had to sleep. */
@@ -132,7 +136,7 @@ static int process_ended(const nl_fmu_t *f)
 static int32_t box_wait(nl_fmu_t *f, box_t *b, uint32_t seq)
 {
     const int64_t start = now_ns();
-    const int64_t spin_end = start + spin_budget(&b->host_spin);
+    const int64_t spin_end = start + spin_budget(&b->host_spin, HOST_SPIN_NS);
     const int64_t deadline = start + f->timeout_ns;
     int slept = 0;
     for (;;) {
@@ -168,22 +172,27 @@ static int32_t box_wait(nl_fmu_t *f, box_t *b, uint32_t seq)
     }
 }
 
-/* Send the request prepared in the box and wait: its rc, or -1 with f->ended and failed_call (the FMI call the
- * process was in) at time t. */
-static int32_t box_call(nl_fmu_t *f, int32_t op, double t)
+/* Send the request prepared in the box (the FMU's process starts on it while this one goes on). */
+static void box_send(nl_fmu_t *f, int32_t op)
 {
     box_t *b = (box_t *)f->box;
     const uint32_t seq = b->req + 1u; /* the host alone writes req */
-    int32_t ended;
-    if (f->ended != NL_FMU_ENDED_NONE) {
-        return -1;
-    }
     b->op = op;
     __atomic_store_n(&b->req, seq, __ATOMIC_SEQ_CST);
     if (__atomic_load_n(&b->serve_waiting, __ATOMIC_SEQ_CST)) {
         futex_wake(&b->req);
     }
-    ended = box_wait(f, b, seq);
+    f->in_flight = 1;
+}
+
+/* Wait for the answer to the request box_send sent: its rc, or -1 with f->ended and failed_call (the FMI call the
+ * process was in) at time t. */
+static int32_t box_finish(nl_fmu_t *f, double t)
+{
+    box_t *b = (box_t *)f->box;
+    int32_t ended;
+    f->in_flight = 0;
+    ended = box_wait(f, b, b->req);
     f->in_call = b->fmu.in_call;
     if (ended != 0) {
         f->ended = ended;
@@ -206,6 +215,16 @@ static int32_t box_call(nl_fmu_t *f, int32_t op, double t)
         f->message[sizeof f->message - 1u] = '\0';
     }
     return b->rc;
+}
+
+/* Send the request prepared in the box and wait for its answer (box_finish). */
+static int32_t box_call(nl_fmu_t *f, int32_t op, double t)
+{
+    if (f->ended != NL_FMU_ENDED_NONE) {
+        return -1;
+    }
+    box_send(f, op);
+    return box_finish(f, t);
 }
 
 int64_t nl_fmu_box_size(void)
@@ -312,29 +331,62 @@ int32_t nl_fmu_exit_init(nl_fmu_t *f, double speed)
     return bounded(f, rc, previous, 0.0);
 }
 
-int32_t nl_fmu_period(nl_fmu_t *f, double t, double dt, double speed)
+int32_t nl_fmu_period_send(nl_fmu_t *f, double t, double dt, double speed)
 {
     box_t *b = (box_t *)f->box;
-    const double previous = f->torque;
-    int32_t rc;
-    if (b == NULL) {
-        rc = nl_fmu_local_period(f, t, dt, speed);
-    } else {
-        b->t = t;
-        b->dt = dt;
-        b->value = speed;
-        rc = box_call(f, OP_PERIOD, t);
+    f->t_sent = t;
+    f->torque_before = f->torque;
+    if (b == NULL) { /* in this process: the call itself, its rc kept for nl_fmu_period_wait */
+        f->rc_sent = nl_fmu_local_period(f, t, dt, speed);
+        f->in_flight = 1;
+        return 0;
     }
-    return bounded(f, rc, previous, t);
+    if (f->ended != NL_FMU_ENDED_NONE) {
+        f->rc_sent = -1;
+        return -1;
+    }
+    b->t = t;
+    b->dt = dt;
+    b->value = speed;
+    box_send(f, OP_PERIOD);
+    return 0;
+}
+
+int32_t nl_fmu_period_wait(nl_fmu_t *f)
+{
+    int32_t rc;
+    if (!f->in_flight) {
+        return f->ended != NL_FMU_ENDED_NONE || f->failed_call != NL_FMU_CALL_NONE ? -1 : 0;
+    }
+    if (f->box == NULL) {
+        f->in_flight = 0;
+        rc = f->rc_sent;
+    } else {
+        rc = box_finish(f, f->t_sent);
+    }
+    return bounded(f, rc, f->torque_before, f->t_sent);
+}
+
+int32_t nl_fmu_period(nl_fmu_t *f, double t, double dt, double speed)
+{
+    if (nl_fmu_period_send(f, t, dt, speed) != 0) {
+        return -1;
+    }
+    return nl_fmu_period_wait(f);
 }
 
 void nl_fmu_close(nl_fmu_t *f)
 {
     box_t *b = (box_t *)f->box;
     if (b == NULL) {
+        f->in_flight = 0;
         nl_fmu_local_close(f);
         return;
     }
+    if (f->in_flight && f->ended == NL_FMU_ENDED_NONE) { /* a period sent, never waited for (the run ended) */
+        (void)box_finish(f, f->t_sent);
+    }
+    f->in_flight = 0;
     if (f->ended == NL_FMU_ENDED_NONE) {
         (void)box_call(f, OP_CLOSE, 0.0);
     }
@@ -348,7 +400,7 @@ void nl_fmu_close(nl_fmu_t *f)
 /* The next request after `seen` into *req: 1, or 0 once the parent went. */
 static int next_request(box_t *b, uint32_t seen, int32_t parent_pid, uint32_t *req)
 {
-    const int64_t spin_end = now_ns() + spin_budget(&b->serve_spin);
+    const int64_t spin_end = now_ns() + spin_budget(&b->serve_spin, SERVE_SPIN_NS);
     int slept = 0;
     for (;;) {
         *req = __atomic_load_n(&b->req, __ATOMIC_ACQUIRE);

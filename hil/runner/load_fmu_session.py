@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from pmsm_hil.hil.load_fmu.description import LoadFmuModel
-from pmsm_hil.hil.load_fmu.errors import LoadFmuStepError
+from pmsm_hil.hil.load_fmu.errors import LoadFmuCrashError, LoadFmuStepError
 from pmsm_hil.hil.runner.load_fmu_process import LoadFmuProcess, describe_exit
 from pmsm_hil.hil.runner.stop_request import deferred_interrupts
 
@@ -70,19 +70,27 @@ class LoadFmuSession:
                             resource.encode(), model.vr_speed, model.vr_torque)
             self._open = True  # closed even after a failed open (contained: the process is ended)
             if rc != 0:
-                raise LoadFmuStepError(self.failure())
+                raise self._init_failed()
             if self._call(lib.nl_fmu_enter_init, self.fmu, 0.0) != 0:
-                raise LoadFmuStepError(self.failure())
+                raise self._init_failed()
             for p in model.params:
                 if self._call(lib.nl_fmu_set, self.fmu, p.vr, p.kind, p.value) != 0:
-                    raise LoadFmuStepError(f"{self.failure()} (--load-fmu-set {p.name}={p.value:g})")
+                    raise self._init_failed(f" (--load-fmu-set {p.name}={p.value:g})")
             if self._call(lib.nl_fmu_exit_init, self.fmu, speed0_rad_s) != 0:
-                raise LoadFmuStepError(self.failure())
+                raise self._init_failed()
         except BaseException:
             self.close()
             raise
         self.torque0 = float(self.fmu.torque)
         self._running = True
+
+    def _init_failed(self, suffix: str = "") -> LoadFmuStepError:
+        """The error of a failed set-up call: LoadFmuCrashError when the FMU's process crashed, exited or hung
+        (a safety stop), else LoadFmuStepError (the FMU refused: an FMI status, a NULL instance, its binary)."""
+        line = f"{self.failure()}{suffix}"
+        if self.contained_failure:
+            return LoadFmuCrashError(line, self.metrics())
+        return LoadFmuStepError(line)
 
     def _call(self, fn: Callable[..., int], *args: Any) -> int:
         """An initialisation call; contained, made in a worker thread so that Ctrl-C/SIGTERM are seen at once

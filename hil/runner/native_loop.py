@@ -74,7 +74,11 @@ class NativeLoop:
         self._c = lib.nl_config(self._h)
         self._res = lib.nl_result(self._h)
         self._config_arrays = fill_config(self._c, ffi, lib, cfg, plant, controller_id, link.fd, opts)
-        self.load_fmu = open_load_fmu(cfg, ffi, lib, self._c)  # None: the scenario's load profile
+        try:
+            self.load_fmu = open_load_fmu(cfg, ffi, lib, self._c)  # None: the scenario's load profile
+        except BaseException:
+            lib.nl_destroy(self._h)
+            raise
         if lib.NL_FINDINGS < MAX_KEPT_VIOLATIONS:
             raise ImportError("native loop: NL_FINDINGS must keep at least MAX_KEPT_VIOLATIONS findings per block")
         self._period_size = int(lib.nl_sizeof_period())

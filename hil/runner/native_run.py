@@ -8,11 +8,13 @@ import os
 from collections.abc import Callable
 
 from pmsm_hil.hil.errors import ParameterError
+from pmsm_hil.hil.load_fmu.errors import LoadFmuCrashError
 from pmsm_hil.hil.runner.block_sink import RunSink
 from pmsm_hil.hil.runner.loop_outcome import LoopOutcome
 from pmsm_hil.hil.runner.native_config import NativeOptions, support_problem
 from pmsm_hil.hil.runner.native_link import NativeCoreLink, NativeLoopUnavailableError, native_lib
 from pmsm_hil.hil.runner.native_link_kinds import NATIVE_WIRES
+from pmsm_hil.hil.runner.native_load_fmu import ended_while_initialising
 from pmsm_hil.hil.runner.native_loop import NativeLoop
 from pmsm_hil.hil.runner.native_pylink import NativePyLink
 from pmsm_hil.hil.runner.native_wire import NativeWireLink
@@ -104,7 +106,14 @@ def run_native(cfg: RunConfig, conn: TargetConnection, cid: int, sink: RunSink,
     opts = NativeOptions(record_frames=sink.logger is not None, silent_after=silent_after,
                          fault=(fault.code, fault.detail) if fault is not None else None, target_pid=conn.target_pid(),
                          guest_insns_address=guest_address, guest_ns_per_insn=ns_per_insn)
-    loop = NativeLoop(cfg, build_plant(cfg), conn.client, link, cid, opts, sink=sink)
+    try:
+        loop = NativeLoop(cfg, build_plant(cfg), conn.client, link, cid, opts, sink=sink)
+    except LoadFmuCrashError as exc:  # the load FMU's process crashed or hung in its set-up
+        return ended_while_initialising(cfg, conn.client, cid, sink.logger, exc)
+    except KeyboardInterrupt as exc:  # Ctrl-C/SIGTERM stopped the load FMU's set-up (deferred: nothing else raises)
+        if cfg.load_fmu_model is None:
+            raise
+        return ended_while_initialising(cfg, conn.client, cid, sink.logger, exc)
     spec = cfg.fault_spec
     faulty = link.install_faults(spec) if spec is not None and isinstance(link, NativePyLink) else None
     sink.faulty = faulty

@@ -11,6 +11,7 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 from typing import Any
@@ -36,14 +37,16 @@ RUN = ["--load-fmu-set", f"fail_at={FAIL_AT_S}", "--speed", "1000", "--settle", 
 
 @pytest.fixture(scope="module")
 def bad_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    """A fan FMU per misbehaviour (tests/load_fmu/fan_fmu.py BAD), FMI 2; `init-segv` / `init-loop`: SIGSEGV /
-    an endless loop in fmi2ExitInitializationMode; `fmi3-segv`: SIGSEGV in fmi3DoStep."""
+    """A fan FMU per misbehaviour (tests/load_fmu/fan_fmu.py BAD), FMI 2; `init-segv` / `init-abort` /
+    `init-loop`: SIGSEGV / abort() / an endless loop in fmi2ExitInitializationMode; `fmi3-segv`: SIGSEGV in
+    fmi3DoStep."""
     out = tmp_path_factory.mktemp("bad-fmu")
     fmus = {bad: build_fan_fmu(out / bad, 2, bad=bad) for bad in ("segv", "abort", "stack", "exit0", "loop",
                                                                     "block", "huge")}
     fmus["init-segv"] = build_fan_fmu(out / "init-segv", 2, bad="segv", bad_in_init=True)
     fmus["fmi3-segv"] = build_fan_fmu(out / "fmi3-segv", 3, bad="segv")
     fmus["init-loop"] = build_fan_fmu(out / "init-loop", 2, bad="loop", bad_in_init=True)
+    fmus["init-abort"] = build_fan_fmu(out / "init-abort", 2, bad="abort", bad_in_init=True)
     return fmus
 
 
@@ -61,12 +64,12 @@ def _outputs(out: Path) -> tuple[dict[str, Any], np.ndarray]:
     ("block", "hung: fmi2DoStep at period 100 did not return within --step-timeout 0.2 s"),
 ])
 def test_a_misbehaving_fmu_ends_the_run_with_exit_3(bad_fmus: dict[str, Path], bad: str, cause: str, tmp_path: Path,
-                                                    capsys: pytest.CaptureFixture[str]) -> None:
+                                                    fmu_temp: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """`hil run` (in this process: the FMU's crash must not take it) returns 3, names the cause, writes
     metrics.json and an MCAP of end_period + 1 periods (every period before the FMU's), safe stop confirmed."""
-    out, before = tmp_path / "run", _fmu_temp_dirs()
+    out = tmp_path / "run"
     assert main(["run", "--load-fmu", str(bad_fmus[bad]), *RUN, "--step-timeout", "0.2", "--out", str(out)]) == 3
-    assert _fmu_temp_dirs() <= before and _serving(os.getpid()) == []  # folder removed, process gone
+    assert _fmu_temp_dirs(fmu_temp) == set() and _serving(os.getpid()) == []  # folder removed, process gone
     metrics, periods = _outputs(out)
     assert metrics["end_code"] == 3 and cause in metrics["end_reason"], metrics["end_reason"]
     assert "\n" not in metrics["end_reason"] and metrics["safe_state"] is True
@@ -77,17 +80,31 @@ def test_a_misbehaving_fmu_ends_the_run_with_exit_3(bad_fmus: dict[str, Path], b
     assert f"hil: run ended (exit 3): load FMU 'FanLoad' ({bad_fmus[bad]}) {cause}" in err
 
 
-def test_a_crash_in_initialisation_is_one_line(bad_fmus: dict[str, Path], tmp_path: Path,
-                                               capsys: pytest.CaptureFixture[str]) -> None:
-    """SIGSEGV in fmi2ExitInitializationMode (before the run: nothing enabled yet): one line, exit 2, no temp
-    folder of the FMU left behind."""
-    before = _fmu_temp_dirs()
-    assert main(["run", "--load-fmu", str(bad_fmus["init-segv"]), "--no-log", "--settle", "0", "--duration",
-                 "0.01"]) == 2
+@pytest.mark.parametrize(("bad", "timeout", "cause"), [
+    ("init-segv", "30", "crashed (SIGSEGV in fmi2ExitInitializationMode while initialising)"),
+    ("init-abort", "30", "crashed (SIGABRT in fmi2ExitInitializationMode while initialising)"),
+    ("init-loop", "2", "hung: fmi2ExitInitializationMode while initialising did not return within --step-timeout 2 s"),
+])
+def test_a_crash_in_initialisation_is_a_safety_stop_with_outputs(bad_fmus: dict[str, Path], bad: str, timeout: str,
+                                                                 cause: str, tmp_path: Path, fmu_temp: Path,
+                                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """A crash or hang in fmi2ExitInitializationMode (before the first period: nothing enabled yet) is a safety
+    stop like one in a doStep: exit 3, one line naming the cause and the call, metrics.json and a readable MCAP
+    of 0 periods, the disabling Setpoint sent and confirmed, no temp folder or FMU process left behind."""
+    out = tmp_path / "run"
+    # the step timeout also bounds each set-up call (dlopen included): generous but for the endless loop
+    assert main(["run", "--load-fmu", str(bad_fmus[bad]), "--step-timeout", timeout, "--settle", "0", "--duration",
+                 "0.01", "--out", str(out)]) == 3
+    assert _fmu_temp_dirs(fmu_temp) == set() and _serving(os.getpid()) == []
+    metrics, periods = _outputs(out)
+    line = metrics["end_reason"]
+    assert metrics["end_code"] == 3 and line.startswith(f"load FMU 'FanLoad' ({bad_fmus[bad]}) {cause}")
+    assert line.endswith("; the run did not start, target disabled") and "\n" not in line
+    assert metrics["total_periods"] == 0 and metrics["end_period"] == -1 and len(periods) == 0
+    assert metrics["target_disabled"] is True and metrics["safe_stop_confirmed"] is True
+    assert metrics["load_fmu"]["model_name"] == "FanLoad" and metrics["load_fmu"]["steps"] == 0
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == [f"hil: error: load FMU 'FanLoad' ({bad_fmus['init-segv']}) crashed (SIGSEGV in "
-                   "fmi2ExitInitializationMode while initialising)"]
-    assert _fmu_temp_dirs() <= before and _serving(os.getpid()) == []
+    assert f"hil: run ended (exit 3): {line}; partial log: {out / 'run.mcap'}" in err, err
 
 
 def _serving(parent_pid: int) -> list[int]:
@@ -103,8 +120,18 @@ def _serving(parent_pid: int) -> list[int]:
     return pids
 
 
-def _fmu_temp_dirs() -> set[Path]:
-    return set(Path(os.environ.get("TMPDIR", "/tmp")).glob("hil-load-fmu-*"))
+@pytest.fixture
+def fmu_temp(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """The folder this test's load FMUs are unzipped into (tempfile's, for this test only: another xdist worker's
+    FMU folders in the shared TMPDIR are not this run's)."""
+    folder = tmp_path / "tmp"
+    folder.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(folder))
+    return folder
+
+
+def _fmu_temp_dirs(folder: Path) -> set[Path]:
+    return set(folder.glob("hil-load-fmu-*"))
 
 
 def _hil_run(args: list[str], **kw: Any) -> subprocess.Popen[str]:
@@ -148,10 +175,14 @@ def test_ctrl_c_ends_an_endless_looping_fmu(bad_fmus: dict[str, Path], tmp_path:
 
 def test_ctrl_c_ends_an_fmu_looping_in_its_initialisation(bad_fmus: dict[str, Path], tmp_path: Path) -> None:
     """An endless loop in fmi2ExitInitializationMode (before the run): Ctrl-C ends `hil run` (130, "before the run
-    started") long before the 100 s step timeout, the FMU's process gone."""
-    seconds, rc, err, _, pid = _interrupt_in_endless_loop(bad_fmus["init-loop"], tmp_path, signal.SIGINT)
+    started") long before the 100 s step timeout with metrics.json and an MCAP of 0 periods, the target disabled,
+    the FMU's process gone."""
+    seconds, rc, err, out, pid = _interrupt_in_endless_loop(bad_fmus["init-loop"], tmp_path, signal.SIGINT)
     assert rc == 130 and "interrupted" in err and "before the run started" in err, err
     assert seconds < 30.0 and _serving(pid) == []
+    metrics, periods = _outputs(out)
+    assert metrics["end_code"] == 130 and metrics["total_periods"] == 0 and len(periods) == 0
+    assert metrics["target_disabled"] is True
 
 
 @pytest.mark.timing

@@ -155,6 +155,41 @@ def test_cli_error_is_one_line_exit_2(capsys: pytest.CaptureFixture[str]) -> Non
     assert err == ["hil: error: --load-fmu /nonexistent/fan.fmu: no such file"]
 
 
+@pytest.mark.parametrize(("make", "argv", "expected"), [
+    ("notzip", [], "not an FMU (not a zip archive)"),
+    ("fmi1", [], "FMI version 1.0 (FMI 2.0 and 3.0 Co-Simulation are supported)"),
+    ("ok", ["--load-fmu-map", "speed=w_shaft"], "no variable 'w_shaft' for the speed input"),
+    ("junkbinary", [], "cannot open its binary"),
+])
+def test_a_bad_fmu_file_is_one_line_exit_2_without_outputs(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                           make: str, argv: list[str], expected: str) -> None:
+    """A bad FMU file (not an FMU, another FMI version, a variable it lacks, a binary that is not a shared
+    library) is the user's input error, not a safety stop: `hil run` exits 2 with one line naming it, and writes
+    no metrics.json (the contained crash tests: tests/load_fmu/test_containment.py)."""
+    path = tmp_path / "fan.fmu"
+    if make == "notzip":
+        path.write_text("not a zip\n", encoding="utf-8")
+    elif make == "fmi1":
+        path = build_fan_fmu(tmp_path, 2, xml=lambda x: x.replace('fmiVersion="2.0"', 'fmiVersion="1.0"'))
+    else:
+        path = build_fan_fmu(tmp_path, 2)
+    if make == "junkbinary":  # the same archive, its binary replaced by text
+        import zipfile
+
+        junk = tmp_path / "junk.fmu"
+        with zipfile.ZipFile(path) as src, zipfile.ZipFile(junk, "w") as dst:
+            for item in src.infolist():
+                data = src.read(item)
+                dst.writestr(item, b"not an ELF file\n" if item.filename.endswith(".so") else data)
+        path = junk
+    out = tmp_path / "run"
+    assert main(["run", "--load-fmu", str(path), *argv, "--settle", "0", "--duration", "0.01", "--out",
+                 str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("hil: error: ") and expected in err[0], err
+    assert not (out / "metrics.json").exists()
+
+
 def test_a_sweep_varies_the_fmu_and_its_parameters(fan_fmus: dict[int, Path], tmp_path: Path) -> None:
     """`load_fmu` and `load_fmu_set.NAME` are sweep keys; the base options stay untouched by a point."""
     base = base_options({"load_fmu": str(fan_fmus[2]), "load_fmu_set": ["tau=0.01"]})
@@ -210,12 +245,10 @@ def test_operating_range_with_a_fan_load(fan_fmus: dict[int, Path], speed_rpm: f
 @pytest.mark.timing
 def test_the_c_loop_with_a_load_fmu_runs_at_least_50k_periods_per_second(fan_fmus: dict[int, Path]) -> None:
     """Lockstep, in-process target, logging off: the C loop's own rate (periods over the loop thread's wall time,
-    set-up and safe stop left out), median of 3 runs of 0.5 s. With the FMU in the run's process (unprotected) the
-    loop makes >= 50 000 periods/s; the contained default (the FMU in its own process, a shared-memory mailbox each
-    period) keeps at least 0.3 of that rate, measured in the same test (a ratio: the machine's speed cancels), a
-    floor against a regression of the mailbox. Measured on 2 cores (2026-11-28): unprotected 137k periods/s,
-    contained 56k (0.41x) at load 0.8, and 46.7k in a CI run at load ~2: the contained default does not reliably
-    reach the 50k the loop's goal names (`hil bench loop --load-fmu` prints both)."""
+    set-up and safe stop left out), median of 3 runs of 0.5 s, with the FMU in its own process (the contained
+    default: a shared-memory mailbox each period, its request sent before the target's step so that the two
+    overlap) and in the run's process (unprotected): >= 50 000 periods/s both. `hil bench loop --load-fmu`
+    prints both rates and their ratio in one run (docs/benchmarks.md)."""
     rates: dict[str, float] = {}
     for isolation in ("none", "process"):
         spec = replace(_config(fan_fmus[2]).load_fmu, isolation=isolation)  # type: ignore[type-var]
@@ -227,7 +260,7 @@ def test_the_c_loop_with_a_load_fmu_runs_at_least_50k_periods_per_second(fan_fmu
             runs.append(res.outcome.completed_periods / res.outcome.paced_time_s)
         rates[isolation] = sorted(runs)[1]
     assert rates["none"] >= 50_000.0, rates
-    assert rates["process"] >= 0.3 * rates["none"], rates
+    assert rates["process"] >= 50_000.0, rates
 
 
 def test_an_fmu_that_refuses_to_instantiate_is_a_one_line_error(tmp_path: Path,
