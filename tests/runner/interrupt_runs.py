@@ -87,11 +87,22 @@ def cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime, stime
 
 
-def wait_cpu(proc: subprocess.Popen[bytes], cpu_s: float, timeout_s: float) -> None:
-    """Until `proc` has used `cpu_s` CPU seconds (or ended, or `timeout_s` of wall time passed): a delay that
-    means the same progress on an idle and on a busy machine."""
+def _execed(pid: int, marker: bytes) -> bool:
+    try:
+        return marker in Path(f"/proc/{pid}/cmdline").read_bytes()
+    except OSError:
+        return False
+
+
+def wait_cpu(proc: subprocess.Popen[bytes], cpu_s: float, timeout_s: float, marker: bytes = b"pmsm_hil") -> None:
+    """Until `proc` has used `cpu_s` CPU seconds since it exec'd its command (its command line holds `marker`),
+    or ended, or `timeout_s` of wall time passed: a delay that means the same progress on an idle and on a busy
+    machine. (Counted from the exec: the CPU of the fork of a large pytest worker before it is not the command's.)"""
     deadline = time.monotonic() + timeout_s
-    while proc.poll() is None and cpu_seconds(proc.pid) < cpu_s and time.monotonic() < deadline:
+    while proc.poll() is None and not _execed(proc.pid, marker) and time.monotonic() < deadline:
+        time.sleep(0.001)
+    cpu0 = cpu_seconds(proc.pid)
+    while proc.poll() is None and cpu_seconds(proc.pid) - cpu0 < cpu_s and time.monotonic() < deadline:
         time.sleep(0.005)
 
 
