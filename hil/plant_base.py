@@ -10,7 +10,7 @@ from typing import Any, ClassVar, NamedTuple
 import numpy as np
 import numpy.typing as npt
 from pmsm_hil.hil import _plant_native
-from pmsm_hil.hil.control_period import check_control_period
+from pmsm_hil.hil.control_period import PLANT_MIN_TS_S, check_control_period
 from pmsm_hil.hil.errors import ParameterError, PlantFaultError, SequenceError
 from pmsm_hil.hil.machine_params import MachineParams
 from pmsm_hil.hil.mechanics import DynoMechanics, InertiaMechanics, LoadProfile, Mechanics, TwoMassMechanics
@@ -93,7 +93,7 @@ class PlantBase:
 
     def __init__(self, params: Any, ts_s: float, mechanics: Mechanics, *, theta0_rad: float = 0.0,
                  trace_dt_s: float | None = 2e-6, max_piece_s: float = 5e-6) -> None:
-        self.ts_ns = check_control_period(ts_s, "control period 'ts'")
+        self.ts_ns = check_control_period(ts_s, "control period 'ts'", PLANT_MIN_TS_S)
         if trace_dt_s is not None and not (0 < trace_dt_s <= ts_s):
             raise ParameterError(f"'trace_dt' must be in (0, ts], got {trace_dt_s} s")
         if not math.isfinite(theta0_rad):

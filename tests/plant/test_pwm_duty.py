@@ -6,7 +6,6 @@ as on any other."""
 from __future__ import annotations
 
 import random
-from dataclasses import replace
 from fractions import Fraction
 from itertools import pairwise
 
@@ -133,7 +132,7 @@ def test_the_c_kernel_gives_the_same_ns() -> None:
 def test_min_pulse_and_dead_time_act_on_duty_sequences() -> None:
     """A duty whose pulse (100 ns) is shorter than t_mpw = 200 ns never reaches the gate; a wide one does, with
     the dead time counting its narrow-pulse limit 2·t_dead + t_mpw."""
-    motor = replace(load_motor("niu2020-ipmsm"), t_dead=1e-6, t_mpw=200e-9)
+    motor = load_motor("niu2020-ipmsm").with_values(t_dead=1e-6, t_mpw=200e-9)
     plant = Plant(motor, 100e-6, DynoMechanics(50.0), trace_dt_s=None)
     narrow = [round(0.001 * DUTY_FULL), DUTY_FULL // 2, DUTY_FULL // 2]  # leg a: 100 ns pulse
     st = plant.advance(*duty_sequence(narrow, plant.ts_ns))

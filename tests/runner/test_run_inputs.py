@@ -196,8 +196,10 @@ def test_the_benches_declare_ts_as_hil_run_does(argv: list[str], capsys: pytest.
     assert "--ts must be between 5 µs and 1.048575 ms" in err or "--ts must be a whole number of ns" in err
 
 
-def test_the_plant_checks_its_period_with_the_same_range() -> None:
-    from pmsm_hil.hil.control_period import MAX_TS_S, MIN_TS_S
+def test_the_plant_checks_its_period_with_the_same_function() -> None:
+    """A run's control period and a plant's period share one check; a plant built outside a run (the tests'
+    reference plants ending a period at a trace row's time) steps down to 1 µs, a run's period starts at 5 µs."""
+    from pmsm_hil.hil.control_period import MAX_TS_S, MIN_TS_S, PLANT_MIN_TS_S
     from pmsm_hil.hil.machine import machine_for
     from pmsm_hil.hil.mechanics import InertiaMechanics, LoadProfile
 
@@ -206,8 +208,10 @@ def test_the_plant_checks_its_period_with_the_same_range() -> None:
     for ts in (MIN_TS_S, MAX_TS_S, 1e-4):
         assert RunConfig(motor=m, scenario=load_scenario("steady"), ts_s=ts).ts_s == ts
         machine_for(m).build_plant(ts, mech, trace_dt_s=None)
+    machine_for(m).build_plant(PLANT_MIN_TS_S, mech, trace_dt_s=None)
     for ts in (MIN_TS_S / 2, 2 * MAX_TS_S):
-        with pytest.raises(ParameterError, match="control period 'ts' must be between 5 µs"):
-            machine_for(m).build_plant(ts, mech, trace_dt_s=None)
         with pytest.raises(ParameterError, match="--ts must be between 5 µs"):
             RunConfig(motor=m, scenario=load_scenario("steady"), ts_s=ts)
+    for ts in (PLANT_MIN_TS_S / 2, 2 * MAX_TS_S):
+        with pytest.raises(ParameterError, match="control period 'ts' must be between 1 µs"):
+            machine_for(m).build_plant(ts, mech, trace_dt_s=None)
