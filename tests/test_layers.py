@@ -11,9 +11,10 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 #: repository folder -> import name (pyproject.toml [tool.setuptools] package-dir)
-PACKAGES = {"hil": "pmsm_hil.hil", "app": "pmsm_hil.app", "protocol": "pmsm_hil.protocol",
-            "sim_target": "pmsm_hil.sim_target", "dashboards": "pmsm_hil.dashboards",
-            "pmsm_hil/testing": "pmsm_hil.testing", "pmsm_hil/conformance": "pmsm_hil.conformance"}
+PACKAGES = {"src/pmsm_hil/hil": "pmsm_hil.hil", "src/pmsm_hil/app": "pmsm_hil.app",
+            "src/pmsm_hil/protocol": "pmsm_hil.protocol", "src/pmsm_hil/sim_target": "pmsm_hil.sim_target",
+            "src/pmsm_hil/dashboards": "pmsm_hil.dashboards", "src/pmsm_hil/testing": "pmsm_hil.testing",
+            "src/pmsm_hil/conformance": "pmsm_hil.conformance"}
 
 #: (module prefix, layer), most specific first
 LAYER_OF = (
@@ -118,15 +119,15 @@ def test_every_module_has_a_layer() -> None:
 
 
 def test_the_exception_root_imports_nothing_and_every_layer_may_use_it() -> None:
-    assert list(imports(ROOT / "pmsm_hil" / "errors.py")) == []
+    assert list(imports(ROOT / "src" / "pmsm_hil" / "errors.py")) == []
     assert all("base" in used for name, used in MAY_USE.items() if name != "base")
 
 
 # --- the C side: plant kernels below the runner's loop (docs/architecture.md, "Machine kernels") -----------------
-NATIVE = ROOT / "hil" / "native"
+NATIVE = ROOT / "src" / "pmsm_hil" / "hil" / "runner" / "c"
 #: the plant kernels and what they share, in their own folder: they know nothing of the loop, its links or the
 #: firmware
-KERNELS = NATIVE / "kernels"
+KERNELS = ROOT / "src" / "pmsm_hil" / "hil" / "kernels"
 KERNEL_FILES = {p.name for p in KERNELS.glob("*.[ch]")}
 #: the only headers a kernel file may include
 KERNEL_MAY_INCLUDE = {name for name in KERNEL_FILES if name.endswith(".h")}
@@ -152,7 +153,7 @@ def test_c_plant_kernels_include_only_kernel_headers() -> None:
 
 
 def test_c_loop_reaches_the_plant_only_through_the_kernel_interface() -> None:
-    loop_files = sorted(NATIVE.glob("*.[ch]"))
+    loop_files = sorted(NATIVE.rglob("*.[ch]"))
     assert any(p.name == "loop.c" for p in loop_files)
     for path in loop_files:
         for no, header in c_includes(path):
@@ -166,7 +167,8 @@ def test_each_extension_compiles_its_own_layer() -> None:
     import importlib.util
 
     def builder(name: str) -> object:
-        spec = importlib.util.spec_from_file_location(name, NATIVE / f"{name}.py")
+        folder = KERNELS if name == "_build_plant" else NATIVE
+        spec = importlib.util.spec_from_file_location(name, folder / f"{name}.py")
         assert spec is not None and spec.loader is not None
         module = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(module)
@@ -174,7 +176,8 @@ def test_each_extension_compiles_its_own_layer() -> None:
 
     plant_sources = set(builder("_build_plant").PLANT_SOURCES)  # type: ignore[attr-defined]
     assert plant_sources == {name for name in KERNEL_FILES if name.endswith(".c")}  # every kernel, from kernels/
-    loop_sources = set(builder("_build_loop").LOOP_SOURCES)  # type: ignore[attr-defined]
+    loop = builder("_build_loop")
+    loop_sources = set(loop.LOOP_SOURCES) | set(loop.LINK_SOURCES)  # type: ignore[attr-defined]
     assert loop_sources and not (loop_sources & KERNEL_FILES)
 
 

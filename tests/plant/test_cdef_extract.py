@@ -48,7 +48,7 @@ def test_named_declarations_as_cffi_reads_them(tmp_path: Path) -> None:
 def test_the_bundled_headers_give_the_structs_the_plant_uses() -> None:
     from pmsm_hil.hil._plant_native import ffi
 
-    native = Path(__file__).resolve().parents[2] / "hil" / "native" / "kernels"
+    native = Path(__file__).resolve().parents[2] / "src" / "pmsm_hil" / "hil" / "kernels"
     text = declarations(native / "plant.h", ["pl_params_t", "pl_state_t"])
     assert "int32_t dead_level[3];" in text
     assert ffi.sizeof("pl_state_t") > 0 and ffi.sizeof("mk_sample_t") == 13 * 8
@@ -139,7 +139,7 @@ def test_a_partial_struct_keeps_the_headers_layout_in_the_built_extensions() -> 
     from pmsm_hil.hil._loop_native import ffi
     from pmsm_hil.sim_target._firmware import ffi as fw_ffi
 
-    headers = [*NATIVE.glob("*.h"), *(h for d in FIRMWARE_HEADER_DIRS for h in d.glob("*.h"))]
+    headers = [*LOOP_C.rglob("*.h"), *(h for d in FIRMWARE_HEADER_DIRS for h in d.glob("*.h"))]
     values = constants(*headers)
     assert values["NL_SERIAL_MAX_ENCODED"] == values["HIL_SERIAL_MAX_ENCODED"] + values["HIL_AUTH_TRAILER"] == 80
     fields = dict(ffi.typeof("nl_serial_t").fields)
@@ -153,17 +153,19 @@ def test_a_partial_struct_keeps_the_headers_layout_in_the_built_extensions() -> 
 
 # --- no build script restates a header -------------------------------------------------------------------------
 ROOT = Path(__file__).resolve().parents[2]
-NATIVE = ROOT / "hil" / "native"
+PACKAGE = ROOT / "src" / "pmsm_hil"
+#: the C of the package: the loop and its links (hil/runner/c), the plant kernels (hil/kernels)
+LOOP_C, KERNELS = PACKAGE / "hil" / "runner" / "c", PACKAGE / "hil" / "kernels"
 FIRMWARE_HEADER_DIRS = [ROOT / "firmware_stub" / d for d in ("include", "target", "generated")]
 #: the scripts that hand cffi a cdef
-BUILD_SCRIPTS = [NATIVE / "_build_loop.py", NATIVE / "_build_plant.py", ROOT / "sim_target" / "_build_firmware.py",
-                 ROOT / "hil" / "kernel_build.py"]
+BUILD_SCRIPTS = [LOOP_C / "_build_loop.py", KERNELS / "_build_plant.py", PACKAGE / "sim_target" / "_build_firmware.py",
+                 PACKAGE / "hil" / "kernel_build.py"]
 
 
 def header_names() -> set[str]:
     """Every typedef, function, struct tag and macro a header of the C side declares (the cffi glue headers too)."""
-    headers = [*NATIVE.rglob("*.h"), *(h for d in FIRMWARE_HEADER_DIRS for h in d.glob("*.h")),
-               *(ROOT / "sim_target").glob("*.h")]
+    headers = [*LOOP_C.rglob("*.h"), *KERNELS.glob("*.h"), *(h for d in FIRMWARE_HEADER_DIRS for h in d.glob("*.h")),
+               *(PACKAGE / "sim_target").glob("*.h")]
     return set().union(*(declared_names(h.read_text(encoding="utf-8")) for h in headers))
 
 

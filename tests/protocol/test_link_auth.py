@@ -11,7 +11,7 @@ import time
 from collections.abc import Iterator
 
 import pytest
-from pmsm_hil.hil.runner.native_link import native_lib
+from pmsm_hil.hil.runner.core_link import native_lib
 from pmsm_hil.protocol.errors import LinkError, LinkSpecError
 from pmsm_hil.protocol.links import open_link
 from pmsm_hil.protocol.links.auth import (

@@ -67,8 +67,8 @@ def test_a_burst_that_overflows_the_receive_buffer_is_counted_by_the_python_link
 @needs_vcan
 def test_a_burst_that_overflows_the_receive_buffer_is_counted_by_the_c_loop() -> None:
     from pmsm_hil.hil._loop_native import ffi, lib
-    from pmsm_hil.hil.runner.native_socketcan import SOCKETCAN_WIRE
-    from pmsm_hil.hil.runner.native_wire import WireHandle
+    from pmsm_hil.hil.runner.wire import WireHandle
+    from pmsm_hil.hil.runner.wire_socketcan import SOCKETCAN_WIRE
 
     with open_link("socketcan:vcan0,fd=true,rx_frames=64", "host") as reader:
         h = WireHandle(SOCKETCAN_WIRE, ffi, lib, reader.bus, target_role=False, spin_ns=0)

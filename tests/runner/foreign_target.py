@@ -25,7 +25,7 @@ from pathlib import Path
 import can
 import cantools
 
-DBC = Path(__file__).resolve().parents[2] / "protocol" / "hil.dbc"
+DBC = Path(__file__).resolve().parents[2] / "src" / "pmsm_hil" / "protocol" / "hil.dbc"
 TS_NS = 100_000
 
 

@@ -18,7 +18,7 @@ import pytest
 from pmsm_hil.hil.runlog import read_frames
 
 ROOT = Path(__file__).resolve().parents[2]
-DBC = ROOT / "protocol" / "hil.dbc"
+DBC = ROOT / "src" / "pmsm_hil" / "protocol" / "hil.dbc"
 HIL = [sys.executable, "-m", "pmsm_hil.app.cli.main"]
 pytestmark = [
     pytest.mark.skipif(not Path("/sys/class/net/vcan0").exists(),

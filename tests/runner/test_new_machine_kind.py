@@ -49,7 +49,8 @@ def _cfg(rl: Any, loop: str) -> RunConfig:
 def test_the_kind_lives_only_in_its_own_files(rl: Any) -> None:
     """Nothing in the package names the kind: its kernel, parameter class and registry line are its own."""
     assert sorted(p.name for p in KIND_DIR.iterdir() if p.suffix in (".c", ".py")) == ["rl_load.c", "rl_load.py"]
-    for folder in ("hil", "app", "protocol", "sim_target", "dashboards", "pmsm_hil"):
+    assert (REPO / "src" / "pmsm_hil" / "hil" / "plant.py").is_file()
+    for folder in ("src", "firmware_stub"):
         for path in (REPO / folder).rglob("*"):
             if path.suffix in (".py", ".c", ".h", ".toml"):
                 text = path.read_text(encoding="utf-8", errors="replace")

@@ -17,7 +17,7 @@ from typing import Any
 
 import can
 import pytest
-from pmsm_hil.hil.runner import native_run
+from pmsm_hil.hil.runner import loop_run
 from pmsm_hil.hil.runner.contract import EndCode
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.target_client import DRAIN_MAX, TargetClient
@@ -33,7 +33,7 @@ from pmsm_hil.protocol.links.shared_bus import (
     target_ids,
 )
 
-from tests.runner.test_native_loop import _three
+from tests.runner.test_loop import _three
 
 #: the ids the target sends: a flood of them with random data is what the host must not take as the target's
 TARGET_IDS = sorted(target_ids())
@@ -85,7 +85,7 @@ class Flood:
 def through_python_link(monkeypatch: pytest.MonkeyPatch) -> None:
     """The in-process Python target on the virtual bus itself (not the C core without a bus), reached through
     the C loop's callback link: the flood reaches the host's receive."""
-    monkeypatch.setattr(native_run, "in_core", lambda cfg: False)
+    monkeypatch.setattr(loop_run, "in_core", lambda cfg: False)
 
 
 def _run_flooded(channel: str, ids: str, rate: float, **overrides: Any) -> dict[str, Any]:
@@ -261,7 +261,7 @@ def test_the_c_socketcan_receive_ends_on_a_queue_that_never_empties() -> None:
     import socket
 
     from can.interfaces.socketcan.socketcan import build_can_frame
-    from pmsm_hil.hil.runner.native_link import native_lib
+    from pmsm_hil.hil.runner.core_link import native_lib
 
     ffi, lib = native_lib()
     a, b = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
