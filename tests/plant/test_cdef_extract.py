@@ -1,6 +1,6 @@
-"""The cffi declarations come from the C headers (hil/cdef_extract.py): named typedefs and prototypes, macros in
-array sizes replaced (integer expressions, across headers), integer constants listed, structs cut down or opaque,
-glue functions from their definitions; a name the header lacks is an error naming it; no build script restates a
+"""The cffi declarations come from the C headers (src/pmsm_hil/hil/cdef_extract.py): named typedefs and prototypes,
+macros in array sizes replaced (integer expressions, across headers), integer constants listed, structs cut down or
+opaque, glue functions from their definitions; a name the header lacks is an error naming it; no build script restates a
 header."""
 
 from __future__ import annotations
@@ -154,7 +154,8 @@ def test_a_partial_struct_keeps_the_headers_layout_in_the_built_extensions() -> 
 # --- no build script restates a header -------------------------------------------------------------------------
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGE = ROOT / "src" / "pmsm_hil"
-#: the C of the package: the loop and its links (hil/runner/c), the plant kernels (hil/kernels)
+#: the C of the package: the loop and its links (src/pmsm_hil/hil/runner/c), the plant kernels
+#: (src/pmsm_hil/hil/kernels)
 LOOP_C, KERNELS = PACKAGE / "hil" / "runner" / "c", PACKAGE / "hil" / "kernels"
 FIRMWARE_HEADER_DIRS = [ROOT / "firmware_stub" / d for d in ("include", "target", "generated")]
 #: the scripts that hand cffi a cdef
@@ -202,6 +203,6 @@ typedef struct { int32_t mine; } my_own_t;
 
 @pytest.mark.parametrize("script", BUILD_SCRIPTS, ids=lambda p: p.name)
 def test_no_build_script_restates_a_header(script: Path) -> None:
-    """Every struct, typedef, prototype and constant cffi reads comes from its header through hil/cdef_extract.py;
-    a declaration typed into a build script would drift from the header it copies."""
+    """Every struct, typedef, prototype and constant cffi reads comes from its header through
+    src/pmsm_hil/hil/cdef_extract.py; a declaration typed into a build script would drift from the header it copies."""
     assert restated(script.read_text(encoding="utf-8"), header_names()) == []

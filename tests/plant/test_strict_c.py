@@ -10,7 +10,8 @@ import pytest
 from pmsm_hil.hil.load_fmu.headers import fmi_include_dir
 
 ROOT = Path(__file__).resolve().parents[2]
-#: the package's C: the plant kernels (hil/kernels), the period loop (hil/runner/c) and its links (hil/runner/c/links)
+#: the package's C: the plant kernels (src/pmsm_hil/hil/kernels), the period loop (src/pmsm_hil/hil/runner/c) and its
+#: links (src/pmsm_hil/hil/runner/c/links)
 HIL = ROOT / "src" / "pmsm_hil" / "hil"
 KERNELS, LOOP_C, LINKS = HIL / "kernels", HIL / "runner" / "c", HIL / "runner" / "c" / "links"
 STRICT = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion", "-pedantic", "-O2"]

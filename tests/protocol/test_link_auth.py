@@ -1,5 +1,5 @@
-"""Authenticated frames (issue 26, item 4; protocol/links/auth.py, firmware_stub/target/hil_auth.c): the C MAC
-against Python's hmac/hashlib, C and Python seal and open each other's frames, and the Python UDP and serial
+"""Authenticated frames (issue 26, item 4; src/pmsm_hil/protocol/links/auth.py, firmware_stub/target/hil_auth.c): the C
+MAC against Python's hmac/hashlib, C and Python seal and open each other's frames, and the Python UDP and serial
 links drop (and count) spoofed, stripped and replayed frames."""
 
 from __future__ import annotations

@@ -1,6 +1,7 @@
-"""Kernel receive drops of SocketCAN links (protocol/links/socketcan_bus.py, hil/native/loop_socketcan.c): the
-receive buffer sized for `rx_frames`, and a burst that overflows it counted in `kernel_dropped` by the Python
-link and by the C loop. The vcan tests run where vcan0 exists (`.ci/vcan-vm`, docs/ci.md)."""
+"""Kernel receive drops of SocketCAN links (src/pmsm_hil/protocol/links/socketcan_bus.py,
+src/pmsm_hil/hil/runner/c/links/loop_socketcan.c): the receive buffer sized for `rx_frames`, and a burst that overflows
+it counted in `kernel_dropped` by the Python link and by the C loop. The vcan tests run where vcan0 exists
+(`.ci/vcan-vm`, docs/ci.md)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""The C period loop over any Python link (the callback link, hil/runner/callback_link.py): python-can adapters,
-in-process Python targets on a real link, and a bus error inside a callback. Records and metrics equal the
+"""The C period loop over any Python link (the callback link, src/pmsm_hil/hil/runner/callback_link.py): python-can
+adapters, in-process Python targets on a real link, and a bus error inside a callback. Records and metrics equal the
 Python loop's, bit for bit."""
 
 from __future__ import annotations

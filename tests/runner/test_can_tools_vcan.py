@@ -1,5 +1,5 @@
 """Real CAN tools on our bus (vcan0, `.ci/vcan-vm`): can-utils `candump -L` records a `hil run` over SocketCAN
-and `cantools decode protocol/hil.dbc` names its frames; `cansend` of hand-made Setpoint frames reaches a
+and `cantools decode src/pmsm_hil/protocol/hil.dbc` names its frames; `cansend` of hand-made Setpoint frames reaches a
 running `hil target`, whose own rules answer them."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
-"""The DUT contract of duty-cycle Commands (hil/runner/contract.py `check_duties`): NaN, out-of-range and a duty
-count other than the machine's legs are findings of rule `duty`; valid duties pass, whatever the durations."""
+"""The DUT contract of duty-cycle Commands (src/pmsm_hil/hil/runner/contract.py `check_duties`): NaN, out-of-range and a
+duty count other than the machine's legs are findings of rule `duty`; valid duties pass, whatever the durations."""
 
 from __future__ import annotations
 

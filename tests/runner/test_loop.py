@@ -1,5 +1,5 @@
-"""The native period loop (hil/native/loop.c) gives the Python loop's records bit for bit: every field of every
-period record but the measured execution times, the raw frames of the log, the trace, the metrics, and the
+"""The native period loop (src/pmsm_hil/hil/runner/c/loop.c) gives the Python loop's records bit for bit: every field of
+every period record but the measured execution times, the raw frames of the log, the trace, the metrics, and the
 same ending (a silent target); runs it cannot do fall back to the Python loop with the reason."""
 
 from __future__ import annotations
@@ -115,8 +115,9 @@ def test_classic_can_and_six_phases(make: Any, link: str, sensors: SensorConfig)
     ("virtual", "single", 0.0), ("virtual,fd=false", "double", 0.0), ("virtual", "double", 1e-6),
 ])
 def test_foc_via_duty_cycles_logs_identically(link: str, pwm_update: str, t_dead: float) -> None:
-    """foc's duty-cycle Commands (CmdDutyFd, CmdDutyA/B/C): the carrier comparison in C (hil/native/pwm_duty.c)
-    gives the oracle's records (hil/pwm.py) bit for bit, single and double update, with dead time."""
+    """foc's duty-cycle Commands (CmdDutyFd, CmdDutyA/B/C): the carrier comparison in C
+    (src/pmsm_hil/hil/runner/c/pwm_duty.c) gives the oracle's records (src/pmsm_hil/hil/pwm.py) bit for bit, single and
+    double update, with dead time."""
     cfg = _three(link=link, sensors=SENSORS)
     cfg = replace(cfg, controller="foc", pwm_update=pwm_update, motor=replace(cfg.motor, t_dead=t_dead, t_mpw=0.5e-6))
     py, na = _both(cfg)
@@ -309,8 +310,9 @@ def test_every_reference_controller_gives_the_python_loops_records(name: str, ph
 
 
 def test_the_c_record_structs_are_generated_from_the_dtypes() -> None:
-    """hil/native/records.h is what `python -m pmsm_hil.hil.gen_records` writes from PERIOD_DTYPE / FRAME_DTYPE,
-    and the compiled loop's structs have the dtypes' sizes (the header also checks every offset at compile time)."""
+    """src/pmsm_hil/hil/runner/c/records.h is what `python -m pmsm_hil.hil.gen_records` writes from PERIOD_DTYPE /
+    FRAME_DTYPE, and the compiled loop's structs have the dtypes' sizes (the header also checks every offset at compile
+    time)."""
     from pmsm_hil.hil import gen_records
     from pmsm_hil.hil._loop_native import lib
     from pmsm_hil.hil.records import FRAME_DTYPE, PERIOD_DTYPE

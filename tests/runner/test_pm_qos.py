@@ -1,5 +1,5 @@
 """The CPUs' wake-up latency held for real-time runs (issue 30: the UDP pair at 50 µs): the PM QoS request
-(hil/runner/pm_qos.py), when a run holds it, and how a spawned target waits for frames in real time."""
+(src/pmsm_hil/hil/runner/pm_qos.py), when a run holds it, and how a spawned target waits for frames in real time."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""The run-option schema (hil/runner/run_options.py) is the one source: every front end offers exactly its options
-and refuses a value out of an option's range with an error naming the option (or the key)."""
+"""The run-option schema (src/pmsm_hil/hil/runner/run_options.py) is the one source: every front end offers exactly its
+options and refuses a value out of an option's range with an error naming the option (or the key)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""The confirmed safe stop (hil/runner/safe_stop.py) with every reference target kind and both loops; a target
-that disables without confirming ends a completed run with exit 3. The foreign target process that ignores the
+"""The confirmed safe stop (src/pmsm_hil/hil/runner/safe_stop.py) with every reference target kind and both loops; a
+target that disables without confirming ends a completed run with exit 3. The foreign target process that ignores the
 disabling Setpoint: tests/runner/test_dut_contract.py."""
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
-"""A shared CAN bus (protocol/links/shared_bus.py, hil/native/loop.c from_target_node): other nodes' frames are
-counted as bus traffic (`bus_foreign_frames`, `bus_suspect_frames`), never taken as the target's; a flood that
-starves the run ends naming the bus, never the target. Host-side: a python-can `virtual` bus marked
-`shared=true`, an in-process target served through the C loop's callback link, and a flooding thread of random
+"""A shared CAN bus (src/pmsm_hil/protocol/links/shared_bus.py, src/pmsm_hil/hil/runner/c/loop.c from_target_node):
+other nodes' frames are counted as bus traffic (`bus_foreign_frames`, `bus_suspect_frames`), never taken as the
+target's; a flood that starves the run ends naming the bus, never the target. Host-side: a python-can `virtual` bus
+marked `shared=true`, an in-process target served through the C loop's callback link, and a flooding thread of random
 and of protocol ids (the same logic runs on every CAN link; .ci/vcan-vm-bus-flood runs it on vcan0 with
 cangen)."""
 

@@ -1,7 +1,7 @@
-"""The native loop over a serial link (hil/native/loop_serial.c: COBS + CRC-16 framing of
+"""The native loop over a serial link (src/pmsm_hil/hil/runner/c/links/loop_serial.c: COBS + CRC-16 framing of
 firmware_stub/target/hil_serial.c) with the native target it spawns on the other end of a pty (`hil target
---native`, hil/native/target_serve.c) gives the records, frames and metrics of the Python loop with the Python
-target over the same kind of link, bit for bit (but what the wall clock measures); against a foreign target it
+--native`, src/pmsm_hil/hil/runner/c/target_serve.c) gives the records, frames and metrics of the Python loop with the
+Python target over the same kind of link, bit for bit (but what the wall clock measures); against a foreign target it
 ends runs as the Python loop does; its receiver counts a damaged byte stream as the Python link does."""
 
 from __future__ import annotations

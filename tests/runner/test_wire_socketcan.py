@@ -1,5 +1,5 @@
-"""The native loop's SocketCAN link (hil/native/loop_socketcan.c). This machine's kernel has no SocketCAN (no
-vcan), so the C link is tested on a SOCK_SEQPACKET socketpair carrying the same `struct can_frame` /
+"""The native loop's SocketCAN link (src/pmsm_hil/hil/runner/c/links/loop_socketcan.c). This machine's kernel has no
+SocketCAN (no vcan), so the C link is tested on a SOCK_SEQPACKET socketpair carrying the same `struct can_frame` /
 `struct canfd_frame` bytes python-can's socketcan interface writes and reads: its frames are python-can's, byte
 for byte, and a run of the native loop over the pair — against a Python target (SimTarget) or the C target core
 (nt_serve) on the other end — gives the Python loop's records and metrics. With a vcan0 interface, the same

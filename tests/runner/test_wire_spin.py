@@ -1,5 +1,5 @@
-"""The adaptive spin of the native links (hil/native/nl_link.c): spin while it pays, block at once when the
-spins keep running out (the peer shares a core with other work) - longer each time the load stays - then try
+"""The adaptive spin of the native links (src/pmsm_hil/hil/runner/c/links/nl_link.c): spin while it pays, block at once
+when the spins keep running out (the peer shares a core with other work) - longer each time the load stays - then try
 spinning again; a peer with nothing to send is no load."""
 
 from __future__ import annotations
@@ -144,8 +144,8 @@ def test_a_process_on_one_cpu_does_not_spin(monkeypatch: pytest.MonkeyPatch) -> 
 
 
 def test_the_udp_floor_is_a_real_round_trip_between_two_processes() -> None:
-    """hil/native/link_floor.c (`hil bench loop` prints it beside the native pair): every round trip is timed,
-    a blocking one costs at least a wake-up of the other process, nothing is left running."""
+    """src/pmsm_hil/hil/runner/c/links/link_floor.c (`hil bench loop` prints it beside the native pair): every round
+    trip is timed, a blocking one costs at least a wake-up of the other process, nothing is left running."""
     ffi, lib = native_lib()
     out = ffi.new("nl_udp_floor_t *")
     for spin_ns in (50_000, 0):

@@ -1,6 +1,7 @@
-"""The native loop over UDP (hil/native/loop_udp.c) with the native target it spawns (`hil target --native`,
-hil/native/target_udp.c) gives the records, frames and metrics of the Python loop with the Python target over
-the same link, bit for bit (but what the wall clock measures). The killed host: tests/runner/test_spawn_safety.py."""
+"""The native loop over UDP (src/pmsm_hil/hil/runner/c/links/loop_udp.c) with the native target it spawns (`hil target
+--native`, src/pmsm_hil/hil/runner/c/target_serve.c) gives the records, frames and metrics of the Python loop with the
+Python target over the same link, bit for bit (but what the wall clock measures). The killed host:
+tests/runner/test_spawn_safety.py."""
 
 from __future__ import annotations
 

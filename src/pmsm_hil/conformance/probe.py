@@ -36,7 +36,7 @@ PROBE_LOCKSTEP_TIMEOUT_S = 2.0
 UNKNOWN_MODE = 2
 #: seq of the probe's first Measurement: half the 16-bit space away from a run just before (which starts at 0),
 #: so a target that takes a seq up to 1024 behind its last one for a stale frame (the reference target's
-#: decoder, protocol/assembler.py STALE_WINDOW) sees a new run, not old frames
+#: decoder, src/pmsm_hil/protocol/assembler.py STALE_WINDOW) sees a new run, not old frames
 FIRST_SEQ = 0x8000
 
 
@@ -89,7 +89,7 @@ class Probe:
             self.conn.close()
 
     def disable(self, mode: int) -> SafeStop:
-        """The disabling Setpoint in `mode`, and what confirmed it (hil/runner/safe_stop.py)."""
+        """The disabling Setpoint in `mode`, and what confirmed it (src/pmsm_hil/hil/runner/safe_stop.py)."""
         return disable_and_confirm(self.client, self.cid, mode=mode)
 
     def setpoint(self, *, enable: bool, mode: int, reference: float, cid: int | None = None) -> None:

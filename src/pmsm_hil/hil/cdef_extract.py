@@ -1,6 +1,6 @@
 """cffi declarations taken from the C headers themselves, so the build scripts never restate a struct, a prototype or
-a constant (hil/native/_build_plant.py, _build_loop.py, sim_target/_build_firmware.py, and `kernel_build` for a
-kind's kernel).
+a constant (src/pmsm_hil/hil/kernels/_build_plant.py, src/pmsm_hil/hil/runner/c/_build_loop.py,
+src/pmsm_hil/sim_target/_build_firmware.py, and `kernel_build` for a kind's kernel).
 
 `declarations(header, names)` returns the named typedefs and prototypes of a header (or of a kind's one C file,
 tests/runner/rl_kind), in the order of `names`, with comments, preprocessor lines, `static` / `inline` and

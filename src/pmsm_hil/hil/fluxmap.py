@@ -4,7 +4,7 @@ Read from a CSV (`id,iq,psi_d,psi_q` in A and Wb, one row per grid point, any or
 (`fluxmap_syre.py`); a map given for iq ≥ 0 only is completed by the machine's symmetry about the d axis,
 ψd(id, −iq) = ψd(id, iq), ψq(id, −iq) = −ψq(id, iq).
 
-The interpolant (what the C kernel evaluates, hil/native/kernels/fluxmap.c): piecewise bicubic Hermite on the grid
+The interpolant (what the C kernel evaluates, src/pmsm_hil/hil/kernels/fluxmap.c): piecewise bicubic Hermite on the grid
 cells, C1 everywhere, with node slopes ∂ψ/∂id, ∂ψ/∂iq by PCHIP (Fritsch–Carlson/Butland weighted harmonic mean of
 the neighbouring secants, as scipy's PchipInterpolator) along each grid line and the twist ∂²ψ/∂id∂iq by PCHIP of
 the id-slopes along iq. PCHIP keeps every grid line's monotonicity (no overshoot between points, so ψd stays

@@ -2,7 +2,8 @@
 
 A motor TOML of this kind names the map beside `kind` (`flux_map = "map.csv"`, relative to the TOML) and gives rs,
 pole_pairs, vdc, j (b, t_mpw, trips, rated figures, speed PI optional) in `[parameters]`. The map is read and
-checked when the parameters are made (hil/fluxmap.py): monotone, non-singular, and reaching the trip current.
+checked when the parameters are made (src/pmsm_hil/hil/fluxmap.py): monotone, non-singular, and reaching the trip
+current.
 
 What the controllers are told (`model_parameters`): the linear model ψd = Ld·id + ψf, ψq = Lq·iq fitted at the
 rated operating point on the q axis, (0, iq_r) with 1.5·p·ψd(0, iq_r)·iq_r = the rated torque: ψf = ψd(0, iq_r),
@@ -53,7 +54,7 @@ class FluxMapParams:
     name: str = "fluxmap"
 
     SETTABLE_UNITS: ClassVar[dict[str, str]] = _SETTABLE
-    #: top-level keys of a motor TOML that name files next to it (hil/presets_loader.py)
+    #: top-level keys of a motor TOML that name files next to it (src/pmsm_hil/hil/presets_loader.py)
     FILE_KEYS: ClassVar[tuple[str, ...]] = ("flux_map",)
     REQUIRED: ClassVar[tuple[str, ...]] = ("flux_map", "rs", "pole_pairs", "vdc", "j")
 

@@ -1,4 +1,4 @@
-"""The saturated PMSM of a flux map through its C kernel (hil/native/kernels/fluxmap.c) and its machine layout.
+"""The saturated PMSM of a flux map through its C kernel (src/pmsm_hil/hil/kernels/fluxmap.c) and its machine layout.
 
 The map's axes and bicubic coefficients are cffi arrays this plant owns; the kernel's params struct points to them
 (no copy, any grid size), so they live as long as the plant (and the native loop that advances it).

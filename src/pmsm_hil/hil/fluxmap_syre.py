@@ -11,7 +11,7 @@ flux along −q — and PMSM ("PM") axes for surface and V-type machines. A moto
 `motorModel.data.axisType`; for a bare map the rule of SyR-e's own C_MMLut.m decides: a first id column that is
 negative means PM axes (the magnet on d, id ≤ 0 for field weakening), else SR axes. SR maps are turned into this
 package's PMSM convention (magnet on +d) as SyR-e's MMM_sr2pm.m does: i_d = −Iq, i_q = Id, ψd = −Fq, ψq = Fd.
-A map given for iq ≥ 0 only is completed by the d-axis symmetry (hil/fluxmap.py).
+A map given for iq ≥ 0 only is completed by the d-axis symmetry (src/pmsm_hil/hil/fluxmap.py).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Python API of the exact induction machine + inverter plant (kernel hil/native/kernels/im.c), and its machine
+"""Python API of the exact induction machine + inverter plant (kernel src/pmsm_hil/hil/kernels/im.c), and its machine
 kind "im" (the `MachineLayout` registered by pmsm_hil.hil.machine).
 
 Samples carry the phase currents, the currents in the rotor-flux frame (i_d: flux-producing, along ψR; i_q:

@@ -1,6 +1,7 @@
 """Build a machine kind's C kernel that is not bundled (a user's, or a test's) into a cffi extension module and
-import it: the same strict flags as the bundled plant kernels (hil/native/_build_plant.py), the kernel headers
-(machine_kernel.h, gate_edges.h, dq_segment.h) on the include path, the shared gate-edge and dq helpers linked in.
+import it: the same strict flags as the bundled plant kernels (src/pmsm_hil/hil/kernels/_build_plant.py), the kernel
+headers (machine_kernel.h, gate_edges.h, dq_segment.h) on the include path, the shared gate-edge and dq helpers linked
+in.
 
 The module's ``lib`` then offers the kernel's functions named in `cdef`, among them the one returning its
 machine-kernel table (`PlantBase.KERNEL_TABLE`), and ``ffi`` its structs for `PlantBase.NATIVE_MODULE`.
@@ -16,7 +17,7 @@ from types import ModuleType
 from pmsm_hil.hil.cdef_extract import declarations
 from pmsm_hil.hil.errors import ParameterError
 
-#: the kernel headers and shared helpers (hil/native beside this package's sources)
+#: the kernel headers and shared helpers (hil/kernels, installed with the package)
 NATIVE_DIR = Path(__file__).resolve().parent / "kernels"
 #: C sources every kernel may use: gate edges, dead time and the closed-form dq segment
 SHARED_SOURCES = ("gate_edges.c", "dq_segment.c")
@@ -28,7 +29,8 @@ KERNEL_FLAGS = ("-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-Wdouble-prom
 
 def common_cdef() -> str:
     """What every kernel's cdef starts with, from the headers: `ge_period_stats_t`, `mk_sample_t`, and the opaque
-    `mk_kernel_t` (the bundled plant extension takes the same from the same headers, hil/native/_build_plant.py)."""
+    `mk_kernel_t` (the bundled plant extension takes the same from the same headers,
+    src/pmsm_hil/hil/kernels/_build_plant.py)."""
     return (declarations(NATIVE_DIR / "gate_edges.h", ["ge_period_stats_t"])
             + declarations(NATIVE_DIR / "machine_kernel.h", ["mk_sample_t", "mk_kernel_t"], opaque=["mk_kernel_t"]))
 

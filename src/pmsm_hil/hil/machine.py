@@ -66,7 +66,7 @@ def _measure6(seq: int, smp: Any, sensors: SensorModel, ideal: bool, vdc: float
 @dataclass(frozen=True, slots=True)
 class MeasurementFrames:
     """The Measurement frames a machine kind is measured with: `native` names the native loop's encoder
-    (`NL_MEAS_*` of hil/native/loop.h), `currents` the phase currents they carry; `current_layout` /
+    (`NL_MEAS_*` of src/pmsm_hil/hil/runner/c/loop.h), `currents` the phase currents they carry; `current_layout` /
     `state_layout`: the DBC layouts whose signals give the current and angle/speed/vdc scales and raw limits."""
 
     native: str
@@ -187,7 +187,7 @@ from pmsm_hil.hil import im_plant as _im_plant  # noqa: E402,F401  the induction
 
 
 def _register_fluxmap() -> None:
-    """The saturated PMSM of a flux map (kind "pmsm-fluxmap": hil/fluxmap_plant.py, docs/plant.md)."""
+    """The saturated PMSM of a flux map (kind "pmsm-fluxmap": src/pmsm_hil/hil/fluxmap_plant.py, docs/plant.md)."""
     from pmsm_hil.hil.fluxmap_params import KIND, FluxMapParams
     from pmsm_hil.hil.fluxmap_plant import FluxMapPlant
 

@@ -1,4 +1,4 @@
-"""Python API of the exact PMSM + inverter plant (compiled kernel in hil/native/kernels/plant.c)."""
+"""Python API of the exact PMSM + inverter plant (compiled kernel in src/pmsm_hil/hil/kernels/plant.c)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Python API of the exact dual three-phase PMSM + six-leg inverter plant (kernel hil/native/kernels/plant6.c).
+"""Python API of the exact dual three-phase PMSM + six-leg inverter plant (kernel src/pmsm_hil/hil/kernels/plant6.c).
 
 Same method names as `pmsm_hil.hil.plant.Plant`; states are 6-bit codes [S_A S_B S_C S_U S_V S_W]
 (S_A the most significant bit, e.g. V13 = 0b001101). Phases A, B, C sit at 0°, 120°, 240° and U, V, W

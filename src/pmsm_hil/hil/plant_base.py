@@ -14,7 +14,7 @@ from pmsm_hil.hil.errors import ParameterError, PlantFaultError, SequenceError
 from pmsm_hil.hil.machine_params import MachineParams
 from pmsm_hil.hil.mechanics import DynoMechanics, InertiaMechanics, LoadProfile, Mechanics
 
-#: Sub-intervals one period may hold: the 13 segments of six duty cycles (hil/pwm.py) fit.
+#: Sub-intervals one period may hold: the 13 segments of six duty cycles (src/pmsm_hil/hil/pwm.py) fit.
 MAX_SUBINTERVALS = 16
 #: Load-profile breakpoints honoured inside one control period (more are a ParameterError).
 MAX_LOAD_BREAKPOINTS = 8
@@ -38,7 +38,7 @@ class PeriodStats(NamedTuple):
 
 class KernelView(NamedTuple):
     """The plant's C structs and trace buffer as addresses, for a native loop that advances the same plant:
-    the machine-kernel table (hil/native/kernels/machine_kernel.h, 0: the plant has none), params, state and
+    the machine-kernel table (src/pmsm_hil/hil/kernels/machine_kernel.h, 0: the plant has none), params, state and
     trace-buffer addresses, trace rows one period may write, trace step [s] (0: none), and whether the load
     profile applies (inertia mode)."""
 

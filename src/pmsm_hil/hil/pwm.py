@@ -1,5 +1,5 @@
 """Duty cycles of a centre-aligned PWM → the switching sequence the plant applies (the Python twin of
-hil/native/pwm_duty.c, integer arithmetic so both give the same ns; docs/firmware_api.md,
+src/pmsm_hil/hil/runner/c/pwm_duty.c, integer arithmetic so both give the same ns; docs/firmware_api.md,
 "Duty-cycle commands").
 
 Carrier: a triangle counter c(t) from the valley (c = 0, every leg low) to the peak (c = 1) and back; a leg is

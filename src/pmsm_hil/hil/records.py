@@ -14,7 +14,7 @@ states[n-2..0] with the same durations; `states`/`durations_ns` hold the slots a
 runs fill `i_u`, `i_v`, `i_w` (second set) and `i_x`, `i_y` (harmonic subspace); three-phase runs leave
 them NaN; `i_a`, `i_b`, `i_c` are the first set. `n_duties` = 3 or 6: the command applied was a duty-cycle
 Command (`Command.duties`): `duties` holds its per-leg duties 0..1 (legs a, b, c, then u, v, w; NaN beyond
-n_duties), `n_states` is 0 and the plant applied the carrier comparison of the duties (hil/pwm.py:
+n_duties), `n_states` is 0 and the plant applied the carrier comparison of the duties (src/pmsm_hil/hil/pwm.py:
 `duty_sequence` gives the applied states and durations); `n_duties` = 0: a switching-state Command, `duties` NaN
 (0 in logs written before the field existed: only the first n_duties are valid).
 

@@ -2,7 +2,7 @@
 
 Usage: python -m pmsm_hil.protocol.gen_c [--check] [--output-dir DIR] [--ids-py FILE]
   --check  exit 1 (listing the files) if the committed files differ from a fresh generation.
-Outputs: DIR/hil_protocol.{h,c} (codec), DIR/hil_ids.h and FILE (default protocol/ids.py; DIR/ids.py
+Outputs: DIR/hil_protocol.{h,c} (codec), DIR/hil_ids.h and FILE (default src/pmsm_hil/protocol/ids.py; DIR/ids.py
 for another DIR): the ids of the DBC value tables for C and Python (gen_ids.py). The generation date
 cantools writes is removed so the output is reproducible.
 """
@@ -25,8 +25,8 @@ _ENCODE = re.compile(r"^(?P<type>\w+) (?P<name>\w+)_encode\(float value\)\n\{\n 
                      re.MULTILINE)
 _ROUND = re.compile(r"roundf\((?P<arg>[^()]*)\)")
 _CANTOOLS_HELPERS_END = "static uint64_t cantools_unsigned_from_double(double value)"
-_SATURATE = f"""/* pmsm_hil (protocol/gen_c.py): an encode's rounded raw value saturated to its signal's raw range
- * [lo, hi], NaN as 0: a float-to-integer cast of NaN or of a value outside the type is undefined in C. */
+_SATURATE = f"""/* pmsm_hil (src/pmsm_hil/protocol/gen_c.py): an encode's rounded raw value saturated to its signal's
+ * raw range [lo, hi], NaN as 0: a float-to-integer cast of NaN or of a value outside the type is undefined in C. */
 static double {DATABASE_NAME}_saturate(double value, double lo, double hi)
 {{
     if (isnan(value)) {{
@@ -55,7 +55,7 @@ def render() -> dict[str, str]:
         node_name=None,
         use_round=True,
     )
-    stamp = r"\1 from protocol/hil.dbc (python -m pmsm_hil.protocol.gen_c)."
+    stamp = r"\1 from src/pmsm_hil/protocol/hil.dbc (python -m pmsm_hil.protocol.gen_c)."
     return {
         f"{DATABASE_NAME}.h": _DATE.sub(stamp, header),
         f"{DATABASE_NAME}.c": _DATE.sub(stamp, saturate_encoders(source, db)),
@@ -97,7 +97,7 @@ def saturate_encoders(source: str, db: Database) -> str:
 
 def outputs(out_dir: Path, ids_py: Path | None = None) -> dict[Path, str]:
     """Path -> content of every generated file: the C files in `out_dir` and the Python ids at `ids_py`
-    (default: protocol/ids.py for the repository's C directory, else `out_dir`/ids.py)."""
+    (default: src/pmsm_hil/protocol/ids.py for the repository's C directory, else `out_dir`/ids.py)."""
     if ids_py is None:
         ids_py = IDS_PY if out_dir.resolve() == GENERATED_C_DIR.resolve() else out_dir / "ids.py"
     files = {out_dir / name: text for name, text in render().items()}

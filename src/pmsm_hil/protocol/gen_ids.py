@@ -1,4 +1,4 @@
-"""Ids from the DBC value tables: the C header `hil_ids.h` and the Python module `protocol/ids.py`.
+"""Ids from the DBC value tables: the C header `hil_ids.h` and the Python module `src/pmsm_hil/protocol/ids.py`.
 
 Each id family (controller, mode, parameter, status, node, node state) is one VAL_TABLE_ of `hil.dbc`;
 `ParamUnit` and `ParamDoc` annotate the parameter ids. A family may have a table of reserved ids
@@ -173,7 +173,7 @@ def render_c(t: IdTables) -> str:
     """The C header of ids: one macro per value, its name string, and a count (largest id + 1); reserved
     ids follow the count, which does not include them."""
     out = [
-        "/* Ids of the HIL protocol, generated from the VAL_TABLE_ entries of protocol/hil.dbc by",
+        "/* Ids of the HIL protocol, generated from the VAL_TABLE_ entries of src/pmsm_hil/protocol/hil.dbc by",
         f" * {GENERATOR}. Do not edit: change the DBC and regenerate (CI checks with --check). */",
         "#ifndef HIL_IDS_H",
         "#define HIL_IDS_H",
@@ -212,7 +212,7 @@ def render_python(t: IdTables) -> str:
     out = [
         '"""Shared numbering: controller ids, setpoint modes, config parameters, status codes, nodes.',
         "",
-        "Generated from the VAL_TABLE_ entries of protocol/hil.dbc by",
+        "Generated from the VAL_TABLE_ entries of src/pmsm_hil/protocol/hil.dbc by",
         f"`{GENERATOR}`; do not edit (CI runs it with --check). The C side is",
         "firmware_stub/generated/hil_ids.h. Parameter values are float32 in the SI units of PARAM_UNITS",
         '("-": dimensionless or a code); PARAM_DOCS says what each parameter is."""',

@@ -104,7 +104,7 @@ def build_vectors() -> dict[str, Any]:
                     "frames": [_frame_entry(fr) for fr in frames],
                 }
             )
-    return {"generator": "python -m pmsm_hil.protocol.golden", "dbc": "protocol/hil.dbc", "cases": cases}
+    return {"generator": "python -m pmsm_hil.protocol.golden", "dbc": "src/pmsm_hil/protocol/hil.dbc", "cases": cases}
 
 
 def render_json(vectors: dict[str, Any]) -> str:

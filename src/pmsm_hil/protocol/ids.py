@@ -1,6 +1,6 @@
 """Shared numbering: controller ids, setpoint modes, config parameters, status codes, nodes.
 
-Generated from the VAL_TABLE_ entries of protocol/hil.dbc by
+Generated from the VAL_TABLE_ entries of src/pmsm_hil/protocol/hil.dbc by
 `python -m pmsm_hil.protocol.gen_c`; do not edit (CI runs it with --check). The C side is
 firmware_stub/generated/hil_ids.h. Parameter values are float32 in the SI units of PARAM_UNITS
 ("-": dimensionless or a code); PARAM_DOCS says what each parameter is."""

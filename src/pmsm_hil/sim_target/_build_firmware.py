@@ -1,6 +1,6 @@
 """cffi (API mode) builder of the C reference firmware: extension `pmsm_hil.sim_target._firmware`.
 
-The cdef is taken from the headers only (hil/cdef_extract.py): firmware_stub/include/*.h and the generated
+The cdef is taken from the headers only (src/pmsm_hil/hil/cdef_extract.py): firmware_stub/include/*.h and the generated
 hil_ids.h for the firmware API, firmware_py.h (this folder) for the extension's glue; cffi checks the layouts
 against the real headers at build time (tests/plant/test_cdef_extract.py fails on a restated declaration). Build with
 `.venv/bin/pip install --no-build-isolation -e .` (setup.py lists this builder in cffi_modules).
@@ -29,7 +29,7 @@ STRICT_FLAGS = [
     "-O2",
 ]
 
-#: hil/cdef_extract.py by path (this script runs at build time, before the package is importable)
+#: src/pmsm_hil/hil/cdef_extract.py by path (this script runs at build time, before the package is importable)
 _X = SimpleNamespace(**runpy.run_path(str(Path(__file__).resolve().parents[1] / "hil" / "cdef_extract.py")))
 _INCLUDE = FIRMWARE / "include"
 _HERE = Path(__file__).resolve().parent

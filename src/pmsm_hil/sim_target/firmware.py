@@ -2,7 +2,7 @@
 
 One `Firmware` owns one fixed-size C state record. Units are SI: currents A, angle rad (electrical),
 speed rad/s (mechanical), voltage V, torque N·m, time ns. `CONTROLLERS` is the firmware's controller
-table (name, id, phase count, implemented), read from C; names and ids are the DBC's (protocol/ids.py),
+table (name, id, phase count, implemented), read from C; names and ids are the DBC's (src/pmsm_hil/protocol/ids.py),
 the phase count is a fact of this firmware that a foreign target need not share.
 """
 from __future__ import annotations
@@ -34,7 +34,7 @@ __all__ = [
     "controller_phases",
 ]
 
-# Shared numbering: the DBC value tables, through the generated protocol/ids.py.
+# Shared numbering: the DBC value tables, through the generated src/pmsm_hil/protocol/ids.py.
 PARAM_IDS: dict[str, int] = {name: int(p) for p, name in PARAM_NAMES.items()}
 _PARAM_NAME_OF: dict[int, str] = {v: k for k, v in PARAM_IDS.items()}
 CONTROLLER_IDS: dict[str, int] = {name: int(cid) for cid, name in CONTROLLER_NAMES.items()}

@@ -1,6 +1,6 @@
 /*
  * The Python glue of the reference firmware's cffi extension (pmsm_hil.sim_target._firmware): included once, by
- * the extension's preamble (sim_target/_build_firmware.py), which takes the cffi declarations of what is here from
+ * the extension's preamble (src/pmsm_hil/sim_target/_build_firmware.py), which takes the cffi declarations of what is here from
  * this header. One call with scalar arguments fills the measurement record and runs the profiled step (cheaper
  * than setting struct fields one by one from Python).
  */

@@ -1,5 +1,5 @@
 """Closed-loop runs for tests: the choices of `hil run` as keyword arguments, built into a RunConfig by the
-CLI's own configuration path (`app/cli/run.py` `config_from_args`: same defaults, config merging and
+CLI's own configuration path (`src/pmsm_hil/app/cli/run.py` `config_from_args`: same defaults, config merging and
 validation), run by `run_closed_loop`, signals read back from the run's MCAP (the log on disk is the source of
 truth)."""
 
@@ -130,7 +130,7 @@ _ALIASES = {"params": "param", "sets": "set", "faults": "fault"}
 
 def run_choice_option(name: str) -> RunOption:
     """The run option a `hil.run` keyword argument sets: a key of the run-option schema
-    (hil/runner/run_options.py) or `params`/`sets`/`faults`; TypeError naming the known ones if none."""
+    (src/pmsm_hil/hil/runner/run_options.py) or `params`/`sets`/`faults`; TypeError naming the known ones if none."""
     option = OPTIONS.get(_ALIASES.get(name, name))
     if option is None or option.key in _OWNED:
         known = sorted({*(k for k in OPTIONS if k not in _OWNED), *_ALIASES} - {"param", "set", "fault"})

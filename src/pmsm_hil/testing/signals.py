@@ -232,7 +232,7 @@ def _interp_crossing(ta: float, tb: float, xa: float, xb: float, level: float) -
 
 
 # --- metrics of a run ----------------------------------------------------------------------------------
-#: metric keys (hil/metrics/registry.py) of the two metric assertions
+#: metric keys (src/pmsm_hil/hil/metrics/registry.py) of the two metric assertions
 TORQUE_RIPPLE_KEY = "torque_ripple_rms_nm"
 CURRENT_THD_KEY = "current_thd_pct"
 

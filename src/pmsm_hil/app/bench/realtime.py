@@ -142,10 +142,10 @@ def gap_floor(duration: float, ts: float, rt_priority: int, cpu: int | None) -> 
 
 
 def paced_udp_floor(duration: float, ts: float, rt_priority: int, cpu: int | None) -> dict[str, Any] | None:
-    """The floor under the deadline misses of the `udp` runs (hil/native/link_floor.c `nl_udp_paced_floor`): a
-    bare C exchange between two processes paced at Ts for `duration` s, this end on the loop's CPU and priority,
-    the echo at the same priority waiting for each datagram as the run's native target does (blocking on fewer
-    than three CPUs, else spinning): replies that had not come by the next period start (`late`, per 100k and
+    """The floor under the deadline misses of the `udp` runs (src/pmsm_hil/hil/runner/c/links/link_floor.c
+    `nl_udp_paced_floor`): a bare C exchange between two processes paced at Ts for `duration` s, this end on the loop's
+    CPU and priority, the echo at the same priority waiting for each datagram as the run's native target does (blocking
+    on fewer than three CPUs, else spinning): replies that had not come by the next period start (`late`, per 100k and
     %), the median and longest round trip [µs] (None without the native extension, or when it failed)."""
     try:
         ffi, lib = native_lib()

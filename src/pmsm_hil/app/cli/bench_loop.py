@@ -177,8 +177,8 @@ def _adapter_pair(base: RunConfig, name: str, repeats: int, runs: str,
 
 
 def _udp_floor(progress: Callable[[str], None], round_trips: int = 5000) -> dict[str, float]:
-    """The floor of the UDP pair on this machine (hil/native/link_floor.c): mean round trip [µs] of a bare C
-    ping-pong between two processes spinning (as the native links do) or always blocking, idle and beside a CPU
+    """The floor of the UDP pair on this machine (src/pmsm_hil/hil/runner/c/links/link_floor.c): mean round trip [µs] of
+    a bare C ping-pong between two processes spinning (as the native links do) or always blocking, idle and beside a CPU
     burner; `udp_floor_load_ratio` is the best rate beside the burner over the best idle rate - the most the
     native pair's `udp_native_load_ratio` can reach here."""
     from pmsm_hil.hil.runner.core_link import native_lib

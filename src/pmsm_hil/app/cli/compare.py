@@ -1,5 +1,5 @@
 """`hil compare --preset NAME`: a paper experiment run closed loop per controller; table, JSON, CSV, PNG,
-and with --report an HTML report of one operating point (app/compare/report_runs.py)."""
+and with --report an HTML report of one operating point (src/pmsm_hil/app/compare/report_runs.py)."""
 
 from __future__ import annotations
 

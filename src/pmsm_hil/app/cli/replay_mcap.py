@@ -83,7 +83,7 @@ def _refuse_non_mcap(path: Path) -> None:
 
 
 def _replay_can_log(args: argparse.Namespace) -> int:
-    """`hil replay CAPTURE.log`: the log's Commands through the plant (hil/replay.py)."""
+    """`hil replay CAPTURE.log`: the log's Commands through the plant (src/pmsm_hil/hil/replay.py)."""
     from pmsm_hil.app.cli.motor_args import motor_from_args
     from pmsm_hil.hil.errors import ParameterError
     from pmsm_hil.hil.replay import replay

@@ -44,7 +44,7 @@ EXIT_CODES = ("exit codes: 0 completed, 1 internal error, 2 usage/config error, 
 
 def add_run_arguments(p: argparse.ArgumentParser) -> None:
     """Options shared by `hil run` and `hil sweep` (its base options): --config, then the run-option schema's
-    (hil/runner/run_options.py)."""
+    (src/pmsm_hil/hil/runner/run_options.py)."""
     p.add_argument("--config", type=Path, help="TOML file with any of the options below (CLI wins)")
     add_options(p, ("run",))
 
@@ -68,7 +68,7 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
 
 @functools.cache
 def config_schema() -> dict[str, ConfigKey]:
-    """Keys a --config file may set: every option of the run-option schema (hil/runner/run_options.py)."""
+    """Keys a --config file may set: every option of the run-option schema (src/pmsm_hil/hil/runner/run_options.py)."""
     return config_keys()
 
 
@@ -120,7 +120,7 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
         controller = default_controller(str(pick("target")), controller)
     if out is None and not no_log:
         out = _fresh_dir(Path("runs") / f"{time.strftime('%Y%m%d-%H%M%S')}-{controller}")
-    # every RunConfig attribute with an option of the schema, from it (hil/runner/run_options.py)
+    # every RunConfig attribute with an option of the schema, from it (src/pmsm_hil/hil/runner/run_options.py)
     fields: dict[str, Any] = {name: pick(option.key) for name, option in BY_FIELD.items()}
     fields["controller"] = controller  # a user firmware's default (above)
     fields["faults"] = str(fields["faults"] or "")

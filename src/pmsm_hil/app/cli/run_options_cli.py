@@ -1,5 +1,5 @@
-"""The run-option schema (hil/runner/run_options.py) as argparse options and `--config` keys: nothing about a
-run option is declared here, only how the command line and TOML files present it."""
+"""The run-option schema (src/pmsm_hil/hil/runner/run_options.py) as argparse options and `--config` keys: nothing about
+a run option is declared here, only how the command line and TOML files present it."""
 
 from __future__ import annotations
 

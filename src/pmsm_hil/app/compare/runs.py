@@ -131,7 +131,7 @@ def _spec(p: ComparePreset, label: str) -> Variant:
 
 @dataclass(frozen=True, slots=True)
 class CompareTask:
-    """One run of a preset as sent to an engine's worker (app/sweep/engines.py)."""
+    """One run of a preset as sent to an engine's worker (src/pmsm_hil/app/sweep/engines.py)."""
 
     preset: ComparePreset
     spec: Variant
@@ -244,7 +244,7 @@ def run_preset(p: ComparePreset, *, controllers: list[str] | None = None,
                engine: Engine | None = None) -> CompareResult:
     """Run every controller/variant at every operating point and initial rotor angle of the preset, then
     the equal-f_av search. `run_dir`: which runs to log, and where (rows of logged runs, tripped ones
-    too, carry `run_dir`). `engine`: where the runs go (app/sweep/engines.py; default: this process, one
+    too, carry `run_dir`). `engine`: where the runs go (src/pmsm_hil/app/sweep/engines.py; default: this process, one
     after the other); rows come back in the same order on every engine."""
     say = progress or (lambda _msg: None)
     engine = engine or InlineEngine()

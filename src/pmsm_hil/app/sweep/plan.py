@@ -5,12 +5,12 @@ A point is an ordered tuple of (key, text) pairs. Keys are the `hil run` config-
 without dashes, `-` as `_`), `set.NAME` (a `--set NAME=VALUE` plant parameter), `param.NAME` (a `--param`
 controller parameter), `load_fmu_set.NAME` (a `--load-fmu-set` load-FMU parameter) and `theta0` (the initial
 electrical rotor angle [rad]). Texts are what the option would receive on the command line; their meaning is
-checked later by the `hil run` parser itself (app/sweep/configure.py), so a bad value gets the option's own
+checked later by the `hil run` parser itself (src/pmsm_hil/app/sweep/configure.py), so a bad value gets the option's own
 error.
 
 Sources, crossed with each other in this order: the `runs` of a plan file (TOML `[[runs]]` tables, or the
 rows of a CSV plan), the `[grid]` table of a TOML plan, then the `--grid KEY=V1,V2` options (the last
-key varies fastest). `--repeat N` repeats every point over N initial rotor angles (app/sweep/configure.py).
+key varies fastest). `--repeat N` repeats every point over N initial rotor angles (src/pmsm_hil/app/sweep/configure.py).
 """
 
 from __future__ import annotations

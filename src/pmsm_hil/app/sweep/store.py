@@ -5,7 +5,7 @@
   run id with a row there is done, unless it ended interrupted (end code 130) or its worker was lost.
 - `results.json` (a list of rows), `results.parquet` (when pyarrow is installed) else `results.csv`: the
   rows of the current plan, in plan order, rewritten through a temporary file and renamed
-  (hil/atomic_write.py) at most every `FLUSH_S` seconds during the sweep and at its end.
+  (src/pmsm_hil/hil/atomic_write.py) at most every `FLUSH_S` seconds during the sweep and at its end.
 """
 
 from __future__ import annotations

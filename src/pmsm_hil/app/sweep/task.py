@@ -48,7 +48,7 @@ def end_code_of(exc: BaseException) -> int:
 
 def run_task(task: RunTask) -> dict[str, Any]:
     """Run `task` and return its row: run_id, end_code, end_reason, the configuration columns, config,
-    run_config, every metric flattened (app/sweep/rows.py), and the run facts host, pid, blas_threads,
+    run_config, every metric flattened (src/pmsm_hil/app/sweep/rows.py), and the run facts host, pid, blas_threads,
     run_wall_s, mcap."""
     from pmsm_hil.hil.runner.run import run_closed_loop
 

@@ -9,11 +9,11 @@ from types import SimpleNamespace
 from cffi import FFI
 
 _HERE = Path(__file__).resolve().parent
-#: the plant kernels' own folder (this one; the loop's C is in hil/runner/c)
+#: the plant kernels' own folder (this one; the loop's C is in src/pmsm_hil/hil/runner/c)
 _KERNELS = _HERE
 
 
-#: hil/cdef_extract.py by path (this script runs at build time, before the package is importable)
+#: src/pmsm_hil/hil/cdef_extract.py by path (this script runs at build time, before the package is importable)
 _X = SimpleNamespace(**runpy.run_path(str(_HERE.parent / "cdef_extract.py")))
 #: what every kernel's extension declares first: the period stats, the sample and the opaque kernel table (the
 #: same as kernel_build.common_cdef: this script cannot import the package)

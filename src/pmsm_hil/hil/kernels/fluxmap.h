@@ -3,7 +3,7 @@
  *
  * The state is the rotor-frame flux linkage psi = (psi_d, psi_q); the currents come from the inverted map
  * i = psi^-1(psi). The map psi(i) is a piecewise bicubic Hermite interpolant (C1) of the user's grid whose
- * per-cell coefficients the Python side computes (hil/fluxmap.py: node slopes by PCHIP along each axis); outside
+ * per-cell coefficients the Python side computes (src/pmsm_hil/hil/fluxmap.py: node slopes by PCHIP along each axis); outside
  * the grid it continues to first order from the nearest grid point. The inverse is Newton's method on that
  * interpolant, warm-started from the last currents. Within a sub-interval the stator-frame voltage is constant and
  *     d psi_d/dt = v_d - Rs i_d + omega_e psi_q,   d psi_q/dt = v_q - Rs i_q - omega_e psi_d

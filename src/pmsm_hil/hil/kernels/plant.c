@@ -411,7 +411,7 @@ static int pl_k_advance(const void *p, void *s, const int32_t *states, const int
                       load_bp, n_load_bp, trace_dt, trace, trace_cap, stats);
 }
 
-/* Plant.sample (hil/plant.py) with the same expressions, so the native loop's records equal the Python
+/* Plant.sample (src/pmsm_hil/hil/plant.py) with the same expressions, so the native loop's records equal the Python
  * loop's bit for bit: inverse Park with cos/sin of the angle, Clarke with sqrt(3)/2, torque
  * 1.5*p*(psi_f + (Ld - Lq)*i_d)*i_q. */
 static void pl_k_sample(const void *params, const void *state, mk_sample_t *out)

@@ -249,7 +249,7 @@ static int p6_k_advance(const void *p, void *s, const int32_t *states, const int
                       load_bp, n_load_bp, trace_dt, trace, trace_cap, stats);
 }
 
-/* Plant6.sample (hil/plant6.py): the same kernel functions. */
+/* Plant6.sample (src/pmsm_hil/hil/plant6.py): the same kernel functions. */
 static void p6_k_sample(const void *params, const void *state, mk_sample_t *out)
 {
     const p6_state_t *s = (const p6_state_t *)state;

@@ -1,5 +1,5 @@
 """Where the FMI 2.0 / 3.0 C headers are: the installed fmpy's `c-code` folder (fmpy ships the Modelica
-Association's standard headers). The C loop (hil/native/_build_loop.py, at build time: fmpy is a build
+Association's standard headers). The C loop (src/pmsm_hil/hil/runner/c/_build_loop.py, at build time: fmpy is a build
 requirement) and the test suite's FMUs build against them. Standard library only: the build runs this file by
 path, before the package is importable."""
 

@@ -1,6 +1,6 @@
 """The load FMU's own process (`--load-fmu-isolation process`): `python -m pmsm_hil.hil.load_fmu.serve SHM_FD
-PARENT_PID` serves the mailbox of the shared memory file SHM_FD (hil/native/loop_fmu_box.c nl_fmu_serve: the
-FMU's binary opened, instantiated, initialised and stepped here, on the run's requests) until the run closes it
+PARENT_PID` serves the mailbox of the shared memory file SHM_FD (src/pmsm_hil/hil/runner/c/loop_fmu_box.c nl_fmu_serve:
+the FMU's binary opened, instantiated, initialised and stepped here, on the run's requests) until the run closes it
 or PARENT_PID exits. Ctrl-C from the terminal is the run's to handle: ignored here."""
 
 from __future__ import annotations

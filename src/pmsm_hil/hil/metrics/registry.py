@@ -85,7 +85,8 @@ METRICS: Final[tuple[Metric, ...]] = (
        "that succeeded, warnings: calls that returned a warning); null without one", "", source=RUN),
     _m("mode", "mode", "", "lockstep or realtime", "", source=RUN),
     _m("link_spec", "link", "", "link SPEC of the run", "", source=RUN),
-    _m("loop", "loop", "", "the period loop that ran: `native` (C, hil/native/loop.c) or `python`", "", source=RUN),
+    _m("loop", "loop", "", "the period loop that ran: `native` (C, src/pmsm_hil/hil/runner/c/loop.c) or `python`",
+       "", source=RUN),
     _m("loop_note", "loop note", "", "why the Python loop ran (`--loop python`: the test suite's reference loop "
        "only); null for the native loop", "", source=RUN),
     _m("end_reason", "end", "", "`completed`, or why the run stopped (trip, watchdog, target fault)", "", CLI,
@@ -169,13 +170,14 @@ METRICS: Final[tuple[Metric, ...]] = (
        "lateness bin [edges_us[i], edges_us[i+1]) µs, the last bin open-ended", "", source=RUN),
     _m("speed_error_pct", "speed error", "%", "100 · (speed_mean_rpm − reference) / reference", ".3g", source=RUN),
     _m("speed_reference_missed", "speed reference missed", "", "completed runs: true when the speed over the last "
-       "10 % of the window is off the reference by more than 10 % (≥ 5 rpm; hil/runner/run_limits.py); null "
-       "otherwise", "", source=RUN),
+       "10 % of the window is off the reference by more than 10 % (≥ 5 rpm; src/pmsm_hil/hil/runner/run_limits.py); "
+       "null otherwise", "", source=RUN),
     _m("setpoint_mode", "setpoint mode", "", "what the setpoint verdict judges: `speed` (`hil run` drives Setpoint "
        "mode 0)", "", source=RUN),
     _m("setpoint_held", "setpoint held", "", "completed runs: true when the mean speed over the hold span (the last "
        "10 % of the metrics window) is within `hold_tolerance_pct` of the mean reference (at least 5 rpm); null "
-       "otherwise, the reason in `not_applicable` (hil/runner/setpoint_hold.py)", "", CLI, REPORT, source=RUN),
+       "otherwise, the reason in `not_applicable` (src/pmsm_hil/hil/runner/setpoint_hold.py)", "", CLI, REPORT,
+       source=RUN),
     _m("setpoint_error", "setpoint error", "", "`{absolute, relative_pct, unit, reference, measured}`: measured − "
        "reference over the hold span (rpm, % of the reference); null without a verdict", "", source=RUN),
     _m("hold_tolerance_pct", "hold tolerance", "%", "tolerance of `setpoint_held` (`--hold-tolerance`, the "
@@ -293,7 +295,7 @@ def by_name(name: str) -> Metric:
     for m in METRICS:
         if m.name == name:
             return m
-    raise KeyError(f"metric {name!r} is not in the registry (hil/metrics/registry.py)")
+    raise KeyError(f"metric {name!r} is not in the registry (src/pmsm_hil/hil/metrics/registry.py)")
 
 
 # --- docs/metrics.md key table --------------------------------------------------------------------------
@@ -333,7 +335,8 @@ def main(argv: list[str] | None = None) -> int:
         DOC_PATH.write_text(want, encoding="utf-8")
         return 0
     if want != text:
-        print(f"{DOC_PATH}: key table differs from hil/metrics/registry.py (run with --write)", file=sys.stderr)
+        print(f"{DOC_PATH}: key table differs from src/pmsm_hil/hil/metrics/registry.py (run with --write)",
+              file=sys.stderr)
         return 1
     return 0
 

@@ -1,6 +1,6 @@
 """`/target/console`: the lines a target process wrote (a SIL firmware's `printf`), one JSON message per line
 `{"t", "seq", "stream", "text"}` — t: seconds since the target process started (wall time), seq: the line's
-number in the run, stream: "stdout" or "stderr"; hil/runner/target_console.py collects them."""
+number in the run, stream: "stdout" or "stderr"; src/pmsm_hil/hil/runner/target_console.py collects them."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""The native loop over any Python link: the callback link of hil/native (`nl_py_link`), whose send and receive
-are the two Python functions below.
+"""The native loop over any Python link: the callback link of the C loop (`nl_py_link`, c/loop_py.h), whose send and
+receive are the two Python functions below.
 
 Links the C loop cannot take over as a descriptor — python-can adapters (PCAN, Kvaser, Vector, python-can's own
 socketcan, ...), the link to an in-process Python or SIL target (served by its `pump` inside the receive), QEMU's

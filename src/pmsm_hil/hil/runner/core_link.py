@@ -1,4 +1,4 @@
-"""The in-process link to the C target core of the native loop (hil/native/loop.c).
+"""The in-process link to the C target core of the native loop (src/pmsm_hil/hil/runner/c/loop.c).
 
 Between runs of the C loop, frames from Python (configuration, the enabling and the disabling Setpoint) go
 straight to the core (`hil_core_rx`) and its replies come back from `hil_core_tx`, so `TargetClient` talks to

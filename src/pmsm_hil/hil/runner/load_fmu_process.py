@@ -1,6 +1,6 @@
 """The load FMU's process, seen from the run (`--load-fmu-isolation process`, the default): a shared memory file
-holding the mailbox of hil/native/loop_fmu_box.c, `python -m pmsm_hil.hil.load_fmu.serve` started on it, and a
-pipe whose write end only that process holds (it hangs up when the process ends, however it ends). The C side
+holding the mailbox of src/pmsm_hil/hil/runner/c/loop_fmu_box.c, `python -m pmsm_hil.hil.load_fmu.serve` started on it,
+and a pipe whose write end only that process holds (it hangs up when the process ends, however it ends). The C side
 then waits for each answer at most `--step-timeout`, and never past the process's death or `stop()`."""
 
 from __future__ import annotations
@@ -85,7 +85,8 @@ class LoadFmuProcess:
 
 
 def describe_exit(returncode: int) -> str:
-    """`SIGSEGV` for a death by signal 11, `exit code 0` for an exit (hil/runner/sil_watch.py's wording)."""
+    """`SIGSEGV` for a death by signal 11, `exit code 0` for an exit (src/pmsm_hil/hil/runner/sil_watch.py's
+    wording)."""
     from pmsm_hil.hil.runner.sil_watch import describe_exit as describe
 
     return describe(returncode)

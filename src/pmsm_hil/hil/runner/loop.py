@@ -1,4 +1,4 @@
-"""`NativeLoop`: the run's period loop in C (hil/native/loop.c), Python for everything around it.
+"""`NativeLoop`: the run's period loop in C (src/pmsm_hil/hil/runner/c/loop.c), Python for everything around it.
 
 The C loop runs in its own thread over the whole run (the GIL released) and fills a ring of blocks; this
 thread drains each full block to the run's sink (window metrics, speed check, live view, logger) — the same
@@ -80,7 +80,7 @@ class NativeLoop:
         self._period_size = int(lib.nl_sizeof_period())
         self._frame_size = int(lib.nl_sizeof_frame())
         if self._period_size != PERIOD_DTYPE.itemsize or self._frame_size != FRAME_DTYPE.itemsize:
-            raise ImportError("native loop records are out of step with hil/records.py dtypes")
+            raise ImportError("native loop records are out of step with src/pmsm_hil/hil/records.py dtypes")
         columns = len(plant.TRACE_COLUMNS)
         rows = lib.NL_BLOCK * max(int(self._c.trace_cap), 1)
         self._traces = [np.zeros((rows, columns)) for _ in range(lib.NL_RING)]  # pages touched before the run

@@ -1,4 +1,4 @@
-"""The native loop's load FMU (hil/load_fmu): opened and initialised at the start speed before the run, its
+"""The native loop's load FMU (src/pmsm_hil/hil/load_fmu): opened and initialised at the start speed before the run, its
 nl_fmu_t handed to the C loop (nl_config_t.load_fmu), its failure worded, closed after the run."""
 
 from __future__ import annotations

@@ -42,7 +42,8 @@ class LoopOutcome:
     #: real time: lateness of every period start [µs] (quantiles within 0.39 %, in fixed memory: metrics/lateness.py)
     lateness_us: LatenessStats = field(default_factory=LatenessStats)
     #: real time, the C loop: period starts per 1 µs lateness bin [i, i+1) µs, the last bin open-ended (counted
-    #: in C per period, hil/native/loop_rt.c nl_late_count); None for the reference loop and lockstep runs
+    #: in C per period, src/pmsm_hil/hil/runner/c/loop_rt.c nl_late_count); None for the reference loop and lockstep
+    #: runs
     lateness_hist_1us: npt.NDArray[np.int64] | None = None
     #: the C loop: times it waited for its consumer (the drain to metrics and the logger) to hand a slot back
     ring_waits: int = 0
@@ -72,8 +73,8 @@ class LoopOutcome:
     link_faults: dict[str, int] | None = None
     #: the load FMU that ran (`LoadFmuSession.metrics`: model, parameters, doStep calls, warnings), None without
     load_fmu: dict[str, Any] | None = None
-    #: a shared CAN bus (protocol/links/shared_bus.py): other nodes' frames the host received, never taken as the
-    #: target's: ids the target never sends, and frames of its ids it cannot have sent (None: not a shared bus)
+    #: a shared CAN bus (src/pmsm_hil/protocol/links/shared_bus.py): other nodes' frames the host received, never taken
+    #: as the target's: ids the target never sends, and frames of its ids it cannot have sent (None: not a shared bus)
     bus_foreign_frames: int | None = None
     bus_suspect_frames: int | None = None
     #: the exception behind an internal-error ending (re-raised by the runner after the outputs are written)

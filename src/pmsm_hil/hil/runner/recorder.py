@@ -18,7 +18,7 @@ PERIOD_STRUCT: Final = struct.Struct("<dI11dB3B3IBBI3I3H2BHB5dB6d")
 FRAME_STRUCT: Final = struct.Struct("<dIBIBB64s")
 
 if PERIOD_STRUCT.size != PERIOD_DTYPE.itemsize or FRAME_STRUCT.size != FRAME_DTYPE.itemsize:
-    raise ImportError("recorder struct layouts are out of step with hil/records.py dtypes")
+    raise ImportError("recorder struct layouts are out of step with src/pmsm_hil/hil/records.py dtypes")
 
 
 class RecordsNotKeptError(HilError):

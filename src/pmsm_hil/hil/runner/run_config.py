@@ -154,7 +154,7 @@ class RunConfig:
     faults: str = ""
     #: qemu targets: the MCU clock of the execution-time estimate [Hz] (`--mcu-clock`)
     mcu_clock_hz: float = default_of("mcu_clock_hz")
-    #: the period loop (`--loop`, LOOPS): "auto" runs the C loop (hil/native/loop.c) where supported
+    #: the period loop (`--loop`, LOOPS): "auto" runs the C loop (src/pmsm_hil/hil/runner/c/loop.c) where supported
     loop: str = default_of("loop")
     #: real time: SCHED_FIFO priority of the loop thread (`--rt-priority`, 0: none) and its CPU (`--cpu`)
     rt_priority: int = default_of("rt_priority")
@@ -170,7 +170,8 @@ class RunConfig:
     #: sil targets: load the library into the runner's process (`--sil-in-process`: unprotected, a crash of
     #: the firmware ends the runner) instead of serving it from its own process
     sil_in_process: bool = default_of("sil_in_process")
-    # --- load FMU (issue 28 item 4; hil/load_fmu) -------------------------------------------------------------
+    # --- load FMU (issue 28 item 4; src/pmsm_hil/hil/load_fmu)
+    # -------------------------------------------------------------
     #: the mechanical load as an FMU (`--load-fmu`, `--load-fmu-map`, `--load-fmu-set`): replaces the scenario's
     #: load profile; None: the scenario's load
     load_fmu: LoadFmuSpec | None = None
@@ -192,7 +193,7 @@ class RunConfig:
                 f"controller '{self.controller}' needs a {words.get(needs, needs)}-phase motor, but "
                 f"'{self.motor.name}' is {words.get(has, has)}-phase (six-phase motors have lls > 0)")
         self._check_machine_model(cid)
-        for name in BY_FIELD:  # ranges and choices: the run-option schema's (hil/runner/run_options.py)
+        for name in BY_FIELD:  # ranges and choices: the run-option schema's (src/pmsm_hil/hil/runner/run_options.py)
             check_field(name, getattr(self, name))
         if abs(round(self.ts_s * 1e9) - self.ts_s * 1e9) > 1e-3:
             raise ParameterError(f"--ts must be a whole number of ns, got {self.ts_s} s")
@@ -292,7 +293,7 @@ class RunConfig:
         """Control period [ns]."""
         return round(self.ts_s * 1e9)
 
-    # --- issue 27 (helper cxx): firmware-declared parameters (hil_app_params.h, sim_target/fw_params.py)
+    # --- issue 27 (helper cxx): firmware-declared parameters (hil_app_params.h, src/pmsm_hil/sim_target/fw_params.py)
     def resolved_params(self) -> dict[ParamId | FirmwareParamId, float]:
         """The --param values by ConfigParam id: a protocol parameter's name, or one the `sil:PATH` / `qemu:PATH`
         firmware declares in its table (its range checked); ParameterError naming an unknown one."""
@@ -303,7 +304,7 @@ class RunConfig:
         declared = {p.name: p for p in firmware_params(self.target_path or "")} if needed else {}
         out: dict[ParamId | FirmwareParamId, float] = {}
         for name, value in self.controller_params.items():
-            check_wire_value(name, value)  # float32 on the wire (hil/runner/param_values.py)
+            check_wire_value(name, value)  # float32 on the wire (src/pmsm_hil/hil/runner/param_values.py)
             fw = declared.get(name.strip().lower())
             if fw is None:
                 try:

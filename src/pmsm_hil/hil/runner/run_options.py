@@ -2,10 +2,11 @@
 choices, range, unit and help.
 
 Everything else is generated from `RUN_OPTIONS`: the `hil run` / `hil bench loop` / `hil sweep` argparse
-options (app/cli/run.py), the `--config FILE.toml` keys and the sweep keys (app/cli/config_file.py,
-app/sweep/plan.py), the keyword arguments of the pytest plugin's `hil.run(...)` (pmsm_hil/testing/runs.py),
-the defaults a run uses (`DEFAULTS`, also the defaults of `RunConfig`'s fields) and `RunConfig`'s range checks
-(`check_field`). A key is the option's long name without dashes, `-` as `_` (`--miss-policy` → `miss_policy`).
+options (src/pmsm_hil/app/cli/run.py), the `--config FILE.toml` keys and the sweep keys
+(src/pmsm_hil/app/cli/config_file.py, src/pmsm_hil/app/sweep/plan.py), the keyword arguments of the pytest plugin's
+`hil.run(...)` (src/pmsm_hil/testing/runs.py), the defaults a run uses (`DEFAULTS`, also the defaults of `RunConfig`'s
+fields) and `RunConfig`'s range checks (`check_field`). A key is the option's long name without dashes, `-` as `_`
+(`--miss-policy` → `miss_policy`).
 """
 
 from __future__ import annotations
@@ -282,9 +283,9 @@ RUN_OPTIONS: tuple[RunOption, ...] = (
               "silence=T0:T1,seed=S (KEY.up / KEY.down per direction; docs/runner.md)", field="faults",
               metavar="SPEC"),
     RunOption("loop", "choice",
-              "the period loop: the C loop (hil/native/loop.c) runs every run (auto = native); python is the test "
-              "suite's reference loop, not part of the product (an error outside the tests)", "auto", field="loop",
-              choices=LOOPS),
+              "the period loop: the C loop (src/pmsm_hil/hil/runner/c/loop.c) runs every run (auto = native); "
+              "python is the test suite's reference loop, not part of the product (an error outside the tests)", "auto",
+              field="loop", choices=LOOPS),
     RunOption("pwm_update", "choice",
               "duty-cycle Commands: the PWM timer's compare values loaded once per carrier period (single: carrier "
               "period = Ts, valley at each period start) or twice (double: control at twice the PWM rate, carrier "
@@ -315,8 +316,8 @@ RUN_OPTIONS: tuple[RunOption, ...] = (
     RunOption("noise", "number", "current noise standard deviation [A]", 0.0, unit="A", minimum=0.0,
               default_text="0: none"),
     RunOption("encoder_counts", "integer", "encoder counts/rev", 0, minimum=0, default_text="0: ideal angle"),
-    # the mechanical load as an FMU (issue 28 item 4; hil/load_fmu, docs/plant.md "Load as an FMU"): the three
-    # make RunConfig.load_fmu (a LoadFmuSpec)
+    # the mechanical load as an FMU (issue 28 item 4; src/pmsm_hil/hil/load_fmu, docs/plant.md "Load as an FMU"): the
+    # three make RunConfig.load_fmu (a LoadFmuSpec)
     RunOption("load_fmu", "path",
               "the mechanical load as an FMU (FMI 2.0/3.0 Co-Simulation, replaces the scenario's load): input speed "
               "[rad/s], output torque [N·m], one doStep(Ts) per period in the C loop", metavar="PATH.fmu"),
@@ -337,7 +338,7 @@ RUN_OPTIONS: tuple[RunOption, ...] = (
     RunOption("no_log", "flag", "do not write an MCAP log", False, scope="output"),
     RunOption("log_trace", "flag", "also log the 2 µs plant trace", False, field="log_trace", scope="output"),
     RunOption("json", "path", "write the metrics as JSON to this file", scope="output"),
-    # the setpoint verdict (issue 35 item 4; hil/runner/setpoint_hold.py)
+    # the setpoint verdict (issue 35 item 4; src/pmsm_hil/hil/runner/setpoint_hold.py)
     RunOption("hold_tolerance", "number", "setpoint_held: largest error of the mean speed over the last 10 percent "
               "of the metrics window [percent of the reference, at least 5 rpm]", metavar="PCT", unit="percent",
               minimum=0.0, open_minimum=True, default_text="the scenario's hold_tolerance_pct, else 2"),

@@ -12,7 +12,8 @@ from pmsm_hil.hil.mechanics import LoadProfile
 from pmsm_hil.hil.resources import bundled_names, load_toml
 
 _PACKAGE = "pmsm_hil.hil.scenarios"
-#: default tolerance of the setpoint verdict `setpoint_held` [% of the reference] (hil/runner/setpoint_hold.py)
+#: default tolerance of the setpoint verdict `setpoint_held` [% of the reference]
+#: (src/pmsm_hil/hil/runner/setpoint_hold.py)
 DEFAULT_HOLD_TOLERANCE_PCT = 2.0
 
 
@@ -105,8 +106,8 @@ class Scenario:
     def for_motor(self, rated_speed_rpm: float, rated_torque_nm: float) -> Scenario:
         """An `at_rated` scenario's copy at the motor's rated speed [rpm] and torque [N·m] (each where > 0, else
         the scenario's own value); any other scenario unchanged. Command-line overrides come after it. `hil run`,
-        sweeps and the pytest plugin call it (app/cli/run.py); a RunConfig built by hand takes the scenario as
-        given."""
+        sweeps and the pytest plugin call it (src/pmsm_hil/app/cli/run.py); a RunConfig built by hand takes the scenario
+        as given."""
         if not self.at_rated:
             return self
         return replace(self, speed_rpm=rated_speed_rpm if rated_speed_rpm > 0 else self.speed_rpm,

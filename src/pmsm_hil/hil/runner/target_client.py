@@ -38,14 +38,14 @@ _F32 = struct.Struct("<f")
 #: node id of the target (`Node` in the DBC)
 TARGET_NODE = 1
 #: frames one drain takes at most: a bus flooded by other nodes never empties, and the caller's deadline must
-#: still be checked (the C loop's NL_DRAIN_MAX, hil/native/nl_link.h)
+#: still be checked (the C loop's NL_DRAIN_MAX, src/pmsm_hil/hil/runner/c/links/nl_link.h)
 DRAIN_MAX = 256
 
 
 
 def _param_name(pid: int) -> str:
-    """A parameter's name: a ParamId member's, a firmware-declared one's (sim_target/fw_params.FirmwareParamId
-    carries it), else `param_ID`."""
+    """A parameter's name: a ParamId member's, a firmware-declared one's
+    (src/pmsm_hil/sim_target/fw_params.FirmwareParamId carries it), else `param_ID`."""
     name = getattr(pid, "name", None)
     if name is None and pid in ParamId._value2member_map_:
         name = ParamId(pid).name
@@ -75,8 +75,8 @@ class TargetClient:
     def __init__(self, link: Link, codec: FrameCodec, pump: Callable[[], object] | None = None,
                  shared: bool | None = None) -> None:
         self.link = link
-        #: other nodes may share the bus (protocol/links/shared_bus.py; default: the link's own `shared`): frames
-        #: that cannot be the target's are counted in `bus`, never taken as its or as findings
+        #: other nodes may share the bus (src/pmsm_hil/protocol/links/shared_bus.py; default: the link's own `shared`):
+        #: frames that cannot be the target's are counted in `bus`, never taken as its or as findings
         self.shared: bool = bool(getattr(link, "shared", False)) if shared is None else shared
         self.bus = BusTraffic()
         #: the last drain stopped at DRAIN_MAX frames with the queue not seen empty (a flood outpacing the host)
@@ -91,7 +91,7 @@ class TargetClient:
         self.decoder = codec.decoder(ordered=False)  # the contract checks each Command's seq itself
         self.pump = pump
         self.faults: list[Fault] = []
-        #: the last HeartbeatTarget frames received (the safe stop's confirmation, hil/runner/safe_stop.py)
+        #: the last HeartbeatTarget frames received (the safe stop's confirmation, src/pmsm_hil/hil/runner/safe_stop.py)
         self.heartbeats: deque[Heartbeat] = deque(maxlen=16)
         #: frames received from the target so far (any kind)
         self.frames_in = 0
@@ -135,8 +135,8 @@ class TargetClient:
                 self.heartbeats.append(msg)
 
     def _from_target(self, frame: Frame) -> bool:
-        """A shared bus: can `frame` be the target's? (protocol/links/shared_bus.py; the C loop's nl_bus_frame.)
-        Else it is counted as bus traffic."""
+        """A shared bus: can `frame` be the target's? (src/pmsm_hil/protocol/links/shared_bus.py; the C loop's
+        nl_bus_frame.) Else it is counted as bus traffic."""
         fid = frame.arbitration_id
         want = self._target_lengths.get(fid)
         if want is None:

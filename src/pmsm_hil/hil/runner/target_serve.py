@@ -1,6 +1,6 @@
 """The native target: `hil target --native` serves the C target core and reference firmware on a UDP, serial or
-SocketCAN link from a C loop (hil/native/target_serve.c), so a cross-process run measures the link, not a second
-interpreter.
+SocketCAN link from a C loop (src/pmsm_hil/hil/runner/c/target_serve.c), so a cross-process run measures the link, not a
+second interpreter.
 
 Python opens the link (the same binding, port set-up and one-line errors as the Python target) and prints the
 ready line; C serves frames (over UDP it agrees each run's session from the host's HELLO) and stops on
@@ -9,7 +9,7 @@ getppid check) or the host closing the link (a pty's other end).
 
 With a SIL library (`hil target --native --sil PATH`) the same C loop serves that library's copy of the core
 through its function pointers: the SIL target in its own process, so a crash or an endless loop in the user's
-code cannot take the runner down (hil/runner/sil_watch.py tells the runner's ending).
+code cannot take the runner down (src/pmsm_hil/hil/runner/sil_watch.py tells the runner's ending).
 """
 
 from __future__ import annotations

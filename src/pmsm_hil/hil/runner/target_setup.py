@@ -241,7 +241,7 @@ def _connect_spawned(cfg: RunConfig, codec: FrameCodec, native: bool, sil: str |
     """A `hil target` process on the mirror of the run's link (`sil`: serving that SIL library)."""
     spec = parse_spec(cfg.link)
     specs = link_kind(spec).mirror(cfg.link, spec)
-    specs, key = spawn_auth(specs)  # issue 26: authenticated frames by default (protocol/links/auth.py)
+    specs, key = spawn_auth(specs)  # issue 26: authenticated frames by default (src/pmsm_hil/protocol/links/auth.py)
     host_link = open_link(specs.host, "host")
     conn = TargetConnection(TargetClient(host_link, codec), host_link, extra=list(specs.keep_open))
     try:

@@ -1,5 +1,5 @@
-"""The native loop's links to a target in another process (hil/native/nl_link.h): the host's open link — a
-UDP socket, a serial port, a SocketCAN socket — handed to C for a run's periods and back afterwards.
+"""The native loop's links to a target in another process (src/pmsm_hil/hil/runner/c/links/nl_link.h): the host's open
+link — a UDP socket, a serial port, a SocketCAN socket — handed to C for a run's periods and back afterwards.
 
 Python opens the link, configures the target and sends the Setpoints through it; for the periods the C loop
 takes the same descriptor and what the link continues from (link sequence numbers, a UDP session, a serial

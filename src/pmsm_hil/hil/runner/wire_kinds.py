@@ -1,5 +1,5 @@
-"""The link kinds the native loop drives from C (by SPEC kind; hil/native/nl_link.h): a new one is a C file
-filling an nl_link_t and a `Wire` here."""
+"""The link kinds the native loop drives from C (by SPEC kind; src/pmsm_hil/hil/runner/c/links/nl_link.h): a new one is
+a C file filling an nl_link_t and a `Wire` here."""
 
 from __future__ import annotations
 

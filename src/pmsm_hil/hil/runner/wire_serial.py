@@ -1,6 +1,6 @@
-"""The native loop's serial link (hil/native/loop_serial.c): the host's hilserial port (a tty pyserial set to raw
-mode, or a pty master) handed to C with its link sequence numbers and a packet half received (`SERIAL_WIRE`,
-see wire.py). The frames, COBS/CRC framing and counters are the Python link's (serial_bus.py)."""
+"""The native loop's serial link (src/pmsm_hil/hil/runner/c/links/loop_serial.c): the host's hilserial port (a tty
+pyserial set to raw mode, or a pty master) handed to C with its link sequence numbers and a packet half received
+(`SERIAL_WIRE`, see wire.py). The frames, COBS/CRC framing and counters are the Python link's (serial_bus.py)."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
-"""The native loop's SocketCAN link (hil/native/loop_socketcan.c): the CAN_RAW socket python-can opened for the
-host's `socketcan:IF[,fd=true]` link handed to C (`SOCKETCAN_WIRE`, see wire.py); frames as python-can
+"""The native loop's SocketCAN link (src/pmsm_hil/hil/runner/c/links/loop_socketcan.c): the CAN_RAW socket python-can
+opened for the host's `socketcan:IF[,fd=true]` link handed to C (`SOCKETCAN_WIRE`, see wire.py); frames as python-can
 writes and reads them (`struct can_frame` / `struct canfd_frame`). SocketCAN has no link state to hand back but
-the kernel's drop count C read on the socket (SO_RXQ_OVFL, protocol/links/socketcan_bus.py)."""
+the kernel's drop count C read on the socket (SO_RXQ_OVFL, src/pmsm_hil/protocol/links/socketcan_bus.py)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""The native loop's UDP link (hil/native/loop_udp.c): the host's hiludp socket, its agreed session and link
-sequence numbers handed to C (`UDP_WIRE`, see wire.py).
+"""The native loop's UDP link (src/pmsm_hil/hil/runner/c/links/loop_udp.c): the host's hiludp socket, its agreed session
+and link sequence numbers handed to C (`UDP_WIRE`, see wire.py).
 
 Python opens the link and agrees the session (`UdpUnicastBus.wait_session`); the native target adopts the
 session of the host's HELLO in C (target role).

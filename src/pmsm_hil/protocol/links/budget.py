@@ -8,8 +8,8 @@ conservatively) and data phase (ESI + DLC 5 bits + 8n + the remaining dynamic st
 floor((22 + 8n - 1)/4) - 4, stuff count 4 bits, CRC 17 (n ≤ 16) or 21, fixed stuff bits
 ceil((4 + crc)/4)) at the data rate.
 Serial (8N1, 10 bits per byte): COBS(7-byte header + n + 2-byte CRC) + 0x00 delimiter; authenticated frames
-(`auth`, protocol/links/auth.py) add their 6-byte trailer (freshness 2 + MAC 4) inside the COBS block (UDP: inside
-the datagram).
+(`auth`, src/pmsm_hil/protocol/links/auth.py) add their 6-byte trailer (freshness 2 + MAC 4) inside the COBS block (UDP:
+inside the datagram).
 UDP (one datagram per frame, CAN FD sized payloads): session id 4 + header + n + CRC 2 bytes of UDP payload, plus
 UDP 8, IPv4 20, Ethernet header and FCS 18 (padded to the 64-byte minimum frame), preamble/SFD 8 and the
 inter-frame gap 12 bytes on the wire, at `bitrate` (default for udp: 1 Gbit/s Ethernet). This is the wire only:

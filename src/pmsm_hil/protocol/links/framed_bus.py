@@ -33,7 +33,7 @@ class FramedBus(can.BusABC):
                  auth_role: str = "host", **kwargs: Any) -> None:
         super().__init__(channel=channel, **kwargs)
         self.link_stats = LinkStats()
-        #: authenticated frames (protocol/links/auth.py) with this key, None: off
+        #: authenticated frames (src/pmsm_hil/protocol/links/auth.py) with this key, None: off
         self.auth: FrameAuth | None = None if auth_key is None else FrameAuth(
             auth_key, "target" if auth_role == "target" else "host")
         #: bytes after the payload of every frame (the authentication trailer, 0: none)

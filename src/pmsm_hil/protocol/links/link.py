@@ -79,8 +79,8 @@ class BusLink:
         self.stats: LinkStats = self._fast.link_stats if self._fast is not None else LinkStats()
         self.fd = bus.protocol in (CanProtocol.CAN_FD, CanProtocol.CAN_FD_NON_ISO) or bool(getattr(bus, "fd", False))
         self._closed = False
-        #: other nodes may share this bus (protocol/links/shared_bus.py): frames that cannot be the target's are
-        #: bus traffic, not findings; set by open_link from the SPEC
+        #: other nodes may share this bus (src/pmsm_hil/protocol/links/shared_bus.py): frames that cannot be the
+        #: target's are bus traffic, not findings; set by open_link from the SPEC
         self.shared = False
         # python-can's virtual bus deep-copies every Message per receiver (~10 µs); in-process we hand each
         # receiver queue its own freshly built Message instead: same semantics, a fraction of the cost.

@@ -5,7 +5,7 @@ Measurement the host sent; a FaultTarget names node 1 (target) and a Status code
 parameter the host wrote, echoing its float32 value. On a shared bus a frame of another id is **foreign**
 (`bus_foreign_frames`), a frame of the target's ids whose content the target cannot have sent is **suspect**
 (`bus_suspect_frames`): both are counted as bus traffic, never findings against the target. The native loop
-applies the same rules in C (hil/native/loop.c `from_target_node`).
+applies the same rules in C (src/pmsm_hil/hil/runner/c/loop.c `from_target_node`).
 
 A link is a shared bus when its kind's wire is a CAN bus (`socketcan`, python-can adapters: `LinkKind.wire`
 "can"), or its SPEC says `shared=true` (e.g. `virtual:x,shared=true`, a python-can virtual bus other nodes join);

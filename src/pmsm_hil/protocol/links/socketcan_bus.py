@@ -9,7 +9,7 @@ count of frames dropped for the socket to every frame queued after a drop; pytho
 only the timestamp as ancillary data, so this bus hands it a socket view that takes the drop count off first
 (`_DropCountingSocket`). `kernel_dropped()` is the larger of the last count seen and `SO_MEMINFO`'s (drops
 after the last frame received show too). The C loop reads the same counter on the same socket
-(hil/native/loop_socketcan.c) and hands its count back.
+(src/pmsm_hil/hil/runner/c/links/loop_socketcan.c) and hands its count back.
 """
 
 from __future__ import annotations

@@ -1,9 +1,9 @@
 """cffi (API mode) builder of the native period loop: extension `pmsm_hil.hil._loop_native`.
 
-The cdef is taken from the C headers only (hil/cdef_extract.py): every struct, typedef, prototype and integer
-constant from the header that declares it (hil/native, firmware_stub/target), structs cut down to the fields
-Python reads where the rest is private (`partial`), the extension's own glue from loop_py.h; cffi checks the
-layouts against the real headers when it compiles. tests/plant/test_cdef_extract.py fails on a restated one.
+The cdef is taken from the C headers only (src/pmsm_hil/hil/cdef_extract.py): every struct, typedef, prototype and
+integer constant from the header that declares it (this folder, links/, hil/kernels, firmware_stub/target), structs cut
+down to the fields Python reads where the rest is private (`partial`), the extension's own glue from loop_py.h; cffi
+checks the layouts against the real headers when it compiles. tests/plant/test_cdef_extract.py fails on a restated one.
 
 Two sets of flags: the firmware side (reference firmware, HIL target core, generated codec) is compiled with
 the firmware's strict flags (`-fsingle-precision-constant`, as every other build of it) into objects linked
@@ -21,7 +21,7 @@ from typing import Any
 
 from cffi import FFI
 
-#: the loop's C (this folder), its links (links/), the plant kernels (hil/kernels) and the repository
+#: the loop's C (this folder), its links (links/), the plant kernels (src/pmsm_hil/hil/kernels) and the repository
 _HERE = Path(__file__).resolve().parent
 _LINKS = _HERE / "links"
 _HIL = _HERE.parents[1]
@@ -41,10 +41,10 @@ LOOP_SOURCES = ("loop.c", "loop_frames.c", "loop_rt.c", "target_serve.c", "loop_
 LINK_SOURCES = ("nl_link.c", "loop_udp.c", "loop_serial.c", "loop_socketcan.c", "link_floor.c")
 
 
-#: hil/cdef_extract.py by path (this script runs at build time, before the package is importable)
+#: src/pmsm_hil/hil/cdef_extract.py by path (this script runs at build time, before the package is importable)
 _X = SimpleNamespace(**runpy.run_path(str(_HIL / "cdef_extract.py")))
 #: the FMI 2.0 / 3.0 headers loop_fmu.c includes: the installed fmpy's (a build requirement, pyproject.toml), found
-#: by hil/load_fmu/headers.py (by path, as above); a clear error when fmpy is missing
+#: by src/pmsm_hil/hil/load_fmu/headers.py (by path, as above); a clear error when fmpy is missing
 FMI_INCLUDE = runpy.run_path(str(_HIL / "load_fmu" / "headers.py"))["fmi_include_dir"]()
 _TARGET = _FW / "target"
 #: every integer macro of the headers the loop's cdef reads: an array size in one header given by a macro of
@@ -100,7 +100,7 @@ LINKS_CDEF = (_decl(_TARGET / "hil_target_core.h", ["hil_core_frame_t", "hil_cor
                                                  "nt_serve_core_debug"]))
 
 #: the extension's own glue (loop_py.h): slot views, and the callback link whose send / recv / diag / period
-#: hil/runner/callback_link.py defines in Python
+#: src/pmsm_hil/hil/runner/callback_link.py defines in Python
 PY_CDEF = _decl(_HERE / "loop_py.h", ["nl_sizeof_period", "nl_sizeof_frame", "nl_slot_periods", "nl_slot_frames",
                                       "nl_slot_lateness", "nl_slot_findings", "nl_slot_noise", "nl_py_send",
                                       "nl_py_recv", "nl_py_diag", "nl_py_period", "nl_py_link"],

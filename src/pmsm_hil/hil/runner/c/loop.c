@@ -587,7 +587,7 @@ static int load_fmu_period(loop_t *L, double t, const sample_t *smp)
 
 /* ClosedLoop._apply_and_trace: one period with the pending command (mirrored when it is). */
 /* The gate sequence of period k as the plant applies it: the pending Command's states (mirrored when asked) or
- * the carrier comparison of its duties (hil/pwm.py applied_sequence); returns the number of segments. */
+ * the carrier comparison of its duties (src/pmsm_hil/hil/pwm.py applied_sequence); returns the number of segments. */
 static int32_t period_sequence(const loop_t *L, int64_t k, int32_t *states, int64_t *durs)
 {
     const nl_config_t *c = L->c;

@@ -64,7 +64,7 @@
 #define NL_MEAS_6 1              /* six currents: Meas6A + Meas6C + Meas6B (classic CAN) or MeasFd6 */
 #define NL_MEAS_FORMATS 2
 
-/* nl_period_t and nl_frame_rec_t: generated from hil/records.py (PERIOD_DTYPE, FRAME_DTYPE) by
+/* nl_period_t and nl_frame_rec_t: generated from src/pmsm_hil/hil/records.py (PERIOD_DTYPE, FRAME_DTYPE) by
  * `python -m pmsm_hil.hil.gen_records`, with compile-time checks of their size and field offsets. */
 #include "records.h"
 

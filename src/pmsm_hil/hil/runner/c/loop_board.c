@@ -1,6 +1,6 @@
 /* The board hooks of the HIL target core inside the native loop: the execution time a Command reports is the
  * firmware's own profiled stage split (measurement + reference + prediction [ns]), as the Python in-process
- * target reports it (sim_target/target.py), not the core's clock around the whole step. */
+ * target reports it (src/pmsm_hil/sim_target/target.py), not the core's clock around the whole step. */
 #define _POSIX_C_SOURCE 199309L
 
 #include <time.h>

@@ -1,6 +1,6 @@
 /* The load FMU of the C period loop (loop_fmu.h) in this process: FMI 2.0 / 3.0 Co-Simulation through
  * dlopen/dlsym (nl_fmu_local_*; loop_fmu_box.c calls them here, or in the FMU's own process). The FMI headers
- * are fmpy's (its c-code folder, found at build time by hil/native/_build_loop.py). */
+ * are fmpy's (its c-code folder, found at build time by src/pmsm_hil/hil/runner/c/_build_loop.py). */
 #define _POSIX_C_SOURCE 200809L
 
 #include <dlfcn.h>

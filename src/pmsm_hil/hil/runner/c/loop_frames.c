@@ -10,7 +10,7 @@
 #define PART_B 2u
 #define PART_C 4u
 
-/* round(x / scale) of Python, saturated to [lo, hi] (protocol/codec.py FrameCodec._sat); -1 if x is NaN. */
+/* round(x / scale) of Python, saturated to [lo, hi] (src/pmsm_hil/protocol/codec.py FrameCodec._sat); -1 if x is NaN. */
 static int sat_raw(double x, double scale, int32_t lo, int32_t hi, int32_t *raw)
 {
     double r;

@@ -1,7 +1,7 @@
 /*
  * Host side of the frame protocol for the native loop: Measurement and Setpoint encoded with the generated
- * codec (raw values computed as protocol/codec.py does: round half to even, saturation, angle wrap), and the
- * host's Command decoder (protocol/codec.py FrameDecoder with an unordered Assembler) with its counters.
+ * codec (raw values computed as src/pmsm_hil/protocol/codec.py does: round half to even, saturation, angle wrap), and the
+ * host's Command decoder (src/pmsm_hil/protocol/codec.py FrameDecoder with an unordered Assembler) with its counters.
  */
 #ifndef HIL_NATIVE_LOOP_FRAMES_H
 #define HIL_NATIVE_LOOP_FRAMES_H
@@ -11,7 +11,7 @@
 #include "hil_target_core.h"
 #include "loop.h"
 
-/* A decoded Command (protocol/messages.py Command). */
+/* A decoded Command (src/pmsm_hil/protocol/messages.py Command). */
 typedef struct {
     uint16_t seq;
     uint8_t n_states;
@@ -26,7 +26,7 @@ typedef struct {
     uint16_t duty_raw[6];
 } nl_cmd_t;
 
-/* Held parts of one Command kind (protocol/assembler.py Assembler, unordered). */
+/* Held parts of one Command kind (src/pmsm_hil/protocol/assembler.py Assembler, unordered). */
 typedef struct {
     int32_t held_seq;          /* -1: none held */
     uint8_t have;              /* part bits */
@@ -69,7 +69,7 @@ void nl_encode_setpoint(uint8_t enable, uint8_t mode, double reference, uint8_t 
 int nl_decode(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r, nl_cmd_t *cmd, uint8_t *fault_code,
               uint32_t *fault_detail);
 
-/* Who sent a frame the host received on a shared bus (hil.dbc; protocol/links/shared_bus.py): */
+/* Who sent a frame the host received on a shared bus (hil.dbc; src/pmsm_hil/protocol/links/shared_bus.py): */
 #define NL_BUS_TARGET 0   /* it can be the target's */
 #define NL_BUS_FOREIGN 1  /* an id the target never sends (hil.dbc: sender not Target) */
 #define NL_BUS_SUSPECT 2  /* a target id with content the target cannot have sent */

@@ -1,9 +1,9 @@
 /*
  * The Python glue of the native loop's cffi extension (pmsm_hil.hil._loop_native): included once, by the
- * extension's preamble (hil/native/_build_loop.py), which takes the cffi declarations of these functions from
+ * extension's preamble (src/pmsm_hil/hil/runner/c/_build_loop.py), which takes the cffi declarations of these functions from
  * here. Sizes and pointers into a ring slot for numpy views, and the callback link: any Python link (python-can
  * adapters, links to in-process, SIL and QEMU targets, the fault-injecting wrapper) carries the C loop's frames
- * through nl_py_send / nl_py_recv, which hil/runner/callback_link.py defines (cffi `extern "Python"`: cffi
+ * through nl_py_send / nl_py_recv, which src/pmsm_hil/hil/runner/callback_link.py defines (cffi `extern "Python"`: cffi
  * writes their C bodies after this header).
  */
 #ifndef HIL_NATIVE_LOOP_PY_H

@@ -1,6 +1,6 @@
 /*
  * Duty cycles of a centre-aligned PWM -> the switching sequence of one control period (docs/firmware_api.md,
- * "Duty-cycle commands"). Integer arithmetic only, so the Python twin (hil/pwm.py) gives the same ns.
+ * "Duty-cycle commands"). Integer arithmetic only, so the Python twin (src/pmsm_hil/hil/pwm.py) gives the same ns.
  *
  * Carrier: a triangle counter c(t) from the valley (c = 0, every leg low) to the peak (c = 1) and back; a leg is
  * high (upper switch on) while c(t) > 1 - d. Single update: the carrier period is the control period Ts, valley

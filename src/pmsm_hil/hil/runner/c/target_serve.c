@@ -1,4 +1,4 @@
-/* The native target's serve loop (target_serve.h): sim_target/process.py `serve` over the C target core (linked in,
+/* The native target's serve loop (target_serve.h): src/pmsm_hil/sim_target/process.py `serve` over the C target core (linked in,
  * or a SIL library's, through its function pointers). */
 #define _POSIX_C_SOURCE 200809L
 

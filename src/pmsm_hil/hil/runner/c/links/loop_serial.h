@@ -1,6 +1,6 @@
 /*
  * The serial link of the native loop and of the native target: the hilserial wire format of
- * protocol/links/serial_bus.py (docs/protocol.md, "Serial framing"): packet = COBS(header + payload +
+ * src/pmsm_hil/protocol/links/serial_bus.py (docs/protocol.md, "Serial framing"): packet = COBS(header + payload +
  * CRC-16/CCITT-FALSE big endian) + 0x00, header = id u32 LE, flags, link seq, payload length; the framing of
  * firmware_stub/target/hil_serial.c. The receiver checks and counts as the Python Deframer + FramedBus do
  * (framing_errors, crc_errors, the link seq check, ignored): it resynchronises at every 0x00 and drops a run of

@@ -1,6 +1,6 @@
 /*
  * The UDP link of the native loop and of the native target: the hiludp wire format of
- * protocol/links/udp_bus.py (docs/protocol.md, "UDP datagrams and session handshake"). A data datagram is
+ * src/pmsm_hil/protocol/links/udp_bus.py (docs/protocol.md, "UDP datagrams and session handshake"). A data datagram is
  * session id (u32 LE) + header (id u32 LE, flags, link seq, payload length) + payload + CRC-16/CCITT (init
  * 0xFFFF, big endian, over header + payload); session 0 marks a control datagram (HELLO / ACK). Datagrams
  * from any address but the peer's and of any other session are dropped and counted. The socket is connect()ed

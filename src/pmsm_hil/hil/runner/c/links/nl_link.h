@@ -2,7 +2,7 @@
  * One link of the native loop and of the native target: send a frame, receive the next one until a deadline,
  * behind two function pointers and the link's own state (`ctx`). A link is one file (loop_udp.c, loop_serial.c,
  * loop_socketcan.c) that fills an nl_link_t; the loop (loop.c) and the target's serve loop (target_serve.c)
- * only call through it. Also what every link shares: the LinkStats counters (protocol/links/stats.py, same
+ * only call through it. Also what every link shares: the LinkStats counters (src/pmsm_hil/protocol/links/stats.py, same
  * names), the 8-bit link sequence check (SeqTracker), the payload-length rule, and the wait for a readable
  * descriptor: a bounded busy-poll, then ppoll until the deadline, so a loaded machine degrades instead of
  * collapsing. No allocation.
@@ -63,7 +63,7 @@ typedef struct nl_link {
         l->period = NULL;                                                                                \
     }
 
-/* LinkStats (protocol/links/stats.py), plus the waits that ended in ppoll. */
+/* LinkStats (src/pmsm_hil/protocol/links/stats.py), plus the waits that ended in ppoll. */
 typedef struct {
     int64_t frames_tx, frames_rx, crc_errors, framing_errors, dropped, duplicate, out_of_order, send_errors,
         ignored, foreign_dropped, session_dropped, auth_failed, auth_replayed;
@@ -80,7 +80,7 @@ int nl_auth_open(hil_auth_t *a, const uint8_t *body, size_t n, nl_link_stats_t *
 /* valid_payload_length: a classic (<= 8) or CAN FD payload length. */
 int nl_valid_length(uint8_t n, int fd);
 
-/* FramedBus._accept + poll_frame on a header + payload of the UDP and serial framings (protocol/links/wire.py:
+/* FramedBus._accept + poll_frame on a header + payload of the UDP and serial framings (src/pmsm_hil/protocol/links/wire.py:
  * id u32 LE, flags, link seq, payload length) whose CRC and length field were checked: a payload length no
  * classic / FD frame has is a framing error; then the link seq check; then extended or remote frames are
  * ignored. 1 when *f got a data frame (payload past len zeroed). */
