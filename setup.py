@@ -1,31 +1,20 @@
-"""Build hook: package list from the mapped folders, and the C kernels compiled by cffi (API mode)."""
+"""Build hook: the package list from src/ (every folder with an __init__.py), and the C extensions compiled by cffi
+(API mode): the plant kernels, the reference firmware and the period loop."""
 
 from pathlib import Path
 
-from setuptools import setup
+from setuptools import find_packages, setup
 
-_BUILDERS = ["hil/native/_build_plant.py:ffibuilder", "sim_target/_build_firmware.py:ffibuilder",
-             "hil/native/_build_loop.py:ffibuilder"]
-_FOLDERS = ("hil", "protocol", "sim_target", "dashboards", "app")
-
-
-def _packages() -> list[str]:
-    """pmsm_hil, its own subpackages (pmsm_hil/testing, pmsm_hil/conformance) and every package below the
-    mapped folders (see [tool.setuptools] package-dir)."""
-    packages = [".".join(init.parent.parts) for init in sorted(Path("pmsm_hil").rglob("__init__.py"))]
-    for folder in _FOLDERS:
-        for init in sorted(Path(folder).rglob("__init__.py")):
-            packages.append(".".join(("pmsm_hil", folder, *init.parent.relative_to(folder).parts)))
-    return packages
-
+_BUILDERS = ["src/pmsm_hil/hil/kernels/_build_plant.py:ffibuilder",
+             "src/pmsm_hil/sim_target/_build_firmware.py:ffibuilder",
+             "src/pmsm_hil/hil/runner/c/_build_loop.py:ffibuilder"]
 
 setup(
-    packages=_packages(),
+    packages=find_packages(where="src"),
     package_data={"pmsm_hil.hil.presets": ["*.toml", "*.csv"], "pmsm_hil.hil.scenarios": ["*.toml"],
                   "pmsm_hil.app.compare.presets": ["*.toml"],
                   "pmsm_hil.protocol": ["*.dbc"],
                   # the kernel headers and shared helpers kernel_build.py compiles a kind's kernel against
-                  "pmsm_hil.hil": ["native/kernels/*.h", "native/kernels/gate_edges.c",
-                                   "native/kernels/dq_segment.c"]},
+                  "pmsm_hil.hil": ["kernels/*.h", "kernels/gate_edges.c", "kernels/dq_segment.c"]},
     cffi_modules=[b for b in _BUILDERS if Path(b.split(":")[0]).exists()],
 )

@@ -12,9 +12,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
 from pmsm_hil.hil.runner.reference_loop import ENV as REFERENCE_LOOP_ENV
 from pmsm_hil.hil.runner.reference_loop import register_reference_loop
-
 from tests.oracle.closed_loop import run_reference_loop
 
 # `--loop python`: the Python reference loop the C loop is proven against (not part of the product), in this

@@ -6,7 +6,6 @@ from __future__ import annotations
 import importlib
 import inspect
 import pkgutil
-import tomllib
 from pathlib import Path
 from types import ModuleType
 
@@ -21,9 +20,9 @@ OPTIONAL = {"dask", "distributed", "ray", "gym_electric_motor", "gem", "rerun"}
 
 
 def _packages() -> list[str]:
-    """pmsm_hil and the folders mapped into it (pyproject.toml [tool.setuptools] package-dir)."""
-    config = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))
-    return sorted(config["tool"]["setuptools"]["package-dir"])
+    """The package's root import name (src/pmsm_hil: every sub-package below it is walked)."""
+    assert (ROOT / "src" / "pmsm_hil" / "__init__.py").is_file()
+    return ["pmsm_hil"]
 
 
 def _modules() -> tuple[list[ModuleType], list[str]]:

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
 from pmsm_hil.hil.mechanics import DynoMechanics
 from pmsm_hil.hil.plant import Plant
 from pmsm_hil.hil.presets_loader import load_motor
@@ -120,7 +121,8 @@ def test_python_target_example_runs_closed_loop_as_controller_external() -> None
 @pytest.mark.parametrize(("rpm", "torque_nm"), [(1500.0, 7.0), (-1000.0, 5.0)])
 def test_python_duty_target_example_drives_the_plant_with_duty_cycles(rpm: float, torque_nm: float) -> None:
     """examples/python_duty_target.py: FOC ending in duties; its frames decode, and the plant applying the
-    carrier comparison of its duties (hil/pwm.py, one period of delay) gives the torque asked within 2 %."""
+    carrier comparison of its duties (src/pmsm_hil/hil/pwm.py, one period of delay) gives the torque asked within 2
+    %."""
     from pmsm_hil.hil.pwm import applied_sequence
     motor = load_motor("niu2020-ipmsm")
     target = runpy.run_path(str(EXAMPLES / "python_duty_target.py"))["DutyTarget"]()

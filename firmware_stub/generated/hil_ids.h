@@ -1,4 +1,4 @@
-/* Ids of the HIL protocol, generated from the VAL_TABLE_ entries of protocol/hil.dbc by
+/* Ids of the HIL protocol, generated from the VAL_TABLE_ entries of src/pmsm_hil/protocol/hil.dbc by
  * python -m pmsm_hil.protocol.gen_c. Do not edit: change the DBC and regenerate (CI checks with --check). */
 #ifndef HIL_IDS_H
 #define HIL_IDS_H

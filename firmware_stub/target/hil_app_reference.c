@@ -1,5 +1,5 @@
 /* The reference firmware (firmware_stub/src) behind the firmware API (hil_app.h). Built with
- * HIL_APP_REFERENCE_PROFILED (the host's native loop, hil/native/loop.c) each step is timed per stage and the
+ * HIL_APP_REFERENCE_PROFILED (the host's native loop, src/pmsm_hil/hil/runner/c/loop.c) each step is timed per stage and the
  * restricted-vs-full candidate diagnostic kept, as the Python in-process target does; read with
  * hil_app_reference_diag. */
 #include <string.h>

@@ -1,6 +1,6 @@
 /*
  * Authenticated frames of the HIL link in the spirit of AUTOSAR SecOC (docs/protocol.md, "Authenticated
- * frames"; protocol/links/auth.py is the same in Python): every frame body (header + payload) is followed by a
+ * frames"; src/pmsm_hil/protocol/links/auth.py is the same in Python): every frame body (header + payload) is followed by a
  * trailer of the freshness value's low 16 bits (u16 LE) and a MAC truncated to 32 bits, the first 4 bytes of
  * HMAC-SHA256(key, direction || context || freshness u64 LE || header || payload). `direction` is the sender's
  * role ('H' host, 'T' target), so a frame reflected back to its sender fails; `context` is the UDP session id

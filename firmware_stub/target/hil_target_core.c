@@ -16,7 +16,7 @@
 #define SCALE_TH ((double)0x1.921fb54442d18p-14L)  /* 2*pi/65536 rad */
 #define NS_PER_S ((double)0x1.dcd65p+29L)          /* 1e9 */
 
-/* Duty wire codes (hil.dbc CmdDuty*; hil/native/pwm_duty.h, hil/pwm.py) */
+/* Duty wire codes (hil.dbc CmdDuty*; src/pmsm_hil/hil/runner/c/pwm_duty.h, src/pmsm_hil/hil/pwm.py) */
 #define HIL_CORE_DUTY_FULL 65520u
 #define HIL_CORE_DUTY_OUT_OF_RANGE 65534u
 #define HIL_CORE_DUTY_NAN 65535u
@@ -115,7 +115,7 @@ static void send_fault(uint8_t code, uint32_t detail)
 
 /* Wire code of a duty (hil.dbc CmdDuty*: u16 x 1/65520): NaN 65535, outside 0..1 65534 (DUT findings at
  * the host, never clamped here), else round(d * 65520) half up, computed in double where d * 65520 is exact
- * (24 x 16 bits), so every sender (protocol/codec_duty.py duty_raw) gives the same code. */
+ * (24 x 16 bits), so every sender (src/pmsm_hil/protocol/codec_duty.py duty_raw) gives the same code. */
 static uint16_t duty_raw(float d)
 {
     if (d != d) {

@@ -1,6 +1,6 @@
 /*
  * The portable HIL target core: frames in, frames out. Implements the target behaviour of
- * docs/protocol.md ("Target behaviour") exactly as the Python virtual target (sim_target/target.py)
+ * docs/protocol.md ("Target behaviour") exactly as the Python virtual target (src/pmsm_hil/sim_target/target.py)
  * does, on top of the generated codec (firmware_stub/generated/hil_protocol.c), and calls the
  * firmware API (hil_app.h). Boards feed received frames to hil_core_rx and send what hil_core_tx
  * returns; the SIL shared library exports the same functions to the host.

@@ -113,7 +113,7 @@ static int check_sizes(void)
 }
 
 /* Encoders never cast NaN or an out-of-type value to an integer (undefined in C): NaN gives 0, the rest saturates
- * to the signal's raw range (protocol/gen_c.py). */
+ * to the signal's raw range (src/pmsm_hil/protocol/gen_c.py). */
 static int check_encode_saturates(void)
 {
     int fails = 0;

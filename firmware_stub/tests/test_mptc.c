@@ -9,7 +9,7 @@
 
 #define TS_NS 100000u
 
-/* Zhang et al. Table 4 machine with the preset's chosen psi_f, Vdc, L_ls (hil/presets/zhang2021-dtpmsm.toml). */
+/* Zhang et al. Table 4 machine with the preset's chosen psi_f, Vdc, L_ls (src/pmsm_hil/hil/presets/zhang2021-dtpmsm.toml). */
 static void setup(hil_fw_state_t *s, uint8_t controller, float torque)
 {
     hil_fw_init(s);

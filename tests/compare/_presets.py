@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.app.compare import ComparePreset, CompareResult, load_preset, run_preset
 from pmsm_hil.hil.errors import InputFileError
 

@@ -7,10 +7,10 @@ import json
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.app.compare import load_preset, preset_names, run_preset
 from pmsm_hil.hil.errors import ParameterError
-
 from tests.compare._presets import assert_rejected, preset_file
 
 

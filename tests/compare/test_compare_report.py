@@ -8,6 +8,7 @@ import re
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.app.compare import load_preset, run_preset
 from pmsm_hil.app.compare.preset import Variant
@@ -16,7 +17,6 @@ from pmsm_hil.dashboards.errors import DashboardError
 from pmsm_hil.dashboards.report_data import load_run
 from pmsm_hil.hil.records import TRACE_DTYPE6
 from pmsm_hil.hil.runlog.reader import read_trace
-
 from tests.compare._presets import load_text, preset_file
 
 TINY = ('name = "tiny"\nmotor = "niu2020-ipmsm"\nscenario = "steady"\ncontrollers = ["mpcc", "dsvm-20"]\n'

@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 from pmsm_hil.app.compare import load_preset
-
 from tests.compare._presets import assert_rejected, run_text
 
 HEAD = 'name = "x"\nmotor = "niu2020-ipmsm"\nscenario = "steady"\ncontrollers = ["fcs-mpc-2"]\n'

@@ -5,10 +5,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.app.compare import load_preset
 from pmsm_hil.app.compare.runs import evaluation_e
 from pmsm_hil.app.compare.spread import aggregate
-
 from tests.compare._presets import assert_rejected, run_text
 
 

@@ -7,7 +7,6 @@ from pathlib import Path
 from pmsm_hil.app.compare import load_preset
 from pmsm_hil.app.compare.spread import aggregate
 from pmsm_hil.app.compare.table import format_table
-
 from tests.compare._presets import run_text
 
 

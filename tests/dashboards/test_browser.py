@@ -10,10 +10,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from pmsm_hil.dashboards.browser import HeadlessChromium, find_chromium
 from pmsm_hil.dashboards.report_html import TABLE, write_report
 from pmsm_hil.hil.runner.run import run_closed_loop
-
 from tests.dashboards.conftest import LiveRun, short_config
 
 pytestmark = pytest.mark.skipif(find_chromium() is None,

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.dashboards.entities import APPLICATION_ID
 from pmsm_hil.dashboards.recording import RerunTargets, free_port, open_recording, viewer_executable

@@ -7,10 +7,10 @@ import re
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.dashboards.report_data import load_run
 from pmsm_hil.dashboards.report_figures import harmonic_spectrum
-
 from tests.dashboards._rrd import rows_per_entity
 from tests.dashboards.conftest import LiveRun
 

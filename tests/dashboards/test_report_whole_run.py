@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.dashboards.decimate import minmax_decimate
 from pmsm_hil.dashboards.report_data import load_run

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.dashboards import entities as ent
-
 from tests.dashboards._rrd import rows_per_entity
 from tests.dashboards.conftest import LiveRun
 

@@ -8,6 +8,7 @@ import shutil
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.app.cli import bench_controllers
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import pytest
+
 from pmsm_hil.app.cli import bench_controllers
 from pmsm_hil.app.cli.bench_machines import SIX_PHASE_IDS, THREE_PHASE, inputs, machine_for
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 
 import pytest
+
 from pmsm_hil.protocol.ids import ControllerId, ParamId
 from pmsm_hil.sim_target.firmware import CONTROLLERS, MODE_TORQUE, ControllerInfo, Firmware
 

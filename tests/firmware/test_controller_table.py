@@ -4,6 +4,7 @@ DBC controller name and id, with the phase count the firmware enforces on measur
 from __future__ import annotations
 
 import pytest
+
 from pmsm_hil.protocol.ids import CONTROLLER_NAMES, RESERVED_CONTROLLER_IDS, ControllerId, Status
 from pmsm_hil.sim_target.firmware import (
     CONTROLLERS,

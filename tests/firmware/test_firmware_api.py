@@ -7,6 +7,7 @@ import statistics
 from typing import Any
 
 import pytest
+
 from pmsm_hil.sim_target.firmware import (
     CONTROLLER_IDS,
     CONTROLLERS,
@@ -18,7 +19,6 @@ from pmsm_hil.sim_target.firmware import (
     FirmwareConfigError,
     FirmwareInputError,
 )
-
 from tests.firmware._dq_plant import DqPlant
 
 TORQUE_PER_AMP = 1.5 * 3 * 0.21  # [N·m/A], id = 0

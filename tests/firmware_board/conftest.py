@@ -8,6 +8,7 @@ import shutil
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.sim_target.fw_build import build_firmware, missing_tools
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -5,9 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.sim_target.fw_build import FwBuildError, _copy_out
-
 from tests.firmware_board.conftest import need
 
 

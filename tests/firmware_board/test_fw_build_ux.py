@@ -8,10 +8,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.sim_target.fw_build import ARTEFACT, FwBuildError, build_firmware, cache_dir, key_lines, parse_defines
 from pmsm_hil.sim_target.fw_params import FirmwareParamError, firmware_params
-
 from tests.firmware_board.conftest import ROOT, need
 
 CASES = Path(__file__).with_name("fw_cases")

@@ -1,5 +1,5 @@
-"""An emulated MCU's lockstep time is its own progress (hil/native/loop_stall.h `nl_guest_available`): the
-instructions it executed at the virtual time of one, plus the time QEMU slept with nothing to do; a starved or
+"""An emulated MCU's lockstep time is its own progress (src/pmsm_hil/hil/runner/c/loop_stall.h `nl_guest_available`):
+the instructions it executed at the virtual time of one, plus the time QEMU slept with nothing to do; a starved or
 stopped QEMU adds nothing. Checked in C (compiled here with loop_stall.c), and end to end: the instruction-count
 plugin's running count is mapped by the host and grows only while the guest executes."""
 
@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.sim_target.qemu import QemuTarget
 
 NATIVE = Path(__file__).resolve().parents[2] / "hil" / "native"

@@ -19,10 +19,10 @@ from typing import Any
 
 import numpy as np
 import pytest
+
 from pmsm_hil.hil.runlog.reader import read_periods
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.target_client import HostStallError
-
 from tests.firmware_board._runs import rated
 
 #: record fields that are the host's own wall-clock measurements (a SIL step's execution time on the host)

@@ -12,9 +12,9 @@ import time
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.sim_target.qemu import QemuError, QemuTarget
-
 from tests.firmware_board._runs import assert_like, metrics, rated
 
 

@@ -12,11 +12,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from pmsm_hil.hil.runlog.reader import read_periods
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.sim_target.fw_build import build_firmware
 from pmsm_hil.sim_target.qemu import fault_name
-
 from tests.firmware_board._runs import rated
 from tests.firmware_board.conftest import need
 

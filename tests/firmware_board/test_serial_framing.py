@@ -1,6 +1,6 @@
 """The C serial framing of the board layer (firmware_stub/target/hil_serial.c) against the host's Python framing
-(protocol/links/cobs.py, serial_bus.py): identical packets both ways, resynchronisation after garbage, CRC errors
-counted."""
+(src/pmsm_hil/protocol/links/cobs.py, serial_bus.py): identical packets both ways, resynchronisation after garbage, CRC
+errors counted."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.protocol.links.cobs import Deframer, encode_packet
 from pmsm_hil.protocol.links.stats import LinkStats
 from pmsm_hil.protocol.links.wire import FLAG_BRS, FLAG_FD, pack_frame

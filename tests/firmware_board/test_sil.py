@@ -7,6 +7,7 @@ import struct
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.hil.errors import HilError
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.protocol.codec import FrameCodec
@@ -14,7 +15,6 @@ from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.messages import ConfigAck, ConfigParam, Fault, Heartbeat, Measurement, Setpoint
 from pmsm_hil.sim_target.firmware import FirmwareError
 from pmsm_hil.sim_target.sil import SilFirmware
-
 from tests.firmware_board._runs import assert_like, metrics, rated
 
 KEYS = ("speed_mean_rpm", "torque_mean_nm", "torque_ripple_rms_nm", "current_thd_pct", "switching_freq_khz")
@@ -108,6 +108,7 @@ def test_an_isolated_sil_run_logs_the_torque_reference_as_the_in_process_one(ref
     from dataclasses import replace
 
     import numpy as np
+
     from pmsm_hil.hil.runner.run import run_closed_loop
 
     base = rated(f"sil:{reference_sil}", settle_s=0.01, duration_s=0.03)

@@ -16,11 +16,11 @@ from typing import Any
 
 import numpy as np
 import pytest
+
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.runlog.reader import read_periods
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.sim_target.fw_build import build_firmware
-
 from tests.firmware_board._runs import rated
 from tests.firmware_board.conftest import ROOT, need
 from tests.testing.pytest_session import run_pytest

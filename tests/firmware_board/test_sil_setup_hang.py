@@ -12,8 +12,8 @@ import time
 from pathlib import Path
 
 import pytest
-from pmsm_hil.sim_target.fw_build import build_firmware
 
+from pmsm_hil.sim_target.fw_build import build_firmware
 from tests.firmware_board.conftest import ROOT, need
 
 MISBEHAVE = Path(__file__).with_name("misbehave")

@@ -10,11 +10,11 @@ import sys
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.hil.runlog.reader import read_periods, read_topic_messages
 from pmsm_hil.hil.runlog.topics import TOPIC_CONSOLE
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.sim_target.fw_build import build_firmware
-
 from tests.firmware_board._runs import rated
 from tests.firmware_board.conftest import ROOT, need
 

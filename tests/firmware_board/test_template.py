@@ -6,8 +6,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from pmsm_hil.app.cli.main import main
 
+from pmsm_hil.app.cli.main import main
 from tests.firmware_board._runs import metrics, rated
 
 

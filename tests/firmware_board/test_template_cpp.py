@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.runlog.reader import read_periods
 from pmsm_hil.hil.runner.run import run_closed_loop
@@ -19,7 +20,6 @@ from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.messages import ConfigAck, ConfigParam
 from pmsm_hil.sim_target.fw_build import build_firmware
 from pmsm_hil.sim_target.sil import SilFirmware
-
 from tests.firmware_board._runs import metrics, rated
 from tests.firmware_board.conftest import ROOT, need
 
@@ -106,7 +106,6 @@ def test_core_rejects_a_declared_parameter_out_of_range(cpp_sil: Path) -> None:
 
 def test_sweeps_and_the_pytest_plugin_take_firmware_parameters(cpp_sil: Path) -> None:
     from pmsm_hil.app.sweep.configure import base_options, build_config
-
     from pmsm_hil.testing.runs import HilSettings
     from pmsm_hil.testing.runs import build_config as plugin_config
 

@@ -1,5 +1,6 @@
 """The test suite's load FMU (fmu_src/fan_load.c: fan law with a first-order lag), built at test time with gcc
-against the FMI headers fmpy ships (hil/load_fmu/headers.py) and zipped as an FMI 2.0 or 3.0 Co-Simulation FMU."""
+against the FMI headers fmpy ships (src/pmsm_hil/hil/load_fmu/headers.py) and zipped as an FMI 2.0 or 3.0 Co-Simulation
+FMU."""
 
 from __future__ import annotations
 

@@ -18,12 +18,12 @@ from typing import Any
 
 import numpy as np
 import pytest
+
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.hil.errors import HilError
 from pmsm_hil.hil.load_fmu.spec import load_fmu_spec
 from pmsm_hil.hil.runlog.reader import read_periods
 from pmsm_hil.hil.runner.run import run_closed_loop
-
 from tests.load_fmu.fan_fmu import build_fan_fmu, have_gcc
 from tests.load_fmu.test_load_fmu import _cli_config, _config
 from tests.testing.pytest_session import ROOT, run_pytest

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.app.cli.run import add_run_arguments, config_from_args
 from pmsm_hil.app.sweep.configure import base_options, build_config
@@ -23,7 +24,6 @@ from pmsm_hil.hil.runlog.reader import read_metadata, read_periods
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import load_scenario
-
 from tests.load_fmu.fan_fmu import K_DEFAULT, TAU_DEFAULT, build_fan_fmu, fan_steady_torque, rad_s
 
 SPEED_RPM = 1500.0

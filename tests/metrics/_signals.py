@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+
 from pmsm_hil.hil.records import PERIOD_DTYPE, TRACE_DTYPE
 
 

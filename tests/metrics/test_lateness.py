@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+
 from pmsm_hil.hil.metrics.lateness import LATENESS_EDGES_US, US_BINS, LatenessStats, lateness_histogram
 from pmsm_hil.hil.metrics.log_quantiles import RELATIVE_ERROR, LogQuantiles
 

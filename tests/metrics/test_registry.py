@@ -6,6 +6,7 @@ from __future__ import annotations
 from typing import Any
 
 import pytest
+
 from pmsm_hil.app.cli.report_table import format_metrics
 from pmsm_hil.app.compare.spread import SPREAD_METRICS
 from pmsm_hil.app.compare.table import COLUMNS
@@ -49,7 +50,7 @@ def runs() -> list[dict[str, Any]]:
 def test_every_key_a_run_produces_is_registered_and_the_reverse(runs: list[dict[str, Any]]) -> None:
     registered = {m.key for m in METRICS if m.source in (WINDOW, RUN)}
     produced = set().union(*(set(m) for m in runs))
-    assert produced - registered == set(), "metrics keys missing from hil/metrics/registry.py"
+    assert produced - registered == set(), "metrics keys missing from src/pmsm_hil/hil/metrics/registry.py"
     assert registered - produced - CONDITIONAL == set(), "registered keys no run produced"
     for m in METRICS:  # sub-keys exist in their dicts (but those of one link kind)
         if m.sub is not None and m.key not in CONDITIONAL and (m.key, m.sub) not in CONDITIONAL_SUBS:

@@ -7,9 +7,9 @@ import math
 
 import numpy as np
 import pytest
+
 from pmsm_hil.hil.metrics import compute_run_metrics
 from pmsm_hil.hil.metrics.stator_frequency import MAX_CHANGE_PCT, stator_frequency
-
 from tests.metrics._signals import make_periods, make_trace, three_phase
 
 TS = 100e-6

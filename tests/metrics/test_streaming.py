@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+
 from pmsm_hil.hil.metrics import MetricsError, compute_run_metrics, current_thd, quantiles
 from pmsm_hil.hil.metrics.moments import WeightedMoments
 from pmsm_hil.hil.metrics.quantiles import IntQuantiles
@@ -17,7 +18,6 @@ from pmsm_hil.hil.metrics.streaming import WindowMetrics
 from pmsm_hil.hil.metrics.thd import next_smooth
 from pmsm_hil.hil.metrics.trace_tail import TraceTail
 from pmsm_hil.hil.records import TRACE_DTYPE
-
 from tests.metrics._signals import make_periods, make_trace, three_phase
 
 TS = 100e-6

@@ -8,9 +8,9 @@ from typing import Any
 
 import numpy as np
 import pytest
+
 from pmsm_hil.hil.metrics import MetricsError, MetricsWindowError, compute_run_metrics
 from pmsm_hil.hil.metrics.streaming import HOLD_TORQUE
-
 from tests.metrics._signals import make_periods, make_trace, three_phase
 
 TS = 100e-6

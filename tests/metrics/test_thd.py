@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+
 from pmsm_hil.hil.metrics import MetricsError, MetricsWindowError, current_thd, fundamental_hz
 
 F1 = 66.0 + 2.0 / 3.0  # 1000 rpm, 4 pole pairs

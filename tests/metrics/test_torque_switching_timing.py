@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 import pytest
-from pmsm_hil.hil.metrics import MetricsError, MetricsWindowError, switching_stats, timing_stats, torque_stats
 
+from pmsm_hil.hil.metrics import MetricsError, MetricsWindowError, switching_stats, timing_stats, torque_stats
 from tests.metrics._signals import make_periods, make_trace
 
 

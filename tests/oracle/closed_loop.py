@@ -1,8 +1,8 @@
 """The Python period loop: plant ↔ target each control period, in lockstep (virtual time) or real time.
 
-Not part of the product: the C loop (hil/native/loop.c) runs every run. This is the test suite's reference (the
-oracle the C loop is proven against, record for record, frame for frame): `run_reference_loop` is registered with
-the runner by tests/conftest.py (`--loop python`)."""
+Not part of the product: the C loop (src/pmsm_hil/hil/runner/c/loop.c) runs every run. This is the test suite's
+reference (the oracle the C loop is proven against, record for record, frame for frame): `run_reference_loop` is
+registered with the runner by tests/conftest.py (`--loop python`)."""
 
 from __future__ import annotations
 
@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.mechanics import RPM_TO_RAD_S, DynoMechanics
 from pmsm_hil.hil.plant_base import PeriodStats, PlantBase
@@ -261,7 +262,7 @@ class ClosedLoop:
     def _apply_and_trace(self, k: int) -> PeriodStats:
         """Advance the plant one period with the pending command; keep the trace of the metrics window."""
         pending = self._pending
-        if pending.duties:  # duty-cycle command: the carrier comparison (hil/pwm.py)
+        if pending.duties:  # duty-cycle command: the carrier comparison (src/pmsm_hil/hil/pwm.py)
             st = self.plant.advance(*applied_sequence(pending, self._ts_ns, carrier_half(self._pwm_update, k)))
         elif pending.mirror:  # symmetric command: s0..s(n-1), s(n-2)..s0 (same durations)
             st = self.plant.advance(*pending.expanded())
@@ -418,7 +419,7 @@ class ClosedLoop:
     def _stop(self, out: LoopOutcome) -> None:
         """Every exit path: the zero vector (all lower switches on) after a protective ending, and the
         disabling Setpoint to the target (recorded as a frame when frames are logged), confirmed by the target
-        (hil/runner/safe_stop.py; unconfirmed: the zero vector now, and the ending says so)."""
+        (src/pmsm_hil/hil/runner/safe_stop.py; unconfirmed: the zero vector now, and the ending says so)."""
         if out.safe_state:
             with contextlib.suppress(Exception):
                 self.plant.advance((0,), (self.cfg.ts_ns,))

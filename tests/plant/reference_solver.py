@@ -7,8 +7,9 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 import numpy as np
-from pmsm_hil.hil.motor_params import PmsmParams
 from scipy.integrate import solve_ivp
+
+from pmsm_hil.hil.motor_params import PmsmParams
 
 
 def rows_and_references(rows: np.ndarray, t0: float, reference: Callable[[int], Any]) -> Iterator[tuple[Any, Any]]:

@@ -5,8 +5,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from pmsm_hil.hil.motor_params import PmsmParams
 from scipy.integrate import solve_ivp
+
+from pmsm_hil.hil.motor_params import PmsmParams
 
 _H3 = math.sqrt(3.0) / 2.0
 #: VSD rows (alpha, beta, x, y) over phases A B C U V W, without the 1/3 factor (paper eq. (1)).

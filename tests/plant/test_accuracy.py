@@ -7,10 +7,10 @@ from typing import Any
 
 import numpy as np
 import pytest
+
 from pmsm_hil.hil.mechanics import DynoMechanics
 from pmsm_hil.hil.plant import Plant
 from pmsm_hil.hil.presets_loader import load_motor
-
 from tests.plant.reference_solver import rows_and_references, solve_period
 
 TS = 100e-6

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from pmsm_hil.app.bench.gem_pmsm import gem_version
 from pmsm_hil.app.bench.plant_bench import (
     PlantBenchResult,

@@ -1,6 +1,6 @@
-"""The cffi declarations come from the C headers (hil/cdef_extract.py): named typedefs and prototypes, macros in
-array sizes replaced (integer expressions, across headers), integer constants listed, structs cut down or opaque,
-glue functions from their definitions; a name the header lacks is an error naming it; no build script restates a
+"""The cffi declarations come from the C headers (src/pmsm_hil/hil/cdef_extract.py): named typedefs and prototypes,
+macros in array sizes replaced (integer expressions, across headers), integer constants listed, structs cut down or
+opaque, glue functions from their definitions; a name the header lacks is an error naming it; no build script restates a
 header."""
 
 from __future__ import annotations
@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 from cffi import FFI
+
 from pmsm_hil.hil.cdef_extract import cffi_constants, constants, declarations, declared_names, evaluate
 
 HEADER = """/* a header */
@@ -48,7 +49,7 @@ def test_named_declarations_as_cffi_reads_them(tmp_path: Path) -> None:
 def test_the_bundled_headers_give_the_structs_the_plant_uses() -> None:
     from pmsm_hil.hil._plant_native import ffi
 
-    native = Path(__file__).resolve().parents[2] / "hil" / "native" / "kernels"
+    native = Path(__file__).resolve().parents[2] / "src" / "pmsm_hil" / "hil" / "kernels"
     text = declarations(native / "plant.h", ["pl_params_t", "pl_state_t"])
     assert "int32_t dead_level[3];" in text
     assert ffi.sizeof("pl_state_t") > 0 and ffi.sizeof("mk_sample_t") == 13 * 8
@@ -139,7 +140,7 @@ def test_a_partial_struct_keeps_the_headers_layout_in_the_built_extensions() -> 
     from pmsm_hil.hil._loop_native import ffi
     from pmsm_hil.sim_target._firmware import ffi as fw_ffi
 
-    headers = [*NATIVE.glob("*.h"), *(h for d in FIRMWARE_HEADER_DIRS for h in d.glob("*.h"))]
+    headers = [*LOOP_C.rglob("*.h"), *(h for d in FIRMWARE_HEADER_DIRS for h in d.glob("*.h"))]
     values = constants(*headers)
     assert values["NL_SERIAL_MAX_ENCODED"] == values["HIL_SERIAL_MAX_ENCODED"] + values["HIL_AUTH_TRAILER"] == 80
     fields = dict(ffi.typeof("nl_serial_t").fields)
@@ -153,17 +154,20 @@ def test_a_partial_struct_keeps_the_headers_layout_in_the_built_extensions() -> 
 
 # --- no build script restates a header -------------------------------------------------------------------------
 ROOT = Path(__file__).resolve().parents[2]
-NATIVE = ROOT / "hil" / "native"
+PACKAGE = ROOT / "src" / "pmsm_hil"
+#: the C of the package: the loop and its links (src/pmsm_hil/hil/runner/c), the plant kernels
+#: (src/pmsm_hil/hil/kernels)
+LOOP_C, KERNELS = PACKAGE / "hil" / "runner" / "c", PACKAGE / "hil" / "kernels"
 FIRMWARE_HEADER_DIRS = [ROOT / "firmware_stub" / d for d in ("include", "target", "generated")]
 #: the scripts that hand cffi a cdef
-BUILD_SCRIPTS = [NATIVE / "_build_loop.py", NATIVE / "_build_plant.py", ROOT / "sim_target" / "_build_firmware.py",
-                 ROOT / "hil" / "kernel_build.py"]
+BUILD_SCRIPTS = [LOOP_C / "_build_loop.py", KERNELS / "_build_plant.py", PACKAGE / "sim_target" / "_build_firmware.py",
+                 PACKAGE / "hil" / "kernel_build.py"]
 
 
 def header_names() -> set[str]:
     """Every typedef, function, struct tag and macro a header of the C side declares (the cffi glue headers too)."""
-    headers = [*NATIVE.rglob("*.h"), *(h for d in FIRMWARE_HEADER_DIRS for h in d.glob("*.h")),
-               *(ROOT / "sim_target").glob("*.h")]
+    headers = [*LOOP_C.rglob("*.h"), *KERNELS.glob("*.h"), *(h for d in FIRMWARE_HEADER_DIRS for h in d.glob("*.h")),
+               *(PACKAGE / "sim_target").glob("*.h")]
     return set().union(*(declared_names(h.read_text(encoding="utf-8")) for h in headers))
 
 
@@ -200,6 +204,6 @@ typedef struct { int32_t mine; } my_own_t;
 
 @pytest.mark.parametrize("script", BUILD_SCRIPTS, ids=lambda p: p.name)
 def test_no_build_script_restates_a_header(script: Path) -> None:
-    """Every struct, typedef, prototype and constant cffi reads comes from its header through hil/cdef_extract.py;
-    a declaration typed into a build script would drift from the header it copies."""
+    """Every struct, typedef, prototype and constant cffi reads comes from its header through
+    src/pmsm_hil/hil/cdef_extract.py; a declaration typed into a build script would drift from the header it copies."""
     assert restated(script.read_text(encoding="utf-8"), header_names()) == []

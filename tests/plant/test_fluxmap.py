@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.hil.errors import InputFileError, ParameterError
 from pmsm_hil.hil.fluxmap import FluxMap, check_map, interpolant, load_interpolant, write_csv_map
@@ -86,7 +87,7 @@ def test_the_interpolant_reproduces_a_linear_map_and_matches_the_kernel() -> Non
 
 
 def test_the_shipped_map_is_its_generator_and_reciprocal_to_its_discretisation() -> None:
-    """The preset CSV equals the saturation model's map (hil/fluxmap_model.py) to 1e-15 Wb; the model is
+    """The preset CSV equals the saturation model's map (src/pmsm_hil/hil/fluxmap_model.py) to 1e-15 Wb; the model is
     reciprocal by construction, so the residual left is the node-slope estimate's (< 2 % of the inductances);
     a linear map's is 0."""
     fmap = SaturationModel().flux_map()

@@ -11,6 +11,8 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 import pytest
+from scipy.linalg import expm
+
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.im_params import ImParams
@@ -18,7 +20,6 @@ from pmsm_hil.hil.im_plant import ImPlant
 from pmsm_hil.hil.machine import load_machine
 from pmsm_hil.hil.mechanics import DynoMechanics, InertiaMechanics, LoadProfile
 from pmsm_hil.hil.presets_loader import load_motor
-from scipy.linalg import expm
 
 TS_S = 1e-4
 RPM = 1000.0

@@ -9,11 +9,12 @@ import math
 
 import numpy as np
 import numpy.typing as npt
+from scipy.linalg import expm
+
 from pmsm_hil.hil.im_params import ImParams
 from pmsm_hil.hil.im_plant import ImPlant
 from pmsm_hil.hil.mechanics import DynoMechanics
 from pmsm_hil.hil.presets_loader import load_motor
-from scipy.linalg import expm
 
 TS_S = 1e-4
 RPM = 1000.0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import pytest
+
 from pmsm_hil.hil.errors import SequenceError
 from pmsm_hil.hil.mechanics import DynoMechanics
 from pmsm_hil.hil.plant import Plant

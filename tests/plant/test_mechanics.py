@@ -6,12 +6,12 @@ import math
 
 import numpy as np
 import pytest
+from scipy.integrate import solve_ivp
+
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.mechanics import RPM_TO_RAD_S, DynoMechanics, InertiaMechanics, LoadProfile
 from pmsm_hil.hil.plant import Plant
 from pmsm_hil.hil.presets_loader import load_motor
-from scipy.integrate import solve_ivp
-
 from tests.plant.reference_solver import stator_voltage
 
 TS = 100e-6

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
 from pmsm_hil.hil.drive_params import DRIVE_FIELDS, DriveParams, flat_values
 from pmsm_hil.hil.errors import HilError, InputFileError, ParameterError
 from pmsm_hil.hil.machine import params_class_for_kind

@@ -8,11 +8,11 @@ from typing import Any
 import numpy as np
 import pytest
 from pmsm_hil.hil._plant_native import ffi, lib
+
 from pmsm_hil.hil.errors import ParameterError, SequenceError
 from pmsm_hil.hil.mechanics import DynoMechanics, InertiaMechanics, LoadProfile
 from pmsm_hil.hil.plant6 import TRACE_COLUMNS6, Plant6
 from pmsm_hil.hil.presets_loader import load_motor
-
 from tests.plant.reference_solver import rows_and_references
 from tests.plant.reference_solver6 import VSD, VSD_ROWS, code_voltage, solve_period6
 

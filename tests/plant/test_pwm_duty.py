@@ -1,7 +1,7 @@
-"""Duty cycles → switching sequence (hil/pwm.py and its C twin hil/native/pwm_duty.c, the native loop's command
-path): the switching instants equal a brute-force carrier comparison (the triangle evaluated at every ns, exact
-rational arithmetic), both implementations give the same ns, and dead time / minimum pulse act on duty sequences
-as on any other."""
+"""Duty cycles → switching sequence (src/pmsm_hil/hil/pwm.py and its C twin src/pmsm_hil/hil/runner/c/pwm_duty.c, the
+native loop's command path): the switching instants equal a brute-force carrier comparison (the triangle evaluated at
+every ns, exact rational arithmetic), both implementations give the same ns, and dead time / minimum pulse act on duty
+sequences as on any other."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ from itertools import pairwise
 
 import numpy as np
 import pytest
+
 from pmsm_hil.hil import _loop_native  # type: ignore[attr-defined]
 from pmsm_hil.hil.mechanics import DynoMechanics
 from pmsm_hil.hil.plant import Plant

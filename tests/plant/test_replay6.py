@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.hil.mechanics import DynoMechanics
 from pmsm_hil.hil.plant6 import Plant6

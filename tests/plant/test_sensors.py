@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.sensors import SensorConfig, SensorModel
 

@@ -1,4 +1,4 @@
-"""Two masses on an elastic shaft: a mechanics variant (hil/native/kernels/mechanics.c) that no machine kernel
+"""Two masses on an elastic shaft: a mechanics variant (src/pmsm_hil/hil/kernels/mechanics.c) that no machine kernel
 knows of. Its free response turns at the torsional resonance sqrt(k·(J1+J2)/(J1·J2)) and decays at c·(J1+J2)/(2·J1·J2);
 with a very stiff shaft a machine's run equals the one-mass run of the summed inertia."""
 
@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+
 from pmsm_hil.hil import _plant_native
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.im_plant import ImPlant

@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator
 
 import pytest
+
 from pmsm_hil.protocol.links import BusLink, open_link
 
 

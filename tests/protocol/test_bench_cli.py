@@ -7,6 +7,7 @@ import json
 from typing import Any
 
 import pytest
+
 from pmsm_hil.app.cli import bench_link
 from pmsm_hil.app.cli.main import main
 

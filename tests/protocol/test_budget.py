@@ -6,6 +6,7 @@ import argparse
 import json
 
 import pytest
+
 from pmsm_hil.app.cli import link_budget as cli
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.protocol.errors import BudgetError

@@ -7,9 +7,10 @@ import subprocess
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.protocol.paths import GENERATED_C_DIR, GOLDEN_C_HEADER
 
-#: the firmware's strict flags (sim_target/_build_firmware.py STRICT_FLAGS), at -O1
+#: the firmware's strict flags (src/pmsm_hil/sim_target/_build_firmware.py STRICT_FLAGS), at -O1
 FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion", "-fsingle-precision-constant", "-O1"]
 TEST_C = GOLDEN_C_HEADER.parent / "test_codec.c"
 

@@ -7,6 +7,7 @@ import binascii
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+
 from pmsm_hil.protocol.links.cobs import CobsError, Deframer, cobs_decode, cobs_encode, encode_packet
 from pmsm_hil.protocol.links.stats import LinkStats
 from pmsm_hil.protocol.links.wire import pack_frame

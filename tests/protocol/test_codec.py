@@ -9,6 +9,7 @@ from typing import Any
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+
 from pmsm_hil.protocol import Command, ConfigAck, ConfigParam, Fault, Heartbeat, Measurement, Message, Setpoint
 from pmsm_hil.protocol.codec import PROFILES, FrameCodec, decode_frame, decode_message
 from pmsm_hil.protocol.errors import DecodeError, EncodeError, ProtocolError

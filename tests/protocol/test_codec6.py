@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import pytest
+
 from pmsm_hil.protocol import EncodeError, FrameCodec, FrameDecoder, Measurement6, decode_frame, decode_message
 
 M = Measurement6(513, 66.71, -33.35, -33.36, 57.76, -57.76, 0.0, 1.25, 157.08, 300.0, 0)

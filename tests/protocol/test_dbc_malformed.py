@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.protocol.errors import DatabaseError
 from pmsm_hil.protocol.layout import DBC_PATH, load_layouts
 

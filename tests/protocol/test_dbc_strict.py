@@ -1,5 +1,5 @@
-"""protocol/hil.dbc as DBC tools read it: strict load, a strict cantools round trip of every signal over its
-whole range, ranges that cover the raw values in use, a comment on every signal, the value descriptions
+"""src/pmsm_hil/protocol/hil.dbc as DBC tools read it: strict load, a strict cantools round trip of every signal over
+its whole range, ranges that cover the raw values in use, a comment on every signal, the value descriptions
 and the attributes (bus type, cycle times)."""
 
 from __future__ import annotations
@@ -11,6 +11,7 @@ from typing import Any
 import cantools
 import pytest
 from cantools.database.errors import EncodeError
+
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.protocol.layout import DBC_PATH
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
+
 from pmsm_hil.protocol.codec import FrameCodec, FrameDecoder
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.messages import Command, Measurement

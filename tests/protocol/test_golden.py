@@ -6,6 +6,7 @@ import json
 from typing import Any
 
 import pytest
+
 from pmsm_hil.protocol import gen_c, golden
 from pmsm_hil.protocol.codec import FrameCodec, decode_message
 from pmsm_hil.protocol.frame import Frame

@@ -1,4 +1,4 @@
-"""The ids are generated from the DBC value tables (protocol/ids.py, firmware_stub/generated/hil_ids.h):
+"""The ids are generated from the DBC value tables (src/pmsm_hil/protocol/ids.py, firmware_stub/generated/hil_ids.h):
 they agree with the signals' VAL_ tables, are not stale, and the generator refuses drifting tables."""
 
 from __future__ import annotations
@@ -8,6 +8,7 @@ from typing import Any
 
 import cantools
 import pytest
+
 from pmsm_hil.protocol import gen_c, gen_ids
 from pmsm_hil.protocol.errors import DatabaseError
 from pmsm_hil.protocol.ids import (

@@ -1,4 +1,4 @@
-"""Authenticated frames (protocol/links/auth.py, firmware_stub/target/hil_auth.c): the C MAC
+"""Authenticated frames (src/pmsm_hil/protocol/links/auth.py, firmware_stub/target/hil_auth.c): the C MAC
 against Python's hmac/hashlib, C and Python seal and open each other's frames, and the Python UDP and serial
 links drop (and count) spoofed, stripped and replayed frames."""
 
@@ -11,7 +11,8 @@ import time
 from collections.abc import Iterator
 
 import pytest
-from pmsm_hil.hil.runner.native_link import native_lib
+
+from pmsm_hil.hil.runner.core_link import native_lib
 from pmsm_hil.protocol.errors import LinkError, LinkSpecError
 from pmsm_hil.protocol.links import open_link
 from pmsm_hil.protocol.links.auth import (

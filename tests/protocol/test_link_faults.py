@@ -1,4 +1,4 @@
-"""Link fault injection (protocol/links/faults.py): spec parsing, determinism, rates, what each fault class
+"""Link fault injection (src/pmsm_hil/protocol/links/faults.py): spec parsing, determinism, rates, what each fault class
 does on a python-can virtual link pair, and what the decoder makes of corrupted frames."""
 
 from __future__ import annotations
@@ -7,6 +7,7 @@ import math
 from collections.abc import Callable, Iterator
 
 import pytest
+
 from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.errors import LinkSpecError
 from pmsm_hil.protocol.frame import Frame

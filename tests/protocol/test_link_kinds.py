@@ -7,6 +7,7 @@ from collections.abc import Iterator
 
 import can
 import pytest
+
 from pmsm_hil.protocol.errors import LinkSpecError
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.links import LINK_KINDS, LinkKind, link_kind, link_profile, open_link, parse_spec

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import can
 import pytest
+
 from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.errors import LinkError, LinkSpecError
 from pmsm_hil.protocol.frame import Frame

@@ -1,6 +1,7 @@
-"""Kernel receive drops of SocketCAN links (protocol/links/socketcan_bus.py, hil/native/loop_socketcan.c): the
-receive buffer sized for `rx_frames`, and a burst that overflows it counted in `kernel_dropped` by the Python
-link and by the C loop. The vcan tests run where vcan0 exists (`.ci/vcan-vm`, docs/ci.md)."""
+"""Kernel receive drops of SocketCAN links (src/pmsm_hil/protocol/links/socketcan_bus.py,
+src/pmsm_hil/hil/runner/c/links/loop_socketcan.c): the receive buffer sized for `rx_frames`, and a burst that overflows
+it counted in `kernel_dropped` by the Python link and by the C loop. The vcan tests run where vcan0 exists
+(`.ci/vcan-vm`, docs/ci.md)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import socket
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.protocol.errors import LinkError
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.links import open_link
@@ -67,8 +69,9 @@ def test_a_burst_that_overflows_the_receive_buffer_is_counted_by_the_python_link
 @needs_vcan
 def test_a_burst_that_overflows_the_receive_buffer_is_counted_by_the_c_loop() -> None:
     from pmsm_hil.hil._loop_native import ffi, lib
-    from pmsm_hil.hil.runner.native_socketcan import SOCKETCAN_WIRE
-    from pmsm_hil.hil.runner.native_wire import WireHandle
+
+    from pmsm_hil.hil.runner.wire import WireHandle
+    from pmsm_hil.hil.runner.wire_socketcan import SOCKETCAN_WIRE
 
     with open_link("socketcan:vcan0,fd=true,rx_frames=64", "host") as reader:
         h = WireHandle(SOCKETCAN_WIRE, ffi, lib, reader.bus, target_role=False, spin_ns=0)

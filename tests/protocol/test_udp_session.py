@@ -12,6 +12,7 @@ import can
 import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
+
 from pmsm_hil.protocol.errors import LinkError
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.links import BusLink, link_kind, parse_spec

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import can
+
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.links import open_link
 

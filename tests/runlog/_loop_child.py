@@ -15,7 +15,6 @@ BLOCK = 200
 
 def main() -> None:
     from pmsm_hil.hil.runlog import RunLogger
-
     from tests.runlog._blocks import frame_block, period_block, trace_block
 
     out, progress, flush = Path(sys.argv[1]), Path(sys.argv[2]), float(sys.argv[3])

@@ -10,8 +10,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pmsm_hil.hil.runlog import RunLogger
 
+from pmsm_hil.hil.runlog import RunLogger
 from tests.runlog._blocks import frame_block, period_block, trace_block
 
 BLOCK = 1000

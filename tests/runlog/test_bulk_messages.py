@@ -5,9 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.hil.runlog import sink as sink_module
 from pmsm_hil.hil.runlog.sink import McapSink
-
 from tests.runlog._blocks import frame_block, period_block, trace_block
 
 

@@ -1,5 +1,5 @@
-"""`hil mcap export` (hil/runlog/can_log.py): a run's /frames written through python-can's log writers and read
-back by python-can's readers with the same frames and virtual times."""
+"""`hil mcap export` (src/pmsm_hil/hil/runlog/can_log.py): a run's /frames written through python-can's log writers and
+read back by python-can's readers with the same frames and virtual times."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ from pathlib import Path
 import can
 import numpy as np
 import pytest
+
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.hil.runlog import read_frames
 

@@ -11,9 +11,9 @@ from typing import Any
 import numpy as np
 import pytest
 from mcap.reader import make_reader
+
 from pmsm_hil.hil.records import FRAME_DTYPE, PERIOD_DTYPE
 from pmsm_hil.hil.runlog import McapFormatError, RunLogger, cdr, read_frames, read_periods
-
 from tests.runlog._blocks import frame_block, period_block
 
 _STRUCT = {"float64": "d", "float32": "f", "uint64": "Q", "int64": "q", "uint32": "I", "int32": "i",

@@ -11,9 +11,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from pmsm_hil.hil.runlog import LoggerDiedError, RunLogger, read_periods, repair_mcap
 from pmsm_hil.hil.runlog.reader import MAGIC
-
 from tests.runlog._blocks import period_block
 
 CHILD = Path(__file__).with_name("_loop_child.py")

@@ -8,10 +8,10 @@ import json
 
 import numpy as np
 import pytest
+
 from pmsm_hil.hil.records import PERIOD_DTYPE, TRACE_DTYPE
 from pmsm_hil.hil.runlog import McapFormatError
 from pmsm_hil.hil.runlog import encoding as enc
-
 from tests.runlog._blocks import period_block, trace_block
 
 

@@ -10,11 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 from mcap.reader import make_reader
+
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.hil.runlog import RunLogger, read_periods
 from pmsm_hil.hil.runlog import logger as logger_module
 from pmsm_hil.hil.runlog.salvage import end_after_last_record, last_record_end
-
 from tests.runlog._blocks import period_block
 from tests.runlog._fsize_worker import limited_worker
 

@@ -8,9 +8,9 @@ from typing import Any
 
 import numpy as np
 import pytest
+
 from pmsm_hil.hil.records import PERIOD_DTYPE
 from pmsm_hil.hil.runlog import encoding
-
 from tests.runlog._blocks import period_block
 
 

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 from mcap.reader import make_reader
+
 from pmsm_hil.hil.records import FRAME_DTYPE, PERIOD_DTYPE
 from pmsm_hil.hil.runlog import read_frames, read_periods
 

@@ -1,5 +1,5 @@
-"""mcap's private Writer state that `BulkMessages` writes into (hil/runlog/mcap_writer_internals.py): present in
-the installed mcap, within the range pyproject.toml pins, and a change named in one line."""
+"""mcap's private Writer state that `BulkMessages` writes into (src/pmsm_hil/hil/runlog/mcap_writer_internals.py):
+present in the installed mcap, within the range pyproject.toml pins, and a change named in one line."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 from mcap.writer import Writer
+
 from pmsm_hil.hil.runlog.bulk_messages import BulkMessages
 from pmsm_hil.hil.runlog.mcap_writer_internals import (
     TESTED_MCAP,

@@ -9,11 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 from mcap.reader import make_reader
+
 from pmsm_hil.app.cli import mcap_repair
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.hil.runlog import McapFormatError, RunLogger, read_periods, read_trace, repair_mcap
 from pmsm_hil.hil.runlog.reader import MAGIC
-
 from tests.runlog._blocks import period_block, trace_block
 
 

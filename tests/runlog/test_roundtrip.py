@@ -8,9 +8,9 @@ from typing import Any
 import numpy as np
 import pytest
 from mcap.reader import make_reader
+
 from pmsm_hil.hil.records import PERIOD_DTYPE
 from pmsm_hil.hil.runlog import RunLogError, RunLogger, read_frames, read_metadata, read_periods, read_trace
-
 from tests.runlog._blocks import frame_block, period_block, trace_block
 
 

@@ -1,5 +1,5 @@
 """A foreign target, written as a user would: python-can (the documented `hilserial` interface) + cantools +
-protocol/hil.dbc, no project code. Misbehaves on request so the host's DUT contract can be tested.
+src/pmsm_hil/protocol/hil.dbc, no project code. Misbehaves on request so the host's DUT contract can be tested.
 
 Usage: python foreign_target.py PORT LOGFILE [RULE=PERIOD ...]
 Rules: skip (no reply), future_seq (reply with seq + 1 instead), bad_sum (durations 1 ns short),
@@ -25,7 +25,7 @@ from pathlib import Path
 import can
 import cantools
 
-DBC = Path(__file__).resolve().parents[2] / "protocol" / "hil.dbc"
+DBC = Path(__file__).resolve().parents[2] / "src" / "pmsm_hil" / "protocol" / "hil.dbc"
 TS_NS = 100_000
 
 

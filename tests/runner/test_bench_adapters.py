@@ -8,6 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.app.cli import bench_loop
 
 _progress: list[str] = []

@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.app.bench.memory import MemoryPoint, format_points, marginal_rates, realtime_growth
 from pmsm_hil.app.cli.main import main
 

@@ -8,6 +8,7 @@ import json
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.app.bench.load_process import load_beside
 from pmsm_hil.app.bench.realtime import floor_ratio
 from pmsm_hil.app.cli.main import main

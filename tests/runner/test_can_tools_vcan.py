@@ -1,5 +1,5 @@
 """Real CAN tools on our bus (vcan0, `.ci/vcan-vm`): can-utils `candump -L` records a `hil run` over SocketCAN
-and `cantools decode protocol/hil.dbc` names its frames; `cansend` of hand-made Setpoint frames reaches a
+and `cantools decode src/pmsm_hil/protocol/hil.dbc` names its frames; `cansend` of hand-made Setpoint frames reaches a
 running `hil target`, whose own rules answer them."""
 
 from __future__ import annotations
@@ -15,10 +15,11 @@ from pathlib import Path
 import can
 import cantools
 import pytest
+
 from pmsm_hil.hil.runlog import read_frames
 
 ROOT = Path(__file__).resolve().parents[2]
-DBC = ROOT / "protocol" / "hil.dbc"
+DBC = ROOT / "src" / "pmsm_hil" / "protocol" / "hil.dbc"
 HIL = [sys.executable, "-m", "pmsm_hil.app.cli.main"]
 pytestmark = [
     pytest.mark.skipif(not Path("/sys/class/net/vcan0").exists(),

@@ -8,6 +8,7 @@ import json
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.app.cli.main import build_parser, main
 from pmsm_hil.app.cli.run import config_schema
 from pmsm_hil.hil.runlog.reader import read_frames, read_metadata

@@ -10,9 +10,10 @@ from collections.abc import Callable, Iterator
 from dataclasses import replace
 
 import pytest
+
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.presets_loader import load_motor
-from pmsm_hil.hil.runner.native_link import NativeCoreLink
+from pmsm_hil.hil.runner.core_link import NativeCoreLink
 from pmsm_hil.hil.runner.run_config import RunConfig, check_params_used
 from pmsm_hil.hil.runner.run_options import MAX_TS_S
 from pmsm_hil.hil.runner.scenario import load_scenario

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.hil.plant_base import PlantBase
 from pmsm_hil.hil.runlog.reader import read_faults, read_frames, read_periods

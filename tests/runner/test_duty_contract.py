@@ -1,11 +1,12 @@
-"""The DUT contract of duty-cycle Commands (hil/runner/contract.py `check_duties`): NaN, out-of-range and a duty
-count other than the machine's legs are findings of rule `duty`; valid duties pass, whatever the durations."""
+"""The DUT contract of duty-cycle Commands (src/pmsm_hil/hil/runner/contract.py `check_duties`): NaN, out-of-range and a
+duty count other than the machine's legs are findings of rule `duty`; valid duties pass, whatever the durations."""
 
 from __future__ import annotations
 
 import math
 
 import pytest
+
 from pmsm_hil.hil.runner.contract import DUTY, check_command, describe
 from pmsm_hil.protocol.codec import FrameCodec, decode_message
 from pmsm_hil.protocol.codec_duty import DUTY_NAN, DUTY_OUT_OF_RANGE, duty_raw, duty_value

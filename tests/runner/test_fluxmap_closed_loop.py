@@ -7,7 +7,6 @@ from __future__ import annotations
 from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import load_scenario
-
 from tests.runner.loop_pairs import assert_bit_identical, reference_and_c_records
 
 

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from pmsm_hil.app.cli.report_table import format_metrics
 from pmsm_hil.hil.motor_params import parse_set_options
 from pmsm_hil.hil.presets_loader import load_motor
@@ -41,7 +42,7 @@ def _independent(t: np.ndarray, x: np.ndarray) -> tuple[float, float, float]:
     return f, a1, 100.0 * math.sqrt(max(ac_ms - a1 * a1 / 2.0, 0.0)) / (a1 / math.sqrt(2.0))
 
 
-#: controller parameters of the dual three-phase preset (app/compare/presets/zhang2021-speed-step.toml: the
+#: controller parameters of the dual three-phase preset (src/pmsm_hil/app/compare/presets/zhang2021-speed-step.toml: the
 #: speed PI for its J = 0.1 kg·m²; the default gains suit the niu2020 machine and overshoot into a trip here)
 ZHANG_PARAMS = {"torque_band": 4.0, "speed_kp": 3.0, "speed_ki": 5.0}
 

@@ -11,8 +11,8 @@ import sys
 from pathlib import Path
 
 import pytest
-from pmsm_hil.app.cli.main import main
 
+from pmsm_hil.app.cli.main import main
 from tests.runner.interrupt_runs import interrupt_once, wait_cpu
 
 #: (variant, signal, to the process group as a terminal's Ctrl-C)

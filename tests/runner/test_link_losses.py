@@ -1,5 +1,5 @@
-"""Losses attributed to the link (hil/runner/link_losses.py): what each receiving end saw lost, and the endings
-that name the link."""
+"""Losses attributed to the link (src/pmsm_hil/hil/runner/link_losses.py): what each receiving end saw lost, and the
+endings that name the link."""
 
 from __future__ import annotations
 

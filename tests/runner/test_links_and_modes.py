@@ -12,6 +12,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runlog.reader import read_periods

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.machine import DUAL_THREE_PHASE, THREE_PHASE, layout_for_phases, load_machine, machine_for
 from pmsm_hil.hil.presets_loader import load_motor

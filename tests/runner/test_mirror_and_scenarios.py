@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from pmsm_hil.hil.errors import InputFileError, ParameterError
 from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runner.plant_setup import build_plant

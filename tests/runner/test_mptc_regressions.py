@@ -9,6 +9,7 @@ the band B_T is smaller than the per-period torque step.
 from __future__ import annotations
 
 import numpy as np
+
 from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runner.run import RunResult, run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig

@@ -15,13 +15,13 @@ from typing import Any
 
 import numpy as np
 import pytest
+
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.machine import LAYOUTS, machine_for, unregister_layout
 from pmsm_hil.hil.mechanics import DynoMechanics
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import load_scenario
-
 from tests.runner.loop_pairs import assert_bit_identical, reference_and_c_records
 
 KIND_DIR = Path(__file__).with_name("rl_kind")
@@ -50,7 +50,8 @@ def _cfg(rl: Any, loop: str) -> RunConfig:
 def test_the_kind_lives_only_in_its_own_files(rl: Any) -> None:
     """Nothing in the package names the kind: its kernel, parameter class and registry line are its own."""
     assert sorted(p.name for p in KIND_DIR.iterdir() if p.suffix in (".c", ".py")) == ["rl_load.c", "rl_load.py"]
-    for folder in ("hil", "app", "protocol", "sim_target", "dashboards", "pmsm_hil"):
+    assert (REPO / "src" / "pmsm_hil" / "hil" / "plant.py").is_file()
+    for folder in ("src", "firmware_stub"):
         for path in (REPO / folder).rglob("*"):
             if path.suffix in (".py", ".c", ".h", ".toml"):
                 text = path.read_text(encoding="utf-8", errors="replace")

@@ -15,6 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import pytest
+
 from pmsm_hil.hil.errors import HilError
 from pmsm_hil.hil.im_params import ImParams
 from pmsm_hil.hil.presets_loader import load_motor

@@ -1,5 +1,5 @@
 """The CPUs' wake-up latency held for real-time runs (the UDP pair at 50 µs): the PM QoS request
-(hil/runner/pm_qos.py), when a run holds it, and how a spawned target waits for frames in real time."""
+(src/pmsm_hil/hil/runner/pm_qos.py), when a run holds it, and how a spawned target waits for frames in real time."""
 
 from __future__ import annotations
 
@@ -10,16 +10,17 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runner import target_setup
-from pmsm_hil.hil.runner.native_run import pm_qos_latency_us
-from pmsm_hil.hil.runner.native_wire import NativeWireLink
+from pmsm_hil.hil.runner.loop_run import pm_qos_latency_us
 from pmsm_hil.hil.runner.pm_qos import LEAVE, PM_QOS_FILE, cpu_latency_held
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import load_scenario
 from pmsm_hil.hil.runner.target_setup import REALTIME_SPIN_MIN_CPUS, realtime_target_spin_us
+from pmsm_hil.hil.runner.wire import NativeWireLink
 
 
 def test_the_request_is_the_32_bit_value_cyclictest_writes_and_ends_with_the_block(tmp_path: Path) -> None:

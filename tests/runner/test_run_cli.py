@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.app.cli.main import main
 
 REQUIRED_KEYS = {

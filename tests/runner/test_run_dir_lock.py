@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.hil.runlog.reader import read_periods
 from pmsm_hil.hil.runner.run_dir_lock import LOCK_NAME, RunDirLockedError, run_dir_lock

@@ -8,6 +8,7 @@ import dataclasses
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.app.cli.main import build_parser
 from pmsm_hil.app.cli.run import options_from_args
 from pmsm_hil.app.sweep.configure import base_options, build_config, build_runs
@@ -19,7 +20,6 @@ from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.run_groups import GROUPS
 from pmsm_hil.hil.runner.run_options import RUN_OPTIONS
 from pmsm_hil.hil.runner.scenario import load_scenario
-
 from pmsm_hil.testing.runs import HilSettings, run_values
 from pmsm_hil.testing.runs import build_config as plugin_config
 
@@ -190,7 +190,7 @@ def _exit_code(argv: list[str]) -> int:
 @pytest.mark.parametrize("argv", [["bench", "loop", "--ts", "1"], ["bench", "realtime", "--ts", "1"],
                                   ["run", "--ts", "1"], ["bench", "loop", "--ts", "1.00000005e-4"]])
 def test_the_benches_declare_ts_as_hil_run_does(argv: list[str], capsys: pytest.CaptureFixture[str]) -> None:
-    """`--ts` has one declaration and one check (hil/control_period.py) wherever a period is chosen."""
+    """`--ts` has one declaration and one check (src/pmsm_hil/hil/control_period.py) wherever a period is chosen."""
     assert _exit_code(argv) == 2
     err = capsys.readouterr().err
     assert "--ts must be between 5 µs and 1.048575 ms" in err or "--ts must be a whole number of ns" in err

@@ -1,5 +1,5 @@
-"""The run-option schema (hil/runner/run_options.py) is the one source: every front end offers exactly its options
-and refuses a value out of an option's range with an error naming the option (or the key)."""
+"""The run-option schema (src/pmsm_hil/hil/runner/run_options.py) is the one source: every front end offers exactly its
+options and refuses a value out of an option's range with an error naming the option (or the key)."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ import dataclasses
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.app.cli.main import build_parser, main
 from pmsm_hil.app.cli.run import config_schema
 from pmsm_hil.app.sweep.configure import base_options
@@ -16,7 +17,6 @@ from pmsm_hil.app.sweep.plan import OUTPUT_KEYS, sweep_keys
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.run_options import BY_FIELD, DEFAULTS, OPTIONS, RUN_OPTIONS, RunOption
-
 from pmsm_hil.testing.runs import HilSettings, build_config, run_choice_option
 
 SHORT = ["--duration", "0.01", "--settle", "0"]

@@ -1,5 +1,5 @@
-"""The confirmed safe stop (hil/runner/safe_stop.py) with every reference target kind and both loops; a target
-that disables without confirming ends a completed run with exit 3. The foreign target process that ignores the
+"""The confirmed safe stop (src/pmsm_hil/hil/runner/safe_stop.py) with every reference target kind and both loops; a
+target that disables without confirming ends a completed run with exit 3. The foreign target process that ignores the
 disabling Setpoint: tests/runner/test_dut_contract.py."""
 
 from __future__ import annotations
@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+
 from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runlog.reader import read_frames
 from pmsm_hil.hil.runner.contract import EndCode

@@ -8,10 +8,10 @@ import json
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.runner.scenario import DEFAULT_HOLD_TOLERANCE_PCT, Scenario
-
 from pmsm_hil.testing.runs import HilSettings, SetpointNotHeldError, execute
 
 #: a short steady run at 1500 rpm; vdc = 150 V cannot reach it (the voltage limit)

@@ -1,7 +1,7 @@
-"""A shared CAN bus (protocol/links/shared_bus.py, hil/native/loop.c from_target_node): other nodes' frames are
-counted as bus traffic (`bus_foreign_frames`, `bus_suspect_frames`), never taken as the target's; a flood that
-starves the run ends naming the bus, never the target. Host-side: a python-can `virtual` bus marked
-`shared=true`, an in-process target served through the C loop's callback link, and a flooding thread of random
+"""A shared CAN bus (src/pmsm_hil/protocol/links/shared_bus.py, src/pmsm_hil/hil/runner/c/loop.c from_target_node):
+other nodes' frames are counted as bus traffic (`bus_foreign_frames`, `bus_suspect_frames`), never taken as the
+target's; a flood that starves the run ends naming the bus, never the target. Host-side: a python-can `virtual` bus
+marked `shared=true`, an in-process target served through the C loop's callback link, and a flooding thread of random
 and of protocol ids (the same logic runs on every CAN link; .ci/vcan-vm-bus-flood runs it on vcan0 with
 cangen)."""
 
@@ -17,7 +17,8 @@ from typing import Any, Self
 
 import can
 import pytest
-from pmsm_hil.hil.runner import native_run
+
+from pmsm_hil.hil.runner import loop_run
 from pmsm_hil.hil.runner.contract import EndCode
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.target_client import DRAIN_MAX, TargetClient
@@ -32,8 +33,7 @@ from pmsm_hil.protocol.links.shared_bus import (
     is_shared_bus,
     target_ids,
 )
-
-from tests.runner.test_native_loop import _three
+from tests.runner.test_loop import _three
 
 #: the ids the target sends: a flood of them with random data is what the host must not take as the target's
 TARGET_IDS = sorted(target_ids())
@@ -100,7 +100,7 @@ class Flood(_InThread):
 def through_python_link(monkeypatch: pytest.MonkeyPatch) -> None:
     """The in-process Python target on the virtual bus itself (not the C core without a bus), reached through
     the C loop's callback link: the flood reaches the host's receive."""
-    monkeypatch.setattr(native_run, "in_core", lambda cfg: False)
+    monkeypatch.setattr(loop_run, "in_core", lambda cfg: False)
 
 
 def _run_flooded(channel: str, ids: str, rate: float, **overrides: Any) -> dict[str, Any]:
@@ -268,7 +268,8 @@ def test_the_c_socketcan_receive_ends_on_a_queue_that_never_empties() -> None:
     import socket
 
     from can.interfaces.socketcan.socketcan import build_can_frame
-    from pmsm_hil.hil.runner.native_link import native_lib
+
+    from pmsm_hil.hil.runner.core_link import native_lib
 
     ffi, lib = native_lib()
     a, b = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)

@@ -18,8 +18,9 @@ from typing import Any
 
 import numpy as np
 import pytest
+
 from pmsm_hil.hil.presets_loader import load_motor
-from pmsm_hil.hil.runner import native_run
+from pmsm_hil.hil.runner import loop_run
 from pmsm_hil.hil.runner import run as run_module
 from pmsm_hil.hil.runner.run import RunResult, run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
@@ -73,7 +74,7 @@ def _spoofed_run(cfg: RunConfig, monkeypatch: pytest.MonkeyPatch) -> tuple[RunRe
         return conn
 
     monkeypatch.setattr(run_module, "connect_target", capture)  # the Python loop's connection
-    monkeypatch.setattr(native_run, "connect_target", capture)  # the native loop's
+    monkeypatch.setattr(loop_run, "connect_target", capture)  # the native loop's
     sent = {"host": 0, "target": 0}
     done = threading.Event()
 

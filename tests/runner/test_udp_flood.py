@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.protocol.links.udp_bus import free_udp_ports
 

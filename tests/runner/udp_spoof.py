@@ -18,7 +18,7 @@ import time
 from types import FrameType
 
 ETH_P_ALL = 0x0003
-TRAILER = 6  # freshness 2 + MAC 4 (protocol/links/auth.py)
+TRAILER = 6  # freshness 2 + MAC 4 (src/pmsm_hil/protocol/links/auth.py)
 
 
 def _udp(src: int, dst: int, payload: bytes) -> bytes:

@@ -7,10 +7,10 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.app.compare import load_preset, run_preset
 from pmsm_hil.app.sweep.engines import LocalEngine
-
 from tests.compare._presets import preset_file
 
 SHORT_PRESET = ('name = "short"\nmotor = "niu2020-ipmsm"\nscenario = "steady"\ncontrollers = ["mpcc", "dsvm-20"]\n'

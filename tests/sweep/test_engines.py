@@ -1,5 +1,5 @@
 """The same 16-run plan gives bit-identical metrics on every engine and worker count (wall-clock metrics
-aside: app/sweep/rows.py WALL_CLOCK_METRICS): the local pool with 1 worker (the reference) and 2 workers, a
+aside: src/pmsm_hil/app/sweep/rows.py WALL_CLOCK_METRICS): the local pool with 1 worker (the reference) and 2 workers, a
 Dask LocalCluster and a local Ray instance (runs in this process: tests/sweep/test_compare_engines.py).
 Dask and Ray are optional extras: their tests skip only when the extra is not installed (CI installs both,
 and a skip fails CI)."""
@@ -11,9 +11,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.app.sweep.rows import WALL_CLOCK_METRICS, is_wall_clock
-
 from tests.sweep._plans import GRID16, deterministic, results
 
 

@@ -9,9 +9,9 @@ import json
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.app.sweep import store as store_module
-
 from tests.sweep._plans import SHORT, results
 
 #: 4 runs: two complete, two end as DUT contract violations (the link goes silent at 10 ms)

@@ -7,6 +7,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import pytest
+
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.app.sweep.configure import base_options, build_config, build_runs
 from pmsm_hil.app.sweep.plan import expand, load_plan, parse_grid, swept_keys

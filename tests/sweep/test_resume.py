@@ -14,7 +14,6 @@ from pathlib import Path
 
 from pmsm_hil.app.sweep.engines import LocalEngine
 from pmsm_hil.app.sweep.store import JOURNAL, ResultsStore
-
 from tests.sweep._plans import SHORT, results
 
 PLAN = ["--grid", "controller=mpcc,dsvm-20", "--grid", "load=3,7", "--repeat", "2", *SHORT]

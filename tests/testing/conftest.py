@@ -10,7 +10,7 @@ import pytest
 from tests.testing.pytest_session import Session, run_pytest
 
 USER = Path(__file__).with_name("user_project")
-CONFORMANCE = "pmsm_hil/conformance"  # the package by its path; `--pyargs pmsm_hil.conformance` elsewhere
+CONFORMANCE = "src/pmsm_hil/conformance"  # the package by its path; `--pyargs pmsm_hil.conformance` elsewhere
 
 
 @pytest.fixture(scope="session")

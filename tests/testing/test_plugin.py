@@ -11,9 +11,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.runlog.reader import read_metadata
-
 from pmsm_hil.testing import PLOT_PROPERTY, HilResult
 from pmsm_hil.testing.plugin import HilSession
 from pmsm_hil.testing.runs import HilSettings, build_config, run_values

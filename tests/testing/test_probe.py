@@ -6,12 +6,12 @@ from __future__ import annotations
 from typing import Any
 
 import pytest
-from pmsm_hil.protocol.ids import CONTROLLER_NAMES, Mode
-from pmsm_hil.protocol.messages import ConfigAck, Setpoint
-from pmsm_hil.sim_target import target as sim_target
 
 from pmsm_hil.conformance import RULES, broken
 from pmsm_hil.conformance.probe import ProbeReport, probe_target, unassigned_controller_id
+from pmsm_hil.protocol.ids import CONTROLLER_NAMES, Mode
+from pmsm_hil.protocol.messages import ConfigAck, Setpoint
+from pmsm_hil.sim_target import target as sim_target
 from pmsm_hil.testing.runs import HilSettings, build_config
 
 

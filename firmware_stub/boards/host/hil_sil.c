@@ -1,5 +1,5 @@
 /* Host board (SIL): the target core in a shared library. The host loads it with ctypes
- * (sim_target/sil.py) and calls hil_core_init / hil_core_rx / hil_core_tx; the board clock is
+ * (src/pmsm_hil/sim_target/sil.py) and calls hil_core_init / hil_core_rx / hil_core_tx; the board clock is
  * CLOCK_MONOTONIC, so exec_time_ns is the host's wall time of hil_app_step. */
 #define _POSIX_C_SOURCE 199309L
 

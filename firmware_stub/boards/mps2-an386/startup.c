@@ -82,7 +82,7 @@ static char *put_hex(char *p, uint32_t v)
  * When the host asked for it (hil_board_cfg.fault_exit: QEMU runs with semihosting) it writes one line to the
  * semihosting console (QEMU's stderr) --
  *   HIL-FAULT exc=3 pc=0000021c lr=00000a41 cfsr=00010000 hfsr=40000000 mmfar=e000edf8 bfar=e000edf8
- * -- which the host turns into "target HardFault at pc 0x... (function+0xOFF), CFSR ..." (sim_target/qemu.py),
+ * -- which the host turns into "target HardFault at pc 0x... (function+0xOFF), CFSR ..." (src/pmsm_hil/sim_target/qemu.py),
  * then ends QEMU with exit code HIL_BOARD_FAULT_EXIT_BASE + the exception number (3 HardFault, 4 MemManage,
  * 5 BusFault, 6 UsageFault): an Arm semihosting SYS_EXIT_EXTENDED, reason ApplicationExit, so the host tells a
  * fault from a hang and from a dead QEMU. Otherwise it stops here and the host's lockstep timeout ends the run. */

@@ -8,7 +8,7 @@
  * own cost, which the host subtracts.
  *
  * The counter itself lives in the first 8 bytes of the file live= (mapped shared, native byte order): the host
- * reads the guest's progress there while it waits for a Command (hil/native/loop_stall.h: a guest that executed
+ * reads the guest's progress there while it waits for a Command (src/pmsm_hil/hil/runner/c/loop_stall.h: a guest that executed
  * its time and did not answer is the firmware's fault, a QEMU the host did not schedule is not). Without live=
  * it is private.
  *

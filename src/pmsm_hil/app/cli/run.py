@@ -1,0 +1,165 @@
+"""`hil run`: one closed-loop run of a scenario; prints a metrics table, optionally writes JSON."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import functools
+import json
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pmsm_hil.app.cli.config_file import ConfigKey, load_config
+from pmsm_hil.app.cli.report_table import format_metrics
+from pmsm_hil.app.cli.run_options_cli import add_options, config_keys
+from pmsm_hil.dashboards.cli_live import add_rerun_arguments, live_dashboard
+from pmsm_hil.hil.atomic_write import prepare_output_dir, refuse_inputs, write_text_atomic
+from pmsm_hil.hil.runner.option_values import layer, option_of
+from pmsm_hil.hil.runner.run import run_closed_loop
+from pmsm_hil.hil.runner.run_config import RunConfig
+from pmsm_hil.hil.runner.run_dir_lock import run_dir_lock
+from pmsm_hil.hil.runner.run_metadata import RUN_FILES
+from pmsm_hil.hil.runner.run_options import RUN_OPTIONS, Scope
+
+#: `hil run` exit codes (= metrics `end_code`), printed by --help.
+EXIT_CODES = ("exit codes: 0 completed, 1 internal error, 2 usage/config error, 3 safety stop (watchdog, plant "
+              "trip, target fault, safe stop not confirmed, SIL target crashed or hung, a shared bus flooded by other "
+              "nodes: end_reason \"bus ...\"), 4 DUT contract violation, "
+              "5 setpoint not held (--expect-hold: a completed run with setpoint_held false), 130 interrupted "
+              "(Ctrl-C/SIGTERM); every ending but 2 writes metrics.json (end_reason, end_period, end_code) and the log "
+              "up to the last period")
+
+
+def add_run_arguments(p: argparse.ArgumentParser) -> None:
+    """Options shared by `hil run` and `hil sweep` (its base options): --config, then the run-option schema's
+    (src/pmsm_hil/hil/runner/run_options.py)."""
+    p.add_argument("--config", type=Path, help="TOML file with any of the options below (CLI wins)")
+    add_options(p, ("run",))
+
+
+def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Register `hil run`."""
+    p = subparsers.add_parser("run", help="run a closed-loop scenario (default: the embedded demo)",
+                              description="Closed-loop run. With no options: in-process virtual CAN, sim target, "
+                                          "niu2020 IPMSM, MPCC, 1500 rpm, 7 N·m, lockstep.",
+                              epilog=EXIT_CODES)
+    _add_arguments(p)
+    p.set_defaults(func=run)
+
+
+def _add_arguments(p: argparse.ArgumentParser) -> None:
+    """Every `hil run` option: the run options, its outputs, the live dashboard's."""
+    add_run_arguments(p)
+    add_options(p, ("output",))
+    add_rerun_arguments(p)
+
+
+@functools.cache
+def config_schema() -> dict[str, ConfigKey]:
+    """Keys a --config file may set: every option of the run-option schema (src/pmsm_hil/hil/runner/run_options.py)."""
+    return config_keys()
+
+
+def _load_config(path: Path | None) -> dict[str, Any]:
+    return {} if path is None else load_config(path, config_schema())
+
+
+def options_from_args(args: argparse.Namespace, scopes: tuple[Scope, ...] = ("run", "output")
+                      ) -> tuple[dict[str, Any], dict[str, str]]:
+    """The run-option values of a parsed command line over its --config file, with their sources ("config file
+    PATH", "--option"): defaults < --config file < command line (src/pmsm_hil/hil/runner/run_inputs.py). Options of
+    `scopes` only (`hil sweep` has an --out of its own)."""
+    path = getattr(args, "config", None)
+    cfg = _load_config(path)
+    given = {o.key: getattr(args, o.target) for o in RUN_OPTIONS if o.scope in scopes and hasattr(args, o.target)}
+    return layer((cfg, f"config file {path}"), ({k: v for k, v in given.items() if v != []}, _option_source))
+
+
+def _option_source(key: str) -> str:
+    return option_of(key).option
+
+
+def config_from_args(args: argparse.Namespace) -> RunConfig:
+    """Merge defaults < --config file < command line into a validated RunConfig (`RunConfig.from_options`); the
+    outputs used after the run (--json, --overwrite, --expect-hold) are taken from the config file unless given."""
+    values, sources = options_from_args(args)
+    for name in ("json", "overwrite", "expect_hold"):
+        if getattr(args, name, None) is None and name in values:
+            setattr(args, name, values[name])
+    return RunConfig.from_options(values, sources)
+
+
+def _check_outputs(args: argparse.Namespace, cfg: RunConfig, held: contextlib.ExitStack) -> None:
+    """--json and --rerun-save never name an input or a file of the run directory; the run directory is
+    created and locked for the run (`held`: a second run into it is refused), and an earlier run in it refused
+    unless --overwrite (which removes it first)."""
+    inputs = [Path(p) for p in (args.config, args.motor, args.scenario) if p is not None and Path(p).is_file()]
+    if cfg.out_dir is not None:
+        inputs += [cfg.out_dir / name for name in RUN_FILES]
+    for option, path in (("--json", args.json), ("--rerun-save", getattr(args, "rerun_save", None))):
+        if path is not None:
+            refuse_inputs(path, inputs, option=option)
+    if cfg.out_dir is not None:
+        held.enter_context(run_dir_lock(cfg.out_dir, option="--out"))
+        prepare_output_dir(cfg.out_dir, RUN_FILES, overwrite=bool(args.overwrite), option="--out")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Execute `hil run`."""
+    cfg = config_from_args(args)
+    with contextlib.ExitStack() as held:
+        _check_outputs(args, cfg, held)
+        return _run_checked(args, cfg)
+
+
+def _run_checked(args: argparse.Namespace, cfg: RunConfig) -> int:
+    try:
+        with live_dashboard(args, cfg) as live:
+            return _run_and_report(args, cfg, live)
+    except KeyboardInterrupt:  # before the target was connected (from then on the run ends itself on Ctrl-C)
+        if cfg.out_dir is None or not (cfg.out_dir / "run.mcap").exists():
+            raise
+        print(f"hil: interrupted; partial log: {cfg.out_dir / 'run.mcap'} (before the run started: no period, no "
+              f"metrics.json)", file=sys.stderr)
+        return 130
+
+
+#: exit code (= metrics `end_code`) of a completed run whose setpoint was not held under `--expect-hold`
+EXIT_SETPOINT_NOT_HELD = 5
+
+
+def _setpoint_missed(metrics: dict[str, Any], cfg: RunConfig) -> int:
+    """`--expect-hold` and the setpoint was not held: end_code 5 in the metrics (metrics.json rewritten)."""
+    metrics["end_code"] = EXIT_SETPOINT_NOT_HELD
+    err = metrics.get("setpoint_error") or {}
+    metrics["end_reason"] = (f"setpoint not held (--expect-hold): speed {err.get('measured', float('nan')):.1f} rpm "
+                             f"vs {err.get('reference', float('nan')):.1f} rpm, tolerance "
+                             f"±{metrics.get('hold_tolerance_pct')} %")
+    if cfg.out_dir is not None:
+        write_text_atomic(cfg.out_dir / "metrics.json", json.dumps(metrics, indent=2) + "\n", option="metrics file")
+    return EXIT_SETPOINT_NOT_HELD
+
+
+def _run_and_report(args: argparse.Namespace, cfg: RunConfig, live: Callable[[np.ndarray], None] | None) -> int:
+    """One run (blocks also to the live dashboard if any); prints the metrics, writes --json."""
+    result = run_closed_loop(cfg, live=live)
+    end_code = int(result.metrics["end_code"])
+    if end_code == 0 and getattr(args, "expect_hold", False) and result.metrics.get("setpoint_held") is False:
+        end_code = _setpoint_missed(result.metrics, cfg)
+    print(format_metrics(result.metrics))
+    for line in result.metrics.get("warnings", []):
+        print(f"hil: warning: {line}", file=sys.stderr)
+    if result.outcome.error is not None and args.debug:
+        raise result.outcome.error
+    if end_code != 0:
+        where = f"; partial log: {result.mcap_path}" if result.mcap_path is not None else ""
+        print(f"hil: run ended (exit {end_code}): {result.metrics['end_reason']}{where}", file=sys.stderr)
+    if result.mcap_path is not None:
+        print(f"log: {result.mcap_path}")
+    if args.json is not None:
+        write_text_atomic(args.json, json.dumps(result.metrics, indent=2) + "\n", option="--json")
+    return end_code

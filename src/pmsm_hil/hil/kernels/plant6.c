@@ -1,0 +1,284 @@
+/* Exact dual three-phase PMSM + six-leg inverter plant kernel; see plant6.h.
+ *
+ * The dq closed form is shared with the three-phase kernel (dq_segment.c, docs/plant.md). Dead time: the sign rule per leg (the diode chosen by the
+ * phase current sign at the gate edge conducts for the whole dead time); the three-phase kernel's
+ * open-phase logic (diode blocking at a current zero crossing) is not modelled for six phases. */
+#include "plant6.h"
+#include "dq_segment.h"
+#include "gate_edges.h"
+#include "mechanics.h"
+
+#include <math.h>
+#include <stddef.h>
+
+#define P6_MAX_EVENTS 128
+#define P6_H3 0.86602540378443864676372317075294 /* sqrt(3)/2 */
+
+/* Rows of the VSD matrix without its 1/3 factor: alpha, beta, x, y over phases A B C U V W. */
+static const double P6_VSD[4][P6_LEGS] = {
+    {1.0, -0.5, -0.5, P6_H3, -P6_H3, 0.0},
+    {0.0, P6_H3, -P6_H3, 0.5, 0.5, -1.0},
+    {1.0, -0.5, -0.5, -P6_H3, P6_H3, 0.0},
+    {0.0, -P6_H3, P6_H3, 0.5, 0.5, -1.0},
+};
+
+
+double p6_torque(const p6_params_t *p, double i_d, double i_q)
+{
+    return 3.0 * (double)p->pole_pairs * (p->psi_f * i_q + (p->ld - p->lq) * i_d * i_q);
+}
+
+/* Phase currents [A] from the dq currents, cos and sin of the rotor angle, and the x-y currents. */
+static void phase_currents_cs(double i_d, double i_q, double c, double s, double i_x, double i_y, double *i_phase)
+{
+    double v[4];
+    v[0] = i_d * c - i_q * s;
+    v[1] = i_d * s + i_q * c;
+    v[2] = i_x;
+    v[3] = i_y;
+    for (int k = 0; k < P6_LEGS; k++) {
+        i_phase[k] = P6_VSD[0][k] * v[0] + P6_VSD[1][k] * v[1] + P6_VSD[2][k] * v[2] + P6_VSD[3][k] * v[3];
+    }
+}
+
+void p6_phase_currents(double i_d, double i_q, double theta_e, double i_x, double i_y, double *i_phase)
+{
+    double c, s;
+    dq_sincos(theta_e, &s, &c);
+    phase_currents_cs(i_d, i_q, c, s, i_x, i_y, i_phase);
+}
+
+void p6_code_voltage(double vdc, int32_t code, double *v4)
+{
+    for (int r = 0; r < 4; r++) {
+        double acc = 0.0;
+        for (int k = 0; k < P6_LEGS; k++) {
+            acc += P6_VSD[r][k] * (double)((code >> (P6_LEGS - 1 - k)) & 1);
+        }
+        v4[r] = vdc / 3.0 * acc; /* per-group common mode drops out: each row sums to 0 per group */
+    }
+}
+
+/* One trace row at time tk [s]: dq currents [A], cos and sin of the rotor angle, x-y currents [A]. */
+static int emit_row(const p6_params_t *p, p6_state_t *s, double tk, double i_d, double i_q, double cos_th,
+                    double sin_th, double i_x, double i_y, double *trace, int32_t trace_cap, p6_period_stats_t *stats)
+{
+    double *row;
+    if (stats->trace_n >= trace_cap) {
+        return P6_E_TRACE_FULL;
+    }
+    row = trace + (ptrdiff_t)stats->trace_n * P6_TRACE_COLUMNS;
+    row[0] = tk;
+    phase_currents_cs(i_d, i_q, cos_th, sin_th, i_x, i_y, row + 1);
+    for (int k = 1; k <= 6; k++) {
+        if (fabs(row[k]) > stats->peak_current) {
+            stats->peak_current = fabs(row[k]);
+        }
+    }
+    row[7] = p6_torque(p, i_d, i_q);
+    row[8] = s->mech.omega_m;
+    row[9] = i_x;
+    row[10] = i_y;
+    stats->trace_n++;
+    s->trace_k++;
+    return P6_OK;
+}
+
+/* One interval of constant gate levels (gate_edges.c) as the mechanics cuts it into constant-speed pieces
+ * (mechanics.h): the kernel's part of the state, the trace and the machine's closed-form constants. */
+typedef struct {
+    const p6_params_t *p;
+    p6_state_t *s;
+    double trace_dt;
+    double *trace;
+    int32_t trace_cap;
+    p6_period_stats_t *stats;
+    const int *gate_level; /* the interval's gate levels per leg */
+    dq_machine_t mc;       /* the closed-form constants of the dq subspace */
+    double em_step;        /* exp(m trace_dt) of the trace walker */
+} p6_run_ctx_t;
+
+static double p6_torque_cb(const void *ctx)
+{
+    const p6_run_ctx_t *c = (const p6_run_ctx_t *)ctx;
+    return p6_torque(c->p, c->s->i_d, c->s->i_q);
+}
+
+/* One piece from absolute time t0 [s] at the constant speed omega_m [rad/s] (legs in dead time at their diode
+ * level). */
+static int p6_piece_cb(void *ctx, double t0, double *piece_io, double omega_m)
+{
+    p6_run_ctx_t *c = (p6_run_ctx_t *)ctx;
+    const p6_params_t *p = c->p;
+    p6_state_t *s = c->s;
+    const double trace_dt = c->trace_dt;
+    double *trace = c->trace;
+    const double piece = *piece_io;
+    const double omega_e = (double)p->pole_pairs * omega_m;
+    double v[4], ix_inf, iy_inf, kxy, i_d1, i_q1;
+    int levels = 0;
+    dq_segment_t g;
+    for (int leg = 0; leg < P6_LEGS; leg++) {
+        int lvl = c->gate_level[leg];
+        if (t0 < s->dead_until[leg] - 0.5e-9) {
+            lvl = s->dead_level[leg];
+        }
+        levels |= lvl << (P6_LEGS - 1 - leg);
+    }
+    p6_code_voltage(p->vdc, levels, v);
+    dq_segment_setup(&c->mc, omega_e, s->theta_e, v[0], v[1], s->i_d, s->i_q, &g);
+    ix_inf = v[2] / p->rs;
+    iy_inf = v[3] / p->rs;
+    kxy = -p->rs / p->lls;
+    if (trace_dt > 0.0 && trace != NULL) {
+        dq_walk_t w;
+        double ex = 1.0, ex_step = exp(kxy * trace_dt);
+        int fresh = 1;
+        for (;;) {
+            double tk = (double)s->trace_k * trace_dt;
+            double tau = tk - t0, id, iq;
+            int rc, clamped = 0;
+            if (tau >= piece - 0.5e-9) {
+                break;
+            }
+            if (tau < 0.0) {
+                tau = 0.0;
+                clamped = 1;
+            }
+            if (fresh) {
+                dq_walk_start(&g, tau, trace_dt, c->em_step, &w);
+                ex = exp(kxy * tau);
+            }
+            dq_walk_eval(&g, &w, &id, &iq);
+            rc = emit_row(p, s, tk, id, iq, w.cos_th, w.sin_th, ix_inf + (s->i_x - ix_inf) * ex,
+                          iy_inf + (s->i_y - iy_inf) * ex, trace, c->trace_cap, c->stats);
+            if (rc != P6_OK) {
+                return rc;
+            }
+            fresh = clamped || !dq_walk_next(&g, &w);
+            ex *= ex_step;
+        }
+    }
+    dq_segment_eval(&g, piece, &i_d1, &i_q1);
+    {
+        double ex = exp(kxy * piece);
+        s->i_x = ix_inf + (s->i_x - ix_inf) * ex;
+        s->i_y = iy_inf + (s->i_y - iy_inf) * ex;
+    }
+    s->theta_e = dq_wrap_angle(s->theta_e + omega_e * piece);
+    s->i_d = i_d1;
+    s->i_q = i_q1;
+    return P6_OK;
+}
+
+static double phase_current(const p6_state_t *s, int leg)
+{
+    double ip[P6_LEGS];
+    p6_phase_currents(s->i_d, s->i_q, s->theta_e, s->i_x, s->i_y, ip);
+    return ip[leg];
+}
+
+static int p6_integrate_cb(void *ctx, double t, double h, const mech_segment_t *load, const int *gate_level)
+{
+    p6_run_ctx_t *c = (p6_run_ctx_t *)ctx;
+    c->gate_level = gate_level;
+    return mech_integrate(&c->p->mech, &c->s->mech, load, t, h, p6_piece_cb, p6_torque_cb, c);
+}
+
+/* Sign rule: current out of the leg -> lower diode; into it -> upper diode; exactly zero -> the new level
+ * (no open-phase model for six phases). */
+static int p6_dead_level_cb(void *ctx, int leg, int new_level)
+{
+    p6_run_ctx_t *c = (p6_run_ctx_t *)ctx;
+    double i_ph = phase_current(c->s, leg);
+    return i_ph > 0.0 ? 0 : (i_ph < 0.0 ? 1 : new_level);
+}
+
+int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const int64_t *durations_ns,
+               int32_t n, const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap,
+               p6_period_stats_t *stats)
+{
+    dq_event_t ev[P6_MAX_EVENTS];
+    int n_ev = 0;
+    double t_start = (double)s->t_ns * 1e-9;
+    int64_t total_ns = 0;
+    double t_lim = 2.0 * p->t_dead + p->t_mpw;
+
+    ge_stats_reset(stats);
+    if (n < 1 || n > P6_MAX_SUBINTERVALS || !(p->lls > 0.0) || !(p->rs > 0.0)) {
+        stats->error = P6_E_ARGS;
+        return P6_E_ARGS;
+    }
+    for (int k = 0; k < n; k++) {
+        if (durations_ns[k] < 0 || states[k] < 0 || states[k] > 63) {
+            stats->error = P6_E_ARGS;
+            return P6_E_ARGS;
+        }
+    }
+    n_ev = ge_plan(P6_LEGS, s->gate, states, durations_ns, n, t_start, p->t_mpw, t_lim, s->last_edge_t, ev, n_ev,
+                   P6_MAX_EVENTS, stats, &total_ns);
+    {
+        p6_run_ctx_t c;
+        int rc;
+        c.p = p;
+        c.s = s;
+        c.trace_dt = trace_dt;
+        c.trace = trace;
+        c.trace_cap = trace_cap;
+        c.stats = stats;
+        c.gate_level = NULL;
+        dq_machine_init(p->rs, p->ld, p->lq, p->psi_f, &c.mc);
+        c.em_step = trace_dt > 0.0 ? exp(c.mc.m * trace_dt) : 1.0;
+        rc = ge_run_period(P6_LEGS, t_start, t_start + (double)total_ns * 1e-9, p->t_dead, ev, n_ev, P6_MAX_EVENTS,
+                           load, &s->gate, s->dead_until, s->dead_level, p6_integrate_cb, p6_dead_level_cb, &c);
+        if (rc != P6_OK) {
+            stats->error = rc;
+            return rc;
+        }
+    }
+    s->t_ns += (uint64_t)total_ns;
+    return P6_OK;
+}
+
+/* --- the machine-kernel table (machine_kernel.h) ------------------------------------------------------------ */
+static int p6_k_advance(const void *p, void *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
+                        const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap,
+                        ge_period_stats_t *stats)
+{
+    return p6_advance((const p6_params_t *)p, (p6_state_t *)s, states, durations_ns, n, load, trace_dt, trace,
+                      trace_cap, stats);
+}
+
+/* Plant6.sample (src/pmsm_hil/hil/plant6.py): the same kernel functions. */
+static void p6_k_sample(const void *params, const void *state, mk_sample_t *out)
+{
+    const p6_state_t *s = (const p6_state_t *)state;
+    p6_phase_currents(s->i_d, s->i_q, s->theta_e, s->i_x, s->i_y, out->i);
+    out->i_d = s->i_d;
+    out->i_q = s->i_q;
+    out->i_x = s->i_x;
+    out->i_y = s->i_y;
+    out->theta_e = s->theta_e;
+    out->omega_m = s->mech.omega_m;
+    out->torque = p6_torque((const p6_params_t *)params, s->i_d, s->i_q);
+}
+
+static void p6_k_hold_speed(void *params, void *state, double omega_m)
+{
+    mech_hold(&((p6_params_t *)params)->mech, &((p6_state_t *)state)->mech, omega_m);
+}
+
+static uint64_t p6_k_time_ns(const void *state)
+{
+    return ((const p6_state_t *)state)->t_ns;
+}
+
+static const mk_kernel_t P6_KERNEL = {
+    MK_ABI_VERSION, "dual three-phase PMSM", P6_LEGS, 63, P6_TRACE_COLUMNS, sizeof(p6_params_t), sizeof(p6_state_t),
+    p6_k_advance, p6_k_sample, p6_k_hold_speed, p6_k_time_ns,
+};
+
+const mk_kernel_t *p6_kernel(void)
+{
+    return &P6_KERNEL;
+}

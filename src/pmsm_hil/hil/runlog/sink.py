@@ -1,0 +1,188 @@
+"""`McapSink`: owns the MCAP writer in the logger process (channels, encoders, periodic flush, finish)."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import BinaryIO
+
+import numpy as np
+from mcap.well_known import MessageEncoding, SchemaEncoding
+from mcap.writer import CompressionType, Writer
+
+from pmsm_hil.hil.records import FAULT_DTYPE, FRAME_DTYPE, PERIOD_DTYPE, TRACE_DTYPE
+from pmsm_hil.hil.runlog import cdr, console, encoding, topics
+from pmsm_hil.hil.runlog.bulk_messages import BulkMessages, message_records
+from pmsm_hil.hil.runlog.errors import RunLogError
+from pmsm_hil.hil.runlog.salvage import end_after_last_record
+
+COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
+CHUNK_BYTES = 8 * 1024 * 1024
+LIBRARY = "pmsm-hil runlog"
+
+
+class McapSink:
+    """Writes period, frame and trace blocks to an MCAP file (see docs/logging.md for the layout)."""
+
+    def __init__(self, path: Path, metadata: Mapping[str, str], compression: str = "lz4",
+                 trace_dtype: np.dtype = TRACE_DTYPE) -> None:
+        if compression not in COMPRESSIONS:
+            raise RunLogError(f"compression: expected one of {sorted(COMPRESSIONS)}, got {compression!r}")
+        self._path = Path(path)
+        self._file: BinaryIO = open(path, "wb", buffering=1024 * 1024)  # noqa: SIM115 - closed in close()
+        self._writer = Writer(self._file, chunk_size=CHUNK_BYTES, compression=COMPRESSIONS[compression])
+        self._writer.start(profile="", library=LIBRARY)
+        w = self._writer
+        json_enc = SchemaEncoding.JSONSchema
+        self._ch_periods = w.register_channel(
+            topics.TOPIC_PERIODS,
+            MessageEncoding.CDR,
+            w.register_schema(topics.SCHEMA_PERIODS, SchemaEncoding.ROS2, cdr.PERIOD_MSG.schema),
+        )
+        self._ch_frames = w.register_channel(
+            topics.TOPIC_FRAMES,
+            MessageEncoding.CDR,
+            w.register_schema(topics.SCHEMA_FRAMES, SchemaEncoding.ROS2, cdr.FRAME_MSG.schema),
+        )
+        self._ch_trace = w.register_channel(
+            topics.TOPIC_TRACE,
+            MessageEncoding.CDR,
+            w.register_schema(topics.SCHEMA_TRACE, SchemaEncoding.ROS2, encoding.ros2msg_schema(trace_dtype)),
+        )
+        self._ch_faults = w.register_channel(
+            topics.TOPIC_FAULTS,
+            MessageEncoding.JSON,
+            w.register_schema(topics.SCHEMA_FAULTS, json_enc, encoding.json_schema(FAULT_DTYPE, "link fault")),
+        )
+        self._ch_console = w.register_channel(
+            topics.TOPIC_CONSOLE,
+            MessageEncoding.JSON,
+            w.register_schema(topics.SCHEMA_CONSOLE, json_enc, console.CONSOLE_JSON_SCHEMA),
+        )
+        ch_meta = w.register_channel(
+            topics.TOPIC_METADATA,
+            MessageEncoding.JSON,
+            w.register_schema(topics.SCHEMA_METADATA, json_enc, encoding.METADATA_JSON_SCHEMA),
+        )
+        meta = dict(metadata)
+        w.add_metadata(topics.TOPIC_METADATA, meta)
+        w.add_message(ch_meta, 0, json.dumps(meta).encode(), 0)
+        self.counts = {"periods": 0, "frames": 0, "trace_blocks": 0, "trace_samples": 0, "faults": 0, "console": 0}
+        self._bulk = BulkMessages.of(self._writer)
+        self._closed = False
+        self._trace_dtype = trace_dtype
+
+    def write_periods(self, raw: bytes) -> None:
+        """Write one CDR message per period of the PERIOD_DTYPE block `raw`."""
+        self._write_fixed(np.frombuffer(raw, dtype=PERIOD_DTYPE), cdr.PERIOD_MSG, cdr.fill_periods,
+                          self._ch_periods, "periods")
+
+    def write_frames(self, raw: bytes) -> None:
+        """Write one CDR message per frame of the FRAME_DTYPE block `raw`."""
+        self._write_fixed(np.frombuffer(raw, dtype=FRAME_DTYPE), cdr.FRAME_MSG, cdr.fill_frames, self._ch_frames,
+                          "frames")
+
+    def _write_fixed(self, block: np.ndarray, msg: cdr.CdrMessage, fill: Callable[[np.ndarray, np.ndarray], None],
+                     channel: int, count_key: str) -> None:
+        """One fixed-size message per record of `block` (payload by `fill`), stamped with its time,
+        sequence = seq; the block's Message records are one numpy array."""
+        n = block.shape[0]
+        if n == 0:
+            return
+        records = message_records(msg.dtype, n)
+        fill(records["data"], block)
+        records["sequence"] = block["seq"]
+        records["log_time"] = records["publish_time"] = encoding.periods_log_times_ns(block)
+        if self._bulk is not None:
+            self._bulk.add_records(channel, records)
+        else:
+            payloads = records.view(np.uint8).reshape(n, -1)[:, records.dtype.itemsize - msg.dtype.itemsize :]
+            add = self._writer.add_message
+            for rec, payload in zip(records.tolist(), payloads, strict=True):
+                add(channel, rec[4], payload.tobytes(), rec[5], rec[3])
+        self.counts[count_key] += n
+
+    def write_faults(self, raw: bytes) -> None:
+        """Write one message per injected link fault of the FAULT_DTYPE block `raw` on /link_faults."""
+        self._write_records(np.frombuffer(raw, dtype=FAULT_DTYPE), encoding.encode_faults, self._ch_faults,
+                            "faults")
+
+    def write_console(self, raw: bytes) -> None:
+        """Write one message per target console line of the CONSOLE_DTYPE block `raw` on /target/console."""
+        self._write_records(np.frombuffer(raw, dtype=console.CONSOLE_DTYPE), console.encode_console,
+                            self._ch_console, "console")
+
+    def _write_records(self, block: np.ndarray, encode: Callable[[np.ndarray], Sequence[bytes]], channel: int,
+                       count_key: str) -> None:
+        """One message per record of `block` (encoded by `encode`), stamped with its time, sequence = seq."""
+        times = encoding.periods_log_times_ns(block).tolist()
+        msgs, seqs = encode(block), block["seq"].tolist()
+        if len(msgs) != len(times):
+            raise RunLogError(f"{count_key}: {len(msgs)} messages encoded for {len(times)} records")
+        if self._bulk is not None:
+            self._bulk.add(channel, times, msgs, seqs)
+        else:
+            add = self._writer.add_message
+            for t_ns, msg, seq in zip(times, msgs, seqs, strict=True):
+                add(channel, t_ns, msg, t_ns, seq)
+        self.counts[count_key] += block.shape[0]
+
+    def write_trace(self, raw: bytes) -> None:
+        """Write the trace block `raw` (the sink's trace dtype) as one CDR message stamped with its first
+        sample time."""
+        block = np.frombuffer(raw, dtype=self._trace_dtype)
+        if block.shape[0] == 0:
+            return
+        t_ns = int(encoding.periods_log_times_ns(block[:1])[0])
+        self._writer.add_message(
+            self._ch_trace, t_ns, encoding.encode_trace_cdr(block), t_ns, self.counts["trace_blocks"]
+        )
+        self.counts["trace_blocks"] += 1
+        self.counts["trace_samples"] += block.shape[0]
+
+    def flush(self) -> None:
+        """End the current chunk, flush the file buffer and fsync: everything so far survives a kill."""
+        self._writer.flush()  # type: ignore[no-untyped-call]
+        os.fsync(self._file.fileno())
+
+    def close(self) -> None:
+        """Write the summary and footer, fsync and close the file (idempotent). A write that fails (a full
+        disk) ends the file as `abandon` does and raises RunLogError saying what was kept."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self._writer.finish()  # type: ignore[no-untyped-call]
+            self._file.flush()
+            os.fsync(self._file.fileno())
+        except OSError as exc:
+            self._closed = False
+            raise RunLogError(self.abandon(exc)) from None
+        finally:
+            with contextlib.suppress(OSError):
+                self._file.close()
+
+    def abandon(self, exc: OSError) -> str:
+        """After a failed write (`exc`: a full disk, a file size limit): close the file without its summary and
+        keep it as a valid MCAP file up to its last complete record, or remove it if not even its header fitted.
+        Returns the cause and what became of the file, in words. Idempotent (later calls say nothing new)."""
+        if self._closed:
+            return f"cannot write {self._path}: {exc.strerror or exc}"
+        self._closed = True
+        with contextlib.suppress(OSError):  # the buffer that did not fit is dropped; the descriptor is closed
+            self._file.close()
+        cause = f"cannot write {self._path} ({exc.strerror or exc})"
+        try:
+            kept = end_after_last_record(self._path, self._ch_periods)
+        except OSError as again:
+            return (f"{cause}; the file ends at its last complete record (no MCAP footer: {again.strerror or again}"
+                    f"; `hil mcap-repair` reads it)")
+        if kept.bytes == 0:
+            with contextlib.suppress(OSError):
+                self._path.unlink()
+            return f"{cause}; nothing of the log fitted: the file is removed"
+        return (f"{cause}; the file is kept as a valid MCAP up to its last complete chunk: the first "
+                f"{kept.messages} periods of the {self.counts['periods']} it received ({kept.bytes} bytes)")

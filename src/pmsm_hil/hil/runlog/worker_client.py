@@ -1,0 +1,186 @@
+"""`WorkerClient`: loop-side handle of a worker process fed through the shared-memory ring.
+
+Shared by `RunLogger` (MCAP logger) and `LiveRerun` (live dashboard). The worker's entry point is
+called as `target(notices, status, ring_path, ring_bytes, *args)`; messages are those of
+`pmsm_hil.hil.runlog.channel`. Subclasses keep their own public API and turn failures into their
+layer's exceptions.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import multiprocessing
+import os
+import signal
+import sys
+import time
+from collections.abc import Callable
+from multiprocessing import forkserver, resource_tracker
+from multiprocessing.process import BaseProcess
+from typing import Any
+
+import numpy as np
+
+from pmsm_hil.hil.runlog.channel import NOTICE
+from pmsm_hil.hil.runlog.ring import RingProducer
+
+_HELD = {signal.SIGINT, signal.SIGTERM}
+
+
+def _worker_entry(target: Callable[..., None], *args: Any) -> None:
+    """The worker process's start: SIGTERM let through (it stops the worker), SIGINT left blocked (the runner
+    owns Ctrl-C; the worker ignores it too). Once `target` returned (its file closed, its last status sent) the
+    process ends at once, stdio flushed: the interpreter's teardown (0.5 s and more of wall time on a loaded
+    machine) would only delay the runner's `close`, which waits for this process to end."""
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGTERM})
+    target(*args)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(0)
+
+
+class WorkerClient:
+    """Ring, notice pipe, status pipe and worker process; `_error_prefix` is put before b"E" texts."""
+
+    _error_prefix = ""
+
+    def __init__(self) -> None:
+        self._closed = True
+        self.final_stats: dict[str, Any] | None = None
+        self._error: str | None = None
+
+    def _start_worker(self, target: Callable[..., None], args: tuple[Any, ...], *, name: str,
+                      start_method: str, ring_bytes: int, stall_timeout_s: float) -> None:
+        """Create the ring (`ring_bytes`) and the pipes and start the worker. An OSError from the start
+        is re-raised after the ring is released. RunLogError if the ring cannot be created.
+
+        Ctrl-C and SIGTERM wait (blocked) until the worker has started: one arriving while the ring is made
+        (its 64 MiB are touched) left its file in /dev/shm, one arriving while the runner writes the worker's
+        start-up data left a half-started child (an EOFError traceback); the child starts with both blocked,
+        so a terminal's Ctrl-C never reaches its imports either (`_worker_entry`)."""
+        self._stall_timeout_s = stall_timeout_s
+        resource_tracker.ensure_running()  # started first: starting it unblocks the signals again
+        if start_method == "forkserver":
+            forkserver.ensure_running()
+        mask = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD)
+        try:
+            self._ring = RingProducer(ring_bytes)
+            try:
+                self._spawn(target, args, name=name, start_method=start_method, ring_bytes=ring_bytes)
+            except BaseException:
+                self._ring.close()
+                raise
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, mask)  # a signal held meanwhile arrives now
+        self._closed = False
+
+    def _spawn(self, target: Callable[..., None], args: tuple[Any, ...], *, name: str, start_method: str,
+               ring_bytes: int) -> None:
+        ctx = multiprocessing.get_context(start_method)
+        notice_r, self._notices = ctx.Pipe(duplex=False)
+        self._status, status_w = ctx.Pipe(duplex=False)
+        self._proc: BaseProcess = ctx.Process(  # type: ignore[attr-defined]
+            target=_worker_entry, name=name, daemon=True,
+            args=(target, notice_r, status_w, str(self._ring.path), ring_bytes, *args))
+        try:
+            self._proc.start()
+        finally:
+            notice_r.close()
+            status_w.close()
+
+    def _start(self, target: Callable[..., None], args: tuple[Any, ...], *, name: str, start_method: str,
+               ring_bytes: int, stall_timeout_s: float, start_timeout_s: float) -> bytes | None:
+        """`_start_worker`, then `_await_ready`. Ctrl-C or SIGTERM anywhere in it (a signal held while the worker
+        started arrives as soon as it has) leaves no process, pipe or ring file behind: `_abort()`, re-raised."""
+        try:
+            self._start_worker(target, args, name=name, start_method=start_method, ring_bytes=ring_bytes,
+                               stall_timeout_s=stall_timeout_s)
+            return self._await_ready(start_timeout_s)
+        except BaseException:
+            self._abort()
+            raise
+
+    def _await_ready(self, timeout_s: float) -> bytes | None:
+        """Wait up to `timeout_s` (s) for b"R"; return the text after it, or None after `_abort()`
+        (then `_error` holds the worker's message, if it sent one)."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if self._status.poll(0.05):
+                msg = self._read_status()
+                if msg is not None and msg[:1] == b"R":
+                    self._ring.unlink()
+                    return msg[1:]
+                break
+            if not self._proc.is_alive():
+                break
+        self._abort()
+        return None
+
+    def _read_status(self) -> bytes | None:
+        """Receive one status message (None if the pipe is closed); records errors and final stats."""
+        try:
+            msg = self._status.recv_bytes()
+        except (EOFError, OSError):
+            return None
+        if msg[:1] == b"E":
+            self._error = self._error_prefix + msg[1:].decode(errors="replace")
+        elif msg[:1] == b"D":
+            self.final_stats = dict(json.loads(msg[1:]))
+        return msg
+
+    def _drain_status(self) -> None:
+        """Read every status message already waiting."""
+        while self._status.poll(0):
+            if self._read_status() is None:
+                break
+
+    def _alive(self) -> bool:
+        return self._proc.is_alive()
+
+    def _push(self, kind: int, block: np.ndarray, itemsize: int) -> None:
+        """Copy `block` into the ring in whole records (≤ a quarter of the ring each) and send a notice of
+        `kind` per piece. Raises RunLogError if the ring stays full, OSError if the notice pipe broke."""
+        payload = np.ascontiguousarray(block).view(np.uint8)
+        step = max(1, self._ring.capacity // (4 * itemsize)) * itemsize
+        for start in range(0, payload.shape[0], step):
+            piece = payload[start : start + step]
+            pos = self._ring.put(piece, self._alive, self._stall_timeout_s)
+            self._notices.send_bytes(NOTICE.pack(kind, pos, piece.shape[0]))
+
+    @property
+    def stall_s(self) -> float:
+        """Total time (s) submits waited for ring space because the worker was behind."""
+        return float(self._ring.stall_s)
+
+    def _stop_worker(self, close_kind: int, timeout_s: float) -> bool:
+        """Send the close notice, wait up to `timeout_s` (s), then `_abort()`; True if the worker ended
+        by itself within that time."""
+        self._closed = True
+        with contextlib.suppress(OSError):
+            self._notices.send_bytes(NOTICE.pack(close_kind, 0, 0))
+        self._proc.join(timeout_s)
+        finished = not self._proc.is_alive()
+        self._abort()
+        return finished
+
+    def _abort(self) -> None:
+        """Collect the last status messages, stop the process if needed and release the pipes and ring (as far
+        as `_start_worker` got)."""
+        self._closed = True
+        if not hasattr(self, "_proc"):  # stopped before the process was made: only the ring, if any
+            with contextlib.suppress(Exception):
+                self._ring.close()
+            return
+        self._drain_status()
+        if self._proc.is_alive():
+            self._proc.terminate()
+            self._proc.join(5.0)
+        if self._proc.is_alive():
+            self._proc.kill()
+            self._proc.join(5.0)
+        with contextlib.suppress(OSError):
+            self._notices.close()
+            self._status.close()
+        with contextlib.suppress(Exception):
+            self._ring.close()

@@ -1,0 +1,267 @@
+"""Builds a firmware of the HIL target core (docs/firmware_api.md) with CMake: the reference firmware
+(firmware_stub/src behind firmware_stub/target/hil_app_reference.c) or a user's source folder, for the host
+(a shared library for `--target sil:PATH`) or the emulated Cortex-M4F board mps2-an386 (an ELF for
+`--target qemu:PATH`).
+
+Builds go to a per-user cache folder (one per source folder, board and set of `--define`s, incremental, locked
+while in use); `build_firmware` copies the artefact to `out` when given. What the compiler said is kept: the
+warnings of a build that succeeded (`BuildResult.warnings`), and of one that failed the key lines
+(`key_lines`: undefined references, the first error with its caret context) in the FwBuildError.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import hashlib
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+from pmsm_hil.sim_target.firmware import FirmwareError
+
+FIRMWARE_DIR = Path(__file__).resolve().parents[3] / "firmware_stub"
+REFERENCE_SRC = FIRMWARE_DIR / "target" / "reference"
+BOARDS = ("host", "mps2-an386")
+#: what each board needs besides cmake (and a host C compiler)
+BOARD_TOOLS: dict[str, tuple[str, ...]] = {"host": ("cmake",), "mps2-an386": ("cmake", "arm-none-eabi-gcc")}
+ARTEFACT = {"host": "libhil_firmware.so", "mps2-an386": "hil_firmware.elf"}
+BUILD_TIMEOUT_S = 600.0
+#: warning lines a build result shows (their count is always given)
+SHOWN_WARNINGS = 5
+#: `--define NAME=VALUE`: NAME a C identifier
+_DEFINE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+_WARNING = re.compile(r": warning: ")
+_ERROR = re.compile(r"(: (fatal )?error: )|(^CMake Error)|(\berror: ld returned)")
+_UNDEFINED = re.compile(r"undefined reference to|undefined symbol")
+
+
+class FwBuildError(FirmwareError):
+    """A firmware build could not run or failed (the message names the tool or the compiler's error)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Sizes:
+    """Section sizes of an ELF (arm-none-eabi-size, Berkeley format) [bytes]."""
+
+    text: int
+    data: int
+    bss: int
+
+    @property
+    def flash(self) -> int:
+        """Code, constants and the initial values of .data."""
+        return self.text + self.data
+
+    @property
+    def ram(self) -> int:
+        """Static RAM: .data + .bss (size counts the NOLOAD sections too: the 16 KiB stack reservation)."""
+        return self.data + self.bss
+
+
+@dataclass(frozen=True, slots=True)
+class BuildResult:
+    """The built artefact (in the build cache, or `out`), its board, and the ELF section sizes."""
+
+    path: Path
+    board: str
+    src: Path
+    sizes: Sizes | None = None
+    #: the compiler's warning lines (as printed, without their context lines)
+    warnings: tuple[str, ...] = ()
+
+
+def missing_tools(board: str) -> list[str]:
+    """Tools `board` needs that are not on PATH."""
+    return [t for t in BOARD_TOOLS[board] if shutil.which(t) is None]
+
+
+def cache_dir() -> Path:
+    """Per-user cache of firmware builds and the QEMU plugin."""
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    path = Path(base) / "pmsm_hil"
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        return path
+    except OSError:
+        path = Path(tempfile.gettempdir()) / f"pmsm_hil-{os.getuid()}"
+        path.mkdir(parents=True, exist_ok=True)
+        return path
+
+
+@contextlib.contextmanager
+def _locked(path: Path) -> Iterator[None]:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "a+b") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+def key_lines(text: str, *, limit: int = 12) -> list[str]:
+    """What a failed build's output says broke: every undefined reference (the missing function named), then
+    the first compiler error with the lines after it that show the source and the caret; else the error lines;
+    else the output's last lines."""
+    lines = [ln.rstrip() for ln in text.splitlines()]
+    undefined = [ln.strip() for ln in lines if _UNDEFINED.search(ln)]
+    out = list(dict.fromkeys(undefined))
+    first = next((i for i, ln in enumerate(lines) if _ERROR.search(ln) and not _UNDEFINED.search(ln)
+                  and "ld returned" not in ln and "collect2" not in ln), None)
+    if first is not None:
+        out.append(lines[first].strip())
+        for ln in lines[first + 1:first + 4]:  # "   12 |   code" and "      |   ^~~~"
+            if re.match(r"\s*\d*\s*\|", ln):
+                out.append(ln)
+            else:
+                break
+    if not out:
+        out = [ln.strip() for ln in lines if "error" in ln.lower()] or [ln for ln in lines if ln.strip()][-6:]
+    return out[:limit]
+
+
+def warning_lines(text: str) -> list[str]:
+    """The compiler's warning lines (each once, in order)."""
+    return list(dict.fromkeys(ln.strip() for ln in text.splitlines() if _WARNING.search(ln)))
+
+
+def _run(cmd: list[str], what: str, *, verbose: bool = False) -> str:
+    """Run a build step; its whole output (stdout + stderr), echoed to stderr when `verbose`."""
+    if verbose:
+        print("+ " + " ".join(cmd), file=sys.stderr, flush=True)
+    try:
+        proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                              timeout=BUILD_TIMEOUT_S)
+    except (OSError, subprocess.SubprocessError) as exc:
+        raise FwBuildError(f"{what}: {exc}") from None
+    if verbose and proc.stdout:
+        print(proc.stdout, file=sys.stderr, end="" if proc.stdout.endswith("\n") else "\n", flush=True)
+    if proc.returncode != 0:
+        lines = key_lines(proc.stdout)
+        raise FwBuildError(f"{what} failed:\n    " + "\n    ".join(lines) + "\n(`hil fw build --verbose` shows "
+                           "the whole output)")
+    return proc.stdout
+
+
+def _remember_warnings(build: Path, output: str) -> tuple[str, ...]:
+    """The warnings of the firmware as built now: those of the sources compiled by this build, and for the sources
+    not compiled again (an up-to-date build, or a partial rebuild after another file changed) those of the build
+    that last compiled them (kept in the build folder), so a warning does not vanish on the next `hil fw build`."""
+    store = build / "hil_warnings.txt"
+    compiled = [m.group(1) for m in _COMPILED.finditer(output)]
+    found = warning_lines(output)
+    kept: list[str] = []
+    with contextlib.suppress(OSError):
+        kept = [ln for ln in store.read_text().splitlines() if ln]
+    if compiled:
+        kept = [ln for ln in kept if not any(obj.endswith(ln.split(":", 1)[0].lstrip("/")) for obj in compiled)]
+        with contextlib.suppress(OSError):
+            store.write_text("".join(w + "\n" for w in [*kept, *found]))
+    return tuple(dict.fromkeys([*kept, *found]))
+
+
+#: an object a build compiled: "Building C object CMakeFiles/T.dir/<source path>.o" → the source path
+_COMPILED = re.compile(r"Building (?:C|CXX|ASM) object \S+?\.dir/(\S+)\.o\b")
+
+
+def parse_defines(items: list[str] | None) -> tuple[str, ...]:
+    """`--define NAME=VALUE` (or NAME alone: 1) items, validated; FwBuildError naming the item otherwise."""
+    out: list[str] = []
+    for item in items or []:
+        name, sep, value = item.partition("=")
+        if not _DEFINE_NAME.fullmatch(name):
+            raise FwBuildError(f"--define {item!r}: NAME must be a C identifier (NAME=VALUE)")
+        if "\n" in value or ";" in value:
+            raise FwBuildError(f"--define {item!r}: VALUE must be one line without ';'")
+        out.append(f"{name}={value}" if sep else f"{name}=1")
+    return tuple(out)
+
+
+def elf_sizes(elf: Path) -> Sizes | None:
+    """text/data/bss of an ELF via arm-none-eabi-size (None when the tool is missing)."""
+    tool = shutil.which("arm-none-eabi-size") or shutil.which("size")
+    if tool is None:
+        return None
+    proc = subprocess.run([tool, str(elf)], capture_output=True, text=True, timeout=60)
+    lines = proc.stdout.strip().splitlines()
+    if proc.returncode != 0 or len(lines) < 2:
+        return None
+    text, data, bss = (int(v) for v in lines[1].split()[:3])
+    return Sizes(text, data, bss)
+
+
+def build_firmware(board: str = "host", src: Path | None = None, out: Path | None = None,
+                   *, jobs: int | None = None, defines: list[str] | tuple[str, ...] = (),
+                   verbose: bool = False) -> BuildResult:
+    """Configure and build `src` (a CMake folder using firmware_stub/target/hil_target.cmake; default: the
+    reference firmware) for `board`; copy the artefact to `out` if given. `defines` ("NAME=VALUE") become CMake
+    variables and preprocessor macros of the firmware (hil_target.cmake HIL_DEFINES); `verbose` echoes the
+    commands and the whole build output to stderr. Raises FwBuildError."""
+    if board not in BOARDS:
+        raise FwBuildError(f"--board must be one of {', '.join(BOARDS)}, got {board!r}")
+    missing = missing_tools(board)
+    if missing:
+        hint = " (apt-get install gcc-arm-none-eabi libnewlib-arm-none-eabi)" if "arm-none-eabi-gcc" in missing else ""
+        raise FwBuildError(f"building for {board} needs {', '.join(missing)} on PATH{hint}")
+    src = (src or REFERENCE_SRC).resolve()
+    if not (src / "CMakeLists.txt").is_file():
+        raise FwBuildError(f"--src {src}: no CMakeLists.txt (see examples/my_firmware/)")
+    defs = parse_defines(list(defines))
+    key = hashlib.sha256("\0".join((str(src), board, str(FIRMWARE_DIR), *defs)).encode()).hexdigest()[:16]
+    build = cache_dir() / "fw-build" / f"{src.name}-{board}-{key}"
+    cmd = ["cmake", "-S", str(src), "-B", str(build), f"-DHIL_SDK={FIRMWARE_DIR}", f"-DHIL_BOARD={board}",
+           "-DCMAKE_BUILD_TYPE=Release", f"-DHIL_DEFINES={';'.join(defs)}", *(f"-D{d}" for d in defs)]
+    if board == "mps2-an386":
+        cmd.append(f"-DCMAKE_TOOLCHAIN_FILE={FIRMWARE_DIR / 'boards' / 'mps2-an386' / 'toolchain.cmake'}")
+    build_cmd = ["cmake", "--build", str(build), "-j", str(jobs or os.cpu_count() or 1)]
+    if verbose:
+        build_cmd.append("--verbose")
+    with _locked(build.with_suffix(".lock")):
+        _run(cmd, f"cmake configure of {src}", verbose=verbose)
+        output = _run(build_cmd, f"build of {src} for {board}", verbose=verbose)
+        warnings = _remember_warnings(build, output)
+        artefact = build / "out" / ARTEFACT[board]
+        if not artefact.is_file():
+            raise FwBuildError(f"build of {src} produced no {ARTEFACT[board]}: does its CMakeLists.txt call "
+                                      "hil_add_firmware()?")
+        _check_param_table(artefact)
+        if out is not None:
+            artefact = _copy_out(artefact, Path(out), board)
+    sizes = elf_sizes(artefact) if board != "host" else None
+    return BuildResult(artefact, board, src, sizes, warnings)
+
+
+def _check_param_table(artefact: Path) -> None:
+    """FwBuildError naming the entry if the firmware's parameter table (`hil_app_params`, hil_app_params.h) is
+    malformed: a name or unit not NUL-terminated, an id outside 128..254, a non-finite default or range, ...
+    (checked when it is built, not first when a run reads it)."""
+    from pmsm_hil.sim_target.fw_params import FirmwareParamError, firmware_params
+
+    try:
+        firmware_params(artefact)
+    except FirmwareParamError as exc:
+        raise FwBuildError(f"{exc} (hil_app_params.h)") from None
+
+
+def _copy_out(artefact: Path, out: Path, board: str) -> Path:
+    """Copy the artefact to `out` (a file, or a folder for the artefact's own name) through a temporary file;
+    FwBuildError naming -o if it cannot be written (/proc, a read-only folder, a full disk)."""
+    if out.is_dir():
+        out = out / ARTEFACT[board]
+    tmp = out.with_name(out.name + ".tmp")
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(artefact, tmp)
+        os.replace(tmp, out)
+    except OSError as exc:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise FwBuildError(f"-o {out}: cannot write the {ARTEFACT[board]} there ({exc.strerror or exc})") from None
+    return out
