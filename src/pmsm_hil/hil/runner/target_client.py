@@ -45,7 +45,7 @@ DRAIN_MAX = 256
 
 def _param_name(pid: int) -> str:
     """A parameter's name: a ParamId member's, a firmware-declared one's
-    (src/pmsm_hil/sim_target/fw_params.FirmwareParamId carries it), else `param_ID`."""
+    (`pmsm_hil.sim_target.fw_params.FirmwareParamId` carries it), else `param_ID`."""
     name = getattr(pid, "name", None)
     if name is None and pid in ParamId._value2member_map_:
         name = ParamId(pid).name
