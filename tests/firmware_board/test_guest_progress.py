@@ -14,7 +14,7 @@ import pytest
 
 from pmsm_hil.sim_target.qemu import QemuTarget
 
-NATIVE = Path(__file__).resolve().parents[2] / "hil" / "native"
+NATIVE = Path(__file__).resolve().parents[2] / "src" / "pmsm_hil" / "hil" / "runner" / "c"
 
 _CHECK = r"""
 #include <stdio.h>

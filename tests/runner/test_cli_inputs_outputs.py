@@ -105,7 +105,7 @@ def test_config_speed_bound_names_the_key(tmp_path: Path, capsys: pytest.Capture
     cfg = tmp_path / "c.toml"
     cfg.write_text("speed = 1e308\n", encoding="utf-8")
     assert main(["run", "--config", str(cfg), "--no-log"]) == 2
-    _one_line_error(capsys, f"'speed' in config file {cfg}: 1e+308 rpm")
+    _one_line_error(capsys, f"config file {cfg}: 'speed': 1e+308 rpm")
 
 
 def test_out_that_is_a_file_or_cannot_be_created(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
