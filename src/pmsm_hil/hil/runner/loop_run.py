@@ -25,7 +25,7 @@ from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target
 from pmsm_hil.hil.runner.wire import NativeWireLink
 from pmsm_hil.hil.runner.wire_kinds import NATIVE_WIRES
 from pmsm_hil.protocol.codec import FrameCodec
-from pmsm_hil.protocol.links import link_kind, parse_spec
+from pmsm_hil.protocol.links import link_kind
 
 
 def python_loop_reason(cfg: RunConfig) -> str | None:
@@ -51,7 +51,7 @@ def connect_native(cfg: RunConfig) -> TargetConnection:
     another process over UDP, serial or SocketCAN (spawned: the native target, `hil target --native`) through
     the descriptor the C loop takes over; on any other target and link (python-can adapters, in-process
     Python or SIL targets, QEMU, a serial socket) through the callback link (`NativePyLink`)."""
-    spec = parse_spec(cfg.link)
+    spec = cfg.link_spec
     profile = link_kind(spec).profile(spec)
     ffi, lib = native_lib()
     fd = profile == "canfd"
@@ -84,7 +84,7 @@ def connect_native(cfg: RunConfig) -> TargetConnection:
 
 def in_core(cfg: RunConfig) -> bool:
     """The run's target is the C target core of the loop itself: the in-process target on the virtual link."""
-    return cfg.target in ("auto", "inproc") and parse_spec(cfg.link).kind == "virtual"
+    return cfg.target in ("auto", "inproc") and cfg.link_spec.kind == "virtual"
 
 
 def connect_loop_target(cfg: RunConfig, python_reason: str | None,

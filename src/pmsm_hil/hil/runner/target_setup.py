@@ -36,7 +36,7 @@ from pmsm_hil.hil.runner.sil_watch import (
 from pmsm_hil.hil.runner.target_client import DutViolationError, TargetClient, TargetError
 from pmsm_hil.hil.runner.target_console import TargetConsole
 from pmsm_hil.protocol.codec import FrameCodec
-from pmsm_hil.protocol.links import Link, link_kind, open_link, parse_spec
+from pmsm_hil.protocol.links import Link, link_kind, open_link
 from pmsm_hil.protocol.links.spawn_auth import spawn_auth
 from pmsm_hil.protocol.links.udp_bus import UdpUnicastBus
 from pmsm_hil.sim_target.process import LINK_STATS_LINE, READY_LINE, SPAWNED_IDLE_TIMEOUT_S
@@ -243,7 +243,7 @@ def realtime_target_may_spin() -> bool:
 def _connect_spawned(cfg: RunConfig, codec: FrameCodec, native: bool, sil: str | None = None,
                      sil_debug: SilDebugSlot | None = None) -> TargetConnection:
     """A `hil target` process on the mirror of the run's link (`sil`: serving that SIL library)."""
-    spec = parse_spec(cfg.link)
+    spec = cfg.link_spec
     specs = link_kind(spec).mirror(cfg.link, spec)
     specs, key = spawn_auth(specs)  # authenticated frames by default (src/pmsm_hil/protocol/links/auth.py)
     host_link = open_link(specs.host, "host")
@@ -268,7 +268,7 @@ def _connect_sil_process(cfg: RunConfig, library: str) -> TargetConnection:
     if not Path(library).is_file():
         raise SilError(f"SIL library {library} not found (build one with `hil fw build --board host`)")
     cfg = isolated_config(cfg)
-    spec = parse_spec(cfg.link)
+    spec = cfg.link_spec
     codec = FrameCodec(link_kind(spec).profile(spec))
     debug = SilDebugSlot()  # the torque reference of each step, which no frame carries
     try:
@@ -391,7 +391,7 @@ def connect_target(cfg: RunConfig, *, silent_after: int | None = None, native_ta
     target runs its C serve loop, `hil target --native`)."""
     if cfg.target.startswith("qemu:") and cfg.target_path is not None:
         return _connect_qemu(cfg, cfg.target_path)
-    spec = parse_spec(cfg.link)
+    spec = cfg.link_spec
     link = link_kind(spec)
     kind = link.auto_target(spec) if cfg.target == "auto" else cfg.target
     codec = FrameCodec(link.profile(spec))
