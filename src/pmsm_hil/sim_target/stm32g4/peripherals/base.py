@@ -1,0 +1,99 @@
+"""The contract every peripheral model of the virtual STM32G4 board keeps (one model per file, one registry).
+
+Time is the CPU's cycle count at SYSCLK (`now`, an int that only grows). The board runs the core in slices up to
+the earliest `next_event` of all peripherals, then calls `advance(now)` on each; a model raises its interrupt
+lines through `BoardBus.set_pending`. Register accesses reach `read`/`write` with the offset from `base`.
+Register layouts, addresses and reset values follow RM0440 (STM32G4 reference manual).
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from typing import Protocol
+
+from pmsm_hil.sim_target.firmware import FirmwareError
+
+
+class BoardError(FirmwareError):
+    """The firmware did what the virtual board cannot model or the chip would not allow (the message names the
+    register or field, the address and the firmware's pc)."""
+
+
+class BoardBus(Protocol):
+    """What a peripheral model may ask of the board it sits on."""
+
+    def set_pending(self, irq: int) -> None:
+        """Pend the NVIC interrupt `irq` (position in the vector table after the 16 system exceptions)."""
+
+    def clear_pending(self, irq: int) -> None:
+        """Withdraw a level-sensitive request whose source flag was cleared."""
+
+    def read_memory(self, address: int, size: int) -> bytes:
+        """Bytes of the emulated address space (SRAM, message RAM), as the CPU would read them."""
+
+    def write_memory(self, address: int, data: bytes) -> None:
+        """Store bytes into the emulated address space (for example a received frame into FDCAN message RAM)."""
+
+    def peripheral(self, name: str) -> Peripheral:
+        """Another model on the board by its RM0440 name (`"TIM1"`, `"ADC12_COMMON"`), for trigger wiring."""
+
+    @property
+    def sysclk_hz(self) -> int:
+        """The core clock as the firmware's RCC set-up left it [Hz]."""
+
+
+class Peripheral(ABC):
+    """One memory-mapped peripheral at `base`, `size` bytes long; its state starts at RM0440's reset values."""
+
+    name: str = ""
+    base: int = 0
+    size: int = 0x400
+
+    def __init__(self, bus: BoardBus) -> None:
+        self.bus = bus
+        self.reset()
+
+    @abstractmethod
+    def reset(self) -> None:
+        """Return every register to its RM0440 reset value."""
+
+    @abstractmethod
+    def read(self, offset: int, size: int, now: int) -> int:
+        """The value the CPU reads at `base + offset` (`size` 1, 2 or 4 bytes) at cycle `now`; raise
+        `BoardError` naming the register for an offset the model does not implement."""
+
+    @abstractmethod
+    def write(self, offset: int, size: int, value: int, now: int) -> None:
+        """The CPU stores `value` at `base + offset` at cycle `now` (write-1-to-clear, preload, etc. as RM0440
+        says); raise `BoardError` naming the register for an offset the model does not implement."""
+
+    def next_event(self, now: int) -> int | None:
+        """The earliest cycle after `now` at which the model changes state by itself (a timer update, a
+        conversion's end, a frame's arrival); None when nothing is due."""
+        return None
+
+    def advance(self, now: int) -> None:
+        """Bring the model's state up to cycle `now`, raising the interrupts whose events fell in between (a
+        model without events of its own has nothing to do)."""
+        del now
+
+
+PeripheralFactory = Callable[[BoardBus], Peripheral]
+REGISTRY: dict[str, PeripheralFactory] = {}
+
+
+def register(name: str) -> Callable[[type[Peripheral]], type[Peripheral]]:
+    """Class decorator: make a model available to part descriptions under its RM0440 name."""
+
+    def add(cls: type[Peripheral]) -> type[Peripheral]:
+        if name in REGISTRY:
+            raise BoardError(f"peripheral model {name!r} registered twice")
+        cls.name = name
+        REGISTRY[name] = cls
+        return cls
+
+    return add
+
+
+__all__ = ["REGISTRY", "BoardBus", "BoardError", "Peripheral", "PeripheralFactory", "register"]
