@@ -5,8 +5,10 @@ fake board that holds the message RAM in a bytearray."""
 from __future__ import annotations
 
 import can
+import cantools
 import pytest
 
+from pmsm_hil.protocol.paths import REPO_ROOT
 from pmsm_hil.sim_target.stm32g4.peripherals import fdcan_ram as ram
 from pmsm_hil.sim_target.stm32g4.peripherals.base import REGISTRY, BoardError, Peripheral
 from pmsm_hil.sim_target.stm32g4.peripherals.fdcan import (
@@ -505,3 +507,65 @@ def test_timestamp_counter_and_wrap_interrupt(fdcan: Fdcan) -> None:
     assert fdcan.read(IR, 4, wrap) & (1 << 13)  # TSW
     fdcan.write(TSCV, 4, 0, wrap)
     assert fdcan.read(TSCV, 4, wrap + 2 * BIT) == 1
+
+
+# ----- the project's DBC through the controller
+
+def test_dbc_setpoint_in_and_heartbeat_out(fdcan: Fdcan, bus: FakeBus) -> None:
+    """A firmware that takes Setpoint and ConfigParam into FIFO 0 (one dual filter, everything else rejected) and
+    answers with HeartbeatTarget: the bytes are the DBC's, both ways."""
+    db = cantools.database.load_file(str(REPO_ROOT / "src" / "pmsm_hil" / "protocol" / "hil.dbc"))
+    setpoint = db.get_message_by_name("Setpoint")
+    heartbeat = db.get_message_by_name("HeartbeatTarget")
+    config_param = db.get_message_by_name("ConfigParam")
+    bus.put_word(ram.FLSSA, std_filter(0b01, 0b001, setpoint.frame_id, config_param.frame_id))
+    configure(fdcan, {RXGFC: (1 << 16) | (0b10 << 4) | (0b10 << 2) | 0b11}, cccr=FDOE | BRSE)
+    payload = setpoint.encode({"enable": 1, "mode": 0, "reference": 157.0, "controller_id": 6})
+    fdcan.deliver(can.Message(arbitration_id=setpoint.frame_id, data=payload, is_extended_id=False), 100)
+    fdcan.deliver(can.Message(arbitration_id=0x100, data=bytes(8), is_extended_id=False), 200)  # MeasA: rejected
+    assert fdcan.read(RXF0S, 4, 200) & 0xF == 1
+    r0, r1, data = rx_element(bus, 0, 0)
+    length = ram.payload_length((r1 >> 16) & 0xF, bool(r1 & (1 << 21)))
+    decoded = setpoint.decode(data[:length])
+    assert (r0 >> 18) & 0x7FF == 0x200 and decoded["reference"] == pytest.approx(157.0)
+    put_tx(bus, 0, heartbeat.frame_id, heartbeat.encode({"node": 1, "state": 2, "counter": 7}))
+    fdcan.write(TXBAR, 4, 1, 300)
+    fdcan.advance(10**5)
+    (sent,) = fdcan.take_transmitted()
+    assert sent.arbitration_id == 0x701 and not sent.is_fd
+    assert heartbeat.decode(bytes(sent.data), decode_choices=False) == {"node": 1, "state": 2, "counter": 7}
+
+
+def test_fd_request_without_fdoe_goes_classic(fdcan: Fdcan, bus: FakeBus) -> None:
+    configure(fdcan)
+    put_tx(bus, 0, 0x108, bytes(range(16)), fd=True, brs=True)
+    fdcan.write(TXBAR, 4, 1, 0)
+    fdcan.advance(10**5)
+    (sent,) = fdcan.take_transmitted()
+    assert not sent.is_fd and not sent.bitrate_switch and bytes(sent.data) == bytes(range(8))
+
+
+def test_external_loopback_sends_and_receives(fdcan: Fdcan, bus: FakeBus) -> None:
+    fdcan.write(CCCR, 4, INIT | CCE, 0)
+    fdcan.write(CCCR, 4, INIT | CCE | TEST_EN, 0)
+    fdcan.write(TEST, 4, 0x10, 0)
+    fdcan.write(CCCR, 4, TEST_EN, 0)
+    put_tx(bus, 0, 0x55, b"\x55")
+    fdcan.write(TXBAR, 4, 1, 0)
+    fdcan.advance(10**4)
+    assert [m.arbitration_id for m in fdcan.take_transmitted()] == [0x55]
+    assert fdcan.read(RXF0S, 4, 10**4) & 0xF == 1
+
+
+def test_high_priority_frame_lost_in_a_full_fifo(fdcan: Fdcan, bus: FakeBus) -> None:
+    bus.put_word(ram.FLSSA, std_filter(0b01, 0b101, 0x001, 0x001))  # priority, FIFO 0
+    configure(fdcan, {RXGFC: 1 << 16})
+    for n in range(4):
+        fdcan.deliver(msg(0x001, bytes([n])), n)
+    assert (fdcan.read(0x088, 4, 4) >> 6) & 0x3 == 0b01  # MSI: FIFO message lost
+    assert fdcan.read(IR, 4, 4) & (HPM | RF0L) == HPM | RF0L
+
+
+def test_reserved_write_names_the_offset(fdcan: Fdcan) -> None:
+    with pytest.raises(BoardError, match=r"FDCAN1: write of reserved offset 0x104 \(address 0x40006504\)"):
+        fdcan.write(0x104, 4, 1, 0)
