@@ -569,3 +569,14 @@ def test_high_priority_frame_lost_in_a_full_fifo(fdcan: Fdcan, bus: FakeBus) -> 
 def test_reserved_write_names_the_offset(fdcan: Fdcan) -> None:
     with pytest.raises(BoardError, match=r"FDCAN1: write of reserved offset 0x104 \(address 0x40006504\)"):
         fdcan.write(0x104, 4, 1, 0)
+
+
+def test_remote_request_goes_classic_even_with_fdf(fdcan: Fdcan, bus: FakeBus) -> None:
+    configure(fdcan, cccr=FDOE | BRSE)
+    put_tx(bus, 0, 0x321, b"", fd=True, brs=True)
+    bus.put_word(ram.TFQSA, bus.word(ram.TFQSA) | (1 << 29))  # RTR
+    bus.put_word(ram.TFQSA + 4, bus.word(ram.TFQSA + 4) | (4 << 16))  # DLC 4: four bytes requested
+    fdcan.write(TXBAR, 4, 1, 0)
+    fdcan.advance(10**5)
+    (sent,) = fdcan.take_transmitted()
+    assert sent.is_remote_frame and not sent.is_fd and sent.dlc == 4 and bytes(sent.data) == b""

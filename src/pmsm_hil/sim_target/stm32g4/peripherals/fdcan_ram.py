@@ -104,13 +104,12 @@ class TxHeader(NamedTuple):
 
 def decode_tx(raw: bytes, fd_enabled: bool, brs_enabled: bool) -> tuple[Element, TxHeader]:
     """A TX buffer element (T0, T1, payload) as the controller sends it: FDF counts only with CCCR.FDOE, BRS only
-    with CCCR.BRSE, an FD frame has no remote form, a classic frame carries at most 8 bytes."""
+    with CCCR.BRSE, RTR sends a classic remote frame even with FDF set, a classic frame carries at most 8 bytes."""
     t0 = int.from_bytes(raw[0:4], "little")
     t1 = int.from_bytes(raw[4:8], "little")
     ident, extended, remote, esi = decode_id_word(t0)
-    fd = bool(t1 & FDF) and fd_enabled
+    fd = bool(t1 & FDF) and fd_enabled and not remote
     brs = fd and bool(t1 & BRS) and brs_enabled
-    remote = remote and not fd
     dlc = (t1 >> DLC_SHIFT) & 0xF
     length = 0 if remote else payload_length(dlc, fd)
     element = Element(ident, extended, remote, fd, brs, esi and fd, dlc, bytes(raw[8:8 + length]))
