@@ -392,15 +392,17 @@ def test_transmission_interrupt_and_tx_event_fifo(fdcan: Fdcan, bus: FakeBus) ->
     fdcan.write(IE, 4, TC | TEFN, 0)
     fdcan.write(ILE, 4, 0b01, 0)
     put_tx(bus, 0, 0x701, b"\x01\x02\x03", efc=True, marker=0x5A)
-    fdcan.write(TXBAR, 4, 1, 0)
-    end = (47 + 24) * BIT
+    start = 100 * BIT
+    fdcan.write(TXBAR, 4, 1, start)
+    end = start + (47 + 24) * BIT
     fdcan.advance(end)
     assert bus.pended == [IRQ_IT0]
     assert fdcan.read(IR, 4, end) & (TC | TEFN) == TC | TEFN
     assert fdcan.read(TXEFS, 4, end) == (1 << 16) | 1
     e0, e1 = bus.word(ram.TEFSA), bus.word(ram.TEFSA + 4)
     assert e0 == 0x701 << 18
-    assert e1 >> 24 == 0x5A and (e1 >> 22) & 3 == 0b01 and (e1 >> 16) & 0xF == 3 and e1 & 0xFFFF == 71
+    assert e1 >> 24 == 0x5A and (e1 >> 22) & 3 == 0b01 and (e1 >> 16) & 0xF == 3
+    assert e1 & 0xFFFF == 100  # TXTS: the timestamp at the start of the frame
     fdcan.write(TXEFA, 4, 0, end)
     assert fdcan.read(TXEFS, 4, end) == (1 << 16) | (1 << 8)
     fdcan.write(IR, 4, TC | TEFN, end)
@@ -498,7 +500,7 @@ def test_a_new_event_on_a_high_line_pends_again(fdcan: Fdcan, bus: FakeBus) -> N
     assert bus.pended == [IRQ_IT0, IRQ_IT0]
 
 
-def test_timestamp_counter_and_wrap_interrupt(fdcan: Fdcan) -> None:
+def test_timestamp_counter_and_wrap_interrupt(fdcan: Fdcan, bus: FakeBus) -> None:
     configure(fdcan, {TSCC: (1 << 16) | 0b01})  # a count every 2 bit times
     assert fdcan.read(TSCV, 4, 2 * BIT * 100) == 100
     wrap = fdcan.next_event(0)
@@ -507,6 +509,9 @@ def test_timestamp_counter_and_wrap_interrupt(fdcan: Fdcan) -> None:
     assert fdcan.read(IR, 4, wrap) & (1 << 13)  # TSW
     fdcan.write(TSCV, 4, 0, wrap)
     assert fdcan.read(TSCV, 4, wrap + 2 * BIT) == 1
+    fdcan.deliver(msg(0x10, bytes(8)), wrap + 2 * BIT * 500)  # 111 bits long: it started 55.5 counts earlier
+    _, r1, _ = rx_element(bus, 0, 0)
+    assert r1 & 0xFFFF == 500 - 56  # RXTS: the timestamp at the start of the frame
 
 
 # ----- the project's DBC through the controller

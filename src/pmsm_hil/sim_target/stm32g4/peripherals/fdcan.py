@@ -87,11 +87,12 @@ class _Ring:
 
 @dataclass
 class _InFlight:
-    """The TX buffer on the bus: its frame, event request and marker, end of frame [cycle]."""
+    """The TX buffer on the bus: its frame, event request and marker, start and end of frame [cycle]."""
 
     buffer: int
     element: ram.Element
     header: ram.TxHeader
+    start: int
     end: int
     cancel: bool = False
 
@@ -320,6 +321,12 @@ class Fdcan(Peripheral):
         data = div * (((dbtp >> 16) & 0x1F) + 1) * (3 + ((dbtp >> 8) & 0x1F) + ((dbtp >> 4) & 0xF))
         return nominal, data
 
+    def _frame_cycles(self, element: ram.Element) -> int:
+        """CPU cycles a frame holds the bus at the configured bit rates (dynamic stuff bits left out)."""
+        nominal_bits, data_bits = ram.frame_bits(element)
+        nominal, data = self._bit_ticks()
+        return self._cycles(nominal_bits * nominal + data_bits * data)
+
     def _unit_cycles(self) -> int | None:
         """CPU cycles per timestamp count (TCP+1 nominal bit times), None when the counter stands (TSS 00/11)."""
         tscc = self.regs[TSCC]
@@ -406,7 +413,8 @@ class Fdcan(Peripheral):
                 stored = fifo.push()
                 start = ram.RF0SA if decision.fifo == 0 else ram.RF1SA
                 self.bus.write_memory(self.ram_base + start + stored * ram.ELEMENT_BYTES,
-                                      ram.encode_rx(element, self._timestamp(now), decision.filter_index))
+                                      ram.encode_rx(element, self._timestamp(now - self._frame_cycles(element)),
+                                                    decision.filter_index))
                 self.ir |= new | (full if fifo.fill == ram.RX_FIFO_ELEMENTS else 0)
         if decision.priority:
             msi = 0b01 if lost else (0b00 if stored is None else 0b10 + (decision.fifo or 0))
@@ -506,10 +514,7 @@ class Fdcan(Peripheral):
         if index is None:
             return
         element, header = self._tx_element(index)
-        nominal_bits, data_bits = ram.frame_bits(element)
-        nominal, data = self._bit_ticks()
-        self.in_flight = _InFlight(index, element, header, now + self._cycles(nominal_bits * nominal
-                                                                              + data_bits * data))
+        self.in_flight = _InFlight(index, element, header, now, now + self._frame_cycles(element))
 
     def _complete(self, end: int) -> None:
         flight = self.in_flight
@@ -550,7 +555,8 @@ class Fdcan(Peripheral):
             return
         slot = ring.push()
         self.bus.write_memory(self.ram_base + ram.TEFSA + 8 * slot,
-                              ram.encode_tx_event(flight.element, flight.header, self._timestamp(end), flight.cancel))
+                              ram.encode_tx_event(flight.element, flight.header, self._timestamp(flight.start),
+                                                  flight.cancel))
         self.ir |= TEFN | (TEFF if ring.fill == ram.TX_EVENT_ELEMENTS else 0)
 
     # ----- interrupt lines
