@@ -301,9 +301,12 @@ def test_full_fifo_overwrites_the_oldest_in_overwrite_mode(fdcan: Fdcan, bus: Fa
     assert not fdcan.read(IR, 4, 5) & RF0L
 
 
-def test_frames_are_not_received_in_init(fdcan: Fdcan) -> None:
+def test_frames_are_not_received_in_init_nor_error_frames(fdcan: Fdcan) -> None:
     fdcan.deliver(msg(0x10, b"\x00"), 1)
-    assert fdcan.read(RXF0S, 4, 1) == 0 and sum(fdcan.rx_dropped.values()) == 1
+    configure(fdcan)
+    fdcan.deliver(can.Message(is_error_frame=True), 2)
+    assert fdcan.read(RXF0S, 4, 2) == 0
+    assert fdcan.rx_dropped == {"not synchronised (CCCR.INIT set)": 1, "error frame": 1}
 
 
 # ----- CAN FD

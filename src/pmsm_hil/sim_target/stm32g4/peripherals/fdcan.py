@@ -138,6 +138,9 @@ class Fdcan(Peripheral):
         lost when that FIFO is full in blocking mode), its interrupts raised. BoardError for a frame no CAN
         controller could receive (an identifier or payload length its format cannot carry)."""
         self.advance(now)
+        if frame.is_error_frame:
+            self._drop("error frame")
+            return
         element = self._element_of(frame)
         if self.cccr & INIT:
             self._drop("not synchronised (CCCR.INIT set)")
