@@ -44,6 +44,8 @@ RF0N, RF0F, RF0L, RF1N, RF1F, RF1L, HPM, TC, TCF, TFE, TEFN, TEFF, TEFL, TSW = (
 IR_MASK = (1 << 24) - 1
 #: ILS bit -> the IR bits of that group (RXFIFO0, RXFIFO1, SMSG, TFERR, MISC, BERR, PERR)
 ILS_GROUPS = (0x7, 0x7 << 3, 0x7 << 6, 0xF << 9, 0x7 << 13, 0x3 << 16, 0x3F << 18)
+#: ILS value -> the IR bits it routes to IT1
+ILS_LINE1 = tuple(sum(group for bit, group in enumerate(ILS_GROUPS) if ils & (1 << bit)) for ils in range(128))
 
 # Writable bits of the plain stored registers; the protected ones change only with CCCR.INIT and CCCR.CCE set
 WRITABLE = {
@@ -564,9 +566,10 @@ class Fdcan(Peripheral):
 
     # ----- interrupt lines
     def _update_lines(self) -> None:
-        ils = self.regs[ILS]
-        line1 = sum(group for bit, group in enumerate(ILS_GROUPS) if ils & (1 << bit))
         flagged = self.ir & self.regs[IE]
+        if not flagged and not (self.line_flags[0] or self.line_flags[1]):
+            return
+        line1 = ILS_LINE1[self.regs[ILS]]
         ile = self.regs[ILE]
         for line, routed in enumerate((flagged & ~line1, flagged & line1)):
             if not ile & (1 << line):
