@@ -473,6 +473,14 @@ def test_bit_timing_and_clock_divider_set_the_frame_time(fdcan: Fdcan, bus: Fake
     assert fdcan.next_event(0) == 47 * 340
 
 
+def test_frame_cycles_for_the_run_side(fdcan: Fdcan) -> None:
+    configure(fdcan, {DBTP: 1 << 8}, cccr=FDOE | BRSE)  # data phase 4 periods a bit
+    assert fdcan.frame_cycles(msg(0x200, bytes(7))) == (47 + 56) * BIT
+    assert fdcan.frame_cycles(msg(0x1234, bytes(8), extended=True)) == (67 + 64) * BIT
+    fd = can.Message(arbitration_id=0x108, data=bytes(16), is_fd=True, bitrate_switch=True, is_extended_id=False)
+    assert fdcan.frame_cycles(fd) == (17 + 12) * BIT + (1 + 4 + 128 + 4 + 17 + 1 + 5 + 1) * 4
+
+
 # ----- interrupt lines
 
 def test_ils_routes_groups_to_the_second_line_and_ile_gates(fdcan: Fdcan, bus: FakeBus) -> None:

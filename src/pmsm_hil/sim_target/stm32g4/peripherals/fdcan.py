@@ -158,6 +158,11 @@ class Fdcan(Peripheral):
         frames, self.transmitted = self.transmitted, []
         return frames
 
+    def frame_cycles(self, frame: can.Message) -> int:
+        """CPU cycles `frame` takes on the bus at the bit rates the firmware configured (dynamic stuff bits left
+        out), for a run side that delivers a frame at its end: sent at cycle t, it arrives at t + this."""
+        return self._frame_cycles(self._element_of(frame))
+
     def line_active(self, line: int) -> bool:
         """Whether interrupt line `line` (0: IT0, 1: IT1) is asserted now (an enabled flag in a group routed to
         it and ILE.EINTx set), for an NVIC that re-pends a level-sensitive line at exception return."""
