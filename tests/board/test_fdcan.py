@@ -596,3 +596,66 @@ def test_remote_request_goes_classic_even_with_fdf(fdcan: Fdcan, bus: FakeBus) -
     fdcan.advance(10**5)
     (sent,) = fdcan.take_transmitted()
     assert sent.is_remote_frame and not sent.is_fd and sent.dlc == 4 and bytes(sent.data) == b""
+
+
+# ----- a HAL-style driver, register by register
+
+def _rmw(dev: Fdcan, offset: int, clear: int, set_bits: int, now: int) -> None:
+    """MODIFY_REG / SET_BIT / CLEAR_BIT as the HAL and LL drivers do them: a 32-bit read, then a 32-bit write."""
+    dev.write(offset, 4, (dev.read(offset, 4, now) & ~clear) | set_bits, now)
+
+
+def test_hal_style_bring_up_receive_and_send(fdcan: Fdcan, bus: FakeBus) -> None:
+    """The order of operations of STM32CubeG4's HAL_FDCAN_Init, ConfigFilter, ConfigGlobalFilter,
+    ActivateNotification, Start, GetRxMessage and AddMessageToTxFifoQ: every poll ends at once and the frames go
+    through."""
+    now = 0
+    _rmw(fdcan, CCCR, 1 << 4, 0, now)  # leave clock stop
+    assert not fdcan.read(CCCR, 4, now) & (1 << 3)  # CSA
+    _rmw(fdcan, CCCR, 0, INIT, now)
+    assert fdcan.read(CCCR, 4, now) & INIT
+    _rmw(fdcan, CCCR, 0, CCE, now)
+    _rmw(fdcan, CCCR, 1 << 6, 0, now)  # automatic retransmission on (DAR clear)
+    _rmw(fdcan, CCCR, FDOE | BRSE, FDOE | BRSE, now)  # FrameFormat FD with BRS
+    _rmw(fdcan, CCCR, TEST_EN | MON | (1 << 2), 0, now)  # normal mode
+    _rmw(fdcan, TEST, 0x10, 0, now)  # ignored: CCCR.TEST clear, as the chip ignores it
+    # 170 MHz kernel clock: nominal 1 Mbit/s = 170 periods (NBRP 9 -> 10 x (1 + 13 + 3)), data 5 Mbit/s = 34
+    fdcan.write(NBTP, 4, (2 << 25) | (9 << 16) | (12 << 8) | 2, now)
+    fdcan.write(DBTP, 4, (1 << 16) | (12 << 8) | (2 << 4) | 2, now)
+    _rmw(fdcan, TXBC, 1 << 24, 0, now)  # TX FIFO mode
+    fdcan.write(CKDIV, 4, 0, now)
+    _rmw(fdcan, RXGFC, 0x0F1F_0000, (1 << 16) | (0 << 24), now)  # one standard filter
+    bus.sram[0:ram.INSTANCE_SIZE] = bytes(ram.INSTANCE_SIZE)  # the driver clears its message RAM
+    bus.put_word(ram.FLSSA, std_filter(0b01, 0b001, 0x200, 0x210))  # Setpoint, ConfigParam -> FIFO 0
+    _rmw(fdcan, RXGFC, 0x3F, (0b10 << 4) | (0b10 << 2) | 0b11, now)  # reject the rest
+    _rmw(fdcan, ILS, 0x7F, 0, now)
+    _rmw(fdcan, IE, 0, RF0N | TC, now)
+    fdcan.write(TXBTIE, 4, 0b111, now)
+    _rmw(fdcan, ILE, 0, 0b01, now)
+    _rmw(fdcan, CCCR, INIT, 0, now)  # HAL_FDCAN_Start
+    assert fdcan.read(CCCR, 4, now) & (INIT | CCE) == 0 and fdcan.ignored_writes == 1
+
+    fdcan.deliver(can.Message(arbitration_id=0x210, data=b"\x07\x00\x00\x80\x3f", is_extended_id=False), 5000)
+    assert bus.pended == [IRQ_IT0]
+    status = fdcan.read(RXF0S, 4, 5100)  # HAL_FDCAN_GetRxMessage
+    assert status & 0xF == 1
+    get = (status >> 8) & 0x3
+    base = ram.RF0SA + get * ram.ELEMENT_BYTES
+    r1 = bus.word(base + 4)
+    length = ram.payload_length((r1 >> 16) & 0xF, bool(r1 & (1 << 21)))
+    assert (bus.word(base) >> 18) & 0x7FF == 0x210
+    assert bytes(bus.sram[base + 8:base + 8 + length]) == b"\x07\x00\x00\x80\x3f"
+    fdcan.write(RXF0A, 4, get, 5100)
+    fdcan.write(IR, 4, RF0N, 5100)
+    assert bus.cleared == [IRQ_IT0] and fdcan.read(RXF0S, 4, 5100) & 0xF == 0
+
+    assert not fdcan.read(TXFQS, 4, 6000) & (1 << 21)  # HAL_FDCAN_AddMessageToTxFifoQ
+    put = (fdcan.read(TXFQS, 4, 6000) >> 16) & 0x3
+    put_tx(bus, put, 0x211, b"\x07\x00\x00\x80\x3f\x00", fd=True, brs=True)
+    fdcan.write(TXBAR, 4, 1 << put, 6000)
+    end = fdcan.next_event(6000)
+    assert end == 6000 + (17 + 12) * 170 + (1 + 4 + 48 + 4 + 17 + 1 + 5 + 1) * 34  # 1 Mbit/s arbitration, 5 Mbit/s data
+    fdcan.advance(end)
+    (sent,) = fdcan.take_transmitted()
+    assert sent.arbitration_id == 0x211 and sent.is_fd and sent.bitrate_switch and len(sent.data) == 6
+    assert bus.pended == [IRQ_IT0, IRQ_IT0] and fdcan.read(IR, 4, end) & TC
