@@ -150,13 +150,14 @@ def _commands(run_mcap: Path) -> list[tuple[tuple[int, ...], tuple[int, ...]]]:
 def test_hil_replay_of_an_exported_log_drives_the_plant_with_the_runs_commands(
         run_mcap: Path, tmp_path: Path, fmt: str) -> None:
     """The CAN log's Commands through the plant give the same rows as the same Commands written as a replay CSV
-    (sequence form) through `hil plant replay`."""
+    (sequence form) through `hil plant replay`, after the zero vector of the loop's period 0 (Command k drives
+    period k + 1)."""
     log = tmp_path / ("run.asc" if fmt == "asc" else "run.log")
     assert main(["mcap", "export", str(run_mcap), "--format", fmt, "-o", str(log)]) == 0
     cmds = _commands(run_mcap)
     slots = max(len(s) for s, _ in cmds)
     csv_in = tmp_path / "commands.csv"
-    rows = [",".join(f"s{k},t{k}" for k in range(slots))]
+    rows = [",".join(f"s{k},t{k}" for k in range(slots)), ",".join(["0", "1e-4"] + [""] * (2 * slots - 2))]
     for states, durs in cmds:
         cells = [f"{s},{d * 1e-9!r}" for s, d in zip(states, durs, strict=True)] + [","] * (slots - len(states))
         rows.append(",".join(cells))
@@ -166,7 +167,7 @@ def test_hil_replay_of_an_exported_log_drives_the_plant_with_the_runs_commands(
     assert main(["plant", "replay", "--motor", "niu2020-ipmsm", *common, "--input", str(csv_in),
                  "--output", str(tmp_path / "from_csv.csv")]) == 0
     from_log = (tmp_path / "from_log.csv").read_text().splitlines()
-    assert len(from_log) == len(cmds) + 2 > 50  # header, the initial state, one row per Command
+    assert len(from_log) == len(cmds) + 3 > 50  # header, the initial state, period 0, one row per Command
     assert from_log == (tmp_path / "from_csv.csv").read_text().splitlines()
 
 
