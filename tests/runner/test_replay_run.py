@@ -181,6 +181,9 @@ def test_cli_replays_a_run_log_and_says_how_close_it_came(foc_classic: tuple[Pat
     assert main(["replay", str(mcap), "--output", str(tmp_path / "p.csv"), "--rerun-save",
                  str(tmp_path / "x.rrd")]) == 2
     assert "choose one" in capsys.readouterr().err
+    assert main(["replay", str(mcap), "--output", str(tmp_path / "q.csv"), "--rpm", "1000"]) == 2
+    assert "--rpm: the run's set-up comes from its log" in capsys.readouterr().err
+    assert not (tmp_path / "p.csv").exists() and not (tmp_path / "q.csv").exists()
 
 
 def test_command_k_drives_period_k_plus_1_and_misses_follow_the_runs_policy() -> None:

@@ -1,6 +1,8 @@
-"""`hil replay RUN.mcap`: a recorded run into the Rerun dashboard (viewer, .rrd file or web viewer);
-`hil replay CAPTURE.log --rpm N --ts S --output OUT.csv`: the Commands of a CAN log (candump -L .log, .asc, .blf,
-python-can .csv) through the plant offline, as `hil plant replay` (a bench capture replayed against the plant)."""
+"""`hil replay RUN.mcap --output OUT.csv`: the run's Commands through the plant as its loop applied them, the set-up
+from the log, the replayed currents compared with the logged ones (`--run-log RUN.mcap` with a CAN log of the run:
+the Commands from the capture); `hil replay CAPTURE.log --rpm N --ts S --output OUT.csv`: a CAN log (candump -L .log,
+.asc, .blf, python-can .csv) alone through the plant at a held speed; `hil replay RUN.mcap --rerun…`: a recorded run
+into the Rerun dashboard (viewer, .rrd file or web viewer)."""
 
 from __future__ import annotations
 
@@ -18,12 +20,16 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     """Register `hil replay`."""
     from pmsm_hil.dashboards.cli_live import add_rerun_arguments
 
-    p = subparsers.add_parser("replay", help="replay a recorded run (MCAP) into the Rerun dashboard",
-                              description="""Any run.mcap of `hil run` into the same blueprint as the live dashboard.
-                                             Give --rerun, --rerun-save FILE.rrd and/or --rerun-serve. A CAN log instead
+    p = subparsers.add_parser("replay", help="replay a recorded run through the plant (--output) or into the Rerun "
+                                             "dashboard",
+                              description="""With --output: the run's Commands drive the plant as the run's loop applied
+                                             them (the set-up from the run log's metadata) and the replayed currents
+                                             are compared with the logged ones; the Commands of a CAN log of the run
                                              (.log candump -L, .asc, .blf, python-can .csv, e.g. from `hil mcap
-                                             export`): its Commands drive the plant offline at a held speed (--rpm,
-                                             --ts, --output; as `hil plant replay`).""")
+                                             export`) with --run-log RUN.mcap, or of any CAN log at a held speed with
+                                             --rpm and --ts. Without it: a run.mcap of `hil run` into the same blueprint
+                                             as the live dashboard (--rerun, --rerun-save FILE.rrd and/or
+                                             --rerun-serve).""")
     p.add_argument("mcap", type=Path, metavar="RUN.mcap|CAPTURE.log",
                    help="run log written by `hil run`, or a CAN log whose Commands to replay through the plant")
     p.add_argument("--vdc", type=positive_float("--vdc"), help="DC-link voltage [V] (default: the run's motor)")
@@ -41,9 +47,9 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
                             "it the first missing seq is an error")
     plant.add_argument("--rpm", type=finite_float("--rpm"), help="a CAN log without --run-log: held shaft speed [rpm]")
     plant.add_argument("--ts", type=positive_float("--ts"), help="a CAN log without --run-log: control period [s]")
-    plant.add_argument("--theta0", type=finite_float("--theta0"), default=0.0,
+    plant.add_argument("--theta0", type=finite_float("--theta0"),
                        help="a CAN log without --run-log: initial electrical angle [rad]")
-    plant.add_argument("--pwm-update", choices=PWM_UPDATES, default="single",
+    plant.add_argument("--pwm-update", choices=PWM_UPDATES,
                        help="a CAN log without --run-log: the carrier of duty-cycle Commands (default single)")
     p.set_defaults(func=run)
 
@@ -120,6 +126,10 @@ def _replay_through_plant(args: argparse.Namespace, run_log: Path, capture: Path
                              "the dashboard: choose one")
     if not run_log.is_file():
         raise ParameterError(f"--run-log {run_log}: does not exist or is not a file")
+    for name in ("rpm", "ts", "theta0", "pwm_update"):
+        if getattr(args, name) is not None:
+            raise ParameterError(f"--{name.replace('_', '-')}: the run's set-up comes from its log {run_log}; the "
+                                 "option is for a CAN log replayed without --run-log")
     done = replay_run(run_log, args.output, capture=capture, motor=_motor(args, None), allow_gaps=args.allow_gaps)
     r = done.result
     source = run_log if capture is None else capture
@@ -155,8 +165,8 @@ def _replay_can_log(args: argparse.Namespace) -> int:
             raise ParameterError(f"hil replay {args.mcap}: a CAN log is replayed through the plant: --{name} is "
                                  "required (with --rpm, --ts, --output; or --run-log RUN.mcap and --output)")
     r = replay(_motor(args, "niu2020-ipmsm"), rpm=args.rpm, ts_s=args.ts,  # type: ignore[arg-type]
-               input_path=args.mcap, output_path=args.output, theta0_rad=args.theta0, allow_gaps=args.allow_gaps,
-               pwm_update=args.pwm_update)
+               input_path=args.mcap, output_path=args.output, theta0_rad=args.theta0 or 0.0,
+               allow_gaps=args.allow_gaps, pwm_update=args.pwm_update or "single")
     gaps = f"; {r.gaps} missing Command(s) held as the zero vector" if r.gaps else ""
     print(f"replayed {r.commands} Commands of {args.mcap} through the plant over {r.periods} periods -> "
           f"{args.output}{gaps}")
