@@ -76,7 +76,8 @@ def _replayed_currents(csv_path: Path, legs: int) -> np.ndarray:
     return rows[:, 1:1 + legs]  # t, then the phase currents
 
 
-def _assert_reproduces(mcap: Path, out: Path, capture: Path | None = None) -> None:
+def _assert_reproduces(mcap: Path, out: Path, capture: Path | None = None) -> int:
+    """Replay `mcap` (or `capture` with it) and compare with the logged currents; returns the run's misses."""
     done = replay_run(mcap, out, capture=capture)
     periods = read_periods(mcap)
     legs = len(CURRENTS[6]) if np.isfinite(periods["i_u"]).all() else 3
@@ -86,7 +87,10 @@ def _assert_reproduces(mcap: Path, out: Path, capture: Path | None = None) -> No
     err = float(np.max(np.abs(replayed[:len(periods)] - logged)))
     assert err <= TOLERANCE_A, err
     assert done.compared == len(periods) and done.max_error_a == pytest.approx(err, abs=1e-15)
-    assert done.result.gaps == 0 and done.result.commands == len(periods)
+    missed = int(periods["missed"].sum())
+    assert done.result.gaps == 0 and done.result.commands == len(periods) - missed
+    assert missed - 1 <= done.result.run_misses <= missed  # a missed last Command without a frame is never needed
+    return missed
 
 
 @pytest.mark.parametrize(("name", "phases"), _controllers())
@@ -103,6 +107,20 @@ def test_replay_of_each_controllers_run_and_of_its_candump_export_gives_the_logg
 def test_replay_of_duty_cycles_flux_maps_and_dyno_runs_gives_the_logged_currents(case: str, tmp_path: Path) -> None:
     mcap = _logged_run(_more_cases()[case], tmp_path / "run")
     _assert_reproduces(mcap, tmp_path / "from_mcap.csv")
+    log = tmp_path / "run.log"
+    export_frames(mcap, "candump", log)
+    _assert_reproduces(mcap, tmp_path / "from_candump.csv", capture=log)
+
+
+@pytest.mark.parametrize("policy", ["zero", "hold"])
+def test_replay_of_a_run_that_lost_commands_applies_its_miss_policy_in_their_place(policy: str,
+                                                                                  tmp_path: Path) -> None:
+    """Command frames dropped on the link (`--fault drop.down`): the run's records mark them `missed` and the replay
+    puts the run's miss policy in their place, from the MCAP and from its candump export."""
+    cfg = replace(_case("mpcc", 3), faults="drop.down=0.03,seed=5", miss_policy=policy, watchdog_periods=50,
+                  tolerate=1000)
+    mcap = _logged_run(cfg, tmp_path / "run")
+    assert _assert_reproduces(mcap, tmp_path / "from_mcap.csv") > 0
     log = tmp_path / "run.log"
     export_frames(mcap, "candump", log)
     _assert_reproduces(mcap, tmp_path / "from_candump.csv", capture=log)
