@@ -15,6 +15,9 @@ from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.machine_params import MachineParams
 from pmsm_hil.hil.pwm import PWM_UPDATES
 
+#: a replay within this of the logged phase currents [A] reproduces the run
+REPRODUCED_A = 1e-6
+
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Register `hil replay`."""
@@ -139,8 +142,10 @@ def _replay_through_plant(args: argparse.Namespace, run_log: Path, capture: Path
     print(f"replayed {r.commands} Commands of {source} through the plant over {r.periods} periods -> "
           f"{args.output}{extra}")
     if done.compared:
+        off = "" if done.max_error_a <= REPRODUCED_A else (
+            f" (more than {REPRODUCED_A:g} A: not this run's Commands, or a motor that differs from the run's)")
         print(f"largest |replayed - logged| phase current over the run's {done.compared} periods: "
-              f"{done.max_error_a:.3g} A")
+              f"{done.max_error_a:.3g} A{off}")
     return 0
 
 
