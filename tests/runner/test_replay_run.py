@@ -112,6 +112,14 @@ def test_replay_of_duty_cycles_flux_maps_and_dyno_runs_gives_the_logged_currents
     _assert_reproduces(mcap, tmp_path / "from_candump.csv", capture=log)
 
 
+def test_a_motor_unknown_here_is_rebuilt_from_the_parameters_the_run_logged(tmp_path: Path) -> None:
+    """A motor from a TOML file that is gone (here: a name no preset has, a parameter changed): the replay builds it
+    from the log's `motor_params`."""
+    motor = replace(load_motor("niu2020-ipmsm"), name="bench-motor-gone").with_values(rs=0.4)
+    mcap = _logged_run(replace(_case("mpcc", 3), motor=motor), tmp_path / "run")
+    _assert_reproduces(mcap, tmp_path / "replay.csv")
+
+
 @pytest.mark.parametrize("policy", ["zero", "hold"])
 def test_replay_of_a_run_that_lost_commands_applies_its_miss_policy_in_their_place(policy: str,
                                                                                   tmp_path: Path) -> None:
@@ -216,5 +224,8 @@ def test_command_k_drives_period_k_plus_1_and_misses_follow_the_runs_policy() ->
     assert [s for s, _ in held.sequences] == [(0,), (1,), (1,), (3,)] and held.run_misses == 1 and held.gaps == 0
     gaps = applied_periods([cmd(0, 1), cmd(2, 3)], ts_ns=ts, layout=THREE_PHASE, allow_gaps=True)
     assert [s for s, _ in gaps.sequences] == [(0,), (1,), (0,), (3,)] and gaps.gaps == 1
+    wrapped = applied_periods([cmd(65534, 1), cmd(65535, 2), cmd(0, 3), cmd(1, 4)], ts_ns=ts, layout=THREE_PHASE,
+                              first_seq=None)  # a capture started during a run, across the seq wrap
+    assert [s for s, _ in wrapped.sequences] == [(0,), (1,), (2,), (3,), (4,)] and wrapped.commands == 4
     duty = applied_periods([Command(0, (), (), duties=(0.5, 0.5, 0.5))], ts_ns=ts, layout=THREE_PHASE)
     assert duty.sequences[1] == ((0, 7, 0), (25_000, 50_000, 25_000))  # the carrier, not "durations sum to 0 ns"
