@@ -32,6 +32,7 @@ GROUPS: dict[str, str] = {
     # fan_fmus (tests/load_fmu/conftest.py): two FMUs compiled
     "tests/load_fmu/test_load_fmu.py": "tests/load_fmu:fan-fmus",
     "tests/load_fmu/test_containment.py": "tests/load_fmu:fan-fmus",
+    "tests/load_fmu/test_replay_fmu_load.py": "tests/load_fmu:fan-fmus",
 }
 
 #: measured cost of a unit (the sum of its tests' setup, call and teardown durations) [s]: `--durations=0` of
@@ -68,6 +69,7 @@ COST_S: dict[str, float] = {
     "tests/runner/test_callback_link.py": 68,
     "tests/sweep/test_outputs.py": 66,
     "tests/firmware_board/test_template.py": 64,
+    "tests/runner/test_replay_run.py": 60,  # 22 short logged runs replayed (measured alone, load ≈ 13)
     "tests/test_layers.py": 62,
     "tests/plant/test_fluxmap.py": 62,
     "tests/runner/test_links_and_modes.py": 59,
