@@ -69,9 +69,9 @@ COST_S: dict[str, float] = {
     "tests/runner/test_callback_link.py": 68,
     "tests/sweep/test_outputs.py": 66,
     "tests/firmware_board/test_template.py": 64,
-    "tests/runner/test_replay_run.py": 60,  # 22 short logged runs replayed (measured alone, load ≈ 13)
     "tests/test_layers.py": 62,
     "tests/plant/test_fluxmap.py": 62,
+    "tests/runner/test_replay_run.py": 60,  # 22 short logged runs replayed (measured alone, load ≈ 13)
     "tests/runner/test_links_and_modes.py": 59,
     "tests/runlog/test_durability.py": 54,
     "tests/runner/test_cli_inputs_outputs.py": 46,
