@@ -120,13 +120,15 @@ def test_a_motor_unknown_here_is_rebuilt_from_the_parameters_the_run_logged(tmp_
     _assert_reproduces(mcap, tmp_path / "replay.csv")
 
 
-@pytest.mark.parametrize("policy", ["zero", "hold"])
-def test_replay_of_a_run_that_lost_commands_applies_its_miss_policy_in_their_place(policy: str,
-                                                                                  tmp_path: Path) -> None:
+@pytest.mark.parametrize(("controller", "policy", "pwm_update"),
+                         [("mpcc", "zero", "single"), ("mpcc", "hold", "single"), ("foc", "hold", "double")])
+def test_replay_of_a_run_that_lost_commands_applies_its_miss_policy_in_their_place(
+        controller: str, policy: str, pwm_update: str, tmp_path: Path) -> None:
     """Command frames dropped on the link (`--fault drop.down`): the run's records mark them `missed` and the replay
-    puts the run's miss policy in their place, from the MCAP and from its candump export."""
-    cfg = replace(_case("mpcc", 3), faults="drop.down=0.03,seed=5", miss_policy=policy, watchdog_periods=50,
-                  tolerate=1000)
+    puts the run's miss policy in their place (a held duty-cycle Command compared with each period's carrier half),
+    from the MCAP and from its candump export."""
+    cfg = replace(_case(controller, 3), faults="drop.down=0.03,seed=5", miss_policy=policy, watchdog_periods=50,
+                  tolerate=1000, pwm_update=pwm_update)
     mcap = _logged_run(cfg, tmp_path / "run")
     assert _assert_reproduces(mcap, tmp_path / "from_mcap.csv") > 0
     log = tmp_path / "run.log"

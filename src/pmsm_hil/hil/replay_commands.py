@@ -96,16 +96,23 @@ def applied_periods(commands: Iterable[Command], *, ts_ns: int, layout: MachineL
     n_cmds = n_gaps = n_missed = 0
     previous: int | None = None
     expected = first_seq
+    in_force: Command | None = None  # None: the zero vector
 
     def fill(k: int) -> None:
-        """Period k + 1 for a Command k that did not come or was not applied."""
-        nonlocal n_gaps, n_missed
+        """Period k + 1 for a Command k that did not come or was not applied: the zero vector, or under the run's
+        `hold` policy the Command in force (duty cycles compared with this period's carrier half)."""
+        nonlocal n_gaps, n_missed, in_force
+        if k in misses and miss_policy == "hold":
+            n_missed += 1
+            sequences.append(sequences[-1] if in_force is None or not in_force.duties else
+                             _command_sequence(in_force, k + 1, ts_ns, layout, pwm_update, source))
+            return
         if k in misses:
             n_missed += 1
-            sequences.append(zero_vector(ts_ns) if miss_policy == "zero" else sequences[-1])
         else:
             n_gaps += 1
-            sequences.append(zero_vector(ts_ns))
+        in_force = None
+        sequences.append(zero_vector(ts_ns))
 
     for cmd in commands:
         if expected is None:
@@ -126,8 +133,8 @@ def applied_periods(commands: Iterable[Command], *, ts_ns: int, layout: MachineL
         if k in misses:
             fill(k)
             continue
-        sequence = _command_sequence(cmd, k + 1, ts_ns, layout, pwm_update, source)
-        sequences.append(sequence)
+        sequences.append(_command_sequence(cmd, k + 1, ts_ns, layout, pwm_update, source))
+        in_force = cmd
         n_cmds += 1
     return AppliedPeriods(sequences, n_cmds, n_gaps, n_missed)
 
