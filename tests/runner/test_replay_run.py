@@ -198,6 +198,15 @@ def test_a_capture_with_a_command_removed_is_refused_naming_its_seq(
     assert same[:seq + 2].all() and not same.all()  # the same up to the held period, not after it
 
 
+@pytest.mark.parametrize(("fmt", "suffix"), [("asc", ".asc"), ("blf", ".blf"), ("csv", ".csv")])
+def test_replay_of_the_other_export_formats_gives_the_logged_currents(foc_classic: tuple[Path, Path], fmt: str,
+                                                                      suffix: str, tmp_path: Path) -> None:
+    mcap, _ = foc_classic
+    log = tmp_path / f"run{suffix}"
+    export_frames(mcap, fmt, log)
+    _assert_reproduces(mcap, tmp_path / "replay.csv", capture=log)
+
+
 def test_cli_replays_a_run_log_and_says_how_close_it_came(foc_classic: tuple[Path, Path], tmp_path: Path,
                                                           capsys: pytest.CaptureFixture[str]) -> None:
     mcap, _ = foc_classic
