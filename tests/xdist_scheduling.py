@@ -32,6 +32,7 @@ GROUPS: dict[str, str] = {
     # fan_fmus (tests/load_fmu/conftest.py): two FMUs compiled
     "tests/load_fmu/test_load_fmu.py": "tests/load_fmu:fan-fmus",
     "tests/load_fmu/test_containment.py": "tests/load_fmu:fan-fmus",
+    "tests/load_fmu/test_replay_fmu_load.py": "tests/load_fmu:fan-fmus",
 }
 
 #: measured cost of a unit (the sum of its tests' setup, call and teardown durations) [s]: `--durations=0` of
@@ -70,6 +71,7 @@ COST_S: dict[str, float] = {
     "tests/firmware_board/test_template.py": 64,
     "tests/test_layers.py": 62,
     "tests/plant/test_fluxmap.py": 62,
+    "tests/runner/test_replay_run.py": 60,  # 22 short logged runs replayed (measured alone, load ≈ 13)
     "tests/runner/test_links_and_modes.py": 59,
     "tests/runlog/test_durability.py": 54,
     "tests/runner/test_cli_inputs_outputs.py": 46,

@@ -11,6 +11,9 @@ import pytest
 
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.hil.runlog import read_frames
+from pmsm_hil.hil.runlog.can_log import FLAGS, FORMATS, KEEPS
+
+_EXPORT_SUFFIX = {"candump": ".log", "asc": ".asc", "blf": ".blf", "csv": ".csv"}
 
 
 @pytest.fixture(scope="module")
@@ -47,6 +50,50 @@ def test_candump_and_blf_exports_read_back(run_mcap: Path, tmp_path: Path, fmt: 
         for m, fr in zip(msgs, frames, strict=True):
             m.is_rx = int(fr["direction"]) == 1
     _same(frames, msgs)
+
+
+def _flags(msg: can.Message) -> dict[str, bool]:
+    return {"fd": msg.is_fd, "brs": msg.bitrate_switch, "esi": msg.error_state_indicator, "direction": msg.is_rx}
+
+
+@pytest.mark.parametrize("fmt", sorted(FORMATS))
+def test_each_format_keeps_the_flags_the_docs_name_and_loses_the_others(fmt: str, tmp_path: Path) -> None:
+    """`KEEPS` (docs/logging.md, "What each format keeps") against the installed python-can: frames with every
+    combination of FD, bit-rate switch, error state indicator and direction through the format's writer and reader."""
+    writer_class, channel = FORMATS[fmt]
+    sent = [can.Message(timestamp=0.5 + k * 1e-3, arbitration_id=0x108 + k, is_extended_id=False, is_fd=fd,
+                        bitrate_switch=fd and brs, error_state_indicator=fd and esi, is_rx=rx, channel=channel,
+                        data=bytes(range(12 if fd else 8)))
+            for k, (fd, brs, esi, rx) in enumerate((fd, brs, esi, rx) for fd in (False, True) for brs in (False, True)
+                                                   for esi in (False, True) for rx in (False, True))]
+    path = tmp_path / f"flags{_EXPORT_SUFFIX[fmt]}"
+    writer = writer_class(path)
+    for msg in sent:
+        writer.on_message_received(msg)
+    writer.stop()
+    back = list(can.LogReader(path))
+    assert [(m.arbitration_id, bytes(m.data)) for m in back] == [(m.arbitration_id, bytes(m.data)) for m in sent]
+    for flag in FLAGS:
+        kept = [_flags(m)[flag] for m in back] == [_flags(m)[flag] for m in sent]
+        assert kept == (flag in KEEPS[fmt]), f"{fmt} {'loses' if not kept else 'keeps'} {flag}"
+
+
+@pytest.mark.parametrize("fmt", sorted(FORMATS))
+def test_an_export_keeps_fd_and_direction_where_the_format_can(run_mcap: Path, tmp_path: Path, fmt: str) -> None:
+    """The run's CAN FD frames (sent with the bit-rate switch) and both directions, read back by python-can: kept by
+    candump, ASC and BLF; python-can's CSV reads every frame as a received classic one (docs/logging.md)."""
+    out = tmp_path / f"run{_EXPORT_SUFFIX[fmt]}"
+    assert main(["mcap", "export", str(run_mcap), "--format", fmt, "-o", str(out)]) == 0
+    frames = read_frames(run_mcap)
+    assert frames["is_fd"].any() and {int(d) for d in frames["direction"]} == {0, 1}
+    back = list(can.LogReader(out))
+    assert len(back) == len(frames)
+    logged = [{"fd": bool(fr["is_fd"]), "brs": bool(fr["is_fd"]), "esi": False, "direction": int(fr["direction"]) == 1}
+              for fr in frames]
+    if KEEPS[fmt] == FLAGS:
+        assert [_flags(m) for m in back] == logged
+    else:
+        assert not any(m.is_fd or m.bitrate_switch for m in back) and all(m.is_rx for m in back)
 
 
 def test_csv_export_has_a_row_per_frame(run_mcap: Path, tmp_path: Path) -> None:
@@ -150,13 +197,14 @@ def _commands(run_mcap: Path) -> list[tuple[tuple[int, ...], tuple[int, ...]]]:
 def test_hil_replay_of_an_exported_log_drives_the_plant_with_the_runs_commands(
         run_mcap: Path, tmp_path: Path, fmt: str) -> None:
     """The CAN log's Commands through the plant give the same rows as the same Commands written as a replay CSV
-    (sequence form) through `hil plant replay`."""
+    (sequence form) through `hil plant replay`, after the zero vector of the loop's period 0 (Command k drives
+    period k + 1)."""
     log = tmp_path / ("run.asc" if fmt == "asc" else "run.log")
     assert main(["mcap", "export", str(run_mcap), "--format", fmt, "-o", str(log)]) == 0
     cmds = _commands(run_mcap)
     slots = max(len(s) for s, _ in cmds)
     csv_in = tmp_path / "commands.csv"
-    rows = [",".join(f"s{k},t{k}" for k in range(slots))]
+    rows = [",".join(f"s{k},t{k}" for k in range(slots)), ",".join(["0", "1e-4"] + [""] * (2 * slots - 2))]
     for states, durs in cmds:
         cells = [f"{s},{d * 1e-9!r}" for s, d in zip(states, durs, strict=True)] + [","] * (slots - len(states))
         rows.append(",".join(cells))
@@ -166,7 +214,7 @@ def test_hil_replay_of_an_exported_log_drives_the_plant_with_the_runs_commands(
     assert main(["plant", "replay", "--motor", "niu2020-ipmsm", *common, "--input", str(csv_in),
                  "--output", str(tmp_path / "from_csv.csv")]) == 0
     from_log = (tmp_path / "from_log.csv").read_text().splitlines()
-    assert len(from_log) == len(cmds) + 2 > 50  # header, the initial state, one row per Command
+    assert len(from_log) == len(cmds) + 3 > 50  # header, the initial state, period 0, one row per Command
     assert from_log == (tmp_path / "from_csv.csv").read_text().splitlines()
 
 
@@ -178,9 +226,6 @@ def test_hil_replay_of_a_can_log_needs_the_plant_options(run_mcap: Path, tmp_pat
     assert "--rpm is required" in capsys.readouterr().err
     assert main(["replay", str(log), "--rpm", "0", "--ts", "2e-4", "--output", str(tmp_path / "o.csv")]) != 0
     assert "expected Ts = 200000 ns (--ts)" in capsys.readouterr().err
-
-
-_EXPORT_SUFFIX = {"candump": ".log", "asc": ".asc", "blf": ".blf", "csv": ".csv"}
 
 
 @pytest.mark.parametrize("fmt", ["candump", "asc", "blf", "csv"])

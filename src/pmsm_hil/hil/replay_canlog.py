@@ -1,7 +1,7 @@
 """Commands from a CAN log for the offline plant replay (`hil replay CAPTURE.log`, `hil plant replay --input`):
 a bench capture (can-utils `candump -L` .log, Vector .asc, .blf, python-can .csv — what `hil mcap export` writes)
 read through python-can's log readers, its Command frames (classic parts or CAN FD) assembled by the project's
-decoder, each one period of switching states and durations in the order captured."""
+decoder, in the order captured (`replay_commands.applied_periods` turns them into the periods the loop ran)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,6 @@ import can
 from can.io.blf import BLFParseError
 
 from pmsm_hil.hil.errors import InputFileError
-from pmsm_hil.hil.machine import THREE_PHASE, MachineLayout
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.messages import Command
 
@@ -42,7 +41,6 @@ def is_can_log(path: Path) -> bool:
 #: text that is not the format)
 _READ_ERRORS: Final = (ValueError, IndexError, TypeError, KeyError, EOFError, struct.error, zlib.error, BLFParseError)
 _FORMAT_NAMES: Final = {".log": "candump -L", ".asc": "ASC", ".blf": "BLF", ".csv": "python-can CSV"}
-_SEQ_MOD: Final = 1 << 16  # Command.seq wraps at 65536
 
 
 def _check_complete(path: Path) -> None:
@@ -98,50 +96,19 @@ def _frames(path: Path) -> Iterator[Frame]:
         raise InputFileError(f"CAN log {path}: cut or corrupt BLF: {why}")
 
 
-def _check_seq(path: Path, seq: int, previous: int | None) -> None:
-    """InputFileError naming `seq` unless it follows `previous` (mod 65536): a duplicated, reordered or
-    missing Command makes the capture something other than the run it claims to be."""
-    if previous is None:
-        return
-    step = (seq - previous) % _SEQ_MOD
-    if step == 1:
-        return
-    if step == 0:
-        raise InputFileError(f"CAN log {path}: Command seq {seq} appears twice in a row (a duplicated capture?)")
-    if step > _SEQ_MOD // 2:
-        raise InputFileError(f"CAN log {path}: Command seq {seq} after seq {previous}: goes back (a reversed, "
-                             "merged or duplicated capture?)")
-    raise InputFileError(f"CAN log {path}: Command seq {(previous + 1) % _SEQ_MOD} missing (seq {seq} follows "
-                         f"seq {previous}): the capture lost {step - 1} Command(s)")
-
-
-def read_log_commands(path: Path, ts_ns: int, *,
-                      layout: MachineLayout = THREE_PHASE) -> Iterator[tuple[tuple[int, ...], tuple[int, ...]]]:
-    """Yield (states, durations_ns) of each Command in the CAN log `path`, mirrored sequences expanded.
+def read_log_commands(path: Path) -> Iterator[Command]:
+    """The Commands of the CAN log `path` in the order captured (classic parts or CAN FD, assembled by the project's
+    decoder; their seq and contents are checked by `replay_commands.applied_periods`).
 
     InputFileError (one line) for a log that python-can cannot read (a corrupt BLF container, text that is not
-    the format), a cut log (see `_check_complete`), Commands whose seq does not advance by one (duplicated,
-    reordered or missing: named by seq), a Command whose durations do not fill Ts (`ts_ns`) or whose state code
-    exceeds the machine's (named by seq)."""
+    the format) and a cut log (see `_check_complete`)."""
     from pmsm_hil.protocol.codec import FrameDecoder
 
     decoder = FrameDecoder(ordered=False)
-    previous: int | None = None
     for frame in _frames(path):
         msg = decoder.feed(frame)
-        if not isinstance(msg, Command):
-            continue
-        _check_seq(path, msg.seq, previous)
-        previous = msg.seq
-        states, durations = msg.expanded()
-        if abs(sum(durations) - ts_ns) > 1:
-            raise InputFileError(f"CAN log {path}: Command seq {msg.seq}: durations sum to {sum(durations)} ns, "
-                                 f"expected Ts = {ts_ns} ns (--ts)")
-        bad = [s for s in states if not 0 <= s <= layout.max_state_code]
-        if bad:
-            raise InputFileError(f"CAN log {path}: Command seq {msg.seq}: state code {bad[0]} beyond "
-                                 f"0..{layout.max_state_code} ({layout.legs}-phase motor)")
-        yield states, durations
+        if isinstance(msg, Command):
+            yield msg
 
 
 __all__ = ["CAN_LOG_SUFFIXES", "is_can_log", "read_log_commands"]

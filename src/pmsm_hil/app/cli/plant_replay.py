@@ -33,7 +33,7 @@ def run(args: argparse.Namespace) -> int:
     if args.motor is None:
         raise ParameterError("--motor is required (a preset name or a TOML file)")
     params = motor_from_args(args)
-    n = replay(params, rpm=args.rpm, ts_s=args.ts, input_path=args.input, output_path=args.output,
+    result = replay(params, rpm=args.rpm, ts_s=args.ts, input_path=args.input, output_path=args.output,
                theta0_rad=args.theta0)
-    print(f"replayed {n} periods -> {args.output}")
+    print(f"replayed {result.periods} periods -> {args.output}")
     return 0

@@ -1,6 +1,12 @@
 """A run's /frames as a CAN log through python-can's log writers (`hil mcap export`): candump -L (.log),
 Vector ASC (.asc), BLF (.blf) and python-can's CSV, each frame at its virtual time (run time [s], t = 0 at the
-first period); frames the host sent (host→target) are written as transmitted, frames it received as received."""
+first period); frames the host sent (host→target) are written as transmitted, frames it received as received.
+
+What each format keeps of a frame beyond its id, payload and time is `KEEPS` (checked against the installed
+python-can by tests/runlog/test_can_log.py): python-can 4.6's candump, ASC and BLF writers and readers round-trip the
+FD flag, the bit-rate switch, the error state indicator and the direction; its CSV has none of them (seven columns:
+timestamp, arbitration_id, extended, remote, error, dlc, data; its reader reads every row as a received classic
+frame)."""
 
 from __future__ import annotations
 
@@ -24,6 +30,12 @@ FORMATS: Final[dict[str, tuple[type[Any], str | int]]] = {
     "blf": (can.BLFWriter, 0),
     "csv": (can.CSVWriter, "can0"),
 }
+
+
+#: the frame flags each --format keeps through python-can's writer and reader: "fd" (CAN FD), "brs" (bit-rate
+#: switch), "esi" (error state indicator), "direction" (Tx/Rx)
+FLAGS: Final = ("fd", "brs", "esi", "direction")
+KEEPS: Final[dict[str, tuple[str, ...]]] = {"candump": FLAGS, "asc": FLAGS, "blf": FLAGS, "csv": ()}
 
 
 def frame_messages(frames: np.ndarray, channel: str | int = "can0") -> Iterator[can.Message]:
@@ -72,4 +84,4 @@ def export_frames(mcap: Path, fmt: str, out: Path) -> int:
     return len(frames)
 
 
-__all__ = ["FORMATS", "export_frames", "frame_messages"]
+__all__ = ["FLAGS", "FORMATS", "KEEPS", "export_frames", "frame_messages"]

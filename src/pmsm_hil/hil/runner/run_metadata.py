@@ -6,7 +6,8 @@ mode, seed, speed_rpm, load_nm, pole_pairs, phases. JSON-valued keys: `motor_par
 inverter parameter as run, `--set` applied), `motor_set` (the parameters that differ from the named preset,
 i.e. the `--set` overrides), `controller_params` (`--param`), `target_parameters` (every ConfigParam
 written, by name), `scenario_params` (every scenario field, CLI overrides applied), `sensors`; and `target`,
-`miss_policy`, `watchdog_periods`, `log_trace`, `version` (the pmsm-hil package version); `load_fmu` (JSON, the
+`miss_policy`, `watchdog_periods`, `log_trace`, `pwm_update` (the carrier of duty-cycle Commands, read by the
+replay), `version` (the pmsm-hil package version); `load_fmu` (JSON, the
 load FMU as metrics.json says it) when the load is an FMU."""
 
 from __future__ import annotations
@@ -70,7 +71,8 @@ def run_metadata(cfg: RunConfig) -> dict[str, str]:
             "link": redact_spec(cfg.link), "mode": cfg.mode, "seed": str(cfg.seed), "speed_rpm": repr(sc.speed_rpm),
             "load_nm": repr(sc.load_nm), "pole_pairs": str(m.pole_pairs), "phases": str(cfg.machine.phases),
             "target": cfg.target, "miss_policy": cfg.miss_policy, "watchdog_periods": str(cfg.watchdog_periods),
-            "log_trace": "true" if cfg.log_trace else "false", "version": package_version(),
+            "log_trace": "true" if cfg.log_trace else "false", "pwm_update": cfg.pwm_update,
+            "version": package_version(),
             "motor_params": _json(_params_dict(m)),
             "controller_params": _json(cfg.controller_params),
             "target_parameters": _json({p.name.lower(): v for p, v in cfg.target_parameters().items()}),
