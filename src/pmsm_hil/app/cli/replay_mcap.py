@@ -7,6 +7,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+import numpy as np
+
 from pmsm_hil.app.cli.motor_args import add_motor_arguments
 from pmsm_hil.app.cli.parsing import finite_float, positive_float
 
@@ -31,11 +33,23 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     can_log.add_argument("--ts", type=positive_float("--ts"), help="control period of the capture [s]")
     can_log.add_argument("--theta0", type=finite_float("--theta0"), default=0.0, help="initial electrical angle [rad]")
     can_log.add_argument("--output", type=Path, help="output CSV (t, currents, torque, angle, speed per period)")
+    p.add_argument("--quiet", action="store_true", help="no live status line (drawn only on a terminal)")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    """Execute `hil replay`."""
+    """Execute `hil replay` under its status line (app/cli/status_line.py)."""
+    from pmsm_hil.app.cli.status_line import StatusLine, status_wanted
+
+    with StatusLine("hil replay", enabled=status_wanted(args.quiet)) as status:
+        status.phase(f"reading {args.mcap.name}")
+        args.status_line = status
+        code = _run(args)
+        status.close("done")
+    return code
+
+
+def _run(args: argparse.Namespace) -> int:
     from pmsm_hil.dashboards.cli_live import hold_serving, rerun_targets
     from pmsm_hil.dashboards.errors import DashboardError
     from pmsm_hil.dashboards.replay import load_source, replay_to_rerun
@@ -54,7 +68,17 @@ def run(args: argparse.Namespace) -> int:
     if not targets.any():
         raise DashboardError("hil replay: choose --rerun, --rerun-save FILE.rrd or --rerun-serve")
     source = load_source(args.mcap, vdc=args.vdc)
-    rec, url = replay_to_rerun(source, targets)
+    status = args.status_line
+    status.phase("replaying into Rerun")
+    status.total(len(source.periods), "periods")
+    done = [0]
+
+    def sent(block: np.ndarray) -> None:
+        done[0] += len(block)
+        status.update(done[0], f"sim {done[0] * source.ts_s:.3f}/{len(source.periods) * source.ts_s:.3f} s")
+
+    rec, url = replay_to_rerun(source, targets, progress=sent)
+    status.close("done")
     print(f"replayed {len(source.periods)} periods of {source.name}")
     if targets.save is not None:
         print(f"rerun: recording saved to {targets.save}")
@@ -92,6 +116,7 @@ def _replay_can_log(args: argparse.Namespace) -> int:
         if getattr(args, name) is None:
             raise ParameterError(f"hil replay {args.mcap}: a CAN log is replayed through the plant: --{name} is "
                                  "required (with --rpm, --ts, --output)")
+    args.status_line.phase("replaying Commands through the plant")
     n = replay(motor_from_args(args), rpm=args.rpm, ts_s=args.ts, input_path=args.mcap, output_path=args.output,
                theta0_rad=args.theta0)
     print(f"replayed {n} Commands of {args.mcap} through the plant -> {args.output}")
