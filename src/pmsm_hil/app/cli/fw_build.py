@@ -55,9 +55,16 @@ class _BuildStatus:
                 self.line.total(100, "%")
         m = _PERCENT.match(text)
         if m is not None:
-            self.line.update(int(m.group(1)), m.group(2)[-60:])
+            self.line.update(int(m.group(1)), _what(m.group(2)))
         elif " warning: " in text:
             self.line.warn(text.strip())
+
+
+def _what(text: str) -> str:
+    """CMake's words for a step, short: `Building C object CMakeFiles/x.dir/a/b/foo.c.o` -> `compiling foo.c`."""
+    if text.startswith("Building ") and " object " in text:
+        return "compiling " + text.rsplit("/", 1)[-1].removesuffix(".o").removesuffix(".obj")
+    return text[:60]
 
 
 def run(args: argparse.Namespace) -> int:

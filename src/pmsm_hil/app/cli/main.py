@@ -166,11 +166,8 @@ def _main(argv: list[str]) -> int:
             raise
         print(f"hil: error: {exc}", file=sys.stderr)
         return 2
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit:
-        erase()
-        raise
+    erase()  # the command's own status line takes over (argparse's usage errors come on a clean line)
+    args = parser.parse_args(argv)
     func = getattr(args, "func", None)
     if func is None:
         parser.print_help()

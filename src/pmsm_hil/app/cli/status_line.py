@@ -9,6 +9,7 @@ from __future__ import annotations
 import contextlib
 import sys
 import threading
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from types import TracebackType
@@ -57,6 +58,7 @@ class StatusLine:
         from tqdm import tqdm
         from tqdm.contrib import DummyTqdmFile
 
+        _stop_early()
         self._stream = stream or sys.stderr
         self._bar = tqdm(total=None, desc=f"{label}: starting", bar_format=PHASE_FORMAT, file=self._stream,
                          dynamic_ncols=True, leave=True, mininterval=0.0)
@@ -133,19 +135,50 @@ class StatusLine:
             self.close(keep=False)
 
 
+#: the `early_status` line being drawn (its ticker stops when a StatusLine takes over or it is erased)
+_early: list[tuple[threading.Event, threading.Lock]] = []
+
+
 def early_status(label: str, *, quiet: bool = False) -> Callable[[], None]:
-    """Draw `LABEL: starting…` at once, before the command's imports (seconds on a loaded machine), where a
-    status line is wanted; the command's `StatusLine` draws over it. Returns what erases it (the command ended
-    before drawing its own: a usage error)."""
+    """Draw `LABEL: starting… N s` at once, before the command's imports (seconds on a loaded machine), where a
+    status line is wanted, its clock moving every REFRESH_S; the command's `StatusLine` stops it and draws over
+    it. Returns what erases it (the command ended before drawing its own: a usage error)."""
     if not status_wanted(quiet):
         return lambda: None
-    sys.stderr.write(f"{label}: starting…")
-    sys.stderr.flush()
+    stream = sys.stderr
+    stop = threading.Event()
+    lock = threading.Lock()
+    t0 = time.monotonic()
+    stream.write(f"{label}: starting…")
+    stream.flush()
+
+    def tick() -> None:
+        while not stop.wait(REFRESH_S):
+            with lock:
+                if stop.is_set():
+                    return
+                stream.write(f"\r{label}: starting… {time.monotonic() - t0:.0f} s")
+                stream.flush()
+
+    threading.Thread(target=tick, name="hil-early-status", daemon=True).start()
+    _early.append((stop, lock))
 
     def erase() -> None:
-        sys.stderr.write("\r\x1b[2K")
-        sys.stderr.flush()
+        with lock:
+            if stop.is_set():
+                return
+            stop.set()
+            stream.write("\r\x1b[2K")
+            stream.flush()
     return erase
+
+
+def _stop_early() -> None:
+    """A StatusLine takes the line over: the early one stops drawing."""
+    while _early:
+        stop, lock = _early.pop()
+        with lock:
+            stop.set()
 
 
 @contextmanager
