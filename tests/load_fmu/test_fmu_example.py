@@ -85,3 +85,19 @@ def test_build_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture
     with pytest.raises(FmuBuildError, match="modelIdentifier"):
         build_fmu([], '<fmiModelDescription fmiVersion="2.0"><CoSimulation modelIdentifier="a b"/>'
                       '</fmiModelDescription>', tmp_path / "x.fmu")
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_fmpy_validates_and_simulates_the_example(fmi: int, tmp_path: Path) -> None:
+    """Another importer than the runner: fmpy finds the model description valid, loads every FMI function (the
+    stubs of fmi_unused.c) and simulates the law at a held speed."""
+    from fmpy import simulate_fmu
+    from fmpy.validation import validate_fmu
+
+    assert main(["fmu", "example", str(tmp_path), "--fmi", str(fmi)]) == 0
+    fmu = str(tmp_path / "load_torque.fmu")
+    assert validate_fmu(fmu) == []
+    result = simulate_fmu(fmu, stop_time=0.01, output_interval=1e-3, output=["torque"],
+                          start_values={"speed": 100.0, "b_viscous": 2e-3})
+    expected = float(steady(np.array([100.0]), 0.5, 1.0, 2e-3, 1e-4)[0])
+    np.testing.assert_allclose(result["torque"], expected, rtol=0, atol=1e-12)

@@ -16,6 +16,8 @@ EXAMPLE_NAME = "load_torque"
 DESCRIPTION = "modelDescription.xml"
 #: the macro that picks the FMI API in the example's source (-DLOAD_FMI=2 or 3)
 FMI_MACRO = "LOAD_FMI"
+#: the rest of the FMI API (stubs), so that tools loading every function (fmpy) load the FMU
+UNUSED_API = "fmi_unused.c"
 
 
 @dataclass(frozen=True, slots=True)
@@ -32,13 +34,13 @@ def _packaged(name: str) -> str:
 
 
 def write_example(folder: Path, fmi: int = 2, *, overwrite: bool = False) -> ExampleFiles:
-    """Write load_torque.c and the FMI `fmi` (2 or 3) modelDescription.xml into `folder` and build
+    """Write load_torque.c, fmi_unused.c and the FMI `fmi` (2 or 3) modelDescription.xml into `folder` and build
     folder/load_torque.fmu; an existing file of another content is refused (FmuBuildError naming it) unless
     `overwrite`."""
     if fmi not in (2, 3):
         raise FmuBuildError(f"--fmi {fmi}: the example is built for FMI 2 or 3")
     folder.mkdir(parents=True, exist_ok=True)
-    texts = {f"{EXAMPLE_NAME}.c": _packaged(f"{EXAMPLE_NAME}.c"),
+    texts = {f"{EXAMPLE_NAME}.c": _packaged(f"{EXAMPLE_NAME}.c"), UNUSED_API: _packaged(UNUSED_API),
              DESCRIPTION: _packaged(f"modelDescription_fmi{fmi}.xml")}
     for name, text in texts.items():
         path = folder / name

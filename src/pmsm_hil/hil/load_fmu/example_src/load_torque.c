@@ -26,9 +26,10 @@
  * One file for both FMI versions: -DLOAD_FMI=2 (default) or -DLOAD_FMI=3 picks the API; the model part is the
  * same. `hil fmu build` compiles it with the host's C compiler against the FMI headers fmpy ships,
  *     cc -std=c99 -O2 -fPIC -shared -Wall -Wextra -Werror -DLOAD_FMI=2 -I<fmpy>/c-code load_torque.c \
- *        -o load_torque.so -lm
+ *        fmi_unused.c -o load_torque.so -lm
  * and zips it with modelDescription.xml (its value references are the VR_ numbers below) as
- * binaries/linux64/load_torque.so (FMI 3.0: binaries/x86_64-linux/load_torque.so).
+ * binaries/linux64/load_torque.so (FMI 3.0: binaries/x86_64-linux/load_torque.so). fmi_unused.c beside this file
+ * holds the rest of the FMI API (stubs) so that tools loading every function, e.g. fmpy's simulate_fmu, load it.
  */
 #include <math.h>
 #include <stdlib.h>
