@@ -4,6 +4,7 @@ start on an idle enough machine (the `timing` test)."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -36,3 +37,14 @@ def test_the_starting_phase_is_drawn_before_the_target_is_up(qemu_run: PtyOutput
 def test_the_status_line_is_drawn_within_one_second(qemu_run: PtyOutput) -> None:
     first = qemu_run.first("hil run: starting")
     assert first is not None and first < 1.0, f"first status line after {first} s"
+
+
+def test_the_count_moves_between_blocks(qemu_run: PtyOutput) -> None:
+    """The 500 periods are one block of the C loop; the line reads the loop's live counter at each redraw, so a
+    run that lasts more than a second shows counts between 0 and 500."""
+    out = qemu_run
+    running, done = out.first("hil run: running"), out.first("500/500 periods")
+    assert running is not None and done is not None
+    counts = {int(n) for n in re.findall(r"(\d+)/500 periods", out.text)}
+    if done - running > 1.0:
+        assert counts - {0, 500}, sorted(counts)

@@ -162,7 +162,8 @@ def _run_and_report(args: argparse.Namespace, cfg: RunConfig, live: Callable[[np
     """One run (blocks also to the live dashboard if any, and to the status line); prints the metrics, writes
     --json."""
     blocks = status.block if live is None else _both(live, status.block)
-    result = run_closed_loop(cfg, live=blocks if status.line.enabled else live, phase=status.phase)
+    result = run_closed_loop(cfg, live=blocks if status.line.enabled else live, phase=status.phase,
+                             counter=status.counter if status.line.enabled else None)
     status.line.close(f"ended (exit {result.metrics['end_code']})" if result.metrics["end_code"] else "completed")
     end_code = int(result.metrics["end_code"])
     if end_code == 0 and getattr(args, "expect_hold", False) and result.metrics.get("setpoint_held") is False:

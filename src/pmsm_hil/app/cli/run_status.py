@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -31,9 +32,12 @@ class RunStatus:
         self.line = line
         self.ts_s = cfg.ts_s
         self.total = round(cfg.scenario.total_s / cfg.ts_s)
-        self.done = 0
+        self.done = 0  # periods run (the live counter, or the records seen)
+        self.seen = 0  # period records drained
         self.late = self.missed = 0
+        self.speed_rpm = self.torque_nm = math.nan
         self._t_run: float | None = None
+        self._counter: Callable[[], int] | None = None
         line.phase(f"starting target {target_name(cfg)}…")
 
     def phase(self, name: str) -> None:
@@ -43,6 +47,20 @@ class RunStatus:
             self._t_run = time.monotonic()
             self.line.total(self.total, "periods")
 
+    def counter(self, periods_run: Callable[[], int]) -> None:
+        """The loop's live period counter (`run_closed_loop(counter=...)`): read at each redraw, so the count moves
+        between blocks (a slow target's block of ~1000 periods takes seconds)."""
+        self._counter = periods_run
+        self.line.poll = self._poll
+
+    def _poll(self) -> None:
+        if self._counter is None:
+            return
+        done = min(int(self._counter()), self.total)
+        if done > self.done:
+            self.done = done
+            self.line.update(done, self.figures())
+
     def block(self, periods: np.ndarray) -> None:
         """One block of period records (PERIOD_DTYPE) the loop has run."""
         n = int(periods.shape[0])
@@ -50,23 +68,27 @@ class RunStatus:
             return
         if self._t_run is None:
             self.phase("running")
-        self.done += n
+        self.seen += n
+        self.done = max(self.done, self.seen)
         self._warn_deadlines(periods)
-        self.line.update(self.done, self.figures(periods))
+        self.speed_rpm = float(periods["omega_m"][-1]) * _RAD_S_TO_RPM
+        self.torque_nm = float(np.nanmean(periods["torque"]))
+        self.line.update(self.done, self.figures())
 
-    def figures(self, periods: np.ndarray) -> str:
-        """The right-hand side: simulated time, rate and its ratio to real time, speed and torque so far."""
+    def figures(self) -> str:
+        """The right-hand side: simulated time, rate and its ratio to real time, speed and torque so far (those of
+        the last block drained)."""
         sim_s = self.done * self.ts_s
         wall_s = time.monotonic() - (self._t_run or time.monotonic())
         rate = self.done / wall_s if wall_s > 0 else 0.0
-        speed = float(periods["omega_m"][-1]) * _RAD_S_TO_RPM
-        torque = float(np.nanmean(periods["torque"]))
+        speed, torque = self.speed_rpm, self.torque_nm
+        machine = f", {speed:.0f} rpm, {torque:.2f} N·m" if math.isfinite(speed) and math.isfinite(torque) else ""
         flags = "".join(f", {k} {label}" for k, label in ((self.late, "late"), (self.missed, "missed")) if k)
         return (f"sim {sim_s:.3f}/{self.total * self.ts_s:.3f} s, {_rate(rate)} periods/s "
-                f"({rate * self.ts_s:.2f}× real time), {speed:.0f} rpm, {torque:.2f} N·m{flags}")
+                f"({rate * self.ts_s:.2f}× real time){machine}{flags}")
 
     def _warn_deadlines(self, periods: np.ndarray) -> None:
-        first = self.done - int(periods.shape[0])
+        first = self.seen - int(periods.shape[0])
         for field, what in (("late", "started late"), ("missed", "missed its deadline")):
             flags = np.flatnonzero(periods[field])
             if not flags.size:

@@ -53,6 +53,8 @@ class StatusLine:
         self._lock = threading.Lock()
         self._ticker: threading.Thread | None = None
         self._redirect = contextlib.ExitStack()
+        #: called by the redraw thread before each redraw (a command reading a live counter), outside the lock
+        self.poll: Callable[[], None] | None = None
         if not enabled:
             return
         from tqdm import tqdm
@@ -69,6 +71,10 @@ class StatusLine:
 
     def _tick(self) -> None:
         while not self._stop.wait(REFRESH_S):
+            poll = self.poll
+            if poll is not None:
+                with contextlib.suppress(Exception):  # a display: never the command's failure
+                    poll()
             with self._lock:
                 if self._bar is not None:
                     self._bar.refresh()
@@ -96,7 +102,7 @@ class StatusLine:
                 return
             if postfix is not None:
                 bar.set_postfix_str(postfix, refresh=False)
-            if done is not None and done != bar.n:
+            if done is not None and done > bar.n:
                 bar.update(done - bar.n)
             else:
                 bar.refresh()
