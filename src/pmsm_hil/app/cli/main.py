@@ -166,7 +166,8 @@ def _main(argv: list[str]) -> int:
             raise
         print(f"hil: error: {exc}", file=sys.stderr)
         return 2
-    erase()  # the command's own status line takes over (argparse's usage errors come on a clean line)
+    finally:  # Ctrl-C in the imports too: `hil: interrupted` on a clean line
+        erase()  # the command's own status line takes over (argparse's usage errors come on a clean line)
     args = parser.parse_args(argv)
     func = getattr(args, "func", None)
     if func is None:
