@@ -14,6 +14,8 @@ setup(
     package_data={"pmsm_hil.hil.presets": ["*.toml", "*.csv"], "pmsm_hil.hil.scenarios": ["*.toml"],
                   "pmsm_hil.app.compare.presets": ["*.toml"],
                   "pmsm_hil.protocol": ["*.dbc"],
+                  # the example load FMU's C source and model descriptions (`hil fmu example`)
+                  "pmsm_hil.hil.load_fmu": ["example_src/*.c", "example_src/*.xml"],
                   # the kernel headers and shared helpers kernel_build.py compiles a kind's kernel against
                   "pmsm_hil.hil": ["kernels/*.h", "kernels/gate_edges.c", "kernels/dq_segment.c"]},
     cffi_modules=[b for b in _BUILDERS if Path(b.split(":")[0]).exists()],

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from pmsm_hil.dashboards.blueprint import build_blueprint
 from pmsm_hil.dashboards.errors import DashboardError
@@ -67,12 +70,17 @@ def load_source(path: Path, *, vdc: float | None = None) -> ReplaySource:
     return ReplaySource(periods, float(vdc), ts_s, 3 if phases is None else phases, name)
 
 
-def replay_to_rerun(source: ReplaySource, targets: RerunTargets) -> tuple[Any, str | None]:
-    """Send all periods of `source` to `targets`; returns (recording stream, web URL or None), flushed."""
+def replay_to_rerun(source: ReplaySource, targets: RerunTargets,
+                    progress: Callable[[np.ndarray], None] | None = None) -> tuple[Any, str | None]:
+    """Send all periods of `source` to `targets`; returns (recording stream, web URL or None), flushed.
+    `progress` is given each block once sent (a status line)."""
     rec, url = open_recording(targets, build_blueprint(phases=source.phases, vdc=source.vdc))
     rec.send_recording_name(source.name)
     streamer = PeriodStreamer(rec, vdc=source.vdc, ts_s=source.ts_s, legs=source.phases)
     for start in range(0, len(source.periods), BLOCK):
-        streamer.send_block(source.periods[start:start + BLOCK])
+        block = source.periods[start:start + BLOCK]
+        streamer.send_block(block)
+        if progress is not None:
+            progress(block)
     flush_recording(rec)
     return rec, url

@@ -20,7 +20,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -132,22 +132,54 @@ def warning_lines(text: str) -> list[str]:
     return list(dict.fromkeys(ln.strip() for ln in text.splitlines() if _WARNING.search(ln)))
 
 
-def _run(cmd: list[str], what: str, *, verbose: bool = False) -> str:
-    """Run a build step; its whole output (stdout + stderr), echoed to stderr when `verbose`."""
+def _run(cmd: list[str], what: str, *, verbose: bool = False, on_line: Callable[[str], None] | None = None) -> str:
+    """Run a build step; its whole output (stdout + stderr), echoed to stderr when `verbose`, each line given to
+    `on_line` as it comes (a status line) when given."""
     if verbose:
         print("+ " + " ".join(cmd), file=sys.stderr, flush=True)
     try:
-        proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                              timeout=BUILD_TIMEOUT_S)
+        if on_line is None:
+            proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                  timeout=BUILD_TIMEOUT_S)
+            returncode, output = proc.returncode, proc.stdout
+        else:
+            returncode, output = _run_streaming(cmd, on_line)
     except (OSError, subprocess.SubprocessError) as exc:
         raise FwBuildError(f"{what}: {exc}") from None
-    if verbose and proc.stdout:
-        print(proc.stdout, file=sys.stderr, end="" if proc.stdout.endswith("\n") else "\n", flush=True)
-    if proc.returncode != 0:
-        lines = key_lines(proc.stdout)
+    if verbose and output:
+        print(output, file=sys.stderr, end="" if output.endswith("\n") else "\n", flush=True)
+    if returncode != 0:
+        lines = key_lines(output)
         raise FwBuildError(f"{what} failed:\n    " + "\n    ".join(lines) + "\n(`hil fw build --verbose` shows "
                            "the whole output)")
-    return proc.stdout
+    return output
+
+
+def _run_streaming(cmd: list[str], on_line: Callable[[str], None]) -> tuple[int, str]:
+    """`cmd`'s exit code and output (stdout + stderr), each line given to `on_line` as it comes; killed after
+    BUILD_TIMEOUT_S (subprocess.TimeoutExpired)."""
+    import threading
+
+    killed: list[bool] = []
+    with subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True) as proc:
+        def kill() -> None:
+            killed.append(True)
+            proc.kill()
+
+        timer = threading.Timer(BUILD_TIMEOUT_S, kill)
+        timer.start()
+        lines: list[str] = []
+        try:
+            assert proc.stdout is not None
+            for line in proc.stdout:
+                lines.append(line)
+                on_line(line.rstrip("\n"))
+            returncode = proc.wait()
+        finally:
+            timer.cancel()
+    if killed:
+        raise subprocess.TimeoutExpired(cmd, BUILD_TIMEOUT_S)
+    return returncode, "".join(lines)
 
 
 def _remember_warnings(build: Path, output: str) -> tuple[str, ...]:
@@ -199,11 +231,16 @@ def elf_sizes(elf: Path) -> Sizes | None:
 
 def build_firmware(board: str = "host", src: Path | None = None, out: Path | None = None,
                    *, jobs: int | None = None, defines: list[str] | tuple[str, ...] = (),
-                   verbose: bool = False) -> BuildResult:
+                   verbose: bool = False, progress: Callable[[str, str], None] | None = None) -> BuildResult:
     """Configure and build `src` (a CMake folder using firmware_stub/target/hil_target.cmake; default: the
     reference firmware) for `board`; copy the artefact to `out` if given. `defines` ("NAME=VALUE") become CMake
     variables and preprocessor macros of the firmware (hil_target.cmake HIL_DEFINES); `verbose` echoes the
-    commands and the whole build output to stderr. Raises FwBuildError."""
+    commands and the whole build output to stderr. Raises FwBuildError. `progress(step, line)` (a status line) is
+    told each step (`configuring`, `building`) and, while building, each line of the output as it comes."""
+    def step(name: str, line: str = "") -> None:
+        if progress is not None:
+            progress(name, line)
+
     if board not in BOARDS:
         raise FwBuildError(f"--board must be one of {', '.join(BOARDS)}, got {board!r}")
     missing = missing_tools(board)
@@ -224,8 +261,11 @@ def build_firmware(board: str = "host", src: Path | None = None, out: Path | Non
     if verbose:
         build_cmd.append("--verbose")
     with _locked(build.with_suffix(".lock")):
+        step("configuring")
         _run(cmd, f"cmake configure of {src}", verbose=verbose)
-        output = _run(build_cmd, f"build of {src} for {board}", verbose=verbose)
+        step("building")
+        output = _run(build_cmd, f"build of {src} for {board}", verbose=verbose,
+                      on_line=None if progress is None else lambda line: step("building", line))
         warnings = _remember_warnings(build, output)
         artefact = build / "out" / ARTEFACT[board]
         if not artefact.is_file():

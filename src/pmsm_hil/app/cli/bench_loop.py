@@ -312,8 +312,13 @@ def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
 def run(args: argparse.Namespace) -> int:
     """Execute `hil bench loop`."""
     cross = [c.strip() for c in args.cross_process.split(",") if c.strip()]
+    status = getattr(args, "status_line", None)
+
     def progress(msg: str) -> None:
-        print(f"bench loop: {msg} ...", file=sys.stderr, flush=True)
+        if status is not None and status.enabled:
+            status.phase(msg)
+        else:
+            print(f"bench loop: {msg} ...", file=sys.stderr, flush=True)
 
     ts = float(coerce(OPTIONS["ts"], DEFAULTS["ts"] if args.ts is None else args.ts))
     figures = measure(args.duration, args.repeats, cross, not args.no_realtime, progress, qemu=args.qemu,

@@ -5,9 +5,11 @@ warnings (count and first lines), the ELF's sizes and the firmware's declared pa
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 from pathlib import Path
 
+from pmsm_hil.app.cli.status_line import StatusLine, status_wanted
 from pmsm_hil.sim_target.fw_build import ARTEFACT, BOARDS, SHOWN_WARNINGS, build_firmware
 from pmsm_hil.sim_target.fw_params import firmware_params
 
@@ -30,12 +32,48 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
                    help="preprocessor macro of the firmware and CMake variable (repeatable), e.g. "
                         "MY_FW_BANDWIDTH=2000.0f or HIL_FP_CONTRACT=fast")
     p.add_argument("--verbose", action="store_true", help="show the commands and the whole build output")
+    p.add_argument("--quiet", action="store_true", help="no live status line (drawn only on a terminal)")
     p.set_defaults(func=run)
+
+
+#: CMake's progress prefix of a build line: "[ 45%] Building C object ..."
+_PERCENT = re.compile(r"^\[\s*(\d+)%\]\s*(.*)")
+
+
+class _BuildStatus:
+    """The status line of a build: the step, CMake's percentage and what it builds now."""
+
+    def __init__(self, line: StatusLine) -> None:
+        self.line = line
+        self.step = ""
+
+    def __call__(self, step: str, text: str) -> None:
+        if step != self.step:
+            self.step = step
+            self.line.phase(step)
+            if step == "building":
+                self.line.total(100, "%")
+        m = _PERCENT.match(text)
+        if m is not None:
+            self.line.update(int(m.group(1)), _what(m.group(2)))
+        elif " warning: " in text:
+            self.line.warn(text.strip())
+
+
+def _what(text: str) -> str:
+    """CMake's words for a step, short: `Building C object CMakeFiles/x.dir/a/b/foo.c.o` -> `compiling foo.c`."""
+    if text.startswith("Building ") and " object " in text:
+        return "compiling " + text.rsplit("/", 1)[-1].removesuffix(".o").removesuffix(".obj")
+    return text[:60]
 
 
 def run(args: argparse.Namespace) -> int:
     """Execute `hil fw build`."""
-    result = build_firmware(args.board, args.src, args.out, defines=args.define, verbose=args.verbose)
+    with StatusLine("hil fw build", enabled=status_wanted(args.quiet or args.verbose)) as status:
+        status.phase("starting")
+        result = build_firmware(args.board, args.src, args.out, defines=args.define, verbose=args.verbose,
+                                progress=_BuildStatus(status) if status.enabled else None)
+        status.close("done")
     if result.warnings:
         n = len(result.warnings)
         print(f"{n} compiler warning{'s' if n != 1 else ''}:", file=sys.stderr)

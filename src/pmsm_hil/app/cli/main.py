@@ -8,6 +8,7 @@ import importlib
 import os
 import signal
 import sys
+from collections.abc import Callable
 from types import FrameType, ModuleType
 from typing import Any
 
@@ -27,9 +28,11 @@ _GROUPS = {
               "bench_memory"),
     "fw": ("fw_build",),
     "mcap": ("mcap_export",),
+    "fmu": ("fmu_example", "fmu_build"),
 }
 _GROUP_HELP = {"plant": "offline plant tools", "bench": "benchmarks that print figures",
-               "fw": "build firmware for the SIL and QEMU targets", "mcap": "run log (MCAP) tools"}
+               "fw": "build firmware for the SIL and QEMU targets", "mcap": "run log (MCAP) tools",
+               "fmu": "load FMUs for --load-fmu: an example to start from, and its build"}
 
 
 def _load(name: str) -> ModuleType | None:
@@ -58,9 +61,32 @@ def build_parser() -> argparse.ArgumentParser:
             module = _load(name)
             if module is not None:
                 module.add_parser(group_sub)
+        if group == "bench":
+            for name, p in group_sub.choices.items():
+                _with_status_line(p, f"hil bench {name}")
         group_parser.set_defaults(func=lambda args, p=group_parser: _usage(p))
     _add_debug(sub)
     return parser
+
+
+def _with_status_line(p: argparse.ArgumentParser, label: str) -> None:
+    """A live status line around the subcommand (its phase, the time it takes; app/cli/status_line.py) and its
+    `--quiet`; the subcommand may tell its stages through `args.status_line.phase`."""
+    if not any("--quiet" in a.option_strings for a in p._actions):
+        p.add_argument("--quiet", action="store_true", help="no live status line (drawn only on a terminal)")
+    func = p.get_default("func")
+
+    def with_status(args: argparse.Namespace) -> int:
+        from pmsm_hil.app.cli.status_line import StatusLine, status_wanted
+
+        with StatusLine(label, enabled=status_wanted(args.quiet)) as line:
+            line.phase("measuring")
+            args.status_line = line
+            code = int(func(args))
+            line.close("done")
+        return code
+
+    p.set_defaults(func=with_status)
 
 
 def _add_debug(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -110,16 +136,38 @@ def main(argv: list[str] | None = None) -> int:
     return code
 
 
+#: commands with a live status line (app/cli/status_line.py): drawn before the imports, from the first words
+_STATUS_COMMANDS = {("run",): 1, ("replay",): 1, ("bench",): 2, ("fw", "build"): 2}
+
+
+def _early_status(argv: list[str]) -> Callable[[], None]:
+    """`hil run: starting…` on a terminal at once for a command with a status line (its imports take seconds
+    on a loaded machine); returns what erases it."""
+    if any(a in ("-h", "--help", "--quiet", "--verbose") for a in argv):
+        return lambda: None
+    words = [a for a in argv if not a.startswith("-")]
+    for head, n in _STATUS_COMMANDS.items():
+        if tuple(words[:len(head)]) == head and len(words) >= n:
+            from pmsm_hil.app.cli.status_line import early_status
+
+            return early_status(" ".join(["hil", *words[:n]]))
+    return lambda: None
+
+
 def _main(argv: list[str]) -> int:
     if not argv or (argv[0] == "--debug" and len(argv) == 1):
         argv = [*argv, "run"]  # `hil` alone runs the embedded default
+    erase = _early_status(argv)
     try:
         parser = build_parser()  # imports the subcommands: the protocol's layouts are compiled from hil.dbc here
     except HilError as exc:  # a malformed hil.dbc (DatabaseError naming the line and field): one line too
+        erase()
         if "--debug" in argv:
             raise
         print(f"hil: error: {exc}", file=sys.stderr)
         return 2
+    finally:  # Ctrl-C in the imports too: `hil: interrupted` on a clean line
+        erase()  # the command's own status line takes over (argparse's usage errors come on a clean line)
     args = parser.parse_args(argv)
     func = getattr(args, "func", None)
     if func is None:

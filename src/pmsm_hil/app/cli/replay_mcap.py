@@ -9,6 +9,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+import numpy as np
+
 from pmsm_hil.app.cli.motor_args import add_motor_arguments
 from pmsm_hil.app.cli.parsing import finite_float, positive_float
 from pmsm_hil.hil.errors import ParameterError
@@ -54,11 +56,23 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
                        help="a CAN log without --run-log: initial electrical angle [rad]")
     plant.add_argument("--pwm-update", choices=PWM_UPDATES,
                        help="a CAN log without --run-log: the carrier of duty-cycle Commands (default single)")
+    p.add_argument("--quiet", action="store_true", help="no live status line (drawn only on a terminal)")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    """Execute `hil replay`."""
+    """Execute `hil replay` under its status line (app/cli/status_line.py)."""
+    from pmsm_hil.app.cli.status_line import StatusLine, status_wanted
+
+    with StatusLine("hil replay", enabled=status_wanted(args.quiet)) as status:
+        status.phase(f"reading {args.mcap.name}")
+        args.status_line = status
+        code = _run(args)
+        status.close("done")
+    return code
+
+
+def _run(args: argparse.Namespace) -> int:
     from pmsm_hil.dashboards.cli_live import hold_serving, rerun_targets
     from pmsm_hil.dashboards.errors import DashboardError
     from pmsm_hil.dashboards.replay import load_source, replay_to_rerun
@@ -79,7 +93,17 @@ def run(args: argparse.Namespace) -> int:
     if not targets.any():
         raise DashboardError("hil replay: choose --rerun, --rerun-save FILE.rrd or --rerun-serve")
     source = load_source(args.mcap, vdc=args.vdc)
-    rec, url = replay_to_rerun(source, targets)
+    status = args.status_line
+    status.phase("replaying into Rerun")
+    status.total(len(source.periods), "periods")
+    done = [0]
+
+    def sent(block: np.ndarray) -> None:
+        done[0] += len(block)
+        status.update(done[0], f"sim {done[0] * source.ts_s:.3f}/{len(source.periods) * source.ts_s:.3f} s")
+
+    rec, url = replay_to_rerun(source, targets, progress=sent)
+    status.close("done")
     print(f"replayed {len(source.periods)} periods of {source.name}")
     if targets.save is not None:
         print(f"rerun: recording saved to {targets.save}")
@@ -169,6 +193,7 @@ def _replay_can_log(args: argparse.Namespace) -> int:
         if getattr(args, name) is None:
             raise ParameterError(f"hil replay {args.mcap}: a CAN log is replayed through the plant: --{name} is "
                                  "required (with --rpm, --ts, --output; or --run-log RUN.mcap and --output)")
+    args.status_line.phase("replaying Commands through the plant")
     r = replay(_motor(args, "niu2020-ipmsm"), rpm=args.rpm, ts_s=args.ts,  # type: ignore[arg-type]
                input_path=args.mcap, output_path=args.output, theta0_rad=args.theta0 or 0.0,
                allow_gaps=args.allow_gaps, pwm_update=args.pwm_update or "single")

@@ -16,6 +16,8 @@ import numpy as np
 from pmsm_hil.app.cli.config_file import ConfigKey, load_config
 from pmsm_hil.app.cli.report_table import format_metrics
 from pmsm_hil.app.cli.run_options_cli import add_options, config_keys
+from pmsm_hil.app.cli.run_status import RunStatus
+from pmsm_hil.app.cli.status_line import StatusLine, status_wanted
 from pmsm_hil.dashboards.cli_live import add_rerun_arguments, live_dashboard
 from pmsm_hil.hil.atomic_write import prepare_output_dir, refuse_inputs, write_text_atomic
 from pmsm_hil.hil.runner.option_values import layer, option_of
@@ -55,6 +57,8 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
     """Every `hil run` option: the run options, its outputs, the live dashboard's."""
     add_run_arguments(p)
     add_options(p, ("output",))
+    p.add_argument("--quiet", action="store_true",
+                   help="no live status line (drawn on stderr only when stdout and stderr are terminals)")
     add_rerun_arguments(p)
 
 
@@ -110,22 +114,31 @@ def _check_outputs(args: argparse.Namespace, cfg: RunConfig, held: contextlib.Ex
 
 def run(args: argparse.Namespace) -> int:
     """Execute `hil run`."""
-    cfg = config_from_args(args)
-    with contextlib.ExitStack() as held:
-        _check_outputs(args, cfg, held)
-        return _run_checked(args, cfg)
+    with StatusLine("hil run", enabled=status_wanted(getattr(args, "quiet", False))) as line:
+        line.phase("checking options…")
+        cfg = config_from_args(args)
+        with contextlib.ExitStack() as held:
+            _check_outputs(args, cfg, held)
+            return _run_checked(args, cfg, RunStatus(line, cfg))
 
 
-def _run_checked(args: argparse.Namespace, cfg: RunConfig) -> int:
+def _run_checked(args: argparse.Namespace, cfg: RunConfig, status: RunStatus) -> int:
     try:
         with live_dashboard(args, cfg) as live:
-            return _run_and_report(args, cfg, live)
+            return _run_and_report(args, cfg, live, status)
     except KeyboardInterrupt:  # before the target was connected (from then on the run ends itself on Ctrl-C)
         if cfg.out_dir is None or not (cfg.out_dir / "run.mcap").exists():
             raise
         print(f"hil: interrupted; partial log: {cfg.out_dir / 'run.mcap'} (before the run started: no period, no "
               f"metrics.json)", file=sys.stderr)
         return 130
+
+
+def _both(first: Callable[[np.ndarray], None], second: Callable[[np.ndarray], None]) -> Callable[[np.ndarray], None]:
+    def both(periods: np.ndarray) -> None:
+        first(periods)
+        second(periods)
+    return both
 
 
 #: exit code (= metrics `end_code`) of a completed run whose setpoint was not held under `--expect-hold`
@@ -144,9 +157,14 @@ def _setpoint_missed(metrics: dict[str, Any], cfg: RunConfig) -> int:
     return EXIT_SETPOINT_NOT_HELD
 
 
-def _run_and_report(args: argparse.Namespace, cfg: RunConfig, live: Callable[[np.ndarray], None] | None) -> int:
-    """One run (blocks also to the live dashboard if any); prints the metrics, writes --json."""
-    result = run_closed_loop(cfg, live=live)
+def _run_and_report(args: argparse.Namespace, cfg: RunConfig, live: Callable[[np.ndarray], None] | None,
+                    status: RunStatus) -> int:
+    """One run (blocks also to the live dashboard if any, and to the status line); prints the metrics, writes
+    --json."""
+    blocks = status.block if live is None else _both(live, status.block)
+    result = run_closed_loop(cfg, live=blocks if status.line.enabled else live, phase=status.phase,
+                             counter=status.counter if status.line.enabled else None)
+    status.line.close(f"ended (exit {result.metrics['end_code']})" if result.metrics["end_code"] else "completed")
     end_code = int(result.metrics["end_code"])
     if end_code == 0 and getattr(args, "expect_hold", False) and result.metrics.get("setpoint_held") is False:
         end_code = _setpoint_missed(result.metrics, cfg)

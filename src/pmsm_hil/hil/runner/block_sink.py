@@ -37,6 +37,9 @@ class RunSink:
         self.faulty: FaultyLink | None = None
         #: period records seen so far
         self.periods_seen = 0
+        #: the periods the loop has run so far, read while it runs (the C loop's own counter once it runs;
+        #: until then, and for the reference loop, the records seen)
+        self.loop_periods: Callable[[], int] = lambda: self.periods_seen
         #: a spawned target's console (its lines go to the log with each block)
         self.console: TargetConsole | None = None
         #: execution times [ns] of the run's first `COLD_START_PERIODS` periods

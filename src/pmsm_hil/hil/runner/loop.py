@@ -109,6 +109,11 @@ class NativeLoop:
         with deferred_interrupts() as stop:
             return self._run(stop)
 
+    def completed_periods(self) -> int:
+        """Periods the C loop has completed so far, read while it runs (the counter it sets each period; for a
+        display: the blocks drained carry the records)."""
+        return int(self._res.completed_periods)
+
     def _run(self, stop: StopRequest) -> LoopOutcome:
         lib, h = self._lib, self._h
         gc_was_enabled = gc.isenabled()

@@ -114,6 +114,7 @@ def run_native(cfg: RunConfig, conn: TargetConnection, cid: int, sink: RunSink,
         if cfg.load_fmu_model is None:
             raise
         return ended_while_initialising(cfg, conn.client, cid, sink.logger, exc)
+    sink.loop_periods = loop.completed_periods
     spec = cfg.fault_spec
     faulty = link.install_faults(spec) if spec is not None and isinstance(link, NativePyLink) else None
     sink.faulty = faulty

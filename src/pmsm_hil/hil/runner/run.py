@@ -91,7 +91,9 @@ def _open_logger(cfg: RunConfig) -> tuple[Any, Path | None]:
 
 
 def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None,
-                    live: Callable[[np.ndarray], None] | None = None) -> RunResult:
+                    live: Callable[[np.ndarray], None] | None = None,
+                    phase: Callable[[str], None] | None = None,
+                    counter: Callable[[Callable[[], int]], None] | None = None) -> RunResult:
     """Run the scenario against the target named by cfg.link/cfg.target; returns metrics and outcome.
 
     Every ending after the target is configured (completed, DUT violation, safety stop, Ctrl-C/SIGTERM,
@@ -99,7 +101,9 @@ def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None,
     metrics.json with `end_reason`, `end_period` and `end_code` (`EndCode`; the exception of an internal error
     is `outcome.error`). A target that breaks the contract while being configured (ConfigAck missing or echoing
     another value) ends the run with `end_code` 4 and no periods.
-    `live`: optional consumer of each PERIOD_DTYPE block (~1000 periods), e.g. the live dashboard."""
+    `live`: optional consumer of each PERIOD_DTYPE block (~1000 periods), e.g. the live dashboard; `phase`: told
+    when the run turns to `configuring target`, `running` and `writing outputs` (`hil run`'s status line);
+    `counter`: given, as the loop starts, a function returning the periods it has run so far (read live)."""
     cfg = isolated_config(cfg)  # a SIL target in its own process: its link and --step-timeout
     cid = controller_id(cfg.controller)
     check_run_limits(cfg)
@@ -109,7 +113,11 @@ def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None,
     with ExitStack() as held:
         if cfg.out_dir is not None:  # one run at a time in a run directory (the CLI holds it already)
             held.enter_context(run_dir_lock(cfg.out_dir, option="out_dir"))
-        return _run_locked(cfg, cid, python_reason, silent_after, live)
+        return _run_locked(cfg, cid, python_reason, silent_after, live, phase or _no_phase, counter)
+
+
+def _no_phase(name: str) -> None:
+    """No one follows the run's phases."""
 
 
 def run_from_options(values: Mapping[str, Any], sources: Mapping[str, str] | None = None, *,
@@ -121,7 +129,8 @@ def run_from_options(values: Mapping[str, Any], sources: Mapping[str, str] | Non
 
 
 def _run_locked(cfg: RunConfig, cid: int, python_reason: str | None, silent_after: int | None,
-                live: Callable[[np.ndarray], None] | None) -> RunResult:
+                live: Callable[[np.ndarray], None] | None, phase: Callable[[str], None],
+                counter: Callable[[Callable[[], int]], None] | None) -> RunResult:
     logger, mcap_path = _open_logger(cfg)
     conn: TargetConnection | None = None
     outcome: LoopOutcome | None = None
@@ -141,6 +150,7 @@ def _run_locked(cfg: RunConfig, cid: int, python_reason: str | None, silent_afte
             stop = signals.enter_context(deferred_interrupts())
             for guard in guards:
                 signals.enter_context(stop.hook(guard.on_stop))
+            phase("configuring target")
             try:
                 with tap_setup_frames(conn.client, logger):
                     conn.client.configure(cfg.target_parameters())
@@ -157,11 +167,15 @@ def _run_locked(cfg: RunConfig, cid: int, python_reason: str | None, silent_afte
                 except (LinkError, TargetError):  # the target is gone (e.g. a SIL process that crashed)
                     outcome.target_disabled = False
             if outcome is None:
+                phase("running")
+                if counter is not None:
+                    counter(lambda: sink.loop_periods())
                 outcome = (require_reference_loop()(cfg, conn, cid, sink) if python_reason
                            else run_native(cfg, conn, cid, sink, silent_after))
             # e.g. a SIL target process that crashed or hung; not one the run's own stop killed (Ctrl-C/SIGTERM)
             if conn.ending is not None and outcome.end_code != EndCode.INTERRUPTED:
                 conn.ending(outcome)
+            phase("writing outputs")
             metrics = summarize(cfg, outcome, conn, sink)
             metrics["loop"], metrics["loop_note"] = "python" if python_reason else "native", python_reason
             metrics["warnings"] += realtime_warnings(cfg, conn)
