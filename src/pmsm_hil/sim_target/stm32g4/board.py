@@ -54,6 +54,8 @@ from pmsm_hil.sim_target.stm32g4.scs import SystemControl
 #: slice length [instructions] while an enabled interrupt is pending but masked (PRIMASK/BASEPRI changes by CPS
 #: or MSR are not visible to the board until the slice ends)
 MASKED_SLICE = 64
+#: the internal reference (VREFINT, ADC1 channel 18; DS12288 typical) [V]
+VREFINT_V = 1.212
 #: reset clock: HSI16
 RESET_HCLK_HZ = 16_000_000
 
@@ -108,6 +110,10 @@ class Board:
         self.isr: dict[int, IsrStats] = {}  # by exception number
         self._assert_time: dict[int, int] = {}
         self._entry_stack: list[tuple[int, int]] = []  # (exception, cycle of entry)
+        #: the analog front end: (adc, channel, cycle) -> volts; channel -1 is VREF+ (the board description's)
+        self.analog: Callable[[str, int, int], float] = lambda adc, channel, now: 3.3 if channel < 0 else 0.0
+        #: the encoder: (timer, cycle) -> quadrature edges counted so far
+        self.encoder: Callable[[str, int], int] = lambda timer, now: 0
         self._load()
         self._symbols: dict[str, int] | None = None
 
@@ -220,6 +226,14 @@ class Board:
     def set_hclk(self, hz: int) -> None:
         self.hclk_hz = hz
 
+    def analog_voltage(self, adc: str, channel: int, now: int) -> float:
+        if adc == "ADC1" and channel == 18:
+            return VREFINT_V
+        return self.analog(adc, channel, now)
+
+    def encoder_position(self, timer: str, now: int) -> int:
+        return self.encoder(timer, now)
+
     def log(self, source: str, line: str) -> None:
         """A console line of the firmware (USART2) for the run's log."""
         self.console_lines.append((source, line))
@@ -276,14 +290,13 @@ class Board:
         return bool(self.cpu.reg(arm.UC_ARM_REG_PRIMASK) & 1), self.cpu.reg(arm.UC_ARM_REG_BASEPRI)
 
     def _enter(self, exc: int) -> None:
-        now = self.cpu.count
         stats = self.isr.setdefault(exc, IsrStats())
         stats.entries += 1
         asserted = self._assert_time.pop(exc, None)
-        if asserted is not None:
-            stats.latency.append(now - asserted)
         self.exceptions.enter(exc)
-        self._entry_stack.append((exc, now))
+        if asserted is not None:  # from the line's assertion to the handler's first instruction
+            stats.latency.append(self.cpu.count - asserted)
+        self._entry_stack.append((exc, self.cpu.count))
 
     def _leave(self, exc_return: int) -> None:
         exc = self.exceptions.leave(exc_return)
@@ -302,14 +315,15 @@ class Board:
             self._advance(now)
             if now >= end:
                 return
-            primask, basepri = self._masks()
-            take = nvic.preempting(primask, basepri)
-            if take is not None:
-                self.sleeping = False
-                self._enter(take)
-                continue
+            if nvic.pending:
+                primask, basepri = self._masks()
+                take = nvic.preempting(primask, basepri)
+                if take is not None:
+                    self.sleeping = False
+                    self._enter(take)
+                    continue
             if self.sleeping:
-                if nvic.preempting(False, basepri) is not None:  # WFI wakes even with PRIMASK set
+                if nvic.pending and nvic.preempting(False, self._masks()[1]) is not None:  # WFI wakes with PRIMASK
                     self.sleeping = False
                 else:
                     event = self.next_event(now)

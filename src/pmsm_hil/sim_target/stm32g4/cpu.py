@@ -103,6 +103,9 @@ class Cpu:
         if status != 0:
             raise UcError(status)
         self._stop: Stop | None = None
+        self._uch = uc._uch
+        self._reg_buf = ctypes.c_uint64(0)
+        self._reg_ref = ctypes.byref(self._reg_buf)
         uc.hook_add(UC_HOOK_INTR, self._on_interrupt)
         uc.hook_add(UC_HOOK_MEM_READ_UNMAPPED | UC_HOOK_MEM_WRITE_UNMAPPED | UC_HOOK_MEM_FETCH_UNMAPPED,
                     self._on_unmapped)
@@ -137,14 +140,17 @@ class Cpu:
     # --- registers ----------------------------------------------------------------------------------------------
 
     def reg(self, reg: int) -> int:
-        return int(self.uc.reg_read(reg))
+        """A 32-bit register, through the C API (the binding's reg_read costs microseconds)."""
+        uclib.uc_reg_read(self._uch, reg, self._reg_ref)
+        return int(self._reg_buf.value) & 0xFFFF_FFFF
 
     def set_reg(self, reg: int, value: int) -> None:
-        self.uc.reg_write(reg, value & 0xFFFFFFFF)
+        self._reg_buf.value = value & 0xFFFFFFFF
+        uclib.uc_reg_write(self._uch, reg, self._reg_ref)
 
     @property
     def pc(self) -> int:
-        return int(self.uc.reg_read(arm.UC_ARM_REG_PC))
+        return self.reg(arm.UC_ARM_REG_PC)
 
     # --- running ------------------------------------------------------------------------------------------------
 

@@ -49,7 +49,7 @@ class ExceptionUnit:
         control = cpu.reg(arm.UC_ARM_REG_CONTROL)
         use_psp = in_thread and bool(control & 2)
         fp = self.scs.fpu_enabled
-        values = [int(v) for v in uc.reg_read_batch(FRAME_REGS)]
+        values = [cpu.reg(r) for r in FRAME_REGS]
         ipsr = self.nvic.active[-1] if self.nvic.active else 0
         sp = cpu.reg(arm.UC_ARM_REG_PSP if use_psp else arm.UC_ARM_REG_MSP)
         size = _EXTENDED.size if fp else _BASIC.size
@@ -57,7 +57,7 @@ class ExceptionUnit:
         frame_sp = (sp - size) & ~4 if self.scs.ccr & 0x200 else sp - size
         values[7] = (values[7] & ~0x1FF & ~(1 << 9)) | ipsr | ((1 << 9) if aligned else 0) | (1 << 24)
         if fp:
-            fvals = [int(v) & 0xFFFF_FFFF for v in uc.reg_read_batch(FP_REGS)]
+            fvals = [cpu.reg(r) for r in FP_REGS]
             data = _EXTENDED.pack(*values, *fvals, 0)
         else:
             data = _BASIC.pack(*values)

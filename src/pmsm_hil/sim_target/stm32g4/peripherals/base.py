@@ -52,6 +52,13 @@ class BoardBus(Protocol):
     def log(self, source: str, line: str) -> None:
         """A line the firmware wrote (a console USART) for the run's log."""
 
+    def analog_voltage(self, adc: str, channel: int, now: int) -> float:
+        """The voltage at input `channel` of ADC `adc` at cycle `now` [V] (the board's analog front end); channel
+        -1: the reference voltage VREF+."""
+
+    def encoder_position(self, timer: str, now: int) -> int:
+        """The quadrature edges counted so far by the encoder wired to `timer` (signed, 4 per line)."""
+
 
 class Peripheral(ABC):
     """One memory-mapped peripheral at `base`, `size` bytes long; its state starts at RM0440's reset values."""
