@@ -53,7 +53,7 @@ int main(void) {
   TIM_CCMR2(TIM1) = (6u << 4 | 1u << 3) | (7u << 12 | 1u << 11);
   TIM_CCR4(TIM1) = ARR_VALUE - 10u;
   TIM_CCER(TIM1) = 0x1555u;                  /* CC1-3 and complements, CC4 */
-  TIM_BDTR(TIM1) = 1u << 15 | 170u;           /* MOE, DTG 170 ticks = 1 us */
+  TIM_BDTR(TIM1) = 1u << 15 | 170u;           /* MOE, DTG 170: (64 + 42) * 2 ticks = 1.247 us */
   TIM_CR2(TIM1) = 7u << 20;                   /* MMS2 = OC4REF */
   TIM_EGR(TIM1) = 1u;
   TIM_CR1(TIM1) = 1u | 1u << 5 | 1u << 7;     /* CEN, CMS = 1, ARPE */

@@ -130,6 +130,13 @@ class Tim1(RegisterFile):
             ref_high = 1.0 - ref_high
         return ref_high
 
+    def trip_break(self) -> None:
+        """The break input went active: MOE cleared, BIF set (its interrupt on TIM1_BRK when BIE)."""
+        self.regs[BDTR] &= ~(1 << 15)
+        self.regs[SR] |= 1 << 7
+        if self.regs[DIER] & (1 << 7):
+            self.bus.set_pending(IRQ["TIM1_BRK_TIM15"])
+
     def output_enabled(self, ch: int) -> bool:
         return bool(self.regs[CCER] >> (4 * ch) & 1)
 
