@@ -104,6 +104,7 @@ class Board:
         self._owner: dict[int, Peripheral] = {}
         self._map_peripherals()
         self._timed = [p for p in self.peripherals.values() if type(p).next_event is not Peripheral.next_event]
+        self._timed_set = set(self._timed)
         self._advancing = [p for p in self.peripherals.values() if type(p).advance is not Peripheral.advance]
         self.sleeping = False
         self.sleep_cycles = 0
@@ -263,7 +264,7 @@ class Board:
             raise self._unmodelled(address, "write")
         now = self.cpu.count
         p.write(address - p.base, size, value, now)
-        if p in self._timed:
+        if p in self._timed_set:
             event = p.next_event(now)
             if event is not None and event < self.cpu.counter.limit:
                 self.cpu.request_stop()
