@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 from pmsm_hil.sim_target.stm32g4.part import IRQ
-from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError, register
+from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError, register, services
 from pmsm_hil.sim_target.stm32g4.peripherals.regs import RegisterFile
 
 ISR, IER, CR, CFGR, CFGR2, SMPR1, SMPR2 = 0x00, 0x04, 0x08, 0x0C, 0x10, 0x14, 0x18
@@ -125,8 +125,8 @@ class Adc(RegisterFile):
         self._set(flags | EOSMP)
 
     def _code(self, channel: int, at: int) -> int:
-        volts = self.bus.analog_voltage(self.name, channel, at)
-        vref = self.bus.analog_voltage(self.name, -1, at)
+        volts = services(self.bus).analog_voltage(self.name, channel, at)
+        vref = services(self.bus).analog_voltage(self.name, -1, at)
         res = self.regs[CFGR] >> 3 & 3
         bits = (12, 10, 8, 6)[res]
         full = (1 << bits) - 1

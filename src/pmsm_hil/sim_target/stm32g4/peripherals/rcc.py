@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from typing import ClassVar
 
-from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError, register
+from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError, register, services
 from pmsm_hil.sim_target.stm32g4.peripherals.regs import RegisterFile
 
 HSI_HZ = 16_000_000
@@ -91,7 +91,7 @@ class Rcc(RegisterFile):
         if src == 2:
             f_in = HSI_HZ
         elif src == 3:
-            f_in = self.bus.hse_hz
+            f_in = services(self.bus).hse_hz
         else:
             raise BoardError("RCC: the PLL runs with no source (PLLCFGR.PLLSRC = 0)")
         m, n, r = (cfg >> 4 & 0xF) + 1, cfg >> 8 & 0x7F, 2 * ((cfg >> 25 & 3) + 1)
@@ -101,7 +101,7 @@ class Rcc(RegisterFile):
 
     def sysclk_hz(self) -> int:
         if self.sws == 2:
-            return self.bus.hse_hz
+            return services(self.bus).hse_hz
         if self.sws == 3:
             return self.pll_hz()
         return HSI_HZ
@@ -118,7 +118,7 @@ class Rcc(RegisterFile):
         hz = self.hclk_hz()
         if hz > 170_000_000:
             raise BoardError(f"RCC: HCLK {hz / 1e6:g} MHz above the part's 170 MHz")
-        self.bus.set_hclk(hz)
+        services(self.bus).set_hclk(hz)
 
 
 @register("PWR")

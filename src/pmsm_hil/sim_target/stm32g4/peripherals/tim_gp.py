@@ -9,7 +9,7 @@ from __future__ import annotations
 from typing import ClassVar
 
 from pmsm_hil.sim_target.stm32g4.part import IRQ
-from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError, register
+from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError, register, services
 from pmsm_hil.sim_target.stm32g4.peripherals.regs import RegisterFile
 
 CR1, CR2, SMCR, DIER, SR, EGR, CCMR1, CCMR2, CCER, CNT, PSC, ARR = (
@@ -45,7 +45,7 @@ class GeneralTimer(RegisterFile):
 
     def counter(self, now: int) -> int:
         if self.encoder_mode:
-            edges = self.bus.encoder_position(self.name, now)
+            edges = services(self.bus).encoder_position(self.name, now)
             if edges != self.last_edges:
                 self.down = edges < self.last_edges
                 self.last_edges = edges
@@ -59,7 +59,7 @@ class GeneralTimer(RegisterFile):
         return (self.anchor_cnt + ticks) % self._modulus()
 
     def _counts_now(self, now: int) -> int:
-        edges = self.bus.encoder_position(self.name, now)
+        edges = services(self.bus).encoder_position(self.name, now)
         return edges if self.encoder_mode == 3 else edges // 2
 
     def next_event(self, now: int) -> int | None:
