@@ -2,15 +2,14 @@
 `send` takes the host's frames; a Measurement runs one control period on the board and queues the reply that
 `poll`/`recv` return.
 
-Per period k (lockstep): the Measurement's phase currents and DC-link voltage become the voltages at the ADC
-pins through the board's analog front end (constant over the period: the host sampled them at its --adc-delay),
-its angle and speed the encoder's edge count (the mechanical angle unwrapped from the electrical one, advanced at
-the measured speed inside the period; the encoder aligned: count 0 at electrical angle 0); the core runs to the end
-of the period (the next update event of TIM1 at
-the carrier valley); the reply is a duty-cycle Command built from the compare values in force for the next period
-(PWM mode and polarity per channel), shortened or lengthened by BDTR's dead time according to each phase
-current's sign (the average effect of the dead time; the plant's own dead-time parameter is not used), with
-the core's cycles in interrupt handlers during the period as exec_time_ns.
+Per period k (lockstep): the Measurement's phase currents and DC-link voltage become the voltages at the ADC pins
+through the board's analog front end (constant over the period: the host sampled them at its --adc-delay), its angle
+and speed the encoder's edge count (the mechanical angle unwrapped from the electrical one, advanced at the measured
+speed inside the period; the encoder aligned: count 0 at electrical angle 0); the core runs to the end of the period
+(the next update event of TIM1 at the carrier valley); the reply is a duty-cycle Command built from the compare
+values in force for the next period (PWM mode and polarity per channel), shortened or lengthened by BDTR's dead time
+according to each phase current's sign (the average effect of the dead time; the plant's own dead-time parameter is
+not used), with the core's cycles in interrupt handlers during the period as exec_time_ns.
 
 The host's period must be the firmware's carrier period: the board runs the firmware's start-up until TIM1
 counts, and refuses a different --ts naming both. ConfigParams are acknowledged by the board on the firmware's
