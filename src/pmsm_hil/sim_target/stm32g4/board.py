@@ -57,6 +57,8 @@ from pmsm_hil.sim_target.stm32g4.scs import SystemControl
 MASKED_SLICE = 64
 #: the internal reference (VREFINT, ADC1 channel 18; DS12288 typical) [V]
 VREFINT_V = 1.212
+#: per-exception samples (handler times, latencies) kept for the metrics: the most recent ones
+KEEP_SAMPLES = 200_000
 #: reset clock: HSI16
 RESET_HCLK_HZ = 16_000_000
 
@@ -110,6 +112,8 @@ class Board:
         self._advancing = [p for p in self.peripherals.values() if type(p).advance is not Peripheral.advance]
         self.sleeping = False
         self.sleep_cycles = 0
+        #: cycles spent in exception handlers so far (nested ones counted once)
+        self.handler_cycles = 0
         self.isr: dict[int, IsrStats] = {}  # by exception number
         self._assert_time: dict[int, int] = {}
         self._entry_stack: list[tuple[int, int]] = []  # (exception, cycle of entry)
@@ -299,12 +303,20 @@ class Board:
         self.exceptions.enter(exc)
         if asserted is not None:  # from the line's assertion to the handler's first instruction
             stats.latency.append(self.cpu.count - asserted)
+            if len(stats.latency) > KEEP_SAMPLES:
+                del stats.latency[:KEEP_SAMPLES // 2]
         self._entry_stack.append((exc, self.cpu.count))
 
     def _leave(self, exc_return: int) -> None:
         exc = self.exceptions.leave(exc_return)
         entered_exc, at = self._entry_stack.pop()
-        self.isr[entered_exc].cycles.append(self.cpu.count - at)
+        spent = self.cpu.count - at
+        cycles = self.isr[entered_exc].cycles
+        cycles.append(spent)
+        if len(cycles) > KEEP_SAMPLES:
+            del cycles[:KEEP_SAMPLES // 2]
+        if len(self._entry_stack) == 0:  # outermost handler: its time includes the nested ones
+            self.handler_cycles += spent
         if exc in self.nvic.pending and exc in self.nvic.asserted:
             self._assert_time.setdefault(exc, self.cpu.count)
         if not self.nvic.active and (self.scs.sleep_on_exit or self._idle_loop_at(self.cpu.pc)):

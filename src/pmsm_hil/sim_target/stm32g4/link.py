@@ -159,11 +159,11 @@ class BoardLink:
         board, tim = self.board, self.tim1
         self._take(m)
         sleep0 = board.sleep_cycles
-        isr0 = sum(sum(s.cycles) for s in board.isr.values())
+        isr0 = board.handler_cycles
         end = self._period_start + self.period_cycles
         board.run_until(end)
         self._period_start = end
-        isr = sum(sum(s.cycles) for s in board.isr.values()) - isr0
+        isr = board.handler_cycles - isr0
         self.isr_cycles.append(isr)
         self.sleep_cycles.append(board.sleep_cycles - sleep0)
         if tim.first_late_update is not None and self.late_first_period is None:
