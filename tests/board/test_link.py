@@ -112,3 +112,14 @@ def test_a_bad_board_file_names_the_field(tmp_path: Path) -> None:
         load_board(bad)
     with pytest.raises(BoardError, match="no such board"):
         load_board("no_such_board")
+
+
+def test_every_board_metric_is_registered(link: BoardLink) -> None:
+    from pmsm_hil.hil.metrics.registry import METRICS
+
+    for seq in range(3):
+        exchange(link, measurement(seq))
+    registered = {m.key for m in METRICS}
+    produced = set(link.metrics())
+    assert produced - registered == set()
+    assert {"board_isr_time_us", "board_cpu_load", "board_handlers", "board_adc_sample_us"} <= produced
