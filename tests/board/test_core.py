@@ -85,6 +85,17 @@ def test_an_unmodelled_peripheral_is_one_line_naming_address_and_function(build_
     assert "\n" not in text
 
 
+def test_an_unmodelled_register_of_a_modelled_peripheral_names_it_and_the_function(
+        build_fw: Callable[..., Path]) -> None:
+    board = Board(PARTS["stm32g474"], build_fw("errors", "UNMODELLED_REGISTER"))
+    with pytest.raises(BoardError) as info:
+        board.run_until(1_000_000)
+    text = str(info.value)
+    assert text.startswith("write of TIM1 register at offset 0x070 (0x40012c70), which the virtual board does not "
+                           "model, at pc 0x080")
+    assert "touch_tim1_reserved" in text and "\n" not in text
+
+
 def test_a_corrupt_exc_return_is_a_fault(build_fw: Callable[..., Path]) -> None:
     board = Board(PARTS["stm32g474"], build_fw("errors", "BAD_RETURN"))
     with pytest.raises(BoardFaultError, match="INVPC"):

@@ -262,14 +262,24 @@ class Board:
         p = self._owner.get(address >> 8)
         if p is None:
             raise self._unmodelled(address, "read")
-        return p.read(address - p.base, size, self.cpu.count)
+        try:
+            return p.read(address - p.base, size, self.cpu.count)
+        except BoardError as exc:
+            raise self._located(exc) from None
+
+    def _located(self, exc: BoardError) -> BoardError:
+        """A model's refusal (an unmodelled register or field) with the firmware's pc and function."""
+        return exc if isinstance(exc, BoardFaultError) else BoardError(f"{exc}, at {self.describe_pc()}")
 
     def _write(self, address: int, size: int, value: int) -> None:
         p = self._owner.get(address >> 8)
         if p is None:
             raise self._unmodelled(address, "write")
         now = self.cpu.count
-        p.write(address - p.base, size, value, now)
+        try:
+            p.write(address - p.base, size, value, now)
+        except BoardError as exc:
+            raise self._located(exc) from None
         if p in self._timed_set:
             event = p.next_event(now)
             if event is not None and event < self.cpu.counter.limit:
