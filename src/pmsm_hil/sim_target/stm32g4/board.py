@@ -294,9 +294,12 @@ class Board:
 
     def next_event(self, now: int) -> int | None:
         """The earliest cycle after `now` at which a model (or SysTick) changes state by itself."""
-        events = [self.scs.systick.next_event(now)]
-        events += [p.next_event(now) for p in self._timed]
-        return min((e for e in events if e is not None), default=None)
+        best = self.scs.systick.next_event(now)
+        for p in self._timed:
+            event = p.next_event(now)
+            if event is not None and (best is None or event < best):
+                best = event
+        return best
 
     def _advance(self, now: int) -> None:
         self.scs.systick.advance(now)

@@ -30,11 +30,16 @@ class GeneralTimer(RegisterFile):
         self.anchor_cnt = 0
         self.last_edges = 0
         self.down = False
+        self._enc = 0
 
     @property
     def encoder_mode(self) -> int:
+        """SMCR.SMS when it is an encoder mode (1-3), else 0 (kept from the last SMCR write)."""
+        return self._enc
+
+    def _set_encoder_mode(self) -> None:
         sms = self.regs[SMCR] & 7 | (self.regs[SMCR] >> 16 & 1) << 3
-        return sms if sms in (1, 2, 3) else 0
+        self._enc = sms if sms in (1, 2, 3) else 0
 
     @property
     def running(self) -> bool:
@@ -133,6 +138,7 @@ class GeneralTimer(RegisterFile):
                 raise BoardError(f"{self.name}.SMCR.SMS = {sms}: only the encoder modes 1-3 are modelled")
             cnt = self.counter(now)
             self.regs[SMCR] = value
+            self._set_encoder_mode()
             self._rebase(now, cnt)
             return
         if word == DIER:
