@@ -1,5 +1,5 @@
 """RCC, PWR and FLASH (RM0440 chapters 7, 6, 5): the clock tree as far as the core clock, every ready flag
-following its enable after a settling time (HSIRDY, HSERDY, PLLRDY, LSIRDY, HSI48RDY), SWS following SW once the
+following its enable after a settling time (HSIRDY, HSERDY, PLLRDY, LSIRDY, LSERDY, HSI48RDY), SWS following SW once the
 source is ready, the PWR regulator flags (VOSF after a range change, R1MODE boost), the FLASH latency read back.
 The RCC reports the core clock (HCLK) to the board whenever SW/SWS, the PLL or the AHB prescaler change it."""
 
@@ -30,7 +30,8 @@ class Rcc(RegisterFile):
 
     def reset(self) -> None:
         super().reset()
-        self.ready_at: dict[str, int | None] = {"HSI": 0, "HSE": None, "PLL": None, "LSI": None, "HSI48": None}
+        self.ready_at: dict[str, int | None] = {"HSI": 0, "HSE": None, "PLL": None, "LSI": None, "LSE": None,
+                                                "HSI48": None}
         self.sws = 1
 
     def _ready(self, name: str, now: int) -> bool:
@@ -52,6 +53,8 @@ class Rcc(RegisterFile):
         elif word == 0x08:
             self._switch(now)
             v = (v & ~0xC) | (self.sws << 2)
+        elif word == 0x90:
+            v = (v & ~2) | (2 if self._ready("LSE", now) else 0)
         elif word == 0x94:
             v = (v & ~2) | (2 if self._ready("LSI", now) else 0)
         elif word == 0x98:
@@ -72,6 +75,8 @@ class Rcc(RegisterFile):
             self._switch(now)
         elif word == 0x0C and self.sws == 3:
             self._report()
+        elif word == 0x90:
+            self._enable("LSE", bool(value & 1), HSE_SETTLE, now)
         elif word == 0x94:
             self._enable("LSI", bool(value & 1), OSC_SETTLE, now)
         elif word == 0x98:
