@@ -16,6 +16,8 @@ setup(
                   "pmsm_hil.protocol": ["*.dbc"],
                   # the example load FMU's C source and model descriptions (`hil fmu example`)
                   "pmsm_hil.hil.load_fmu": ["example_src/*.c", "example_src/*.xml"],
+                  # the virtual board's instruction counter (built on first use) and its board descriptions
+                  "pmsm_hil.sim_target.stm32g4": ["c/*.c", "boards/*.toml"],
                   # the kernel headers and shared helpers kernel_build.py compiles a kind's kernel against
                   "pmsm_hil.hil": ["kernels/*.h", "kernels/gate_edges.c", "kernels/dq_segment.c"]},
     cffi_modules=[b for b in _BUILDERS if Path(b.split(":")[0]).exists()],

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from typing import Protocol
+from typing import Protocol, cast
 
 from pmsm_hil.sim_target.firmware import FirmwareError
 
@@ -41,6 +41,36 @@ class BoardBus(Protocol):
     @property
     def sysclk_hz(self) -> int:
         """The core clock as the firmware's RCC set-up left it [Hz]."""
+
+
+class BoardServices(BoardBus, Protocol):
+    """What the full board offers its own models beyond `BoardBus` (the clock tree, the analog front end, the
+    encoder, the console); a model reaches it through `services(bus)`."""
+
+    @property
+    def hse_hz(self) -> int:
+        """The board's HSE crystal or oscillator [Hz] (the board description)."""
+
+    def set_hclk(self, hz: int) -> None:
+        """The RCC model's report of a new core clock (SYSCLK through the AHB prescaler) [Hz]."""
+
+    def log(self, source: str, line: str) -> None:
+        """A line the firmware wrote (a console USART) for the run's log."""
+
+    def analog_voltage(self, adc: str, channel: int, now: int) -> float:
+        """The voltage at input `channel` of ADC `adc` at cycle `now` [V] (the board's analog front end); channel
+        -1: the reference voltage VREF+."""
+
+    def encoder_position(self, timer: str, now: int) -> int:
+        """The quadrature edges counted so far by the encoder wired to `timer` (signed, 4 per line)."""
+
+
+def services(bus: BoardBus) -> BoardServices:
+    """`bus` as the full board (BoardError when a model that needs the board's services sits on a bare bus)."""
+    if not hasattr(bus, "analog_voltage"):
+        raise BoardError("this peripheral model needs the virtual board's services (clock tree, analog front end, "
+                         "encoder, console), not a bare BoardBus")
+    return cast(BoardServices, bus)
 
 
 class Peripheral(ABC):
@@ -96,4 +126,5 @@ def register(name: str) -> Callable[[type[Peripheral]], type[Peripheral]]:
     return add
 
 
-__all__ = ["REGISTRY", "BoardBus", "BoardError", "Peripheral", "PeripheralFactory", "register"]
+__all__ = ["REGISTRY", "BoardBus", "BoardError", "BoardServices", "Peripheral", "PeripheralFactory", "register",
+           "services"]
