@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 from pmsm_hil.sim_target.firmware import FirmwareError
 
@@ -96,4 +96,13 @@ def register(name: str) -> Callable[[type[Peripheral]], type[Peripheral]]:
     return add
 
 
-__all__ = ["REGISTRY", "BoardBus", "BoardError", "Peripheral", "PeripheralFactory", "register"]
+@runtime_checkable
+class BusMaster(BoardBus, Protocol):
+    """A board on which a bus master (DMA) reaches any address as the CPU does: memory, or a peripheral's
+    registers through its `read`/`write` (so a DMA read of a data register has the side effects of a CPU read)."""
+
+    def access(self, address: int, size: int, value: int | None = None, *, now: int) -> int:
+        """Load `size` bytes at `address` (value None) and return them, or store `value` there and return it."""
+
+
+__all__ = ["REGISTRY", "BoardBus", "BoardError", "BusMaster", "Peripheral", "PeripheralFactory", "register"]
