@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from typing import Protocol, runtime_checkable
+from typing import Protocol
 
 from pmsm_hil.sim_target.firmware import FirmwareError
 
@@ -79,6 +79,15 @@ class Peripheral(ABC):
         del now
 
 
+class BusMaster(BoardBus, Protocol):
+    """A board on which a bus master (DMA) reaches any address as the CPU does: memory, or a peripheral's
+    registers through its `read`/`write` (so a DMA read of a data register has the side effects of a CPU read).
+    Optional: a model that needs it checks for `access` and names the lack in a BoardError."""
+
+    def access(self, address: int, size: int, value: int | None = None, *, now: int) -> int:
+        """Load `size` bytes at `address` (value None) and return them, or store `value` there and return it."""
+
+
 PeripheralFactory = Callable[[BoardBus], Peripheral]
 REGISTRY: dict[str, PeripheralFactory] = {}
 
@@ -96,13 +105,4 @@ def register(name: str) -> Callable[[type[Peripheral]], type[Peripheral]]:
     return add
 
 
-@runtime_checkable
-class BusMaster(BoardBus, Protocol):
-    """A board on which a bus master (DMA) reaches any address as the CPU does: memory, or a peripheral's
-    registers through its `read`/`write` (so a DMA read of a data register has the side effects of a CPU read)."""
-
-    def access(self, address: int, size: int, value: int | None = None, *, now: int) -> int:
-        """Load `size` bytes at `address` (value None) and return them, or store `value` there and return it."""
-
-
-__all__ = ["REGISTRY", "BoardBus", "BoardError", "BusMaster", "Peripheral", "PeripheralFactory", "register"]
+__all__ = ["REGISTRY", "BoardBus", "BoardError", "Peripheral", "PeripheralFactory", "register"]

@@ -12,6 +12,7 @@ its low bytes, a narrower one zero-extended (RM0440 "programmable data width" ta
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError, BusMaster, Peripheral, register
 
@@ -162,9 +163,10 @@ class Dma(Peripheral):
     def _move(self, index: int, now: int) -> None:
         """One item from source to destination, the addresses stepped, the count down, HT/TC raised."""
         ch = self.channels[index]
-        bus = self.bus
-        if not isinstance(bus, BusMaster):
-            raise BoardError(f"{self.name}: the board gives bus masters no access to its address space")
+        if not hasattr(self.bus, "access"):
+            raise BoardError(f"{self.name}: the board gives bus masters no access to its address space "
+                             "(BusMaster.access)")
+        bus = cast(BusMaster, self.bus)
         psize = SIZES[(ch.ccr >> PSIZE_SHIFT) & 3]
         msize = SIZES[(ch.ccr >> MSIZE_SHIFT) & 3]
         if ch.ccr & DIR:
