@@ -188,3 +188,31 @@ def test_unmodelled_features_and_registers_end_with_an_error_naming_them(bus: Fa
     setup_channel(bus, "DMA1", 4, "ADC1", EN, 1, 0x4000_0000, SRAM)
     with pytest.raises(BoardError, match=r"DMA1 channel 4 \(0x40000000 -> 0x20000000\)"):
         mux(bus).request(REQUEST_IDS["ADC1"], 0)
+
+
+class G431Part:
+    name = "stm32g431"
+
+
+def test_on_the_g431_each_controller_has_6_channels_and_dmamux_12(bus: FakeBus) -> None:
+    small = FakeBus()
+    small.part = G431Part()  # type: ignore[attr-defined]
+    for name in ("DMA1", "DMA2", "DMAMUX1"):
+        small.add(name)
+    small.models["DR"] = DataRegister(small)
+    assert len(dma(small).channels) == 6 and len(dma(small, "DMA2").channels) == 6
+    with pytest.raises(BoardError, match="DMA1 at offset 0x080"):
+        dma(small).read(ch_reg(7, "CCR"), 4, 0)
+    with pytest.raises(BoardError, match="DMAMUX1 at offset 0x030"):
+        mux(small).read(4 * 12, 4, 0)
+    # HAL's DMA2 channel 1 on the G431 is DMAMUX1 channel 6
+    mux(small).write(4 * 6, 4, REQUEST_IDS["USART1_TX"], 0)
+    d2 = dma(small, "DMA2")
+    small.write_memory(SRAM, b"x")
+    d2.write(ch_reg(1, "CNDTR"), 4, 1, 0)
+    d2.write(ch_reg(1, "CPAR"), 4, 0x5000_0040, 0)
+    d2.write(ch_reg(1, "CMAR"), 4, SRAM, 0)
+    d2.write(ch_reg(1, "CCR"), 4, EN | TCIE | DIR, 0)
+    assert mux(small).request(REQUEST_IDS["USART1_TX"], 1)
+    assert small.pended == [56]
+    assert len(dma(bus).channels) == 8 and len(mux(bus).cxcr) == 16

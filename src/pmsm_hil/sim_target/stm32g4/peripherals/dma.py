@@ -1,6 +1,6 @@
-"""DMA1 and DMA2 of the STM32G474 (RM0440 "Direct memory access controller"): 8 channels each at 0x40020000 and
-0x40020400, one interrupt line per channel (DMA1_Channel1..7: IRQ 11..17, DMA1_Channel8: 96; DMA2_Channel1..5:
-56..60, DMA2_Channel6..8: 97..99).
+"""DMA1 and DMA2 of the STM32G474 (RM0440 "Direct memory access controller"): 8 channels each (6 on the G431) at
+0x40020000 and 0x40020400, one interrupt line per channel (DMA1_Channel1..7: IRQ 11..17, DMA1_Channel8: 96;
+DMA2_Channel1..5: 56..60, DMA2_Channel6..8: 97..99).
 
 A peripheral-to-memory or memory-to-peripheral channel moves one item per request that DMAMUX1 routes to it
 (`Dma.transfer`); a memory-to-memory channel (MEM2MEM) runs to completion when it is enabled. Each item is read and
@@ -14,7 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import cast
 
-from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError, BusMaster, Peripheral, register
+from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardBus, BoardError, BusMaster, Peripheral, register
 
 ISR, IFCR = 0x00, 0x04
 #: first channel's CCR, and the stride between channels (CCR, CNDTR, CPAR, CMAR, one reserved word)
@@ -57,6 +57,17 @@ class Channel:
         return bool(self.ccr & EN)
 
 
+#: parts whose DMA controllers have 6 channels (and DMAMUX1 12 channels), by name prefix (RM0440 "DMA
+#: implementation": category 2 devices); the others have 8
+SIX_CHANNEL_PARTS = ("stm32g431", "stm32g441")
+
+
+def channel_count(bus: BoardBus) -> int:
+    """The channels of each DMA controller of the board's part (a board without a part: 8, the G474's)."""
+    name = str(getattr(getattr(bus, "part", None), "name", "")).lower()
+    return 6 if name.startswith(SIX_CHANNEL_PARTS) else 8
+
+
 class Dma(Peripheral):
     """One DMA controller; the subclasses give its name, address and interrupt lines."""
 
@@ -64,7 +75,7 @@ class Dma(Peripheral):
     irq_lines: tuple[int, ...] = ()
 
     def reset(self) -> None:
-        self.channels = [Channel() for _ in self.irq_lines]
+        self.channels = [Channel() for _ in self.irq_lines[:channel_count(self.bus)]]
         #: configuration writes the chip ignored because the channel was enabled (count)
         self.ignored_writes = 0
         #: items moved, all channels together (count)
@@ -227,4 +238,4 @@ class Dma2(Dma):
     irq_lines = (56, 57, 58, 59, 60, 97, 98, 99)
 
 
-__all__ = ["Channel", "Dma", "Dma1", "Dma2"]
+__all__ = ["Channel", "Dma", "Dma1", "Dma2", "channel_count"]

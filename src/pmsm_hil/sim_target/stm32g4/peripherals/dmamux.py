@@ -1,5 +1,6 @@
 """DMAMUX1 of the STM32G474 (RM0440 "DMA request multiplexer") at 0x40020800: 16 request-line multiplexer channels,
-channel c feeding DMA1 channel c + 1 (c = 0..7) or DMA2 channel c - 7 (c = 8..15).
+channel c feeding DMA1 channel c + 1 (c = 0..7) or DMA2 channel c - 7 (c = 8..15); on a part with 6-channel DMA
+controllers (the G431) 12, channels 6..11 feeding DMA2.
 
 A peripheral that raises a DMA request calls `Dmamux.request(request_id, now)` with its RM0440 request id
 (`REQUEST_IDS`, the table "DMAMUX: assignment of multiplexer inputs to resources"); the multiplexer channel whose
@@ -11,9 +12,8 @@ error naming the field.
 from __future__ import annotations
 
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError, Peripheral, register
-from pmsm_hil.sim_target.stm32g4.peripherals.dma import Dma
+from pmsm_hil.sim_target.stm32g4.peripherals.dma import Dma, channel_count
 
-CHANNELS = 16
 #: the DMA controllers the multiplexer channels feed, in order (each takes as many as it has channels)
 DMA_CONTROLLERS = ("DMA1", "DMA2")
 CSR, CFR = 0x80, 0x84
@@ -59,14 +59,14 @@ class Dmamux(Peripheral):
     size = 0x400
 
     def reset(self) -> None:
-        self.cxcr = [0] * CHANNELS
+        self.cxcr = [0] * (2 * channel_count(self.bus))
         self.rgcr = [0] * RG_COUNT
         #: requests no enabled DMA channel took, by request id (count)
         self.unserved: dict[int, int] = {}
 
     def read(self, offset: int, size: int, now: int) -> int:
         del size, now
-        if offset & 3 == 0 and offset < 4 * CHANNELS:
+        if offset & 3 == 0 and offset < 4 * len(self.cxcr):
             return self.cxcr[offset // 4]
         if offset & 3 == 0 and RG_BASE <= offset < RG_BASE + 4 * RG_COUNT:
             return self.rgcr[(offset - RG_BASE) // 4]
@@ -76,7 +76,7 @@ class Dmamux(Peripheral):
 
     def write(self, offset: int, size: int, value: int, now: int) -> None:
         del size, now
-        if offset & 3 == 0 and offset < 4 * CHANNELS:
+        if offset & 3 == 0 and offset < 4 * len(self.cxcr):
             value &= CXCR_MASK
             for bit, field in ((SE, "SE (synchronisation)"), (EGE, "EGE (event generation)")):
                 if value & bit:
