@@ -108,12 +108,12 @@ def self_calibrate(opamp: Opamp, offset: int, calsel: int, shift: int, step: int
 def test_self_calibration_finds_the_trim_that_cancels_the_offset(bus: FakeBus, opamp: Opamp) -> None:
     settle = round(OFFTRIM_S * bus.sysclk_hz)
     opamp.ideal_trim[1] = (11, 22)
-    n, now = self_calibrate(opamp, 0x04, 1, TRIMN, 2 * settle, 0)
-    p, now = self_calibrate(opamp, 0x04, 3, TRIMP, 2 * settle, now)
+    n, now = self_calibrate(opamp, 0x04, 3, TRIMN, 2 * settle, 0)  # N at 90 % VDDA
+    p, now = self_calibrate(opamp, 0x04, 1, TRIMP, 2 * settle, now)  # P at 10 % VDDA
     assert (n, p) == (11, 22)
     # CALOUT follows a trim change only after the settling time
     now += settle
     assert not opamp.read(0x04, 4, now) & CALOUT
-    opamp.write(0x04, 4, OPAEN | USERTRIM | CALON | (1 << 12) | (0 << TRIMN), now)
+    opamp.write(0x04, 4, OPAEN | USERTRIM | CALON | (3 << 12) | (0 << TRIMN), now)
     assert not opamp.read(0x04, 4, now + settle - 1) & CALOUT
     assert opamp.read(0x04, 4, now + settle) & CALOUT

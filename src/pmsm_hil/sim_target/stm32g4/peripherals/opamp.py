@@ -6,8 +6,9 @@ an amplifier with OPAINTOEN set drives its ADC channel (OPAMP1: ADC1 IN13, OPAMP
 ADC3 IN13, OPAMP4: ADC5 IN5, OPAMP5: ADC5 IN3, OPAMP6: ADC4 IN17) with VINPn (VP_SEL) times the PGA gain (VM_SEL
 = 10) or once (follower, VM_SEL = 11). The inputs are named as RM0440 names them (`OPAMP1_VINP0`); which pin or DAC
 channel drives each is the board description's business. Offset calibration: the trim fields are stored, and
-CALOUT, with CALON set, reads 1 while the trim of the pair CALSEL selects (N for 3.3 %/10 % VDDA, P for 50 %/90 %)
-is below the amplifier's `ideal_trim`, OFFTRIM_S after the last change, so the drivers' dichotomy search converges.
+CALOUT, with CALON set, reads 1 while the trim of the pair CALSEL selects (N for 50 %/90 % VDDA, P for 3.3 %/10 %,
+as ST's drivers trim N at 90 % and P at 10 %) is below the amplifier's `ideal_trim`, OFFTRIM_S after the last
+change, so the drivers' dichotomy search converges.
 """
 
 from __future__ import annotations
@@ -97,7 +98,7 @@ class Opamp(Peripheral):
         if not csr & CALON or not csr & OPAEN:
             return 0
         ideal_n, ideal_p = self.ideal_trim[i]
-        if (csr >> CALSEL_SHIFT) & 3 < 2:
+        if (csr >> CALSEL_SHIFT) & 3 >= 2:
             return int((csr >> TRIMOFFSETN_SHIFT) & 0x1F < ideal_n)
         return int((csr >> TRIMOFFSETP_SHIFT) & 0x1F < ideal_p)
 
