@@ -170,9 +170,12 @@ def test_configuration_is_frozen_while_the_channel_runs(bus: FakeBus) -> None:
     assert d.read(ch_reg(1, "CCR"), 4, 1) == EN | TCIE | MINC | PSIZE16 | MSIZE16
     assert (d.read(ch_reg(1, "CNDTR"), 4, 1), d.read(ch_reg(1, "CMAR"), 4, 1)) == (4, SRAM)
     assert d.ignored_writes == 3
-    d.write(ch_reg(1, "CCR"), 4, 0, 2)
-    d.write(ch_reg(1, "CNDTR"), 4, 100, 2)
-    assert d.read(ch_reg(1, "CNDTR"), 4, 2) == 100
+    assert mux(bus).request(REQUEST_IDS["ADC1"], 2)
+    d.write(ch_reg(1, "CCR"), 4, 0, 3)
+    # stopped: CNDTR keeps the items left (what HAL's UART DMA stop reads to count the bytes received)
+    assert d.read(ch_reg(1, "CNDTR"), 4, 3) == 3
+    d.write(ch_reg(1, "CNDTR"), 4, 100, 3)
+    assert d.read(ch_reg(1, "CNDTR"), 4, 3) == 100
 
 
 def test_unmodelled_features_and_registers_end_with_an_error_naming_them(bus: FakeBus) -> None:

@@ -45,9 +45,8 @@ class Channel:
     cpar: int = 0
     cmar: int = 0
     flags: int = 0
-    #: the count latched when the channel was enabled (the reload of circular mode), and the items left
+    #: the count latched when the channel was enabled (the reload of circular mode); CNDTR counts the items left
     count: int = 0
-    left: int = 0
     par: int = 0
     mar: int = 0
     line_up: bool = False
@@ -101,7 +100,7 @@ class Dma(Peripheral):
         if reg == CCR:
             return ch.ccr
         if reg == CNDTR:
-            return ch.left if ch.enabled else ch.cndtr
+            return ch.cndtr
         return ch.cpar if reg == CPAR else ch.cmar
 
     def write(self, offset: int, size: int, value: int, now: int) -> None:
@@ -141,20 +140,20 @@ class Dma(Peripheral):
             self.ignored_writes += 1
             value = (ch.ccr & ~CCR_LIVE) | (value & CCR_LIVE)
         starting = not ch.enabled and value & EN
+        if starting:
+            self._check_sizes(index, value)
         ch.ccr = value
         if starting:
-            self._check_sizes(index)
-            ch.count = ch.left = ch.cndtr
+            ch.count = ch.cndtr
             ch.par, ch.mar = ch.cpar, ch.cmar
             if ch.ccr & MEM2MEM:
-                while ch.left and ch.enabled:
+                while ch.cndtr and ch.enabled:
                     self._move(index, now)
         self._update_line(index)
 
-    def _check_sizes(self, index: int) -> None:
-        ch = self.channels[index]
+    def _check_sizes(self, index: int, ccr: int) -> None:
         for field, shift in (("PSIZE", PSIZE_SHIFT), ("MSIZE", MSIZE_SHIFT)):
-            if (ch.ccr >> shift) & 3 not in SIZES:
+            if (ccr >> shift) & 3 not in SIZES:
                 raise BoardError(f"{self.name} CCR{index + 1}: {field} = 3 is reserved (RM0440)")
 
     # ----- transfers
@@ -165,7 +164,7 @@ class Dma(Peripheral):
         if not 0 <= index < len(self.channels):
             raise BoardError(f"{self.name} has no channel {channel}")
         ch = self.channels[index]
-        if not ch.enabled or ch.ccr & MEM2MEM or ch.left == 0:
+        if not ch.enabled or ch.ccr & MEM2MEM or ch.cndtr == 0:
             return False
         self._move(index, now)
         self._update_line(index)
@@ -194,14 +193,14 @@ class Dma(Peripheral):
             ch.par = (ch.par + psize) & 0xFFFF_FFFF
         if ch.ccr & MINC:
             ch.mar = (ch.mar + msize) & 0xFFFF_FFFF
-        ch.left -= 1
+        ch.cndtr -= 1
         flags = ch.flags
-        if ch.left == ch.count // 2 and ch.count >= 2:
+        if ch.cndtr == ch.count // 2 and ch.count >= 2:
             flags |= HTIF
-        if ch.left == 0:
+        if ch.cndtr == 0:
             flags |= TCIF
             if ch.ccr & CIRC and not ch.ccr & MEM2MEM:
-                ch.left = ch.count
+                ch.cndtr = ch.count
                 ch.par, ch.mar = ch.cpar, ch.cmar
         ch.flags = flags | (GIF if flags & (TCIF | HTIF | TEIF) else 0)
 
