@@ -117,3 +117,20 @@ def test_self_calibration_finds_the_trim_that_cancels_the_offset(bus: FakeBus, o
     opamp.write(0x04, 4, OPAEN | USERTRIM | CALON | (3 << 12) | (0 << TRIMN), now)
     assert not opamp.read(0x04, 4, now + settle - 1) & CALOUT
     assert opamp.read(0x04, 4, now + settle) & CALOUT
+
+
+class G431Part:
+    name = "stm32g431"
+
+
+def test_the_g431_has_opamp1_to_3() -> None:
+    bus = FakeBus()
+    bus.part = G431Part()  # type: ignore[attr-defined]
+    opamp = bus.add("OPAMP")
+    assert isinstance(opamp, Opamp) and opamp.count == 3
+    opamp.write(0x08, 4, OPAEN | OPAINTOEN | FOLLOWER, 0)
+    assert opamp.gain_and_source("ADC2", 18) == (1.0, "OPAMP3_VINP0")
+    with pytest.raises(BoardError, match=r"OPAMP at offset 0x00c \(0x4001030c\)"):
+        opamp.write(0x0C, 4, OPAEN, 0)
+    with pytest.raises(BoardError, match=r"OPAMP at offset 0x024"):
+        opamp.read(0x24, 4, 0)

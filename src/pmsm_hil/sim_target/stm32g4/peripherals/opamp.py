@@ -16,6 +16,8 @@ from __future__ import annotations
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError, Peripheral, register
 
 COUNT = 6
+#: parts with OPAMP1..3 only (DS12589: the G431/G441), by name prefix
+THREE_AMPLIFIER_PARTS = ("stm32g431", "stm32g441")
 TCMR_BASE = 0x18
 
 # CSR fields
@@ -45,6 +47,9 @@ class Opamp(Peripheral):
     size = 0x100
 
     def reset(self) -> None:
+        part = str(getattr(getattr(self.bus, "part", None), "name", "")).lower()
+        #: the amplifiers the part has
+        self.count = 3 if part.startswith(THREE_AMPLIFIER_PARTS) else COUNT
         self.csr = [0] * COUNT
         self.tcmr = [0] * COUNT
         #: the trim (N, P) at which each amplifier's offset is cancelled (the board's parts; mid-scale by default)
@@ -58,7 +63,7 @@ class Opamp(Peripheral):
     # ----- registers
     def _index(self, offset: int, access: str) -> tuple[bool, int]:
         """(is TCMR, amplifier index) of a register offset; BoardError for any other."""
-        if offset & 3 == 0 and offset < TCMR_BASE + 4 * COUNT:
+        if offset & 3 == 0 and offset < TCMR_BASE + 4 * COUNT and (offset % TCMR_BASE) // 4 < self.count:
             return offset >= TCMR_BASE, (offset % TCMR_BASE) // 4
         raise BoardError(f"{access} of OPAMP at offset {offset:#05x} ({self.base + offset:#010x}), which the virtual "
                          "board does not model (OPAMPx_CSR, OPAMPx_TCMR, word-aligned)")
