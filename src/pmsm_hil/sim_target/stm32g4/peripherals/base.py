@@ -109,6 +109,15 @@ class Peripheral(ABC):
         del now
 
 
+class BusMaster(BoardBus, Protocol):
+    """A board on which a bus master (DMA) reaches any address as the CPU does: memory, or a peripheral's
+    registers through its `read`/`write` (so a DMA read of a data register has the side effects of a CPU read).
+    Optional: a model that needs it checks for `access` and names the lack in a BoardError."""
+
+    def access(self, address: int, size: int, value: int | None = None, *, now: int) -> int:
+        """Load `size` bytes at `address` (value None) and return them, or store `value` there and return it."""
+
+
 PeripheralFactory = Callable[[BoardBus], Peripheral]
 REGISTRY: dict[str, PeripheralFactory] = {}
 
