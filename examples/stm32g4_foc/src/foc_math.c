@@ -88,8 +88,9 @@ float foc_pll_step(foc_pll_t *pll, float theta_meas, float ts)
 {
     const float e = foc_wrap_pi(theta_meas - pll->theta);
     pll->integ += pll->ki * e * ts;
-    pll->omega = pll->integ + pll->kp * e;
-    pll->theta = foc_wrap_2pi(pll->theta + pll->omega * ts);
+    pll->theta = foc_wrap_2pi(pll->theta + (pll->integ + pll->kp * e) * ts);
+    /* the speed is the integrator: the proportional path carries the encoder's quantisation steps */
+    pll->omega = pll->integ;
     return pll->omega;
 }
 

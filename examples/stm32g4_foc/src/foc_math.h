@@ -24,8 +24,8 @@ typedef struct {
     float kp;    /* PLL proportional gain [1/s] */
     float ki;    /* PLL integral gain [1/s^2] */
     float theta; /* estimated angle [rad], in [0, 2 pi) */
-    float omega; /* estimated speed [rad/s] */
-    float integ; /* integral part of omega */
+    float omega; /* estimated speed [rad/s]: the integral path (low-pass of the angle's steps) */
+    float integ; /* integral path */
 } foc_pll_t;
 
 /* The machine and gains the current loop works with. */
