@@ -123,6 +123,14 @@ def key_lines(text: str, *, limit: int = 12) -> list[str]:
                   and "ld returned" not in ln and "collect2" not in ln), None)
     if first is not None:
         out.append(lines[first].strip())
+        if lines[first].startswith("CMake Error"):  # the message follows, indented, up to an empty line
+            body = lines[first + 1:first + 8]
+            while body and not body[0].strip():
+                body.pop(0)
+            for ln in body:
+                if not ln.strip():
+                    break
+                out.append(ln.strip())
         for ln in lines[first + 1:first + 4]:  # "   12 |   code" and "      |   ^~~~"
             if re.match(r"\s*\d*\s*\|", ln):
                 out.append(ln)
