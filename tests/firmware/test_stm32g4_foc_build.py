@@ -86,6 +86,6 @@ def test_target_core_firmware_is_refused_on_the_board_with_the_reason() -> None:
 
 def test_vendor_header_folder_without_the_header_is_refused(tmp_path: Path) -> None:
     _need()
-    with pytest.raises(FwBuildError, match="no stm32g474xx.h"):
+    with pytest.raises(FwBuildError, match=r"no stm32g474xx\.h"):
         build_firmware("stm32g474", defines=[f"VENDOR_DEVICE_INCLUDE={tmp_path}",
                                              f"VENDOR_CMSIS_INCLUDE={tmp_path}"])

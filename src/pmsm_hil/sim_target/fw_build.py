@@ -215,9 +215,9 @@ def build_firmware(board: str = "host", src: Path | None = None, out: Path | Non
                    *, jobs: int | None = None, defines: list[str] | tuple[str, ...] = (),
                    verbose: bool = False) -> BuildResult:
     """Configure and build `src` (a CMake folder using firmware_stub/target/hil_target.cmake; default: the
-    reference firmware; for stm32g474 examples/stm32g4_foc) for `board`; copy the artefact to `out` if given. `defines` ("NAME=VALUE") become CMake
-    variables and preprocessor macros of the firmware (hil_target.cmake HIL_DEFINES); `verbose` echoes the
-    commands and the whole build output to stderr. Raises FwBuildError."""
+    reference firmware; for stm32g474 examples/stm32g4_foc) for `board`; copy the artefact to `out` if given.
+    `defines` ("NAME=VALUE") become CMake variables and preprocessor macros of the firmware (hil_target.cmake
+    HIL_DEFINES); `verbose` echoes the commands and the whole build output to stderr. Raises FwBuildError."""
     if board not in BOARDS:
         raise FwBuildError(f"--board must be one of {', '.join(BOARDS)}, got {board!r}")
     missing = missing_tools(board)
