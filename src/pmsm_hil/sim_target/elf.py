@@ -87,3 +87,24 @@ def _symbols(data: bytes, path: str | Path) -> tuple[dict[str, tuple[int, int, i
             end = data.index(b"\x00", str_off + name)
             out[data[str_off + name:end].decode("ascii", "replace")] = (value, sym_size, shndx, info & 0xF)
     return out, sections
+
+
+def elf_load_segments(path: str | Path) -> tuple[int, list[tuple[int, bytes]]]:
+    """(entry point, [(load address, bytes)] of every PT_LOAD segment with file contents) of a 32-bit
+    little-endian ELF: what a programmer writes into the part (the load address is the physical one, p_paddr,
+    so .data's initial values land in flash where the start-up code copies them from)."""
+    data = Path(path).read_bytes()
+    if data[:4] != b"\x7fELF" or data[4] != 1 or data[5] != 1:
+        raise ElfError(f"{path}: not a 32-bit little-endian ELF file")
+    entry, phoff = struct.unpack_from("<II", data, 0x18)
+    phentsize, phnum = struct.unpack_from("<HH", data, 0x2A)
+    segments = []
+    for i in range(phnum):
+        p_type, p_offset, _, p_paddr, p_filesz, _, _, _ = struct.unpack_from("<IIIIIIII", data, phoff + i * phentsize)
+        if p_type == 1 and p_filesz:
+            if p_offset + p_filesz > len(data):
+                raise ElfError(f"{path}: segment {i} extends past the end of the file")
+            segments.append((p_paddr, data[p_offset:p_offset + p_filesz]))
+    if not segments:
+        raise ElfError(f"{path}: no loadable segment")
+    return entry, segments

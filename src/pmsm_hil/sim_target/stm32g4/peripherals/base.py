@@ -42,6 +42,23 @@ class BoardBus(Protocol):
     def sysclk_hz(self) -> int:
         """The core clock as the firmware's RCC set-up left it [Hz]."""
 
+    @property
+    def hse_hz(self) -> int:
+        """The board's HSE crystal or oscillator [Hz] (the board description)."""
+
+    def set_hclk(self, hz: int) -> None:
+        """The RCC model's report of a new core clock (SYSCLK through the AHB prescaler) [Hz]."""
+
+    def log(self, source: str, line: str) -> None:
+        """A line the firmware wrote (a console USART) for the run's log."""
+
+    def analog_voltage(self, adc: str, channel: int, now: int) -> float:
+        """The voltage at input `channel` of ADC `adc` at cycle `now` [V] (the board's analog front end); channel
+        -1: the reference voltage VREF+."""
+
+    def encoder_position(self, timer: str, now: int) -> int:
+        """The quadrature edges counted so far by the encoder wired to `timer` (signed, 4 per line)."""
+
 
 class Peripheral(ABC):
     """One memory-mapped peripheral at `base`, `size` bytes long; its state starts at RM0440's reset values."""

@@ -1,0 +1,388 @@
+"""The virtual STM32G4: the core, its exception logic, the part's peripheral models behind one address decoder,
+and the clock that runs them together.
+
+Time is the core's cycle count at HCLK: one per executed instruction (CPI 1, a lower bound: loads, taken
+branches, divides and flash wait states cost more on the chip), plus the exception entry and return costs.
+The board runs the core in slices up to the earliest peripheral event (the native counter stops the core at
+the end of the block that reaches it, so an event is taken at most one basic block late), brings every model
+up to the slice's end, takes the pending exception that preempts, and skips the time a WFI sleeps.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from unicorn import arm_const as arm
+
+from pmsm_hil.sim_target.elf import ElfError, elf_load_segments, elf_symbols
+from pmsm_hil.sim_target.stm32g4 import peripherals as _peripherals_pkg
+from pmsm_hil.sim_target.stm32g4.cpu import (
+    EXCP_BKPT,
+    EXCP_DIVBYZERO,
+    EXCP_INVSTATE,
+    EXCP_NOCP,
+    EXCP_SWI,
+    EXCP_UDEF,
+    EXCP_UNALIGNED,
+    PAGE,
+    Cpu,
+)
+from pmsm_hil.sim_target.stm32g4.exceptions import ExceptionReturnError, ExceptionUnit
+from pmsm_hil.sim_target.stm32g4.fault import (
+    BFARVALID,
+    DIVBYZERO,
+    FORCED,
+    IBUSERR,
+    INVPC,
+    INVSTATE,
+    NOCP,
+    PRECISERR,
+    UNALIGNED,
+    UNDEFINSTR,
+    BoardFaultError,
+    where,
+)
+from pmsm_hil.sim_target.stm32g4.nvic import HARDFAULT, SVCALL, SYSTICK, Nvic
+from pmsm_hil.sim_target.stm32g4.part import FDCAN_RAM_BASE, Part, block_name
+from pmsm_hil.sim_target.stm32g4.peripherals.base import REGISTRY, BoardError, Peripheral
+from pmsm_hil.sim_target.stm32g4.scs import SystemControl
+
+#: slice length [instructions] while an enabled interrupt is pending but masked (PRIMASK/BASEPRI changes by CPS
+#: or MSR are not visible to the board until the slice ends)
+MASKED_SLICE = 64
+#: the internal reference (VREFINT, ADC1 channel 18; DS12288 typical) [V]
+VREFINT_V = 1.212
+#: reset clock: HSI16
+RESET_HCLK_HZ = 16_000_000
+
+
+def load_models() -> None:
+    """Import every peripheral model module so that each registers itself."""
+    for info in pkgutil.iter_modules(_peripherals_pkg.__path__):
+        if info.name != "base":
+            importlib.import_module(f"{_peripherals_pkg.__name__}.{info.name}")
+
+
+@dataclass(slots=True)
+class IsrStats:
+    """What the board saw of one exception: entries, cycles inside (nested handlers included), latency from
+    its line's assertion to entry [cycles]."""
+
+    entries: int = 0
+    cycles: list[int] = field(default_factory=list)
+    latency: list[int] = field(default_factory=list)
+
+
+class Board:
+    """One virtual part running one firmware image; implements the peripherals' BoardBus."""
+
+    def __init__(self, part: Part, elf: str | Path, *, console: Callable[[str, str], None] | None = None,
+                 hse_hz: int = 24_000_000) -> None:
+        load_models()
+        self._hse_hz = hse_hz
+        self.part = part
+        self.elf = Path(elf)
+        self._console = console
+        self.console_lines: list[tuple[str, str]] = []
+        self.cpu = Cpu(part)
+        self.nvic = Nvic(part.irq_count)
+        self.scs = SystemControl(self.nvic, part.idcode, self.describe_pc, self._reset_request, self._pend_systick)
+        self.exceptions = ExceptionUnit(self.cpu, self.nvic, self.scs)
+        self.hclk_hz = RESET_HCLK_HZ
+        self.peripherals: dict[str, Peripheral] = {}
+        self.absent: list[str] = []
+        for name in part.peripherals:
+            factory = REGISTRY.get(name)
+            if factory is None:  # not modelled yet: an access to it is an unmodelled access
+                self.absent.append(name)
+                continue
+            self.peripherals[name] = factory(self)
+        self._owner: dict[int, Peripheral] = {}
+        self._map_peripherals()
+        self._timed = [p for p in self.peripherals.values() if type(p).next_event is not Peripheral.next_event]
+        self._advancing = [p for p in self.peripherals.values() if type(p).advance is not Peripheral.advance]
+        self.sleeping = False
+        self.sleep_cycles = 0
+        self.isr: dict[int, IsrStats] = {}  # by exception number
+        self._assert_time: dict[int, int] = {}
+        self._entry_stack: list[tuple[int, int]] = []  # (exception, cycle of entry)
+        #: the analog front end: (adc, channel, cycle) -> volts; channel -1 is VREF+ (the board description's)
+        self.analog: Callable[[str, int, int], float] = lambda adc, channel, now: 3.3 if channel < 0 else 0.0
+        #: the encoder: (timer, cycle) -> quadrature edges counted so far
+        self.encoder: Callable[[str, int], int] = lambda timer, now: 0
+        self._load()
+        self._symbols: dict[str, int] | None = None
+
+    # --- set-up -------------------------------------------------------------------------------------------------
+
+    def _map_peripherals(self) -> None:
+        pages: set[int] = set()
+        for p in self.peripherals.values():
+            for chunk in range(p.base >> 8, (p.base + p.size + 0xFF) >> 8):
+                if chunk in self._owner:
+                    raise BoardError(f"peripheral models {self._owner[chunk].name} and {p.name} overlap at "
+                                     f"{chunk << 8:#010x}")
+                self._owner[chunk] = p
+                pages.add((chunk << 8) & ~(PAGE - 1))
+        if "FDCAN1" in self.part.peripherals:
+            self.cpu.map_ram(FDCAN_RAM_BASE, 0xC00)
+            pages.discard(FDCAN_RAM_BASE & ~(PAGE - 1))
+        for page in sorted(pages):
+            self.cpu.map_mmio(page, PAGE, self._read, self._write)
+        scs = self.scs
+        self.cpu.map_mmio(0xE000_E000, PAGE, self._core_access(0xE000_E000, scs.read),
+                          self._core_store(0xE000_E000, scs.write))
+        self.cpu.map_mmio(0xE000_1000, PAGE, self._core_access(0xE000_1000, scs.dwt_read),
+                          self._core_store(0xE000_1000, scs.dwt_write))
+        self.cpu.map_mmio(0xE004_2000, PAGE, self._core_access(0xE004_2000, scs.dbgmcu_read),
+                          self._core_store(0xE004_2000, scs.dbgmcu_write))
+
+    def _core_access(self, base: int, read: Callable[[int, int, int], int]) -> Callable[[int, int], int]:
+        def access(address: int, size: int) -> int:
+            return read(address - base, size, self.cpu.count)
+        return access
+
+    def _core_store(self, base: int, write: Callable[[int, int, int, int], None]) -> Callable[[int, int, int], None]:
+        def store(address: int, size: int, value: int) -> None:
+            write(address - base, size, value, self.cpu.count)
+            self.cpu.counter.limit = self.cpu.counter.count  # the schedule is re-made after this block
+        return store
+
+    def _load(self) -> None:
+        try:
+            _, segments = elf_load_segments(self.elf)
+        except (ElfError, OSError) as exc:
+            raise BoardError(f"stm32g4 target: {exc}") from None
+        for address, data in segments:
+            if not self._loadable(address, len(data)):
+                raise BoardError(f"stm32g4 target: {self.elf} has a segment at {address:#010x} ({len(data)} bytes) "
+                                 f"outside {self.part.name}'s flash and SRAM")
+            self.cpu.load(address, data)
+        self.reset()
+
+    def _loadable(self, address: int, size: int) -> bool:
+        part = self.part
+        spans = ((0x0800_0000, part.flash_size), (0x2000_0000, part.sram_size + part.ccm_size),
+                 (0x1000_0000, part.ccm_size))
+        return any(base <= address and address + size <= base + length for base, length in spans)
+
+    def reset(self) -> None:
+        """Core reset: SP and PC from the vector table at 0 (flash, booted from main flash)."""
+        sp, pc = self.cpu.read_u32(0), self.cpu.read_u32(4)
+        if not (pc & 1) or pc == 0xFFFF_FFFF:
+            raise BoardError(f"stm32g4 target: {self.elf}: the reset vector {pc:#010x} is no Thumb address (no "
+                             "vector table at the start of flash?)")
+        self.cpu.set_reg(arm.UC_ARM_REG_MSP, sp)
+        self.cpu.set_reg(arm.UC_ARM_REG_CONTROL, 0)
+        self.cpu.set_reg(arm.UC_ARM_REG_PC, pc & ~1)
+        self.cpu.set_reg(arm.UC_ARM_REG_XPSR, 1 << 24)
+
+    def _reset_request(self) -> None:
+        raise BoardError(f"the firmware requested a system reset (AIRCR.SYSRESETREQ) at {self.describe_pc()}: the "
+                         "virtual board does not reset during a run")
+
+    # --- BoardBus -----------------------------------------------------------------------------------------------
+
+    def set_pending(self, irq: int) -> None:
+        exc = 16 + irq
+        if exc not in self.nvic.asserted:
+            self._assert_time[exc] = self.cpu.count
+        self.nvic.assert_line(irq)
+        if self.nvic.enabled[exc]:
+            self.cpu.request_stop()
+
+    def _pend_systick(self, at: int) -> None:
+        if SYSTICK not in self.nvic.pending:
+            self._assert_time[SYSTICK] = at
+        self.nvic.pending.add(SYSTICK)
+
+    def clear_pending(self, irq: int) -> None:
+        self.nvic.withdraw_line(irq)
+
+    def read_memory(self, address: int, size: int) -> bytes:
+        return bytes(self.cpu.uc.mem_read(address, size))
+
+    def write_memory(self, address: int, data: bytes) -> None:
+        self.cpu.uc.mem_write(address, data)
+
+    def peripheral(self, name: str) -> Peripheral:
+        try:
+            return self.peripherals[name]
+        except KeyError:
+            raise BoardError(f"the board has no {name} model (part {self.part.name})") from None
+
+    @property
+    def sysclk_hz(self) -> int:
+        return self.hclk_hz
+
+    @property
+    def hse_hz(self) -> int:
+        return self._hse_hz
+
+    def set_hclk(self, hz: int) -> None:
+        self.hclk_hz = hz
+
+    def analog_voltage(self, adc: str, channel: int, now: int) -> float:
+        if adc == "ADC1" and channel == 18:
+            return VREFINT_V
+        return self.analog(adc, channel, now)
+
+    def encoder_position(self, timer: str, now: int) -> int:
+        return self.encoder(timer, now)
+
+    def log(self, source: str, line: str) -> None:
+        """A console line of the firmware (USART2) for the run's log."""
+        self.console_lines.append((source, line))
+        if self._console is not None:
+            self._console(source, line)
+
+    # --- address decoder ----------------------------------------------------------------------------------------
+
+    def describe_pc(self) -> str:
+        """`pc 0x... (function+0x..)` of the firmware now (the start of the basic block being executed)."""
+        return f"pc {where(self.elf, self.cpu.pc)}"
+
+    def _unmodelled(self, address: int, access: str) -> BoardError:
+        name = block_name(address)
+        return BoardError(f"{access} of {address:#010x} ({name}, not modelled by the virtual board) at "
+                          f"{self.describe_pc()}")
+
+    def _read(self, address: int, size: int) -> int:
+        p = self._owner.get(address >> 8)
+        if p is None:
+            raise self._unmodelled(address, "read")
+        return p.read(address - p.base, size, self.cpu.count)
+
+    def _write(self, address: int, size: int, value: int) -> None:
+        p = self._owner.get(address >> 8)
+        if p is None:
+            raise self._unmodelled(address, "write")
+        now = self.cpu.count
+        p.write(address - p.base, size, value, now)
+        if p in self._timed:
+            event = p.next_event(now)
+            if event is not None and event < self.cpu.counter.limit:
+                self.cpu.request_stop()
+
+    # --- running ------------------------------------------------------------------------------------------------
+
+    @property
+    def now(self) -> int:
+        """The board's time [HCLK cycles since reset]."""
+        return self.cpu.count
+
+    def next_event(self, now: int) -> int | None:
+        """The earliest cycle after `now` at which a model (or SysTick) changes state by itself."""
+        events = [self.scs.systick.next_event(now)]
+        events += [p.next_event(now) for p in self._timed]
+        return min((e for e in events if e is not None), default=None)
+
+    def _advance(self, now: int) -> None:
+        self.scs.systick.advance(now)
+        for p in self._advancing:
+            p.advance(now)
+
+    def _masks(self) -> tuple[bool, int]:
+        return bool(self.cpu.reg(arm.UC_ARM_REG_PRIMASK) & 1), self.cpu.reg(arm.UC_ARM_REG_BASEPRI)
+
+    def _enter(self, exc: int) -> None:
+        stats = self.isr.setdefault(exc, IsrStats())
+        stats.entries += 1
+        asserted = self._assert_time.pop(exc, None)
+        self.exceptions.enter(exc)
+        if asserted is not None:  # from the line's assertion to the handler's first instruction
+            stats.latency.append(self.cpu.count - asserted)
+        self._entry_stack.append((exc, self.cpu.count))
+
+    def _leave(self, exc_return: int) -> None:
+        exc = self.exceptions.leave(exc_return)
+        entered_exc, at = self._entry_stack.pop()
+        self.isr[entered_exc].cycles.append(self.cpu.count - at)
+        if exc in self.nvic.pending and exc in self.nvic.asserted:
+            self._assert_time.setdefault(exc, self.cpu.count)
+        if not self.nvic.active and self.scs.sleep_on_exit:
+            self.sleeping = True
+
+    def run_until(self, end: int) -> None:
+        """Run the firmware until cycle `end` (at least; at most one basic block later)."""
+        cpu, nvic = self.cpu, self.nvic
+        while True:
+            now = cpu.count
+            self._advance(now)
+            if now >= end:
+                return
+            if nvic.pending:
+                primask, basepri = self._masks()
+                take = nvic.preempting(primask, basepri)
+                if take is not None:
+                    self.sleeping = False
+                    self._enter(take)
+                    continue
+            if self.sleeping:
+                if nvic.pending and nvic.preempting(False, self._masks()[1]) is not None:  # WFI wakes with PRIMASK
+                    self.sleeping = False
+                else:
+                    event = self.next_event(now)
+                    until = end if event is None else min(event, end)
+                    self.sleep_cycles += until - now
+                    cpu.counter.count = until
+                    continue
+            event = self.next_event(now)
+            limit = end if event is None else min(event, end)
+            if nvic.masked_pending():
+                limit = min(limit, now + MASKED_SLICE)
+            self._slice(max(limit, now + 1))
+
+    def _slice(self, limit: int) -> None:
+        cpu = self.cpu
+        stop = cpu.run(cpu.pc, limit)
+        if stop.kind == "limit":
+            return
+        if stop.kind == "exc_return":
+            pc = cpu.pc | 1
+            try:
+                self._leave(pc)
+            except ExceptionReturnError as exc:
+                raise self._fault(INVPC, str(exc)) from None
+        elif stop.kind == "sleep":
+            self.sleeping = True
+        elif stop.kind == "interrupt":
+            self._interrupt(stop.intno)
+        elif stop.kind == "unmapped":
+            address = stop.address
+            if (0x4000_0000 <= address < 0x6000_0000 or address >= 0xE000_0000) and stop.access != "fetch":
+                raise self._unmodelled(address, stop.access)
+            if stop.access == "fetch":
+                raise self._fault(IBUSERR, f"instruction fetch from {address:#010x}")
+            self.scs.bfar = address
+            raise self._fault(PRECISERR | BFARVALID, f"{stop.access} of unmapped address {address:#010x}")
+
+    def _interrupt(self, intno: int) -> None:
+        if intno == EXCP_SWI:
+            self.nvic.pending.add(SVCALL)
+            return
+        if intno == EXCP_BKPT:
+            raise BoardError(f"the firmware executed BKPT at {self.describe_pc()} (no debugger on the virtual board)")
+        bits = {EXCP_UDEF: UNDEFINSTR, EXCP_NOCP: NOCP, EXCP_INVSTATE: INVSTATE, EXCP_UNALIGNED: UNALIGNED,
+                EXCP_DIVBYZERO: DIVBYZERO}.get(intno)
+        if bits is None:
+            raise BoardError(f"CPU exception {intno} of the emulator at {self.describe_pc()}")
+        raise self._fault(bits)
+
+    def _fault(self, cfsr_bits: int, detail: str = "") -> BoardFaultError:
+        """The fault report (the board stops: the firmware's own fault handler is not run)."""
+        self.scs.cfsr |= cfsr_bits
+        self.scs.hfsr |= FORCED
+        pc, lr = self.cpu.pc, self.cpu.reg(arm.UC_ARM_REG_LR)
+        return BoardFaultError(HARDFAULT, pc, lr, self.scs.cfsr, self.scs.hfsr, self.scs.bfar, self.scs.mmfar, self.elf,
+                          detail)
+
+    def symbol(self, name: str) -> int | None:
+        """Address of a symbol of the firmware (None when it has none by that name)."""
+        if self._symbols is None:
+            self._symbols = elf_symbols(self.elf)
+        return self._symbols.get(name)

@@ -1,0 +1,51 @@
+/* The virtual board's instruction counter: a Unicorn block hook (UC_HOOK_BLOCK) that adds the Thumb
+ * instructions of each block about to execute to a running count, and stops the CPU at the first block that
+ * begins at or after the slice's limit (a block begun before it runs whole) (the next peripheral event). Blocks are decoded from the memory the board maps (flash, SRAM,
+ * CCM-SRAM), whose host addresses the board hands in; a halfword whose top five bits are 0b11101, 0b11110 or
+ * 0b11111 starts a 32-bit instruction (Armv7-M ARM A5.1). Built on first use (src/pmsm_hil/sim_target/stm32g4/counter.py). */
+#include <stdint.h>
+#include <stddef.h>
+
+#define HIL_COUNTER_REGIONS 6
+
+typedef struct {
+    uint64_t count;                 /* instructions begun so far */
+    uint64_t limit;                 /* stop once count >= limit */
+    int (*stop)(void *uc);          /* uc_emu_stop */
+    uint32_t n_regions;
+    uint32_t base[HIL_COUNTER_REGIONS];
+    uint32_t size[HIL_COUNTER_REGIONS];
+    const uint8_t *host[HIL_COUNTER_REGIONS];
+    uint64_t unknown_blocks;        /* blocks outside every region (counted as one instruction per halfword) */
+} hil_counter_t;
+
+static uint32_t block_instructions(const hil_counter_t *c, uint64_t address, uint32_t size) {
+    for (uint32_t r = 0; r < c->n_regions; ++r) {
+        if (address >= c->base[r] && address + size <= (uint64_t)c->base[r] + c->size[r]) {
+            const uint8_t *p = c->host[r] + (address - c->base[r]);
+            uint32_t n = 0;
+            uint32_t pos = 0;
+            while (pos < size) {
+                uint32_t top = (uint32_t)p[pos + 1] >> 3;
+                pos += (top == 0x1D || top == 0x1E || top == 0x1F) ? 4u : 2u;
+                ++n;
+            }
+            return n;
+        }
+    }
+    return 0;
+}
+
+void hil_counter_block(void *uc, uint64_t address, uint32_t size, void *user) {
+    hil_counter_t *c = (hil_counter_t *)user;
+    if (c->count >= c->limit) { /* the stop keeps this block from executing: it is not counted */
+        c->stop(uc);
+        return;
+    }
+    uint32_t n = block_instructions(c, address, size);
+    if (n == 0) {
+        n = size / 2u ? size / 2u : 1u;
+        ++c->unknown_blocks;
+    }
+    c->count += n;
+}

@@ -1,0 +1,60 @@
+"""The board's clock: a native Unicorn block hook (c/insn_count.c) that counts the Thumb instructions the core
+executes and stops it at the slice's limit, so that no Python runs per block. Compiled with the host C compiler
+on first use into the firmware cache (keyed by its source), as the QEMU target's plugin is."""
+
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+from pmsm_hil.sim_target.firmware import FirmwareError
+from pmsm_hil.sim_target.fw_build import cache_dir
+
+SOURCE = Path(__file__).with_name("c") / "insn_count.c"
+REGIONS = 6
+
+
+class CounterBuildError(FirmwareError):
+    """The instruction counter could not be compiled (no host C compiler, or the compiler failed)."""
+
+
+class CounterState(ctypes.Structure):
+    """Mirror of hil_counter_t (c/insn_count.c)."""
+
+    _fields_ = [("count", ctypes.c_uint64), ("limit", ctypes.c_uint64), ("stop", ctypes.c_void_p),
+                ("n_regions", ctypes.c_uint32), ("base", ctypes.c_uint32 * REGIONS),
+                ("size", ctypes.c_uint32 * REGIONS), ("host", ctypes.c_void_p * REGIONS),
+                ("unknown_blocks", ctypes.c_uint64)]
+
+
+def library_path() -> Path:
+    """The compiled counter (built on first use)."""
+    src = SOURCE.read_bytes()
+    out = cache_dir() / f"hil_insn_count-{hashlib.sha256(src).hexdigest()[:16]}.so"
+    if out.is_file():
+        return out
+    cc = shutil.which("cc") or shutil.which("gcc")
+    if cc is None:
+        raise CounterBuildError("the stm32g4 board's instruction counter needs a host C compiler (cc)")
+    tmp = out.with_name(f"{out.name}.{os.getpid()}.tmp")
+    proc = subprocess.run([cc, "-shared", "-fPIC", "-O2", "-Wall", "-Wextra", "-Werror", "-o", str(tmp), str(SOURCE)],
+                          capture_output=True, text=True, timeout=120)
+    if proc.returncode != 0:
+        raise CounterBuildError(f"instruction counter build failed: {proc.stderr.strip()[:500]}")
+    os.replace(tmp, out)
+    return out
+
+
+_LIB: ctypes.CDLL | None = None
+
+
+def hook_function() -> int:
+    """Address of hil_counter_block (a uc_cb_hookcode_t)."""
+    global _LIB
+    if _LIB is None:
+        _LIB = ctypes.CDLL(str(library_path()))
+    return int(ctypes.cast(_LIB.hil_counter_block, ctypes.c_void_p).value or 0)

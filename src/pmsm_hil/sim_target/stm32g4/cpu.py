@@ -1,0 +1,203 @@
+"""The Cortex-M4F core of the virtual board on Unicorn: the part's memories (flash with its boot alias at 0,
+SRAM, CCM-SRAM and its alias), the native instruction counter that bounds each slice, and why a slice ended.
+
+Unicorn has no NVIC: the core runs in Thread mode as far as Unicorn knows, and the board enters and leaves
+exceptions itself (src/pmsm_hil/sim_target/stm32g4/nvic.py). A branch to an EXC_RETURN value (0xFFFFFFxx) ends the
+slice (QEMU's M-profile magic addresses), so does WFI/WFE. Peripheral pages are Unicorn MMIO regions: only their
+accesses run Python, never the code between them.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from unicorn import (
+    UC_ARCH_ARM,
+    UC_HOOK_BLOCK,
+    UC_HOOK_INTR,
+    UC_HOOK_MEM_FETCH_UNMAPPED,
+    UC_HOOK_MEM_READ_UNMAPPED,
+    UC_HOOK_MEM_WRITE_UNMAPPED,
+    UC_MODE_MCLASS,
+    UC_MODE_THUMB,
+    UC_PROT_ALL,
+    UC_PROT_READ,
+    Uc,
+    UcError,
+)
+from unicorn import arm_const as arm
+from unicorn.unicorn_py3.unicorn import uclib
+
+from pmsm_hil.sim_target.stm32g4.counter import REGIONS, CounterState, hook_function
+from pmsm_hil.sim_target.stm32g4.part import CCM_BASE, FLASH_BASE, SRAM_BASE, Part
+
+PAGE = 0x1000
+#: QEMU's internal exception numbers (target/arm/cpu.h) that reach the interrupt hook
+EXCP_UDEF, EXCP_SWI, EXCP_BKPT, EXCP_EXCEPTION_EXIT = 1, 2, 7, 8
+EXCP_NOCP, EXCP_INVSTATE, EXCP_UNALIGNED, EXCP_DIVBYZERO = 17, 18, 22, 23
+WFI, WFE = 0xBF30, 0xBF20
+
+#: r0-r3, r12, lr, pc, xpsr: the basic exception frame, in stack order
+FRAME_REGS = (arm.UC_ARM_REG_R0, arm.UC_ARM_REG_R1, arm.UC_ARM_REG_R2, arm.UC_ARM_REG_R3, arm.UC_ARM_REG_R12,
+              arm.UC_ARM_REG_LR, arm.UC_ARM_REG_PC, arm.UC_ARM_REG_XPSR)
+FP_REGS = (*tuple(getattr(arm, f"UC_ARM_REG_S{i}") for i in range(16)), arm.UC_ARM_REG_FPSCR)
+
+
+def _round_page(n: int) -> int:
+    return (n + PAGE - 1) // PAGE * PAGE
+
+
+@dataclass(slots=True)
+class Stop:
+    """Why a slice ended: `kind` is "limit" (the count reached the slice's end, or a peripheral asked for a new
+    schedule), "exc_return", "sleep" (WFI/WFE executed), "interrupt" (an SVC, BKPT or CPU exception: `intno`),
+    "unmapped" (`access`, `address`)."""
+
+    kind: str
+    intno: int = 0
+    access: str = ""
+    address: int = 0
+
+
+MmioRead = Callable[[int, int], int]
+MmioWrite = Callable[[int, int, int], None]
+
+
+class Cpu:
+    """Unicorn set up as the part's Cortex-M4F with its memories mapped; `run` executes one slice."""
+
+    def __init__(self, part: Part) -> None:
+        self.part = part
+        uc: Any = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
+        uc.ctl_set_cpu_model(arm.UC_CPU_ARM_CORTEX_M4)
+        self.uc = uc
+        self.flash = (ctypes.c_uint8 * part.flash_size)()
+        ctypes.memset(self.flash, 0xFF, part.flash_size)  # erased flash
+        uc.mem_map_ptr(FLASH_BASE, part.flash_size, UC_PROT_READ | 4, self.flash)  # read + exec
+        uc.mem_map_ptr(0, part.flash_size, UC_PROT_READ | 4, self.flash)  # boot from main flash: aliased at 0
+        sram_span = _round_page(part.sram_size + part.ccm_size)
+        ccm_span = _round_page(part.ccm_size)
+        self.sram = (ctypes.c_uint8 * (part.sram_size + ccm_span + PAGE))()
+        uc.mem_map_ptr(SRAM_BASE, sram_span, UC_PROT_ALL, self.sram)
+        ccm_ptr = ctypes.cast(ctypes.addressof(self.sram) + part.sram_size, ctypes.c_void_p).value
+        uc.mem_map_ptr(CCM_BASE, ccm_span, UC_PROT_ALL, ccm_ptr)
+        self.extra_ram: list[Any] = []
+        self.counter = CounterState()
+        self.counter.limit = 1 << 63
+        self.counter.stop = ctypes.cast(uclib.uc_emu_stop, ctypes.c_void_p).value
+        regions = [(FLASH_BASE, part.flash_size, ctypes.addressof(self.flash)),
+                   (0, part.flash_size, ctypes.addressof(self.flash)),
+                   (SRAM_BASE, sram_span, ctypes.addressof(self.sram)),
+                   (CCM_BASE, ccm_span, ccm_ptr or 0)]
+        for i, (base, size, host) in enumerate(regions[:REGIONS]):
+            self.counter.base[i], self.counter.size[i], self.counter.host[i] = base, size, host
+        self.counter.n_regions = len(regions)
+        self._hook = ctypes.c_size_t()
+        status = uclib.uc_hook_add(uc._uch, ctypes.byref(self._hook), UC_HOOK_BLOCK,
+                                   ctypes.c_void_p(hook_function()), ctypes.cast(ctypes.pointer(self.counter),
+                                                                                 ctypes.c_void_p),
+                                   ctypes.c_uint64(1), ctypes.c_uint64(0))
+        if status != 0:
+            raise UcError(status)
+        self._stop: Stop | None = None
+        self._uch = uc._uch
+        self._reg_buf = ctypes.c_uint64(0)
+        self._reg_ref = ctypes.byref(self._reg_buf)
+        uc.hook_add(UC_HOOK_INTR, self._on_interrupt)
+        uc.hook_add(UC_HOOK_MEM_READ_UNMAPPED | UC_HOOK_MEM_WRITE_UNMAPPED | UC_HOOK_MEM_FETCH_UNMAPPED,
+                    self._on_unmapped)
+
+    # --- memory -------------------------------------------------------------------------------------------------
+
+    def map_ram(self, base: int, size: int) -> None:
+        """Plain RAM at `base` (a peripheral's own SRAM, e.g. the FDCAN message RAM), page-rounded."""
+        start, end = base & ~(PAGE - 1), _round_page(base + size)
+        buf = (ctypes.c_uint8 * (end - start))()
+        self.uc.mem_map_ptr(start, end - start, UC_PROT_READ | 2, buf)
+        self.extra_ram.append(buf)
+
+    def map_mmio(self, base: int, size: int, read: MmioRead, write: MmioWrite) -> None:
+        """Route every access to [base, base + size) to `read(address, size)` / `write(address, size, value)`."""
+
+        def on_read(uc: Uc, offset: int, nbytes: int, _: object) -> int:
+            return read(base + offset, nbytes)
+
+        def on_write(uc: Uc, offset: int, nbytes: int, value: int, _: object) -> None:
+            write(base + offset, nbytes, value)
+
+        self.uc.mmio_map(base, size, on_read, None, on_write, None)
+
+    def load(self, address: int, data: bytes) -> None:
+        """Program bytes into flash or RAM (ELF loading)."""
+        self.uc.mem_write(address, data)
+
+    def read_u32(self, address: int) -> int:
+        return int.from_bytes(self.uc.mem_read(address, 4), "little")
+
+    # --- registers ----------------------------------------------------------------------------------------------
+
+    def reg(self, reg: int) -> int:
+        """A 32-bit register, through the C API (the binding's reg_read costs microseconds)."""
+        uclib.uc_reg_read(self._uch, reg, self._reg_ref)
+        return int(self._reg_buf.value) & 0xFFFF_FFFF
+
+    def set_reg(self, reg: int, value: int) -> None:
+        self._reg_buf.value = value & 0xFFFFFFFF
+        uclib.uc_reg_write(self._uch, reg, self._reg_ref)
+
+    @property
+    def pc(self) -> int:
+        return self.reg(arm.UC_ARM_REG_PC)
+
+    # --- running ------------------------------------------------------------------------------------------------
+
+    @property
+    def count(self) -> int:
+        """Instructions begun since reset."""
+        return int(self.counter.count)
+
+    def request_stop(self) -> None:
+        """End the slice at the next block boundary (a peripheral changed the schedule). Never `emu_stop` inside
+        an access: Unicorn would restart the accessing instruction and repeat its store."""
+        self.counter.limit = self.counter.count
+
+    def run(self, pc: int, limit: int) -> Stop:
+        """Execute from `pc` until the instruction count reaches `limit` (at a block's end) or something stops the
+        core; a hook's exception (a BoardError of a peripheral access) propagates."""
+        self._stop = None
+        self.counter.limit = limit
+        begun = self.counter.count
+        try:
+            self.uc.emu_start(pc | 1, 0xFFFF_FFFF_FFFF)
+        except UcError:
+            if self._stop is None:
+                raise
+        stop = self._stop
+        if stop is not None:
+            return stop
+        now_pc = self.pc
+        if now_pc >= 0xFFFF_FF00:
+            return Stop("exc_return")
+        if self.counter.count > begun and now_pc >= 2:
+            try:
+                before = int.from_bytes(self.uc.mem_read(now_pc - 2, 2), "little")
+            except UcError:
+                before = 0
+            if before in (WFI, WFE):
+                return Stop("sleep")
+        return Stop("limit")
+
+    def _on_interrupt(self, uc: Uc, intno: int, _: object) -> None:
+        self._stop = Stop("exc_return" if intno == EXCP_EXCEPTION_EXIT else "interrupt", intno=intno)
+        uc.emu_stop()
+
+    def _on_unmapped(self, uc: Uc, access: int, address: int, size: int, value: int, _: object) -> bool:
+        kind = {19: "read", 20: "write", 21: "fetch"}.get(access, "access")
+        if kind == "fetch" and address >= 0xFFFF_FF00:
+            self._stop = Stop("exc_return")
+        else:
+            self._stop = Stop("unmapped", access=kind, address=address)
+        return False

@@ -1,0 +1,96 @@
+"""GPIO ports A-G (RM0440 chapter 9): MODER/OTYPER/OSPEEDR/PUPDR/AFRL/AFRH as storage with their reset values,
+ODR with BSRR/BRR, IDR = the outputs' levels on output pins and the board's input levels (default: the pull-up/down
+level, else 0) on the others, LCKR accepted. The board reads a pin through `pin_level`."""
+
+from __future__ import annotations
+
+from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardBus, register
+from pmsm_hil.sim_target.stm32g4.peripherals.regs import RegisterFile
+
+
+class GpioPort(RegisterFile):
+    base = 0x4800_0000
+    size = 0x400
+    MODER_RESET = 0xFFFF_FFFF
+    OSPEEDR_RESET = 0
+    PUPDR_RESET = 0
+
+    def __init__(self, bus: BoardBus) -> None:
+        #: levels the board drives onto input pins (bit per pin); None: the pull level
+        self.inputs: int | None = None
+        super().__init__(bus)
+
+    def reset(self) -> None:
+        self.regs = {0x00: self.MODER_RESET, 0x04: 0, 0x08: self.OSPEEDR_RESET, 0x0C: self.PUPDR_RESET, 0x10: 0,
+                     0x14: 0, 0x18: 0, 0x1C: 0, 0x20: 0, 0x24: 0, 0x28: 0}
+
+    def output_mask(self) -> int:
+        moder = self.regs[0x00]
+        return sum(1 << pin for pin in range(16) if (moder >> (2 * pin)) & 3 == 1)
+
+    def load(self, word: int, now: int) -> int:
+        if word == 0x10:
+            out = self.output_mask()
+            if self.inputs is None:
+                pupd = self.regs[0x0C]
+                levels = sum(1 << pin for pin in range(16) if (pupd >> (2 * pin)) & 3 == 1)
+            else:
+                levels = self.inputs
+            return (self.regs[0x14] & out) | (levels & ~out & 0xFFFF)
+        if word in (0x18, 0x28):
+            return 0
+        return self.regs[word]
+
+    def store(self, word: int, value: int, now: int) -> None:
+        if word == 0x18:  # BSRR: set low half, reset high half (set wins)
+            self.regs[0x14] = ((self.regs[0x14] & ~(value >> 16)) | value) & 0xFFFF
+        elif word == 0x28:
+            self.regs[0x14] &= ~value & 0xFFFF
+        elif word == 0x10:
+            return
+        else:
+            self.regs[word] = value & (0xFFFF if word == 0x14 else 0xFFFF_FFFF)
+
+    def pin_level(self, pin: int) -> bool:
+        """The level of `pin` as IDR reads it."""
+        return bool(self.load(0x10, 0) >> pin & 1)
+
+
+@register("GPIOA")
+class GpioA(GpioPort):
+    base = 0x4800_0000
+    MODER_RESET = 0xABFF_FFFF
+    OSPEEDR_RESET = 0x0C00_0000
+    PUPDR_RESET = 0x6400_0000
+
+
+@register("GPIOB")
+class GpioB(GpioPort):
+    base = 0x4800_0400
+    MODER_RESET = 0xFFFF_FEBF
+    PUPDR_RESET = 0x0000_0100
+
+
+@register("GPIOC")
+class GpioC(GpioPort):
+    base = 0x4800_0800
+
+
+@register("GPIOD")
+class GpioD(GpioPort):
+    base = 0x4800_0C00
+
+
+@register("GPIOE")
+class GpioE(GpioPort):
+    base = 0x4800_1000
+
+
+@register("GPIOF")
+class GpioF(GpioPort):
+    base = 0x4800_1400
+
+
+@register("GPIOG")
+class GpioG(GpioPort):
+    base = 0x4800_1800

@@ -1,0 +1,37 @@
+"""Small test firmwares for the virtual STM32G4 board, built with arm-none-eabi-gcc (skipped without it)."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+FW = Path(__file__).with_name("fw")
+GCC = "arm-none-eabi-gcc"
+CFLAGS = ["-mcpu=cortex-m4", "-mthumb", "-mfloat-abi=hard", "-mfpu=fpv4-sp-d16", "-O2", "-g", "-std=c99", "-Wall",
+          "-Wextra", "-Werror", "-ffreestanding", "-nostdlib", "-nostartfiles", "-fno-common"]
+
+
+@pytest.fixture(scope="session")
+def build_fw(tmp_path_factory: pytest.TempPathFactory) -> Callable[..., Path]:
+    """build_fw("core") -> the ELF of fw/core.c linked with fw/startup.c for the G474."""
+    if shutil.which(GCC) is None:
+        pytest.skip(f"{GCC} not installed")
+    out_dir = tmp_path_factory.mktemp("board-fw")
+    built: dict[tuple[str, tuple[str, ...]], Path] = {}
+
+    def build(name: str, *defines: str) -> Path:
+        key = (name, defines)
+        if key not in built:
+            elf = out_dir / f"{name}{'-'.join(('', *defines))}.elf"
+            cmd = [GCC, *CFLAGS, *(f"-D{d}" for d in defines), "-T", str(FW / "g474.ld"), "-o", str(elf),
+                   str(FW / "startup.c"), str(FW / f"{name}.c"), "-lgcc"]
+            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+            assert proc.returncode == 0, proc.stderr
+            built[key] = elf
+        return built[key]
+
+    return build
