@@ -178,7 +178,8 @@ def _run_cascade(lib: ctypes.CDLL, *, late: bool, seconds: float = 0.3) -> dict[
     lib.foc_reset(ctypes.byref(st), VDC / SQRT3)
     pll = Pll()
     lib.foc_pll_init(ctypes.byref(pll), 1000.0, 0.0)
-    speed = Pi(kp=0.8, ki=0.35, limit=10.0, integ=7.0)
+    kp_speed = J * 150.0  # motor.h: FW_SPEED_BW_RAD_S 150, PI zero at a quarter of it
+    speed = Pi(kp=kp_speed, ki=kp_speed * 150.0 / 4.0, limit=10.0, integ=7.0)
     w_ref = 1500.0 * 2 * math.pi / 60
     load = 7.0
     i_d = i_q = theta_m = 0.0

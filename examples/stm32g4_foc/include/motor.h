@@ -20,12 +20,17 @@
 #ifndef FW_CURRENT_BW_RAD_S
 #define FW_CURRENT_BW_RAD_S 3000.0f
 #endif
-/* Speed loop (1 kHz): the niu2020 preset's gains (also what the HIL host sends as speed_kp / speed_ki). */
+/* Speed loop (1 kHz): crossover FW_SPEED_BW_RAD_S on the inertia, kp = J*ws, PI zero at ws/4 (README.md,
+ * "Gains"). The host's speed_kp / speed_ki (tuned for a 10 kHz loop) are acknowledged but not used unless the
+ * build defines FW_BUS_SPEED_GAINS. */
+#ifndef FW_SPEED_BW_RAD_S
+#define FW_SPEED_BW_RAD_S 150.0f
+#endif
 #ifndef FW_SPEED_KP
-#define FW_SPEED_KP 0.8f /* N*m/(rad/s) */
+#define FW_SPEED_KP (MOTOR_J_KGM2 * FW_SPEED_BW_RAD_S) /* 0.195 N*m/(rad/s) */
 #endif
 #ifndef FW_SPEED_KI
-#define FW_SPEED_KI 0.35f /* N*m/rad */
+#define FW_SPEED_KI (FW_SPEED_KP * FW_SPEED_BW_RAD_S / 4.0f) /* 7.3 N*m/rad */
 #endif
 /* Speed estimate: encoder PLL natural frequency (rad/s), critically damped. */
 #ifndef FW_PLL_BW_RAD_S

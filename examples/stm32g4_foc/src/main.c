@@ -16,7 +16,7 @@
  *
  * Variants (hil fw build --define NAME): LATE_ISR -- the current loop spends LATE_ISR_US (default 30 us) before
  * writing the compare values, past the valley, so they land one period late; FAULT -- after FAULT_AT_ISR
- * current-loop runs the ISR reads through a stale pointer into reserved address space (a BusFault).
+ * current-loop runs the ISR reads through a stale pointer into reserved address space (a precise bus fault).
  */
 #include <math.h>
 #include <stdint.h>
@@ -153,12 +153,14 @@ int fw_config(uint8_t param_id, float value)
             g.fp.pole_pairs = value;
         }
         break;
+#if defined(FW_BUS_SPEED_GAINS)
     case 8:
         prm.speed_kp = value;
         break;
     case 9:
         prm.speed_ki = value;
         break;
+#endif
     case 10:
         if (value <= 0.0f) {
             return -1;
@@ -180,7 +182,8 @@ int fw_config(uint8_t param_id, float value)
         }
         prm.current_limit = value;
         break;
-    default: /* ts (the PWM timer sets the period), vdc (measured), and the others: not used here */
+    default: /* ts (the PWM timer sets the period), vdc (measured), the speed gains (its own, motor.h), and the
+              * others: not used here */
         break;
     }
     if (param_id <= 3u || param_id == 18u || param_id == 19u) {
