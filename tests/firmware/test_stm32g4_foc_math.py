@@ -13,12 +13,12 @@ from pathlib import Path
 
 import pytest
 
+from tests.firmware._niu2020_avg import LD, LQ, PP, PSI_F, RS, SQRT3, VDC, AvgPlant, J, duties_to_alpha_beta
+
 ROOT = Path(__file__).resolve().parents[2]
 SRC = ROOT / "examples" / "stm32g4_foc" / "src"
 FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion", "-fsingle-precision-constant", "-O2",
          "-ffp-contract=off", "-fPIC", "-shared"]
-SQRT3 = math.sqrt(3.0)
-
 F = ctypes.c_float
 PF = ctypes.POINTER(ctypes.c_float)
 
@@ -163,8 +163,6 @@ def test_pll_tracks_a_constant_speed_through_the_wrap(lib: ctypes.CDLL) -> None:
 
 
 # ---- the cascade on an average-value d/q model of niu2020 (independent of the firmware's code) ----
-RS, LD, LQ, PSI_F, PP, J = 4.5, 0.012, 0.014, 0.21, 3.0, 0.0013
-VDC = 311.0
 
 
 def _run_cascade(lib: ctypes.CDLL, *, late: bool, seconds: float = 0.3) -> dict[str, float]:
@@ -181,9 +179,7 @@ def _run_cascade(lib: ctypes.CDLL, *, late: bool, seconds: float = 0.3) -> dict[
     kp_speed = J * 150.0  # motor.h: FW_SPEED_BW_RAD_S 150, PI zero at a quarter of it
     speed = Pi(kp=kp_speed, ki=kp_speed * 150.0 / 4.0, limit=10.0, integ=7.0)
     w_ref = 1500.0 * 2 * math.pi / 60
-    load = 7.0
-    i_d = i_q = theta_m = 0.0
-    omega_m = w_ref
+    plant = AvgPlant(omega_m=w_ref, load=7.0)
     queue: list[tuple[float, float]] = [(0.0, 0.0)] * (2 if late else 1)  # alpha/beta volts waiting to apply
     iq_ref = 0.0
     counts = 4 * 2048
@@ -191,46 +187,23 @@ def _run_cascade(lib: ctypes.CDLL, *, late: bool, seconds: float = 0.3) -> dict[
     speeds: list[float] = []
     torques: list[float] = []
     n = int(seconds / ts)
-
-    def advance(v_alpha: float, v_beta: float, dt: float) -> None:
-        nonlocal i_d, i_q, theta_m, omega_m
-        sub = 5
-        h = dt / sub
-        for _ in range(sub):
-            th = PP * theta_m
-            c, s = math.cos(th), math.sin(th)
-            vd, vq = v_alpha * c + v_beta * s, -v_alpha * s + v_beta * c
-            we = PP * omega_m
-            did = (vd - RS * i_d + we * LQ * i_q) / LD
-            diq = (vq - RS * i_q - we * LD * i_d - we * PSI_F) / LQ
-            te = 1.5 * PP * (PSI_F * i_q + (LD - LQ) * i_d * i_q)
-            i_d += h * did
-            i_q += h * diq
-            omega_m += h * (te - load) / J
-            theta_m += h * omega_m
-
     v_now = (0.0, 0.0)
     for k in range(n):
-        advance(*v_now, ts / 2)  # valley -> peak
-        # the peak: sample, compute
-        th = PP * theta_m
-        c, s = math.cos(th), math.sin(th)
-        ia = i_d * c - i_q * s
-        ib = -0.5 * ia + 0.5 * SQRT3 * (i_d * s + i_q * c)
-        th_m_meas = math.floor((theta_m % (2 * math.pi)) / (2 * math.pi) * counts) * 2 * math.pi / counts
+        plant.advance(*v_now, ts / 2)  # valley -> peak
+        ia, ib = plant.phase_ab()  # the peak: sample, compute
+        th_m_meas = math.floor((plant.theta_m % (2 * math.pi)) / (2 * math.pi) * counts) * 2 * math.pi / counts
         w_est = lib.foc_pll_step(ctypes.byref(pll), th_m_meas, ts)
         if k % 20 == 0:
             torque = lib.foc_pi_step(ctypes.byref(speed), w_ref - w_est, 1e-3)
             iq_ref = max(-24.0, min(24.0, torque / (1.5 * PP * PSI_F)))
         th_e = (PP * th_m_meas) % (2 * math.pi)
         lib.foc_current_step(ctypes.byref(st), ctypes.byref(p), ia, ib, th_e, PP * w_est, VDC, 0.0, iq_ref, duty)
-        d = [duty[0], duty[1], duty[2]]
-        queue.append((VDC * (2 * d[0] - d[1] - d[2]) / 3.0, VDC * (d[1] - d[2]) / SQRT3))
-        advance(*v_now, ts / 2)  # peak -> valley: the update event loads what is due
+        queue.append(duties_to_alpha_beta([duty[0], duty[1], duty[2]]))
+        plant.advance(*v_now, ts / 2)  # peak -> valley: the update event loads what is due
         v_now = queue.pop(0)
         if k >= n // 2:
-            speeds.append(omega_m)
-            torques.append(1.5 * PP * (PSI_F * i_q + (LD - LQ) * i_d * i_q))
+            speeds.append(plant.omega_m)
+            torques.append(plant.torque())
     mean_w = sum(speeds) / len(speeds)
     mean_t = sum(torques) / len(torques)
     ripple = math.sqrt(sum((t - mean_t) ** 2 for t in torques) / len(torques))
