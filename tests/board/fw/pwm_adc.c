@@ -1,10 +1,11 @@
 /* TIM1 + ADC test: 170 MHz, TIM1 centre-aligned at 20 kHz (ARR 4250), update at the valley (RCR 1), CCR1-3
  * preloaded PWM mode 1, OC4REF (PWM mode 2, CCR4 = 4240) as TRGO2 triggering ADC1's injected pair (IN1, IN2) on
  * its rising edge near the carrier peak; the JEOS interrupt stores the results and writes CCR1 = its own count
- * (LATE: after a delay longer than the rest of the period). TIM3 in encoder mode x4. */
+ * (LATE: after a delay longer than the rest of the period; FAULT_AT: reads nothing in that period). TIM3
+ * in encoder mode x4. */
 #include "regs.h"
 #define ARR_VALUE 4250u
-volatile uint32_t isr_count, jdr1, jdr2, cnt_at_entry, enc_count, enc_dir;
+volatile uint32_t isr_count, jdr1, jdr2, cnt_at_entry, enc_count, enc_dir, sink;
 
 void ADC1_2_IRQHandler(void) {
   cnt_at_entry = TIM_CNT(TIM1);
@@ -12,6 +13,9 @@ void ADC1_2_IRQHandler(void) {
   jdr1 = ADC_JDR1(ADC1);
   jdr2 = ADC_JDR2(ADC1);
   ++isr_count;
+#ifdef FAULT_AT
+  if (isr_count == FAULT_AT) { sink = REG(0x9F000000u); } /* a precise BusFault inside the current loop */
+#endif
 #ifdef LATE
   for (volatile uint32_t i = 0; i < 1000u; ++i) { }
 #endif
@@ -53,7 +57,7 @@ int main(void) {
   TIM_CCMR2(TIM1) = (6u << 4 | 1u << 3) | (7u << 12 | 1u << 11);
   TIM_CCR4(TIM1) = ARR_VALUE - 10u;
   TIM_CCER(TIM1) = 0x1555u;                  /* CC1-3 and complements, CC4 */
-  TIM_BDTR(TIM1) = 1u << 15 | 170u;           /* MOE, DTG 170 ticks = 1 us */
+  TIM_BDTR(TIM1) = 1u << 15 | 170u;           /* MOE, DTG 170: (64 + 42) * 2 ticks = 1.247 us */
   TIM_CR2(TIM1) = 7u << 20;                   /* MMS2 = OC4REF */
   TIM_EGR(TIM1) = 1u;
   TIM_CR1(TIM1) = 1u | 1u << 5 | 1u << 7;     /* CEN, CMS = 1, ARPE */

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import math
 import os
 import statistics
 import subprocess
@@ -20,6 +21,7 @@ from typing import Any
 from pmsm_hil.app.bench.logger_limit import logger_limit
 from pmsm_hil.app.cli.parsing import non_negative_int, positive_float
 from pmsm_hil.app.cli.run_options_cli import add_option
+from pmsm_hil.errors import HilError
 from pmsm_hil.hil.atomic_write import write_text_atomic
 from pmsm_hil.hil.runlog.reader import read_periods
 from pmsm_hil.hil.runner.option_values import coerce
@@ -55,6 +57,10 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("--qemu", type=Path, metavar="ELF",
                    help="also measure a firmware for mps2-an386 in QEMU (hil fw build --board mps2-an386) over its "
                         "UART and its PSRAM mailbox (lockstep_qemu_uart_hz, lockstep_qemu_mailbox_hz)")
+    p.add_argument("--board", nargs=2, metavar=("KIND", "ELF"),
+                   help="also measure a firmware on a virtual board (KIND stm32g4: an STM32G4 ELF whose TIM1 carrier "
+                        "period is --ts): the board alone, fed Measurements (lockstep_stm32g4_board_only_hz), and the "
+                        "closed loop (lockstep_stm32g4_hz), beside --qemu's figures when both are given")
     add_option(p, OPTIONS["load_fmu"],
                help="also measure the native loop with this load FMU (FMI 2/3 Co-Simulation, inputs speed, output "
                     "torque; logging off): in its own process (lockstep_inproc_native_load_fmu_hz, the default) and "
@@ -221,7 +227,7 @@ def _udp_floor(progress: Callable[[str], None], round_trips: int = 5000) -> dict
 
 def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
             progress: Callable[[str], None] = lambda _msg: None, qemu: Path | None = None,
-            load_fmu: Path | None = None, ts: float = 100e-6) -> dict[str, Any]:
+            load_fmu: Path | None = None, ts: float = 100e-6, board: Path | None = None) -> dict[str, Any]:
     """All loop figures; keys documented in docs/benchmarks.md. `progress` gets one line per stage. The Python
     loop's rows (and the native/python ratios) need the test suite's reference loop (tests/oracle; not part of
     the product): without it they are left out and `python_loop` says so."""
@@ -289,6 +295,15 @@ def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
             out.update(_udp_floor(progress))
         except OSError as exc:
             out["udp_floor_error"] = str(exc)
+    if board is not None:
+        progress(f"lockstep, {board.name} on the virtual STM32G4 board ({runs})")
+        try:
+            out["lockstep_stm32g4_board_only_hz"] = _board_only_rate(board, ts, duration)
+            res = _median_rate(lambda: replace(base, target=f"stm32g4:{board}", link="virtual"), repeats)
+            out["lockstep_stm32g4_hz"] = res["periods_per_s"]
+            out["stm32g4_cpu_load"] = res["last_metrics"].get("board_cpu_load")
+        except HilError as exc:  # a firmware the board cannot run: said, the other figures kept
+            out["lockstep_stm32g4_error"] = str(exc)
     if qemu is not None:
         for transport, link in (("uart", "virtual"), ("mailbox", "mailbox")):
             progress(f"lockstep, {qemu.name} in QEMU mps2-an386 over its {transport} ({runs})")
@@ -309,6 +324,31 @@ def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
     return out
 
 
+def _board_only_rate(elf: Path, ts: float, duration: float) -> float:
+    """Periods per wall-clock second of the virtual board alone: its link fed `duration / ts` Measurements (a
+    rotating field of 10 A at 50 Hz electrical), the start-up not counted."""
+    from pmsm_hil.protocol.codec import FrameCodec
+    from pmsm_hil.protocol.messages import Measurement
+    from pmsm_hil.sim_target.stm32g4.board_file import load_board
+    from pmsm_hil.sim_target.stm32g4.link import BoardLink
+
+    link = BoardLink(elf, load_board(), ts_s=ts, pole_pairs=4)
+    codec = FrameCodec("canfd")
+    periods = max(round(duration / ts), 1)
+    frames = []
+    for k in range(periods):
+        th = (2 * math.pi * 50.0 * k * ts) % (2 * math.pi)
+        m = Measurement(seq=k & 0xFFFF, i_a=10 * math.cos(th), i_b=10 * math.cos(th - 2.094),
+                        i_c=10 * math.cos(th + 2.094), theta_e=th, omega_m=78.5, vdc=48.0)
+        frames.append(codec.encode(m))
+    t0 = time.perf_counter()
+    for f in frames:
+        link.send(f)
+        while link.poll() is not None:
+            pass
+    return periods / (time.perf_counter() - t0)
+
+
 def run(args: argparse.Namespace) -> int:
     """Execute `hil bench loop`."""
     cross = [c.strip() for c in args.cross_process.split(",") if c.strip()]
@@ -316,8 +356,15 @@ def run(args: argparse.Namespace) -> int:
         print(f"bench loop: {msg} ...", file=sys.stderr, flush=True)
 
     ts = float(coerce(OPTIONS["ts"], DEFAULTS["ts"] if args.ts is None else args.ts))
+    board = None
+    if args.board is not None:
+        kind, elf = args.board
+        if kind != "stm32g4":
+            print(f"hil bench loop: error: --board {kind}: the virtual boards are: stm32g4", file=sys.stderr)
+            return 2
+        board = Path(elf)
     figures = measure(args.duration, args.repeats, cross, not args.no_realtime, progress, qemu=args.qemu,
-                      load_fmu=args.load_fmu, ts=ts)
+                      load_fmu=args.load_fmu, ts=ts, board=board)
     load1, load5, _ = os.getloadavg()
     rate = 1.0 / ts
     print(f"closed loop, niu2020 IPMSM, MPCC, Ts = {ts * 1e6:g} µs, {args.duration} s simulated, median of "

@@ -252,6 +252,32 @@ METRICS: Final[tuple[Metric, ...]] = (
        ".4g", source=RUN),
     _m("exec_time_model", "exec time model", "", "qemu targets: how `exec_time_us` is estimated (cycle model)", "",
        source=RUN),
+    _m("board", "board", "", "stm32g4 targets: the board description (`--board`)", "", REPORT, source=RUN),
+    _m("board_carrier_hz", "board carrier", "Hz", "stm32g4 targets: the PWM carrier of the firmware's TIM1 set-up",
+       ".5g", REPORT, source=RUN),
+    _m("board_dead_time_ns", "board dead time", "ns", "stm32g4 targets: the dead time of TIM1's BDTR (applied to "
+       "the duties by each phase current's sign)", ".4g", REPORT, source=RUN),
+    _m("board_isr_time_us", "ISR time", "µs", "stm32g4 targets: `{median, p99, max}` of the cycles spent in "
+       "interrupt handlers per control period over the metrics window / the core clock (CPI 1, a lower bound)",
+       source=RUN),
+    _m("board_isr_time_us", "ISR time", "µs", "median interrupt-handler time per period (stm32g4 targets)", ".3g",
+       CLI, REPORT, sub="median", source=RUN),
+    _m("board_cpu_load", "CPU load", "", "stm32g4 targets: share of the core's cycles not asleep in WFI/WFE over "
+       "the metrics window", ".3f", CLI, REPORT, source=RUN),
+    _m("board_late_compares", "late compares", "", "stm32g4 targets: control periods whose TIM1 compare values "
+       "were written after the update event that followed their ADC trigger (they apply one period late)", ".0f",
+       CLI, REPORT, source=RUN),
+    _m("board_first_late_period", "first late period", "", "stm32g4 targets: the control period of the first "
+       "late compare values (null: none)", ".0f", REPORT, source=RUN),
+    _m("board_handlers", "handlers", "", "stm32g4 targets: per exception (SysTick, IRQn) `{entries, time_us, "
+       "latency_us}`: entries, `{median, p99, max}` of each handler's time and of the latency from its line's "
+       "assertion (trigger, flag) to its first instruction, over the whole run", "", source=RUN),
+    _m("board_adc_sample_us", "ADC sample instant", "µs", "stm32g4 targets: `{median, p99, max}` of the ADC "
+       "sampling instants after the period start (the carrier valley), last samples of the run", source=RUN),
+    _m("board_setpoints_dropped", "setpoints dropped", "", "stm32g4 targets without an FDCAN1 model: enabling "
+       "Setpoints the firmware could not receive", ".0f", source=RUN),
+    _m("board_configs_acked", "configs acked by board", "", "stm32g4 targets without an FDCAN1 model: "
+       "ConfigParams the board acknowledged on the firmware's behalf", ".0f", source=RUN),
     _m("candidates_evaluated_mean", "candidates / step", "", "mean of `candidates`", ".0f", CLI, COMPARE_ROW),
     _m("narrow_pulses", "narrow pulses", "", "Σ leg pulses shorter than T_lim = 2·T_dead + T_mpw requested by the "
        "controller", ".0f", CLI, COMPARE_ROW),

@@ -40,11 +40,13 @@ from pmsm_hil.sim_target.fw_params import FirmwareParamError, FirmwareParamId, f
 TARGET_KINDS = ("auto", "inproc", "spawn", "external")
 #: targets that carry a path: a firmware of the HIL target core built for the host (SIL library, or a source
 #: folder built on the fly) or for the emulated MCU (QEMU mps2-an386 ELF); docs/firmware_api.md
-TARGET_PREFIXES = ("sil:", "qemu:")
+TARGET_PREFIXES = ("sil:", "qemu:", "stm32g4:")
 #: link specs of a qemu target: its emulated UART0 (default; a Unix socket to QEMU, COBS + CRC-16 serial framing)
 #: or the faster mailbox in the board's PSRAM shared with the host (`--link mailbox`)
 QEMU_LINK = "serial:qemu-uart0"
 QEMU_MAILBOX_LINK = "mailbox:qemu-psram"
+#: the link spec of an stm32g4 target: the board's FDCAN1 in this process (parsed as a CAN FD link, never opened)
+BOARD_LINK = "virtual:stm32g4-fdcan1,fd=true"
 
 #: The paper limits the starting torque to ~10 N·m for its 7 N·m machine: 10/7 of rated.
 TORQUE_LIMIT_PER_RATED = 10.0 / 7.0
@@ -173,6 +175,8 @@ class RunConfig:
     faults: str = ""
     #: qemu targets: the MCU clock of the execution-time estimate [Hz] (`--mcu-clock`)
     mcu_clock_hz: float = default_of("mcu_clock_hz")
+    #: stm32g4 targets: the board description (`--board`: a bundled name or a TOML file; None: the default board)
+    board: str | None = default_of("board")
     #: the period loop (`--loop`, LOOPS): "auto" runs the C loop (src/pmsm_hil/hil/runner/c/loop.c) where supported
     loop: str = default_of("loop")
     #: real time: SCHED_FIFO priority of the loop thread (`--rt-priority`, 0: none) and its CPU (`--cpu`)
@@ -232,7 +236,8 @@ class RunConfig:
         if self.target not in TARGET_KINDS:
             prefix = next((p for p in TARGET_PREFIXES if self.target.startswith(p)), None)
             if prefix is None or not self.target[len(prefix):].strip():
-                raise ParameterError(f"--target must be one of {', '.join(TARGET_KINDS)}, sil:PATH or qemu:PATH.elf, "
+                raise ParameterError(f"--target must be one of {', '.join(TARGET_KINDS)}, sil:PATH, qemu:PATH.elf or "
+                                     f"stm32g4:PATH.elf, "
                                      f"got {self.target!r}", key="target")
             if prefix == "qemu:":
                 if self.link == "virtual":  # the default: the emulated UART is the link
@@ -244,6 +249,14 @@ class RunConfig:
                                          f"PSRAM mailbox (--link mailbox), got --link {self.link!r}", key="link")
                 if self.mode != "lockstep":
                     raise ParameterError("--target qemu:... runs lockstep only (the emulated MCU keeps virtual "
+                                         "time, not wall time)", key="mode")
+            if prefix == "stm32g4:":
+                if self.link not in ("virtual", BOARD_LINK):
+                    raise ParameterError(f"--target stm32g4:... is its own link (the board in this process; leave "
+                                         f"--link out), got --link {self.link!r}", key="link")
+                object.__setattr__(self, "link", BOARD_LINK)
+                if self.mode != "lockstep":
+                    raise ParameterError("--target stm32g4:... runs lockstep only (the virtual board keeps virtual "
                                          "time, not wall time)", key="mode")
         try:
             object.__setattr__(self, "link_spec", parse_spec(self.link))

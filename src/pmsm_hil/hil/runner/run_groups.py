@@ -22,7 +22,7 @@ GROUPS: dict[str, tuple[str, ...]] = {
     "machine": ("motor",),
     "operation": ("scenario", "load_fmu"),
     "target_link": ("target", "link", "link_spec", "controller", "controller_params", "faults", "sil_in_process",
-                    "mcu_clock_hz", "tolerate", "watchdog_periods", "lockstep_timeout_s", "host_stall_limit_s",
+                    "mcu_clock_hz", "board", "tolerate", "watchdog_periods", "lockstep_timeout_s", "host_stall_limit_s",
                     "step_timeout_s"),
     "timing": ("ts_s", "mode", "loop", "pwm_update", "adc_delay_s", "miss_policy", "overrun_threshold_s",
                "rt_priority", "cpu", "cpu_dma_latency_us"),
@@ -58,6 +58,7 @@ class TargetLinkGroup:
     faults: str
     sil_in_process: bool
     mcu_clock_hz: float
+    board: str | None
     tolerate: int
     watchdog_periods: int
     lockstep_timeout_s: float
@@ -66,7 +67,7 @@ class TargetLinkGroup:
 
     @property
     def target_kind(self) -> str:
-        """auto, inproc, spawn, external, sil or qemu."""
+        """auto, inproc, spawn, external, sil, qemu or stm32g4."""
         return self.target.partition(":")[0]
 
 

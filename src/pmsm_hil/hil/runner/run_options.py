@@ -259,7 +259,11 @@ RUN_OPTIONS: tuple[RunOption, ...] = (
               "who runs the target: auto (virtual → in-process), inproc, spawn a `hil target` process, external (a "
               "real board), sil:PATH (a firmware built with `hil fw build --board host`, or its source folder, "
               "served from its own process) or qemu:PATH.elf (a firmware built for mps2-an386, run in QEMU over its "
-              "emulated UART; docs/firmware_api.md)", "auto", field="target", metavar="KIND"),
+              "emulated UART) or stm32g4:PATH.elf (an STM32G4 firmware on the virtual board; docs/firmware_api.md)",
+              "auto", field="target", metavar="KIND"),
+    RunOption("board", "text",
+              "stm32g4 targets: the board description, a bundled name or a TOML file (docs/firmware_api.md \"The "
+              "virtual board\")", field="board", metavar="NAME_OR_FILE", default_text="nucleo_g474re_ihm"),
     RunOption("mcu_clock", "frequency",
               "qemu targets: MCU clock of the execution-time estimate, Hz or with a unit (168MHz)",
               DEFAULT_MCU_CLOCK_HZ, field="mcu_clock_hz", metavar="HZ", unit="Hz", minimum=1e6, maximum=2e9,

@@ -1,6 +1,6 @@
 """Connects the runner to a target: in-process sim target, a spawned `hil target` process, external, a SIL
 firmware library (`sil:PATH`: in a spawned `hil target --native --sil` process, or in-process with
-`--sil-in-process`) or a firmware ELF in QEMU (`qemu:PATH`).
+`--sil-in-process`), a firmware ELF in QEMU (`qemu:PATH`) or on the virtual STM32G4 board (`stm32g4:PATH`).
 
 A spawned target gets `--parent-pid` (it exits with the host) and an idle timeout; the host waits for its
 "ready" line and ends the run with the target's own error if it cannot open its link (e.g. a UDP port in
@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from pmsm_hil.hil.runner.board_ending import judge_board
 from pmsm_hil.hil.runner.loop_outcome import LoopOutcome
 from pmsm_hil.hil.runner.run_config import QEMU_MAILBOX_LINK, RunConfig
 from pmsm_hil.hil.runner.sil_debug import SilDebugSlot
@@ -386,11 +387,35 @@ def _connect_qemu(cfg: RunConfig, path: str) -> TargetConnection:
                             console=console, before_close=lambda: console.feed(qemu.console_text()))
 
 
+def _connect_board(cfg: RunConfig, path: str) -> TargetConnection:
+    """The ELF on the virtual STM32G4 board in this process; the board object is the host's link (each Measurement
+    runs one period of the firmware); its metrics (handlers, CPU load, late compares) join metrics.json."""
+    from pmsm_hil.sim_target.stm32g4.board_file import load_board
+    from pmsm_hil.sim_target.stm32g4.link import BoardLink
+
+    elf = Path(path).expanduser()
+    if not elf.is_file():
+        from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
+
+        raise BoardError(f"stm32g4 target: {elf} not found")
+    console = TargetConsole(None, None, ready_prefix=READY_LINE, stats_prefix=LINK_STATS_LINE, verbose=cfg.verbose)
+    lines: list[str] = []
+    link = BoardLink(elf, load_board(cfg.board), ts_s=cfg.ts_s, pole_pairs=int(cfg.motor.pole_pairs),
+                     skip_periods=round(cfg.scenario.settle_s / cfg.ts_s),
+                     console=lambda source, line: lines.append(f"{source}: {line}"))
+    codec = FrameCodec("canfd")
+    return TargetConnection(TargetClient(link, codec), link, extra_metrics=link.metrics, console=console,
+                            ending=lambda out: judge_board(link, out),
+                            before_close=lambda: console.feed("\n".join(lines)))
+
+
 def connect_target(cfg: RunConfig, *, silent_after: int | None = None, native_target: bool = False) -> TargetConnection:
     """Open the link(s) and, for in-process or spawned targets, start the target (`native_target`: a spawned
     target runs its C serve loop, `hil target --native`)."""
     if cfg.target.startswith("qemu:") and cfg.target_path is not None:
         return _connect_qemu(cfg, cfg.target_path)
+    if cfg.target.startswith("stm32g4:") and cfg.target_path is not None:
+        return _connect_board(cfg, cfg.target_path)
     spec = cfg.link_spec
     link = link_kind(spec)
     kind = link.auto_target(spec) if cfg.target == "auto" else cfg.target

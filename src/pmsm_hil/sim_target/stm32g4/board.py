@@ -16,6 +16,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from unicorn import UcError
 from unicorn import arm_const as arm
 
 from pmsm_hil.sim_target.elf import ElfError, elf_load_segments, elf_symbols
@@ -104,6 +105,8 @@ class Board:
         self._owner: dict[int, Peripheral] = {}
         self._map_peripherals()
         self._timed = [p for p in self.peripherals.values() if type(p).next_event is not Peripheral.next_event]
+        self._timed_set = set(self._timed)
+        self._idle_loops: dict[int, bool] = {}
         self._advancing = [p for p in self.peripherals.values() if type(p).advance is not Peripheral.advance]
         self.sleeping = False
         self.sleep_cycles = 0
@@ -263,7 +266,7 @@ class Board:
             raise self._unmodelled(address, "write")
         now = self.cpu.count
         p.write(address - p.base, size, value, now)
-        if p in self._timed:
+        if p in self._timed_set:
             event = p.next_event(now)
             if event is not None and event < self.cpu.counter.limit:
                 self.cpu.request_stop()
@@ -304,8 +307,26 @@ class Board:
         self.isr[entered_exc].cycles.append(self.cpu.count - at)
         if exc in self.nvic.pending and exc in self.nvic.asserted:
             self._assert_time.setdefault(exc, self.cpu.count)
-        if not self.nvic.active and self.scs.sleep_on_exit:
+        if not self.nvic.active and (self.scs.sleep_on_exit or self._idle_loop_at(self.cpu.pc)):
             self.sleeping = True
+
+    def _idle_loop_at(self, pc: int) -> bool:
+        """`pc` is the branch back to a WFI of an idle loop (`for (;;) __WFI();`: `wfi; b.n wfi`): the core would
+        execute the branch and the WFI and sleep, so the board counts their two cycles and sleeps at once (one
+        slice of the CPU fewer per interrupt)."""
+        if pc in self._idle_loops:
+            hit = self._idle_loops[pc]
+        else:
+            try:
+                code = bytes(self.cpu.uc.mem_read(pc - 2, 4))
+            except UcError:  # not code the board can read: no shortcut
+                code = b""
+            hit = code == b"\x30\xbf\xfd\xe7"  # wfi; b.n .-2
+            self._idle_loops[pc] = hit
+        if hit:
+            self.cpu.counter.count += 2
+            self.cpu.set_reg(arm.UC_ARM_REG_PC, pc)  # the wfi's successor: where the core wakes
+        return hit
 
     def run_until(self, end: int) -> None:
         """Run the firmware until cycle `end` (at least; at most one basic block later)."""

@@ -10,7 +10,7 @@ accesses run Python, never the code between them.
 from __future__ import annotations
 
 import ctypes
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -44,6 +44,17 @@ WFI, WFE = 0xBF30, 0xBF20
 FRAME_REGS = (arm.UC_ARM_REG_R0, arm.UC_ARM_REG_R1, arm.UC_ARM_REG_R2, arm.UC_ARM_REG_R3, arm.UC_ARM_REG_R12,
               arm.UC_ARM_REG_LR, arm.UC_ARM_REG_PC, arm.UC_ARM_REG_XPSR)
 FP_REGS = (*tuple(getattr(arm, f"UC_ARM_REG_S{i}") for i in range(16)), arm.UC_ARM_REG_FPSCR)
+
+
+class RegBatch:
+    """A fixed list of registers with the C arrays uc_reg_read_batch / uc_reg_write_batch take."""
+
+    def __init__(self, ids: Sequence[int]) -> None:
+        self.count = len(ids)
+        self.ids = (ctypes.c_int * self.count)(*ids)
+        self.values = (ctypes.c_uint64 * self.count)()
+        self.ptrs = (ctypes.c_void_p * self.count)(
+            *(ctypes.addressof(self.values) + 8 * i for i in range(self.count)))
 
 
 def _round_page(n: int) -> int:
@@ -147,6 +158,17 @@ class Cpu:
     def set_reg(self, reg: int, value: int) -> None:
         self._reg_buf.value = value & 0xFFFFFFFF
         uclib.uc_reg_write(self._uch, reg, self._reg_ref)
+
+    def regs(self, regs: RegBatch) -> list[int]:
+        """Several 32-bit registers in one call (uc_reg_read_batch)."""
+        uclib.uc_reg_read_batch(self._uch, regs.ids, regs.ptrs, regs.count)
+        return [v & 0xFFFF_FFFF for v in regs.values]
+
+    def set_regs(self, regs: RegBatch, values: Sequence[int]) -> None:
+        """Several 32-bit registers in one call (uc_reg_write_batch)."""
+        for i, value in enumerate(values):
+            regs.values[i] = value & 0xFFFF_FFFF
+        uclib.uc_reg_write_batch(self._uch, regs.ids, regs.ptrs, regs.count)
 
     @property
     def pc(self) -> int:

@@ -15,7 +15,7 @@ import struct
 
 from unicorn import arm_const as arm
 
-from pmsm_hil.sim_target.stm32g4.cpu import FP_REGS, FRAME_REGS, Cpu
+from pmsm_hil.sim_target.stm32g4.cpu import FP_REGS, FRAME_REGS, Cpu, RegBatch
 from pmsm_hil.sim_target.stm32g4.nvic import Nvic
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
 from pmsm_hil.sim_target.stm32g4.scs import SystemControl
@@ -37,6 +37,9 @@ class ExceptionUnit:
     def __init__(self, cpu: Cpu, nvic: Nvic, scs: SystemControl) -> None:
         self.cpu, self.nvic, self.scs = cpu, nvic, scs
         self.entries = 0
+        self._frame = RegBatch(FRAME_REGS)
+        self._frame6 = RegBatch(FRAME_REGS[:6])
+        self._fp = RegBatch(FP_REGS)
 
     def vector(self, exc: int) -> int:
         """The handler address of exception `exc` (Thumb bit kept)."""
@@ -49,7 +52,7 @@ class ExceptionUnit:
         control = cpu.reg(arm.UC_ARM_REG_CONTROL)
         use_psp = in_thread and bool(control & 2)
         fp = self.scs.fpu_enabled
-        values = [cpu.reg(r) for r in FRAME_REGS]
+        values = cpu.regs(self._frame)
         ipsr = self.nvic.active[-1] if self.nvic.active else 0
         sp = cpu.reg(arm.UC_ARM_REG_PSP if use_psp else arm.UC_ARM_REG_MSP)
         size = _EXTENDED.size if fp else _BASIC.size
@@ -57,7 +60,7 @@ class ExceptionUnit:
         frame_sp = (sp - size) & ~4 if self.scs.ccr & 0x200 else sp - size
         values[7] = (values[7] & ~0x1FF & ~(1 << 9)) | ipsr | ((1 << 9) if aligned else 0) | (1 << 24)
         if fp:
-            fvals = [cpu.reg(r) for r in FP_REGS]
+            fvals = cpu.regs(self._fp)
             data = _EXTENDED.pack(*values, *fvals, 0)
         else:
             data = _BASIC.pack(*values)
@@ -103,11 +106,9 @@ class ExceptionUnit:
         control = (control | 4) if fp else (control & ~4)
         cpu.set_reg(arm.UC_ARM_REG_CONTROL, control)
         cpu.set_reg(arm.UC_ARM_REG_PSP if use_psp else arm.UC_ARM_REG_MSP, new_sp)
-        for reg, value in zip(FRAME_REGS[:6], values[:6], strict=True):
-            cpu.set_reg(reg, value)
+        cpu.set_regs(self._frame6, values[:6])
         if fp:
-            for reg, value in zip(FP_REGS, values[8:25], strict=True):
-                cpu.set_reg(reg, value)
+            cpu.set_regs(self._fp, values[8:25])
         cpu.set_reg(arm.UC_ARM_REG_XPSR, xpsr & ~0x1FF & ~(1 << 9))
         cpu.set_reg(arm.UC_ARM_REG_PC, values[6] & ~1)
         cpu.counter.count += RETURN_CYCLES

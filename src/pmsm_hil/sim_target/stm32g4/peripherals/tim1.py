@@ -28,6 +28,8 @@ CCR_OFFSETS = (0x34, 0x38, 0x3C, 0x40, 0x48, 0x4C)  # CCR1-4, CCR5, CCR6
 BDTR, CCMR3, DTR2, ECR, TISEL, AF1, AF2, OR1, DCR, DMAR = (
     0x44, 0x50, 0x54, 0x58, 0x5C, 0x60, 0x64, 0x68, 0x3DC, 0x3E0)
 PWM1, PWM2, TOGGLE = 6, 7, 3
+#: registers whose writes may move the current segment's planned events
+_PLAN_WORDS = frozenset((CR1, CR2, SMCR, DIER, CCMR1, CCMR2, CCMR3, CCER, CNT, PSC, ARR))
 #: signals an ADC can take as its trigger
 SIGNALS = ("TRGO", "TRGO2", "CC1", "CC2", "CC3", "CC4")
 Listener = Callable[[str, bool, int], None]  # (signal, rising edge, cycle)
@@ -129,6 +131,13 @@ class Tim1(RegisterFile):
         if self.regs[CCER] >> (4 * ch + 1) & 1:  # CCxP: active low
             ref_high = 1.0 - ref_high
         return ref_high
+
+    def trip_break(self) -> None:
+        """The break input went active: MOE cleared, BIF set (its interrupt on TIM1_BRK when BIE)."""
+        self.regs[BDTR] &= ~(1 << 15)
+        self.regs[SR] |= 1 << 7
+        if self.regs[DIER] & (1 << 7):
+            self.bus.set_pending(IRQ["TIM1_BRK_TIM15"])
 
     def output_enabled(self, ch: int) -> bool:
         return bool(self.regs[CCER] >> (4 * ch) & 1)
@@ -337,8 +346,8 @@ class Tim1(RegisterFile):
 
     def store(self, word: int, value: int, now: int) -> None:
         self.advance(now)
-        if word not in (SR, EGR):
-            self._plan = None  # a compare, mode, enable or trigger selection may move the segment's events
+        if word in _PLAN_WORDS or (word in CCR_OFFSETS and not self._preloaded(CCR_OFFSETS.index(word))):
+            self._plan = None  # a compare in force, a mode, an enable or a trigger selection moves the events
         if word == SR:  # rc_w0
             self.regs[SR] &= value
             self._irqs()

@@ -1,0 +1,117 @@
+"""A board description (TOML, src/pmsm_hil/sim_target/stm32g4/boards/*.toml): the part, the HSE, the PWM timer and
+its phase channels, the analog front end (which ADC channel sees which phase current or the DC-link voltage,
+with offset, gain and noise) and the encoder, so that a user's board is a file, not code. `load_board(name or
+path)` checks every field and names the bad one."""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from pmsm_hil.sim_target.stm32g4.part import Part, part_named
+from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
+
+BOARDS_DIR = Path(__file__).with_name("boards")
+DEFAULT_BOARD = "nucleo_g474re_ihm"
+SIGNALS = ("i_a", "i_b", "i_c", "vdc")
+ADCS = ("ADC1", "ADC2")
+ENCODER_TIMERS = ("TIM3", "TIM4")
+
+
+@dataclass(frozen=True, slots=True)
+class AnalogInput:
+    """One ADC input: volts = offset_v + gain · signal, plus noise_v rms."""
+
+    signal: str
+    adc: str
+    channel: int
+    offset_v: float
+    gain: float
+    noise_v: float
+
+
+@dataclass(frozen=True, slots=True)
+class BoardDescription:
+    name: str
+    description: str
+    part: Part
+    hse_hz: int
+    vref_v: float
+    pwm_timer: str
+    pwm_channels: tuple[int, ...]
+    analog: tuple[AnalogInput, ...]
+    encoder_timer: str | None
+    encoder_lines: int
+
+
+def board_names() -> list[str]:
+    """The bundled boards."""
+    return sorted(p.stem for p in BOARDS_DIR.glob("*.toml"))
+
+
+def _field(table: dict[str, Any], key: str, kind: type | tuple[type, ...], where: str) -> Any:
+    if key not in table:
+        raise BoardError(f"{where}: missing '{key}'")
+    value = table[key]
+    if not isinstance(value, kind) or isinstance(value, bool):
+        raise BoardError(f"{where}: '{key}' = {value!r} has the wrong type")
+    return value
+
+
+def load_board(spec: str | Path | None = None) -> BoardDescription:
+    """The board `spec`: a bundled name (`board_names()`), a TOML file, or None for the default."""
+    text = str(spec) if spec is not None else DEFAULT_BOARD
+    path = Path(text).expanduser()
+    if not path.suffix and not path.exists():
+        path = BOARDS_DIR / f"{text}.toml"
+        if not path.is_file():
+            raise BoardError(f"--board {text!r}: no such board (bundled: {', '.join(board_names())}; or a TOML file)")
+    where = f"board file {path}"
+    try:
+        raw = tomllib.loads(path.read_text())
+    except (OSError, tomllib.TOMLDecodeError) as exc:
+        raise BoardError(f"{where}: {exc}") from None
+    part = part_named(_field(raw, "part", str, where))
+    hse = _field(raw, "hse_hz", int, where)
+    if not 4_000_000 <= hse <= 48_000_000:
+        raise BoardError(f"{where}: 'hse_hz' = {hse} outside the HSE's 4-48 MHz")
+    vref = float(_field(raw, "vref_v", (int, float), where))
+    if not 1.62 <= vref <= 3.6:
+        raise BoardError(f"{where}: 'vref_v' = {vref} outside 1.62-3.6 V")
+    pwm = _field(raw, "pwm", dict, where)
+    timer = _field(pwm, "timer", str, f"{where} [pwm]")
+    if timer != "TIM1":
+        raise BoardError(f"{where} [pwm]: 'timer' = {timer!r}: only TIM1 is modelled")
+    channels = _field(pwm, "channels", list, f"{where} [pwm]")
+    if len(channels) != 3 or any(not isinstance(c, int) or not 1 <= c <= 4 for c in channels):
+        raise BoardError(f"{where} [pwm]: 'channels' = {channels!r}: three channels 1-4 (phases a, b, c)")
+    inputs = []
+    for i, entry in enumerate(_field(raw, "analog", list, where)):
+        at = f"{where} [[analog]] #{i + 1}"
+        signal = _field(entry, "signal", str, at)
+        if signal not in SIGNALS:
+            raise BoardError(f"{at}: 'signal' = {signal!r} (one of {', '.join(SIGNALS)})")
+        adc = _field(entry, "adc", str, at)
+        if adc not in ADCS:
+            raise BoardError(f"{at}: 'adc' = {adc!r} (one of {', '.join(ADCS)})")
+        channel = _field(entry, "channel", int, at)
+        if not 1 <= channel <= 18:
+            raise BoardError(f"{at}: 'channel' = {channel} outside 1-18")
+        noise = float(entry.get("noise_v", 0.0))
+        if noise < 0:
+            raise BoardError(f"{at}: 'noise_v' = {noise} is negative")
+        inputs.append(AnalogInput(signal, adc, channel, float(_field(entry, "offset_v", (int, float), at)),
+                                  float(_field(entry, "gain", (int, float), at)), noise))
+    encoder = raw.get("encoder")
+    enc_timer, lines = None, 0
+    if encoder is not None:
+        enc_timer = _field(encoder, "timer", str, f"{where} [encoder]")
+        if enc_timer not in ENCODER_TIMERS:
+            raise BoardError(f"{where} [encoder]: 'timer' = {enc_timer!r} (one of {', '.join(ENCODER_TIMERS)})")
+        lines = _field(encoder, "lines", int, f"{where} [encoder]")
+        if not 1 <= lines <= 1 << 20:
+            raise BoardError(f"{where} [encoder]: 'lines' = {lines} outside 1-1048576")
+    return BoardDescription(path.stem, str(raw.get("description", "")), part, hse, vref, timer,
+                            tuple(c - 1 for c in channels), tuple(inputs), enc_timer, lines)

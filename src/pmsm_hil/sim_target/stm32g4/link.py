@@ -1,0 +1,269 @@
+"""The virtual board as the run's target (`--target stm32g4:FW.elf`): the host's end of the link is this object.
+`send` takes the host's frames; a Measurement runs one control period on the board and queues the reply that
+`poll`/`recv` return.
+
+Per period k (lockstep): the Measurement's phase currents and DC-link voltage become the voltages at the ADC
+pins through the board's analog front end (constant over the period: the host sampled them at its --adc-delay),
+its angle and speed the encoder's edge count (the mechanical angle unwrapped from the electrical one, advanced at
+the measured speed inside the period); the core runs to the end of the period (the next update event of TIM1 at
+the carrier valley); the reply is a duty-cycle Command built from the compare values in force for the next period
+(PWM mode and polarity per channel), shortened or lengthened by BDTR's dead time according to each phase
+current's sign (the average effect of the dead time; the plant's own dead-time parameter is not used), with
+the core's cycles in interrupt handlers during the period as exec_time_ns.
+
+The host's period must be the firmware's carrier period: the board runs the firmware's start-up until TIM1
+counts, and refuses a different --ts naming both. ConfigParams are acknowledged by the board on the firmware's
+behalf while no FDCAN1 model is present (the firmware has no bus then; enabling Setpoints are counted and dropped,
+a disabling one trips TIM1's break input as a gate driver's enable line would, and the board confirms it); with
+an FDCAN1 model that offers `deliver(frame)` / `take_transmitted()`, the frames are the firmware's own.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+import time
+from collections import deque
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pmsm_hil.protocol.codec import FrameCodec, FrameDecoder
+from pmsm_hil.protocol.frame import Frame
+from pmsm_hil.protocol.ids import NodeState, Status
+from pmsm_hil.protocol.links.stats import LinkStats
+from pmsm_hil.protocol.messages import Command, ConfigAck, ConfigParam, Heartbeat, Measurement, Setpoint
+from pmsm_hil.sim_target.stm32g4.board import Board
+from pmsm_hil.sim_target.stm32g4.board_file import BoardDescription
+from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
+from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import Tim1
+
+#: emulated time the firmware's start-up may take before TIM1 counts [s]
+STARTUP_LIMIT_S = 2.0
+#: carrier period mismatch tolerated between the firmware and --ts [s]
+PERIOD_TOLERANCE_S = 1e-9
+
+
+class BoardLink:
+    """The host's link to a firmware running on the virtual board (implements the Link protocol)."""
+
+    def __init__(self, elf: str | Path, desc: BoardDescription, *, ts_s: float, pole_pairs: int,
+                 skip_periods: int = 0, console: Any = None) -> None:
+        self.stats = LinkStats()
+        self.fd = True
+        self.desc = desc
+        self.pole_pairs = pole_pairs
+        self.skip_periods = skip_periods
+        self.board = Board(desc.part, elf, console=console, hse_hz=desc.hse_hz)
+        self.codec = FrameCodec("canfd")
+        self.decoder = FrameDecoder(ordered=False)
+        self._rx: deque[Frame] = deque()
+        self._rng = random.Random(0x5EED)
+        self._volts: dict[tuple[str, int], float] = {}
+        self._noise = {(a.adc, a.channel): a.noise_v for a in desc.analog}
+        self.board.analog = self._analog
+        self.board.encoder = self._encoder
+        self._theta_m = 0.0  # unwrapped mechanical angle at the period start [rad]
+        self._theta_e: float | None = None
+        self._omega_m = 0.0
+        self._period_start = 0
+        self.hclk_hz = self.board.hclk_hz
+        self.setpoints_dropped = 0
+        self._heartbeats = 0
+        self.configs_acked = 0
+        self.periods = 0
+        self.isr_cycles: list[int] = []
+        self.sleep_cycles: list[int] = []
+        self.late_first_period: int | None = None
+        self.fdcan = self.board.peripherals.get("FDCAN1")
+        self.closed = False
+        self.wall_s = 0.0
+        self._start(ts_s)
+
+    # --- start-up and period --------------------------------------------------------------------------------------
+
+    @property
+    def tim1(self) -> Tim1:
+        timer = self.board.peripherals["TIM1"]
+        assert isinstance(timer, Tim1)
+        return timer
+
+    def _start(self, ts_s: float) -> None:
+        """Run the firmware's start-up until TIM1 counts and an update at the carrier valley has passed; check the
+        carrier period against the host's."""
+        board, tim = self.board, self.tim1
+        limit = round(STARTUP_LIMIT_S * 170e6)
+        step = 170_000
+        while not tim.running or tim.updates == 0:
+            if board.now > limit:
+                raise BoardError(f"stm32g4 target: TIM1 did not start within {STARTUP_LIMIT_S:g} s of the firmware's "
+                                 f"start-up (at {board.describe_pc()})")
+            board.run_until(board.now + step)
+        hz = board.hclk_hz
+        carrier_s = tim.carrier_cycles() / hz
+        mode = f"centre-aligned (CMS {tim.cms})" if tim.cms else "edge-aligned"
+        setup = f"TIM1 ARR {tim.arr}, PSC {tim.psc}, {mode} at {hz / 1e6:g} MHz"
+        if tim.update_period_cycles() != tim.carrier_cycles():
+            raise BoardError(f"stm32g4 target: {setup} updates every {tim.update_period_cycles() / hz * 1e6:g} µs, "
+                             f"not once per carrier period ({carrier_s * 1e6:g} µs): set RCR so that the compare "
+                             "values load once per period (centre-aligned: RCR 1)")
+        if abs(carrier_s - ts_s) > PERIOD_TOLERANCE_S:
+            raise BoardError(f"stm32g4 target: the firmware's carrier period is {carrier_s * 1e6:.6g} µs ({setup}), "
+                             f"the run's period --ts is {ts_s * 1e6:.6g} µs: run with --ts {carrier_s:.9g}")
+        self.period_cycles = tim.carrier_cycles()
+        # align to an update at the valley (counting up after it)
+        while tim.cms and tim.seg_dir < 0:
+            board.run_until(tim.last_update + tim.update_period_cycles())
+        board.run_until(tim.last_update + self.period_cycles)
+        self._period_start = tim.last_update
+        self.carrier_s = carrier_s
+        self.hclk_hz = hz
+
+    def _analog(self, adc: str, channel: int, now: int) -> float:
+        if channel < 0:
+            return self.desc.vref_v
+        volts = self._volts.get((adc, channel), 0.0)
+        noise = self._noise.get((adc, channel), 0.0)
+        return volts + self._rng.gauss(0.0, noise) if noise else volts
+
+    def _encoder(self, timer: str, now: int) -> int:
+        if timer != self.desc.encoder_timer:
+            return 0
+        dt = (now - self._period_start) / self.hclk_hz
+        theta = self._theta_m + self._omega_m * dt
+        return math.floor(theta / (2 * math.pi) * 4 * self.desc.encoder_lines)
+
+    def _take(self, m: Measurement) -> None:
+        """The Measurement as the board's inputs for the period."""
+        signals = {"i_a": m.i_a, "i_b": m.i_b, "i_c": m.i_c, "vdc": m.vdc}
+        for a in self.desc.analog:
+            self._volts[(a.adc, a.channel)] = a.offset_v + a.gain * signals[a.signal]
+        if self._theta_e is not None:
+            d = (m.theta_e - self._theta_e + math.pi) % (2 * math.pi) - math.pi
+            self._theta_m += d / self.pole_pairs
+        self._theta_e = m.theta_e
+        self._omega_m = m.omega_m
+
+    def _period(self, m: Measurement) -> Command:
+        board, tim = self.board, self.tim1
+        self._take(m)
+        sleep0 = board.sleep_cycles
+        isr0 = sum(sum(s.cycles) for s in board.isr.values())
+        end = self._period_start + self.period_cycles
+        board.run_until(end)
+        self._period_start = end
+        isr = sum(sum(s.cycles) for s in board.isr.values()) - isr0
+        self.isr_cycles.append(isr)
+        self.sleep_cycles.append(board.sleep_cycles - sleep0)
+        if tim.first_late_update is not None and self.late_first_period is None:
+            self.late_first_period = self.periods
+        self.periods += 1
+        return Command(seq=m.seq, states=(), durations_ns=(), duties=self._duties(m),
+                       exec_time_ns=round(isr / self.hclk_hz * 1e9))
+
+    def _duties(self, m: Measurement) -> tuple[float, ...]:
+        tim = self.tim1
+        if not tim.moe:
+            return (0.5, 0.5, 0.5)  # outputs off: no average voltage between the phases
+        dead = tim.dead_time_s(self.hclk_hz) / self.carrier_s
+        out = []
+        for ch, current in zip(self.desc.pwm_channels, (m.i_a, m.i_b, m.i_c), strict=True):
+            d = tim.duty(ch) if tim.output_enabled(ch) else 0.5
+            complementary = bool(tim.regs[0x20] >> (4 * ch + 2) & 1)
+            if complementary and dead and current != 0.0:
+                d -= math.copysign(dead, current)
+            out.append(min(max(d, 0.0), 1.0))
+        return tuple(out)
+
+    # --- Link -----------------------------------------------------------------------------------------------------
+
+    def send(self, frames: Sequence[Frame]) -> None:
+        t0 = time.perf_counter()
+        for frame in frames:
+            self.stats.frames_tx += 1
+            msg = self.decoder.feed(frame)
+            if self.fdcan is not None and hasattr(self.fdcan, "deliver") and not isinstance(msg, Measurement):
+                self.fdcan.deliver(frame)
+                continue
+            if isinstance(msg, Measurement):
+                self._reply(self._period(msg))
+            elif isinstance(msg, ConfigParam):
+                self.configs_acked += 1
+                self._reply(ConfigAck(param_id=msg.param_id, value=msg.value, status=int(Status.OK)))
+            elif isinstance(msg, Setpoint):
+                self._setpoint(msg)
+        if self.fdcan is not None and hasattr(self.fdcan, "take_transmitted"):
+            for frame in self.fdcan.take_transmitted():
+                self._rx.append(frame)
+        self.wall_s += time.perf_counter() - t0
+
+    def _setpoint(self, sp: Setpoint) -> None:
+        """Without a bus the firmware never sees a Setpoint: the board stands in for the gate driver's enable line.
+        A disabling Setpoint trips TIM1's break (MOE cleared, BIF set, as the break input does) and the board
+        confirms the idle inverter with a HeartbeatTarget; an enabling one is counted as dropped."""
+        if sp.enable:
+            self.setpoints_dropped += 1
+            return
+        self.tim1.trip_break()
+        self._heartbeats = (self._heartbeats + 1) & 0xFF
+        self._reply(Heartbeat(node=1, state=int(NodeState.IDLE), counter=self._heartbeats))
+
+    def _reply(self, msg: Command | ConfigAck | Heartbeat) -> None:
+        for frame in self.codec.encode(msg):
+            self._rx.append(frame)
+
+    def poll(self) -> Frame | None:
+        if self._rx:
+            self.stats.frames_rx += 1
+            return self._rx.popleft()
+        return None
+
+    def recv(self, timeout_s: float) -> Frame | None:
+        return self.poll()
+
+    def close(self) -> None:
+        self.closed = True
+
+    # --- what the run says ----------------------------------------------------------------------------------------
+
+    def metrics(self) -> dict[str, Any]:
+        """The board's own metrics over the metrics window (the periods from `skip_periods`)."""
+        board, tim = self.board, self.tim1
+        window = slice(self.skip_periods, None)
+        isr = np.asarray(self.isr_cycles[window], dtype=float)
+        sleep = np.asarray(self.sleep_cycles[window], dtype=float)
+        us = 1e6 / self.hclk_hz
+        out: dict[str, Any] = {"mcu_clock_hz": float(self.hclk_hz), "board": self.desc.name,
+                               "board_carrier_hz": 1.0 / self.carrier_s,
+                               "board_dead_time_ns": tim.dead_time_s(self.hclk_hz) * 1e9,
+                               "board_late_compares": tim.late_writes,
+                               "board_first_late_period": self.late_first_period,
+                               "board_setpoints_dropped": self.setpoints_dropped,
+                               "board_configs_acked": self.configs_acked}
+        if len(isr):
+            out["board_isr_time_us"] = _stats(isr * us)
+            out["board_cpu_load"] = float(1.0 - sleep.sum() / (len(sleep) * self.period_cycles))
+        handlers = {}
+        for exc, st in sorted(board.isr.items()):
+            if not st.cycles:
+                continue
+            name = "SysTick" if exc == 15 else f"IRQ{exc - 16}" if exc >= 16 else f"exception {exc}"
+            entry: dict[str, Any] = {"entries": st.entries, "time_us": _stats(np.asarray(st.cycles) * us)}
+            if st.latency:
+                entry["latency_us"] = _stats(np.asarray(st.latency) * us)
+            handlers[name] = entry
+        out["board_handlers"] = handlers
+        samples = []
+        for name in ("ADC1", "ADC2"):
+            adc = board.peripherals.get(name)
+            for at, _, _ in getattr(adc, "sample_log", [])[-16:]:
+                samples.append(((at - tim.last_update) % self.period_cycles) * us)
+        if samples:
+            out["board_adc_sample_us"] = _stats(np.asarray(samples))
+        return out
+
+
+def _stats(values: np.ndarray) -> dict[str, float]:
+    return {"median": float(np.median(values)), "p99": float(np.percentile(values, 99)), "max": float(values.max())}
