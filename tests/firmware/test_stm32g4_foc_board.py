@@ -109,9 +109,9 @@ def test_holds_1500_rpm_and_7_nm_on_the_board_models() -> None:
 @pytest.mark.xfail(reason="the board's ADC model stops converting once the firmware clears ADRDY after ADEN",
                    raises=AssertionError, strict=False)
 def test_late_isr_variant_lands_its_compare_values_a_period_late() -> None:
-    loop, rpm, _ = _run(_elf("LATE_ISR"), 0.05)
+    loop, rpm, _ = _run(_elf("LATE_ISR"), 0.15)
     adc_isr = loop.board.isr.get(16 + 18)
-    assert adc_isr is not None and adc_isr.entries > 900, "the current loop (ADC1_2_IRQHandler) did not run"
+    assert adc_isr is not None and adc_isr.entries > 2000, "the current loop (ADC1_2_IRQHandler) did not run"
     assert sorted(adc_isr.cycles)[len(adc_isr.cycles) // 2] > loop.carrier // 2  # longer than peak to valley
     assert loop.tim1.late_writes > 500
     assert rpm == pytest.approx(1500.0, rel=0.01)

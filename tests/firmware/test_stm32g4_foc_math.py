@@ -165,7 +165,11 @@ def test_pll_tracks_a_constant_speed_through_the_wrap(lib: ctypes.CDLL) -> None:
 # ---- the cascade on an average-value d/q model of niu2020 (independent of the firmware's code) ----
 
 
-def _run_cascade(lib: ctypes.CDLL, *, late: bool, seconds: float = 0.3) -> dict[str, float]:
+lib_trace: list[float] = []
+
+
+def _run_cascade(lib: ctypes.CDLL, *, late: bool, seconds: float = 0.3, start_rpm: float = 1500.0,
+                 i_dq0: tuple[float, float] = (0.0, 0.0)) -> dict[str, float]:
     """The firmware's loops as main.c runs them: the current loop sampled at each carrier peak, its duties
     applied over the next carrier period (late: the one after); the speed PI every 20th period on the PLL speed;
     the rotor starts at 1500 rpm with 7 N·m load and the speed integrator preset to it (the `steady` scenario)."""
@@ -179,7 +183,7 @@ def _run_cascade(lib: ctypes.CDLL, *, late: bool, seconds: float = 0.3) -> dict[
     kp_speed = J * 150.0  # motor.h: FW_SPEED_BW_RAD_S 150, PI zero at a quarter of it
     speed = Pi(kp=kp_speed, ki=kp_speed * 150.0 / 4.0, limit=10.0, integ=7.0)
     w_ref = 1500.0 * 2 * math.pi / 60
-    plant = AvgPlant(omega_m=w_ref, load=7.0)
+    plant = AvgPlant(i_d=i_dq0[0], i_q=i_dq0[1], omega_m=start_rpm * 2 * math.pi / 60, load=7.0)
     queue: list[tuple[float, float]] = [(0.0, 0.0)] * (2 if late else 1)  # alpha/beta volts waiting to apply
     iq_ref = 0.0
     counts = 4 * 2048
@@ -204,6 +208,8 @@ def _run_cascade(lib: ctypes.CDLL, *, late: bool, seconds: float = 0.3) -> dict[
         if k >= n // 2:
             speeds.append(plant.omega_m)
             torques.append(plant.torque())
+    lib_trace.clear()
+    lib_trace.extend(speeds)
     mean_w = sum(speeds) / len(speeds)
     mean_t = sum(torques) / len(torques)
     ripple = math.sqrt(sum((t - mean_t) ** 2 for t in torques) / len(torques))

@@ -132,13 +132,32 @@ void foc_current_step(foc_state_t *st, const foc_params_t *p, float ia, float ib
     st->id_pi.ki = p->ki_d;
     st->id_pi.limit = vlim;
     st->iq_pi.limit = vlim;
+    const float integ_d = st->id_pi.integ;
+    const float integ_q = st->iq_pi.integ;
+    float vq_max;
     /* PI plus decoupling feed-forward of the cross-coupling and the back EMF */
     st->vd = foc_pi_step(&st->id_pi, id_ref - st->id, p->ts) - omega_e * p->lq * st->iq;
     st->vq = foc_pi_step(&st->iq_pi, iq_ref - st->iq, p->ts) + omega_e * (p->ld * st->id + p->psi_f);
+    /* the voltage vector limited to the linear range, d axis first; while limited the integrators hold (they
+     * would wind up on a voltage the inverter does not give) */
+    st->saturated = 0u;
+    if (st->vd > vlim || st->vd < -vlim) {
+        st->vd = st->vd > 0.0f ? vlim : -vlim;
+        st->saturated = 1u;
+    }
+    vq_max = sqrtf(vlim * vlim - st->vd * st->vd);
+    if (st->vq > vq_max || st->vq < -vq_max) {
+        st->vq = st->vq > 0.0f ? vq_max : -vq_max;
+        st->saturated = 1u;
+    }
+    if (st->saturated) {
+        st->id_pi.integ = integ_d;
+        st->iq_pi.integ = integ_q;
+    }
     /* the voltage acts delay_periods later on average: rotate it there */
     th = theta_e + p->delay_periods * omega_e * p->ts;
     s = sinf(th);
     c = cosf(th);
     foc_inv_park(st->vd, st->vq, s, c, &alpha, &beta);
-    st->saturated = (uint8_t)foc_svpwm(alpha, beta, vdc, duty);
+    (void)foc_svpwm(alpha, beta, vdc, duty); /* inside the circle: not scaled again but for rounding */
 }

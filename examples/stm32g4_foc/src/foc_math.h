@@ -41,7 +41,7 @@ typedef struct {
     foc_pi_t iq_pi;
     float id, iq;  /* measured d/q currents [A] */
     float vd, vq;  /* commanded d/q voltages [V] */
-    uint8_t saturated;
+    uint8_t saturated; /* the last step's voltage vector was limited (integrators held) */
 } foc_state_t;
 
 float foc_wrap_2pi(float x);
@@ -59,7 +59,8 @@ float foc_pll_step(foc_pll_t *pll, float theta_meas, float ts);
 void foc_params_set_bandwidth(foc_params_t *p, float wc);
 void foc_reset(foc_state_t *st, float vlimit);
 /* One current-loop step: phase currents ia, ib [A] (ic = -ia - ib), rotor angle theta_e and speed omega_e
- * (electrical), DC link vdc; references id_ref, iq_ref [A]. Writes the three duties. */
+ * (electrical), DC link vdc; references id_ref, iq_ref [A]. The d/q voltage is limited to vdc/sqrt(3), d first,
+ * and the integrators hold while it is. Writes the three duties. */
 void foc_current_step(foc_state_t *st, const foc_params_t *p, float ia, float ib, float theta_e, float omega_e,
                       float vdc, float id_ref, float iq_ref, float duty[3]);
 

@@ -34,6 +34,8 @@
 #define DEADTIME_TICKS ((BOARD_DEADTIME_NS * (BOARD_SYSCLK_HZ / 1000000u) + 500u) / 1000u)
 #define ADC_FULL_SCALE 4096.0f
 #define OFFSET_SAMPLES 64u
+#define OFFSET_TOLERANCE 205.0f /* counts: 10 % of the full scale around the front end's nominal offset */
+#define COARSE_SPAN 32u /* periods of the coarse encoder speed that starts the PLL (flying start) */
 #define CONTROLLER_OFF 0u
 #define CONTROLLER_EXTERNAL 255u
 
@@ -78,11 +80,13 @@ static struct {
     float vdc;             /* V */
     float ia, ib;          /* A */
     float off_a, off_b;    /* ADC counts */
-    uint32_t off_acc_a, off_acc_b, off_n;
+    uint32_t off_acc_a, off_acc_b, off_n, off_retries;
     uint32_t isr_count;
     uint32_t isr_cycles_max;
     uint32_t adc2_late;    /* ADC2's conversion not finished when ADC1's sequence ended */
     uint32_t ms;
+    uint16_t counts[COARSE_SPAN]; /* the encoder count of the last COARSE_SPAN periods, a ring */
+    uint32_t count_idx;
 } g FW_CCM;
 
 static fw_params_t prm = {FW_SPEED_KP, FW_SPEED_KI, FW_TORQUE_LIMIT_NM, 0.0f, FW_CURRENT_LIMIT_A, 0.0f, 0.0f};
@@ -195,8 +199,28 @@ int fw_config(uint8_t param_id, float value)
     return 0;
 }
 
+/* The speed over the last COARSE_SPAN periods from the encoder counts [rad/s mechanical]: a drive enabled on a
+ * turning rotor starts its PLL (and so its decoupling and speed loop) at the speed instead of at rest. */
+static float coarse_speed(void)
+{
+    const uint32_t newest = g.counts[(g.count_idx + COARSE_SPAN - 1u) % COARSE_SPAN];
+    const uint32_t oldest = g.counts[g.count_idx % COARSE_SPAN];
+    int32_t d = (int32_t)newest - (int32_t)oldest;
+    if (d > (int32_t)(ENCODER_COUNTS / 2u)) {
+        d -= (int32_t)ENCODER_COUNTS;
+    } else if (d < -(int32_t)(ENCODER_COUNTS / 2u)) {
+        d += (int32_t)ENCODER_COUNTS;
+    }
+    return (float)d * (FOC_TWO_PI / (float)ENCODER_COUNTS) / ((float)(COARSE_SPAN - 1u) * TS_S);
+}
+
 static void start_drive(void)
 {
+    const float w = coarse_speed();
+    g.pll.integ = w;
+    g.pll.omega = w;
+    g.pll.theta = (float)(TIM3->CNT % ENCODER_COUNTS) * (FOC_TWO_PI / (float)ENCODER_COUNTS);
+    g.omega_m = w;
     foc_reset(&g.foc, MOTOR_VDC_NOMINAL_V / FOC_SQRT3);
     g.speed_pi.integ = prm.torque_init; /* bumpless start at the expected load */
     g.iq_ref = 0.0f;
@@ -353,6 +377,7 @@ void ADC1_2_IRQHandler(void)
     uint32_t raw_b;
     uint32_t raw_vdc;
     uint32_t dt;
+    uint32_t cnt;
     float duty[3];
     float theta_m;
     if ((ADC1->ISR & ADC_ISR_JEOS) == 0u) {
@@ -375,19 +400,32 @@ void ADC1_2_IRQHandler(void)
     }
 #endif
     if (offsets_ready == 0u) {
+        g.counts[g.count_idx % COARSE_SPAN] = (uint16_t)TIM3->CNT;
+        g.count_idx++;
         g.off_acc_a += raw_a;
         g.off_acc_b += raw_b;
         if (++g.off_n == OFFSET_SAMPLES) {
+            const float nominal = BOARD_AFE_OFFSET_V / BOARD_VREF_V * ADC_FULL_SCALE;
             g.off_a = (float)g.off_acc_a / (float)OFFSET_SAMPLES;
             g.off_b = (float)g.off_acc_b / (float)OFFSET_SAMPLES;
-            offsets_ready = 1u;
+            g.off_acc_a = 0u;
+            g.off_acc_b = 0u;
+            g.off_n = 0u;
+            if (fabsf(g.off_a - nominal) < OFFSET_TOLERANCE && fabsf(g.off_b - nominal) < OFFSET_TOLERANCE) {
+                offsets_ready = 1u;
+            } else {
+                g.off_retries++; /* an amplifier not settled (or not powered): measure again */
+            }
         }
         return;
     }
     g.ia = ((float)raw_a - g.off_a) * k_i;
     g.ib = ((float)raw_b - g.off_b) * k_i;
     g.vdc = (float)raw_vdc * (BOARD_VREF_V / ADC_FULL_SCALE / BOARD_VDC_DIVIDER);
-    theta_m = (float)TIM3->CNT * (FOC_TWO_PI / (float)ENCODER_COUNTS);
+    cnt = TIM3->CNT;
+    g.counts[g.count_idx % COARSE_SPAN] = (uint16_t)cnt;
+    g.count_idx++;
+    theta_m = (float)cnt * (FOC_TWO_PI / (float)ENCODER_COUNTS);
     g.omega_m = foc_pll_step(&g.pll, theta_m, TS_S);
     g.theta_e = foc_wrap_2pi(g.fp.pole_pairs * theta_m + BOARD_ENCODER_OFFSET_RAD);
     if (running == 0u) {
