@@ -14,6 +14,8 @@ setup(
     package_data={"pmsm_hil.hil.presets": ["*.toml", "*.csv"], "pmsm_hil.hil.scenarios": ["*.toml"],
                   "pmsm_hil.app.compare.presets": ["*.toml"],
                   "pmsm_hil.protocol": ["*.dbc"],
+                  # the virtual board's instruction counter (built on first use) and its board descriptions
+                  "pmsm_hil.sim_target.stm32g4": ["c/*.c", "boards/*.toml"],
                   # the kernel headers and shared helpers kernel_build.py compiles a kind's kernel against
                   "pmsm_hil.hil": ["kernels/*.h", "kernels/gate_edges.c", "kernels/dq_segment.c"]},
     cffi_modules=[b for b in _BUILDERS if Path(b.split(":")[0]).exists()],

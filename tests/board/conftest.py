@@ -17,17 +17,17 @@ CFLAGS = ["-mcpu=cortex-m4", "-mthumb", "-mfloat-abi=hard", "-mfpu=fpv4-sp-d16",
 
 @pytest.fixture(scope="session")
 def build_fw(tmp_path_factory: pytest.TempPathFactory) -> Callable[..., Path]:
-    """build_fw("core") -> the ELF of fw/core.c linked with fw/startup.c for the G474."""
+    """build_fw("core") -> the ELF of fw/core.c linked with fw/startup.c for the G474 (part="g431": the G431)."""
     if shutil.which(GCC) is None:
         pytest.skip(f"{GCC} not installed")
     out_dir = tmp_path_factory.mktemp("board-fw")
     built: dict[tuple[str, tuple[str, ...]], Path] = {}
 
-    def build(name: str, *defines: str) -> Path:
-        key = (name, defines)
+    def build(name: str, *defines: str, part: str = "g474") -> Path:
+        key = (name, (*defines, part))
         if key not in built:
-            elf = out_dir / f"{name}{'-'.join(('', *defines))}.elf"
-            cmd = [GCC, *CFLAGS, *(f"-D{d}" for d in defines), "-T", str(FW / "g474.ld"), "-o", str(elf),
+            elf = out_dir / f"{name}{'-'.join(('', *defines))}-{part}.elf"
+            cmd = [GCC, *CFLAGS, *(f"-D{d}" for d in defines), "-T", str(FW / f"{part}.ld"), "-o", str(elf),
                    str(FW / "startup.c"), str(FW / f"{name}.c"), "-lgcc"]
             proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
             assert proc.returncode == 0, proc.stderr

@@ -85,7 +85,35 @@ def test_an_unmodelled_peripheral_is_one_line_naming_address_and_function(build_
     assert "\n" not in text
 
 
+def test_an_unmodelled_register_of_a_modelled_peripheral_names_it_and_the_function(
+        build_fw: Callable[..., Path]) -> None:
+    board = Board(PARTS["stm32g474"], build_fw("errors", "UNMODELLED_REGISTER"))
+    with pytest.raises(BoardError) as info:
+        board.run_until(1_000_000)
+    text = str(info.value)
+    assert text.startswith("write of TIM1 register at offset 0x070 (0x40012c70), which the virtual board does not "
+                           "model, at pc 0x080")
+    assert "touch_tim1_reserved" in text and "\n" not in text
+
+
 def test_a_corrupt_exc_return_is_a_fault(build_fw: Callable[..., Path]) -> None:
     board = Board(PARTS["stm32g474"], build_fw("errors", "BAD_RETURN"))
     with pytest.raises(BoardFaultError, match="INVPC"):
         board.run_until(1_000_000)
+
+
+def test_the_g431_runs_the_same_firmware_in_its_smaller_memories(build_fw: Callable[..., Path]) -> None:
+    board = Board(PARTS["stm32g431"], build_fw("core", part="g431"))
+    board.run_until(HCLK // 100)  # 10 ms
+    assert u32(board, "ticks") in (9, 10)
+    assert u32(board, "fp_errors") == 0
+    assert board.scs.dbgmcu_read(0, 4, 0) == 0x1000_6468
+
+
+@pytest.mark.parametrize("part", ["stm32g474", "stm32g431"])
+def test_ccm_sram_is_aliased_after_sram(build_fw: Callable[..., Path], part: str) -> None:
+    board = Board(PARTS[part], build_fw("core", part=part[-4:]))
+    board.write_memory(0x1000_0000 + 16, b"\x12\x34\x56\x78")
+    assert board.read_memory(PARTS[part].ccm_alias + 16, 4) == b"\x12\x34\x56\x78"
+    board.write_memory(PARTS[part].ccm_alias + 32, b"\xaa")
+    assert board.read_memory(0x1000_0000 + 32, 1) == b"\xaa"

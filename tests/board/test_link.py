@@ -91,3 +91,35 @@ def test_a_fault_in_a_run_is_a_safety_stop_naming_the_handler(build_fw: Callable
     metrics = json.loads((out / "metrics.json").read_text())
     reason = metrics["end_reason"]
     assert "HardFault at pc 0x080" in reason and "(ADC1_2_IRQHandler+0x" in reason and "PRECISERR" in reason
+
+
+def test_two_runs_give_identical_commands(build_fw: Callable[..., Path]) -> None:
+    def commands() -> list[object]:
+        link = BoardLink(build_fw("foc_bench"), load_board(), ts_s=TS, pole_pairs=4)
+        return [exchange(link, measurement(seq, i_a=0.5 * (seq % 7) - 1.5)) for seq in range(60)]
+
+    first = commands()
+    assert first == commands()
+    assert len({c[0].duties for c in first if isinstance(c[0], Command)}) > 10  # type: ignore[attr-defined]
+
+
+def test_a_bad_board_file_names_the_field(tmp_path: Path) -> None:
+    assert load_board().name == "nucleo_g474re_ihm"  # the default
+    bad = tmp_path / "board.toml"
+    source = (Path(__file__).parents[2] / "src/pmsm_hil/sim_target/stm32g4/boards/nucleo_g474re_ihm.toml").read_text()
+    bad.write_text(source.replace('adc = "ADC2"', 'adc = "ADC3"', 1))
+    with pytest.raises(BoardError, match=r"\[\[analog\]\] #2: 'adc' = 'ADC3' \(one of ADC1, ADC2\)"):
+        load_board(bad)
+    with pytest.raises(BoardError, match="no such board"):
+        load_board("no_such_board")
+
+
+def test_every_board_metric_is_registered(link: BoardLink) -> None:
+    from pmsm_hil.hil.metrics.registry import METRICS
+
+    for seq in range(3):
+        exchange(link, measurement(seq))
+    registered = {m.key for m in METRICS}
+    produced = set(link.metrics())
+    assert produced - registered == set()
+    assert {"board_isr_time_us", "board_cpu_load", "board_handlers", "board_adc_sample_us"} <= produced

@@ -34,7 +34,11 @@ from pmsm_hil.hil.runner.scenario import load_scenario
 CONDITIONAL_SUBS = {("link", "kernel_dropped")}
 CONDITIONAL = {"lateness_us", "lateness_histogram_us", "overruns", "overrun_threshold_us",  # real time only
                "realtime_sync_us", "cpu_dma_latency_us",  # real time only
-               "exec_instructions", "mcu_clock_hz", "exec_time_model"}  # qemu targets only (tests/firmware_board)
+               "exec_instructions", "mcu_clock_hz", "exec_time_model",  # qemu targets only (tests/firmware_board)
+               # stm32g4 targets only (tests/board/test_link.py checks them)
+               "board", "board_carrier_hz", "board_dead_time_ns", "board_isr_time_us", "board_cpu_load",
+               "board_late_compares", "board_first_late_period", "board_handlers", "board_adc_sample_us",
+               "board_setpoints_dropped", "board_configs_acked", "board_idle_periods"}
 
 
 def _metrics(motor: str, controller: str, load: float) -> dict[str, Any]:

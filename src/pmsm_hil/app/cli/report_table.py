@@ -48,6 +48,9 @@ def format_metrics(metrics: dict[str, Any]) -> str:
     ins = metrics.get("exec_instructions")
     if isinstance(ins, dict):
         lines.append(f"  {'exec instructions':<24} {_med_p99_max(ins)} per step (med/p99/max)")
+    isr = metrics.get("board_isr_time_us")
+    if isinstance(isr, dict):  # the virtual board: handler cycles per period at the firmware's clock
+        lines.append(f"  {'ISR time med/p99/max':<24} {_med_p99_max(isr)} µs per period")
     lat = metrics.get("lateness_us")
     if isinstance(lat, dict):
         lines.append(f"  {'lateness med/p99/max':<24} {_med_p99_max(lat)} µs")

@@ -278,6 +278,9 @@ METRICS: Final[tuple[Metric, ...]] = (
        "Setpoints the firmware could not receive", ".0f", source=RUN),
     _m("board_configs_acked", "configs acked by board", "", "stm32g4 targets without an FDCAN1 model: "
        "ConfigParams the board acknowledged on the firmware's behalf", ".0f", source=RUN),
+    _m("board_idle_periods", "idle periods", "", "stm32g4 targets with an FDCAN1 model: firmware periods run outside "
+       "the control periods for frames that arrived between them (configuration, the safe stop)", ".0f",
+       source=RUN),
     _m("candidates_evaluated_mean", "candidates / step", "", "mean of `candidates`", ".0f", CLI, COMPARE_ROW),
     _m("narrow_pulses", "narrow pulses", "", "Σ leg pulses shorter than T_lim = 2·T_dead + T_mpw requested by the "
        "controller", ".0f", CLI, COMPARE_ROW),

@@ -258,7 +258,7 @@ RUN_OPTIONS: tuple[RunOption, ...] = (
     RunOption("target", "text",
               "who runs the target: auto (virtual → in-process), inproc, spawn a `hil target` process, external (a "
               "real board), sil:PATH (a firmware built with `hil fw build --board host`, or its source folder, "
-              "served from its own process) or qemu:PATH.elf (a firmware built for mps2-an386, run in QEMU over its "
+              "served from its own process), qemu:PATH.elf (a firmware built for mps2-an386, run in QEMU over its "
               "emulated UART) or stm32g4:PATH.elf (an STM32G4 firmware on the virtual board; docs/firmware_api.md)",
               "auto", field="target", metavar="KIND"),
     RunOption("board", "text",

@@ -57,6 +57,8 @@ from pmsm_hil.sim_target.stm32g4.scs import SystemControl
 MASKED_SLICE = 64
 #: the internal reference (VREFINT, ADC1 channel 18; DS12288 typical) [V]
 VREFINT_V = 1.212
+#: per-exception samples (handler times, latencies) kept for the metrics: the most recent ones
+KEEP_SAMPLES = 200_000
 #: reset clock: HSI16
 RESET_HCLK_HZ = 16_000_000
 
@@ -110,6 +112,8 @@ class Board:
         self._advancing = [p for p in self.peripherals.values() if type(p).advance is not Peripheral.advance]
         self.sleeping = False
         self.sleep_cycles = 0
+        #: cycles spent in exception handlers so far (nested ones counted once)
+        self.handler_cycles = 0
         self.isr: dict[int, IsrStats] = {}  # by exception number
         self._assert_time: dict[int, int] = {}
         self._entry_stack: list[tuple[int, int]] = []  # (exception, cycle of entry)
@@ -258,14 +262,24 @@ class Board:
         p = self._owner.get(address >> 8)
         if p is None:
             raise self._unmodelled(address, "read")
-        return p.read(address - p.base, size, self.cpu.count)
+        try:
+            return p.read(address - p.base, size, self.cpu.count)
+        except BoardError as exc:
+            raise self._located(exc) from None
+
+    def _located(self, exc: BoardError) -> BoardError:
+        """A model's refusal (an unmodelled register or field) with the firmware's pc and function."""
+        return exc if isinstance(exc, BoardFaultError) else BoardError(f"{exc}, at {self.describe_pc()}")
 
     def _write(self, address: int, size: int, value: int) -> None:
         p = self._owner.get(address >> 8)
         if p is None:
             raise self._unmodelled(address, "write")
         now = self.cpu.count
-        p.write(address - p.base, size, value, now)
+        try:
+            p.write(address - p.base, size, value, now)
+        except BoardError as exc:
+            raise self._located(exc) from None
         if p in self._timed_set:
             event = p.next_event(now)
             if event is not None and event < self.cpu.counter.limit:
@@ -280,9 +294,12 @@ class Board:
 
     def next_event(self, now: int) -> int | None:
         """The earliest cycle after `now` at which a model (or SysTick) changes state by itself."""
-        events = [self.scs.systick.next_event(now)]
-        events += [p.next_event(now) for p in self._timed]
-        return min((e for e in events if e is not None), default=None)
+        best = self.scs.systick.next_event(now)
+        for p in self._timed:
+            event = p.next_event(now)
+            if event is not None and (best is None or event < best):
+                best = event
+        return best
 
     def _advance(self, now: int) -> None:
         self.scs.systick.advance(now)
@@ -299,12 +316,20 @@ class Board:
         self.exceptions.enter(exc)
         if asserted is not None:  # from the line's assertion to the handler's first instruction
             stats.latency.append(self.cpu.count - asserted)
+            if len(stats.latency) > KEEP_SAMPLES:
+                del stats.latency[:KEEP_SAMPLES // 2]
         self._entry_stack.append((exc, self.cpu.count))
 
     def _leave(self, exc_return: int) -> None:
         exc = self.exceptions.leave(exc_return)
         entered_exc, at = self._entry_stack.pop()
-        self.isr[entered_exc].cycles.append(self.cpu.count - at)
+        spent = self.cpu.count - at
+        cycles = self.isr[entered_exc].cycles
+        cycles.append(spent)
+        if len(cycles) > KEEP_SAMPLES:
+            del cycles[:KEEP_SAMPLES // 2]
+        if len(self._entry_stack) == 0:  # outermost handler: its time includes the nested ones
+            self.handler_cycles += spent
         if exc in self.nvic.pending and exc in self.nvic.asserted:
             self._assert_time.setdefault(exc, self.cpu.count)
         if not self.nvic.active and (self.scs.sleep_on_exit or self._idle_loop_at(self.cpu.pc)):

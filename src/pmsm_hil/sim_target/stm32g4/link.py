@@ -2,20 +2,22 @@
 `send` takes the host's frames; a Measurement runs one control period on the board and queues the reply that
 `poll`/`recv` return.
 
-Per period k (lockstep): the Measurement's phase currents and DC-link voltage become the voltages at the ADC
-pins through the board's analog front end (constant over the period: the host sampled them at its --adc-delay),
-its angle and speed the encoder's edge count (the mechanical angle unwrapped from the electrical one, advanced at
-the measured speed inside the period); the core runs to the end of the period (the next update event of TIM1 at
-the carrier valley); the reply is a duty-cycle Command built from the compare values in force for the next period
-(PWM mode and polarity per channel), shortened or lengthened by BDTR's dead time according to each phase
-current's sign (the average effect of the dead time; the plant's own dead-time parameter is not used), with
-the core's cycles in interrupt handlers during the period as exec_time_ns.
+Per period k (lockstep): the Measurement's phase currents and DC-link voltage become the voltages at the ADC pins
+through the board's analog front end (constant over the period: the host sampled them at its --adc-delay), its angle
+and speed the encoder's edge count (the mechanical angle unwrapped from the electrical one, advanced at the measured
+speed inside the period; the encoder aligned: count 0 at electrical angle 0); the core runs to the end of the period
+(the next update event of TIM1 at the carrier valley); the reply is a duty-cycle Command built from the compare
+values in force for the next period (PWM mode and polarity per channel), shortened or lengthened by BDTR's dead time
+according to each phase current's sign (the average effect of the dead time; the plant's own dead-time parameter is
+not used), with the core's cycles in interrupt handlers during the period as exec_time_ns.
 
 The host's period must be the firmware's carrier period: the board runs the firmware's start-up until TIM1
 counts, and refuses a different --ts naming both. ConfigParams are acknowledged by the board on the firmware's
 behalf while no FDCAN1 model is present (the firmware has no bus then; enabling Setpoints are counted and dropped,
 a disabling one trips TIM1's break input as a gate driver's enable line would, and the board confirms it); with
-an FDCAN1 model that offers `deliver(frame)` / `take_transmitted()`, the frames are the firmware's own.
+an FDCAN1 model that offers `deliver(message, cycle)` / `take_transmitted()`, the frames are the firmware's own
+(python-can Messages on the model's side); a frame that arrives outside a control period (configuration, the safe
+stop) is answered in idle periods of the firmware with the last inputs held (at most IDLE_PERIODS per frame).
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import can
 import numpy as np
 
 from pmsm_hil.protocol.codec import FrameCodec, FrameDecoder
@@ -42,6 +45,8 @@ from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import Tim1
 
 #: emulated time the firmware's start-up may take before TIM1 counts [s]
 STARTUP_LIMIT_S = 2.0
+#: idle periods run for frames that reach the firmware outside a control period, until it answers
+IDLE_PERIODS = 20
 #: carrier period mismatch tolerated between the firmware and --ts [s]
 PERIOD_TOLERANCE_S = 1e-9
 
@@ -72,6 +77,8 @@ class BoardLink:
         self.hclk_hz = self.board.hclk_hz
         self.setpoints_dropped = 0
         self._heartbeats = 0
+        self._idle_left = 0  # idle periods still to run for frames delivered outside a period
+        self.idle_periods = 0
         self.configs_acked = 0
         self.periods = 0
         self.isr_cycles: list[int] = []
@@ -143,6 +150,8 @@ class BoardLink:
         if self._theta_e is not None:
             d = (m.theta_e - self._theta_e + math.pi) % (2 * math.pi) - math.pi
             self._theta_m += d / self.pole_pairs
+        else:  # an aligned encoder: its zero where the electrical angle is zero
+            self._theta_m = m.theta_e / self.pole_pairs
         self._theta_e = m.theta_e
         self._omega_m = m.omega_m
 
@@ -150,11 +159,11 @@ class BoardLink:
         board, tim = self.board, self.tim1
         self._take(m)
         sleep0 = board.sleep_cycles
-        isr0 = sum(sum(s.cycles) for s in board.isr.values())
+        isr0 = board.handler_cycles
         end = self._period_start + self.period_cycles
         board.run_until(end)
         self._period_start = end
-        isr = sum(sum(s.cycles) for s in board.isr.values()) - isr0
+        isr = board.handler_cycles - isr0
         self.isr_cycles.append(isr)
         self.sleep_cycles.append(board.sleep_cycles - sleep0)
         if tim.first_late_update is not None and self.late_first_period is None:
@@ -179,25 +188,52 @@ class BoardLink:
 
     # --- Link -----------------------------------------------------------------------------------------------------
 
+    @property
+    def bus(self) -> Any:
+        """The FDCAN1 model when the board has one that takes frames (`deliver`, `take_transmitted`), else None."""
+        fdcan = self.fdcan
+        return fdcan if hasattr(fdcan, "deliver") and hasattr(fdcan, "take_transmitted") else None
+
     def send(self, frames: Sequence[Frame]) -> None:
         t0 = time.perf_counter()
+        bus = self.bus
         for frame in frames:
             self.stats.frames_tx += 1
             msg = self.decoder.feed(frame)
-            if self.fdcan is not None and hasattr(self.fdcan, "deliver") and not isinstance(msg, Measurement):
-                self.fdcan.deliver(frame)
-                continue
             if isinstance(msg, Measurement):
+                self._idle_left = 0
                 self._reply(self._period(msg))
+            elif bus is not None:
+                bus.deliver(can.Message(arbitration_id=frame.arbitration_id, data=frame.data, is_fd=frame.is_fd,
+                                        bitrate_switch=frame.is_fd, is_extended_id=frame.arbitration_id > 0x7FF),
+                            self.board.now)
+                self._idle_left = IDLE_PERIODS
             elif isinstance(msg, ConfigParam):
                 self.configs_acked += 1
                 self._reply(ConfigAck(param_id=msg.param_id, value=msg.value, status=int(Status.OK)))
             elif isinstance(msg, Setpoint):
                 self._setpoint(msg)
-        if self.fdcan is not None and hasattr(self.fdcan, "take_transmitted"):
-            for frame in self.fdcan.take_transmitted():
-                self._rx.append(frame)
+        self._collect()
         self.wall_s += time.perf_counter() - t0
+
+    def _collect(self) -> None:
+        """The frames the firmware sent on FDCAN1, into the host's queue."""
+        bus = self.bus
+        if bus is not None:
+            for m in bus.take_transmitted():
+                self._rx.append(Frame(int(m.arbitration_id), bytes(m.data), bool(m.is_fd)))
+
+    def _idle_period(self) -> None:
+        """A frame reached the firmware outside a control period (configuration, the safe stop): one period of the
+        firmware with the last inputs held, so that it can answer (the host's plant is not advancing then)."""
+        self._idle_left -= 1
+        end = self._period_start + self.period_cycles
+        self.board.run_until(end)
+        self._period_start = end
+        self.idle_periods += 1
+        self._collect()
+        if self._rx:
+            self._idle_left = 0
 
     def _setpoint(self, sp: Setpoint) -> None:
         """Without a bus the firmware never sees a Setpoint: the board stands in for the gate driver's enable line.
@@ -215,6 +251,8 @@ class BoardLink:
             self._rx.append(frame)
 
     def poll(self) -> Frame | None:
+        if not self._rx and self._idle_left > 0:
+            self._idle_period()
         if self._rx:
             self.stats.frames_rx += 1
             return self._rx.popleft()
@@ -241,7 +279,7 @@ class BoardLink:
                                "board_late_compares": tim.late_writes,
                                "board_first_late_period": self.late_first_period,
                                "board_setpoints_dropped": self.setpoints_dropped,
-                               "board_configs_acked": self.configs_acked}
+                               "board_configs_acked": self.configs_acked, "board_idle_periods": self.idle_periods}
         if len(isr):
             out["board_isr_time_us"] = _stats(isr * us)
             out["board_cpu_load"] = float(1.0 - sleep.sum() / (len(sleep) * self.period_cycles))

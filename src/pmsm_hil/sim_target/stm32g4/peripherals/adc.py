@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 from pmsm_hil.sim_target.stm32g4.part import IRQ
-from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError, register
+from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError, register, services
 from pmsm_hil.sim_target.stm32g4.peripherals.regs import RegisterFile
 
 ISR, IER, CR, CFGR, CFGR2, SMPR1, SMPR2 = 0x00, 0x04, 0x08, 0x0C, 0x10, 0x14, 0x18
@@ -61,6 +61,7 @@ class Adc(RegisterFile):
         super().reset()
         self.cal_done_at: int | None = None
         self.ready_at: int | None = None
+        self.ready = False  # enabled and settled (ADRDY was set; software clearing the flag keeps the ADC ready)
         self.queue: list[Conversion] = []
         self.sample_log: list[tuple[int, int, int]] = []  # (cycle, channel, code) of injected samples, recent
         self.triggers = 0
@@ -100,6 +101,7 @@ class Adc(RegisterFile):
             self.regs[CALFACT] = 0x0041_0041
         if self.ready_at is not None and now >= self.ready_at:
             self.ready_at = None
+            self.ready = True
             self._set(ADRDY)
         while self.queue and self.queue[0].done_at <= now:
             self._finish(self.queue.pop(0))
@@ -125,8 +127,8 @@ class Adc(RegisterFile):
         self._set(flags | EOSMP)
 
     def _code(self, channel: int, at: int) -> int:
-        volts = self.bus.analog_voltage(self.name, channel, at)
-        vref = self.bus.analog_voltage(self.name, -1, at)
+        volts = services(self.bus).analog_voltage(self.name, channel, at)
+        vref = services(self.bus).analog_voltage(self.name, -1, at)
         res = self.regs[CFGR] >> 3 & 3
         bits = (12, 10, 8, 6)[res]
         full = (1 << bits) - 1
@@ -158,7 +160,7 @@ class Adc(RegisterFile):
         return out
 
     def _start(self, injected: bool, at: int) -> None:
-        if not self.regs[ISR] & ADRDY or not self.regs[CR] & ADEN:
+        if not self.ready or not self.regs[CR] & ADEN:
             return
         per_clock = self.cycles_per_adc_clock()
         t = float(at) if not self.queue else float(self.queue[-1].done_at)
@@ -254,6 +256,8 @@ class Adc(RegisterFile):
         if value & ADDIS and cr & ADEN:
             new &= ~(ADEN | ADSTART | JADSTART)
             self.regs[ISR] &= ~ADRDY
+            self.ready = False
+            self.ready_at = None
             self.queue.clear()
         if value & JADSTP:
             new &= ~JADSTART

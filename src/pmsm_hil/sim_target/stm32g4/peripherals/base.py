@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from typing import Protocol
+from typing import Protocol, cast
 
 from pmsm_hil.sim_target.firmware import FirmwareError
 
@@ -42,6 +42,11 @@ class BoardBus(Protocol):
     def sysclk_hz(self) -> int:
         """The core clock as the firmware's RCC set-up left it [Hz]."""
 
+
+class BoardServices(BoardBus, Protocol):
+    """What the full board offers its own models beyond `BoardBus` (the clock tree, the analog front end, the
+    encoder, the console); a model reaches it through `services(bus)`."""
+
     @property
     def hse_hz(self) -> int:
         """The board's HSE crystal or oscillator [Hz] (the board description)."""
@@ -58,6 +63,14 @@ class BoardBus(Protocol):
 
     def encoder_position(self, timer: str, now: int) -> int:
         """The quadrature edges counted so far by the encoder wired to `timer` (signed, 4 per line)."""
+
+
+def services(bus: BoardBus) -> BoardServices:
+    """`bus` as the full board (BoardError when a model that needs the board's services sits on a bare bus)."""
+    if not hasattr(bus, "analog_voltage"):
+        raise BoardError("this peripheral model needs the virtual board's services (clock tree, analog front end, "
+                         "encoder, console), not a bare BoardBus")
+    return cast(BoardServices, bus)
 
 
 class Peripheral(ABC):
@@ -113,4 +126,5 @@ def register(name: str) -> Callable[[type[Peripheral]], type[Peripheral]]:
     return add
 
 
-__all__ = ["REGISTRY", "BoardBus", "BoardError", "Peripheral", "PeripheralFactory", "register"]
+__all__ = ["REGISTRY", "BoardBus", "BoardError", "BoardServices", "Peripheral", "PeripheralFactory", "register",
+           "services"]

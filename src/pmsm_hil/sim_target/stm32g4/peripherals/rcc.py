@@ -1,5 +1,5 @@
 """RCC, PWR and FLASH (RM0440 chapters 7, 6, 5): the clock tree as far as the core clock, every ready flag
-following its enable after a settling time (HSIRDY, HSERDY, PLLRDY, LSIRDY, HSI48RDY), SWS following SW once the
+following its enable after a settling time (HSIRDY, HSERDY, PLLRDY, LSIRDY, LSERDY, HSI48RDY), SWS following SW once the
 source is ready, the PWR regulator flags (VOSF after a range change, R1MODE boost), the FLASH latency read back.
 The RCC reports the core clock (HCLK) to the board whenever SW/SWS, the PLL or the AHB prescaler change it."""
 
@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from typing import ClassVar
 
-from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError, register
+from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError, register, services
 from pmsm_hil.sim_target.stm32g4.peripherals.regs import RegisterFile
 
 HSI_HZ = 16_000_000
@@ -30,7 +30,8 @@ class Rcc(RegisterFile):
 
     def reset(self) -> None:
         super().reset()
-        self.ready_at: dict[str, int | None] = {"HSI": 0, "HSE": None, "PLL": None, "LSI": None, "HSI48": None}
+        self.ready_at: dict[str, int | None] = {"HSI": 0, "HSE": None, "PLL": None, "LSI": None, "LSE": None,
+                                                "HSI48": None}
         self.sws = 1
 
     def _ready(self, name: str, now: int) -> bool:
@@ -52,6 +53,8 @@ class Rcc(RegisterFile):
         elif word == 0x08:
             self._switch(now)
             v = (v & ~0xC) | (self.sws << 2)
+        elif word == 0x90:
+            v = (v & ~2) | (2 if self._ready("LSE", now) else 0)
         elif word == 0x94:
             v = (v & ~2) | (2 if self._ready("LSI", now) else 0)
         elif word == 0x98:
@@ -72,6 +75,8 @@ class Rcc(RegisterFile):
             self._switch(now)
         elif word == 0x0C and self.sws == 3:
             self._report()
+        elif word == 0x90:
+            self._enable("LSE", bool(value & 1), HSE_SETTLE, now)
         elif word == 0x94:
             self._enable("LSI", bool(value & 1), OSC_SETTLE, now)
         elif word == 0x98:
@@ -91,7 +96,7 @@ class Rcc(RegisterFile):
         if src == 2:
             f_in = HSI_HZ
         elif src == 3:
-            f_in = self.bus.hse_hz
+            f_in = services(self.bus).hse_hz
         else:
             raise BoardError("RCC: the PLL runs with no source (PLLCFGR.PLLSRC = 0)")
         m, n, r = (cfg >> 4 & 0xF) + 1, cfg >> 8 & 0x7F, 2 * ((cfg >> 25 & 3) + 1)
@@ -101,7 +106,7 @@ class Rcc(RegisterFile):
 
     def sysclk_hz(self) -> int:
         if self.sws == 2:
-            return self.bus.hse_hz
+            return services(self.bus).hse_hz
         if self.sws == 3:
             return self.pll_hz()
         return HSI_HZ
@@ -118,7 +123,7 @@ class Rcc(RegisterFile):
         hz = self.hclk_hz()
         if hz > 170_000_000:
             raise BoardError(f"RCC: HCLK {hz / 1e6:g} MHz above the part's 170 MHz")
-        self.bus.set_hclk(hz)
+        services(self.bus).set_hclk(hz)
 
 
 @register("PWR")

@@ -65,6 +65,7 @@ class Tim1(RegisterFile):
         self.first_late_update: int | None = None  # the update count at the first late period
         self._late_counted_at = -2
         self._plan: list[tuple[int, int]] | None = None  # the current segment's observed matches (cycle, channel)
+        self._watched: tuple[bool, ...] | None = None  # which channels are observed (until a configuration write)
 
     # --- configuration helpers -------------------------------------------------------------------------------------
 
@@ -150,13 +151,13 @@ class Tim1(RegisterFile):
             raise BoardError(f"TIM1 has no trigger signal {signal!r}")
         if listener not in self.listeners.setdefault(signal, []):
             self.listeners[signal].append(listener)
-        self._plan = None
+        self._plan = self._watched = None
 
     def unsubscribe(self, listener: Listener) -> None:
         for group in self.listeners.values():
             if listener in group:
                 group.remove(listener)
-        self._plan = None
+        self._plan = self._watched = None
 
     def _emit(self, signal: str, rising: bool, at: int) -> None:
         for listener in self.listeners.get(signal, ()):
@@ -213,8 +214,11 @@ class Tim1(RegisterFile):
         if plan is None:
             plan = []
             end_ticks = self._segment_ticks()
+            watched = self._watched
+            if watched is None:
+                watched = self._watched = tuple(self._observed(ch) for ch in range(6))
             for ch in range(6):
-                if not self._observed(ch):
+                if not watched[ch]:
                     continue
                 c = self.ccr[ch]
                 offset = (c - self.seg_from) if self.seg_dir > 0 else (self.seg_from - c)
@@ -348,6 +352,7 @@ class Tim1(RegisterFile):
         self.advance(now)
         if word in _PLAN_WORDS or (word in CCR_OFFSETS and not self._preloaded(CCR_OFFSETS.index(word))):
             self._plan = None  # a compare in force, a mode, an enable or a trigger selection moves the events
+            self._watched = None
         if word == SR:  # rc_w0
             self.regs[SR] &= value
             self._irqs()

@@ -9,7 +9,7 @@ from __future__ import annotations
 from typing import ClassVar
 
 from pmsm_hil.sim_target.stm32g4.part import IRQ
-from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError, register
+from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError, register, services
 from pmsm_hil.sim_target.stm32g4.peripherals.regs import RegisterFile
 
 CR1, CR2, SMCR, DIER, SR, EGR, CCMR1, CCMR2, CCER, CNT, PSC, ARR = (
@@ -30,11 +30,16 @@ class GeneralTimer(RegisterFile):
         self.anchor_cnt = 0
         self.last_edges = 0
         self.down = False
+        self._enc = 0
 
     @property
     def encoder_mode(self) -> int:
+        """SMCR.SMS when it is an encoder mode (1-3), else 0 (kept from the last SMCR write)."""
+        return self._enc
+
+    def _set_encoder_mode(self) -> None:
         sms = self.regs[SMCR] & 7 | (self.regs[SMCR] >> 16 & 1) << 3
-        return sms if sms in (1, 2, 3) else 0
+        self._enc = sms if sms in (1, 2, 3) else 0
 
     @property
     def running(self) -> bool:
@@ -45,7 +50,7 @@ class GeneralTimer(RegisterFile):
 
     def counter(self, now: int) -> int:
         if self.encoder_mode:
-            edges = self.bus.encoder_position(self.name, now)
+            edges = services(self.bus).encoder_position(self.name, now)
             if edges != self.last_edges:
                 self.down = edges < self.last_edges
                 self.last_edges = edges
@@ -59,7 +64,7 @@ class GeneralTimer(RegisterFile):
         return (self.anchor_cnt + ticks) % self._modulus()
 
     def _counts_now(self, now: int) -> int:
-        edges = self.bus.encoder_position(self.name, now)
+        edges = services(self.bus).encoder_position(self.name, now)
         return edges if self.encoder_mode == 3 else edges // 2
 
     def next_event(self, now: int) -> int | None:
@@ -133,6 +138,7 @@ class GeneralTimer(RegisterFile):
                 raise BoardError(f"{self.name}.SMCR.SMS = {sms}: only the encoder modes 1-3 are modelled")
             cnt = self.counter(now)
             self.regs[SMCR] = value
+            self._set_encoder_mode()
             self._rebase(now, cnt)
             return
         if word == DIER:

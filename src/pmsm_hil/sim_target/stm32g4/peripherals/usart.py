@@ -7,7 +7,7 @@ from __future__ import annotations
 from typing import ClassVar
 
 from pmsm_hil.sim_target.stm32g4.part import IRQ
-from pmsm_hil.sim_target.stm32g4.peripherals.base import register
+from pmsm_hil.sim_target.stm32g4.peripherals.base import register, services
 from pmsm_hil.sim_target.stm32g4.peripherals.regs import RegisterFile
 
 MAX_LINE = 1000
@@ -47,7 +47,7 @@ class Usart2(RegisterFile):
 
     def _put(self, byte: int) -> None:
         if byte == 0x0A or len(self.line) >= MAX_LINE:
-            self.bus.log(self.name, self.line.decode("utf-8", "replace").rstrip("\r"))
+            services(self.bus).log(self.name, self.line.decode("utf-8", "replace").rstrip("\r"))
             self.line.clear()
             if byte == 0x0A:
                 return
