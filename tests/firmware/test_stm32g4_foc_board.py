@@ -93,9 +93,6 @@ def _run(elf: Path, seconds: float) -> tuple[ClosedLoop, float, float]:
     return loop, rpm, torque
 
 
-@pytest.mark.xfail(reason="the board's ADC model stops converting once the firmware clears ADRDY after ADEN "
-                          "(RM0440 21.4.9, step 4 of 'Enabling the ADC'): the current loop never runs",
-                   raises=AssertionError, strict=False)
 def test_holds_1500_rpm_and_7_nm_on_the_board_models() -> None:
     loop, rpm, torque = _run(_elf(), 0.15)
     adc_isr = loop.board.isr.get(16 + 18)
@@ -106,8 +103,6 @@ def test_holds_1500_rpm_and_7_nm_on_the_board_models() -> None:
     assert loop.tim1.late_writes == 0
 
 
-@pytest.mark.xfail(reason="the board's ADC model stops converting once the firmware clears ADRDY after ADEN",
-                   raises=AssertionError, strict=False)
 def test_late_isr_variant_lands_its_compare_values_a_period_late() -> None:
     loop, rpm, _ = _run(_elf("LATE_ISR"), 0.15)
     adc_isr = loop.board.isr.get(16 + 18)
@@ -117,8 +112,6 @@ def test_late_isr_variant_lands_its_compare_values_a_period_late() -> None:
     assert rpm == pytest.approx(1500.0, rel=0.01)
 
 
-@pytest.mark.xfail(reason="the board's ADC model stops converting once the firmware clears ADRDY after ADEN",
-                   raises=AssertionError, strict=False)
 def test_fault_variant_stops_with_pc_and_cfsr_of_the_bus_fault() -> None:
     board: Any = board_mod.Board(part_mod.PARTS["stm32g474"], _elf("FAULT"))
     board.analog = lambda adc, channel, now: 3.3 if channel < 0 else 1.65
