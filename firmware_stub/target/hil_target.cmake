@@ -16,6 +16,13 @@
 # HIL_FP_CONTRACT=fast` lets the compiler fuse again (a few % fewer instructions, SIL no longer an exact oracle).
 # `hil fw build --define NAME=VALUE` sets NAME both as a CMake variable and as a preprocessor macro of the
 # firmware (HIL_DEFINES). The host library links with --no-undefined: a missing hil_app_* is a build error.
+#
+# HIL_BOARD stm32g474 (toolchain ${HIL_SDK}/boards/stm32g474/toolchain.cmake): a bare-metal firmware for the
+# virtual STM32G474 (`hil run --target stm32g4:PATH`), which owns its start-up, vector table and linker script
+# and talks to the plant through the chip's peripherals, not through the target core:
+#   hil_add_board_firmware(my_fw SOURCES ... LINKER_SCRIPT file.ld [INCLUDES dir...] [CODEC])
+# builds out/hil_firmware.elf (and its .map) with the strict flags; CODEC adds the generated DBC codec
+# (generated/hil_protocol.c, its header on the include path).
 get_filename_component(HIL_SDK "${CMAKE_CURRENT_LIST_DIR}/.." ABSOLUTE)
 if(NOT HIL_BOARD)
     set(HIL_BOARD host)
@@ -50,8 +57,11 @@ function(hil_add_firmware name)
                             --specs=nosys.specs -Wl,--gc-sections "-Wl,-Map=${CMAKE_BINARY_DIR}/out/hil_firmware.map")
         target_link_libraries(${name} PRIVATE m)
         target_include_directories(${name} PRIVATE "${board}")
+    elseif(HIL_BOARD STREQUAL "stm32g474")
+        message(FATAL_ERROR "hil_add_firmware() builds the HIL target core (host, mps2-an386); a firmware for "
+                "stm32g474 owns its start-up and peripherals: use hil_add_board_firmware() (examples/stm32g4_foc)")
     else()
-        message(FATAL_ERROR "HIL_BOARD must be host or mps2-an386, got '${HIL_BOARD}'")
+        message(FATAL_ERROR "HIL_BOARD must be host, mps2-an386 or stm32g474, got '${HIL_BOARD}'")
     endif()
     target_include_directories(${name} PRIVATE ${FW_INCLUDES} "${HIL_SDK}/target" "${HIL_SDK}/generated")
     if(HIL_DEFINES)
@@ -63,4 +73,32 @@ function(hil_add_firmware name)
         target_compile_options(${name} PRIVATE ${HIL_USER_FLAGS})
         set_source_files_properties(${core} PROPERTIES COMPILE_OPTIONS "${HIL_STRICT_FLAGS}")
     endif()
+endfunction()
+
+function(hil_add_board_firmware name)
+    cmake_parse_arguments(FW "CODEC" "LINKER_SCRIPT" "SOURCES;INCLUDES" ${ARGN})
+    if(NOT HIL_BOARD STREQUAL "stm32g474")
+        message(FATAL_ERROR "hil_add_board_firmware() builds for HIL_BOARD stm32g474, got '${HIL_BOARD}'")
+    endif()
+    if(NOT FW_LINKER_SCRIPT)
+        message(FATAL_ERROR "hil_add_board_firmware(${name}): LINKER_SCRIPT is required")
+    endif()
+    set(srcs ${FW_SOURCES})
+    if(FW_CODEC)
+        list(APPEND srcs "${HIL_SDK}/generated/hil_protocol.c")
+    endif()
+    add_executable(${name} ${srcs})
+    set_target_properties(${name} PROPERTIES OUTPUT_NAME hil_firmware SUFFIX ".elf"
+                          RUNTIME_OUTPUT_DIRECTORY "${CMAKE_BINARY_DIR}/out" LINK_DEPENDS "${FW_LINKER_SCRIPT}")
+    target_link_options(${name} PRIVATE "-T${FW_LINKER_SCRIPT}" -nostartfiles --specs=nano.specs
+                        --specs=nosys.specs -Wl,--gc-sections "-Wl,-Map=${CMAKE_BINARY_DIR}/out/hil_firmware.map")
+    target_link_libraries(${name} PRIVATE m)
+    target_include_directories(${name} PRIVATE ${FW_INCLUDES})
+    if(FW_CODEC)
+        target_include_directories(${name} PRIVATE "${HIL_SDK}/generated")
+    endif()
+    if(HIL_DEFINES)
+        target_compile_definitions(${name} PRIVATE ${HIL_DEFINES})
+    endif()
+    target_compile_options(${name} PRIVATE ${HIL_STRICT_FLAGS})
 endfunction()

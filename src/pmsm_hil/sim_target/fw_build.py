@@ -1,7 +1,8 @@
 """Builds a firmware of the HIL target core (docs/firmware_api.md) with CMake: the reference firmware
 (firmware_stub/src behind firmware_stub/target/hil_app_reference.c) or a user's source folder, for the host
-(a shared library for `--target sil:PATH`) or the emulated Cortex-M4F board mps2-an386 (an ELF for
-`--target qemu:PATH`).
+(a shared library for `--target sil:PATH`), the emulated Cortex-M4F board mps2-an386 (an ELF for
+`--target qemu:PATH`), or the virtual STM32G474 (a bare-metal ELF for `--target stm32g4:PATH`; default source
+examples/stm32g4_foc).
 
 Builds go to a per-user cache folder (one per source folder, board and set of `--define`s, incremental, locked
 while in use); `build_firmware` copies the artefact to `out` when given. What the compiler said is kept: the
@@ -28,10 +29,15 @@ from pmsm_hil.sim_target.firmware import FirmwareError
 
 FIRMWARE_DIR = Path(__file__).resolve().parents[3] / "firmware_stub"
 REFERENCE_SRC = FIRMWARE_DIR / "target" / "reference"
-BOARDS = ("host", "mps2-an386")
+#: the example firmware for the virtual STM32G474 (the default source of `--board stm32g474`)
+STM32G4_EXAMPLE_SRC = FIRMWARE_DIR.parent / "examples" / "stm32g4_foc"
+BOARDS = ("host", "mps2-an386", "stm32g474")
+#: boards whose firmware is an ARM ELF built with a toolchain file of firmware_stub/boards/<board>/
+MCU_BOARDS = ("mps2-an386", "stm32g474")
 #: what each board needs besides cmake (and a host C compiler)
-BOARD_TOOLS: dict[str, tuple[str, ...]] = {"host": ("cmake",), "mps2-an386": ("cmake", "arm-none-eabi-gcc")}
-ARTEFACT = {"host": "libhil_firmware.so", "mps2-an386": "hil_firmware.elf"}
+BOARD_TOOLS: dict[str, tuple[str, ...]] = {"host": ("cmake",), "mps2-an386": ("cmake", "arm-none-eabi-gcc"),
+                                           "stm32g474": ("cmake", "arm-none-eabi-gcc")}
+ARTEFACT = {"host": "libhil_firmware.so", "mps2-an386": "hil_firmware.elf", "stm32g474": "hil_firmware.elf"}
 BUILD_TIMEOUT_S = 600.0
 #: warning lines a build result shows (their count is always given)
 SHOWN_WARNINGS = 5
@@ -117,6 +123,14 @@ def key_lines(text: str, *, limit: int = 12) -> list[str]:
                   and "ld returned" not in ln and "collect2" not in ln), None)
     if first is not None:
         out.append(lines[first].strip())
+        if lines[first].startswith("CMake Error"):  # the message follows, indented, up to an empty line
+            body = lines[first + 1:first + 8]
+            while body and not body[0].strip():
+                body.pop(0)
+            for ln in body:
+                if not ln.strip():
+                    break
+                out.append(ln.strip())
         for ln in lines[first + 1:first + 4]:  # "   12 |   code" and "      |   ^~~~"
             if re.match(r"\s*\d*\s*\|", ln):
                 out.append(ln)
@@ -233,10 +247,11 @@ def build_firmware(board: str = "host", src: Path | None = None, out: Path | Non
                    *, jobs: int | None = None, defines: list[str] | tuple[str, ...] = (),
                    verbose: bool = False, progress: Callable[[str, str], None] | None = None) -> BuildResult:
     """Configure and build `src` (a CMake folder using firmware_stub/target/hil_target.cmake; default: the
-    reference firmware) for `board`; copy the artefact to `out` if given. `defines` ("NAME=VALUE") become CMake
-    variables and preprocessor macros of the firmware (hil_target.cmake HIL_DEFINES); `verbose` echoes the
-    commands and the whole build output to stderr. Raises FwBuildError. `progress(step, line)` (a status line) is
-    told each step (`configuring`, `building`) and, while building, each line of the output as it comes."""
+    reference firmware; for stm32g474 examples/stm32g4_foc) for `board`; copy the artefact to `out` if given.
+    `defines` ("NAME=VALUE") become CMake variables and preprocessor macros of the firmware (hil_target.cmake
+    HIL_DEFINES); `verbose` echoes the commands and the whole build output to stderr. Raises FwBuildError.
+    `progress(step, line)` (a status line) is told each step (`configuring`, `building`) and, while building,
+    each line of the output as it comes."""
     def step(name: str, line: str = "") -> None:
         if progress is not None:
             progress(name, line)
@@ -247,7 +262,7 @@ def build_firmware(board: str = "host", src: Path | None = None, out: Path | Non
     if missing:
         hint = " (apt-get install gcc-arm-none-eabi libnewlib-arm-none-eabi)" if "arm-none-eabi-gcc" in missing else ""
         raise FwBuildError(f"building for {board} needs {', '.join(missing)} on PATH{hint}")
-    src = (src or REFERENCE_SRC).resolve()
+    src = (src or (STM32G4_EXAMPLE_SRC if board == "stm32g474" else REFERENCE_SRC)).resolve()
     if not (src / "CMakeLists.txt").is_file():
         raise FwBuildError(f"--src {src}: no CMakeLists.txt (see examples/my_firmware/)")
     defs = parse_defines(list(defines))
@@ -255,8 +270,8 @@ def build_firmware(board: str = "host", src: Path | None = None, out: Path | Non
     build = cache_dir() / "fw-build" / f"{src.name}-{board}-{key}"
     cmd = ["cmake", "-S", str(src), "-B", str(build), f"-DHIL_SDK={FIRMWARE_DIR}", f"-DHIL_BOARD={board}",
            "-DCMAKE_BUILD_TYPE=Release", f"-DHIL_DEFINES={';'.join(defs)}", *(f"-D{d}" for d in defs)]
-    if board == "mps2-an386":
-        cmd.append(f"-DCMAKE_TOOLCHAIN_FILE={FIRMWARE_DIR / 'boards' / 'mps2-an386' / 'toolchain.cmake'}")
+    if board in MCU_BOARDS:
+        cmd.append(f"-DCMAKE_TOOLCHAIN_FILE={FIRMWARE_DIR / 'boards' / board / 'toolchain.cmake'}")
     build_cmd = ["cmake", "--build", str(build), "-j", str(jobs or os.cpu_count() or 1)]
     if verbose:
         build_cmd.append("--verbose")
@@ -269,8 +284,9 @@ def build_firmware(board: str = "host", src: Path | None = None, out: Path | Non
         warnings = _remember_warnings(build, output)
         artefact = build / "out" / ARTEFACT[board]
         if not artefact.is_file():
+            call = "hil_add_board_firmware()" if board == "stm32g474" else "hil_add_firmware()"
             raise FwBuildError(f"build of {src} produced no {ARTEFACT[board]}: does its CMakeLists.txt call "
-                                      "hil_add_firmware()?")
+                               f"{call}?")
         _check_param_table(artefact)
         if out is not None:
             artefact = _copy_out(artefact, Path(out), board)

@@ -1,5 +1,6 @@
 """`hil fw build`: builds the reference firmware or a user's firmware (CMake, docs/firmware_api.md) for the
-host (a SIL library) or the emulated Cortex-M4F board mps2-an386 (an ELF for QEMU); prints the compiler's
+host (a SIL library), the emulated Cortex-M4F board mps2-an386 (an ELF for QEMU) or the virtual STM32G474 (a
+bare-metal ELF, by default examples/stm32g4_foc); prints the compiler's
 warnings (count and first lines), the ELF's sizes and the firmware's declared parameters."""
 
 from __future__ import annotations
@@ -17,14 +18,17 @@ from pmsm_hil.sim_target.fw_params import firmware_params
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Register `build` under `hil fw`."""
     p = subparsers.add_parser(
-        "build", help="build a firmware for the SIL host library or the QEMU mps2-an386 board",
+        "build", help="build a firmware for the SIL host library, the QEMU mps2-an386 board or the virtual STM32G474",
         description="""Build the reference firmware (default) or a firmware source folder (a CMakeLists.txt calling
                        hil_add_firmware(), e.g. examples/my_firmware/ or the C++ examples/my_firmware_cpp/) for the host
-                       (shared library: hil run --target sil:OUT) or mps2-an386 (Cortex-M4F ELF: hil run --target
-                       qemu:OUT); prints the artefact's path, the compiler's warnings, for the ELF its text/data/bss
-                       sizes, and the parameters the firmware declares (hil_app_params.h).""")
+                       (shared library: hil run --target sil:OUT), mps2-an386 (Cortex-M4F ELF: hil run --target
+                       qemu:OUT) or stm32g474 (a bare-metal ELF owning its start-up and peripherals, default source
+                       examples/stm32g4_foc: hil run --target stm32g4:OUT); prints the artefact's path, the
+                       compiler's warnings, for the ELF its text/data/bss sizes, and the parameters the
+                       firmware declares (hil_app_params.h).""")
     p.add_argument("--board", choices=BOARDS, default="host", help="target board (default host)")
-    p.add_argument("--src", type=Path, metavar="DIR", help="firmware source folder (default: the reference firmware)")
+    p.add_argument("--src", type=Path, metavar="DIR",
+                   help="firmware source folder (default: the reference firmware; for stm32g474 examples/stm32g4_foc)")
     p.add_argument("-o", "--out", type=Path, metavar="OUT",
                    help=f"output file or folder (default: {ARTEFACT['host']} / {ARTEFACT['mps2-an386']} in the "
                         "build cache)")
