@@ -7,6 +7,7 @@ time (pytest-timeout): a receive that waits for a lost frame fails instead of ha
 from __future__ import annotations
 
 import os
+import threading
 import tty
 from typing import Any
 
@@ -186,3 +187,38 @@ def test_bad_channels_are_refused_naming_them() -> None:
         HilUdpBus("47310")
     with pytest.raises(can.CanInitializationError, match="loop://"):
         HilSerialBus("loop://")
+
+
+def test_authenticated_ends_agree_and_a_foreign_key_is_refused() -> None:
+    """With auth_key the C handshake agrees a session with the peer's nonce before the first frame (both ways, and
+    over a pty); a peer with another key refuses the HELLO, and the sender says so instead of waiting."""
+    key = bytes(range(32))
+    a, b = free_udp_ports(2)
+    with HilUdpBus(f"{a}:{b}", auth_key=key) as x, HilUdpBus(f"{b}:{a}", auth_key=key, auth_role="target") as y:
+        received: list[can.Message | None] = []
+        peer = threading.Thread(target=lambda: received.append(y.recv(5.0)))  # it answers the HELLO as it waits
+        peer.start()
+        x.send(can.Message(arbitration_id=0x21, data=b"\1\2"))
+        peer.join()
+        assert received[0] is not None and bytes(received[0].data) == b"\1\2"
+        y.send(can.Message(arbitration_id=0x22, data=b"\3"))
+        got = x.recv(5.0)
+        assert got is not None and bytes(got.data) == b"\3"
+        assert x.session == y.session != 0 and x.link_stats.auth_failed == y.link_stats.auth_failed == 0
+    a, b = free_udp_ports(2)
+    with HilUdpBus(f"{a}:{b}", auth_key=key) as x, \
+            HilUdpBus(f"{b}:{a}", auth_key=bytes(32), auth_role="target") as y:
+        peer = threading.Thread(target=lambda: y.recv(3.0))
+        peer.start()
+        with pytest.raises(can.CanOperationError, match="refused our HELLO"):
+            x.wait_session(5.0)
+        peer.join()
+        assert y.link_stats.auth_failed >= 1
+    master, slave = os.openpty()
+    tty.setraw(master)
+    tty.setraw(slave)
+    with HilSerialBus(f"fd:{master}", auth_key=key) as p, \
+            HilSerialBus(f"fd:{slave}", auth_key=key, auth_role="target") as q:
+        p.send(can.Message(arbitration_id=0x23, data=b"\4"))
+        got = q.recv(5.0)
+        assert got is not None and bytes(got.data) == b"\4" and q.link_stats.auth_failed == 0
