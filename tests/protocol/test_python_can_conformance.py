@@ -182,6 +182,18 @@ def test_the_channel_round_trips_through_python_cans_loggers(tmp_path: Any, suff
         assert back[0].channel == got.channel
 
 
+def test_frames_the_bus_cannot_carry_are_refused_and_counted() -> None:
+    a, b = free_udp_ports(2)
+    with HilUdpBus(f"{a}:{b}", fd=False) as x, HilUdpBus(f"{b}:{a}") as y:
+        with pytest.raises(can.CanOperationError, match="FD frame on a classic bus"):
+            x.send(can.Message(arbitration_id=0x10, is_fd=True, data=bytes(12)))
+        with pytest.raises(can.CanOperationError, match="cannot carry"):
+            y.send(can.Message(arbitration_id=0x10, is_fd=True, data=bytes(13)))  # no FD length
+        with pytest.raises(can.CanOperationError, match="error frames"):
+            y.send(can.Message(is_error_frame=True))
+        assert x.link_stats.send_errors == y.link_stats.send_errors == 1
+
+
 def test_bad_channels_are_refused_naming_them() -> None:
     with pytest.raises(can.CanInitializationError, match="LOCALPORT:REMOTEPORT"):
         HilUdpBus("47310")

@@ -144,6 +144,9 @@ class WireBus(can.BusABC):
         if msg.is_error_frame:
             raise can.CanOperationError(f"{self.channel_info}: error frames are not carried")
         data = b"" if msg.is_remote_frame else bytes(msg.data)
+        if msg.is_fd and not self.fd:
+            self._state.stats.send_errors += 1
+            raise can.CanOperationError(f"{self.channel_info}: an FD frame on a classic bus (fd=False)")
         if len(data) > 64 or (msg.is_remote_frame and not 0 <= msg.dlc <= 8):
             raise can.CanOperationError(f"{self.channel_info}: a frame of {len(data) or msg.dlc} bytes")
         m = ffi.new("nl_wire_frame_t *")
@@ -155,8 +158,7 @@ class WireBus(can.BusABC):
         if rc == -2:
             raise can.CanOperationError(
                 f"{self.channel_info}: the wire cannot carry this frame (id 0x{msg.arbitration_id:X}, "
-                f"{'FD' if msg.is_fd else 'classic'}, {len(data)} bytes"
-                + (", FD frames off on this bus" if msg.is_fd and not self.fd else "") + ")")
+                f"{'FD' if msg.is_fd else 'classic'}, {len(data)} bytes)")
         if rc < 0:
             errno = ffi.errno
             raise can.CanOperationError(f"{self.channel_info}: send failed: "
