@@ -63,6 +63,13 @@ class _PointToPoint:
     def test_unique_message_instances(self) -> None:
         pytest.skip(POINT_TO_POINT)
 
+    @pytest.mark.timing
+    def test_send_periodic_duration(self) -> None:
+        """python-can's test unchanged, in the `timing` step: python-can's cyclic sender fixes its end time before
+        its thread starts, so on a loaded machine a thread that starts over 10 ms late sends nothing (seen with the
+        virtual bus alike) and the test fails on an empty list, whatever the bus."""
+        super().test_send_periodic_duration()  # type: ignore[misc]
+
 
 class _ThreadSafe(_PointToPoint):
     """The thread-safe tests compare each received Message with the one sent, channel included: on a shared channel
