@@ -201,6 +201,26 @@ def test_frames_the_bus_cannot_carry_are_refused_and_counted() -> None:
         assert x.link_stats.send_errors == y.link_stats.send_errors == 1
 
 
+def test_a_shutdown_ends_a_receive_waiting_in_another_thread() -> None:
+    x, y = _pair_udp()
+    ended: list[BaseException] = []
+
+    def wait() -> None:
+        try:
+            x.recv()  # no timeout
+        except can.CanOperationError as exc:
+            ended.append(exc)
+
+    with y:
+        waiter = threading.Thread(target=wait)
+        waiter.start()
+        x.shutdown()
+        waiter.join(10.0)
+    assert not waiter.is_alive() and "shut down" in str(ended[0])
+    with pytest.raises(can.CanOperationError, match="shut down"):
+        x.send(can.Message())
+
+
 def test_bad_channels_are_refused_naming_them() -> None:
     with pytest.raises(can.CanInitializationError, match="LOCALPORT:REMOTEPORT"):
         HilUdpBus("47310")

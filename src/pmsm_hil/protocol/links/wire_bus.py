@@ -141,6 +141,7 @@ class WireBus(can.BusABC):
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         """Send `msg`; CanOperationError for a frame the wire cannot carry or an I/O error."""
+        self._check_open()
         if msg.is_error_frame:
             raise can.CanOperationError(f"{self.channel_info}: error frames are not carried")
         data = b"" if msg.is_remote_frame else bytes(msg.data)
@@ -170,7 +171,13 @@ class WireBus(can.BusABC):
                 error_state_indicator=msg.error_state_indicator, dlc=msg.dlc, data=data or None,
                 channel=self.channel_name, is_rx=False))
 
+    def _check_open(self) -> None:
+        """CanOperationError once the bus is shut down (a receive waiting in another thread then ends)."""
+        if self._is_shutdown:
+            raise can.CanOperationError(f"{self.channel_info}: the bus is shut down")
+
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        self._check_open()
         deadline = _NEVER_NS if timeout is None else _deadline_ns(timeout)
         m = ffi.new("nl_wire_frame_t *")
         while not self._queued:
@@ -180,7 +187,8 @@ class WireBus(can.BusABC):
                 return self._message(m), False
             if got < 0:
                 raise can.CanOperationError(f"{self.channel_info}: the peer closed the link")
-            if self._is_shutdown or lib.nl_now_ns() >= deadline:
+            self._check_open()
+            if lib.nl_now_ns() >= deadline:
                 return None, False
         return self._queued.popleft(), False
 

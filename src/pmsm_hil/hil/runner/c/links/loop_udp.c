@@ -489,6 +489,9 @@ int nl_udp_recv_wire(nl_udp_t *u, nl_wire_frame_t *m, int64_t deadline_ns)
             u->stats.send_errors += u->session != 0u && u->proposal == 0u;
             continue;
         }
+        if (errno == EBADF) { /* closed (a bus shut down from another thread): nothing will come */
+            return 0;
+        }
         if (errno != EAGAIN && errno != EWOULDBLOCK) {
             u->stats.framing_errors++;
         }
