@@ -1,5 +1,5 @@
 """Build hook: the package list from src/ (every folder with an __init__.py), and the C extensions compiled by cffi
-(API mode): the plant kernels, the reference firmware and the period loop."""
+(API mode): the plant kernels, the reference firmware, the period loop and the wire links of the python-can buses."""
 
 from pathlib import Path
 
@@ -7,7 +7,8 @@ from setuptools import find_packages, setup
 
 _BUILDERS = ["src/pmsm_hil/hil/kernels/_build_plant.py:ffibuilder",
              "src/pmsm_hil/sim_target/_build_firmware.py:ffibuilder",
-             "src/pmsm_hil/hil/runner/c/_build_loop.py:ffibuilder"]
+             "src/pmsm_hil/hil/runner/c/_build_loop.py:ffibuilder",
+             "src/pmsm_hil/protocol/links/_build_wire.py:ffibuilder"]
 
 setup(
     packages=find_packages(where="src"),

@@ -27,6 +27,11 @@ CI_ALLOWED_SKIPS = (
     "no SocketCAN interface",  # no vcan module on the CI kernel; runs on users' Linux CI
     "gym-electric-motor not installed",  # optional [bench] extra, not installed by CI
     "multicast",  # loopback multicast is not routed on every host
+    # python-can's own skips in its back-to-back tests (tests/protocol/test_python_can_conformance.py), and the one
+    # test a point-to-point link cannot run (a third bus on one end's channel)
+    "TODO: how shall this be treated if sending messages locally",
+    "the timing sensitive behaviour cannot be reproduced reliably on a CI server",
+    "a point-to-point link has two ends",
 )
 
 _unexpected: list[str] = []

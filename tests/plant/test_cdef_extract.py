@@ -161,7 +161,7 @@ LOOP_C, KERNELS = PACKAGE / "hil" / "runner" / "c", PACKAGE / "hil" / "kernels"
 FIRMWARE_HEADER_DIRS = [ROOT / "firmware_stub" / d for d in ("include", "target", "generated")]
 #: the scripts that hand cffi a cdef
 BUILD_SCRIPTS = [LOOP_C / "_build_loop.py", KERNELS / "_build_plant.py", PACKAGE / "sim_target" / "_build_firmware.py",
-                 PACKAGE / "hil" / "kernel_build.py"]
+                 PACKAGE / "hil" / "kernel_build.py", PACKAGE / "protocol" / "links" / "_build_wire.py"]
 
 
 def header_names() -> set[str]:

@@ -166,9 +166,15 @@ def test_python_can_tools_work_over_plugins() -> None:
         msg = y.recv(2.0)
         assert msg is not None and msg.arbitration_id == 0x1ABCDE and msg.is_extended_id
         assert bytes(msg.data) == b"\x01\x02"
-    with can.Bus(interface="hilserial", channel="loop://") as lo:
-        lo.send(can.Message(arbitration_id=0x108, data=bytes(16), is_fd=True, is_extended_id=False))
-        msg = lo.recv(2.0)
+    master, slave = os.openpty()
+    tty.setraw(master)
+    tty.setraw(slave)
+    with (
+        can.Bus(interface="hilserial", channel=f"fd:{master}") as p,
+        can.Bus(interface="hilserial", channel=f"fd:{slave}") as q,
+    ):
+        p.send(can.Message(arbitration_id=0x108, data=bytes(16), is_fd=True, is_extended_id=False))
+        msg = q.recv(2.0)
         assert msg is not None and msg.is_fd and len(msg.data) == 16
 
 

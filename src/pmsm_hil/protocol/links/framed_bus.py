@@ -133,7 +133,7 @@ class FramedBus(can.BusABC):
         """python-can API."""
         flags = (FLAG_EXTENDED if msg.is_extended_id else 0) | (FLAG_REMOTE if msg.is_remote_frame else 0)
         flags |= FLAG_ESI if msg.error_state_indicator else 0
-        data = bytes(msg.data) if not msg.is_remote_frame else b""
+        data = bytes(msg.data) if not msg.is_remote_frame else bytes(msg.dlc)  # a remote frame: DLC zero bytes
         if msg.is_fd and not msg.bitrate_switch:
             flags &= ~FLAG_BRS
         self.send_frame(msg.arbitration_id, data, msg.is_fd, flags)
@@ -154,7 +154,7 @@ class FramedBus(can.BusABC):
         msg = can.Message(
             timestamp=time.time(),
             arbitration_id=arb,
-            data=data,
+            data=None if flags & FLAG_REMOTE else data,
             is_fd=bool(flags & FLAG_FD),
             bitrate_switch=bool(flags & FLAG_BRS),
             error_state_indicator=bool(flags & FLAG_ESI),

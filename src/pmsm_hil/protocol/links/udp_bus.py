@@ -13,7 +13,6 @@ them before they reach it. docs/protocol.md, "UDP datagrams and session handshak
 from __future__ import annotations
 
 import binascii
-import os
 import secrets
 import socket
 import struct
@@ -28,8 +27,8 @@ from pmsm_hil.protocol.links.cobs import CRC_INIT, CRC_SIZE
 from pmsm_hil.protocol.links.framed_bus import FramedBus
 from pmsm_hil.protocol.links.stats import SeqTracker
 from pmsm_hil.protocol.links.wire import HEADER_SIZE
+from pmsm_hil.protocol.links.wire_bus import free_udp_ports, parse_udp_channel, udp_socket_drops
 
-DEFAULT_HOST = "127.0.0.1"
 MAX_DATAGRAM = 2048
 SESSION = struct.Struct("<I")
 #: control datagram: session 0, magic, type, version, session id (14 bytes)
@@ -51,48 +50,6 @@ HELLO_INTERVAL_S = 0.1  # a proposal is repeated until acknowledged
 #: data datagram: session + wire header + payload + CRC-16 (CCITT, init 0xFFFF, big endian, over header+payload)
 _DATA_MIN = SESSION.size + HEADER_SIZE + CRC_SIZE
 _LENGTH_AT = SESSION.size + HEADER_SIZE - 1  # offset of the header's payload length byte
-
-
-def parse_udp_channel(channel: str) -> tuple[int, int, str]:
-    """ "LOCAL:REMOTE[@HOST]" -> (local port, remote port, host); raises ValueError naming the part."""
-    ports, _, host = str(channel).partition("@")
-    parts = ports.split(":")
-    if len(parts) != 2:
-        raise ValueError(f"UDP channel {channel!r}: expected LOCALPORT:REMOTEPORT[@HOST]")
-    try:
-        local, remote = int(parts[0]), int(parts[1])
-    except ValueError:
-        raise ValueError(f"UDP channel {channel!r}: ports must be integers") from None
-    for name, port in (("LOCALPORT", local), ("REMOTEPORT", remote)):
-        if not 0 <= port <= 65535 or (name == "REMOTEPORT" and port == 0):
-            raise ValueError(f"UDP channel {channel!r}: {name}={port} out of range")
-    return local, remote, host or DEFAULT_HOST
-
-
-def free_udp_ports(n: int = 2, host: str = DEFAULT_HOST) -> list[int]:
-    """`n` distinct UDP ports free on `host` now (bound to port 0 together, then released)."""
-    socks = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(n)]
-    try:
-        for s in socks:
-            s.bind((host, 0))
-        return [int(s.getsockname()[1]) for s in socks]
-    finally:
-        for s in socks:
-            s.close()
-
-
-def udp_socket_drops(fd: int) -> int | None:
-    """`drops` of the UDP socket `fd` in /proc/net/udp (found by its inode), None where that is not known."""
-    try:
-        inode = str(os.fstat(fd).st_ino)
-        with open("/proc/net/udp", encoding="ascii") as table:
-            for line in table:
-                fields = line.split()
-                if len(fields) >= 13 and fields[9] == inode:
-                    return int(fields[12])
-    except (OSError, ValueError):
-        return None
-    return None
 
 
 def link_socket_drops(link: Any) -> dict[str, int]:
@@ -370,3 +327,6 @@ class UdpUnicastBus(FramedBus):
             return
         super().shutdown()
         self._sock.close()
+
+
+__all__ = ["UdpUnicastBus", "free_udp_ports", "link_socket_drops", "parse_udp_channel", "udp_socket_drops"]

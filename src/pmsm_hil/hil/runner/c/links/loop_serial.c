@@ -3,6 +3,7 @@
 #define _GNU_SOURCE
 
 #include <errno.h>
+#include <fcntl.h>
 #include <poll.h>
 #include <string.h>
 #include <time.h>
@@ -40,17 +41,12 @@ static size_t encode_sealed(nl_serial_t *s, const hil_core_frame_t *f, uint8_t *
     return hil_serial_packet(raw, n + HIL_AUTH_TRAILER, out);
 }
 
-int nl_serial_send(nl_serial_t *s, const hil_core_frame_t *f)
+/* Write a packet of n bytes, waiting while the output buffer is full for at most write_timeout_ns: 0 written
+ * (frames_tx counted), -1 a counted send error. */
+static int write_packet(nl_serial_t *s, const uint8_t *packet, size_t n)
 {
-    uint8_t packet[NL_SERIAL_MAX_ENCODED + 1];
-    size_t n;
     size_t at = 0u;
     int64_t deadline = -1;
-    if (!nl_valid_length(f->len, f->fd) || (f->fd && !s->fd_frames)) {
-        s->stats.send_errors++;
-        return -1;
-    }
-    n = s->auth.on ? encode_sealed(s, f, packet) : hil_serial_encode(&s->framer, f, packet);
     while (at < n) {
         const ssize_t w = write(s->fd, packet + at, n - at);
         if (w > 0) {
@@ -74,11 +70,22 @@ int nl_serial_send(nl_serial_t *s, const hil_core_frame_t *f)
     return 0;
 }
 
-/* One packet between delimiters (Deframer._packet, FramedBus._accept, poll_frame): 1 when it is a data
- * frame for *f. */
-static int packet(nl_serial_t *s, hil_core_frame_t *f)
+int nl_serial_send(nl_serial_t *s, const hil_core_frame_t *f)
 {
-    uint8_t raw[NL_SERIAL_MAX_ENCODED];
+    uint8_t packet[NL_SERIAL_MAX_ENCODED + 1];
+    size_t n;
+    if (!nl_valid_length(f->len, f->fd) || (f->fd && !s->fd_frames)) {
+        s->stats.send_errors++;
+        return -1;
+    }
+    n = s->auth.on ? encode_sealed(s, f, packet) : hil_serial_encode(&s->framer, f, packet);
+    return write_packet(s, packet, n);
+}
+
+/* One packet between delimiters (Deframer._packet, FramedBus._accept): 1 when its checks passed, its body
+ * (header + payload) in raw. */
+static int packet(nl_serial_t *s, uint8_t *raw)
+{
     const int n = hil_serial_cobs_decode(s->pkt, (size_t)s->pkt_n, raw);
     const int trailer = s->auth.on ? (int)HIL_AUTH_TRAILER : 0;
     uint16_t crc;
@@ -101,19 +108,16 @@ static int packet(nl_serial_t *s, hil_core_frame_t *f)
         s->stats.framing_errors++;
         return 0;
     }
-    if (trailer && !nl_auth_open(&s->auth, raw, (size_t)n - CRC_SIZE, &s->stats)) {
-        return 0;
-    }
-    return nl_accept_framed(raw, &s->rx_last, &s->stats, f);
+    return !trailer || nl_auth_open(&s->auth, raw, (size_t)n - CRC_SIZE, &s->stats);
 }
 
-/* One received byte (Deframer.feed): 1 when it completed a data frame for *f. */
-static int feed(nl_serial_t *s, uint8_t byte, hil_core_frame_t *f)
+/* One received byte (Deframer.feed): 1 when it completed a packet whose checks passed, its body in raw. */
+static int feed(nl_serial_t *s, uint8_t byte, uint8_t *raw)
 {
     if (byte == 0u) {
         int got = 0;
         if (!s->discarding && s->pkt_n > 0) {
-            got = packet(s, f);
+            got = packet(s, raw);
         }
         s->pkt_n = 0;
         s->discarding = 0;
@@ -133,7 +137,8 @@ static int feed(nl_serial_t *s, uint8_t byte, hil_core_frame_t *f)
     return 0;
 }
 
-int nl_serial_recv(nl_serial_t *s, hil_core_frame_t *f, int64_t deadline_ns)
+/* The next packet whose checks passed into raw: 1; 0 when none came before deadline_ns; -1 the peer closed. */
+static int next_packet(nl_serial_t *s, uint8_t *raw, int64_t deadline_ns)
 {
     int64_t spin_end = -1;
     int hangup = 0;
@@ -141,7 +146,7 @@ int nl_serial_recv(nl_serial_t *s, hil_core_frame_t *f, int64_t deadline_ns)
         ssize_t n;
         int w;
         while (s->rx_at < s->rx_n) {
-            if (feed(s, s->rx[s->rx_at++], f)) {
+            if (feed(s, s->rx[s->rx_at++], raw)) {
                 return 1;
             }
         }
@@ -166,4 +171,72 @@ int nl_serial_recv(nl_serial_t *s, hil_core_frame_t *f, int64_t deadline_ns)
     }
 }
 
+int nl_serial_recv(nl_serial_t *s, hil_core_frame_t *f, int64_t deadline_ns)
+{
+    uint8_t raw[NL_SERIAL_MAX_ENCODED];
+    for (;;) {
+        const int got = next_packet(s, raw, deadline_ns);
+        if (got != 1 || nl_accept_framed(raw, &s->rx_last, &s->stats, f)) {
+            return got;
+        }
+    }
+}
+
 NL_LINK_DEFINE(nl_serial, nl_serial_t)
+
+int32_t nl_serial_attach(nl_serial_t *s, int32_t fd, int32_t fd_frames, int64_t write_timeout_ns)
+{
+    const int flags = fcntl(fd, F_GETFL);
+    memset(s, 0, sizeof *s);
+    s->fd = -1;
+    s->rx_last = -1;
+    hil_serial_init(&s->framer);
+    if (flags < 0 || fcntl(fd, F_SETFL, flags | O_NONBLOCK) != 0) {
+        return errno;
+    }
+    s->fd = fd;
+    s->fd_frames = fd_frames;
+    s->write_timeout_ns = write_timeout_ns;
+    return 0;
+}
+
+void nl_serial_close(nl_serial_t *s)
+{
+    if (s->fd >= 0) {
+        (void)close(s->fd);
+    }
+    s->fd = -1;
+}
+
+int nl_serial_send_wire(nl_serial_t *s, const nl_wire_frame_t *m)
+{
+    uint8_t raw[HIL_SERIAL_MAX_RAW + HIL_AUTH_TRAILER];
+    uint8_t packet[NL_SERIAL_MAX_ENCODED + 1];
+    size_t n;
+    if ((m->flags & NL_WIRE_FD) && !s->fd_frames) {
+        s->stats.send_errors++;
+        return -2;
+    }
+    n = nl_wire_pack(m, s->framer.tx_seq, raw);
+    if (n == 0u) {
+        s->stats.send_errors++;
+        return -2;
+    }
+    s->framer.tx_seq = (uint8_t)(s->framer.tx_seq + 1u);
+    if (s->auth.on) {
+        hil_auth_seal(&s->auth, raw, n);
+        n += HIL_AUTH_TRAILER;
+    }
+    return write_packet(s, packet, hil_serial_packet(raw, n, packet));
+}
+
+int nl_serial_recv_wire(nl_serial_t *s, nl_wire_frame_t *m, int64_t deadline_ns)
+{
+    uint8_t raw[NL_SERIAL_MAX_ENCODED];
+    for (;;) {
+        const int got = next_packet(s, raw, deadline_ns);
+        if (got != 1 || nl_accept_wire(raw, &s->rx_last, &s->stats, m)) {
+            return got;
+        }
+    }
+}

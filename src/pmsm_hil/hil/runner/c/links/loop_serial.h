@@ -52,6 +52,22 @@ int nl_serial_send(nl_serial_t *s, const hil_core_frame_t *f);
 /* The next frame into *f: 1; 0 when none came before deadline_ns; -1 when the peer closed (EIO). */
 int nl_serial_recv(nl_serial_t *s, hil_core_frame_t *f, int64_t deadline_ns);
 
+/* A bus end (python-can's hilserial) on the open descriptor fd (a tty in raw mode, a pty end), made non-blocking:
+ * *s set up from nothing (link seqs from 0, no packet half received), CAN FD frames allowed when fd_frames, a
+ * full output buffer for write_timeout_ns a send error; authentication is set up after (hil_auth_init on
+ * s->auth). 0, or the errno of the failed call. */
+int32_t nl_serial_attach(nl_serial_t *s, int32_t fd, int32_t fd_frames, int64_t write_timeout_ns);
+
+/* Close the descriptor (idempotent: fd -1 after). */
+void nl_serial_close(nl_serial_t *s);
+
+/* Send one frame of any kind (nl_wire_frame_t): 0 sent; -1 a counted send error (errno says why); -2 a frame
+ * the wire cannot carry, or an FD frame on a classic link (counted as a send error). */
+int nl_serial_send_wire(nl_serial_t *s, const nl_wire_frame_t *m);
+
+/* The next frame of any kind into *m: 1; 0 when none came before deadline_ns; -1 when the peer closed (EIO). */
+int nl_serial_recv_wire(nl_serial_t *s, nl_wire_frame_t *m, int64_t deadline_ns);
+
 /* *l: the link on *s. */
 void nl_serial_link(nl_link_t *l, nl_serial_t *s);
 

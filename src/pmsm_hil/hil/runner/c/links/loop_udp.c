@@ -2,10 +2,13 @@
 #define _GNU_SOURCE
 
 #include <errno.h>
+#include <fcntl.h>
+#include <poll.h>
 #include <netinet/in.h>
 #include <string.h>
 #include <sys/random.h>
 #include <sys/socket.h>
+#include <unistd.h>
 
 #include "hil_serial.h"
 #include "loop_rt.h"
@@ -144,6 +147,43 @@ static uint32_t new_nonce(void)
     return v;
 }
 
+/* The MAC of an authenticated control datagram from the peer matches. */
+static int control_mac_ok(const nl_udp_t *u, const uint8_t *d)
+{
+    uint8_t mac[HIL_AUTH_MAC_SIZE];
+    uint8_t diff = 0u;
+    unsigned i;
+    hil_auth_control_mac(&u->auth, u->auth.rx_dir, d, CONTROL_SIZE + 4u, mac);
+    for (i = 0; i < HIL_AUTH_MAC_SIZE; i++) {
+        diff |= (uint8_t)(mac[i] ^ d[CONTROL_SIZE + 4u + i]);
+    }
+    return diff == 0u;
+}
+
+/* The peer's answer (ACK or REJECT) to this end's proposal `sid`: an ACK (authenticated as this end is) agrees
+ * the session, with the peer's nonce in the MAC context. */
+static void answer(nl_udp_t *u, const uint8_t *d, size_t n, uint8_t kind, uint32_t sid)
+{
+    uint8_t ctx[8];
+    if (kind == CTRL_REJECT_KEY || kind == CTRL_REJECT_PLAIN) {
+        u->rejected = kind;
+        return;
+    }
+    if ((n == AUTH_CONTROL_SIZE) != (u->auth.on != 0) || (u->auth.on && !control_mac_ok(u, d))) {
+        u->stats.auth_failed++;
+        return;
+    }
+    u->proposal = 0u;
+    u->session = sid;
+    if (u->auth.on) {
+        u->nonce = get_u32(d + CONTROL_SIZE);
+        put_u32(ctx, sid);
+        put_u32(ctx + 4, u->nonce);
+        hil_auth_set_context(&u->auth, ctx, sizeof ctx);
+    }
+    connect_peer(u);
+}
+
 /* A control datagram (session 0) of n bytes: the target adopts a HELLO (authenticated when this end is) and
  * acknowledges it; a HELLO refused for its authentication is answered with a REJECT. */
 static void control(nl_udp_t *u, const uint8_t *d, size_t n)
@@ -155,6 +195,14 @@ static void control(nl_udp_t *u, const uint8_t *d, size_t n)
         u->stats.framing_errors++;
         return;
     }
+    if (kind != CTRL_HELLO && u->proposal != 0u && sid == u->proposal) {
+        answer(u, d, n, kind, sid);
+        return;
+    }
+    if (kind == CTRL_HELLO && u->proposal > sid) { /* both ends proposed: the larger id wins, the peer adopts ours */
+        u->next_hello_ns = 0;
+        return;
+    }
     if (kind == CTRL_REJECT_KEY || kind == CTRL_REJECT_PLAIN || !u->target_role || kind != CTRL_HELLO) {
         u->stats.session_dropped++;
         return;
@@ -164,19 +212,10 @@ static void control(nl_udp_t *u, const uint8_t *d, size_t n)
         send_control(u, u->auth.on ? (uint8_t)CTRL_REJECT_KEY : (uint8_t)CTRL_REJECT_PLAIN, sid);
         return;
     }
-    if (u->auth.on) {
-        uint8_t mac[HIL_AUTH_MAC_SIZE];
-        uint8_t diff = 0u;
-        unsigned i;
-        hil_auth_control_mac(&u->auth, u->auth.rx_dir, d, CONTROL_SIZE + 4u, mac);
-        for (i = 0; i < HIL_AUTH_MAC_SIZE; i++) {
-            diff |= (uint8_t)(mac[i] ^ d[CONTROL_SIZE + 4u + i]);
-        }
-        if (diff != 0u) {
-            u->stats.auth_failed++;
-            send_control(u, CTRL_REJECT_KEY, sid);
-            return;
-        }
+    if (u->auth.on && !control_mac_ok(u, d)) {
+        u->stats.auth_failed++;
+        send_control(u, CTRL_REJECT_KEY, sid);
+        return;
     }
     if (u->session != sid) { /* a new session (a repeated HELLO keeps the nonce and freshness of this one) */
         uint8_t ctx[8];
@@ -189,12 +228,14 @@ static void control(nl_udp_t *u, const uint8_t *d, size_t n)
             hil_auth_set_context(&u->auth, ctx, sizeof ctx);
         }
     }
+    u->proposal = 0u;
     connect_peer(u);
     send_control(u, CTRL_ACK, sid);
 }
 
-/* One datagram from the peer: 1 when it delivered a data frame into *f. */
-static int datagram(nl_udp_t *u, const uint8_t *d, size_t n, hil_core_frame_t *f)
+/* One datagram from the peer: 1 when it is a data datagram of the session whose checks passed (its body, header
+ * + payload, at d + SESSION_SIZE); a control datagram is answered here. */
+static int checked(nl_udp_t *u, const uint8_t *d, size_t n)
 {
     const uint8_t *body = d + SESSION_SIZE;
     const size_t data_min = DATA_MIN + (u->auth.on ? HIL_AUTH_TRAILER : 0u);
@@ -222,10 +263,13 @@ static int datagram(nl_udp_t *u, const uint8_t *d, size_t n, hil_core_frame_t *f
         u->stats.crc_errors++;
         return 0;
     }
-    if (u->auth.on && !nl_auth_open(&u->auth, body, body_n, &u->stats)) {
-        return 0;
-    }
-    return nl_accept_framed(body, &u->rx_last, &u->stats, f);
+    return !u->auth.on || nl_auth_open(&u->auth, body, body_n, &u->stats);
+}
+
+/* One datagram from the peer: 1 when it delivered a data frame into *f. */
+static int datagram(nl_udp_t *u, const uint8_t *d, size_t n, hil_core_frame_t *f)
+{
+    return checked(u, d, n) && nl_accept_framed(d + SESSION_SIZE, &u->rx_last, &u->stats, f);
 }
 
 int nl_udp_recv(nl_udp_t *u, hil_core_frame_t *f, int64_t deadline_ns)
@@ -264,3 +308,203 @@ int nl_udp_recv(nl_udp_t *u, hil_core_frame_t *f, int64_t deadline_ns)
 }
 
 NL_LINK_DEFINE(nl_udp, nl_udp_t)
+
+int32_t nl_udp_open(nl_udp_t *u, uint32_t bind_addr, uint16_t local_port, uint32_t peer_addr, uint16_t peer_port,
+                    int32_t rcvbuf)
+{
+    struct sockaddr_in a;
+    socklen_t n = sizeof u->rcvbuf;
+    const int on = 1;
+    int err;
+    memset(u, 0, sizeof *u);
+    u->rx_last = -1;
+    u->target_role = 1;
+    u->peer_addr = peer_addr;
+    u->peer_port = peer_port;
+    u->fd = socket(AF_INET, SOCK_DGRAM, 0);
+    if (u->fd < 0) {
+        return errno;
+    }
+    if (rcvbuf > 0 && setsockopt(u->fd, SOL_SOCKET, SO_RCVBUFFORCE, &rcvbuf, sizeof rcvbuf) != 0) {
+        (void)setsockopt(u->fd, SOL_SOCKET, SO_RCVBUF, &rcvbuf, sizeof rcvbuf); /* capped at rmem_max */
+    }
+    (void)getsockopt(u->fd, SOL_SOCKET, SO_RCVBUF, &u->rcvbuf, &n);
+    memset(&a, 0, sizeof a);
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = bind_addr;
+    a.sin_port = local_port;
+    if (setsockopt(u->fd, SOL_SOCKET, SO_RXQ_OVFL, &on, sizeof on) != 0
+        || bind(u->fd, (const struct sockaddr *)&a, sizeof a) != 0
+        || fcntl(u->fd, F_SETFL, fcntl(u->fd, F_GETFL) | O_NONBLOCK) != 0) {
+        err = errno;
+        nl_udp_close(u);
+        return err;
+    }
+    connect_peer(u);
+    return 0;
+}
+
+uint16_t nl_udp_local_port(const nl_udp_t *u)
+{
+    struct sockaddr_in a;
+    socklen_t n = sizeof a;
+    if (u->fd < 0 || getsockname(u->fd, (struct sockaddr *)&a, &n) != 0) {
+        return 0u;
+    }
+    return ntohs(a.sin_port);
+}
+
+void nl_udp_close(nl_udp_t *u)
+{
+    if (u->fd >= 0) {
+        (void)close(u->fd);
+    }
+    u->fd = -1;
+}
+
+void nl_udp_propose(nl_udp_t *u)
+{
+    u->rejected = 0;
+    u->proposal = new_nonce();
+    u->rx_last = -1;
+    u->session = u->auth.on ? 0u : u->proposal; /* an authenticated session needs the peer's nonce (its ACK) */
+    send_control(u, CTRL_HELLO, u->proposal);
+    u->next_hello_ns = nl_now_ns() + NL_UDP_HELLO_NS;
+}
+
+/* Send a datagram, waiting until deadline_ns while the socket's send buffer is full: 0 sent, -1 a counted
+ * error. An ECONNREFUSED (an earlier datagram refused by the peer's host) is counted once a session is agreed
+ * and this datagram sent again once. */
+static int send_waiting(nl_udp_t *u, const uint8_t *buf, size_t n, int64_t deadline_ns)
+{
+    int refused = 0;
+    while (send(u->fd, buf, n, 0) < 0) {
+        if (errno == ECONNREFUSED && !refused) {
+            refused = 1;
+            u->stats.send_errors += u->session != 0u;
+        } else if (errno == EAGAIN || errno == EWOULDBLOCK || errno == ENOBUFS) {
+            struct pollfd p;
+            const int64_t left = deadline_ns - nl_now_ns();
+            if (left <= 0) {
+                u->stats.send_errors++;
+                return -1;
+            }
+            p.fd = u->fd;
+            p.events = POLLOUT;
+            p.revents = 0;
+            (void)poll(&p, 1, (int)(left > 1000000000 ? 1000 : left / 1000000 + 1));
+        } else if (errno != EINTR) {
+            u->stats.send_errors++;
+            return -1;
+        }
+    }
+    return 0;
+}
+
+int nl_udp_send_wire(nl_udp_t *u, const nl_wire_frame_t *m, int64_t deadline_ns)
+{
+    uint8_t buf[DATA_MIN + HIL_CORE_MAX_PAYLOAD + HIL_AUTH_TRAILER];
+    size_t body;
+    uint16_t crc;
+    if (u->session == 0u && u->proposal == 0u) {
+        nl_udp_propose(u);
+    }
+    if (u->session == 0u) {
+        return -3;
+    }
+    body = nl_wire_pack(m, u->tx_seq, buf + SESSION_SIZE);
+    if (body == 0u) {
+        u->stats.send_errors++;
+        return -2;
+    }
+    put_u32(buf, u->session);
+    if (u->auth.on) {
+        hil_auth_seal(&u->auth, buf + SESSION_SIZE, body);
+        body += HIL_AUTH_TRAILER;
+    }
+    crc = hil_serial_crc16(buf + SESSION_SIZE, body, 0xFFFFu);
+    buf[SESSION_SIZE + body] = (uint8_t)(crc >> 8);
+    buf[SESSION_SIZE + body + 1] = (uint8_t)(crc & 0xFFu);
+    u->tx_seq = (uint8_t)(u->tx_seq + 1u);
+    if (send_waiting(u, buf, SESSION_SIZE + body + CRC_SIZE, deadline_ns) != 0) {
+        return -1;
+    }
+    u->stats.frames_tx++;
+    return 0;
+}
+
+/* The kernel's count of datagrams dropped for the socket (SO_RXQ_OVFL) in a received datagram's control data. */
+static void read_drops(nl_udp_t *u, struct msghdr *mh)
+{
+    struct cmsghdr *c;
+    for (c = CMSG_FIRSTHDR(mh); c != NULL; c = CMSG_NXTHDR(mh, c)) {
+        if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SO_RXQ_OVFL) {
+            uint32_t drops;
+            memcpy(&drops, CMSG_DATA(c), sizeof drops);
+            u->kernel_drops = (int64_t)drops;
+        }
+    }
+}
+
+int nl_udp_recv_wire(nl_udp_t *u, nl_wire_frame_t *m, int64_t deadline_ns)
+{
+    uint8_t buf[MAX_DATAGRAM];
+    union {
+        char bytes[CMSG_SPACE(sizeof(uint32_t))];
+        struct cmsghdr align;
+    } control_data;
+    int64_t spin_end = -1;
+    for (;;) {
+        struct sockaddr_in from;
+        struct iovec iov;
+        struct msghdr mh;
+        ssize_t n;
+        int64_t now;
+        int64_t until = deadline_ns;
+        iov.iov_base = buf;
+        iov.iov_len = sizeof buf;
+        memset(&mh, 0, sizeof mh);
+        mh.msg_name = &from;
+        mh.msg_namelen = sizeof from;
+        mh.msg_iov = &iov;
+        mh.msg_iovlen = 1;
+        mh.msg_control = control_data.bytes;
+        mh.msg_controllen = sizeof control_data.bytes;
+        n = recvmsg(u->fd, &mh, MSG_DONTWAIT);
+        if (n >= 0) {
+            read_drops(u, &mh);
+            if (mh.msg_namelen < (socklen_t)sizeof from || from.sin_family != AF_INET
+                || from.sin_addr.s_addr != u->peer_addr || from.sin_port != u->peer_port) {
+                u->stats.foreign_dropped++;
+            } else if (checked(u, buf, (size_t)n)
+                       && nl_accept_wire(buf + SESSION_SIZE, &u->rx_last, &u->stats, m)) {
+                return 1;
+            }
+            continue;
+        }
+        if (errno == EINTR) {
+            continue;
+        }
+        if (errno == ECONNREFUSED) {
+            u->stats.send_errors += u->session != 0u && u->proposal == 0u;
+            continue;
+        }
+        if (errno == EBADF) { /* closed (a bus shut down from another thread): nothing will come */
+            return 0;
+        }
+        if (errno != EAGAIN && errno != EWOULDBLOCK) {
+            u->stats.framing_errors++;
+        }
+        now = nl_now_ns();
+        if (u->proposal != 0u) { /* repeat the HELLO until the peer answers */
+            if (now >= u->next_hello_ns) {
+                send_control(u, CTRL_HELLO, u->proposal);
+                u->next_hello_ns = now + NL_UDP_HELLO_NS;
+            }
+            until = u->next_hello_ns < deadline_ns ? u->next_hello_ns : deadline_ns;
+        }
+        if (nl_wait_readable(u->fd, until, &u->spin, &spin_end, &u->stats) == 0 && until >= deadline_ns) {
+            return 0;
+        }
+    }
+}

@@ -38,6 +38,12 @@ typedef struct {
     nl_link_stats_t stats;
     uint32_t nonce;            /* the adopting end's nonce of the session (authenticated links; the target's) */
     hil_auth_t auth;           /* authenticated frames (hil_auth.h; auth.on 0: off), context = session + nonce */
+    /* a bus end (nl_udp_open: python-can's hiludp): it proposes a session, adopts its peer's and counts drops */
+    uint32_t proposal;         /* this end's session proposal not yet acknowledged (0: none) */
+    int64_t next_hello_ns;     /* when the proposal's HELLO is sent again (CLOCK_MONOTONIC) */
+    int32_t rejected;          /* the peer refused the proposal: 3 its key differs, 4 it does not authenticate */
+    int32_t rcvbuf;            /* the socket's receive buffer as the kernel granted it [bytes] */
+    int64_t kernel_drops;      /* datagrams the kernel dropped for this socket, buffer full (SO_RXQ_OVFL) */
 } nl_udp_t;
 
 /* Send one frame (FD frames with the FD and BRS flags, as FramedBus.send_frame); 0 ok, -1 counted error. */
@@ -46,6 +52,37 @@ int nl_udp_send(nl_udp_t *u, const hil_core_frame_t *f);
 /* The next frame from the peer into *f: 1, or 0 when none came before deadline_ns (CLOCK_MONOTONIC; a
  * deadline in the past: only what is queued now). */
 int nl_udp_recv(nl_udp_t *u, hil_core_frame_t *f, int64_t deadline_ns);
+
+/* A bus end on a new socket: bound to bind_addr:local_port (0: any port), connect()ed to peer_addr:peer_port
+ * (addresses and ports in network byte order), non-blocking, its receive buffer rcvbuf bytes (forced past
+ * rmem_max where the process may, SO_RCVBUFFORCE; u->rcvbuf: what the kernel granted), kernel drops reported
+ * (SO_RXQ_OVFL). *u is set up as a bus end: no session yet, it adopts its peer's HELLO and proposes its own on
+ * the first send; authentication is set up after (hil_auth_init on u->auth). 0, or the errno of the failed call
+ * (nothing left open). */
+int32_t nl_udp_open(nl_udp_t *u, uint32_t bind_addr, uint16_t local_port, uint32_t peer_addr, uint16_t peer_port,
+                    int32_t rcvbuf);
+
+/* The bound local port (host byte order), 0 when unknown. */
+uint16_t nl_udp_local_port(const nl_udp_t *u);
+
+/* Close the socket of a bus end (idempotent: fd -1 after). */
+void nl_udp_close(nl_udp_t *u);
+
+/* Propose a fresh random session (HELLO, repeated by the receives every NL_UDP_HELLO_NS until acknowledged); on
+ * an unauthenticated link the proposal is used at once (the peer adopts the HELLO before the frames after it). */
+#define NL_UDP_HELLO_NS 100000000
+void nl_udp_propose(nl_udp_t *u);
+
+/* Send one frame of any kind (nl_wire_frame_t) from a bus end, proposing a session first when none is in use,
+ * waiting until deadline_ns (CLOCK_MONOTONIC) while the socket's send buffer is full:
+ * 0 sent; -1 a counted send error (errno says why); -2 a frame the wire cannot carry (counted as a send error);
+ * -3 an authenticated link with no session agreed yet (receive until u->session is set, then send again). */
+int nl_udp_send_wire(nl_udp_t *u, const nl_wire_frame_t *m, int64_t deadline_ns);
+
+/* The next frame of any kind from the peer into *m: 1, or 0 when none came before deadline_ns (CLOCK_MONOTONIC;
+ * in the past: only what is queued now). Also answers the handshake, repeats a pending HELLO and reads the
+ * kernel's drop count (kernel_drops). */
+int nl_udp_recv_wire(nl_udp_t *u, nl_wire_frame_t *m, int64_t deadline_ns);
 
 /* *l: the link on *u. */
 void nl_udp_link(nl_link_t *l, nl_udp_t *u);

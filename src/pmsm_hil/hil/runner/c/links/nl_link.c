@@ -83,6 +83,55 @@ int nl_accept_framed(const uint8_t *body, int32_t *rx_last, nl_link_stats_t *st,
     return 1;
 }
 
+size_t nl_wire_pack(const nl_wire_frame_t *m, uint8_t seq, uint8_t *body)
+{
+    const int fd = (m->flags & NL_WIRE_FD) != 0u;
+    const int remote = (m->flags & NL_WIRE_REMOTE) != 0u;
+    const uint32_t id = m->id & ((m->flags & NL_WIRE_EXTENDED) ? 0x1FFFFFFFu : 0x7FFu);
+    if ((m->flags & ~NL_WIRE_FLAGS) != 0u || !nl_valid_length(m->len, fd) || (remote && fd)
+        || (!fd && (m->flags & (NL_WIRE_BRS | NL_WIRE_ESI)) != 0u) || id != m->id) {
+        return 0u;
+    }
+    body[0] = (uint8_t)(id & 0xFFu);
+    body[1] = (uint8_t)((id >> 8) & 0xFFu);
+    body[2] = (uint8_t)((id >> 16) & 0xFFu);
+    body[3] = (uint8_t)(id >> 24);
+    body[4] = m->flags;
+    body[5] = seq;
+    body[6] = m->len;
+    if (remote) {
+        memset(body + NL_WIRE_HEADER, 0, m->len);
+    } else {
+        memcpy(body + NL_WIRE_HEADER, m->data, m->len);
+    }
+    return (size_t)(NL_WIRE_HEADER + m->len);
+}
+
+int nl_accept_wire(const uint8_t *body, int32_t *rx_last, nl_link_stats_t *st, nl_wire_frame_t *m)
+{
+    const uint8_t flags = body[4];
+    const uint8_t len = body[6];
+    if (!nl_valid_length(len, (flags & NL_WIRE_FD) != 0u) || ((flags & NL_WIRE_REMOTE) && len > 8u)) {
+        st->framing_errors++;
+        return 0;
+    }
+    if (!nl_seq_accept(rx_last, body[5], st)) {
+        return 0;
+    }
+    st->frames_rx++;
+    m->id = ((uint32_t)body[0] | ((uint32_t)body[1] << 8) | ((uint32_t)body[2] << 16) | ((uint32_t)body[3] << 24))
+            & 0x1FFFFFFFu;
+    m->flags = (uint8_t)(flags & NL_WIRE_FLAGS);
+    m->len = len;
+    if (flags & NL_WIRE_REMOTE) {
+        memset(m->data, 0, sizeof m->data);
+    } else {
+        memcpy(m->data, body + HEADER_SIZE, len);
+        memset(m->data + len, 0, (size_t)(HIL_CORE_MAX_PAYLOAD - len));
+    }
+    return 1;
+}
+
 static int64_t thread_cpu_ns(void)
 {
     struct timespec ts;

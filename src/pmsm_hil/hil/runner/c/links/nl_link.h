@@ -86,6 +86,32 @@ int nl_valid_length(uint8_t n, int fd);
  * ignored. 1 when *f got a data frame (payload past len zeroed). */
 int nl_accept_framed(const uint8_t *body, int32_t *rx_last, nl_link_stats_t *st, hil_core_frame_t *f);
 
+/* A frame of the hiludp / hilserial wire with every flag it carries (what a python-can bus moves; the loop's
+ * hil_core_frame_t is the 11-bit data frame only). A remote frame has no payload: its `len` is its DLC (0..8),
+ * sent as that many zero bytes so the wire's length rule holds (docs/protocol.md). */
+#define NL_WIRE_FD 0x01u
+#define NL_WIRE_BRS 0x02u
+#define NL_WIRE_ESI 0x04u
+#define NL_WIRE_EXTENDED 0x08u
+#define NL_WIRE_REMOTE 0x10u
+#define NL_WIRE_FLAGS 0x1Fu
+#define NL_WIRE_HEADER 7
+typedef struct {
+    uint32_t id;               /* arbitration id (11 or 29 bits) */
+    uint8_t flags;             /* NL_WIRE_* */
+    uint8_t len;               /* payload bytes; a remote frame: its DLC */
+    uint8_t data[HIL_CORE_MAX_PAYLOAD];
+} nl_wire_frame_t;
+
+/* Header (link seq `seq`) + payload of *m into body (NL_WIRE_HEADER + len bytes, a remote frame's payload zero);
+ * returns that length, or 0 for a frame the wire cannot carry (a length no classic / FD frame has, BRS or ESI
+ * without FD, a remote FD frame, flags outside NL_WIRE_FLAGS). */
+size_t nl_wire_pack(const nl_wire_frame_t *m, uint8_t seq, uint8_t *body);
+
+/* nl_accept_framed for a bus: the same length and link seq checks, then every frame (extended, remote, FD with
+ * or without BRS, ESI) into *m. 1 when *m got a frame. */
+int nl_accept_wire(const uint8_t *body, int32_t *rx_last, nl_link_stats_t *st, nl_wire_frame_t *m);
+
 /* How long a receive busy-polls before it blocks, adapted to the machine. Spinning wins on an idle machine
  * (a blocked process on a halted vCPU wakes tens of µs late); blocking wins when the CPU is contended: a
  * spinning end then takes a core from the peer or from the load, while two ends that block leave a core idle
