@@ -55,6 +55,11 @@ class NativeCoreLink:
         self._c_link: Any = None
         self.lib.hil_core_init()
 
+    @property
+    def other_process(self) -> bool:
+        """The core answers inside the loop's call (its C link is NL_LINK_IN_PROCESS): False."""
+        return False
+
     def attach(self, c: Any, lockstep_timeout_s: float) -> None:
         """Give the loop's nl_config_t `c` the core's C link for a run."""
         self._state = self.ffi.new("nl_core_link_t *")

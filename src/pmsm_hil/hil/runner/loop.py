@@ -377,8 +377,7 @@ class NativeLoop:
 
     def _other_process(self) -> bool:
         """The target answers over wall time (another process or a board), not inside the loop's call."""
-        link = self.link
-        return isinstance(link, NativeWireLink) or (isinstance(link, NativePyLink) and link.other_process)
+        return self.link.other_process
 
     @staticmethod
     def _end(out: LoopOutcome, code: EndCode, reason: str) -> None:

@@ -135,7 +135,7 @@ def pm_qos_latency_us(cfg: RunConfig, conn: TargetConnection) -> int:
     if cfg.cpu_dma_latency_us is not None:
         return cfg.cpu_dma_latency_us
     link = conn.host_link
-    other = isinstance(link, NativeWireLink) or (isinstance(link, NativePyLink) and link.other_process)
+    other = isinstance(link, NativeCoreLink | NativeWireLink | NativePyLink) and link.other_process
     return 0 if other else LEAVE
 
 
