@@ -148,7 +148,8 @@ def test_a_partial_struct_keeps_the_headers_layout_in_the_built_extensions() -> 
     assert [name for name, _ in ffi.typeof("nl_slot_t").fields] == ["trace", "trace_rows_cap", "n_periods",
                                                                     "n_frames", "n_findings", "n_trace_rows"]
     assert ffi.sizeof("nl_slot_t") > ffi.offsetof("nl_slot_t", "n_trace_rows")  # the records before, C's size
-    assert ffi.sizeof("nl_link_t") == 5 * ffi.sizeof("void *")  # opaque to Python, its size C's
+    # opaque to Python, its size C's: five pointers and the flags word (padded to a pointer)
+    assert ffi.sizeof("nl_link_t") == 6 * ffi.sizeof("void *")
     assert fw_ffi.sizeof("hil_fw_state_t") > fw_ffi.offsetof("hil_fw_state_t", "reference") + 4
 
 

@@ -1,10 +1,12 @@
 """`NativeLoop`: the run's period loop in C (src/pmsm_hil/hil/runner/c/loop.c), Python for everything around it.
+The loop reaches its target through one C link (`attach`: the C target core in process, a wire, or the callback
+link through Python).
 
 The C loop runs in its own thread over the whole run (the GIL released) and fills a ring of blocks; this
 thread drains each full block to the run's sink (window metrics, speed check, live view, logger) — the same
 period records, raw frames and trace rows as `ClosedLoop` — and hands the block back with the sensor noise of
 a later one. Set-up and the safe stop (configuration, the enabling and the disabling Setpoint, the zero
-vector) go through `TargetClient` over the same C target core, as with any target.
+vector) go through `TargetClient` over the same link, as with any target.
 """
 
 from __future__ import annotations
@@ -120,14 +122,13 @@ class NativeLoop:
         gc.collect()
         gc.disable()
         out = self._start()
-        if not isinstance(self.link, NativeCoreLink):  # the link as the enabling Setpoint left it
-            self.link.attach(self._c, self.cfg.lockstep_timeout_s)
-            self._c.target_pid = self.opts.target_pid  # host stalls (loop_stall.h): the target's own time counts
-            self._c.stall_limit_ns = int(self.cfg.host_stall_limit_s * 1e9)
-            if self.opts.guest_insns_address:  # an emulated MCU: its own progress counts (nl_guest_available)
-                self._c.guest_insns = self._ffi.cast("const uint64_t *", self.opts.guest_insns_address)
-                self._c.guest_ns_per_insn = self.opts.guest_ns_per_insn
-            self._c.shared_bus = 1 if self.client.shared else 0
+        self.link.attach(self._c, self.cfg.lockstep_timeout_s)  # the link as the enabling Setpoint left it
+        self._c.target_pid = self.opts.target_pid  # host stalls (loop_stall.h): the target's own time counts
+        self._c.stall_limit_ns = int(self.cfg.host_stall_limit_s * 1e9)
+        if self.opts.guest_insns_address:  # an emulated MCU: its own progress counts (nl_guest_available)
+            self._c.guest_insns = self._ffi.cast("const uint64_t *", self.opts.guest_insns_address)
+            self._c.guest_ns_per_insn = self.opts.guest_ns_per_insn
+        self._c.shared_bus = 1 if self.client.shared else 0
         if isinstance(self.link, NativePyLink):  # a bus error in a callback ends the run
             self.link.on_error = lambda: lib.nl_stop(h)
         thread = threading.Thread(target=lib.nl_run, args=(h,), name="hil-native-loop", daemon=True)
@@ -372,12 +373,8 @@ class NativeLoop:
         return bus_starved_reason(link, int(res.bus_silent_frames), int(res.bus_silent_ns) / 1e9, waiting_for)
 
     def _add_link_counters(self) -> None:
-        res, stats = self._res, self.link.stats
-        if isinstance(self.link, NativeWireLink | NativePyLink):  # the link's own counters, frames included
-            self.link.detach()
-        else:
-            stats.frames_tx += int(res.frames_tx)
-            stats.frames_rx += int(res.frames_rx)
+        res = self._res
+        self.link.detach()  # the link's own counters, frames included
         dec = self.client.decoder.stats
         for name in ("frames", "messages", "unknown_id", "bad_length", "bad_value", "stale", "duplicate",
                      "out_of_order", "mixed_seq"):
@@ -385,8 +382,7 @@ class NativeLoop:
 
     def _other_process(self) -> bool:
         """The target answers over wall time (another process or a board), not inside the loop's call."""
-        link = self.link
-        return isinstance(link, NativeWireLink) or (isinstance(link, NativePyLink) and link.other_process)
+        return self.link.other_process
 
     @staticmethod
     def _end(out: LoopOutcome, code: EndCode, reason: str) -> None:

@@ -27,12 +27,10 @@ RT_RUNTIME_FILE = "/proc/sys/kernel/sched_rt_runtime_us"
 
 @dataclass(frozen=True, slots=True)
 class NativeOptions:
-    """How the native loop runs beside the RunConfig: frames recorded, a target silent after this many
-    Measurements (fault injection of the tests, None: never), a Fault the target sent while being
+    """How the native loop runs beside the RunConfig: frames recorded, a Fault the target sent while being
     configured (code, detail), the target's process."""
 
     record_frames: bool
-    silent_after: int | None = None
     fault: tuple[int, int] | None = None
     #: the target's process the loop observes in lockstep (host stalls; 0: none, the timeout is wall time)
     target_pid: int = 0
@@ -108,7 +106,6 @@ def fill_config(c: Any, ffi: Any, lib: Any, cfg: RunConfig, plant: PlantBase, co
     c.miss_zero = 1 if cfg.miss_policy == "zero" else 0
     c.pwm_double = 1 if cfg.pwm_update == "double" else 0  # duty-cycle Commands
     c.controller_id, c.mode_speed = controller_id, int(Mode.SPEED)
-    c.silent_after = -1 if opts.silent_after is None else opts.silent_after
     c.record_frames = 1 if opts.record_frames else 0
     c.nan = math.nan
     c.ideal = 1 if sensors.ideal else 0

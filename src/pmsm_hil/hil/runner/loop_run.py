@@ -46,18 +46,19 @@ def python_loop_reason(cfg: RunConfig) -> str | None:
     return None
 
 
-def connect_native(cfg: RunConfig) -> TargetConnection:
+def connect_native(cfg: RunConfig, silent_after: int | None = None) -> TargetConnection:
     """The host's client on the C target core (the in-process target on the virtual link); on a target in
     another process over UDP, serial or SocketCAN (spawned: the native target, `hil target --native`) through
     the descriptor the C loop takes over; on any other target and link (python-can adapters, in-process
-    Python or SIL targets, QEMU, a serial socket) through the callback link (`NativePyLink`)."""
+    Python or SIL targets, QEMU, a serial socket) through the callback link (`NativePyLink`). `silent_after`: the
+    in-process target ignores the Measurements after this many (a test's fault injection)."""
     spec = cfg.link_spec
     profile = link_kind(spec).profile(spec)
     ffi, lib = native_lib()
     fd = profile == "canfd"
     if in_core(cfg) and cfg.fault_spec is None:
         try:
-            link = NativeCoreLink(fd=fd)
+            link = NativeCoreLink(fd=fd, silent_after=silent_after)
         except NativeLoopUnavailableError:  # the C core serves another run in this process: the Python target
             pass
         else:
@@ -88,22 +89,22 @@ def in_core(cfg: RunConfig) -> bool:
 
 
 def connect_loop_target(cfg: RunConfig, python_reason: str | None,
-                        connect_python: Callable[[], TargetConnection]) -> tuple[TargetConnection, str | None]:
+                        connect_python: Callable[[], TargetConnection],
+                        silent_after: int | None = None) -> tuple[TargetConnection, str | None]:
     """The target of the loop `python_reason` chose: the C loop's (`connect_native`), or the reference loop's
     (`connect_python`, test suite only)."""
     if python_reason is None:
-        return connect_native(cfg), None
+        return connect_native(cfg, silent_after), None
     return connect_python(), python_reason
 
 
-def run_native(cfg: RunConfig, conn: TargetConnection, cid: int, sink: RunSink,
-               silent_after: int | None) -> LoopOutcome:
+def run_native(cfg: RunConfig, conn: TargetConnection, cid: int, sink: RunSink) -> LoopOutcome:
     """The run through the C loop, feeding `sink` block by block."""
     link = conn.host_link
     assert isinstance(link, NativeCoreLink | NativeWireLink | NativePyLink)
     fault = conn.client.faults[0] if conn.client.faults else None
     guest_address, ns_per_insn = conn.guest_progress()
-    opts = NativeOptions(record_frames=sink.logger is not None, silent_after=silent_after,
+    opts = NativeOptions(record_frames=sink.logger is not None,
                          fault=(fault.code, fault.detail) if fault is not None else None, target_pid=conn.target_pid(),
                          guest_insns_address=guest_address, guest_ns_per_insn=ns_per_insn)
     try:
@@ -135,7 +136,7 @@ def pm_qos_latency_us(cfg: RunConfig, conn: TargetConnection) -> int:
     if cfg.cpu_dma_latency_us is not None:
         return cfg.cpu_dma_latency_us
     link = conn.host_link
-    other = isinstance(link, NativeWireLink) or (isinstance(link, NativePyLink) and link.other_process)
+    other = isinstance(link, NativeCoreLink | NativeWireLink | NativePyLink) and link.other_process
     return 0 if other else LEAVE
 
 

@@ -139,7 +139,7 @@ def _run_locked(cfg: RunConfig, cid: int, python_reason: str | None, silent_afte
         try:
             signals.enter_context(_terminate_as_interrupt())
             conn, python_reason = connect_loop_target(
-                cfg, python_reason, lambda: connect_target(cfg, silent_after=silent_after))
+                cfg, python_reason, lambda: connect_target(cfg, silent_after=silent_after), silent_after)
             sink.console = conn.console
             pm_qos = signals.enter_context(cpu_latency_held(pm_qos_latency_us(cfg, conn)))
             # from here on Ctrl-C/SIGTERM only ask the loop to end (at a period boundary; at once if the target
@@ -171,7 +171,7 @@ def _run_locked(cfg: RunConfig, cid: int, python_reason: str | None, silent_afte
                 if counter is not None:
                     counter(lambda: sink.loop_periods())
                 outcome = (require_reference_loop()(cfg, conn, cid, sink) if python_reason
-                           else run_native(cfg, conn, cid, sink, silent_after))
+                           else run_native(cfg, conn, cid, sink))
             # e.g. a SIL target process that crashed or hung; not one the run's own stop killed (Ctrl-C/SIGTERM)
             if conn.ending is not None and outcome.end_code != EndCode.INTERRUPTED:
                 conn.ending(outcome)

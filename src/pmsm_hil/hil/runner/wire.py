@@ -118,6 +118,11 @@ class NativeWireLink(LinkFacade):
         #: an `nl_sil_debug_t *` a SIL target process writes its torque references to (None: none)
         self.sil_debug: Any = None
 
+    @property
+    def other_process(self) -> bool:
+        """The target runs in another process or on a board: replies take wall time (True)."""
+        return True
+
     def attach(self, c: Any, lockstep_timeout_s: float) -> None:
         """Give the loop's nl_config_t `c` the link as it is now."""
         self.handle = WireHandle(self.wire, self.ffi, self.lib, self.bus, target_role=False)

@@ -37,8 +37,9 @@ LOOP_FLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-Wdouble-promot
               "-fno-builtin-sin", "-fno-builtin-cos", "-pthread"]
 LOOP_SOURCES = ("loop.c", "loop_frames.c", "loop_rt.c", "target_serve.c", "loop_board.c", "loop_fmu.c",
                 "loop_fmu_box.c", "pwm_duty.c", "loop_stall.c")
-#: the C links (links/): the link interface and the UDP, serial and SocketCAN links, the UDP floor
-LINK_SOURCES = ("nl_link.c", "loop_udp.c", "loop_serial.c", "loop_socketcan.c", "link_floor.c")
+#: the C links (links/): the link interface, the in-process link to the C target core, the UDP, serial and SocketCAN
+#: links, the UDP floor
+LINK_SOURCES = ("nl_link.c", "link_core.c", "loop_udp.c", "loop_serial.c", "loop_socketcan.c", "link_floor.c")
 
 
 #: src/pmsm_hil/hil/cdef_extract.py by path (this script runs at build time, before the package is importable)
@@ -90,6 +91,7 @@ LINKS_CDEF = (_decl(_TARGET / "hil_target_core.h", ["hil_core_frame_t", "hil_cor
               + _decl(_HERE / "loop_rt.h", ["nl_gap_probe_t", "nl_gap_probe"])
               + _decl(_LINKS / "link_floor.h", ["nl_udp_floor_t", "nl_udp_floor", "nl_udp_paced_floor_t",
                                                  "nl_udp_paced_floor"])
+              + _decl(_LINKS / "link_core.h", ["nl_core_link_t", "nl_core_link"])
               + _decl(_LINKS / "loop_udp.h", ["nl_udp_t", "nl_udp_link"])
               + _decl(_TARGET / "hil_serial.h", ["hil_serial_t"], partial={"hil_serial_t": ["tx_seq"]})
               + _decl(_LINKS / "loop_serial.h", ["nl_serial_t", "nl_serial_link", "nl_serial_send", "nl_serial_recv"])
@@ -116,6 +118,7 @@ PREAMBLE = """
 #include "loop_frames.h"
 #include "loop_rt.h"
 #include "hil_target_core.h"
+#include "link_core.h"
 #include "loop_udp.h"
 #include "loop_serial.h"
 #include "loop_socketcan.h"

@@ -15,10 +15,6 @@
 #include "nl_link.h"
 #include "pwm_duty.h"
 
-/* The reference firmware's profiled step (hil_app_reference.c built with HIL_APP_REFERENCE_PROFILED): the
- * stage split [ns] and the restricted-vs-full candidate diagnostic of the last step. */
-void hil_app_reference_diag(uint32_t split_ns[3], uint8_t *full_miss);
-
 #define SLOT_OWNED_BY_PYTHON 0
 #define SLOT_READY 1
 #define SLOT_FULL 2
@@ -235,17 +231,14 @@ static void record_frame(loop_t *L, uint8_t direction, const hil_core_frame_t *f
     memcpy(rec->data, f->data, sizeof rec->data);
 }
 
-static void to_target(loop_t *L, const hil_core_frame_t *frames, int n, int deliver)
+static void to_target(loop_t *L, const hil_core_frame_t *frames, int n)
 {
+    const nl_link_t *l = L->c->link;
     int j;
     for (j = 0; j < n; ++j) {
         L->r->frames_tx++;
         record_frame(L, 0u, &frames[j]);
-        if (L->c->link != NULL) {
-            (void)L->c->link->send(L->c->link->ctx, &frames[j]);
-        } else if (deliver) {
-            hil_core_rx(frames[j].id, frames[j].data, frames[j].len, frames[j].fd);
-        }
+        (void)l->send(l->ctx, &frames[j]);
     }
 }
 
@@ -433,10 +426,11 @@ static void await_lockstep(loop_t *L, int64_t t0)
     }
 }
 
-/* ClosedLoop._await_command over a link to another process: what is queued, then frames until the reply or the
- * deadline (the period end in real time, the lockstep timeout else: await_lockstep), then what came with the
- * reply (poll_command drains it all). */
-static void from_link(loop_t *L)
+/* ClosedLoop._await_command (TargetClient._drain): what is queued; over a link to another process then frames until
+ * the reply or the deadline (the period end in real time, the lockstep timeout else: await_lockstep), then what
+ * came with the reply (poll_command drains it all). Over an in-process link (NL_LINK_IN_PROCESS) the target
+ * answered inside `send`: what is queued is all there is. */
+static void from_target(loop_t *L)
 {
     const nl_config_t *c = L->c;
     const nl_link_t *l = c->link;
@@ -445,7 +439,7 @@ static void from_link(loop_t *L)
     while (l->recv(l->ctx, &f, 0) > 0) {
         take_frame(L, &f);
     }
-    if (L->have_reply) {
+    if (L->have_reply || (l->flags & NL_LINK_IN_PROCESS) != 0u) {
         return;
     }
     t0 = nl_now_ns();
@@ -463,19 +457,6 @@ static void from_link(loop_t *L)
         }
     }
     L->wait_ns = nl_now_ns() - t0;
-}
-
-/* TargetClient._drain: every frame the target queued. */
-static void from_target(loop_t *L)
-{
-    hil_core_frame_t f;
-    if (L->c->link != NULL) {
-        from_link(L);
-        return;
-    }
-    while (hil_core_tx(&f)) {
-        take_frame(L, &f);
-    }
 }
 
 /* --- plant and sensors --------------------------------------------------------------------------------- */
@@ -740,7 +721,7 @@ static void follow_reference(loop_t *L, int64_t k)
         }
         L->speed_ref_rpm = ref;
         nl_encode_setpoint(1u, (uint8_t)c->mode_speed, ref * c->rpm_to_rad_s, (uint8_t)c->controller_id, &f);
-        to_target(L, &f, 1, 1);
+        to_target(L, &f, 1);
         if (c->dyno) {
             L->inertia = 0;
             c->kernel->hold_speed(c->plant_params, c->plant_state, ref * c->rpm_to_rad_s);
@@ -843,7 +824,9 @@ static int check_contract(loop_t *L, int64_t k, int have)
 static int accept(loop_t *L, int64_t k, int ok)
 {
     const nl_config_t *c = L->c;
+    const nl_link_t *l = c->link;
     nl_result_t *r = L->r;
+    uint8_t full_miss = 255u;
     if (!ok) {
         r->silent++;
         r->lost_commands++;
@@ -863,30 +846,19 @@ static int accept(loop_t *L, int64_t k, int ok)
     }
     r->silent = 0;
     L->next.cmd = L->reply;
-    if (c->link == NULL && hil_core_counters()->steps > 0u) { /* another process: no split, no torque ref */
-        uint8_t full_miss = 255u;
-        hil_app_reference_diag(L->next.split, &full_miss);
-        L->next.tref = (double)hil_core_last_cmd()->torque_ref;
+    memset(L->next.split, 0, sizeof L->next.split);
+    L->next.tref = c->nan;
+    if (l->diag != NULL && l->diag(l->ctx, L->next.split, &L->next.tref, &full_miss)) { /* an in-process target */
         if (full_miss != 255u && k >= c->n_settle) {
             r->candidate_checked++;
             r->candidate_misses += full_miss;
         }
-    } else {
-        uint8_t full_miss = 255u;
-        memset(L->next.split, 0, sizeof L->next.split);
-        L->next.tref = c->nan;
-        if (c->link != NULL && c->link->diag != NULL
-            && c->link->diag(c->link->ctx, L->next.split, &L->next.tref, &full_miss) && full_miss != 255u
-            && k >= c->n_settle) { /* an in-process target behind a Python link */
-            r->candidate_checked++;
-            r->candidate_misses += full_miss;
-        } else if (c->sil_debug != NULL) { /* a SIL target in its own process: the slot it wrote before the Command */
-            const volatile nl_sil_debug_t *d = c->sil_debug;
-            if (d->steps > 0u) {
-                L->next.tref = (double)d->torque_ref;
-            }
+    } else if (c->sil_debug != NULL) { /* a SIL target in its own process: the slot it wrote before the Command */
+        const volatile nl_sil_debug_t *d = c->sil_debug;
+        if (d->steps > 0u) {
+            L->next.tref = (double)d->torque_ref;
         }
-    }
+    } /* another process: no split, no torque reference crosses the link */
     return 0;
 }
 
@@ -987,7 +959,7 @@ static int send_measurement(loop_t *L, int64_t k, double t, const sample_t *smp)
     }
     L->tap_t = t;
     L->tap_seq = (uint32_t)k;
-    if (c->link != NULL && c->link->period != NULL) {
+    if (c->link->period != NULL) {
         c->link->period(c->link->ctx, t);
     }
     if (L->expected >= 0) {
@@ -996,7 +968,7 @@ static int send_measurement(loop_t *L, int64_t k, double t, const sample_t *smp)
     L->expected = seq;
     L->have_reply = 0;
     L->meas_sent++;
-    to_target(L, frames, n, c->silent_after < 0 || L->meas_sent <= c->silent_after);
+    to_target(L, frames, n);
     return 0;
 }
 
@@ -1080,7 +1052,8 @@ static int32_t period(loop_t *L, int64_t k)
     if (L->wait_end != NL_END_RUNNING) { /* the wait for this period's Command ended the run, no verdict on it */
         return L->wait_end;
     }
-    if (!L->have_reply && c->realtime && c->link == NULL) { /* nothing more will come in process: wait it out */
+    /* in process nothing more will come: real time waits the period out */
+    if (!L->have_reply && c->realtime && (c->link->flags & NL_LINK_IN_PROCESS) != 0u) {
         const int64_t t0 = nl_now_ns();
         const int64_t now = nl_wait_until(L->next_start + c->ts_ns, 0);
         L->wait_ns = now - t0;
@@ -1100,7 +1073,8 @@ static int32_t period(loop_t *L, int64_t k)
         return NL_END_WATCHDOG;
     }
     L->next_start += c->ts_ns;
-    if (k == 0 && c->realtime && c->link != NULL) { /* the synchronising exchange done: real time starts now */
+    /* over a link to another process the synchronising exchange is done: real time starts now */
+    if (k == 0 && c->realtime && (c->link->flags & NL_LINK_IN_PROCESS) == 0u) {
         const int64_t now = nl_now_ns();
         r->sync_ns = now - (L->next_start - c->ts_ns);
         if (now > L->next_start) {

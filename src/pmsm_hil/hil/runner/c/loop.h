@@ -1,7 +1,8 @@
 /*
- * The native period loop: plant sample, sensor model, Measurement encode (generated codec), the C target
- * core called with the frames, Command decode, DUT-contract checks, plant advance, the period record --
- * the same steps, in the same order and with the same arithmetic, as tests/oracle/closed_loop.py (the reference).
+ * The native period loop: plant sample, sensor model, Measurement encode (generated codec), the frames sent
+ * over the run's link (nl_link.h; in process: the C target core) and the reply received, Command decode,
+ * DUT-contract checks, plant advance, the period record -- the same steps, in the same order and with the same
+ * arithmetic, as tests/oracle/closed_loop.py (the reference).
  *
  * The loop runs in its own thread over the whole run and writes each block of NL_BLOCK periods into a ring
  * of NL_RING slots (period records in PERIOD_DTYPE layout, raw frames in FRAME_DTYPE layout, metrics-window
@@ -107,7 +108,6 @@ typedef struct {
     int32_t miss_zero;         /* miss policy: 1 zero vector, 0 hold */
     int32_t controller_id;
     int32_t mode_speed;        /* Setpoint mode value of speed control */
-    int64_t silent_after;      /* measurements the target answers (-1: all) */
     int32_t record_frames;
     double nan;                /* the NaN the Python loop writes (bit pattern kept) */
     /* sensors */
@@ -152,8 +152,8 @@ typedef struct {
     int32_t rt_priority;       /* SCHED_FIFO priority, 0: none */
     int32_t cpu;               /* CPU for the loop thread, -1: any */
     int32_t lock_memory;       /* mlockall for the run */
-    /* the link: NULL the in-process C target core, else a link to another process (nl_link.h: UDP, serial,
-     * SocketCAN) */
+    /* the link to the target (nl_link.h; required): the in-process C target core (link_core.h), a wire to another
+     * process or a board (UDP, serial, SocketCAN), or the callback link through Python (loop_py.h) */
     const struct nl_link *link;
     int64_t lockstep_timeout_ns; /* lockstep over a link: how long to wait for a Command [ns]: the target's own time
                                   * when target_pid is set (loop_stall.h), else wall time */

@@ -38,6 +38,7 @@ static void nl_py_link(nl_link_t *l, void *ctx, int with_diag, int with_period)
     l->ctx = ctx;
     l->diag = with_diag ? nl_py_diag : NULL;
     l->period = with_period ? nl_py_period : NULL;
+    l->flags = 0u;
 }
 
 #endif

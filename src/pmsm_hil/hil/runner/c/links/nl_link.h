@@ -26,14 +26,20 @@ typedef int (*nl_recv_fn)(void *ctx, hil_core_frame_t *f, int64_t deadline_ns);
  * receive's deadline, then 0 once: a drain or a wait ends even when the queue never empties. */
 #define NL_DRAIN_MAX 256
 
-/* What an in-process target says of the step that produced the last reply (the Python loop's `inproc_result`):
- * its stage split [ns], torque reference [N*m] and restricted-vs-full candidate miss (255: not checked);
- * 1 filled, 0 nothing to say. NULL on links to another process. */
+/* What an in-process target says of the step that produced the last reply (the C target core's profiled step, or
+ * the Python loop's `inproc_result`): its stage split [ns], torque reference [N*m] and restricted-vs-full candidate
+ * miss (255: not checked); 1 filled, 0 nothing to say. NULL on links to another process (no split crosses a wire). */
 typedef int (*nl_diag_fn)(void *ctx, uint32_t *split_ns, double *torque_ref, uint8_t *full_miss);
 
 /* A period starts at run time t_s [s] (k * Ts): called just before its Measurement is sent, where the Python
  * loop sets the clock link fault injection reads. NULL on links that need no clock. */
 typedef void (*nl_period_fn)(void *ctx, double t_s);
+
+/* What a link is (nl_link_t.flags). NL_LINK_IN_PROCESS: its peer answers inside `send` / `recv` in this process
+ * (the C target core, link_core.h): a receive that found nothing will find nothing later, so a real-time period
+ * without a reply waits out its deadline, and the first period needs no synchronising exchange. 0: the peer is
+ * another process or a board, its replies take wall time. */
+#define NL_LINK_IN_PROCESS 1u
 
 typedef struct nl_link {
     nl_send_fn send;
@@ -41,6 +47,7 @@ typedef struct nl_link {
     void *ctx;
     nl_diag_fn diag;
     nl_period_fn period;
+    uint32_t flags;            /* NL_LINK_* */
 } nl_link_t;
 
 /* Defines `void PREFIX_link(nl_link_t *l, TYPE *state)` for a link file with
@@ -61,6 +68,7 @@ typedef struct nl_link {
         l->ctx = state;                                                                                  \
         l->diag = NULL;                                                                                  \
         l->period = NULL;                                                                                \
+        l->flags = 0u;                                                                                   \
     }
 
 /* LinkStats (src/pmsm_hil/protocol/links/stats.py), plus the waits that ended in ppoll. */
