@@ -113,11 +113,13 @@ def test_forged_datagrams_never_reach_the_sockets_and_change_nothing(monkeypatch
                                                                       loop: str) -> None:
     """Both ends connect() their sockets once the session is agreed (the native loop's C link and the native
     target it spawns as the Python ends): the kernel drops the forger's datagrams before either socket, so none
-    is even counted, and the run is the clean run bit for bit."""
+    is even counted, and the run is the clean run bit for bit. The lockstep timeout is generous: the Python loop
+    has no host-stall detection, and on a busy machine a spawned target left off the CPUs for 0.5 s (the default)
+    would be a "missing Command" (`lost` 1) that is the scheduler's, not the forger's."""
     a, b = free_udp_ports()
-    clean = run_closed_loop(replace(_cfg(f"udp:{a}:{b}"), loop=loop))
+    clean = run_closed_loop(replace(_cfg(f"udp:{a}:{b}"), loop=loop, lockstep_timeout_s=30.0))
     a, b = free_udp_ports()
-    res, conn, sent = _spoofed_run(replace(_cfg(f"udp:{a}:{b}"), loop=loop), monkeypatch)
+    res, conn, sent = _spoofed_run(replace(_cfg(f"udp:{a}:{b}"), loop=loop, lockstep_timeout_s=30.0), monkeypatch)
     assert res.metrics["loop"] == loop
     assert sent["host"] > 30 and sent["target"] > 7
     host = res.metrics["link"]
