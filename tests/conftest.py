@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 import resource
 import signal
+import sys
 from collections.abc import Generator
 from pathlib import Path
 from typing import Any
@@ -44,8 +45,25 @@ def pytest_configure(config: pytest.Config) -> None:
     SIGINT inherit the ignored disposition, so they would not stop (hil replay/sweep/run timed out or exited 0)."""
     if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
         signal.signal(signal.SIGINT, signal.default_int_handler)
+    _cache_bytecode()
     if os.environ.get("HIL_CPU_REPORT") and _CPU_REPORT_OWNER not in os.environ:
         os.environ[_CPU_REPORT_OWNER] = str(os.getpid())
+
+
+def _cache_bytecode() -> None:
+    """Where PYTHONDONTWRITEBYTECODE is set, the suite's Python processes (xdist workers, `hil` commands, spawned
+    targets, pytest sessions) cache their bytecode below the user's cache folder instead (PYTHONPYCACHEPREFIX;
+    nothing is written into the tree): otherwise each of the suite's few thousand processes compiles the package's
+    ~200 modules again, ~0.5 CPU-s of the ~1.4 a `hil` start-up costs (docs/ci.md, "The project's own suite")."""
+    if not (sys.dont_write_bytecode or os.environ.get("PYTHONDONTWRITEBYTECODE")):
+        return  # bytecode is written beside the sources as usual
+    from pmsm_hil.sim_target.fw_build import cache_dir
+
+    prefix = os.environ.get("PYTHONPYCACHEPREFIX") or str(cache_dir() / "pycache")
+    os.environ["PYTHONPYCACHEPREFIX"] = prefix
+    os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
+    sys.pycache_prefix = prefix
+    sys.dont_write_bytecode = False
 
 
 def pytest_runtest_logreport(report: pytest.TestReport) -> None:

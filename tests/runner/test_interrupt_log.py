@@ -63,10 +63,10 @@ def test_main_turns_an_early_interrupt_into_exit_130(monkeypatch: pytest.MonkeyP
     """Ctrl-C while the parser imports the subcommands (the first ~0.5 s of every `hil` command)."""
     from pmsm_hil.app.cli import main as main_module
 
-    def interrupted() -> None:
+    def interrupted(argv: list[str]) -> None:
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(main_module, "build_parser", interrupted)
+    monkeypatch.setattr(main_module, "parser_for", interrupted)
     assert main(["run"]) == 130
     assert capsys.readouterr().err == "hil: interrupted\n"
     assert signal.getsignal(signal.SIGTERM) == signal.SIG_DFL  # main(argv) leaves the caller's handlers as found
@@ -78,21 +78,21 @@ def test_an_error_an_interrupt_caused_is_still_an_interrupt(monkeypatch: pytest.
     """numpy turns a KeyboardInterrupt inside its C import into an ImportError: after a signal, exit 130."""
     from pmsm_hil.app.cli import main as main_module
 
-    def import_cut_by_ctrl_c() -> None:
+    def import_cut_by_ctrl_c(argv: list[str]) -> None:
         try:
             main_module._raise_interrupt(signal.SIGINT, None)
         except KeyboardInterrupt:
             raise ImportError("PyCapsule_Import could not import module datetime") from None
 
     monkeypatch.setattr(main_module, "_interrupted", [])
-    monkeypatch.setattr(main_module, "build_parser", import_cut_by_ctrl_c)
+    monkeypatch.setattr(main_module, "parser_for", import_cut_by_ctrl_c)
     assert main(["run"]) == 130
     assert capsys.readouterr().err == "hil: interrupted\n"
     monkeypatch.setattr(main_module, "_interrupted", [])
 
-    def plain_bug() -> None:
+    def plain_bug(argv: list[str]) -> None:
         raise ImportError("no interrupt here")
 
-    monkeypatch.setattr(main_module, "build_parser", plain_bug)
+    monkeypatch.setattr(main_module, "parser_for", plain_bug)
     with pytest.raises(ImportError):
         main(["run"])

@@ -4,6 +4,7 @@ that cannot bind its port ends the run with its error, a killed host leaves no t
 from __future__ import annotations
 
 import binascii
+import functools
 import os
 import signal
 import socket
@@ -20,10 +21,12 @@ import numpy as np
 import pytest
 
 from pmsm_hil.hil.presets_loader import load_motor
+from pmsm_hil.hil.runner import loop as loop_module
 from pmsm_hil.hil.runner import loop_run
 from pmsm_hil.hil.runner import run as run_module
 from pmsm_hil.hil.runner.run import RunResult, run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
+from pmsm_hil.hil.runner.safe_stop import disable_and_confirm
 from pmsm_hil.hil.runner.scenario import load_scenario
 from pmsm_hil.hil.runner.target_client import TargetError
 from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target
@@ -31,6 +34,7 @@ from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.ids import ControllerId, ParamId
 from pmsm_hil.protocol.links.udp_bus import UdpUnicastBus, free_udp_ports
 from pmsm_hil.protocol.messages import Command, ConfigParam, Setpoint
+from tests.oracle import closed_loop as python_loop
 
 #: period-record fields measured on the wall clock (everything else of a lockstep run is deterministic)
 WALL_FIELDS = {"exec_time_ns", "exec_split_ns", "late", "missed"}
@@ -113,11 +117,17 @@ def test_forged_datagrams_never_reach_the_sockets_and_change_nothing(monkeypatch
                                                                       loop: str) -> None:
     """Both ends connect() their sockets once the session is agreed (the native loop's C link and the native
     target it spawns as the Python ends): the kernel drops the forger's datagrams before either socket, so none
-    is even counted, and the run is the clean run bit for bit."""
+    is even counted, and the run is the clean run bit for bit. The lockstep timeout is generous: the Python loop
+    has no host-stall detection, and on a busy machine a spawned target left off the CPUs for 0.5 s (the default)
+    would be a "missing Command" (`lost` 1) that is the scheduler's, not the forger's; so is the wait for the safe
+    stop's confirmation (0.5 s of wall time: "no frame at all" at load 12)."""
+    patient = functools.partial(disable_and_confirm, timeout_s=30.0)
+    monkeypatch.setattr(python_loop, "disable_and_confirm", patient)
+    monkeypatch.setattr(loop_module, "disable_and_confirm", patient)
     a, b = free_udp_ports()
-    clean = run_closed_loop(replace(_cfg(f"udp:{a}:{b}"), loop=loop))
+    clean = run_closed_loop(replace(_cfg(f"udp:{a}:{b}"), loop=loop, lockstep_timeout_s=30.0))
     a, b = free_udp_ports()
-    res, conn, sent = _spoofed_run(replace(_cfg(f"udp:{a}:{b}"), loop=loop), monkeypatch)
+    res, conn, sent = _spoofed_run(replace(_cfg(f"udp:{a}:{b}"), loop=loop, lockstep_timeout_s=30.0), monkeypatch)
     assert res.metrics["loop"] == loop
     assert sent["host"] > 30 and sent["target"] > 7
     host = res.metrics["link"]
