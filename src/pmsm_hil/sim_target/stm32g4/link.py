@@ -13,9 +13,9 @@ not used), with the core's cycles in interrupt handlers during the period as exe
 
 The host's period must be the firmware's carrier period: the board runs the firmware's start-up until TIM1
 counts, and refuses a different --ts naming both. ConfigParams are acknowledged by the board on the firmware's
-behalf while no FDCAN1 model is present (the firmware has no bus then; enabling Setpoints are counted and dropped,
-a disabling one trips TIM1's break input as a gate driver's enable line would, and the board confirms it); with
-an FDCAN1 model that offers `deliver(message, cycle)` / `take_transmitted()`, the frames are the firmware's own
+behalf while the firmware has not taken FDCAN1 out of initialisation (CCCR.INIT never cleared: it has no bus then;
+enabling Setpoints are counted and dropped, a disabling one trips TIM1's break input as a gate driver's enable line
+would, and the board confirms it); once it has, the frames go to its FDCAN1 model and its own answers come back
 (python-can Messages on the model's side); a frame that arrives outside a control period (configuration, the safe
 stop) is answered in idle periods of the firmware with the last inputs held (at most IDLE_PERIODS per frame).
 """
@@ -41,6 +41,8 @@ from pmsm_hil.protocol.messages import Command, ConfigAck, ConfigParam, Heartbea
 from pmsm_hil.sim_target.stm32g4.board import Board
 from pmsm_hil.sim_target.stm32g4.board_file import BoardDescription
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
+from pmsm_hil.sim_target.stm32g4.peripherals.fdcan import INIT as FDCAN_INIT
+from pmsm_hil.sim_target.stm32g4.peripherals.fdcan import Fdcan
 from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import Tim1
 
 #: emulated time the firmware's start-up may take before TIM1 counts [s]
@@ -84,7 +86,9 @@ class BoardLink:
         self.isr_cycles: list[int] = []
         self.sleep_cycles: list[int] = []
         self.late_first_period: int | None = None
-        self.fdcan = self.board.peripherals.get("FDCAN1")
+        fdcan = self.board.peripherals.get("FDCAN1")
+        self.fdcan = fdcan if isinstance(fdcan, Fdcan) else None
+        self._bus_on = False
         self.closed = False
         self.wall_s = 0.0
         self._start(ts_s)
@@ -189,10 +193,14 @@ class BoardLink:
     # --- Link -----------------------------------------------------------------------------------------------------
 
     @property
-    def bus(self) -> Any:
-        """The FDCAN1 model when the board has one that takes frames (`deliver`, `take_transmitted`), else None."""
+    def bus(self) -> Fdcan | None:
+        """The FDCAN1 model once the firmware has taken its CAN controller out of initialisation (cleared
+        CCCR.INIT: it is on the bus from then on, even while it re-enters INIT to reconfigure), else None: a
+        firmware that never starts FDCAN1 has no bus and the board answers for it."""
         fdcan = self.fdcan
-        return fdcan if hasattr(fdcan, "deliver") and hasattr(fdcan, "take_transmitted") else None
+        if not self._bus_on and isinstance(fdcan, Fdcan) and not fdcan.cccr & FDCAN_INIT:
+            self._bus_on = True
+        return fdcan if self._bus_on else None
 
     def send(self, frames: Sequence[Frame]) -> None:
         t0 = time.perf_counter()
