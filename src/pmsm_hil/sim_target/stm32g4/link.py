@@ -135,7 +135,12 @@ class BoardLink:
     def _analog(self, adc: str, channel: int, now: int) -> float:
         if channel < 0:
             return self.desc.vref_v
-        volts = self._volts.get((adc, channel), 0.0)
+        volts = self._volts.get((adc, channel))
+        if volts is None:
+            if adc.startswith("OPAMP"):
+                raise BoardError(f"the firmware converts an internal amplifier's input {adc}, which board "
+                                 f"{self.desc.name} does not describe (an [[analog]] entry with adc = {adc!r})")
+            volts = 0.0
         noise = self._noise.get((adc, channel), 0.0)
         return volts + self._rng.gauss(0.0, noise) if noise else volts
 
