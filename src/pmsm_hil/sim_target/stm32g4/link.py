@@ -57,7 +57,7 @@ class BoardLink:
     """The host's link to a firmware running on the virtual board (implements the Link protocol)."""
 
     def __init__(self, elf: str | Path, desc: BoardDescription, *, ts_s: float, pole_pairs: int,
-                 skip_periods: int = 0, console: Any = None) -> None:
+                 skip_periods: int = 0, console: Any = None, psi_f_wb: float = 0.0, vdc_v: float = 0.0) -> None:
         self.stats = LinkStats()
         self.fd = True
         self.desc = desc
@@ -68,7 +68,12 @@ class BoardLink:
         self.decoder = FrameDecoder(ordered=False)
         self._rx: deque[Frame] = deque()
         self._rng = random.Random(0x5EED)
-        self._volts: dict[tuple[str, int], float] = {}
+        #: the machine's magnet flux [Wb]: the open bridge's phase voltages are its back EMF (MOE = 0)
+        self.psi_f_wb = psi_f_wb
+        # before the first Measurement: no phase current, the DC link at its nominal voltage
+        zero = {"i_a": 0.0, "i_b": 0.0, "i_c": 0.0, "vdc": vdc_v}
+        self._volts: dict[tuple[str, int], float] = {(a.adc, a.channel): a.offset_v + a.gain * zero[a.signal]
+                                                     for a in desc.analog}
         self._noise = {(a.adc, a.channel): a.noise_v for a in desc.analog}
         self.board.analog = self._analog
         self.board.encoder = self._encoder
@@ -184,7 +189,7 @@ class BoardLink:
     def _duties(self, m: Measurement) -> tuple[float, ...]:
         tim = self.tim1
         if not tim.moe:
-            return (0.5, 0.5, 0.5)  # outputs off: no average voltage between the phases
+            return self._open_bridge(m)
         dead = tim.dead_time_s(self.hclk_hz) / self.carrier_s
         out = []
         for ch, current in zip(self.desc.pwm_channels, (m.i_a, m.i_b, m.i_c), strict=True):
@@ -194,6 +199,24 @@ class BoardLink:
                 d -= math.copysign(dead, current)
             out.append(min(max(d, 0.0), 1.0))
         return tuple(out)
+
+    def _open_bridge(self, m: Measurement) -> tuple[float, float, float]:
+        """MOE = 0 (OSSI set: every switch off): the duties whose average phase voltages are those of an open
+        bridge over the next period — the machine's back EMF at zero current, e_x = -ωe·ψf·sin(θe - x·2π/3) at the
+        period's middle (1.5 periods after the Measurement), centred between the rails. No current flows while the
+        line back EMF stays below Vdc, as on the chip; above it the duties saturate at the rails (the freewheeling
+        diodes clamp the line voltage to Vdc; the rectified current's exact shape is not modelled). The duty
+        Command has no high-impedance form: this is its nearest exact equivalent. Without magnets (ψf = 0) it is
+        0.5 on every leg."""
+        we = self.pole_pairs * m.omega_m
+        theta = m.theta_e + 1.5 * we * self.carrier_s
+        amp = we * self.psi_f_wb
+        emf = [-amp * math.sin(theta - k * 2 * math.pi / 3) for k in range(3)]
+        if not amp or m.vdc <= 0.0 or not math.isfinite(amp):
+            return (0.5, 0.5, 0.5)
+        mid = (max(emf) + min(emf)) / 2
+        a, b, c = (min(max(0.5 + (e - mid) / m.vdc, 0.0), 1.0) for e in emf)
+        return (a, b, c)
 
     # --- Link -----------------------------------------------------------------------------------------------------
 
