@@ -110,11 +110,6 @@ class Board:
         self._timed_set = set(self._timed)
         self._idle_loops: dict[int, bool] = {}
         self._advancing = [p for p in self.peripherals.values() if type(p).advance is not Peripheral.advance]
-        #: the timed models' next events as the last schedule saw them (None: nothing due), by position in _timed
-        self._due: list[int | None] = [0] * len(self._timed)
-        self._untimed_advancing = [p for p in self._advancing if p not in self._timed_set]
-        #: a register was written since the last pass: every model is brought up to date at the next one
-        self._stale = True
         self.sleeping = False
         self.sleep_cycles = 0
         #: cycles spent in exception handlers so far (nested ones counted once)
@@ -289,7 +284,6 @@ class Board:
         """A write to a model's register (by the CPU or a bus master); a model whose next event moved before the
         running slice's end makes the core stop at its next block so that the schedule is re-made."""
         p.write(address - p.base, size, value, now)
-        self._stale = True
         if p in self._timed_set:
             event = p.next_event(now)
             if event is not None and event < self.cpu.counter.limit:
@@ -339,30 +333,16 @@ class Board:
     def next_event(self, now: int) -> int | None:
         """The earliest cycle after `now` at which a model (or SysTick) changes state by itself."""
         best = self.scs.systick.next_event(now)
-        due = self._due
-        for i, p in enumerate(self._timed):
+        for p in self._timed:
             event = p.next_event(now)
-            due[i] = event
             if event is not None and (best is None or event < best):
                 best = event
         return best
 
     def _advance(self, now: int) -> None:
-        """Bring the models up to `now`: after a register write (or at a run's start) all of them; otherwise only
-        the timed models whose event the last schedule found due (the others have nothing to do: their own reads
-        and writes bring them up to date, and what another model starts in them lies ahead and is in the next
-        schedule)."""
         self.scs.systick.advance(now)
-        if self._stale:
-            self._stale = False
-            for p in self._advancing:
-                p.advance(now)
-            return
-        for p in self._untimed_advancing:
+        for p in self._advancing:
             p.advance(now)
-        for p, event in zip(self._timed, self._due, strict=True):
-            if event is not None and event <= now:
-                p.advance(now)
 
     def _masks(self) -> tuple[bool, int]:
         return bool(self.cpu.reg(arm.UC_ARM_REG_PRIMASK) & 1), self.cpu.reg(arm.UC_ARM_REG_BASEPRI)
@@ -414,7 +394,6 @@ class Board:
     def run_until(self, end: int) -> None:
         """Run the firmware until cycle `end` (at least; at most one basic block later)."""
         cpu, nvic = self.cpu, self.nvic
-        self._stale = True  # the run side may have changed a model (a frame delivered, the break tripped)
         while True:
             now = cpu.count
             self._advance(now)

@@ -95,12 +95,11 @@ class Adc(RegisterFile):
     # --- events ---------------------------------------------------------------------------------------------------
 
     def next_event(self, now: int) -> int | None:
-        events = [c.done_at for c in self.queue[:1]]
-        if self.cal_done_at is not None:
-            events.append(self.cal_done_at)
-        if self.ready_at is not None:
-            events.append(self.ready_at)
-        return min(events) if events else None
+        best = self.queue[0].done_at if self.queue else None
+        for at in (self.cal_done_at, self.ready_at):
+            if at is not None and (best is None or at < best):
+                best = at
+        return best
 
     def advance(self, now: int) -> None:
         if self.cal_done_at is not None and now >= self.cal_done_at:
