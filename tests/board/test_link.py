@@ -5,6 +5,7 @@ board's answers without a bus, and a fault inside a run ending it as a safety st
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
 from collections.abc import Callable
@@ -123,3 +124,24 @@ def test_every_board_metric_is_registered(link: BoardLink) -> None:
     produced = set(link.metrics())
     assert produced - registered == set()
     assert {"board_isr_time_us", "board_cpu_load", "board_handlers", "board_adc_sample_us"} <= produced
+
+
+def test_with_moe_off_the_bridge_is_open_and_the_pins_start_at_zero_signal(build_fw: Callable[..., Path]) -> None:
+    desc = load_board()
+    link = BoardLink(build_fw("pwm_adc"), desc, ts_s=TS, pole_pairs=4, psi_f_wb=0.1, vdc_v=48.0)
+    # before any Measurement the pins read the front end's zero-signal voltages (the nominal DC link for vdc)
+    for a in desc.analog:
+        expected = a.offset_v + a.gain * (48.0 if a.signal == "vdc" else 0.0)
+        assert link._analog(a.adc, a.channel, link.board.now) == pytest.approx(expected)
+    link.tim1.trip_break()
+    m = measurement(3)
+    cmd = exchange(link, m)[0]
+    assert isinstance(cmd, Command)
+    we = 4 * m.omega_m
+    theta = m.theta_e + 1.5 * we * TS  # the middle of the period the Command is applied over
+    emf = [-we * 0.1 * math.sin(theta - k * 2 * math.pi / 3) for k in range(3)]
+    mid = (max(emf) + min(emf)) / 2
+    wire = 1 / 65520
+    assert cmd.duties == pytest.approx([0.5 + (e - mid) / m.vdc for e in emf], abs=wire)
+    # the line voltages the open bridge's Command applies are the back EMF's: no current is driven
+    assert cmd.duties[0] - cmd.duties[1] == pytest.approx((emf[0] - emf[1]) / m.vdc, abs=2 * wire)

@@ -43,3 +43,26 @@ def test_the_independent_watchdog_reset(build_fw: Callable[..., Path]) -> None:
     assert u32(board, "iwdg_sr_polls") > 0  # the update flags held for a few LSI periods
     tick = RESET_HZ * 4 // LSI_HZ
     assert ended.value.cycle == pytest.approx(100 * tick + 6 * RESET_HZ // LSI_HZ, rel=0.05)
+
+
+def test_the_bus_master_path_reaches_memory_and_registers_as_the_cpu_does(build_fw: Callable[..., Path]) -> None:
+    board = board_module.Board(part_module.PARTS["stm32g474"], build_fw("periph"))
+    sram = 0x2000_4000
+    assert board.access(sram, 4, 0x1234_5678, now=0) == 0x1234_5678
+    assert board.access(sram, 2, now=0) == 0x5678 and board.read_memory(sram, 4) == bytes.fromhex("78563412")
+    assert board.access(0x0800_0004, 4, now=0) == board.cpu.read_u32(4)  # the reset vector, through flash
+    with pytest.raises(board_module.BoardError, match="flash is read-only"):
+        board.access(0x0800_0000, 4, 0, now=0)
+    with pytest.raises(board_module.BoardError, match="private peripheral bus"):
+        board.access(0xE000_E100, 4, now=0)
+    with pytest.raises(board_module.BoardError, match=r"0x40010000 \(SYSCFG.*not modelled"):
+        board.access(0x4001_0000, 4, now=0)
+    with pytest.raises(board_module.BoardError, match="no memory"):
+        board.access(0x2002_0000, 4, now=0)
+    # a register write has the model's effects, and a timed model's new event stops the running slice
+    tim1 = board.peripherals["TIM1"]
+    board.cpu.counter.limit = 1 << 40
+    board.access(tim1.base + 0x2C, 4, 999, now=0)  # ARR
+    board.access(tim1.base + 0x00, 4, 1, now=0)  # CR1.CEN
+    assert board.access(tim1.base + 0x2C, 4, now=0) == 999 and tim1.running
+    assert board.cpu.counter.limit == board.cpu.counter.count

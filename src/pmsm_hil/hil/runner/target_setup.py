@@ -401,6 +401,7 @@ def _connect_board(cfg: RunConfig, path: str) -> TargetConnection:
     console = TargetConsole(None, None, ready_prefix=READY_LINE, stats_prefix=LINK_STATS_LINE, verbose=cfg.verbose)
     lines: list[str] = []
     link = BoardLink(elf, load_board(cfg.board), ts_s=cfg.ts_s, pole_pairs=int(cfg.motor.pole_pairs),
+                     psi_f_wb=float(getattr(cfg.motor, "psi_f", 0.0)), vdc_v=float(cfg.motor.vdc),
                      skip_periods=round(cfg.scenario.settle_s / cfg.ts_s),
                      console=lambda source, line: lines.append(f"{source}: {line}"))
     codec = FrameCodec("canfd")

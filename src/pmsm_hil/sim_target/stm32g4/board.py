@@ -275,15 +275,53 @@ class Board:
         p = self._owner.get(address >> 8)
         if p is None:
             raise self._unmodelled(address, "write")
-        now = self.cpu.count
         try:
-            p.write(address - p.base, size, value, now)
+            self._store(p, address, size, value, self.cpu.count)
         except BoardError as exc:
             raise self._located(exc) from None
+
+    def _store(self, p: Peripheral, address: int, size: int, value: int, now: int) -> None:
+        """A write to a model's register (by the CPU or a bus master); a model whose next event moved before the
+        running slice's end makes the core stop at its next block so that the schedule is re-made."""
+        p.write(address - p.base, size, value, now)
         if p in self._timed_set:
             event = p.next_event(now)
             if event is not None and event < self.cpu.counter.limit:
                 self.cpu.request_stop()
+
+    # --- BusMaster ----------------------------------------------------------------------------------------------
+
+    def access(self, address: int, size: int, value: int | None = None, *, now: int) -> int:
+        """A bus master's (DMA's) load of `size` bytes at `address` (value None: returns them) or store of `value`
+        (returns it): a peripheral's registers through its model, as the CPU's accesses, SRAM, CCM-SRAM and the
+        FDCAN message RAM directly; flash is read-only, the core's private bus (0xE0000000 up) and unmodelled
+        addresses are refused naming the address."""
+        p = self._owner.get(address >> 8)
+        if p is not None:
+            if value is None:
+                return p.read(address - p.base, size, now)
+            self._store(p, address, size, value, now)
+            return value
+        if 0x4000_0000 <= address < 0x6000_0000 and not self._in_message_ram(address, size):
+            kind = "read" if value is None else "write"
+            raise BoardError(f"bus-master {kind} of {address:#010x} ({block_name(address)}, not modelled by the "
+                             "virtual board)")
+        if address >= 0xE000_0000:
+            raise BoardError(f"bus-master access of {address:#010x}: the core's private peripheral bus is not "
+                             "reachable by DMA")
+        if value is not None and address < 0x1000_0000:  # flash and its boot alias at 0
+            raise BoardError(f"bus-master write of {address:#010x}: flash is read-only to a bus master")
+        try:
+            if value is None:
+                return int.from_bytes(self.cpu.uc.mem_read(address, size), "little")
+            self.cpu.uc.mem_write(address, (value & ((1 << (8 * size)) - 1)).to_bytes(size, "little"))
+        except UcError:
+            raise BoardError(f"bus-master access of {address:#010x}: no memory of {self.part.name} there") from None
+        return value
+
+    def _in_message_ram(self, address: int, size: int) -> bool:
+        return "FDCAN1" in self.part.peripherals and address >= FDCAN_RAM_BASE and \
+            address + size <= FDCAN_RAM_BASE + 0xC00
 
     # --- running ------------------------------------------------------------------------------------------------
 

@@ -5,6 +5,7 @@ path)` checks every field and names the bad one."""
 
 from __future__ import annotations
 
+import re
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,6 +18,8 @@ BOARDS_DIR = Path(__file__).with_name("boards")
 DEFAULT_BOARD = "nucleo_g474re_ihm"
 SIGNALS = ("i_a", "i_b", "i_c", "vdc")
 ADCS = ("ADC1", "ADC2")
+#: an internal amplifier's input pin as an analog entry's `adc` (channel 0): OPAMP1_VINP0 .. OPAMP6_VINM0
+AMPLIFIER_INPUT = re.compile(r"OPAMP[1-6]_VIN(P[0-3]|M0)")
 ENCODER_TIMERS = ("TIM3", "TIM4")
 
 
@@ -94,10 +97,14 @@ def load_board(spec: str | Path | None = None) -> BoardDescription:
         if signal not in SIGNALS:
             raise BoardError(f"{at}: 'signal' = {signal!r} (one of {', '.join(SIGNALS)})")
         adc = _field(entry, "adc", str, at)
-        if adc not in ADCS:
-            raise BoardError(f"{at}: 'adc' = {adc!r} (one of {', '.join(ADCS)})")
-        channel = _field(entry, "channel", int, at)
-        if not 1 <= channel <= 18:
+        amplifier = AMPLIFIER_INPUT.fullmatch(adc) is not None
+        if adc not in ADCS and not amplifier:
+            raise BoardError(f"{at}: 'adc' = {adc!r} (one of {', '.join(ADCS)}) or an amplifier input "
+                             "OPAMPn_VINPk / OPAMPn_VINM0")
+        channel = _field(entry, "channel", int, at) if not amplifier else int(entry.get("channel", 0))
+        if amplifier and channel != 0:
+            raise BoardError(f"{at}: 'channel' = {channel}: an amplifier input {adc} has no channel (0 or none)")
+        if not amplifier and not 1 <= channel <= 18:
             raise BoardError(f"{at}: 'channel' = {channel} outside 1-18")
         noise = float(entry.get("noise_v", 0.0))
         if noise < 0:

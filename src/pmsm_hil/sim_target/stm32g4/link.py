@@ -13,9 +13,9 @@ not used), with the core's cycles in interrupt handlers during the period as exe
 
 The host's period must be the firmware's carrier period: the board runs the firmware's start-up until TIM1
 counts, and refuses a different --ts naming both. ConfigParams are acknowledged by the board on the firmware's
-behalf while no FDCAN1 model is present (the firmware has no bus then; enabling Setpoints are counted and dropped,
-a disabling one trips TIM1's break input as a gate driver's enable line would, and the board confirms it); with
-an FDCAN1 model that offers `deliver(message, cycle)` / `take_transmitted()`, the frames are the firmware's own
+behalf while the firmware has not taken FDCAN1 out of initialisation (CCCR.INIT never cleared: it has no bus then;
+enabling Setpoints are counted and dropped, a disabling one trips TIM1's break input as a gate driver's enable line
+would, and the board confirms it); once it has, the frames go to its FDCAN1 model and its own answers come back
 (python-can Messages on the model's side); a frame that arrives outside a control period (configuration, the safe
 stop) is answered in idle periods of the firmware with the last inputs held (at most IDLE_PERIODS per frame).
 """
@@ -41,6 +41,8 @@ from pmsm_hil.protocol.messages import Command, ConfigAck, ConfigParam, Heartbea
 from pmsm_hil.sim_target.stm32g4.board import Board
 from pmsm_hil.sim_target.stm32g4.board_file import BoardDescription
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
+from pmsm_hil.sim_target.stm32g4.peripherals.fdcan import INIT as FDCAN_INIT
+from pmsm_hil.sim_target.stm32g4.peripherals.fdcan import Fdcan
 from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import Tim1
 
 #: emulated time the firmware's start-up may take before TIM1 counts [s]
@@ -55,7 +57,7 @@ class BoardLink:
     """The host's link to a firmware running on the virtual board (implements the Link protocol)."""
 
     def __init__(self, elf: str | Path, desc: BoardDescription, *, ts_s: float, pole_pairs: int,
-                 skip_periods: int = 0, console: Any = None) -> None:
+                 skip_periods: int = 0, console: Any = None, psi_f_wb: float = 0.0, vdc_v: float = 0.0) -> None:
         self.stats = LinkStats()
         self.fd = True
         self.desc = desc
@@ -66,7 +68,12 @@ class BoardLink:
         self.decoder = FrameDecoder(ordered=False)
         self._rx: deque[Frame] = deque()
         self._rng = random.Random(0x5EED)
-        self._volts: dict[tuple[str, int], float] = {}
+        #: the machine's magnet flux [Wb]: the open bridge's phase voltages are its back EMF (MOE = 0)
+        self.psi_f_wb = psi_f_wb
+        # before the first Measurement: no phase current, the DC link at its nominal voltage
+        zero = {"i_a": 0.0, "i_b": 0.0, "i_c": 0.0, "vdc": vdc_v}
+        self._volts: dict[tuple[str, int], float] = {(a.adc, a.channel): a.offset_v + a.gain * zero[a.signal]
+                                                     for a in desc.analog}
         self._noise = {(a.adc, a.channel): a.noise_v for a in desc.analog}
         self.board.analog = self._analog
         self.board.encoder = self._encoder
@@ -84,7 +91,9 @@ class BoardLink:
         self.isr_cycles: list[int] = []
         self.sleep_cycles: list[int] = []
         self.late_first_period: int | None = None
-        self.fdcan = self.board.peripherals.get("FDCAN1")
+        fdcan = self.board.peripherals.get("FDCAN1")
+        self.fdcan = fdcan if isinstance(fdcan, Fdcan) else None
+        self._bus_on = False
         self.closed = False
         self.wall_s = 0.0
         self._start(ts_s)
@@ -131,7 +140,12 @@ class BoardLink:
     def _analog(self, adc: str, channel: int, now: int) -> float:
         if channel < 0:
             return self.desc.vref_v
-        volts = self._volts.get((adc, channel), 0.0)
+        volts = self._volts.get((adc, channel))
+        if volts is None:
+            if adc.startswith("OPAMP"):
+                raise BoardError(f"the firmware converts an internal amplifier's input {adc}, which board "
+                                 f"{self.desc.name} does not describe (an [[analog]] entry with adc = {adc!r})")
+            volts = 0.0
         noise = self._noise.get((adc, channel), 0.0)
         return volts + self._rng.gauss(0.0, noise) if noise else volts
 
@@ -175,7 +189,7 @@ class BoardLink:
     def _duties(self, m: Measurement) -> tuple[float, ...]:
         tim = self.tim1
         if not tim.moe:
-            return (0.5, 0.5, 0.5)  # outputs off: no average voltage between the phases
+            return self._open_bridge(m)
         dead = tim.dead_time_s(self.hclk_hz) / self.carrier_s
         out = []
         for ch, current in zip(self.desc.pwm_channels, (m.i_a, m.i_b, m.i_c), strict=True):
@@ -186,13 +200,35 @@ class BoardLink:
             out.append(min(max(d, 0.0), 1.0))
         return tuple(out)
 
+    def _open_bridge(self, m: Measurement) -> tuple[float, float, float]:
+        """MOE = 0 (OSSI set: every switch off): the duties whose average phase voltages are those of an open
+        bridge over the next period — the machine's back EMF at zero current, e_x = -ωe·ψf·sin(θe - x·2π/3) at the
+        period's middle (1.5 periods after the Measurement), centred between the rails. No current flows while the
+        line back EMF stays below Vdc, as on the chip; above it the duties saturate at the rails (the freewheeling
+        diodes clamp the line voltage to Vdc; the rectified current's exact shape is not modelled). The duty
+        Command has no high-impedance form: this is its nearest exact equivalent. Without magnets (ψf = 0) it is
+        0.5 on every leg."""
+        we = self.pole_pairs * m.omega_m
+        theta = m.theta_e + 1.5 * we * self.carrier_s
+        amp = we * self.psi_f_wb
+        emf = [-amp * math.sin(theta - k * 2 * math.pi / 3) for k in range(3)]
+        if not amp or m.vdc <= 0.0 or not math.isfinite(amp):
+            return (0.5, 0.5, 0.5)
+        mid = (max(emf) + min(emf)) / 2
+        a, b, c = (min(max(0.5 + (e - mid) / m.vdc, 0.0), 1.0) for e in emf)
+        return (a, b, c)
+
     # --- Link -----------------------------------------------------------------------------------------------------
 
     @property
-    def bus(self) -> Any:
-        """The FDCAN1 model when the board has one that takes frames (`deliver`, `take_transmitted`), else None."""
+    def bus(self) -> Fdcan | None:
+        """The FDCAN1 model once the firmware has taken its CAN controller out of initialisation (cleared
+        CCCR.INIT: it is on the bus from then on, even while it re-enters INIT to reconfigure), else None: a
+        firmware that never starts FDCAN1 has no bus and the board answers for it."""
         fdcan = self.fdcan
-        return fdcan if hasattr(fdcan, "deliver") and hasattr(fdcan, "take_transmitted") else None
+        if not self._bus_on and isinstance(fdcan, Fdcan) and not fdcan.cccr & FDCAN_INIT:
+            self._bus_on = True
+        return fdcan if self._bus_on else None
 
     def send(self, frames: Sequence[Frame]) -> None:
         t0 = time.perf_counter()

@@ -66,7 +66,8 @@ class Part:
 
 
 _COMMON = ("RCC", "PWR", "FLASH", "GPIOA", "GPIOB", "GPIOC", "GPIOD", "GPIOE", "GPIOF", "GPIOG", "USART2", "TIM1",
-           "TIM3", "TIM4", "ADC1", "ADC2", "ADC12_COMMON", "FDCAN1")
+           "TIM3", "TIM4", "ADC1", "ADC2", "ADC12_COMMON", "FDCAN1", "DMA1", "DMA2", "DMAMUX1", "OPAMP", "CORDIC",
+           "WWDG", "IWDG")
 
 PARTS = {
     "stm32g474": Part("stm32g474", flash_size=512 << 10, sram_size=96 << 10, ccm_size=32 << 10, peripherals=_COMMON,

@@ -6,7 +6,10 @@ alignment, JEOC/JEOS/EOC/EOS/EOSMP/OVR flags and their interrupts on the shared 
 
 A conversion samples the board's analog input (`BoardBus.analog_voltage`) at the end of its sampling time and
 is ready 12.5 ADC clocks later. External triggers come from TIM1 (TRGO, TRGO2, CC4 for injected; TRGO, TRGO2,
-CC1-3 for regular); a trigger from another timer is refused naming it. Not modelled: DMA, oversampling,
+CC1-3 for regular); a trigger from another timer is refused naming it. With CFGR.DMAEN each regular conversion's
+end raises the ADC's DMA request (DMAMUX1 input 5 for ADC1, 36 for ADC2), whose channel reads DR (a read of DR
+clears EOC); an internal channel an OPAMP drives converts the amplifier's gain times its input (the board's
+analog front end names the input `OPAMPn_VINPk` / `OPAMPn_VINM0`, channel 0). Not modelled: oversampling,
 offsets, the analog watchdogs' thresholds, differential mode, the injected queue beyond one context, dual mode.
 """
 
@@ -17,6 +20,7 @@ from typing import ClassVar
 
 from pmsm_hil.sim_target.stm32g4.part import IRQ
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError, register, services
+from pmsm_hil.sim_target.stm32g4.peripherals.opamp import ADC_CHANNELS, Opamp
 from pmsm_hil.sim_target.stm32g4.peripherals.regs import RegisterFile
 
 ISR, IER, CR, CFGR, CFGR2, SMPR1, SMPR2 = 0x00, 0x04, 0x08, 0x0C, 0x10, 0x14, 0x18
@@ -25,6 +29,9 @@ OFR, JDR, AWD2CR, AWD3CR, DIFSEL, CALFACT, GCOMP = 0x60, 0x80, 0xA0, 0xA4, 0xB0,
 ADRDY, EOSMP, EOC, EOS, OVR, JEOC, JEOS = 1, 2, 4, 8, 16, 32, 64
 ADEN, ADDIS, ADSTART, JADSTART, ADSTP, JADSTP = 1, 2, 4, 8, 16, 32
 ADVREGEN, DEEPPWD, ADCAL = 1 << 28, 1 << 29, 1 << 31
+DMAEN = 1
+#: the internal channels an OPAMP output can drive (opamp.ADC_CHANNELS)
+OPAMP_OUTPUTS = frozenset(ADC_CHANNELS)
 SAMPLE_CLOCKS = (2.5, 6.5, 12.5, 24.5, 47.5, 92.5, 247.5, 640.5)
 CONVERT_CLOCKS = 12.5
 CALIBRATION_CLOCKS = 116
@@ -51,6 +58,7 @@ class Adc(RegisterFile):
     """One ADC of the ADC12 pair."""
 
     size = 0x100
+    dma_request = 0  # its DMAMUX request input
     RESET: ClassVar[dict[int, int]] = {
         ISR: 0, IER: 0, CR: DEEPPWD, CFGR: 0x8000_0000, CFGR2: 0, SMPR1: 0, SMPR2: 0, TR1: 0x0FFF_0000,
         TR2: 0x00FF_0000, TR3: 0x00FF_0000, SQR1: 0, SQR2: 0, SQR3: 0, SQR4: 0, DR: 0, JSQR: 0,
@@ -87,12 +95,11 @@ class Adc(RegisterFile):
     # --- events ---------------------------------------------------------------------------------------------------
 
     def next_event(self, now: int) -> int | None:
-        events = [c.done_at for c in self.queue[:1]]
-        if self.cal_done_at is not None:
-            events.append(self.cal_done_at)
-        if self.ready_at is not None:
-            events.append(self.ready_at)
-        return min(events) if events else None
+        best = self.queue[0].done_at if self.queue else None
+        for at in (self.cal_done_at, self.ready_at):
+            if at is not None and (best is None or at < best):
+                best = at
+        return best
 
     def advance(self, now: int) -> None:
         if self.cal_done_at is not None and now >= self.cal_done_at:
@@ -125,10 +132,22 @@ class Adc(RegisterFile):
             elif conv.last and self.regs[CFGR] >> 13 & 1 and self.regs[CR] & ADSTART:
                 self._start_regular(conv.done_at)
         self._set(flags | EOSMP)
+        if not conv.injected and self.regs[CFGR] & DMAEN:  # the DMA request: its channel reads DR, clearing EOC
+            self.bus.peripheral("DMAMUX1").request(self.dma_request, conv.done_at)  # type: ignore[attr-defined]
 
     def _code(self, channel: int, at: int) -> int:
-        volts = services(self.bus).analog_voltage(self.name, channel, at)
-        vref = services(self.bus).analog_voltage(self.name, -1, at)
+        board = services(self.bus)
+        volts = board.analog_voltage(self.name, channel, at)
+        opamp = self._opamp() if (self.name, channel) in OPAMP_OUTPUTS else None
+        if opamp is not None:
+            path = opamp.gain_and_source(self.name, channel)
+            if path is not None:  # an internal amplifier's output: gain times its input (and the inverting path)
+                gain, source = path
+                volts = gain * board.analog_voltage(source, 0, at)
+                inverting = opamp.inverting_path(self.name, channel)
+                if inverting is not None:
+                    volts += inverting[0] * board.analog_voltage(inverting[1], 0, at)
+        vref = board.analog_voltage(self.name, -1, at)
         res = self.regs[CFGR] >> 3 & 3
         bits = (12, 10, 8, 6)[res]
         full = (1 << bits) - 1
@@ -136,6 +155,14 @@ class Adc(RegisterFile):
         if self.regs[CFGR] >> 15 & 1:  # ALIGN left
             code <<= 16 - bits if bits > 6 else 8 - bits
         return code
+
+    def _opamp(self) -> Opamp | None:
+        """The board's OPAMP model (None on a board without one)."""
+        try:
+            opamp = self.bus.peripheral("OPAMP")
+        except (BoardError, KeyError):
+            return None
+        return opamp if isinstance(opamp, Opamp) else None
 
     def _set(self, bits: int) -> None:
         self.regs[ISR] |= bits
@@ -217,6 +244,9 @@ class Adc(RegisterFile):
 
     def load(self, word: int, now: int) -> int:
         self.advance(now)
+        if word == DR and self.regs[ISR] & EOC:  # reading the data clears EOC
+            self.regs[ISR] &= ~EOC
+            self.bus.peripheral("ADC12_COMMON").line_changed()  # type: ignore[attr-defined]
         return self.regs[word]
 
     def store(self, word: int, value: int, now: int) -> None:
@@ -279,11 +309,13 @@ class Adc(RegisterFile):
 @register("ADC1")
 class Adc1(Adc):
     base = 0x5000_0000
+    dma_request = 5  # DMAMUX input (RM0440 table 91)
 
 
 @register("ADC2")
 class Adc2(Adc):
     base = 0x5000_0100
+    dma_request = 36
 
 
 @register("ADC12_COMMON")
