@@ -18,7 +18,7 @@ from labgrid.protocol import BootstrapProtocol, PowerProtocol, ResetProtocol
 from labgrid.resource import Resource
 from labgrid.strategy import Strategy
 
-from pmsm_hil.bench.errors import BenchError
+from pmsm_hil.bench.errors import BoardSilentError
 from pmsm_hil.bench.heartbeat import wait_heartbeat
 from pmsm_hil.bench.sim_board import SimBoard
 
@@ -98,7 +98,7 @@ class HilBenchStrategy(Strategy):  # type: ignore[misc]
     """`transition("ready")`: power the board on (or cycle it), flash the image (the environment's
     `images: {firmware: PATH}`; a simulated board may have none: the reference firmware), reset it unless the
     flash driver resets itself, and wait for the target's heartbeat on the link (BenchError naming the place
-    when none comes). `transition("off")`: power off (a simulated board: its process ends)."""
+    when none comes: BoardSilentError). `transition("off")`: power off (a simulated board: its process ends)."""
 
     bindings = {  # noqa: RUF012 (labgrid's class attribute)
         "link": "HilLinkDriver",
@@ -142,5 +142,5 @@ class HilBenchStrategy(Strategy):  # type: ignore[misc]
         self.target.activate(self.link)
         self.heartbeat_s = wait_heartbeat(self.link.spec, HEARTBEAT_TIMEOUT_S)
         if self.heartbeat_s is None:
-            raise BenchError(f"bench {self.target.name}: no heartbeat from the board on {self.link.spec} within "
+            raise BoardSilentError(f"bench {self.target.name}: no heartbeat from the board on {self.link.spec} within "
                              f"{HEARTBEAT_TIMEOUT_S:g} s of flashing")

@@ -59,14 +59,26 @@ def env_places(env_file: str | Path) -> list[str]:
     return names
 
 
+def env_coordinator(env_file: str | Path) -> str | None:
+    """The coordinator address of a labgrid environment file (`options: coordinator_address`), or None."""
+    import yaml
+
+    data = yaml.safe_load(Path(env_file).read_text(encoding="utf-8")) or {}
+    address = (data.get("options") or {}).get("coordinator_address")
+    return None if address is None else str(address)
+
+
 @contextlib.contextmanager
 def open_bench(place: str, *, coordinator: str | None = None, env_file: str | Path | None = None) -> Iterator[Bench]:
     """Lease `place`, bring it to ready with the environment `env_file` (None: one made for the place) and yield
-    the `Bench`; on leaving, the board is switched off and the place released."""
+    the `Bench`; on leaving, the board is switched off and the place released. The coordinator: `coordinator`,
+    else the environment file's, else `LG_COORDINATOR`, else labgrid's default."""
     import labgrid
 
     import pmsm_hil.bench.labgrid_parts  # noqa: F401 (registers the resources, drivers and strategy)
 
+    if coordinator is None and env_file is not None:
+        coordinator = env_coordinator(env_file)
     with PlaceLease(place, coordinator) as lease, tempfile.TemporaryDirectory(prefix="hil-bench-") as tmp:
         if env_file is None:
             env_file = Path(tmp) / "env.yaml"

@@ -63,26 +63,68 @@ def target_problem(target: str, base: Path) -> str | None:
     return f"--hil-target {target!r}: not one of {TARGET_FORMS}"
 
 
+#: the link of the labgrid place the session leased (`--lg-env`), as `external:LINKSPEC`
+BENCH_TARGET = pytest.StashKey[str]()
+
+
+def lg_env_file(config: pytest.Config) -> str | None:
+    """labgrid's `--lg-env` (or `LG_ENV`) when labgrid's pytest plugin is loaded, else None."""
+    import os
+
+    if not hasattr(config.option, "lg_env"):
+        return None
+    return config.option.lg_env or os.environ.get("LG_ENV") or None
+
+
+def _lease_bench(config: pytest.Config, env_file: str) -> None:
+    """Lease the place of the labgrid environment `env_file` for the whole session (waiting for it while another
+    session holds it), bring its board to ready and make its link the `hil` target; released when pytest ends
+    (after the JUnit XML is written, so a queued session's report starts after this one's ends)."""
+    import contextlib
+
+    from pmsm_hil.bench.errors import BenchError
+    from pmsm_hil.bench.session import env_places, open_bench
+
+    path = config.invocation_params.dir / env_file
+    places = env_places(path)
+    if len(places) != 1:
+        raise pytest.UsageError(f"--lg-env {env_file}: the hil plugin needs exactly one RemotePlace (found "
+                                f"{places or 'none'})")
+    stack = contextlib.ExitStack()
+    config.add_cleanup(stack.close)
+    coordinator = getattr(config.option, "lg_coordinator", None)
+    try:
+        bench = stack.enter_context(open_bench(places[0], coordinator=coordinator, env_file=path))
+    except BenchError as exc:
+        raise pytest.UsageError(str(exc)) from None
+    config.stash[BENCH_TARGET] = f"external:{bench.link}"
+
+
 def pytest_configure(config: pytest.Config) -> None:
     """A `--hil-target` that cannot be run is a usage error of the session (one line, pytest exit 4), not a
-    failure of every test that uses `hil`."""
+    failure of every test that uses `hil`. With labgrid's `--lg-env` naming a place, the session leases it."""
     problem = target_problem(str(config.getoption("--hil-target")), config.invocation_params.dir)
     if problem is not None:
         raise pytest.UsageError(problem)
+    env_file = lg_env_file(config)
+    if env_file is not None and not hasattr(config, "workerinput"):
+        _lease_bench(config, env_file)
 
 
 @pytest.hookimpl(optionalhook=True)
 def pytest_xdist_auto_num_workers(config: pytest.Config) -> int | None:
     """pytest-xdist's `-n auto` (this repository's addopts): no workers for an `external:` target, whose one board
     cannot take two tests' runs at once; other targets start one per run, xdist's own count holds."""
-    return 0 if str(config.getoption("--hil-target")).startswith("external") else None
+    one_board = str(config.getoption("--hil-target")).startswith("external") or lg_env_file(config) is not None
+    return 0 if one_board else None
 
 
 def _settings(config: pytest.Config) -> HilSettings:
     from pmsm_hil.testing.runs import HilSettings
 
     out = config.getoption("--hil-out")
-    return HilSettings(target=config.getoption("--hil-target"), motor=config.getoption("--hil-motor"),
+    target = config.stash.get(BENCH_TARGET, None) or config.getoption("--hil-target")
+    return HilSettings(target=target, motor=config.getoption("--hil-motor"),
                        controller=config.getoption("--hil-controller"),
                        out=None if out is None else (config.invocation_params.dir / out).resolve())
 
@@ -166,5 +208,5 @@ def hil(request: pytest.FixtureRequest, hil_session: HilSession, tmp_path: Path)
         pop_reporter(reporter)
 
 
-__all__ = ["TARGET_FORMS", "Hil", "HilSession", "hil", "hil_session", "pytest_addoption", "pytest_configure",
-           "target_problem"]
+__all__ = ["BENCH_TARGET", "TARGET_FORMS", "Hil", "HilSession", "hil", "hil_session", "lg_env_file",
+           "pytest_addoption", "pytest_configure", "target_problem"]
