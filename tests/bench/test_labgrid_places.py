@@ -58,11 +58,28 @@ def benches(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Benches]:
         b.stop()
 
 
-def _session(benches: Benches, folder: Path, name: str, place: str) -> subprocess.Popen[bytes]:
+KILLED_BOARD_TEST = """\
+import os
+import signal
+from pathlib import Path
+
+def test_a_run_after_the_board_died(hil):
+    me = os.getpid()
+    kids = [int(c) for task in Path(f"/proc/{me}/task").iterdir() for c in (task / "children").read_text().split()]
+    boards = [c for c in kids if b"target" in Path(f"/proc/{c}/cmdline").read_bytes().split(b"\\0")]
+    assert len(boards) == 1, kids
+    os.kill(boards[0], signal.SIGKILL)
+    hil.run(duration=0.1, settle=0.02, lockstep_timeout=2, expect_hold=False)
+    raise AssertionError("the session went on after its board stopped answering")
+"""
+
+
+def _session(benches: Benches, folder: Path, name: str, place: str,
+             test: str = SESSION_TEST) -> subprocess.Popen[bytes]:
     """A pytest session on `place` under labgrid's plugin (`--lg-env`), its JUnit XML in folder/name.xml."""
     env_file = folder / f"{name}.yaml"
     env_file.write_text(ENV.format(place=place, address=benches.address), encoding="utf-8")
-    (folder / "test_bench_session.py").write_text(SESSION_TEST, encoding="utf-8")
+    (folder / "test_bench_session.py").write_text(test, encoding="utf-8")
     cmd = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-n", "0", "-q", "--lg-env", str(env_file),
            "--junitxml", str(folder / f"{name}.xml"), "--hil-out", str(folder / f"out-{name}"),
            str(folder / "test_bench_session.py")]
@@ -137,4 +154,13 @@ def test_a_board_that_stops_answering_ends_the_run_naming_the_bench(benches: Ben
     out, err = proc.communicate(timeout=300)
     assert proc.returncode == 3, (out, err)
     assert "bench bench-b" in err and "place bench-b released" in err, err
+    assert _held(benches) == [], "a place still held"
+
+
+def test_a_session_whose_board_stops_answering_ends_naming_the_bench(benches: Benches, tmp_path: Path) -> None:
+    proc = _session(benches, tmp_path, "dies", "bench-a", KILLED_BOARD_TEST)
+    code = proc.wait(600)
+    log = (tmp_path / "dies.log").read_text()
+    assert code == 3, log
+    assert "bench bench-a: the board stopped answering" in log and "place bench-a released" in log, log
     assert _held(benches) == [], "a place still held"
