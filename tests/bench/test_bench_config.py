@@ -38,3 +38,19 @@ def test_an_unreachable_coordinator_is_one_error_naming_the_bench() -> None:
 def test_a_simulated_board_refuses_a_missing_image(tmp_path: Path) -> None:
     with pytest.raises(BenchError, match=r"board b1: image .*nope.so is not a file"):
         SimBoard("udp:1:2@127.0.0.1", name="b1").flash(tmp_path / "nope.so")
+
+
+def test_the_example_bench_files_name_their_places_and_valid_links() -> None:
+    import yaml
+
+    from pmsm_hil.protocol.links.spec import parse_spec
+
+    examples = Path(__file__).resolve().parents[2] / "examples" / "bench"
+    assert env_places(examples / "env-sim.yaml") == ["sim-a"]
+    assert env_places(examples / "env-nucleo.yaml") == ["drive-bench-1"]
+    for name in ("exporter-sim.yaml", "exporter-nucleo.yaml"):
+        places = yaml.safe_load((examples / name).read_text(encoding="utf-8"))
+        for resources in places.values():
+            parse_spec(resources["HilLink"]["spec"])
+            if "HilSimBoard" in resources:
+                parse_spec(resources["HilSimBoard"]["target_link"])
