@@ -164,3 +164,11 @@ def test_a_session_whose_board_stops_answering_ends_naming_the_bench(benches: Be
     assert code == 3, log
     assert "bench bench-a: the board stopped answering" in log and "place bench-a released" in log, log
     assert _held(benches) == [], "a place still held"
+
+
+def test_an_unknown_place_is_one_error_naming_it(benches: Benches, tmp_path: Path) -> None:
+    done = subprocess.run([sys.executable, "-m", "pmsm_hil.app.cli.main", "run", "--place", "bench-c",
+                           "--coordinator", benches.address, "--out", str(tmp_path / "run")],
+                          capture_output=True, text=True, timeout=300, check=False)
+    assert done.returncode == 2, done
+    assert "bench bench-c: no such place on the coordinator" in done.stderr and "bench-a, bench-b" in done.stderr

@@ -58,6 +58,10 @@ class PlaceLease:
         return done.stdout
 
     def __enter__(self) -> PlaceLease:
+        places = self._client("places").split()
+        if self.place not in places:
+            raise BenchError(f"bench {self.place}: no such place on the coordinator {self.coordinator} (places: "
+                             f"{', '.join(places) or 'none'})")
         out = self._client("reserve", "--wait", "--shell", f"name={self.place}", timeout=None)
         found = re.search(r"LG_TOKEN=(\w+)", out)
         if found is None:
