@@ -27,6 +27,7 @@ os.environ[REFERENCE_LOOP_ENV] = str(Path(__file__).resolve().parent / "oracle" 
 CI_ALLOWED_SKIPS = (
     "no SocketCAN interface",  # no vcan module on the CI kernel; runs on users' Linux CI
     "gym-electric-motor not installed",  # optional [bench] extra, not installed by CI
+    "labgrid is not installed",  # optional [bench] extra (tests/bench: the simulated labgrid benches)
     "multicast",  # loopback multicast is not routed on every host
     # python-can's own skips in its back-to-back tests (tests/protocol/test_python_can_conformance.py), and the one
     # test a point-to-point link cannot run (a third bus on one end's channel)

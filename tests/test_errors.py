@@ -16,7 +16,7 @@ from pmsm_hil.errors import HilError
 ROOT = Path(__file__).resolve().parent.parent
 #: optional extras a module may need (pyproject.toml [project.optional-dependencies]); a module that cannot be
 #: imported for any other reason fails the test
-OPTIONAL = {"dask", "distributed", "ray", "gym_electric_motor", "gem", "rerun"}
+OPTIONAL = {"dask", "distributed", "ray", "gym_electric_motor", "gem", "rerun", "labgrid"}
 
 
 def _packages() -> list[str]:

@@ -28,6 +28,7 @@ FOLDER_LAYERS = {
     "hil/runlog": "infrastructure",
     "hil/runner": "runner",
     "dashboards": "dashboards",
+    "bench": "bench",
     "app": "application",
     "testing": "application",
     "conformance": "application",
@@ -41,7 +42,8 @@ MAY_USE = {
     "infrastructure": {"base", "model"},
     "runner": {"base", "protocol", "target", "model", "infrastructure"},
     "dashboards": {"base", "protocol", "model", "infrastructure", "runner"},
-    "application": {"base", "protocol", "target", "model", "infrastructure", "runner", "dashboards"},
+    "bench": {"base", "protocol", "target", "model", "infrastructure", "runner"},
+    "application": {"base", "protocol", "target", "model", "infrastructure", "runner", "dashboards", "bench"},
 }
 #: (module prefix, layer), most specific first: the folders as import names
 LAYER_OF = tuple(sorted(((".".join(("pmsm_hil", *Path(folder).with_suffix("").parts)), name)

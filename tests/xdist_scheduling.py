@@ -39,6 +39,7 @@ GROUPS: dict[str, str] = {
 #: whole-suite runs with two workers at load 10-25 (2026-11-28; only the order matters)
 COST_S: dict[str, float] = {
     "tests/firmware_board/test_sil_isolation.py": 462,
+    "tests/bench/test_labgrid_places.py": 150,
     "tests/firmware/test_c_unit.py": 356,
     "tests/runner/test_dut_contract.py": 353,
     "tests/load_fmu:fan-fmus": 316,

@@ -63,26 +63,89 @@ def target_problem(target: str, base: Path) -> str | None:
     return f"--hil-target {target!r}: not one of {TARGET_FORMS}"
 
 
+#: the link of the labgrid place the session leased (`--lg-env`), as `external:LINKSPEC`
+BENCH_TARGET = pytest.StashKey[str]()
+#: the name of that place
+BENCH_PLACE = pytest.StashKey[str]()
+#: how long a run that ended 3 or 4 on a leased place waits for the board's heartbeat before the session ends [s]
+BOARD_CHECK_S = 3.0
+
+
+def lg_env_file(config: pytest.Config) -> str | None:
+    """labgrid's `--lg-env` (or `LG_ENV`) when labgrid's pytest plugin is loaded, else None."""
+    import os
+
+    option = getattr(config, "option", None)
+    if option is None or not hasattr(option, "lg_env"):
+        return None
+    return config.option.lg_env or os.environ.get("LG_ENV") or None
+
+
+def _lease_bench(config: pytest.Config, env_file: str) -> None:
+    """Lease the place of the labgrid environment `env_file` for the whole session (waiting for it while another
+    session holds it), bring its board to ready and make its link the `hil` target; released when pytest ends
+    (after the JUnit XML is written, so a queued session's report starts after this one's ends)."""
+    import contextlib
+
+    from pmsm_hil.bench.errors import BenchError
+    from pmsm_hil.bench.session import env_places, open_bench
+
+    path = config.invocation_params.dir / env_file
+    places = env_places(path)
+    if len(places) != 1:
+        raise pytest.UsageError(f"--lg-env {env_file}: the hil plugin needs exactly one RemotePlace (found "
+                                f"{places or 'none'})")
+    stack = contextlib.ExitStack()
+    config.add_cleanup(stack.close)
+    coordinator = getattr(config.option, "lg_coordinator", None)
+    try:
+        bench = stack.enter_context(open_bench(places[0], coordinator=coordinator, env_file=path))
+    except BenchError as exc:
+        raise pytest.UsageError(str(exc)) from None
+    config.stash[BENCH_TARGET] = f"external:{bench.link}"
+    config.stash[BENCH_PLACE] = bench.place
+
+
+def check_bench(config: pytest.Config, end_code: int | None) -> None:
+    """After a run on a leased place that ended 3 or 4, or could not start (`end_code` None): a board that gives no
+    heartbeat within `BOARD_CHECK_S` ends the session (pytest exit 3) naming the bench; the place is released as
+    the session ends."""
+    place = config.stash.get(BENCH_PLACE, None)
+    if place is None or end_code not in (3, 4, None):
+        return
+    from pmsm_hil.bench.heartbeat import wait_heartbeat
+
+    link = config.stash[BENCH_TARGET].removeprefix("external:")
+    if wait_heartbeat(link, BOARD_CHECK_S) is None:
+        pytest.exit(f"bench {place}: the board stopped answering (no heartbeat on {link} within {BOARD_CHECK_S:g} s "
+                    f"after a run); place {place} released", returncode=3)
+
+
 def pytest_configure(config: pytest.Config) -> None:
     """A `--hil-target` that cannot be run is a usage error of the session (one line, pytest exit 4), not a
-    failure of every test that uses `hil`."""
+    failure of every test that uses `hil`. With labgrid's `--lg-env` naming a place, the session leases it."""
     problem = target_problem(str(config.getoption("--hil-target")), config.invocation_params.dir)
     if problem is not None:
         raise pytest.UsageError(problem)
+    env_file = lg_env_file(config)
+    if env_file is not None and not hasattr(config, "workerinput"):
+        _lease_bench(config, env_file)
 
 
 @pytest.hookimpl(optionalhook=True)
 def pytest_xdist_auto_num_workers(config: pytest.Config) -> int | None:
     """pytest-xdist's `-n auto` (this repository's addopts): no workers for an `external:` target, whose one board
     cannot take two tests' runs at once; other targets start one per run, xdist's own count holds."""
-    return 0 if str(config.getoption("--hil-target")).startswith("external") else None
+    one_board = str(config.getoption("--hil-target")).startswith("external") or lg_env_file(config) is not None
+    return 0 if one_board else None
 
 
 def _settings(config: pytest.Config) -> HilSettings:
     from pmsm_hil.testing.runs import HilSettings
 
     out = config.getoption("--hil-out")
-    return HilSettings(target=config.getoption("--hil-target"), motor=config.getoption("--hil-motor"),
+    target = config.stash.get(BENCH_TARGET, None) or config.getoption("--hil-target")
+    return HilSettings(target=target, motor=config.getoption("--hil-motor"),
                        controller=config.getoption("--hil-controller"),
                        out=None if out is None else (config.invocation_params.dir / out).resolve())
 
@@ -128,8 +191,10 @@ class Hil:
     other option by its name, e.g. `ts=50e-6`, `tolerate=3`) and returns a `HilResult`. Runs log into
     `--hil-out`/<test>/run-N (else the test's tmp_path); failing assertions write their plots there."""
 
-    def __init__(self, session: HilSession, out_dir: Path, reporter: Reporter) -> None:
+    def __init__(self, session: HilSession, out_dir: Path, reporter: Reporter,
+                 config: pytest.Config | None = None) -> None:
         self.session = session
+        self.config = config
         self.out_dir = out_dir
         self.reporter = reporter
         self._runs = 0
@@ -141,6 +206,7 @@ class Hil:
 
     def run(self, **choices: Any) -> HilResult:
         """One closed-loop run against the session's target (see the class)."""
+        from pmsm_hil.errors import HilError
         from pmsm_hil.testing.runs import execute
 
         self._runs += 1
@@ -148,7 +214,15 @@ class Hil:
         while folder.exists():
             self._runs += 1
             folder = self.out_dir / f"run-{self._runs}"
-        return execute(self.session.settings, folder, choices, self.reporter)
+        try:
+            result = execute(self.session.settings, folder, choices, self.reporter)
+        except HilError:
+            if self.config is not None:
+                check_bench(self.config, None)
+            raise
+        if self.config is not None:
+            check_bench(self.config, result.end_code)
+        return result
 
 
 @pytest.fixture
@@ -161,10 +235,11 @@ def hil(request: pytest.FixtureRequest, hil_session: HilSession, tmp_path: Path)
     reporter = Reporter(out_dir, lambda: request.getfixturevalue("record_property"))
     push_reporter(reporter)
     try:
-        yield Hil(hil_session, out_dir, reporter)
+        yield Hil(hil_session, out_dir, reporter, request.config)
     finally:
         pop_reporter(reporter)
 
 
-__all__ = ["TARGET_FORMS", "Hil", "HilSession", "hil", "hil_session", "pytest_addoption", "pytest_configure",
-           "target_problem"]
+__all__ = ["BENCH_PLACE", "BENCH_TARGET", "TARGET_FORMS", "Hil", "HilSession", "check_bench", "hil", "hil_session",
+           "lg_env_file",
+           "pytest_addoption", "pytest_configure", "target_problem"]

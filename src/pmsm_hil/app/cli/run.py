@@ -50,6 +50,12 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
                                           "niu2020 IPMSM, MPCC, 1500 rpm, 7 N·m, lockstep.",
                               epilog=EXIT_CODES)
     _add_arguments(p)
+    bench = p.add_argument_group("bench (labgrid; the `bench` extra)")
+    bench.add_argument("--place", metavar="NAME",
+                       help="run on the labgrid place NAME: wait for it, acquire it, flash its board, wait for its "
+                            "heartbeat, run over its link (--target external), release it (docs/bench_setup.md)")
+    bench.add_argument("--coordinator", metavar="HOST:PORT",
+                       help="labgrid coordinator of --place (default: LG_COORDINATOR, else 127.0.0.1:20408)")
     p.set_defaults(func=run)
 
 
@@ -113,7 +119,55 @@ def _check_outputs(args: argparse.Namespace, cfg: RunConfig, held: contextlib.Ex
 
 
 def run(args: argparse.Namespace) -> int:
-    """Execute `hil run`."""
+    """Execute `hil run` (with --place: on that labgrid place, `run_on_place`)."""
+    if getattr(args, "place", None) is not None:
+        return run_on_place(args)
+    return _run_here(args)
+
+
+def run_on_place(args: argparse.Namespace) -> int:
+    """`hil run --place NAME`: lease the place (waiting for it), bring its board to ready, run over its link and
+    release it, whatever the ending; a board that gives no heartbeat, or stops answering during the run (a safety
+    stop), ends the run with exit 3 naming the bench."""
+    from pmsm_hil.bench.errors import BoardSilentError
+    from pmsm_hil.bench.heartbeat import wait_heartbeat
+    from pmsm_hil.bench.session import open_bench
+
+    place = str(args.place)
+    silent = None
+    try:
+        with open_bench(place, coordinator=args.coordinator) as bench:
+            args.link, args.target = bench.link, "external"
+            code = _run_here(args)
+            if code in (3, 4) and wait_heartbeat(bench.link, BOARD_CHECK_S) is None:
+                silent = (f"bench {place}: the board stopped answering (no heartbeat on {bench.link} within "
+                          f"{BOARD_CHECK_S:g} s after the run)")
+    except BoardSilentError as exc:
+        print(f"hil: {exc}; place {place} released", file=sys.stderr)
+        return 3
+    if silent is not None:
+        _mark_safety_stop(args, silent)
+        print(f"hil: {silent}; place {place} released", file=sys.stderr)
+        return 3
+    return code
+
+
+#: how long `hil run --place` waits for the board's heartbeat after a run that ended with exit 3 or 4 [s]
+BOARD_CHECK_S = 3.0
+
+
+def _mark_safety_stop(args: argparse.Namespace, reason: str) -> None:
+    """A board that stopped answering is a safety stop: metrics.json (and --json) say end_code 3 and the bench."""
+    out = getattr(args, "out", None)
+    for path in (None if out is None else Path(out) / "metrics.json", getattr(args, "json", None)):
+        if path is not None and Path(path).is_file():
+            metrics = json.loads(Path(path).read_text(encoding="utf-8"))
+            metrics["end_code"] = 3
+            metrics["end_reason"] = f"{reason}; {metrics.get('end_reason', '')}"
+            write_text_atomic(Path(path), json.dumps(metrics, indent=2) + "\n", option="--place")
+
+
+def _run_here(args: argparse.Namespace) -> int:
     with StatusLine("hil run", enabled=status_wanted(getattr(args, "quiet", False))) as line:
         line.phase("checking options…")
         cfg = config_from_args(args)
