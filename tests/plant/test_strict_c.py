@@ -12,9 +12,10 @@ from pmsm_hil.hil.load_fmu.headers import fmi_include_dir
 
 ROOT = Path(__file__).resolve().parents[2]
 #: the package's C: the plant kernels (src/pmsm_hil/hil/kernels), the period loop (src/pmsm_hil/hil/runner/c) and its
-#: links (src/pmsm_hil/hil/runner/c/links)
+#: links (src/pmsm_hil/hil/runner/c/links), the example load FMU users start from (`hil fmu example`)
 HIL = ROOT / "src" / "pmsm_hil" / "hil"
 KERNELS, LOOP_C, LINKS = HIL / "kernels", HIL / "runner" / "c", HIL / "runner" / "c" / "links"
+FMU_EXAMPLE = HIL / "load_fmu" / "example_src"
 STRICT = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion", "-pedantic", "-O2"]
 #: the period loop (loop*.c) includes the HIL target core and the generated codec
 FIRMWARE = ROOT / "firmware_stub"
@@ -34,4 +35,4 @@ def test_kernel_compiles_with_strict_flags(source: str, tmp_path: Path) -> None:
 
 def test_every_c_folder_is_compiled() -> None:
     sources = {p.parent for p in HIL.rglob("*.c")}
-    assert sources == {KERNELS, LOOP_C, LINKS}
+    assert sources == {KERNELS, LOOP_C, LINKS, FMU_EXAMPLE}

@@ -88,7 +88,9 @@ def main() -> int:
                 if rules.get("silent", 1 << 30) <= k or rules.get("skip") == k:
                     pass
                 elif rules.get("lose") == k:  # sent, and lost on the wire: its link sequence number is used up
-                    bus._tx_seq = (bus._tx_seq + 1) & 0xFF  # type: ignore[attr-defined]
+                    wire = bus._state  # type: ignore[attr-defined]  # the C link's state (loop_serial.c, loop_udp.c)
+                    counter = getattr(wire, "framer", wire)  # the serial link keeps it in its framer
+                    counter.tx_seq = (counter.tx_seq + 1) & 0xFF
                 elif rules.get("future_seq") == k:
                     reply((seq + 1) & 0xFFFF)
                 elif rules.get("bad_sum") == k:
