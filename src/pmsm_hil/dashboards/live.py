@@ -18,7 +18,7 @@ from pmsm_hil.dashboards.recording import RerunTargets
 from pmsm_hil.hil.records import PERIOD_DTYPE
 from pmsm_hil.hil.runlog.channel import NOTICE
 from pmsm_hil.hil.runlog.errors import RunLogError
-from pmsm_hil.hil.runlog.worker_client import WorkerClient
+from pmsm_hil.hil.runlog.worker_client import WorkerClient, start_failure
 
 DEFAULT_RING_BYTES = 32 * 1024 * 1024
 
@@ -42,7 +42,8 @@ class LiveRerun(WorkerClient):
         except OSError as exc:
             raise DashboardError(f"rerun: cannot start the dashboard process ({exc})") from None
         if ready is None:
-            raise DashboardError(self._error or f"rerun: dashboard process did not start within {start_timeout_s} s")
+            raise DashboardError(self._error
+                                 or "rerun: dashboard process did not start " + start_failure(start_timeout_s))
         self.url = ready.decode() or None
 
     def _check(self) -> None:

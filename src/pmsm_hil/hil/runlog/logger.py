@@ -20,7 +20,7 @@ from pmsm_hil.hil.runlog.console import CONSOLE_DTYPE
 from pmsm_hil.hil.runlog.errors import LoggerDiedError, RunLogError
 from pmsm_hil.hil.runlog.sink import COMPRESSIONS
 from pmsm_hil.hil.runlog.worker import run_worker
-from pmsm_hil.hil.runlog.worker_client import WorkerClient
+from pmsm_hil.hil.runlog.worker_client import WorkerClient, start_failure
 
 DEFAULT_RING_BYTES = 64 * 1024 * 1024
 
@@ -70,7 +70,7 @@ class RunLogger(WorkerClient):
         except OSError as exc:
             raise RunLogError(f"run logger: cannot start the logger process ({exc})") from None
         if ready is None:
-            raise LoggerDiedError(self._error or f"run logger: process did not start within {start_timeout_s} s")
+            raise LoggerDiedError(self._error or "run logger: process did not start " + start_failure(start_timeout_s))
 
     @staticmethod
     def _check_metadata(metadata: Mapping[str, str]) -> dict[str, str]:

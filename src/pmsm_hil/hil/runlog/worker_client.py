@@ -18,6 +18,7 @@ import time
 from collections.abc import Callable
 from multiprocessing import forkserver, resource_tracker
 from multiprocessing.process import BaseProcess
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -38,6 +39,24 @@ def _worker_entry(target: Callable[..., None], *args: Any) -> None:
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(0)
+
+
+#: how many start timeouts a worker that keeps using CPU may take to report ready
+START_CEILING = 10
+
+
+def _cpu_seconds(pid: int | None) -> float:
+    """CPU time (s, user + system) process `pid` has used so far; 0 if it cannot be read (gone, not Linux)."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        return 0.0
+
+
+def start_failure(timeout_s: float) -> str:
+    """Why `_await_ready` gave up on a worker that neither died nor reported ready, for the error line."""
+    return f"(no CPU used for {timeout_s:g} s, or not ready after {START_CEILING * timeout_s:g} s)"
 
 
 class WorkerClient:
@@ -102,10 +121,19 @@ class WorkerClient:
             raise
 
     def _await_ready(self, timeout_s: float) -> bytes | None:
-        """Wait up to `timeout_s` (s) for b"R"; return the text after it, or None after `_abort()`
-        (then `_error` holds the worker's message, if it sent one)."""
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
+        """Wait for b"R"; return the text after it, or None after `_abort()` (then `_error` holds the worker's
+        message, if it sent one). The wait ends when the worker died, when it used no CPU for `timeout_s` (s) or
+        after `START_CEILING` × `timeout_s` in all: a worker still importing on a starved machine (a VM under
+        TCG beside other jobs took more than 60 s) is slow, not broken."""
+        start = last_progress = time.monotonic()
+        cpu = _cpu_seconds(self._proc.pid)
+        while True:
+            now = time.monotonic()
+            used = _cpu_seconds(self._proc.pid)
+            if used > cpu:
+                cpu, last_progress = used, now
+            if now - last_progress >= timeout_s or now - start >= START_CEILING * timeout_s:
+                break
             if self._status.poll(0.05):
                 msg = self._read_status()
                 if msg is not None and msg[:1] == b"R":

@@ -1,0 +1,42 @@
+"""A worker process's start (`WorkerClient._await_ready`) is judged by its progress, not by wall time: one that keeps
+using CPU past the start timeout still starts (a starved machine, a VM under TCG), one that uses no CPU for the
+timeout is given up with the reason in one line, and nothing is left behind."""
+
+from __future__ import annotations
+
+import time
+
+from pmsm_hil.hil.runlog.worker_client import START_CEILING, WorkerClient
+from tests.runlog import _slow_workers
+
+RING_BYTES = 1 << 16
+
+
+class _Client(WorkerClient):
+    def start(self, target: object, *args: object, timeout_s: float) -> bytes | None:
+        return self._start(target, args, name="hil-test-worker",  # type: ignore[arg-type]
+                           start_method="spawn", ring_bytes=RING_BYTES, stall_timeout_s=5.0,
+                           start_timeout_s=timeout_s)
+
+
+def test_a_worker_busy_past_the_start_timeout_still_starts() -> None:
+    client = _Client()
+    # busy for 3 s of wall time against a 1 s timeout, within the 10 s ceiling: it never stops progressing
+    ready = client.start(_slow_workers.spin_then_ready, 3.0, timeout_s=1.0)
+    try:
+        assert ready == b""
+        assert client._alive()
+    finally:
+        client._abort()
+    assert not client._alive()
+
+
+def test_a_worker_that_uses_no_cpu_is_given_up_after_the_timeout() -> None:
+    client = _Client()
+    t0 = time.monotonic()
+    ready = client.start(_slow_workers.sleep_forever, timeout_s=0.5)
+    waited = time.monotonic() - t0
+    assert ready is None
+    assert waited < START_CEILING * 0.5 + 30  # the ceiling bounds it even if the child's imports ran long
+    assert not client._alive()  # aborted: no process left
+
