@@ -105,6 +105,17 @@ class BoardLink:
         self._bus_on = False
         self.closed = False
         self.wall_s = 0.0
+        #: why the firmware stopped the board before TIM1 counted (a fault, an access the board does not model, a
+        #: start-up that never starts TIM1): raised at the first Measurement, so that the run ends as a safety stop
+        #: with its outputs written (the reason one line), not as a usage error
+        self.boot_error: BoardError | None = None
+        self.carrier_s = ts_s
+        self.period_cycles = round(ts_s * self.hclk_hz)
+        try:
+            self._boot()
+        except BoardError as exc:
+            self.boot_error = exc
+            return
         self._start(ts_s)
 
     # --- start-up and period --------------------------------------------------------------------------------------
@@ -115,9 +126,8 @@ class BoardLink:
         assert isinstance(timer, Tim1)
         return timer
 
-    def _start(self, ts_s: float) -> None:
-        """Run the firmware's start-up until TIM1 counts and an update at the carrier valley has passed; check the
-        carrier period against the host's."""
+    def _boot(self) -> None:
+        """Run the firmware's start-up until TIM1 counts and an update has passed."""
         board, tim = self.board, self.tim1
         limit = round(STARTUP_LIMIT_S * 170e6)
         step = 170_000
@@ -126,6 +136,11 @@ class BoardLink:
                 raise BoardError(f"stm32g4 target: TIM1 did not start within {STARTUP_LIMIT_S:g} s of the firmware's "
                                  f"start-up (at {board.describe_pc()})")
             board.run_until(board.now + step)
+
+    def _start(self, ts_s: float) -> None:
+        """After the start-up: check the carrier period against the host's (a mismatch is the run's usage error)
+        and align the period start to an update at the carrier valley."""
+        board, tim = self.board, self.tim1
         hz = board.hclk_hz
         carrier_s = tim.carrier_cycles() / hz
         mode = f"centre-aligned (CMS {tim.cms})" if tim.cms else "edge-aligned"
@@ -293,6 +308,8 @@ class BoardLink:
         CCCR.INIT: it is on the bus from then on, even while it re-enters INIT to reconfigure), else None: a
         firmware that never starts FDCAN1 has no bus and the board answers for it."""
         fdcan = self.fdcan
+        if self.boot_error is not None:  # the firmware stopped in its start-up: the board answers for it
+            return None
         if not self._bus_on and isinstance(fdcan, Fdcan) and not fdcan.cccr & FDCAN_INIT:
             self._bus_on = True
         return fdcan if self._bus_on else None
@@ -304,6 +321,8 @@ class BoardLink:
             self.stats.frames_tx += 1
             msg = self.decoder.feed(frame)
             if isinstance(msg, Measurement):
+                if self.boot_error is not None:
+                    raise self.boot_error
                 self._idle_left = 0
                 self._reply(self._period(msg))
             elif bus is not None:
@@ -372,6 +391,9 @@ class BoardLink:
     def metrics(self) -> dict[str, Any]:
         """The board's own metrics over the metrics window (the periods from `skip_periods`)."""
         board, tim = self.board, self.tim1
+        if self.boot_error is not None:  # no carrier: the firmware stopped before TIM1 counted
+            return {"mcu_clock_hz": float(board.hclk_hz), "board": self.desc.name,
+                    "board_configs_acked": self.configs_acked, "board_setpoints_dropped": self.setpoints_dropped}
         window = slice(self.skip_periods, None)
         isr = np.asarray(self.isr_cycles[window], dtype=float)
         sleep = np.asarray(self.sleep_cycles[window], dtype=float)
