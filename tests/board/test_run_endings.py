@@ -84,3 +84,21 @@ def test_the_first_period_is_the_open_bridge_of_a_board_whose_outputs_are_off(tm
     assert 0.0 < min(duties) < max(duties) < 1.0 and max(duties) - min(duties) > 0.1  # the back EMF's, not 0.5
     for k in (1, 2):
         assert max(abs(periods[k][name]) for name in ("i_a", "i_b", "i_c")) < 0.01  # [A]
+
+
+def test_the_board_periods_are_in_the_log(build_fw: Callable[..., Path], tmp_path: Path) -> None:
+    """/board/periods: one message per control period; the late compares of the LATE firmware (its interrupt writes
+    the compare values after the next update) counted per period add up to the run's `board_late_compares`."""
+    from mcap.reader import make_reader
+
+    out = tmp_path / "run"
+    proc = hil_run(build_fw("pwm_adc", "LATE"), out)
+    assert proc.returncode in (0, 3), proc.stderr[-2000:]
+    metrics = json.loads((out / "metrics.json").read_text())
+    with (out / "run.mcap").open("rb") as f:
+        records = [json.loads(msg.data) for _, _, msg in make_reader(f).iter_messages(topics=["/board/periods"])]
+    assert [r["period"] for r in records] == list(range(metrics["total_periods"]))
+    assert sum(r["late_compares"] for r in records) == metrics["board_late_compares"] > 0
+    assert all(r["isr_entries"] >= 1 and 0.0 < r["isr_us"] < TS * 1e6 and 0.0 < r["cpu_load"] <= 1.0
+               for r in records[1:])
+    assert records[5]["t"] == pytest.approx(5 * TS)

@@ -90,6 +90,8 @@ class TargetConnection:
     #: with its outputs released; that Command is the open bridge's duties, the wire having no form for it);
     #: None: the target's Commands are what it switches
     outputs_off: Callable[[int], bool] | None = None
+    #: a board's per-period records since the last call (a BOARD_DTYPE block for /board/periods); None: none
+    board_records: Callable[[], Any] | None = None
 
     def duties_at_start(self, sample: Any) -> tuple[float, ...]:
         """The duties of period 0 for the plant's state `sample` at the run's start (empty: the zero vector)."""
@@ -405,6 +407,7 @@ def _connect_qemu(cfg: RunConfig, path: str) -> TargetConnection:
 def _connect_board(cfg: RunConfig, path: str) -> TargetConnection:
     """The ELF on the virtual STM32G4 board in this process; the board object is the host's link (each Measurement
     runs one period of the firmware); its metrics (handlers, CPU load, late compares) join metrics.json."""
+    from pmsm_hil.hil.runner.board_log import BoardLog
     from pmsm_hil.sim_target.stm32g4.board_file import load_board
     from pmsm_hil.sim_target.stm32g4.link import BoardLink
 
@@ -423,7 +426,7 @@ def _connect_board(cfg: RunConfig, path: str) -> TargetConnection:
     return TargetConnection(TargetClient(link, codec), link, extra_metrics=link.metrics, console=console,
                             ending=lambda out: judge_board(link, out),
                             before_close=lambda: console.feed("\n".join(lines)), first_duties=link.first_duties,
-                            outputs_off=link.outputs_off)
+                            outputs_off=link.outputs_off, board_records=BoardLog(link, cfg.ts_s).take)
 
 
 def connect_target(cfg: RunConfig, *, silent_after: int | None = None, native_target: bool = False) -> TargetConnection:

@@ -99,6 +99,9 @@ class BoardLink:
         self.periods = 0
         self.isr_cycles: list[int] = []
         self.sleep_cycles: list[int] = []
+        #: per control period: late compare values (TIM1's count of them, 0 or 1) and exception entries
+        self.late_per_period: list[int] = []
+        self.entries_per_period: list[int] = []
         self.late_first_period: int | None = None
         fdcan = self.board.peripherals.get("FDCAN1")
         self.fdcan = fdcan if isinstance(fdcan, Fdcan) else None
@@ -198,12 +201,16 @@ class BoardLink:
         self._take(m)
         sleep0 = board.sleep_cycles
         isr0 = board.handler_cycles
+        late0 = tim.late_writes
+        entries0 = sum(st.entries for st in board.isr.values())
         end = self._period_start + self.period_cycles
         board.run_until(end)
         self._period_start = end
         isr = board.handler_cycles - isr0
-        self.isr_cycles.append(isr)
         self.sleep_cycles.append(board.sleep_cycles - sleep0)
+        self.late_per_period.append(tim.late_writes - late0)
+        self.entries_per_period.append(sum(st.entries for st in board.isr.values()) - entries0)
+        self.isr_cycles.append(isr)  # last: a period counts as recorded once this list has it (period_records)
         if tim.first_late_update is not None and self.late_first_period is None:
             self.late_first_period = self.periods
         self.periods += 1
@@ -388,6 +395,15 @@ class BoardLink:
 
     # --- what the run says ----------------------------------------------------------------------------------------
 
+    def period_records(self, start: int) -> list[tuple[int, float, int, float, int]]:
+        """Per control period from `start` on, as far as recorded: (period, handler time [µs], exception entries,
+        CPU load (share of the period's cycles not asleep), late compare values); the run's log takes them block by
+        block (src/pmsm_hil/hil/runner/board_log.py)."""
+        end = len(self.isr_cycles)
+        us = 1e6 / self.hclk_hz
+        return [(k, self.isr_cycles[k] * us, self.entries_per_period[k],
+                 1.0 - self.sleep_cycles[k] / self.period_cycles, self.late_per_period[k]) for k in range(start, end)]
+
     def metrics(self) -> dict[str, Any]:
         """The board's own metrics over the metrics window (the periods from `skip_periods`)."""
         board, tim = self.board, self.tim1
@@ -401,7 +417,7 @@ class BoardLink:
         out: dict[str, Any] = {"mcu_clock_hz": float(self.hclk_hz), "board": self.desc.name,
                                "board_carrier_hz": 1.0 / self.carrier_s,
                                "board_dead_time_ns": tim.dead_time_s(self.hclk_hz) * 1e9,
-                               "board_late_compares": tim.late_writes,
+                               "board_late_compares": sum(self.late_per_period),
                                "board_first_late_period": self.late_first_period,
                                "board_setpoints_dropped": self.setpoints_dropped,
                                "board_configs_acked": self.configs_acked, "board_idle_periods": self.idle_periods}
