@@ -11,6 +11,7 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 TS = 50e-6
@@ -102,3 +103,30 @@ def test_the_board_periods_are_in_the_log(build_fw: Callable[..., Path], tmp_pat
     assert all(r["isr_entries"] >= 1 and 0.0 < r["isr_us"] < TS * 1e6 and 0.0 < r["cpu_load"] <= 1.0
                for r in records[1:])
     assert records[5]["t"] == pytest.approx(5 * TS)
+
+
+def test_the_python_reference_loop_applies_the_same_first_period(tmp_path: Path) -> None:
+    """`--loop python` (the test suite's reference loop) takes the board's first duties as the C loop does: the same
+    records of the first periods."""
+    from pmsm_hil.hil.runlog.reader import read_periods
+    from pmsm_hil.sim_target.fw_build import build_firmware, missing_tools
+
+    missing = missing_tools("stm32g474")
+    if missing:
+        pytest.skip(f"firmware board stm32g474: {', '.join(missing)} not installed")
+    elf = build_firmware("stm32g474").path
+    board = Path(__file__).resolve().parents[2] / "examples" / "stm32g4_foc" / "board.toml"
+    runs = []
+    for loop in ("native", "python"):
+        out = tmp_path / loop
+        proc = subprocess.run([sys.executable, "-m", "pmsm_hil.app.cli.main", "run", "--target", f"stm32g4:{elf}",
+                               "--board", str(board), "--ts", str(TS), "--controller", "external", "--motor",
+                               "niu2020-ipmsm", "--speed", "1500", "--load", "7", "--duration", "0.0005", "--settle",
+                               "0.0005", "--loop", loop, "--out", str(out)],
+                              capture_output=True, text=True, timeout=600)
+        assert proc.returncode in (0, 3), proc.stderr[-2000:]
+        runs.append(read_periods(out / "run.mcap"))
+    native, python = runs
+    assert native[0]["n_duties"] == python[0]["n_duties"] == 3
+    for name in ("duties", "i_a", "i_b", "i_c", "torque"):
+        assert np.array_equal(native[name], python[name], equal_nan=True), name
