@@ -33,6 +33,7 @@ from pmsm_hil.hil.runner.stop_request import StopRequest, deferred_interrupts
 from pmsm_hil.hil.runner.target_client import TargetClient
 from pmsm_hil.hil.runner.target_setup import TargetConnection
 from pmsm_hil.hil.sensors import SensorModel
+from pmsm_hil.protocol.codec_duty import duty_raw, duty_value
 from pmsm_hil.protocol.ids import Mode
 from pmsm_hil.protocol.links.faults import FaultyLink
 from pmsm_hil.protocol.messages import Command
@@ -56,8 +57,10 @@ class ClosedLoop:
 
     def __init__(self, cfg: RunConfig, plant: PlantBase, client: TargetClient, controller_id: int,
                  *, inproc_result: Callable[[], object] | None = None, record_frames: bool = False,
-                 sink: BlockSink | None = None) -> None:
+                 sink: BlockSink | None = None, first_duties: tuple[float, ...] = ()) -> None:
         self.cfg = cfg
+        #: period 0's duties before the target's first reply (a board's outputs at the start; empty: the zero vector)
+        self.first_duties = first_duties
         self.plant = plant
         self.client = client
         self.controller_id = controller_id
@@ -157,7 +160,8 @@ class ClosedLoop:
         self._dyno = isinstance(self.plant.mechanics, DynoMechanics)
         self._realtime = cfg.mode == "realtime"
         self._zero_cmd = Command(seq=0, states=(0,), durations_ns=(cfg.ts_ns,))
-        self._pending = self._zero_cmd
+        self._pending = (Command(seq=0, states=(), durations_ns=(), duties=self.first_duties) if self.first_duties
+                         else self._zero_cmd)
         self._pending_split: tuple[int, int, int] = (0, 0, 0)
         self._pending_tref = _NAN
         self._silent = 0
@@ -437,8 +441,10 @@ def run_reference_loop(cfg: RunConfig, conn: TargetConnection, cid: int, sink: R
     """The run through the Python loop feeding `sink` block by block (the last block, with the frames of the safe
     stop, is flushed whatever ended the loop): `--loop python` in the test suite."""
     spec = cfg.fault_spec
-    loop = ClosedLoop(cfg, build_plant(cfg), conn.client, cid, inproc_result=conn.inproc_result,
-                      record_frames=sink.logger is not None, sink=sink)
+    plant = build_plant(cfg)
+    loop = ClosedLoop(cfg, plant, conn.client, cid, inproc_result=conn.inproc_result,
+                      record_frames=sink.logger is not None, sink=sink,
+                      first_duties=tuple(duty_value(duty_raw(d)) for d in conn.duties_at_start(plant.sample())))
     faulty = install_faults(conn.client, spec, loop.run_time_s) if spec is not None else None
     loop.faulty = sink.faulty = faulty
     outcome = loop.run()

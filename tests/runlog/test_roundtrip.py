@@ -52,12 +52,14 @@ def test_file_is_complete_indexed_mcap_with_cdr_channels(tmp_path: Path) -> None
         summary = reader.get_summary()
         assert summary is not None and summary.statistics is not None
         topics = {ch.topic: ch for ch in summary.channels.values()}
-        assert set(topics) == {"/periods", "/frames", "/trace", "/run/metadata", "/link_faults", "/target/console"}
+        assert set(topics) == {"/periods", "/frames", "/trace", "/run/metadata", "/link_faults", "/target/console",
+                               "/board/periods"}
         for name in ("/periods", "/frames", "/trace"):
             assert topics[name].message_encoding == "cdr"
             assert summary.schemas[topics[name].schema_id].encoding == "ros2msg"
         assert topics["/link_faults"].message_encoding == "json"
         assert topics["/target/console"].message_encoding == "json"
+        assert topics["/board/periods"].message_encoding == "json"
         counts = summary.statistics.channel_message_counts
         assert counts[topics["/periods"].id] == 100 and counts[topics["/frames"].id] == 20
         periods = [m for _, _, m in reader.iter_messages(topics=["/periods"])]

@@ -78,6 +78,21 @@ def test_choices_become_run_option_values() -> None:
     assert run_values(HilSettings(target="qemu:fw.elf"), None, {})[0]["target"] == "qemu:fw.elf"
 
 
+def test_a_board_target_takes_its_board_and_period_from_the_session() -> None:
+    """--hil-target stm32g4:FW.elf with --hil-board and --hil-ts: every run gets them unless it names its own."""
+    from pmsm_hil.testing.plugin import target_problem
+
+    settings = HilSettings(target="stm32g4:fw.elf", board="board.toml", ts=50e-6)
+    values, sources = run_values(settings, None, {})
+    assert (values["target"], values["board"], values["ts"]) == ("stm32g4:fw.elf", "board.toml", 50e-6)
+    assert (sources["board"], sources["ts"]) == ("--hil-board", "--hil-ts")
+    assert run_values(settings, None, {"ts": 1e-4})[0]["ts"] == 1e-4
+    assert target_problem("stm32g4:missing.elf", Path("/nowhere")) == ("--hil-target stm32g4:missing.elf: "
+                                                                       "/nowhere/missing.elf is not a file")
+    assert target_problem("stm32g4:", Path("/")) == "--hil-target stm32g4:: stm32g4: needs the firmware's path " \
+                                                    "(stm32g4:PATH)"
+
+
 def test_bad_choices_fail_as_hil_run_does() -> None:
     with pytest.raises(ParameterError, match=r"hil.run\(speed=...\): --speed must be a number, got 'fast'"):
         build_config(HilSettings(), None, {"speed": "fast"})

@@ -24,12 +24,14 @@ RULES: dict[str, str] = {
     FRAME: "well-formed frames (length, values, parts that assemble)",
     DUTY: "duty-cycle Commands: one duty per leg of the machine, each 0..1 (never NaN)",
     "config_ack": "every ConfigParam acknowledged by a ConfigAck echoing the float32 value bit for bit, status 0",
-    "setpoint_disabled": "while disabled, every Measurement answered with a full-period zero vector",
-    "safe_state": "after a disabling Setpoint while running, the next Measurement already gets the zero vector",
+    "setpoint_disabled": "while disabled, every Measurement answered with a full-period zero vector (on the virtual "
+                         "board: or with every gate off, TIM1 MOE = 0)",
+    "safe_state": "after a disabling Setpoint while running, the next Measurement already gets the zero vector (on "
+                  "the virtual board: or every gate off)",
     "safe_stop": "every disabling Setpoint answered with a HeartbeatTarget in state idle within 500 ms (the "
                  "confirmed safe stop; a run's end included)",
     "watchdog": "after the host's watchdog (Measurements stop, a disabling Setpoint follows) the next Measurement, "
-                "its seq jumped, gets the zero vector echoing the new seq",
+                "its seq jumped, gets the zero vector echoing the new seq (on the virtual board: or every gate off)",
     "speed_mode": "Setpoint mode 0: the speed follows the reference (rad/s) through the speed PI",
     "torque_mode": "Setpoint mode 1: the torque follows the reference (N·m)",
     "fault_mode": "an undefined Setpoint mode: FaultTarget code 5 invalid_config, detail = the mode",

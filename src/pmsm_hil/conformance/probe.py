@@ -77,7 +77,9 @@ class Probe:
         self.sensors = SensorModel(cfg.sensors, cfg.motor.pole_pairs)
         self.k = FIRST_SEQ
         self.silent = 0
-        self.pending = Command(seq=0, states=(0,), durations_ns=(cfg.ts_ns,))
+        first = self.conn.duties_at_start(self.plant.sample())  # a board's outputs before its first Command
+        self.pending = (Command(seq=0, states=(), durations_ns=(), duties=first) if first
+                        else Command(seq=0, states=(0,), durations_ns=(cfg.ts_ns,)))
         self.max_state = cfg.machine.layout.max_state_code
         self.torques: list[float] = []
 
@@ -149,10 +151,12 @@ class Probe:
             return f"no Command for seq {seq}"
         ok = (reply.seq == seq and len(reply.states) == 1 and reply.states[0] in (0, self.max_state)
               and reply.durations_ns == (self.cfg.ts_ns,) and not reply.mirror)
-        if ok:
-            return None
+        off = self.conn.outputs_off
+        if ok or (reply.seq == seq and off is not None and off(seq)):
+            return None  # the zero vector, or a board's gates all off (the open bridge its duties stand for)
+        gates = " or, on a board, every gate off (MOE = 0)" if off is not None else ""
         return (f"seq {seq}: {describe(reply)} is not the full-period zero vector (seq echoed, n_states 1, state 0 "
-                f"or {self.max_state}, duration Ts = {self.cfg.ts_ns} ns, mirror 0)")
+                f"or {self.max_state}, duration Ts = {self.cfg.ts_ns} ns, mirror 0){gates}")
 
 
 def probe_target(cfg: RunConfig) -> ProbeReport:

@@ -22,20 +22,25 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     group = parser.getgroup("pmsm-hil", "pmsm-hil firmware tests (pmsm_hil.testing)")
     group.addoption("--hil-target", default="inproc", metavar="KIND",
                     help="target of hil.run: inproc (default: the reference firmware in-process on a virtual bus), "
-                         "spawn (a `hil target` process over UDP), sil:PATH, qemu:PATH.elf (as `hil run --target`), "
-                         "external:LINKSPEC (a board on that link, e.g. external:socketcan:can0)")
+                         "spawn (a `hil target` process over UDP), sil:PATH, qemu:PATH.elf, stm32g4:PATH.elf (as "
+                         "`hil run --target`), external:LINKSPEC (a board on that link, e.g. external:socketcan:can0)")
     group.addoption("--hil-motor", default=None, metavar="PRESET|FILE",
                     help="motor of hil.run (default: hil run's)")
     group.addoption("--hil-controller", default=None, metavar="NAME",
                     help="controller of hil.run unless a test names one (default: hil run's; a foreign "
                          "firmware: external)")
+    group.addoption("--hil-board", default=None, metavar="NAME|FILE",
+                    help="stm32g4 targets: the board description of hil.run (as `hil run --board`)")
+    group.addoption("--hil-ts", default=None, type=float, metavar="S",
+                    help="control period of hil.run unless a test names one [s] (as `hil run --ts`; an stm32g4 "
+                         "target's is its firmware's PWM carrier period)")
     group.addoption("--hil-out", default=None, metavar="DIR",
                     help="folder for run logs and failure plots, one subfolder per test (default: pytest's "
                          "temporary folders)")
 
 
 #: what `--hil-target` accepts
-TARGET_FORMS = "inproc, spawn, sil:PATH, qemu:PATH.elf or external:LINKSPEC"
+TARGET_FORMS = "inproc, spawn, sil:PATH, qemu:PATH.elf, stm32g4:PATH.elf or external:LINKSPEC"
 
 
 def target_problem(target: str, base: Path) -> str | None:
@@ -44,7 +49,7 @@ def target_problem(target: str, base: Path) -> str | None:
     kind, sep, rest = target.partition(":")
     if target in ("inproc", "spawn"):
         return None
-    if kind in ("sil", "qemu") and sep:
+    if kind in ("sil", "qemu", "stm32g4") and sep:
         if not rest.strip():
             return f"--hil-target {target}: {kind}: needs the firmware's path ({kind}:PATH)"
         path = Path(rest) if Path(rest).is_absolute() else base / rest
@@ -145,8 +150,10 @@ def _settings(config: pytest.Config) -> HilSettings:
 
     out = config.getoption("--hil-out")
     target = config.stash.get(BENCH_TARGET, None) or config.getoption("--hil-target")
+    ts = config.getoption("--hil-ts")
     return HilSettings(target=target, motor=config.getoption("--hil-motor"),
-                       controller=config.getoption("--hil-controller"),
+                       controller=config.getoption("--hil-controller"), board=config.getoption("--hil-board"),
+                       ts=ts,
                        out=None if out is None else (config.invocation_params.dir / out).resolve())
 
 

@@ -55,16 +55,22 @@ class SetpointNotHeldError(HilError, AssertionError):
 
 @dataclass(frozen=True, slots=True)
 class HilSettings:
-    """The session's choices: `--hil-target`, `--hil-motor`, `--hil-controller`, `--hil-out`."""
+    """The session's choices: `--hil-target`, `--hil-motor`, `--hil-controller`, `--hil-board`, `--hil-ts`,
+    `--hil-out`."""
 
     target: str = "inproc"
     motor: str | None = None
     controller: str | None = None
     out: Path | None = None
+    #: stm32g4 targets: the board description (a bundled name or a TOML file)
+    board: str | None = None
+    #: the control period [s] unless a run names one
+    ts: float | None = None
 
     def target_values(self) -> dict[str, str]:
         """The run options selecting the target: inproc (virtual bus), spawn (a `hil target` process on UDP),
-        external:LINKSPEC (a board on that link), anything else (sil:PATH, qemu:PATH.elf) as the target itself."""
+        external:LINKSPEC (a board on that link), anything else (sil:PATH, qemu:PATH.elf, stm32g4:PATH.elf) as
+        the target itself."""
         kind, sep, rest = self.target.partition(":")
         if self.target == "inproc":
             return {"target": "inproc", "link": "virtual"}
@@ -89,6 +95,10 @@ def run_values(settings: HilSettings, out_dir: Path | None, kwargs: Mapping[str,
         values["motor"], sources["motor"] = settings.motor, "--hil-motor"
     if settings.controller is not None and "controller" not in kwargs:
         values["controller"], sources["controller"] = settings.controller, "--hil-controller"
+    if settings.board is not None and "board" not in kwargs:
+        values["board"], sources["board"] = settings.board, "--hil-board"
+    if settings.ts is not None and "ts" not in kwargs:
+        values["ts"], sources["ts"] = settings.ts, "--hil-ts"
     if out_dir is not None:
         values["out"], sources["out"] = out_dir, "--hil-out"
     else:

@@ -16,6 +16,7 @@ import numpy as np
 
 from pmsm_hil.hil.records import FAULT_DTYPE, FRAME_DTYPE, PERIOD_DTYPE, TRACE_DTYPE
 from pmsm_hil.hil.runlog import topics
+from pmsm_hil.hil.runlog.board_records import BOARD_DTYPE
 from pmsm_hil.hil.runlog.console import CONSOLE_DTYPE
 from pmsm_hil.hil.runlog.errors import LoggerDiedError, RunLogError
 from pmsm_hil.hil.runlog.sink import COMPRESSIONS
@@ -121,6 +122,10 @@ class RunLogger(WorkerClient):
     def submit_console(self, block: np.ndarray) -> None:
         """Queue a CONSOLE_DTYPE block (one MCAP message per target console line on /target/console)."""
         self._submit(topics.KIND_CONSOLE, block, CONSOLE_DTYPE, "console")
+
+    def submit_board(self, block: np.ndarray) -> None:
+        """Queue a BOARD_DTYPE block (one MCAP message per control period on /board/periods)."""
+        self._submit(topics.KIND_BOARD, block, BOARD_DTYPE, "board")
 
     def submit_trace(self, block: np.ndarray) -> None:
         """Queue a block of the logger's `trace_dtype` (one CDR message per block on /trace)."""

@@ -14,7 +14,7 @@ from mcap.well_known import MessageEncoding, SchemaEncoding
 from mcap.writer import CompressionType, Writer
 
 from pmsm_hil.hil.records import FAULT_DTYPE, FRAME_DTYPE, PERIOD_DTYPE, TRACE_DTYPE
-from pmsm_hil.hil.runlog import cdr, console, encoding, topics
+from pmsm_hil.hil.runlog import board_records, cdr, console, encoding, topics
 from pmsm_hil.hil.runlog.bulk_messages import BulkMessages, message_records
 from pmsm_hil.hil.runlog.errors import RunLogError
 from pmsm_hil.hil.runlog.salvage import end_after_last_record
@@ -62,6 +62,11 @@ class McapSink:
             MessageEncoding.JSON,
             w.register_schema(topics.SCHEMA_CONSOLE, json_enc, console.CONSOLE_JSON_SCHEMA),
         )
+        self._ch_board = w.register_channel(
+            topics.TOPIC_BOARD,
+            MessageEncoding.JSON,
+            w.register_schema(topics.SCHEMA_BOARD, json_enc, board_records.BOARD_JSON_SCHEMA),
+        )
         ch_meta = w.register_channel(
             topics.TOPIC_METADATA,
             MessageEncoding.JSON,
@@ -70,7 +75,8 @@ class McapSink:
         meta = dict(metadata)
         w.add_metadata(topics.TOPIC_METADATA, meta)
         w.add_message(ch_meta, 0, json.dumps(meta).encode(), 0)
-        self.counts = {"periods": 0, "frames": 0, "trace_blocks": 0, "trace_samples": 0, "faults": 0, "console": 0}
+        self.counts = {"periods": 0, "frames": 0, "trace_blocks": 0, "trace_samples": 0, "faults": 0, "console": 0,
+                       "board": 0}
         self._bulk = BulkMessages.of(self._writer)
         self._closed = False
         self._trace_dtype = trace_dtype
@@ -109,6 +115,11 @@ class McapSink:
         """Write one message per injected link fault of the FAULT_DTYPE block `raw` on /link_faults."""
         self._write_records(np.frombuffer(raw, dtype=FAULT_DTYPE), encoding.encode_faults, self._ch_faults,
                             "faults")
+
+    def write_board(self, raw: bytes) -> None:
+        """Write one message per control period of the BOARD_DTYPE block `raw` on /board/periods."""
+        self._write_records(np.frombuffer(raw, dtype=board_records.BOARD_DTYPE), board_records.encode_board,
+                            self._ch_board, "board")
 
     def write_console(self, raw: bytes) -> None:
         """Write one message per target console line of the CONSOLE_DTYPE block `raw` on /target/console."""

@@ -10,6 +10,7 @@ TOPIC_TRACE: Final = "/trace"
 TOPIC_FAULTS: Final = "/link_faults"
 TOPIC_METADATA: Final = "/run/metadata"
 TOPIC_CONSOLE: Final = "/target/console"
+TOPIC_BOARD: Final = "/board/periods"
 
 SCHEMA_PERIODS: Final = "pmsm_hil/msg/Period"  # ros2msg (CDR); "pmsm_hil.Period" (JSON) in older logs
 SCHEMA_FRAMES: Final = "pmsm_hil/msg/Frame"  # ros2msg (CDR); "pmsm_hil.Frame" (JSON) in older logs
@@ -17,6 +18,7 @@ SCHEMA_TRACE: Final = "pmsm_hil/msg/TraceBlock"
 SCHEMA_FAULTS: Final = "pmsm_hil.LinkFault"
 SCHEMA_METADATA: Final = "pmsm_hil.RunMetadata"
 SCHEMA_CONSOLE: Final = "pmsm_hil.ConsoleLine"
+SCHEMA_BOARD: Final = "pmsm_hil.BoardPeriod"
 
 # Notice kinds sent from the runner to the logger process (first byte of a notice).
 KIND_PERIODS: Final = 1
@@ -24,4 +26,5 @@ KIND_FRAMES: Final = 2
 KIND_TRACE: Final = 3
 KIND_FAULTS: Final = 4
 KIND_CONSOLE: Final = 5
+KIND_BOARD: Final = 6
 KIND_CLOSE: Final = 9

@@ -66,6 +66,7 @@ def run_worker(
         topics.KIND_TRACE: sink.write_trace,
         topics.KIND_FAULTS: sink.write_faults,
         topics.KIND_CONSOLE: sink.write_console,
+        topics.KIND_BOARD: sink.write_board,
     }
     next_flush = time.monotonic() + flush_interval_s
     parent = os.getppid()

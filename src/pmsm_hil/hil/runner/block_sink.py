@@ -42,6 +42,8 @@ class RunSink:
         self.loop_periods: Callable[[], int] = lambda: self.periods_seen
         #: a spawned target's console (its lines go to the log with each block)
         self.console: TargetConsole | None = None
+        #: a board's per-period records since the last call (BOARD_DTYPE, to the log with each block)
+        self.board_records: Callable[[], np.ndarray] | None = None
         #: execution times [ns] of the run's first `COLD_START_PERIODS` periods
         self.cold_exec_ns: list[int] = []
 
@@ -79,8 +81,13 @@ class RunSink:
         self.flush_console()
 
     def flush_console(self) -> None:
-        """Give the logger the target's console lines that came since the last block."""
+        """Give the logger the target's console lines (and a board's period records) that came since the last
+        block."""
         if self.console is not None and self.logger is not None:
             lines = self.console.take()
             if lines.shape[0]:
                 self.logger.submit_console(lines)
+        if self.board_records is not None and self.logger is not None:
+            records = self.board_records()
+            if records.shape[0]:
+                self.logger.submit_board(records)

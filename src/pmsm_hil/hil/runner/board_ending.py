@@ -1,7 +1,8 @@
 """How a run on the virtual STM32G4 board (`--target stm32g4:FW.elf`) ended when the firmware stopped the board:
 a fault (the report names pc, lr and CFSR decoded, as a `qemu:` target's) or an access the board does not model
-(the register, address and function). Both end the run as a safety stop (exit 3) with that one line as the
-reason; the board raised them from inside the link, so the loop saw them as its link's error."""
+(the register, address and function), in a period or in its start-up (raised at the first Measurement). Both end
+the run as a safety stop (exit 3) with that one line as the reason; the board raised them from inside the link, so
+the loop saw them as its link's error."""
 
 from __future__ import annotations
 
@@ -17,11 +18,11 @@ def judge_board(link: BoardLink, out: LoopOutcome) -> None:
     error = out.error
     if not isinstance(error, BoardError) or out.end_code == EndCode.INTERRUPTED:
         return
-    period = link.periods
+    when = "in its start-up, before the first period" if error is link.boot_error else f"in period {link.periods}"
     if isinstance(error, BoardFaultError):
-        reason = f"target {error.description} in period {period}: the virtual board stopped the MCU"
+        reason = f"target {error.description} {when}: the virtual board stopped the MCU"
     else:
-        reason = f"target stopped in period {period}: {error}"
+        reason = f"target stopped {when}: {error}"
     out.error = None
     out.end_code = int(EndCode.SAFETY_STOP)
     out.end_reason = f"{reason}; inverter put in the safe state (zero vector)"

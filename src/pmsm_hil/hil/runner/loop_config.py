@@ -14,6 +14,7 @@ from pmsm_hil.hil.mechanics import RPM_TO_RAD_S
 from pmsm_hil.hil.plant_base import PlantBase
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import Scenario
+from pmsm_hil.protocol.codec_duty import duty_raw
 from pmsm_hil.protocol.ids import Mode
 
 #: real time: the loop busy-waits at most this long before a period start and sleeps before that [ns]
@@ -38,6 +39,9 @@ class NativeOptions:
     #: one instruction [ns]: its lockstep time is its own progress
     guest_insns_address: int = 0
     guest_ns_per_insn: int = 0
+    #: the duties of period 0, before the target's first reply (a board's outputs at the run's start; empty: the
+    #: full-period zero vector)
+    first_duties: tuple[float, ...] = ()
 
 
 def reference_changes(sc: Scenario, ts_s: float, n_total: int) -> list[tuple[int, float]]:
@@ -137,6 +141,12 @@ def fill_config(c: Any, ffi: Any, lib: Any, cfg: RunConfig, plant: PlantBase, co
         c.ref_k[j], c.ref_rpm[j] = k, rpm
     c.i_trip, c.w_trip = m.i_trip, m.speed_trip_rpm * RPM_TO_RAD_S
     c.fault_pending = 1 if opts.fault is not None else 0
+    if opts.first_duties and len(opts.first_duties) != legs:
+        raise ParameterError(f"the target's duties before its first Command are {len(opts.first_duties)}, the "
+                             f"machine has {legs} legs")
+    c.first_n_duties = len(opts.first_duties)
+    for j, d in enumerate(opts.first_duties):
+        c.first_duty_raw[j] = duty_raw(d)
     c.fault_code_in, c.fault_detail_in = opts.fault if opts.fault is not None else (0, 0)
     c.realtime = 1 if cfg.mode == "realtime" else 0
     c.overrun_ns, c.spin_ns = cfg.overrun_threshold_ns, SPIN_NS_FIFO if cfg.rt_priority and rt_throttled() else SPIN_NS

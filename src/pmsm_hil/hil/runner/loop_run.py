@@ -104,11 +104,13 @@ def run_native(cfg: RunConfig, conn: TargetConnection, cid: int, sink: RunSink) 
     assert isinstance(link, NativeCoreLink | NativeWireLink | NativePyLink)
     fault = conn.client.faults[0] if conn.client.faults else None
     guest_address, ns_per_insn = conn.guest_progress()
+    plant = build_plant(cfg)
     opts = NativeOptions(record_frames=sink.logger is not None,
                          fault=(fault.code, fault.detail) if fault is not None else None, target_pid=conn.target_pid(),
-                         guest_insns_address=guest_address, guest_ns_per_insn=ns_per_insn)
+                         guest_insns_address=guest_address, guest_ns_per_insn=ns_per_insn,
+                         first_duties=conn.duties_at_start(plant.sample()))
     try:
-        loop = NativeLoop(cfg, build_plant(cfg), conn.client, link, cid, opts, sink=sink)
+        loop = NativeLoop(cfg, plant, conn.client, link, cid, opts, sink=sink)
     except LoadFmuCrashError as exc:  # the load FMU's process crashed or hung in its set-up
         return ended_while_initialising(cfg, conn.client, cid, sink.logger, exc)
     except KeyboardInterrupt as exc:  # Ctrl-C/SIGTERM stopped the load FMU's set-up (deferred: nothing else raises)

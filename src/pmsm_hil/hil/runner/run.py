@@ -140,7 +140,7 @@ def _run_locked(cfg: RunConfig, cid: int, python_reason: str | None, silent_afte
             signals.enter_context(_terminate_as_interrupt())
             conn, python_reason = connect_loop_target(
                 cfg, python_reason, lambda: connect_target(cfg, silent_after=silent_after), silent_after)
-            sink.console = conn.console
+            sink.console, sink.board_records = conn.console, conn.board_records
             pm_qos = signals.enter_context(cpu_latency_held(pm_qos_latency_us(cfg, conn)))
             # from here on Ctrl-C/SIGTERM only ask the loop to end (at a period boundary; at once if the target
             # is still being configured): every period run is logged and counted, the outputs written whole

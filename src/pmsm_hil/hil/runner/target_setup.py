@@ -82,6 +82,23 @@ class TargetConnection:
     #: called by `close` before the target is stopped (QEMU: its console file into `console`)
     before_close: Callable[[], None] | None = None
 
+    #: a board's outputs at the run's start, as the duties of the period before its first Command, from the
+    #: machine's electrical angle [rad] and mechanical speed [rad/s] then (the virtual board: its open bridge while
+    #: TIM1's outputs are off); None: the full-period zero vector (a target that answers from its first Measurement)
+    first_duties: Callable[[float, float], tuple[float, ...]] | None = None
+    #: a board: whether its Command answering a seq was sent with every gate off (the virtual board: TIM1's MOE = 0
+    #: with its outputs released; that Command is the open bridge's duties, the wire having no form for it);
+    #: None: the target's Commands are what it switches
+    outputs_off: Callable[[int], bool] | None = None
+    #: a board's per-period records since the last call (a BOARD_DTYPE block for /board/periods); None: none
+    board_records: Callable[[], Any] | None = None
+
+    def duties_at_start(self, sample: Any) -> tuple[float, ...]:
+        """The duties of period 0 for the plant's state `sample` at the run's start (empty: the zero vector)."""
+        if self.first_duties is None:
+            return ()
+        return self.first_duties(float(sample.theta_e), float(sample.omega_m))
+
     def target_pid(self) -> int:
         """The process the target runs in, which the loop observes for host stalls (a spawned `hil target`, a SIL
         target process, QEMU); 0: none the host can observe (in process, a board, an external target)."""
@@ -390,6 +407,7 @@ def _connect_qemu(cfg: RunConfig, path: str) -> TargetConnection:
 def _connect_board(cfg: RunConfig, path: str) -> TargetConnection:
     """The ELF on the virtual STM32G4 board in this process; the board object is the host's link (each Measurement
     runs one period of the firmware); its metrics (handlers, CPU load, late compares) join metrics.json."""
+    from pmsm_hil.hil.runner.board_log import BoardLog
     from pmsm_hil.sim_target.stm32g4.board_file import load_board
     from pmsm_hil.sim_target.stm32g4.link import BoardLink
 
@@ -407,7 +425,8 @@ def _connect_board(cfg: RunConfig, path: str) -> TargetConnection:
     codec = FrameCodec("canfd")
     return TargetConnection(TargetClient(link, codec), link, extra_metrics=link.metrics, console=console,
                             ending=lambda out: judge_board(link, out),
-                            before_close=lambda: console.feed("\n".join(lines)))
+                            before_close=lambda: console.feed("\n".join(lines)), first_duties=link.first_duties,
+                            outputs_off=link.outputs_off, board_records=BoardLog(link, cfg.ts_s).take)
 
 
 def connect_target(cfg: RunConfig, *, silent_after: int | None = None, native_target: bool = False) -> TargetConnection:

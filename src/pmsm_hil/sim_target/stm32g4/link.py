@@ -43,6 +43,9 @@ from pmsm_hil.sim_target.stm32g4.board_file import BoardDescription
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
 from pmsm_hil.sim_target.stm32g4.peripherals.fdcan import INIT as FDCAN_INIT
 from pmsm_hil.sim_target.stm32g4.peripherals.fdcan import Fdcan
+from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import BDTR as TIM1_BDTR
+from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import CCER as TIM1_CCER
+from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import CR2 as TIM1_CR2
 from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import Tim1
 
 #: emulated time the firmware's start-up may take before TIM1 counts [s]
@@ -70,6 +73,12 @@ class BoardLink:
         self._rng = random.Random(0x5EED)
         #: the machine's magnet flux [Wb]: the open bridge's phase voltages are its back EMF (MOE = 0)
         self.psi_f_wb = psi_f_wb
+        #: the machine's nominal DC-link voltage [V] (the open bridge before the first Measurement)
+        self.vdc_v = vdc_v
+        #: the run's period [ns] (the full-period switching state of driven idle levels)
+        self.ts_ns = round(ts_s * 1e9)
+        #: the seq of the last Command sent with every gate off (outputs_off)
+        self._off_seq: int | None = None
         # before the first Measurement: no phase current, the DC link at its nominal voltage
         zero = {"i_a": 0.0, "i_b": 0.0, "i_c": 0.0, "vdc": vdc_v}
         self._volts: dict[tuple[str, int], float] = {(a.adc, a.channel): a.offset_v + a.gain * zero[a.signal]
@@ -90,12 +99,26 @@ class BoardLink:
         self.periods = 0
         self.isr_cycles: list[int] = []
         self.sleep_cycles: list[int] = []
+        #: per control period: late compare values (TIM1's count of them, 0 or 1) and exception entries
+        self.late_per_period: list[int] = []
+        self.entries_per_period: list[int] = []
         self.late_first_period: int | None = None
         fdcan = self.board.peripherals.get("FDCAN1")
         self.fdcan = fdcan if isinstance(fdcan, Fdcan) else None
         self._bus_on = False
         self.closed = False
         self.wall_s = 0.0
+        #: why the firmware stopped the board before TIM1 counted (a fault, an access the board does not model, a
+        #: start-up that never starts TIM1): raised at the first Measurement, so that the run ends as a safety stop
+        #: with its outputs written (the reason one line), not as a usage error
+        self.boot_error: BoardError | None = None
+        self.carrier_s = ts_s
+        self.period_cycles = round(ts_s * self.hclk_hz)
+        try:
+            self._boot()
+        except BoardError as exc:
+            self.boot_error = exc
+            return
         self._start(ts_s)
 
     # --- start-up and period --------------------------------------------------------------------------------------
@@ -106,9 +129,8 @@ class BoardLink:
         assert isinstance(timer, Tim1)
         return timer
 
-    def _start(self, ts_s: float) -> None:
-        """Run the firmware's start-up until TIM1 counts and an update at the carrier valley has passed; check the
-        carrier period against the host's."""
+    def _boot(self) -> None:
+        """Run the firmware's start-up until TIM1 counts and an update has passed."""
         board, tim = self.board, self.tim1
         limit = round(STARTUP_LIMIT_S * 170e6)
         step = 170_000
@@ -117,6 +139,11 @@ class BoardLink:
                 raise BoardError(f"stm32g4 target: TIM1 did not start within {STARTUP_LIMIT_S:g} s of the firmware's "
                                  f"start-up (at {board.describe_pc()})")
             board.run_until(board.now + step)
+
+    def _start(self, ts_s: float) -> None:
+        """After the start-up: check the carrier period against the host's (a mismatch is the run's usage error)
+        and align the period start to an update at the carrier valley."""
+        board, tim = self.board, self.tim1
         hz = board.hclk_hz
         carrier_s = tim.carrier_cycles() / hz
         mode = f"centre-aligned (CMS {tim.cms})" if tim.cms else "edge-aligned"
@@ -174,25 +201,86 @@ class BoardLink:
         self._take(m)
         sleep0 = board.sleep_cycles
         isr0 = board.handler_cycles
+        late0 = tim.late_writes
+        entries0 = sum(st.entries for st in board.isr.values())
         end = self._period_start + self.period_cycles
         board.run_until(end)
         self._period_start = end
         isr = board.handler_cycles - isr0
-        self.isr_cycles.append(isr)
         self.sleep_cycles.append(board.sleep_cycles - sleep0)
+        self.late_per_period.append(tim.late_writes - late0)
+        self.entries_per_period.append(sum(st.entries for st in board.isr.values()) - entries0)
+        self.isr_cycles.append(isr)  # last: a period counts as recorded once this list has it (period_records)
         if tim.first_late_update is not None and self.late_first_period is None:
             self.late_first_period = self.periods
         self.periods += 1
-        return Command(seq=m.seq, states=(), durations_ns=(), duties=self._duties(m),
-                       exec_time_ns=round(isr / self.hclk_hz * 1e9))
+        return self._command(m, round(isr / self.hclk_hz * 1e9))
 
-    def _duties(self, m: Measurement) -> tuple[float, ...]:
+    def _idle_legs(self) -> tuple[bool, ...] | None:
+        """With TIM1's outputs off (MOE = 0): each leg's level when the timer drives its idle state (OSSI set and
+        an output enabled: OCx = OISx, OCxN = OISxN after the dead time, CR2) — True the upper switch on, False the
+        lower —, or None when no leg is driven (OSSI clear, or every output disabled: every switch off, the open
+        bridge). A bridge driven in part, or a leg with both switches on, is not modelled: BoardError naming CR2."""
         tim = self.tim1
-        if not tim.moe:
-            return self._open_bridge(m)
+        if not tim.regs[TIM1_BDTR] >> 10 & 1:  # OSSI clear: the outputs are released, every gate off
+            return None
+        ccer, cr2 = tim.regs[TIM1_CCER], tim.regs[TIM1_CR2]
+        legs: list[bool | None] = []
+        for ch in self.desc.pwm_channels:
+            upper = bool(ccer >> (4 * ch) & 1) and bool((cr2 >> (8 + 2 * ch) & 1) ^ (ccer >> (4 * ch + 1) & 1))
+            lower = bool(ccer >> (4 * ch + 2) & 1) and bool((cr2 >> (9 + 2 * ch) & 1) ^ (ccer >> (4 * ch + 3) & 1))
+            if upper and lower:
+                raise BoardError(f"TIM1 CR2 0x{cr2:08x}, CCER 0x{ccer:08x}: with MOE = 0 the idle levels of channel "
+                                 f"{ch + 1} turn both its switches on (OIS{ch + 1} and OIS{ch + 1}N active)")
+            legs.append(True if upper else False if lower else None)
+        if all(leg is None for leg in legs):
+            return None
+        if any(leg is None for leg in legs):
+            raise BoardError(f"TIM1 CR2 0x{cr2:08x}, CCER 0x{ccer:08x}: with MOE = 0 the idle levels drive some legs "
+                             "and leave others open, which the virtual board does not model (CR2 OISx/OISxN)")
+        return tuple(bool(leg) for leg in legs)
+
+    def outputs_off(self, seq: int) -> bool:
+        """Whether the Command answering Measurement `seq` was sent with TIM1's outputs off and no leg driven
+        (MOE = 0, the gates off: the open bridge that Command stands for)."""
+        return self._off_seq == seq
+
+    def first_duties(self, theta_e: float, omega_m: float) -> tuple[float, ...]:
+        """The board's outputs over the run's first period, before its first Command (the host applies them in
+        period 0), for the machine at electrical angle `theta_e` [rad] and mechanical speed `omega_m` [rad/s] at
+        the period's start: with TIM1's outputs off (MOE = 0, as every firmware starts) the open bridge — no
+        current flows, as on the chip, where the gates stay off until the firmware sets MOE —, else the compare
+        values in force (no current yet: no dead-time correction)."""
+        if not self.tim1.moe:
+            idle = self._idle_legs()
+            if idle is not None:
+                return tuple(1.0 if upper else 0.0 for upper in idle)
+            return self._open_bridge(theta_e, omega_m, self.vdc_v, 0.5)
+        return self._compare_duties((0.0, 0.0, 0.0))
+
+    def _command(self, m: Measurement, exec_time_ns: int) -> Command:
+        """The Command of the outputs in force for the next period: the compare values' duties with MOE set; with
+        MOE = 0 the idle levels' switching state for the whole period when the timer drives them (the zero vector
+        for the usual lower switches on), else the open bridge's duties."""
+        self._off_seq = None
+        if self.tim1.moe:
+            return Command(seq=m.seq, states=(), durations_ns=(), duties=self._compare_duties((m.i_a, m.i_b, m.i_c)),
+                           exec_time_ns=exec_time_ns)
+        idle = self._idle_legs()
+        if idle is not None:
+            state = sum(1 << (2 - j) for j, upper in enumerate(idle) if upper)
+            return Command(seq=m.seq, states=(state,), durations_ns=(self.ts_ns,), exec_time_ns=exec_time_ns)
+        self._off_seq = m.seq
+        return Command(seq=m.seq, states=(), durations_ns=(),
+                       duties=self._open_bridge(m.theta_e, m.omega_m, m.vdc, 1.5), exec_time_ns=exec_time_ns)
+
+    def _compare_duties(self, currents: tuple[float, float, float]) -> tuple[float, ...]:
+        """The duties of TIM1's compare values in force (PWM mode, polarity), each shortened or lengthened by the
+        dead time according to its phase current's sign when its complementary output is on."""
+        tim = self.tim1
         dead = tim.dead_time_s(self.hclk_hz) / self.carrier_s
         out = []
-        for ch, current in zip(self.desc.pwm_channels, (m.i_a, m.i_b, m.i_c), strict=True):
+        for ch, current in zip(self.desc.pwm_channels, currents, strict=True):
             d = tim.duty(ch) if tim.output_enabled(ch) else 0.5
             complementary = bool(tim.regs[0x20] >> (4 * ch + 2) & 1)
             if complementary and dead and current != 0.0:
@@ -200,22 +288,23 @@ class BoardLink:
             out.append(min(max(d, 0.0), 1.0))
         return tuple(out)
 
-    def _open_bridge(self, m: Measurement) -> tuple[float, float, float]:
+    def _open_bridge(self, theta_e: float, omega_m: float, vdc: float, ahead: float) -> tuple[float, float, float]:
         """MOE = 0 (OSSI set: every switch off): the duties whose average phase voltages are those of an open
-        bridge over the next period — the machine's back EMF at zero current, e_x = -ωe·ψf·sin(θe - x·2π/3) at the
-        period's middle (1.5 periods after the Measurement), centred between the rails. No current flows while the
-        line back EMF stays below Vdc, as on the chip; above it the duties saturate at the rails (the freewheeling
-        diodes clamp the line voltage to Vdc; the rectified current's exact shape is not modelled). The duty
-        Command has no high-impedance form: this is its nearest exact equivalent. Without magnets (ψf = 0) it is
-        0.5 on every leg."""
-        we = self.pole_pairs * m.omega_m
-        theta = m.theta_e + 1.5 * we * self.carrier_s
+        bridge over a period — the machine's back EMF at zero current, e_x = -ωe·ψf·sin(θe - x·2π/3) at the
+        period's middle (`ahead` carrier periods after the instant of `theta_e`: 1.5 for the period after a
+        Measurement's, 0.5 for the period that starts there), centred between the rails. No current flows while
+        the line back EMF stays below Vdc, as on the chip; above it the duties saturate at the rails (the
+        freewheeling diodes clamp the line voltage to Vdc; the rectified current's exact shape is not modelled).
+        The duty Command has no high-impedance form: this is its nearest exact equivalent. Without magnets (ψf =
+        0) it is 0.5 on every leg."""
+        we = self.pole_pairs * omega_m
+        theta = theta_e + ahead * we * self.carrier_s
         amp = we * self.psi_f_wb
         emf = [-amp * math.sin(theta - k * 2 * math.pi / 3) for k in range(3)]
-        if not amp or m.vdc <= 0.0 or not math.isfinite(amp):
+        if not amp or vdc <= 0.0 or not math.isfinite(amp):
             return (0.5, 0.5, 0.5)
         mid = (max(emf) + min(emf)) / 2
-        a, b, c = (min(max(0.5 + (e - mid) / m.vdc, 0.0), 1.0) for e in emf)
+        a, b, c = (min(max(0.5 + (e - mid) / vdc, 0.0), 1.0) for e in emf)
         return (a, b, c)
 
     # --- Link -----------------------------------------------------------------------------------------------------
@@ -226,6 +315,8 @@ class BoardLink:
         CCCR.INIT: it is on the bus from then on, even while it re-enters INIT to reconfigure), else None: a
         firmware that never starts FDCAN1 has no bus and the board answers for it."""
         fdcan = self.fdcan
+        if self.boot_error is not None:  # the firmware stopped in its start-up: the board answers for it
+            return None
         if not self._bus_on and isinstance(fdcan, Fdcan) and not fdcan.cccr & FDCAN_INIT:
             self._bus_on = True
         return fdcan if self._bus_on else None
@@ -237,6 +328,8 @@ class BoardLink:
             self.stats.frames_tx += 1
             msg = self.decoder.feed(frame)
             if isinstance(msg, Measurement):
+                if self.boot_error is not None:
+                    raise self.boot_error
                 self._idle_left = 0
                 self._reply(self._period(msg))
             elif bus is not None:
@@ -302,9 +395,21 @@ class BoardLink:
 
     # --- what the run says ----------------------------------------------------------------------------------------
 
+    def period_records(self, start: int) -> list[tuple[int, float, int, float, int]]:
+        """Per control period from `start` on, as far as recorded: (period, handler time [µs], exception entries,
+        CPU load (share of the period's cycles not asleep), late compare values); the run's log takes them block by
+        block (src/pmsm_hil/hil/runner/board_log.py)."""
+        end = len(self.isr_cycles)
+        us = 1e6 / self.hclk_hz
+        return [(k, self.isr_cycles[k] * us, self.entries_per_period[k],
+                 1.0 - self.sleep_cycles[k] / self.period_cycles, self.late_per_period[k]) for k in range(start, end)]
+
     def metrics(self) -> dict[str, Any]:
         """The board's own metrics over the metrics window (the periods from `skip_periods`)."""
         board, tim = self.board, self.tim1
+        if self.boot_error is not None:  # no carrier: the firmware stopped before TIM1 counted
+            return {"mcu_clock_hz": float(board.hclk_hz), "board": self.desc.name,
+                    "board_configs_acked": self.configs_acked, "board_setpoints_dropped": self.setpoints_dropped}
         window = slice(self.skip_periods, None)
         isr = np.asarray(self.isr_cycles[window], dtype=float)
         sleep = np.asarray(self.sleep_cycles[window], dtype=float)
@@ -312,7 +417,7 @@ class BoardLink:
         out: dict[str, Any] = {"mcu_clock_hz": float(self.hclk_hz), "board": self.desc.name,
                                "board_carrier_hz": 1.0 / self.carrier_s,
                                "board_dead_time_ns": tim.dead_time_s(self.hclk_hz) * 1e9,
-                               "board_late_compares": tim.late_writes,
+                               "board_late_compares": sum(self.late_per_period),
                                "board_first_late_period": self.late_first_period,
                                "board_setpoints_dropped": self.setpoints_dropped,
                                "board_configs_acked": self.configs_acked, "board_idle_periods": self.idle_periods}

@@ -986,8 +986,13 @@ static void loop_init(loop_t *L, nl_handle_t *h)
     L->has_fault = c->fault_pending;
     L->fault_code = c->fault_code_in;
     L->fault_detail = c->fault_detail_in;
-    L->pending.cmd.n_states = 1u;
-    L->pending.cmd.durations_ns[0] = (uint32_t)c->ts_ns;
+    if (c->first_n_duties > 0 && c->first_n_duties <= 6) {
+        L->pending.cmd.n_duties = (uint8_t)c->first_n_duties;
+        memcpy(L->pending.cmd.duty_raw, c->first_duty_raw, sizeof L->pending.cmd.duty_raw);
+    } else {
+        L->pending.cmd.n_states = 1u;
+        L->pending.cmd.durations_ns[0] = (uint32_t)c->ts_ns;
+    }
     L->pending.tref = c->nan;
     L->speed_ref_rpm = c->n_ref > 0 ? c->ref_rpm[0] : 0.0;
     L->ref_i = c->n_ref > 0 ? 1 : 0;

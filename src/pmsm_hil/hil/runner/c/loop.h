@@ -169,6 +169,10 @@ typedef struct {
     void *plant_scratch;       /* adc_delay_ns > 0: the kernel's state_size bytes for a copy of the plant state */
     int32_t shared_bus;        /* 1: a CAN bus other nodes may share (loop.c from_target_node): a frame that cannot be
                                 * the target's is bus traffic (bus_foreign_frames, bus_suspect_frames), no finding */
+    int32_t first_n_duties;    /* the command of period 0, before the target's first reply: 0 the full-period zero
+                                * vector; 3 or 6 these duties (wire codes): the outputs a board has at the run's start
+                                * (TargetConnection.first_duties: its open bridge while its outputs are off) */
+    uint16_t first_duty_raw[6];
 } nl_config_t;
 
 /* One block of the ring. `trace` (rows x trace_columns doubles) is the caller's. */
