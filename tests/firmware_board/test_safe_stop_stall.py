@@ -143,3 +143,30 @@ def test_a_sil_target_stopped_at_the_safe_stop_confirms_once_continued(reference
     assert m["safe_stop_confirmed"] is True and m["safe_stop_wait_ms"] >= 1000
     assert m["host_stalls"] >= 1 and m["host_stall_s"] >= 0.5
     assert any(w.startswith("host stall:") for w in m["warnings"])
+
+
+@pytest.fixture
+def spinning_process() -> Iterator[subprocess.Popen[bytes]]:
+    """A process that computes without end (as a firmware in an endless loop)."""
+    proc = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    time.sleep(0.2)
+    yield proc
+    _continue(proc.pid)
+    proc.kill()
+    proc.wait()
+
+
+def test_the_hang_watch_counts_cpu_time_not_the_time_the_host_kept_the_process_stopped(
+        spinning_process: subprocess.Popen[bytes], idle_process: subprocess.Popen[bytes],
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """After a missing Command the SIL process is watched: a spinning one is hung once it used HANG_CONFIRM_S of
+    CPU time, which a stop does not count (it only makes the watch longer); an idle one is not hung."""
+    from pmsm_hil.hil.runner import sil_watch
+
+    monkeypatch.setattr(sil_watch, "HANG_CONFIRM_CEILING_S", 20.0)
+    _stop_for(spinning_process.pid, 1.0)
+    t0 = time.monotonic()
+    rc, hung = sil_watch._watch(spinning_process, sil_watch.HANG_CONFIRM_S, unknown_busy=True, own_time=True)
+    assert rc is None and hung
+    assert time.monotonic() - t0 >= 1.0 + sil_watch.HANG_CONFIRM_S * 0.5  # stopped 1 s, then its CPU time
+    assert sil_watch._watch(idle_process, sil_watch.HANG_CONFIRM_S, unknown_busy=True, own_time=True) == (None, False)
