@@ -1,7 +1,9 @@
-"""An emulated MCU's lockstep time is its own progress (src/pmsm_hil/hil/runner/c/loop_stall.h `nl_guest_available`):
-the instructions it executed at the virtual time of one, plus the time QEMU slept with nothing to do; a starved or
-stopped QEMU adds nothing. Checked in C (compiled here with loop_stall.c), and end to end: the instruction-count
-plugin's running count is mapped by the host and grows only while the guest executes."""
+"""A target's lockstep time is its own progress (src/pmsm_hil/hil/runner/c/loop_stall.h): an emulated MCU's
+(`nl_guest_available`) the instructions it executed at the virtual time of one, plus the time QEMU slept with nothing
+to do; a target process's (`nl_proc_available`, SIL and spawned targets) the CPU time it got, plus the time it slept
+waiting for a frame; a starved or stopped target adds nothing. Checked in C (compiled here with loop_stall.c), and
+end to end: the instruction-count plugin's running count is mapped by the host and grows only while the guest
+executes."""
 
 from __future__ import annotations
 
@@ -17,7 +19,9 @@ from pmsm_hil.sim_target.qemu import QemuTarget
 NATIVE = Path(__file__).resolve().parents[2] / "src" / "pmsm_hil" / "hil" / "runner" / "c"
 
 _CHECK = r"""
+#define _POSIX_C_SOURCE 200809L
 #include <stdio.h>
+#include <unistd.h>
 #include "loop_stall.h"
 
 static int failures;
@@ -27,6 +31,45 @@ static void expect(const char *what, long long got, long long want)
         printf("%s: got %lld, want %lld\n", what, got, want);
         failures++;
     }
+}
+
+/* A target process (SIL, a spawned target) by the same evidence: its CPU time is its progress. */
+static void check_process(void)
+{
+    const long long ms = 1000000;
+    nl_proc_sample_t a = {100000000, 5000000, 0, 0, 0};
+    nl_proc_sample_t b = {101000000, 5500000, 0, 0, 0};
+    nl_own_time_t own;
+    /* asleep at both readings (waiting for a frame): its 1 ms of CPU and the 18.5 ms it slept */
+    expect("idle process", nl_proc_available(&a, &b, 20 * ms), 19500000);
+    /* runnable at the reading after 2 ms of CPU in 20 ms, its run-queue wait still going on (schedstat counts it
+     * only once the thread gets a CPU): the 2 ms it ran, not the 20 ms less the waits counted so far */
+    b.exec_ns = a.exec_ns + 2 * ms;
+    b.delay_ns = a.delay_ns;
+    b.runnable = 1;
+    expect("runnable, waiting", nl_proc_available(&a, &b, 20 * ms), 2 * ms);
+    /* starved: no CPU at all */
+    b.exec_ns = a.exec_ns;
+    expect("starved", nl_proc_available(&a, &b, 20 * ms), 0);
+    /* spinning: the CPU it got */
+    b.exec_ns = a.exec_ns + 20 * ms;
+    expect("spinning", nl_proc_available(&a, &b, 20 * ms), 20 * ms);
+    /* stopped (SIGSTOP) */
+    b.runnable = 0;
+    b.stopped = 1;
+    b.exec_ns = a.exec_ns;
+    expect("stopped", nl_proc_available(&a, &b, 20 * ms), 0);
+    /* a wait of this process itself: the first slice counts in full, the rest by the rule */
+    nl_own_time_start(&own, (int32_t)getpid(), NULL, 0, 20 * ms, 0);
+    expect("started", own.had_ns, 0);
+    expect("first slice", nl_own_time_step(&own, 20 * ms), 0);
+    expect("first slice counts", own.had_ns, 20 * ms);
+    expect("watching", own.watching, 1);
+    /* a first slice that lasted 300 ms (the host itself off the CPU): no more than its planned 20 ms */
+    nl_own_time_start(&own, (int32_t)getpid(), NULL, 0, 20 * ms, 0);
+    expect("late first slice", (nl_own_time_step(&own, 300 * ms), own.had_ns), 20 * ms);
+    expect("no process", (nl_own_time_start(&own, 0, NULL, 0, 20 * ms, 0), nl_own_time_step(&own, 20 * ms)), -1);
+    expect("nothing counted", own.had_ns, 0);
 }
 
 int main(void)
@@ -65,6 +108,7 @@ int main(void)
     /* a spinning guest: its instructions, however little wall time */
     expect("spinning", nl_guest_available(&a, &b, 1000000, 64, 20 * ms), 64000000);
     expect("no wall time", nl_guest_available(&a, &b, 0, 64, 0), 0);
+    check_process();
     return failures;
 }
 """

@@ -133,30 +133,43 @@ def test_a_target_that_had_its_time_keeps_its_violation_at_the_same_period(kind:
 BURNERS = 4
 
 
-@pytest.mark.timing
-def test_qemu_beside_busy_loops_on_its_cpu_completes(reference_elf: Path, tmp_path: Path) -> None:
-    """QEMU pinned to one CPU with BURNERS busy loops: its guest progresses slowly but has nothing to answer for;
-    the run completes (timing: minutes on a loaded machine)."""
-    cpu = max(os.sched_getaffinity(0))
-    burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(BURNERS)]
-    pinned: list[int] = []
+def _pin_child(marker: bytes, cpu: int, pinned: list[int]) -> Callable[[np.ndarray], None]:
+    """A `live` hook that pins every thread of this process's child whose command line holds `marker` to `cpu`."""
 
-    def pin(block: np.ndarray) -> None:
+    def live(block: np.ndarray) -> None:
         if pinned:
             return
         me = os.getpid()
         for pid in Path(f"/proc/{me}/task/{me}/children").read_text().split():
-            if b"qemu-system-arm" in Path(f"/proc/{pid}/cmdline").read_bytes():
+            if marker in Path(f"/proc/{pid}/cmdline").read_bytes():
                 for tid in os.listdir(f"/proc/{pid}/task"):
                     with contextlib.suppress(OSError):
                         os.sched_setaffinity(int(tid), {cpu})
                 pinned.append(int(pid))
 
+    return live
+
+
+@pytest.mark.timing
+@pytest.mark.parametrize("kind", ["qemu", "sil"])
+def test_a_target_beside_busy_loops_on_its_cpu_completes(kind: str, request: pytest.FixtureRequest,
+                                                         tmp_path: Path) -> None:
+    """The target's process pinned to one CPU with BURNERS busy loops: it progresses slowly but has nothing to
+    answer for; the run completes (timing: minutes on a loaded machine). QEMU is judged by its guest's progress,
+    a SIL target process by the CPU time it got and the time it slept waiting for a frame: never by wall time
+    less the run-queue waits counted so far, which misses the wait still going on when the process is read."""
+    sil = request.getfixturevalue("reference_sil") if kind == "sil" else Path()
+    elf = request.getfixturevalue("reference_elf") if kind == "qemu" else Path()
+    where, marker = _targets(kind, sil, elf)
+    cpu = max(os.sched_getaffinity(0))
+    burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(BURNERS)]
+    pinned: list[int] = []
     try:
         for b in burners:
             os.sched_setaffinity(b.pid, {cpu})
-        m = run_closed_loop(rated(f"qemu:{reference_elf}", settle_s=0.02, duration_s=0.2, out_dir=tmp_path),
-                            live=pin).metrics
+        m = run_closed_loop(rated(where["target"], settle_s=0.02, duration_s=0.2 if kind == "qemu" else 0.3,
+                                out_dir=tmp_path),
+                            live=_pin_child(marker, cpu, pinned)).metrics
     finally:
         for b in burners:
             b.kill()

@@ -142,11 +142,12 @@ METRICS: Final[tuple[Metric, ...]] = (
        "reordered}` (null without fault injection)", "", source=RUN),
     _m("command_wait_max_us", "command wait max", "µs", "longest wall-time wait for a Command (targets in "
        "another process or on a board)", ".1f", source=RUN),
-    _m("host_stalls", "host stalls", "", "lockstep: waits for a Command the lockstep timeout did not end because "
-       "the host kept the target's process stopped or off the CPUs (the wait went on: not the firmware's fault; "
-       "targets in a process the host can observe: sil, qemu, spawn)", "d", source=RUN),
-    _m("host_stall_s", "host stall time", "s", "lockstep: the time the target's process could not run in those "
-       "waits (from 20 ms into each wait on)", ".3f", source=RUN),
+    _m("host_stalls", "host stalls", "", "waits for a Command (lockstep) or for the safe stop's confirmation that "
+       "their timeout did not end because the host kept the target's process stopped or off the CPUs (the wait went "
+       "on: not the firmware's fault; targets in a process the host can observe: sil, qemu, spawn)", "d",
+       source=RUN),
+    _m("host_stall_s", "host stall time", "s", "the time the target's process could not run in those waits (from "
+       "20 ms into each wait on)", ".3f", source=RUN),
     _m("overruns", "overruns", "", "real time: periods that started later than `overrun_threshold_us`", "d", CLI,
        source=RUN),
     _m("realtime_sync_us", "real-time sync", "µs", "real time over a link: period 0 is the synchronising exchange, "

@@ -35,9 +35,10 @@ from pmsm_hil.hil.runner.loop_load_fmu import load_fmu_failed, open_load_fmu
 from pmsm_hil.hil.runner.loop_outcome import MAX_KEPT_VIOLATIONS, BlockSink, LoopOutcome
 from pmsm_hil.hil.runner.recorder import FrameTap, frame_records, period_records
 from pmsm_hil.hil.runner.run_config import RunConfig
-from pmsm_hil.hil.runner.safe_stop import disable_and_confirm, settle_ending
+from pmsm_hil.hil.runner.safe_stop import SAFE_STOP_TIMEOUT_S, disable_and_confirm, settle_ending
 from pmsm_hil.hil.runner.stop_request import StopRequest, deferred_interrupts
 from pmsm_hil.hil.runner.target_client import HostStallError, TargetClient
+from pmsm_hil.hil.runner.target_time import target_time
 from pmsm_hil.hil.runner.wire import NativeWireLink
 from pmsm_hil.hil.sensors import SensorModel
 from pmsm_hil.protocol.ids import Mode, ParamId
@@ -397,6 +398,9 @@ class NativeLoop:
                 self.plant.advance((0,), (self.cfg.ts_ns,))
         if isinstance(self.link, NativePyLink):  # the safe stop is not subject to the injected faults
             self.link.remove_faults()
-        if settle_ending(out, disable_and_confirm(self.client, self.controller_id)):
+        clock = target_time(self.opts.target_pid, SAFE_STOP_TIMEOUT_S,
+                            (self.opts.guest_insns_address, self.opts.guest_ns_per_insn))
+        if settle_ending(out, disable_and_confirm(self.client, self.controller_id, clock=clock,
+                                                  stall_limit_s=self.cfg.host_stall_limit_s)):
             with contextlib.suppress(Exception):
                 self.plant.advance((0,), (self.cfg.ts_ns,))

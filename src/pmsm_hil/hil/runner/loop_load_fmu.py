@@ -19,6 +19,7 @@ from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.run_metadata import tap_setup_frames
 from pmsm_hil.hil.runner.safe_stop import disable_and_confirm, settle_ending
 from pmsm_hil.hil.runner.target_client import TargetClient, TargetError
+from pmsm_hil.hil.runner.target_time import TargetTime
 from pmsm_hil.protocol.errors import LinkError
 
 
@@ -42,11 +43,12 @@ def load_fmu_failed(session: LoadFmuSession | None, res: Any, lib: Any) -> str |
 
 
 def ended_while_initialising(cfg: RunConfig, client: TargetClient, controller_id: int, logger: Any,
-                             cause: BaseException) -> LoopOutcome:
+                             cause: BaseException, clock: TargetTime | None = None) -> LoopOutcome:
     """The outcome of a run that ended before its first period while the load FMU was initialised: its process
     crashed, exited or hung (`LoadFmuCrashError`: exit 3 naming it) or Ctrl-C/SIGTERM (exit 130). Nothing was
     enabled yet; the disabling Setpoint is still sent and its confirmation awaited (logged in `logger`'s MCAP),
-    so a target on a real link ends disabled whatever the FMU did."""
+    so a target on a real link ends disabled whatever the FMU did (`clock`: the target's own time, the safe stop's
+    timeout counts it)."""
     if isinstance(cause, LoadFmuCrashError):
         code, reason = EndCode.SAFETY_STOP, f"{cause}; the run did not start, target disabled"
     else:
@@ -57,7 +59,8 @@ def ended_while_initialising(cfg: RunConfig, client: TargetClient, controller_id
     out.load_fmu = cause.metrics if isinstance(cause, LoadFmuCrashError) else None
     try:
         with tap_setup_frames(client, logger):
-            settle_ending(out, disable_and_confirm(client, controller_id))
+            settle_ending(out, disable_and_confirm(client, controller_id, clock=clock,
+                                                   stall_limit_s=cfg.host_stall_limit_s))
     except (LinkError, TargetError):  # the target is gone too
         out.target_disabled = False
     return out

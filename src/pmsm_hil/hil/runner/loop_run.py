@@ -20,6 +20,7 @@ from pmsm_hil.hil.runner.plant_setup import build_plant
 from pmsm_hil.hil.runner.pm_qos import LEAVE
 from pmsm_hil.hil.runner.reference_loop import require_reference_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
+from pmsm_hil.hil.runner.safe_stop import SAFE_STOP_TIMEOUT_S
 from pmsm_hil.hil.runner.target_client import TargetClient
 from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target
 from pmsm_hil.hil.runner.wire import NativeWireLink
@@ -112,11 +113,11 @@ def run_native(cfg: RunConfig, conn: TargetConnection, cid: int, sink: RunSink) 
     try:
         loop = NativeLoop(cfg, plant, conn.client, link, cid, opts, sink=sink)
     except LoadFmuCrashError as exc:  # the load FMU's process crashed or hung in its set-up
-        return ended_while_initialising(cfg, conn.client, cid, sink.logger, exc)
+        return ended_while_initialising(cfg, conn.client, cid, sink.logger, exc, conn.own_time(SAFE_STOP_TIMEOUT_S))
     except KeyboardInterrupt as exc:  # Ctrl-C/SIGTERM stopped the load FMU's set-up (deferred: nothing else raises)
         if cfg.load_fmu_model is None:
             raise
-        return ended_while_initialising(cfg, conn.client, cid, sink.logger, exc)
+        return ended_while_initialising(cfg, conn.client, cid, sink.logger, exc, conn.own_time(SAFE_STOP_TIMEOUT_S))
     sink.loop_periods = loop.completed_periods
     spec = cfg.fault_spec
     faulty = link.install_faults(spec) if spec is not None and isinstance(link, NativePyLink) else None

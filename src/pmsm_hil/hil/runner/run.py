@@ -40,7 +40,7 @@ from pmsm_hil.hil.runner.run_config import RunConfig, controller_id
 from pmsm_hil.hil.runner.run_dir_lock import run_dir_lock
 from pmsm_hil.hil.runner.run_limits import check_run_limits
 from pmsm_hil.hil.runner.run_metadata import run_metadata, tap_setup_frames
-from pmsm_hil.hil.runner.safe_stop import disable_and_confirm, settle_ending
+from pmsm_hil.hil.runner.safe_stop import SAFE_STOP_TIMEOUT_S, disable_and_confirm, settle_ending
 from pmsm_hil.hil.runner.setpoint_hold import setpoint_verdict
 from pmsm_hil.hil.runner.sil_watch import InterruptGuard, isolated_config
 from pmsm_hil.hil.runner.stop_request import deferred_interrupts
@@ -163,7 +163,9 @@ def _run_locked(cfg: RunConfig, cid: int, python_reason: str | None, silent_afte
                                       safe_state=True)
                 try:
                     with tap_setup_frames(conn.client, logger):  # the disabling Setpoint is logged too
-                        settle_ending(outcome, disable_and_confirm(conn.client, cid))
+                        settle_ending(outcome, disable_and_confirm(
+                            conn.client, cid, clock=conn.own_time(SAFE_STOP_TIMEOUT_S),
+                            stall_limit_s=cfg.host_stall_limit_s))
                 except (LinkError, TargetError):  # the target is gone (e.g. a SIL process that crashed)
                     outcome.target_disabled = False
             if outcome is None:
@@ -303,9 +305,9 @@ def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection, sink: Ru
         warnings.append(f"target console: {conn.console.lines} lines, the first {MAX_LINES} logged "
                         f"(/target/console), {conn.console.dropped} dropped")
     if out.host_stalls:
-        warnings.append(f"host stall: {out.host_stalls} wait(s) for a Command went past the lockstep timeout because "
-                        f"the host kept the target's process stopped or off the CPUs ({out.host_stall_s:.3f} s in "
-                        f"all); not counted against the firmware")
+        warnings.append(f"host stall: {out.host_stalls} wait(s) for a Command or the safe stop's confirmation went "
+                        f"past its timeout because the host kept the target's process stopped or off the CPUs "
+                        f"({out.host_stall_s:.3f} s in all); not counted against the firmware")
     metrics["warnings"] = warnings
     metrics.update(conn.extra_metrics())
     return metrics

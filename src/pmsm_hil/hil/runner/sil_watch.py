@@ -35,9 +35,13 @@ REALTIME_LINK = "udp"
 #: wall time [s] a SIL target process gets to end after SIGTERM before SIGKILL (an endless loop ignores
 #: SIGTERM; Ctrl-C must end the run within 1 s)
 SIL_STOP_WAIT_S = 0.2
-#: lockstep: wall time [s] a SIL target process that left a Command missing (after --step-timeout) is watched
-#: before it is taken as hung: it must compute all along (never wait for a frame) and not exit
+#: lockstep: CPU time [s] a SIL target process that left a Command missing (after --step-timeout of its own time)
+#: must use in the watch that follows, computing all along (never once waiting for a frame) and not exiting, to be
+#: taken as hung: its own time, so a host that stops or starves it meanwhile only makes the watch longer
 HANG_CONFIRM_S = 0.3
+#: ... the longest wall time [s] that watch lasts (a process the host keeps stopped or starved): then it is taken
+#: as hung if it still never waited for a frame, as before the watch counted CPU time
+HANG_CONFIRM_CEILING_S = 30.0
 #: how often the watch samples the process [s]
 HANG_SAMPLE_S = 0.002
 #: how often a `BusyWatch` samples it while the host waits for a ConfigAck [s]
@@ -152,11 +156,15 @@ class BusyWatch:
         return cpu - self._cpu0 if cpu is not None and self._cpu0 is not None else 0.0
 
 
-def _watch(proc: subprocess.Popen[bytes], seconds: float, unknown_busy: bool) -> tuple[int | None, bool]:
-    """Watch a target process that left a Command missing for up to `seconds`: (its exit status if it ended
-    meanwhile — a dying process closes its socket a little before it can be reaped —, whether it computed the
-    whole time without once waiting for a frame: hung). Without /proc: `unknown_busy`."""
-    deadline = time.monotonic() + seconds
+def _watch(proc: subprocess.Popen[bytes], seconds: float, unknown_busy: bool,
+           own_time: bool = False) -> tuple[int | None, bool]:
+    """Watch a target process that left a Command missing for up to `seconds` (`own_time`: of its CPU time, within
+    `HANG_CONFIRM_CEILING_S` of wall time; else wall time): (its exit status if it ended meanwhile — a dying process
+    closes its socket a little before it can be reaped —, whether it computed the whole time without once waiting
+    for a frame: hung). Without /proc: `unknown_busy`."""
+    start = time.monotonic()
+    deadline = start + (HANG_CONFIRM_CEILING_S if own_time else seconds)
+    cpu0 = cpu_s(proc.pid) if own_time else None
     known = False
     while True:
         rc = proc.poll()
@@ -166,8 +174,13 @@ def _watch(proc: subprocess.Popen[bytes], seconds: float, unknown_busy: bool) ->
         known = known or state is not None
         if state == "S":  # waiting in its link's poll: alive and idle, the frame was lost or ignored
             return None, False
-        if time.monotonic() >= deadline:
+        now = time.monotonic()
+        if now >= deadline:
             return None, unknown_busy if not known else True
+        if cpu0 is not None and now - start >= HANG_SAMPLE_S:
+            cpu = cpu_s(proc.pid)
+            if cpu is not None and cpu - cpu0 >= seconds:
+                return None, True
         time.sleep(HANG_SAMPLE_S)
 
 
@@ -202,15 +215,16 @@ def judge_setup(proc: subprocess.Popen[bytes], out: LoopOutcome, hung_in: str | 
 def judge(proc: subprocess.Popen[bytes], out: LoopOutcome, step_timeout_s: float, realtime: bool = False) -> bool:
     """Name the SIL target's part in the ending `out` (rewritten in place): its process died (crashed), or it
     left a Command missing and is still computing (hung: lockstep, the wait was --step-timeout already, so
-    `HANG_CONFIRM_S` more; real time, a missed deadline, so --step-timeout more). A target that waits idle
-    keeps the ending (a contract violation), as does an interrupted run. True when the target is hung (the
-    caller kills it rather than waiting)."""
+    `HANG_CONFIRM_S` more of its CPU time; real time, a missed deadline, so --step-timeout more of wall time). A
+    target that waits idle keeps the ending (a contract violation), as does an interrupted run. True when the
+    target is hung (the caller kills it rather than waiting)."""
     if out.end_code == EndCode.INTERRUPTED:
         return False
     rc, hung = proc.poll(), False
     link_failed = out.end_code == EndCode.INTERNAL_ERROR  # e.g. a broken pipe: the target's socket closed
     if rc is None and (ended_silent(out) or link_failed):
-        rc, hung = _watch(proc, step_timeout_s if realtime else HANG_CONFIRM_S, unknown_busy=not realtime)
+        rc, hung = _watch(proc, step_timeout_s if realtime else HANG_CONFIRM_S, unknown_busy=not realtime,
+                          own_time=not realtime)
     period, where = silent_since(out), ending_place(out)
     if rc is not None:
         out.end_code = int(EndCode.SAFETY_STOP)
@@ -221,9 +235,10 @@ def judge(proc: subprocess.Popen[bytes], out: LoopOutcome, step_timeout_s: float
         return False
     if not hung or not ended_silent(out):
         return False
+    clock = "wall time" if realtime else "of its process's own time"
     out.end_code = int(EndCode.SAFETY_STOP)
     out.end_reason = (f"target hung: its step for period {period if period is not None else '?'} did not return "
-                      f"within --step-timeout {step_timeout_s:g} s (wall time); target process killed, inverter "
+                      f"within --step-timeout {step_timeout_s:g} s ({clock}); target process killed, inverter "
                       f"put in the safe state (zero vector)")
     return True
 

@@ -36,6 +36,7 @@ from pmsm_hil.hil.runner.sil_watch import (
 )
 from pmsm_hil.hil.runner.target_client import DutViolationError, TargetClient, TargetError
 from pmsm_hil.hil.runner.target_console import TargetConsole
+from pmsm_hil.hil.runner.target_time import TargetTime, target_time
 from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.links import Link, link_kind, open_link
 from pmsm_hil.protocol.links.spawn_auth import spawn_auth
@@ -105,6 +106,11 @@ class TargetConnection:
         if self.process is not None:
             return self.process.pid
         return self.other_pid()
+
+    def own_time(self, timeout_s: float) -> TargetTime | None:
+        """The target's own time for a wait of `timeout_s` (the safe stop's; `TargetTime`), None when the host
+        observes no process of it (wall time)."""
+        return target_time(self.target_pid(), timeout_s, self.guest_progress())
 
     def link_stats(self) -> dict[str, int]:
         """Host link counters plus decoder counters, plus how the native loop's receives waited (`blocked`,

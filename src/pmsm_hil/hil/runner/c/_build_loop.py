@@ -88,7 +88,9 @@ LINKS_CDEF = (_decl(_TARGET / "hil_target_core.h", ["hil_core_frame_t", "hil_cor
                       partial={"hil_auth_t": ["on", "tx_fresh", "rx_fresh", "tx_dir", "rx_dir", "ctx_n", "ctx"]})
               + _X.cffi_constants(_LINKS / "nl_link.h", "NL_SPIN_")
               + _decl(_LINKS / "nl_link.h", ["nl_spin_t", "nl_wait_readable"])
-              + _decl(_HERE / "loop_rt.h", ["nl_gap_probe_t", "nl_gap_probe"])
+              + _decl(_HERE / "loop_rt.h", ["nl_gap_probe_t", "nl_gap_probe", "nl_now_ns"])
+              + _decl(_HERE / "loop_stall.h", ["nl_proc_sample_t", "nl_own_time_t", "nl_own_time_start",
+                                                "nl_own_time_step"])
               + _decl(_LINKS / "link_floor.h", ["nl_udp_floor_t", "nl_udp_floor", "nl_udp_paced_floor_t",
                                                  "nl_udp_paced_floor"])
               + _decl(_LINKS / "link_core.h", ["nl_core_link_t", "nl_core_link"])
@@ -117,6 +119,7 @@ PREAMBLE = """
 #include "machine_kernel.h"
 #include "loop_frames.h"
 #include "loop_rt.h"
+#include "loop_stall.h"
 #include "hil_target_core.h"
 #include "link_core.h"
 #include "loop_udp.h"

@@ -343,68 +343,38 @@ static int receive_until(loop_t *L, int64_t deadline_ns)
     return got < 0 ? -1 : 0;
 }
 
-/* The emulated MCU's executed instructions so far (QEMU's plugin adds to the shared word as the guest runs). */
-static int64_t guest_insns_now(const nl_config_t *c)
-{
-    return (int64_t)__atomic_load_n(c->guest_insns, __ATOMIC_RELAXED);
-}
-
 /* Lockstep: frames until the reply, or until the target had lockstep_timeout_ns to answer. Without a process to
  * observe that is wall time. With one (target_pid), after the first slice the wait goes on in slices and counts
- * only the time the process could run (loop_stall.h): time the host kept it stopped or off the CPUs is a host
- * stall (counted; the wait goes on, up to stall_limit_ns of wall time: NL_END_HOST_STALL). nl_stop() ends it.
- * An emulated MCU (guest_insns) counts its own progress instead: its executed instructions from the start of the
- * wait, and the time QEMU slept with nothing to do (nl_guest_available). */
+ * only the target's own time (nl_own_time_t, loop_stall.h: the CPU time its process got and the time it slept with
+ * nothing to do; an emulated MCU, guest_insns: its executed instructions and QEMU's idle sleep): time the host kept
+ * it stopped or off the CPUs is a host stall (counted; the wait goes on, up to stall_limit_ns of wall time:
+ * NL_END_HOST_STALL). nl_stop() ends it. */
 static void await_lockstep(loop_t *L, int64_t t0)
 {
     const nl_config_t *c = L->c;
     const int64_t timeout = c->lockstep_timeout_ns;
     const int64_t slice = c->target_pid <= 0 ? timeout : timeout / 4 < NL_STALL_SLICE_NS ? timeout / 4 : NL_STALL_SLICE_NS;
-    nl_proc_sample_t prev;
-    nl_proc_sample_t now;
-    int64_t had = 0;    /* the target's own time to answer so far [ns] */
-    int64_t t_prev = t0;
+    nl_own_time_t own;
     int watching = 0;
-    int64_t insns_prev = c->guest_insns != NULL ? guest_insns_now(c) : 0;
+    nl_own_time_start(&own, c->target_pid, c->guest_insns, c->guest_ns_per_insn, slice, t0);
     for (;;) {
-        const int64_t left = timeout - had;
+        const int64_t left = timeout - own.had_ns;
         int64_t t;
-        if (receive_until(L, t_prev + (left < slice ? left : slice)) < 0 || L->have_reply) {
+        if (receive_until(L, own.t_prev + (left < slice ? left : slice)) < 0 || L->have_reply) {
             break;
         }
         t = nl_now_ns();
         if (c->target_pid <= 0) {
             break; /* wall time: one slice, the whole timeout */
         }
-        if (!watching) { /* the first slice counts in full (a guest: its instructions): the process is read from
-                          * its end on */
-            if (c->guest_insns != NULL) {
-                const int64_t insns = guest_insns_now(c);
-                had += (insns - insns_prev) * c->guest_ns_per_insn;
-                insns_prev = insns;
-            } else {
-                had += t - t_prev;
-            }
-            watching = nl_proc_sample(c->target_pid, &prev) == 0;
-            if (!watching) {
-                break; /* gone (the ending names the crash) or not observable */
-            }
-        } else {
-            if (nl_proc_sample(c->target_pid, &now) != 0) {
-                break;
-            }
-            if (c->guest_insns != NULL) {
-                const int64_t insns = guest_insns_now(c);
-                had += nl_guest_available(&prev, &now, insns - insns_prev, c->guest_ns_per_insn, t - t_prev);
-                insns_prev = insns;
-            } else {
-                had += nl_proc_available(&prev, &now, t - t_prev);
-            }
-            prev = now;
+        if (nl_own_time_step(&own, t) != 0) {
+            break; /* gone (the ending names the crash) or not observable */
         }
-        t_prev = t;
-        if (had >= timeout) {
-            break; /* it had its time: the Command is missing */
+        watching = 1;
+        if (own.had_ns >= timeout) { /* it had its time: the Command is missing, unless it came while this thread
+                                      * was off the CPU between the last receive and now (read what is there) */
+            (void)receive_until(L, t);
+            break;
         }
         if (__atomic_load_n(&L->h->stop, __ATOMIC_ACQUIRE)) {
             L->wait_end = NL_END_INTERRUPTED;
@@ -418,6 +388,7 @@ static void await_lockstep(loop_t *L, int64_t t0)
     }
     if (watching) { /* the host's part of a wait the lockstep timeout alone would have ended */
         const int64_t wall = nl_now_ns() - t0;
+        const int64_t had = own.had_ns;
         const int64_t lost = wall - (had < wall ? had : wall);
         if (wall > timeout && lost >= slice) {
             L->r->host_stalls++;

@@ -109,23 +109,7 @@ int nl_proc_sample(int32_t pid, nl_proc_sample_t *s)
 int64_t nl_proc_available(const nl_proc_sample_t *a, const nl_proc_sample_t *b, int64_t wall_ns)
 {
     const int64_t exec = b->exec_ns - a->exec_ns;
-    const int64_t delay = b->delay_ns - a->delay_ns;
-    int64_t had;
-    if (wall_ns <= 0) {
-        return 0;
-    }
-    if (b->stopped) {
-        return 0;
-    }
-    if (b->runnable && exec * 1000 < wall_ns * NL_STALL_STARVED_PERMILLE) {
-        had = exec;
-    } else {
-        had = wall_ns - delay;
-    }
-    if (had < 0) {
-        return 0;
-    }
-    return had > wall_ns ? wall_ns : had;
+    return nl_guest_available(a, b, exec > 0 ? exec : 0, 1, wall_ns);
 }
 
 int64_t nl_guest_available(const nl_proc_sample_t *a, const nl_proc_sample_t *b, int64_t insns, int64_t ns_per_insn,
@@ -139,4 +123,47 @@ int64_t nl_guest_available(const nl_proc_sample_t *a, const nl_proc_sample_t *b,
         }
     }
     return had;
+}
+
+static int64_t guest_insns_now(const nl_own_time_t *o)
+{
+    return (int64_t)__atomic_load_n(o->guest_insns, __ATOMIC_RELAXED);
+}
+
+void nl_own_time_start(nl_own_time_t *o, int32_t pid, const uint64_t *guest_insns, int64_t ns_per_insn,
+                       int64_t slice_ns, int64_t t0_ns)
+{
+    memset(o, 0, sizeof *o);
+    o->pid = pid;
+    o->slice_ns = slice_ns;
+    o->guest_insns = guest_insns;
+    o->ns_per_insn = ns_per_insn;
+    o->t_prev = t0_ns;
+    o->insns_prev = guest_insns != NULL ? guest_insns_now(o) : 0;
+}
+
+int nl_own_time_step(nl_own_time_t *o, int64_t t_ns)
+{
+    nl_proc_sample_t now;
+    int64_t insns = 0;
+    if (nl_proc_sample(o->pid, &now) != 0) {
+        return -1;
+    }
+    if (o->guest_insns != NULL) {
+        insns = guest_insns_now(o);
+    }
+    if (!o->watching) {
+        const int64_t wall = t_ns - o->t_prev;
+        o->had_ns += o->guest_insns != NULL ? (insns - o->insns_prev) * o->ns_per_insn
+                                            : wall < o->slice_ns ? wall : o->slice_ns;
+        o->watching = 1;
+    } else if (o->guest_insns != NULL) {
+        o->had_ns += nl_guest_available(&o->prev, &now, insns - o->insns_prev, o->ns_per_insn, t_ns - o->t_prev);
+    } else {
+        o->had_ns += nl_proc_available(&o->prev, &now, t_ns - o->t_prev);
+    }
+    o->prev = now;
+    o->insns_prev = insns;
+    o->t_prev = t_ns;
+    return 0;
 }
