@@ -241,7 +241,7 @@ class Cpu:
             return Stop("exc_return")
         if self.counter.count > begun and now_pc >= 2:
             try:
-                before = int.from_bytes(self.uc.mem_read(now_pc - 2, 2), "little")
+                before = int.from_bytes(self.read_bytes(now_pc - 2, 2), "little")
             except UcError:
                 before = 0
             if before in (WFI, WFE):
