@@ -47,14 +47,15 @@ FP_REGS = (*tuple(getattr(arm, f"UC_ARM_REG_S{i}") for i in range(16)), arm.UC_A
 
 
 class RegBatch:
-    """A fixed list of registers with the C arrays uc_reg_read_batch / uc_reg_write_batch take."""
+    """A fixed list of 32-bit registers with the C arrays uc_reg_read_batch / uc_reg_write_batch take (the values
+    as uint32: what Unicorn's Arm registers read and write, so no masking on the way in or out)."""
 
     def __init__(self, ids: Sequence[int]) -> None:
         self.count = len(ids)
         self.ids = (ctypes.c_int * self.count)(*ids)
-        self.values = (ctypes.c_uint64 * self.count)()
+        self.values = (ctypes.c_uint32 * self.count)()
         self.ptrs = (ctypes.c_void_p * self.count)(
-            *(ctypes.addressof(self.values) + 8 * i for i in range(self.count)))
+            *(ctypes.addressof(self.values) + 4 * i for i in range(self.count)))
 
 
 def _round_page(n: int) -> int:
@@ -198,12 +199,11 @@ class Cpu:
     def regs(self, regs: RegBatch) -> list[int]:
         """Several 32-bit registers in one call (uc_reg_read_batch)."""
         uclib.uc_reg_read_batch(self._uch, regs.ids, regs.ptrs, regs.count)
-        return [v & 0xFFFF_FFFF for v in regs.values]
+        return regs.values[:]
 
     def set_regs(self, regs: RegBatch, values: Sequence[int]) -> None:
         """Several 32-bit registers in one call (uc_reg_write_batch)."""
-        for i, value in enumerate(values):
-            regs.values[i] = value & 0xFFFF_FFFF
+        regs.values[:] = [v & 0xFFFF_FFFF for v in values]
         uclib.uc_reg_write_batch(self._uch, regs.ids, regs.ptrs, regs.count)
 
     @property
