@@ -64,7 +64,8 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("--board", nargs=2, metavar=("KIND", "ELF"),
                    help="also measure a firmware on a virtual board (KIND stm32g4: an STM32G4 ELF whose TIM1 carrier "
                         "period is --ts and that runs its own controller): the board alone, fed Measurements "
-                        "(lockstep_stm32g4_board_only_hz), and the closed loop with --controller external at "
+                        "(lockstep_stm32g4_board_only_hz; per CPU second of the bench: _cpu_hz), and the closed "
+                        "loop with --controller external at "
                         f"{BOARD_SPEED_RPM:g} rpm / {BOARD_LOAD_NM:g} N·m (lockstep_stm32g4_hz; no figure for a run "
                         "that did not complete: lockstep_stm32g4_error says how it ended), medians over --repeats, "
                         "beside --qemu's figures when both are given")
@@ -339,7 +340,8 @@ def _board_rates(elf: Path, board_file: str | None, ts: float, duration: float, 
         alone = [_board_only_rate(elf, ts, duration, board_file) for _ in range(max(repeats, 1))]
     except HilError as exc:  # a firmware the board cannot run: said, the other figures kept
         return {"lockstep_stm32g4_error": str(exc)}
-    out["lockstep_stm32g4_board_only_hz"] = statistics.median(alone)
+    out["lockstep_stm32g4_board_only_hz"] = statistics.median(wall for wall, _ in alone)
+    out["lockstep_stm32g4_board_only_cpu_hz"] = statistics.median(cpu for _, cpu in alone)
     progress(f"lockstep, {elf.name} on the virtual STM32G4 board, closed loop ({runs})")
     options: dict[str, Any] = {"target": f"stm32g4:{elf}", "link": "virtual", "controller": "external",
                                "speed": BOARD_SPEED_RPM, "load": BOARD_LOAD_NM}
@@ -369,9 +371,10 @@ def _board_rates(elf: Path, board_file: str | None, ts: float, duration: float, 
     return out
 
 
-def _board_only_rate(elf: Path, ts: float, duration: float, board_file: str | None = None) -> float:
-    """Periods per wall-clock second of the virtual board alone: its link fed `duration / ts` Measurements (a
-    rotating field of 10 A at 50 Hz electrical), the start-up not counted."""
+def _board_only_rate(elf: Path, ts: float, duration: float, board_file: str | None = None) -> tuple[float, float]:
+    """Periods per wall-clock second and per CPU second of this process (what the board costs, whatever else
+    the machine runs) of the virtual board alone: its link fed `duration / ts` Measurements (a rotating field of
+    10 A at 50 Hz electrical), the start-up not counted."""
     from pmsm_hil.protocol.codec import FrameCodec
     from pmsm_hil.protocol.messages import Measurement
     from pmsm_hil.sim_target.stm32g4.board_file import load_board
@@ -386,12 +389,13 @@ def _board_only_rate(elf: Path, ts: float, duration: float, board_file: str | No
         m = Measurement(seq=k & 0xFFFF, i_a=10 * math.cos(th), i_b=10 * math.cos(th - 2.094),
                         i_c=10 * math.cos(th + 2.094), theta_e=th, omega_m=78.5, vdc=48.0)
         frames.append(codec.encode(m))
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     for f in frames:
         link.send(f)
         while link.poll() is not None:
             pass
-    return periods / (time.perf_counter() - t0)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    return periods / wall, periods / max(cpu, 1e-9)
 
 
 def run(args: argparse.Namespace) -> int:
