@@ -24,6 +24,7 @@ from pmsm_hil.app.cli.run_options_cli import add_option
 from pmsm_hil.errors import HilError
 from pmsm_hil.hil.atomic_write import write_text_atomic
 from pmsm_hil.hil.runlog.reader import read_periods
+from pmsm_hil.hil.runner.contract import EndCode
 from pmsm_hil.hil.runner.option_values import coerce
 from pmsm_hil.hil.runner.reference_loop import reference_loop
 from pmsm_hil.hil.runner.run import run_closed_loop
@@ -32,7 +33,10 @@ from pmsm_hil.hil.runner.run_options import DEFAULTS, OPTIONS
 
 #: how an error names a value of the bench's own run (not an option of the command line)
 BENCH_SOURCES = {"motor": "hil bench", "controller": "hil bench", "loop": "hil bench", "settle": "hil bench",
-                 "no_log": "hil bench"}
+                 "no_log": "hil bench", "speed": "hil bench", "load": "hil bench", "board": "hil bench"}
+#: the operating point of `--board`'s closed loop (the example firmware's: examples/stm32g4_foc) [rpm], [N·m]
+BOARD_SPEED_RPM = 1500.0
+BOARD_LOAD_NM = 7.0
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -59,8 +63,15 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
                         "UART and its PSRAM mailbox (lockstep_qemu_uart_hz, lockstep_qemu_mailbox_hz)")
     p.add_argument("--board", nargs=2, metavar=("KIND", "ELF"),
                    help="also measure a firmware on a virtual board (KIND stm32g4: an STM32G4 ELF whose TIM1 carrier "
-                        "period is --ts): the board alone, fed Measurements (lockstep_stm32g4_board_only_hz), and the "
-                        "closed loop (lockstep_stm32g4_hz), beside --qemu's figures when both are given")
+                        "period is --ts and that runs its own controller): the board alone, fed Measurements "
+                        "(lockstep_stm32g4_board_only_hz; per CPU second of the bench: _cpu_hz), and the closed "
+                        "loop with --controller external at "
+                        f"{BOARD_SPEED_RPM:g} rpm / {BOARD_LOAD_NM:g} N·m (lockstep_stm32g4_hz; no figure for a run "
+                        "that did not complete: lockstep_stm32g4_error says how it ended), medians over --repeats, "
+                        "beside --qemu's figures when both are given")
+    p.add_argument("--board-file", metavar="NAME_OR_FILE",
+                   help="the board description of --board's firmware (a bundled name or a TOML file; default the "
+                        "bundled default; examples/stm32g4_foc/board.toml for the example firmware)")
     add_option(p, OPTIONS["load_fmu"],
                help="also measure the native loop with this load FMU (FMI 2/3 Co-Simulation, inputs speed, output "
                     "torque; logging off): in its own process (lockstep_inproc_native_load_fmu_hz, the default) and "
@@ -227,7 +238,8 @@ def _udp_floor(progress: Callable[[str], None], round_trips: int = 5000) -> dict
 
 def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
             progress: Callable[[str], None] = lambda _msg: None, qemu: Path | None = None,
-            load_fmu: Path | None = None, ts: float = 100e-6, board: Path | None = None) -> dict[str, Any]:
+            load_fmu: Path | None = None, ts: float = 100e-6, board: Path | None = None,
+            board_file: str | None = None) -> dict[str, Any]:
     """All loop figures; keys documented in docs/benchmarks.md. `progress` gets one line per stage. The Python
     loop's rows (and the native/python ratios) need the test suite's reference loop (tests/oracle; not part of
     the product): without it they are left out and `python_loop` says so."""
@@ -296,14 +308,7 @@ def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
         except OSError as exc:
             out["udp_floor_error"] = str(exc)
     if board is not None:
-        progress(f"lockstep, {board.name} on the virtual STM32G4 board ({runs})")
-        try:
-            out["lockstep_stm32g4_board_only_hz"] = _board_only_rate(board, ts, duration)
-            res = _median_rate(lambda: replace(base, target=f"stm32g4:{board}", link="virtual"), repeats)
-            out["lockstep_stm32g4_hz"] = res["periods_per_s"]
-            out["stm32g4_cpu_load"] = res["last_metrics"].get("board_cpu_load")
-        except HilError as exc:  # a firmware the board cannot run: said, the other figures kept
-            out["lockstep_stm32g4_error"] = str(exc)
+        out.update(_board_rates(board, board_file, ts, duration, repeats, runs, progress))
     if qemu is not None:
         for transport, link in (("uart", "virtual"), ("mailbox", "mailbox")):
             progress(f"lockstep, {qemu.name} in QEMU mps2-an386 over its {transport} ({runs})")
@@ -324,15 +329,58 @@ def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
     return out
 
 
-def _board_only_rate(elf: Path, ts: float, duration: float) -> float:
-    """Periods per wall-clock second of the virtual board alone: its link fed `duration / ts` Measurements (a
-    rotating field of 10 A at 50 Hz electrical), the start-up not counted."""
+def _board_rates(elf: Path, board_file: str | None, ts: float, duration: float, repeats: int, runs: str,
+                 progress: Callable[[str], None]) -> dict[str, Any]:
+    """The virtual STM32G4 board's figures: the board alone (`_board_only_rate`) and the closed loop, the firmware
+    as the controller (`--controller external`) at the example's operating point, each the median over `repeats`.
+    A closed-loop run that does not complete gives no figure: lockstep_stm32g4_error names its ending."""
+    out: dict[str, Any] = {}
+    progress(f"lockstep, {elf.name} alone on the virtual STM32G4 board, fed Measurements ({runs})")
+    try:
+        alone = [_board_only_rate(elf, ts, duration, board_file) for _ in range(max(repeats, 1))]
+    except HilError as exc:  # a firmware the board cannot run: said, the other figures kept
+        return {"lockstep_stm32g4_error": str(exc)}
+    out["lockstep_stm32g4_board_only_hz"] = statistics.median(wall for wall, _ in alone)
+    out["lockstep_stm32g4_board_only_cpu_hz"] = statistics.median(cpu for _, cpu in alone)
+    progress(f"lockstep, {elf.name} on the virtual STM32G4 board, closed loop ({runs})")
+    options: dict[str, Any] = {"target": f"stm32g4:{elf}", "link": "virtual", "controller": "external",
+                               "speed": BOARD_SPEED_RPM, "load": BOARD_LOAD_NM}
+    if board_file is not None:
+        options["board"] = board_file
+    try:
+        cfg = _base(duration, ts, str(DEFAULTS["loop"]), **options)
+    except HilError as exc:
+        out["lockstep_stm32g4_error"] = str(exc)
+        return out
+    rates: list[float] = []
+    for _ in range(max(repeats, 1)):
+        try:
+            res = run_closed_loop(cfg)
+        except HilError as exc:
+            out["lockstep_stm32g4_error"] = str(exc)
+            return out
+        ending = res.outcome
+        if ending.end_code != EndCode.COMPLETED:
+            out["lockstep_stm32g4_error"] = (f"the closed-loop run ended with exit {int(ending.end_code)} "
+                                             f"({ending.end_reason}) after {ending.completed_periods} periods: no "
+                                             "figure")
+            return out
+        rates.append(ending.completed_periods / ending.wall_time_s)
+        out["stm32g4_cpu_load"] = res.metrics.get("board_cpu_load")
+    out["lockstep_stm32g4_hz"] = statistics.median(rates)
+    return out
+
+
+def _board_only_rate(elf: Path, ts: float, duration: float, board_file: str | None = None) -> tuple[float, float]:
+    """Periods per wall-clock second and per CPU second of this process (what the board costs, whatever else
+    the machine runs) of the virtual board alone: its link fed `duration / ts` Measurements (a rotating field of
+    10 A at 50 Hz electrical), the start-up not counted."""
     from pmsm_hil.protocol.codec import FrameCodec
     from pmsm_hil.protocol.messages import Measurement
     from pmsm_hil.sim_target.stm32g4.board_file import load_board
     from pmsm_hil.sim_target.stm32g4.link import BoardLink
 
-    link = BoardLink(elf, load_board(), ts_s=ts, pole_pairs=4)
+    link = BoardLink(elf, load_board(board_file), ts_s=ts, pole_pairs=4)
     codec = FrameCodec("canfd")
     periods = max(round(duration / ts), 1)
     frames = []
@@ -341,12 +389,13 @@ def _board_only_rate(elf: Path, ts: float, duration: float) -> float:
         m = Measurement(seq=k & 0xFFFF, i_a=10 * math.cos(th), i_b=10 * math.cos(th - 2.094),
                         i_c=10 * math.cos(th + 2.094), theta_e=th, omega_m=78.5, vdc=48.0)
         frames.append(codec.encode(m))
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     for f in frames:
         link.send(f)
         while link.poll() is not None:
             pass
-    return periods / (time.perf_counter() - t0)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    return periods / wall, periods / max(cpu, 1e-9)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -369,7 +418,7 @@ def run(args: argparse.Namespace) -> int:
             return 2
         board = Path(elf)
     figures = measure(args.duration, args.repeats, cross, not args.no_realtime, progress, qemu=args.qemu,
-                      load_fmu=args.load_fmu, ts=ts, board=board)
+                      load_fmu=args.load_fmu, ts=ts, board=board, board_file=args.board_file)
     load1, load5, _ = os.getloadavg()
     rate = 1.0 / ts
     print(f"closed loop, niu2020 IPMSM, MPCC, Ts = {ts * 1e6:g} µs, {args.duration} s simulated, median of "

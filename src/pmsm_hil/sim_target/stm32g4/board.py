@@ -31,6 +31,7 @@ from pmsm_hil.sim_target.stm32g4.cpu import (
     EXCP_UNALIGNED,
     PAGE,
     Cpu,
+    RegBatch,
 )
 from pmsm_hil.sim_target.stm32g4.exceptions import ExceptionReturnError, ExceptionUnit
 from pmsm_hil.sim_target.stm32g4.fault import (
@@ -109,6 +110,10 @@ class Board:
         self._timed = [p for p in self.peripherals.values() if type(p).next_event is not Peripheral.next_event]
         self._timed_set = set(self._timed)
         self._idle_loops: dict[int, bool] = {}
+        self._mask_regs = RegBatch((arm.UC_ARM_REG_PRIMASK, arm.UC_ARM_REG_BASEPRI))
+        #: the cycle at which the last run_until left every model advanced (nothing can change before the next
+        #: call but through the models' own accesses, which advance them first): the next call starts there
+        self._settled_at = -1
         self._advancing = [p for p in self.peripherals.values() if type(p).advance is not Peripheral.advance]
         self.sleeping = False
         self.sleep_cycles = 0
@@ -339,13 +344,9 @@ class Board:
                 best = event
         return best
 
-    def _advance(self, now: int) -> None:
-        self.scs.systick.advance(now)
-        for p in self._advancing:
-            p.advance(now)
-
     def _masks(self) -> tuple[bool, int]:
-        return bool(self.cpu.reg(arm.UC_ARM_REG_PRIMASK) & 1), self.cpu.reg(arm.UC_ARM_REG_BASEPRI)
+        primask, basepri = self.cpu.regs(self._mask_regs)
+        return bool(primask & 1), basepri
 
     def _enter(self, exc: int) -> None:
         stats = self.isr.setdefault(exc, IsrStats())
@@ -393,31 +394,44 @@ class Board:
 
     def run_until(self, end: int) -> None:
         """Run the firmware until cycle `end` (at least; at most one basic block later)."""
-        cpu, nvic = self.cpu, self.nvic
+        nvic, counter = self.nvic, self.cpu.counter
+        pending, enabled = nvic.pending, nvic.enabled
+        systick, advancing, timed = self.scs.systick, self._advancing, self._timed
+        settled = self._settled_at  # the models are up to this cycle already (the last call ended there)
         while True:
-            now = cpu.count
-            self._advance(now)
+            now: int = counter.count
+            # every model up to now (inline: this loop runs several times per period)
+            if now != settled:
+                systick.advance(now)
+                for p in advancing:
+                    p.advance(now)
+            settled = -1
             if now >= end:
+                self._settled_at = now
                 return
-            if nvic.pending:
+            if pending:
                 primask, basepri = self._masks()
                 take = nvic.preempting(primask, basepri)
                 if take is not None:
                     self.sleeping = False
                     self._enter(take)
                     continue
+            # the earliest event of a model or SysTick after now (next_event, inline)
+            event = systick.next_event(now)
+            for p in timed:
+                at = p.next_event(now)
+                if at is not None and (event is None or at < event):
+                    event = at
             if self.sleeping:
-                if nvic.pending and nvic.preempting(False, self._masks()[1]) is not None:  # WFI wakes with PRIMASK
+                if pending and nvic.preempting(False, self._masks()[1]) is not None:  # WFI wakes with PRIMASK
                     self.sleeping = False
                 else:
-                    event = self.next_event(now)
                     until = end if event is None else min(event, end)
                     self.sleep_cycles += until - now
-                    cpu.counter.count = until
+                    counter.count = until
                     continue
-            event = self.next_event(now)
             limit = end if event is None else min(event, end)
-            if nvic.masked_pending():
+            if pending and any(enabled[e] for e in pending):  # held off: see MASKED_SLICE
                 limit = min(limit, now + MASKED_SLICE)
             self._slice(max(limit, now + 1))
 

@@ -29,7 +29,7 @@ from unicorn import (
     UcError,
 )
 from unicorn import arm_const as arm
-from unicorn.unicorn_py3.unicorn import uclib
+from unicorn.unicorn_py3.unicorn import MMIO_READ_CFUNC, MMIO_WRITE_CFUNC, uclib
 
 from pmsm_hil.sim_target.stm32g4.counter import REGIONS, CounterState, hook_function
 from pmsm_hil.sim_target.stm32g4.part import CCM_BASE, FLASH_BASE, SRAM_BASE, Part
@@ -47,14 +47,15 @@ FP_REGS = (*tuple(getattr(arm, f"UC_ARM_REG_S{i}") for i in range(16)), arm.UC_A
 
 
 class RegBatch:
-    """A fixed list of registers with the C arrays uc_reg_read_batch / uc_reg_write_batch take."""
+    """A fixed list of 32-bit registers with the C arrays uc_reg_read_batch / uc_reg_write_batch take (the values
+    as uint32: what Unicorn's Arm registers read and write, so no masking on the way in or out)."""
 
     def __init__(self, ids: Sequence[int]) -> None:
         self.count = len(ids)
         self.ids = (ctypes.c_int * self.count)(*ids)
-        self.values = (ctypes.c_uint64 * self.count)()
+        self.values = (ctypes.c_uint32 * self.count)()
         self.ptrs = (ctypes.c_void_p * self.count)(
-            *(ctypes.addressof(self.values) + 8 * i for i in range(self.count)))
+            *(ctypes.addressof(self.values) + 4 * i for i in range(self.count)))
 
 
 def _round_page(n: int) -> int:
@@ -117,6 +118,8 @@ class Cpu:
         self._uch = uc._uch
         self._reg_buf = ctypes.c_uint64(0)
         self._reg_ref = ctypes.byref(self._reg_buf)
+        self._mmio_callbacks: list[tuple[Any, Any]] = []
+        self._word = (ctypes.c_char * 4)()
         uc.hook_add(UC_HOOK_INTR, self._on_interrupt)
         uc.hook_add(UC_HOOK_MEM_READ_UNMAPPED | UC_HOOK_MEM_WRITE_UNMAPPED | UC_HOOK_MEM_FETCH_UNMAPPED,
                     self._on_unmapped)
@@ -131,22 +134,56 @@ class Cpu:
         self.extra_ram.append(buf)
 
     def map_mmio(self, base: int, size: int, read: MmioRead, write: MmioWrite) -> None:
-        """Route every access to [base, base + size) to `read(address, size)` / `write(address, size, value)`."""
+        """Route every access to [base, base + size) to `read(address, size)` / `write(address, size, value)`.
+        The callbacks are Unicorn's C callbacks straight (not the binding's layered wrappers); an exception in
+        one stops the core and is raised by `run`, as the binding does."""
+        uc, uch = self.uc, self._uch
 
-        def on_read(uc: Uc, offset: int, nbytes: int, _: object) -> int:
-            return read(base + offset, nbytes)
+        def on_read(_handle: int, offset: int, nbytes: int, _user: int) -> int:
+            try:
+                return read(base + offset, nbytes)
+            except BaseException as exc:  # re-raised by run() once the core stopped
+                if uc._hook_exception is None:
+                    uc._hook_exception = exc
+                uclib.uc_emu_stop(uch)
+                return 0
 
-        def on_write(uc: Uc, offset: int, nbytes: int, value: int, _: object) -> None:
-            write(base + offset, nbytes, value)
+        def on_write(_handle: int, offset: int, nbytes: int, value: int, _user: int) -> None:
+            try:
+                write(base + offset, nbytes, value)
+            except BaseException as exc:  # re-raised by run() once the core stopped
+                if uc._hook_exception is None:
+                    uc._hook_exception = exc
+                uclib.uc_emu_stop(uch)
 
-        self.uc.mmio_map(base, size, on_read, None, on_write, None)
+        read_fn, write_fn = MMIO_READ_CFUNC(on_read), MMIO_WRITE_CFUNC(on_write)
+        self._mmio_callbacks.append((read_fn, write_fn))
+        status = uclib.uc_mmio_map(uch, base, size, read_fn, None, write_fn, None)
+        if status != 0:
+            raise UcError(status)
 
     def load(self, address: int, data: bytes) -> None:
         """Program bytes into flash or RAM (ELF loading)."""
         self.uc.mem_write(address, data)
 
     def read_u32(self, address: int) -> int:
-        return int.from_bytes(self.uc.mem_read(address, 4), "little")
+        status = uclib.uc_mem_read(self._uch, address, self._word, 4)
+        if status != 0:
+            raise UcError(status)
+        return int.from_bytes(self._word.raw, "little")
+
+    def write_bytes(self, address: int, data: bytes) -> None:
+        """Store `data` at `address` through the core (uc_mem_write, without the binding's layers)."""
+        status = uclib.uc_mem_write(self._uch, address, data, len(data))
+        if status != 0:
+            raise UcError(status)
+
+    def read_bytes(self, address: int, size: int) -> bytes:
+        buf = ctypes.create_string_buffer(size)
+        status = uclib.uc_mem_read(self._uch, address, buf, size)
+        if status != 0:
+            raise UcError(status)
+        return buf.raw
 
     # --- registers ----------------------------------------------------------------------------------------------
 
@@ -162,12 +199,11 @@ class Cpu:
     def regs(self, regs: RegBatch) -> list[int]:
         """Several 32-bit registers in one call (uc_reg_read_batch)."""
         uclib.uc_reg_read_batch(self._uch, regs.ids, regs.ptrs, regs.count)
-        return [v & 0xFFFF_FFFF for v in regs.values]
+        return regs.values[:]
 
     def set_regs(self, regs: RegBatch, values: Sequence[int]) -> None:
         """Several 32-bit registers in one call (uc_reg_write_batch)."""
-        for i, value in enumerate(values):
-            regs.values[i] = value & 0xFFFF_FFFF
+        regs.values[:] = [v & 0xFFFF_FFFF for v in values]
         uclib.uc_reg_write_batch(self._uch, regs.ids, regs.ptrs, regs.count)
 
     @property
@@ -205,7 +241,7 @@ class Cpu:
             return Stop("exc_return")
         if self.counter.count > begun and now_pc >= 2:
             try:
-                before = int.from_bytes(self.uc.mem_read(now_pc - 2, 2), "little")
+                before = int.from_bytes(self.read_bytes(now_pc - 2, 2), "little")
             except UcError:
                 before = 0
             if before in (WFI, WFE):

@@ -37,9 +37,19 @@ class ExceptionUnit:
     def __init__(self, cpu: Cpu, nvic: Nvic, scs: SystemControl) -> None:
         self.cpu, self.nvic, self.scs = cpu, nvic, scs
         self.entries = 0
-        self._frame = RegBatch(FRAME_REGS)
-        self._frame6 = RegBatch(FRAME_REGS[:6])
+        # entry: CONTROL, PSP, MSP and the basic frame in one read (the FP registers in a second one)
+        self._entry_state = RegBatch((arm.UC_ARM_REG_CONTROL, arm.UC_ARM_REG_PSP, arm.UC_ARM_REG_MSP, *FRAME_REGS))
         self._fp = RegBatch(FP_REGS)
+        # entry's stores, in the order the core takes them: CONTROL, the stack pointer in use, LR, xPSR, PC
+        self._entry_psp = RegBatch((arm.UC_ARM_REG_CONTROL, arm.UC_ARM_REG_PSP, arm.UC_ARM_REG_LR,
+                                    arm.UC_ARM_REG_XPSR, arm.UC_ARM_REG_PC))
+        self._entry_msp = RegBatch((arm.UC_ARM_REG_CONTROL, arm.UC_ARM_REG_MSP, arm.UC_ARM_REG_LR,
+                                    arm.UC_ARM_REG_XPSR, arm.UC_ARM_REG_PC))
+        # return: CONTROL, PSP, MSP read; CONTROL, the stack pointer, r0-r3, r12, lr (FP), xPSR, PC written
+        self._return_state = RegBatch((arm.UC_ARM_REG_CONTROL, arm.UC_ARM_REG_PSP, arm.UC_ARM_REG_MSP))
+        self._return_psp = RegBatch((arm.UC_ARM_REG_CONTROL, arm.UC_ARM_REG_PSP, *FRAME_REGS[:6]))
+        self._return_msp = RegBatch((arm.UC_ARM_REG_CONTROL, arm.UC_ARM_REG_MSP, *FRAME_REGS[:6]))
+        self._return_tail = RegBatch((arm.UC_ARM_REG_XPSR, arm.UC_ARM_REG_PC))
 
     def vector(self, exc: int) -> int:
         """The handler address of exception `exc` (Thumb bit kept)."""
@@ -47,44 +57,39 @@ class ExceptionUnit:
 
     def enter(self, exc: int) -> None:
         """Take exception `exc` now (frame, LR, PC, SP, NVIC state)."""
-        cpu, uc = self.cpu, self.cpu.uc
-        in_thread = not self.nvic.active
-        control = cpu.reg(arm.UC_ARM_REG_CONTROL)
+        cpu, nvic, scs = self.cpu, self.nvic, self.scs
+        in_thread = not nvic.active
+        control, psp, msp, *values = cpu.regs(self._entry_state)
         use_psp = in_thread and bool(control & 2)
-        fp = self.scs.fpu_enabled
-        values = cpu.regs(self._frame)
-        ipsr = self.nvic.active[-1] if self.nvic.active else 0
-        sp = cpu.reg(arm.UC_ARM_REG_PSP if use_psp else arm.UC_ARM_REG_MSP)
+        fp = scs.fpu_enabled
+        ipsr = nvic.active[-1] if nvic.active else 0
+        sp = psp if use_psp else msp
         size = _EXTENDED.size if fp else _BASIC.size
-        aligned = bool(self.scs.ccr & 0x200) and bool(sp & 4)
-        frame_sp = (sp - size) & ~4 if self.scs.ccr & 0x200 else sp - size
+        aligned = bool(scs.ccr & 0x200) and bool(sp & 4)
+        frame_sp = (sp - size) & ~4 if scs.ccr & 0x200 else sp - size
         values[7] = (values[7] & ~0x1FF & ~(1 << 9)) | ipsr | ((1 << 9) if aligned else 0) | (1 << 24)
         if fp:
             fvals = cpu.regs(self._fp)
             data = _EXTENDED.pack(*values, *fvals, 0)
         else:
             data = _BASIC.pack(*values)
-        uc.mem_write(frame_sp, data)
-        if use_psp:
-            cpu.set_reg(arm.UC_ARM_REG_CONTROL, control & ~2 & ~4)
-            cpu.set_reg(arm.UC_ARM_REG_PSP, frame_sp)
-        else:
-            cpu.set_reg(arm.UC_ARM_REG_CONTROL, control & ~4)
-            cpu.set_reg(arm.UC_ARM_REG_MSP, frame_sp)
+        cpu.write_bytes(frame_sp, data)
         exc_return = 0xFFFF_FFE1 if fp else 0xFFFF_FFF1
         if in_thread:
             exc_return |= 0xC if use_psp else 0x8
-        cpu.set_reg(arm.UC_ARM_REG_LR, exc_return)
-        cpu.set_reg(arm.UC_ARM_REG_XPSR, 1 << 24)
-        self.nvic.taken(exc)
+        nvic.taken(exc)
         self.entries += 1
         cpu.counter.count += ENTRY_CYCLES
-        cpu.set_reg(arm.UC_ARM_REG_PC, self.vector(exc) & ~1)
+        handler = self.vector(exc) & ~1
+        if use_psp:
+            cpu.set_regs(self._entry_psp, (control & ~2 & ~4, frame_sp, exc_return, 1 << 24, handler))
+        else:
+            cpu.set_regs(self._entry_msp, (control & ~4, frame_sp, exc_return, 1 << 24, handler))
 
     def leave(self, exc_return: int) -> int:
         """Return from the active exception as `exc_return` says; the exception left. Raises
         ExceptionReturnError for a value the core refuses (INVPC)."""
-        cpu, uc = self.cpu, self.cpu.uc
+        cpu = self.cpu
         exc_return |= 1
         if exc_return not in VALID_EXC_RETURN or not self.nvic.active:
             raise ExceptionReturnError(f"EXC_RETURN {exc_return:#010x} with active {self.nvic.active}")
@@ -94,22 +99,19 @@ class ExceptionUnit:
             raise ExceptionReturnError(f"EXC_RETURN {exc_return:#010x} does not match the nesting {self.nvic.active}")
         use_psp = bool(exc_return & 4)
         fp = not exc_return & 0x10
-        sp = cpu.reg(arm.UC_ARM_REG_PSP if use_psp else arm.UC_ARM_REG_MSP)
+        control, psp, msp = cpu.regs(self._return_state)
+        sp = psp if use_psp else msp
         size = _EXTENDED.size if fp else _BASIC.size
-        raw = bytes(uc.mem_read(sp, size))
+        raw = cpu.read_bytes(sp, size)
         values = (_EXTENDED if fp else _BASIC).unpack(raw)
         xpsr = values[7]
         new_sp = sp + size + (4 if xpsr & (1 << 9) else 0)
         self.nvic.returned(exc)
-        control = cpu.reg(arm.UC_ARM_REG_CONTROL)
         control = (control | 2) if use_psp else (control & ~2)
         control = (control | 4) if fp else (control & ~4)
-        cpu.set_reg(arm.UC_ARM_REG_CONTROL, control)
-        cpu.set_reg(arm.UC_ARM_REG_PSP if use_psp else arm.UC_ARM_REG_MSP, new_sp)
-        cpu.set_regs(self._frame6, values[:6])
+        cpu.set_regs(self._return_psp if use_psp else self._return_msp, (control, new_sp, *values[:6]))
         if fp:
             cpu.set_regs(self._fp, values[8:25])
-        cpu.set_reg(arm.UC_ARM_REG_XPSR, xpsr & ~0x1FF & ~(1 << 9))
-        cpu.set_reg(arm.UC_ARM_REG_PC, values[6] & ~1)
+        cpu.set_regs(self._return_tail, (xpsr & ~0x1FF & ~(1 << 9), values[6] & ~1))
         cpu.counter.count += RETURN_CYCLES
         return exc

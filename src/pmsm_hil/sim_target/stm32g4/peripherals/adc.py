@@ -39,6 +39,7 @@ READY_CLOCKS = 4
 #: ADC12 trigger maps (RM0440 tables 163 and 164): JEXTSEL / EXTSEL code -> TIM1 signal
 INJECTED_TRIGGERS = {0: "TRGO", 1: "CC4", 8: "TRGO2"}
 REGULAR_TRIGGERS = {0: "CC1", 1: "CC2", 2: "CC3", 9: "TRGO", 10: "TRGO2"}
+ADC1_2_IRQ = IRQ["ADC1_2"]
 _ASYNC_PRESC = (1, 2, 4, 6, 8, 10, 12, 16, 32, 64, 128, 256)
 
 
@@ -326,6 +327,10 @@ class Adc12Common(RegisterFile):
     size = 0x100
     RESET: ClassVar[dict[int, int]] = {0x00: 0, 0x08: 0, 0x0C: 0}
 
+    def reset(self) -> None:
+        super().reset()
+        self._pair: tuple[Adc, Adc] | None = None  # ADC1 and ADC2, looked up on first use
+
     def load(self, word: int, now: int) -> int:
         if word == 0x00:
             adc1, adc2 = self.bus.peripheral("ADC1"), self.bus.peripheral("ADC2")
@@ -345,8 +350,12 @@ class Adc12Common(RegisterFile):
 
     def line_changed(self) -> None:
         """ADC1_2 is asserted while either ADC has an enabled flag set."""
-        line = IRQ["ADC1_2"]
-        if any(self.bus.peripheral(n).irq_asserted() for n in ("ADC1", "ADC2")):  # type: ignore[attr-defined]
-            self.bus.set_pending(line)
+        if self._pair is None:
+            adc1, adc2 = self.bus.peripheral("ADC1"), self.bus.peripheral("ADC2")
+            assert isinstance(adc1, Adc) and isinstance(adc2, Adc)
+            self._pair = (adc1, adc2)
+        adc1, adc2 = self._pair
+        if adc1.irq_asserted() or adc2.irq_asserted():
+            self.bus.set_pending(ADC1_2_IRQ)
         else:
-            self.bus.clear_pending(line)
+            self.bus.clear_pending(ADC1_2_IRQ)

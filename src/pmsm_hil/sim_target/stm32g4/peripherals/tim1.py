@@ -65,6 +65,7 @@ class Tim1(RegisterFile):
         self.first_late_update: int | None = None  # the update count at the first late period
         self._late_counted_at = -2
         self._plan: list[tuple[int, int]] | None = None  # the current segment's observed matches (cycle, channel)
+        self._plan_end = 0  # the segment's end when the plan was made [cycle] (valid while the plan is)
         self._watched: tuple[bool, ...] | None = None  # which channels are observed (until a configuration write)
 
     # --- configuration helpers -------------------------------------------------------------------------------------
@@ -226,6 +227,7 @@ class Tim1(RegisterFile):
                     plan.append((self.seg_start + offset * self.tick, ch))
             plan.sort()
             self._plan = plan
+            self._plan_end = self._segment_end()
         done = self.done_until
         while plan and plan[0][0] <= done:
             plan.pop(0)
@@ -234,11 +236,20 @@ class Tim1(RegisterFile):
     def next_event(self, now: int) -> int | None:
         if not self.running:
             return None
+        plan = self._plan
+        if plan is not None and (not plan or plan[0][0] > self.done_until):  # the plan and its end stand
+            return min(plan[0][0], self._plan_end) if plan else self._plan_end
         matches = self._matches()
         end = self._segment_end()
         return min(matches[0][0], end) if matches else end  #
 
     def advance(self, now: int) -> None:
+        plan = self._plan
+        if plan is not None and self.running and self._plan_end > now and (not plan or plan[0][0] > now):
+            # nothing due: the segment's plan stands (every change of the segment or its matches drops it)
+            if now > self.done_until:
+                self.done_until = now
+            return
         while self.running:
             end = self.seg_start + max(self._segment_ticks(), 1) * self.tick
             plan = self._matches()
