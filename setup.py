@@ -16,7 +16,7 @@ setup(
                   "pmsm_hil.app.compare.presets": ["*.toml"],
                   "pmsm_hil.protocol": ["*.dbc"],
                   # the example load FMU's C source and model descriptions (`hil fmu example`)
-                  "pmsm_hil.hil.load_fmu": ["example_src/*.c", "example_src/*.xml"],
+                  "pmsm_hil.hil.load_fmu": ["example_src/*.c", "example_src/*.h", "example_src/*.xml"],
                   # the virtual board's instruction counter (built on first use) and its board descriptions
                   "pmsm_hil.sim_target.stm32g4": ["c/*.c", "boards/*.toml"],
                   # the kernel headers and shared helpers kernel_build.py compiles a kind's kernel against

@@ -420,6 +420,21 @@ static void try_complete(pending_meas_t *p, uint8_t need, uint8_t n_phases, doub
     }
 }
 
+/* A CAN FD measurement (MeasFd, MeasFd6): the n_phases currents of `i` and the rest, whole in one frame. */
+static void on_fd_measurement(uint16_t seq, const int16_t *i, uint8_t n_phases, uint16_t theta_e, int16_t omega_m,
+                              uint16_t vdc, uint8_t status)
+{
+    pending_meas_t p;
+    memset(&p, 0, sizeof p);
+    p.seq = seq;
+    memcpy(p.i, i, n_phases * sizeof i[0]);
+    p.theta_e = theta_e;
+    p.omega_m = omega_m;
+    p.vdc = vdc;
+    p.status = status;
+    on_measurement(&p, n_phases, n_phases == 6u ? SCALE_I6 : SCALE_I3, 1u);
+}
+
 static uint8_t expected_length(uint32_t id)
 {
     switch (id) {
@@ -455,37 +470,16 @@ void hil_core_rx(uint32_t id, const uint8_t *data, uint8_t len, uint8_t fd)
     switch (id) {
     case HIL_PROTOCOL_MEAS_FD_FRAME_ID: {
         struct hil_protocol_meas_fd_t m;
-        pending_meas_t p;
         (void)hil_protocol_meas_fd_unpack(&m, data, len);
-        memset(&p, 0, sizeof p);
-        p.seq = m.seq;
-        p.i[0] = m.i_a;
-        p.i[1] = m.i_b;
-        p.i[2] = m.i_c;
-        p.theta_e = m.theta_e;
-        p.omega_m = m.omega_m;
-        p.vdc = m.vdc;
-        p.status = m.status;
-        on_measurement(&p, 3u, SCALE_I3, 1u);
+        const int16_t i[3] = {m.i_a, m.i_b, m.i_c};
+        on_fd_measurement(m.seq, i, 3u, m.theta_e, m.omega_m, m.vdc, m.status);
         break;
     }
     case HIL_PROTOCOL_MEAS_FD6_FRAME_ID: {
         struct hil_protocol_meas_fd6_t m;
-        pending_meas_t p;
         (void)hil_protocol_meas_fd6_unpack(&m, data, len);
-        memset(&p, 0, sizeof p);
-        p.seq = m.seq;
-        p.i[0] = m.i_a;
-        p.i[1] = m.i_b;
-        p.i[2] = m.i_c;
-        p.i[3] = m.i_u;
-        p.i[4] = m.i_v;
-        p.i[5] = m.i_w;
-        p.theta_e = m.theta_e;
-        p.omega_m = m.omega_m;
-        p.vdc = m.vdc;
-        p.status = m.status;
-        on_measurement(&p, 6u, SCALE_I6, 1u);
+        const int16_t i[6] = {m.i_a, m.i_b, m.i_c, m.i_u, m.i_v, m.i_w};
+        on_fd_measurement(m.seq, i, 6u, m.theta_e, m.omega_m, m.vdc, m.status);
         break;
     }
     case HIL_PROTOCOL_MEAS_A_FRAME_ID: {

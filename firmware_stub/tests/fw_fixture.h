@@ -3,8 +3,36 @@
 #define FW_FIXTURE_H
 
 #include <math.h>
+#include <stddef.h>
 
 #include "hil_fw.h"
+
+/* One parameter of a test machine: its id (HIL_FW_P_*) and value in SI units. */
+typedef struct {
+    uint8_t id;
+    float value;
+} fw_param_t;
+
+#define FW_COUNT(array) (sizeof(array) / sizeof((array)[0]))
+
+/* hil_fw_init, the n parameters of `machine` in order, `controller` selected and enabled in torque mode at `torque`
+ * [N*m]: 0 when the firmware took all of it, else the first refusal (a parameter's id; -1 the controller, -2 the
+ * setpoint). */
+static inline int fw_fixture_machine(hil_fw_state_t *s, const fw_param_t *machine, size_t n, uint8_t controller,
+                                     float torque)
+{
+    size_t k;
+    hil_fw_init(s);
+    for (k = 0; k < n; ++k) {
+        if (hil_fw_set_param(s, machine[k].id, machine[k].value) != 0) {
+            return machine[k].id;
+        }
+    }
+    if (hil_fw_select_controller(s, controller) != 0) {
+        return -1;
+    }
+    return hil_fw_set_setpoint(s, 1u, HIL_FW_MODE_TORQUE, torque) != 0 ? -2 : 0;
+}
 
 /* Defaults + MPCC selected + enabled in torque mode with the given torque [N*m]. */
 static inline void fw_fixture_torque(hil_fw_state_t *s, float torque)

@@ -16,17 +16,12 @@
 
 static void setup(hil_fw_state_t *s, float torque)
 {
-    hil_fw_init(s);
-    CHECK(hil_fw_set_param(s, HIL_FW_P_RS, 4.5f) == 0, "rs");
-    CHECK(hil_fw_set_param(s, HIL_FW_P_LD, LD) == 0, "ld");
-    CHECK(hil_fw_set_param(s, HIL_FW_P_LQ, LQ) == 0, "lq");
-    CHECK(hil_fw_set_param(s, HIL_FW_P_PSI_F, PSI_F) == 0, "psi_f");
-    CHECK(hil_fw_set_param(s, HIL_FW_P_POLE_PAIRS, 3.0f) == 0, "pole pairs");
-    CHECK(hil_fw_set_param(s, HIL_FW_P_VDC, VDC) == 0, "vdc");
-    CHECK(hil_fw_set_param(s, HIL_FW_P_CURRENT_LIMIT, 24.0f) == 0, "current limit");
-    CHECK(hil_fw_set_param(s, HIL_FW_P_TORQUE_LIMIT, 10.0f) == 0, "torque limit");
-    CHECK(hil_fw_select_controller(s, HIL_FW_CTRL_FOC) == 0, "foc selectable");
-    CHECK(hil_fw_set_setpoint(s, 1u, HIL_FW_MODE_TORQUE, torque) == 0, "torque mode");
+    static const fw_param_t machine[] = {
+        {HIL_FW_P_RS, 4.5f}, {HIL_FW_P_LD, LD}, {HIL_FW_P_LQ, LQ}, {HIL_FW_P_PSI_F, PSI_F}, {HIL_FW_P_POLE_PAIRS, 3.0f},
+        {HIL_FW_P_VDC, VDC}, {HIL_FW_P_CURRENT_LIMIT, 24.0f}, {HIL_FW_P_TORQUE_LIMIT, 10.0f},
+    };
+    const int refused = fw_fixture_machine(s, machine, FW_COUNT(machine), HIL_FW_CTRL_FOC, torque);
+    CHECK(refused == 0, "machine set-up refused at %d", refused);
 }
 
 static float torque_of(float i_d, float i_q)

@@ -13,17 +13,12 @@
 /* Table 2 machine of 003_7bbad73a6f78337e.txt, Ts = 100 us, torque mode. */
 static void xiao_fixture(hil_fw_state_t *s, uint8_t controller, float torque, float t_thr)
 {
-    hil_fw_init(s);
-    (void)hil_fw_set_param(s, HIL_FW_P_RS, 1.2f);
-    (void)hil_fw_set_param(s, HIL_FW_P_LD, 0.0085f);
-    (void)hil_fw_set_param(s, HIL_FW_P_LQ, 0.0085f);
-    (void)hil_fw_set_param(s, HIL_FW_P_PSI_F, 0.175f);
-    (void)hil_fw_set_param(s, HIL_FW_P_POLE_PAIRS, 4.0f);
-    (void)hil_fw_set_param(s, HIL_FW_P_VDC, VDC);
-    (void)hil_fw_set_param(s, HIL_FW_P_TORQUE_LIMIT, 9.0f);
-    (void)hil_fw_set_param(s, HIL_FW_P_T_THR, t_thr);
-    (void)hil_fw_select_controller(s, controller);
-    (void)hil_fw_set_setpoint(s, 1u, HIL_FW_MODE_TORQUE, torque);
+    const fw_param_t machine[] = {
+        {HIL_FW_P_RS, 1.2f}, {HIL_FW_P_LD, 0.0085f}, {HIL_FW_P_LQ, 0.0085f}, {HIL_FW_P_PSI_F, 0.175f},
+        {HIL_FW_P_POLE_PAIRS, 4.0f}, {HIL_FW_P_VDC, VDC}, {HIL_FW_P_TORQUE_LIMIT, 9.0f}, {HIL_FW_P_T_THR, t_thr},
+    };
+    const int refused = fw_fixture_machine(s, machine, FW_COUNT(machine), controller, torque);
+    CHECK(refused == 0, "machine set-up refused at %d", refused);
 }
 
 static uint32_t lcg = 12345u;

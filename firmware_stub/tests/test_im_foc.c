@@ -14,20 +14,14 @@
 
 static void setup(hil_fw_state_t *s, float torque)
 {
-    hil_fw_init(s);
-    CHECK(hil_fw_set_param(s, HIL_FW_P_RS, 3.7f) == 0, "rs");
-    CHECK(hil_fw_set_param(s, HIL_FW_P_RR, RR) == 0, "rr");
-    CHECK(hil_fw_set_param(s, HIL_FW_P_LSIGMA, 0.021f) == 0, "lsigma");
-    CHECK(hil_fw_set_param(s, HIL_FW_P_LM, LM) == 0, "lm");
-    CHECK(hil_fw_set_param(s, HIL_FW_P_PSI_R_REF, 0.9f) == 0, "psi_r_ref");
-    CHECK(hil_fw_set_param(s, HIL_FW_P_POLE_PAIRS, 2.0f) == 0, "pole pairs");
-    CHECK(hil_fw_set_param(s, HIL_FW_P_VDC, 540.0f) == 0, "vdc");
-    CHECK(hil_fw_set_param(s, HIL_FW_P_CURRENT_KP, 66.0f) == 0, "kp");
-    CHECK(hil_fw_set_param(s, HIL_FW_P_CURRENT_KI, 18221.0f) == 0, "ki");
-    CHECK(hil_fw_set_param(s, HIL_FW_P_CURRENT_LIMIT, 12.0f) == 0, "current limit");
-    CHECK(hil_fw_set_param(s, HIL_FW_P_TORQUE_LIMIT, 22.0f) == 0, "torque limit");
-    CHECK(hil_fw_select_controller(s, HIL_FW_CTRL_IM_FOC) == 0, "im-foc selectable");
-    CHECK(hil_fw_set_setpoint(s, 1u, HIL_FW_MODE_TORQUE, torque) == 0, "torque mode");
+    static const fw_param_t machine[] = {
+        {HIL_FW_P_RS, 3.7f}, {HIL_FW_P_RR, RR}, {HIL_FW_P_LSIGMA, 0.021f}, {HIL_FW_P_LM, LM},
+        {HIL_FW_P_PSI_R_REF, 0.9f}, {HIL_FW_P_POLE_PAIRS, 2.0f}, {HIL_FW_P_VDC, 540.0f},
+        {HIL_FW_P_CURRENT_KP, 66.0f}, {HIL_FW_P_CURRENT_KI, 18221.0f}, {HIL_FW_P_CURRENT_LIMIT, 12.0f},
+        {HIL_FW_P_TORQUE_LIMIT, 22.0f},
+    };
+    const int refused = fw_fixture_machine(s, machine, FW_COUNT(machine), HIL_FW_CTRL_IM_FOC, torque);
+    CHECK(refused == 0, "machine set-up refused at %d", refused);
 }
 
 /* One step with stator-frame current i_s = (i_d + j i_q) e^(j angle) [A] at speed omega_m [rad/s]. */

@@ -2,6 +2,7 @@
 #include <math.h>
 
 #include "fw_check.h"
+#include "fw_fixture.h"
 #include "hil_fw.h"
 #include "hil_fw_mptc.h"
 #include "hil_fw_six.h"
@@ -12,20 +13,14 @@
 /* Zhang et al. Table 4 machine with the preset's chosen psi_f, Vdc, L_ls (src/pmsm_hil/hil/presets/zhang2021-dtpmsm.toml). */
 static void setup(hil_fw_state_t *s, uint8_t controller, float torque)
 {
-    hil_fw_init(s);
-    (void)hil_fw_set_param(s, HIL_FW_P_RS, 0.002f);
-    (void)hil_fw_set_param(s, HIL_FW_P_LD, 0.0004f);
-    (void)hil_fw_set_param(s, HIL_FW_P_LQ, 0.0004f);
-    (void)hil_fw_set_param(s, HIL_FW_P_PSI_F, 0.1f);
-    (void)hil_fw_set_param(s, HIL_FW_P_POLE_PAIRS, 4.0f);
-    (void)hil_fw_set_param(s, HIL_FW_P_VDC, 300.0f);
-    (void)hil_fw_set_param(s, HIL_FW_P_LLS, 0.00008f);
-    (void)hil_fw_set_param(s, HIL_FW_P_TORQUE_LIMIT, 120.0f);
-    (void)hil_fw_set_param(s, HIL_FW_P_CURRENT_LIMIT, 300.0f);
-    (void)hil_fw_set_param(s, HIL_FW_P_LAMBDA, 800.0f);
-    (void)hil_fw_set_param(s, HIL_FW_P_TORQUE_BAND, 2.0f);
-    (void)hil_fw_select_controller(s, controller);
-    (void)hil_fw_set_setpoint(s, 1u, HIL_FW_MODE_TORQUE, torque);
+    static const fw_param_t machine[] = {
+        {HIL_FW_P_RS, 0.002f}, {HIL_FW_P_LD, 0.0004f}, {HIL_FW_P_LQ, 0.0004f}, {HIL_FW_P_PSI_F, 0.1f},
+        {HIL_FW_P_POLE_PAIRS, 4.0f}, {HIL_FW_P_VDC, 300.0f}, {HIL_FW_P_LLS, 0.00008f},
+        {HIL_FW_P_TORQUE_LIMIT, 120.0f}, {HIL_FW_P_CURRENT_LIMIT, 300.0f}, {HIL_FW_P_LAMBDA, 800.0f},
+        {HIL_FW_P_TORQUE_BAND, 2.0f},
+    };
+    const int refused = fw_fixture_machine(s, machine, FW_COUNT(machine), controller, torque);
+    CHECK(refused == 0, "machine set-up refused at %d", refused);
 }
 
 /* Six-phase measurement from dq (x-y zero) at angle theta [rad]: inverse VSD. */

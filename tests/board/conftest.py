@@ -9,10 +9,18 @@ from pathlib import Path
 
 import pytest
 
+from tests.board.fake_bus import FakeBus
+
 FW = Path(__file__).with_name("fw")
 GCC = "arm-none-eabi-gcc"
 CFLAGS = ["-mcpu=cortex-m4", "-mthumb", "-mfloat-abi=hard", "-mfpu=fpv4-sp-d16", "-O2", "-g", "-std=c99", "-Wall",
           "-Wextra", "-Werror", "-ffreestanding", "-nostdlib", "-nostartfiles", "-fno-common"]
+
+
+@pytest.fixture()
+def bus() -> FakeBus:
+    """A fresh fake board (a test module may define its own `bus`)."""
+    return FakeBus()
 
 
 @pytest.fixture(scope="session")

@@ -3,17 +3,21 @@ and clear calls, and `access` (the bus-master path) reaching memory or a model's
 
 from __future__ import annotations
 
+from typing import TypeVar
+
 from pmsm_hil.sim_target.stm32g4.peripherals.base import REGISTRY, BoardError, Peripheral
 
 SRAM = 0x2000_0000
 SRAM_SIZE = 0x2_0000
+P = TypeVar("P", bound=Peripheral)
 
 
 class FakeBus:
-    """A board holding `SRAM_SIZE` bytes of SRAM at `SRAM` and the models added with `add`."""
+    """A board holding `ram_size` bytes of RAM at `ram_base` (default: SRAM) and the models added with `add`."""
 
-    def __init__(self, sysclk_hz: int = 170_000_000) -> None:
-        self.sram = bytearray(SRAM_SIZE)
+    def __init__(self, sysclk_hz: int = 170_000_000, *, ram_base: int = SRAM, ram_size: int = SRAM_SIZE) -> None:
+        self.sram = bytearray(ram_size)
+        self.ram_base = ram_base
         self.models: dict[str, Peripheral] = {}
         self.pended: list[int] = []
         self.cleared: list[int] = []
@@ -24,6 +28,12 @@ class FakeBus:
         self.models[name] = REGISTRY[name](self)
         return self.models[name]
 
+    def add_model(self, name: str, kind: type[P]) -> P:
+        """Build the registered model `name`, a `kind`, on this board."""
+        model = self.add(name)
+        assert isinstance(model, kind), type(model)
+        return model
+
     def set_pending(self, irq: int) -> None:
         self.pended.append(irq)
 
@@ -31,13 +41,13 @@ class FakeBus:
         self.cleared.append(irq)
 
     def read_memory(self, address: int, size: int) -> bytes:
-        start = address - SRAM
-        assert start >= 0 and start + size <= SRAM_SIZE, hex(address)
+        start = address - self.ram_base
+        assert start >= 0 and start + size <= len(self.sram), hex(address)
         return bytes(self.sram[start:start + size])
 
     def write_memory(self, address: int, data: bytes) -> None:
-        start = address - SRAM
-        assert start >= 0 and start + len(data) <= SRAM_SIZE, hex(address)
+        start = address - self.ram_base
+        assert start >= 0 and start + len(data) <= len(self.sram), hex(address)
         self.sram[start:start + len(data)] = data
 
     def peripheral(self, name: str) -> Peripheral:
@@ -54,7 +64,7 @@ class FakeBus:
                     return model.read(address - model.base, size, now)
                 model.write(address - model.base, size, value, now)
                 return value
-        if not SRAM <= address < SRAM + SRAM_SIZE:
+        if not self.ram_base <= address < self.ram_base + len(self.sram):
             raise BoardError(f"access at {address:#010x}, which the fake board does not model")
         if value is None:
             return int.from_bytes(self.read_memory(address, size), "little")

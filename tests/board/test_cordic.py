@@ -22,15 +22,8 @@ def csr(func: int, precision: int = 6, scale: int = 0, flags: int = 0) -> int:
 
 
 @pytest.fixture()
-def bus() -> FakeBus:
-    return FakeBus()
-
-
-@pytest.fixture()
 def cordic(bus: FakeBus) -> Cordic:
-    model = bus.add("CORDIC")
-    assert isinstance(model, Cordic)
-    return model
+    return bus.add_model("CORDIC", Cordic)
 
 
 def q31(value: float) -> int:

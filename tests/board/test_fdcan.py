@@ -10,7 +10,7 @@ import pytest
 
 from pmsm_hil.protocol.paths import REPO_ROOT
 from pmsm_hil.sim_target.stm32g4.peripherals import fdcan_ram as ram
-from pmsm_hil.sim_target.stm32g4.peripherals.base import REGISTRY, BoardError, Peripheral
+from pmsm_hil.sim_target.stm32g4.peripherals.base import REGISTRY, BoardError
 from pmsm_hil.sim_target.stm32g4.peripherals.fdcan import (
     CCCR,
     CKDIV,
@@ -42,6 +42,7 @@ from pmsm_hil.sim_target.stm32g4.peripherals.fdcan import (
     XIDAM,
     Fdcan,
 )
+from tests.board.fake_bus import FakeBus
 
 RAM = ram.SRAMCAN_BASE
 IRQ_IT0, IRQ_IT1 = 21, 22
@@ -52,38 +53,13 @@ RF0N, RF0F, RF0L, RF1N, HPM, TC, TCF, TFE, TEFN, TEFF, TEFL = (
 BIT = 16
 
 
-class FakeBus:
-    """A board with SRAMCAN as a bytearray and the NVIC as a list of pend/clear calls."""
+class CanBus(FakeBus):
+    """The fake board with SRAMCAN as its RAM, read and written by offset into it."""
 
     def __init__(self) -> None:
-        self.sram = bytearray(3 * ram.INSTANCE_SIZE)
-        self.pended: list[int] = []
-        self.cleared: list[int] = []
+        super().__init__(ram_base=RAM, ram_size=3 * ram.INSTANCE_SIZE)
 
-    def set_pending(self, irq: int) -> None:
-        self.pended.append(irq)
-
-    def clear_pending(self, irq: int) -> None:
-        self.cleared.append(irq)
-
-    def read_memory(self, address: int, size: int) -> bytes:
-        start = address - RAM
-        assert start >= 0 and start + size <= len(self.sram), hex(address)
-        return bytes(self.sram[start:start + size])
-
-    def write_memory(self, address: int, data: bytes) -> None:
-        start = address - RAM
-        assert start >= 0 and start + len(data) <= len(self.sram), hex(address)
-        self.sram[start:start + len(data)] = data
-
-    def peripheral(self, name: str) -> Peripheral:
-        raise KeyError(name)
-
-    @property
-    def sysclk_hz(self) -> int:
-        return 170_000_000
-
-    def word(self, offset: int) -> int:
+    def ram_word(self, offset: int) -> int:
         return int.from_bytes(self.sram[offset:offset + 4], "little")
 
     def put_word(self, offset: int, value: int) -> None:
@@ -91,12 +67,12 @@ class FakeBus:
 
 
 @pytest.fixture()
-def bus() -> FakeBus:
-    return FakeBus()
+def bus() -> CanBus:
+    return CanBus()
 
 
 @pytest.fixture()
-def fdcan(bus: FakeBus) -> Fdcan:
+def fdcan(bus: CanBus) -> Fdcan:
     return Fdcan(bus)
 
 
@@ -113,7 +89,7 @@ def std_filter(sft: int, sfec: int, id1: int, id2: int) -> int:
     return (sft << 30) | (sfec << 27) | (id1 << 16) | id2
 
 
-def put_tx(bus: FakeBus, index: int, can_id: int, data: bytes, *, extended: bool = False, fd: bool = False,
+def put_tx(bus: CanBus, index: int, can_id: int, data: bytes, *, extended: bool = False, fd: bool = False,
            brs: bool = False, efc: bool = False, marker: int = 0) -> None:
     """Write TX buffer `index` as firmware does (T0, T1, payload words)."""
     base = ram.TFQSA + index * ram.ELEMENT_BYTES
@@ -124,10 +100,10 @@ def put_tx(bus: FakeBus, index: int, can_id: int, data: bytes, *, extended: bool
     bus.sram[base + 8:base + 8 + len(padded)] = padded
 
 
-def rx_element(bus: FakeBus, fifo: int, index: int) -> tuple[int, int, bytes]:
+def rx_element(bus: CanBus, fifo: int, index: int) -> tuple[int, int, bytes]:
     """(R0, R1, the 64 payload bytes) of RX FIFO `fifo` element `index`."""
     base = (ram.RF0SA if fifo == 0 else ram.RF1SA) + index * ram.ELEMENT_BYTES
-    return bus.word(base), bus.word(base + 4), bytes(bus.sram[base + 8:base + ram.ELEMENT_BYTES])
+    return bus.ram_word(base), bus.ram_word(base + 4), bytes(bus.sram[base + 8:base + ram.ELEMENT_BYTES])
 
 
 def msg(can_id: int, data: bytes = b"", **kw: bool) -> can.Message:
@@ -136,7 +112,7 @@ def msg(can_id: int, data: bytes = b"", **kw: bool) -> can.Message:
 
 # ----- registry, reset values, configuration protection
 
-def test_registered_at_rm0440_addresses(bus: FakeBus) -> None:
+def test_registered_at_rm0440_addresses(bus: CanBus) -> None:
     dev = REGISTRY["FDCAN1"](bus)
     assert isinstance(dev, Fdcan) and dev.base == 0x4000_6400 and dev.irq_lines == (21, 22)
     assert (ram.FLESA, ram.RF0SA, ram.RF1SA, ram.TEFSA, ram.TFQSA) == (0x70, 0xB0, 0x188, 0x260, 0x278)
@@ -191,7 +167,7 @@ def test_unmodelled_offsets_and_modes_name_the_register(fdcan: Fdcan) -> None:
         fdcan.write(TSCC, 4, 0b10, 0)
 
 
-def test_byte_access_and_write_one_to_clear(fdcan: Fdcan, bus: FakeBus) -> None:
+def test_byte_access_and_write_one_to_clear(fdcan: Fdcan, bus: CanBus) -> None:
     configure(fdcan)
     fdcan.deliver(msg(0x10, b"\x01"), 100)
     assert fdcan.read(IR, 1, 100) == RF0N
@@ -203,7 +179,7 @@ def test_byte_access_and_write_one_to_clear(fdcan: Fdcan, bus: FakeBus) -> None:
 
 # ----- acceptance filtering
 
-def test_standard_filters_range_dual_classic_first_match_wins(fdcan: Fdcan, bus: FakeBus) -> None:
+def test_standard_filters_range_dual_classic_first_match_wins(fdcan: Fdcan, bus: CanBus) -> None:
     filters = [
         std_filter(0b01, 0b011, 0x300, 0x301),  # 0: dual, reject 0x300/0x301
         std_filter(0b00, 0b001, 0x200, 0x2FF),  # 1: range -> FIFO 0
@@ -222,7 +198,7 @@ def test_standard_filters_range_dual_classic_first_match_wins(fdcan: Fdcan, bus:
     assert (r0 >> 18) & 0x7FF == 0x70F and (r1 >> 24) & 0x7F == 2
 
 
-def test_non_matching_and_remote_frames_follow_the_global_filter(fdcan: Fdcan, bus: FakeBus) -> None:
+def test_non_matching_and_remote_frames_follow_the_global_filter(fdcan: Fdcan, bus: CanBus) -> None:
     configure(fdcan, {RXGFC: (0b01 << 4) | (0b10 << 2) | 0b10})  # ANFS FIFO 1, ANFE reject, RRFS
     fdcan.deliver(msg(0x123, b"\x01"), 5)
     fdcan.deliver(msg(0x1234567, b"\x01", extended=True), 6)
@@ -232,7 +208,7 @@ def test_non_matching_and_remote_frames_follow_the_global_filter(fdcan: Fdcan, b
     assert r1 & (1 << 31)  # ANMF: accepted without a matching filter
 
 
-def test_extended_filters_with_and_without_the_id_mask(fdcan: Fdcan, bus: FakeBus) -> None:
+def test_extended_filters_with_and_without_the_id_mask(fdcan: Fdcan, bus: CanBus) -> None:
     pairs = [
         ((0b011 << 29) | 0x0000_0005, (0b01 << 30) | 0x0000_0006),  # 0: dual 5/6 -> reject
         ((0b001 << 29) | 0x0010_0000, (0b10 << 30) | 0x1FF0_0000),  # 1: classic: 0x001xxxxx -> FIFO 0
@@ -252,7 +228,7 @@ def test_extended_filters_with_and_without_the_id_mask(fdcan: Fdcan, bus: FakeBu
     assert r0 == (1 << 30) | 0x1000_0010 and (r1 >> 24) & 0x7F == 2
 
 
-def test_high_priority_match_sets_hpm_and_hpms(fdcan: Fdcan, bus: FakeBus) -> None:
+def test_high_priority_match_sets_hpm_and_hpms(fdcan: Fdcan, bus: CanBus) -> None:
     bus.put_word(ram.FLSSA, std_filter(0b01, 0b010, 0x700, 0x701))
     bus.put_word(ram.FLSSA + 4, std_filter(0b01, 0b110, 0x080, 0x080))  # set priority and store in FIFO 1
     configure(fdcan, {RXGFC: 2 << 16})
@@ -264,7 +240,7 @@ def test_high_priority_match_sets_hpm_and_hpms(fdcan: Fdcan, bus: FakeBus) -> No
 
 # ----- RX FIFOs
 
-def test_rx_fifo_indices_wrap_and_acknowledge(fdcan: Fdcan, bus: FakeBus) -> None:
+def test_rx_fifo_indices_wrap_and_acknowledge(fdcan: Fdcan, bus: CanBus) -> None:
     configure(fdcan)
     for n in range(3):
         fdcan.deliver(msg(0x10 + n, bytes([n])), 10 + n)
@@ -281,7 +257,7 @@ def test_rx_fifo_indices_wrap_and_acknowledge(fdcan: Fdcan, bus: FakeBus) -> Non
     assert fdcan.read(RXF0S, 4, 40) == (2 << 16) | (2 << 8) | 0
 
 
-def test_full_fifo_loses_the_new_frame_in_blocking_mode(fdcan: Fdcan, bus: FakeBus) -> None:
+def test_full_fifo_loses_the_new_frame_in_blocking_mode(fdcan: Fdcan, bus: CanBus) -> None:
     configure(fdcan)
     for n in range(4):
         fdcan.deliver(msg(0x10, bytes([n])), n)
@@ -292,7 +268,7 @@ def test_full_fifo_loses_the_new_frame_in_blocking_mode(fdcan: Fdcan, bus: FakeB
     assert not fdcan.read(RXF0S, 4, 5) & (1 << 25)  # RXF0S.RF0L mirrors IR.RF0L
 
 
-def test_full_fifo_overwrites_the_oldest_in_overwrite_mode(fdcan: Fdcan, bus: FakeBus) -> None:
+def test_full_fifo_overwrites_the_oldest_in_overwrite_mode(fdcan: Fdcan, bus: CanBus) -> None:
     configure(fdcan, {RXGFC: 1 << 9})  # F0OM
     for n in range(4):
         fdcan.deliver(msg(0x10, bytes([n])), n)
@@ -312,7 +288,7 @@ def test_frames_are_not_received_in_init_nor_error_frames(fdcan: Fdcan) -> None:
 # ----- CAN FD
 
 @pytest.mark.parametrize("dlc", range(16))
-def test_fd_lengths_and_header_bits(fdcan: Fdcan, bus: FakeBus, dlc: int) -> None:
+def test_fd_lengths_and_header_bits(fdcan: Fdcan, bus: CanBus, dlc: int) -> None:
     configure(fdcan, cccr=FDOE | BRSE)
     data = bytes(range(ram.FD_LENGTHS[dlc]))
     fdcan.deliver(can.Message(arbitration_id=0x108, data=data, is_fd=True, bitrate_switch=True,
@@ -331,7 +307,7 @@ def test_invalid_lengths_and_fd_without_fdoe(fdcan: Fdcan) -> None:
     assert fdcan.read(RXF0S, 4, 1) == 0 and fdcan.rx_dropped == {"CAN FD frame with CCCR.FDOE clear": 1}
 
 
-def test_fd_frame_sent_with_64_bytes_and_bit_rate_switch(fdcan: Fdcan, bus: FakeBus) -> None:
+def test_fd_frame_sent_with_64_bytes_and_bit_rate_switch(fdcan: Fdcan, bus: CanBus) -> None:
     configure(fdcan, {DBTP: (1 << 8) | (0 << 4)}, cccr=FDOE | BRSE)  # data phase: 1 + 2 + 1 = 4 periods a bit
     data = bytes(range(64))
     put_tx(bus, 0, 0x119, data, fd=True, brs=True)
@@ -347,7 +323,7 @@ def test_fd_frame_sent_with_64_bytes_and_bit_rate_switch(fdcan: Fdcan, bus: Fake
 
 # ----- transmitting
 
-def test_tx_fifo_sends_in_request_order_and_takes_bus_time(fdcan: Fdcan, bus: FakeBus) -> None:
+def test_tx_fifo_sends_in_request_order_and_takes_bus_time(fdcan: Fdcan, bus: CanBus) -> None:
     configure(fdcan)
     for k, can_id in enumerate((0x300, 0x100, 0x200)):
         assert (fdcan.read(TXFQS, 4, 0) >> 16) & 0x3 == k  # put index
@@ -368,7 +344,7 @@ def test_tx_fifo_sends_in_request_order_and_takes_bus_time(fdcan: Fdcan, bus: Fa
     assert fdcan.take_transmitted() == []
 
 
-def test_tx_queue_sends_the_highest_priority_id_first(fdcan: Fdcan, bus: FakeBus) -> None:
+def test_tx_queue_sends_the_highest_priority_id_first(fdcan: Fdcan, bus: CanBus) -> None:
     configure(fdcan, {TXBC: 1 << 24})
     fdcan.write(CCCR, 4, INIT, 0)  # requests wait while INIT is set
     put_tx(bus, 0, 0x300, b"\x00")
@@ -383,13 +359,13 @@ def test_tx_queue_sends_the_highest_priority_id_first(fdcan: Fdcan, bus: FakeBus
         (0x100, True), (0x005, False), (0x300, False)]
 
 
-def test_tx_fifo_refuses_requests_out_of_order(fdcan: Fdcan, bus: FakeBus) -> None:
+def test_tx_fifo_refuses_requests_out_of_order(fdcan: Fdcan, bus: CanBus) -> None:
     configure(fdcan)
     with pytest.raises(BoardError, match=r"TXBAR = 0x2 adds buffers out of FIFO order .*put index TXFQS.TFQPI = 0"):
         fdcan.write(TXBAR, 4, 0b010, 0)
 
 
-def test_transmission_interrupt_and_tx_event_fifo(fdcan: Fdcan, bus: FakeBus) -> None:
+def test_transmission_interrupt_and_tx_event_fifo(fdcan: Fdcan, bus: CanBus) -> None:
     configure(fdcan, {TSCC: (0 << 16) | 0b01})  # timestamp counts bit times
     fdcan.write(TXBTIE, 4, 0b001, 0)
     fdcan.write(IE, 4, TC | TEFN, 0)
@@ -402,7 +378,7 @@ def test_transmission_interrupt_and_tx_event_fifo(fdcan: Fdcan, bus: FakeBus) ->
     assert bus.pended == [IRQ_IT0]
     assert fdcan.read(IR, 4, end) & (TC | TEFN) == TC | TEFN
     assert fdcan.read(TXEFS, 4, end) == (1 << 16) | 1
-    e0, e1 = bus.word(ram.TEFSA), bus.word(ram.TEFSA + 4)
+    e0, e1 = bus.ram_word(ram.TEFSA), bus.ram_word(ram.TEFSA + 4)
     assert e0 == 0x701 << 18
     assert e1 >> 24 == 0x5A and (e1 >> 22) & 3 == 0b01 and (e1 >> 16) & 0xF == 3
     assert e1 & 0xFFFF == 100  # TXTS: the timestamp at the start of the frame
@@ -412,7 +388,7 @@ def test_transmission_interrupt_and_tx_event_fifo(fdcan: Fdcan, bus: FakeBus) ->
     assert bus.cleared == [IRQ_IT0]
 
 
-def test_tx_event_fifo_overflow_sets_tefl(fdcan: Fdcan, bus: FakeBus) -> None:
+def test_tx_event_fifo_overflow_sets_tefl(fdcan: Fdcan, bus: CanBus) -> None:
     configure(fdcan, {TXBC: 1 << 24})
     for n in range(4):
         put_tx(bus, 0, 0x10 + n, b"", efc=True)
@@ -421,10 +397,10 @@ def test_tx_event_fifo_overflow_sets_tefl(fdcan: Fdcan, bus: FakeBus) -> None:
     status = fdcan.read(TXEFS, 4, 10**5)
     assert status & (1 << 25) and status & (1 << 24) and status & 0x7 == 3
     assert fdcan.read(IR, 4, 10**5) & (TEFF | TEFL) == TEFF | TEFL
-    assert [bus.word(ram.TEFSA + 8 * i) >> 18 for i in range(3)] == [0x10, 0x11, 0x12]
+    assert [bus.ram_word(ram.TEFSA + 8 * i) >> 18 for i in range(3)] == [0x10, 0x11, 0x12]
 
 
-def test_cancellation_of_waiting_and_ongoing_transmissions(fdcan: Fdcan, bus: FakeBus) -> None:
+def test_cancellation_of_waiting_and_ongoing_transmissions(fdcan: Fdcan, bus: CanBus) -> None:
     configure(fdcan, {TXBC: 1 << 24})
     fdcan.write(TXBCIE, 4, 0b011, 0)
     put_tx(bus, 0, 0x10, b"\x00", efc=True)
@@ -436,12 +412,12 @@ def test_cancellation_of_waiting_and_ongoing_transmissions(fdcan: Fdcan, bus: Fa
     fdcan.advance(10**5)
     assert [m.arbitration_id for m in fdcan.take_transmitted()] == [0x10]
     assert fdcan.read(TXBTO, 4, 10**5) == 0b001 and fdcan.read(TXBCF, 4, 10**5) == 0b011
-    assert (bus.word(ram.TEFSA + 4) >> 22) & 3 == 0b10  # sent in spite of cancellation
+    assert (bus.ram_word(ram.TEFSA + 4) >> 22) & 3 == 0b10  # sent in spite of cancellation
     fdcan.write(TXBAR, 4, 0b001, 10**5)  # a new request clears TXBTO/TXBCF of that buffer
     assert fdcan.read(TXBTO, 4, 10**5) == 0 and fdcan.read(TXBCF, 4, 10**5) == 0b010
 
 
-def test_setting_cce_resets_fifo_and_request_state(fdcan: Fdcan, bus: FakeBus) -> None:
+def test_setting_cce_resets_fifo_and_request_state(fdcan: Fdcan, bus: CanBus) -> None:
     configure(fdcan)
     fdcan.deliver(msg(0x1, b"\x01"), 1)
     put_tx(bus, 0, 0x2, b"")
@@ -452,7 +428,7 @@ def test_setting_cce_resets_fifo_and_request_state(fdcan: Fdcan, bus: FakeBus) -
     assert fdcan.read(RXF0S, 4, 2) == 0 and fdcan.read(TXBRP, 4, 2) == 0 and fdcan.read(TXFQS, 4, 2) == 3
 
 
-def test_internal_loopback_receives_its_own_frames(fdcan: Fdcan, bus: FakeBus) -> None:
+def test_internal_loopback_receives_its_own_frames(fdcan: Fdcan, bus: CanBus) -> None:
     fdcan.write(CCCR, 4, INIT | CCE, 0)
     fdcan.write(CCCR, 4, INIT | CCE | TEST_EN | MON, 0)
     fdcan.write(TEST, 4, 0x10, 0)  # LBCK
@@ -465,7 +441,7 @@ def test_internal_loopback_receives_its_own_frames(fdcan: Fdcan, bus: FakeBus) -
     assert r0 == 0x42 << 18 and payload[0] == 0x42
 
 
-def test_bit_timing_and_clock_divider_set_the_frame_time(fdcan: Fdcan, bus: FakeBus) -> None:
+def test_bit_timing_and_clock_divider_set_the_frame_time(fdcan: Fdcan, bus: CanBus) -> None:
     # 1 Mbit/s from 170 MHz is not whole; take NBRP 9 (x10), 1 + 12 + 4 = 17 periods, CKDIV /2: 340 cycles a bit
     configure(fdcan, {NBTP: (9 << 16) | (11 << 8) | 3, CKDIV: 1})
     put_tx(bus, 0, 0x1, b"")
@@ -483,7 +459,7 @@ def test_frame_cycles_for_the_run_side(fdcan: Fdcan) -> None:
 
 # ----- interrupt lines
 
-def test_ils_routes_groups_to_the_second_line_and_ile_gates(fdcan: Fdcan, bus: FakeBus) -> None:
+def test_ils_routes_groups_to_the_second_line_and_ile_gates(fdcan: Fdcan, bus: CanBus) -> None:
     configure(fdcan, {RXGFC: 0b01 << 4})  # non-matching standard frames -> FIFO 1
     fdcan.write(IE, 4, RF0N | RF1N, 0)
     fdcan.write(ILS, 4, 0b010, 0)  # RXFIFO1 group -> IT1
@@ -501,7 +477,7 @@ def test_ils_routes_groups_to_the_second_line_and_ile_gates(fdcan: Fdcan, bus: F
     assert not fdcan.line_active(0) and bus.cleared == [IRQ_IT1, IRQ_IT0]
 
 
-def test_a_new_event_on_a_high_line_pends_again(fdcan: Fdcan, bus: FakeBus) -> None:
+def test_a_new_event_on_a_high_line_pends_again(fdcan: Fdcan, bus: CanBus) -> None:
     configure(fdcan)
     fdcan.write(IE, 4, RF0N | RF0F, 0)
     fdcan.write(ILE, 4, 0b01, 0)
@@ -511,7 +487,7 @@ def test_a_new_event_on_a_high_line_pends_again(fdcan: Fdcan, bus: FakeBus) -> N
     assert bus.pended == [IRQ_IT0, IRQ_IT0]
 
 
-def test_timestamp_counter_and_wrap_interrupt(fdcan: Fdcan, bus: FakeBus) -> None:
+def test_timestamp_counter_and_wrap_interrupt(fdcan: Fdcan, bus: CanBus) -> None:
     configure(fdcan, {TSCC: (1 << 16) | 0b01})  # a count every 2 bit times
     assert fdcan.read(TSCV, 4, 2 * BIT * 100) == 100
     wrap = fdcan.next_event(0)
@@ -527,7 +503,7 @@ def test_timestamp_counter_and_wrap_interrupt(fdcan: Fdcan, bus: FakeBus) -> Non
 
 # ----- the project's DBC through the controller
 
-def test_dbc_setpoint_in_and_heartbeat_out(fdcan: Fdcan, bus: FakeBus) -> None:
+def test_dbc_setpoint_in_and_heartbeat_out(fdcan: Fdcan, bus: CanBus) -> None:
     """A firmware that takes Setpoint and ConfigParam into FIFO 0 (one dual filter, everything else rejected) and
     answers with HeartbeatTarget: the bytes are the DBC's, both ways."""
     db = cantools.database.load_file(str(REPO_ROOT / "src" / "pmsm_hil" / "protocol" / "hil.dbc"))
@@ -552,7 +528,7 @@ def test_dbc_setpoint_in_and_heartbeat_out(fdcan: Fdcan, bus: FakeBus) -> None:
     assert heartbeat.decode(bytes(sent.data), decode_choices=False) == {"node": 1, "state": 2, "counter": 7}
 
 
-def test_fd_request_without_fdoe_goes_classic(fdcan: Fdcan, bus: FakeBus) -> None:
+def test_fd_request_without_fdoe_goes_classic(fdcan: Fdcan, bus: CanBus) -> None:
     configure(fdcan)
     put_tx(bus, 0, 0x108, bytes(range(16)), fd=True, brs=True)
     fdcan.write(TXBAR, 4, 1, 0)
@@ -561,7 +537,7 @@ def test_fd_request_without_fdoe_goes_classic(fdcan: Fdcan, bus: FakeBus) -> Non
     assert not sent.is_fd and not sent.bitrate_switch and bytes(sent.data) == bytes(range(8))
 
 
-def test_external_loopback_sends_and_receives(fdcan: Fdcan, bus: FakeBus) -> None:
+def test_external_loopback_sends_and_receives(fdcan: Fdcan, bus: CanBus) -> None:
     fdcan.write(CCCR, 4, INIT | CCE, 0)
     fdcan.write(CCCR, 4, INIT | CCE | TEST_EN, 0)
     fdcan.write(TEST, 4, 0x10, 0)
@@ -573,7 +549,7 @@ def test_external_loopback_sends_and_receives(fdcan: Fdcan, bus: FakeBus) -> Non
     assert fdcan.read(RXF0S, 4, 10**4) & 0xF == 1
 
 
-def test_high_priority_frame_lost_in_a_full_fifo(fdcan: Fdcan, bus: FakeBus) -> None:
+def test_high_priority_frame_lost_in_a_full_fifo(fdcan: Fdcan, bus: CanBus) -> None:
     bus.put_word(ram.FLSSA, std_filter(0b01, 0b101, 0x001, 0x001))  # priority, FIFO 0
     configure(fdcan, {RXGFC: 1 << 16})
     for n in range(4):
@@ -587,11 +563,11 @@ def test_reserved_write_names_the_offset(fdcan: Fdcan) -> None:
         fdcan.write(0x104, 4, 1, 0)
 
 
-def test_remote_request_goes_classic_even_with_fdf(fdcan: Fdcan, bus: FakeBus) -> None:
+def test_remote_request_goes_classic_even_with_fdf(fdcan: Fdcan, bus: CanBus) -> None:
     configure(fdcan, cccr=FDOE | BRSE)
     put_tx(bus, 0, 0x321, b"", fd=True, brs=True)
-    bus.put_word(ram.TFQSA, bus.word(ram.TFQSA) | (1 << 29))  # RTR
-    bus.put_word(ram.TFQSA + 4, bus.word(ram.TFQSA + 4) | (4 << 16))  # DLC 4: four bytes requested
+    bus.put_word(ram.TFQSA, bus.ram_word(ram.TFQSA) | (1 << 29))  # RTR
+    bus.put_word(ram.TFQSA + 4, bus.ram_word(ram.TFQSA + 4) | (4 << 16))  # DLC 4: four bytes requested
     fdcan.write(TXBAR, 4, 1, 0)
     fdcan.advance(10**5)
     (sent,) = fdcan.take_transmitted()
@@ -605,7 +581,7 @@ def _rmw(dev: Fdcan, offset: int, clear: int, set_bits: int, now: int) -> None:
     dev.write(offset, 4, (dev.read(offset, 4, now) & ~clear) | set_bits, now)
 
 
-def test_hal_style_bring_up_receive_and_send(fdcan: Fdcan, bus: FakeBus) -> None:
+def test_hal_style_bring_up_receive_and_send(fdcan: Fdcan, bus: CanBus) -> None:
     """The order of operations of STM32CubeG4's HAL_FDCAN_Init, ConfigFilter, ConfigGlobalFilter,
     ActivateNotification, Start, GetRxMessage and AddMessageToTxFifoQ: every poll ends at once and the frames go
     through."""
@@ -641,9 +617,9 @@ def test_hal_style_bring_up_receive_and_send(fdcan: Fdcan, bus: FakeBus) -> None
     assert status & 0xF == 1
     get = (status >> 8) & 0x3
     base = ram.RF0SA + get * ram.ELEMENT_BYTES
-    r1 = bus.word(base + 4)
+    r1 = bus.ram_word(base + 4)
     length = ram.payload_length((r1 >> 16) & 0xF, bool(r1 & (1 << 21)))
-    assert (bus.word(base) >> 18) & 0x7FF == 0x210
+    assert (bus.ram_word(base) >> 18) & 0x7FF == 0x210
     assert bytes(bus.sram[base + 8:base + 8 + length]) == b"\x07\x00\x00\x80\x3f"
     fdcan.write(RXF0A, 4, get, 5100)
     fdcan.write(IR, 4, RF0N, 5100)

@@ -24,15 +24,8 @@ def gain(code: int) -> int:
 
 
 @pytest.fixture()
-def bus() -> FakeBus:
-    return FakeBus()
-
-
-@pytest.fixture()
 def opamp(bus: FakeBus) -> Opamp:
-    model = bus.add("OPAMP")
-    assert isinstance(model, Opamp)
-    return model
+    return bus.add_model("OPAMP", Opamp)
 
 
 def test_registered_at_rm0440_address_with_zero_reset(opamp: Opamp) -> None:

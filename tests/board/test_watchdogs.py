@@ -35,22 +35,13 @@ class FakeRcc(Peripheral):
 
 
 @pytest.fixture()
-def bus() -> FakeBus:
-    return FakeBus()
-
-
-@pytest.fixture()
 def wwdg(bus: FakeBus) -> Wwdg:
-    model = bus.add("WWDG")
-    assert isinstance(model, Wwdg)
-    return model
+    return bus.add_model("WWDG", Wwdg)
 
 
 @pytest.fixture()
 def iwdg(bus: FakeBus) -> Iwdg:
-    model = bus.add("IWDG")
-    assert isinstance(model, Iwdg)
-    return model
+    return bus.add_model("IWDG", Iwdg)
 
 
 def test_registered_with_rm0440_reset_values(wwdg: Wwdg, iwdg: Iwdg) -> None:

@@ -45,7 +45,7 @@ def test_bad_grid_items_name_the_key(item: str, match: str) -> None:
     ("set.rs=4.5,abc", "--grid set.rs: --set rs: value 'abc' is not a number"),
     ("param.nope=1", "--grid param.nope: unknown controller parameter 'nope'"),
     ("mode=lockstep,fast", "--grid mode: --mode must be one of lockstep, realtime, got 'fast'"),
-    ("theta0=0,x", "--grid theta0: theta0 must be a number"),
+    ("theta0=0,x", "--grid theta0: --theta0 must be a number, got 'x'"),
 ])
 def test_bad_values_get_the_run_options_own_error(grid: str, message: str) -> None:
     """A grid value goes through the run options' own checks (`RunConfig.from_options`): the option's message, the

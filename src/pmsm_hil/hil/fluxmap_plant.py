@@ -11,7 +11,7 @@ from typing import Any
 from pmsm_hil.hil._plant_native import lib
 from pmsm_hil.hil.fluxmap_params import FluxMapParams
 from pmsm_hil.hil.plant import TRACE_COLUMNS, PlantSample
-from pmsm_hil.hil.plant_base import PlantBase, reset_gate_edges
+from pmsm_hil.hil.plant_base import ThreePhasePlant, reset_gate_edges
 
 #: local error tolerance per integration step, as a current [A] (docs/plant.md "Saturated PMSM")
 STEP_TOLERANCE_A = 1e-9
@@ -19,16 +19,13 @@ STEP_TOLERANCE_A = 1e-9
 INV_L_MARGIN = 2.0
 
 
-class FluxMapPlant(PlantBase):
+class FluxMapPlant(ThreePhasePlant):
     """Saturated PMSM + two-level inverter: flux linkage as the state, currents by the inverted map, each
     sub-interval integrated by Dormand–Prince 5(4) with error control; dead time, diode blocking and open phases as
     the PMSM kernel (fluxmap.h)."""
 
     KERNEL_PREFIX = "fm"
     KERNEL_TABLE = "fm_kernel"
-    LEGS = 3
-    MAX_STATE = 7
-    STATE_FORMAT = "4·Sa + 2·Sb + Sc"
     TRACE_COLUMNS = TRACE_COLUMNS
     _kernel_advance = staticmethod(lib.fm_advance)
 

@@ -12,21 +12,18 @@ from pmsm_hil.hil._plant_native import lib
 from pmsm_hil.hil.im_params import ImParams
 from pmsm_hil.hil.machine import MEAS_THREE, THREE_PHASE, MachineLayout, register_layout
 from pmsm_hil.hil.plant import TRACE_COLUMNS, PlantSample
-from pmsm_hil.hil.plant_base import PlantBase, reset_gate_edges
+from pmsm_hil.hil.plant_base import ThreePhasePlant, reset_gate_edges
 
 __all__ = ["INDUCTION", "ImPlant"]
 
 
-class ImPlant(PlantBase):
+class ImPlant(ThreePhasePlant):
     """Exact squirrel-cage induction machine (inverse-Γ model) + two-level inverter, one control period at a
     time: closed-form solution of each constant-voltage sub-interval at constant speed (docs/plant.md). The
     state starts at zero flux."""
 
     KERNEL_PREFIX = "im"
     KERNEL_TABLE = "im_kernel"
-    LEGS = 3
-    MAX_STATE = 7
-    STATE_FORMAT = "4·Sa + 2·Sb + Sc"
     TRACE_COLUMNS = TRACE_COLUMNS
     _kernel_advance = staticmethod(lib.im_advance)
 

@@ -7,7 +7,13 @@ from typing import NamedTuple
 
 from pmsm_hil.hil._plant_native import lib
 from pmsm_hil.hil.motor_params import PmsmParams
-from pmsm_hil.hil.plant_base import MAX_SUBINTERVALS, PeriodStats, PlantBase, reset_gate_edges, set_inverter_pmsm_params
+from pmsm_hil.hil.plant_base import (
+    MAX_SUBINTERVALS,
+    PeriodStats,
+    ThreePhasePlant,
+    reset_gate_edges,
+    set_inverter_pmsm_params,
+)
 
 __all__ = ["MAX_SUBINTERVALS", "TRACE_COLUMNS", "PeriodStats", "Plant", "PlantSample"]
 
@@ -38,7 +44,7 @@ class PlantSample(NamedTuple):
         return (self.i_a, self.i_b, self.i_c)
 
 
-class Plant(PlantBase):
+class Plant(ThreePhasePlant):
     """Exact three-phase PMSM + two-level inverter advanced one control period at a time.
 
     Each sub-interval's voltage is constant in the stator frame; with the speed constant over a
@@ -48,9 +54,6 @@ class Plant(PlantBase):
 
     KERNEL_PREFIX = "pl"
     KERNEL_TABLE = "pl_kernel"
-    LEGS = 3
-    MAX_STATE = 7
-    STATE_FORMAT = "4·Sa + 2·Sb + Sc"
     TRACE_COLUMNS = TRACE_COLUMNS
     _kernel_advance = staticmethod(lib.pl_advance)
 

@@ -298,3 +298,11 @@ class PlantBase:
     def sample(self) -> Any:
         """Exact state at the current time (the period start)."""
         raise NotImplementedError
+
+
+class ThreePhasePlant(PlantBase):
+    """A plant on the two-level three-phase inverter: three legs, state codes 4·Sa + 2·Sb + Sc (0..7)."""
+
+    LEGS = 3
+    MAX_STATE = 7
+    STATE_FORMAT = "4·Sa + 2·Sb + Sc"

@@ -20,6 +20,8 @@ import textwrap
 from dataclasses import dataclass
 from typing import Any
 
+from cantools.database.can.c_source import camel_to_snake_case
+
 from pmsm_hil.protocol.errors import DatabaseError
 
 GENERATOR = "python -m pmsm_hil.protocol.gen_c"
@@ -169,9 +171,9 @@ def _wrapped_comment(text: str, width: int = 110) -> list[str]:
     return out
 
 
-def render_c(t: IdTables) -> str:
+def render_c(t: IdTables, frames: list[str]) -> str:
     """The C header of ids: one macro per value, its name string, and a count (largest id + 1); reserved
-    ids follow the count, which does not include them."""
+    ids follow the count, which does not include them; then the lines `frames` (render_frames_c)."""
     out = [
         "/* Ids of the HIL protocol, generated from the VAL_TABLE_ entries of src/pmsm_hil/protocol/hil.dbc by",
         f" * {GENERATOR}. Do not edit: change the DBC and regenerate (CI checks with --check). */",
@@ -197,8 +199,26 @@ def render_c(t: IdTables) -> str:
         for macro, value, note in rows:
             line = f"#define {macro:<{width}}{value}"
             out.append(f"{line} /* {note} */" if note else line)
-    out += ["", "#endif", ""]
+    out += [*frames, "", "#endif", ""]
     return "\n".join(out)
+
+
+def render_frames_c(db: Any) -> list[str]:
+    """HIL_FRAMES(X): X(id, length, target, command) for each message of the DBC in id order, with the id and
+    length macros of hil_protocol.h; `target` 1 when its sender is the Target node, `command` 1 for a Command
+    frame (Cmd*: every one carries `seq` in bytes 0-1)."""
+    out = ["", *_wrapped_comment("Frames of the DBC: HIL_FRAMES(X) expands X(id, length, target, command) for each "
+                                 "message in id order (the id and length macros of hil_protocol.h); target: its "
+                                 "sender is the Target node; command: a Command frame (Cmd*, `seq` in bytes 0-1)"),
+           "#define HIL_FRAMES(X) \\"]
+    rows = []
+    for msg in sorted(db.messages, key=lambda m: m.frame_id):
+        macro = "HIL_PROTOCOL_" + camel_to_snake_case(msg.name).upper()
+        target, command = int("Target" in (msg.senders or [])), int(msg.name.startswith("Cmd"))
+        rows.append(f"    X({macro}_FRAME_ID, {macro}_LENGTH, {target}, {command})")
+    width = max(len(r) for r in rows) + 1
+    out += [f"{r:<{width}}\\" for r in rows[:-1]] + [rows[-1]]
+    return out
 
 
 def _py_dict(name: str, enum: str, values: dict[int, str], members: dict[int, str]) -> list[str]:
@@ -241,4 +261,4 @@ def render_python(t: IdTables) -> str:
 def render(db: Any) -> tuple[str, str]:
     """(C header, Python module) of the ids of a cantools database."""
     tables = load_tables(db)
-    return render_c(tables), render_python(tables)
+    return render_c(tables, render_frames_c(db)), render_python(tables)

@@ -89,7 +89,7 @@ def missing_tools(board: str) -> list[str]:
 
 
 def cache_dir() -> Path:
-    """Per-user cache of firmware builds and the QEMU plugin."""
+    """Per-user cache of firmware builds and of the host libraries (QEMU plugin, instruction counter)."""
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
     path = Path(base) / "pmsm_hil"
     try:
@@ -99,6 +99,24 @@ def cache_dir() -> Path:
         path = Path(tempfile.gettempdir()) / f"pmsm_hil-{os.getuid()}"
         path.mkdir(parents=True, exist_ok=True)
         return path
+
+
+def host_library(source: Path, stem: str, what: str, error: type[FirmwareError], *, werror: bool = True) -> Path:
+    """`source` compiled by the host C compiler into a shared library in the cache, keyed by the source's hash
+    (built on first use); `what` names it in `error`'s message when there is no compiler or it fails."""
+    out = cache_dir() / f"{stem}-{hashlib.sha256(source.read_bytes()).hexdigest()[:16]}.so"
+    if out.is_file():
+        return out
+    cc = shutil.which("cc") or shutil.which("gcc")
+    if cc is None:
+        raise error(f"{what} needs a host C compiler (cc)")
+    tmp = out.with_name(f"{out.name}.{os.getpid()}.tmp")
+    flags = ["-shared", "-fPIC", "-O2", "-Wall", "-Wextra", *(["-Werror"] if werror else [])]
+    proc = subprocess.run([cc, *flags, "-o", str(tmp), str(source)], capture_output=True, text=True, timeout=120)
+    if proc.returncode != 0:
+        raise error(f"{what} build failed: {proc.stderr.strip()[:500]}")
+    os.replace(tmp, out)
+    return out
 
 
 @contextlib.contextmanager

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
-import hashlib
 import mmap
 import os
 import re
@@ -53,7 +52,7 @@ from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.links.stats import LinkStats
 from pmsm_hil.sim_target.elf import ElfError, elf_function_at, elf_symbols
 from pmsm_hil.sim_target.firmware import FirmwareError
-from pmsm_hil.sim_target.fw_build import FIRMWARE_DIR, cache_dir
+from pmsm_hil.sim_target.fw_build import FIRMWARE_DIR, host_library
 
 QEMU = "qemu-system-arm"
 MACHINE = "mps2-an386"
@@ -154,21 +153,7 @@ def qemu_available() -> str:
 
 def plugin_path() -> Path:
     """The instruction-count plugin, compiled on first use into the cache (keyed by its source)."""
-    src = PLUGIN_SRC.read_bytes()
-    key = hashlib.sha256(src).hexdigest()[:16]
-    out = cache_dir() / f"hil_insn_plugin-{key}.so"
-    if out.is_file():
-        return out
-    cc = shutil.which("cc") or shutil.which("gcc")
-    if cc is None:
-        raise QemuError("the instruction-count plugin needs a host C compiler (cc)")
-    tmp = out.with_name(f"{out.name}.{os.getpid()}.tmp")
-    proc = subprocess.run([cc, "-shared", "-fPIC", "-O2", "-Wall", "-Wextra", "-o", str(tmp), str(PLUGIN_SRC)],
-                          capture_output=True, text=True, timeout=120)
-    if proc.returncode != 0:
-        raise QemuError(f"plugin build failed: {proc.stderr.strip()[:500]}")
-    os.replace(tmp, out)
-    return out
+    return host_library(PLUGIN_SRC, "hil_insn_plugin", "the instruction-count plugin", QemuError, werror=False)
 
 
 def _die_with_parent() -> None:  # pragma: no cover - runs in the child between fork and exec

@@ -18,7 +18,7 @@ from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.kernel_build import build_kernel_module
 from pmsm_hil.hil.machine import MEAS_THREE, THREE_PHASE, MachineLayout, register_layout
 from pmsm_hil.hil.plant import TRACE_COLUMNS, PlantSample
-from pmsm_hil.hil.plant_base import PlantBase
+from pmsm_hil.hil.plant_base import ThreePhasePlant
 from pmsm_hil.protocol.ids import ParamId
 
 KERNEL_C = Path(__file__).with_name("rl_load.c")
@@ -90,15 +90,12 @@ class RlLoadParams:
                 ParamId.CURRENT_KP: bandwidth * self.l, ParamId.CURRENT_KI: bandwidth * self.r}
 
 
-class RlLoadPlant(PlantBase):
+class RlLoadPlant(ThreePhasePlant):
     """The R-L load through its C kernel (built by `register_rl_load`)."""
 
     NATIVE_MODULE: ClassVar[Any] = None
     KERNEL_TABLE = "rl_kernel"
     KERNEL_PREFIX = "rl"
-    LEGS = 3
-    MAX_STATE = 7
-    STATE_FORMAT = "4·Sa + 2·Sb + Sc"
     TRACE_COLUMNS = TRACE_COLUMNS
 
     def _kernel_advance(self, *args: Any) -> int:

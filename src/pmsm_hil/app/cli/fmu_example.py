@@ -12,11 +12,12 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p = subparsers.add_parser(
         "example", help="write and build a documented example load FMU to start from",
         description="""Write load_torque.c (a load torque of Coulomb, viscous and quadratic parts through an
-                       optional first-order lag; its comment documents the interface and parameters), fmi_unused.c
-                       (the rest of the FMI API as stubs, for tools such as fmpy) and the FMI 2.0
-                       or 3.0 modelDescription.xml into DIR, and build DIR/load_torque.fmu (Co-Simulation, Linux
-                       x86-64) with the host's C compiler against the FMI headers fmpy ships. Run it with
-                       `hil run --load-fmu DIR/load_torque.fmu`; after editing, rebuild with `hil fmu build DIR`.""")
+                       optional first-order lag; its comment documents the interface and parameters), fmi_glue.h
+                       (the FMI calls in terms of the model), fmi_unused.c (the rest of the FMI API as stubs, for
+                       tools such as fmpy) and the FMI 2.0 or 3.0 modelDescription.xml into DIR, and build
+                       DIR/load_torque.fmu (Co-Simulation, Linux x86-64) with the host's C compiler against the FMI
+                       headers fmpy ships. Run it with `hil run --load-fmu DIR/load_torque.fmu`; after editing,
+                       rebuild with `hil fmu build DIR`.""")
     p.add_argument("dir", type=Path, metavar="DIR", help="folder to write into (created if missing)")
     p.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version of the FMU (default 2)")
     p.add_argument("--overwrite", action="store_true", help="replace files of DIR that differ from the example")

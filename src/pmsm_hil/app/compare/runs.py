@@ -15,11 +15,11 @@ from pmsm_hil.app.sweep.engines import Engine, InlineEngine
 from pmsm_hil.hil.errors import HilError
 from pmsm_hil.hil.mechanics import RPM_TO_RAD_S
 from pmsm_hil.hil.metrics.registry import RUN, WINDOW, row_keys
-from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runner.run import run_closed_loop
-from pmsm_hil.hil.runner.run_config import RunConfig
+from pmsm_hil.hil.runner.run_config import RunConfig, param_id
 from pmsm_hil.hil.runner.run_options import MAX_TS_S, MIN_TS_S
 from pmsm_hil.hil.runner.scenario import load_scenario
+from pmsm_hil.sim_target.firmware import CONTROLLERS
 
 #: metrics copied from the runner's metrics into a row (the registry's compare-row view, run sources)
 ROW_METRICS = row_keys(source=(WINDOW, RUN))
@@ -42,13 +42,31 @@ class CompareResult:
     series: dict[str, dict[str, list[float]]] = field(default_factory=dict)
 
 
+#: run option of each operating-point key of a preset (SWEEP_KEYS)
+_POINT_OPTIONS = {"speed_rpm": "speed", "load_nm": "load"}
+
+
+def _read_params(controller: str, params: dict[str, float]) -> dict[str, float]:
+    """The parameters `controller` reads (all for one outside the firmware's table)."""
+    info = next((c for c in CONTROLLERS if c.name == controller), None)
+    return dict(params) if info is None else {k: v for k, v in params.items() if int(param_id(k)) in info.params}
+
+
 def _config(p: ComparePreset, spec: Variant, ts_s: float, point: dict[str, float], theta0_rad: float) -> RunConfig:
-    motor = load_motor(p.motor)
-    overrides: dict[str, Any] = {"settle_s": p.settle_s, "duration_s": p.duration_s, "speed_rpm": p.speed_rpm,
-                                 "load_nm": p.load_nm, "theta0_rad": theta0_rad, **point}
-    scenario = load_scenario(p.scenario).with_overrides(**overrides)
-    return RunConfig(motor=motor, scenario=scenario, controller=spec.controller, ts_s=ts_s,
-                     controller_params={**p.params, **spec.params})
+    """The run of `spec` at `point` and initial rotor angle `theta0_rad`, through the one path of run options."""
+    params = {**p.params, **spec.params}
+    read = _read_params(spec.controller, params)
+    values: dict[str, Any] = {"motor": p.motor, "scenario": p.scenario, "controller": spec.controller, "ts": ts_s,
+                              "settle": p.settle_s, "duration": p.duration_s, "speed": p.speed_rpm, "load": p.load_nm,
+                              "theta0": theta0_rad, "param": read, "no_log": True}
+    values.update({_POINT_OPTIONS[key]: value for key, value in point.items()})
+    cfg = RunConfig.from_options({k: v for k, v in values.items() if v is not None},
+                                 dict.fromkeys(values, f"compare preset {p.name}"))
+    if read == params:
+        return cfg
+    # a preset also sends parameters a controller does not read, which `hil run --param` refuses: the preset's
+    # parameters are for the controllers that use them, and a variant may check that one leaves a controller as it is
+    return replace(cfg, controller_params={k: cfg.controller_params.get(k, v) for k, v in params.items()})
 
 
 def evaluation_e(row: dict[str, Any], torque_base_nm: float, fav_base_khz: float,

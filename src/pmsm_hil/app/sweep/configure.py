@@ -12,7 +12,6 @@ one, default 0), so every repeat of every controller sees the same angles and no
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 from collections.abc import Callable, Mapping, Sequence
@@ -20,10 +19,8 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from pmsm_hil.app.cli.parsing import finite_float
 from pmsm_hil.app.sweep.plan import THETA0, Point
 from pmsm_hil.app.sweep.runid import run_id
-from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.runner.option_values import layer, option_of, source_of
 from pmsm_hil.hil.runner.run_config import RunConfig
 
@@ -83,24 +80,11 @@ def build_config(base: BaseOptions, point: Point, *, plan: Path | None = None) -
     point's key (`--grid load: --load must be a number, got 'x'`) or the base option, through the values' sources."""
     values, sources = layer(
         (base[0], lambda key: source_of(key, base[1])),
-        ({key: text for key, text in point if key != THETA0}, lambda key: point_source(key, plan)))
+        (dict(point), lambda key: point_source(key, plan)))
     for key in _SWEEP_OWNED:
         values.pop(key, None)
     values["no_log"] = True
-    cfg = RunConfig.from_options(values, sources)
-    theta = dict(point).get(THETA0)
-    if theta is not None:
-        try:
-            angle = finite_float(THETA0)(theta)
-        except argparse.ArgumentTypeError as exc:
-            raise ParameterError(f"{label_of_theta0(plan)}: {exc}") from None
-        cfg = replace(cfg, scenario=cfg.scenario.with_overrides(theta0_rad=angle))
-    return cfg
-
-
-def label_of_theta0(plan: Path | None) -> str:
-    """How an error names the theta0 key of a point."""
-    return f"plan file {plan}: {THETA0}" if plan is not None else f"--grid {THETA0}"
+    return RunConfig.from_options(values, sources)
 
 
 def with_repeat(cfg: RunConfig, k: int, n: int) -> RunConfig:

@@ -3,8 +3,8 @@
 A point is an ordered tuple of (key, text) pairs. Keys are the `hil run` config-file keys (`controller`,
 `load`, `speed`, `duration`, `ts`, `motor`, `scenario`, `seed`, `noise`, `fault`, ...: the option's long name
 without dashes, `-` as `_`), `set.NAME` (a `--set NAME=VALUE` plant parameter), `param.NAME` (a `--param`
-controller parameter), `load_fmu_set.NAME` (a `--load-fmu-set` load-FMU parameter) and `theta0` (the initial
-electrical rotor angle [rad]). Texts are what the option would receive on the command line; their meaning is
+controller parameter), `load_fmu_set.NAME` (a `--load-fmu-set` load-FMU parameter); `theta0` is `--theta0`, the initial
+electrical rotor angle [rad]. Texts are what the option would receive on the command line; their meaning is
 checked later by the `hil run` parser itself (src/pmsm_hil/app/sweep/configure.py), so a bad value gets the option's own
 error.
 
@@ -39,11 +39,11 @@ THETA0 = "theta0"
 
 
 def sweep_keys() -> list[str]:
-    """Every key a grid or plan may set (the `hil run` config-file keys but outputs, plus theta0)."""
+    """Every key a grid or plan may set (the `hil run` config-file keys but outputs)."""
     from pmsm_hil.app.cli.run import config_schema
 
     keys = [k for k, spec in config_schema().items() if k not in OUTPUT_KEYS and spec.kind != "table"]
-    return [*keys, *(f"{prefix}NAME" for prefix in TABLE_PREFIXES), THETA0]
+    return [*keys, *(f"{prefix}NAME" for prefix in TABLE_PREFIXES)]
 
 
 def check_key(key: str, where: str) -> str:
@@ -52,8 +52,6 @@ def check_key(key: str, where: str) -> str:
 
     key = key.strip()
     if key.startswith(TABLE_PREFIXES) and key.split(".", 1)[1].strip():
-        return key
-    if key == THETA0:
         return key
     spec = config_schema().get(key)
     if spec is None or key in OUTPUT_KEYS or spec.kind == "table":

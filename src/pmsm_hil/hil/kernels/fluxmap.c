@@ -540,37 +540,14 @@ static int dead_level_cb(void *ctx, int leg, int new_level)
     return i_x > 0.0 ? 0 : (i_x < 0.0 ? 1 : FM_LEVEL_OPEN);
 }
 
+static const ge_kind_t FM_GATES = {3, 7, GE_MAX_SUBINTERVALS, FM_MAX_EVENTS, integrate_cb, dead_level_cb};
+
 int fm_advance(const fm_params_t *p, fm_state_t *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
                const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap, fm_period_stats_t *stats)
 {
-    dq_event_t ev[FM_MAX_EVENTS];
-    int n_ev;
-    const double t_start = (double)s->t_ns * 1e-9;
-    int64_t total_ns = 0;
-    ge_stats_reset(stats);
-    if (n < 1 || n > GE_MAX_SUBINTERVALS) {
-        stats->error = MK_E_ARGS;
-        return MK_E_ARGS;
-    }
-    for (int k = 0; k < n; k++) {
-        if (durations_ns[k] < 0 || states[k] < 0 || states[k] > 7) {
-            stats->error = MK_E_ARGS;
-            return MK_E_ARGS;
-        }
-    }
-    n_ev = ge_plan(3, s->gate, states, durations_ns, n, t_start, p->t_mpw, 2.0 * p->t_dead + p->t_mpw, s->last_edge_t, ev, 0,
-                   FM_MAX_EVENTS, stats, &total_ns);
-    {
-        fm_ctx_t c = {p, s, trace_dt, trace, trace_cap, stats, NULL};
-        const int rc = ge_run_period(3, t_start, t_start + (double)total_ns * 1e-9, p->t_dead, ev, n_ev, FM_MAX_EVENTS,
-                                     load, &s->gate, s->dead_until, s->dead_level, integrate_cb, dead_level_cb, &c);
-        if (rc != 0) {
-            stats->error = rc;
-            return rc;
-        }
-    }
-    s->t_ns += (uint64_t)total_ns;
-    return 0;
+    fm_ctx_t c = {p, s, trace_dt, trace, trace_cap, stats, NULL};
+    return ge_advance(&FM_GATES, &c, states, durations_ns, n, load, p->t_mpw, p->t_dead, &s->t_ns, &s->gate,
+                      s->last_edge_t, s->dead_until, s->dead_level, stats);
 }
 
 void fm_sample(const fm_params_t *p, const fm_state_t *s, mk_sample_t *out)

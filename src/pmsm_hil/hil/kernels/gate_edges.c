@@ -3,6 +3,8 @@
 
 #include <stddef.h>
 
+#include "machine_kernel.h"
+
 void ge_stats_reset(ge_period_stats_t *stats)
 {
     stats->leg_transitions = 0;
@@ -129,5 +131,37 @@ int ge_run_period(int legs, double t_start, double t_end, double t_dead, dq_even
         }
     }
     *gate = g;
+    return 0;
+}
+
+int ge_advance(const ge_kind_t *k, void *ctx, const int32_t *states, const int64_t *durations_ns, int32_t n,
+               const mech_load_t *load, double t_mpw, double t_dead, uint64_t *t_ns, int32_t *gate,
+               double *last_edge_t, double *dead_until, int32_t *dead_level, ge_period_stats_t *stats)
+{
+    dq_event_t ev[GE_MAX_EVENTS];
+    const double t_start = (double)*t_ns * 1e-9;
+    int64_t total_ns = 0;
+    int n_ev;
+    int rc;
+    ge_stats_reset(stats);
+    if (n < 1 || n > k->max_subintervals) {
+        stats->error = MK_E_ARGS;
+        return MK_E_ARGS;
+    }
+    for (int i = 0; i < n; i++) {
+        if (durations_ns[i] < 0 || states[i] < 0 || states[i] > k->max_state) {
+            stats->error = MK_E_ARGS;
+            return MK_E_ARGS;
+        }
+    }
+    n_ev = ge_plan(k->legs, *gate, states, durations_ns, n, t_start, t_mpw, 2.0 * t_dead + t_mpw, last_edge_t, ev, 0,
+                   k->max_events, stats, &total_ns);
+    rc = ge_run_period(k->legs, t_start, t_start + (double)total_ns * 1e-9, t_dead, ev, n_ev, k->max_events, load,
+                       gate, dead_until, dead_level, k->integrate, k->dead_level_of, ctx);
+    if (rc != 0) {
+        stats->error = rc;
+        return rc;
+    }
+    *t_ns += (uint64_t)total_ns;
     return 0;
 }

@@ -52,4 +52,26 @@ int ge_run_period(int legs, double t_start, double t_end, double t_dead, dq_even
                   double *dead_until, int32_t *dead_level, ge_integrate_fn integrate, ge_dead_level_fn dead_level_of,
                   void *ctx);
 
+/* A gate-driven kernel as ge_advance sees it: its legs, largest state code and most sub-intervals of a period, the
+ * event capacity of a period (<= GE_MAX_EVENTS), and how it integrates and picks a dead-time level. */
+typedef struct {
+    int legs;
+    int32_t max_state;
+    int32_t max_subintervals;
+    int max_events;
+    ge_integrate_fn integrate;
+    ge_dead_level_fn dead_level_of;
+} ge_kind_t;
+
+#define GE_MAX_EVENTS 128
+
+/* One control period of a kernel of kind `k` (the whole of a kernel's *_advance but its own parameter checks and
+ * run context `ctx`): stats reset; the Command (n sub-intervals of states, durations [ns]) checked, else MK_E_ARGS;
+ * its gate edges planned (ge_plan, t_lim = 2 t_dead + t_mpw) and run (ge_run_period) from the plant time *t_ns,
+ * which then advances by the period. The gate state (applied code, per-leg last edge, dead-time end and level) is
+ * the kernel state's. Returns 0 or the error (also in stats->error). */
+int ge_advance(const ge_kind_t *k, void *ctx, const int32_t *states, const int64_t *durations_ns, int32_t n,
+               const mech_load_t *load, double t_mpw, double t_dead, uint64_t *t_ns, int32_t *gate,
+               double *last_edge_t, double *dead_until, int32_t *dead_level, ge_period_stats_t *stats);
+
 #endif

@@ -409,41 +409,19 @@ static int im_dead_level_cb(void *ctx, int leg, int new_level)
     return i_ph > 0.0 ? 0 : (i_ph < 0.0 ? 1 : IM_LEVEL_OPEN);
 }
 
+static const ge_kind_t IM_GATES = {3, 7, IM_MAX_SUBINTERVALS, IM_MAX_EVENTS, im_integrate_cb, im_dead_level_cb};
+
 int im_advance(const im_params_t *p, im_state_t *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
                const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap, im_period_stats_t *stats)
 {
-    dq_event_t ev[IM_MAX_EVENTS];
-    int n_ev = 0;
-    const double t_start = (double)s->t_ns * 1e-9;
-    int64_t total_ns = 0;
-    const double t_lim = 2.0 * p->t_dead + p->t_mpw;
-
-    ge_stats_reset(stats);
-    if (n < 1 || n > IM_MAX_SUBINTERVALS || !(p->rs > 0.0) || !(p->rr > 0.0) || !(p->lsigma > 0.0) ||
-        !(p->lm > 0.0)) {
+    im_run_ctx_t c = {p, s, trace_dt, trace, trace_cap, stats, NULL};
+    if (!(p->rs > 0.0) || !(p->rr > 0.0) || !(p->lsigma > 0.0) || !(p->lm > 0.0)) {
+        ge_stats_reset(stats);
         stats->error = MK_E_ARGS;
         return MK_E_ARGS;
     }
-    for (int k = 0; k < n; k++) {
-        if (durations_ns[k] < 0 || states[k] < 0 || states[k] > 7) {
-            stats->error = MK_E_ARGS;
-            return MK_E_ARGS;
-        }
-    }
-    n_ev = ge_plan(3, s->gate, states, durations_ns, n, t_start, p->t_mpw, t_lim, s->last_edge_t, ev, n_ev,
-                   IM_MAX_EVENTS, stats, &total_ns);
-    {
-        im_run_ctx_t c = {p, s, trace_dt, trace, trace_cap, stats, NULL};
-        const int rc = ge_run_period(3, t_start, t_start + (double)total_ns * 1e-9, p->t_dead, ev, n_ev, IM_MAX_EVENTS,
-                                     load, &s->gate, s->dead_until, s->dead_level, im_integrate_cb, im_dead_level_cb,
-                                     &c);
-        if (rc != 0) {
-            stats->error = rc;
-            return rc;
-        }
-    }
-    s->t_ns += (uint64_t)total_ns;
-    return 0;
+    return ge_advance(&IM_GATES, &c, states, durations_ns, n, load, p->t_mpw, p->t_dead, &s->t_ns, &s->gate,
+                      s->last_edge_t, s->dead_until, s->dead_level, stats);
 }
 
 void im_sample(const im_params_t *p, const im_state_t *s, mk_sample_t *out)

@@ -356,50 +356,24 @@ static int pl_dead_level_cb(void *ctx, int leg, int new_level)
     return i_x > 0.0 ? 0 : (i_x < 0.0 ? 1 : PL_LEVEL_OPEN);
 }
 
+static const ge_kind_t PL_GATES = {3, 7, PL_MAX_SUBINTERVALS, PL_MAX_EVENTS, pl_integrate_cb, pl_dead_level_cb};
+
 int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const int64_t *durations_ns,
                int32_t n, const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap,
                pl_period_stats_t *stats)
 {
-    dq_event_t ev[PL_MAX_EVENTS];
-    int n_ev = 0;
-    double t_start = (double)s->t_ns * 1e-9;
-    int64_t total_ns = 0;
-    double t_lim = 2.0 * p->t_dead + p->t_mpw;
-
-    ge_stats_reset(stats);
-    if (n < 1 || n > PL_MAX_SUBINTERVALS) {
-        stats->error = PL_E_ARGS;
-        return PL_E_ARGS;
-    }
-    for (int k = 0; k < n; k++) {
-        if (durations_ns[k] < 0 || states[k] < 0 || states[k] > 7) {
-            stats->error = PL_E_ARGS;
-            return PL_E_ARGS;
-        }
-    }
-    n_ev = ge_plan(3, s->gate, states, durations_ns, n, t_start, p->t_mpw, t_lim, s->last_edge_t, ev, n_ev,
-                   PL_MAX_EVENTS, stats, &total_ns);
-    {
-        pl_run_ctx_t c;
-        int rc;
-        c.p = p;
-        c.s = s;
-        c.trace_dt = trace_dt;
-        c.trace = trace;
-        c.trace_cap = trace_cap;
-        c.stats = stats;
-        c.gate_level = NULL;
-        dq_machine_init(p->rs, p->ld, p->lq, p->psi_f, &c.mc);
-        c.em_step = trace_dt > 0.0 ? exp(c.mc.m * trace_dt) : 1.0;
-        rc = ge_run_period(3, t_start, t_start + (double)total_ns * 1e-9, p->t_dead, ev, n_ev, PL_MAX_EVENTS, load,
-                           &s->gate, s->dead_until, s->dead_level, pl_integrate_cb, pl_dead_level_cb, &c);
-        if (rc != PL_OK) {
-            stats->error = rc;
-            return rc;
-        }
-    }
-    s->t_ns += (uint64_t)total_ns;
-    return PL_OK;
+    pl_run_ctx_t c;
+    c.p = p;
+    c.s = s;
+    c.trace_dt = trace_dt;
+    c.trace = trace;
+    c.trace_cap = trace_cap;
+    c.stats = stats;
+    c.gate_level = NULL;
+    dq_machine_init(p->rs, p->ld, p->lq, p->psi_f, &c.mc);
+    c.em_step = trace_dt > 0.0 ? exp(c.mc.m * trace_dt) : 1.0;
+    return ge_advance(&PL_GATES, &c, states, durations_ns, n, load, p->t_mpw, p->t_dead, &s->t_ns, &s->gate,
+                      s->last_edge_t, s->dead_until, s->dead_level, stats);
 }
 
 /* --- the machine-kernel table (machine_kernel.h) ------------------------------------------------------------ */

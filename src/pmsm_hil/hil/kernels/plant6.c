@@ -194,50 +194,30 @@ static int p6_dead_level_cb(void *ctx, int leg, int new_level)
     return i_ph > 0.0 ? 0 : (i_ph < 0.0 ? 1 : new_level);
 }
 
+static const ge_kind_t P6_GATES = {P6_LEGS, 63, P6_MAX_SUBINTERVALS, P6_MAX_EVENTS, p6_integrate_cb,
+                                    p6_dead_level_cb};
+
 int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const int64_t *durations_ns,
                int32_t n, const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap,
                p6_period_stats_t *stats)
 {
-    dq_event_t ev[P6_MAX_EVENTS];
-    int n_ev = 0;
-    double t_start = (double)s->t_ns * 1e-9;
-    int64_t total_ns = 0;
-    double t_lim = 2.0 * p->t_dead + p->t_mpw;
-
-    ge_stats_reset(stats);
-    if (n < 1 || n > P6_MAX_SUBINTERVALS || !(p->lls > 0.0) || !(p->rs > 0.0)) {
+    p6_run_ctx_t c;
+    if (!(p->lls > 0.0) || !(p->rs > 0.0)) {
+        ge_stats_reset(stats);
         stats->error = P6_E_ARGS;
         return P6_E_ARGS;
     }
-    for (int k = 0; k < n; k++) {
-        if (durations_ns[k] < 0 || states[k] < 0 || states[k] > 63) {
-            stats->error = P6_E_ARGS;
-            return P6_E_ARGS;
-        }
-    }
-    n_ev = ge_plan(P6_LEGS, s->gate, states, durations_ns, n, t_start, p->t_mpw, t_lim, s->last_edge_t, ev, n_ev,
-                   P6_MAX_EVENTS, stats, &total_ns);
-    {
-        p6_run_ctx_t c;
-        int rc;
-        c.p = p;
-        c.s = s;
-        c.trace_dt = trace_dt;
-        c.trace = trace;
-        c.trace_cap = trace_cap;
-        c.stats = stats;
-        c.gate_level = NULL;
-        dq_machine_init(p->rs, p->ld, p->lq, p->psi_f, &c.mc);
-        c.em_step = trace_dt > 0.0 ? exp(c.mc.m * trace_dt) : 1.0;
-        rc = ge_run_period(P6_LEGS, t_start, t_start + (double)total_ns * 1e-9, p->t_dead, ev, n_ev, P6_MAX_EVENTS,
-                           load, &s->gate, s->dead_until, s->dead_level, p6_integrate_cb, p6_dead_level_cb, &c);
-        if (rc != P6_OK) {
-            stats->error = rc;
-            return rc;
-        }
-    }
-    s->t_ns += (uint64_t)total_ns;
-    return P6_OK;
+    c.p = p;
+    c.s = s;
+    c.trace_dt = trace_dt;
+    c.trace = trace;
+    c.trace_cap = trace_cap;
+    c.stats = stats;
+    c.gate_level = NULL;
+    dq_machine_init(p->rs, p->ld, p->lq, p->psi_f, &c.mc);
+    c.em_step = trace_dt > 0.0 ? exp(c.mc.m * trace_dt) : 1.0;
+    return ge_advance(&P6_GATES, &c, states, durations_ns, n, load, p->t_mpw, p->t_dead, &s->t_ns, &s->gate,
+                      s->last_edge_t, s->dead_until, s->dead_level, stats);
 }
 
 /* --- the machine-kernel table (machine_kernel.h) ------------------------------------------------------------ */

@@ -18,6 +18,8 @@ DESCRIPTION = "modelDescription.xml"
 FMI_MACRO = "LOAD_FMI"
 #: the rest of the FMI API (stubs), so that tools loading every function (fmpy) load the FMU
 UNUSED_API = "fmi_unused.c"
+#: the FMI functions the runner calls, in terms of the model (included by the example's C file)
+GLUE = "fmi_glue.h"
 
 
 @dataclass(frozen=True, slots=True)
@@ -34,13 +36,14 @@ def _packaged(name: str) -> str:
 
 
 def write_example(folder: Path, fmi: int = 2, *, overwrite: bool = False) -> ExampleFiles:
-    """Write load_torque.c, fmi_unused.c and the FMI `fmi` (2 or 3) modelDescription.xml into `folder` and build
-    folder/load_torque.fmu; an existing file of another content is refused (FmuBuildError naming it) unless
+    """Write load_torque.c, fmi_glue.h, fmi_unused.c and the FMI `fmi` (2 or 3) modelDescription.xml into `folder`
+    and build folder/load_torque.fmu; an existing file of another content is refused (FmuBuildError naming it) unless
     `overwrite`."""
     if fmi not in (2, 3):
         raise FmuBuildError(f"--fmi {fmi}: the example is built for FMI 2 or 3")
     folder.mkdir(parents=True, exist_ok=True)
-    texts = {f"{EXAMPLE_NAME}.c": _packaged(f"{EXAMPLE_NAME}.c"), UNUSED_API: _packaged(UNUSED_API),
+    texts = {f"{EXAMPLE_NAME}.c": _packaged(f"{EXAMPLE_NAME}.c"), GLUE: _packaged(GLUE),
+             UNUSED_API: _packaged(UNUSED_API),
              DESCRIPTION: _packaged(f"modelDescription_fmi{fmi}.xml")}
     for name, text in texts.items():
         path = folder / name

@@ -31,9 +31,9 @@ from pmsm_hil.hil.runner.scenario import load_scenario
 from pmsm_hil.hil.sensors import SensorConfig
 from pmsm_hil.sim_target.fw_params import default_controller
 
-#: the scenario's fields the options --speed, --load, --duration, --settle, --hold-tolerance override
+#: the scenario's fields the options --speed, --load, --duration, --settle, --theta0, --hold-tolerance override
 _SCENARIO_OVERRIDES = {"speed": "speed_rpm", "load": "load_nm", "duration": "duration_s", "settle": "settle_s",
-                       "hold_tolerance": "hold_tolerance_pct"}
+                       "theta0": "theta0_rad", "hold_tolerance": "hold_tolerance_pct"}
 
 
 def _item_texts(table: Mapping[str, Any]) -> list[str]:

@@ -250,6 +250,8 @@ RUN_OPTIONS: tuple[RunOption, ...] = (
     RunOption("duration", "number", _steady("duration"), metavar="S", unit="s", minimum=0.0, open_minimum=True,
               part="scenario.duration_s"),
     RunOption("settle", "number", _steady("settle"), metavar="S", unit="s", minimum=0.0, part="scenario.settle_s"),
+    RunOption("theta0", "number", "initial electrical rotor angle [rad] (default: the scenario's, 0)", metavar="RAD",
+              unit="rad", part="scenario.theta0_rad"),
     RunOption("ts", "number", "control period [s], a whole number of ns", 100e-6, field="ts_s", metavar="S",
               unit="s", minimum=MIN_TS_S, maximum=MAX_TS_S, range_words=TS_RANGE_WORDS,
               validate=check_control_period),

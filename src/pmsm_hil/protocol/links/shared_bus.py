@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 from pmsm_hil.protocol.frame import Frame
+from pmsm_hil.protocol.ids import Mode, Node, Status
 from pmsm_hil.protocol.layout import load_database
 from pmsm_hil.protocol.links.kinds import link_kind
 from pmsm_hil.protocol.links.spec import parse_spec
@@ -25,13 +26,13 @@ from pmsm_hil.protocol.links.spec import parse_spec
 #: the SPEC option that marks (true) or unmarks (false) a link as a shared bus (popped before python-can opens it)
 SHARED_OPTION = "shared"
 #: Status codes a FaultTarget may carry (VAL_TABLE_ Status without 0 ok)
-FAULT_CODES = range(1, 7)
-TARGET_NODE_ID = 1
+FAULT_CODES = frozenset(int(s) for s in Status if s != Status.OK)
+TARGET_NODE_ID = int(Node.TARGET)
 #: Status not_implemented: its detail is the controller id of the Setpoint it answers
-NOT_IMPLEMENTED = 6
+NOT_IMPLEMENTED = int(Status.NOT_IMPLEMENTED)
 #: Status invalid_config: its detail is the mode of the Setpoint it answers, one of the Mode values
-INVALID_CONFIG = 5
-MODES = (0, 1)
+INVALID_CONFIG = int(Status.INVALID_CONFIG)
+MODES = frozenset(int(m) for m in Mode)
 #: bus frames per second, in the stretch without a Command that ended a run, from which the ending is the bus's:
 #: a CAN bus at 1 Mbit/s carries at most ~8 k classic frames/s, so 500/s of other nodes' frames is a bus at
 #: a sixteenth of its capacity or more, taken up by what the run did not send

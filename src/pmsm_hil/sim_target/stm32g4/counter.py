@@ -5,14 +5,10 @@ on first use into the firmware cache (keyed by its source), as the QEMU target's
 from __future__ import annotations
 
 import ctypes
-import hashlib
-import os
-import shutil
-import subprocess
 from pathlib import Path
 
 from pmsm_hil.sim_target.firmware import FirmwareError
-from pmsm_hil.sim_target.fw_build import cache_dir
+from pmsm_hil.sim_target.fw_build import host_library
 
 SOURCE = Path(__file__).with_name("c") / "insn_count.c"
 REGIONS = 6
@@ -33,20 +29,7 @@ class CounterState(ctypes.Structure):
 
 def library_path() -> Path:
     """The compiled counter (built on first use)."""
-    src = SOURCE.read_bytes()
-    out = cache_dir() / f"hil_insn_count-{hashlib.sha256(src).hexdigest()[:16]}.so"
-    if out.is_file():
-        return out
-    cc = shutil.which("cc") or shutil.which("gcc")
-    if cc is None:
-        raise CounterBuildError("the stm32g4 board's instruction counter needs a host C compiler (cc)")
-    tmp = out.with_name(f"{out.name}.{os.getpid()}.tmp")
-    proc = subprocess.run([cc, "-shared", "-fPIC", "-O2", "-Wall", "-Wextra", "-Werror", "-o", str(tmp), str(SOURCE)],
-                          capture_output=True, text=True, timeout=120)
-    if proc.returncode != 0:
-        raise CounterBuildError(f"instruction counter build failed: {proc.stderr.strip()[:500]}")
-    os.replace(tmp, out)
-    return out
+    return host_library(SOURCE, "hil_insn_count", "the stm32g4 board's instruction counter", CounterBuildError)
 
 
 _LIB: ctypes.CDLL | None = None

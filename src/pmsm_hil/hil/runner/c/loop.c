@@ -952,7 +952,7 @@ static void loop_init(loop_t *L, nl_handle_t *h)
     L->r = &h->res;
     L->expected = -1;
     L->prev_answered = 1;
-    L->as.held_seq = -1;
+    L->as.states.held_seq = -1;
     L->as.duty.held_seq = -1;
     L->has_fault = c->fault_pending;
     L->fault_code = c->fault_code_in;

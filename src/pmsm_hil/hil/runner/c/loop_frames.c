@@ -153,59 +153,47 @@ void nl_encode_setpoint(uint8_t enable, uint8_t mode, double reference, uint8_t 
     (void)hil_protocol_setpoint_pack(out->data, &s, HIL_PROTOCOL_SETPOINT_LENGTH);
 }
 
+/* The length of a frame of hil.dbc, 0 for an id it does not have. */
 static uint8_t known_length(uint32_t id)
 {
     switch (id) {
-    case HIL_PROTOCOL_MEAS_A_FRAME_ID: return HIL_PROTOCOL_MEAS_A_LENGTH;
-    case HIL_PROTOCOL_MEAS_B_FRAME_ID: return HIL_PROTOCOL_MEAS_B_LENGTH;
-    case HIL_PROTOCOL_MEAS_FD_FRAME_ID: return HIL_PROTOCOL_MEAS_FD_LENGTH;
-    case HIL_PROTOCOL_MEAS6_A_FRAME_ID: return HIL_PROTOCOL_MEAS6_A_LENGTH;
-    case HIL_PROTOCOL_MEAS6_C_FRAME_ID: return HIL_PROTOCOL_MEAS6_C_LENGTH;
-    case HIL_PROTOCOL_MEAS6_B_FRAME_ID: return HIL_PROTOCOL_MEAS6_B_LENGTH;
-    case HIL_PROTOCOL_MEAS_FD6_FRAME_ID: return HIL_PROTOCOL_MEAS_FD6_LENGTH;
-    case HIL_PROTOCOL_CMD_A_FRAME_ID: return HIL_PROTOCOL_CMD_A_LENGTH;
-    case HIL_PROTOCOL_CMD_B_FRAME_ID: return HIL_PROTOCOL_CMD_B_LENGTH;
-    case HIL_PROTOCOL_CMD_C_FRAME_ID: return HIL_PROTOCOL_CMD_C_LENGTH;
-    case HIL_PROTOCOL_CMD_FD_FRAME_ID: return HIL_PROTOCOL_CMD_FD_LENGTH;
-    case HIL_PROTOCOL_CMD_DUTY_A_FRAME_ID: return HIL_PROTOCOL_CMD_DUTY_A_LENGTH;
-    case HIL_PROTOCOL_CMD_DUTY_B_FRAME_ID: return HIL_PROTOCOL_CMD_DUTY_B_LENGTH;
-    case HIL_PROTOCOL_CMD_DUTY_C_FRAME_ID: return HIL_PROTOCOL_CMD_DUTY_C_LENGTH;
-    case HIL_PROTOCOL_CMD_DUTY_FD_FRAME_ID: return HIL_PROTOCOL_CMD_DUTY_FD_LENGTH;
-    case HIL_PROTOCOL_SETPOINT_FRAME_ID: return HIL_PROTOCOL_SETPOINT_LENGTH;
-    case HIL_PROTOCOL_CONFIG_PARAM_FRAME_ID: return HIL_PROTOCOL_CONFIG_PARAM_LENGTH;
-    case HIL_PROTOCOL_CONFIG_ACK_FRAME_ID: return HIL_PROTOCOL_CONFIG_ACK_LENGTH;
-    case HIL_PROTOCOL_FAULT_HOST_FRAME_ID: return HIL_PROTOCOL_FAULT_HOST_LENGTH;
-    case HIL_PROTOCOL_FAULT_TARGET_FRAME_ID: return HIL_PROTOCOL_FAULT_TARGET_LENGTH;
-    case HIL_PROTOCOL_HEARTBEAT_HOST_FRAME_ID: return HIL_PROTOCOL_HEARTBEAT_HOST_LENGTH;
-    case HIL_PROTOCOL_HEARTBEAT_TARGET_FRAME_ID: return HIL_PROTOCOL_HEARTBEAT_TARGET_LENGTH;
+#define LENGTH_CASE(frame_id, length, target, command) case frame_id: return length;
+    HIL_FRAMES(LENGTH_CASE)
+#undef LENGTH_CASE
     default: return 0u;
     }
 }
 
-/* Assembler.add(part, seq, 0xFFFF) with ordered=False: 1 when all three parts of one seq are held. */
-static int asm_add(nl_cmd_asm_t *as, uint8_t part_bit, uint16_t seq, nl_result_t *r)
+static void asm_clear(nl_asm_held_t *h)
 {
-    if (as->held_seq >= 0) {
-        if ((uint16_t)as->held_seq == seq) {
-            if (as->have & part_bit) {
+    h->have = 0u;
+    h->held_seq = -1;
+    h->unordered = 0u;
+}
+
+/* Assembler.add(part, seq, 0xFFFF) with ordered=False on one Command kind's held parts: 1 when all three parts of
+ * one seq are held, -1 for a part already held (counted), else 0. */
+static int asm_add(nl_asm_held_t *h, uint8_t part_bit, uint16_t seq, nl_result_t *r)
+{
+    if (h->held_seq >= 0) {
+        if ((uint16_t)h->held_seq == seq) {
+            if (h->have & part_bit) {
                 r->dec_duplicate++;
                 return -1;
             }
         } else {
             r->dec_mixed_seq++;
-            as->have = 0u;
-            as->held_seq = -1;
-            as->unordered = 0u;
+            asm_clear(h);
         }
     }
-    if (as->held_seq < 0) {
-        as->held_seq = seq;
+    if (h->held_seq < 0) {
+        h->held_seq = seq;
     }
-    if (!as->unordered && (as->have & (uint8_t)~(uint8_t)((part_bit << 1) - 1u)) != 0u) {
-        as->unordered = 1u; /* a later part is already held */
+    if (!h->unordered && (h->have & (uint8_t)~(uint8_t)((part_bit << 1) - 1u)) != 0u) {
+        h->unordered = 1u; /* a later part is already held */
     }
-    as->have |= part_bit;
-    return as->have == (PART_A | PART_B | PART_C) ? 1 : 0;
+    h->have |= part_bit;
+    return h->have == (PART_A | PART_B | PART_C) ? 1 : 0;
 }
 
 static int cmd_part(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r, nl_cmd_t *cmd)
@@ -218,7 +206,7 @@ static int cmd_part(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r,
             r->dec_bad_value++;
             return NL_MSG_NONE;
         }
-        done = asm_add(as, PART_A, a.seq, r);
+        done = asm_add(&as->states, PART_A, a.seq, r);
         if (done < 0) {
             return NL_MSG_NONE;
         }
@@ -231,7 +219,7 @@ static int cmd_part(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r,
     } else if (f->id == HIL_PROTOCOL_CMD_B_FRAME_ID) {
         struct hil_protocol_cmd_b_t b;
         (void)hil_protocol_cmd_b_unpack(&b, f->data, f->len);
-        done = asm_add(as, PART_B, b.seq, r);
+        done = asm_add(&as->states, PART_B, b.seq, r);
         if (done < 0) {
             return NL_MSG_NONE;
         }
@@ -241,7 +229,7 @@ static int cmd_part(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r,
     } else {
         struct hil_protocol_cmd_c_t c;
         (void)hil_protocol_cmd_c_unpack(&c, f->data, f->len);
-        done = asm_add(as, PART_C, c.seq, r);
+        done = asm_add(&as->states, PART_C, c.seq, r);
         if (done < 0) {
             return NL_MSG_NONE;
         }
@@ -252,10 +240,10 @@ static int cmd_part(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r,
     if (!done) {
         return NL_MSG_NONE;
     }
-    if (as->unordered) {
+    if (as->states.unordered) {
         r->dec_out_of_order++;
     }
-    cmd->seq = (uint16_t)as->held_seq;
+    cmd->seq = (uint16_t)as->states.held_seq;
     cmd->n_states = as->a_n;
     memcpy(cmd->states, as->a_states, sizeof cmd->states);
     cmd->durations_ns[0] = as->a_d0;
@@ -268,9 +256,7 @@ static int cmd_part(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r,
     cmd->mirror = as->c_mirror == 1u ? 1u : 0u;
     cmd->n_duties = 0u;
     memset(cmd->duty_raw, 0, sizeof cmd->duty_raw);
-    as->have = 0u;
-    as->held_seq = -1;
-    as->unordered = 0u;
+    asm_clear(&as->states);
     return NL_MSG_COMMAND;
 }
 
@@ -301,28 +287,8 @@ static int duty_part(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r
         seq = c.seq;
         bit = PART_C;
     }
-    {
-        /* Assembler.add with ordered=False (asm_add on the duty kind's held parts) */
-        if (h->held_seq >= 0) {
-            if ((uint16_t)h->held_seq == seq) {
-                if (h->have & bit) {
-                    r->dec_duplicate++;
-                    return NL_MSG_NONE;
-                }
-            } else {
-                r->dec_mixed_seq++;
-                h->have = 0u;
-                h->held_seq = -1;
-                h->unordered = 0u;
-            }
-        }
-        if (h->held_seq < 0) {
-            h->held_seq = seq;
-        }
-        if (!h->unordered && (h->have & (uint8_t)~(uint8_t)((bit << 1) - 1u)) != 0u) {
-            h->unordered = 1u;
-        }
-        h->have |= bit;
+    if (asm_add(h, bit, seq, r) < 0) {
+        return NL_MSG_NONE;
     }
     if (bit == PART_A) {
         struct hil_protocol_cmd_duty_a_t a;
@@ -357,9 +323,7 @@ static int duty_part(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r
     for (j = 0; j < 6; ++j) {
         cmd->duty_raw[j] = j < as->duty_n ? as->duty_raw[j] : 0u;
     }
-    h->have = 0u;
-    h->held_seq = -1;
-    h->unordered = 0u;
+    asm_clear(h);
     return NL_MSG_COMMAND;
 }
 
@@ -465,17 +429,20 @@ int nl_decode(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r, nl_cm
 static int target_sends(uint32_t id)
 {
     switch (id) {
-    case HIL_PROTOCOL_CMD_A_FRAME_ID:
-    case HIL_PROTOCOL_CMD_B_FRAME_ID:
-    case HIL_PROTOCOL_CMD_C_FRAME_ID:
-    case HIL_PROTOCOL_CMD_FD_FRAME_ID:
-    case HIL_PROTOCOL_CMD_DUTY_A_FRAME_ID:
-    case HIL_PROTOCOL_CMD_DUTY_B_FRAME_ID:
-    case HIL_PROTOCOL_CMD_DUTY_C_FRAME_ID:
-    case HIL_PROTOCOL_CMD_DUTY_FD_FRAME_ID:
-    case HIL_PROTOCOL_FAULT_TARGET_FRAME_ID:
-    case HIL_PROTOCOL_CONFIG_ACK_FRAME_ID:
-    case HIL_PROTOCOL_HEARTBEAT_TARGET_FRAME_ID: return 1;
+#define TARGET_CASE(frame_id, length, target, command) case frame_id: return target;
+    HIL_FRAMES(TARGET_CASE)
+#undef TARGET_CASE
+    default: return 0;
+    }
+}
+
+/* A Command frame of hil.dbc (every part carries seq 0|16@1+). */
+static int is_command(uint32_t id)
+{
+    switch (id) {
+#define COMMAND_CASE(frame_id, length, target, command) case frame_id: return command;
+    HIL_FRAMES(COMMAND_CASE)
+#undef COMMAND_CASE
     default: return 0;
     }
 }
@@ -488,16 +455,8 @@ int nl_bus_frame(const hil_core_frame_t *f, int32_t expected, int32_t have_reply
     if (want != 0u && f->len != want) {
         return target_sends(f->id) ? NL_BUS_SUSPECT : NL_BUS_FOREIGN; /* the target's frames have their length */
     }
-    switch (f->id) {
-    case HIL_PROTOCOL_CMD_A_FRAME_ID:
-    case HIL_PROTOCOL_CMD_B_FRAME_ID:
-    case HIL_PROTOCOL_CMD_C_FRAME_ID:
-    case HIL_PROTOCOL_CMD_FD_FRAME_ID:
-    case HIL_PROTOCOL_CMD_DUTY_A_FRAME_ID:
-    case HIL_PROTOCOL_CMD_DUTY_B_FRAME_ID:
-    case HIL_PROTOCOL_CMD_DUTY_C_FRAME_ID:
-    case HIL_PROTOCOL_CMD_DUTY_FD_FRAME_ID:
-        seq = (int32_t)((uint32_t)f->data[0] | ((uint32_t)f->data[1] << 8)); /* every Command part: seq 0|16@1+ */
+    if (is_command(f->id)) {
+        seq = (int32_t)((uint32_t)f->data[0] | ((uint32_t)f->data[1] << 8));
         if (seq == expected && !have_reply) {
             return NL_BUS_TARGET;
         }
@@ -505,8 +464,10 @@ int nl_bus_frame(const hil_core_frame_t *f, int32_t expected, int32_t have_reply
             return NL_BUS_TARGET;
         }
         return NL_BUS_SUSPECT;
+    }
+    switch (f->id) {
     case HIL_PROTOCOL_FAULT_TARGET_FRAME_ID:
-        if (f->data[0] != 1u || f->data[1] < 1u || f->data[1] > 6u) {
+        if (f->data[0] != HIL_FW_NODE_TARGET || f->data[1] == HIL_FW_STATUS_OK || f->data[1] >= HIL_FW_STATUS_COUNT) {
             return NL_BUS_SUSPECT;
         }
         {
@@ -517,7 +478,7 @@ int nl_bus_frame(const hil_core_frame_t *f, int32_t expected, int32_t have_reply
             if (f->data[1] == HIL_FW_STATUS_NOT_IMPLEMENTED && detail != (uint32_t)controller_id) {
                 return NL_BUS_SUSPECT;
             }
-            if (f->data[1] == HIL_FW_STATUS_INVALID_CONFIG && detail > 1u) {
+            if (f->data[1] == HIL_FW_STATUS_INVALID_CONFIG && detail >= HIL_FW_MODE_COUNT) {
                 return NL_BUS_SUSPECT;
             }
         }

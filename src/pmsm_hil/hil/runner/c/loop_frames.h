@@ -35,9 +35,7 @@ typedef struct {
 
 /* The classic-CAN Command assembler (three parts, any order, a new seq replaces held parts). */
 typedef struct {
-    int32_t held_seq;          /* -1: none held */
-    uint8_t have;              /* part bits */
-    uint8_t unordered;
+    nl_asm_held_t states;      /* the switching-state Command's parts (CmdA/B/C) */
     uint8_t a_states[3], a_n, a_vector_id;
     uint32_t a_d0;
     uint32_t b_d1, b_d2;
