@@ -346,8 +346,8 @@ class HilUdpBus(WireBus):
         err = lib.nl_udp_open(self._state, _ipv4(bind_ip), socket.htons(local), _ipv4(peer_ip), socket.htons(remote),
                               int(rcvbuf))
         if err:
-            raise can.CanInitializationError(f"hiludp: cannot open UDP port {local} towards {peer_ip}:{remote}: "
-                                             f"{os.strerror(err)}")
+            raise can.CanInitializationError(f"hiludp: cannot bind UDP port {local}: {os.strerror(err)} (the link "
+                                             f"towards {peer_ip}:{remote})")
         self.local_port = int(lib.nl_udp_local_port(self._state))
         self.peer = (peer_ip, remote)
         self.channel_info = f"hiludp {self.local_port}->{peer_ip}:{remote}"
