@@ -78,7 +78,6 @@ def test_every_exception_class_derives_from_hil_error() -> None:
     ("pmsm_hil.protocol.errors.LinkSpecError", ValueError),
     ("pmsm_hil.hil.metrics.errors.MetricsError", ValueError),
     ("pmsm_hil.hil.runlog.errors.RunLogError", RuntimeError),
-    ("pmsm_hil.protocol.links.cobs.CobsError", ValueError),
     ("pmsm_hil.sim_target.elf.ElfError", ValueError),
     ("pmsm_hil.testing.signals.SignalAssertionError", AssertionError),
     ("pmsm_hil.testing.runs.HilRunError", RuntimeError),
@@ -96,7 +95,7 @@ def test_the_old_roots_are_the_one_root() -> None:
 
 
 @pytest.mark.parametrize("error", [
-    importlib.import_module("pmsm_hil.protocol.links.cobs").CobsError("bad block"),
+    importlib.import_module("pmsm_hil.protocol.links.wire_bus").UdpSessionError("hiludp: no session agreed"),
     importlib.import_module("pmsm_hil.hil.runlog.errors").McapFormatError("not an MCAP file"),
     importlib.import_module("pmsm_hil.sim_target.firmware").FirmwareConfigError("ld: value not finite"),
     importlib.import_module("pmsm_hil.hil.metrics.errors").MetricsWindowError("window empty"),

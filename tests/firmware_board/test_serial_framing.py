@@ -1,5 +1,5 @@
-"""The C serial framing of the board layer (firmware_stub/target/hil_serial.c) against the host's Python framing
-(src/pmsm_hil/protocol/links/cobs.py, serial_bus.py): identical packets both ways, resynchronisation after garbage, CRC
+"""The C serial framing of the board layer (firmware_stub/target/hil_serial.c) against the reference of
+docs/protocol.md (tests/protocol/wire_oracle.py): identical packets both ways, resynchronisation after garbage, CRC
 errors counted."""
 
 from __future__ import annotations
@@ -12,10 +12,9 @@ from pathlib import Path
 
 import pytest
 
-from pmsm_hil.protocol.links.cobs import Deframer, encode_packet
-from pmsm_hil.protocol.links.stats import LinkStats
-from pmsm_hil.protocol.links.wire import FLAG_BRS, FLAG_FD, pack_frame
 from pmsm_hil.sim_target.fw_build import FIRMWARE_DIR
+from tests.protocol.test_cobs import _received
+from tests.protocol.wire_oracle import FLAG_BRS, FLAG_FD, encode_packet, pack_frame
 
 
 class _Frame(ctypes.Structure):
@@ -86,18 +85,18 @@ def test_c_decode_of_python_packets_with_garbage(lib: ctypes.CDLL) -> None:
     assert ser.crc_errors + ser.framing_errors == 2  # the corrupted packet and the leading garbage
 
 
-def test_python_deframer_accepts_c_packets(lib: ctypes.CDLL) -> None:
+def test_the_host_serial_bus_accepts_the_boards_packets(lib: ctypes.CDLL) -> None:
     ser = _Serial()
     lib.hil_serial_init(ctypes.byref(ser))
-    stats = LinkStats()
-    bodies: list[bytes] = []
-    deframer = Deframer(stats, bodies.append)
-    for ident, data, fd in _frames(100):
+    packets = []
+    frames = _frames(100)
+    for ident, data, fd in frames:
         f = _Frame(ident, len(data), 1 if fd else 0)
         f.data[:len(data)] = list(data)
         buf = (ctypes.c_uint8 * 100)()
-        deframer.feed(bytes(buf[:lib.hil_serial_encode(ctypes.byref(ser), ctypes.byref(f), buf)]))
-    assert len(bodies) == 100 and stats.crc_errors == stats.framing_errors == 0
+        packets.append(bytes(buf[:lib.hil_serial_encode(ctypes.byref(ser), ctypes.byref(f), buf)]))
+    got, stats = _received(packets)
+    assert got == frames and stats.crc_errors == stats.framing_errors == 0
 
 
 def test_struct_mirror_matches_header() -> None:

@@ -1,6 +1,6 @@
-"""Authenticated frames (src/pmsm_hil/protocol/links/auth.py, firmware_stub/target/hil_auth.c): the C MAC
-against Python's hmac/hashlib, C and Python seal and open each other's frames, and the Python UDP and serial
-links drop (and count) spoofed, stripped and replayed frames."""
+"""Authenticated frames (firmware_stub/target/hil_auth.c; key options: src/pmsm_hil/protocol/links/auth.py): the C MAC
+against Python's hmac/hashlib, C and the reference of docs/protocol.md (wire_oracle.py) seal and open each other's
+frames, and the UDP and serial links (the C buses) drop (and count) spoofed, stripped and replayed frames."""
 
 from __future__ import annotations
 
@@ -15,20 +15,20 @@ import pytest
 from pmsm_hil.hil.runner.core_link import native_lib
 from pmsm_hil.protocol.errors import LinkError, LinkSpecError
 from pmsm_hil.protocol.links import open_link
-from pmsm_hil.protocol.links.auth import (
+from pmsm_hil.protocol.links.auth import key_of_options, parse_key
+from pmsm_hil.protocol.links.link import BusLink
+from pmsm_hil.protocol.links.spec import parse_spec, redact_spec
+from pmsm_hil.protocol.links.wire_bus import free_udp_ports
+from tests.protocol.wire_oracle import (
     AUTH_FAILED,
     AUTH_OK,
     AUTH_REPLAYED,
+    CRC_INIT,
     TRAILER,
-    FrameAuth,
-    key_of_options,
-    parse_key,
+    encode_packet,
+    pack_frame,
 )
-from pmsm_hil.protocol.links.cobs import CRC_INIT, encode_packet
-from pmsm_hil.protocol.links.link import BusLink
-from pmsm_hil.protocol.links.spec import parse_spec, redact_spec
-from pmsm_hil.protocol.links.udp_bus import free_udp_ports
-from pmsm_hil.protocol.links.wire import pack_frame
+from tests.protocol.wire_oracle import Sealer as FrameAuth
 
 KEY = bytes(range(1, 33))
 KEY_HEX = KEY.hex()
@@ -127,8 +127,8 @@ def _agree(host: BusLink, target: BusLink) -> None:
     deadline = time.monotonic() + 5
     while not (host.bus.established and target.bus.established):  # type: ignore[attr-defined]
         assert time.monotonic() < deadline, "no session agreed"
-        host.bus._pump()  # type: ignore[attr-defined]
-        target.bus._pump()  # type: ignore[attr-defined]
+        host.bus.poll_frame()  # type: ignore[attr-defined]
+        target.bus.poll_frame()  # type: ignore[attr-defined]
         time.sleep(0.001)
 
 
@@ -150,7 +150,7 @@ def test_udp_spoofed_stripped_and_replayed_datagrams_from_the_peers_port_are_dro
     # capture a genuine datagram on its way to the host (read off the host's socket), then hand it over
     target.bus.send_frame(0x118, b"genuine!", False)  # type: ignore[attr-defined]
     time.sleep(0.05)
-    genuine = host.bus._sock.recv(2048)  # type: ignore[attr-defined]
+    genuine = os.read(host.bus.fileno(), 2048)  # type: ignore[attr-defined]
     target.close()
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as spoofer:  # another socket on the peer's port
         spoofer.bind(("127.0.0.1", b))
@@ -184,7 +184,7 @@ def test_udp_a_wrong_key_or_a_missing_one_is_a_clear_error_at_the_handshake() ->
         try:
             host.bus.propose()  # type: ignore[attr-defined]
             for _ in range(50):
-                target.bus._pump()  # type: ignore[attr-defined]
+                target.bus.poll_frame()  # type: ignore[attr-defined]
                 time.sleep(0.002)
             with pytest.raises(LinkError, match=want):
                 host.bus.wait_session(2.0)  # type: ignore[attr-defined]

@@ -18,12 +18,10 @@ from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.errors import LinkError, LinkSpecError
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.links import BusLink, Link, open_link, parse_spec
-from pmsm_hil.protocol.links.cobs import cobs_encode, encode_packet
 from pmsm_hil.protocol.links.echo import STOP_ID
 from pmsm_hil.protocol.links.peer import EchoPeer
-from pmsm_hil.protocol.links.udp_bus import CONTROL, HELLO, MAGIC, SESSION, VERSION
-from pmsm_hil.protocol.links.wire import pack_frame
 from pmsm_hil.protocol.messages import Command, Measurement
+from tests.protocol.wire_oracle import CONTROL, HELLO, MAGIC, SESSION, VERSION, cobs_encode, encode_packet, pack_frame
 
 Opener = Callable[..., BusLink]
 

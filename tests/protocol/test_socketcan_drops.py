@@ -84,7 +84,7 @@ def test_a_burst_that_overflows_the_receive_buffer_is_counted_by_the_c_loop() ->
         _burst(1)  # the next frame queued after the drops carries the kernel's count (SO_RXQ_OVFL)
         assert lib.nl_socketcan_recv(h.state, f, 0) == 1 and int(h.state.kernel_dropped) == BURST - received
         reader.bus._counting.dropped = 0  # what the C loop read reaches the bus
-        h.hand_back()
+        h.release()
         assert reader.bus._counting.dropped == BURST - received
         assert link_kernel_drops(reader) == {"kernel_dropped": BURST - received}
 

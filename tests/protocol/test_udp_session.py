@@ -16,9 +16,8 @@ from hypothesis import strategies as st
 from pmsm_hil.protocol.errors import LinkError
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.links import BusLink, link_kind, parse_spec
-from pmsm_hil.protocol.links.udp_bus import UdpUnicastBus, free_udp_ports
-from pmsm_hil.protocol.links.wire import FLAG_BRS, FLAG_FD
-from pmsm_hil.protocol.links.wire_bus import HilUdpBus
+from pmsm_hil.protocol.links.wire_bus import HilUdpBus, free_udp_ports
+from tests.protocol.wire_oracle import FLAG_BRS, FLAG_FD
 
 Opener = Callable[..., BusLink]
 HOST = "127.0.0.1"
@@ -82,7 +81,7 @@ def test_host_waits_for_the_peer_to_adopt_its_session(links: Opener, raw_peer: R
     a, b, _ = ports
     host = links(f"udp:{a}:{b}", "host")
     bus = host.bus
-    assert isinstance(bus, UdpUnicastBus)
+    assert isinstance(bus, HilUdpBus)
     bus.propose()
     kind, session = raw_peer.read_control()
     assert (kind, session) == (1, bus.session) and not bus.established
@@ -100,7 +99,7 @@ def test_other_senders_and_other_sessions_are_dropped_and_counted(links: Opener,
     a, b, c = ports
     host = links(f"udp:{a}:{b}", "host")
     bus = host.bus
-    assert isinstance(bus, UdpUnicastBus) and bus.connected
+    assert isinstance(bus, HilUdpBus) and bus.connected
     forger = RawPeer(c, a)  # another local socket, even one that knows the session
     try:
         forger.control(1, 6)  # a HELLO before the peer's
@@ -136,7 +135,7 @@ def test_junk_from_another_address_cannot_crowd_out_the_peer(role: str, links: O
     a, b, c = ports
     end = links(f"udp:{a}:{b}", role)
     bus = end.bus
-    assert isinstance(bus, UdpUnicastBus)
+    assert isinstance(bus, HilUdpBus)
     if role == "host":
         bus.propose()
         assert raw_peer.read_control() == (1, bus.session)
@@ -165,7 +164,7 @@ def test_junk_before_the_session_never_reaches_the_socket(links: Opener, raw_pee
     a, b, c = ports
     end = links(f"udp:{a}:{b}", "target")
     bus = end.bus
-    assert isinstance(bus, UdpUnicastBus) and bus.connected
+    assert isinstance(bus, HilUdpBus) and bus.connected
     junk = RawPeer(c, a)
     try:
         for _ in range(5000):
@@ -194,13 +193,13 @@ def test_a_refused_datagram_is_a_send_error_not_an_exception(links: Opener, raw_
 
 def test_a_proposal_clash_ends_in_one_session(ports: list[int]) -> None:
     a, b, _ = ports
-    with UdpUnicastBus(f"{a}:{b}") as x, UdpUnicastBus(f"{b}:{a}") as y:
+    with HilUdpBus(f"{a}:{b}") as x, HilUdpBus(f"{b}:{a}") as y:
         x.propose()
         y.propose()
         expected = max(x.session, y.session)
         for _ in range(100):
-            x.poll_raw()
-            y.poll_raw()
+            x.poll_frame()
+            y.poll_frame()
             if x.established and y.established:
                 break
         assert x.session == y.session == expected
@@ -238,7 +237,7 @@ def test_malformed_datagrams_are_counted_never_raise(raw_peer: RawPeer, ports: l
                                                      garbage: list[bytes]) -> None:
     assume(not any(g.startswith(b"\0\0\0\0HILS") or g.startswith(struct.pack("<I", 3)) for g in garbage))
     a, b, _ = ports
-    with UdpUnicastBus(f"{a}:{b}") as bus:
+    with HilUdpBus(f"{a}:{b}") as bus:
         raw_peer.control(1, 3)
         for g in garbage:
             raw_peer.raw(g)
@@ -262,7 +261,7 @@ def test_spawned_udp_without_ports_takes_free_ports() -> None:
 def test_a_corrupted_datagram_fails_its_crc_and_is_dropped(raw_peer: RawPeer, ports: list[int]) -> None:
     """The UDP link's own check: CRC-16 (CCITT, init 0xFFFF) over header + payload, big endian, last."""
     a, b, _ = ports
-    with UdpUnicastBus(f"{a}:{b}") as bus:
+    with HilUdpBus(f"{a}:{b}") as bus:
         raw_peer.control(1, 3)
         body = struct.pack("<IBBB", 0x108, 3, 0, 16) + bytes(16)
         crc = binascii.crc_hqx(body, 0xFFFF).to_bytes(2, "big")

@@ -15,7 +15,7 @@ import pytest
 from pmsm_hil.hil.runner.callback_link import NativePyLink
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
-from pmsm_hil.protocol.links.udp_bus import free_udp_ports
+from pmsm_hil.protocol.links.wire_bus import free_udp_ports
 from tests.runner.test_loop import SENSORS, _assert_same_metrics, _assert_same_records, _three
 from tests.runner.test_wire_udp import WALL_FIELDS, WALL_METRICS
 

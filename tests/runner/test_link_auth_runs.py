@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from pmsm_hil.app.cli.main import main
-from pmsm_hil.protocol.links.udp_bus import free_udp_ports
+from pmsm_hil.protocol.links.wire_bus import free_udp_ports
 
 KEY = "5e" * 32
 SPOOF = Path(__file__).with_name("udp_spoof.py")
@@ -153,14 +153,12 @@ def test_serial_with_a_wrong_key_says_so_when_the_target_stays_silent() -> None:
     from pmsm_hil.protocol.codec import FrameCodec
     from pmsm_hil.protocol.ids import ParamId
     from pmsm_hil.protocol.links import open_link
-    from pmsm_hil.protocol.links.auth import FrameAuth
-    from pmsm_hil.protocol.links.cobs import encode_packet
-    from pmsm_hil.protocol.links.wire import pack_frame
+    from tests.protocol.wire_oracle import Sealer, encode_packet, pack_frame
 
     master, slave = os.openpty()
     link = open_link(f"serial:fd:{master},key={KEY}", "host")
     try:
-        os.write(slave, encode_packet(FrameAuth(bytes(32), "target").seal(pack_frame(0x211, bytes(6), 0, 0))))
+        os.write(slave, encode_packet(Sealer(bytes(32), "target").seal(pack_frame(0x211, bytes(6), 0, 0))))
         with pytest.raises(DutViolationError, match=r"with the same key.*1 frame\(s\) from it failed authentication"):
             TargetClient(link, FrameCodec("canfd")).configure({ParamId.RS: 0.1}, timeout_s=0.2)
     finally:

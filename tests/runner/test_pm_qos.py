@@ -99,7 +99,7 @@ def test_run_and_target_options_refuse_bad_values(capsys: pytest.CaptureFixture[
 
 def test_a_real_time_run_over_udp_holds_it_and_one_in_process_does_not() -> None:
     from pmsm_hil.hil.runner.run import run_closed_loop
-    from pmsm_hil.protocol.links.udp_bus import free_udp_ports
+    from pmsm_hil.protocol.links.wire_bus import free_udp_ports
 
     host, target = free_udp_ports(2)
     res = run_closed_loop(_cfg(mode="realtime", link=f"udp:{host}:{target}", target="spawn", tolerate=10_000,
@@ -115,7 +115,7 @@ def test_a_run_refused_the_request_says_so_and_goes_on(tmp_path: Path, monkeypat
     """Without the right to the PM QoS file (not root) a real-time run over a link still runs, and warns."""
     from pmsm_hil.hil.runner import pm_qos
     from pmsm_hil.hil.runner.run import run_closed_loop
-    from pmsm_hil.protocol.links.udp_bus import free_udp_ports
+    from pmsm_hil.protocol.links.wire_bus import free_udp_ports
 
     monkeypatch.setattr(pm_qos, "PM_QOS_FILE", str(tmp_path / "no-pm-qos-here"))
     host, target = free_udp_ports(2)

@@ -20,7 +20,7 @@ from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.safe_stop import disable_and_confirm, settle_ending
 from pmsm_hil.hil.runner.scenario import load_scenario
-from pmsm_hil.protocol.links.udp_bus import free_udp_ports
+from pmsm_hil.protocol.links.wire_bus import free_udp_ports
 from pmsm_hil.sim_target import target as sim_target
 
 

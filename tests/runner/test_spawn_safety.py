@@ -32,7 +32,7 @@ from pmsm_hil.hil.runner.target_client import TargetError
 from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target
 from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.ids import ControllerId, ParamId
-from pmsm_hil.protocol.links.udp_bus import UdpUnicastBus, free_udp_ports
+from pmsm_hil.protocol.links.wire_bus import HilUdpBus, free_udp_ports
 from pmsm_hil.protocol.messages import Command, ConfigParam, Setpoint
 from tests.oracle import closed_loop as python_loop
 
@@ -88,8 +88,8 @@ def _spoofed_run(cfg: RunConfig, monkeypatch: pytest.MonkeyPatch) -> tuple[RunRe
         if not seen:
             return
         bus = seen[0].host_link.bus  # type: ignore[attr-defined]
-        assert isinstance(bus, UdpUnicastBus)
-        target_port = bus._remote[1]
+        assert isinstance(bus, HilUdpBus)
+        target_port = bus.peer[1]
         to_target, to_host = _forged_datagrams(bus.session)
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as forger:
             forger.bind(("127.0.0.1", 0))

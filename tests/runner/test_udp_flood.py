@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from pmsm_hil.app.cli.main import main
-from pmsm_hil.protocol.links.udp_bus import free_udp_ports
+from pmsm_hil.protocol.links.wire_bus import free_udp_ports
 
 FLOOD = Path(__file__).with_name("udp_flood.py")
 RATE = 100_000  # datagrams/s to both ports together

@@ -2,7 +2,8 @@
 firmware_stub/target/hil_serial.c) with the native target it spawns on the other end of a pty (`hil target
 --native`, src/pmsm_hil/hil/runner/c/target_serve.c) gives the records, frames and metrics of the Python loop with the
 Python target over the same kind of link, bit for bit (but what the wall clock measures); against a foreign target it
-ends runs as the Python loop does; its receiver counts a damaged byte stream as the Python link does."""
+ends runs as the Python loop does; its receiver counts a damaged byte stream as the hilserial bus does, and drives the
+bus's own C state (link sequence numbers, a packet half received) between Python's sends and receives."""
 
 from __future__ import annotations
 
@@ -28,7 +29,7 @@ from pmsm_hil.hil.runner.wire import COUNTERS, WireHandle
 from pmsm_hil.hil.runner.wire_serial import SERIAL_WIRE
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.links import open_link
-from pmsm_hil.protocol.links.cobs import cobs_decode, cobs_encode
+from tests.protocol.wire_oracle import cobs_decode, cobs_encode
 from tests.runner.test_dut_contract import _run
 from tests.runner.test_loop import SENSORS, _assert_same_frames, _mirrored, _six, _three
 from tests.runner.test_wire_udp import WALL_METRICS, _assert_same
@@ -129,18 +130,18 @@ def _serial_state(ffi: Any, fd: int) -> Any:
     return s
 
 
-def test_the_c_receiver_counts_a_damaged_stream_as_the_python_link() -> None:
+def test_the_loops_receiver_counts_a_damaged_stream_as_the_serial_bus() -> None:
     from pmsm_hil.hil._loop_native import ffi, lib
 
     stream = _damaged_stream()
     got: dict[str, tuple[list[tuple[int, bytes, bool]], dict[str, int]]] = {}
-    for who in ("python", "c"):
+    for who in ("bus", "loop"):
         a, b = socket.socketpair()
         with a, b:
             b.setblocking(False)
             a.sendall(stream)
             frames = []
-            if who == "python":
+            if who == "bus":
                 link = open_link(f"serial:fd:{os.dup(b.fileno())}", "host")
                 with link:
                     while (fr := link.recv(0.05)) is not None:
@@ -155,8 +156,8 @@ def test_the_c_receiver_counts_a_damaged_stream_as_the_python_link() -> None:
                 stats = {name: int(getattr(s.stats, name)) for name in COUNTERS}
                 assert s.pkt_n == len(_packet(0x181, b"\x08" * 8, 10)) - 4 and s.rx_last == 9
         got[who] = frames, stats
-    assert got["c"] == got["python"]
-    frames, stats = got["c"]
+    assert got["loop"] == got["bus"]
+    frames, stats = got["loop"]
     assert [f[0] for f in frames] == [0x180, 0x181, 0x181, 0x181, 0x181]
     assert (stats["crc_errors"], stats["framing_errors"], stats["duplicate"], stats["dropped"],
             stats["out_of_order"], stats["ignored"], stats["frames_rx"]) == (1, 5, 1, 5, 1, 1, 6)
@@ -167,10 +168,11 @@ def lib_deadline(seconds: float) -> int:
     return time.clock_gettime_ns(time.CLOCK_MONOTONIC) + int(seconds * 1e9)
 
 
-def test_c_frames_are_the_python_links_bytes_and_the_port_state_goes_back_and_forth() -> None:
-    """nl_serial_send writes what FramedBus.send_frame writes (an FD frame on a classic link is a send
-    error); a packet half received moves from the Python deframer to C and back (SERIAL_WIRE fill / hand_back)
-    with the link sequence numbers."""
+def test_the_loop_drives_the_serial_buss_own_state_between_pythons_frames() -> None:
+    """The loop's nl_serial_send writes what the bus's fast path writes, continuing its link sequence (an FD
+    frame on a classic link is a send error counted on the bus); a packet half received by the bus is completed
+    by the loop's receive and one half received by the loop by the bus's (SERIAL_WIRE: one C state, no hand-over);
+    the counters are the bus's."""
     from pmsm_hil.hil._loop_native import ffi, lib
 
     a, b = socket.socketpair()
@@ -179,30 +181,34 @@ def test_c_frames_are_the_python_links_bytes_and_the_port_state_goes_back_and_fo
         host = open_link(f"serial:fd:{os.dup(b.fileno())}", "host")
         with host:
             bus = host.bus
-            h = WireHandle(SERIAL_WIRE, ffi, lib, bus, target_role=False)  # C continues from link seq 0 too
             host.send([Frame(0x100, b"\x01\x00\x02", False)])
             python_bytes = a.recv(4096)
+            assert cobs_decode(python_bytes[:-1])[4:7] == b"\x00\x00\x03"  # flags 0, link seq 0, 3 bytes
+            h = WireHandle(SERIAL_WIRE, ffi, lib, bus, target_role=False)
             out = ffi.new("hil_core_frame_t *", {"id": 0x100, "len": 3, "fd": 0, "data": b"\x01\x00\x02"})
             assert lib.nl_serial_send(h.state, out) == 0
-            assert a.recv(4096) == python_bytes and cobs_decode(python_bytes[:-1])[4:7] == b"\x00\x00\x03"
+            c_bytes = a.recv(4096)
+            assert cobs_decode(c_bytes[:-1])[:4] == cobs_decode(python_bytes[:-1])[:4]
+            assert cobs_decode(c_bytes[:-1])[4:7] == b"\x00\x01\x03"  # the bus's link sequence, continued
             h.state.fd_frames = 0
             out.fd, out.len = 1, 12
-            assert lib.nl_serial_send(h.state, out) == -1 and h.state.stats.send_errors == 1
-            h.hand_back()
-            assert bus.link_seq == (1, -1)
+            assert lib.nl_serial_send(h.state, out) == -1 and host.stats.send_errors == 1
+            h.state.fd_frames = 1
+            h.release()
+            assert bus.link_seq == (2, -1) and host.stats.frames_tx == 2
             one, two = _packet(0x181, b"\x11" * 8, 0), _packet(0x181, b"\x22" * 8, 1)
             a.sendall(one[:6])
-            assert host.poll() is None  # half of it in the Python deframer
+            assert host.poll() is None  # half of it received by the bus
             h = WireHandle(SERIAL_WIRE, ffi, lib, bus, target_role=False)
             a.sendall(one[6:] + two[:6])
             f = ffi.new("hil_core_frame_t *")
             assert lib.nl_serial_recv(h.state, f, lib_deadline(1.0)) == 1 and bytes(f.data[0:8]) == b"\x11" * 8
             assert lib.nl_serial_recv(h.state, f, lib_deadline(0.05)) == 0  # the other half not here yet
-            h.hand_back()
+            h.release()
             a.sendall(two[6:])
             fr = host.recv(1.0)
             assert fr is not None and fr.data == b"\x22" * 8 and host.stats.framing_errors == 0
-            assert bus.link_seq == (1, 1)
+            assert bus.link_seq == (2, 1) and host.stats.frames_rx == 2
 
 
 def test_the_native_target_stops_when_the_host_closes_the_pty() -> None:

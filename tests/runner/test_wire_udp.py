@@ -17,7 +17,7 @@ import pytest
 from pmsm_hil.hil.runlog.reader import read_frames
 from pmsm_hil.hil.runner.run import RunResult, run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
-from pmsm_hil.protocol.links.udp_bus import free_udp_ports
+from pmsm_hil.protocol.links.wire_bus import free_udp_ports
 from tests.runner.test_loop import SENSORS, _assert_same_frames, _mirrored, _six, _three
 
 #: measured on the wall clock (exec times come from the target's clock; no split or torque reference crosses

@@ -15,7 +15,7 @@ import pytest
 
 from pmsm_hil.conformance import RULES
 from pmsm_hil.hil.runner.contract import RULES as CONTRACT_RULES
-from pmsm_hil.protocol.links.udp_bus import free_udp_ports
+from pmsm_hil.protocol.links.wire_bus import free_udp_ports
 from tests.testing.pytest_session import ROOT, Session, run_pytest
 
 TARGET = Path(__file__).with_name("conformance_target.py")

@@ -162,7 +162,7 @@ class TargetClient:
     def _silence_hint(self) -> str:
         """Why a target may not answer at all: none on the link, or (authenticated frames) another key."""
         stats = getattr(self.link, "stats", None)
-        if getattr(getattr(self.link, "bus", None), "auth", None) is None:
+        if not getattr(getattr(self.link, "bus", None), "authenticated", False):
             return "is a target running on this link?"
         failed = int(getattr(stats, "auth_failed", 0) or 0) + int(getattr(stats, "auth_replayed", 0) or 0)
         seen = f"; {failed} frame(s) from it failed authentication here" if failed else ""

@@ -26,7 +26,7 @@ from pmsm_hil.hil.runner.wire import WireHandle
 from pmsm_hil.hil.runner.wire_kinds import NATIVE_WIRES
 from pmsm_hil.protocol.links import open_link, parse_spec
 from pmsm_hil.protocol.links.kernel_drops import link_kernel_drops
-from pmsm_hil.protocol.links.udp_bus import link_socket_drops
+from pmsm_hil.protocol.links.wire_bus import link_socket_drops
 from pmsm_hil.sim_target.process import SIL_INIT_LINE, die_with_parent
 from pmsm_hil.sim_target.sil import SilFirmware
 
@@ -107,11 +107,11 @@ def serve_native(link_spec: str, *, role: str = "target", max_idle_s: float | No
         else:
             counters = {name: value for name, value in firmware.counters().items() if name in names}
         stats = link.stats.as_dict()
-        for name, value in h.counters().items():
+        for name, value in h.unreported().items():
             stats[name] += value
         stats.update(h.waits())
         stats.update(link_socket_drops(link))
-        h.hand_back()
+        h.release()
         stats.update(link_kernel_drops(link))
         reason = _reasons(lib).get(end, f"end code {end}")
         if end == lib.NT_END_IDLE and max_idle_s is not None:

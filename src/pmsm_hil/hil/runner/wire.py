@@ -1,12 +1,13 @@
 """The native loop's links to a target in another process (src/pmsm_hil/hil/runner/c/links/nl_link.h): the host's open
-link — a UDP socket, a serial port, a SocketCAN socket — handed to C for a run's periods and back afterwards.
+link — a UDP socket, a serial port, a SocketCAN socket — driven by C for a run's periods.
 
 Python opens the link, configures the target and sends the Setpoints through it; for the periods the C loop
-takes the same descriptor and what the link continues from (link sequence numbers, a UDP session, a serial
-packet half received) and hands them back with its LinkStats counters afterwards. Each link kind is one `Wire`
-(wire_udp.py, wire_serial.py, wire_socketcan.py; wire_kinds.py lists them): its C state, the C
-function making that state an nl_link_t, and how its state goes to C and back. Waiting for a frame busy-polls
-for `SPIN_NS`, then blocks.
+drives the same link. The hiludp and hilserial buses are C links already (src/pmsm_hil/protocol/links/wire_bus.py):
+the loop takes the bus's own C state (socket or port, link sequence numbers, UDP session, authentication, a
+packet half received, counters), so nothing is handed over or back. A python-can SocketCAN bus is Python's: its
+descriptor goes to a C state of its own (`fill`) and what C learnt back to the bus (`hand_back`). Each link kind
+is one `Wire` (wire_udp.py, wire_serial.py, wire_socketcan.py; wire_kinds.py lists them). Waiting for a frame
+busy-polls for `SPIN_NS`, then blocks.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from pmsm_hil.hil.runner.core_link import NativeLoopUnavailableError
 from pmsm_hil.hil.runner.link_facade import LinkFacade
 from pmsm_hil.protocol.links import Link
 from pmsm_hil.protocol.links.stats import LinkStats
@@ -35,25 +37,6 @@ def default_spin_ns() -> int:
 COUNTERS = tuple(LinkStats.__slots__)
 
 
-def _fill_auth(ffi: Any, lib: Any, state: Any, bus: Any, target_role: bool) -> None:
-    """A wire with authenticated frames (its C state has an `auth` field, its bus a FrameAuth): the key, the MAC
-    context and both freshness counters to C."""
-    auth = getattr(bus, "auth", None)
-    if auth is None or not hasattr(state, "auth"):
-        return
-    a = ffi.addressof(state, "auth")
-    lib.hil_auth_init(a, auth.key, len(auth.key), 1 if target_role else 0)
-    lib.hil_auth_set_context(a, auth.context, len(auth.context))
-    a.tx_fresh, a.rx_fresh = auth.tx_fresh, auth.rx_fresh
-
-
-def _hand_back_auth(state: Any, bus: Any) -> None:
-    """The freshness counters the C link reached, back to the bus's FrameAuth."""
-    auth = getattr(bus, "auth", None)
-    if auth is not None and hasattr(state, "auth") and state.auth.on:
-        auth.tx_fresh, auth.rx_fresh = int(state.auth.tx_fresh), int(state.auth.rx_fresh)
-
-
 def _nothing(ffi: Any, state: Any, bus: Any) -> None:
     """A wire with nothing to hand back but its counters."""
 
@@ -61,44 +44,70 @@ def _nothing(ffi: Any, state: Any, bus: Any) -> None:
 @dataclass(frozen=True, slots=True)
 class Wire:
     """One link kind of the native loop. `bus_of(link)`: the bus under an opened link this wire drives (None:
-    another kind); `fill(ffi, state, bus, target_role)`: the C state (`struct`) from the bus as it is now;
-    `hand_back(ffi, state, bus)`: what the bus continues from after C used it; `make_link`: the C function
-    making the state an nl_link_t."""
+    another kind); `fill(ffi, state, bus, target_role)`: a C state (`struct`) of its own from the bus as it is now,
+    None when the bus is a C link whose own state (`WireBus.c_state_address`) the loop drives; `hand_back(ffi,
+    state, bus)`: what the bus learns from C after a run; `make_link`: the C function making the state an
+    nl_link_t."""
 
     struct: str
     make_link: str
     bus_of: Callable[[Link], Any | None]
-    fill: Callable[[Any, Any, Any, bool], None]
+    fill: Callable[[Any, Any, Any, bool], None] | None = None
     hand_back: Callable[[Any, Any, Any], None] = _nothing
 
 
 class WireHandle:
-    """A wire's C state on `bus` and the nl_link_t over it (kept alive together)."""
+    """The C state a run drives on `bus` and the nl_link_t over it (kept alive together): the bus's own C state
+    (a C bus), else one filled from the bus. `release` ends the run's use of it."""
 
     def __init__(self, wire: Wire, ffi: Any, lib: Any, bus: Any, *, target_role: bool,
                  spin_ns: int | None = None) -> None:
         self.wire, self.ffi, self.bus = wire, ffi, bus
-        self.state = ffi.new(f"{wire.struct} *")
+        self.own = wire.fill is None
+        if wire.fill is None:
+            if ffi.sizeof(wire.struct) != bus.c_state_size:
+                raise NativeLoopUnavailableError(
+                    f"the {wire.struct} of the loop's extension ({ffi.sizeof(wire.struct)} bytes) is not the bus's "
+                    f"({bus.c_state_size} bytes): rebuild the package (pip install -e .)")
+            self.state = ffi.cast(f"{wire.struct} *", bus.c_state_address)
+        else:
+            self.state = ffi.new(f"{wire.struct} *")
+            wire.fill(ffi, self.state, bus, target_role)
+        #: the bus's receives block at once (spin_ns 0); a run's receives spin first, adapting from nothing
+        self.state.spin = ffi.new("nl_spin_t *")[0]
         self.state.spin.spin_ns = default_spin_ns() if spin_ns is None else spin_ns
-        wire.fill(ffi, self.state, bus, target_role)
-        _fill_auth(ffi, lib, self.state, bus, target_role)
+        self._blocked_before = int(self.state.stats.blocked)
+        self._target_role_before: int | None = None
+        if self.own and hasattr(self.state, "target_role"):  # a UDP bus end adopts a HELLO; a run's host does not
+            self._target_role_before = int(self.state.target_role)
+            self.state.target_role = 1 if target_role else 0
         self.link = ffi.new("nl_link_t *")
         getattr(lib, wire.make_link)(self.link, self.state)
 
-    def counters(self) -> dict[str, int]:
-        """The C link's LinkStats counters by name."""
+    def unreported(self) -> dict[str, int]:
+        """The C link's LinkStats counters the bus's own `link_stats` do not show (by name): all of a C state of
+        its own, none of the bus's own C state (its `link_stats` read it)."""
+        if self.own:
+            return {}
         return {name: int(getattr(self.state.stats, name)) for name in COUNTERS}
 
     def waits(self) -> dict[str, int]:
-        """How the C link's receives waited: `blocked` (spins that ran out, then ppoll), `spin_backoffs` (times
-        it went to blocking at once: a contended machine), `spin_early_ends` (back-offs ended early)."""
+        """How the C link's receives waited in this run: `blocked` (spins that ran out, then ppoll),
+        `spin_backoffs` (times it went to blocking at once: a contended machine), `spin_early_ends` (back-offs
+        ended early)."""
         st, sp = self.state.stats, self.state.spin
-        return {"blocked": int(st.blocked), "spin_backoffs": int(sp.backoffs), "spin_early_ends": int(sp.early_ends)}
+        return {"blocked": int(st.blocked) - self._blocked_before, "spin_backoffs": int(sp.backoffs),
+                "spin_early_ends": int(sp.early_ends)}
 
-    def hand_back(self) -> None:
-        """Give the bus what it continues from (link sequence numbers, bytes of a packet half received)."""
-        self.wire.hand_back(self.ffi, self.state, self.bus)
-        _hand_back_auth(self.state, self.bus)
+    def release(self) -> None:
+        """After the run: what the bus continues from (a C state of its own: handed back; the bus's own: its
+        receives block at once again, a UDP bus end adopts its peer's HELLO again)."""
+        if not self.own:
+            self.wire.hand_back(self.ffi, self.state, self.bus)
+            return
+        self.state.spin = self.ffi.new("nl_spin_t *")[0]
+        if self._target_role_before is not None:
+            self.state.target_role = self._target_role_before
 
 
 class NativeWireLink(LinkFacade):
@@ -131,13 +140,14 @@ class NativeWireLink(LinkFacade):
         c.sil_debug = self.sil_debug if self.sil_debug is not None else self.ffi.NULL
 
     def detach(self) -> None:
-        """After the run: the C link's counters into `stats`, its state back to the bus."""
+        """After the run: the C link's counters into `stats` (unless they are the bus's own), the link back to
+        Python."""
         h = self.handle
         if h is None:
             return
-        for name, value in h.counters().items():
+        for name, value in h.unreported().items():
             setattr(self.stats, name, getattr(self.stats, name) + value)
         for name, value in h.waits().items():
             self.waits[name] = self.waits.get(name, 0) + value
-        h.hand_back()
+        h.release()
         self.handle = None

@@ -1,5 +1,6 @@
-"""Authenticated frames on the UDP and serial links, in the spirit of AUTOSAR SecOC (docs/protocol.md,
-"Authenticated frames"; firmware_stub/target/hil_auth.c is the same in C).
+"""Keys of the authenticated frames on the UDP and serial links, in the spirit of AUTOSAR SecOC (docs/protocol.md,
+"Authenticated frames"). The authentication itself is C (firmware_stub/target/hil_auth.c), used by the hiludp and
+hilserial buses (wire_bus.py), the period loop and the targets alike; this module reads and makes the keys.
 
 Every frame body (header + payload) is followed by a 6-byte trailer: the low 16 bits of the sender's freshness
 counter (u16 LE) and a MAC truncated to 32 bits, the first 4 bytes of
@@ -16,11 +17,9 @@ spawned target gets a fresh random key per run from its host over its stdin (nev
 
 from __future__ import annotations
 
-import hmac
 import secrets
-import struct
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 from pmsm_hil.protocol.errors import LinkSpecError
 
@@ -29,14 +28,8 @@ FRESH_SIZE = 2
 MAC_SIZE = 4
 #: bytes the authentication adds to every frame (freshness low bits + truncated MAC)
 TRAILER = FRESH_SIZE + MAC_SIZE
-DIR_HOST, DIR_TARGET = b"H", b"T"
-#: prefixed to the direction of a UDP control datagram's MAC
-DIR_CONTROL = b"C"
 #: the spawned-target key length [bytes]
 SPAWN_KEY_BYTES = 32
-_FRESH = struct.Struct("<Q")
-_LOW = struct.Struct("<H")
-AUTH_OK, AUTH_FAILED, AUTH_REPLAYED = 1, 0, -1
 
 
 def parse_key(text: str, source: str = "key") -> bytes:
@@ -87,63 +80,4 @@ def key_of_options(options: dict[str, Any]) -> bytes | None:
     return None
 
 
-class FrameAuth:
-    """One link end's authentication state: its key, role, context and both freshness counters."""
-
-    __slots__ = ("_key", "context", "rx_dir", "rx_fresh", "tx_dir", "tx_fresh")
-
-    def __init__(self, key: bytes, role: Literal["host", "target"]) -> None:
-        if not KEY_MIN <= len(key) <= KEY_MAX:
-            raise LinkSpecError(f"authentication key: {len(key)} bytes, a key has {KEY_MIN}-{KEY_MAX} bytes")
-        self._key = bytes(key)
-        self.tx_dir, self.rx_dir = (DIR_TARGET, DIR_HOST) if role == "target" else (DIR_HOST, DIR_TARGET)
-        self.context = b""
-        self.tx_fresh = 0  #: freshness of the last frame sent
-        self.rx_fresh = 0  #: freshness of the last frame accepted (0: none yet)
-
-    @property
-    def key(self) -> bytes:
-        """The key (handed to a native loop taking the link over)."""
-        return self._key
-
-    def set_context(self, context: bytes) -> None:
-        """MAC context from now on (UDP: session id + nonce); both freshness counters start again."""
-        self.context = bytes(context)
-        self.tx_fresh = self.rx_fresh = 0
-
-    def mac(self, direction: bytes, fresh: int, body: bytes) -> bytes:
-        """The truncated MAC of a frame body sent in `direction` with freshness `fresh`."""
-        msg = direction + self.context + _FRESH.pack(fresh) + body
-        return hmac.digest(self._key, msg, "sha256")[:MAC_SIZE]
-
-    def control_mac(self, direction: bytes, datagram: bytes) -> bytes:
-        """The truncated MAC of a UDP control datagram sent in `direction`."""
-        return hmac.digest(self._key, DIR_CONTROL + direction + datagram, "sha256")[:MAC_SIZE]
-
-    def seal(self, body: bytes) -> bytes:
-        """`body` + the trailer of the next frame sent."""
-        self.tx_fresh += 1
-        fresh = self.tx_fresh
-        return body + _LOW.pack(fresh & 0xFFFF) + self.mac(self.tx_dir, fresh, body)
-
-    def open(self, sealed: bytes | memoryview) -> int:
-        """AUTH_OK (the freshness accepted), AUTH_FAILED (short, or the MAC does not match) or AUTH_REPLAYED
-        (the MAC holds, the freshness is not ahead) for a received body ending in its trailer."""
-        n = len(sealed) - TRAILER
-        if n < 0:
-            return AUTH_FAILED
-        body = bytes(sealed[:n])
-        last = self.rx_fresh
-        low = _LOW.unpack_from(sealed, n)[0]
-        ahead = (low - last) & 0xFFFF
-        fresh = last + ahead if 0 < ahead < 0x8000 else (last - ((last - low) & 0xFFFF)) % (1 << 64)
-        if not hmac.compare_digest(self.mac(self.rx_dir, fresh, body), bytes(sealed[n + FRESH_SIZE:])):
-            return AUTH_FAILED
-        if fresh <= last:
-            return AUTH_REPLAYED
-        self.rx_fresh = fresh
-        return AUTH_OK
-
-
-__all__ = ["AUTH_FAILED", "AUTH_OK", "AUTH_REPLAYED", "TRAILER", "FrameAuth", "key_of_options", "new_key",
-           "parse_key", "read_key_file"]
+__all__ = ["KEY_MAX", "KEY_MIN", "MAC_SIZE", "TRAILER", "key_of_options", "new_key", "parse_key", "read_key_file"]

@@ -28,8 +28,7 @@ from typing import Any, Literal
 from pmsm_hil.protocol.errors import BudgetError
 from pmsm_hil.protocol.layout import load_layouts
 from pmsm_hil.protocol.links.auth import TRAILER
-from pmsm_hil.protocol.links.cobs import CRC_SIZE
-from pmsm_hil.protocol.links.wire import HEADER_SIZE
+from pmsm_hil.protocol.links.wire import CRC_SIZE, HEADER_SIZE
 
 LinkKind = Literal["can", "canfd", "serial", "udp"]
 LINK_KINDS: tuple[LinkKind, ...] = ("can", "canfd", "serial", "udp")
@@ -38,7 +37,7 @@ COMMAND_FORMS: tuple[str, ...] = ("states", "duties")
 DEFAULT_BITRATE = 1_000_000
 #: udp: the Ethernet bit rate when none is given [bit/s]
 DEFAULT_ETHERNET_BITRATE = 1_000_000_000
-#: udp: bytes per datagram beyond the frame: session id 4 (udp_bus.SESSION) + CRC 2
+#: udp: bytes per datagram beyond the frame: session id 4 + CRC 2
 UDP_FRAMING = 4 + 2
 #: Ethernet: UDP 8 + IPv4 20 bytes in the Ethernet payload; header 14 + FCS 4; preamble/SFD 8 + inter-frame gap 12
 UDP_IP_HEADERS = 8 + 20

@@ -19,9 +19,8 @@ from can import CanProtocol
 from pmsm_hil.protocol.errors import LinkSpecError
 from pmsm_hil.protocol.links.auth import key_of_options
 from pmsm_hil.protocol.links.budget import LinkBudget, link_budget
-from pmsm_hil.protocol.links.serial_bus import CobsSerialBus
 from pmsm_hil.protocol.links.spec import LinkSpec, Role, parse_spec
-from pmsm_hil.protocol.links.udp_bus import UdpUnicastBus, free_udp_ports, parse_udp_channel
+from pmsm_hil.protocol.links.wire_bus import HilSerialBus, HilUdpBus, free_udp_ports, parse_udp_channel
 
 Profile = Literal["can", "canfd"]
 #: What limits one period's wire time: nothing (in-process, loopback), a serial line or a CAN bus.
@@ -152,7 +151,7 @@ def _open_udp(ls: LinkSpec, role: Role) -> tuple[can.BusABC, str]:
             raise LinkSpecError(str(exc)) from exc
     opts = dict(ls.options)
     key = key_of_options(opts)
-    return UdpUnicastBus(channel=channel, auth_key=key, auth_role=role, **opts), f"udp:{channel}"
+    return HilUdpBus(channel=channel, auth_key=key, auth_role=role, **opts), f"udp:{channel}"
 
 
 def _mirror_udp(spec: str, ls: LinkSpec) -> SpawnSpecs:
@@ -173,7 +172,7 @@ def _open_serial(ls: LinkSpec, role: Role) -> tuple[can.BusABC, str]:
         raise LinkSpecError("link spec serial: needs a port, e.g. serial:/dev/ttyACM0,baudrate=3000000")
     opts = dict(ls.options)
     key = key_of_options(opts)
-    return CobsSerialBus(channel=ls.channel, auth_key=key, auth_role=role, **opts), f"serial:{ls.channel}"
+    return HilSerialBus(channel=ls.channel, auth_key=key, auth_role=role, **opts), f"serial:{ls.channel}"
 
 
 def _mirror_serial(spec: str, ls: LinkSpec) -> SpawnSpecs:

@@ -23,11 +23,11 @@ from can.interfaces.virtual import VirtualBus
 
 from pmsm_hil.protocol.errors import LinkError, LinkSpecError
 from pmsm_hil.protocol.frame import Frame
-from pmsm_hil.protocol.links.framed_bus import FramedBus
 from pmsm_hil.protocol.links.kinds import link_kind
 from pmsm_hil.protocol.links.shared_bus import SHARED_OPTION, is_shared_bus
 from pmsm_hil.protocol.links.spec import Role, parse_spec, redact_spec
 from pmsm_hil.protocol.links.stats import LinkStats
+from pmsm_hil.protocol.links.wire_bus import WireBus
 
 _perf = time.perf_counter
 _TRUE = ("true", "1", "yes", "on")
@@ -71,12 +71,13 @@ def poll_until(poll: Callable[[], Frame | None], timeout_s: float) -> Frame | No
 
 
 class BusLink:
-    """Link over a python-can bus; uses the plugins' fast path (no can.Message) when available."""
+    """Link over a python-can bus; on the hiludp / hilserial buses (wire_bus.py) through their fast path (no
+    can.Message) and with their C counters as `stats`."""
 
     def __init__(self, bus: can.BusABC, description: str) -> None:
         self.bus = bus
         self.description = description
-        self._fast: FramedBus | None = bus if isinstance(bus, FramedBus) else None
+        self._fast: WireBus | None = bus if isinstance(bus, WireBus) else None
         self.stats: LinkStats = self._fast.link_stats if self._fast is not None else LinkStats()
         self.fd = bus.protocol in (CanProtocol.CAN_FD, CanProtocol.CAN_FD_NON_ISO) or bool(getattr(bus, "fd", False))
         self._closed = False

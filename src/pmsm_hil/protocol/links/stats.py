@@ -1,4 +1,4 @@
-"""Link-level counters and the per-sender link sequence check."""
+"""Link-level counters (the C links keep them as nl_link_stats_t, same names)."""
 
 from __future__ import annotations
 
@@ -28,43 +28,4 @@ class LinkStats:
 
     def as_dict(self) -> dict[str, int]:
         """Counters by name."""
-        return {name: getattr(self, name) for name in self.__slots__}
-
-
-class SeqTracker:
-    """Checks the 8-bit link sequence number of one sender; updates `stats`; True = accept."""
-
-    __slots__ = ("_last", "_stats")
-
-    def __init__(self, stats: LinkStats) -> None:
-        self._stats = stats
-        self._last = -1
-
-    @property
-    def last(self) -> int:
-        """The last sequence number accepted (-1: none yet); settable for a native loop handing the link back."""
-        return self._last
-
-    @last.setter
-    def last(self, seq: int) -> None:
-        self._last = seq
-
-    def accept(self, seq: int) -> bool:
-        """Count gaps (dropped), repeats (duplicate) and late frames (out_of_order, still delivered)."""
-        last = self._last
-        if last < 0:
-            self._last = seq
-            return True
-        d = (seq - last) & 0xFF
-        if d == 1:
-            self._last = seq
-            return True
-        if d == 0:
-            self._stats.duplicate += 1
-            return False
-        if d < 128:
-            self._stats.dropped += d - 1
-            self._last = seq
-            return True
-        self._stats.out_of_order += 1
-        return True
+        return {name: getattr(self, name) for name in LinkStats.__slots__}

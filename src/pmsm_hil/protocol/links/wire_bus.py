@@ -34,6 +34,8 @@ import can
 import serial
 from can import CanProtocol
 
+from pmsm_hil.protocol.errors import LinkError
+from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.links._wire_native import ffi, lib
 from pmsm_hil.protocol.links.stats import LinkStats
 
@@ -48,9 +50,13 @@ DEFAULT_WRITE_TIMEOUT_S = 1.0
 #: an authenticated UDP end waits this long for the session its first frame needs [s]
 AUTH_SESSION_WAIT_S = 10.0
 _NEVER_NS = 2**63 - 1
-_REJECTIONS = {3: "the peer refused our HELLO: the peer's authentication key differs from this end's, or this end "
-                  "has none and the peer authenticates (the same key=HEX / keyfile=PATH on both ends)",
-               4: "the peer refused our HELLO: it does not authenticate frames and this end does"}
+#: answers to a HELLO refused for its authentication (loop_udp.c): the refusing end authenticates and the MAC
+#: failed (its key differs), or it does not authenticate and the HELLO did
+REJECT_KEY, REJECT_PLAIN = 3, 4
+
+
+class UdpSessionError(LinkError, can.CanOperationError):
+    """No UDP session was agreed with the peer (it refused our HELLO or did not answer); names the peer and why."""
 
 
 def parse_udp_channel(channel: str) -> tuple[int, int, str]:
@@ -95,12 +101,43 @@ def udp_socket_drops(fd: int) -> int | None:
     return None
 
 
+def link_socket_drops(link: Any) -> dict[str, int]:
+    """{"socket_drops": N} for a link over hiludp whose kernel count is known, else {} (LinkStats extras)."""
+    bus = getattr(link, "bus", None)
+    drops = udp_socket_drops(bus.fileno()) if isinstance(bus, HilUdpBus) and not bus._is_shutdown else None
+    return {} if drops is None else {"socket_drops": drops}
+
+
 def _flags(msg: can.Message) -> int:
     """The wire flags of a Message."""
     return ((lib.NL_WIRE_FD if msg.is_fd else 0) | (lib.NL_WIRE_BRS if msg.bitrate_switch else 0)
             | (lib.NL_WIRE_ESI if msg.error_state_indicator else 0)
             | (lib.NL_WIRE_EXTENDED if msg.is_extended_id else 0)
             | (lib.NL_WIRE_REMOTE if msg.is_remote_frame else 0))
+
+
+class WireLinkStats(LinkStats):
+    """`LinkStats` read from and written to the C link's counters (nl_link_stats_t): a live view, so what the
+    period loop counts on the bus's own C state is what the bus reports."""
+
+    __slots__ = ("_c",)
+
+    def __init__(self, c_stats: Any) -> None:
+        self._c = c_stats
+
+
+def _live_counter(name: str) -> property:
+    def get(self: WireLinkStats) -> int:
+        return int(getattr(self._c, name))
+
+    def put(self: WireLinkStats, value: int) -> None:
+        setattr(self._c, name, value)
+
+    return property(get, put, doc=f"the C link's `{name}` counter")
+
+
+for _name in LinkStats.__slots__:
+    setattr(WireLinkStats, _name, _live_counter(_name))
 
 
 class WireBus(can.BusABC):
@@ -117,6 +154,10 @@ class WireBus(can.BusABC):
         #: received channel name: the channel as given, whitespace replaced (python-can's logs split on it)
         self.channel_name = re.sub(r"\s+", "_", str(channel))
         self._queued: deque[can.Message] = deque()  # own messages, frames received while waiting for a session
+        #: the C link's counters, live (LinkStats names)
+        self.link_stats: LinkStats = WireLinkStats(self._state.stats)
+        self._tx_frame = ffi.new("nl_wire_frame_t *")
+        self._rx_frame = ffi.new("nl_wire_frame_t *")
         if auth_key is not None and lib.hil_auth_init(ffi.addressof(self._state, "auth"), auth_key, len(auth_key),
                                                       1 if auth_role == "target" else 0) != 0:
             self._close()
@@ -209,12 +250,63 @@ class WireBus(can.BusABC):
         super().shutdown()
         self._close()
 
-    # -- the link's counters --
+    # -- the fast path of a Link (link.py): frames without can.Message --
+    def send_frame(self, arbitration_id: int, data: bytes, is_fd: bool) -> None:
+        """Send an 11-bit data frame (FD frames with BRS); CanOperationError for a frame the wire cannot carry or
+        an I/O error."""
+        m = self._tx_frame
+        n = len(data)
+        if n > 64 or (is_fd and not self.fd):
+            self._state.stats.send_errors += 1
+            raise can.CanOperationError(f"{self.channel_info}: payload length {n} invalid for "
+                                        f"{'FD' if is_fd else 'classic'} frame" + ("" if self.fd or not is_fd
+                                                                                   else " (fd=False)"))
+        m.id = arbitration_id
+        m.flags = (lib.NL_WIRE_FD | lib.NL_WIRE_BRS) if is_fd else 0
+        m.len = n
+        ffi.memmove(m.data, data, n)
+        rc = self._send_wire(m, _deadline_ns(1.0))
+        if rc == -2:
+            raise can.CanOperationError(f"{self.channel_info}: payload length {n} invalid for "
+                                        f"{'FD' if is_fd else 'classic'} frame")
+        if rc < 0:
+            errno = ffi.errno
+            raise can.CanOperationError(f"{self.channel_info}: send failed: "
+                                        + (os.strerror(errno) if errno else "the output stayed full"))
+
+    def poll_frame(self) -> Frame | None:
+        """The next 11-bit data frame received, or None at once; extended and remote frames are counted as
+        ignored (frames queued while waiting for a session come first)."""
+        m = self._rx_frame
+        while True:
+            if self._queued:
+                msg = self._queued.popleft()
+                if msg.is_extended_id or msg.is_remote_frame:
+                    self._state.stats.ignored += 1
+                    continue
+                return Frame(msg.arbitration_id, bytes(msg.data), msg.is_fd)
+            if self._recv_wire(m, 0) != 1:
+                return None
+            flags = int(m.flags)
+            if flags & (lib.NL_WIRE_EXTENDED | lib.NL_WIRE_REMOTE):
+                self._state.stats.ignored += 1
+                continue
+            return Frame(int(m.id), ffi.buffer(m.data, m.len)[:], bool(flags & lib.NL_WIRE_FD))
+
     @property
-    def link_stats(self) -> LinkStats:
-        """The C link's counters now (LinkStats names)."""
-        st = self._state.stats
-        return LinkStats(**{name: int(getattr(st, name)) for name in LinkStats.__slots__})
+    def authenticated(self) -> bool:
+        """Frames on this bus carry the authentication trailer (an `auth_key` was given)."""
+        return bool(self._state.auth.on)
+
+    @property
+    def c_state_address(self) -> int:
+        """The address of the bus's C link state (nl_udp_t / nl_serial_t): what the period loop drives for a run."""
+        return int(ffi.cast("uintptr_t", self._state))
+
+    @property
+    def c_state_size(self) -> int:
+        """The size of that state [bytes] (the loop's extension checks its own type against it)."""
+        return int(ffi.sizeof(ffi.typeof(self._state).item))
 
     @property
     def link_seq(self) -> tuple[int, int]:
@@ -254,8 +346,8 @@ class HilUdpBus(WireBus):
         err = lib.nl_udp_open(self._state, _ipv4(bind_ip), socket.htons(local), _ipv4(peer_ip), socket.htons(remote),
                               int(rcvbuf))
         if err:
-            raise can.CanInitializationError(f"hiludp: cannot open UDP port {local} towards {peer_ip}:{remote}: "
-                                             f"{os.strerror(err)}")
+            raise can.CanInitializationError(f"hiludp: cannot bind UDP port {local}: {os.strerror(err)} (the link "
+                                             f"towards {peer_ip}:{remote})")
         self.local_port = int(lib.nl_udp_local_port(self._state))
         self.peer = (peer_ip, remote)
         self.channel_info = f"hiludp {self.local_port}->{peer_ip}:{remote}"
@@ -274,12 +366,41 @@ class HilUdpBus(WireBus):
 
     @property
     def session(self) -> int:
-        """The session id in use (0: none yet)."""
-        return int(self._state.session) if not self._state.proposal else 0
+        """The session id in use (0: none yet; this end's proposal, unauthenticated, before the peer agreed)."""
+        return int(self._state.session)
+
+    @property
+    def nonce(self) -> int:
+        """The adopting end's nonce of the session in use (authenticated links; 0: none)."""
+        return int(self._state.nonce)
+
+    @property
+    def connected(self) -> bool:
+        """The socket is connect()ed to the peer: the kernel delivers only the peer's datagrams."""
+        with socket.socket(fileno=os.dup(self.fileno())) as sock:
+            try:
+                sock.getpeername()
+            except OSError:
+                return False
+        return True
+
+    def socket_drops(self) -> int | None:
+        """Datagrams the kernel dropped for this socket (its receive buffer full: `drops` of /proc/net/udp), None
+        where that is not known."""
+        return udp_socket_drops(self.fileno())
+
+    def propose(self) -> None:
+        """Start the handshake with a fresh random session id (HELLO, repeated by the receives until answered)."""
+        lib.nl_udp_propose(self._state)
+
+    @property
+    def established(self) -> bool:
+        """True once both ends use the same session."""
+        return bool(self._state.session) and not self._state.proposal
 
     def wait_session(self, timeout_s: float) -> None:
         """Propose a session unless one is in use and receive until the peer agreed (frames that arrive meanwhile
-        are kept for recv); CanOperationError naming the peer when it refuses or does not answer."""
+        are kept for recv); UdpSessionError naming the peer and why when it refuses or does not answer."""
         u = self._state
         if not u.session and not u.proposal:
             lib.nl_udp_propose(u)
@@ -287,13 +408,37 @@ class HilUdpBus(WireBus):
         m = ffi.new("nl_wire_frame_t *")
         while u.proposal or not u.session:
             if u.rejected:
-                raise can.CanOperationError(f"{self.channel_info}: no session agreed: {_REJECTIONS[u.rejected]}")
+                raise UdpSessionError(f"{self.channel_info}: no session agreed: {self._rejection(int(u.rejected))}")
             if lib.nl_now_ns() >= deadline:
-                raise can.CanOperationError(
-                    f"{self.channel_info}: no session agreed: no answer from the peer at {self.peer[0]}:"
-                    f"{self.peer[1]} within {timeout_s:g} s (is it running? does it authenticate frames alike?)")
+                raise UdpSessionError(f"{self.channel_info}: no session agreed: {self._silence(timeout_s)}")
             if self._recv_wire(m, min(deadline, _deadline_ns(0.05))) == 1:
                 self._queued.append(self._message(m))
+
+    def _rejection(self, kind: int) -> str:
+        peer = f"{self.peer[0]}:{self.peer[1]}"
+        if kind == REJECT_KEY and self._state.auth.on:
+            return (f"the peer at {peer} refused our HELLO: its authentication key differs from this end's "
+                    "(the same key=HEX / keyfile=PATH on both ends)")
+        if kind == REJECT_KEY:
+            return (f"the peer at {peer} authenticates frames and this end does not: give this end its key "
+                    "(key=HEX or keyfile=PATH in the link SPEC)")
+        return (f"the peer at {peer} does not authenticate frames and this end does: start it with the same key "
+                "(key=HEX or keyfile=PATH), or drop the key here")
+
+    def _silence(self, timeout_s: float) -> str:
+        """Why no session was agreed within `timeout_s` [s], from what the peer sent meanwhile."""
+        peer = f"{self.peer[0]}:{self.peer[1]}"
+        s = self._state.stats
+        if s.auth_failed:
+            return (f"the peer at {peer} answers with authentication that fails ({s.auth_failed} datagrams "
+                    "dropped): " + ("its key differs from this end's" if self._state.auth.on else
+                                    "it authenticates frames and this end does not (key=HEX or keyfile=PATH)"))
+        if s.session_dropped or s.framing_errors:
+            return (f"the peer at {peer} answers without the hiludp session handshake "
+                    f"({s.session_dropped + s.framing_errors} datagrams dropped): an old or foreign target, "
+                    "see docs/protocol.md")
+        why = f"no answer from the peer at {peer} within {timeout_s:g} s (is a target running there?"
+        return why + (" Does it authenticate frames?)" if self._state.auth.on else ")")
 
     def _send_wire(self, m: Any, deadline_ns: int) -> int:
         rc = int(lib.nl_udp_send_wire(self._state, m, deadline_ns))
@@ -360,5 +505,5 @@ class HilSerialBus(WireBus):
         return int(self._state.framer.tx_seq)
 
 
-__all__ = ["DEFAULT_RCVBUF", "HilSerialBus", "HilUdpBus", "WireBus", "free_udp_ports", "parse_udp_channel",
-           "udp_socket_drops"]
+__all__ = ["DEFAULT_RCVBUF", "HilSerialBus", "HilUdpBus", "UdpSessionError", "WireBus", "WireLinkStats",
+           "free_udp_ports", "link_socket_drops", "parse_udp_channel", "udp_socket_drops"]

@@ -1,4 +1,4 @@
-/* The hilserial link in C (loop_serial.h): the checks of Deframer._packet and FramedBus._accept / poll_frame
+/* The hilserial link in C (loop_serial.h): the checks of a packet and of the frame in it
  * in the same order. */
 #define _GNU_SOURCE
 
@@ -82,7 +82,7 @@ int nl_serial_send(nl_serial_t *s, const hil_core_frame_t *f)
     return write_packet(s, packet, n);
 }
 
-/* One packet between delimiters (Deframer._packet, FramedBus._accept): 1 when its checks passed, its body
+/* One packet between delimiters: 1 when its checks passed, its body
  * (header + payload) in raw. */
 static int packet(nl_serial_t *s, uint8_t *raw)
 {
@@ -111,7 +111,7 @@ static int packet(nl_serial_t *s, uint8_t *raw)
     return !trailer || nl_auth_open(&s->auth, raw, (size_t)n - CRC_SIZE, &s->stats);
 }
 
-/* One received byte (Deframer.feed): 1 when it completed a packet whose checks passed, its body in raw. */
+/* One received byte: 1 when it completed a packet whose checks passed, its body in raw. */
 static int feed(nl_serial_t *s, uint8_t byte, uint8_t *raw)
 {
     if (byte == 0u) {

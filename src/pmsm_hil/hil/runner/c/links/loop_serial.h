@@ -1,11 +1,10 @@
 /*
- * The serial link of the native loop and of the native target: the hilserial wire format of
- * src/pmsm_hil/protocol/links/serial_bus.py (docs/protocol.md, "Serial framing"): packet = COBS(header + payload +
+ * The serial link of the native loop, of the native target and of python-can's hilserial bus (wire_bus.py): the
+ * hilserial wire format (docs/protocol.md, "Serial framing"): packet = COBS(header + payload +
  * CRC-16/CCITT-FALSE big endian) + 0x00, header = id u32 LE, flags, link seq, payload length; the framing of
- * firmware_stub/target/hil_serial.c. The receiver checks and counts as the Python Deframer + FramedBus do
- * (framing_errors, crc_errors, the link seq check, ignored): it resynchronises at every 0x00 and drops a run of
- * more than HIL_SERIAL_MAX_ENCODED bytes without one, counted once (the Python deframer counts such a run once
- * per read that ends inside it: the same for a run that ends within one read).
+ * firmware_stub/target/hil_serial.c. The receiver checks and counts (framing_errors, crc_errors, the
+ * link seq check, ignored): it resynchronises at every 0x00 and drops a run of more than HIL_SERIAL_MAX_ENCODED
+ * bytes without one, counted once.
  *
  * The descriptor is the caller's (a tty in raw mode as pyserial sets it up, or a pty master; non-blocking);
  * so is the state a run continues from (link seqs, a packet half received). Waiting for a frame busy-polls
@@ -23,7 +22,7 @@
 #include "hil_serial.h"
 #include "nl_link.h"
 
-#define NL_SERIAL_READ 4096        /* bytes per read (= serial_bus.READ_CHUNK) */
+#define NL_SERIAL_READ 4096        /* bytes per read */
 /* the longest packet between delimiters: an authenticated frame's (the trailer inside the COBS block) */
 #define NL_SERIAL_MAX_ENCODED (HIL_SERIAL_MAX_ENCODED + HIL_AUTH_TRAILER)
 
@@ -45,7 +44,7 @@ typedef struct {
     hil_auth_t auth;           /* authenticated frames (hil_auth.h; auth.on 0: off), no context */
 } nl_serial_t;
 
-/* Send one frame (FramedBus.send_frame: an invalid length or an FD frame on a classic link is a send error);
+/* Send one frame (an invalid length or an FD frame on a classic link is a send error);
  * 0 ok, -1 counted error. */
 int nl_serial_send(nl_serial_t *s, const hil_core_frame_t *f);
 

@@ -1,4 +1,4 @@
-/* The hiludp link in C (loop_udp.h): the same checks, in the same order, as UdpUnicastBus._pump. */
+/* The hiludp link (loop_udp.h): the loop's, the native target's and python-can's hiludp bus (wire_bus.py). */
 #define _GNU_SOURCE
 
 #include <errno.h>
@@ -292,7 +292,7 @@ int nl_udp_recv(nl_udp_t *u, hil_core_frame_t *f, int64_t deadline_ns)
         if (errno == EINTR) {
             continue;
         }
-        if (errno == ECONNREFUSED) { /* an earlier datagram refused (ICMP port unreachable): as udp_bus.py */
+        if (errno == ECONNREFUSED) { /* an earlier datagram refused (ICMP port unreachable) */
             if (u->session != 0u) {
                 u->stats.send_errors++;
             }

@@ -1,10 +1,10 @@
 /*
- * The UDP link of the native loop and of the native target: the hiludp wire format of
- * src/pmsm_hil/protocol/links/udp_bus.py (docs/protocol.md, "UDP datagrams and session handshake"). A data datagram is
+ * The UDP link of the native loop, of the native target and of python-can's hiludp bus (wire_bus.py): the hiludp
+ * wire format (docs/protocol.md, "UDP datagrams and session handshake"). A data datagram is
  * session id (u32 LE) + header (id u32 LE, flags, link seq, payload length) + payload + CRC-16/CCITT (init
  * 0xFFFF, big endian, over header + payload); session 0 marks a control datagram (HELLO / ACK). Datagrams
  * from any address but the peer's and of any other session are dropped and counted. The socket is connect()ed
- * to the peer (by Python's hiludp when it opens; the target connects again on the HELLO it adopts), so the
+ * to the peer (by nl_udp_open; the target connects again on the HELLO it adopts), so the
  * kernel drops other senders' datagrams before they reach it.
  *
  * The socket is the caller's (bound, non-blocking); the session was agreed before (the host: Python's
@@ -46,7 +46,7 @@ typedef struct {
     int64_t kernel_drops;      /* datagrams the kernel dropped for this socket, buffer full (SO_RXQ_OVFL) */
 } nl_udp_t;
 
-/* Send one frame (FD frames with the FD and BRS flags, as FramedBus.send_frame); 0 ok, -1 counted error. */
+/* Send one frame (FD frames with the FD and BRS flags); 0 ok, -1 counted error. */
 int nl_udp_send(nl_udp_t *u, const hil_core_frame_t *f);
 
 /* The next frame from the peer into *f: 1, or 0 when none came before deadline_ns (CLOCK_MONOTONIC; a

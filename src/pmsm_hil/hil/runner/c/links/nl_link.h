@@ -3,7 +3,7 @@
  * behind two function pointers and the link's own state (`ctx`). A link is one file (loop_udp.c, loop_serial.c,
  * loop_socketcan.c) that fills an nl_link_t; the loop (loop.c) and the target's serve loop (target_serve.c)
  * only call through it. Also what every link shares: the LinkStats counters (src/pmsm_hil/protocol/links/stats.py, same
- * names), the 8-bit link sequence check (SeqTracker), the payload-length rule, and the wait for a readable
+ * names), the 8-bit link sequence check, the payload-length rule, and the wait for a readable
  * descriptor: a bounded busy-poll, then ppoll until the deadline, so a loaded machine degrades instead of
  * collapsing. No allocation.
  */
@@ -78,17 +78,17 @@ typedef struct {
     int64_t blocked;           /* waits that ended in ppoll (the spin found nothing) */
 } nl_link_stats_t;
 
-/* SeqTracker.accept on *last (-1: none yet): 1 deliver, 0 a repeat; dropped / duplicate / out_of_order counted. */
+/* The link sequence check on *last (-1: none yet): 1 deliver, 0 a repeat; dropped / duplicate / out_of_order counted. */
 int nl_seq_accept(int32_t *last, uint8_t seq, nl_link_stats_t *st);
 
 /* hil_auth_open on a received body of n bytes ending in its trailer: 1 accepted, 0 dropped and counted
  * (auth_failed: a MAC that does not match; auth_replayed: a stale freshness value). */
 int nl_auth_open(hil_auth_t *a, const uint8_t *body, size_t n, nl_link_stats_t *st);
 
-/* valid_payload_length: a classic (<= 8) or CAN FD payload length. */
+/* A classic (<= 8) or CAN FD payload length. */
 int nl_valid_length(uint8_t n, int fd);
 
-/* FramedBus._accept + poll_frame on a header + payload of the UDP and serial framings (src/pmsm_hil/protocol/links/wire.py:
+/* A header + payload of the UDP and serial framings (src/pmsm_hil/protocol/links/wire.py:
  * id u32 LE, flags, link seq, payload length) whose CRC and length field were checked: a payload length no
  * classic / FD frame has is a framing error; then the link seq check; then extended or remote frames are
  * ignored. 1 when *f got a data frame (payload past len zeroed). */
