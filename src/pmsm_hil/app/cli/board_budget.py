@@ -19,8 +19,8 @@ BUDGET_BOARDS = ("stm32g474",)
 BOARD_CLOCK_HZ = {"stm32g474": 170_000_000.0}
 #: the firmware measured when none is named: the template
 DEFAULT_FIRMWARE = Path(__file__).resolve().parents[4] / "examples" / "my_firmware"
-#: the measuring run: the rated point of niu2020 at 10 kHz, settled for MEASURE_SETTLE_S, measured MEASURE_S [s]
-MEASURE_TS_S = 100e-6
+#: the measuring run: the rated point of niu2020 at 5 kHz, settled for MEASURE_SETTLE_S, measured MEASURE_S [s]
+MEASURE_TS_S = 200e-6
 MEASURE_SETTLE_S = 0.01
 MEASURE_S = 0.03
 
@@ -34,6 +34,7 @@ class Turnaround:
     cycles_max: float
     clock_hz: float
     source: str  # "measured" (a run on the virtual board) or "given" (--instructions)
+    command_form: str | None = None  # the Command form the firmware sent ("states", "duties"), when measured
 
 
 @dataclass(frozen=True, slots=True)
@@ -49,6 +50,7 @@ class BoardBudget:
     def as_dict(self) -> dict[str, Any]:
         t = self.turnaround
         return {"board": self.board, "firmware": t.firmware, "source": t.source, "clock_hz": t.clock_hz,
+                "command_form": t.command_form,
                 "turnaround_cycles": {"median": t.cycles_median, "max": t.cycles_max},
                 "turnaround_us": t.cycles_max / t.clock_hz * 1e6, "period_us": self.period_us,
                 "max_rate_hz": self.max_rate_hz, "feasible": self.feasible}
@@ -71,6 +73,7 @@ def measure_turnaround(board: str, elf: Path, *, label: str) -> Turnaround:
     """Run the firmware at the rated point on the virtual board (its frames on FDCAN1) and take the MCU's
     turnaround per period from the run's metrics."""
     from pmsm_hil.hil.presets_loader import load_motor
+    from pmsm_hil.hil.runlog.reader import read_periods
     from pmsm_hil.hil.runner.run import run_closed_loop
     from pmsm_hil.hil.runner.run_config import RunConfig
     from pmsm_hil.hil.runner.scenario import load_scenario
@@ -81,12 +84,17 @@ def measure_turnaround(board: str, elf: Path, *, label: str) -> Turnaround:
         cfg = replace(RunConfig(motor=load_motor("niu2020-ipmsm"), scenario=scenario, controller="external"),
                       target=f"stm32g4:{elf}", ts_s=MEASURE_TS_S, out_dir=Path(out))
         metrics = run_closed_loop(cfg).metrics
+        mcap = Path(out) / "run.mcap"
+        records = read_periods(mcap) if mcap.is_file() else None
+    form = None if records is None or not len(records) else \
+        "duties" if bool((records["n_duties"] > 0).any()) else "states"
     turn = metrics.get("board_turnaround_cycles")
     if metrics.get("end_code") != 0 or not isinstance(turn, dict):
         raise BudgetError(f"--firmware {label}: the measuring run on the virtual {board} did not complete "
                           f"({metrics.get('end_reason', 'no turnaround measured')}); an image built with "
                           f"`hil fw build --board {board} --src DIR` is needed")
-    return Turnaround(label, float(turn["median"]), float(turn["max"]), float(metrics["mcu_clock_hz"]), "measured")
+    return Turnaround(label, float(turn["median"]), float(turn["max"]), float(metrics["mcu_clock_hz"]), "measured",
+                      form)
 
 
 def board_budget(board: str, link: LinkBudget, turnaround: Turnaround) -> BoardBudget:
@@ -99,11 +107,12 @@ def board_budget(board: str, link: LinkBudget, turnaround: Turnaround) -> BoardB
 
 def format_board_budget(b: BoardBudget) -> str:
     t = b.turnaround
-    how = "measured on the virtual board, CPI 1: a lower bound" if t.source == "measured" else "--instructions"
+    how = "on the virtual board: instructions at CPI 1 and exception entries, a lower bound" \
+        if t.source == "measured" else "--instructions"
     verdict = "" if b.feasible is None else "  (fits)" if b.feasible else "  (TOO SLOW)"
     return "\n".join([
         f"  board {b.board} @ {t.clock_hz / 1e6:g} MHz, firmware {t.firmware}: MCU turnaround {t.cycles_max:.0f} "
-        f"instructions worst, {t.cycles_median:.0f} median ({how}) = {t.cycles_max / t.clock_hz * 1e6:.1f} µs",
+        f"cycles worst, {t.cycles_median:.0f} median ({how}) = {t.cycles_max / t.clock_hz * 1e6:.1f} µs",
         f"  per period with the firmware: {b.period_us:.1f} µs (wire + MCU)",
         f"  achievable closed-loop rate with the firmware: {b.max_rate_hz:.0f} Hz{verdict}",
     ])

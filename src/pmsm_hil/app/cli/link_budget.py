@@ -49,9 +49,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
     p.add_argument("--data-bitrate", type=int, default=DEFAULT_DATA_BITRATE, help="CAN FD data bit rate, bit/s")
     p.add_argument("--baud", type=int, default=DEFAULT_BAUD, help="serial baud rate (8N1)")
     p.add_argument("--phases", type=int, choices=(3, 6), default=3, help="machine phases (default: %(default)s)")
-    p.add_argument("--command", choices=COMMAND_FORMS, default="states",
+    p.add_argument("--command", choices=COMMAND_FORMS, default=None,
                    help="Command form: switching states (CmdA/B/C, CmdFd) or duty cycles (CmdDutyA/B/C, CmdDutyFd) "
-                        "(default: %(default)s)")
+                        "(default: states; with --board and a measured firmware: the form it sends)")
     rate = p.add_mutually_exclusive_group()
     rate.add_argument("--rate", type=float, default=None, help=f"control rate, Hz (default: {DEFAULT_RATE_HZ:g})")
     rate.add_argument("--ts", type=float, default=None, metavar="S",
@@ -115,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
         baud=args.baud,
         rate_hz=rate_hz,
         auth=args.auth,
-        command=args.command,
+        command=args.command or "states",
     )
     if args.board is not None:
         return _run_board(args, b)
@@ -144,10 +144,15 @@ def _turnaround(args: argparse.Namespace) -> Turnaround:
 
 def _run_board(args: argparse.Namespace, b: LinkBudget) -> int:
     """The budget with the MCU's turnaround: exit 0 when --rate fits, 1 when it does not."""
-    if args.link not in ("can", "canfd"):
+    if b.link not in ("can", "canfd"):
         raise BudgetError(f"--board {args.board}: its board layer carries the frames on FDCAN1, use --link can or "
                           f"canfd, got --link {args.link}")
-    bb = board_budget(args.board, b, _turnaround(args))
+    turnaround = _turnaround(args)
+    form = turnaround.command_form
+    if args.command is None and form is not None and form != "states":  # the Command form the firmware sends
+        b = link_budget(b.link, b.phases, bitrate=b.bitrate, data_bitrate=b.data_bitrate, baud=b.baud,
+                        rate_hz=b.rate_hz, auth=b.auth, command=form)
+    bb = board_budget(args.board, b, turnaround)
     if args.json:
         print(json.dumps({**b.as_dict(), "with_board": bb.as_dict()}, indent=1))
     else:
