@@ -166,3 +166,16 @@ def test_link_budget_with_given_instructions_adds_the_mcu_time(capsys: pytest.Ca
     assert board["turnaround_us"] == pytest.approx(10.0)  # 1700 cycles at 170 MHz
     assert board["period_us"] == pytest.approx(out["wire_time_per_period_us"] + 10.0)
     assert board["max_rate_hz"] == pytest.approx(1e6 / board["period_us"])
+
+
+def test_classic_can_and_hsi_build_runs_over_classic_frames(tmp_path: Path) -> None:
+    """`--define HIL_BOARD_CLASSIC_CAN --define HIL_BOARD_HSI`: FDCAN1 without FD operation (the run then sends
+    classic frames: 2 up, 3 down, 555 µs of bus time at 1 Mbit/s) and the PLL from HSI16."""
+    need("stm32g474")
+    elf = build_firmware("stm32g474", TEMPLATE, defines=["HIL_BOARD_CLASSIC_CAN", "HIL_BOARD_HSI"]).path
+    m = metrics(rated(f"stm32g4:{elf}", controller="external", settle_s=0.02, duration_s=0.05, ts_s=1e-3,
+                      out_dir=tmp_path / "run"))
+    assert m["mcu_clock_hz"] == 170e6
+    assert m["board_late_replies"] == 0 and m["board_missing_replies"] == 0
+    assert m["link"]["lost"] == 0
+    assert m["torque_mean_nm"] == pytest.approx(7.0, rel=0.05)
