@@ -61,6 +61,7 @@ COST_S: dict[str, float] = {
     "tests/runner/test_loop.py": 113,
     "tests/runner/test_wire_socketcan.py": 110,
     "tests/runner/test_spawn_safety.py": 102,
+    "tests/firmware_board/test_template_stm32g4.py": 150,  # 7 board/sil/qemu runs (≈ 220 s at load ≈ 10)
     "tests/firmware_board/test_qemu_endings.py": 91,
     "tests/firmware_board/test_template_cpp.py": 89,
     "tests/runlog/test_full_disk.py": 83,

@@ -5,7 +5,7 @@
 #
 # HIL_BOARD host: a shared library out/libhil_firmware.so for `hil run --target sil:PATH`;
 # HIL_BOARD mps2-an386: a Cortex-M4F ELF out/hil_firmware.elf for `hil run --target qemu:PATH` (configure
-# with -DCMAKE_TOOLCHAIN_FILE=${HIL_SDK}/boards/mps2-an386/toolchain.cmake). The core, the generated codec
+# with -DCMAKE_TOOLCHAIN_FILE=${HIL_SDK}/boards/mps2-an386/toolchain.cmake); HIL_BOARD stm32g474: below. The core, the generated codec
 # and the board layer are compiled with the project's strict flags; STRICT applies them to SOURCES too.
 #
 # Languages: C sources get -std=c99, C++ sources (.cpp/.cc/.cxx; enable CXX in project()) -std=c++17
@@ -17,9 +17,12 @@
 # `hil fw build --define NAME=VALUE` sets NAME both as a CMake variable and as a preprocessor macro of the
 # firmware (HIL_DEFINES). The host library links with --no-undefined: a missing hil_app_* is a build error.
 #
-# HIL_BOARD stm32g474 (toolchain ${HIL_SDK}/boards/stm32g474/toolchain.cmake): a bare-metal firmware for the
-# virtual STM32G474 (`hil run --target stm32g4:PATH`), which owns its start-up, vector table and linker script
-# and talks to the plant through the chip's peripherals, not through the target core:
+# HIL_BOARD stm32g474 (toolchain ${HIL_SDK}/boards/stm32g474/toolchain.cmake): hil_add_firmware() builds the
+# target core on the STM32G474 board layer (boards/stm32g474/: start-up, 170 MHz clocks, FDCAN1 carrying the
+# frames, DWT as the execution clock) into out/hil_firmware.elf, the image for a real NUCLEO-G474RE on a CAN FD
+# bench and for `hil run --target stm32g4:PATH` (the virtual board, over its emulated FDCAN1). A bare-metal
+# firmware that owns its start-up, vector table and linker script and talks to the plant through the chip's
+# peripherals, not through the target core, uses instead:
 #   hil_add_board_firmware(my_fw SOURCES ... LINKER_SCRIPT file.ld [INCLUDES dir...] [CODEC])
 # builds out/hil_firmware.elf (and its .map) with the strict flags; CODEC adds the generated DBC codec
 # (generated/hil_protocol.c, its header on the include path).
@@ -58,8 +61,16 @@ function(hil_add_firmware name)
         target_link_libraries(${name} PRIVATE m)
         target_include_directories(${name} PRIVATE "${board}")
     elseif(HIL_BOARD STREQUAL "stm32g474")
-        message(FATAL_ERROR "hil_add_firmware() builds the HIL target core (host, mps2-an386); a firmware for "
-                "stm32g474 owns its start-up and peripherals: use hil_add_board_firmware() (examples/stm32g4_foc)")
+        set(board "${HIL_SDK}/boards/stm32g474")
+        list(APPEND core "${board}/startup.c" "${board}/board.c" "${board}/fdcan.c")
+        add_executable(${name} ${FW_SOURCES} ${core})
+        set_target_properties(${name} PROPERTIES OUTPUT_NAME hil_firmware SUFFIX ".elf"
+                              RUNTIME_OUTPUT_DIRECTORY "${CMAKE_BINARY_DIR}/out"
+                              LINK_DEPENDS "${board}/stm32g474.ld")
+        target_link_options(${name} PRIVATE "-T${board}/stm32g474.ld" -nostartfiles --specs=nano.specs
+                            --specs=nosys.specs -Wl,--gc-sections "-Wl,-Map=${CMAKE_BINARY_DIR}/out/hil_firmware.map")
+        target_link_libraries(${name} PRIVATE m)
+        target_include_directories(${name} PRIVATE "${board}")
     else()
         message(FATAL_ERROR "HIL_BOARD must be host, mps2-an386 or stm32g474, got '${HIL_BOARD}'")
     endif()

@@ -78,10 +78,13 @@ def test_cli_prints_the_elf_path() -> None:
     assert Path(line.split()[1]).is_file() and line.split()[1].endswith(".elf")
 
 
-def test_target_core_firmware_is_refused_on_the_board_with_the_reason() -> None:
+def test_target_core_firmware_builds_on_the_boards_firmware_api_layer() -> None:
+    """hil_add_firmware() on stm32g474: the target core on firmware_stub/boards/stm32g474/ (FDCAN1), not refused."""
+    from pmsm_hil.sim_target.elf import elf_symbols
+
     _need()
-    with pytest.raises(FwBuildError, match="hil_add_board_firmware"):
-        build_firmware("stm32g474", ROOT / "examples" / "my_firmware")
+    symbols = elf_symbols(build_firmware("stm32g474", ROOT / "examples" / "my_firmware").path)
+    assert {"hil_core_rx", "hil_app_step", "FDCAN1_IT0_IRQHandler"} <= set(symbols)
 
 
 def test_vendor_header_folder_without_the_header_is_refused(tmp_path: Path) -> None:

@@ -1,8 +1,8 @@
 """Builds a firmware of the HIL target core (docs/firmware_api.md) with CMake: the reference firmware
 (firmware_stub/src behind firmware_stub/target/hil_app_reference.c) or a user's source folder, for the host
 (a shared library for `--target sil:PATH`), the emulated Cortex-M4F board mps2-an386 (an ELF for
-`--target qemu:PATH`), or the virtual STM32G474 (a bare-metal ELF for `--target stm32g4:PATH`; default source
-examples/stm32g4_foc).
+`--target qemu:PATH`), or the STM32G474 (an ELF for a real board and for `--target stm32g4:PATH`: the target core
+on firmware_stub/boards/stm32g474/, or a bare-metal firmware; default source examples/stm32g4_foc).
 
 Builds go to a per-user cache folder (one per source folder, board and set of `--define`s, incremental, locked
 while in use); `build_firmware` copies the artefact to `out` when given. What the compiler said is kept: the

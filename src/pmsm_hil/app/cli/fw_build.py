@@ -22,10 +22,11 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         description="""Build the reference firmware (default) or a firmware source folder (a CMakeLists.txt calling
                        hil_add_firmware(), e.g. examples/my_firmware/ or the C++ examples/my_firmware_cpp/) for the host
                        (shared library: hil run --target sil:OUT), mps2-an386 (Cortex-M4F ELF: hil run --target
-                       qemu:OUT) or stm32g474 (a bare-metal ELF owning its start-up and peripherals, default source
-                       examples/stm32g4_foc: hil run --target stm32g4:OUT); prints the artefact's path, the
-                       compiler's warnings, for the ELF its text/data/bss sizes, and the parameters the
-                       firmware declares (hil_app_params.h).""")
+                       qemu:OUT) or stm32g474 (the ELF for a NUCLEO-G474RE and hil run --target stm32g4:OUT: a
+                       hil_add_firmware() folder on the board layer, its frames on FDCAN1, or a bare-metal firmware
+                       owning its start-up and peripherals, default source examples/stm32g4_foc); prints the
+                       artefact's path, the compiler's warnings, for the ELF its text/data/bss sizes, and the
+                       parameters the firmware declares (hil_app_params.h).""")
     p.add_argument("--board", choices=BOARDS, default="host", help="target board (default host)")
     p.add_argument("--src", type=Path, metavar="DIR",
                    help="firmware source folder (default: the reference firmware; for stm32g474 examples/stm32g4_foc)")

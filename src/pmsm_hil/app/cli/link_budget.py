@@ -6,7 +6,17 @@ import argparse
 import json
 import math
 import sys
+from pathlib import Path
 
+from pmsm_hil.app.cli.board_budget import (
+    BOARD_CLOCK_HZ,
+    BUDGET_BOARDS,
+    Turnaround,
+    board_budget,
+    firmware_elf,
+    format_board_budget,
+    measure_turnaround,
+)
 from pmsm_hil.protocol.errors import BudgetError
 from pmsm_hil.protocol.links.budget import (
     COMMAND_FORMS,
@@ -39,9 +49,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
     p.add_argument("--data-bitrate", type=int, default=DEFAULT_DATA_BITRATE, help="CAN FD data bit rate, bit/s")
     p.add_argument("--baud", type=int, default=DEFAULT_BAUD, help="serial baud rate (8N1)")
     p.add_argument("--phases", type=int, choices=(3, 6), default=3, help="machine phases (default: %(default)s)")
-    p.add_argument("--command", choices=COMMAND_FORMS, default="states",
+    p.add_argument("--command", choices=COMMAND_FORMS, default=None,
                    help="Command form: switching states (CmdA/B/C, CmdFd) or duty cycles (CmdDutyA/B/C, CmdDutyFd) "
-                        "(default: %(default)s)")
+                        "(default: states; with --board and a measured firmware: the form it sends)")
     rate = p.add_mutually_exclusive_group()
     rate.add_argument("--rate", type=float, default=None, help=f"control rate, Hz (default: {DEFAULT_RATE_HZ:g})")
     rate.add_argument("--ts", type=float, default=None, metavar="S",
@@ -49,6 +59,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
     p.add_argument("--auth", action="store_true",
                    help="serial frames carry the 6-byte authentication trailer (on by default for spawned targets; "
                         "docs/protocol.md, 'Authenticated frames')")
+    p.add_argument("--board", choices=BUDGET_BOARDS, default=None,
+                   help="add the firmware's time on this MCU (its instructions on the virtual board, CPI 1) to the "
+                        "wire time: the achievable rate of a bench with that board (--link can or canfd)")
+    p.add_argument("--firmware", type=Path, default=None, metavar="PATH",
+                   help="with --board: the firmware, an ELF built by `hil fw build --board BOARD --src DIR` or its "
+                        "source folder (default: the template examples/my_firmware)")
+    p.add_argument("--instructions", type=int, default=None, metavar="N",
+                   help="with --board: the MCU's cycles per period (Measurement in to Command out) instead of "
+                        "measuring them")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=run)
 
@@ -81,6 +100,8 @@ def format_budget(b: LinkBudget) -> str:
 def run(args: argparse.Namespace) -> int:
     """Print the budget; returns 0 if the link carries --rate, 1 if it is too slow (BudgetError on invalid
     arguments: `hil` prints it as one line, exit 2)."""
+    if args.board is None and (args.firmware is not None or args.instructions is not None):
+        raise BudgetError("--firmware and --instructions go with --board (the MCU whose time they give)")
     if args.ts is not None and not (math.isfinite(args.ts) and args.ts > 0):
         raise BudgetError(f"--ts must be a positive number of seconds, got {args.ts!r}")
     rate_hz = 1.0 / args.ts if args.ts is not None else DEFAULT_RATE_HZ if args.rate is None else args.rate
@@ -94,13 +115,51 @@ def run(args: argparse.Namespace) -> int:
         baud=args.baud,
         rate_hz=rate_hz,
         auth=args.auth,
-        command=args.command,
+        command=args.command or "states",
     )
+    if args.board is not None:
+        return _run_board(args, b)
     print(json.dumps(b.as_dict(), indent=1) if args.json else format_budget(b))
     if b.feasible is False:
         asked = f"--ts {args.ts:g} s is {b.rate_hz:.0f} Hz" if args.ts is not None else f"--rate is {b.rate_hz:.0f} Hz"
         print(f"hil: link-budget: too slow: {b.link} carries at most {b.max_rate_hz:.0f} Hz of closed loop, {asked}: "
               f"{b.frames_per_period_up} + {b.frames_per_period_down} frames per period need "
               f"{b.wire_time_per_period_us:.1f} µs on the wire (worst case)", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _turnaround(args: argparse.Namespace) -> Turnaround:
+    if args.instructions is not None:
+        if args.instructions <= 0:
+            raise BudgetError(f"--instructions must be a positive number of cycles, got {args.instructions}")
+        if args.firmware is not None:
+            raise BudgetError("--instructions and --firmware: give one (--instructions skips the measurement)")
+        n = float(args.instructions)
+        return Turnaround("(given)", n, n, BOARD_CLOCK_HZ[args.board], "given")
+    elf = firmware_elf(args.board, args.firmware)
+    label = str(args.firmware if args.firmware is not None else "examples/my_firmware")
+    return measure_turnaround(args.board, elf, label=label)
+
+
+def _run_board(args: argparse.Namespace, b: LinkBudget) -> int:
+    """The budget with the MCU's turnaround: exit 0 when --rate fits, 1 when it does not."""
+    if b.link not in ("can", "canfd"):
+        raise BudgetError(f"--board {args.board}: its board layer carries the frames on FDCAN1, use --link can or "
+                          f"canfd, got --link {args.link}")
+    turnaround = _turnaround(args)
+    form = turnaround.command_form
+    if args.command is None and form is not None and form != "states":  # the Command form the firmware sends
+        b = link_budget(b.link, b.phases, bitrate=b.bitrate, data_bitrate=b.data_bitrate, baud=b.baud,
+                        rate_hz=b.rate_hz, auth=b.auth, command=form)
+    bb = board_budget(args.board, b, turnaround)
+    if args.json:
+        print(json.dumps({**b.as_dict(), "with_board": bb.as_dict()}, indent=1))
+    else:
+        print(format_budget(b))
+        print(format_board_budget(bb))
+    if bb.feasible is False:
+        print(f"hil: link-budget: too slow: {b.link} with {args.board} running {bb.turnaround.firmware} carries at "
+              f"most {bb.max_rate_hz:.0f} Hz of closed loop, asked {b.rate_hz:.0f} Hz", file=sys.stderr)
         return 1
     return 0

@@ -282,6 +282,22 @@ METRICS: Final[tuple[Metric, ...]] = (
     _m("board_idle_periods", "idle periods", "", "stm32g4 targets with an FDCAN1 model: firmware periods run outside "
        "the control periods for frames that arrived between them (configuration, the safe stop)", ".0f",
        source=RUN),
+    _m("board_link", "board link", "", "stm32g4 targets built on the firmware API (`hil fw build --board stm32g474 "
+       "--src DIR`): `fdcan1`, the frames carried by the board's emulated FDCAN1", "", REPORT, source=RUN),
+    _m("board_can_bitrates", "CAN bit rates", "bit/s", "stm32g4 targets on FDCAN1: `[nominal, data]` bit rates the "
+       "firmware configured", "", source=RUN),
+    _m("board_turnaround_us", "MCU turnaround", "µs", "stm32g4 targets on FDCAN1: `{median, p99, max}` from a "
+       "Measurement's arrival on FDCAN1 to the start of its Command on the bus (interrupt, target core, step, "
+       "frame encoding; CPI 1, a lower bound) over the metrics window", source=RUN),
+    _m("board_turnaround_us", "MCU turnaround", "µs", "median MCU turnaround per period (stm32g4 targets on "
+       "FDCAN1)", ".3g", CLI, REPORT, sub="median", source=RUN),
+    _m("board_turnaround_cycles", "MCU turnaround", "cycles", "stm32g4 targets on FDCAN1: the turnaround in core "
+       "cycles (= instructions at CPI 1, exception entries 12 and returns 10 cycles), `{median, p99, max}`",
+       source=RUN),
+    _m("board_late_replies", "late replies", "", "stm32g4 targets on FDCAN1: Commands that left the bus after the "
+       "next Measurement's slot (late on a real-time bench at --ts)", ".0f", CLI, REPORT, source=RUN),
+    _m("board_missing_replies", "missing replies", "", "stm32g4 targets on FDCAN1: Measurements the firmware did "
+       "not answer within 20 periods", ".0f", source=RUN),
     _m("candidates_evaluated_mean", "candidates / step", "", "mean of `candidates`", ".0f", CLI, COMPARE_ROW),
     _m("narrow_pulses", "narrow pulses", "", "Σ leg pulses shorter than T_lim = 2·T_dead + T_mpw requested by the "
        "controller", ".0f", CLI, COMPARE_ROW),

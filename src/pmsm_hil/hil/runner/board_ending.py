@@ -9,11 +9,12 @@ from __future__ import annotations
 from pmsm_hil.hil.runner.contract import EndCode
 from pmsm_hil.hil.runner.loop_outcome import LoopOutcome
 from pmsm_hil.sim_target.stm32g4.fault import BoardFaultError
+from pmsm_hil.sim_target.stm32g4.frame_link import FrameBoardLink
 from pmsm_hil.sim_target.stm32g4.link import BoardLink
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
 
 
-def judge_board(link: BoardLink, out: LoopOutcome) -> None:
+def judge_board(link: BoardLink | FrameBoardLink, out: LoopOutcome) -> None:
     """Rewrite the ending `out` in place when the board stopped the firmware; other endings stay."""
     error = out.error
     if not isinstance(error, BoardError) or out.end_code == EndCode.INTERRUPTED:

@@ -79,6 +79,8 @@ def connect_native(cfg: RunConfig, silent_after: int | None = None) -> TargetCon
         if conn.sil_debug is not None:  # an isolated SIL target: its torque reference through shared memory
             native.sil_debug = conn.sil_debug.pointer(ffi)
     else:  # an in-process target served in Python, or no descriptor for C (serial:socket://...): through Python
+        if cfg.target.startswith("stm32g4:"):  # the firmware's FDCAN1 set-up decides: classic CAN or CAN FD frames
+            fd = bool(getattr(conn.host_link, "fd", fd))
         native = NativePyLink(conn.host_link, ffi, lib, fd=fd, pump=conn.client.pump, inproc_result=conn.inproc_result)
     conn.host_link = conn.client.link = native
     return conn

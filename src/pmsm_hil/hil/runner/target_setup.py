@@ -415,6 +415,7 @@ def _connect_board(cfg: RunConfig, path: str) -> TargetConnection:
     runs one period of the firmware); its metrics (handlers, CPU load, late compares) join metrics.json."""
     from pmsm_hil.hil.runner.board_log import BoardLog
     from pmsm_hil.sim_target.stm32g4.board_file import load_board
+    from pmsm_hil.sim_target.stm32g4.frame_link import is_core_image
     from pmsm_hil.sim_target.stm32g4.link import BoardLink
 
     elf = Path(path).expanduser()
@@ -424,6 +425,8 @@ def _connect_board(cfg: RunConfig, path: str) -> TargetConnection:
         raise BoardError(f"stm32g4 target: {elf} not found")
     console = TargetConsole(None, None, ready_prefix=READY_LINE, stats_prefix=LINK_STATS_LINE, verbose=cfg.verbose)
     lines: list[str] = []
+    if is_core_image(elf):
+        return _connect_core_image(cfg, elf, console, lines)
     link = BoardLink(elf, load_board(cfg.board), ts_s=cfg.ts_s, pole_pairs=int(cfg.motor.pole_pairs),
                      psi_f_wb=float(getattr(cfg.motor, "psi_f", 0.0)), vdc_v=float(cfg.motor.vdc),
                      skip_periods=round(cfg.scenario.settle_s / cfg.ts_s),
@@ -433,6 +436,21 @@ def _connect_board(cfg: RunConfig, path: str) -> TargetConnection:
                             ending=lambda out: judge_board(link, out),
                             before_close=lambda: console.feed("\n".join(lines)), first_duties=link.first_duties,
                             outputs_off=link.outputs_off, board_records=BoardLog(link, cfg.ts_s).take)
+
+
+def _connect_core_image(cfg: RunConfig, elf: Path, console: TargetConsole, lines: list[str]) -> TargetConnection:
+    """A firmware-API image (`hil fw build --board stm32g474 --src DIR`) on the virtual board: the frames go over
+    its FDCAN1, in CAN FD frames when the firmware enabled FD operation, else classic ones."""
+    from pmsm_hil.sim_target.stm32g4.board_file import load_board
+    from pmsm_hil.sim_target.stm32g4.frame_link import FrameBoardLink
+
+    link = FrameBoardLink(elf, load_board(cfg.board), ts_s=cfg.ts_s,
+                          skip_periods=round(cfg.scenario.settle_s / cfg.ts_s),
+                          console=lambda source, line: lines.append(f"{source}: {line}"))
+    codec = FrameCodec(link.profile)
+    return TargetConnection(TargetClient(link, codec), link, extra_metrics=link.metrics, console=console,
+                            ending=lambda out: judge_board(link, out),
+                            before_close=lambda: console.feed("\n".join(lines)))
 
 
 def connect_target(cfg: RunConfig, *, silent_after: int | None = None, native_target: bool = False) -> TargetConnection:

@@ -1,6 +1,7 @@
 /*
- * STM32G474 register definitions for this firmware, written from RM0440 (STM32G4 reference manual, rev. 8) and
- * the Cortex-M4 Generic User Guide (ARM DUI 0553): only the peripherals and bits the firmware uses.
+ * STM32G474 register definitions, written from RM0440 (STM32G4 reference manual, rev. 8) and the Cortex-M4
+ * Generic User Guide (ARM DUI 0553): only the peripherals and bits that examples/stm32g4_foc and the firmware
+ * API's board layer (this folder) use.
  *
  * The names follow the CMSIS device-header convention (TIM1->CCR1, RCC_CR_HSEON, ADC_JSQR_JEXTSEL_Pos, ...), so
  * the same sources build against ST's own device header instead: configure with
@@ -218,6 +219,7 @@ typedef struct {
 #define RCC_CFGR_PPRE1 (7UL << 8)
 #define RCC_CFGR_PPRE2 (7UL << 11)
 #define RCC_PLLCFGR_PLLSRC (3UL << 0)
+#define RCC_PLLCFGR_PLLSRC_HSI (2UL << 0)
 #define RCC_PLLCFGR_PLLSRC_HSE (3UL << 0)
 #define RCC_PLLCFGR_PLLM_Pos 4U
 #define RCC_PLLCFGR_PLLM (0xFUL << 4)
@@ -498,6 +500,7 @@ typedef struct {
 #define FDCAN_DBTP_DTSEG1_Pos 8U
 #define FDCAN_DBTP_DBRP_Pos 16U
 #define FDCAN_IR_RF0N (1UL << 0)
+#define FDCAN_IR_RF0L (1UL << 3)
 #define FDCAN_IE_RF0NE (1UL << 0)
 #define FDCAN_ILS_RXFIFO0 (1UL << 0)
 #define FDCAN_ILE_EINT0 (1UL << 0)
@@ -509,10 +512,15 @@ typedef struct {
 #define FDCAN_RXF0S_F0FL (0xFUL << 0)
 #define FDCAN_RXF0S_F0GI_Pos 8U
 #define FDCAN_RXF0S_F0GI (3UL << 8)
+#define FDCAN_RXF0S_RF0L (1UL << 25)
 #define FDCAN_TXFQS_TFQPI_Pos 16U
 #define FDCAN_TXFQS_TFQPI (3UL << 16)
 #define FDCAN_TXFQS_TFQF (1UL << 21)
 #define FDCAN_TXBC_TFQM (1UL << 24)
+#define FDCAN_DBTP_TDC (1UL << 23)
+#define FDCAN_TDCR_TDCO_Pos 8U
+#define FDCAN_CCCR_TEST (1UL << 7)
+#define FDCAN_TEST_LBCK (1UL << 4)
 
 /* ---- Instances ---- */
 #define RCC ((RCC_TypeDef *)RCC_BASE)
