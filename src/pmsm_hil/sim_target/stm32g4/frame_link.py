@@ -81,6 +81,8 @@ class FrameBoardLink:
         self._command_start = 0
         self._idle_left = 0
         self.closed = False
+        #: always None: a start-up that fails raises from this constructor (`_start`), before any period
+        self.boot_error: BoardError | None = None
         self.wall_s = 0.0
         self._start()
         self.fd = self.profile == "canfd"
