@@ -4,6 +4,7 @@ tests off there."""
 
 from __future__ import annotations
 
+import gc
 import os
 import resource
 import signal
@@ -65,6 +66,16 @@ def _cache_bytecode() -> None:
     os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
     sys.pycache_prefix = prefix
     sys.dont_write_bytecode = False
+
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    """Move everything collection made (the test modules, their items, the package's modules: ~170 000 objects)
+    into the garbage collector's permanent generation. Every closed-loop run starts with a full `gc.collect()`
+    (the runner's loop, so that no collection pauses it) and Python's own full collections come every so often:
+    each walked that whole heap, 0.22 CPU-s in a worker, for objects that live until the session ends anyway.
+    Objects the tests make are collected as before."""
+    gc.collect()
+    gc.freeze()
 
 
 def pytest_runtest_logreport(report: pytest.TestReport) -> None:

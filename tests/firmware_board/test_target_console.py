@@ -5,18 +5,17 @@ run ended as a false `missing` violation — and its lines are in the run's MCAP
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
+from pmsm_hil.app.cli.main import main
 from pmsm_hil.hil.runlog.reader import read_periods, read_topic_messages
 from pmsm_hil.hil.runlog.topics import TOPIC_CONSOLE
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.sim_target.fw_build import build_firmware
 from tests.firmware_board._runs import rated
-from tests.firmware_board.conftest import ROOT, need
+from tests.firmware_board.conftest import need
 
 PRINT = Path(__file__).with_name("misbehave") / "print"
 LINE = "step {:06d} line {}: " + "0" * 107
@@ -44,16 +43,13 @@ def test_a_firmware_printing_1_kb_per_step_completes_and_its_lines_are_logged(pr
     assert not any(w.startswith("target console") for w in m["warnings"])
 
 
-def test_verbose_prints_the_lines_on_the_terminal(printing: Path, tmp_path: Path) -> None:
-    proc = subprocess.run([sys.executable, "-m", "pmsm_hil.app.cli.main", "run", f"--target=sil:{printing}",
-                           "--controller=external", "--settle=0.01", "--duration=0.01", "--no-log", "--verbose"],
-                          cwd=ROOT, capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    assert f"[target] {LINE.format(0, 0)}" in proc.stderr
-    quiet = subprocess.run([sys.executable, "-m", "pmsm_hil.app.cli.main", "run", f"--target=sil:{printing}",
-                            "--controller=external", "--settle=0.01", "--duration=0.01", "--no-log"],
-                           cwd=ROOT, capture_output=True, text=True, timeout=300)
-    assert quiet.returncode == 0 and "[target]" not in quiet.stderr
+def test_verbose_prints_the_lines_on_the_terminal(printing: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`hil run --verbose` (its main(), in this process: the lines are the runner's, not the interpreter's)."""
+    argv = ["run", f"--target=sil:{printing}", "--controller=external", "--settle=0.01", "--duration=0.01", "--no-log"]
+    assert main([*argv, "--verbose"]) == 0
+    assert f"[target] {LINE.format(0, 0)}" in capsys.readouterr().err
+    assert main(argv) == 0
+    assert "[target]" not in capsys.readouterr().err
 
 
 def test_qemus_console_is_logged_too(tmp_path: Path) -> None:

@@ -87,7 +87,31 @@ def _open_logger(cfg: RunConfig) -> tuple[Any, Path | None]:
     cfg.out_dir.mkdir(parents=True, exist_ok=True)
     (cfg.out_dir / "metrics.json").unlink(missing_ok=True)  # never a new log beside an old run's metrics
     path = cfg.out_dir / "run.mcap"
-    return RunLogger(path, metadata=run_metadata(cfg), trace_dtype=cfg.machine.layout.trace_dtype), path
+    return RunLogger(path, metadata=run_metadata(cfg), trace_dtype=cfg.machine.layout.trace_dtype,
+                     ring_bytes=logger_ring_bytes(cfg)), path
+
+
+#: what a period can put into the logger's ring at most, besides its trace rows [B]: the period record (234 B)
+#: and 16 frame records (83 B each; a period has 2-6 frames), rounded up
+_RING_BYTES_PER_PERIOD = 2048
+_RING_MIN_BYTES = 4 * 1024 * 1024
+
+
+def logger_ring_bytes(cfg: RunConfig) -> int:
+    """The logger's ring for this run [B]: twice what the whole run can log (its periods, frames and, with
+    `log_trace`, trace rows), at least 4 MiB (set-up frames, console lines), at most the logger's default
+    64 MiB. A ring that holds the whole run never makes the loop wait for the logger, as the default does not for
+    a short run; making (its pages are touched before the loop) and dropping 64 MiB cost ~0.15 CPU-s a run."""
+    from pmsm_hil.hil.runlog.logger import DEFAULT_RING_BYTES
+
+    periods = cfg.scenario.total_s / cfg.ts_s + 1
+    per_period = _RING_BYTES_PER_PERIOD
+    if cfg.log_trace:
+        per_period += cfg.machine.layout.trace_dtype.itemsize * (math.ceil(cfg.ts_s / cfg.trace_dt_s) + 1)
+    wanted = 2 * periods * per_period
+    if not math.isfinite(wanted):
+        return DEFAULT_RING_BYTES
+    return int(min(DEFAULT_RING_BYTES, max(_RING_MIN_BYTES, math.ceil(wanted / 4096) * 4096)))
 
 
 def run_closed_loop(cfg: RunConfig, *, silent_after: int | None = None,
