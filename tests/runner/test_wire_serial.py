@@ -67,7 +67,7 @@ def test_a_foreign_target_breaking_the_contract_ends_both_loops_alike(rules: tup
     + cantools on the pty's other end): the same ending, findings, records and metrics from both loops, and the
     target received the disabling Setpoint last from each. (Its FaultTarget comes after the period's Command,
     so the period that sees it depends on timing in either loop: test_dut_contract.py checks that ending.)"""
-    # the silent target: _run's 0.3 s lockstep timeout (at 0.05 s a 50 ms stall of the target process on a loaded
+    # the silent target: _run's lockstep timeout (at 0.05 s a 50 ms stall of the target process on a loaded
     # machine would be an extra finding in one loop only); the violations need no short timeout: 10 s, so that a
     # loaded machine's stall of the foreign target (a Python process, its time not visible to the runner) is waited
     extra = (("--tolerate", "100", "--watchdog-periods", "3") if "silent" in rules[0]
