@@ -64,10 +64,12 @@ def pty() -> Iterator[tuple[int, str]]:
 def _start_target(port: str, log: Path, rules: tuple[str, ...]) -> subprocess.Popen[bytes]:
     """The foreign target, once it has opened its port (it makes its log file then): its start-up (an interpreter,
     python-can, cantools) took more than the host's 10 s ConfigAck wait at load 34, a start-up race, not a finding."""
+    log.parent.mkdir(parents=True, exist_ok=True)
     proc = subprocess.Popen([sys.executable, str(FOREIGN), port, str(log), *rules])
     deadline = time.monotonic() + 300
     while not log.exists() and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.05)
+    assert log.exists(), f"the foreign target did not start (exit code {proc.poll()})"
     return proc
 
 
