@@ -2,8 +2,8 @@
 other nodes' frames are counted as bus traffic (`bus_foreign_frames`, `bus_suspect_frames`), never taken as the
 target's; a flood that starves the run ends naming the bus, never the target. Host-side: a python-can `virtual` bus
 marked `shared=true`, an in-process target served through the C loop's callback link, and a flooding thread of random
-and of protocol ids (the same logic runs on every CAN link; .ci/vcan-vm-bus-flood runs it on vcan0 with
-cangen)."""
+and of protocol ids (the same logic runs on every CAN link; tests/runner/test_bus_flood_vcan.py runs it on vcan0
+under a measured flood in the CI's VM)."""
 
 from __future__ import annotations
 
