@@ -45,7 +45,9 @@ typedef struct {
  * each leg's upper switch is on, centre-aligned PWM whose carrier period is Ts, valley (all legs low) at
  * the period start; the plant computes the switching instants of the carrier comparison (all 7 segments
  * 0-x-xy-7-xy-x-0), dead time and minimum pulse included. A duty outside 0..1 or NaN is a DUT-contract
- * finding at the host (never clamped silently). See docs/firmware_api.md, "Duty-cycle commands". */
+ * finding at the host (never clamped silently). Set one form: duties with n_states, durations_ns or mirror set too
+ * is reported by the core as a Command with n_duties 0 (the host's rule `duty`: "both forms set"). See
+ * docs/firmware_api.md, "Duty-cycle commands". */
 typedef struct {
     uint8_t n_states;                           /* 1..3 sub-intervals */
     uint8_t states[HIL_APP_MAX_STATES];         /* switching codes 4*Sa + 2*Sb + Sc (six phases: 6 bits) */

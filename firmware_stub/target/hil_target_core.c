@@ -127,10 +127,31 @@ static uint16_t duty_raw(float d)
     return (uint16_t)((double)d * (double)HIL_CORE_DUTY_FULL + (double)0.5L); /* exact in double: the host's rounding */
 }
 
-/* The duty-cycle Command: CmdDutyFd, or CmdDutyA + CmdDutyB + CmdDutyC (legs 3-5 zero for three phases). */
+/* The firmware set both Command forms: duties and a switching sequence (n_states, a duration or mirror). */
+static int sets_both_forms(const hil_app_cmd_t *c)
+{
+    uint8_t j;
+    if (c->n_duties == 0u) {
+        return 0;
+    }
+    if (c->n_states != 0u || c->mirror != 0u) {
+        return 1;
+    }
+    for (j = 0u; j < HIL_APP_MAX_STATES; ++j) {
+        if (c->durations_ns[j] != 0u) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
+/* The duty-cycle Command: CmdDutyFd, or CmdDutyA + CmdDutyB + CmdDutyC (legs 3-5 zero for three phases).
+ * A firmware that set both forms is reported, never resolved here: n_duties 0 on the wire (the host's rule
+ * `duty`, "both forms set"), its duties sent as they are. */
 static void send_duty_command(uint16_t seq, const hil_app_cmd_t *c, uint32_t exec_ns, uint8_t fd)
 {
     uint16_t r[HIL_APP_MAX_PHASES] = {0u, 0u, 0u, 0u, 0u, 0u};
+    const uint8_t n_duties = sets_both_forms(c) ? 0u : c->n_duties;
     hil_core_frame_t *f;
     uint8_t j;
     for (j = 0u; j < c->n_duties && j < HIL_APP_MAX_PHASES; ++j) {
@@ -140,7 +161,7 @@ static void send_duty_command(uint16_t seq, const hil_app_cmd_t *c, uint32_t exe
         struct hil_protocol_cmd_duty_fd_t cf;
         memset(&cf, 0, sizeof cf);
         cf.seq = seq;
-        cf.n_duties = c->n_duties;
+        cf.n_duties = n_duties;
         cf.duty0 = r[0];
         cf.duty1 = r[1];
         cf.duty2 = r[2];
@@ -170,7 +191,7 @@ static void send_duty_command(uint16_t seq, const hil_app_cmd_t *c, uint32_t exe
         dc.seq = seq;
         dc.exec_time_ns = exec_ns;
         dc.status = c->status;
-        dc.n_duties = c->n_duties;
+        dc.n_duties = n_duties;
         f = tx_slot(HIL_PROTOCOL_CMD_DUTY_A_FRAME_ID, HIL_PROTOCOL_CMD_DUTY_A_LENGTH, 0u);
         if (f != NULL) {
             (void)hil_protocol_cmd_duty_a_pack(f->data, &da, HIL_PROTOCOL_CMD_DUTY_A_LENGTH);

@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from pmsm_hil.hil.runner.contract import DUTY, check_command, describe
+from pmsm_hil.hil.runner.contract import BOTH_FORMS_ON_WIRE, DUTY, check_command, describe
 from pmsm_hil.protocol.codec import FrameCodec, decode_message
 from pmsm_hil.protocol.codec_duty import DUTY_NAN, DUTY_OUT_OF_RANGE, duty_raw, duty_value
 from pmsm_hil.protocol.messages import Command
@@ -33,6 +33,28 @@ def test_both_forms_at_once_are_a_duty_finding() -> None:
     both = Command(seq=7, states=(7, 0), durations_ns=(50_000, 50_000), duties=(0.5, 0.5, 0.5))
     assert check_command(both, 100_000, 7) == (
         DUTY, "both forms set: 3 duties and a switching sequence of 2 state(s); a Command carries one")
+
+
+@pytest.mark.parametrize("profile", ["can", "canfd"])
+def test_both_forms_survive_the_wire_as_a_duty_finding(profile: str) -> None:
+    """A sender whose Command sets both forms sends a duty Command with n_duties 0 (the target core does the same
+    for its C firmware's): decoded with `both_forms`, a `duty` finding, never one form taken silently."""
+    from pmsm_hil.protocol.codec_duty import L_DUTY_C, L_DUTY_FD
+
+    both = Command(seq=7, states=(7, 0), durations_ns=(50_000, 50_000), duties=(0.5, 0.5, 0.5))
+    frames = FrameCodec(profile).encode(both)
+    layout = L_DUTY_FD if profile == "canfd" else L_DUTY_C
+    n_at = layout.index("n_duties")
+    assert [layout.unpack(f[1])[n_at] for f in frames if f[0] == layout.frame_id] == [0]
+    from pmsm_hil.protocol.codec import FrameDecoder
+
+    dec = FrameDecoder()
+    got = [m for m in (dec.feed(fr) for fr in frames) if m is not None]
+    assert len(got) == 1
+    back = got[0]
+    assert isinstance(back, Command) and back.both_forms and back.seq == 7 and back.duties == ()
+    assert check_command(back, 100_000, 7) == (DUTY, BOTH_FORMS_ON_WIRE)
+    assert describe(back) == "Command seq=7 n_duties=0 (both forms)"
 
 
 @pytest.mark.parametrize(("profile", "n"), [("can", 4), ("canfd", 4), ("can", 200), ("canfd", 200)])

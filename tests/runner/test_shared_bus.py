@@ -2,8 +2,8 @@
 other nodes' frames are counted as bus traffic (`bus_foreign_frames`, `bus_suspect_frames`), never taken as the
 target's; a flood that starves the run ends naming the bus, never the target. Host-side: a python-can `virtual` bus
 marked `shared=true`, an in-process target served through the C loop's callback link, and a flooding thread of random
-and of protocol ids (the same logic runs on every CAN link; .ci/vcan-vm-bus-flood runs it on vcan0 with
-cangen)."""
+and of protocol ids (the same logic runs on every CAN link; tests/runner/test_bus_flood_vcan.py runs it on vcan0
+under a measured flood in the CI's VM)."""
 
 from __future__ import annotations
 
@@ -24,6 +24,7 @@ from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.target_client import DRAIN_MAX, TargetClient
 from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.frame import Frame
+from pmsm_hil.protocol.ids import ParamId, Status
 from pmsm_hil.protocol.links.link import open_link
 from pmsm_hil.protocol.links.shared_bus import (
     BusTraffic,
@@ -33,6 +34,7 @@ from pmsm_hil.protocol.links.shared_bus import (
     is_shared_bus,
     target_ids,
 )
+from pmsm_hil.protocol.messages import ConfigAck
 from tests.runner.test_loop import _three
 
 #: the ids the target sends: a flood of them with random data is what the host must not take as the target's
@@ -255,6 +257,7 @@ def test_a_silent_target_on_a_flooded_bus_ends_naming_the_bus(flood: bool) -> No
         assert "(lockstep: no Command for seq " in m["end_reason"]  # 100, or earlier under load
         assert "starved the run" in m["end_reason"] or "of the host's ids" in m["end_reason"]
         assert m["bus_foreign_frames"] > 0
+        assert m["dut_violations"] == 0  # the `missing` finding the bus took over is not the target's
     else:
         assert m["end_code"] == EndCode.DUT_VIOLATION and "missing: no Command for seq " in m["end_reason"]
         assert m["bus_foreign_frames"] == 0
@@ -318,3 +321,20 @@ def test_a_safe_stop_behind_a_flood_names_the_bus() -> None:
     assert "the receive queue never emptied" in stop.observed and "HeartbeatTarget" in stop.observed
     quiet = disable_and_confirm(_client([]), 1, timeout_s=0.05)
     assert not quiet.confirmed and quiet.observed.startswith("no HeartbeatTarget"), quiet.observed
+
+
+def test_a_forged_rejection_of_a_parameter_being_written_is_not_the_targets() -> None:
+    """Another node's ConfigAck naming a parameter being written, with another value and status invalid (a flood of
+    protocol ids in the CI VM: "target rejected parameter 'pole_pairs' = 3.0"): suspect; the target's own echo,
+    accepting or rejecting, is taken."""
+    codec = FrameCodec("canfd")
+    client = _client([])
+    client._written = {int(ParamId.POLE_PAIRS): 3.0, int(ParamId.RS): 0.5}
+    forged = ConfigAck(param_id=int(ParamId.POLE_PAIRS), value=1.5e-7, status=int(Status.INVALID_CONFIG))
+    genuine = ConfigAck(param_id=int(ParamId.POLE_PAIRS), value=3.0, status=int(Status.OK))
+    rejected = ConfigAck(param_id=int(ParamId.RS), value=0.5, status=int(Status.INVALID_CONFIG))
+    client.link.frames = [*codec.encode(forged), *codec.encode(genuine), *codec.encode(rejected)]
+    client.serve()
+    assert client.bus.suspect == 1
+    assert client._acks[int(ParamId.POLE_PAIRS)].status == int(Status.OK)
+    assert client._acks[int(ParamId.RS)].status == int(Status.INVALID_CONFIG)

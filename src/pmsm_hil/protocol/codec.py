@@ -235,7 +235,7 @@ class FrameCodec:
 
     # -- command (strict) --
     def _enc_cmd_can(self, c: Command) -> list[Frame]:
-        if c.duties:
+        if c.duties or c.both_forms:
             a, b, cc = codec_duty.raw_parts(c)
             return [Frame(codec_duty.L_DUTY_A.frame_id, codec_duty.L_DUTY_A.pack(*a), False),
                     Frame(codec_duty.L_DUTY_B.frame_id, codec_duty.L_DUTY_B.pack(*b), False),
@@ -248,7 +248,7 @@ class FrameCodec:
         ]
 
     def _enc_cmd_fd(self, c: Command) -> list[Frame]:
-        if c.duties:
+        if c.duties or c.both_forms:
             return [Frame(codec_duty.L_DUTY_FD.frame_id, codec_duty.L_DUTY_FD.pack(*codec_duty.raw_fd(c)), True)]
         return [Frame(L_CMD_FD.frame_id, L_CMD_FD.pack(*_cmd_raw(c)), True)]
 
@@ -412,11 +412,11 @@ def _cmd(
 ) -> Command:
     m = mir == 1
     if n == 3:
-        return _new_cmd(seq, (s0, s1, s2), (d0, d1, d2), vid, cand, ex, st, m, ())
+        return _new_cmd(seq, (s0, s1, s2), (d0, d1, d2), vid, cand, ex, st, m, (), False)
     if n == 2:
-        return _new_cmd(seq, (s0, s1), (d0, d1), vid, cand, ex, st, m, ())
+        return _new_cmd(seq, (s0, s1), (d0, d1), vid, cand, ex, st, m, (), False)
     if n == 1:
-        return _new_cmd(seq, (s0,), (d0,), vid, cand, ex, st, m, ())
+        return _new_cmd(seq, (s0,), (d0,), vid, cand, ex, st, m, (), False)
     raise _BadValueError(f"n_states={n} (allowed 1..{MAX_STATES})")
 
 
@@ -549,8 +549,6 @@ class FrameDecoder:
 
     def _duty_part(self, part: int, layout: FrameLayout, data: bytes) -> Message | None:
         raw = layout.unpack(data)
-        if part == 2 and raw[3] == 0:  # another count than the machine's legs: a `duty` finding (contract.py)
-            raise _BadValueError(f"CmdDutyC.n_duties={raw[3]}")
         parts = self._duty.add(part, raw[0], 0xFFFF, raw)
         if parts is None:
             return None
@@ -568,8 +566,6 @@ class FrameDecoder:
 
     def _duty_fd1(self, data: bytes) -> Message | None:
         raw = codec_duty.L_DUTY_FD.unpack(data)
-        if raw[1] == 0:  # another count than the machine's legs: a `duty` finding (contract.py)
-            raise _BadValueError(f"CmdDutyFd.n_duties={raw[1]}")
         if self._duty_fd.add(0, raw[0], 0xFFFF, raw) is None:
             return None
         return codec_duty.command(raw[0], raw[1], raw[2:8], raw[8], raw[9], raw[10], raw[11])

@@ -2,7 +2,9 @@
 message builder. Classic CAN: CmdDutyA (seq, duty0..2), CmdDutyB (seq, duty3..5), CmdDutyC (seq, exec_time_ns,
 status, n_duties), always three parts; CAN FD: one CmdDutyFd frame. Duties u16 × 1/65520 (d = 1 is 65520);
 65534 and 65535 are the codes a sender writes for a duty outside 0..1 and for NaN, so that the host's DUT
-contract reports them (docs/protocol.md, "Duty-cycle Command"). Used by `pmsm_hil.protocol.codec`.
+contract reports them (docs/protocol.md, "Duty-cycle Command"). `n_duties` 0 says the sender's Command set both
+forms (duties and a switching sequence): decoded with `Command.both_forms`, a finding of the host's rule `duty`.
+Used by `pmsm_hil.protocol.codec`.
 """
 
 from __future__ import annotations
@@ -51,14 +53,24 @@ def duty_value(raw: int) -> float:
     return math.nan if raw == DUTY_NAN else math.inf
 
 
+def sets_both_forms(c: Command) -> bool:
+    """The Command sets both forms: duties and a switching sequence (or was decoded so)."""
+    return c.both_forms or bool(c.duties and (c.states or c.durations_ns or c.mirror))
+
+
+def n_duties_wire(c: Command) -> int:
+    """The `n_duties` a duty Command carries: the duty count, 0 when the Command sets both forms."""
+    return 0 if sets_both_forms(c) else len(c.duties)
+
+
 def _duties_raw(c: Command) -> list[int]:
     n = len(c.duties)
-    if n not in N_DUTIES:
+    if sets_both_forms(c):
+        n = min(n, 6)  # sent for the record; the host's finding is the two forms
+    elif n not in N_DUTIES:
         raise EncodeError(f"Command.duties has {n} entries (allowed 3 or 6)")
-    if c.states or c.durations_ns or c.mirror:
-        raise EncodeError("Command.duties: a duty-cycle Command has no states, durations_ns or mirror")
     out = []
-    for j, d in enumerate(c.duties):
+    for j, d in enumerate(c.duties[:n]):
         try:
             out.append(duty_raw(float(d)))
         except (TypeError, ValueError):
@@ -87,7 +99,7 @@ def _seq(v: object) -> int:
 def raw_fd(c: Command) -> tuple[int, ...]:
     """Raw values in CmdDutyFd order."""
     r = _duties_raw(c)
-    return (_seq(c.seq), len(c.duties), *r, _u8("vector_id", c.vector_id), _u8("candidates", c.candidates),
+    return (_seq(c.seq), n_duties_wire(c), *r, _u8("vector_id", c.vector_id), _u8("candidates", c.candidates),
             _exec(c.exec_time_ns), _u8("status", c.status))
 
 
@@ -98,16 +110,21 @@ def raw_parts(c: Command) -> tuple[tuple[int, ...], tuple[int, ...], tuple[int, 
     _u8("vector_id", c.vector_id)
     _u8("candidates", c.candidates)
     return ((seq, r[0], r[1], r[2]), (seq, r[3], r[4], r[5]),
-            (seq, _exec(c.exec_time_ns), _u8("status", c.status), len(c.duties)))
+            (seq, _exec(c.exec_time_ns), _u8("status", c.status), n_duties_wire(c)))
 
 
 def command(seq: int, n: int, raw: Sequence[int], vid: int, cand: int, ex: int, st: int) -> Command:
-    """The Command of decoded raw values (n: n_duties ≥ 1). A count other than 3 or 6 is kept as the length of
-    `duties` (NaN beyond the six the frames carry) for the host's `duty` finding."""
+    """The Command of decoded raw values (n: n_duties). A count other than 3 or 6 is kept as the length of
+    `duties` (NaN beyond the six the frames carry) for the host's `duty` finding; 0: the sender set both forms
+    (`both_forms`, no duties)."""
+    if n == 0:
+        return Command(seq=seq, states=(), durations_ns=(), vector_id=vid, candidates=cand, exec_time_ns=ex,
+                       status=st, both_forms=True)
     duties = tuple(duty_value(r) for r in raw[:n]) + (math.nan,) * max(0, n - len(raw))
     return Command(seq=seq, states=(), durations_ns=(), vector_id=vid, candidates=cand, exec_time_ns=ex, status=st,
                    duties=duties)
 
 
 __all__ = ["DUTY_FULL", "DUTY_NAN", "DUTY_OUT_OF_RANGE", "L_DUTY_A", "L_DUTY_B", "L_DUTY_C", "L_DUTY_FD",
-           "N_DUTIES", "command", "duty_raw", "duty_value", "raw_fd", "raw_parts"]
+           "N_DUTIES", "command", "duty_raw", "duty_value", "n_duties_wire", "raw_fd", "raw_parts",
+           "sets_both_forms"]

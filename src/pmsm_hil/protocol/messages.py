@@ -55,7 +55,9 @@ class Command:
     Duty-cycle form: `duties` holds 3 or 6 per-leg duties 0..1 of a centre-aligned PWM whose carrier period is
     Ts (legs a, b, c, then u, v, w) and `states`/`durations_ns` are empty, `mirror` False; the plant applies
     the carrier comparison (`pmsm_hil.hil.pwm`). A duty outside 0..1 or NaN is sent as a reserved code and
-    decoded as +inf / NaN: a DUT-contract finding at the host."""
+    decoded as +inf / NaN: a DUT-contract finding at the host. A Command that sets both forms (duties and a
+    switching sequence) is sent as a duty Command with `n_duties` 0 and decodes with `both_forms` set: a
+    DUT-contract finding too (the target core reports its firmware's so)."""
 
     seq: int
     states: tuple[int, ...]
@@ -66,6 +68,8 @@ class Command:
     status: int = 0
     mirror: bool = False
     duties: tuple[float, ...] = ()
+    #: decoded: the sender's Command set both forms (a duty Command with n_duties 0 on the wire)
+    both_forms: bool = False
 
     def expanded(self) -> tuple[tuple[int, ...], tuple[int, ...]]:
         """(states, durations_ns) as the plant applies them: unchanged, or mirrored when `mirror`."""

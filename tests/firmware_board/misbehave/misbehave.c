@@ -7,6 +7,7 @@
  * stack overflow, SIGSEGV) or never returns (MISBEHAVE_HANG). MISBEHAVE_CONFIG crashes on the ConfigParam Ts.
  * MISBEHAVE_PRINT misbehaves not at all but prints 1 kB per step on its stdout (8 lines of 128 bytes).
  * MISBEHAVE_INIT_HANG never returns from hil_app_init, MISBEHAVE_CONFIG_HANG from hil_app_config (on Ts).
+ * MISBEHAVE_BOTH_FORMS sets both Command forms from step MISBEHAVE_AT on: its zero vector and three duties 0.5.
  */
 #include <stdint.h>
 #include <stdlib.h>
@@ -119,4 +120,12 @@ void hil_app_step(const hil_app_meas_t *m, hil_app_cmd_t *cmd)
     cmd->n_states = 1u;
     cmd->states[0] = 0u;
     cmd->durations_ns[0] = g_ts_ns;
+#if defined(MISBEHAVE_BOTH_FORMS)
+    if (g_steps > MISBEHAVE_AT) {
+        cmd->n_duties = 3u;
+        cmd->duty[0] = 0.5f;
+        cmd->duty[1] = 0.5f;
+        cmd->duty[2] = 0.5f;
+    }
+#endif
 }

@@ -63,8 +63,15 @@ class Violation:
                 "detail": self.detail}
 
 
+#: the `duty` finding of a Command sent with n_duties 0: its sender set both forms
+BOTH_FORMS_ON_WIRE: Final = ("both forms set: duties and a switching sequence (sent as a duty Command with n_duties "
+                             "0); a Command carries one")
+
+
 def describe(cmd: Command) -> str:
     """Short text of a Command for a finding."""
+    if cmd.both_forms and not cmd.duties:
+        return f"Command seq={cmd.seq} n_duties=0 (both forms)"
     if cmd.duties:
         more = f", … {len(cmd.duties)} in all" if len(cmd.duties) > 6 else ""
         return f"Command seq={cmd.seq} duties=({', '.join(f'{d:.6g}' for d in cmd.duties[:6])}{more})"
@@ -86,6 +93,8 @@ def check_duties(duties: tuple[float, ...], legs: int) -> tuple[str, str] | None
 
 def check_command(cmd: Command, ts_ns: int, max_state: int) -> tuple[str, str] | None:
     """(rule, detail) when the Command's sequence (or duties) cannot be applied, else None."""
+    if cmd.both_forms and not cmd.duties:
+        return DUTY, BOTH_FORMS_ON_WIRE
     if cmd.duties and (cmd.states or cmd.durations_ns):
         return DUTY, (f"both forms set: {len(cmd.duties)} duties and a switching sequence of {len(cmd.states)} "
                       "state(s); a Command carries one")

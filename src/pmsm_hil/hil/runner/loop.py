@@ -301,6 +301,7 @@ class NativeLoop:
                 f"(--host-stall-limit {cfg.host_stall_limit_s:g} s); the host's fault, not the firmware's")
             self._end(out, EndCode.INTERNAL_ERROR, f"{out.error}; inverter put in the safe state")
         elif (bus := self._bus_starved(out, end)) is not None:  # other nodes' frames kept the Commands out
+            self._take_back_missing(out, end)
             self._end(out, EndCode.SAFETY_STOP, f"{bus}; inverter put in the safe state")
         elif end == lib.NL_END_VIOLATION:
             v = out.violations[-1] if out.violation_count <= MAX_KEPT_VIOLATIONS else None
@@ -354,6 +355,19 @@ class NativeLoop:
         res, bus = self._res, self.client.bus
         out.bus_foreign_frames = bus.foreign + int(res.bus_foreign_frames)
         out.bus_suspect_frames = bus.suspect + int(res.bus_suspect_frames)
+
+    def _take_back_missing(self, out: LoopOutcome, end: int) -> None:
+        """The bus, not the target, ended the run: the `missing` finding that ended it is not the target's (the
+        Command was kept out by other nodes' frames), so it leaves the findings and their counts."""
+        if end != self._lib.NL_END_VIOLATION or not out.violations or out.violations[-1].rule != MISSING:
+            return
+        out.violations.pop()
+        out.violation_count -= 1
+        left = out.violations_by_rule.get(MISSING, 0) - 1
+        if left > 0:
+            out.violations_by_rule[MISSING] = left
+        else:
+            out.violations_by_rule.pop(MISSING, None)
 
     def _bus_starved(self, out: LoopOutcome, end: int) -> str | None:
         """The reason naming the bus when the run ended for want of Commands (the watchdog, or rule `missing`)

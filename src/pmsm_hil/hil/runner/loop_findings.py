@@ -7,7 +7,7 @@ from typing import Any
 
 from pmsm_hil.hil.errors import ParameterError, PlantFaultError
 from pmsm_hil.hil.plant_base import MAX_LOAD_BREAKPOINTS
-from pmsm_hil.hil.runner.contract import RULES, Violation, describe
+from pmsm_hil.hil.runner.contract import BOTH_FORMS_ON_WIRE, RULES, Violation, describe
 from pmsm_hil.protocol.codec_duty import duty_value
 from pmsm_hil.protocol.errors import EncodeError
 from pmsm_hil.protocol.messages import Command
@@ -42,6 +42,9 @@ def violation(f: Any, lib: Any, limit: str) -> Violation:
         detail = f"state {v[0]} = {v[1]} outside 0..{v[2]}"
     elif what == lib.NL_WHAT_DUTY_COUNT:
         detail = f"{v[0]} duties for a machine with {v[1]} legs"
+    elif what == lib.NL_WHAT_BOTH_FORMS:
+        frame = describe(Command(seq=int(f.cmd_seq), states=(), durations_ns=(), both_forms=True))
+        detail = BOTH_FORMS_ON_WIRE
     elif what == lib.NL_WHAT_DUTY:
         d = duty_value(v[1])
         detail = f"duty {v[0]} is NaN" if d != d else f"duty {v[0]} = {d:g} outside 0..1"

@@ -154,10 +154,11 @@ class TargetClient:
         return ok
 
     def _ack_plausible(self, ack: ConfigAck) -> bool:
-        """A ConfigAck the target can have sent: for a parameter being written, echoing its float32 (or a
-        rejection)."""
+        """A ConfigAck the target can have sent: for a parameter being written, echoing its float32 bit for bit
+        (NaN included), whether it accepts or rejects it (docs/protocol.md: the value is echoed either way). A
+        rejection with another value is another node's frame: a flood of protocol ids forged one."""
         sent = self._written.get(ack.param_id)
-        return sent is not None and (ack.value == sent or ack.status != int(Status.OK))
+        return sent is not None and _F32.pack(ack.value) == _F32.pack(sent)
 
     def _silence_hint(self) -> str:
         """Why a target may not answer at all: none on the link, or (authenticated frames) another key."""

@@ -743,6 +743,10 @@ static int check_contract(loop_t *L, int64_t k, int have)
         const nl_cmd_t *cmd = &L->reply;
         int64_t total = 0;
         int bad = 0;
+        if (cmd->both_forms) { /* contract.check_command: BOTH_FORMS_ON_WIRE */
+            add_pending(L, NL_RULE_DUTY, NL_WHAT_BOTH_FORMS, cmd, 0, 0);
+            bad = 1;
+        }
         if (cmd->n_duties != 0u) { /* contract.check_duties */
             if (cmd->n_duties != c->legs) {
                 add_pending(L, NL_RULE_DUTY, NL_WHAT_DUTY_COUNT, cmd, cmd->n_duties, c->legs);

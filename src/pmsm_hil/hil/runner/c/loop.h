@@ -43,6 +43,7 @@
 #define NL_WHAT_DURATIONS 6      /* durations fill v[0] ns, Ts = v[1] ns (mirrored when the Command is) */
 #define NL_WHAT_DUTY_COUNT 7     /* v[0] duties for a machine with v[1] legs */
 #define NL_WHAT_DUTY 8           /* duty v[0] has the wire code v[1] (65535 NaN, else above 65520: outside 0..1) */
+#define NL_WHAT_BOTH_FORMS 9     /* a duty Command with n_duties 0: its sender set both forms */
 
 /* How the run ended (nl_result_t.end). */
 #define NL_END_RUNNING 0

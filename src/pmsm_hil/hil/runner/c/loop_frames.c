@@ -256,6 +256,7 @@ static int cmd_part(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r,
     cmd->mirror = as->c_mirror == 1u ? 1u : 0u;
     cmd->n_duties = 0u;
     memset(cmd->duty_raw, 0, sizeof cmd->duty_raw);
+    cmd->both_forms = 0u;
     asm_clear(&as->states);
     return NL_MSG_COMMAND;
 }
@@ -280,10 +281,6 @@ static int duty_part(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r
     } else {
         struct hil_protocol_cmd_duty_c_t c;
         (void)hil_protocol_cmd_duty_c_unpack(&c, f->data, f->len);
-        if (c.n_duties == 0u) { /* another count than the machine's legs is a `duty` finding (loop.c) */
-            r->dec_bad_value++;
-            return NL_MSG_NONE;
-        }
         seq = c.seq;
         bit = PART_C;
     }
@@ -320,6 +317,7 @@ static int duty_part(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r
     cmd->exec_time_ns = as->duty_exec;
     cmd->status = as->duty_status;
     cmd->n_duties = as->duty_n;
+    cmd->both_forms = as->duty_n == 0u ? 1u : 0u; /* n_duties 0: the sender set both forms */
     for (j = 0; j < 6; ++j) {
         cmd->duty_raw[j] = j < as->duty_n ? as->duty_raw[j] : 0u;
     }
@@ -364,6 +362,7 @@ int nl_decode(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r, nl_cm
         cmd->mirror = c.mirror == 1u ? 1u : 0u;
         cmd->n_duties = 0u;
         memset(cmd->duty_raw, 0, sizeof cmd->duty_raw);
+        cmd->both_forms = 0u;
         msg = NL_MSG_COMMAND;
         break;
     }
@@ -375,13 +374,10 @@ int nl_decode(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r, nl_cm
     case HIL_PROTOCOL_CMD_DUTY_FD_FRAME_ID: {
         struct hil_protocol_cmd_duty_fd_t c;
         (void)hil_protocol_cmd_duty_fd_unpack(&c, f->data, f->len);
-        if (c.n_duties == 0u) { /* another count than the machine's legs is a `duty` finding (loop.c) */
-            r->dec_bad_value++;
-            return NL_MSG_NONE;
-        }
         memset(cmd, 0, sizeof *cmd);
         cmd->seq = c.seq;
         cmd->n_duties = c.n_duties;
+        cmd->both_forms = c.n_duties == 0u ? 1u : 0u; /* n_duties 0: the sender set both forms */
         cmd->duty_raw[0] = c.duty0;
         cmd->duty_raw[1] = c.duty1;
         cmd->duty_raw[2] = c.duty2;

@@ -24,6 +24,7 @@ typedef struct {
     uint32_t exec_time_ns;
     uint8_t n_duties;          /* 0: switching states; 3 or 6: the duty-cycle form (duty_raw, codes of hil.dbc) */
     uint16_t duty_raw[6];
+    uint8_t both_forms;        /* 1: a duty Command with n_duties 0: its sender set both forms (rule `duty`) */
 } nl_cmd_t;
 
 /* Held parts of one Command kind (src/pmsm_hil/protocol/assembler.py Assembler, unordered). */
