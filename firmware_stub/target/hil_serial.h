@@ -1,5 +1,6 @@
 /*
- * Serial framing of the HIL link in C (docs/protocol.md, "Serial framing"; src/pmsm_hil/protocol/links/serial_bus.py):
+ * Serial framing of the HIL link in C (docs/protocol.md, "Serial framing"; the host's side:
+ * src/pmsm_hil/hil/runner/c/links/loop_serial.c):
  * packet = COBS(header + payload + CRC-16/CCITT-FALSE big-endian) + 0x00, header = u32 LE id, u8 flags
  * (bit0 FD, bit1 BRS, bit3 extended, bit4 remote), u8 link sequence number, u8 payload length.
  */
