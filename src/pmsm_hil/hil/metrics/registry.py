@@ -308,7 +308,9 @@ METRICS: Final[tuple[Metric, ...]] = (
     _m("missed_periods", "missed periods", "", "count of `missed` flags"),
     _m("link", "link", "", "`{frames_tx, frames_rx, crc_errors, lost, late}` plus the link's own counters "
        "(the native loop over a link: also `blocked`, `spin_backoffs`, `spin_early_ends`; UDP: `socket_drops`, "
-       "datagrams the kernel dropped for the host's socket, its receive buffer full; SocketCAN: `kernel_dropped`)"),
+       "datagrams the kernel dropped for the host's socket, its receive buffer full; SocketCAN: `kernel_dropped`; "
+       "`config_resent`, ConfigParam frames sent again for want of a ConfigAck within 0.25 s of wall time, and "
+       "`config_acks_repeated`, the target's ConfigAcks to them: a target slow to start)"),
     _m("link", "kernel dropped", "", "SocketCAN: frames the host's kernel dropped for the link's socket, its "
        "receive buffer full (`SO_RXQ_OVFL`, read on every receive; the buffer holds `rx_frames` frames, "
        "docs/protocol.md); absent on other links", "d", sub="kernel_dropped"),

@@ -97,6 +97,11 @@ class TargetClient:
         self.frames_in = 0
         #: replies to the previous period that arrived after it was declared missing (late; not a new finding)
         self.stale_commands = 0
+        #: ConfigParam frames sent again for want of a ConfigAck within `configure`'s resend_s (wall time: a
+        #: target still starting or slow to answer), and ConfigAcks for a parameter acknowledged already (the
+        #: target's answer to such a resend). Counted apart so the link counters can be compared between runs.
+        self.config_resent = 0
+        self.config_acks_repeated = 0
         #: contract findings since the last `take_anomalies()`: (rule, frame text, detail)
         self.anomalies: list[tuple[str, str, str]] = []
         self._acks: dict[int, ConfigAck] = {}
@@ -128,6 +133,8 @@ class TargetClient:
                 if shared and not self._ack_plausible(msg):
                     self.bus.suspect += 1
                     continue
+                if msg.param_id in self._acks:
+                    self.config_acks_repeated += 1
                 self._acks[msg.param_id] = msg
             elif isinstance(msg, Fault):
                 self.faults.append(msg)
@@ -202,6 +209,8 @@ class TargetClient:
             if now - last_send >= resend_s:
                 for pid in pending:
                     self.link.send(self.codec.encode(ConfigParam(param_id=int(pid), value=float(params[pid]))))
+                if last_send > -math.inf:
+                    self.config_resent += len(pending)
                 last_send = now
             self._drain()
         for pid in params:

@@ -114,13 +114,15 @@ class TargetConnection:
 
     def link_stats(self) -> dict[str, int]:
         """Host link counters plus decoder counters, plus how the native loop's receives waited (`blocked`,
-        `spin_backoffs`, `spin_early_ends`: NativeWireLink.waits) on its links to another process."""
+        `spin_backoffs`, `spin_early_ends`: NativeWireLink.waits) on its links to another process, plus the
+        configuration's resends (`config_resent`, `config_acks_repeated`: TargetClient)."""
         stats: dict[str, int] = {}
         for source in (self.host_link.stats, self.client.decoder.stats):
             for key, value in vars(source).items() if hasattr(source, "__dict__") else _slots(source):
                 if isinstance(value, int):
                     stats[key] = stats.get(key, 0) + value
         stats.update(getattr(self.host_link, "waits", {}))
+        stats.update(config_resent=self.client.config_resent, config_acks_repeated=self.client.config_acks_repeated)
         return stats
 
     def close(self) -> None:
