@@ -1,9 +1,10 @@
 """Lockstep never blames the firmware for the host: a target process the host stops (SIGSTOP) for 3 s
 in mid-run is a host stall — the run waits on and completes with the same records as an undisturbed run,
-`host_stalls` >= 1 — for a SIL target process, QEMU and a spawned native target; a stall longer than
-`--host-stall-limit` ends as the host's error (exit 1), not the firmware's (exit 4); a firmware that had its
-time and did not answer keeps its verdict at the same period (the endless loop at step 500: "target hung",
-tests/firmware_board/test_sil_isolation.py and test_qemu_endings.py)."""
+`host_stalls` >= 1 — for a SIL target process, QEMU and a spawned native target, in the C loop and in the test
+suite's Python loop (`--loop python`, its `LockstepWait`) alike; a stall longer than `--host-stall-limit` ends as
+the host's error (exit 1), not the firmware's (exit 4); a firmware that had its time and did not answer keeps its
+verdict at the same period (the endless loop at step 500: "target hung", tests/firmware_board/test_sil_isolation.py
+and test_qemu_endings.py)."""
 
 from __future__ import annotations
 
@@ -30,8 +31,13 @@ _HOST_TIMED = ("exec_time_ns", "exec_split_ns")
 STOP_S = 3.0
 #: a run longer than the C loop's ring (NL_RING x NL_BLOCK = 8000 periods): the loop cannot have run every period
 #: before the first block reaches `live`, so the target is stopped mid-run; QEMU (~1 ms a period here) cannot
-#: outrun the drain by 2000 periods, and a shorter run keeps the test's time down
-DURATION_S = {"sil": 0.9, "spawn": 0.9, "qemu": 0.3}
+#: outrun the drain by 2000 periods, and a shorter run keeps the test's time down. The Python loop hands each block
+#: of ClosedLoop.BLOCK periods to `live` from the loop itself: two blocks are enough
+DURATION_S = {"sil": 0.9, "spawn": 0.9, "qemu": 0.3, "python": 0.1}
+
+
+def _duration_s(kind: str, loop: str) -> float:
+    return DURATION_S["python" if loop == "python" else kind]
 
 
 def _stopper(marker: bytes, stop_s: float, stopped: list[int]) -> Callable[[np.ndarray], None]:
@@ -71,11 +77,13 @@ def _targets(kind: str, reference_sil: Path, reference_elf: Path) -> tuple[dict[
         return {"target": f"sil:{reference_sil}"}, b"--sil"
     if kind == "qemu":
         return {"target": f"qemu:{reference_elf}"}, b"qemu-system-arm"
-    return {"target": "spawn", "link": "udp"}, b"--native"
+    return {"target": "spawn", "link": "udp"}, b"--parent-pid"  # `hil target`, native or Python
 
 
-@pytest.mark.parametrize("kind", ["sil", "qemu", "spawn"])
-def test_a_target_stopped_for_3_s_is_a_host_stall_and_the_run_completes(kind: str, request: pytest.FixtureRequest,
+@pytest.mark.parametrize(("kind", "loop"), [("sil", "native"), ("qemu", "native"), ("spawn", "native"),
+                                            ("spawn", "python"), ("sil", "python")])
+def test_a_target_stopped_for_3_s_is_a_host_stall_and_the_run_completes(kind: str, loop: str,
+                                                                        request: pytest.FixtureRequest,
                                                                         tmp_path: Path) -> None:
     sil = request.getfixturevalue("reference_sil") if kind == "sil" else Path()
     elf = request.getfixturevalue("reference_elf") if kind == "qemu" else Path()
@@ -85,8 +93,10 @@ def test_a_target_stopped_for_3_s_is_a_host_stall_and_the_run_completes(kind: st
     for name in ("calm", "stopped"):
         stopped: list[int] = []
         out = tmp_path / name
-        res = run_closed_loop(rated(target, link=link, settle_s=0.02, duration_s=DURATION_S[kind], out_dir=out),
+        res = run_closed_loop(rated(target, link=link, settle_s=0.02, out_dir=out, loop=loop,
+                                    duration_s=_duration_s(kind, loop)),
                               live=_stopper(marker, STOP_S, stopped) if name == "stopped" else None)
+        assert res.metrics["loop"] == loop
         m = res.metrics
         assert m["end_code"] == 0, m["end_reason"]
         runs[name] = (m, read_periods(out / "run.mcap"), stopped)
@@ -97,10 +107,13 @@ def test_a_target_stopped_for_3_s_is_a_host_stall_and_the_run_completes(kind: st
     _same_records(runs["calm"][1], runs["stopped"][1])
 
 
-def test_a_stall_past_the_limit_is_the_hosts_error_not_the_firmwares(reference_sil: Path, tmp_path: Path) -> None:
+@pytest.mark.parametrize("loop", ["native", "python"])
+def test_a_stall_past_the_limit_is_the_hosts_error_not_the_firmwares(loop: str, reference_sil: Path,
+                                                                     tmp_path: Path) -> None:
     stopped: list[int] = []
-    res = run_closed_loop(rated(f"sil:{reference_sil}", settle_s=0.02, duration_s=DURATION_S["sil"], out_dir=tmp_path,
-                                host_stall_limit_s=1.0), live=_stopper(b"--sil", STOP_S, stopped))
+    res = run_closed_loop(rated(f"sil:{reference_sil}", settle_s=0.02, duration_s=_duration_s("sil", loop),
+                                out_dir=tmp_path, host_stall_limit_s=1.0, loop=loop),
+                          live=_stopper(b"--sil", STOP_S, stopped))
     m = res.metrics
     assert stopped
     assert m["end_code"] == 1, m["end_reason"]
@@ -110,8 +123,8 @@ def test_a_stall_past_the_limit_is_the_hosts_error_not_the_firmwares(reference_s
     assert len(read_periods(tmp_path / "run.mcap")) == m["end_period"] + 1
 
 
-@pytest.mark.parametrize("kind", ["sil", "qemu"])
-def test_a_target_that_had_its_time_keeps_its_violation_at_the_same_period(kind: str,
+@pytest.mark.parametrize(("kind", "loop"), [("sil", "native"), ("qemu", "native"), ("sil", "python")])
+def test_a_target_that_had_its_time_keeps_its_violation_at_the_same_period(kind: str, loop: str,
                                                                            request: pytest.FixtureRequest) -> None:
     """A Measurement lost on the way (injected): the firmware runs on, idle, and never answers that period; the
     verdict is the same `missing` finding at the same period as with the in-process target (no wall time; QEMU's
@@ -120,7 +133,7 @@ def test_a_target_that_had_its_time_keeps_its_violation_at_the_same_period(kind:
     faults = "drop.up=0.01,seed=3"
     inproc = run_closed_loop(rated(settle_s=0.01, duration_s=0.05, faults=faults)).metrics
     m = run_closed_loop(rated(f"{kind}:{lib}", settle_s=0.01, duration_s=0.05, faults=faults,
-                              step_timeout_s=0.2, lockstep_timeout_s=0.2)).metrics
+                              step_timeout_s=0.2, lockstep_timeout_s=0.2, loop=loop)).metrics
     assert inproc["end_code"] == m["end_code"] == 4, m["end_reason"]
     clock = "emulated MCU's own time" if kind == "qemu" else "target process's own time"
     assert "missing: no Command" in m["end_reason"] and clock in m["end_reason"], m["end_reason"]

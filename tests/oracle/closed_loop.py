@@ -24,14 +24,16 @@ from pmsm_hil.hil.runner import recorder
 from pmsm_hil.hil.runner.block_sink import RunSink
 from pmsm_hil.hil.runner.contract import MISSING, EndCode, Violation, check_command, describe
 from pmsm_hil.hil.runner.fault_setup import install_faults
+from pmsm_hil.hil.runner.lockstep_wait import LockstepWait, WaitEnd, host_stall_error
 from pmsm_hil.hil.runner.loop_outcome import MAX_KEPT_VIOLATIONS, BlockSink, LoopOutcome
 from pmsm_hil.hil.runner.plant_setup import build_plant
 from pmsm_hil.hil.runner.recorder import FrameTap, frame_records, period_records
 from pmsm_hil.hil.runner.run_config import RunConfig
-from pmsm_hil.hil.runner.safe_stop import disable_and_confirm, settle_ending
+from pmsm_hil.hil.runner.safe_stop import SAFE_STOP_TIMEOUT_S, disable_and_confirm, settle_ending
 from pmsm_hil.hil.runner.stop_request import StopRequest, deferred_interrupts
 from pmsm_hil.hil.runner.target_client import TargetClient
 from pmsm_hil.hil.runner.target_setup import TargetConnection
+from pmsm_hil.hil.runner.target_time import TargetTime
 from pmsm_hil.hil.sensors import SensorModel
 from pmsm_hil.protocol.codec_duty import duty_raw, duty_value
 from pmsm_hil.protocol.ids import Mode
@@ -57,8 +59,12 @@ class ClosedLoop:
 
     def __init__(self, cfg: RunConfig, plant: PlantBase, client: TargetClient, controller_id: int,
                  *, inproc_result: Callable[[], object] | None = None, record_frames: bool = False,
-                 sink: BlockSink | None = None, first_duties: tuple[float, ...] = ()) -> None:
+                 sink: BlockSink | None = None, first_duties: tuple[float, ...] = (),
+                 own_time: Callable[[float], TargetTime | None] = lambda timeout_s: None) -> None:
         self.cfg = cfg
+        #: the target's own time for a wait of a given timeout [s] (TargetConnection.own_time: a target process
+        #: the host observes), None: wall time
+        self.own_time = own_time
         #: period 0's duties before the target's first reply (a board's outputs at the start; empty: the zero vector)
         self.first_duties = first_duties
         self.plant = plant
@@ -102,6 +108,7 @@ class ClosedLoop:
         gc.collect()
         gc.disable()
         out = self._start()
+        self._stop_asked = lambda: bool(stop.flag)
         try:
             if self._run(out, stop.flag):
                 self._end(out, EndCode.INTERRUPTED, "interrupted (Ctrl-C or SIGTERM)")
@@ -112,6 +119,7 @@ class ClosedLoop:
             self._end(out, EndCode.INTERNAL_ERROR, f"internal error: {type(exc).__name__}: {exc}")
         finally:
             out.paced_time_s = (time.perf_counter_ns() - self._t_wall0) / 1e9
+            out.host_stalls, out.host_stall_s = self._lockstep.host_stalls, self._lockstep.host_stall_s
             self._stop(out)
             out.wall_time_s = (time.perf_counter_ns() - self._t_wall0) / 1e9
             out.late_commands = self.client.stale_commands
@@ -180,7 +188,13 @@ class ClosedLoop:
             raise ParameterError("--adc-delay: the reference loop samples at the period start only (the C loop "
                                  "serves it)")
         self._overrun_ns = cfg.overrun_threshold_ns
-        self._timeout_ns = int(cfg.lockstep_timeout_s * 1e9)
+        other_process = not self._realtime and self.inproc_result is None
+        #: the lockstep wait for a Command (the C loop's rule: the target's own time when its process is observed)
+        self._lockstep = LockstepWait(self.own_time(cfg.lockstep_timeout_s) if other_process else None,
+                                      cfg.lockstep_timeout_s, cfg.host_stall_limit_s)
+        self._stop_asked: Callable[[], bool] = lambda: False
+        #: how the wait for the period's Command ended the run (a host stall, a stop request), None: it did not
+        self._wait_end: WaitEnd | None = None
         self._wait_ns = 0
         self._t_wall0 = time.perf_counter_ns()
         self._next_start = self._t_wall0
@@ -211,7 +225,13 @@ class ClosedLoop:
             smp, extra = sample_and_send(k, t)
             st = apply_and_trace(k)
             pending = self._pending
-            cmd = check(out, k, await_command(k & 0xFFFF))
+            reply = await_command(k & 0xFFFF)
+            if self._wait_end is not None:  # the wait for this period's Command ended the run, no verdict on it
+                if self._wait_end is WaitEnd.INTERRUPTED:
+                    return True
+                self._host_stall_end(out, k)
+                break
+            cmd = check(out, k, reply)
             watchdog = accept(cmd, k, out)
             record(out, t, k, smp, st, pending, extra, cmd is None)
             if out.violation_count > tolerate:
@@ -280,46 +300,66 @@ class ClosedLoop:
         return st
 
     def _await_command(self, seq: int) -> Command | None:
-        """Command `seq`: polled until the deadline (real time), the lockstep timeout (another process)
-        or at once (in-process target, which answers inside the poll)."""
+        """Command `seq`: polled until the deadline (real time), the lockstep timeout (another process: of its own
+        time when the host observes it, `LockstepWait`) or at once (in-process target, which answers inside the
+        poll)."""
         poll_command = self._poll_command
         cmd = poll_command(seq)
-        if cmd is None and (self._realtime or self.inproc_result is None):
-            t0 = time.perf_counter_ns()
-            deadline = self._next_start + self.cfg.ts_ns if self._realtime else t0 + self._timeout_ns
-            now = t0
-            while cmd is None and now < deadline:
-                cmd = poll_command(seq)
-                now = time.perf_counter_ns()
-            self._wait_ns = now - t0
+        if cmd is not None or (not self._realtime and self.inproc_result is not None):
+            return cmd
+        if not self._realtime:
+            lockstep = self._lockstep
+            cmd, end = lockstep.wait(lambda: poll_command(seq), self._stop_asked)
+            self._wait_ns = int(lockstep.wait_s * 1e9)
+            if end in (WaitEnd.HOST_STALL, WaitEnd.INTERRUPTED):
+                self._wait_end = end
+            return cmd
+        t0 = time.perf_counter_ns()
+        deadline = self._next_start + self.cfg.ts_ns
+        now = t0
+        while cmd is None and now < deadline:
+            cmd = poll_command(seq)
+            now = time.perf_counter_ns()
+        self._wait_ns = now - t0
         return cmd
 
     def _await_delayed(self, seq: int) -> Command | None:
         """Lockstep with delayed frames (`--fault delay/jitter`): virtual time runs from the period start to
         its deadline through the release times of the delayed frames (a reply computed the moment its
         Measurement arrives), so a Command is in time when up + down delay ≤ Ts (zero compute time). A target
-        in another process gets the lockstep timeout (wall time) for its reply, as without faults."""
+        in another process gets the lockstep timeout for its reply, as without faults (`LockstepWait`)."""
         faulty = self.faulty
         assert faulty is not None
         deadline_s = self.clock_s + self.cfg.ts_s + 1e-12  # release times are sums of floats: 1 ps slack
         poll_command = self._poll_command
-        give_up_ns = 0
-        while True:
+        lockstep = self._lockstep
+        waiting = False
+        cmd = None
+        while cmd is None:
             cmd = poll_command(seq)
             if cmd is not None:
-                return cmd
+                break
             nxt = faulty.next_release_s()
             if nxt is not None and nxt <= deadline_s:
                 self.clock_s = max(self.clock_s, nxt)  # the next delayed frame arrives
                 continue
             if self.inproc_result is not None:
                 return None
-            now = time.perf_counter_ns()
-            if not give_up_ns:
-                give_up_ns = now + self._timeout_ns
-            elif now >= give_up_ns:
-                self._wait_ns = now - give_up_ns + self._timeout_ns
-                return None
+            if not waiting:
+                lockstep.begin()
+                waiting = True
+                continue
+            end = lockstep.judge(self._stop_asked)
+            if end is WaitEnd.MISSING:
+                cmd = poll_command(seq)
+                break
+            if end is not None:
+                self._wait_end = end
+                break
+        if waiting:
+            lockstep.finish()
+            self._wait_ns = int(lockstep.wait_s * 1e9)
+        return cmd
 
     def _check_contract(self, out: LoopOutcome, k: int, cmd: Command | None) -> Command | None:
         """Record the period's contract findings; the Command if it may be applied, else None."""
@@ -339,7 +379,7 @@ class ClosedLoop:
             elif self.inproc_result is not None:
                 limit = "from the in-process target"
             else:
-                limit = f"within the lockstep timeout {self.cfg.lockstep_timeout_s:g} s (wall time)"
+                limit = f"within the lockstep timeout {self.cfg.lockstep_timeout_s:g} s ({self._lockstep.clock_words})"
             findings.append((MISSING, "Command", f"no Command for seq {k & 0xFFFF} {limit}"))
         for rule, frame, detail in findings:
             out.violation_count += 1
@@ -414,6 +454,14 @@ class ClosedLoop:
             return True
         return False
 
+    def _host_stall_end(self, out: LoopOutcome, k: int) -> None:
+        """The host kept the target from running for the whole host-stall limit while period k waited for its
+        Command: the host's error (exit 1), not the firmware's."""
+        clock = self._lockstep.clock
+        out.error = host_stall_error(clock.pid if clock is not None else 0, self._lockstep.wait_s,
+                                     f"the Command of period {k}", self.cfg.host_stall_limit_s)
+        self._end(out, EndCode.INTERNAL_ERROR, f"{out.error}; inverter put in the safe state")
+
     def _end(self, out: LoopOutcome, code: EndCode, reason: str) -> None:
         """Record how the run ends; every ending but completion puts the plant in the safe state."""
         out.end_code = int(code)
@@ -432,7 +480,9 @@ class ClosedLoop:
                 self._tap.link = self.faulty.link
             else:
                 self.client.link = self.faulty.link
-        if settle_ending(out, disable_and_confirm(self.client, self.controller_id)):
+        clock = self.own_time(SAFE_STOP_TIMEOUT_S)
+        if settle_ending(out, disable_and_confirm(self.client, self.controller_id, clock=clock,
+                                                  stall_limit_s=self.cfg.host_stall_limit_s)):
             with contextlib.suppress(Exception):
                 self.plant.advance((0,), (self.cfg.ts_ns,))
 
@@ -444,7 +494,8 @@ def run_reference_loop(cfg: RunConfig, conn: TargetConnection, cid: int, sink: R
     plant = build_plant(cfg)
     loop = ClosedLoop(cfg, plant, conn.client, cid, inproc_result=conn.inproc_result,
                       record_frames=sink.logger is not None, sink=sink,
-                      first_duties=tuple(duty_value(duty_raw(d)) for d in conn.duties_at_start(plant.sample())))
+                      first_duties=tuple(duty_value(duty_raw(d)) for d in conn.duties_at_start(plant.sample())),
+                      own_time=conn.own_time)
     faulty = install_faults(conn.client, spec, loop.run_time_s) if spec is not None else None
     loop.faulty = sink.faulty = faulty
     outcome = loop.run()

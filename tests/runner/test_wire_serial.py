@@ -36,12 +36,12 @@ from tests.runner.test_wire_udp import WALL_METRICS, _assert_same
 
 
 def _pair(cfg: RunConfig, tmp_path: Path | None = None) -> tuple[RunResult, RunResult]:
-    """The Python loop + Python target, then the native loop + native target, each spawned on a new pty; a
-    lockstep timeout of 30 s (test_wire_udp._pair says why)."""
+    """The Python loop + Python target, then the native loop + native target, each spawned on a new pty, at the
+    default lockstep timeout (test_wire_udp._pair says why it holds)."""
     runs = []
     for loop in ("python", "native"):
         out = None if tmp_path is None else tmp_path / loop
-        runs.append(run_closed_loop(replace(cfg, target="spawn", loop=loop, out_dir=out, lockstep_timeout_s=30.0)))
+        runs.append(run_closed_loop(replace(cfg, target="spawn", loop=loop, out_dir=out)))
     py, na = runs
     assert py.metrics["loop"] == "python" and na.metrics["loop"] == "native" and na.metrics["loop_note"] is None
     return py, na

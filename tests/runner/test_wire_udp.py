@@ -32,16 +32,15 @@ WAIT_COUNTERS = {"blocked", "spin_backoffs", "spin_early_ends"}
 
 
 def _pair(cfg: RunConfig, tmp_path: Path | None = None) -> tuple[RunResult, RunResult]:
-    """The Python loop + Python target, then the native loop + native target, each spawned on fresh ports. The
-    lockstep timeout is 30 s: the Python loop has no host-stall detection, and a spawned target left off the CPUs
-    for the default 0.5 s on a busy machine ended its run early ("missing Command": 78 of 300 periods at load 12)."""
+    """The Python loop + Python target, then the native loop + native target, each spawned on fresh ports, at the
+    default lockstep timeout: both loops count the spawned target's own time (a target left off the CPUs on a busy
+    machine is a host stall, not a `missing` Command)."""
     runs = []
     for loop in ("python", "native"):
         a, b = free_udp_ports()
         link = cfg.link.replace("udp", f"udp:{a}:{b}", 1)
         out = None if tmp_path is None else tmp_path / loop
-        runs.append(run_closed_loop(replace(cfg, link=link, target="spawn", loop=loop, out_dir=out,
-                                            lockstep_timeout_s=30.0)))
+        runs.append(run_closed_loop(replace(cfg, link=link, target="spawn", loop=loop, out_dir=out)))
     py, na = runs
     assert py.metrics["loop"] == "python" and na.metrics["loop"] == "native" and na.metrics["loop_note"] is None
     return py, na

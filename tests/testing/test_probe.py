@@ -8,16 +8,18 @@ from typing import Any
 import pytest
 
 from pmsm_hil.conformance import RULES, broken
-from pmsm_hil.conformance.probe import ProbeReport, probe_target, unassigned_controller_id
+from pmsm_hil.conformance.probe import Probe, ProbeReport, probe_target, unassigned_controller_id
+from pmsm_hil.conformance.test_conformance import _probe_rule
 from pmsm_hil.protocol.ids import CONTROLLER_NAMES, Mode
 from pmsm_hil.protocol.messages import ConfigAck, Setpoint
 from pmsm_hil.sim_target import target as sim_target
 from pmsm_hil.testing.runs import HilSettings, build_config
+from tests.firmware_board.test_safe_stop_stall import _stop_for
 
 
-def _probe(**choices: Any) -> ProbeReport:
-    cfg = build_config(HilSettings(), None, {"scenario": "dyno-steady", "speed": 500, "load": 0, "settle": 0,
-                                             **choices})
+def _probe(target: str = "inproc", **choices: Any) -> ProbeReport:
+    cfg = build_config(HilSettings(target=target), None, {"scenario": "dyno-steady", "speed": 500, "load": 0,
+                                                          "settle": 0, **choices})
     return probe_target(cfg)
 
 
@@ -117,3 +119,47 @@ def test_a_target_echoing_another_config_value(monkeypatch: pytest.MonkeyPatch) 
 def test_the_unassigned_controller_id_is_no_controller() -> None:
     cid = unassigned_controller_id()
     assert 0 < cid < 255 and cid not in {int(c) for c in CONTROLLER_NAMES}
+
+
+def _stop_target_mid_probe(monkeypatch: pytest.MonkeyPatch, stop_s: float, stopped: list[int]) -> None:
+    """The probe's target process stopped (SIGSTOP) for `stop_s` mid torque phase and again at the disabling
+    Setpoint while running (the safe stop's wait); `stopped` gets its pid each time."""
+    real_step, real_disable = Probe.step, Probe.disable
+
+    def step(self: Probe) -> Any:
+        if len(self.torques) == 50 and not stopped:
+            stopped.append(self.conn.target_pid())
+            _stop_for(stopped[-1], stop_s)
+        return real_step(self)
+
+    def disable(self: Probe, mode: int) -> Any:
+        if len(stopped) == 1:
+            stopped.append(self.conn.target_pid())
+            _stop_for(stopped[-1], stop_s)
+        return real_disable(self, mode)
+
+    monkeypatch.setattr(Probe, "step", step)
+    monkeypatch.setattr(Probe, "disable", disable)
+
+
+def test_a_target_process_the_host_stopped_is_a_host_stall_not_a_finding(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A spawned target stopped 1.5 s while the probe awaits a Command, and again while it awaits the safe stop's
+    confirmation: waited for (its own time counts, not wall time), every rule held, both waits counted."""
+    stopped: list[int] = []
+    _stop_target_mid_probe(monkeypatch, 1.5, stopped)
+    report = _probe("spawn")
+    assert len(stopped) == 2 and stopped[0] > 0
+    assert report.stopped == "" and _broken_rules(report) == set(), report.findings
+    assert {"torque_mode", "safe_stop"} <= report.reached
+    assert report.host_stalls >= 2 and report.host_stall_s >= 2.0
+
+
+def test_a_stall_past_the_limit_leaves_the_rule_unchecked_not_broken(monkeypatch: pytest.MonkeyPatch) -> None:
+    stopped: list[int] = []
+    _stop_target_mid_probe(monkeypatch, 3.0, stopped)
+    report = _probe("spawn", host_stall_limit=1.0)
+    assert report.stopped.startswith("host stall: the target's process"), report.stopped
+    assert "--host-stall-limit 1 s" in report.stopped
+    assert _broken_rules(report) == set() and "torque_mode" not in report.reached
+    with pytest.raises(pytest.fail.Exception, match="not checked: the probe stopped earlier: host stall"):
+        _probe_rule(report, "torque_mode")

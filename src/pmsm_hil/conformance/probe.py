@@ -6,17 +6,17 @@ conformance rule (an empty list: the rule held)."""
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
 
 from pmsm_hil.hil.errors import HilError
 from pmsm_hil.hil.mechanics import RPM_TO_RAD_S
 from pmsm_hil.hil.pwm import applied_sequence, carrier_half
 from pmsm_hil.hil.runner.contract import check_command, describe
+from pmsm_hil.hil.runner.lockstep_wait import LockstepWait, WaitEnd, host_stall_error
 from pmsm_hil.hil.runner.plant_setup import build_plant
 from pmsm_hil.hil.runner.run_config import RunConfig, controller_id
-from pmsm_hil.hil.runner.safe_stop import SafeStop, disable_and_confirm
-from pmsm_hil.hil.runner.target_client import TargetError
+from pmsm_hil.hil.runner.safe_stop import SAFE_STOP_TIMEOUT_S, SafeStop, disable_and_confirm
+from pmsm_hil.hil.runner.target_client import HostStallError, TargetError
 from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target
 from pmsm_hil.hil.sensors import SensorModel
 from pmsm_hil.protocol.errors import ProtocolError
@@ -27,10 +27,11 @@ from pmsm_hil.protocol.messages import Command, Fault
 DISABLED_PERIODS, TORQUE_PERIODS, TORQUE_MEAN_PERIODS, SAFE_PERIODS = 10, 150, 50, 10
 #: torque mode passes when the mean plant torque is within this fraction of the reference (or 0.2 N·m)
 TORQUE_TOLERANCE = 0.1
-#: how long a Fault may take to arrive [s] (wall time)
+#: how long a Fault may take to arrive [s] (of the target's own time when the host observes its process, as every
+#: wait of the probe: `LockstepWait`; else wall time)
 FAULT_TIMEOUT_S = 1.0
-#: how long the probe waits for each Command [s] (wall time: its Python loop does not tell a host stall from a
-#: silent target, as the runs' C loop does, so it keeps a loaded CI host's margin)
+#: how long the probe waits for each Command [s]: a board's or an external target's margin on a loaded CI host
+#: (wall time); a target process the host observes is judged by its own time, a host stall waited for
 PROBE_LOCKSTEP_TIMEOUT_S = 2.0
 #: a mode the protocol does not define (0 speed, 1 torque)
 UNKNOWN_MODE = 2
@@ -48,8 +49,12 @@ class ProbeReport:
     reached: set[str] = field(default_factory=set)
     #: why the probe stopped early (a link error, a silent target, a refused configuration), "" if it did not
     stopped: str = ""
-    #: the rule whose phase runs (a stop is a finding of it)
+    #: the rule whose phase runs (a stop is a finding of it, but a host stall's: that rule is not checked)
     current: str = ""
+    #: waits that went past their timeout because the host kept the target's process stopped or off the CPUs,
+    #: and that time [s] (not counted against the target)
+    host_stalls: int = 0
+    host_stall_s: float = 0.0
 
     def add(self, rule: str, finding: str) -> None:
         self.findings.setdefault(rule, []).append(finding)
@@ -82,6 +87,17 @@ class Probe:
                         else Command(seq=0, states=(0,), durations_ns=(cfg.ts_ns,)))
         self.max_state = cfg.machine.layout.max_state_code
         self.torques: list[float] = []
+        own_time, limit_s = self.conn.own_time, cfg.host_stall_limit_s
+        self.command_wait = LockstepWait(own_time(cfg.lockstep_timeout_s), cfg.lockstep_timeout_s, limit_s)
+        self.fault_wait = LockstepWait(own_time(FAULT_TIMEOUT_S), FAULT_TIMEOUT_S, limit_s)
+        #: host stalls of the safe stops so far: count, time [s]
+        self.stop_stalls = (0, 0.0)
+
+    def host_stalls(self) -> tuple[int, float]:
+        """The waits a host stall prolonged so far, and the time [s] the target could not run in them."""
+        waits = (self.command_wait, self.fault_wait)
+        return (sum(w.host_stalls for w in waits) + self.stop_stalls[0],
+                sum(w.host_stall_s for w in waits) + self.stop_stalls[1])
 
     def close(self) -> None:
         """Disable the target (waiting for its confirmation) and close the link."""
@@ -91,8 +107,16 @@ class Probe:
             self.conn.close()
 
     def disable(self, mode: int) -> SafeStop:
-        """The disabling Setpoint in `mode`, and what confirmed it (src/pmsm_hil/hil/runner/safe_stop.py)."""
-        return disable_and_confirm(self.client, self.cid, mode=mode)
+        """The disabling Setpoint in `mode`, and what confirmed it (src/pmsm_hil/hil/runner/safe_stop.py: of the
+        target's own time when the host observes its process); HostStallError when the host kept the target from
+        confirming for the whole host-stall limit."""
+        stop = disable_and_confirm(self.client, self.cid, mode=mode, clock=self.conn.own_time(SAFE_STOP_TIMEOUT_S),
+                                   stall_limit_s=self.cfg.host_stall_limit_s)
+        if stop.host_stall_s > 0:
+            self.stop_stalls = (self.stop_stalls[0] + 1, self.stop_stalls[1] + stop.host_stall_s)
+        if stop.host_stalled:
+            raise HostStallError(stop.observed)
+        return stop
 
     def setpoint(self, *, enable: bool, mode: int, reference: float, cid: int | None = None) -> None:
         self.client.set_setpoint(enable=enable, mode=int(mode), reference=reference,
@@ -130,20 +154,34 @@ class Probe:
         self.k += periods
 
     def _await(self, seq: int) -> Command | None:
+        """Command `seq`, within the lockstep timeout (`command_wait`; at once from the in-process target)."""
         cmd = self.client.poll_command(seq)
         if cmd is not None or self.conn.inproc_result is not None:
             return cmd
-        deadline = time.perf_counter() + self.cfg.lockstep_timeout_s
-        while cmd is None and time.perf_counter() < deadline:
-            cmd = self.client.poll_command(seq)
+        wait = self.command_wait
+        cmd, end = wait.wait(lambda: self.client.poll_command(seq))
+        if end is WaitEnd.HOST_STALL:
+            raise self._stalled(wait, f"the Command for seq {seq}")
         return cmd
 
-    def await_fault(self, timeout_s: float = FAULT_TIMEOUT_S) -> Fault | None:
-        """The first Fault since the last call (the link served meanwhile), None after `timeout_s`."""
-        deadline = time.perf_counter() + timeout_s
-        while not self.client.faults and time.perf_counter() < deadline:
+    def await_fault(self) -> Fault | None:
+        """The first Fault since the last call (the link served meanwhile), None after FAULT_TIMEOUT_S
+        (`fault_wait`)."""
+        wait = self.fault_wait
+        fault, end = wait.wait(self._fault)
+        if end is WaitEnd.HOST_STALL:
+            raise self._stalled(wait, "a FaultTarget")
+        return fault
+
+    def _fault(self) -> Fault | None:
+        """The first Fault received, after serving the link for a moment when there is none yet."""
+        if not self.client.faults:
             self.client.linger(0.002)
         return self.client.faults.pop(0) if self.client.faults else None
+
+    def _stalled(self, wait: LockstepWait, what: str) -> HostStallError:
+        clock = wait.clock
+        return host_stall_error(clock.pid if clock is not None else 0, wait.wait_s, what, self.cfg.host_stall_limit_s)
 
     def zero_vector_problem(self, reply: Command | None, seq: int) -> str | None:
         """Why `reply` is not the full-period zero vector answering `seq` (None when it is)."""
@@ -169,12 +207,19 @@ def probe_target(cfg: RunConfig) -> ProbeReport:
         return report
     try:
         _phases(probe, report)
+    except HostStallError as exc:  # the host's fault: the rule whose phase ran is not checked, not broken
+        report.stopped = str(exc)
+        report.reached.discard(report.current)
     except (HilError, ProtocolError) as exc:
         report.stopped = str(exc)
         if not report.findings.get(report.current):
             report.add(report.current, f"probe stopped: {exc}")
     finally:
-        probe.close()
+        try:
+            probe.close()
+        except HostStallError as exc:
+            report.stopped = report.stopped or str(exc)
+        report.host_stalls, report.host_stall_s = probe.host_stalls()
     return report
 
 

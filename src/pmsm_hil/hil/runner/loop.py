@@ -29,6 +29,7 @@ from pmsm_hil.hil.runner.callback_link import NativePyLink
 from pmsm_hil.hil.runner.contract import MISSING, RULES, EndCode
 from pmsm_hil.hil.runner.core_link import NativeCoreLink
 from pmsm_hil.hil.runner.cpu_isolation import isolate_cpu
+from pmsm_hil.hil.runner.lockstep_wait import host_stall_error, lockstep_clock_words
 from pmsm_hil.hil.runner.loop_config import NativeOptions, fill_config
 from pmsm_hil.hil.runner.loop_findings import internal_error, violation
 from pmsm_hil.hil.runner.loop_load_fmu import load_fmu_failed, open_load_fmu
@@ -37,7 +38,7 @@ from pmsm_hil.hil.runner.recorder import FrameTap, frame_records, period_records
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.safe_stop import SAFE_STOP_TIMEOUT_S, disable_and_confirm, settle_ending
 from pmsm_hil.hil.runner.stop_request import StopRequest, deferred_interrupts
-from pmsm_hil.hil.runner.target_client import HostStallError, TargetClient
+from pmsm_hil.hil.runner.target_client import TargetClient
 from pmsm_hil.hil.runner.target_time import target_time
 from pmsm_hil.hil.runner.wire import NativeWireLink
 from pmsm_hil.hil.sensors import SensorModel
@@ -257,8 +258,7 @@ class NativeLoop:
         if self.cfg.mode == "realtime":
             return "before the next period start (real time)"
         if self._other_process():
-            clock = ("of the emulated MCU's own time: its instructions and idle time" if self.opts.guest_insns_address
-                     else "of the target process's own time" if self.opts.target_pid else "wall time")
+            clock = lockstep_clock_words(self.opts.target_pid, bool(self.opts.guest_insns_address))
             return f"within the lockstep timeout {self.cfg.lockstep_timeout_s:g} s ({clock})"
         return "from the in-process target"
 
@@ -294,11 +294,8 @@ class NativeLoop:
         elif interrupted or end == lib.NL_END_INTERRUPTED:
             self._end(out, EndCode.INTERRUPTED, "interrupted (Ctrl-C or SIGTERM)")
         elif end == lib.NL_END_HOST_STALL:
-            wait_s = int(res.host_stall_wait_ns) / 1e9
-            out.error = HostStallError(
-                f"host stall: the target's process (pid {self.opts.target_pid}) was kept stopped or off the CPUs "
-                f"while the run waited {wait_s:.1f} s for the Command of period {int(res.end_period)} "
-                f"(--host-stall-limit {cfg.host_stall_limit_s:g} s); the host's fault, not the firmware's")
+            out.error = host_stall_error(self.opts.target_pid, int(res.host_stall_wait_ns) / 1e9,
+                                         f"the Command of period {int(res.end_period)}", cfg.host_stall_limit_s)
             self._end(out, EndCode.INTERNAL_ERROR, f"{out.error}; inverter put in the safe state")
         elif (bus := self._bus_starved(out, end)) is not None:  # other nodes' frames kept the Commands out
             self._take_back_missing(out, end)
