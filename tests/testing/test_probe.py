@@ -8,7 +8,7 @@ from typing import Any
 import pytest
 
 from pmsm_hil.conformance import RULES, broken
-from pmsm_hil.conformance.probe import Probe, ProbeReport, probe_target, unassigned_controller_id
+from pmsm_hil.conformance.probe import DISABLED_PERIODS, Probe, ProbeReport, probe_target, unassigned_controller_id
 from pmsm_hil.conformance.test_conformance import _probe_rule
 from pmsm_hil.protocol.ids import CONTROLLER_NAMES, Mode
 from pmsm_hil.protocol.messages import ConfigAck, Setpoint
@@ -122,12 +122,13 @@ def test_the_unassigned_controller_id_is_no_controller() -> None:
 
 
 def _stop_target_mid_probe(monkeypatch: pytest.MonkeyPatch, stop_s: float, stopped: list[int]) -> None:
-    """The probe's target process stopped (SIGSTOP) for `stop_s` mid torque phase and again at the disabling
-    Setpoint while running (the safe stop's wait); `stopped` gets its pid each time."""
+    """The probe's target process stopped (SIGSTOP) for `stop_s` in the middle of `setpoint_disabled` (where a
+    missing Command is a finding) and again at the disabling Setpoint while running (the safe stop's wait);
+    `stopped` gets its pid each time."""
     real_step, real_disable = Probe.step, Probe.disable
 
     def step(self: Probe) -> Any:
-        if len(self.torques) == 50 and not stopped:
+        if len(self.torques) == DISABLED_PERIODS // 2 and not stopped:
             stopped.append(self.conn.target_pid())
             _stop_for(stopped[-1], stop_s)
         return real_step(self)
@@ -150,7 +151,7 @@ def test_a_target_process_the_host_stopped_is_a_host_stall_not_a_finding(monkeyp
     report = _probe("spawn")
     assert len(stopped) == 2 and stopped[0] > 0
     assert report.stopped == "" and _broken_rules(report) == set(), report.findings
-    assert {"torque_mode", "safe_stop"} <= report.reached
+    assert {"setpoint_disabled", "safe_stop"} <= report.reached
     assert report.host_stalls >= 2 and report.host_stall_s >= 2.0
 
 
@@ -160,6 +161,6 @@ def test_a_stall_past_the_limit_leaves_the_rule_unchecked_not_broken(monkeypatch
     report = _probe("spawn", host_stall_limit=1.0)
     assert report.stopped.startswith("host stall: the target's process"), report.stopped
     assert "--host-stall-limit 1 s" in report.stopped
-    assert _broken_rules(report) == set() and "torque_mode" not in report.reached
+    assert _broken_rules(report) == set() and "setpoint_disabled" not in report.reached
     with pytest.raises(pytest.fail.Exception, match="not checked: the probe stopped earlier: host stall"):
-        _probe_rule(report, "torque_mode")
+        _probe_rule(report, "setpoint_disabled")
