@@ -105,6 +105,8 @@ class BoardLink:
         self.late_first_period: int | None = None
         fdcan = self.board.peripherals.get("FDCAN1")
         self.fdcan = fdcan if isinstance(fdcan, Fdcan) else None
+        if desc.break_overcurrent_a is not None:  # BKIN at its idle level: no overcurrent
+            self.tim1.set_break_pin(desc.break_active_low, 0)
         self._bus_on = False
         self.closed = False
         self.wall_s = 0.0
@@ -195,6 +197,10 @@ class BoardLink:
             self._theta_m = m.theta_e / self.pole_pairs
         self._theta_e = m.theta_e
         self._omega_m = m.omega_m
+        limit = self.desc.break_overcurrent_a
+        if limit is not None:  # the board's overcurrent comparator on BKIN, judged on the period's sample
+            over = max(abs(m.i_a), abs(m.i_b), abs(m.i_c)) > limit
+            self.tim1.set_break_pin(over != self.desc.break_active_low, self.board.now)
 
     def _period(self, m: Measurement) -> Command:
         board, tim = self.board, self.tim1
