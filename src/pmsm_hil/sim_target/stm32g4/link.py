@@ -3,7 +3,8 @@
 `poll`/`recv` return.
 
 Per period k (lockstep): the Measurement's phase currents and DC-link voltage become the voltages at the ADC pins
-through the board's analog front end (constant over the period: the host sampled them at its --adc-delay), its angle
+through the board's analog front end (constant over the period: the host sampled them at its --adc-delay) and, when
+the board describes an overcurrent protection on TIM1's BKIN pin ([break_input]), that pin's level, its angle
 and speed the encoder's edge count (the mechanical angle unwrapped from the electrical one, advanced at the measured
 speed inside the period; the encoder aligned: count 0 at electrical angle 0); the core runs to the end of the period
 (the next update event of TIM1 at the carrier valley); the reply is a duty-cycle Command built from the compare
