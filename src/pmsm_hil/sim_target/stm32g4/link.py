@@ -427,7 +427,8 @@ class BoardLink:
                                "board_late_compares": sum(self.late_per_period),
                                "board_first_late_period": self.late_first_period,
                                "board_setpoints_dropped": self.setpoints_dropped,
-                               "board_configs_acked": self.configs_acked, "board_idle_periods": self.idle_periods}
+                               "board_configs_acked": self.configs_acked, "board_idle_periods": self.idle_periods,
+                               "board_break_trips": tim.break_trips}
         if len(isr):
             out["board_isr_time_us"] = _stats(isr * us)
             out["board_cpu_load"] = float(1.0 - sleep.sum() / (len(sleep) * self.period_cycles))
