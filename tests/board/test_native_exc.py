@@ -1,4 +1,5 @@
-"""Exception entry and return in C (c/exc_frame.c) against the Python reference (exceptions.py): the same records,
+"""The board's C paths (c/exc_frame.c: exception entry and return, the DWT page's reads as a C MMIO callback)
+against the Python reference (exceptions.py, scs.py): the same records,
 bit for bit — every Command's frame, the handler cycles, sleep cycles, entries and late compares per period, each
 exception's handler times and latencies, the core's registers and SRAM at the end — for the example firmware
 (examples/stm32g4_foc and its LATE_ISR variant), the FPU-using test firmwares and the fault variants (the same
@@ -17,9 +18,10 @@ from unicorn import arm_const as arm
 from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.messages import Measurement
 from pmsm_hil.sim_target.fw_build import build_firmware, missing_tools
+from pmsm_hil.sim_target.stm32g4.board import Board
 from pmsm_hil.sim_target.stm32g4.board_file import load_board
-from pmsm_hil.sim_target.stm32g4.exceptions import ExceptionUnit
 from pmsm_hil.sim_target.stm32g4.link import BoardLink
+from pmsm_hil.sim_target.stm32g4.part import PARTS
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
 
 TS = 50e-6
@@ -32,10 +34,12 @@ CORE_REGS = (*(getattr(arm, f"UC_ARM_REG_R{i}") for i in range(13)), arm.UC_ARM_
 
 def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch: pytest.MonkeyPatch,
             periods: int = PERIODS) -> dict[str, Any]:
-    """Everything a run of `periods` Measurements leaves, with the frames stacked in C or in Python."""
-    monkeypatch.setattr(ExceptionUnit, "NATIVE", native)
+    """Everything a run of `periods` Measurements leaves, with the board's C paths (exception frames, the DWT page's
+    reads) or the Python reference."""
+    monkeypatch.setattr(Board, "NATIVE", native)
     link = BoardLink(elf, load_board(board_file), ts_s=TS, pole_pairs=4)
     assert (link.board.exceptions._native is not None) == native
+    assert hasattr(link.board, "_dwt") == native
     codec = FrameCodec("canfd")
     frames: list[bytes] = []
     error = ""
@@ -92,3 +96,14 @@ def test_the_test_firmwares_give_the_same_records(name: str, defines: tuple[str,
                                                   monkeypatch: pytest.MonkeyPatch) -> None:
     out = same(build_fw(name, *defines), None, monkeypatch)
     assert sum(out["entries"]) > 0
+
+
+@pytest.mark.parametrize("native", [True, False], ids=["c", "python"])
+def test_an_unmodelled_dwt_register_is_named_in_one_line(native: bool, build_fw: Callable[..., Path],
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(Board, "NATIVE", native)
+    board = Board(PARTS["stm32g474"], build_fw("errors", "UNMODELLED_DWT"))
+    with pytest.raises(BoardError) as info:
+        board.run_until(1_000_000)
+    text = str(info.value)
+    assert "0xe0001200" in text.lower() and "touch_dwt_reserved" in text and "\n" not in text

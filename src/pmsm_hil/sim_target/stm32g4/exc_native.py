@@ -1,6 +1,7 @@
-"""Exception entry and return frames in C (c/exc_frame.c): one call into our library per entry or return instead of
-several into Unicorn, the same steps as the Python reference in exceptions.py. Compiled with the host C compiler on
-first use into the firmware cache, as the instruction counter is."""
+"""The board's C paths (c/exc_frame.c): exception entry and return frames (one call into our library per entry or
+return instead of several into Unicorn, the same steps as the Python reference in exceptions.py) and the DWT page's
+reads as a Unicorn MMIO callback of the library itself (no Python frame per access). Compiled with the host C
+compiler on first use into the firmware cache, as the instruction counter is."""
 
 from __future__ import annotations
 
@@ -32,6 +33,13 @@ class ExcState(ctypes.Structure):
                 ("frame_regs", ctypes.c_int * 8), ("fp_regs", ctypes.c_int * 17)]
 
 
+class DwtState(ctypes.Structure):
+    """Mirror of hil_dwt_t (c/exc_frame.c)."""
+
+    _fields_ = [("count", ctypes.c_void_p), ("cyccnt_base", ctypes.c_int64), ("ctrl", ctypes.c_uint32),
+                ("cyccnt_frozen", ctypes.c_uint32), ("fallback", ctypes.c_void_p), ("fallback_user", ctypes.c_void_p)]
+
+
 _LIB: ctypes.CDLL | None = None
 
 
@@ -48,6 +56,11 @@ def library() -> ctypes.CDLL:
         lib.hil_exc_leave.restype = ctypes.c_int
         _LIB = lib
     return _LIB
+
+
+def dwt_read_function() -> int:
+    """Address of hil_dwt_read (a uc_cb_mmio_read_t)."""
+    return _address(library().hil_dwt_read)
 
 
 def _address(fn: Any) -> int:

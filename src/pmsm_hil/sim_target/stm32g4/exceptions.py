@@ -36,17 +36,14 @@ class ExceptionReturnError(BoardError):
 
 class ExceptionUnit:
     """Enters and leaves exceptions on `cpu` for `nvic`, with the SCB's VTOR/CPACR/CCR. The frames are stacked and
-    popped in C (c/exc_frame.c) when NATIVE is set, else by the Python reference below (the same steps; the two are
+    popped in C (c/exc_frame.c) when `native`, else by the Python reference below (the same steps; the two are
     compared record for record by tests/board/test_native_exc.py)."""
 
-    #: stack and pop the frames in C (False: the Python reference)
-    NATIVE = True
-
-    def __init__(self, cpu: Cpu, nvic: Nvic, scs: SystemControl) -> None:
+    def __init__(self, cpu: Cpu, nvic: Nvic, scs: SystemControl, *, native: bool = True) -> None:
         self.cpu, self.nvic, self.scs = cpu, nvic, scs
         self.entries = 0
         self._native: tuple[ctypes.CDLL, ExcState] | None = None
-        if self.NATIVE:
+        if native:
             self._native = (library(), exc_state(cpu.uc._uch))
             self._native_ref = ctypes.byref(self._native[1])
         # entry: CONTROL, PSP, MSP and the basic frame in one read (the FP registers in a second one)

@@ -125,3 +125,33 @@ int hil_exc_leave(const hil_exc_t *x, int use_psp, int fp) {
     uint32_t tail[2] = {xpsr & ~0x1FFu & ~(1u << 9), frame[6] & ~1u};
     return write_regs(x, tail_ids, tail, 2);
 }
+
+/* The DWT page's reads (0xE0001000) as Unicorn's MMIO read callback, registered by uc_mmio_map straight (no Python
+ * frame per access): CTRL, CYCCNT (the core's cycle count since its anchor while CYCCNTENA, else the frozen value),
+ * the profiling counters, comparators and ID registers as 0; any other offset goes to `fallback` (the Python
+ * reference, which names the unmodelled register). The state mirrors SystemControl's, written back by the board
+ * after every DWT write (src/pmsm_hil/sim_target/stm32g4/scs.py, dwt_read). */
+typedef uint64_t (*hil_mmio_read_fn)(void *uc, uint64_t offset, unsigned size, void *user);
+
+typedef struct {
+    const uint64_t *count;  /* the instruction counter's running count: the core's cycles */
+    int64_t cyccnt_base;    /* cycle at which CYCCNT was 0 */
+    uint32_t ctrl;
+    uint32_t cyccnt_frozen; /* CYCCNT while not counting */
+    hil_mmio_read_fn fallback;
+    void *fallback_user;
+} hil_dwt_t;
+
+uint64_t hil_dwt_read(void *uc, uint64_t offset, unsigned size, void *user) {
+    const hil_dwt_t *d = (const hil_dwt_t *)user;
+    if (offset == 0x000u) {
+        return d->ctrl;
+    }
+    if (offset == 0x004u) {
+        return (d->ctrl & 1u) ? (uint32_t)(*d->count - (uint64_t)d->cyccnt_base) : d->cyccnt_frozen;
+    }
+    if (offset >= 0xFD0u || (offset >= 0x008u && offset < 0x100u)) {
+        return 0u;
+    }
+    return d->fallback(uc, offset, size, d->fallback_user);
+}
