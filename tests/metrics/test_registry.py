@@ -38,7 +38,7 @@ CONDITIONAL = {"lateness_us", "lateness_histogram_us", "overruns", "overrun_thre
                # stm32g4 targets only (tests/board/test_link.py checks them)
                "board", "board_carrier_hz", "board_dead_time_ns", "board_isr_time_us", "board_cpu_load",
                "board_late_compares", "board_first_late_period", "board_handlers", "board_adc_sample_us",
-               "board_setpoints_dropped", "board_configs_acked", "board_idle_periods",
+               "board_setpoints_dropped", "board_configs_acked", "board_idle_periods", "board_break_trips",
                # stm32g4 targets running the firmware API over FDCAN1 (tests/firmware_board/test_template_stm32g4.py)
                "board_link", "board_can_bitrates", "board_turnaround_us", "board_turnaround_cycles",
                "board_late_replies", "board_missing_replies"}

@@ -1,11 +1,13 @@
 /* Error test: FAULT_READ reads an address no memory answers (a precise BusFault); UNMODELLED writes SYSCFG,
  * which the board does not model; UNMODELLED_REGISTER an offset of TIM1 the model lacks; BAD_RETURN returns from
- * a handler with a corrupt EXC_RETURN. */
+ * a handler with a corrupt EXC_RETURN; UNMODELLED_DWT reads an offset of the DWT the board lacks (its reads are C: the
+ * Python reference names the register). */
 #include "regs.h"
 volatile uint32_t sink;
 __attribute__((noinline)) void touch_nothing(void) { sink = REG(0x9F000000u); }
 __attribute__((noinline)) void touch_syscfg(void) { REG(0x40010004u) = 1u; }
 __attribute__((noinline)) void touch_tim1_reserved(void) { REG(0x40012C70u) = 1u; }
+__attribute__((noinline)) void touch_dwt_reserved(void) { sink = REG(0xE0001200u); }
 void SVC_Handler(void) { __asm volatile("ldr r0, =0xFFFFFFF5\n bx r0"); }
 int main(void) {
 #if defined(FAULT_READ)
@@ -14,6 +16,9 @@ int main(void) {
   touch_syscfg();
 #elif defined(UNMODELLED_REGISTER)
   touch_tim1_reserved();
+#elif defined(UNMODELLED_DWT)
+  sink = REG(0xE0001004u);                    /* CYCCNT: answered in C */
+  touch_dwt_reserved();
 #elif defined(BAD_RETURN)
   __asm volatile("svc 0");
 #endif

@@ -2,11 +2,20 @@
  * preloaded PWM mode 1, OC4REF (PWM mode 2, CCR4 = 4240) as TRGO2 triggering ADC1's injected pair (IN1, IN2) on
  * its rising edge near the carrier peak; the JEOS interrupt stores the results and writes CCR1 = its own count
  * (LATE: after a delay longer than the rest of the period; FAULT_AT: reads nothing in that period; UNMODELLED_AT:
- * writes SYSCFG in that period). TIM3
- * in encoder mode x4. */
+ * writes SYSCFG in that period; BREAK: the break input enabled, active low, its interrupt counting the breaks and
+ * clearing BIF). TIM3 in encoder mode x4. */
 #include "regs.h"
 #define ARR_VALUE 4250u
-volatile uint32_t isr_count, jdr1, jdr2, cnt_at_entry, enc_count, enc_dir, sink;
+volatile uint32_t isr_count, jdr1, jdr2, cnt_at_entry, enc_count, enc_dir, sink, break_count, break_sr;
+
+#ifdef BREAK
+void TIM1_BRK_TIM15_IRQHandler(void) {
+  break_sr = TIM_SR(TIM1);
+  ++break_count;
+  TIM_SR(TIM1) = ~(1u << 7);                  /* clear BIF (it stays set while the break input is active) */
+  TIM_DIER(TIM1) &= ~(1u << 7);               /* one interrupt per trip: the ISR would re-enter while BRK is held */
+}
+#endif
 
 void ADC1_2_IRQHandler(void) {
   cnt_at_entry = TIM_CNT(TIM1);
@@ -61,7 +70,14 @@ int main(void) {
   TIM_CCMR2(TIM1) = (6u << 4 | 1u << 3) | (7u << 12 | 1u << 11);
   TIM_CCR4(TIM1) = ARR_VALUE - 10u;
   TIM_CCER(TIM1) = 0x1555u;                  /* CC1-3 and complements, CC4 */
+#ifdef BREAK
+  TIM_BDTR(TIM1) = 1u << 15 | 1u << 12 | 170u; /* MOE, BKE, BKP = 0: BRK active low */
+  TIM_DIER(TIM1) = 1u << 7;                   /* BIE */
+  NVIC_IPR(24) = 0x00;
+  NVIC_ISER0 = 1u << 24;
+#else
   TIM_BDTR(TIM1) = 1u << 15 | 170u;           /* MOE, DTG 170: (64 + 42) * 2 ticks = 1.247 us */
+#endif
   TIM_CR2(TIM1) = 7u << 20;                   /* MMS2 = OC4REF */
   TIM_EGR(TIM1) = 1u;
   TIM_CR1(TIM1) = 1u | 1u << 5 | 1u << 7;     /* CEN, CMS = 1, ARPE */

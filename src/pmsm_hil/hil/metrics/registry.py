@@ -277,6 +277,9 @@ METRICS: Final[tuple[Metric, ...]] = (
        "sampling instants after the period start (the carrier valley), last samples of the run", source=RUN),
     _m("board_setpoints_dropped", "setpoints dropped", "", "stm32g4 targets without an FDCAN1 model: enabling "
        "Setpoints the firmware could not receive", ".0f", source=RUN),
+    _m("board_break_trips", "TIM1 breaks", "", "stm32g4 targets: times TIM1's break input went active with the "
+       "firmware's BDTR.BKE set (the board's overcurrent protection, [break_input]) or the board cut the outputs "
+       "for a disabling Setpoint (MOE cleared, the outputs at their idle state)", ".0f", source=RUN),
     _m("board_configs_acked", "configs acked by board", "", "stm32g4 targets without an FDCAN1 model: "
        "ConfigParams the board acknowledged on the firmware's behalf", ".0f", source=RUN),
     _m("board_idle_periods", "idle periods", "", "stm32g4 targets with an FDCAN1 model: firmware periods run outside "

@@ -10,6 +10,7 @@ up to the slice's end, takes the pending exception that preempts, and skips the 
 
 from __future__ import annotations
 
+import ctypes
 import importlib
 import pkgutil
 from collections.abc import Callable
@@ -21,6 +22,7 @@ from unicorn import arm_const as arm
 
 from pmsm_hil.sim_target.elf import ElfError, elf_load_segments, elf_symbols
 from pmsm_hil.sim_target.stm32g4 import peripherals as _peripherals_pkg
+from pmsm_hil.sim_target.stm32g4.counter import CounterState
 from pmsm_hil.sim_target.stm32g4.cpu import (
     EXCP_BKPT,
     EXCP_DIVBYZERO,
@@ -33,6 +35,7 @@ from pmsm_hil.sim_target.stm32g4.cpu import (
     Cpu,
     RegBatch,
 )
+from pmsm_hil.sim_target.stm32g4.exc_native import DwtState, dwt_read_function
 from pmsm_hil.sim_target.stm32g4.exceptions import ExceptionReturnError, ExceptionUnit
 from pmsm_hil.sim_target.stm32g4.fault import (
     BFARVALID,
@@ -84,6 +87,10 @@ class IsrStats:
 class Board:
     """One virtual part running one firmware image; implements the peripherals' BoardBus."""
 
+    #: the board's C paths (c/exc_frame.c): exception frames and the DWT page's reads (False: the Python reference,
+    #: which gives the same records: tests/board/test_native_exc.py)
+    NATIVE = True
+
     def __init__(self, part: Part, elf: str | Path, *, console: Callable[[str, str], None] | None = None,
                  hse_hz: int = 24_000_000) -> None:
         load_models()
@@ -95,7 +102,7 @@ class Board:
         self.cpu = Cpu(part)
         self.nvic = Nvic(part.irq_count)
         self.scs = SystemControl(self.nvic, part.idcode, self.describe_pc, self._reset_request, self._pend_systick)
-        self.exceptions = ExceptionUnit(self.cpu, self.nvic, self.scs)
+        self.exceptions = ExceptionUnit(self.cpu, self.nvic, self.scs, native=self.NATIVE)
         self.hclk_hz = RESET_HCLK_HZ
         self.peripherals: dict[str, Peripheral] = {}
         self.absent: list[str] = []
@@ -148,8 +155,22 @@ class Board:
         scs = self.scs
         self.cpu.map_mmio(0xE000_E000, PAGE, self._core_access(0xE000_E000, scs.read),
                           self._core_store(0xE000_E000, scs.write))
-        self.cpu.map_mmio(0xE000_1000, PAGE, self._core_access(0xE000_1000, scs.dwt_read),
-                          self._core_store(0xE000_1000, scs.dwt_write))
+        dwt_read, dwt_store = self._core_access(0xE000_1000, scs.dwt_read), self._core_store(0xE000_1000, scs.dwt_write)
+        if self.NATIVE:  # the reads in C (CYCCNT in a timed ISR: no Python per access), the writes in Python
+            dwt = self._dwt = DwtState()
+            dwt.count = ctypes.addressof(self.cpu.counter) + CounterState.count.offset
+
+            def mirror() -> None:
+                dwt.ctrl, dwt.cyccnt_base, dwt.cyccnt_frozen = scs.dwt_ctrl, scs.cyccnt_base, scs.cyccnt_frozen
+
+            def store(address: int, size: int, value: int) -> None:
+                dwt_store(address, size, value)
+                mirror()
+
+            mirror()
+            self.cpu.map_mmio(0xE000_1000, PAGE, dwt_read, store, native_read=(dwt_read_function(), dwt))
+        else:
+            self.cpu.map_mmio(0xE000_1000, PAGE, dwt_read, dwt_store)
         self.cpu.map_mmio(0xE004_2000, PAGE, self._core_access(0xE004_2000, scs.dbgmcu_read),
                           self._core_store(0xE004_2000, scs.dbgmcu_write))
 

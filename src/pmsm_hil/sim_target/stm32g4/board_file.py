@@ -47,6 +47,10 @@ class BoardDescription:
     analog: tuple[AnalogInput, ...]
     encoder_timer: str | None
     encoder_lines: int
+    #: the board's overcurrent protection on TIM1's BKIN pin: the phase current magnitude that trips it [A] (None:
+    #: BKIN not wired) and the pin's level then (low for an open-drain fault output)
+    break_overcurrent_a: float | None = None
+    break_active_low: bool = True
 
 
 def board_names() -> list[str]:
@@ -121,4 +125,20 @@ def load_board(spec: str | Path | None = None) -> BoardDescription:
         if not 1 <= lines <= 1 << 20:
             raise BoardError(f"{where} [encoder]: 'lines' = {lines} outside 1-1048576")
     return BoardDescription(path.stem, str(raw.get("description", "")), part, hse, vref, timer,
-                            tuple(c - 1 for c in channels), tuple(inputs), enc_timer, lines)
+                            tuple(c - 1 for c in channels), tuple(inputs), enc_timer, lines,
+                            *_break_input(raw.get("break_input"), f"{where} [break_input]"))
+
+
+def _break_input(table: Any, where: str) -> tuple[float | None, bool]:
+    """[break_input]: overcurrent_a (> 0) and active_low (default true); (None, True) without the table."""
+    if table is None:
+        return None, True
+    if not isinstance(table, dict):
+        raise BoardError(f"{where}: a table (overcurrent_a, active_low)")
+    level = float(_field(table, "overcurrent_a", (int, float), where))
+    if not 0.0 < level < 1e6:
+        raise BoardError(f"{where}: 'overcurrent_a' = {level} outside (0, 1e6) A")
+    active_low = table.get("active_low", True)
+    if not isinstance(active_low, bool):
+        raise BoardError(f"{where}: 'active_low' = {active_low!r} is not true or false")
+    return level, active_low

@@ -133,10 +133,13 @@ class Cpu:
         self.uc.mem_map_ptr(start, end - start, UC_PROT_READ | 2, buf)
         self.extra_ram.append(buf)
 
-    def map_mmio(self, base: int, size: int, read: MmioRead, write: MmioWrite) -> None:
+    def map_mmio(self, base: int, size: int, read: MmioRead, write: MmioWrite, *,
+                 native_read: tuple[int, Any] | None = None) -> None:
         """Route every access to [base, base + size) to `read(address, size)` / `write(address, size, value)`.
         The callbacks are Unicorn's C callbacks straight (not the binding's layered wrappers); an exception in
-        one stops the core and is raised by `run`, as the binding does."""
+        one stops the core and is raised by `run`, as the binding does. `native_read` (a C uc_cb_mmio_read_t's
+        address and its state, a ctypes Structure whose `fallback` field it calls for what it does not handle)
+        takes the reads instead, `read` as its fallback."""
         uc, uch = self.uc, self._uch
 
         def on_read(_handle: int, offset: int, nbytes: int, _user: int) -> int:
@@ -158,7 +161,13 @@ class Cpu:
 
         read_fn, write_fn = MMIO_READ_CFUNC(on_read), MMIO_WRITE_CFUNC(on_write)
         self._mmio_callbacks.append((read_fn, write_fn))
-        status = uclib.uc_mmio_map(uch, base, size, read_fn, None, write_fn, None)
+        user: int | None = None
+        if native_read is not None:
+            function, state = native_read
+            state.fallback = ctypes.cast(read_fn, ctypes.c_void_p).value
+            self._mmio_callbacks.append((MMIO_READ_CFUNC(function), state))
+            read_fn, user = self._mmio_callbacks[-1][0], ctypes.addressof(state)
+        status = uclib.uc_mmio_map(uch, base, size, read_fn, user, write_fn, None)
         if status != 0:
             raise UcError(status)
 

@@ -11,11 +11,14 @@ entry costs ENTRY_CYCLES, return RETURN_CYCLES (Cortex-M4 figures with zero-wait
 
 from __future__ import annotations
 
+import ctypes
 import struct
 
+from unicorn import UcError
 from unicorn import arm_const as arm
 
 from pmsm_hil.sim_target.stm32g4.cpu import FP_REGS, FRAME_REGS, Cpu, RegBatch
+from pmsm_hil.sim_target.stm32g4.exc_native import ExcState, exc_state, library
 from pmsm_hil.sim_target.stm32g4.nvic import Nvic
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
 from pmsm_hil.sim_target.stm32g4.scs import SystemControl
@@ -32,11 +35,17 @@ class ExceptionReturnError(BoardError):
 
 
 class ExceptionUnit:
-    """Enters and leaves exceptions on `cpu` for `nvic`, with the SCB's VTOR/CPACR/CCR."""
+    """Enters and leaves exceptions on `cpu` for `nvic`, with the SCB's VTOR/CPACR/CCR. The frames are stacked and
+    popped in C (c/exc_frame.c) when `native`, else by the Python reference below (the same steps; the two are
+    compared record for record by tests/board/test_native_exc.py)."""
 
-    def __init__(self, cpu: Cpu, nvic: Nvic, scs: SystemControl) -> None:
+    def __init__(self, cpu: Cpu, nvic: Nvic, scs: SystemControl, *, native: bool = True) -> None:
         self.cpu, self.nvic, self.scs = cpu, nvic, scs
         self.entries = 0
+        self._native: tuple[ctypes.CDLL, ExcState] | None = None
+        if native:
+            self._native = (library(), exc_state(cpu.uc._uch))
+            self._native_ref = ctypes.byref(self._native[1])
         # entry: CONTROL, PSP, MSP and the basic frame in one read (the FP registers in a second one)
         self._entry_state = RegBatch((arm.UC_ARM_REG_CONTROL, arm.UC_ARM_REG_PSP, arm.UC_ARM_REG_MSP, *FRAME_REGS))
         self._fp = RegBatch(FP_REGS)
@@ -58,6 +67,15 @@ class ExceptionUnit:
     def enter(self, exc: int) -> None:
         """Take exception `exc` now (frame, LR, PC, SP, NVIC state)."""
         cpu, nvic, scs = self.cpu, self.nvic, self.scs
+        if self._native is not None:
+            status = self._native[0].hil_exc_enter(self._native_ref, not nvic.active, scs.fpu_enabled, scs.ccr,
+                                                   nvic.active[-1] if nvic.active else 0, scs.vtor + 4 * exc)
+            if status != 0:
+                raise UcError(status)
+            nvic.taken(exc)
+            self.entries += 1
+            cpu.counter.count += ENTRY_CYCLES
+            return
         in_thread = not nvic.active
         control, psp, msp, *values = cpu.regs(self._entry_state)
         use_psp = in_thread and bool(control & 2)
@@ -99,6 +117,13 @@ class ExceptionUnit:
             raise ExceptionReturnError(f"EXC_RETURN {exc_return:#010x} does not match the nesting {self.nvic.active}")
         use_psp = bool(exc_return & 4)
         fp = not exc_return & 0x10
+        if self._native is not None:
+            status = self._native[0].hil_exc_leave(self._native_ref, use_psp, fp)
+            if status != 0:
+                raise UcError(status)
+            self.nvic.returned(exc)
+            cpu.counter.count += RETURN_CYCLES
+            return exc
         control, psp, msp = cpu.regs(self._return_state)
         sp = psp if use_psp else msp
         size = _EXTENDED.size if fp else _BASIC.size

@@ -3,7 +3,8 @@
 `poll`/`recv` return.
 
 Per period k (lockstep): the Measurement's phase currents and DC-link voltage become the voltages at the ADC pins
-through the board's analog front end (constant over the period: the host sampled them at its --adc-delay), its angle
+through the board's analog front end (constant over the period: the host sampled them at its --adc-delay) and, when
+the board describes an overcurrent protection on TIM1's BKIN pin ([break_input]), that pin's level, its angle
 and speed the encoder's edge count (the mechanical angle unwrapped from the electrical one, advanced at the measured
 speed inside the period; the encoder aligned: count 0 at electrical angle 0); the core runs to the end of the period
 (the next update event of TIM1 at the carrier valley); the reply is a duty-cycle Command built from the compare
@@ -105,6 +106,8 @@ class BoardLink:
         self.late_first_period: int | None = None
         fdcan = self.board.peripherals.get("FDCAN1")
         self.fdcan = fdcan if isinstance(fdcan, Fdcan) else None
+        if desc.break_overcurrent_a is not None:  # BKIN at its idle level: no overcurrent
+            self.tim1.set_break_pin(desc.break_active_low, 0)
         self._bus_on = False
         self.closed = False
         self.wall_s = 0.0
@@ -195,6 +198,10 @@ class BoardLink:
             self._theta_m = m.theta_e / self.pole_pairs
         self._theta_e = m.theta_e
         self._omega_m = m.omega_m
+        limit = self.desc.break_overcurrent_a
+        if limit is not None:  # the board's overcurrent comparator on BKIN, judged on the period's sample
+            over = max(abs(m.i_a), abs(m.i_b), abs(m.i_c)) > limit
+            self.tim1.set_break_pin(over != self.desc.break_active_low, self.board.now)
 
     def _period(self, m: Measurement) -> Command:
         board, tim = self.board, self.tim1
@@ -420,7 +427,8 @@ class BoardLink:
                                "board_late_compares": sum(self.late_per_period),
                                "board_first_late_period": self.late_first_period,
                                "board_setpoints_dropped": self.setpoints_dropped,
-                               "board_configs_acked": self.configs_acked, "board_idle_periods": self.idle_periods}
+                               "board_configs_acked": self.configs_acked, "board_idle_periods": self.idle_periods,
+                               "board_break_trips": tim.break_trips}
         if len(isr):
             out["board_isr_time_us"] = _stats(isr * us)
             out["board_cpu_load"] = float(1.0 - sleep.sum() / (len(sleep) * self.period_cycles))

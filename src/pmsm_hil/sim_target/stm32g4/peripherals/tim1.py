@@ -9,8 +9,12 @@ ADC triggers (`subscribe`).
 Event-driven: the counter is computed from the cycle count, never ticked. Counter segments (a count up or down
 between two over/underflows) end at their own instants; compare matches are instants inside a segment and are
 events only for a channel someone observes (its interrupt enabled, or an ADC trigger made of it): CCxIF of an
-unobserved channel is not set. Input capture, one-pulse mode, slave modes, encoder mode, DMA, break inputs,
-COM events and dithering are not modelled (a write that enables one is refused naming the field).
+unobserved channel is not set. The break input BRK from the BKIN pin (AF1.BKINE, AF1.BKINP; the board drives the
+pin from the plant's overcurrent, `set_break_pin`): with BDTR.BKE set and BRK at BDTR.BKP's level, MOE is cleared
+and held cleared (the outputs go to their idle state), SR.BIF is set (it cannot be cleared while BRK is active) and
+raises TIM1_BRK_TIM15 with DIER.BIE; BDTR.AOE sets MOE again at the next update once BRK is inactive (the break
+filter BKF is taken as none). Input capture, one-pulse mode, slave modes, encoder mode, DMA, the second break input
+BRK2, COM events and dithering are not modelled (a write that enables one is refused naming the field).
 """
 
 from __future__ import annotations
@@ -28,6 +32,9 @@ CCR_OFFSETS = (0x34, 0x38, 0x3C, 0x40, 0x48, 0x4C)  # CCR1-4, CCR5, CCR6
 BDTR, CCMR3, DTR2, ECR, TISEL, AF1, AF2, OR1, DCR, DMAR = (
     0x44, 0x50, 0x54, 0x58, 0x5C, 0x60, 0x64, 0x68, 0x3DC, 0x3E0)
 PWM1, PWM2, TOGGLE = 6, 7, 3
+#: BDTR fields of the break function, SR.BIF, DIER.BIE, AF1.BKINE and AF1.BKINP
+OSSI, BKE, BKP, AOE, MOE, BK2E = 1 << 10, 1 << 12, 1 << 13, 1 << 14, 1 << 15, 1 << 24
+BIF, BIE, BKINE, BKINP = 1 << 7, 1 << 7, 1 << 0, 1 << 9
 #: registers whose writes may move the current segment's planned events
 _PLAN_WORDS = frozenset((CR1, CR2, SMCR, DIER, CCMR1, CCMR2, CCMR3, CCER, CNT, PSC, ARR))
 #: signals an ADC can take as its trigger
@@ -67,6 +74,8 @@ class Tim1(RegisterFile):
         self._plan: list[tuple[int, int]] | None = None  # the current segment's observed matches (cycle, channel)
         self._plan_end = 0  # the segment's end when the plan was made [cycle] (valid while the plan is)
         self._watched: tuple[bool, ...] | None = None  # which channels are observed (until a configuration write)
+        self.break_pin: bool | None = None  # the BKIN pin's level (None: nothing drives it, BRK never active)
+        self.break_trips = 0  # times BRK went active with BKE set
 
     # --- configuration helpers -------------------------------------------------------------------------------------
 
@@ -136,10 +145,27 @@ class Tim1(RegisterFile):
 
     def trip_break(self) -> None:
         """The break input went active: MOE cleared, BIF set (its interrupt on TIM1_BRK when BIE)."""
-        self.regs[BDTR] &= ~(1 << 15)
-        self.regs[SR] |= 1 << 7
-        if self.regs[DIER] & (1 << 7):
-            self.bus.set_pending(IRQ["TIM1_BRK_TIM15"])
+        self.regs[BDTR] &= ~MOE
+        self.regs[SR] |= BIF
+        self.break_trips += 1
+        self._irqs()
+
+    def break_active(self) -> bool:
+        """BRK is active: BKE set, the BKIN pin enabled (AF1.BKINE) and at BKP's level (through AF1.BKINP)."""
+        pin = self.break_pin
+        bdtr, af1 = self.regs[BDTR], self.regs[AF1]
+        if pin is None or not bdtr & BKE or not af1 & BKINE:
+            return False
+        return (pin != bool(af1 & BKINP)) == bool(bdtr & BKP)
+
+    def set_break_pin(self, level: bool, now: int) -> None:
+        """The board drives the BKIN pin to `level` (high True) at cycle `now`; an edge that makes BRK active
+        trips the break."""
+        self.advance(now)
+        was = self.break_active()
+        self.break_pin = level
+        if self.break_active() and not was:
+            self.trip_break()
 
     def output_enabled(self, ch: int) -> bool:
         return bool(self.regs[CCER] >> (4 * ch) & 1)
@@ -327,6 +353,8 @@ class Tim1(RegisterFile):
                 self.ccr[ch] = self.regs[CCR_OFFSETS[ch]]
         self.updates += 1
         self.last_update = at
+        if self.regs[BDTR] & AOE and not self.regs[BDTR] & MOE and not self.break_active():
+            self.regs[BDTR] |= MOE  # automatic output enable
         self._flag(1, at)
         cr2 = self.regs[CR2]
         if cr2 >> 4 & 7 == 2:
@@ -340,7 +368,7 @@ class Tim1(RegisterFile):
 
     def _irqs(self) -> None:
         sr, dier = self.regs[SR], self.regs[DIER]
-        for line, mask in ((IRQ["TIM1_UP_TIM16"], 1), (IRQ["TIM1_CC"], 0x1E)):
+        for line, mask in ((IRQ["TIM1_UP_TIM16"], 1), (IRQ["TIM1_CC"], 0x1E), (IRQ["TIM1_BRK_TIM15"], BIF)):
             if sr & dier & mask:
                 self.bus.set_pending(line)
             else:
@@ -365,8 +393,18 @@ class Tim1(RegisterFile):
             self._plan = None  # a compare in force, a mode, an enable or a trigger selection moves the events
             self._watched = None
         if word == SR:  # rc_w0
-            self.regs[SR] &= value
+            self.regs[SR] &= value | (BIF if self.break_active() else 0)  # BIF stays set while BRK is active
             self._irqs()
+            return
+        if word == BDTR:
+            if value & BK2E:
+                raise BoardError("TIM1.BDTR.BK2E: the second break input BRK2 is not modelled")
+            was = self.break_active()
+            self.regs[BDTR] = value
+            if self.break_active():  # MOE cannot be set while BRK is active
+                self.regs[BDTR] &= ~MOE
+                if not was:
+                    self.trip_break()
             return
         if word == EGR:
             if value & 1:  # UG: reinitialise the counter and update

@@ -1,0 +1,109 @@
+"""The board's C paths (c/exc_frame.c: exception entry and return, the DWT page's reads as a C MMIO callback)
+against the Python reference (exceptions.py, scs.py): the same records,
+bit for bit — every Command's frame, the handler cycles, sleep cycles, entries and late compares per period, each
+exception's handler times and latencies, the core's registers and SRAM at the end — for the example firmware
+(examples/stm32g4_foc and its LATE_ISR variant), the FPU-using test firmwares and the fault variants (the same
+fault report)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+from unicorn import arm_const as arm
+
+from pmsm_hil.protocol.codec import FrameCodec
+from pmsm_hil.protocol.messages import Measurement
+from pmsm_hil.sim_target.fw_build import build_firmware, missing_tools
+from pmsm_hil.sim_target.stm32g4.board import Board
+from pmsm_hil.sim_target.stm32g4.board_file import load_board
+from pmsm_hil.sim_target.stm32g4.link import BoardLink
+from pmsm_hil.sim_target.stm32g4.part import PARTS
+from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
+
+TS = 50e-6
+PERIODS = 300
+EXAMPLE_BOARD = Path(__file__).resolve().parents[2] / "examples" / "stm32g4_foc" / "board.toml"
+CORE_REGS = (*(getattr(arm, f"UC_ARM_REG_R{i}") for i in range(13)), arm.UC_ARM_REG_MSP, arm.UC_ARM_REG_PSP,
+             arm.UC_ARM_REG_LR, arm.UC_ARM_REG_PC, arm.UC_ARM_REG_XPSR, arm.UC_ARM_REG_CONTROL,
+             *(getattr(arm, f"UC_ARM_REG_S{i}") for i in range(32)), arm.UC_ARM_REG_FPSCR)
+
+
+def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch: pytest.MonkeyPatch,
+            periods: int = PERIODS) -> dict[str, Any]:
+    """Everything a run of `periods` Measurements leaves, with the board's C paths (exception frames, the DWT page's
+    reads) or the Python reference."""
+    monkeypatch.setattr(Board, "NATIVE", native)
+    link = BoardLink(elf, load_board(board_file), ts_s=TS, pole_pairs=4)
+    assert (link.board.exceptions._native is not None) == native
+    assert hasattr(link.board, "_dwt") == native
+    codec = FrameCodec("canfd")
+    frames: list[bytes] = []
+    error = ""
+    try:
+        for k in range(periods):
+            th = (2 * math.pi * 50.0 * k * TS) % (2 * math.pi)
+            m = Measurement(seq=k, i_a=10 * math.cos(th), i_b=10 * math.cos(th - 2.094),
+                            i_c=10 * math.cos(th + 2.094), theta_e=th, omega_m=78.5, vdc=48.0)
+            link.send(codec.encode(m))
+            while (frame := link.poll()) is not None:
+                frames.append(bytes(frame.data))
+    except BoardError as exc:
+        error = str(exc)
+    board = link.board
+    sram = board.read_memory(0x2000_0000, board.part.sram_size)
+    return {"frames": frames, "error": error, "isr": link.isr_cycles, "sleep": link.sleep_cycles,
+            "late": link.late_per_period, "entries": link.entries_per_period, "now": board.now,
+            "handlers": {e: (s.entries, s.cycles, s.latency) for e, s in board.isr.items()},
+            "regs": [board.cpu.reg(r) for r in CORE_REGS], "sram": sram, "boot_error": str(link.boot_error or "")}
+
+
+def same(elf: Path, board_file: str | Path | None, monkeypatch: pytest.MonkeyPatch,
+         periods: int = PERIODS) -> dict[str, Any]:
+    python = records(elf, board_file, False, monkeypatch, periods)
+    native = records(elf, board_file, True, monkeypatch, periods)
+    for key in python:
+        assert native[key] == python[key], f"{key} differs between the C and the Python exception frames"
+    return native
+
+
+def example(*defines: str) -> Path:
+    missing = missing_tools("stm32g474")
+    if missing:
+        pytest.skip(f"firmware board stm32g474: {', '.join(missing)} not installed")
+    return build_firmware("stm32g474", defines=list(defines)).path
+
+
+@pytest.mark.parametrize("defines", [(), ("LATE_ISR",)], ids=["example", "late_isr"])
+def test_the_example_firmware_gives_the_same_records(defines: tuple[str, ...],
+                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    out = same(example(*defines), EXAMPLE_BOARD, monkeypatch)
+    assert len(out["frames"]) >= PERIODS and sum(out["entries"]) >= PERIODS and not out["error"]
+
+
+def test_the_example_fault_variant_gives_the_same_fault_report(monkeypatch: pytest.MonkeyPatch) -> None:
+    out = same(example("FAULT"), EXAMPLE_BOARD, monkeypatch, 2100)  # its current loop faults in ISR 2000
+    assert "CFSR" in out["error"] and len(out["isr"]) < 2100
+
+
+@pytest.mark.parametrize(("name", "defines"), [("foc_bench", ()), ("pwm_adc", ("LATE",)),
+                                                ("pwm_adc", ("FAULT_AT=40",))])
+def test_the_test_firmwares_give_the_same_records(name: str, defines: tuple[str, ...],
+                                                  build_fw: Callable[..., Path],
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    out = same(build_fw(name, *defines), None, monkeypatch)
+    assert sum(out["entries"]) > 0
+
+
+@pytest.mark.parametrize("native", [True, False], ids=["c", "python"])
+def test_an_unmodelled_dwt_register_is_named_in_one_line(native: bool, build_fw: Callable[..., Path],
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(Board, "NATIVE", native)
+    board = Board(PARTS["stm32g474"], build_fw("errors", "UNMODELLED_DWT"))
+    with pytest.raises(BoardError) as info:
+        board.run_until(1_000_000)
+    text = str(info.value)
+    assert "0xe0001200" in text.lower() and "touch_dwt_reserved" in text and "\n" not in text
