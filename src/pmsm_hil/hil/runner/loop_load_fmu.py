@@ -27,11 +27,11 @@ def open_load_fmu(cfg: RunConfig, ffi: Any, lib: Any, c: Any) -> LoadFmuSession 
     """The run's load FMU instance set into nl_config_t `c` (None and a NULL pointer without one)."""
     model = cfg.load_fmu_model
     if model is None:
-        c.load_fmu = ffi.NULL
+        c.operation.load_fmu = ffi.NULL
         return None
     session = LoadFmuSession(model, ffi, lib, cfg.scenario.start_speed_rpm * RPM_TO_RAD_S, ts_s=cfg.ts_s,
                              timeout_s=cfg.step_timeout_s)
-    c.load_fmu = session.fmu
+    c.operation.load_fmu = session.fmu
     return session
 
 
