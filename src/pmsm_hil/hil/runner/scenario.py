@@ -111,10 +111,12 @@ class Scenario:
         if self.mechanics != "inertia":
             raise ParameterError(f"scenario '{self.name}': shaft 'two-mass' needs mechanics 'inertia' (a dyno holds "
                                  "the motor's speed)")
-        for name, unit in (("load_inertia_kgm2", "kg·m²"), ("shaft_stiffness_nm_per_rad", "N·m/rad")):
+        for name, unit, option in (("load_inertia_kgm2", "kg·m²", "--load-inertia"),
+                                   ("shaft_stiffness_nm_per_rad", "N·m/rad", "--shaft-stiffness")):
             value = getattr(self, name)
             if value is None or value <= 0:
-                raise ParameterError(f"scenario '{self.name}': shaft 'two-mass' needs {name} > 0 {unit}, got {value}")
+                raise ParameterError(f"scenario '{self.name}': shaft 'two-mass' needs {name} > 0 {unit} ({option}), "
+                                     f"got {value}")
 
     def plant_mechanics(self, j_motor: float) -> Mechanics:
         """The plant's mechanics at the start: the dyno at the start speed, one mass with the load profile, or two
