@@ -389,6 +389,9 @@ class NativeLoop:
         for name in ("frames", "messages", "unknown_id", "bad_length", "bad_value", "stale", "duplicate",
                      "out_of_order", "mixed_seq"):
             setattr(dec, name, getattr(dec, name) + int(getattr(res, f"dec_{name}")))
+        # every ConfigAck in the run came after its parameter was acknowledged (configure returned): an answer to a
+        # resend, as TargetClient counts the ones it drains itself
+        self.client.config_acks_repeated += int(res.dec_config_acks)
 
     def _other_process(self) -> bool:
         """The target answers over wall time (another process or a board), not inside the loop's call."""

@@ -254,6 +254,7 @@ typedef struct {
     /* host decoder counters (DecodeStats) */
     int64_t dec_frames, dec_messages, dec_unknown_id, dec_bad_length, dec_bad_value, dec_stale, dec_duplicate,
         dec_out_of_order, dec_mixed_seq;
+    int64_t dec_config_acks;   /* ConfigAcks received in the run: late answers to the configuration's resends */
     double speed_ref_rpm;      /* the speed reference in force at the end [rpm] */
     double tap_t;              /* the last period started: t [s] and index (the frame tap after the loop) */
     uint32_t tap_seq;

@@ -413,6 +413,9 @@ int nl_decode(nl_cmd_asm_t *as, const hil_core_frame_t *f, nl_result_t *r, nl_cm
         return NL_MSG_NONE; /* measurement parts from a target: counted as frames only */
     default: /* the single-frame messages (ConfigAck, Heartbeat, ...): delivered, nothing to do here */
         r->dec_messages++;
+        if (f->id == HIL_PROTOCOL_CONFIG_ACK_FRAME_ID) {
+            r->dec_config_acks++;
+        }
         return NL_MSG_NONE;
     }
     if (msg == NL_MSG_COMMAND) {
