@@ -127,6 +127,16 @@ def test_bad_shaft_values_are_refused_naming_the_field(extra: dict[str, Any], na
     assert "\n" not in str(err.value)
 
 
+def test_a_sweep_grid_varies_the_shaft() -> None:
+    from pmsm_hil.app.sweep.configure import base_options, build_runs
+
+    base = base_options({"shaft": "two-mass", "load_inertia": 1e-3, "no_log": True})
+    runs = build_runs(base, [(("shaft_stiffness", "200"),), (("shaft_stiffness", "800"),)], 1)
+    assert [r.cfg.scenario.shaft_stiffness_nm_per_rad for r in runs] == [200.0, 800.0]
+    with pytest.raises(ParameterError, match="--grid shaft_stiffness"):
+        build_runs(base, [(("shaft_stiffness", "-1"),)], 1)
+
+
 def test_a_scenario_file_sets_the_shaft(tmp_path: Path) -> None:
     path = tmp_path / "shaft.toml"
     path.write_text('shaft = "two-mass"\nload_inertia_kgm2 = 2e-3\nshaft_stiffness_nm_per_rad = 800.0\n',

@@ -1,5 +1,5 @@
 """The native loop's load FMU (src/pmsm_hil/hil/load_fmu): opened and initialised at the start speed before the run, its
-nl_fmu_t handed to the C loop (nl_config_t.load_fmu), its failure worded, closed after the run; an ending before
+nl_fmu_t handed to the C loop (nl_operation_cfg_t.load_fmu), its failure worded, closed after the run; an ending before
 the first period (its process crashed or hung while initialising, or Ctrl-C/SIGTERM then) as an outcome with the
 target disabled."""
 
