@@ -353,10 +353,12 @@ static void await_lockstep(loop_t *L, int64_t t0)
 {
     const nl_config_t *c = L->c;
     const int64_t timeout = c->target_link.lockstep_timeout_ns;
-    const int64_t slice = c->target_link.target_pid <= 0 ? timeout : timeout / 4 < NL_STALL_SLICE_NS ? timeout / 4 : NL_STALL_SLICE_NS;
+    const int64_t slice = c->target_link.target_pid <= 0 ? timeout
+                          : timeout / 4 < NL_STALL_SLICE_NS ? timeout / 4 : NL_STALL_SLICE_NS;
     nl_own_time_t own;
     int watching = 0;
-    nl_own_time_start(&own, c->target_link.target_pid, c->target_link.guest_insns, c->target_link.guest_ns_per_insn, slice, t0);
+    nl_own_time_start(&own, c->target_link.target_pid, c->target_link.guest_insns, c->target_link.guest_ns_per_insn,
+                      slice, t0);
     for (;;) {
         const int64_t left = timeout - own.had_ns;
         int64_t t;
@@ -380,7 +382,8 @@ static void await_lockstep(loop_t *L, int64_t t0)
             L->wait_end = NL_END_INTERRUPTED;
             break;
         }
-        if (t - t0 >= c->target_link.stall_limit_ns && t - t0 >= timeout) { /* past both: the host took the difference */
+        /* past both: the host took the difference */
+        if (t - t0 >= c->target_link.stall_limit_ns && t - t0 >= timeout) {
             L->wait_end = NL_END_HOST_STALL;
             L->r->host_stall_wait_ns = t - t0;
             break;
@@ -636,7 +639,8 @@ static int advance(loop_t *L, int64_t k, ge_period_stats_t *st)
         }
         trace = s->trace + s->n_trace_rows * c->outputs.trace_columns;
     }
-    rc = c->machine.kernel->advance(c->machine.plant_params, c->machine.plant_state, states, durs, n, &load, c->outputs.trace_dt,
+    rc = c->machine.kernel->advance(c->machine.plant_params, c->machine.plant_state, states, durs, n, &load,
+                                    c->outputs.trace_dt,
                             c->outputs.trace_dt > 0.0 ? trace : NULL, c->outputs.trace_cap, st);
     if (rc == 0 && k >= c->operation.n_settle && c->outputs.trace_dt > 0.0) {
         L->slot->n_trace_rows += st->trace_n;
@@ -671,7 +675,8 @@ static int sample_adc(loop_t *L, int64_t k, sample_t *smp)
         return rc;
     }
     memcpy(c->machine.plant_scratch, c->machine.plant_state, (size_t)c->machine.kernel->state_size);
-    rc = c->machine.kernel->advance(c->machine.plant_params, c->machine.plant_scratch, states, durs, m, &load, 0.0, NULL, 0, &st);
+    rc = c->machine.kernel->advance(c->machine.plant_params, c->machine.plant_scratch, states, durs, m, &load, 0.0,
+                                    NULL, 0, &st);
     if (rc != 0) {
         return rc;
     }
@@ -691,11 +696,13 @@ static void follow_reference(loop_t *L, int64_t k)
             continue;
         }
         L->speed_ref_rpm = ref;
-        nl_encode_setpoint(1u, (uint8_t)c->target_link.mode_speed, ref * c->operation.rpm_to_rad_s, (uint8_t)c->target_link.controller_id, &f);
+        nl_encode_setpoint(1u, (uint8_t)c->target_link.mode_speed, ref * c->operation.rpm_to_rad_s,
+                           (uint8_t)c->target_link.controller_id, &f);
         to_target(L, &f, 1);
         if (c->operation.dyno) {
             L->inertia = 0;
-            c->machine.kernel->hold_speed(c->machine.plant_params, c->machine.plant_state, ref * c->operation.rpm_to_rad_s);
+            c->machine.kernel->hold_speed(c->machine.plant_params, c->machine.plant_state,
+                                          ref * c->operation.rpm_to_rad_s);
         }
     }
 }
@@ -828,7 +835,7 @@ static int accept(loop_t *L, int64_t k, int ok)
             r->candidate_checked++;
             r->candidate_misses += full_miss;
         }
-    } else if (c->target_link.sil_debug != NULL) { /* a SIL target in its own process: the slot it wrote before the Command */
+    } else if (c->target_link.sil_debug != NULL) { /* a SIL target in its own process: its slot before the Command */
         const volatile nl_sil_debug_t *d = c->target_link.sil_debug;
         if (d->steps > 0u) {
             L->next.tref = (double)d->torque_ref;
@@ -1001,7 +1008,8 @@ static int32_t period(loop_t *L, int64_t k)
     rc = 0;
     if (c->timing.adc_delay_ns > 0) { /* the firmware's ADC samples later in the period than its start */
         sample_t adc;
-        rc = c->operation.load_fmu != NULL ? load_fmu_period(L, t, &smp) : 0; /* the period's load first: the copy sees it */
+        /* the period's load first: the copy sees it */
+        rc = c->operation.load_fmu != NULL ? load_fmu_period(L, t, &smp) : 0;
         if (rc == 0) {
             rc = sample_adc(L, k, &adc);
         }
@@ -1013,7 +1021,8 @@ static int32_t period(loop_t *L, int64_t k)
             return NL_END_ENCODE_ERROR;
         }
     } else { /* the load FMU's period is sent first: contained, its process steps while the target does */
-        const int sent = c->operation.load_fmu != NULL ? nl_fmu_period_send(c->operation.load_fmu, t, c->timing.ts_s, smp.omega_m) : 0;
+        const int sent = c->operation.load_fmu != NULL
+                             ? nl_fmu_period_send(c->operation.load_fmu, t, c->timing.ts_s, smp.omega_m) : 0;
         if (send_measurement(L, k, t, &smp) != 0) {
             return NL_END_ENCODE_ERROR;
         }
@@ -1084,7 +1093,8 @@ static int kernel_fits(const nl_config_t *c)
         || k->hold_speed == NULL || k->time_ns == NULL) {
         return 0;
     }
-    return c->target_link.codec.meas_format >= 0 && c->target_link.codec.meas_format < NL_MEAS_FORMATS && MEAS_CURRENTS[c->target_link.codec.meas_format] == k->legs;
+    const int32_t format = c->target_link.codec.meas_format;
+    return format >= 0 && format < NL_MEAS_FORMATS && MEAS_CURRENTS[format] == k->legs;
 }
 
 void nl_run(nl_handle_t *h)
@@ -1105,7 +1115,8 @@ void nl_run(nl_handle_t *h)
         pthread_mutex_unlock(&h->mu);
         return;
     }
-    if (h->cfg.timing.realtime || h->cfg.timing.rt_priority > 0 || h->cfg.timing.cpu >= 0 || h->cfg.timing.lock_memory) {
+    if (h->cfg.timing.realtime || h->cfg.timing.rt_priority > 0 || h->cfg.timing.cpu >= 0
+        || h->cfg.timing.lock_memory) {
         nl_rt_setup(&h->cfg.timing, &h->res, &saved);
     } else {
         memset(&saved, 0, sizeof saved);

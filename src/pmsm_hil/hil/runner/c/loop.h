@@ -105,7 +105,7 @@ typedef struct {
     const struct mk_kernel *kernel;
     void *plant_params;
     void *plant_state;
-    void *plant_scratch;       /* timing.adc_delay_ns > 0: the kernel's state_size bytes for a copy of the plant state */
+    void *plant_scratch;       /* timing.adc_delay_ns > 0: state_size bytes for a copy of the plant state */
     double vdc;                /* measured DC link sent in every Measurement [V] */
     double i_trip, w_trip;     /* [A], [rad/s] */
 } nl_machine_cfg_t;
@@ -267,7 +267,7 @@ typedef struct {
     int64_t late_max_ns;
     /* real time over a link: wall time of the synchronising period 0, from its start to its Command [ns] (-1: none) */
     int64_t sync_ns;
-    /* a shared bus (nl_target_link_cfg_t.shared_bus): frames of ids the target never sends (foreign), frames of its ids that
+    /* a shared bus (target_link.shared_bus): frames of ids the target never sends (foreign), frames of its ids that
      * cannot be its own (suspect: a Command for no open seq, a second reply, an implausible FaultTarget); those
      * since the last reply taken and the wall time since it [ns] (the start if none) */
     int64_t bus_foreign_frames, bus_suspect_frames, bus_silent_frames, bus_silent_ns;
