@@ -203,8 +203,8 @@ def test_measurement_frames_equal_the_python_codec_at_ties_saturation_and_wrap(l
     from pmsm_hil.protocol.messages import Measurement, Measurement6
 
     c = ffi.new("nl_config_t *")
-    c.legs, c.fd, c.vdc = legs, 1 if fd else 0, 48.005
-    fill_codec(c, lib, layout_for_phases(legs).measurement)
+    c.machine.legs, c.machine.vdc = legs, 48.005
+    fill_codec(c.target_link.codec, lib, layout_for_phases(legs).measurement, fd)
     codec = FrameCodec("canfd" if fd else "can")
     step = 0.01 if legs == 6 else 0.001
     cases = [(0.5 * step, 1.5 * step, -2.5 * step, -0.1), (40.0 * legs, -400.0, 1e308, 7.0),

@@ -133,8 +133,9 @@ def test_the_c_loop_refuses_a_missing_or_mismatched_kernel_table() -> None:
         h = ffi.cast("nl_handle_t *", mem)
         assert lib.nl_init(h) == 0
         c = lib.nl_config(h)
-        c.kernel, c.legs, c.meas_format, c.n_total = kernel, 3, meas_format, 10
-        c.plant_params, c.plant_state = params, state
+        c.machine.kernel, c.machine.legs, c.target_link.codec.meas_format = kernel, 3, meas_format
+        c.operation.n_total = 10
+        c.machine.plant_params, c.machine.plant_state = params, state
         lib.nl_run(h)
         r = lib.nl_result(h)
         assert (r.end, r.plant_rc, r.completed_periods) == (lib.NL_END_PLANT_ERROR, lib.NL_PLANT_E_KERNEL, 0)

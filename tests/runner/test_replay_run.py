@@ -51,14 +51,18 @@ def _case(name: str, phases: int) -> RunConfig:
 
 def _more_cases() -> dict[str, RunConfig]:
     """Duty cycles on the other link and double update, the flux-map machine, dyno mechanics with a held-speed
-    step, a start angle, an ADC delay."""
+    step, a start angle, an ADC delay, a two-mass shaft."""
     foc = _case("foc", 3)
+    mpcc = _case("mpcc", 3)
+    two_mass = mpcc.scenario.with_overrides(shaft="two-mass", load_inertia_kgm2=4e-4, shaft_stiffness_nm_per_rad=800.0,
+                                            shaft_damping_nms_per_rad=0.01)
     dyno = load_scenario("dyno-steady").with_overrides(settle_s=0.005, duration_s=0.015, speed_step_s=0.01,
                                                        initial_speed_rpm=1000.0, speed_rpm=1500.0, theta0_rad=1.1)
     return {"foc-other-link-double-update": replace(foc, link="virtual" if foc.link != "virtual" else
                                                     "virtual,fd=false", pwm_update="double"),
             "fluxmap-mpcc": replace(_case("mpcc", 3), motor=load_motor("niu2020-ipmsm-sat")),
-            "dyno-speed-step-fcs-mpc-2": replace(_case("fcs-mpc-2", 3), scenario=dyno, adc_delay_s=20e-6)}
+            "dyno-speed-step-fcs-mpc-2": replace(_case("fcs-mpc-2", 3), scenario=dyno, adc_delay_s=20e-6),
+            "two-mass-shaft-mpcc": replace(mpcc, scenario=two_mass)}
 
 
 def _logged_run(cfg: RunConfig, out: Path) -> Path:

@@ -114,6 +114,18 @@ def test_grouped_access() -> None:
     assert sorted(grouped) == sorted(f.name for f in dataclasses.fields(RunConfig))
 
 
+def test_the_c_loop_configuration_has_the_run_configuration_groups() -> None:
+    """nl_config_t (loop.h) is RunConfig's groups as sub-structs, in the same order, and the NaN constant; the
+    real-time set-up reads the timing group alone."""
+    from pmsm_hil.hil._loop_native import ffi
+
+    fields = ffi.typeof("nl_config_t").fields
+    assert [name for name, _ in fields] == [*GROUPS, "nan"]
+    assert all(f.type.kind == "struct" for _, f in fields[:-1])
+    timing = {name for name, _ in ffi.typeof("nl_timing_cfg_t").fields}
+    assert {"ts_ns", "ts_s", "realtime", "rt_priority", "cpu", "lock_memory"} <= timing
+
+
 def test_every_option_is_held_by_the_run_configuration_or_cli_only() -> None:
     names = {f.name for f in dataclasses.fields(RunConfig)}
     for option in RUN_OPTIONS:

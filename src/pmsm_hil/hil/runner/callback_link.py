@@ -121,9 +121,9 @@ class NativePyLink(LinkFacade):
         self._c_link = self.ffi.new("nl_link_t *")
         self.lib.nl_py_link(self._c_link, self._handle, 1 if self.inproc_result is not None else 0,
                             1 if self.faulty is not None else 0)
-        c.link = self._c_link
-        c.lockstep_timeout_ns = int(lockstep_timeout_s * 1e9)
-        self._ts_s, self._realtime = float(c.ts_s), bool(c.realtime)
+        c.target_link.link = self._c_link
+        c.target_link.lockstep_timeout_ns = int(lockstep_timeout_s * 1e9)
+        self._ts_s, self._realtime = float(c.timing.ts_s), bool(c.timing.realtime)
         self._delayed = self.faulty is not None and not self._realtime and self.faulty.spec.delays
         self._t0_ns = time.perf_counter_ns()
 

@@ -66,8 +66,8 @@ class NativeCoreLink:
         self._state.silent_after = -1 if self.silent_after is None else self.silent_after
         self._c_link = self.ffi.new("nl_link_t *")
         self.lib.nl_core_link(self._c_link, self._state)
-        c.link = self._c_link
-        c.lockstep_timeout_ns = int(lockstep_timeout_s * 1e9)
+        c.target_link.link = self._c_link
+        c.target_link.lockstep_timeout_ns = int(lockstep_timeout_s * 1e9)
 
     def detach(self) -> None:
         """After the run: the frames the C link moved into `stats`."""

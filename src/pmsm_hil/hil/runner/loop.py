@@ -78,7 +78,8 @@ class NativeLoop:
             raise MemoryError("native loop: cannot initialise its mutex and condition variable")
         self._c = lib.nl_config(self._h)
         self._res = lib.nl_result(self._h)
-        self._config_arrays = fill_config(self._c, ffi, lib, cfg, plant, controller_id, link.fd, opts)
+        self._config_arrays = fill_config(self._c, ffi, lib, cfg, plant, controller_id, link.fd, opts,
+                                          shared_bus=client.shared)
         try:
             self.load_fmu = open_load_fmu(cfg, ffi, lib, self._c)  # None: the scenario's load profile
         except BaseException:
@@ -91,7 +92,7 @@ class NativeLoop:
         if self._period_size != PERIOD_DTYPE.itemsize or self._frame_size != FRAME_DTYPE.itemsize:
             raise ImportError("native loop records are out of step with src/pmsm_hil/hil/records.py dtypes")
         columns = len(plant.TRACE_COLUMNS)
-        rows = lib.NL_BLOCK * max(int(self._c.trace_cap), 1)
+        rows = lib.NL_BLOCK * max(int(self._c.outputs.trace_cap), 1)
         self._traces = [np.zeros((rows, columns)) for _ in range(lib.NL_RING)]  # pages touched before the run
         for i, tr in enumerate(self._traces):
             slot = lib.nl_slot(self._h, i)
@@ -125,12 +126,6 @@ class NativeLoop:
         gc.disable()
         out = self._start()
         self.link.attach(self._c, self.cfg.lockstep_timeout_s)  # the link as the enabling Setpoint left it
-        self._c.target_pid = self.opts.target_pid  # host stalls (loop_stall.h): the target's own time counts
-        self._c.stall_limit_ns = int(self.cfg.host_stall_limit_s * 1e9)
-        if self.opts.guest_insns_address:  # an emulated MCU: its own progress counts (nl_guest_available)
-            self._c.guest_insns = self._ffi.cast("const uint64_t *", self.opts.guest_insns_address)
-            self._c.guest_ns_per_insn = self.opts.guest_ns_per_insn
-        self._c.shared_bus = 1 if self.client.shared else 0
         if isinstance(self.link, NativePyLink):  # a bus error in a callback ends the run
             self.link.on_error = lambda: lib.nl_stop(h)
         thread = threading.Thread(target=lib.nl_run, args=(h,), name="hil-native-loop", daemon=True)
@@ -183,16 +178,16 @@ class NativeLoop:
         return isolate_cpu(cfg.cpu, [pid] if isinstance(pid, int) else [])
 
     def _start(self) -> LoopOutcome:
-        n_total = int(self._c.n_total)
+        n_total = int(self._c.operation.n_total)
         keep = n_total <= recorder.KEEP_PERIODS_MAX  # read now (tests lower it)
         out = LoopOutcome(period_records(keep=keep), frame_records(keep=False), np.zeros(0, self._trace_dtype),
-                          int(self._c.n_settle))
+                          int(self._c.operation.n_settle))
         self._tap: FrameTap | None = None
         if self.opts.record_frames:
             self._tap = FrameTap(self.client.link, out.frames)
             self.client.link = self._tap
         self._t_wall0 = time.perf_counter_ns()
-        ref0 = float(self._c.ref_rpm[0])
+        ref0 = float(self._c.operation.ref_rpm[0])
         if self.load_fmu is not None and self.cfg.scenario.preset_integrator:  # bumpless start on the FMU's torque
             self.client.configure({ParamId.TORQUE_INTEGRATOR_INIT: self.load_fmu.torque0})
         self.client.set_setpoint(enable=True, mode=int(Mode.SPEED), reference=ref0 * RPM_TO_RAD_S,
@@ -327,7 +322,7 @@ class NativeLoop:
         elif end in (lib.NL_END_PLANT_ERROR, lib.NL_END_ENCODE_ERROR):
             out.error = internal_error(res, lib, cfg.machine.phases)
             self._end(out, EndCode.INTERNAL_ERROR, f"internal error: {type(out.error).__name__}: {out.error}")
-        elif out.completed_periods == int(self._c.n_total):
+        elif out.completed_periods == int(self._c.operation.n_total):
             trip = self.plant.check_trips()
             if trip is not None:
                 self._end(out, EndCode.SAFETY_STOP,
@@ -347,7 +342,7 @@ class NativeLoop:
 
     def _add_bus_counters(self, out: LoopOutcome) -> None:
         """A shared bus: other nodes' frames of the set-up (TargetClient) and of the loop (C) in `out`."""
-        if not self._c.shared_bus:
+        if not self._c.target_link.shared_bus:
             return
         res, bus = self._res, self.client.bus
         out.bus_foreign_frames = bus.foreign + int(res.bus_foreign_frames)
@@ -371,7 +366,7 @@ class NativeLoop:
         while other nodes' frames came at BUS_STARVE_FPS or more since the last Command; else None."""
         lib, res = self._lib, self._res
         missing = end == lib.NL_END_VIOLATION and bool(out.violations) and out.violations[-1].rule == MISSING
-        if not self._c.shared_bus or not (end == lib.NL_END_WATCHDOG or missing):
+        if not self._c.target_link.shared_bus or not (end == lib.NL_END_WATCHDOG or missing):
             return None
         seq = int(res.end_period) & 0xFFFF
         mode = "real time" if self.cfg.mode == "realtime" else "lockstep"

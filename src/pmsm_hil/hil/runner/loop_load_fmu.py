@@ -1,5 +1,5 @@
 """The native loop's load FMU (src/pmsm_hil/hil/load_fmu): opened and initialised at the start speed before the run, its
-nl_fmu_t handed to the C loop (nl_config_t.load_fmu), its failure worded, closed after the run; an ending before
+nl_fmu_t handed to the C loop (nl_operation_cfg_t.load_fmu), its failure worded, closed after the run; an ending before
 the first period (its process crashed or hung while initialising, or Ctrl-C/SIGTERM then) as an outcome with the
 target disabled."""
 
@@ -27,11 +27,11 @@ def open_load_fmu(cfg: RunConfig, ffi: Any, lib: Any, c: Any) -> LoadFmuSession 
     """The run's load FMU instance set into nl_config_t `c` (None and a NULL pointer without one)."""
     model = cfg.load_fmu_model
     if model is None:
-        c.load_fmu = ffi.NULL
+        c.operation.load_fmu = ffi.NULL
         return None
     session = LoadFmuSession(model, ffi, lib, cfg.scenario.start_speed_rpm * RPM_TO_RAD_S, ts_s=cfg.ts_s,
                              timeout_s=cfg.step_timeout_s)
-    c.load_fmu = session.fmu
+    c.operation.load_fmu = session.fmu
     return session
 
 

@@ -152,10 +152,7 @@ def replay_run(run_log: Path, output: Path, *, capture: Path | None = None, moto
     if pwm_update not in PWM_UPDATES:
         raise InputFileError(f"{where}: metadata pwm_update {pwm_update!r} is not one of {', '.join(PWM_UPDATES)}")
     fmu_load = "load_fmu" in meta
-    if scenario.mechanics == "dyno":
-        mech: DynoMechanics | InertiaMechanics = DynoMechanics(scenario.start_speed_rpm)
-    else:
-        mech = InertiaMechanics(scenario.load_profile(), initial_speed_rpm=scenario.start_speed_rpm)
+    mech = scenario.plant_mechanics(machine.params.j)
     plant = machine.build_plant(ts_s, mech, theta0_rad=scenario.theta0_rad, trace_dt_s=None)
     if capture is None:
         commands: Iterable[Command] = _mcap_commands(read_frames(run_log))

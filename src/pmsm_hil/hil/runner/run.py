@@ -232,7 +232,7 @@ def _window_metrics(cfg: RunConfig, out: LoopOutcome, sink: RunSink, link_stats:
             return window.result(ts_s=cfg.ts_s, pole_pairs=cfg.motor.pole_pairs, legs=cfg.machine.phases,
                                  wall_time_s=wall_window, link_stats=link_stats, deadline_misses=out.deadline_misses,
                                  friction_nms=cfg.motor.b,
-                                 inertia_kgm2=cfg.motor.j if cfg.scenario.mechanics == "inertia" else 0.0)
+                                 inertia_kgm2=cfg.scenario.driven_inertia_kgm2(cfg.motor.j))
         except MetricsWindowError as exc:
             note = str(exc)
     else:

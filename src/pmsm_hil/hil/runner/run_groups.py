@@ -87,6 +87,21 @@ class TimingGroup:
     cpu: int | None
     cpu_dma_latency_us: int | None
 
+    @property
+    def ts_ns(self) -> int:
+        """Control period [ns]."""
+        return round(self.ts_s * 1e9)
+
+    @property
+    def adc_delay_ns(self) -> int:
+        """The ADC instant after the period start [ns]."""
+        return round(self.adc_delay_s * 1e9)
+
+    @property
+    def overrun_threshold_ns(self) -> int:
+        """Real-time lateness [ns] above which a period start is an overrun (default Ts / 2)."""
+        return round((self.ts_s / 2 if self.overrun_threshold_s is None else self.overrun_threshold_s) * 1e9)
+
 
 @dataclass(frozen=True, slots=True)
 class OutputGroup:

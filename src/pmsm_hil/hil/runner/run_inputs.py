@@ -33,7 +33,11 @@ from pmsm_hil.sim_target.fw_params import default_controller
 
 #: the scenario's fields the options --speed, --load, --duration, --settle, --theta0, --hold-tolerance override
 _SCENARIO_OVERRIDES = {"speed": "speed_rpm", "load": "load_nm", "duration": "duration_s", "settle": "settle_s",
-                       "theta0": "theta0_rad", "hold_tolerance": "hold_tolerance_pct"}
+                       "theta0": "theta0_rad", "hold_tolerance": "hold_tolerance_pct",
+                       "load_inertia": "load_inertia_kgm2", "shaft_stiffness": "shaft_stiffness_nm_per_rad",
+                       "shaft_damping": "shaft_damping_nms_per_rad", "shaft": "shaft"}
+#: the options of a two-mass shaft (refused with a rigid one)
+_SHAFT_OPTIONS = ("load_inertia", "shaft_stiffness", "shaft_damping")
 
 
 def _item_texts(table: Mapping[str, Any]) -> list[str]:
@@ -81,6 +85,11 @@ def from_options(values: Mapping[str, Any], sources: Mapping[str, str] | None = 
     for key, name in _SCENARIO_OVERRIDES.items():
         with blame(key, src):
             scenario = scenario.with_overrides(**{name: get(key)})
+    for key in _SHAFT_OPTIONS:
+        if get.given(key) and scenario.shaft != "two-mass":
+            raise ParameterError(f"{label(key, src)} is for a two-mass shaft (--shaft two-mass, or the scenario's "
+                                 f"shaft = \"two-mass\"); scenario '{scenario.name}' has a {scenario.shaft} shaft",
+                                 key=key)
     controller_params: dict[str, float] = {}
     for name, value in get.table("param").items():
         with blame(f"param.{name}", src):
@@ -88,6 +97,9 @@ def from_options(values: Mapping[str, Any], sources: Mapping[str, str] | None = 
     with blame("load_fmu", src):
         load_fmu = load_fmu_spec(get("load_fmu"), get("load_fmu_map"), _item_texts(get.table("load_fmu_set")),
                                  isolation=get("load_fmu_isolation"))
+    if load_fmu is not None and scenario.shaft == "two-mass":
+        raise ParameterError(f"{label('load_fmu', src)} with a two-mass shaft: the load FMU drives a rigid shaft only",
+                             key="load_fmu")
     if load_fmu is not None and get.given("load"):
         raise ParameterError(f"{label('load', src)} and --load-fmu: one load at a time (the FMU replaces the "
                              "scenario's load torque)", key="load")

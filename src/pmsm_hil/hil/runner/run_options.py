@@ -23,6 +23,7 @@ from typing import Any, Literal
 from pmsm_hil.hil.control_period import MAX_TS_S, MIN_TS_S, TS_RANGE_WORDS, check_control_period
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.pwm import PWM_UPDATES
+from pmsm_hil.hil.runner.scenario import SHAFTS
 
 Kind = Literal["number", "integer", "frequency", "choice", "text", "path", "flag", "table"]
 #: run: every command that runs the closed loop (`hil run`, `hil bench loop`, `hil sweep`, `hil.run`);
@@ -252,6 +253,18 @@ RUN_OPTIONS: tuple[RunOption, ...] = (
     RunOption("settle", "number", _steady("settle"), metavar="S", unit="s", minimum=0.0, part="scenario.settle_s"),
     RunOption("theta0", "number", "initial electrical rotor angle [rad] (default: the scenario's, 0)", metavar="RAD",
               unit="rad", part="scenario.theta0_rad"),
+    # the shaft between motor and load (inertia mechanics; src/pmsm_hil/hil/mechanics.py, docs/plant.md "Mechanics")
+    RunOption("shaft", "choice",
+              "the shaft between the motor and its load: rigid (one mass, the motor's j) or two-mass (the motor's j "
+              "and --load-inertia on a shaft of --shaft-stiffness and --shaft-damping; the load torque acts on the "
+              "load mass)", choices=SHAFTS, default_text="the scenario's, rigid", part="scenario.shaft"),
+    RunOption("load_inertia", "number", "two-mass shaft: the load mass's inertia [kg·m²]", metavar="KGM2",
+              unit="kg·m²", minimum=0.0, open_minimum=True, part="scenario.load_inertia_kgm2"),
+    RunOption("shaft_stiffness", "number", "two-mass shaft: torsional stiffness [N·m/rad]", metavar="NM_PER_RAD",
+              unit="N·m/rad", minimum=0.0, open_minimum=True, part="scenario.shaft_stiffness_nm_per_rad"),
+    RunOption("shaft_damping", "number", "two-mass shaft: torsional damping [N·m·s/rad]", metavar="NMS_PER_RAD",
+              unit="N·m·s/rad", minimum=0.0, default_text="the scenario's, 0",
+              part="scenario.shaft_damping_nms_per_rad"),
     RunOption("ts", "number", "control period [s], a whole number of ns", 100e-6, field="ts_s", metavar="S",
               unit="s", minimum=MIN_TS_S, maximum=MAX_TS_S, range_words=TS_RANGE_WORDS,
               validate=check_control_period),

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from pmsm_hil.hil.errors import InputFileError, ParameterError
-from pmsm_hil.hil.mechanics import LoadProfile
+from pmsm_hil.hil.mechanics import DynoMechanics, InertiaMechanics, LoadProfile, Mechanics, TwoMassMechanics
 from pmsm_hil.hil.resources import bundled_names, load_toml
 
 _PACKAGE = "pmsm_hil.hil.scenarios"
@@ -17,6 +17,8 @@ _PACKAGE = "pmsm_hil.hil.scenarios"
 DEFAULT_HOLD_TOLERANCE_PCT = 2.0
 #: the fields of a scenario that may stand for the motor's ratings (`at_rated = true` in a scenario file)
 RATED_FIELDS = ("speed_rpm", "load_nm")
+#: the shaft between the motor and its load (inertia mechanics): one rigid mass, or two masses on an elastic shaft
+SHAFTS = ("rigid", "two-mass")
 
 
 @dataclass(frozen=True, slots=True)
@@ -24,7 +26,10 @@ class Scenario:
     """A closed-loop test. Times [s] count from the run start; the metrics window is
     [settle_s, settle_s + duration_s). Speeds in rpm, torques in N·m.
 
-    mechanics: "inertia" (J, B, load profile) or "dyno" (speed held at the reference profile).
+    mechanics: "inertia" (J, B, load profile) or "dyno" (speed held at the reference profile). shaft (inertia
+    only): "rigid" (one mass, the motor's J) or "two-mass": the motor's J and a load mass load_inertia_kgm2 [kg·m²]
+    on a shaft of shaft_stiffness_nm_per_rad [N·m/rad] and shaft_damping_nms_per_rad [N·m·s/rad], the load torque
+    on the load mass (src/pmsm_hil/hil/mechanics.py TwoMassMechanics).
     speed_rpm / load_nm: final speed reference and load; initial_* (default: the final value) apply
     before speed_step_s / load_step_s. preset_integrator: start the speed PI integrator at the
     initial load (bumpless start at the operating point). load_steps: further (time [s], N·m) load
@@ -53,11 +58,16 @@ class Scenario:
     theta0_rad: float = 0.0
     hold_tolerance_pct: float = DEFAULT_HOLD_TOLERANCE_PCT
     rated: tuple[str, ...] = ()
+    shaft: str = "rigid"
+    load_inertia_kgm2: float | None = None
+    shaft_stiffness_nm_per_rad: float | None = None
+    shaft_damping_nms_per_rad: float = 0.0
 
     def __post_init__(self) -> None:
         if self.mechanics not in ("inertia", "dyno"):
             raise ParameterError(
                 f"scenario '{self.name}': mechanics must be 'inertia' or 'dyno', got {self.mechanics!r}")
+        self._check_shaft()
         for name in ("speed_rpm", "load_nm", "settle_s", "duration_s"):
             if not math.isfinite(getattr(self, name)):
                 raise ParameterError(f"scenario '{self.name}': {name} must be finite")
@@ -81,6 +91,53 @@ class Scenario:
                 raise ParameterError(
                     f"scenario '{self.name}': load_steps times must increase and follow load_step_s, got {t} s")
             last = t
+
+    def _check_shaft(self) -> None:
+        """The shaft's kind and, for two masses, its load inertia, stiffness and damping (ParameterError naming the
+        field)."""
+        if self.shaft not in SHAFTS:
+            raise ParameterError(
+                f"scenario '{self.name}': shaft must be one of {', '.join(SHAFTS)}, got {self.shaft!r}")
+        for name in ("load_inertia_kgm2", "shaft_stiffness_nm_per_rad", "shaft_damping_nms_per_rad"):
+            value = getattr(self, name)
+            if value is not None and (isinstance(value, bool) or not isinstance(value, int | float)
+                                      or not math.isfinite(value)):
+                raise ParameterError(f"scenario '{self.name}': {name} must be a finite number, got {value!r}")
+        if self.shaft_damping_nms_per_rad < 0:
+            raise ParameterError(f"scenario '{self.name}': shaft_damping_nms_per_rad must be ≥ 0 N·m·s/rad, got "
+                                 f"{self.shaft_damping_nms_per_rad}")
+        if self.shaft != "two-mass":
+            return
+        if self.mechanics != "inertia":
+            raise ParameterError(f"scenario '{self.name}': shaft 'two-mass' needs mechanics 'inertia' (a dyno holds "
+                                 "the motor's speed)")
+        for name, unit, option in (("load_inertia_kgm2", "kg·m²", "--load-inertia"),
+                                   ("shaft_stiffness_nm_per_rad", "N·m/rad", "--shaft-stiffness")):
+            value = getattr(self, name)
+            if value is None or value <= 0:
+                raise ParameterError(f"scenario '{self.name}': shaft 'two-mass' needs {name} > 0 {unit} ({option}), "
+                                     f"got {value}")
+
+    def plant_mechanics(self, j_motor: float) -> Mechanics:
+        """The plant's mechanics at the start: the dyno at the start speed, one mass with the load profile, or two
+        masses (the motor's `j_motor` [kg·m²] and the load mass) on the shaft, untwisted at the start speed."""
+        if self.mechanics == "dyno":
+            return DynoMechanics(self.start_speed_rpm)
+        if self.shaft == "two-mass":
+            assert self.load_inertia_kgm2 is not None and self.shaft_stiffness_nm_per_rad is not None
+            return TwoMassMechanics(self.load_profile(), j_motor=j_motor, j_load=self.load_inertia_kgm2,
+                                    k_shaft=self.shaft_stiffness_nm_per_rad, c_shaft=self.shaft_damping_nms_per_rad,
+                                    initial_speed_rpm=self.start_speed_rpm)
+        return InertiaMechanics(self.load_profile(), initial_speed_rpm=self.start_speed_rpm)
+
+    def driven_inertia_kgm2(self, j_motor: float) -> float:
+        """The inertia the drive accelerates [kg·m²]: 0 under a dyno, the motor's `j_motor`, plus the load mass
+        with a two-mass shaft."""
+        if self.mechanics == "dyno":
+            return 0.0
+        if self.shaft == "two-mass" and self.load_inertia_kgm2 is not None:
+            return j_motor + self.load_inertia_kgm2
+        return j_motor
 
     @property
     def at_rated(self) -> bool:
@@ -146,7 +203,7 @@ def load_scenario(name_or_path: str) -> Scenario:
     if unknown:
         raise InputFileError(f"scenario file {origin}: unknown key(s) {', '.join(sorted(unknown))}")
     for key, value in doc.items():
-        if key in ("name", "mechanics", "description"):
+        if key in ("name", "mechanics", "description", "shaft"):
             if not isinstance(value, str):
                 raise InputFileError(f"scenario file {origin}: '{key}' must be a string")
         elif key in ("preset_integrator", "at_rated"):

@@ -29,7 +29,7 @@ class SilDebugSlot:
         self._ffi: Any = None
 
     def pointer(self, ffi: Any) -> Any:
-        """An `nl_sil_debug_t *` on the memory (for nl_config_t.sil_debug; valid until `close`)."""
+        """An `nl_sil_debug_t *` on the memory (for nl_target_link_cfg_t.sil_debug; valid until `close`)."""
         if self._ptr is None:
             assert self._map is not None
             self._ffi, self._ptr = ffi, ffi.from_buffer("nl_sil_debug_t *", self._map)

@@ -135,9 +135,9 @@ class NativeWireLink(LinkFacade):
     def attach(self, c: Any, lockstep_timeout_s: float) -> None:
         """Give the loop's nl_config_t `c` the link as it is now."""
         self.handle = WireHandle(self.wire, self.ffi, self.lib, self.bus, target_role=False)
-        c.link = self.handle.link
-        c.lockstep_timeout_ns = int(lockstep_timeout_s * 1e9)
-        c.sil_debug = self.sil_debug if self.sil_debug is not None else self.ffi.NULL
+        c.target_link.link = self.handle.link
+        c.target_link.lockstep_timeout_ns = int(lockstep_timeout_s * 1e9)
+        c.target_link.sil_debug = self.sil_debug if self.sil_debug is not None else self.ffi.NULL
 
     def detach(self) -> None:
         """After the run: the C link's counters into `stats` (unless they are the bus's own), the link back to

@@ -71,9 +71,12 @@ LOOP_H_CDEF = (_X.cffi_constants(_HERE / "loop_fmu.h", "NL_FMU_")
                + _X.cffi_constants(_KERNELS / "machine_kernel.h", "MK_")
                + _decl(_KERNELS / "machine_kernel.h", ["mk_kernel_t"], opaque=["mk_kernel_t"])
                # a ring slot: Python reads its counts and trace (the records through the nl_slot_* views)
-               + _decl(_HERE / "loop.h", ["nl_finding_t", "nl_sil_debug_t", "nl_config_t", "nl_slot_t", "nl_result_t",
-                                          "nl_handle_t", "nl_handle_size", "nl_init", "nl_destroy", "nl_config",
-                                          "nl_slot", "nl_result", "nl_run", "nl_wait_full", "nl_release", "nl_stop"],
+               + _decl(_HERE / "loop.h", ["nl_finding_t", "nl_sil_debug_t", "nl_machine_cfg_t", "nl_operation_cfg_t",
+                                          "nl_codec_cfg_t", "nl_target_link_cfg_t", "nl_timing_cfg_t",
+                                          "nl_sensors_cfg_t", "nl_outputs_cfg_t", "nl_config_t", "nl_slot_t",
+                                          "nl_result_t", "nl_handle_t", "nl_handle_size", "nl_init", "nl_destroy",
+                                          "nl_config", "nl_slot", "nl_result", "nl_run", "nl_wait_full", "nl_release",
+                                          "nl_stop"],
                        partial={"nl_slot_t": ["trace", "trace_rows_cap", "n_periods", "n_frames", "n_findings",
                                               "n_trace_rows"]}))
 

@@ -218,7 +218,7 @@ static void record_frame(loop_t *L, uint8_t direction, const hil_core_frame_t *f
 {
     nl_slot_t *s = L->slot;
     nl_frame_rec_t *rec;
-    if (!L->c->record_frames || s->n_frames >= NL_BLOCK * NL_FRAMES_PER_PERIOD) {
+    if (!L->c->outputs.record_frames || s->n_frames >= NL_BLOCK * NL_FRAMES_PER_PERIOD) {
         return;
     }
     rec = &s->frames[s->n_frames++];
@@ -233,7 +233,7 @@ static void record_frame(loop_t *L, uint8_t direction, const hil_core_frame_t *f
 
 static void to_target(loop_t *L, const hil_core_frame_t *frames, int n)
 {
-    const nl_link_t *l = L->c->link;
+    const nl_link_t *l = L->c->target_link.link;
     int j;
     for (j = 0; j < n; ++j) {
         L->r->frames_tx++;
@@ -274,7 +274,7 @@ static void on_command(loop_t *L, const nl_cmd_t *cmd)
         if (!L->have_reply) {
             L->reply = *cmd;
             L->have_reply = 1;
-            if (L->c->shared_bus) {
+            if (L->c->target_link.shared_bus) {
                 L->r->bus_silent_frames = 0;
                 L->r->bus_host_silent = 0;
                 L->bus_reply_ns = nl_now_ns();
@@ -295,7 +295,7 @@ static void on_command(loop_t *L, const nl_cmd_t *cmd)
 static int from_target_node(loop_t *L, const hil_core_frame_t *f)
 {
     nl_result_t *r = L->r;
-    const int who = nl_bus_frame(f, L->expected, L->have_reply, L->prev_answered, L->c->controller_id);
+    const int who = nl_bus_frame(f, L->expected, L->have_reply, L->prev_answered, L->c->target_link.controller_id);
     if (who == NL_BUS_TARGET) {
         return 1;
     }
@@ -318,7 +318,7 @@ static void take_frame(loop_t *L, const hil_core_frame_t *f)
     int msg;
     L->r->frames_rx++;
     record_frame(L, 1u, f);
-    if (L->c->shared_bus && !from_target_node(L, f)) {
+    if (L->c->target_link.shared_bus && !from_target_node(L, f)) {
         return;
     }
     msg = nl_decode(&L->as, f, L->r, &cmd, &code, &detail);
@@ -334,7 +334,7 @@ static void take_frame(loop_t *L, const hil_core_frame_t *f)
 /* Frames until the reply or `deadline_ns`; -1 when the peer closed the link, else 0. */
 static int receive_until(loop_t *L, int64_t deadline_ns)
 {
-    const nl_link_t *l = L->c->link;
+    const nl_link_t *l = L->c->target_link.link;
     hil_core_frame_t f;
     int got = 0;
     while (!L->have_reply && (got = l->recv(l->ctx, &f, deadline_ns)) > 0) {
@@ -352,11 +352,13 @@ static int receive_until(loop_t *L, int64_t deadline_ns)
 static void await_lockstep(loop_t *L, int64_t t0)
 {
     const nl_config_t *c = L->c;
-    const int64_t timeout = c->lockstep_timeout_ns;
-    const int64_t slice = c->target_pid <= 0 ? timeout : timeout / 4 < NL_STALL_SLICE_NS ? timeout / 4 : NL_STALL_SLICE_NS;
+    const int64_t timeout = c->target_link.lockstep_timeout_ns;
+    const int64_t slice = c->target_link.target_pid <= 0 ? timeout
+                          : timeout / 4 < NL_STALL_SLICE_NS ? timeout / 4 : NL_STALL_SLICE_NS;
     nl_own_time_t own;
     int watching = 0;
-    nl_own_time_start(&own, c->target_pid, c->guest_insns, c->guest_ns_per_insn, slice, t0);
+    nl_own_time_start(&own, c->target_link.target_pid, c->target_link.guest_insns, c->target_link.guest_ns_per_insn,
+                      slice, t0);
     for (;;) {
         const int64_t left = timeout - own.had_ns;
         int64_t t;
@@ -364,7 +366,7 @@ static void await_lockstep(loop_t *L, int64_t t0)
             break;
         }
         t = nl_now_ns();
-        if (c->target_pid <= 0) {
+        if (c->target_link.target_pid <= 0) {
             break; /* wall time: one slice, the whole timeout */
         }
         if (nl_own_time_step(&own, t) != 0) {
@@ -380,7 +382,8 @@ static void await_lockstep(loop_t *L, int64_t t0)
             L->wait_end = NL_END_INTERRUPTED;
             break;
         }
-        if (t - t0 >= c->stall_limit_ns && t - t0 >= timeout) { /* past both: the host took the difference */
+        /* past both: the host took the difference */
+        if (t - t0 >= c->target_link.stall_limit_ns && t - t0 >= timeout) {
             L->wait_end = NL_END_HOST_STALL;
             L->r->host_stall_wait_ns = t - t0;
             break;
@@ -404,7 +407,7 @@ static void await_lockstep(loop_t *L, int64_t t0)
 static void from_target(loop_t *L)
 {
     const nl_config_t *c = L->c;
-    const nl_link_t *l = c->link;
+    const nl_link_t *l = c->target_link.link;
     hil_core_frame_t f;
     int64_t t0;
     while (l->recv(l->ctx, &f, 0) > 0) {
@@ -417,8 +420,8 @@ static void from_target(loop_t *L)
     /* real time over a link: period 0 is the synchronising exchange, its Command awaited as in lockstep (a target
      * in another process or on a board wakes from idle and runs its code the first time: cold); the wall clock of
      * the periods starts when it arrives (period(): next_start) */
-    if (c->realtime && L->meas_sent > 1) {
-        (void)receive_until(L, L->next_start + c->ts_ns);
+    if (c->timing.realtime && L->meas_sent > 1) {
+        (void)receive_until(L, L->next_start + c->timing.ts_ns);
     } else {
         await_lockstep(L, t0);
     }
@@ -446,12 +449,12 @@ static void sample_of(const loop_t *L, const void *state, sample_t *smp)
     smp->theta_e = c->nan;
     smp->omega_m = c->nan;
     smp->torque = c->nan;
-    c->kernel->sample(c->plant_params, state, smp);
+    c->machine.kernel->sample(c->machine.plant_params, state, smp);
 }
 
 static void sample(const loop_t *L, sample_t *smp)
 {
-    sample_of(L, L->c->plant_state, smp);
+    sample_of(L, L->c->machine.plant_state, smp);
 }
 
 /* Python's float % (the sign of the divisor). */
@@ -473,25 +476,25 @@ static void measure(loop_t *L, const sample_t *smp, double *cur, double *theta)
 {
     const nl_config_t *c = L->c;
     int j;
-    for (j = 0; j < c->legs; ++j) {
+    for (j = 0; j < c->machine.legs; ++j) {
         cur[j] = smp->i[j];
     }
     *theta = smp->theta_e;
-    if (c->ideal) {
+    if (c->sensors.ideal) {
         return;
     }
-    if (c->noise_std != 0.0) {
-        for (j = 0; j < c->legs; ++j) {
+    if (c->sensors.noise_std != 0.0) {
+        for (j = 0; j < c->machine.legs; ++j) {
             cur[j] = cur[j] + L->slot->noise[L->noise_i++];
         }
     }
-    if (c->adc_lsb != 0.0) {
-        for (j = 0; j < c->legs; ++j) {
-            cur[j] = nearbyint(cur[j] / c->adc_lsb) * c->adc_lsb;
+    if (c->sensors.adc_lsb != 0.0) {
+        for (j = 0; j < c->machine.legs; ++j) {
+            cur[j] = nearbyint(cur[j] / c->sensors.adc_lsb) * c->sensors.adc_lsb;
         }
     }
-    if (c->enc_step != 0.0) {
-        *theta = py_mod(floor(*theta / c->enc_step) * c->enc_step, c->two_pi);
+    if (c->sensors.enc_step != 0.0) {
+        *theta = py_mod(floor(*theta / c->sensors.enc_step) * c->sensors.enc_step, c->sensors.two_pi);
     }
 }
 
@@ -499,20 +502,20 @@ static void measure(loop_t *L, const sample_t *smp, double *cur, double *theta)
 static void load_at(const nl_config_t *c, double t, double *value, double *slope)
 {
     int32_t idx = 0;
-    const int32_t n = c->n_load;
-    while (idx < n && c->load_t[idx] <= t) {
+    const int32_t n = c->operation.n_load;
+    while (idx < n && c->operation.load_t[idx] <= t) {
         idx++;
     }
     *slope = 0.0;
     if (idx == 0) {
-        *value = c->load_v[0];
+        *value = c->operation.load_v[0];
     } else if (idx >= n) {
-        *value = c->load_v[n - 1];
+        *value = c->operation.load_v[n - 1];
     } else {
-        const double t0 = c->load_t[idx - 1];
-        const double t1 = c->load_t[idx];
-        const double v0 = c->load_v[idx - 1];
-        const double v1 = c->load_v[idx];
+        const double t0 = c->operation.load_t[idx - 1];
+        const double t1 = c->operation.load_t[idx];
+        const double v0 = c->operation.load_v[idx - 1];
+        const double v1 = c->operation.load_v[idx];
         if (t1 == t0) {
             *value = v1;
         } else {
@@ -530,20 +533,20 @@ static int32_t load_breakpoints(const nl_config_t *c, double t0, double t1, doub
     int32_t lo = 0;
     int32_t n_bp = 0;
     int32_t i;
-    const int32_t n = c->n_load;
-    while (lo < n && c->load_t[lo] <= t0) {
+    const int32_t n = c->operation.n_load;
+    while (lo < n && c->operation.load_t[lo] <= t0) {
         lo++;
     }
-    if (lo >= n || c->load_t[lo] >= t1) {
+    if (lo >= n || c->operation.load_t[lo] >= t1) {
         return 0;
     }
-    for (i = lo; i < n && c->load_t[i] < t1; ++i) {
-        if (i > lo && c->load_t[i] == c->load_t[i - 1]) {
+    for (i = lo; i < n && c->operation.load_t[i] < t1; ++i) {
+        if (i > lo && c->operation.load_t[i] == c->operation.load_t[i - 1]) {
             continue; /* sorted(set(...)) */
         }
         if (n_bp < NL_LOAD_BREAKPOINTS) {
-            bp[3 * n_bp] = c->load_t[i];
-            load_at(c, c->load_t[i], &bp[3 * n_bp + 1], &bp[3 * n_bp + 2]);
+            bp[3 * n_bp] = c->operation.load_t[i];
+            load_at(c, c->operation.load_t[i], &bp[3 * n_bp + 1], &bp[3 * n_bp + 2]);
         }
         n_bp++;
     }
@@ -556,7 +559,7 @@ static int32_t load_breakpoints(const nl_config_t *c, double t0, double t1, doub
 static int load_fmu_period(loop_t *L, double t, const sample_t *smp)
 {
     const nl_config_t *c = L->c;
-    return nl_fmu_period(c->load_fmu, t, c->ts_s, smp->omega_m) == 0 ? 0 : NL_PLANT_E_LOAD_FMU;
+    return nl_fmu_period(c->operation.load_fmu, t, c->timing.ts_s, smp->omega_m) == 0 ? 0 : NL_PLANT_E_LOAD_FMU;
 }
 
 /* ClosedLoop._apply_and_trace: one period with the pending command (mirrored when it is). */
@@ -569,8 +572,8 @@ static int32_t period_sequence(const loop_t *L, int64_t k, int32_t *states, int6
     int32_t n = cmd->n_states;
     int32_t j;
     if (cmd->n_duties != 0u) {
-        const int half = !c->pwm_double ? PWM_SINGLE : ((k & 1) == 0 ? PWM_RISING : PWM_FALLING);
-        return pwm_duty_sequence(c->legs, cmd->duty_raw, c->ts_ns, half, states, durs);
+        const int half = !c->timing.pwm_double ? PWM_SINGLE : ((k & 1) == 0 ? PWM_RISING : PWM_FALLING);
+        return pwm_duty_sequence(c->machine.legs, cmd->duty_raw, c->timing.ts_ns, half, states, durs);
     }
     for (j = 0; j < n; ++j) {
         states[j] = cmd->states[j];
@@ -595,10 +598,10 @@ static int period_load(loop_t *L, int64_t total_ns, mech_load_t *load, double *b
     load->slope = 0.0;
     load->bp = bp;
     load->n_bp = 0;
-    if (L->inertia && c->load_fmu != NULL) {
-        load->value = c->load_fmu->torque; /* load_fmu_period: the FMU's output at the period start, held */
+    if (L->inertia && c->operation.load_fmu != NULL) {
+        load->value = c->operation.load_fmu->torque; /* load_fmu_period: the FMU's output at the period start, held */
     } else if (L->inertia) {
-        const uint64_t t_ns = c->kernel->time_ns(c->plant_state);
+        const uint64_t t_ns = c->machine.kernel->time_ns(c->machine.plant_state);
         const double t0 = (double)t_ns / NS_PER_S;
         load_at(c, t0, &load->value, &load->slope);
         load->n_bp = load_breakpoints(c, t0, t0 + (double)total_ns * 1e-9, bp);
@@ -620,7 +623,7 @@ static int advance(loop_t *L, int64_t k, ge_period_stats_t *st)
     int64_t total = 0;
     mech_load_t load;
     double bp[3 * NL_LOAD_BREAKPOINTS];
-    double *trace = c->plant_trace;
+    double *trace = c->outputs.plant_trace;
     int rc;
     for (j = 0; j < n; ++j) {
         total += durs[j];
@@ -629,16 +632,17 @@ static int advance(loop_t *L, int64_t k, ge_period_stats_t *st)
     if (rc != 0) {
         return rc;
     }
-    if (k >= c->n_settle && c->trace_dt > 0.0) {
+    if (k >= c->operation.n_settle && c->outputs.trace_dt > 0.0) {
         nl_slot_t *s = L->slot;
-        if (s->n_trace_rows + c->trace_cap > s->trace_rows_cap) {
+        if (s->n_trace_rows + c->outputs.trace_cap > s->trace_rows_cap) {
             return MK_E_TRACE_FULL;
         }
-        trace = s->trace + s->n_trace_rows * c->trace_columns;
+        trace = s->trace + s->n_trace_rows * c->outputs.trace_columns;
     }
-    rc = c->kernel->advance(c->plant_params, c->plant_state, states, durs, n, &load, c->trace_dt,
-                            c->trace_dt > 0.0 ? trace : NULL, c->trace_cap, st);
-    if (rc == 0 && k >= c->n_settle && c->trace_dt > 0.0) {
+    rc = c->machine.kernel->advance(c->machine.plant_params, c->machine.plant_state, states, durs, n, &load,
+                                    c->outputs.trace_dt,
+                            c->outputs.trace_dt > 0.0 ? trace : NULL, c->outputs.trace_cap, st);
+    if (rc == 0 && k >= c->operation.n_settle && c->outputs.trace_dt > 0.0) {
         L->slot->n_trace_rows += st->trace_n;
     }
     return rc;
@@ -654,7 +658,7 @@ static int sample_adc(loop_t *L, int64_t k, sample_t *smp)
     int64_t durs[PWM_MAX_SEGMENTS];
     int32_t n = period_sequence(L, k, states, durs);
     int32_t m = 0;
-    int64_t left = c->adc_delay_ns;
+    int64_t left = c->timing.adc_delay_ns;
     mech_load_t load;
     double bp[3 * NL_LOAD_BREAKPOINTS];
     ge_period_stats_t st;
@@ -666,16 +670,17 @@ static int sample_adc(loop_t *L, int64_t k, sample_t *smp)
         left -= durs[m];
         ++m;
     }
-    rc = period_load(L, c->adc_delay_ns, &load, bp);
+    rc = period_load(L, c->timing.adc_delay_ns, &load, bp);
     if (rc != 0) {
         return rc;
     }
-    memcpy(c->plant_scratch, c->plant_state, (size_t)c->kernel->state_size);
-    rc = c->kernel->advance(c->plant_params, c->plant_scratch, states, durs, m, &load, 0.0, NULL, 0, &st);
+    memcpy(c->machine.plant_scratch, c->machine.plant_state, (size_t)c->machine.kernel->state_size);
+    rc = c->machine.kernel->advance(c->machine.plant_params, c->machine.plant_scratch, states, durs, m, &load, 0.0,
+                                    NULL, 0, &st);
     if (rc != 0) {
         return rc;
     }
-    sample_of(L, c->plant_scratch, smp);
+    sample_of(L, c->machine.plant_scratch, smp);
     return 0;
 }
 
@@ -685,17 +690,19 @@ static void follow_reference(loop_t *L, int64_t k)
 {
     const nl_config_t *c = L->c;
     hil_core_frame_t f;
-    while (L->ref_i < c->n_ref && c->ref_k[L->ref_i] <= k) {
-        const double ref = c->ref_rpm[L->ref_i++];
+    while (L->ref_i < c->operation.n_ref && c->operation.ref_k[L->ref_i] <= k) {
+        const double ref = c->operation.ref_rpm[L->ref_i++];
         if (ref == L->speed_ref_rpm) {
             continue;
         }
         L->speed_ref_rpm = ref;
-        nl_encode_setpoint(1u, (uint8_t)c->mode_speed, ref * c->rpm_to_rad_s, (uint8_t)c->controller_id, &f);
+        nl_encode_setpoint(1u, (uint8_t)c->target_link.mode_speed, ref * c->operation.rpm_to_rad_s,
+                           (uint8_t)c->target_link.controller_id, &f);
         to_target(L, &f, 1);
-        if (c->dyno) {
+        if (c->operation.dyno) {
             L->inertia = 0;
-            c->kernel->hold_speed(c->plant_params, c->plant_state, ref * c->rpm_to_rad_s);
+            c->machine.kernel->hold_speed(c->machine.plant_params, c->machine.plant_state,
+                                          ref * c->operation.rpm_to_rad_s);
         }
     }
 }
@@ -748,8 +755,8 @@ static int check_contract(loop_t *L, int64_t k, int have)
             bad = 1;
         }
         if (cmd->n_duties != 0u) { /* contract.check_duties */
-            if (cmd->n_duties != c->legs) {
-                add_pending(L, NL_RULE_DUTY, NL_WHAT_DUTY_COUNT, cmd, cmd->n_duties, c->legs);
+            if (cmd->n_duties != c->machine.legs) {
+                add_pending(L, NL_RULE_DUTY, NL_WHAT_DUTY_COUNT, cmd, cmd->n_duties, c->machine.legs);
                 bad = 1;
             }
             for (j = 0; !bad && j < cmd->n_duties; ++j) {
@@ -758,12 +765,12 @@ static int check_contract(loop_t *L, int64_t k, int have)
                     bad = 1;
                 }
             }
-            total = c->ts_ns; /* the carrier fills Ts */
+            total = c->timing.ts_ns; /* the carrier fills Ts */
         }
         for (j = 0; j < cmd->n_states; ++j) {
-            if (cmd->states[j] > c->max_state) {
+            if (cmd->states[j] > c->machine.max_state) {
                 add_pending(L, NL_RULE_STATE_CODE, NL_WHAT_STATE_CODE, cmd, j, cmd->states[j]);
-                L->pend[L->n_pend - 1].v[2] = c->max_state;
+                L->pend[L->n_pend - 1].v[2] = c->machine.max_state;
                 bad = 1;
                 break;
             }
@@ -779,8 +786,8 @@ static int check_contract(loop_t *L, int64_t k, int have)
                     total += cmd->durations_ns[j];
                 }
             }
-            if (total != c->ts_ns) {
-                add_pending(L, NL_RULE_DURATIONS, NL_WHAT_DURATIONS, cmd, total, c->ts_ns);
+            if (total != c->timing.ts_ns) {
+                add_pending(L, NL_RULE_DURATIONS, NL_WHAT_DURATIONS, cmd, total, c->timing.ts_ns);
                 bad = 1;
             }
         }
@@ -799,37 +806,37 @@ static int check_contract(loop_t *L, int64_t k, int have)
 static int accept(loop_t *L, int64_t k, int ok)
 {
     const nl_config_t *c = L->c;
-    const nl_link_t *l = c->link;
+    const nl_link_t *l = c->target_link.link;
     nl_result_t *r = L->r;
     uint8_t full_miss = 255u;
     if (!ok) {
         r->silent++;
         r->lost_commands++;
-        if (c->realtime) {
+        if (c->timing.realtime) {
             r->deadline_misses++;
         }
-        if (c->miss_zero) {
+        if (c->timing.miss_zero) {
             memset(&L->next.cmd, 0, sizeof L->next.cmd);
             L->next.cmd.n_states = 1u;
-            L->next.cmd.durations_ns[0] = (uint32_t)c->ts_ns;
+            L->next.cmd.durations_ns[0] = (uint32_t)c->timing.ts_ns;
         } else {
             L->next.cmd = L->pending.cmd;
         }
         memcpy(L->next.split, L->pending.split, sizeof L->next.split);
         L->next.tref = L->pending.tref;
-        return r->silent >= c->watchdog_periods;
+        return r->silent >= c->target_link.watchdog_periods;
     }
     r->silent = 0;
     L->next.cmd = L->reply;
     memset(L->next.split, 0, sizeof L->next.split);
     L->next.tref = c->nan;
     if (l->diag != NULL && l->diag(l->ctx, L->next.split, &L->next.tref, &full_miss)) { /* an in-process target */
-        if (full_miss != 255u && k >= c->n_settle) {
+        if (full_miss != 255u && k >= c->operation.n_settle) {
             r->candidate_checked++;
             r->candidate_misses += full_miss;
         }
-    } else if (c->sil_debug != NULL) { /* a SIL target in its own process: the slot it wrote before the Command */
-        const volatile nl_sil_debug_t *d = c->sil_debug;
+    } else if (c->target_link.sil_debug != NULL) { /* a SIL target in its own process: its slot before the Command */
+        const volatile nl_sil_debug_t *d = c->target_link.sil_debug;
         if (d->steps > 0u) {
             L->next.tref = (double)d->torque_ref;
         }
@@ -856,7 +863,7 @@ static void record(loop_t *L, double t, int64_t k, const sample_t *smp, const ge
     rec->omega_m = smp->omega_m;
     rec->theta_e = smp->theta_e;
     rec->torque_ref = p->tref;
-    rec->speed_ref = L->speed_ref_rpm * c->rpm_to_rad_s;
+    rec->speed_ref = L->speed_ref_rpm * c->operation.rpm_to_rad_s;
     rec->load_torque = load_t;
     rec->n_states = p->cmd.n_states;
     for (j = 0; j < 3; ++j) {
@@ -892,7 +899,7 @@ static void record(loop_t *L, double t, int64_t k, const sample_t *smp, const ge
 static int check_end(loop_t *L, int64_t k, const sample_t *smp, const ge_period_stats_t *st)
 {
     const nl_config_t *c = L->c;
-    const double i_trip = c->i_trip;
+    const double i_trip = c->machine.i_trip;
     int j;
     int trip = 0;
     if (L->has_fault) {
@@ -901,12 +908,12 @@ static int check_end(loop_t *L, int64_t k, const sample_t *smp, const ge_period_
         L->r->fault_detail = L->fault_detail;
         return 1;
     }
-    for (j = 0; j < c->legs; ++j) {
+    for (j = 0; j < c->machine.legs; ++j) {
         if (fabs(smp->i[j]) > i_trip) {
             trip = 1;
         }
     }
-    if (fabs(smp->omega_m) > c->w_trip || st->peak_current > i_trip) {
+    if (fabs(smp->omega_m) > c->machine.w_trip || st->peak_current > i_trip) {
         trip = 1;
     }
     if (trip) {
@@ -934,8 +941,8 @@ static int send_measurement(loop_t *L, int64_t k, double t, const sample_t *smp)
     }
     L->tap_t = t;
     L->tap_seq = (uint32_t)k;
-    if (c->link->period != NULL) {
-        c->link->period(c->link->ctx, t);
+    if (c->target_link.link->period != NULL) {
+        c->target_link.link->period(c->target_link.link->ctx, t);
     }
     if (L->expected >= 0) {
         L->prev_answered = L->have_reply;
@@ -958,20 +965,20 @@ static void loop_init(loop_t *L, nl_handle_t *h)
     L->prev_answered = 1;
     L->as.states.held_seq = -1;
     L->as.duty.held_seq = -1;
-    L->has_fault = c->fault_pending;
-    L->fault_code = c->fault_code_in;
-    L->fault_detail = c->fault_detail_in;
-    if (c->first_n_duties > 0 && c->first_n_duties <= 6) {
-        L->pending.cmd.n_duties = (uint8_t)c->first_n_duties;
-        memcpy(L->pending.cmd.duty_raw, c->first_duty_raw, sizeof L->pending.cmd.duty_raw);
+    L->has_fault = c->target_link.fault_pending;
+    L->fault_code = c->target_link.fault_code_in;
+    L->fault_detail = c->target_link.fault_detail_in;
+    if (c->target_link.first_n_duties > 0 && c->target_link.first_n_duties <= 6) {
+        L->pending.cmd.n_duties = (uint8_t)c->target_link.first_n_duties;
+        memcpy(L->pending.cmd.duty_raw, c->target_link.first_duty_raw, sizeof L->pending.cmd.duty_raw);
     } else {
         L->pending.cmd.n_states = 1u;
-        L->pending.cmd.durations_ns[0] = (uint32_t)c->ts_ns;
+        L->pending.cmd.durations_ns[0] = (uint32_t)c->timing.ts_ns;
     }
     L->pending.tref = c->nan;
-    L->speed_ref_rpm = c->n_ref > 0 ? c->ref_rpm[0] : 0.0;
-    L->ref_i = c->n_ref > 0 ? 1 : 0;
-    L->inertia = c->inertia;
+    L->speed_ref_rpm = c->operation.n_ref > 0 ? c->operation.ref_rpm[0] : 0.0;
+    L->ref_i = c->operation.n_ref > 0 ? 1 : 0;
+    L->inertia = c->operation.inertia;
 }
 
 /* One period k; returns NL_END_RUNNING or the ending. */
@@ -979,7 +986,7 @@ static int32_t period(loop_t *L, int64_t k)
 {
     const nl_config_t *c = L->c;
     nl_result_t *r = L->r;
-    const double t = (double)k * c->ts_s;
+    const double t = (double)k * c->timing.ts_s;
     sample_t smp;
     ge_period_stats_t st;
     double load_t;
@@ -987,21 +994,22 @@ static int32_t period(loop_t *L, int64_t k)
     int ok;
     int watchdog;
     int rc;
-    if (c->realtime) {
-        const int64_t now = nl_wait_until(L->next_start, c->spin_ns);
+    if (c->timing.realtime) {
+        const int64_t now = nl_wait_until(L->next_start, c->timing.spin_ns);
         const int64_t late = now - L->next_start;
         L->slot->lateness_ns[L->slot->n_periods] = late;
         nl_late_count(r, late);
-        if (late > c->overrun_ns) {
+        if (late > c->timing.overrun_ns) {
             r->overruns++;
         }
     }
     follow_reference(L, k);
     sample(L, &smp);
     rc = 0;
-    if (c->adc_delay_ns > 0) { /* the firmware's ADC samples later in the period than its start */
+    if (c->timing.adc_delay_ns > 0) { /* the firmware's ADC samples later in the period than its start */
         sample_t adc;
-        rc = c->load_fmu != NULL ? load_fmu_period(L, t, &smp) : 0; /* the period's load first: the copy sees it */
+        /* the period's load first: the copy sees it */
+        rc = c->operation.load_fmu != NULL ? load_fmu_period(L, t, &smp) : 0;
         if (rc == 0) {
             rc = sample_adc(L, k, &adc);
         }
@@ -1013,11 +1021,12 @@ static int32_t period(loop_t *L, int64_t k)
             return NL_END_ENCODE_ERROR;
         }
     } else { /* the load FMU's period is sent first: contained, its process steps while the target does */
-        const int sent = c->load_fmu != NULL ? nl_fmu_period_send(c->load_fmu, t, c->ts_s, smp.omega_m) : 0;
+        const int sent = c->operation.load_fmu != NULL
+                             ? nl_fmu_period_send(c->operation.load_fmu, t, c->timing.ts_s, smp.omega_m) : 0;
         if (send_measurement(L, k, t, &smp) != 0) {
             return NL_END_ENCODE_ERROR;
         }
-        if (c->load_fmu != NULL && (sent != 0 || nl_fmu_period_wait(c->load_fmu) != 0)) {
+        if (c->operation.load_fmu != NULL && (sent != 0 || nl_fmu_period_wait(c->operation.load_fmu) != 0)) {
             rc = NL_PLANT_E_LOAD_FMU;
         }
     }
@@ -1033,30 +1042,30 @@ static int32_t period(loop_t *L, int64_t k)
         return L->wait_end;
     }
     /* in process nothing more will come: real time waits the period out */
-    if (!L->have_reply && c->realtime && (c->link->flags & NL_LINK_IN_PROCESS) != 0u) {
+    if (!L->have_reply && c->timing.realtime && (c->target_link.link->flags & NL_LINK_IN_PROCESS) != 0u) {
         const int64_t t0 = nl_now_ns();
-        const int64_t now = nl_wait_until(L->next_start + c->ts_ns, 0);
+        const int64_t now = nl_wait_until(L->next_start + c->timing.ts_ns, 0);
         L->wait_ns = now - t0;
     }
     ok = check_contract(L, k, L->have_reply);
     watchdog = accept(L, k, ok);
-    if (c->load_fmu != NULL) {
-        load_t = c->load_fmu->torque;
+    if (c->operation.load_fmu != NULL) {
+        load_t = c->operation.load_fmu->torque;
     } else {
         load_at(c, t, &load_t, &unused_slope);
     }
     record(L, t, k, &smp, &st, !ok, load_t); /* missed: no Command applied (none, or one breaking the contract) */
-    if (r->violation_count > c->tolerate) {
+    if (r->violation_count > c->target_link.tolerate) {
         return NL_END_VIOLATION;
     }
     if (watchdog) {
         return NL_END_WATCHDOG;
     }
-    L->next_start += c->ts_ns;
+    L->next_start += c->timing.ts_ns;
     /* over a link to another process the synchronising exchange is done: real time starts now */
-    if (k == 0 && c->realtime && (c->link->flags & NL_LINK_IN_PROCESS) == 0u) {
+    if (k == 0 && c->timing.realtime && (c->target_link.link->flags & NL_LINK_IN_PROCESS) == 0u) {
         const int64_t now = nl_now_ns();
-        r->sync_ns = now - (L->next_start - c->ts_ns);
+        r->sync_ns = now - (L->next_start - c->timing.ts_ns);
         if (now > L->next_start) {
             L->next_start = now;
         }
@@ -1076,15 +1085,16 @@ static const int32_t MEAS_CURRENTS[NL_MEAS_FORMATS] = {3, 6};
 /* The machine kernel can run in this loop: a table of this ABI whose legs the Measurement format carries. */
 static int kernel_fits(const nl_config_t *c)
 {
-    const mk_kernel_t *k = c->kernel;
-    if (k == NULL || k->abi != MK_ABI_VERSION || k->legs != c->legs || k->legs < 1 || k->legs > MK_MAX_LEGS) {
+    const mk_kernel_t *k = c->machine.kernel;
+    if (k == NULL || k->abi != MK_ABI_VERSION || k->legs != c->machine.legs || k->legs < 1 || k->legs > MK_MAX_LEGS) {
         return 0;
     }
-    if (c->plant_params == NULL || c->plant_state == NULL || k->advance == NULL || k->sample == NULL
+    if (c->machine.plant_params == NULL || c->machine.plant_state == NULL || k->advance == NULL || k->sample == NULL
         || k->hold_speed == NULL || k->time_ns == NULL) {
         return 0;
     }
-    return c->meas_format >= 0 && c->meas_format < NL_MEAS_FORMATS && MEAS_CURRENTS[c->meas_format] == k->legs;
+    const int32_t format = c->target_link.codec.meas_format;
+    return format >= 0 && format < NL_MEAS_FORMATS && MEAS_CURRENTS[format] == k->legs;
 }
 
 void nl_run(nl_handle_t *h)
@@ -1105,15 +1115,16 @@ void nl_run(nl_handle_t *h)
         pthread_mutex_unlock(&h->mu);
         return;
     }
-    if (h->cfg.realtime || h->cfg.rt_priority > 0 || h->cfg.cpu >= 0 || h->cfg.lock_memory) {
-        nl_rt_setup(&h->cfg, &h->res, &saved);
+    if (h->cfg.timing.realtime || h->cfg.timing.rt_priority > 0 || h->cfg.timing.cpu >= 0
+        || h->cfg.timing.lock_memory) {
+        nl_rt_setup(&h->cfg.timing, &h->res, &saved);
     } else {
         memset(&saved, 0, sizeof saved);
     }
     t_start = nl_now_ns();
     L.next_start = t_start;
     h->res.sync_ns = -1;
-    for (k = 0; k < h->cfg.n_total; ++k) {
+    for (k = 0; k < h->cfg.operation.n_total; ++k) {
         int32_t e;
         if (__atomic_load_n(&h->stop, __ATOMIC_ACQUIRE) || (L.slot == NULL && take_slot(&L) != 0)) {
             end = NL_END_INTERRUPTED;

@@ -61,7 +61,7 @@
 #define NL_PLANT_E_KERNEL (-101)      /* no machine kernel, another MK_ABI_VERSION, or legs/format it cannot serve */
 #define NL_PLANT_E_LOAD_FMU (-102)    /* the load FMU failed (nl_fmu_t: failed_call, status, t_fail, message) */
 
-/* The Measurement frames a machine is measured with (nl_config_t.meas_format; loop_frames.c encodes them). */
+/* The Measurement frames a machine is measured with (nl_codec_cfg_t.meas_format; loop_frames.c encodes them). */
 #define NL_MEAS_3 0              /* three currents: MeasA + MeasB (classic CAN) or MeasFd */
 #define NL_MEAS_6 1              /* six currents: Meas6A + Meas6C + Meas6B (classic CAN) or MeasFd6 */
 #define NL_MEAS_FORMATS 2
@@ -86,7 +86,6 @@ typedef struct {
     uint16_t duty_raw[6];
 } nl_finding_t;
 
-/* Fixed for the run; written by Python before nl_run. */
 /* What a SIL target in its own process shares with the host (memory both map; target_serve.c writes it after
  * each step, before the step's Command goes out, so the host reads it for the Command it just received): control
  * steps run and the torque reference [N*m] of the last one (hil_app_cmd_t's debug output). */
@@ -95,42 +94,27 @@ typedef struct {
     float torque_ref;
 } nl_sil_debug_t;
 
+/* The run's configuration, fixed for the run and written by Python before nl_run (loop_config.py, one fill per
+ * group). Its groups are RunConfig's (src/pmsm_hil/hil/runner/run_groups.py): machine; scenario and load
+ * (operation); target and link; timing and real time; sensors; outputs. */
+
+/* machine: the plant's machine kernel (machine_kernel.h), the Python plant's own structs it works on, its limits */
 typedef struct {
     int32_t legs;              /* measured phase currents = the kernel's legs (a loop bound, never a branch) */
-    int32_t fd;                /* 1: CAN FD frames, 0: classic CAN parts */
-    int32_t meas_format;       /* NL_MEAS_*: the Measurement frames of the machine (MachineLayout.measurement) */
-    int64_t ts_ns;
-    double ts_s;
-    int64_t n_total;           /* periods of the run */
-    int64_t n_settle;          /* first period of the metrics window */
-    int32_t max_state;
-    int32_t tolerate;
-    int32_t watchdog_periods;
-    int32_t miss_zero;         /* miss policy: 1 zero vector, 0 hold */
-    int32_t controller_id;
-    int32_t mode_speed;        /* Setpoint mode value of speed control */
-    int32_t record_frames;
-    double nan;                /* the NaN the Python loop writes (bit pattern kept) */
-    /* sensors */
-    int32_t ideal;
-    double noise_std;          /* [A]; noise values come per slot */
-    double adc_lsb;            /* [A], 0: none */
-    double enc_step;           /* encoder step [rad electrical], 0: ideal angle */
-    double two_pi;
-    double vdc;                /* measured DC link sent in every Measurement [V] */
-    /* codec scales and raw limits (from hil.dbc) */
-    double s_i, s_th, s_w, s_v;
-    int32_t i_min, i_max, w_min, w_max, v_min, v_max, th_mod;
-    /* plant: the machine kernel's table (machine_kernel.h) and the Python plant's own structs it works on */
+    int32_t max_state;         /* the highest gate code of the machine (the DUT contract's state_code rule) */
     const struct mk_kernel *kernel;
     void *plant_params;
     void *plant_state;
-    double *plant_trace;       /* the plant's trace buffer (periods before the window) */
-    int32_t trace_cap;         /* trace rows one period may write */
-    double trace_dt;           /* [s], 0: no trace */
-    int32_t trace_columns;
+    void *plant_scratch;       /* timing.adc_delay_ns > 0: state_size bytes for a copy of the plant state */
+    double vdc;                /* measured DC link sent in every Measurement [V] */
+    double i_trip, w_trip;     /* [A], [rad/s] */
+} nl_machine_cfg_t;
+
+/* scenario and load: periods, speed reference, mechanics and load */
+typedef struct {
+    int64_t n_total;           /* periods of the run */
+    int64_t n_settle;          /* first period of the metrics window */
     double rpm_to_rad_s;
-    /* mechanics and scenario */
     int32_t dyno;              /* 1: dyno (speed held at the reference), 0: inertia */
     int32_t inertia;           /* the plant's mechanics at the start: 1 inertia (load profile applies) */
     int32_t n_load;            /* load profile points (time [s], torque [N*m]), any number (the caller's arrays) */
@@ -141,21 +125,26 @@ typedef struct {
     int32_t n_ref;             /* speed reference [rpm] from period ref_k[j] on */
     int64_t ref_k[NL_REF_CHANGES];
     double ref_rpm[NL_REF_CHANGES];
-    double i_trip, w_trip;     /* [A], [rad/s] */
-    /* target state the Python set-up left (a Fault while configuring) */
-    int32_t fault_pending;
-    uint8_t fault_code_in;
-    uint32_t fault_detail_in;
-    /* real time */
-    int32_t realtime;
-    int64_t overrun_ns;
-    int64_t spin_ns;           /* busy-wait at most this long before a period start; sleep before that */
-    int32_t rt_priority;       /* SCHED_FIFO priority, 0: none */
-    int32_t cpu;               /* CPU for the loop thread, -1: any */
-    int32_t lock_memory;       /* mlockall for the run */
+} nl_operation_cfg_t;
+
+/* the Measurement's frames and the codec's scales and raw limits (from hil.dbc) */
+typedef struct {
+    int32_t fd;                /* 1: CAN FD frames, 0: classic CAN parts */
+    int32_t meas_format;       /* NL_MEAS_*: the Measurement frames of the machine (MachineLayout.measurement) */
+    double s_i, s_th, s_w, s_v;
+    int32_t i_min, i_max, w_min, w_max, v_min, v_max, th_mod;
+} nl_codec_cfg_t;
+
+/* target and link: the link, the codec, the controller, the DUT contract, the lockstep waits, the target's state */
+typedef struct {
     /* the link to the target (nl_link.h; required): the in-process C target core (link_core.h), a wire to another
      * process or a board (UDP, serial, SocketCAN), or the callback link through Python (loop_py.h) */
     const struct nl_link *link;
+    nl_codec_cfg_t codec;
+    int32_t controller_id;
+    int32_t mode_speed;        /* Setpoint mode value of speed control */
+    int32_t tolerate;
+    int32_t watchdog_periods;
     int64_t lockstep_timeout_ns; /* lockstep over a link: how long to wait for a Command [ns]: the target's own time
                                   * when target_pid is set (loop_stall.h), else wall time */
     int32_t target_pid;        /* the target's process the host can observe (0: none, e.g. a board: wall time) */
@@ -165,15 +154,59 @@ typedef struct {
     int64_t stall_limit_ns;    /* lockstep: the longest wall time one wait for a Command may last while the host
                                 * stalls the target's process (then NL_END_HOST_STALL) [ns] */
     const nl_sil_debug_t *sil_debug; /* a SIL target in its own process: its debug outputs, NULL: none */
-    int32_t pwm_double;        /* duty-cycle Commands: 0 single update, 1 double (pwm_duty.h halves) */
-    int64_t adc_delay_ns;      /* the Measurement is sampled this long after the period start [ns] (0: at it) */
-    void *plant_scratch;       /* adc_delay_ns > 0: the kernel's state_size bytes for a copy of the plant state */
     int32_t shared_bus;        /* 1: a CAN bus other nodes may share (loop.c from_target_node): a frame that cannot be
                                 * the target's is bus traffic (bus_foreign_frames, bus_suspect_frames), no finding */
+    /* target state the Python set-up left (a Fault while configuring) */
+    int32_t fault_pending;
+    uint8_t fault_code_in;
+    uint32_t fault_detail_in;
     int32_t first_n_duties;    /* the command of period 0, before the target's first reply: 0 the full-period zero
                                 * vector; 3 or 6 these duties (wire codes): the outputs a board has at the run's start
                                 * (TargetConnection.first_duties: its open bridge while its outputs are off) */
     uint16_t first_duty_raw[6];
+} nl_target_link_cfg_t;
+
+/* timing and real time */
+typedef struct {
+    int64_t ts_ns;
+    double ts_s;
+    int32_t pwm_double;        /* duty-cycle Commands: 0 single update, 1 double (pwm_duty.h halves) */
+    int64_t adc_delay_ns;      /* the Measurement is sampled this long after the period start [ns] (0: at it) */
+    int32_t realtime;
+    int32_t miss_zero;         /* miss policy: 1 zero vector, 0 hold */
+    int64_t overrun_ns;
+    int64_t spin_ns;           /* busy-wait at most this long before a period start; sleep before that */
+    int32_t rt_priority;       /* SCHED_FIFO priority, 0: none */
+    int32_t cpu;               /* CPU for the loop thread, -1: any */
+    int32_t lock_memory;       /* mlockall for the run */
+} nl_timing_cfg_t;
+
+/* sensors */
+typedef struct {
+    int32_t ideal;
+    double noise_std;          /* [A]; noise values come per slot */
+    double adc_lsb;            /* [A], 0: none */
+    double enc_step;           /* encoder step [rad electrical], 0: ideal angle */
+    double two_pi;
+} nl_sensors_cfg_t;
+
+/* outputs: frame records and the plant's trace */
+typedef struct {
+    int32_t record_frames;
+    double *plant_trace;       /* the plant's trace buffer (periods before the window) */
+    int32_t trace_cap;         /* trace rows one period may write */
+    double trace_dt;           /* [s], 0: no trace */
+    int32_t trace_columns;
+} nl_outputs_cfg_t;
+
+typedef struct {
+    nl_machine_cfg_t machine;
+    nl_operation_cfg_t operation;
+    nl_target_link_cfg_t target_link;
+    nl_timing_cfg_t timing;
+    nl_sensors_cfg_t sensors;
+    nl_outputs_cfg_t outputs;
+    double nan;                /* the NaN the Python loop writes (bit pattern kept) */
 } nl_config_t;
 
 /* One block of the ring. `trace` (rows x trace_columns doubles) is the caller's. */
@@ -234,7 +267,7 @@ typedef struct {
     int64_t late_max_ns;
     /* real time over a link: wall time of the synchronising period 0, from its start to its Command [ns] (-1: none) */
     int64_t sync_ns;
-    /* a shared bus (nl_config_t.shared_bus): frames of ids the target never sends (foreign), frames of its ids that
+    /* a shared bus (target_link.shared_bus): frames of ids the target never sends (foreign), frames of its ids that
      * cannot be its own (suspect: a Command for no open seq, a second reply, an implausible FaultTarget); those
      * since the last reply taken and the wall time since it [ns] (the start if none) */
     int64_t bus_foreign_frames, bus_suspect_frames, bus_silent_frames, bus_silent_ns;

@@ -56,31 +56,32 @@ int nl_encode_meas(const nl_config_t *c, uint16_t seq, const double *currents, d
 {
     int32_t i[6] = {0, 0, 0, 0, 0, 0};
     int32_t th, w, v;
-    const int legs = c->legs;
+    const int legs = c->machine.legs;
+    const nl_codec_cfg_t *codec = &c->target_link.codec;
     int j;
-    if (wrap_raw(theta_e, c->s_th, c->th_mod, &th) != 0) {
+    if (wrap_raw(theta_e, codec->s_th, codec->th_mod, &th) != 0) {
         *bad_field = 0;
         *bad_value = theta_e;
         return -1;
     }
     for (j = 0; j < legs; ++j) {
-        if (sat_raw(currents[j], c->s_i, c->i_min, c->i_max, &i[j]) != 0) {
+        if (sat_raw(currents[j], codec->s_i, codec->i_min, codec->i_max, &i[j]) != 0) {
             *bad_field = 1 + j;
             *bad_value = currents[j];
             return -1;
         }
     }
-    if (sat_raw(omega_m, c->s_w, c->w_min, c->w_max, &w) != 0) {
+    if (sat_raw(omega_m, codec->s_w, codec->w_min, codec->w_max, &w) != 0) {
         *bad_field = legs + 1;
         *bad_value = omega_m;
         return -1;
     }
-    if (sat_raw(c->vdc, c->s_v, c->v_min, c->v_max, &v) != 0) {
+    if (sat_raw(c->machine.vdc, codec->s_v, codec->v_min, codec->v_max, &v) != 0) {
         *bad_field = legs + 2;
-        *bad_value = c->vdc;
+        *bad_value = c->machine.vdc;
         return -1;
     }
-    if (c->meas_format == NL_MEAS_3 && c->fd) {
+    if (codec->meas_format == NL_MEAS_3 && codec->fd) {
         struct hil_protocol_meas_fd_t m;
         m.seq = seq;
         m.i_a = (int16_t)i[0];
@@ -93,7 +94,7 @@ int nl_encode_meas(const nl_config_t *c, uint16_t seq, const double *currents, d
         frame_init(&out[0], HIL_PROTOCOL_MEAS_FD_FRAME_ID, HIL_PROTOCOL_MEAS_FD_LENGTH, 1u);
         (void)hil_protocol_meas_fd_pack(out[0].data, &m, HIL_PROTOCOL_MEAS_FD_LENGTH);
         *n = 1;
-    } else if (c->meas_format == NL_MEAS_6 && c->fd) {
+    } else if (codec->meas_format == NL_MEAS_6 && codec->fd) {
         struct hil_protocol_meas_fd6_t m;
         m.seq = seq;
         m.i_a = (int16_t)i[0];
@@ -112,7 +113,7 @@ int nl_encode_meas(const nl_config_t *c, uint16_t seq, const double *currents, d
     } else {
         struct hil_protocol_meas_a_t a; /* Meas6A and Meas6C have this layout */
         struct hil_protocol_meas_b_t b; /* Meas6B too */
-        const int six = c->meas_format == NL_MEAS_6;
+        const int six = codec->meas_format == NL_MEAS_6;
         int k = 0;
         a.seq = seq;
         a.i_a = (int16_t)i[0];

@@ -35,7 +35,7 @@ int64_t nl_wait_until(int64_t deadline_ns, int64_t spin_ns)
     return now;
 }
 
-void nl_rt_setup(const nl_config_t *cfg, nl_result_t *r, nl_rt_saved_t *saved)
+void nl_rt_setup(const nl_timing_cfg_t *cfg, nl_result_t *r, nl_rt_saved_t *saved)
 {
     memset(saved, 0, sizeof *saved);
     if (cfg->lock_memory) {
@@ -110,7 +110,7 @@ void nl_rt_restore(const nl_rt_saved_t *saved)
 
 int32_t nl_gap_probe(int64_t duration_ns, int64_t gap_ns, int32_t cpu, int32_t rt_priority, nl_gap_probe_t *out)
 {
-    nl_config_t cfg;
+    nl_timing_cfg_t cfg;
     nl_result_t r;
     nl_rt_saved_t saved;
     int64_t last;

@@ -27,8 +27,8 @@ int64_t nl_now_ns(void);
  * the wait ended [ns]. */
 int64_t nl_wait_until(int64_t deadline_ns, int64_t spin_ns);
 
-/* Apply cfg's memory lock, priority and CPU to the calling thread; errno of each refused call into r. */
-void nl_rt_setup(const nl_config_t *cfg, nl_result_t *r, nl_rt_saved_t *saved);
+/* Apply the timing group's memory lock, priority and CPU to the calling thread; errno of each refused call into r. */
+void nl_rt_setup(const nl_timing_cfg_t *cfg, nl_result_t *r, nl_rt_saved_t *saved);
 
 /* What a bare busy loop sees on this machine: for duration_ns it reads CLOCK_MONOTONIC back to back (on `cpu`
  * if >= 0, at SCHED_FIFO `rt_priority` if > 0, memory locked) and counts the gaps between two reads longer than

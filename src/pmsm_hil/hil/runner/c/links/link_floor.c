@@ -164,7 +164,7 @@ int32_t nl_udp_paced_floor(int64_t n, int64_t period_ns, int32_t cpu, int32_t rt
     int64_t hist[RT_BINS];
     const uint8_t msg[PAYLOAD] = {0};
     uint8_t buf[PAYLOAD];
-    nl_config_t cfg;
+    nl_timing_cfg_t cfg;
     nl_result_t r;
     nl_rt_saved_t saved;
     int a;
