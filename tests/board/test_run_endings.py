@@ -48,7 +48,7 @@ def test_an_unmodelled_peripheral_in_a_period_ends_the_run_in_one_line_naming_it
     out = tmp_path / "run"
     reason = ending(hil_run(build_fw("pwm_adc", "UNMODELLED_AT=50"), out), out)
     assert reason.startswith("target stopped in period ")
-    assert "write of 0x40010004 (SYSCFG/VREFBUF/COMP/OPAMP, not modelled by the virtual board) at pc 0x080" in reason
+    assert "write of 0x40010200 (SYSCFG/VREFBUF/COMP/OPAMP, not modelled by the virtual board) at pc 0x080" in reason
     assert "(ADC1_2_IRQHandler+0x" in reason
 
 

@@ -40,6 +40,7 @@ from pmsm_hil.protocol.links.stats import LinkStats
 from pmsm_hil.protocol.messages import Command, ConfigAck, ConfigParam, Heartbeat, Measurement, Setpoint
 from pmsm_hil.sim_target.stm32g4.board import Board
 from pmsm_hil.sim_target.stm32g4.board_file import BoardDescription
+from pmsm_hil.sim_target.stm32g4.hall import HallSensors, attach_halls
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
 from pmsm_hil.sim_target.stm32g4.peripherals.fdcan import INIT as FDCAN_INIT
 from pmsm_hil.sim_target.stm32g4.peripherals.fdcan import Fdcan
@@ -91,6 +92,10 @@ class BoardLink:
         self._omega_m = 0.0
         self._period_start = 0
         self.hclk_hz = self.board.hclk_hz
+        #: the hall sensors of the board description on their GPIO pins (None: the board has none)
+        self.halls: HallSensors | None = None
+        if desc.hall is not None:
+            self.halls = attach_halls(self.board, desc.hall, self._trajectory)
         self.setpoints_dropped = 0
         self._heartbeats = 0
         self._idle_left = 0  # idle periods still to run for frames delivered outside a period
@@ -182,6 +187,12 @@ class BoardLink:
         dt = (now - self._period_start) / self.hclk_hz
         theta = self._theta_m + self._omega_m * dt
         return math.floor(theta / (2 * math.pi) * 4 * self.desc.encoder_lines)
+
+    def _trajectory(self, now: int) -> tuple[float, float]:
+        """The rotor's electrical angle at cycle `now` [rad] (unwrapped, advanced at the measured speed inside the
+        period, as the encoder's) and its electrical speed [rad per cycle]."""
+        rate = self.pole_pairs * self._omega_m / self.hclk_hz
+        return self.pole_pairs * self._theta_m + rate * (now - self._period_start), rate
 
     def _take(self, m: Measurement) -> None:
         """The Measurement as the board's inputs for the period."""

@@ -1,0 +1,122 @@
+"""Hall sensors on GPIO: the pins follow the rotor's electrical angle at the cycle the firmware reads them, EXTI
+takes each edge at its instant (SYSCFG EXTICR, RTSR1/FTSR1, IMR1, PR1, the EXTI9_5 line), the edge rate is
+6 · p · n / 60 and the sector sequence runs both ways; a bad [hall] field is one line naming it."""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+from pmsm_hil.protocol.codec import FrameCodec
+from pmsm_hil.protocol.messages import Measurement
+from pmsm_hil.sim_target.stm32g4.board_file import load_board
+from pmsm_hil.sim_target.stm32g4.hall import HallSensors
+from pmsm_hil.sim_target.stm32g4.link import BoardLink
+from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
+
+TS = 50e-6
+POLE_PAIRS = 4
+CODEC = FrameCodec("canfd")
+DEFAULT_BOARD = Path(__file__).parents[2] / "src/pmsm_hil/sim_target/stm32g4/boards/nucleo_g474re_ihm.toml"
+#: the 120° sector codes C<<2 | B<<1 | A for a rising electrical angle from the offset on
+FORWARD = (5, 1, 3, 2, 6, 4)
+
+
+def board_file(tmp_path: Path, hall: str) -> Path:
+    path = tmp_path / "hall_board.toml"
+    path.write_text(DEFAULT_BOARD.read_text() + "\n[hall]\n" + hall)
+    return path
+
+
+def run(link: BoardLink, rpm: float, periods: int, theta0: float) -> tuple[float, float]:
+    """Measurements at a constant speed: returns the electrical angle at the first and after the last period."""
+    omega_m = rpm * 2 * math.pi / 60
+    we = POLE_PAIRS * omega_m
+    for k in range(periods):
+        theta = (theta0 + we * k * TS) % (2 * math.pi)
+        link.send(CODEC.encode(Measurement(seq=k & 0xFFFF, i_a=0.0, i_b=0.0, i_c=0.0, theta_e=theta, omega_m=omega_m,
+                                           vdc=48.0)))
+        while link.poll() is not None:
+            pass
+    return theta0, theta0 + we * periods * TS
+
+
+def word(link: BoardLink, name: str) -> int:
+    address = link.board.symbol(name)
+    assert address is not None, name
+    return link.board.cpu.read_u32(address)
+
+
+def recorded(link: BoardLink, name: str, count: int, size: int) -> list[int]:
+    address = link.board.symbol(name)
+    assert address is not None, name
+    raw = link.board.read_memory(address, count * size)
+    return [int.from_bytes(raw[i * size:(i + 1) * size], "little") for i in range(count)]
+
+
+def crossings(theta_a: float, theta_b: float, offset: float) -> int:
+    """Hall edges (multiples of π/3 past the offset) the angle passes from theta_a to theta_b."""
+    step = math.pi / 3
+    lo, hi = sorted((theta_a - offset, theta_b - offset))
+    return math.floor(hi / step) - math.floor(lo / step)
+
+
+@pytest.mark.parametrize("rpm", [1500.0, -1500.0])
+def test_edges_follow_the_rotor_at_6_p_n_over_60_and_the_sectors_run_both_ways(
+        build_fw: Callable[..., Path], tmp_path: Path, rpm: float) -> None:
+    offset = 0.3
+    desc = load_board(board_file(tmp_path, f'pins = ["PB6", "PB7", "PB8"]\nspacing_deg = 120\noffset_rad = {offset}\n'))
+    link = BoardLink(build_fw("hall"), desc, ts_s=TS, pole_pairs=POLE_PAIRS)
+    periods = 2000  # 0.1 s: 60 edges at 1500 rpm and 4 pole pairs
+    theta0 = 0.05
+    first, last = run(link, rpm, periods, theta0)
+    edges = word(link, "edges")
+    # 6 · p · n / 60 edges per second over the run, within one edge
+    expected_rate = 6 * POLE_PAIRS * abs(rpm) / 60
+    assert abs(edges - expected_rate * periods * TS) <= 1
+    # exactly the edges the trajectory passes (the first Measurement moves the angle from 0 to theta0 before the
+    # firmware samples: edges from theta0 on)
+    assert edges == crossings(first, last, offset) == word(link, "codes_n")
+    codes = recorded(link, "codes", edges, 1)
+    order = FORWARD if rpm > 0 else tuple(reversed(FORWARD))
+    start = order.index(codes[0])
+    assert codes == [order[(start + i) % 6] for i in range(edges)]
+    # each edge at its instant: the handler's DWT stamps are π/3 of electrical angle apart, within a few cycles
+    stamps = recorded(link, "stamps", edges, 4)
+    hclk = link.hclk_hz
+    sector_cycles = (math.pi / 3) / (POLE_PAIRS * abs(rpm) * 2 * math.pi / 60) * hclk
+    gaps = [b - a for a, b in itertools.pairwise(stamps)]
+    assert all(abs(g - sector_cycles) < 64 for g in gaps), (sector_cycles, min(gaps), max(gaps))
+    assert link.board.isr[16 + 23].entries == edges
+
+
+def test_idr_reads_the_sector_at_the_instant_of_the_read(build_fw: Callable[..., Path], tmp_path: Path) -> None:
+    desc = load_board(board_file(tmp_path, 'pins = ["PB6", "PB7", "PB8"]\n'))
+    link = BoardLink(build_fw("hall"), desc, ts_s=TS, pole_pairs=POLE_PAIRS)
+    assert word(link, "first_code") == 5  # angle 0 at start-up: A and C high
+    halls = link.halls
+    assert isinstance(halls, HallSensors)
+    gpiob = link.board.peripherals["GPIOB"]
+    for sector, code in enumerate(FORWARD):
+        link._theta_m = (sector + 0.5) * math.pi / 3 / POLE_PAIRS  # the run side's angle
+        assert gpiob.read(0x10, 4, link.board.now) >> 6 & 7 == code == halls.code(link.board.now)
+
+
+@pytest.mark.parametrize(("hall", "field"), [
+    ('pins = ["PB6", "PB7"]\n', "'pins'"),
+    ('pins = ["PB6", "PB7", "PH8"]\n', "'pins'"),
+    ('pins = ["PB6", "PC6", "PB8"]\n', "'pins'"),
+    ('pins = ["PB6", "PB7", "PB8"]\nspacing_deg = 90\n', "'spacing_deg'"),
+    ('pins = ["PB6", "PB7", "PB8"]\noffset_rad = "east"\n', "'offset_rad'"),
+    ('pins = ["PB6", "PB7", "PB8"]\nofset_rad = 0.1\n', "'ofset_rad'"),
+    ('spacing_deg = 120\n', "missing 'pins'"),
+])
+def test_a_bad_hall_field_is_one_line_naming_it(tmp_path: Path, hall: str, field: str) -> None:
+    with pytest.raises(BoardError) as info:
+        load_board(board_file(tmp_path, hall))
+    text = str(info.value)
+    assert "[hall]" in text and field in text and "\n" not in text
