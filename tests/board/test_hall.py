@@ -17,6 +17,9 @@ from pmsm_hil.sim_target.stm32g4.board_file import load_board
 from pmsm_hil.sim_target.stm32g4.hall import HallSensors
 from pmsm_hil.sim_target.stm32g4.link import BoardLink
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
+from pmsm_hil.sim_target.stm32g4.peripherals.exti import Exti
+from pmsm_hil.sim_target.stm32g4.peripherals.gpio import GpioPort
+from tests.board.fake_bus import FakeBus
 
 TS = 50e-6
 POLE_PAIRS = 4
@@ -120,3 +123,53 @@ def test_a_bad_hall_field_is_one_line_naming_it(tmp_path: Path, hall: str, field
         load_board(board_file(tmp_path, hall))
     text = str(info.value)
     assert "[hall]" in text and field in text and "\n" not in text
+
+
+class StepDriver:
+    """Input pins that change at given cycles: `changes` [(cycle, levels)] in time order."""
+
+    def __init__(self, changes: list[tuple[int, int]]) -> None:
+        self.changes = changes
+
+    def levels(self, port: str, now: int) -> int:
+        value = 0
+        for at, levels in self.changes:
+            if at <= now:
+                value = levels
+        return value
+
+    def next_change(self, port: str, mask: int, now: int) -> int | None:
+        current = self.levels(port, now)
+        return next((at for at, levels in self.changes if at > now and (levels ^ current) & mask), None)
+
+
+def test_exti_edges_flags_mask_software_trigger_and_port_selection(bus: FakeBus) -> None:
+    for name in ("SYSCFG", "GPIOB", "GPIOC"):
+        bus.add(name)
+    exti = bus.add_model("EXTI", Exti)
+    gpiob = bus.models["GPIOB"]
+    assert isinstance(gpiob, GpioPort)
+    pin7 = 1 << 7
+    gpiob.drive(StepDriver([(100, pin7), (200, 0), (300, pin7)]), pin7)
+    syscfg = bus.models["SYSCFG"]
+    syscfg.write(0x0C, 4, 1 << 12, 0)              # EXTICR2: EXTI7 on port B
+    exti.write(0x08, 4, pin7, 0)                   # RTSR1: rising only, IMR1 still masked
+    assert exti.next_event(0) == 100
+    exti.advance(100)
+    assert exti.read(0x14, 4, 100) == pin7 and bus.pended == []  # PR1 set, no interrupt while masked
+    exti.write(0x00, 4, 0xFF82_0000 | pin7, 110)   # IMR1: the pending flag asserts EXTI9_5 now
+    assert bus.pended == [23]
+    exti.write(0x14, 4, pin7, 120)                 # PR1 write 1 to clear: the line is withdrawn
+    assert exti.read(0x14, 4, 120) == 0 and bus.cleared == [23]
+    exti.advance(200)                              # a falling edge, not selected
+    assert exti.read(0x14, 4, 200) == 0
+    assert exti.next_event(200) == 300
+    exti.advance(300)
+    assert exti.read(0x14, 4, 300) == pin7 and bus.pended == [23, 23] and exti.edges[7] == 2
+    exti.write(0x14, 4, pin7, 310)
+    exti.write(0x10, 4, 1 << 3, 320)               # SWIER1 sets PR1 (line 3, masked: no interrupt)
+    assert exti.read(0x14, 4, 320) == 1 << 3
+    syscfg.write(0x0C, 4, 2 << 12, 330)            # EXTI7 to port C (pin low): the switch is no edge
+    assert exti.next_event(330) is None and exti.read(0x14, 4, 330) == 1 << 3
+    with pytest.raises(BoardError, match=r"SYSCFG EXTICR1: EXTI2 = 9 selects no GPIO port"):
+        syscfg.write(0x08, 4, 9 << 8, 340)

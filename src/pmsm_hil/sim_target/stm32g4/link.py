@@ -61,7 +61,8 @@ class BoardLink:
     """The host's link to a firmware running on the virtual board (implements the Link protocol)."""
 
     def __init__(self, elf: str | Path, desc: BoardDescription, *, ts_s: float, pole_pairs: int,
-                 skip_periods: int = 0, console: Any = None, psi_f_wb: float = 0.0, vdc_v: float = 0.0) -> None:
+                 skip_periods: int = 0, console: Any = None, psi_f_wb: float = 0.0, vdc_v: float = 0.0,
+                 can_bitrates: tuple[int | None, int | None] = (None, None)) -> None:
         self.stats = LinkStats()
         self.fd = True
         self.desc = desc
@@ -110,6 +111,8 @@ class BoardLink:
         self.late_first_period: int | None = None
         fdcan = self.board.peripherals.get("FDCAN1")
         self.fdcan = fdcan if isinstance(fdcan, Fdcan) else None
+        if self.fdcan is not None:  # checked against the firmware's bit timing when it joins the bus
+            self.fdcan.link_bitrates = can_bitrates
         self._bus_on = False
         self.closed = False
         self.wall_s = 0.0
