@@ -100,6 +100,9 @@ class BoardLink:
         self.setpoints_dropped = 0
         self._heartbeats = 0
         self._idle_left = 0  # idle periods still to run for frames delivered outside a period
+        #: host frames on the firmware's bus: (cycle at which FDCAN1 has received it, frame), in bus order
+        self._on_bus: deque[tuple[int, can.Message]] = deque()
+        self._bus_free = 0  # the cycle at which the last host frame leaves the bus
         self.idle_periods = 0
         self.configs_acked = 0
         self.periods = 0
@@ -218,7 +221,7 @@ class BoardLink:
         late0 = tim.late_writes
         entries0 = sum(st.entries for st in board.isr.values())
         end = self._period_start + self.period_cycles
-        board.run_until(end)
+        self._run_to(end)
         self._period_start = end
         isr = board.handler_cycles - isr0
         self.sleep_cycles.append(board.sleep_cycles - sleep0)
@@ -346,10 +349,11 @@ class BoardLink:
                     raise self.boot_error
                 self._idle_left = 0
                 self._reply(self._period(msg))
-            elif bus is not None:
-                bus.deliver(can.Message(arbitration_id=frame.arbitration_id, data=frame.data, is_fd=frame.is_fd,
-                                        bitrate_switch=frame.is_fd, is_extended_id=frame.arbitration_id > 0x7FF),
-                            self.board.now)
+            elif bus is not None:  # on the bus one after the other, received at the end of its bus time
+                message = can.Message(arbitration_id=frame.arbitration_id, data=frame.data, is_fd=frame.is_fd,
+                                      bitrate_switch=frame.is_fd, is_extended_id=frame.arbitration_id > 0x7FF)
+                self._bus_free = max(self._bus_free, self.board.now) + bus.frame_cycles(message)
+                self._on_bus.append((self._bus_free, message))
                 self._idle_left = IDLE_PERIODS
             elif isinstance(msg, ConfigParam):
                 self.configs_acked += 1
@@ -369,14 +373,28 @@ class BoardLink:
     def _idle_period(self) -> None:
         """A frame reached the firmware outside a control period (configuration, the safe stop): one period of the
         firmware with the last inputs held, so that it can answer (the host's plant is not advancing then)."""
-        self._idle_left -= 1
+        self._idle_left = max(self._idle_left - 1, 0)
         end = self._period_start + self.period_cycles
-        self.board.run_until(end)
+        if self._run_to(end):
+            self._idle_left = IDLE_PERIODS  # from each frame's arrival
         self._period_start = end
         self.idle_periods += 1
         self._collect()
         if self._rx:
             self._idle_left = 0
+
+    def _run_to(self, end: int) -> bool:
+        """Run the firmware until cycle `end`, FDCAN1 receiving the host's frames on the bus as their bus time ends;
+        whether a frame arrived."""
+        arrived = False
+        fdcan = self.fdcan
+        while self._on_bus and self._on_bus[0][0] <= end and fdcan is not None:
+            at, message = self._on_bus.popleft()
+            self.board.run_until(at)
+            fdcan.deliver(message, self.board.now)
+            arrived = True
+        self.board.run_until(end)
+        return arrived
 
     def _setpoint(self, sp: Setpoint) -> None:
         """Without a bus the firmware never sees a Setpoint: the board stands in for the gate driver's enable line.
@@ -394,7 +412,7 @@ class BoardLink:
             self._rx.append(frame)
 
     def poll(self) -> Frame | None:
-        if not self._rx and self._idle_left > 0:
+        if not self._rx and (self._idle_left > 0 or self._on_bus):
             self._idle_period()
         if self._rx:
             self.stats.frames_rx += 1
