@@ -103,6 +103,9 @@ class BoardLink:
         #: host frames on the firmware's bus: (cycle at which FDCAN1 has received it, frame), in bus order
         self._on_bus: deque[tuple[int, can.Message]] = deque()
         self._bus_free = 0  # the cycle at which the last host frame leaves the bus
+        #: idle periods the firmware may still get to finish sending its answer to host frames a Measurement
+        #: period delivered (while FDCAN1 has a transmission requested or on the bus)
+        self._answer_left = 0
         self.idle_periods = 0
         self.configs_acked = 0
         self.periods = 0
@@ -221,6 +224,7 @@ class BoardLink:
         late0 = tim.late_writes
         entries0 = sum(st.entries for st in board.isr.values())
         end = self._period_start + self.period_cycles
+        self._deliver_queued()
         self._run_to(end)
         self._period_start = end
         isr = board.handler_cycles - isr0
@@ -348,6 +352,7 @@ class BoardLink:
                 if self.boot_error is not None:
                     raise self.boot_error
                 self._idle_left = 0
+                self._answer_left = 0
                 self._reply(self._period(msg))
             elif bus is not None:  # on the bus one after the other, received at the end of its bus time
                 message = can.Message(arbitration_id=frame.arbitration_id, data=frame.data, is_fd=frame.is_fd,
@@ -374,6 +379,7 @@ class BoardLink:
         """A frame reached the firmware outside a control period (configuration, the safe stop): one period of the
         firmware with the last inputs held, so that it can answer (the host's plant is not advancing then)."""
         self._idle_left = max(self._idle_left - 1, 0)
+        self._answer_left = max(self._answer_left - 1, 0)
         end = self._period_start + self.period_cycles
         if self._run_to(end):
             self._idle_left = IDLE_PERIODS  # from each frame's arrival
@@ -381,7 +387,22 @@ class BoardLink:
         self.idle_periods += 1
         self._collect()
         if self._rx:
-            self._idle_left = 0
+            self._idle_left = self._answer_left = 0
+
+    def _sending(self) -> bool:
+        """FDCAN1 has a transmission requested or on the bus."""
+        fdcan = self.fdcan
+        return fdcan is not None and (fdcan.in_flight is not None or fdcan.txbrp != 0)
+
+    def _deliver_queued(self) -> None:
+        """A Measurement does not wait for the bus (it reaches the board's inputs, not FDCAN1): the host frames
+        sent before it, still on the bus, are received now, in their order, so that the firmware takes them first
+        as it would behind them on a real bus."""
+        fdcan = self.fdcan
+        while self._on_bus and fdcan is not None:
+            fdcan.deliver(self._on_bus.popleft()[1], self.board.now)
+            self._answer_left = IDLE_PERIODS
+        self._bus_free = min(self._bus_free, self.board.now)
 
     def _run_to(self, end: int) -> bool:
         """Run the firmware until cycle `end`, FDCAN1 receiving the host's frames on the bus as their bus time ends;
@@ -412,7 +433,7 @@ class BoardLink:
             self._rx.append(frame)
 
     def poll(self) -> Frame | None:
-        if not self._rx and (self._idle_left > 0 or self._on_bus):
+        if not self._rx and (self._idle_left > 0 or self._on_bus or (self._answer_left > 0 and self._sending())):
             self._idle_period()
         if self._rx:
             self.stats.frames_rx += 1
