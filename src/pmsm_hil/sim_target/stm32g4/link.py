@@ -16,8 +16,10 @@ counts, and refuses a different --ts naming both. ConfigParams are acknowledged 
 behalf while the firmware has not taken FDCAN1 out of initialisation (CCCR.INIT never cleared: it has no bus then;
 enabling Setpoints are counted and dropped, a disabling one trips TIM1's break input as a gate driver's enable line
 would, and the board confirms it); once it has, the frames go to its FDCAN1 model and its own answers come back
-(python-can Messages on the model's side); a frame that arrives outside a control period (configuration, the safe
-stop) is answered in idle periods of the firmware with the last inputs held (at most IDLE_PERIODS per frame).
+(python-can Messages on the model's side), one after the other at the end of their bus time at the firmware's bit
+rates; a frame that arrives outside a control period (configuration, the safe stop) is answered in idle periods of
+the firmware with the last inputs held (at most IDLE_PERIODS per frame). A Measurement does not wait for the bus:
+host frames still on it are received at the start of its period.
 """
 
 from __future__ import annotations
