@@ -173,3 +173,25 @@ def test_exti_edges_flags_mask_software_trigger_and_port_selection(bus: FakeBus)
     assert exti.next_event(330) is None and exti.read(0x14, 4, 330) == 1 << 3
     with pytest.raises(BoardError, match=r"SYSCFG EXTICR1: EXTI2 = 9 selects no GPIO port"):
         syscfg.write(0x08, 4, 9 << 8, 340)
+
+
+@pytest.mark.parametrize(("spacing", "codes"), [(120, FORWARD), (60, (1, 3, 7, 6, 4, 0))])
+def test_the_placement_sets_the_sector_codes_and_the_next_edge(spacing: int, codes: tuple[int, ...]) -> None:
+    """Sensor k high while θe - offset - k·spacing is in [0, π): six codes per electrical turn, the next edge at the
+    next multiple of π/3 (exact to the cycle)."""
+    from pmsm_hil.sim_target.stm32g4.board_file import HallInputs
+
+    rate = 1e-4  # [rad per cycle]
+    angle = [0.0]
+    halls = HallSensors(HallInputs((("B", 6), ("B", 7), ("B", 8)), spacing, 0.2),
+                        lambda now: (angle[0] + rate * now, rate))
+    start = 0.2 + math.pi / 6  # the middle of the first sector
+    seen = []
+    for sector in range(6):
+        angle[0] = start + sector * math.pi / 3
+        seen.append(halls.code(0))
+    assert tuple(seen) == codes
+    angle[0] = start
+    edge = halls.next_change("B", 0x1C0, 0)
+    assert edge == math.ceil((math.pi / 6) / rate)  # π/6 to the sector's end
+    assert halls.code(edge) != halls.code(edge - 1) and halls.code(edge - 1) == codes[0]
