@@ -195,3 +195,25 @@ def test_the_placement_sets_the_sector_codes_and_the_next_edge(spacing: int, cod
     edge = halls.next_change("B", 0x1C0, 0)
     assert edge == math.ceil((math.pi / 6) / rate)  # π/6 to the sector's end
     assert halls.code(edge) != halls.code(edge - 1) and halls.code(edge - 1) == codes[0]
+
+
+def test_the_timer_hall_interface_captures_the_time_between_edges(build_fw: Callable[..., Path],
+                                                                   tmp_path: Path) -> None:
+    """TIM4 with CR2.TI1S, reset mode on TI1F_ED and CC1 on TRC: each hall edge captures the 1 MHz count since the
+    previous one into CCR1 (a sector's time at 1500 rpm and 4 pole pairs: 1666.7 µs) and restarts the counter."""
+    desc = load_board(board_file(tmp_path, 'pins = ["PB6", "PB7", "PB8"]\ntimer = "TIM4"\n'))
+    link = BoardLink(build_fw("hall_tim"), desc, ts_s=TS, pole_pairs=POLE_PAIRS)
+    first, last = run(link, 1500.0, 600, 0.05)
+    count = word(link, "captures_n")
+    assert count == crossings(first, last, 0.0) >= 15
+    captures = recorded(link, "captures", count, 4)
+    assert all(c in (1666, 1667) for c in captures[1:]), captures  # the first: from the timer's start
+    timer = link.board.peripherals["TIM4"]
+    assert timer.hall_captures == count  # type: ignore[attr-defined]
+
+
+def test_reset_mode_without_hall_sensors_on_the_timer_is_named(build_fw: Callable[..., Path]) -> None:
+    link = BoardLink(build_fw("hall_tim"), load_board(), ts_s=TS, pole_pairs=POLE_PAIRS)
+    error = str(link.boot_error)  # the start-up stopped there: the run's first Measurement ends it (exit 3)
+    assert error.startswith("TIM4.SMCR: reset mode on TI1F_ED (the hall interface), but the board description wires "
+                            "no hall sensors to TIM4 ([hall] timer), at pc 0x080")

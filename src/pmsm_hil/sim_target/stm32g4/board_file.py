@@ -48,6 +48,8 @@ class HallInputs:
     pins: tuple[tuple[str, int], tuple[str, int], tuple[str, int]]
     spacing_deg: int
     offset_rad: float
+    #: the general-purpose timer whose CH1-CH3 the sensors also feed (its hall interface, CR2.TI1S), or None
+    timer: str | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -142,7 +144,8 @@ def load_board(spec: str | Path | None = None) -> BoardDescription:
 
 
 def _hall(table: Any, where: str) -> HallInputs:
-    """The `[hall]` table: pins = ["PB6", "PB7", "PB8"] (A, B, C), spacing_deg = 120 or 60, offset_rad."""
+    """The `[hall]` table: pins = ["PB6", "PB7", "PB8"] (A, B, C), spacing_deg = 120 or 60, offset_rad, and
+    optionally timer = "TIM3" or "TIM4" (the timer whose CH1-CH3 they feed)."""
     if not isinstance(table, dict):
         raise BoardError(f"{where}: must be a table (pins, spacing_deg, offset_rad)")
     names = _field(table, "pins", list, where)
@@ -165,7 +168,11 @@ def _hall(table: Any, where: str) -> HallInputs:
     offset = table.get("offset_rad", 0.0)
     if isinstance(offset, bool) or not isinstance(offset, (int, float)) or not math.isfinite(offset):
         raise BoardError(f"{where}: 'offset_rad' = {offset!r}: a finite electrical angle [rad]")
-    unknown = sorted(set(table) - {"pins", "spacing_deg", "offset_rad"})
+    timer = table.get("timer")
+    if timer is not None and timer not in ENCODER_TIMERS:
+        raise BoardError(f"{where}: 'timer' = {timer!r} (one of {', '.join(ENCODER_TIMERS)}: the timer whose CH1-CH3 "
+                         "the sensors feed)")
+    unknown = sorted(set(table) - {"pins", "spacing_deg", "offset_rad", "timer"})
     if unknown:
-        raise BoardError(f"{where}: unknown field '{unknown[0]}' (pins, spacing_deg, offset_rad)")
-    return HallInputs((pins[0], pins[1], pins[2]), int(spacing), float(offset))
+        raise BoardError(f"{where}: unknown field '{unknown[0]}' (pins, spacing_deg, offset_rad, timer)")
+    return HallInputs((pins[0], pins[1], pins[2]), int(spacing), float(offset), timer)

@@ -14,6 +14,7 @@ from collections.abc import Callable
 from pmsm_hil.sim_target.stm32g4.board_file import HallInputs
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardBus, BoardError
 from pmsm_hil.sim_target.stm32g4.peripherals.gpio import GpioPort
+from pmsm_hil.sim_target.stm32g4.peripherals.tim_gp import GeneralTimer
 
 TWO_PI = 2 * math.pi
 #: cycles looked past an edge computed in floating point before giving up on it (rounding at the crossing)
@@ -71,6 +72,12 @@ class HallSensors:
                 best = at
         return best
 
+    def next_edge(self, now: int) -> int | None:
+        """The first cycle after `now` at which any sensor changes level (a timer's hall interface)."""
+        edges = [self.next_change(port, self.port_mask(port), now) for port in sorted({p for p, _, _ in self.sensors})]
+        due = [at for at in edges if at is not None]
+        return min(due) if due else None
+
     def _crossing(self, now: int, cycles: float, theta: float, position: float) -> int:
         """The first whole cycle after `now` at which the sensor at `position` reads otherwise than at `now`,
         `cycles` the exact distance in floating point."""
@@ -90,4 +97,9 @@ def attach_halls(board: BoardBus, desc: HallInputs, trajectory: Trajectory) -> H
         if not isinstance(port, GpioPort):
             raise BoardError(f"board [hall]: GPIO{letter} is not modelled on this part")
         port.drive(halls, halls.port_mask(letter))
+    if desc.timer is not None:
+        timer = board.peripheral(desc.timer)
+        if not isinstance(timer, GeneralTimer):
+            raise BoardError(f"board [hall]: 'timer' = {desc.timer!r} is not modelled on this part")
+        timer.hall_inputs = halls
     return halls
