@@ -217,3 +217,20 @@ def test_reset_mode_without_hall_sensors_on_the_timer_is_named(build_fw: Callabl
     error = str(link.boot_error)  # the start-up stopped there: the run's first Measurement ends it (exit 3)
     assert error.startswith("TIM4.SMCR: reset mode on TI1F_ED (the hall interface), but the board description wires "
                             "no hall sensors to TIM4 ([hall] timer), at pc 0x080")
+
+
+def test_the_halls_hold_the_angle_in_idle_periods(build_fw: Callable[..., Path], tmp_path: Path) -> None:
+    """Idle periods (frames outside a control period) hold the hall levels where the last period left the rotor:
+    no edge back and forth; the next Measurement at the angle it left goes on without a spurious edge."""
+    from pmsm_hil.protocol.messages import ConfigParam
+
+    desc = load_board(board_file(tmp_path, 'pins = ["PB6", "PB7", "PB8"]\n'))
+    link = BoardLink(build_fw("hall"), desc, ts_s=TS, pole_pairs=POLE_PAIRS)
+    first, last = run(link, 1500.0, 300, 0.05)
+    edges = word(link, "edges")
+    link.send(CODEC.encode(ConfigParam(param_id=3, value=1.0)))  # no bus: acked by the board, no idle period
+    for _ in range(10):
+        link._idle_period()  # the periods a frame outside the control periods would get
+    assert link.idle_periods == 10 and word(link, "edges") == edges
+    assert link._trajectory(link.board.now)[0] == pytest.approx(last, abs=1e-4)  # the wire's angle resolution
+    assert edges == crossings(first, last, 0.0)

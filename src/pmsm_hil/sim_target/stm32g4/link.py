@@ -97,6 +97,8 @@ class BoardLink:
         self.hclk_hz = self.board.hclk_hz
         #: the hall sensors of the board description on their GPIO pins (None: the board has none)
         self.halls: HallSensors | None = None
+        #: the electrical angle the hall sensors hold in idle periods (the plant does not advance then) [rad]
+        self._hall_held: float | None = None
         if desc.hall is not None:
             self.halls = attach_halls(self.board, desc.hall, self._trajectory)
         self.setpoints_dropped = 0
@@ -202,12 +204,15 @@ class BoardLink:
     def _trajectory(self, now: int) -> tuple[float, float]:
         """The rotor's electrical angle at cycle `now` [rad] (unwrapped, advanced at the measured speed inside the
         period, as the encoder's) and its electrical speed [rad per cycle]."""
+        if self._hall_held is not None:
+            return self._hall_held, 0.0
         rate = self.pole_pairs * self._omega_m / self.hclk_hz
         return self.pole_pairs * self._theta_m + rate * (now - self._period_start), rate
 
     def _take(self, m: Measurement) -> None:
         """The Measurement as the board's inputs for the period."""
         signals = {"i_a": m.i_a, "i_b": m.i_b, "i_c": m.i_c, "vdc": m.vdc}
+        self._hall_held = None
         for a in self.desc.analog:
             self._volts[(a.adc, a.channel)] = a.offset_v + a.gain * signals[a.signal]
         if self._theta_e is not None:
@@ -382,6 +387,8 @@ class BoardLink:
         firmware with the last inputs held, so that it can answer (the host's plant is not advancing then)."""
         self._idle_left = max(self._idle_left - 1, 0)
         self._answer_left = max(self._answer_left - 1, 0)
+        if self._hall_held is None:  # the rotor where the last period left it, until the next Measurement
+            self._hall_held = self.pole_pairs * (self._theta_m + self._omega_m * self.period_cycles / self.hclk_hz)
         end = self._period_start + self.period_cycles
         if self._run_to(end):
             self._idle_left = IDLE_PERIODS  # from each frame's arrival
