@@ -107,6 +107,7 @@ class BoardLink:
         #: host frames on the firmware's bus: (cycle at which FDCAN1 has received it, frame), in bus order
         self._on_bus: deque[tuple[int, can.Message]] = deque()
         self._bus_free = 0  # the cycle at which the last host frame leaves the bus
+        self._last_arrival = 0  # the cycle at which FDCAN1 received the last host frame
         #: idle periods the firmware may still get to finish sending its answer to host frames a Measurement
         #: period delivered (while FDCAN1 has a transmission requested or on the bus)
         self._answer_left = 0
@@ -375,12 +376,17 @@ class BoardLink:
         self._collect()
         self.wall_s += time.perf_counter() - t0
 
-    def _collect(self) -> None:
-        """The frames the firmware sent on FDCAN1, into the host's queue."""
+    def _collect(self) -> bool:
+        """The frames the firmware sent on FDCAN1, into the host's queue; whether one of them started after the
+        last host frame arrived (an answer to it, not a frame sent before)."""
         bus = self.bus
+        answered = False
         if bus is not None:
             for m in bus.take_transmitted():
                 self._rx.append(Frame(int(m.arbitration_id), bytes(m.data), bool(m.is_fd)))
+                start = round(float(m.timestamp) * self.board.sysclk_hz) - bus.frame_cycles(m)
+                answered = answered or start >= self._last_arrival
+        return answered
 
     def _idle_period(self) -> None:
         """A frame reached the firmware outside a control period (configuration, the safe stop): one period of the
@@ -394,8 +400,7 @@ class BoardLink:
             self._idle_left = IDLE_PERIODS  # from each frame's arrival
         self._period_start = end
         self.idle_periods += 1
-        self._collect()
-        if self._rx:
+        if self._collect() and not self._on_bus and not self._sending():  # the firmware answered the last frame
             self._idle_left = self._answer_left = 0
 
     def _sending(self) -> bool:
@@ -410,6 +415,7 @@ class BoardLink:
         fdcan = self.fdcan
         while self._on_bus and fdcan is not None:
             fdcan.deliver(self._on_bus.popleft()[1], self.board.now)
+            self._last_arrival = self.board.now
             self._answer_left = IDLE_PERIODS
         self._bus_free = min(self._bus_free, self.board.now)
 
@@ -422,6 +428,7 @@ class BoardLink:
             at, message = self._on_bus.popleft()
             self.board.run_until(at)
             fdcan.deliver(message, self.board.now)
+            self._last_arrival = self.board.now
             arrived = True
         self.board.run_until(end)
         return arrived
