@@ -132,3 +132,26 @@ def test_the_python_reference_loop_applies_the_same_first_period(tmp_path: Path)
     assert native[0]["n_duties"] == python[0]["n_duties"] == 3
     for name in ("duties", "i_a", "i_b", "i_c", "torque"):
         assert np.array_equal(native[name], python[name], equal_nan=True), name
+
+
+def test_the_example_firmware_confirms_the_safe_stop_at_its_bus_rate(tmp_path: Path) -> None:
+    """The example firmware at its true 500 kbit/s (FDCAN1 on the HSE): a controller it does not implement gets a
+    FaultTarget, and the safe stop's disabling Setpoint a FaultTarget then the HeartbeatTarget idle — the board
+    runs idle periods until both have left the bus."""
+    from pmsm_hil.sim_target.fw_build import build_firmware, missing_tools
+
+    missing = missing_tools("stm32g474")
+    if missing:
+        pytest.skip(f"firmware board stm32g474: {', '.join(missing)} not installed")
+    elf = build_firmware("stm32g474").path
+    board = Path(__file__).resolve().parents[2] / "examples" / "stm32g4_foc" / "board.toml"
+    out = tmp_path / "run"
+    proc = subprocess.run([sys.executable, "-m", "pmsm_hil.app.cli.main", "run", "--target", f"stm32g4:{elf}",
+                           "--board", str(board), "--ts", str(TS), "--motor", "niu2020-ipmsm", "--speed", "1500",
+                           "--load", "7", "--duration", "0.002", "--settle", "0.001", "--out", str(out)],
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 3, proc.stderr[-2000:]
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["end_reason"].startswith("target fault code 6 (detail 1)")
+    assert metrics["safe_stop_confirmed"] is True
+    assert metrics["safe_stop_observed"] == "HeartbeatTarget state idle"
