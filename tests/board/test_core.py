@@ -80,8 +80,8 @@ def test_an_unmodelled_peripheral_is_one_line_naming_address_and_function(build_
     with pytest.raises(BoardError) as info:
         board.run_until(1_000_000)
     text = str(info.value)
-    assert "write of 0x40010004 (SYSCFG/VREFBUF/COMP/OPAMP, not modelled by the virtual board)" in text
-    assert "touch_syscfg" in text
+    assert "write of 0x40010200 (SYSCFG/VREFBUF/COMP/OPAMP, not modelled by the virtual board)" in text
+    assert "touch_comp" in text
     assert "\n" not in text
 
 

@@ -2,7 +2,7 @@
  * preloaded PWM mode 1, OC4REF (PWM mode 2, CCR4 = 4240) as TRGO2 triggering ADC1's injected pair (IN1, IN2) on
  * its rising edge near the carrier peak; the JEOS interrupt stores the results and writes CCR1 = its own count
  * (LATE: after a delay longer than the rest of the period; FAULT_AT: reads nothing in that period; UNMODELLED_AT:
- * writes SYSCFG in that period; BREAK: the break input enabled, active low, its interrupt counting the breaks and
+ * writes COMP1_CSR in that period; BREAK: the break input enabled, active low, its interrupt counting the breaks and
  * clearing BIF). TIM3 in encoder mode x4. */
 #include "regs.h"
 #define ARR_VALUE 4250u
@@ -27,7 +27,7 @@ void ADC1_2_IRQHandler(void) {
   if (isr_count == FAULT_AT) { sink = REG(0x9F000000u); } /* a precise BusFault inside the current loop */
 #endif
 #ifdef UNMODELLED_AT
-  if (isr_count == UNMODELLED_AT) { REG(0x40010004u) = 1u; } /* SYSCFG, which the board does not model */
+  if (isr_count == UNMODELLED_AT) { REG(0x40010200u) = 1u; } /* COMP1_CSR, which the board does not model */
 #endif
 #ifdef LATE
   for (volatile uint32_t i = 0; i < 1000u; ++i) { }

@@ -48,6 +48,26 @@ QEMU_MAILBOX_LINK = "mailbox:qemu-psram"
 #: the link spec of an stm32g4 target: the board's FDCAN1 in this process (parsed as a CAN FD link, never opened)
 BOARD_LINK = "virtual:stm32g4-fdcan1,fd=true"
 
+#: the options --link may give a stm32g4 target: the CAN bit rates its FDCAN1 must use [bit/s]
+BOARD_LINK_RATES = ("bitrate", "data_bitrate")
+
+
+def _board_link(link: str) -> str:
+    """The link of a stm32g4 target (its own FDCAN1) for --link `link`: "virtual" (the default), or "virtual" with
+    the bit rates the firmware's FDCAN1 must use (`virtual,bitrate=1000000,data_bitrate=5000000`)."""
+    refusal = (f"--target stm32g4:... is its own link (the board in this process; leave --link out, or state the "
+               f"bit rates its FDCAN1 must use: --link virtual,bitrate=N,data_bitrate=M), got --link {link!r}")
+    if link == BOARD_LINK:
+        return link
+    try:
+        spec = parse_spec(link)
+    except LinkSpecError as exc:
+        raise ParameterError(f"--link: {exc}", key="link") from None
+    if spec.kind != "virtual" or spec.channel is not None or set(spec.options) - set(BOARD_LINK_RATES):
+        raise ParameterError(refusal, key="link")
+    return BOARD_LINK + "".join(f",{key}={spec.options[key]}" for key in BOARD_LINK_RATES if key in spec.options)
+
+
 #: The paper limits the starting torque to ~10 N·m for its 7 N·m machine: 10/7 of rated.
 TORQUE_LIMIT_PER_RATED = 10.0 / 7.0
 
@@ -251,10 +271,7 @@ class RunConfig:
                     raise ParameterError("--target qemu:... runs lockstep only (the emulated MCU keeps virtual "
                                          "time, not wall time)", key="mode")
             if prefix == "stm32g4:":
-                if self.link not in ("virtual", BOARD_LINK):
-                    raise ParameterError(f"--target stm32g4:... is its own link (the board in this process; leave "
-                                         f"--link out), got --link {self.link!r}", key="link")
-                object.__setattr__(self, "link", BOARD_LINK)
+                object.__setattr__(self, "link", _board_link(self.link))
                 if self.mode != "lockstep":
                     raise ParameterError("--target stm32g4:... runs lockstep only (the virtual board keeps virtual "
                                          "time, not wall time)", key="mode")

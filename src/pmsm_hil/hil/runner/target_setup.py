@@ -431,13 +431,23 @@ def _connect_board(cfg: RunConfig, path: str) -> TargetConnection:
         return _connect_core_image(cfg, elf, console, lines)
     link = BoardLink(elf, load_board(cfg.board), ts_s=cfg.ts_s, pole_pairs=int(cfg.motor.pole_pairs),
                      psi_f_wb=float(getattr(cfg.motor, "psi_f", 0.0)), vdc_v=float(cfg.motor.vdc),
-                     skip_periods=round(cfg.scenario.settle_s / cfg.ts_s),
+                     skip_periods=round(cfg.scenario.settle_s / cfg.ts_s), can_bitrates=_link_bitrates(cfg),
                      console=lambda source, line: lines.append(f"{source}: {line}"))
     codec = FrameCodec("canfd")
     return TargetConnection(TargetClient(link, codec), link, extra_metrics=link.metrics, console=console,
                             ending=lambda out: judge_board(link, out),
                             before_close=lambda: console.feed("\n".join(lines)), first_duties=link.first_duties,
                             outputs_off=link.outputs_off, board_records=BoardLog(link, cfg.ts_s).take)
+
+
+def _link_bitrates(cfg: RunConfig) -> tuple[int | None, int | None]:
+    """The CAN bit rates the run's --link states (`bitrate=`, `data_bitrate=` [bit/s]; None where not stated): a
+    firmware on the virtual board whose FDCAN1 bit timing differs ends the run naming NBTP/DBTP."""
+    from pmsm_hil.protocol.links.spec import parse_spec
+
+    options = parse_spec(cfg.link).options
+    nominal, data = options.get("bitrate"), options.get("data_bitrate")
+    return (nominal if isinstance(nominal, int) else None, data if isinstance(data, int) else None)
 
 
 def _connect_core_image(cfg: RunConfig, elf: Path, console: TargetConsole, lines: list[str]) -> TargetConnection:
@@ -447,7 +457,7 @@ def _connect_core_image(cfg: RunConfig, elf: Path, console: TargetConsole, lines
     from pmsm_hil.sim_target.stm32g4.frame_link import FrameBoardLink
 
     link = FrameBoardLink(elf, load_board(cfg.board), ts_s=cfg.ts_s,
-                          skip_periods=round(cfg.scenario.settle_s / cfg.ts_s),
+                          skip_periods=round(cfg.scenario.settle_s / cfg.ts_s), can_bitrates=_link_bitrates(cfg),
                           console=lambda source, line: lines.append(f"{source}: {line}"))
     codec = FrameCodec(link.profile)
     return TargetConnection(TargetClient(link, codec), link, extra_metrics=link.metrics, console=console,

@@ -1,10 +1,11 @@
 """A board description (TOML, src/pmsm_hil/sim_target/stm32g4/boards/*.toml): the part, the HSE, the PWM timer and
 its phase channels, the analog front end (which ADC channel sees which phase current or the DC-link voltage,
-with offset, gain and noise) and the encoder, so that a user's board is a file, not code. `load_board(name or
-path)` checks every field and names the bad one."""
+with offset, gain and noise), the encoder and the hall sensors, so that a user's board is a file, not code.
+`load_board(name or path)` checks every field and names the bad one."""
 
 from __future__ import annotations
 
+import math
 import re
 import tomllib
 from dataclasses import dataclass
@@ -21,6 +22,10 @@ ADCS = ("ADC1", "ADC2")
 #: an internal amplifier's input pin as an analog entry's `adc` (channel 0): OPAMP1_VINP0 .. OPAMP6_VINM0
 AMPLIFIER_INPUT = re.compile(r"OPAMP[1-6]_VIN(P[0-3]|M0)")
 ENCODER_TIMERS = ("TIM3", "TIM4")
+#: a GPIO pin as a board file names it: port letter A-G and pin 0-15 ("PB6")
+PIN = re.compile(r"P([A-G])(1[0-5]|[0-9])")
+#: hall placements: the electrical angle between sensors A, B and C [degrees]
+HALL_SPACINGS = (120, 60)
 
 
 @dataclass(frozen=True, slots=True)
@@ -33,6 +38,18 @@ class AnalogInput:
     offset_v: float
     gain: float
     noise_v: float
+
+
+@dataclass(frozen=True, slots=True)
+class HallInputs:
+    """Three hall sensors on GPIO inputs: `pins` [(port letter, pin)] carry A, B, C; sensor k reads high while the
+    electrical angle minus `offset_rad` minus k · `spacing_deg` lies in [0, π) (modulo 2π)."""
+
+    pins: tuple[tuple[str, int], tuple[str, int], tuple[str, int]]
+    spacing_deg: int
+    offset_rad: float
+    #: the general-purpose timer whose CH1-CH3 the sensors also feed (its hall interface, CR2.TI1S), or None
+    timer: str | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -51,6 +68,7 @@ class BoardDescription:
     #: BKIN not wired) and the pin's level then (low for an open-drain fault output)
     break_overcurrent_a: float | None = None
     break_active_low: bool = True
+    hall: HallInputs | None = None
 
 
 def board_names() -> list[str]:
@@ -124,9 +142,10 @@ def load_board(spec: str | Path | None = None) -> BoardDescription:
         lines = _field(encoder, "lines", int, f"{where} [encoder]")
         if not 1 <= lines <= 1 << 20:
             raise BoardError(f"{where} [encoder]: 'lines' = {lines} outside 1-1048576")
+    hall = _hall(raw["hall"], f"{where} [hall]") if "hall" in raw else None
     return BoardDescription(path.stem, str(raw.get("description", "")), part, hse, vref, timer,
                             tuple(c - 1 for c in channels), tuple(inputs), enc_timer, lines,
-                            *_break_input(raw.get("break_input"), f"{where} [break_input]"))
+                            *_break_input(raw.get("break_input"), f"{where} [break_input]"), hall)
 
 
 def _break_input(table: Any, where: str) -> tuple[float | None, bool]:
@@ -142,3 +161,38 @@ def _break_input(table: Any, where: str) -> tuple[float | None, bool]:
     if not isinstance(active_low, bool):
         raise BoardError(f"{where}: 'active_low' = {active_low!r} is not true or false")
     return level, active_low
+
+
+def _hall(table: Any, where: str) -> HallInputs:
+    """The `[hall]` table: pins = ["PB6", "PB7", "PB8"] (A, B, C), spacing_deg = 120 or 60, offset_rad, and
+    optionally timer = "TIM3" or "TIM4" (the timer whose CH1-CH3 they feed)."""
+    if not isinstance(table, dict):
+        raise BoardError(f"{where}: must be a table (pins, spacing_deg, offset_rad)")
+    names = _field(table, "pins", list, where)
+    pins: list[tuple[str, int]] = []
+    for name in names:
+        match = PIN.fullmatch(name) if isinstance(name, str) else None
+        if match is None:
+            raise BoardError(f"{where}: 'pins' = {names!r}: each a GPIO pin PA0-PG15 (\"PB6\")")
+        pins.append((match.group(1), int(match.group(2))))
+    if len(pins) != 3:
+        raise BoardError(f"{where}: 'pins' = {names!r}: three pins (hall A, B, C)")
+    if len(set(pins)) != 3:
+        raise BoardError(f"{where}: 'pins' = {names!r}: the three pins must differ")
+    if len({pin for _, pin in pins}) != 3:
+        raise BoardError(f"{where}: 'pins' = {names!r}: pins of the same number share one EXTI line; use "
+                         "three different pin numbers")
+    spacing = table.get("spacing_deg", 120)
+    if isinstance(spacing, bool) or spacing not in HALL_SPACINGS:
+        raise BoardError(f"{where}: 'spacing_deg' = {spacing!r} (120 or 60 electrical degrees between sensors)")
+    offset = table.get("offset_rad", 0.0)
+    if isinstance(offset, bool) or not isinstance(offset, (int, float)) or not math.isfinite(offset):
+        raise BoardError(f"{where}: 'offset_rad' = {offset!r}: a finite electrical angle [rad]")
+    timer = table.get("timer")
+    if timer is not None and timer not in ENCODER_TIMERS:
+        raise BoardError(f"{where}: 'timer' = {timer!r} (one of {', '.join(ENCODER_TIMERS)}: the timer whose CH1-CH3 "
+                         "the sensors feed)")
+    unknown = sorted(set(table) - {"pins", "spacing_deg", "offset_rad", "timer"})
+    if unknown:
+        raise BoardError(f"{where}: unknown field '{unknown[0]}' (pins, spacing_deg, offset_rad, timer)")
+    return HallInputs((pins[0], pins[1], pins[2]), int(spacing), float(offset), timer)

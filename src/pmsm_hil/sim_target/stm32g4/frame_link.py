@@ -58,7 +58,7 @@ class FrameBoardLink:
     """The host's link to a firmware-API image on the virtual board, over its FDCAN1 (the Link protocol)."""
 
     def __init__(self, elf: str | Path, desc: BoardDescription, *, ts_s: float, skip_periods: int = 0,
-                 console: Any = None) -> None:
+                 console: Any = None, can_bitrates: tuple[int | None, int | None] = (None, None)) -> None:
         self.stats = LinkStats()
         self.fd = True
         self.desc = desc
@@ -68,6 +68,7 @@ class FrameBoardLink:
         if not isinstance(fdcan, Fdcan):
             raise BoardError(f"stm32g4 target: part {desc.part.name} has no FDCAN1 model")
         self.fdcan = fdcan
+        fdcan.link_bitrates = can_bitrates  # checked against the firmware's bit timing when it joins the bus
         self._host = FrameDecoder(ordered=False)
         self._replies = FrameDecoder(ordered=False)
         self._rx: deque[Frame] = deque()

@@ -17,8 +17,10 @@ counts, and refuses a different --ts naming both. ConfigParams are acknowledged 
 behalf while the firmware has not taken FDCAN1 out of initialisation (CCCR.INIT never cleared: it has no bus then;
 enabling Setpoints are counted and dropped, a disabling one trips TIM1's break input as a gate driver's enable line
 would, and the board confirms it); once it has, the frames go to its FDCAN1 model and its own answers come back
-(python-can Messages on the model's side); a frame that arrives outside a control period (configuration, the safe
-stop) is answered in idle periods of the firmware with the last inputs held (at most IDLE_PERIODS per frame).
+(python-can Messages on the model's side), one after the other at the end of their bus time at the firmware's bit
+rates; a frame that arrives outside a control period (configuration, the safe stop) is answered in idle periods of
+the firmware with the last inputs held (at most IDLE_PERIODS per frame). A Measurement does not wait for the bus:
+host frames still on it are received at the start of its period.
 """
 
 from __future__ import annotations
@@ -41,6 +43,7 @@ from pmsm_hil.protocol.links.stats import LinkStats
 from pmsm_hil.protocol.messages import Command, ConfigAck, ConfigParam, Heartbeat, Measurement, Setpoint
 from pmsm_hil.sim_target.stm32g4.board import Board
 from pmsm_hil.sim_target.stm32g4.board_file import BoardDescription
+from pmsm_hil.sim_target.stm32g4.hall import HallSensors, attach_halls
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
 from pmsm_hil.sim_target.stm32g4.peripherals.fdcan import INIT as FDCAN_INIT
 from pmsm_hil.sim_target.stm32g4.peripherals.fdcan import Fdcan
@@ -61,7 +64,8 @@ class BoardLink:
     """The host's link to a firmware running on the virtual board (implements the Link protocol)."""
 
     def __init__(self, elf: str | Path, desc: BoardDescription, *, ts_s: float, pole_pairs: int,
-                 skip_periods: int = 0, console: Any = None, psi_f_wb: float = 0.0, vdc_v: float = 0.0) -> None:
+                 skip_periods: int = 0, console: Any = None, psi_f_wb: float = 0.0, vdc_v: float = 0.0,
+                 can_bitrates: tuple[int | None, int | None] = (None, None)) -> None:
         self.stats = LinkStats()
         self.fd = True
         self.desc = desc
@@ -92,9 +96,22 @@ class BoardLink:
         self._omega_m = 0.0
         self._period_start = 0
         self.hclk_hz = self.board.hclk_hz
+        #: the hall sensors of the board description on their GPIO pins (None: the board has none)
+        self.halls: HallSensors | None = None
+        #: the electrical angle the hall sensors hold in idle periods (the plant does not advance then) [rad]
+        self._hall_held: float | None = None
+        if desc.hall is not None:
+            self.halls = attach_halls(self.board, desc.hall, self._trajectory)
         self.setpoints_dropped = 0
         self._heartbeats = 0
         self._idle_left = 0  # idle periods still to run for frames delivered outside a period
+        #: host frames on the firmware's bus: (cycle at which FDCAN1 has received it, frame), in bus order
+        self._on_bus: deque[tuple[int, can.Message]] = deque()
+        self._bus_free = 0  # the cycle at which the last host frame leaves the bus
+        self._last_arrival = 0  # the cycle at which FDCAN1 received the last host frame
+        #: idle periods the firmware may still get to finish sending its answer to host frames a Measurement
+        #: period delivered (while FDCAN1 has a transmission requested or on the bus)
+        self._answer_left = 0
         self.idle_periods = 0
         self.configs_acked = 0
         self.periods = 0
@@ -108,6 +125,8 @@ class BoardLink:
         self.fdcan = fdcan if isinstance(fdcan, Fdcan) else None
         if desc.break_overcurrent_a is not None:  # BKIN at its idle level: no overcurrent
             self.tim1.set_break_pin(desc.break_active_low, 0)
+        if self.fdcan is not None:  # checked against the firmware's bit timing when it joins the bus
+            self.fdcan.link_bitrates = can_bitrates
         self._bus_on = False
         self.closed = False
         self.wall_s = 0.0
@@ -186,9 +205,18 @@ class BoardLink:
         theta = self._theta_m + self._omega_m * dt
         return math.floor(theta / (2 * math.pi) * 4 * self.desc.encoder_lines)
 
+    def _trajectory(self, now: int) -> tuple[float, float]:
+        """The rotor's electrical angle at cycle `now` [rad] (unwrapped, advanced at the measured speed inside the
+        period, as the encoder's) and its electrical speed [rad per cycle]."""
+        if self._hall_held is not None:
+            return self._hall_held, 0.0
+        rate = self.pole_pairs * self._omega_m / self.hclk_hz
+        return self.pole_pairs * self._theta_m + rate * (now - self._period_start), rate
+
     def _take(self, m: Measurement) -> None:
         """The Measurement as the board's inputs for the period."""
         signals = {"i_a": m.i_a, "i_b": m.i_b, "i_c": m.i_c, "vdc": m.vdc}
+        self._hall_held = None
         for a in self.desc.analog:
             self._volts[(a.adc, a.channel)] = a.offset_v + a.gain * signals[a.signal]
         if self._theta_e is not None:
@@ -211,7 +239,8 @@ class BoardLink:
         late0 = tim.late_writes
         entries0 = sum(st.entries for st in board.isr.values())
         end = self._period_start + self.period_cycles
-        board.run_until(end)
+        self._deliver_queued()
+        self._run_to(end)
         self._period_start = end
         isr = board.handler_cycles - isr0
         self.sleep_cycles.append(board.sleep_cycles - sleep0)
@@ -338,11 +367,13 @@ class BoardLink:
                 if self.boot_error is not None:
                     raise self.boot_error
                 self._idle_left = 0
+                self._answer_left = 0
                 self._reply(self._period(msg))
-            elif bus is not None:
-                bus.deliver(can.Message(arbitration_id=frame.arbitration_id, data=frame.data, is_fd=frame.is_fd,
-                                        bitrate_switch=frame.is_fd, is_extended_id=frame.arbitration_id > 0x7FF),
-                            self.board.now)
+            elif bus is not None:  # on the bus one after the other, received at the end of its bus time
+                message = can.Message(arbitration_id=frame.arbitration_id, data=frame.data, is_fd=frame.is_fd,
+                                      bitrate_switch=frame.is_fd, is_extended_id=frame.arbitration_id > 0x7FF)
+                self._bus_free = max(self._bus_free, self.board.now) + bus.frame_cycles(message)
+                self._on_bus.append((self._bus_free, message))
                 self._idle_left = IDLE_PERIODS
             elif isinstance(msg, ConfigParam):
                 self.configs_acked += 1
@@ -352,24 +383,62 @@ class BoardLink:
         self._collect()
         self.wall_s += time.perf_counter() - t0
 
-    def _collect(self) -> None:
-        """The frames the firmware sent on FDCAN1, into the host's queue."""
+    def _collect(self) -> bool:
+        """The frames the firmware sent on FDCAN1, into the host's queue; whether one of them started after the
+        last host frame arrived (an answer to it, not a frame sent before)."""
         bus = self.bus
+        answered = False
         if bus is not None:
             for m in bus.take_transmitted():
                 self._rx.append(Frame(int(m.arbitration_id), bytes(m.data), bool(m.is_fd)))
+                start = round(float(m.timestamp) * self.board.sysclk_hz) - bus.frame_cycles(m)
+                answered = answered or start >= self._last_arrival
+        return answered
 
     def _idle_period(self) -> None:
         """A frame reached the firmware outside a control period (configuration, the safe stop): one period of the
         firmware with the last inputs held, so that it can answer (the host's plant is not advancing then)."""
-        self._idle_left -= 1
+        self._idle_left = max(self._idle_left - 1, 0)
+        self._answer_left = max(self._answer_left - 1, 0)
+        if self._hall_held is None:  # the rotor where the last period left it, until the next Measurement
+            self._hall_held = self.pole_pairs * (self._theta_m + self._omega_m * self.period_cycles / self.hclk_hz)
         end = self._period_start + self.period_cycles
-        self.board.run_until(end)
+        if self._run_to(end):
+            self._idle_left = IDLE_PERIODS  # from each frame's arrival
         self._period_start = end
         self.idle_periods += 1
-        self._collect()
-        if self._rx:
-            self._idle_left = 0
+        if self._collect() and not self._on_bus and not self._sending():  # the firmware answered the last frame
+            self._idle_left = self._answer_left = 0
+
+    def _sending(self) -> bool:
+        """FDCAN1 has a transmission requested or on the bus."""
+        fdcan = self.fdcan
+        return fdcan is not None and (fdcan.in_flight is not None or fdcan.txbrp != 0)
+
+    def _deliver_queued(self) -> None:
+        """A Measurement does not wait for the bus (it reaches the board's inputs, not FDCAN1): the host frames
+        sent before it, still on the bus, are received now, in their order, so that the firmware takes them first
+        as it would behind them on a real bus."""
+        fdcan = self.fdcan
+        while self._on_bus and fdcan is not None:
+            fdcan.deliver(self._on_bus.popleft()[1], self.board.now)
+            self._last_arrival = self.board.now
+            self._answer_left = IDLE_PERIODS
+        self._bus_free = min(self._bus_free, self.board.now)
+
+    def _run_to(self, end: int) -> bool:
+        """Run the firmware until cycle `end`, FDCAN1 receiving the host's frames on the bus as their bus time ends;
+        whether a frame arrived."""
+        arrived = False
+        fdcan = self.fdcan
+        while self._on_bus and self._on_bus[0][0] <= end and fdcan is not None:
+            at, message = self._on_bus.popleft()
+            self.board.run_until(at)
+            fdcan.deliver(message, self.board.now)
+            self._last_arrival = self.board.now
+            arrived = True
+        self.board.run_until(end)
+        return arrived
 
     def _setpoint(self, sp: Setpoint) -> None:
         """Without a bus the firmware never sees a Setpoint: the board stands in for the gate driver's enable line.
@@ -387,7 +456,7 @@ class BoardLink:
             self._rx.append(frame)
 
     def poll(self) -> Frame | None:
-        if not self._rx and self._idle_left > 0:
+        if not self._rx and (self._idle_left > 0 or self._on_bus or (self._answer_left > 0 and self._sending())):
             self._idle_period()
         if self._rx:
             self.stats.frames_rx += 1

@@ -15,7 +15,8 @@ CCM_BASE = 0x1000_0000
 FDCAN_RAM_BASE = 0x4000_A400
 
 #: NVIC interrupt lines (RM0440 table 97, position after the 16 system exceptions)
-IRQ = {"ADC1_2": 18, "FDCAN1_IT0": 21, "FDCAN1_IT1": 22, "TIM1_BRK_TIM15": 24, "TIM1_UP_TIM16": 25,
+IRQ = {"EXTI0": 6, "EXTI1": 7, "EXTI2": 8, "EXTI3": 9, "EXTI4": 10, "EXTI9_5": 23, "EXTI15_10": 40,
+       "ADC1_2": 18, "FDCAN1_IT0": 21, "FDCAN1_IT1": 22, "TIM1_BRK_TIM15": 24, "TIM1_UP_TIM16": 25,
        "TIM1_TRG_COM_TIM17": 26, "TIM1_CC": 27, "TIM2": 28, "TIM3": 29, "TIM4": 30, "USART1": 37, "USART2": 38,
        "USART3": 39}
 
@@ -67,7 +68,7 @@ class Part:
 
 _COMMON = ("RCC", "PWR", "FLASH", "GPIOA", "GPIOB", "GPIOC", "GPIOD", "GPIOE", "GPIOF", "GPIOG", "USART2", "TIM1",
            "TIM3", "TIM4", "ADC1", "ADC2", "ADC12_COMMON", "FDCAN1", "DMA1", "DMA2", "DMAMUX1", "OPAMP", "CORDIC",
-           "WWDG", "IWDG")
+           "WWDG", "IWDG", "SYSCFG", "EXTI")
 
 PARTS = {
     "stm32g474": Part("stm32g474", flash_size=512 << 10, sram_size=96 << 10, ccm_size=32 << 10, peripherals=_COMMON,

@@ -10,6 +10,7 @@ the frame's bits (dynamic stuff bits left out) at the bit rates of NBTP/DBTP; th
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
 
 import can
 
@@ -99,6 +100,11 @@ class _InFlight:
     cancel: bool = False
 
 
+@runtime_checkable
+class _KernelClock(Protocol):
+    def fdcan_kernel_clock(self, now: int) -> tuple[int, str]: ...
+
+
 @register("FDCAN1")
 class Fdcan(Peripheral):
     """One FDCAN instance; FDCAN1's addresses and interrupt lines."""
@@ -107,8 +113,13 @@ class Fdcan(Peripheral):
     size = 0x400
     ram_base = ram.SRAMCAN_BASE
     irq_lines = (21, 22)
-    #: the FDCAN kernel clock [Hz] (RCC CCIPR FDCANSEL); None: the board clocks it at SYSCLK
+    #: the FDCAN kernel clock [Hz]: RCC CCIPR.FDCANSEL's source when the firmware takes the controller out of
+    #: initialisation (on a board with an RCC model); None: SYSCLK (a bare bus without one)
     kernel_clock_hz: int | None = None
+    #: the bus's (nominal, data) bit rates [bit/s] the run states (None: not stated, not checked)
+    link_bitrates: tuple[int | None, int | None] = (None, None)
+    #: relative bit-rate difference to the run's link tolerated (CAN's oscillator tolerance is of this order)
+    BITRATE_TOLERANCE = 0.005
 
     def reset(self) -> None:
         self.regs = {offset: RESET_VALUES.get(offset, 0) for offset in WRITABLE}
@@ -299,6 +310,8 @@ class Fdcan(Peripheral):
         if new & CCE and not old & CCE:
             self._clear_on_configuration()
         self.cccr = new & (0xF3FF)
+        if old & INIT and not new & INIT:
+            self._join_bus(self.cccr, now)
         if not new & INIT:
             self._start_next(now)
 
@@ -316,6 +329,36 @@ class Fdcan(Peripheral):
         return 0b11 if self.in_flight is not None else 0b01
 
     # ----- clocks and the timestamp counter
+    def _join_bus(self, cccr: int, now: int) -> None:
+        """The firmware takes the controller out of initialisation: its kernel clock from the RCC (RCC
+        CCIPR.FDCANSEL; BoardError when the source is not running) and its bit timing checked against the rates
+        the run's link states (BoardError naming NBTP or DBTP and both rates)."""
+        rcc = self._rcc()
+        if rcc is None:
+            return
+        hz, source = rcc.fdcan_kernel_clock(now)
+        self.kernel_clock_hz = hz
+        nominal_ticks, data_ticks = self._bit_ticks()
+        want_nominal, want_data = self.link_bitrates
+        checks = [("NBTP", self.regs[NBTP], nominal_ticks, want_nominal, "bitrate")]
+        if cccr & FDOE and cccr & BRSE:
+            checks.append(("DBTP", self.regs[DBTP], data_ticks, want_data, "data_bitrate"))
+        for reg, value, ticks, want, option in checks:
+            rate = hz / ticks
+            if want is not None and abs(rate - want) > self.BITRATE_TOLERANCE * want:
+                ckdiv = f", CKDIV {self.regs[CKDIV] & 0xF}" if self.regs[CKDIV] & 0xF else ""
+                raise BoardError(f"{self.name} {reg} 0x{value:08x}: {rate:.6g} bit/s ({ticks} kernel clock periods "
+                                 f"per bit at {source}{ckdiv}), the run's link is {want} bit/s (link option "
+                                 f"{option}): the firmware would not hear the bus")
+
+    def _rcc(self) -> _KernelClock | None:
+        """The board's RCC model, when it names FDCAN's kernel clock (a bare bus has none)."""
+        try:
+            rcc = self.bus.peripheral("RCC")
+        except (BoardError, KeyError):
+            return None
+        return rcc if isinstance(rcc, _KernelClock) else None
+
     def _cycles(self, kernel_ticks: int) -> int:
         """CPU cycles spanned by `kernel_ticks` periods of the FDCAN kernel clock (rounded up)."""
         if self.kernel_clock_hz is None:

@@ -1,11 +1,25 @@
 """GPIO ports A-G (RM0440 chapter 9): MODER/OTYPER/OSPEEDR/PUPDR/AFRL/AFRH as storage with their reset values,
 ODR with BSRR/BRR, IDR = the outputs' levels on output pins and the board's input levels (default: the pull-up/down
-level, else 0) on the others, LCKR accepted. The board reads a pin through `pin_level`."""
+level, else 0) on the others, LCKR accepted. Pins a board drives over time (hall sensors) follow an `InputDriver`
+at the cycle of the read; EXTI asks the port when such a pin changes next (`next_input_change`). The board reads a
+pin through `pin_level`."""
 
 from __future__ import annotations
 
+from typing import Protocol
+
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardBus, register
 from pmsm_hil.sim_target.stm32g4.peripherals.regs import RegisterFile
+
+
+class InputDriver(Protocol):
+    """Something on the board that drives input pins over time (the hall sensors)."""
+
+    def levels(self, port: str, now: int) -> int:
+        """The driven pins' levels of GPIO`port` at cycle `now` (bit per pin)."""
+
+    def next_change(self, port: str, mask: int, now: int) -> int | None:
+        """The first cycle after `now` at which a driven pin of GPIO`port` in `mask` changes (None: none due)."""
 
 
 class GpioPort(RegisterFile):
@@ -18,7 +32,20 @@ class GpioPort(RegisterFile):
     def __init__(self, bus: BoardBus) -> None:
         #: levels the board drives onto input pins (bit per pin); None: the pull level
         self.inputs: int | None = None
+        #: pins driven over time by `driver` (bit per pin), which override `inputs` on them
+        self.driven = 0
+        self.driver: InputDriver | None = None
         super().__init__(bus)
+
+    @property
+    def letter(self) -> str:
+        """The port's letter ("A" for GPIOA)."""
+        return self.name[-1]
+
+    def drive(self, driver: InputDriver, mask: int) -> None:
+        """Let `driver` set the levels of the pins in `mask` (input pins: an output pin reads its ODR)."""
+        self.driver = driver
+        self.driven = mask & 0xFFFF
 
     def reset(self) -> None:
         self.regs = {0x00: self.MODER_RESET, 0x04: 0, 0x08: self.OSPEEDR_RESET, 0x0C: self.PUPDR_RESET, 0x10: 0,
@@ -36,6 +63,8 @@ class GpioPort(RegisterFile):
                 levels = sum(1 << pin for pin in range(16) if (pupd >> (2 * pin)) & 3 == 1)
             else:
                 levels = self.inputs
+            if self.driver is not None:
+                levels = (levels & ~self.driven) | (self.driver.levels(self.letter, now) & self.driven)
             return (self.regs[0x14] & out) | (levels & ~out & 0xFFFF)
         if word in (0x18, 0x28):
             return 0
@@ -51,9 +80,16 @@ class GpioPort(RegisterFile):
         else:
             self.regs[word] = value & (0xFFFF if word == 0x14 else 0xFFFF_FFFF)
 
-    def pin_level(self, pin: int) -> bool:
-        """The level of `pin` as IDR reads it."""
-        return bool(self.load(0x10, 0) >> pin & 1)
+    def pin_level(self, pin: int, now: int = 0) -> bool:
+        """The level of `pin` as IDR reads it at cycle `now`."""
+        return bool(self.load(0x10, now) >> pin & 1)
+
+    def next_input_change(self, mask: int, now: int) -> int | None:
+        """The first cycle after `now` at which a driven input pin in `mask` changes level (None: none due)."""
+        driven = mask & self.driven & ~self.output_mask()
+        if self.driver is None or not driven:
+            return None
+        return self.driver.next_change(self.letter, driven, now)
 
 
 @register("GPIOA")

@@ -1,7 +1,8 @@
 """RCC, PWR and FLASH (RM0440 chapters 7, 6, 5): the clock tree as far as the core clock, every ready flag
 following its enable after a settling time (HSIRDY, HSERDY, PLLRDY, LSIRDY, LSERDY, HSI48RDY), SWS following SW once the
 source is ready, the PWR regulator flags (VOSF after a range change, R1MODE boost), the FLASH latency read back.
-The RCC reports the core clock (HCLK) to the board whenever SW/SWS, the PLL or the AHB prescaler change it."""
+The RCC reports the core clock (HCLK) to the board whenever SW/SWS, the PLL or the AHB prescaler change it, and
+names FDCAN's kernel clock (CCIPR.FDCANSEL: HSE, PLL "Q" or PCLK1) with `fdcan_kernel_clock`."""
 
 from __future__ import annotations
 
@@ -91,6 +92,11 @@ class Rcc(RegisterFile):
         self._report()
 
     def pll_hz(self) -> int:
+        """The PLL's R output (the system clock's PLL source) [Hz]."""
+        return self._pll_output(2 * ((self.regs[0x0C] >> 25 & 3) + 1))
+
+    def _pll_output(self, divider: int) -> int:
+        """The PLL's VCO (its input through M, times N) through `divider` [Hz]."""
         cfg = self.regs[0x0C]
         src = cfg & 3
         if src == 2:
@@ -99,10 +105,10 @@ class Rcc(RegisterFile):
             f_in = services(self.bus).hse_hz
         else:
             raise BoardError("RCC: the PLL runs with no source (PLLCFGR.PLLSRC = 0)")
-        m, n, r = (cfg >> 4 & 0xF) + 1, cfg >> 8 & 0x7F, 2 * ((cfg >> 25 & 3) + 1)
+        m, n = (cfg >> 4 & 0xF) + 1, cfg >> 8 & 0x7F
         if not 8 <= n <= 127:
             raise BoardError(f"RCC: PLLN = {n} outside 8..127 (RM0440 7.4.4)")
-        return f_in * n // (m * r)
+        return f_in * n // (m * divider)
 
     def sysclk_hz(self) -> int:
         if self.sws == 2:
@@ -118,6 +124,35 @@ class Rcc(RegisterFile):
         """The APB1 (1) or APB2 (2) prescaler."""
         field = self.regs[0x08] >> (8 if bus == 1 else 11) & 7
         return _PPRE.get(field, 1)
+
+    def pclk_hz(self, bus: int) -> int:
+        """PCLK1 (bus 1) or PCLK2 (bus 2): HCLK through the APB prescaler [Hz]."""
+        return self.hclk_hz() // self.apb_divider(bus)
+
+    def fdcan_kernel_clock(self, now: int) -> tuple[int, str]:
+        """FDCAN's kernel clock at cycle `now`: (Hz, what it is); BoardError naming CCIPR.FDCANSEL when the selected
+        source is not running (HSE not ready, the PLL's Q output not enabled or the PLL not locked, the reserved
+        value 11)."""
+        sel = self.regs[0x88] >> 24 & 3
+        field = f"RCC CCIPR.FDCANSEL = {sel:02b}"
+        if sel == 0:
+            if not self._ready("HSE", now):
+                raise BoardError(f"{field} (HSE) clocks FDCAN1, but the HSE is not ready (RCC CR.HSEON/HSERDY): "
+                                 "FDCAN1 has no kernel clock")
+            hz = services(self.bus).hse_hz
+            return hz, f"HSE {hz / 1e6:g} MHz"
+        if sel == 1:
+            cfg = self.regs[0x0C]
+            if not cfg >> 20 & 1 or not self._ready("PLL", now):
+                raise BoardError(f"{field} (PLL Q) clocks FDCAN1, but the PLL's Q output is not running (RCC "
+                                 f"PLLCFGR.PLLQEN {cfg >> 20 & 1}, PLLRDY {int(self._ready('PLL', now))}): FDCAN1 has "
+                                 "no kernel clock")
+            hz = self._pll_output(2 * ((cfg >> 21 & 3) + 1))
+            return hz, f"PLLQ {hz / 1e6:g} MHz"
+        if sel == 2:
+            hz = self.pclk_hz(1)
+            return hz, f"PCLK1 {hz / 1e6:g} MHz"
+        raise BoardError(f"{field} is reserved (RM0440 7.4.26): FDCAN1 has no kernel clock")
 
     def _report(self) -> None:
         hz = self.hclk_hz()

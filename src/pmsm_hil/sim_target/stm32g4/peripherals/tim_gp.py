@@ -1,12 +1,15 @@
 """TIM3 and TIM4, general-purpose timers (RM0440 chapter 29), as a drive uses them: encoder mode (SMCR.SMS 1, 2
 or 3: x2 on TI1 or TI2, x4 on both) counting the board's encoder (`BoardBus.encoder_position`) modulo ARR + 1,
 with DIR following the rotation, and otherwise a plain up-counter at the timer clock through PSC with the update
-interrupt (UIF/UIE) for a time base. Capture/compare, other slave modes, DMA and one-pulse mode are not
-modelled (a write enabling one is refused naming the field)."""
+interrupt (UIF/UIE) for a time base; and the hall-sensor interface on a board whose hall sensors feed the timer
+(`hall_inputs`): CR2.TI1S puts the XOR of the three hall inputs on TI1, reset mode (SMCR.SMS 100) triggered by
+TI1F_ED (SMCR.TS 00100) captures CNT into CCR1 (CCMR1.CC1S 11, TRC; CC1IF, CC1OF) and restarts the counter at each
+hall edge (TIF, and UIF unless CR1.URS), with their interrupts (CC1IE, TIE, UIE). Other capture/compare uses, other
+slave modes, DMA and one-pulse mode are not modelled (a write enabling one is refused naming the field)."""
 
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import ClassVar, Protocol
 
 from pmsm_hil.sim_target.stm32g4.part import IRQ
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError, register, services
@@ -15,6 +18,19 @@ from pmsm_hil.sim_target.stm32g4.peripherals.regs import RegisterFile
 CR1, CR2, SMCR, DIER, SR, EGR, CCMR1, CCMR2, CCER, CNT, PSC, ARR = (
     0x00, 0x04, 0x08, 0x0C, 0x10, 0x14, 0x18, 0x1C, 0x20, 0x24, 0x28, 0x2C)
 CCR = (0x34, 0x38, 0x3C, 0x40)
+UIF, CC1IF, TIF, CC1OF = 1, 1 << 1, 1 << 6, 1 << 9
+#: SMCR.SMS = reset mode, SMCR.TS = TI1F_ED (the TI1 edge detector): the hall interface's trigger
+SMS_RESET, TS_TI1F_ED = 4, 4
+
+
+class HallInput(Protocol):
+    """The hall sensors wired to a timer's CH1-CH3."""
+
+    def code(self, now: int) -> int:
+        """The three inputs' levels at cycle `now` (A | B << 1 | C << 2)."""
+
+    def next_edge(self, now: int) -> int | None:
+        """The first cycle after `now` at which one of them changes (None: none due)."""
 
 
 class GeneralTimer(RegisterFile):
@@ -31,6 +47,17 @@ class GeneralTimer(RegisterFile):
         self.last_edges = 0
         self.down = False
         self._enc = 0
+        #: the hall sensors on CH1-CH3 (the board's, when its description wires them to this timer)
+        self.hall_inputs: HallInput | None = getattr(self, "hall_inputs", None)
+        self._hall_code = 0
+        #: hall edges the interface took (captures)
+        self.hall_captures = 0
+
+    def _hall_mode(self) -> bool:
+        smcr = self.regs[SMCR]
+        sms = smcr & 7 | (smcr >> 16 & 1) << 3
+        ts = smcr >> 4 & 7 | (smcr >> 20 & 3) << 3
+        return self.hall_inputs is not None and sms == SMS_RESET and ts == TS_TI1F_ED and bool(self.regs[CR2] & 0x80)
 
     @property
     def encoder_mode(self) -> int:
@@ -68,6 +95,15 @@ class GeneralTimer(RegisterFile):
         return edges if self.encoder_mode == 3 else edges // 2
 
     def next_event(self, now: int) -> int | None:
+        edge = None
+        if self.hall_inputs is not None and self._hall_mode() and self.running:
+            if self.hall_inputs.code(now) != self._hall_code:
+                return now
+            edge = self.hall_inputs.next_edge(now)
+        wrap = self._next_wrap(now)
+        return wrap if edge is None else edge if wrap is None else min(edge, wrap)
+
+    def _next_wrap(self, now: int) -> int | None:
         if self.encoder_mode or not self.running or not self.regs[DIER] & 1:
             return None
         period = self._modulus() * (self.regs[PSC] + 1)
@@ -79,6 +115,28 @@ class GeneralTimer(RegisterFile):
     def advance(self, now: int) -> None:
         if self.encoder_mode or not self.running:
             return
+        self._wraps(now)
+        if self.hall_inputs is not None and self._hall_mode():
+            code = self.hall_inputs.code(now)
+            if code != self._hall_code:
+                self._hall_code = code
+                self._hall_edge(now)
+
+    def _hall_edge(self, now: int) -> None:
+        """A hall edge at cycle `now`: CNT captured into CCR1 (CC1S = TRC with CC1E), the counter restarted."""
+        ccmr1, ccer = self.regs[CCMR1], self.regs[CCER]
+        sr = self.regs[SR] | TIF
+        if ccmr1 & 3 == 3 and ccer & 1:
+            self.regs[CCR[0]] = self.counter(now)
+            sr |= CC1OF if sr & CC1IF else CC1IF
+        if not self.regs[CR1] & 4:  # URS clear: the reset is an update event
+            sr |= UIF
+        self.regs[SR] = sr
+        self.hall_captures += 1
+        self._rebase(now, 0)
+        self._irq()
+
+    def _wraps(self, now: int) -> None:
         first = self.anchor + (self._modulus() - self.anchor_cnt) * (self.regs[PSC] + 1)
         if now >= first:
             period = self._modulus() * (self.regs[PSC] + 1)
@@ -88,7 +146,7 @@ class GeneralTimer(RegisterFile):
             self._irq()
 
     def _irq(self) -> None:
-        if self.regs[SR] & self.regs[DIER] & 1:
+        if self.regs[SR] & self.regs[DIER] & (UIF | CC1IF | TIF):
             self.bus.set_pending(self.IRQ_LINE)
         else:
             self.bus.clear_pending(self.IRQ_LINE)
@@ -134,18 +192,28 @@ class GeneralTimer(RegisterFile):
             return
         if word == SMCR:
             sms = value & 7 | (value >> 16 & 1) << 3
-            if sms and sms not in (1, 2, 3):
-                raise BoardError(f"{self.name}.SMCR.SMS = {sms}: only the encoder modes 1-3 are modelled")
+            ts = value >> 4 & 7 | (value >> 20 & 3) << 3
+            hall = sms == SMS_RESET and ts == TS_TI1F_ED
+            if sms and sms not in (1, 2, 3) and not hall:
+                raise BoardError(f"{self.name}.SMCR.SMS = {sms}: only the encoder modes 1-3 and the hall interface "
+                                 "(reset mode 100 triggered by TI1F_ED, TS 00100, with CR2.TI1S) are modelled")
+            if hall and self.hall_inputs is None:
+                raise BoardError(f"{self.name}.SMCR: reset mode on TI1F_ED (the hall interface), but the board "
+                                 f"description wires no hall sensors to {self.name} ([hall] timer)")
             cnt = self.counter(now)
             self.regs[SMCR] = value
             self._set_encoder_mode()
             self._rebase(now, cnt)
+            if self.hall_inputs is not None:
+                self._hall_code = self.hall_inputs.code(now)
             return
         if word == DIER:
             self.regs[DIER] = value
             self._irq()
             return
         self.regs[word] = value
+        if word == CR2 and self.hall_inputs is not None:
+            self._hall_code = self.hall_inputs.code(now)
 
 
 @register("TIM3")
