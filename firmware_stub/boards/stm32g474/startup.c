@@ -8,10 +8,9 @@
 
 #include "board.h"
 #include "stm32g474_regs.h"
+#include "stm32g474_ll.h"
 
 extern uint32_t _estack;
-extern uint32_t _sidata, _sdata, _edata, _sbss, _ebss;
-extern uint32_t _siccmdata, _sccmdata, _eccmdata, _sccmbss, _eccmbss;
 extern int main(void);
 extern void __libc_init_array(void);
 
@@ -30,29 +29,9 @@ void Reset_Handler(void);
 void Default_Handler(void);
 void HardFault_Handler(void);
 
-static void copy_words(uint32_t *dst, const uint32_t *src, const uint32_t *end)
-{
-    while (dst < end) {
-        *dst++ = *src++;
-    }
-}
-
-static void zero_words(uint32_t *dst, const uint32_t *end)
-{
-    while (dst < end) {
-        *dst++ = 0u;
-    }
-}
-
 void Reset_Handler(void)
 {
-    SCB->CPACR |= (3UL << 20) | (3UL << 22); /* CP10, CP11 full access: the single-precision FPU */
-    __DSB();
-    __ISB();
-    copy_words(&_sdata, &_sidata, &_edata);
-    zero_words(&_sbss, &_ebss);
-    copy_words(&_sccmdata, &_siccmdata, &_eccmdata);
-    zero_words(&_sccmbss, &_eccmbss);
+    g4_reset_init(); /* the FPU on, .data and .ccmdata copied, .bss and .ccmbss zeroed */
     SystemInit();
     __libc_init_array(); /* after the FPU is on: a constructor may compute in float */
     (void)main();
