@@ -454,13 +454,9 @@ static int run_open(const fm_params_t *p, fm_state_t *s, const fm_trace_t *tr, d
 /* One interval of constant gate levels (gate_edges.c) as the mechanics cuts it into constant-speed pieces
  * (mechanics.h): the kernel's part of the state and the trace. */
 typedef struct {
-    ge_run_t run; /* the mechanics and the interval's gate levels per leg (gate_edges.h) */
+    ge_run_t run; /* the mechanics, the trace, the stats, the gate levels (gate_edges.h) */
     const fm_params_t *p;
     fm_state_t *s;
-    double trace_dt;
-    double *trace;
-    int32_t trace_cap;
-    fm_period_stats_t *stats;
 } fm_ctx_t;
 
 static double torque_cb(const void *ctx)
@@ -491,10 +487,10 @@ static int piece_cb(void *ctx, double t0, double *piece_io, double omega_m)
     c.omega_e = (double)p->pole_pairs * omega_m;
     c.open_leg = lv.n_open == 1 ? lv.open_leg : -1;
     tr.t0 = t0;
-    tr.dt = x->trace_dt;
-    tr.buf = x->trace;
-    tr.cap = x->trace_cap;
-    tr.stats = x->stats;
+    tr.dt = x->run.trace_dt;
+    tr.buf = x->run.trace;
+    tr.cap = x->run.trace_cap;
+    tr.stats = x->run.stats;
     if (lv.n_open >= 2) {
         rc = run_open(p, s, &tr, piece, c.omega_e);
     } else {
@@ -506,7 +502,7 @@ static int piece_cb(void *ctx, double t0, double *piece_io, double omega_m)
     s->theta_e = dq_wrap_angle(s->theta_e + c.omega_e * piece);
     if (blocked >= 0) {
         s->dead_level[blocked] = FM_LEVEL_OPEN;
-        x->stats->open_phase_events++;
+        x->run.stats->open_phase_events++;
     }
     *piece_io = piece;
     return 0;
@@ -525,7 +521,10 @@ static const ge_kind_t FM_GATES = {3, 7, GE_MAX_SUBINTERVALS, FM_MAX_EVENTS, pie
 int fm_advance(const fm_params_t *p, fm_state_t *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
                const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap, fm_period_stats_t *stats)
 {
-    fm_ctx_t c = {{&p->mech, &s->mech, {0}}, p, s, trace_dt, trace, trace_cap, stats};
+    fm_ctx_t c;
+    ge_run_init(&c.run, &p->mech, &s->mech, trace_dt, trace, trace_cap, stats);
+    c.p = p;
+    c.s = s;
     return ge_advance(&FM_GATES, &c, states, durations_ns, n, load, p->t_mpw, p->t_dead, &s->t_ns, &s->gate,
                       s->last_edge_t, s->dead_until, s->dead_level, stats);
 }

@@ -73,6 +73,20 @@ int ge_plan(int legs, int32_t gate, const int32_t *states, const int64_t *durati
     return n_ev;
 }
 
+void ge_run_init(ge_run_t *run, const mech_params_t *mech_p, mech_state_t *mech_s, double trace_dt, double *trace,
+                 int32_t trace_cap, ge_period_stats_t *stats)
+{
+    const ge_run_t head = {mech_p, mech_s, trace_dt, trace, trace_cap, stats, {0}};
+    *run = head;
+}
+
+int ge_reject(ge_period_stats_t *stats, int32_t error)
+{
+    ge_stats_reset(stats);
+    stats->error = error;
+    return error;
+}
+
 void ge_levels_at(const ge_run_t *run, int legs, double t0, const double *dead_until, const int32_t *dead_level,
                   int32_t open_level, ge_levels_t *out)
 {
@@ -175,17 +189,15 @@ int ge_advance(const ge_kind_t *k, void *ctx, const int32_t *states, const int64
     int64_t total_ns = 0;
     int n_ev;
     int rc;
-    ge_stats_reset(stats);
     if (n < 1 || n > k->max_subintervals) {
-        stats->error = MK_E_ARGS;
-        return MK_E_ARGS;
+        return ge_reject(stats, MK_E_ARGS);
     }
     for (int i = 0; i < n; i++) {
         if (durations_ns[i] < 0 || states[i] < 0 || states[i] > k->max_state) {
-            stats->error = MK_E_ARGS;
-            return MK_E_ARGS;
+            return ge_reject(stats, MK_E_ARGS);
         }
     }
+    ge_stats_reset(stats);
     n_ev = ge_plan(k->legs, *gate, states, durations_ns, n, t_start, t_mpw, 2.0 * t_dead + t_mpw, last_edge_t, ev, 0,
                    k->max_events, stats, &total_ns);
     rc = ge_run_period(k, t_start, t_start + (double)total_ns * 1e-9, t_dead, ev, n_ev, load, gate, dead_until,

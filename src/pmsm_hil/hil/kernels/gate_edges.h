@@ -30,6 +30,10 @@ typedef struct {
 /* Zero every counter of a period. */
 void ge_stats_reset(ge_period_stats_t *stats);
 
+/* A period refused before it ran: the counters zeroed, the error (a negative kernel code) in stats->error and
+ * returned. */
+int ge_reject(ge_period_stats_t *stats, int32_t error);
+
 /* Plan the period: `legs` legs (bit legs-1-leg of a state code is leg `leg`), applied gate code `gate`,
  * n sub-intervals (states, durations [ns]) from absolute time t_start [s]. Adds one event (kind 0) per
  * surviving edge to ev (count n_ev, capacity cap) and returns the new count; updates last_edge_t [s]
@@ -39,12 +43,21 @@ int ge_plan(int legs, int32_t gate, const int32_t *states, const int64_t *durati
             int64_t *total_ns);
 
 /* The head of every gate-driven kernel's run context (its first member): the drive's mechanics (the kernel's params'
- * and state's `mech`) and the gate levels per leg of the interval being integrated (set by ge_run_period). */
+ * and state's `mech`), the trace destination and period stats of its advance call (see plant.h pl_advance), and the
+ * gate levels per leg of the interval being integrated (set by ge_run_period). */
 typedef struct {
     const mech_params_t *mech_p;
     mech_state_t *mech_s;
+    double trace_dt;   /* trace row spacing [s]; <= 0: no trace */
+    double *trace;     /* trace rows */
+    int32_t trace_cap; /* rows `trace` holds */
+    ge_period_stats_t *stats;
     int gate_level[GE_MAX_LEGS];
 } ge_run_t;
+
+/* A run context's head for one advance call. */
+void ge_run_init(ge_run_t *run, const mech_params_t *mech_p, mech_state_t *mech_s, double trace_dt, double *trace,
+                 int32_t trace_cap, ge_period_stats_t *stats);
 
 /* The legs' levels at a time t0 [s] inside an interval: the gate's, or during a leg's dead time (t0 before its
  * dead_until [s], less 0.5 ns) its diode's (dead_level), where a leg whose dead-time level is `open_level` floats. */

@@ -325,13 +325,9 @@ static int piece_no_current(const im_params_t *p, im_state_t *s, double t0, doub
 /* One interval of constant gate levels (gate_edges.c) as the mechanics cuts it into constant-speed pieces
  * (mechanics.h): the kernel's part of the state and the trace. */
 typedef struct {
-    ge_run_t run; /* the mechanics and the interval's gate levels per leg (gate_edges.h) */
+    ge_run_t run; /* the mechanics, the trace, the stats, the gate levels (gate_edges.h) */
     const im_params_t *p;
     im_state_t *s;
-    double trace_dt;
-    double *trace;
-    int32_t trace_cap;
-    im_period_stats_t *stats;
 } im_run_ctx_t;
 
 static double im_torque_cb(const void *ctx)
@@ -354,20 +350,20 @@ static int im_piece_cb(void *ctx, double t0, double *piece, double omega_m)
     ge_levels_t lv;
     ge_levels_at(&c->run, 3, t0, s->dead_until, s->dead_level, IM_LEVEL_OPEN, &lv);
     if (lv.n_open == 0) {
-        rc = piece_closed(p, s, t0, piece, lv.code, lv.cond_mask, omega_e, c->trace_dt, c->trace, c->trace_cap,
-                          c->stats, &blocked);
+        rc = piece_closed(p, s, t0, piece, lv.code, lv.cond_mask, omega_e, c->run.trace_dt, c->run.trace, c->run.trace_cap,
+                          c->run.stats, &blocked);
     } else if (lv.n_open == 1) {
-        rc = piece_one_open(p, s, t0, piece, lv.code, lv.open_leg, lv.cond_mask, omega_e, c->trace_dt, c->trace,
-                            c->trace_cap, c->stats, &blocked);
+        rc = piece_one_open(p, s, t0, piece, lv.code, lv.open_leg, lv.cond_mask, omega_e, c->run.trace_dt, c->run.trace,
+                            c->run.trace_cap, c->run.stats, &blocked);
     } else {
-        rc = piece_no_current(p, s, t0, *piece, omega_e, c->trace_dt, c->trace, c->trace_cap, c->stats);
+        rc = piece_no_current(p, s, t0, *piece, omega_e, c->run.trace_dt, c->run.trace, c->run.trace_cap, c->run.stats);
     }
     if (rc != 0) {
         return rc;
     }
     if (blocked >= 0) {
         s->dead_level[blocked] = IM_LEVEL_OPEN;
-        c->stats->open_phase_events++;
+        c->run.stats->open_phase_events++;
     }
     s->theta_e = dq_wrap_angle(s->theta_e + omega_e * *piece);
     return 0;
@@ -393,12 +389,13 @@ static const ge_kind_t IM_GATES = {3, 7, IM_MAX_SUBINTERVALS, IM_MAX_EVENTS, im_
 int im_advance(const im_params_t *p, im_state_t *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
                const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap, im_period_stats_t *stats)
 {
-    im_run_ctx_t c = {{&p->mech, &s->mech, {0}}, p, s, trace_dt, trace, trace_cap, stats};
+    im_run_ctx_t c;
     if (!(p->rs > 0.0) || !(p->rr > 0.0) || !(p->lsigma > 0.0) || !(p->lm > 0.0)) {
-        ge_stats_reset(stats);
-        stats->error = MK_E_ARGS;
-        return MK_E_ARGS;
+        return ge_reject(stats, MK_E_ARGS);
     }
+    ge_run_init(&c.run, &p->mech, &s->mech, trace_dt, trace, trace_cap, stats);
+    c.p = p;
+    c.s = s;
     return ge_advance(&IM_GATES, &c, states, durations_ns, n, load, p->t_mpw, p->t_dead, &s->t_ns, &s->gate,
                       s->last_edge_t, s->dead_until, s->dead_level, stats);
 }

@@ -224,13 +224,9 @@ static double first_blocking(const dq_segment_t *g, double theta0, double omega_
 /* One interval of constant gate levels (gate_edges.c) as the mechanics cuts it into constant-speed pieces
  * (mechanics.h): the kernel's part of the state, the trace and the machine's closed-form constants. */
 typedef struct {
-    ge_run_t run;          /* the mechanics and the interval's gate levels per leg (gate_edges.h) */
+    ge_run_t run;          /* the mechanics, the trace, the stats, the gate levels (gate_edges.h) */
     const pl_params_t *p;
     pl_state_t *s;
-    double trace_dt;
-    double *trace;
-    int32_t trace_cap;
-    pl_period_stats_t *stats;
     dq_machine_t mc;       /* the closed-form constants of the machine */
     double em_step;        /* exp(m trace_dt) of the trace walker */
 } pl_run_ctx_t;
@@ -248,10 +244,10 @@ static int pl_piece_cb(void *ctx, double t0, double *piece_io, double omega_m)
     pl_run_ctx_t *c = (pl_run_ctx_t *)ctx;
     const pl_params_t *p = c->p;
     pl_state_t *s = c->s;
-    const double trace_dt = c->trace_dt;
-    double *trace = c->trace;
-    const int32_t trace_cap = c->trace_cap;
-    pl_period_stats_t *stats = c->stats;
+    const double trace_dt = c->run.trace_dt;
+    double *trace = c->run.trace;
+    const int32_t trace_cap = c->run.trace_cap;
+    pl_period_stats_t *stats = c->run.stats;
     double piece = *piece_io;
     const double omega_e = (double)p->pole_pairs * omega_m;
     int blocked = -1;
@@ -340,14 +336,9 @@ int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const
                pl_period_stats_t *stats)
 {
     pl_run_ctx_t c;
-    c.run.mech_p = &p->mech;
-    c.run.mech_s = &s->mech;
+    ge_run_init(&c.run, &p->mech, &s->mech, trace_dt, trace, trace_cap, stats);
     c.p = p;
     c.s = s;
-    c.trace_dt = trace_dt;
-    c.trace = trace;
-    c.trace_cap = trace_cap;
-    c.stats = stats;
     dq_machine_init(p->rs, p->ld, p->lq, p->psi_f, &c.mc);
     c.em_step = trace_dt > 0.0 ? exp(c.mc.m * trace_dt) : 1.0;
     return ge_advance(&PL_GATES, &c, states, durations_ns, n, load, p->t_mpw, p->t_dead, &s->t_ns, &s->gate,

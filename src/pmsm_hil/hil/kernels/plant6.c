@@ -87,13 +87,9 @@ static int emit_row(const p6_params_t *p, p6_state_t *s, double tk, double i_d, 
 /* One interval of constant gate levels (gate_edges.c) as the mechanics cuts it into constant-speed pieces
  * (mechanics.h): the kernel's part of the state, the trace and the machine's closed-form constants. */
 typedef struct {
-    ge_run_t run;          /* the mechanics and the interval's gate levels per leg (gate_edges.h) */
+    ge_run_t run;          /* the mechanics, the trace, the stats, the gate levels (gate_edges.h) */
     const p6_params_t *p;
     p6_state_t *s;
-    double trace_dt;
-    double *trace;
-    int32_t trace_cap;
-    p6_period_stats_t *stats;
     dq_machine_t mc;       /* the closed-form constants of the dq subspace */
     double em_step;        /* exp(m trace_dt) of the trace walker */
 } p6_run_ctx_t;
@@ -111,8 +107,8 @@ static int p6_piece_cb(void *ctx, double t0, double *piece_io, double omega_m)
     p6_run_ctx_t *c = (p6_run_ctx_t *)ctx;
     const p6_params_t *p = c->p;
     p6_state_t *s = c->s;
-    const double trace_dt = c->trace_dt;
-    double *trace = c->trace;
+    const double trace_dt = c->run.trace_dt;
+    double *trace = c->run.trace;
     const double piece = *piece_io;
     const double omega_e = (double)p->pole_pairs * omega_m;
     double v[4], ix_inf, iy_inf, kxy, i_d1, i_q1;
@@ -145,7 +141,7 @@ static int p6_piece_cb(void *ctx, double t0, double *piece_io, double omega_m)
             }
             dq_walk_eval(&g, &w, &id, &iq);
             rc = emit_row(p, s, tk, id, iq, w.cos_th, w.sin_th, ix_inf + (s->i_x - ix_inf) * ex,
-                          iy_inf + (s->i_y - iy_inf) * ex, trace, c->trace_cap, c->stats);
+                          iy_inf + (s->i_y - iy_inf) * ex, trace, c->run.trace_cap, c->run.stats);
             if (rc != P6_OK) {
                 return rc;
             }
@@ -187,18 +183,11 @@ int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const
 {
     p6_run_ctx_t c;
     if (!(p->lls > 0.0) || !(p->rs > 0.0)) {
-        ge_stats_reset(stats);
-        stats->error = P6_E_ARGS;
-        return P6_E_ARGS;
+        return ge_reject(stats, P6_E_ARGS);
     }
-    c.run.mech_p = &p->mech;
-    c.run.mech_s = &s->mech;
+    ge_run_init(&c.run, &p->mech, &s->mech, trace_dt, trace, trace_cap, stats);
     c.p = p;
     c.s = s;
-    c.trace_dt = trace_dt;
-    c.trace = trace;
-    c.trace_cap = trace_cap;
-    c.stats = stats;
     dq_machine_init(p->rs, p->ld, p->lq, p->psi_f, &c.mc);
     c.em_step = trace_dt > 0.0 ? exp(c.mc.m * trace_dt) : 1.0;
     return ge_advance(&P6_GATES, &c, states, durations_ns, n, load, p->t_mpw, p->t_dead, &s->t_ns, &s->gate,
