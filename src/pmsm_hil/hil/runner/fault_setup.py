@@ -24,7 +24,7 @@ def install_faults(client: TargetClient, spec: FaultSpec, clock: Callable[[], fl
     return faulty
 
 
-def pump_after_faults(faulty: FaultyLink, serve: Callable[[], None] | None) -> Callable[[], None] | None:
+def pump_after_faults(faulty: FaultyLink, serve: Callable[[], object] | None) -> Callable[[], None] | None:
     """The pump of an in-process target (`serve`, None: none) behind a FaultyLink: the delayed frames due are
     released first, then the target is served."""
     if serve is None:
