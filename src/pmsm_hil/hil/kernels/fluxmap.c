@@ -279,25 +279,17 @@ static int tracing(const fm_trace_t *tr)
 static int emit_row(const fm_params_t *p, fm_state_t *s, const fm_trace_t *tr, double tk, double theta,
                     const double *psi, const double *cur)
 {
-    double sn, c, i[3], *row;
-    if (tr->stats->trace_n >= tr->cap) {
+    double sn, c;
+    double *row = ge_trace_row(tr->buf, tr->cap, FM_TRACE_COLUMNS, tr->stats);
+    if (row == NULL) {
         return MK_E_TRACE_FULL;
     }
     dq_sincos(theta, &sn, &c);
-    phase_currents_cs(cur[0], cur[1], c, sn, i);
-    row = tr->buf + (ptrdiff_t)tr->stats->trace_n * FM_TRACE_COLUMNS;
     row[0] = tk;
-    for (int k = 0; k < 3; k++) {
-        row[1 + k] = i[k];
-        if (fabs(i[k]) > tr->stats->peak_current) {
-            tr->stats->peak_current = fabs(i[k]);
-        }
-    }
+    phase_currents_cs(cur[0], cur[1], c, sn, row + 1);
     row[4] = fm_torque(p, psi[0], psi[1], cur[0], cur[1]);
     row[5] = s->mech.omega_m;
-    tr->stats->trace_n++;
-    s->trace_k++;
-    return 0;
+    return ge_trace_done(tr->stats, &s->trace_k, row + 1, 3);
 }
 
 /* The rows inside the accepted step [tau, tau + h) of the piece (and before end - 0.5 ns): the flux by the step's

@@ -1,6 +1,7 @@
 /* Gate edges of one control period; see gate_edges.h. */
 #include "gate_edges.h"
 
+#include <math.h>
 #include <stddef.h>
 
 #include "machine_kernel.h"
@@ -78,6 +79,23 @@ void ge_run_init(ge_run_t *run, const mech_params_t *mech_p, mech_state_t *mech_
 {
     const ge_run_t head = {mech_p, mech_s, trace_dt, trace, trace_cap, stats, {0}};
     *run = head;
+}
+
+double *ge_trace_row(double *trace, int32_t trace_cap, int32_t columns, const ge_period_stats_t *stats)
+{
+    return stats->trace_n >= trace_cap ? NULL : trace + (ptrdiff_t)stats->trace_n * columns;
+}
+
+int ge_trace_done(ge_period_stats_t *stats, uint64_t *trace_k, const double *i, int legs)
+{
+    for (int k = 0; k < legs; k++) {
+        if (fabs(i[k]) > stats->peak_current) {
+            stats->peak_current = fabs(i[k]);
+        }
+    }
+    stats->trace_n++;
+    (*trace_k)++;
+    return 0;
 }
 
 int ge_reject(ge_period_stats_t *stats, int32_t error)

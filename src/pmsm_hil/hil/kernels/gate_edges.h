@@ -30,6 +30,14 @@ typedef struct {
 /* Zero every counter of a period. */
 void ge_stats_reset(ge_period_stats_t *stats);
 
+/* The next trace row of the period (row stats->trace_n of `trace`, `columns` doubles each), or NULL when `trace`
+ * holds `trace_cap` rows already (the kernel's MK_E_TRACE_FULL). */
+double *ge_trace_row(double *trace, int32_t trace_cap, int32_t columns, const ge_period_stats_t *stats);
+
+/* A trace row written: its `legs` phase currents `i` [A] count in the period's peak, the period's rows and the
+ * kernel's trace sample index (*trace_k) move on. Returns 0. */
+int ge_trace_done(ge_period_stats_t *stats, uint64_t *trace_k, const double *i, int legs);
+
 /* A period refused before it ran: the counters zeroed, the error (a negative kernel code) in stats->error and
  * returned. */
 int ge_reject(ge_period_stats_t *stats, int32_t error);

@@ -90,23 +90,15 @@ static int emit_row(const im_params_t *p, im_state_t *s, double tk, double compl
                     double *trace, int32_t trace_cap, im_period_stats_t *stats)
 {
     const double complex i_s = (psi_s - psi_r) / p->lsigma;
-    double *row;
-    if (stats->trace_n >= trace_cap) {
+    double *row = ge_trace_row(trace, trace_cap, IM_TRACE_COLUMNS, stats);
+    if (row == NULL) {
         return MK_E_TRACE_FULL;
     }
-    row = trace + (ptrdiff_t)stats->trace_n * IM_TRACE_COLUMNS;
     row[0] = tk;
     phase_currents(creal(i_s), cimag(i_s), row + 1);
-    for (int k = 1; k <= 3; k++) {
-        if (fabs(row[k]) > stats->peak_current) {
-            stats->peak_current = fabs(row[k]);
-        }
-    }
     row[4] = torque_of(p, psi_s, psi_r);
     row[5] = s->mech.omega_m;
-    stats->trace_n++;
-    s->trace_k++;
-    return 0;
+    return ge_trace_done(stats, &s->trace_k, row + 1, 3);
 }
 
 #define IM_LEVEL_OPEN 2     /* dead_level value: diode blocked, phase open */

@@ -57,26 +57,15 @@ static const double PL_EY[3] = {0.0, 0.8660254037844386, -0.8660254037844386};
 static int emit_row_cs(const pl_params_t *p, pl_state_t *s, double tk, double i_d, double i_q, double cos_th,
                        double sin_th, double *trace, int32_t trace_cap, pl_period_stats_t *stats)
 {
-    double ia, ib, ic, *row;
-    if (stats->trace_n >= trace_cap) {
+    double *row = ge_trace_row(trace, trace_cap, PL_TRACE_COLUMNS, stats);
+    if (row == NULL) {
         return PL_E_TRACE_FULL;
     }
-    phase_currents_cs(i_d, i_q, cos_th, sin_th, &ia, &ib, &ic);
-    row = trace + (ptrdiff_t)stats->trace_n * PL_TRACE_COLUMNS;
     row[0] = tk;
-    row[1] = ia;
-    row[2] = ib;
-    row[3] = ic;
-    for (int k = 1; k <= 3; k++) {
-        if (fabs(row[k]) > stats->peak_current) {
-            stats->peak_current = fabs(row[k]);
-        }
-    }
+    phase_currents_cs(i_d, i_q, cos_th, sin_th, &row[1], &row[2], &row[3]);
     row[4] = pl_torque(p, i_d, i_q);
     row[5] = s->mech.omega_m;
-    stats->trace_n++;
-    s->trace_k++;
-    return PL_OK;
+    return ge_trace_done(stats, &s->trace_k, row + 1, 3);
 }
 
 static int emit_row(const pl_params_t *p, pl_state_t *s, double tk, double i_d, double i_q, double theta,

@@ -63,25 +63,17 @@ void p6_code_voltage(double vdc, int32_t code, double *v4)
 static int emit_row(const p6_params_t *p, p6_state_t *s, double tk, double i_d, double i_q, double cos_th,
                     double sin_th, double i_x, double i_y, double *trace, int32_t trace_cap, p6_period_stats_t *stats)
 {
-    double *row;
-    if (stats->trace_n >= trace_cap) {
+    double *row = ge_trace_row(trace, trace_cap, P6_TRACE_COLUMNS, stats);
+    if (row == NULL) {
         return P6_E_TRACE_FULL;
     }
-    row = trace + (ptrdiff_t)stats->trace_n * P6_TRACE_COLUMNS;
     row[0] = tk;
     phase_currents_cs(i_d, i_q, cos_th, sin_th, i_x, i_y, row + 1);
-    for (int k = 1; k <= 6; k++) {
-        if (fabs(row[k]) > stats->peak_current) {
-            stats->peak_current = fabs(row[k]);
-        }
-    }
     row[7] = p6_torque(p, i_d, i_q);
     row[8] = s->mech.omega_m;
     row[9] = i_x;
     row[10] = i_y;
-    stats->trace_n++;
-    s->trace_k++;
-    return P6_OK;
+    return ge_trace_done(stats, &s->trace_k, row + 1, P6_LEGS);
 }
 
 /* One interval of constant gate levels (gate_edges.c) as the mechanics cuts it into constant-speed pieces
