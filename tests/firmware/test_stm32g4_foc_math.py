@@ -7,18 +7,16 @@ from __future__ import annotations
 
 import ctypes
 import math
-import shutil
-import subprocess
 from pathlib import Path
 
 import pytest
 
 from tests.firmware._niu2020_avg import LD, LQ, PP, PSI_F, RS, SQRT3, VDC, AvgPlant, J, duties_to_alpha_beta
+from tests.host_c import STRICT, shared_library
 
 ROOT = Path(__file__).resolve().parents[2]
 SRC = ROOT / "examples" / "stm32g4_foc" / "src"
-FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion", "-fsingle-precision-constant", "-O2",
-         "-ffp-contract=off", "-fPIC", "-shared"]
+FLAGS = [*STRICT, "-fsingle-precision-constant", "-O2", "-ffp-contract=off"]
 F = ctypes.c_float
 PF = ctypes.POINTER(ctypes.c_float)
 
@@ -43,14 +41,7 @@ class State(ctypes.Structure):
 
 @pytest.fixture(scope="module")
 def lib(tmp_path_factory: pytest.TempPathFactory) -> ctypes.CDLL:
-    cc = shutil.which("cc") or shutil.which("gcc")
-    if cc is None:
-        pytest.skip("no host C compiler (cc) installed")
-    out = tmp_path_factory.mktemp("foc") / "libfoc_math.so"
-    proc = subprocess.run([cc, *FLAGS, "-o", str(out), str(SRC / "foc_math.c"), "-lm"], capture_output=True,
-                          text=True, timeout=120)
-    assert proc.returncode == 0, proc.stderr
-    so = ctypes.CDLL(str(out))
+    so = shared_library(tmp_path_factory.mktemp("foc") / "libfoc_math.so", [*FLAGS, str(SRC / "foc_math.c"), "-lm"])
     so.foc_wrap_2pi.restype = F
     so.foc_wrap_2pi.argtypes = [F]
     so.foc_wrap_pi.restype = F

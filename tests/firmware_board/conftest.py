@@ -24,6 +24,14 @@ def need(board: str) -> None:
         pytest.skip(f"firmware board {board}: {', '.join(missing)} not installed")
 
 
+def built(board: str, src: Path) -> Path:
+    """The firmware in `src` built for `board` (skipped without its tools), with no compiler warning."""
+    need(board)
+    build = build_firmware(board, src)
+    assert build.warnings == ()
+    return build.path
+
+
 @pytest.fixture(scope="session")
 def reference_sil() -> Path:
     need("host")

@@ -7,7 +7,6 @@ executes."""
 
 from __future__ import annotations
 
-import shutil
 import subprocess
 import time
 from pathlib import Path
@@ -15,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from pmsm_hil.sim_target.qemu import QemuTarget
+from tests.host_c import STRICT, compile_c
 
 NATIVE = Path(__file__).resolve().parents[2] / "src" / "pmsm_hil" / "hil" / "runner" / "c"
 
@@ -115,14 +115,9 @@ int main(void)
 
 
 def test_the_guest_time_counts_instructions_and_idle_sleep_only(tmp_path: Path) -> None:
-    cc = shutil.which("cc") or shutil.which("gcc")
-    if cc is None:
-        pytest.skip("no host C compiler")
     src = tmp_path / "check.c"
     src.write_text(_CHECK)
-    exe = tmp_path / "check"
-    subprocess.run([cc, "-std=c99", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion", "-I", str(NATIVE), "-o",
-                    str(exe), str(src), str(NATIVE / "loop_stall.c")], check=True, capture_output=True, text=True)
+    exe = compile_c(tmp_path / "check", [*STRICT, "-I", str(NATIVE), str(src), str(NATIVE / "loop_stall.c")])
     proc = subprocess.run([str(exe)], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stdout
 

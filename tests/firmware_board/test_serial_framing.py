@@ -6,13 +6,12 @@ from __future__ import annotations
 
 import ctypes
 import random
-import shutil
-import subprocess
 from pathlib import Path
 
 import pytest
 
 from pmsm_hil.sim_target.fw_build import FIRMWARE_DIR
+from tests.host_c import STRICT, shared_library
 from tests.protocol.test_cobs import _received
 from tests.protocol.wire_oracle import FLAG_BRS, FLAG_FD, encode_packet, pack_frame
 
@@ -30,14 +29,10 @@ class _Serial(ctypes.Structure):
 
 @pytest.fixture(scope="module")
 def lib(tmp_path_factory: pytest.TempPathFactory) -> ctypes.CDLL:
-    cc = shutil.which("cc") or shutil.which("gcc")
-    if cc is None:
-        pytest.skip("firmware board host: cc not installed")
-    out = tmp_path_factory.mktemp("serial") / "libhil_serial.so"
     target = FIRMWARE_DIR / "target"
-    subprocess.run([cc, "-shared", "-fPIC", "-std=c99", "-Wall", "-Wextra", "-Werror", "-O2", "-I", str(target),
-                    "-I", str(FIRMWARE_DIR / "generated"), str(target / "hil_serial.c"), "-o", str(out)], check=True)
-    lib = ctypes.CDLL(str(out))
+    lib = shared_library(tmp_path_factory.mktemp("serial") / "libhil_serial.so",
+                         [*STRICT, "-O2", "-I", str(target), "-I", str(FIRMWARE_DIR / "generated"),
+                          str(target / "hil_serial.c")])
     lib.hil_serial_encode.restype = ctypes.c_size_t
     lib.hil_serial_feed.argtypes = [ctypes.POINTER(_Serial), ctypes.c_uint8, ctypes.POINTER(_Frame)]
     return lib

@@ -8,23 +8,16 @@ from pathlib import Path
 import pytest
 
 from pmsm_hil.app.cli.main import main
-from tests.firmware_board._runs import metrics, rated
-
-
-def _check(m: dict[str, object]) -> None:
-    assert m["dut_violations"] == 0
-    assert m["speed_mean_rpm"] == pytest.approx(1500.0, rel=0.005)
-    assert m["torque_mean_nm"] == pytest.approx(7.0, rel=0.01)
-    assert m["torque_ripple_rms_nm"] < 0.2  # SVPWM: far below the reference MPCC's ~0.31 N·m
+from tests.firmware_board._runs import assert_holds_rated, metrics, rated
 
 
 def test_template_sil(template_sil: Path) -> None:
-    _check(metrics(rated(f"sil:{template_sil}", controller="external")))
+    assert_holds_rated(metrics(rated(f"sil:{template_sil}", controller="external")))
 
 
 def test_template_qemu(template_elf: Path) -> None:
     m = metrics(rated(f"qemu:{template_elf}", controller="external", settle_s=0.03, duration_s=0.07))
-    _check(m)
+    assert_holds_rated(m)
     assert m["exec_instructions"]["median"] > 100  # type: ignore[index]
 
 

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import struct
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
@@ -18,40 +17,19 @@ from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.messages import ConfigAck, ConfigParam
-from pmsm_hil.sim_target.fw_build import build_firmware
 from pmsm_hil.sim_target.sil import SilFirmware
-from tests.firmware_board._runs import metrics, rated
-from tests.firmware_board.conftest import ROOT, need
+from tests.firmware_board._runs import MACHINERY_COLUMNS, MACHINERY_KEYS, assert_holds_rated, metrics, rated
+from tests.firmware_board.conftest import ROOT, built
 
 CPP = ROOT / "examples" / "my_firmware_cpp"
-#: metrics of the machinery, not of the firmware's control: wall time, link statistics, execution time
-TIMING = {"wall_time_s", "loop_rate_hz", "exec_time_us", "exec_time_first_us", "link", "safe_stop_wait_ms",
-          "command_wait_max_us", "total_wall_time_s", "loop_rate_total_hz", "link_spec", "target_link", "link_losses"}
-#: record columns of the machinery (the target's own execution time)
-TIMING_COLUMNS = {"exec_time_ns", "exec_split_ns"}
-
-
 @pytest.fixture(scope="module")
 def cpp_sil() -> Path:
-    need("host")
-    build = build_firmware("host", CPP)
-    assert build.warnings == ()  # C flags stay off C++ sources (-std=c99 on a C++ file is a warning)
-    return build.path
+    return built("host", CPP)  # C flags stay off C++ sources (-std=c99 on a C++ file is a warning)
 
 
 @pytest.fixture(scope="module")
 def cpp_elf() -> Path:
-    need("mps2-an386")
-    build = build_firmware("mps2-an386", CPP)
-    assert build.warnings == ()
-    return build.path
-
-
-def _check(m: dict[str, Any]) -> None:
-    assert m["dut_violations"] == 0
-    assert m["speed_mean_rpm"] == pytest.approx(1500.0, rel=0.005)
-    assert m["torque_mean_nm"] == pytest.approx(7.0, rel=0.01)
-    assert m["torque_ripple_rms_nm"] < 0.2
+    return built("mps2-an386", CPP)
 
 
 def test_cpp_template_sil_and_qemu_are_bit_identical(cpp_sil: Path, cpp_elf: Path, tmp_path: Path) -> None:
@@ -61,25 +39,25 @@ def test_cpp_template_sil_and_qemu_are_bit_identical(cpp_sil: Path, cpp_elf: Pat
         runs[kind] = (metrics(rated(f"{kind}:{path}", controller="external", settle_s=0.03, duration_s=0.07,
                                     out_dir=out)), read_periods(out / "run.mcap"))
     (m_sil, rec_sil), (m_qemu, rec_qemu) = runs["sil"], runs["qemu"]
-    _check(m_sil)
-    _check(m_qemu)
+    assert_holds_rated(m_sil)
+    assert_holds_rated(m_qemu)
     assert m_qemu["exec_instructions"]["median"] > 100
     # not the firmware's doing: link counters are the links' (socketpair vs emulated UART); the torque error is
     # the host's (against T_load + B·ω_ref + J·dω_ref/dt), the same for both
     per_target = {"link_auth_dropped"}
-    shared = sorted(set(m_sil) & set(m_qemu) - TIMING - per_target)
+    shared = sorted(set(m_sil) & set(m_qemu) - MACHINERY_KEYS - per_target)
     assert len(shared) > 30
     assert {k: m_sil[k] for k in shared} == {k: m_qemu[k] for k in shared}
     assert len(rec_sil) == len(rec_qemu) > 900
     for name in rec_sil.dtype.names:
-        if name not in TIMING_COLUMNS and name != "torque_ref":  # torque_ref: SIL's debug output only
+        if name not in MACHINERY_COLUMNS and name != "torque_ref":  # torque_ref: SIL's debug output only
             assert np.array_equal(rec_sil[name], rec_qemu[name], equal_nan=True), name
 
 
 def test_firmware_parameter_is_applied_and_checked(cpp_sil: Path) -> None:
     slow = metrics(rated(f"sil:{cpp_sil}", controller="external", controller_params={"bandwidth": 300.0}))
     fast = metrics(rated(f"sil:{cpp_sil}", controller="external", controller_params={"bandwidth": 3000.0}))
-    _check(fast)
+    assert_holds_rated(fast)
     assert slow["torque_ripple_rms_nm"] != fast["torque_ripple_rms_nm"]  # the firmware got the values
     with pytest.raises(ParameterError, match=r"--param bandwidth=50: outside the firmware's range \[100, 20000\]"):
         rated(f"sil:{cpp_sil}", controller="external", controller_params={"bandwidth": 50.0})

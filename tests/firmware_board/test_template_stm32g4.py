@@ -17,29 +17,16 @@ from pmsm_hil.hil.runlog.reader import read_periods
 from pmsm_hil.sim_target.elf import elf_symbols
 from pmsm_hil.sim_target.fw_build import build_firmware
 from pmsm_hil.sim_target.stm32g4.frame_link import is_core_image
-from tests.firmware_board._runs import metrics, rated
-from tests.firmware_board.conftest import ROOT, TEMPLATE, need
+from tests.firmware_board._runs import MACHINERY_COLUMNS, MACHINERY_KEYS, assert_holds_rated, metrics, rated
+from tests.firmware_board.conftest import ROOT, TEMPLATE, built, need
 
-#: metrics of the machinery, not of the firmware's control: wall time, link statistics, execution time, the board's
-TIMING = {"wall_time_s", "loop_rate_hz", "exec_time_us", "exec_time_first_us", "link", "safe_stop_wait_ms",
-          "command_wait_max_us", "total_wall_time_s", "loop_rate_total_hz", "link_spec", "target_link", "link_losses",
-          "link_auth_dropped"}
-TIMING_COLUMNS = {"exec_time_ns", "exec_split_ns"}
+#: the machinery's metrics, and the target's authentication counter
+TIMING = MACHINERY_KEYS | {"link_auth_dropped"}
 
 
 @pytest.fixture(scope="module")
 def template_g4() -> Path:
-    need("stm32g474")
-    build = build_firmware("stm32g474", TEMPLATE)
-    assert build.warnings == ()
-    return build.path
-
-
-def _check(m: dict[str, Any]) -> None:
-    assert m["dut_violations"] == 0
-    assert m["speed_mean_rpm"] == pytest.approx(1500.0, rel=0.005)
-    assert m["torque_mean_nm"] == pytest.approx(7.0, rel=0.01)
-    assert m["torque_ripple_rms_nm"] < 0.2
+    return built("stm32g474", TEMPLATE)
 
 
 def test_the_image_is_the_board_layer_around_the_target_core(template_g4: Path) -> None:
@@ -62,7 +49,7 @@ def _first_difference(a: np.ndarray, b: np.ndarray) -> dict[str, int]:
     """Per record column (the machinery's columns left out), the first period where the two runs differ."""
     out = {}
     for name in a.dtype.names:
-        if name in TIMING_COLUMNS or name == "torque_ref":  # torque_ref: SIL's debug output only
+        if name in MACHINERY_COLUMNS or name == "torque_ref":  # torque_ref: SIL's debug output only
             continue
         x, y = a[name], b[name]
         same = (x == y) | (np.isnan(x) & np.isnan(y)) if x.dtype.kind == "f" else x == y
@@ -80,8 +67,8 @@ def test_template_on_the_virtual_board_has_the_records_of_sil_libm_aside(templat
     (the template calls them each step); the run's figures stay within a few ppm."""
     m_sil, rec_sil = _run(f"sil:{template_sil}", tmp_path / "sil", 2e-4)
     m_g4, rec_g4 = _run(f"stm32g4:{template_g4}", tmp_path / "g4", 2e-4)
-    _check(m_sil)
-    _check(m_g4)
+    assert_holds_rated(m_sil)
+    assert_holds_rated(m_g4)
     assert m_g4["board_link"] == "fdcan1"
     assert m_g4["board_can_bitrates"] == [1_000_000, 5_000_000]
     assert m_g4["board_late_replies"] == 0 and m_g4["board_missing_replies"] == 0
@@ -118,7 +105,7 @@ def test_cpp_template_without_libm_is_bit_identical_to_sil(tmp_path: Path) -> No
     sil = build_firmware("host", cpp).path
     m_sil, rec_sil = _run(f"sil:{sil}", tmp_path / "sil", 1e-4)
     m_g4, rec_g4 = _run(f"stm32g4:{elf}", tmp_path / "g4", 1e-4)
-    _check(m_g4)
+    assert_holds_rated(m_g4)
     assert m_g4["board_late_replies"] > 0  # 10 kHz is more than CAN FD at 1 / 5 Mbit/s carries: counted
     assert len(rec_sil) == len(rec_g4) > 900
     assert _first_difference(rec_sil, rec_g4) == {}

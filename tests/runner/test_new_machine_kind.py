@@ -44,7 +44,7 @@ def rl(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ModuleType]:
 
 def _cfg(rl: Any, loop: str) -> RunConfig:
     sc = load_scenario("dyno-steady").with_overrides(settle_s=0.02, duration_s=0.03, load_nm=2.0)
-    return RunConfig(motor=rl.RlLoadParams(r=1.0, l=5e-3, vdc=300.0), scenario=sc, controller="foc", loop=loop)
+    return RunConfig(motor=rl.RlLoadParams.build(r=1.0, l=5e-3, vdc=300.0), scenario=sc, controller="foc", loop=loop)
 
 
 def test_the_kind_lives_only_in_its_own_files(rl: Any) -> None:
@@ -56,7 +56,7 @@ def test_the_kind_lives_only_in_its_own_files(rl: Any) -> None:
             if path.suffix in (".py", ".c", ".h", ".toml"):
                 text = path.read_text(encoding="utf-8", errors="replace")
                 assert "rl_load" not in text and "RlLoad" not in text, path
-    assert machine_for(rl.RlLoadParams(r=1.0, l=5e-3, vdc=300.0)).layout is LAYOUTS["rl-load"]
+    assert machine_for(rl.RlLoadParams.build(r=1.0, l=5e-3, vdc=300.0)).layout is LAYOUTS["rl-load"]
 
 
 def test_a_preset_of_the_kind_loads_through_its_parameter_class(rl: Any, tmp_path: Path) -> None:
@@ -81,7 +81,7 @@ def test_a_preset_of_the_kind_loads_through_its_parameter_class(rl: Any, tmp_pat
 
 def test_the_rl_kernel_is_exact_over_one_sub_interval(rl: Any) -> None:
     """From rest, the active vector 100 for Ts: i_α(Ts) = (2/3·Vdc/R)(1 − e^(−R·Ts/L)), i_β = 0 (closed form)."""
-    params = rl.RlLoadParams(r=1.0, l=5e-3, vdc=300.0)
+    params = rl.RlLoadParams.build(r=1.0, l=5e-3, vdc=300.0)
     plant = rl.RlLoadPlant(params, 1e-4, DynoMechanics(speed_rpm=0.0), trace_dt_s=None)
     plant.advance([4], [100_000])
     smp = plant.sample()

@@ -2,10 +2,7 @@
  * FDCAN1 (RM0440 section 44) carrying the project's DBC (src/pmsm_hil/protocol/hil.dbc, packed and unpacked by
  * the cantools-generated codec firmware_stub/generated/hil_protocol.c): Setpoint and ConfigParam in, ConfigAck,
  * HeartbeatTarget and FaultTarget out, as docs/protocol.md "Target behaviour" asks of a target.
- *
- * Message RAM (RM0440 44.3.3, fixed layout per instance at SRAMCAN_BASE): 28 standard filters, 8 extended
- * filters, RX FIFO 0 and 1 with 3 elements each, 3 TX event elements, 3 TX buffers; elements of 18 words
- * (2 header words + 64 data bytes).
+ * The message RAM's layout, its RX FIFO 0 reads and the initialisation handshake: stm32g474_ll.h.
  */
 #include <stdint.h>
 #include <string.h>
@@ -14,11 +11,8 @@
 #include "device.h"
 #include "fw.h"
 #include "hil_protocol.h"
+#include "stm32g474_ll.h"
 
-#define MRAM_FLS 0x000u    /* standard filters */
-#define MRAM_RF0 0x0B0u    /* RX FIFO 0 */
-#define MRAM_TXB 0x278u    /* TX buffers */
-#define MRAM_ELEMENT 72u   /* bytes per RX/TX element */
 #define INIT_TIMEOUT 100000u
 #define NODE_TARGET 1u
 
@@ -26,41 +20,14 @@ static volatile uint32_t rx_count;
 static uint32_t tx_dropped;
 static uint8_t beats; /* HeartbeatTarget idle confirmations sent */
 
-static volatile uint32_t *mram(uint32_t offset)
-{
-    return (volatile uint32_t *)(SRAMCAN_BASE + offset);
-}
-
-static uint8_t dlc_bytes(uint32_t dlc)
-{
-    static const uint8_t fd[16] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64};
-    return fd[dlc & 0xFu];
-}
-
-static int wait_init(uint32_t want)
-{
-    uint32_t n;
-    for (n = 0u; n < INIT_TIMEOUT; ++n) {
-        if ((FDCAN1->CCCR & FDCAN_CCCR_INIT) == want) {
-            return 0;
-        }
-    }
-    return -1;
-}
-
 int can_init(void)
 {
     uint32_t i;
     RCC->CCIPR &= ~RCC_CCIPR_FDCANSEL; /* kernel clock: HSE (00) */
-    RCC->APB1ENR1 |= RCC_APB1ENR1_FDCANEN;
-    RCC->AHB2ENR |= RCC_AHB2ENR_GPIOAEN;
-    (void)RCC->APB1ENR1;
-    /* PA11 RX, PA12 TX: alternate function 9 */
-    GPIOA->MODER = (GPIOA->MODER & ~((3UL << 22) | (3UL << 24))) | (2UL << 22) | (2UL << 24);
-    GPIOA->AFR[1] = (GPIOA->AFR[1] & ~((0xFUL << 12) | (0xFUL << 16))) | (9UL << 12) | (9UL << 16);
+    g4_fdcan1_pins(); /* PA11 RX, PA12 TX */
 
     FDCAN1->CCCR |= FDCAN_CCCR_INIT;
-    if (wait_init(FDCAN_CCCR_INIT) != 0) {
+    if (g4_fdcan1_wait_init(FDCAN_CCCR_INIT, INIT_TIMEOUT) != 0) {
         return -1;
     }
     FDCAN1->CCCR |= FDCAN_CCCR_CCE;
@@ -73,12 +40,12 @@ int can_init(void)
                    (2UL << FDCAN_DBTP_DSJW_Pos);
     /* message RAM cleared, then two standard dual-ID filters into RX FIFO 0: Setpoint + ConfigParam,
      * HeartbeatHost; everything else (other standard ids, extended ids, remote frames) rejected */
-    for (i = 0u; i < 0x350u; i += 4u) {
-        *mram(i) = 0u;
+    for (i = 0u; i < G4_MRAM_SIZE; i += 4u) {
+        *g4_mram(i) = 0u;
     }
-    *mram(MRAM_FLS + 0u) = (1UL << 30) | (1UL << 27) | ((uint32_t)HIL_PROTOCOL_SETPOINT_FRAME_ID << 16) |
+    *g4_mram(G4_MRAM_FLS + 0u) = (1UL << 30) | (1UL << 27) | ((uint32_t)HIL_PROTOCOL_SETPOINT_FRAME_ID << 16) |
                            (uint32_t)HIL_PROTOCOL_CONFIG_PARAM_FRAME_ID;
-    *mram(MRAM_FLS + 4u) = (1UL << 30) | (1UL << 27) | ((uint32_t)HIL_PROTOCOL_HEARTBEAT_HOST_FRAME_ID << 16) |
+    *g4_mram(G4_MRAM_FLS + 4u) = (1UL << 30) | (1UL << 27) | ((uint32_t)HIL_PROTOCOL_HEARTBEAT_HOST_FRAME_ID << 16) |
                            (uint32_t)HIL_PROTOCOL_HEARTBEAT_HOST_FRAME_ID;
     FDCAN1->RXGFC = (2UL << FDCAN_RXGFC_LSS_Pos) | (2UL << FDCAN_RXGFC_ANFS_Pos) | (2UL << FDCAN_RXGFC_ANFE_Pos) |
                     FDCAN_RXGFC_RRFS | FDCAN_RXGFC_RRFE;
@@ -87,7 +54,7 @@ int can_init(void)
     FDCAN1->ILS = 0u; /* every group on interrupt line 0 */
     FDCAN1->ILE = FDCAN_ILE_EINT0;
     FDCAN1->CCCR &= ~FDCAN_CCCR_INIT;
-    return wait_init(0u);
+    return g4_fdcan1_wait_init(0u, INIT_TIMEOUT);
 }
 
 uint32_t can_frames_received(void)
@@ -106,12 +73,12 @@ static void can_send(uint32_t id, const uint8_t *data, uint8_t len)
         return;
     }
     put = (FDCAN1->TXFQS & FDCAN_TXFQS_TFQPI) >> FDCAN_TXFQS_TFQPI_Pos;
-    base = MRAM_TXB + put * MRAM_ELEMENT;
-    *mram(base) = (id & 0x7FFu) << 18; /* standard id, data frame */
-    *mram(base + 4u) = (uint32_t)len << 16; /* classic frame: DLC = length (<= 8) */
+    base = G4_MRAM_TXB + put * G4_MRAM_ELEMENT;
+    *g4_mram(base) = (id & 0x7FFu) << 18; /* standard id, data frame */
+    *g4_mram(base + 4u) = (uint32_t)len << 16; /* classic frame: DLC = length (<= 8) */
     memcpy(w, data, len);
     for (i = 0u; i < 2u; ++i) {
-        *mram(base + 8u + 4u * i) = w[i];
+        *g4_mram(base + 8u + 4u * i) = w[i];
     }
     FDCAN1->TXBAR = 1UL << put;
 }
@@ -184,21 +151,14 @@ void FDCAN1_IT0_IRQHandler(void)
 {
     FDCAN1->IR = FDCAN_IR_RF0N; /* write 1 to clear, before draining: a frame arriving meanwhile sets it again */
     while ((FDCAN1->RXF0S & FDCAN_RXF0S_F0FL) != 0u) {
-        const uint32_t get = (FDCAN1->RXF0S & FDCAN_RXF0S_F0GI) >> FDCAN_RXF0S_F0GI_Pos;
-        const uint32_t base = MRAM_RF0 + get * MRAM_ELEMENT;
-        const uint32_t r0 = *mram(base);
-        const uint32_t r1 = *mram(base + 4u);
-        const uint8_t len = dlc_bytes(r1 >> 16);
-        uint32_t words[16];
-        uint32_t i;
-        for (i = 0u; i < ((uint32_t)len + 3u) / 4u; ++i) {
-            words[i] = *mram(base + 8u + 4u * i);
-        }
-        FDCAN1->RXF0A = get;
+        g4_fdcan_rx_t e;
+        g4_fdcan1_rx0_read(&e);
+        FDCAN1->RXF0A = e.get;
         rx_count++;
-        if ((r0 & (1UL << 30)) == 0u) { /* standard id */
-            const uint32_t id = (r0 >> 18) & 0x7FFu;
-            const uint8_t *data = (const uint8_t *)words;
+        if ((e.r0 & (1UL << 30)) == 0u) { /* standard id */
+            const uint32_t id = (e.r0 >> 18) & 0x7FFu;
+            const uint8_t *data = (const uint8_t *)e.words;
+            const uint8_t len = e.len;
             if (id == HIL_PROTOCOL_SETPOINT_FRAME_ID && len >= HIL_PROTOCOL_SETPOINT_LENGTH) {
                 on_setpoint(data);
             } else if (id == HIL_PROTOCOL_CONFIG_PARAM_FRAME_ID && len >= HIL_PROTOCOL_CONFIG_PARAM_LENGTH) {

@@ -8,10 +8,9 @@
 
 #include "device.h"
 #include "fw.h"
+#include "stm32g474_ll.h"
 
 extern uint32_t _estack;
-extern uint32_t _sidata, _sdata, _edata, _sbss, _ebss;
-extern uint32_t _siccmdata, _sccmdata, _eccmdata, _sccmbss, _eccmbss;
 
 int main(void);
 void SystemInit(void);
@@ -251,30 +250,9 @@ __attribute__((section(".isr_vector"), used)) const vector_t g_pfnVectors[16 + 1
     FMAC_IRQHandler, /* IRQ 101 */
 };
 
-static void copy_words(uint32_t *dst, const uint32_t *src, const uint32_t *end)
-{
-    while (dst < end) {
-        *dst++ = *src++;
-    }
-}
-
-static void zero_words(uint32_t *dst, const uint32_t *end)
-{
-    while (dst < end) {
-        *dst++ = 0u;
-    }
-}
-
 void Reset_Handler(void)
 {
-    /* CP10/CP11 full access before any float instruction (the C code below may use the FPU) */
-    SCB->CPACR |= (3UL << 20) | (3UL << 22);
-    __DSB();
-    __ISB();
-    copy_words(&_sdata, &_sidata, &_edata);
-    zero_words(&_sbss, &_ebss);
-    copy_words(&_sccmdata, &_siccmdata, &_eccmdata);
-    zero_words(&_sccmbss, &_eccmbss);
+    g4_reset_init(); /* the FPU on, .data and .ccmdata copied, .bss and .ccmbss zeroed */
     SystemInit();
     (void)main();
     for (;;) {

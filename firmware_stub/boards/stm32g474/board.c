@@ -13,6 +13,7 @@
 #include "board.h"
 #include "hil_target_core.h"
 #include "stm32g474_regs.h"
+#include "stm32g474_ll.h"
 
 uint32_t SystemCoreClock = HIL_BOARD_HSI_HZ; /* HSI16 after reset */
 
@@ -21,76 +22,20 @@ void SystemInit(void)
     SCB->VTOR = FLASH_BASE; /* the vector table at the start of flash */
 }
 
-/* RM0440 sections 5.3.3, 6.1.5, 7.2: range 1 boost, 4 wait states, PLL to 170 MHz through AHB /2 for >= 1 us
- * (the boost-mode transition), every ready flag polled as ST's LL drivers do. */
+/* HSE (or HSI16) -> PLL M, N 85, R 2 (a 4 MHz PLL input, VCO 340 MHz) -> 170 MHz (stm32g474_ll.h). */
 static void clock_init(void)
 {
-    uint32_t i;
 #if defined(HIL_BOARD_HSI)
-    const uint32_t src = RCC_PLLCFGR_PLLSRC_HSI;
-    const uint32_t pll_m = HIL_BOARD_HSI_HZ / 4000000u; /* 4 MHz PLL input */
+    g4_clock_init(RCC_PLLCFGR_PLLSRC_HSI, HIL_BOARD_HSI_HZ / 4000000u, 85u, 2u);
 #else
-    const uint32_t src = RCC_PLLCFGR_PLLSRC_HSE;
-    const uint32_t pll_m = HIL_BOARD_HSE_HZ / 4000000u;
+    g4_clock_init(RCC_PLLCFGR_PLLSRC_HSE, HIL_BOARD_HSE_HZ / 4000000u, 85u, 2u);
 #endif
-    const uint32_t pll_n = 85u; /* VCO 340 MHz */
-    const uint32_t pll_r = 2u;
-    RCC->APB1ENR1 |= RCC_APB1ENR1_PWREN;
-    (void)RCC->APB1ENR1;
-    PWR->CR1 = (PWR->CR1 & ~PWR_CR1_VOS) | PWR_CR1_VOS_0;
-    while ((PWR->SR2 & PWR_SR2_VOSF) != 0u) {
-    }
-    PWR->CR5 &= ~PWR_CR5_R1MODE;
-    FLASH->ACR = (FLASH->ACR & ~FLASH_ACR_LATENCY) | FLASH_ACR_LATENCY_4WS | FLASH_ACR_PRFTEN | FLASH_ACR_ICEN |
-                 FLASH_ACR_DCEN;
-    while ((FLASH->ACR & FLASH_ACR_LATENCY) != FLASH_ACR_LATENCY_4WS) {
-    }
-#if !defined(HIL_BOARD_HSI)
-    RCC->CR |= RCC_CR_HSEON;
-    while ((RCC->CR & RCC_CR_HSERDY) == 0u) {
-    }
-#endif
-    RCC->CR &= ~RCC_CR_PLLON;
-    while ((RCC->CR & RCC_CR_PLLRDY) != 0u) {
-    }
-    RCC->PLLCFGR = src | ((pll_m - 1u) << RCC_PLLCFGR_PLLM_Pos) | (pll_n << RCC_PLLCFGR_PLLN_Pos) |
-                   (((pll_r / 2u) - 1u) << RCC_PLLCFGR_PLLR_Pos) | RCC_PLLCFGR_PLLREN;
-    RCC->CR |= RCC_CR_PLLON;
-    while ((RCC->CR & RCC_CR_PLLRDY) == 0u) {
-    }
-    RCC->CFGR = (RCC->CFGR & ~(RCC_CFGR_HPRE | RCC_CFGR_PPRE1 | RCC_CFGR_PPRE2)) | RCC_CFGR_HPRE_DIV2;
-    RCC->CFGR = (RCC->CFGR & ~RCC_CFGR_SW) | RCC_CFGR_SW_PLL;
-    while ((RCC->CFGR & RCC_CFGR_SWS) != RCC_CFGR_SWS_PLL) {
-    }
-    for (i = 0u; i < 100u; ++i) { /* >= 1 us at 85 MHz */
-        __asm__ volatile("nop");
-    }
-    RCC->CFGR = (RCC->CFGR & ~RCC_CFGR_HPRE) | RCC_CFGR_HPRE_DIV1;
     SystemCoreClock = HIL_BOARD_SYSCLK_HZ;
-}
-
-static void console_init(void)
-{
-    RCC->AHB2ENR |= RCC_AHB2ENR_GPIOAEN;
-    RCC->APB1ENR1 |= RCC_APB1ENR1_USART2EN;
-    (void)RCC->APB1ENR1;
-    /* PA2 TX, PA3 RX: alternate function 7; kernel clock PCLK1 (CCIPR USART2SEL 00, its reset value) */
-    GPIOA->MODER = (GPIOA->MODER & ~((3UL << 4) | (3UL << 6))) | (2UL << 4) | (2UL << 6);
-    GPIOA->AFR[0] = (GPIOA->AFR[0] & ~((0xFUL << 8) | (0xFUL << 12))) | (7UL << 8) | (7UL << 12);
-    USART2->CR1 = 0u;
-    USART2->BRR = (SystemCoreClock + HIL_BOARD_CONSOLE_BAUD / 2u) / HIL_BOARD_CONSOLE_BAUD; /* oversampling 16 */
-    USART2->CR1 = USART_CR1_TE | USART_CR1_RE | USART_CR1_UE;
 }
 
 void hil_board_console_write(const char *s)
 {
-    while (*s != '\0') {
-        while ((USART2->ISR & USART_ISR_TXE_TXFNF) == 0u) {
-        }
-        USART2->TDR = (uint8_t)*s++;
-    }
-    while ((USART2->ISR & USART_ISR_TC) == 0u) {
-    }
+    g4_usart2_write(s);
 }
 
 /* The DWT cycle counter at HCLK: the execution clock of the step (exec_time_ns). */
@@ -125,7 +70,7 @@ int main(void)
     CoreDebug->DEMCR |= CoreDebug_DEMCR_TRCENA_Msk;
     DWT->CYCCNT = 0u;
     DWT->CTRL |= DWT_CTRL_CYCCNTENA_Msk;
-    console_init();
+    g4_usart2_init(SystemCoreClock, HIL_BOARD_CONSOLE_BAUD);
     hil_core_init();
     if (hil_board_can_init() != 0) {
         hil_board_console_write("HIL-BOARD stm32g474: FDCAN1 did not start\n");

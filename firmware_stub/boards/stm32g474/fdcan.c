@@ -6,8 +6,7 @@
  * The core's answers go out through the TX FIFO (3 elements), as FD frames with bit-rate switching when the core
  * answers a CAN FD frame.
  *
- * Message RAM (RM0440 44.3.3, the G4's fixed layout at SRAMCAN_BASE): 28 standard filters at +0x000, RX FIFO 0 at
- * +0x0B0, TX buffers at +0x278; RX/TX elements of 18 words (2 header words + 64 data bytes).
+ * The message RAM's layout (RM0440 44.3.3), its RX FIFO 0 reads and the initialisation handshake: stm32g474_ll.h.
  */
 #include <stdint.h>
 #include <string.h>
@@ -15,12 +14,8 @@
 #include "board.h"
 #include "hil_protocol.h"
 #include "stm32g474_regs.h"
+#include "stm32g474_ll.h"
 
-#define MRAM_FLS 0x000u
-#define MRAM_RF0 0x0B0u
-#define MRAM_TXB 0x278u
-#define MRAM_SIZE 0x350u
-#define MRAM_ELEMENT 72u
 #define INIT_TIMEOUT 100000u
 #define TX_TIMEOUT 1000000u /* polls of a full TX FIFO before the frame is dropped (~10 ms at 170 MHz) */
 
@@ -35,52 +30,15 @@
 static uint32_t rx_lost;
 static uint32_t tx_dropped;
 
-static volatile uint32_t *mram(uint32_t offset)
-{
-    return (volatile uint32_t *)(SRAMCAN_BASE + offset);
-}
-
-static uint8_t dlc_bytes(uint32_t dlc)
-{
-    static const uint8_t len[16] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64};
-    return len[dlc & 0xFu];
-}
-
-static uint32_t bytes_dlc(uint8_t n)
-{
-    static const uint8_t len[16] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64};
-    uint32_t dlc = 0u;
-    while (dlc < 15u && len[dlc] < n) {
-        ++dlc;
-    }
-    return dlc;
-}
-
-static int wait_init(uint32_t want)
-{
-    uint32_t n;
-    for (n = 0u; n < INIT_TIMEOUT; ++n) {
-        if ((FDCAN1->CCCR & FDCAN_CCCR_INIT) == want) {
-            return 0;
-        }
-    }
-    return -1;
-}
-
 int hil_board_can_init(void)
 {
     uint32_t i;
     /* kernel clock PCLK1 (CCIPR FDCANSEL 10): 170 MHz */
     RCC->CCIPR = (RCC->CCIPR & ~RCC_CCIPR_FDCANSEL) | (2UL << RCC_CCIPR_FDCANSEL_Pos);
-    RCC->APB1ENR1 |= RCC_APB1ENR1_FDCANEN;
-    RCC->AHB2ENR |= RCC_AHB2ENR_GPIOAEN;
-    (void)RCC->APB1ENR1;
-    /* PA11 RX, PA12 TX: alternate function 9 */
-    GPIOA->MODER = (GPIOA->MODER & ~((3UL << 22) | (3UL << 24))) | (2UL << 22) | (2UL << 24);
-    GPIOA->AFR[1] = (GPIOA->AFR[1] & ~((0xFUL << 12) | (0xFUL << 16))) | (9UL << 12) | (9UL << 16);
+    g4_fdcan1_pins();
 
     FDCAN1->CCCR |= FDCAN_CCCR_INIT;
-    if (wait_init(FDCAN_CCCR_INIT) != 0) {
+    if (g4_fdcan1_wait_init(FDCAN_CCCR_INIT, INIT_TIMEOUT) != 0) {
         return -1;
     }
     FDCAN1->CCCR |= FDCAN_CCCR_CCE;
@@ -95,13 +53,14 @@ int hil_board_can_init(void)
     FDCAN1->DBTP = (0UL << FDCAN_DBTP_DBRP_Pos) | (25UL << FDCAN_DBTP_DTSEG1_Pos) | (6UL << FDCAN_DBTP_DTSEG2_Pos) |
                    (6UL << FDCAN_DBTP_DSJW_Pos) | FDCAN_DBTP_TDC;
     FDCAN1->TDCR = 27UL << FDCAN_TDCR_TDCO_Pos;
-    for (i = 0u; i < MRAM_SIZE; i += 4u) {
-        *mram(i) = 0u;
+    for (i = 0u; i < G4_MRAM_SIZE; i += 4u) {
+        *g4_mram(i) = 0u;
     }
-    *mram(MRAM_FLS + 0u) = STD_FILTER(SFT_RANGE, HIL_PROTOCOL_MEAS_A_FRAME_ID, HIL_PROTOCOL_MEAS6_B_FRAME_ID);
-    *mram(MRAM_FLS + 4u) = STD_FILTER(SFT_DUAL, HIL_PROTOCOL_MEAS_FD_FRAME_ID, HIL_PROTOCOL_MEAS_FD6_FRAME_ID);
-    *mram(MRAM_FLS + 8u) = STD_FILTER(SFT_DUAL, HIL_PROTOCOL_SETPOINT_FRAME_ID, HIL_PROTOCOL_CONFIG_PARAM_FRAME_ID);
-    *mram(MRAM_FLS + 12u) = STD_FILTER(SFT_DUAL, HIL_PROTOCOL_HEARTBEAT_HOST_FRAME_ID, HIL_PROTOCOL_FAULT_HOST_FRAME_ID);
+    *g4_mram(G4_MRAM_FLS + 0u) = STD_FILTER(SFT_RANGE, HIL_PROTOCOL_MEAS_A_FRAME_ID, HIL_PROTOCOL_MEAS6_B_FRAME_ID);
+    *g4_mram(G4_MRAM_FLS + 4u) = STD_FILTER(SFT_DUAL, HIL_PROTOCOL_MEAS_FD_FRAME_ID, HIL_PROTOCOL_MEAS_FD6_FRAME_ID);
+    *g4_mram(G4_MRAM_FLS + 8u) = STD_FILTER(SFT_DUAL, HIL_PROTOCOL_SETPOINT_FRAME_ID, HIL_PROTOCOL_CONFIG_PARAM_FRAME_ID);
+    *g4_mram(G4_MRAM_FLS + 12u) =
+        STD_FILTER(SFT_DUAL, HIL_PROTOCOL_HEARTBEAT_HOST_FRAME_ID, HIL_PROTOCOL_FAULT_HOST_FRAME_ID);
     /* N_FILTERS standard elements; non-matching standard and extended frames and remote frames rejected */
     FDCAN1->RXGFC = (N_FILTERS << FDCAN_RXGFC_LSS_Pos) | (2UL << FDCAN_RXGFC_ANFS_Pos) |
                     (2UL << FDCAN_RXGFC_ANFE_Pos) | FDCAN_RXGFC_RRFS | FDCAN_RXGFC_RRFE;
@@ -112,32 +71,25 @@ int hil_board_can_init(void)
     NVIC_SetPriority(FDCAN1_IT0_IRQn, 1u);
     NVIC_EnableIRQ(FDCAN1_IT0_IRQn);
     FDCAN1->CCCR &= ~FDCAN_CCCR_INIT;
-    return wait_init(0u);
+    return g4_fdcan1_wait_init(0u, INIT_TIMEOUT);
 }
 
 void FDCAN1_IT0_IRQHandler(void)
 {
     FDCAN1->IR = FDCAN_IR_RF0N; /* write 1 to clear, before draining: a frame arriving meanwhile sets it again */
     while ((FDCAN1->RXF0S & FDCAN_RXF0S_F0FL) != 0u) {
-        const uint32_t get = (FDCAN1->RXF0S & FDCAN_RXF0S_F0GI) >> FDCAN_RXF0S_F0GI_Pos;
-        const uint32_t base = MRAM_RF0 + get * MRAM_ELEMENT;
-        const uint32_t r0 = *mram(base);
-        const uint32_t r1 = *mram(base + 4u);
+        g4_fdcan_rx_t e;
         hil_board_frame_t f;
-        uint32_t words[16];
-        uint32_t i;
-        f.len = dlc_bytes(r1 >> 16);
-        for (i = 0u; i < ((uint32_t)f.len + 3u) / 4u; ++i) {
-            words[i] = *mram(base + 8u + 4u * i);
-        }
+        g4_fdcan1_rx0_read(&e);
         if ((FDCAN1->RXF0S & FDCAN_RXF0S_RF0L) != 0u) {
             rx_lost++; /* a frame found RX FIFO 0 full (blocking mode): the host sees its answer missing */
             FDCAN1->IR = FDCAN_IR_RF0L;
         }
-        FDCAN1->RXF0A = get; /* the element is free again */
-        f.id = (r0 >> 18) & 0x7FFu;        /* the filters pass standard ids only */
-        f.fd = (uint8_t)((r1 >> 21) & 1u); /* FDF */
-        memcpy(f.data, words, f.len);
+        FDCAN1->RXF0A = e.get; /* the element is free again */
+        f.id = (e.r0 >> 18) & 0x7FFu;        /* the filters pass standard ids only */
+        f.fd = (uint8_t)((e.r1 >> 21) & 1u); /* FDF */
+        f.len = e.len;
+        memcpy(f.data, e.words, f.len);
         hil_board_frame_received(&f);
     }
 }
@@ -157,19 +109,19 @@ int hil_board_can_send(const hil_board_frame_t *f)
         }
     }
     put = (FDCAN1->TXFQS & FDCAN_TXFQS_TFQPI) >> FDCAN_TXFQS_TFQPI_Pos;
-    base = MRAM_TXB + put * MRAM_ELEMENT;
+    base = G4_MRAM_TXB + put * G4_MRAM_ELEMENT;
     memset(words, 0, sizeof words);
     memcpy(words, f->data, f->len);
-    r1 = bytes_dlc(f->len) << 16;
+    r1 = g4_fdcan_bytes_dlc(f->len) << 16;
 #if !defined(HIL_BOARD_CLASSIC_CAN)
     if (f->fd != 0u) {
         r1 |= (1UL << 21) | (1UL << 20); /* FDF, BRS */
     }
 #endif
-    *mram(base) = (f->id & 0x7FFu) << 18; /* standard id, data frame */
-    *mram(base + 4u) = r1;
+    *g4_mram(base) = (f->id & 0x7FFu) << 18; /* standard id, data frame */
+    *g4_mram(base + 4u) = r1;
     for (i = 0u; i < ((uint32_t)f->len + 3u) / 4u; ++i) {
-        *mram(base + 8u + 4u * i) = words[i];
+        *g4_mram(base + 8u + 4u * i) = words[i];
     }
     FDCAN1->TXBAR = 1UL << put;
     return 0;

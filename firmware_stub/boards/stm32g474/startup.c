@@ -7,52 +7,18 @@
 #include <stdint.h>
 
 #include "board.h"
+#include "hil_cortexm_startup.h"
 #include "stm32g474_regs.h"
+#include "stm32g474_ll.h"
 
 extern uint32_t _estack;
-extern uint32_t _sidata, _sdata, _edata, _sbss, _ebss;
-extern uint32_t _siccmdata, _sccmdata, _eccmdata, _sccmbss, _eccmbss;
-extern int main(void);
-extern void __libc_init_array(void);
-
-/* newlib's __libc_init_array calls _init (crti/crtn, not linked: -nostartfiles) between .preinit_array and
- * .init_array; the constructors themselves are in .init_array (stm32g474.ld) */
-void _init(void);
-void _fini(void);
-void _init(void)
-{
-}
-void _fini(void)
-{
-}
 
 void Reset_Handler(void);
 void Default_Handler(void);
-void HardFault_Handler(void);
-
-static void copy_words(uint32_t *dst, const uint32_t *src, const uint32_t *end)
-{
-    while (dst < end) {
-        *dst++ = *src++;
-    }
-}
-
-static void zero_words(uint32_t *dst, const uint32_t *end)
-{
-    while (dst < end) {
-        *dst++ = 0u;
-    }
-}
 
 void Reset_Handler(void)
 {
-    SCB->CPACR |= (3UL << 20) | (3UL << 22); /* CP10, CP11 full access: the single-precision FPU */
-    __DSB();
-    __ISB();
-    copy_words(&_sdata, &_sidata, &_edata);
-    zero_words(&_sbss, &_ebss);
-    copy_words(&_sccmdata, &_siccmdata, &_eccmdata);
-    zero_words(&_sccmbss, &_eccmbss);
+    g4_reset_init(); /* the FPU on, .data and .ccmdata copied, .bss and .ccmbss zeroed */
     SystemInit();
     __libc_init_array(); /* after the FPU is on: a constructor may compute in float */
     (void)main();
@@ -67,59 +33,17 @@ void Default_Handler(void)
     }
 }
 
-static char *put_str(char *p, const char *s)
-{
-    while (*s != '\0') {
-        *p++ = *s++;
-    }
-    return p;
-}
-
-static char *put_hex(char *p, uint32_t v)
-{
-    int shift;
-    for (shift = 28; shift >= 0; shift -= 4) {
-        *p++ = "0123456789abcdef"[(v >> (uint32_t)shift) & 0xFu];
-    }
-    return p;
-}
-
-/* The fault report of the other boards (boards/mps2-an386/startup.c), one line on USART2 --
- *   HIL-FAULT exc=3 pc=0800021c lr=08000a41 cfsr=00010000 hfsr=40000000 mmfar=e000edf8 bfar=e000edf8
- * -- then the core stops here (the bench's heartbeat watch or lockstep timeout ends the run; a debug probe reads
- * the same registers). The virtual board stops at the faulting instruction itself and reports it (exit 3). */
-void hil_fault_report(const uint32_t *frame, uint32_t exc_return);
+/* The fault report of the other boards (boards/mps2-an386/startup.c), one line on USART2 (hil_cortexm_startup.h); then
+ * the core stops here (the bench's heartbeat watch or lockstep timeout ends the run; a debug probe reads the same
+ * registers). The virtual board stops at the faulting instruction itself and reports it (exit 3). */
 void hil_fault_report(const uint32_t *frame, uint32_t exc_return)
 {
     static char line[128];
-    uint32_t ipsr;
-    char *p = line;
     (void)exc_return;
-    __asm__ volatile("mrs %0, ipsr" : "=r"(ipsr));
-    p = put_str(p, "HIL-FAULT exc=");
-    *p++ = (char)('0' + (ipsr & 0xFu) % 10u);
-    p = put_hex(put_str(p, " pc="), frame[6]);
-    p = put_hex(put_str(p, " lr="), frame[5]);
-    p = put_hex(put_str(p, " cfsr="), SCB->CFSR);
-    p = put_hex(put_str(p, " hfsr="), SCB->HFSR);
-    p = put_hex(put_str(p, " mmfar="), SCB->MMFAR);
-    p = put_hex(put_str(p, " bfar="), SCB->BFAR);
-    *p++ = '\n';
-    *p = '\0';
+    (void)hil_fault_line(line, frame);
     hil_board_console_write(line);
     for (;;) {
     }
-}
-
-/* The stacked frame is on the stack the faulting code used (EXC_RETURN bit 2: 0 MSP, 1 PSP). */
-__attribute__((naked)) void HardFault_Handler(void)
-{
-    __asm__ volatile("tst lr, #4\n\t"
-                     "ite eq\n\t"
-                     "mrseq r0, msp\n\t"
-                     "mrsne r0, psp\n\t"
-                     "mov r1, lr\n\t"
-                     "b hil_fault_report\n\t");
 }
 
 typedef void (*vector_t)(void);

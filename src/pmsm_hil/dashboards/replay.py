@@ -39,9 +39,7 @@ def load_source(path: Path, *, vdc: float | None = None) -> ReplaySource:
     state = ScanState()
     periods = read_periods(path, state)
     if not state.complete:
-        raise DashboardError(f"RUN.mcap: {path} is cut or corrupt after {state.valid_bytes} of {state.file_bytes} "
-                             f"bytes ({state.stop_reason}); `hil mcap-repair {path}` writes its valid prefix as a "
-                             "complete file to replay")
+        raise DashboardError(f"RUN.mcap: {path} is {state.cut_reason(path, 'replay')}")
     if len(periods) == 0:
         raise DashboardError(f"RUN.mcap: {path} holds no /periods messages")
     try:

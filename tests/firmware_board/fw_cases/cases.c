@@ -9,6 +9,7 @@
 
 #include "hil_app.h"
 #include "hil_app_params.h"
+#include "../accept_all.h"
 
 #if defined(FW_BAD_PARAMS) && FW_BAD_PARAMS == 2 /* a name of 24 characters: no room for its NUL */
 HIL_APP_PARAMS({"gain_of_the_speed_filter", "", 128u, {0u, 0u, 0u}, 1.0f, 0.0f, 2.0f});
@@ -27,24 +28,6 @@ int hil_app_config(uint8_t param_id, float value)
 {
     (void)param_id;
     (void)value;
-    return HIL_APP_OK;
-}
-
-int hil_app_select(uint8_t controller_id)
-{
-    (void)controller_id;
-    return HIL_APP_OK;
-}
-
-void hil_app_reset(void)
-{
-}
-
-int hil_app_setpoint(uint8_t enable, uint8_t mode, float reference)
-{
-    (void)enable;
-    (void)mode;
-    (void)reference;
     return HIL_APP_OK;
 }
 

@@ -17,6 +17,7 @@
 
 #include "hil_app.h"
 #include "hil_ids.h"
+#include "../accept_all.h"
 
 #define MISBEHAVE_AT 500u
 
@@ -55,24 +56,6 @@ int hil_app_config(uint8_t param_id, float value)
     if (param_id == HIL_FW_P_TS) {
         g_ts_ns = (uint32_t)(value * 1e9f + 0.5f);
     }
-    return HIL_APP_OK;
-}
-
-int hil_app_select(uint8_t controller_id)
-{
-    (void)controller_id;
-    return HIL_APP_OK;
-}
-
-void hil_app_reset(void)
-{
-}
-
-int hil_app_setpoint(uint8_t enable, uint8_t mode, float reference)
-{
-    (void)enable;
-    (void)mode;
-    (void)reference;
     return HIL_APP_OK;
 }
 

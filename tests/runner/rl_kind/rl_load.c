@@ -143,36 +143,6 @@ void rl_sample(const rl_params_t *p, const rl_state_t *s, mk_sample_t *out)
     out->torque = 0.0;
 }
 
-/* --- the machine-kernel table ------------------------------------------------------------------------------- */
-static int k_advance(const void *p, void *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
-                     const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap,
-                     ge_period_stats_t *stats)
-{
-    return rl_advance((const rl_params_t *)p, (rl_state_t *)s, states, durations_ns, n, load, trace_dt, trace,
-                      trace_cap, stats);
-}
-
-static void k_sample(const void *p, const void *s, mk_sample_t *out)
-{
-    rl_sample((const rl_params_t *)p, (const rl_state_t *)s, out);
-}
-
-static void k_hold_speed(void *p, void *s, double omega_m)
-{
-    mech_hold(&((rl_params_t *)p)->mech, &((rl_state_t *)s)->mech, omega_m);
-}
-
-static uint64_t k_time_ns(const void *s)
-{
-    return ((const rl_state_t *)s)->t_ns;
-}
-
-static const mk_kernel_t RL_KERNEL = {
-    MK_ABI_VERSION, "three-phase R-L load", 3, 7, RL_TRACE_COLUMNS, sizeof(rl_params_t), sizeof(rl_state_t),
-    k_advance, k_sample, k_hold_speed, k_time_ns,
-};
-
-const mk_kernel_t *rl_kernel(void)
-{
-    return &RL_KERNEL;
-}
+/* the machine-kernel table (machine_kernel.h) */
+const mk_kernel_t *rl_kernel(void);
+MK_KERNEL_TABLE(rl, rl_params_t, rl_state_t, rl_advance, rl_sample, "three-phase R-L load", 3, 7, RL_TRACE_COLUMNS)

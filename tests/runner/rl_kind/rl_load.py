@@ -9,11 +9,12 @@ that only turns the dq view of its currents (rl_load.c). Units: SI.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
 
 from pmsm_hil.hil.cdef_extract import declarations
+from pmsm_hil.hil.drive_params import DriveParams, WithDrive
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.kernel_build import build_kernel_module
 from pmsm_hil.hil.machine import MEAS_THREE, THREE_PHASE, MachineLayout, register_layout
@@ -28,43 +29,32 @@ CDEF = declarations(KERNEL_C, ["rl_params_t", "rl_state_t", "rl_period_stats_t",
 
 
 @dataclass(frozen=True, slots=True)
-class RlLoadParams:
+class RlLoadParams(WithDrive):
     """R-L load: r [Ω], l [H] per phase, the flux `psi_model` [Wb] the controller is told (its torque-to-current
-    scale: the load itself has none), and the drive facts every machine kind has (MachineParams)."""
+    scale: the load itself has none), and the drive facts every machine kind has (`drive`, DriveParams; read as
+    attributes too). Build one from flat values with `RlLoadParams.build(r=..., l=..., vdc=...)`."""
 
     r: float
     l: float  # noqa: E741 - the inductance's own symbol
-    vdc: float
+    drive: DriveParams
     psi_model: float = 0.1
     pole_pairs: int = 2
-    j: float = 1.0
-    b: float = 0.0
-    t_dead: float = 0.0
-    t_mpw: float = 0.0
-    i_trip: float = 50.0
-    speed_trip_rpm: float = 6000.0
-    rated_speed_rpm: float = 0.0
-    rated_torque_nm: float = 0.0
-    speed_kp: float = 0.8
-    speed_ki: float = 0.35
     name: str = "rl-load"
 
+    DRIVE_DEFAULTS: ClassVar[dict[str, float]] = {"j": 1.0, "i_trip": 50.0}
     SETTABLE_UNITS: ClassVar[dict[str, str]] = {"r": "Ω", "l": "H", "vdc": "V", "psi_model": "Wb", "i_trip": "A"}
 
     @classmethod
     def from_values(cls, values: dict[str, Any], name: str) -> RlLoadParams:
         """From a preset's `[parameters]` (kind = "rl-load")."""
-        known = {f.name for f in fields(cls)} - {"name"}
-        unknown = set(values) - known
-        if unknown:
-            raise ParameterError(f"unknown R-L load parameter(s) {', '.join(sorted(unknown))}")
+        _check_names(set(values), cls.parameter_names())
         missing = {"r", "l", "vdc"} - set(values)
         if missing:
             raise ParameterError(f"missing R-L load parameter(s) {', '.join(sorted(missing))}")
-        return cls(name=name, **{k: int(v) if k == "pole_pairs" else float(v) for k, v in values.items()})
+        return cls.build(name=name, **{k: int(v) if k == "pole_pairs" else float(v) for k, v in values.items()})
 
     def __post_init__(self) -> None:
-        for key in ("r", "l", "vdc", "psi_model", "i_trip"):
+        for key in ("r", "l", "psi_model"):
             value = getattr(self, key)
             if not (isinstance(value, float | int) and math.isfinite(value) and value > 0):
                 raise ParameterError(f"R-L load parameter '{key}' must be a finite number > 0, got {value!r}")
@@ -76,11 +66,8 @@ class RlLoadParams:
 
     def with_overrides(self, overrides: dict[str, Any]) -> RlLoadParams:
         """A copy with `--set` overrides."""
-        known = {f.name for f in fields(self)} - {"name"}
-        unknown = set(overrides) - known
-        if unknown:
-            raise ParameterError(f"unknown R-L load parameter(s) {', '.join(sorted(unknown))}")
-        return replace(self, **overrides)
+        _check_names(set(overrides), self.parameter_names())
+        return self.with_values(**overrides)
 
     def model_parameters(self) -> dict[ParamId, float]:
         """The controller's model: a round-rotor machine of R, L and the flux psi_model, and FOC's current-PI
@@ -88,6 +75,12 @@ class RlLoadParams:
         bandwidth = 2.0 * math.pi * 1000.0
         return {ParamId.RS: self.r, ParamId.LD: self.l, ParamId.LQ: self.l, ParamId.PSI_F: self.psi_model,
                 ParamId.CURRENT_KP: bandwidth * self.l, ParamId.CURRENT_KI: bandwidth * self.r}
+
+
+def _check_names(given: set[str], known: set[str]) -> None:
+    unknown = given - known
+    if unknown:
+        raise ParameterError(f"unknown R-L load parameter(s) {', '.join(sorted(unknown))}")
 
 
 class RlLoadPlant(ThreePhasePlant):

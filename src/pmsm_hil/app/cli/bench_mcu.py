@@ -22,7 +22,7 @@ from pmsm_hil.protocol.ids import ParamId
 from pmsm_hil.protocol.links import open_link
 from pmsm_hil.protocol.messages import Command, ConfigAck, ConfigParam, Fault, Measurement, Measurement6, Setpoint
 from pmsm_hil.sim_target.fw_build import Sizes, build_firmware
-from pmsm_hil.sim_target.qemu import CPI, QemuTarget
+from pmsm_hil.sim_target.qemu import CPI, QemuTarget, stats
 
 #: each controller's own source files (shared helpers named too; the core, codec, state, step, transforms
 #: and libm are the common part of the image)
@@ -91,10 +91,6 @@ def map_sizes(map_file: Path) -> dict[str, dict[str, int]]:
             sizes = out.setdefault(name, {"flash": 0, "data": 0, "bss": 0})
             sizes[kind] += size
     return out
-
-
-def _stats(values: np.ndarray) -> dict[str, float]:
-    return {"median": float(np.median(values)), "p99": float(np.percentile(values, 99)), "max": float(values.max())}
 
 
 def _serve(qemu: QemuTarget, machine: BenchMachine, ids: list[int], steps: int) -> None:
@@ -170,7 +166,7 @@ def measure(ids: list[int], names: dict[int, str], steps: int, mcu_clock_hz: flo
     per_file = map_sizes(map_file) if map_file.is_file() else {}
     figures = []
     for cid in ids:
-        ins = _stats(counts[cid])
+        ins = stats(counts[cid])
         est = {k: v * CPI / mcu_clock_hz * 1e6 for k, v in ins.items()}
         files = list(CONTROLLER_FILES.get(names[cid], ()))
         own = sum(per_file.get(f, {}).get("flash", 0) for f in files) if per_file else None

@@ -279,25 +279,17 @@ static int tracing(const fm_trace_t *tr)
 static int emit_row(const fm_params_t *p, fm_state_t *s, const fm_trace_t *tr, double tk, double theta,
                     const double *psi, const double *cur)
 {
-    double sn, c, i[3], *row;
-    if (tr->stats->trace_n >= tr->cap) {
+    double sn, c;
+    double *row = ge_trace_row(tr->buf, tr->cap, FM_TRACE_COLUMNS, tr->stats);
+    if (row == NULL) {
         return MK_E_TRACE_FULL;
     }
     dq_sincos(theta, &sn, &c);
-    phase_currents_cs(cur[0], cur[1], c, sn, i);
-    row = tr->buf + (ptrdiff_t)tr->stats->trace_n * FM_TRACE_COLUMNS;
     row[0] = tk;
-    for (int k = 0; k < 3; k++) {
-        row[1 + k] = i[k];
-        if (fabs(i[k]) > tr->stats->peak_current) {
-            tr->stats->peak_current = fabs(i[k]);
-        }
-    }
+    phase_currents_cs(cur[0], cur[1], c, sn, row + 1);
     row[4] = fm_torque(p, psi[0], psi[1], cur[0], cur[1]);
     row[5] = s->mech.omega_m;
-    tr->stats->trace_n++;
-    s->trace_k++;
-    return 0;
+    return ge_trace_done(tr->stats, &s->trace_k, row + 1, 3);
 }
 
 /* The rows inside the accepted step [tau, tau + h) of the piece (and before end - 0.5 ns): the flux by the step's
@@ -454,13 +446,9 @@ static int run_open(const fm_params_t *p, fm_state_t *s, const fm_trace_t *tr, d
 /* One interval of constant gate levels (gate_edges.c) as the mechanics cuts it into constant-speed pieces
  * (mechanics.h): the kernel's part of the state and the trace. */
 typedef struct {
+    ge_run_t run; /* the mechanics, the trace, the stats, the gate levels (gate_edges.h) */
     const fm_params_t *p;
     fm_state_t *s;
-    double trace_dt;
-    double *trace;
-    int32_t trace_cap;
-    fm_period_stats_t *stats;
-    const int *gate_level; /* the interval's gate levels per leg */
 } fm_ctx_t;
 
 static double torque_cb(const void *ctx)
@@ -479,37 +467,26 @@ static int piece_cb(void *ctx, double t0, double *piece_io, double omega_m)
     const fm_params_t *p = x->p;
     fm_state_t *s = x->s;
     double piece = *piece_io;
-    int lv[3], cond_mask = 0, n_open = 0, open_leg = -1, blocked = -1, rc;
+    int blocked = -1, rc;
+    ge_levels_t lv;
     fm_rhs_t c;
     fm_trace_t tr;
-    for (int leg = 0; leg < 3; leg++) {
-        lv[leg] = x->gate_level[leg];
-        if (t0 < s->dead_until[leg] - 0.5e-9) {
-            lv[leg] = s->dead_level[leg];
-            if (lv[leg] == FM_LEVEL_OPEN) {
-                n_open++;
-                open_leg = leg;
-                lv[leg] = 0;
-            } else {
-                cond_mask |= 1 << leg;
-            }
-        }
-    }
+    ge_levels_at(&x->run, 3, t0, s->dead_until, s->dead_level, FM_LEVEL_OPEN, &lv);
     c.p = p;
-    c.v_alpha = p->vdc / 3.0 * (2.0 * lv[0] - lv[1] - lv[2]);
-    c.v_beta = p->vdc / FM_SQRT3 * (lv[1] - lv[2]);
+    c.v_alpha = p->vdc / 3.0 * (2.0 * lv.level[0] - lv.level[1] - lv.level[2]);
+    c.v_beta = p->vdc / FM_SQRT3 * (lv.level[1] - lv.level[2]);
     c.theta0 = s->theta_e;
     c.omega_e = (double)p->pole_pairs * omega_m;
-    c.open_leg = n_open == 1 ? open_leg : -1;
+    c.open_leg = lv.n_open == 1 ? lv.open_leg : -1;
     tr.t0 = t0;
-    tr.dt = x->trace_dt;
-    tr.buf = x->trace;
-    tr.cap = x->trace_cap;
-    tr.stats = x->stats;
-    if (n_open >= 2) {
+    tr.dt = x->run.trace_dt;
+    tr.buf = x->run.trace;
+    tr.cap = x->run.trace_cap;
+    tr.stats = x->run.stats;
+    if (lv.n_open >= 2) {
         rc = run_open(p, s, &tr, piece, c.omega_e);
     } else {
-        rc = integrate_to(&c, s, &tr, 0.0, piece, cond_mask, &blocked, &piece);
+        rc = integrate_to(&c, s, &tr, 0.0, piece, lv.cond_mask, &blocked, &piece);
     }
     if (rc != 0) {
         return rc;
@@ -517,35 +494,29 @@ static int piece_cb(void *ctx, double t0, double *piece_io, double omega_m)
     s->theta_e = dq_wrap_angle(s->theta_e + c.omega_e * piece);
     if (blocked >= 0) {
         s->dead_level[blocked] = FM_LEVEL_OPEN;
-        x->stats->open_phase_events++;
+        x->run.stats->open_phase_events++;
     }
     *piece_io = piece;
     return 0;
 }
 
-static int integrate_cb(void *ctx, double t, double h, const mech_segment_t *load, const int *gate_level)
+/* Diode by the current's sign, as plant.c; no current -> the phase is open (gate_edges.h). */
+static double leg_current_cb(const void *ctx, int leg)
 {
-    fm_ctx_t *x = (fm_ctx_t *)ctx;
-    x->gate_level = gate_level;
-    return mech_integrate(&x->p->mech, &x->s->mech, load, t, h, piece_cb, torque_cb, x);
+    const fm_state_t *s = ((const fm_ctx_t *)ctx)->s;
+    return leg_current(s->i_d, s->i_q, s->theta_e, leg);
 }
 
-/* Diode by the current's sign, as plant.c: out of the leg -> lower diode (low rail), into it -> upper diode (high
- * rail); no current -> the phase is open. */
-static int dead_level_cb(void *ctx, int leg, int new_level)
-{
-    fm_ctx_t *c = (fm_ctx_t *)ctx;
-    const double i_x = leg_current(c->s->i_d, c->s->i_q, c->s->theta_e, leg);
-    (void)new_level;
-    return i_x > 0.0 ? 0 : (i_x < 0.0 ? 1 : FM_LEVEL_OPEN);
-}
-
-static const ge_kind_t FM_GATES = {3, 7, GE_MAX_SUBINTERVALS, FM_MAX_EVENTS, integrate_cb, dead_level_cb};
+static const ge_kind_t FM_GATES = {3, 7, GE_MAX_SUBINTERVALS, FM_MAX_EVENTS, piece_cb, torque_cb, leg_current_cb,
+                                   FM_LEVEL_OPEN};
 
 int fm_advance(const fm_params_t *p, fm_state_t *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
                const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap, fm_period_stats_t *stats)
 {
-    fm_ctx_t c = {p, s, trace_dt, trace, trace_cap, stats, NULL};
+    fm_ctx_t c;
+    ge_run_init(&c.run, &p->mech, &s->mech, trace_dt, trace, trace_cap, stats);
+    c.p = p;
+    c.s = s;
     return ge_advance(&FM_GATES, &c, states, durations_ns, n, load, p->t_mpw, p->t_dead, &s->t_ns, &s->gate,
                       s->last_edge_t, s->dead_until, s->dead_level, stats);
 }
@@ -562,36 +533,5 @@ void fm_sample(const fm_params_t *p, const fm_state_t *s, mk_sample_t *out)
     out->torque = fm_torque(p, s->psi_d, s->psi_q, s->i_d, s->i_q);
 }
 
-/* --- the machine-kernel table (machine_kernel.h) ------------------------------------------------------------ */
-static int k_advance(const void *p, void *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
-                     const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap,
-                     ge_period_stats_t *stats)
-{
-    return fm_advance((const fm_params_t *)p, (fm_state_t *)s, states, durations_ns, n, load, trace_dt, trace,
-                      trace_cap, stats);
-}
-
-static void k_sample(const void *p, const void *s, mk_sample_t *out)
-{
-    fm_sample((const fm_params_t *)p, (const fm_state_t *)s, out);
-}
-
-static void k_hold_speed(void *p, void *s, double omega_m)
-{
-    mech_hold(&((fm_params_t *)p)->mech, &((fm_state_t *)s)->mech, omega_m);
-}
-
-static uint64_t k_time_ns(const void *s)
-{
-    return ((const fm_state_t *)s)->t_ns;
-}
-
-static const mk_kernel_t FM_KERNEL = {
-    MK_ABI_VERSION, "saturated PMSM (flux map)", 3, 7, FM_TRACE_COLUMNS, sizeof(fm_params_t), sizeof(fm_state_t),
-    k_advance, k_sample, k_hold_speed, k_time_ns,
-};
-
-const mk_kernel_t *fm_kernel(void)
-{
-    return &FM_KERNEL;
-}
+/* the machine-kernel table (machine_kernel.h) */
+MK_KERNEL_TABLE(fm, fm_params_t, fm_state_t, fm_advance, fm_sample, "saturated PMSM (flux map)", 3, 7, FM_TRACE_COLUMNS)

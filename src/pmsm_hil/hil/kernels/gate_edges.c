@@ -1,6 +1,7 @@
 /* Gate edges of one control period; see gate_edges.h. */
 #include "gate_edges.h"
 
+#include <math.h>
 #include <stddef.h>
 
 #include "machine_kernel.h"
@@ -73,12 +74,75 @@ int ge_plan(int legs, int32_t gate, const int32_t *states, const int64_t *durati
     return n_ev;
 }
 
-int ge_run_period(int legs, double t_start, double t_end, double t_dead, dq_event_t *ev, int n_ev, int cap,
-                  const mech_load_t *load, int32_t *gate,
-                  double *dead_until, int32_t *dead_level, ge_integrate_fn integrate, ge_dead_level_fn dead_level_of,
-                  void *ctx)
+void ge_run_init(ge_run_t *run, const mech_params_t *mech_p, mech_state_t *mech_s, double trace_dt, double *trace,
+                 int32_t trace_cap, ge_period_stats_t *stats)
 {
-    int gate_level[GE_MAX_LEGS];
+    const ge_run_t head = {mech_p, mech_s, trace_dt, trace, trace_cap, stats, {0}};
+    *run = head;
+}
+
+double *ge_trace_row(double *trace, int32_t trace_cap, int32_t columns, const ge_period_stats_t *stats)
+{
+    return stats->trace_n >= trace_cap ? NULL : trace + (ptrdiff_t)stats->trace_n * columns;
+}
+
+int ge_trace_done(ge_period_stats_t *stats, uint64_t *trace_k, const double *i, int legs)
+{
+    for (int k = 0; k < legs; k++) {
+        if (fabs(i[k]) > stats->peak_current) {
+            stats->peak_current = fabs(i[k]);
+        }
+    }
+    stats->trace_n++;
+    (*trace_k)++;
+    return 0;
+}
+
+int ge_reject(ge_period_stats_t *stats, int32_t error)
+{
+    ge_stats_reset(stats);
+    stats->error = error;
+    return error;
+}
+
+void ge_levels_at(const ge_run_t *run, int legs, double t0, const double *dead_until, const int32_t *dead_level,
+                  int32_t open_level, ge_levels_t *out)
+{
+    out->code = 0;
+    out->cond_mask = 0;
+    out->n_open = 0;
+    out->open_leg = -1;
+    for (int leg = 0; leg < legs; leg++) {
+        int lvl = run->gate_level[leg];
+        if (t0 < dead_until[leg] - 0.5e-9) {
+            lvl = dead_level[leg];
+            if (lvl == open_level) {
+                out->n_open++;
+                out->open_leg = leg;
+                lvl = 0;
+            } else {
+                out->cond_mask |= 1 << leg;
+            }
+        }
+        out->level[leg] = lvl;
+        out->code |= lvl << (legs - 1 - leg);
+    }
+}
+
+/* The dead-time level of `leg` switching to `new_level`: the conducting diode's (gate_edges.h, GE_LEVEL_NEW). */
+static int32_t dead_level_of(const ge_kind_t *k, const void *ctx, int leg, int new_level)
+{
+    const double i_x = k->leg_current(ctx, leg);
+    return i_x > 0.0 ? 0 : (i_x < 0.0 ? 1 : (k->zero_level == GE_LEVEL_NEW ? new_level : k->zero_level));
+}
+
+int ge_run_period(const ge_kind_t *k, double t_start, double t_end, double t_dead, dq_event_t *ev, int n_ev,
+                  const mech_load_t *load, int32_t *gate, double *dead_until, int32_t *dead_level, void *ctx)
+{
+    ge_run_t *run = (ge_run_t *)ctx;
+    int *gate_level = run->gate_level;
+    const int legs = k->legs;
+    const int cap = k->max_events;
     double t = t_start;
     const double *load_bp = load->bp;
     const int32_t n_load_bp = load->n_bp;
@@ -98,36 +162,36 @@ int ge_run_period(int legs, double t_start, double t_end, double t_dead, dq_even
             n_ev = dq_add_event(ev, n_ev, cap, load_bp[3 * b], b, 2, 0);
         }
     }
-    for (int k = 0; k <= n_ev; k++) {
-        double t_next = (k < n_ev) ? ev[k].t : t_end;
+    for (int e = 0; e <= n_ev; e++) {
+        double t_next = (e < n_ev) ? ev[e].t : t_end;
         if (t_next > t) {
-            int rc = integrate(ctx, t, t_next - t, &seg, gate_level);
+            int rc = mech_integrate(run->mech_p, run->mech_s, &seg, t, t_next - t, k->piece, k->torque, ctx);
             if (rc != 0) {
                 *gate = g;
                 return rc;
             }
             t = t_next;
         }
-        if (k == n_ev) {
+        if (e == n_ev) {
             break;
         }
-        if (ev[k].kind == 2) { /* a load-profile breakpoint inside the period */
-            const double *bp = load_bp + 3 * ev[k].leg;
+        if (ev[e].kind == 2) { /* a load-profile breakpoint inside the period */
+            const double *bp = load_bp + 3 * ev[e].leg;
             seg.t_ref = bp[0];
             seg.value = bp[1];
             seg.slope = bp[2];
-        } else if (ev[k].kind == 0) {
-            int leg = ev[k].leg;
+        } else if (ev[e].kind == 0) {
+            int leg = ev[e].leg;
             int bit = legs - 1 - leg;
             if (t_dead > 0.0) {
-                dead_level[leg] = dead_level_of(ctx, leg, ev[k].level);
-                dead_until[leg] = ev[k].t + t_dead;
+                dead_level[leg] = dead_level_of(k, ctx, leg, ev[e].level);
+                dead_until[leg] = ev[e].t + t_dead;
                 if (dead_until[leg] < t_end) {
                     n_ev = dq_add_event(ev, n_ev, cap, dead_until[leg], leg, 1, 0);
                 }
             }
-            gate_level[leg] = ev[k].level;
-            g = (g & ~(1 << bit)) | (ev[k].level << bit);
+            gate_level[leg] = ev[e].level;
+            g = (g & ~(1 << bit)) | (ev[e].level << bit);
         }
     }
     *gate = g;
@@ -143,21 +207,19 @@ int ge_advance(const ge_kind_t *k, void *ctx, const int32_t *states, const int64
     int64_t total_ns = 0;
     int n_ev;
     int rc;
-    ge_stats_reset(stats);
     if (n < 1 || n > k->max_subintervals) {
-        stats->error = MK_E_ARGS;
-        return MK_E_ARGS;
+        return ge_reject(stats, MK_E_ARGS);
     }
     for (int i = 0; i < n; i++) {
         if (durations_ns[i] < 0 || states[i] < 0 || states[i] > k->max_state) {
-            stats->error = MK_E_ARGS;
-            return MK_E_ARGS;
+            return ge_reject(stats, MK_E_ARGS);
         }
     }
+    ge_stats_reset(stats);
     n_ev = ge_plan(k->legs, *gate, states, durations_ns, n, t_start, t_mpw, 2.0 * t_dead + t_mpw, last_edge_t, ev, 0,
                    k->max_events, stats, &total_ns);
-    rc = ge_run_period(k->legs, t_start, t_start + (double)total_ns * 1e-9, t_dead, ev, n_ev, k->max_events, load,
-                       gate, dead_until, dead_level, k->integrate, k->dead_level_of, ctx);
+    rc = ge_run_period(k, t_start, t_start + (double)total_ns * 1e-9, t_dead, ev, n_ev, load, gate, dead_until,
+                       dead_level, ctx);
     if (rc != 0) {
         stats->error = rc;
         return rc;

@@ -30,6 +30,18 @@ typedef struct {
 /* Zero every counter of a period. */
 void ge_stats_reset(ge_period_stats_t *stats);
 
+/* The next trace row of the period (row stats->trace_n of `trace`, `columns` doubles each), or NULL when `trace`
+ * holds `trace_cap` rows already (the kernel's MK_E_TRACE_FULL). */
+double *ge_trace_row(double *trace, int32_t trace_cap, int32_t columns, const ge_period_stats_t *stats);
+
+/* A trace row written: its `legs` phase currents `i` [A] count in the period's peak, the period's rows and the
+ * kernel's trace sample index (*trace_k) move on. Returns 0. */
+int ge_trace_done(ge_period_stats_t *stats, uint64_t *trace_k, const double *i, int legs);
+
+/* A period refused before it ran: the counters zeroed, the error (a negative kernel code) in stats->error and
+ * returned. */
+int ge_reject(ge_period_stats_t *stats, int32_t error);
+
 /* Plan the period: `legs` legs (bit legs-1-leg of a state code is leg `leg`), applied gate code `gate`,
  * n sub-intervals (states, durations [ns]) from absolute time t_start [s]. Adds one event (kind 0) per
  * surviving edge to ev (count n_ev, capacity cap) and returns the new count; updates last_edge_t [s]
@@ -38,30 +50,65 @@ int ge_plan(int legs, int32_t gate, const int32_t *states, const int64_t *durati
             double t_mpw, double t_lim, double *last_edge_t, dq_event_t *ev, int n_ev, int cap, ge_period_stats_t *counts,
             int64_t *total_ns);
 
-/* Integrate h seconds from absolute time t [s] with the given leg gate levels under the load segment in force
- * (for the mechanics). Returns 0 or a kernel error code. */
-typedef int (*ge_integrate_fn)(void *ctx, double t, double h, const mech_segment_t *load, const int *gate_level);
-/* Leg output level during the dead time that starts now for `leg` switching to `new_level`. */
-typedef int (*ge_dead_level_fn)(void *ctx, int leg, int new_level);
+/* The head of every gate-driven kernel's run context (its first member): the drive's mechanics (the kernel's params'
+ * and state's `mech`), the trace destination and period stats of its advance call (see plant.h pl_advance), and the
+ * gate levels per leg of the interval being integrated (set by ge_run_period). */
+typedef struct {
+    const mech_params_t *mech_p;
+    mech_state_t *mech_s;
+    double trace_dt;   /* trace row spacing [s]; <= 0: no trace */
+    double *trace;     /* trace rows */
+    int32_t trace_cap; /* rows `trace` holds */
+    ge_period_stats_t *stats;
+    int gate_level[GE_MAX_LEGS];
+} ge_run_t;
 
-/* Run the period's events (gate edges from ge_plan, dead-time ends, the load's breakpoints) from t_start to t_end [s],
- * integrating between them.
- * Updates the applied gate code and the per-leg dead-time state; returns 0 or the integrator's error. */
-int ge_run_period(int legs, double t_start, double t_end, double t_dead, dq_event_t *ev, int n_ev, int cap,
-                  const mech_load_t *load, int32_t *gate,
-                  double *dead_until, int32_t *dead_level, ge_integrate_fn integrate, ge_dead_level_fn dead_level_of,
-                  void *ctx);
+/* A run context's head for one advance call. */
+void ge_run_init(ge_run_t *run, const mech_params_t *mech_p, mech_state_t *mech_s, double trace_dt, double *trace,
+                 int32_t trace_cap, ge_period_stats_t *stats);
+
+/* The legs' levels at a time t0 [s] inside an interval: the gate's, or during a leg's dead time (t0 before its
+ * dead_until [s], less 0.5 ns) its diode's (dead_level), where a leg whose dead-time level is `open_level` floats. */
+typedef struct {
+    int level[GE_MAX_LEGS]; /* per leg: 0 low rail, 1 high rail (0 for a floating leg) */
+    int code;               /* the levels as a state code, leg 0 in the highest bit */
+    int cond_mask;          /* bit `leg` set: the leg conducts through a diode (in dead time, not open) */
+    int n_open;             /* floating legs */
+    int open_leg;           /* the last floating leg, or -1 */
+} ge_levels_t;
+
+void ge_levels_at(const ge_run_t *run, int legs, double t0, const double *dead_until, const int32_t *dead_level,
+                  int32_t open_level, ge_levels_t *out);
+
+/* Phase current [A] of `leg` in the kernel's state now (out of the leg > 0): what picks the dead-time diode. */
+typedef double (*ge_leg_current_fn)(const void *ctx, int leg);
+
+/* The level of a leg in dead time is the conducting diode's: current out of the leg -> lower diode (level 0, low
+ * rail), into it -> upper diode (level 1, high rail); no current -> `zero_level`, or the new gate level when that is
+ * GE_LEVEL_NEW. */
+#define GE_LEVEL_NEW (-1)
 
 /* A gate-driven kernel as ge_advance sees it: its legs, largest state code and most sub-intervals of a period, the
- * event capacity of a period (<= GE_MAX_EVENTS), and how it integrates and picks a dead-time level. */
+ * event capacity of a period (<= GE_MAX_EVENTS), its constant-speed piece and torque functions (mech_integrate cuts
+ * each interval of constant gate levels into pieces), its leg currents and the dead-time level at zero current.
+ * The run context handed to ge_advance starts with a ge_run_t. */
 typedef struct {
     int legs;
     int32_t max_state;
     int32_t max_subintervals;
     int max_events;
-    ge_integrate_fn integrate;
-    ge_dead_level_fn dead_level_of;
+    mech_piece_fn piece;
+    mech_torque_fn torque;
+    ge_leg_current_fn leg_current;
+    int zero_level;
 } ge_kind_t;
+
+/* Run the period's events (gate edges from ge_plan, dead-time ends, the load's breakpoints) of a kernel of kind `k`
+ * from t_start to t_end [s], integrating between them (mech_integrate with the kind's piece and torque functions on
+ * the mechanics of the run context `ctx`, a ge_run_t first). Updates the applied gate code and the per-leg dead-time
+ * state; returns 0 or the integrator's error. */
+int ge_run_period(const ge_kind_t *k, double t_start, double t_end, double t_dead, dq_event_t *ev, int n_ev,
+                  const mech_load_t *load, int32_t *gate, double *dead_until, int32_t *dead_level, void *ctx);
 
 #define GE_MAX_EVENTS 128
 

@@ -90,23 +90,15 @@ static int emit_row(const im_params_t *p, im_state_t *s, double tk, double compl
                     double *trace, int32_t trace_cap, im_period_stats_t *stats)
 {
     const double complex i_s = (psi_s - psi_r) / p->lsigma;
-    double *row;
-    if (stats->trace_n >= trace_cap) {
+    double *row = ge_trace_row(trace, trace_cap, IM_TRACE_COLUMNS, stats);
+    if (row == NULL) {
         return MK_E_TRACE_FULL;
     }
-    row = trace + (ptrdiff_t)stats->trace_n * IM_TRACE_COLUMNS;
     row[0] = tk;
     phase_currents(creal(i_s), cimag(i_s), row + 1);
-    for (int k = 1; k <= 3; k++) {
-        if (fabs(row[k]) > stats->peak_current) {
-            stats->peak_current = fabs(row[k]);
-        }
-    }
     row[4] = torque_of(p, psi_s, psi_r);
     row[5] = s->mech.omega_m;
-    stats->trace_n++;
-    s->trace_k++;
-    return 0;
+    return ge_trace_done(stats, &s->trace_k, row + 1, 3);
 }
 
 #define IM_LEVEL_OPEN 2     /* dead_level value: diode blocked, phase open */
@@ -325,13 +317,9 @@ static int piece_no_current(const im_params_t *p, im_state_t *s, double t0, doub
 /* One interval of constant gate levels (gate_edges.c) as the mechanics cuts it into constant-speed pieces
  * (mechanics.h): the kernel's part of the state and the trace. */
 typedef struct {
+    ge_run_t run; /* the mechanics, the trace, the stats, the gate levels (gate_edges.h) */
     const im_params_t *p;
     im_state_t *s;
-    double trace_dt;
-    double *trace;
-    int32_t trace_cap;
-    im_period_stats_t *stats;
-    const int *gate_level; /* the interval's gate levels per leg */
 } im_run_ctx_t;
 
 static double im_torque_cb(const void *ctx)
@@ -350,36 +338,24 @@ static int im_piece_cb(void *ctx, double t0, double *piece, double omega_m)
     const im_params_t *p = c->p;
     im_state_t *s = c->s;
     const double omega_e = (double)p->pole_pairs * omega_m;
-    int levels = 0, cond_mask = 0, n_open = 0, open_leg = -1, blocked = -1, rc;
-    for (int leg = 0; leg < 3; leg++) {
-        int lvl = c->gate_level[leg];
-        if (t0 < s->dead_until[leg] - 0.5e-9) {
-            lvl = s->dead_level[leg];
-            if (lvl == IM_LEVEL_OPEN) {
-                n_open++;
-                open_leg = leg;
-                lvl = 0;
-            } else {
-                cond_mask |= 1 << leg;
-            }
-        }
-        levels |= lvl << (2 - leg);
-    }
-    if (n_open == 0) {
-        rc = piece_closed(p, s, t0, piece, levels, cond_mask, omega_e, c->trace_dt, c->trace, c->trace_cap, c->stats,
-                          &blocked);
-    } else if (n_open == 1) {
-        rc = piece_one_open(p, s, t0, piece, levels, open_leg, cond_mask, omega_e, c->trace_dt, c->trace,
-                            c->trace_cap, c->stats, &blocked);
+    int blocked = -1, rc;
+    ge_levels_t lv;
+    ge_levels_at(&c->run, 3, t0, s->dead_until, s->dead_level, IM_LEVEL_OPEN, &lv);
+    if (lv.n_open == 0) {
+        rc = piece_closed(p, s, t0, piece, lv.code, lv.cond_mask, omega_e, c->run.trace_dt, c->run.trace, c->run.trace_cap,
+                          c->run.stats, &blocked);
+    } else if (lv.n_open == 1) {
+        rc = piece_one_open(p, s, t0, piece, lv.code, lv.open_leg, lv.cond_mask, omega_e, c->run.trace_dt, c->run.trace,
+                            c->run.trace_cap, c->run.stats, &blocked);
     } else {
-        rc = piece_no_current(p, s, t0, *piece, omega_e, c->trace_dt, c->trace, c->trace_cap, c->stats);
+        rc = piece_no_current(p, s, t0, *piece, omega_e, c->run.trace_dt, c->run.trace, c->run.trace_cap, c->run.stats);
     }
     if (rc != 0) {
         return rc;
     }
     if (blocked >= 0) {
         s->dead_level[blocked] = IM_LEVEL_OPEN;
-        c->stats->open_phase_events++;
+        c->run.stats->open_phase_events++;
     }
     s->theta_e = dq_wrap_angle(s->theta_e + omega_e * *piece);
     return 0;
@@ -392,34 +368,26 @@ static double phase_current(const im_params_t *p, const im_state_t *s, int leg)
     return i[leg];
 }
 
-static int im_integrate_cb(void *ctx, double t, double h, const mech_segment_t *load, const int *gate_level)
+/* Diode by the current's sign (as the three-phase PMSM kernel); no current -> the phase is open (gate_edges.h). */
+static double im_leg_current_cb(const void *ctx, int leg)
 {
-    im_run_ctx_t *c = (im_run_ctx_t *)ctx;
-    c->gate_level = gate_level;
-    return mech_integrate(&c->p->mech, &c->s->mech, load, t, h, im_piece_cb, im_torque_cb, c);
+    const im_run_ctx_t *c = (const im_run_ctx_t *)ctx;
+    return phase_current(c->p, c->s, leg);
 }
 
-/* Diode by the current's sign (as the three-phase PMSM kernel): out of the leg -> lower diode (low rail), into it
- * -> upper diode (high rail); no current -> no diode conducts and the phase is open. */
-static int im_dead_level_cb(void *ctx, int leg, int new_level)
-{
-    im_run_ctx_t *c = (im_run_ctx_t *)ctx;
-    const double i_ph = phase_current(c->p, c->s, leg);
-    (void)new_level;
-    return i_ph > 0.0 ? 0 : (i_ph < 0.0 ? 1 : IM_LEVEL_OPEN);
-}
-
-static const ge_kind_t IM_GATES = {3, 7, IM_MAX_SUBINTERVALS, IM_MAX_EVENTS, im_integrate_cb, im_dead_level_cb};
+static const ge_kind_t IM_GATES = {3, 7, IM_MAX_SUBINTERVALS, IM_MAX_EVENTS, im_piece_cb, im_torque_cb,
+                                   im_leg_current_cb, IM_LEVEL_OPEN};
 
 int im_advance(const im_params_t *p, im_state_t *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
                const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap, im_period_stats_t *stats)
 {
-    im_run_ctx_t c = {p, s, trace_dt, trace, trace_cap, stats, NULL};
+    im_run_ctx_t c;
     if (!(p->rs > 0.0) || !(p->rr > 0.0) || !(p->lsigma > 0.0) || !(p->lm > 0.0)) {
-        ge_stats_reset(stats);
-        stats->error = MK_E_ARGS;
-        return MK_E_ARGS;
+        return ge_reject(stats, MK_E_ARGS);
     }
+    ge_run_init(&c.run, &p->mech, &s->mech, trace_dt, trace, trace_cap, stats);
+    c.p = p;
+    c.s = s;
     return ge_advance(&IM_GATES, &c, states, durations_ns, n, load, p->t_mpw, p->t_dead, &s->t_ns, &s->gate,
                       s->last_edge_t, s->dead_until, s->dead_level, stats);
 }
@@ -445,36 +413,6 @@ void im_sample(const im_params_t *p, const im_state_t *s, mk_sample_t *out)
     out->torque = 1.5 * (double)p->pole_pairs * (s->psi_s[0] * i_be - s->psi_s[1] * i_al);
 }
 
-/* --- the machine-kernel table (machine_kernel.h) ------------------------------------------------------------ */
-static int im_k_advance(const void *p, void *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
-                        const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap,
-                        ge_period_stats_t *stats)
-{
-    return im_advance((const im_params_t *)p, (im_state_t *)s, states, durations_ns, n, load, trace_dt, trace,
-                      trace_cap, stats);
-}
-
-static void im_k_sample(const void *p, const void *s, mk_sample_t *out)
-{
-    im_sample((const im_params_t *)p, (const im_state_t *)s, out);
-}
-
-static void im_k_hold_speed(void *params, void *state, double omega_m)
-{
-    mech_hold(&((im_params_t *)params)->mech, &((im_state_t *)state)->mech, omega_m);
-}
-
-static uint64_t im_k_time_ns(const void *state)
-{
-    return ((const im_state_t *)state)->t_ns;
-}
-
-static const mk_kernel_t IM_KERNEL = {
-    MK_ABI_VERSION, "three-phase induction machine", 3, 7, IM_TRACE_COLUMNS, sizeof(im_params_t),
-    sizeof(im_state_t), im_k_advance, im_k_sample, im_k_hold_speed, im_k_time_ns,
-};
-
-const mk_kernel_t *im_kernel(void)
-{
-    return &IM_KERNEL;
-}
+/* the machine-kernel table (machine_kernel.h) */
+MK_KERNEL_TABLE(im, im_params_t, im_state_t, im_advance, im_sample, "three-phase induction machine", 3, 7,
+                IM_TRACE_COLUMNS)

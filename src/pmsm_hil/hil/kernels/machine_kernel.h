@@ -60,4 +60,38 @@ typedef struct mk_kernel {
     uint64_t (*time_ns)(const void *state);
 } mk_kernel_t;
 
+/* A kernel's table and its function `const mk_kernel_t *KIND_kernel(void)`, from its typed functions
+ *   int advance_fn(const params_t *, state_t *, <the rest as mk_advance_fn>)
+ *   void sample_fn(const params_t *, const state_t *, mk_sample_t *)
+ * for params and state structs that hold the drive's mechanics as `mech` and the plant time [ns] as `t_ns`
+ * (hold_speed is mech_hold on them). At file scope, with no semicolon after it. */
+#define MK_KERNEL_TABLE(kind, params_t, state_t, advance_fn, sample_fn, kind_name, legs, max_state, trace_columns) \
+    static int kind##_k_advance(const void *p, void *s, const int32_t *states, const int64_t *durations_ns,       \
+                                int32_t n, const mech_load_t *load, double trace_dt, double *trace,               \
+                                int32_t trace_cap, ge_period_stats_t *stats)                                       \
+    {                                                                                                              \
+        return advance_fn((const params_t *)p, (state_t *)s, states, durations_ns, n, load, trace_dt, trace,      \
+                          trace_cap, stats);                                                                       \
+    }                                                                                                              \
+    static void kind##_k_sample(const void *p, const void *s, mk_sample_t *out)                                   \
+    {                                                                                                              \
+        sample_fn((const params_t *)p, (const state_t *)s, out);                                                   \
+    }                                                                                                              \
+    static void kind##_k_hold_speed(void *p, void *s, double omega_m)                                              \
+    {                                                                                                              \
+        mech_hold(&((params_t *)p)->mech, &((state_t *)s)->mech, omega_m);                                         \
+    }                                                                                                              \
+    static uint64_t kind##_k_time_ns(const void *s)                                                                \
+    {                                                                                                              \
+        return ((const state_t *)s)->t_ns;                                                                         \
+    }                                                                                                              \
+    static const mk_kernel_t kind##_kernel_table = {                                                               \
+        MK_ABI_VERSION, kind_name, legs, max_state, trace_columns, sizeof(params_t), sizeof(state_t),              \
+        kind##_k_advance, kind##_k_sample, kind##_k_hold_speed, kind##_k_time_ns,                                  \
+    };                                                                                                             \
+    const mk_kernel_t *kind##_kernel(void)                                                                         \
+    {                                                                                                              \
+        return &kind##_kernel_table;                                                                               \
+    }
+
 #endif

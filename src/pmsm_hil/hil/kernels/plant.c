@@ -57,26 +57,15 @@ static const double PL_EY[3] = {0.0, 0.8660254037844386, -0.8660254037844386};
 static int emit_row_cs(const pl_params_t *p, pl_state_t *s, double tk, double i_d, double i_q, double cos_th,
                        double sin_th, double *trace, int32_t trace_cap, pl_period_stats_t *stats)
 {
-    double ia, ib, ic, *row;
-    if (stats->trace_n >= trace_cap) {
+    double *row = ge_trace_row(trace, trace_cap, PL_TRACE_COLUMNS, stats);
+    if (row == NULL) {
         return PL_E_TRACE_FULL;
     }
-    phase_currents_cs(i_d, i_q, cos_th, sin_th, &ia, &ib, &ic);
-    row = trace + (ptrdiff_t)stats->trace_n * PL_TRACE_COLUMNS;
     row[0] = tk;
-    row[1] = ia;
-    row[2] = ib;
-    row[3] = ic;
-    for (int k = 1; k <= 3; k++) {
-        if (fabs(row[k]) > stats->peak_current) {
-            stats->peak_current = fabs(row[k]);
-        }
-    }
+    phase_currents_cs(i_d, i_q, cos_th, sin_th, &row[1], &row[2], &row[3]);
     row[4] = pl_torque(p, i_d, i_q);
     row[5] = s->mech.omega_m;
-    stats->trace_n++;
-    s->trace_k++;
-    return PL_OK;
+    return ge_trace_done(stats, &s->trace_k, row + 1, 3);
 }
 
 static int emit_row(const pl_params_t *p, pl_state_t *s, double tk, double i_d, double i_q, double theta,
@@ -224,13 +213,9 @@ static double first_blocking(const dq_segment_t *g, double theta0, double omega_
 /* One interval of constant gate levels (gate_edges.c) as the mechanics cuts it into constant-speed pieces
  * (mechanics.h): the kernel's part of the state, the trace and the machine's closed-form constants. */
 typedef struct {
+    ge_run_t run;          /* the mechanics, the trace, the stats, the gate levels (gate_edges.h) */
     const pl_params_t *p;
     pl_state_t *s;
-    double trace_dt;
-    double *trace;
-    int32_t trace_cap;
-    pl_period_stats_t *stats;
-    const int *gate_level; /* the interval's gate levels per leg */
     dq_machine_t mc;       /* the closed-form constants of the machine */
     double em_step;        /* exp(m trace_dt) of the trace walker */
 } pl_run_ctx_t;
@@ -248,35 +233,22 @@ static int pl_piece_cb(void *ctx, double t0, double *piece_io, double omega_m)
     pl_run_ctx_t *c = (pl_run_ctx_t *)ctx;
     const pl_params_t *p = c->p;
     pl_state_t *s = c->s;
-    const double trace_dt = c->trace_dt;
-    double *trace = c->trace;
-    const int32_t trace_cap = c->trace_cap;
-    pl_period_stats_t *stats = c->stats;
+    const double trace_dt = c->run.trace_dt;
+    double *trace = c->run.trace;
+    const int32_t trace_cap = c->run.trace_cap;
+    pl_period_stats_t *stats = c->run.stats;
     double piece = *piece_io;
     const double omega_e = (double)p->pole_pairs * omega_m;
-    int levels = 0, open_mask = 0, cond_mask = 0, n_open = 0, open_leg = -1, blocked = -1;
-    for (int leg = 0; leg < 3; leg++) {
-        int lvl = c->gate_level[leg];
-        if (t0 < s->dead_until[leg] - 0.5e-9) {
-            lvl = s->dead_level[leg];
-            if (lvl == PL_LEVEL_OPEN) {
-                open_mask |= 1 << leg;
-                n_open++;
-                open_leg = leg;
-                lvl = 0;
-            } else {
-                cond_mask |= 1 << leg;
-            }
-        }
-        levels |= lvl << (2 - leg);
-    }
-    if (n_open == 0) {
+    int blocked = -1;
+    ge_levels_t lv;
+    ge_levels_at(&c->run, 3, t0, s->dead_until, s->dead_level, PL_LEVEL_OPEN, &lv);
+    if (lv.n_open == 0) {
         dq_segment_t g;
         double v_alpha, v_beta, i_d1, i_q1;
-        leg_voltage(p->vdc, levels, &v_alpha, &v_beta);
+        leg_voltage(p->vdc, lv.code, &v_alpha, &v_beta);
         dq_segment_setup(&c->mc, omega_e, s->theta_e, v_alpha, v_beta, s->i_d, s->i_q, &g);
-        if (cond_mask) {
-            piece = first_blocking(&g, s->theta_e, omega_e, piece, cond_mask, s->dead_level, &blocked);
+        if (lv.cond_mask) {
+            piece = first_blocking(&g, s->theta_e, omega_e, piece, lv.cond_mask, s->dead_level, &blocked);
         }
         if (trace_dt > 0.0 && trace != NULL) {
             dq_walk_t w;
@@ -307,9 +279,9 @@ static int pl_piece_cb(void *ctx, double t0, double *piece_io, double omega_m)
         s->theta_e = dq_wrap_angle(s->theta_e + omega_e * piece);
         s->i_d = i_d1;
         s->i_q = i_q1;
-    } else if (n_open == 1) {
-        int rc = integrate_open(p, s, t0, piece, omega_e, levels, open_leg, cond_mask, trace_dt, trace, trace_cap,
-                                stats, &blocked);
+    } else if (lv.n_open == 1) {
+        int rc = integrate_open(p, s, t0, piece, omega_e, lv.code, lv.open_leg, lv.cond_mask, trace_dt, trace,
+                                trace_cap, stats, &blocked);
         if (rc != PL_OK) {
             return rc;
         }
@@ -339,59 +311,34 @@ static int pl_piece_cb(void *ctx, double t0, double *piece_io, double omega_m)
     return PL_OK;
 }
 
-static int pl_integrate_cb(void *ctx, double t, double h, const mech_segment_t *load, const int *gate_level)
+/* Diode by the current's sign; no current -> no diode conducts and the phase is open (gate_edges.h). */
+static double pl_leg_current_cb(const void *ctx, int leg)
 {
-    pl_run_ctx_t *c = (pl_run_ctx_t *)ctx;
-    c->gate_level = gate_level;
-    return mech_integrate(&c->p->mech, &c->s->mech, load, t, h, pl_piece_cb, pl_torque_cb, c);
+    return phase_current(((const pl_run_ctx_t *)ctx)->s, leg);
 }
 
-/* Diode by the current's sign: out of the leg -> lower diode (low rail), into it -> upper diode (high rail);
- * no current -> no diode conducts and the phase is open. */
-static int pl_dead_level_cb(void *ctx, int leg, int new_level)
-{
-    pl_run_ctx_t *c = (pl_run_ctx_t *)ctx;
-    double i_x = phase_current(c->s, leg);
-    (void)new_level;
-    return i_x > 0.0 ? 0 : (i_x < 0.0 ? 1 : PL_LEVEL_OPEN);
-}
-
-static const ge_kind_t PL_GATES = {3, 7, PL_MAX_SUBINTERVALS, PL_MAX_EVENTS, pl_integrate_cb, pl_dead_level_cb};
+static const ge_kind_t PL_GATES = {3, 7, PL_MAX_SUBINTERVALS, PL_MAX_EVENTS, pl_piece_cb, pl_torque_cb,
+                                   pl_leg_current_cb, PL_LEVEL_OPEN};
 
 int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const int64_t *durations_ns,
                int32_t n, const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap,
                pl_period_stats_t *stats)
 {
     pl_run_ctx_t c;
+    ge_run_init(&c.run, &p->mech, &s->mech, trace_dt, trace, trace_cap, stats);
     c.p = p;
     c.s = s;
-    c.trace_dt = trace_dt;
-    c.trace = trace;
-    c.trace_cap = trace_cap;
-    c.stats = stats;
-    c.gate_level = NULL;
     dq_machine_init(p->rs, p->ld, p->lq, p->psi_f, &c.mc);
     c.em_step = trace_dt > 0.0 ? exp(c.mc.m * trace_dt) : 1.0;
     return ge_advance(&PL_GATES, &c, states, durations_ns, n, load, p->t_mpw, p->t_dead, &s->t_ns, &s->gate,
                       s->last_edge_t, s->dead_until, s->dead_level, stats);
 }
 
-/* --- the machine-kernel table (machine_kernel.h) ------------------------------------------------------------ */
-static int pl_k_advance(const void *p, void *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
-                        const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap,
-                        ge_period_stats_t *stats)
-{
-    return pl_advance((const pl_params_t *)p, (pl_state_t *)s, states, durations_ns, n, load, trace_dt, trace,
-                      trace_cap, stats);
-}
-
 /* Plant.sample (src/pmsm_hil/hil/plant.py) with the same expressions, so the native loop's records equal the Python
  * loop's bit for bit: inverse Park with cos/sin of the angle, Clarke with sqrt(3)/2, torque
  * 1.5*p*(psi_f + (Ld - Lq)*i_d)*i_q. */
-static void pl_k_sample(const void *params, const void *state, mk_sample_t *out)
+static void pl_sample(const pl_params_t *p, const pl_state_t *s, mk_sample_t *out)
 {
-    const pl_params_t *p = (const pl_params_t *)params;
-    const pl_state_t *s = (const pl_state_t *)state;
     const double i_d = s->i_d;
     const double i_q = s->i_q;
     const double co = cos(s->theta_e);
@@ -410,22 +357,5 @@ static void pl_k_sample(const void *params, const void *state, mk_sample_t *out)
     out->torque = torque_k * (p->psi_f + (p->ld - p->lq) * i_d) * i_q;
 }
 
-static void pl_k_hold_speed(void *params, void *state, double omega_m)
-{
-    mech_hold(&((pl_params_t *)params)->mech, &((pl_state_t *)state)->mech, omega_m);
-}
-
-static uint64_t pl_k_time_ns(const void *state)
-{
-    return ((const pl_state_t *)state)->t_ns;
-}
-
-static const mk_kernel_t PL_KERNEL = {
-    MK_ABI_VERSION, "three-phase PMSM", 3, 7, PL_TRACE_COLUMNS, sizeof(pl_params_t), sizeof(pl_state_t),
-    pl_k_advance, pl_k_sample, pl_k_hold_speed, pl_k_time_ns,
-};
-
-const mk_kernel_t *pl_kernel(void)
-{
-    return &PL_KERNEL;
-}
+/* the machine-kernel table (machine_kernel.h) */
+MK_KERNEL_TABLE(pl, pl_params_t, pl_state_t, pl_advance, pl_sample, "three-phase PMSM", 3, 7, PL_TRACE_COLUMNS)

@@ -63,37 +63,25 @@ void p6_code_voltage(double vdc, int32_t code, double *v4)
 static int emit_row(const p6_params_t *p, p6_state_t *s, double tk, double i_d, double i_q, double cos_th,
                     double sin_th, double i_x, double i_y, double *trace, int32_t trace_cap, p6_period_stats_t *stats)
 {
-    double *row;
-    if (stats->trace_n >= trace_cap) {
+    double *row = ge_trace_row(trace, trace_cap, P6_TRACE_COLUMNS, stats);
+    if (row == NULL) {
         return P6_E_TRACE_FULL;
     }
-    row = trace + (ptrdiff_t)stats->trace_n * P6_TRACE_COLUMNS;
     row[0] = tk;
     phase_currents_cs(i_d, i_q, cos_th, sin_th, i_x, i_y, row + 1);
-    for (int k = 1; k <= 6; k++) {
-        if (fabs(row[k]) > stats->peak_current) {
-            stats->peak_current = fabs(row[k]);
-        }
-    }
     row[7] = p6_torque(p, i_d, i_q);
     row[8] = s->mech.omega_m;
     row[9] = i_x;
     row[10] = i_y;
-    stats->trace_n++;
-    s->trace_k++;
-    return P6_OK;
+    return ge_trace_done(stats, &s->trace_k, row + 1, P6_LEGS);
 }
 
 /* One interval of constant gate levels (gate_edges.c) as the mechanics cuts it into constant-speed pieces
  * (mechanics.h): the kernel's part of the state, the trace and the machine's closed-form constants. */
 typedef struct {
+    ge_run_t run;          /* the mechanics, the trace, the stats, the gate levels (gate_edges.h) */
     const p6_params_t *p;
     p6_state_t *s;
-    double trace_dt;
-    double *trace;
-    int32_t trace_cap;
-    p6_period_stats_t *stats;
-    const int *gate_level; /* the interval's gate levels per leg */
     dq_machine_t mc;       /* the closed-form constants of the dq subspace */
     double em_step;        /* exp(m trace_dt) of the trace walker */
 } p6_run_ctx_t;
@@ -111,21 +99,15 @@ static int p6_piece_cb(void *ctx, double t0, double *piece_io, double omega_m)
     p6_run_ctx_t *c = (p6_run_ctx_t *)ctx;
     const p6_params_t *p = c->p;
     p6_state_t *s = c->s;
-    const double trace_dt = c->trace_dt;
-    double *trace = c->trace;
+    const double trace_dt = c->run.trace_dt;
+    double *trace = c->run.trace;
     const double piece = *piece_io;
     const double omega_e = (double)p->pole_pairs * omega_m;
     double v[4], ix_inf, iy_inf, kxy, i_d1, i_q1;
-    int levels = 0;
+    ge_levels_t lv;
     dq_segment_t g;
-    for (int leg = 0; leg < P6_LEGS; leg++) {
-        int lvl = c->gate_level[leg];
-        if (t0 < s->dead_until[leg] - 0.5e-9) {
-            lvl = s->dead_level[leg];
-        }
-        levels |= lvl << (P6_LEGS - 1 - leg);
-    }
-    p6_code_voltage(p->vdc, levels, v);
+    ge_levels_at(&c->run, P6_LEGS, t0, s->dead_until, s->dead_level, GE_LEVEL_NEW, &lv); /* no leg floats */
+    p6_code_voltage(p->vdc, lv.code, v);
     dq_segment_setup(&c->mc, omega_e, s->theta_e, v[0], v[1], s->i_d, s->i_q, &g);
     ix_inf = v[2] / p->rs;
     iy_inf = v[3] / p->rs;
@@ -151,7 +133,7 @@ static int p6_piece_cb(void *ctx, double t0, double *piece_io, double omega_m)
             }
             dq_walk_eval(&g, &w, &id, &iq);
             rc = emit_row(p, s, tk, id, iq, w.cos_th, w.sin_th, ix_inf + (s->i_x - ix_inf) * ex,
-                          iy_inf + (s->i_y - iy_inf) * ex, trace, c->trace_cap, c->stats);
+                          iy_inf + (s->i_y - iy_inf) * ex, trace, c->run.trace_cap, c->run.stats);
             if (rc != P6_OK) {
                 return rc;
             }
@@ -178,24 +160,14 @@ static double phase_current(const p6_state_t *s, int leg)
     return ip[leg];
 }
 
-static int p6_integrate_cb(void *ctx, double t, double h, const mech_segment_t *load, const int *gate_level)
+/* Diode by the current's sign; exactly zero -> the new level (no open-phase model for six phases). */
+static double p6_leg_current_cb(const void *ctx, int leg)
 {
-    p6_run_ctx_t *c = (p6_run_ctx_t *)ctx;
-    c->gate_level = gate_level;
-    return mech_integrate(&c->p->mech, &c->s->mech, load, t, h, p6_piece_cb, p6_torque_cb, c);
+    return phase_current(((const p6_run_ctx_t *)ctx)->s, leg);
 }
 
-/* Sign rule: current out of the leg -> lower diode; into it -> upper diode; exactly zero -> the new level
- * (no open-phase model for six phases). */
-static int p6_dead_level_cb(void *ctx, int leg, int new_level)
-{
-    p6_run_ctx_t *c = (p6_run_ctx_t *)ctx;
-    double i_ph = phase_current(c->s, leg);
-    return i_ph > 0.0 ? 0 : (i_ph < 0.0 ? 1 : new_level);
-}
-
-static const ge_kind_t P6_GATES = {P6_LEGS, 63, P6_MAX_SUBINTERVALS, P6_MAX_EVENTS, p6_integrate_cb,
-                                    p6_dead_level_cb};
+static const ge_kind_t P6_GATES = {P6_LEGS, 63, P6_MAX_SUBINTERVALS, P6_MAX_EVENTS, p6_piece_cb, p6_torque_cb,
+                                   p6_leg_current_cb, GE_LEVEL_NEW};
 
 int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const int64_t *durations_ns,
                int32_t n, const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap,
@@ -203,36 +175,20 @@ int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const
 {
     p6_run_ctx_t c;
     if (!(p->lls > 0.0) || !(p->rs > 0.0)) {
-        ge_stats_reset(stats);
-        stats->error = P6_E_ARGS;
-        return P6_E_ARGS;
+        return ge_reject(stats, P6_E_ARGS);
     }
+    ge_run_init(&c.run, &p->mech, &s->mech, trace_dt, trace, trace_cap, stats);
     c.p = p;
     c.s = s;
-    c.trace_dt = trace_dt;
-    c.trace = trace;
-    c.trace_cap = trace_cap;
-    c.stats = stats;
-    c.gate_level = NULL;
     dq_machine_init(p->rs, p->ld, p->lq, p->psi_f, &c.mc);
     c.em_step = trace_dt > 0.0 ? exp(c.mc.m * trace_dt) : 1.0;
     return ge_advance(&P6_GATES, &c, states, durations_ns, n, load, p->t_mpw, p->t_dead, &s->t_ns, &s->gate,
                       s->last_edge_t, s->dead_until, s->dead_level, stats);
 }
 
-/* --- the machine-kernel table (machine_kernel.h) ------------------------------------------------------------ */
-static int p6_k_advance(const void *p, void *s, const int32_t *states, const int64_t *durations_ns, int32_t n,
-                        const mech_load_t *load, double trace_dt, double *trace, int32_t trace_cap,
-                        ge_period_stats_t *stats)
-{
-    return p6_advance((const p6_params_t *)p, (p6_state_t *)s, states, durations_ns, n, load, trace_dt, trace,
-                      trace_cap, stats);
-}
-
 /* Plant6.sample (src/pmsm_hil/hil/plant6.py): the same kernel functions. */
-static void p6_k_sample(const void *params, const void *state, mk_sample_t *out)
+static void p6_sample(const p6_params_t *p, const p6_state_t *s, mk_sample_t *out)
 {
-    const p6_state_t *s = (const p6_state_t *)state;
     p6_phase_currents(s->i_d, s->i_q, s->theta_e, s->i_x, s->i_y, out->i);
     out->i_d = s->i_d;
     out->i_q = s->i_q;
@@ -240,25 +196,9 @@ static void p6_k_sample(const void *params, const void *state, mk_sample_t *out)
     out->i_y = s->i_y;
     out->theta_e = s->theta_e;
     out->omega_m = s->mech.omega_m;
-    out->torque = p6_torque((const p6_params_t *)params, s->i_d, s->i_q);
+    out->torque = p6_torque(p, s->i_d, s->i_q);
 }
 
-static void p6_k_hold_speed(void *params, void *state, double omega_m)
-{
-    mech_hold(&((p6_params_t *)params)->mech, &((p6_state_t *)state)->mech, omega_m);
-}
-
-static uint64_t p6_k_time_ns(const void *state)
-{
-    return ((const p6_state_t *)state)->t_ns;
-}
-
-static const mk_kernel_t P6_KERNEL = {
-    MK_ABI_VERSION, "dual three-phase PMSM", P6_LEGS, 63, P6_TRACE_COLUMNS, sizeof(p6_params_t), sizeof(p6_state_t),
-    p6_k_advance, p6_k_sample, p6_k_hold_speed, p6_k_time_ns,
-};
-
-const mk_kernel_t *p6_kernel(void)
-{
-    return &P6_KERNEL;
-}
+/* the machine-kernel table (machine_kernel.h) */
+MK_KERNEL_TABLE(p6, p6_params_t, p6_state_t, p6_advance, p6_sample, "dual three-phase PMSM", P6_LEGS, 63,
+                P6_TRACE_COLUMNS)

@@ -63,10 +63,7 @@ def export_frames(mcap: Path, fmt: str, out: Path) -> int:
     state = ScanState()
     frames = read_frames(mcap, state)
     if not state.complete:
-        raise McapFormatError(
-            f"RUN.mcap {mcap}: cut or corrupt after {state.valid_bytes} of {state.file_bytes} bytes "
-            f"({state.stop_reason}); nothing exported (`hil mcap-repair {mcap}` writes its valid prefix as a "
-            "complete file to export)")
+        raise McapFormatError(f"RUN.mcap {mcap}: {state.cut_reason(mcap, 'export')}; nothing exported")
     if topics.TOPIC_FRAMES not in state.topics:
         raise McapFormatError(f"RUN.mcap {mcap}: has no {topics.TOPIC_FRAMES} channel (not a run log of `hil run`); "
                               "nothing exported")

@@ -42,6 +42,12 @@ class ScanState:
     #: topics of the channels seen (filled by `read_topic`)
     topics: set[str] = field(default_factory=set)
 
+    def cut_reason(self, path: Path, use: str) -> str:
+        """Why a scan of `path` that did not end properly is refused, and the way out (`hil mcap-repair`), for a
+        command that would `use` the file (replay, export)."""
+        return (f"cut or corrupt after {self.valid_bytes} of {self.file_bytes} bytes ({self.stop_reason}); "
+                f"`hil mcap-repair {path}` writes its valid prefix as a complete file to {use}")
+
 
 def _parse(opcode: int, body: bytes) -> McapRecord | None:
     stream = ReadDataStream(io.BytesIO(body))

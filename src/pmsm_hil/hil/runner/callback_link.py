@@ -13,6 +13,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from pmsm_hil.hil.runner.fault_setup import pump_after_faults
 from pmsm_hil.hil.runner.link_facade import LinkFacade
 from pmsm_hil.hil.runner.target_client import DRAIN_MAX
 from pmsm_hil.hil.runner.wire import default_spin_ns
@@ -134,13 +135,7 @@ class NativePyLink(LinkFacade):
         in-process target is served after the delayed frames due are released."""
         faulty = FaultyLink(self.link, spec, self.run_time_s, crc_checked=True)
         self.faulty, self.link = faulty, faulty
-        serve = self._pump_unfaulted
-        if serve is not None:
-            def pump() -> None:
-                faulty.pump()
-                serve()
-
-            self.pump = pump
+        self.pump = pump_after_faults(faulty, self._pump_unfaulted)
         return faulty
 
     def remove_faults(self) -> None:

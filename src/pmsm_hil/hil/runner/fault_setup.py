@@ -20,14 +20,21 @@ def install_faults(client: TargetClient, spec: FaultSpec, clock: Callable[[], fl
     target is served after the delayed frames due are released."""
     faulty = FaultyLink(client.link, spec, clock, crc_checked=True)
     client.link = faulty
-    serve = client.pump
-    if serve is not None:
-        def pump() -> None:
-            faulty.pump()
-            serve()
-
-        client.pump = pump
+    client.pump = pump_after_faults(faulty, client.pump)
     return faulty
+
+
+def pump_after_faults(faulty: FaultyLink, serve: Callable[[], object] | None) -> Callable[[], None] | None:
+    """The pump of an in-process target (`serve`, None: none) behind a FaultyLink: the delayed frames due are
+    released first, then the target is served."""
+    if serve is None:
+        return None
+
+    def pump() -> None:
+        faulty.pump()
+        serve()
+
+    return pump
 
 
 def fault_records(faulty: FaultyLink, ts_s: float) -> np.ndarray:

@@ -140,9 +140,7 @@ def replay_run(run_log: Path, output: Path, *, capture: Path | None = None, moto
     state = ScanState()
     periods = read_periods(run_log, state)
     if not state.complete:
-        raise McapFormatError(f"{where}: cut or corrupt after {state.valid_bytes} of {state.file_bytes} bytes "
-                              f"({state.stop_reason}); `hil mcap-repair {run_log}` writes its valid prefix as a "
-                              "complete file to replay")
+        raise McapFormatError(f"{where}: {state.cut_reason(run_log, 'replay')}")
     meta = read_metadata(run_log)
     ts_s = _float(meta, "ts_s", where)
     scenario = _scenario(meta, where)

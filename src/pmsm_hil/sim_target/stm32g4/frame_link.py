@@ -28,6 +28,7 @@ from pmsm_hil.protocol.codec import FrameDecoder, Profile
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.links.stats import LinkStats
 from pmsm_hil.protocol.messages import Command, Measurement
+from pmsm_hil.sim_target.qemu import stats
 from pmsm_hil.sim_target.stm32g4.board import Board
 from pmsm_hil.sim_target.stm32g4.board_file import BoardDescription
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
@@ -228,8 +229,8 @@ class FrameBoardLink:
                                "board_missing_replies": self.missing_replies,
                                "board_can_bitrates": list(self.fdcan_bitrates())}
         if len(turn):
-            out["board_turnaround_cycles"] = _stats(turn)
-            out["board_turnaround_us"] = _stats(turn * us)
+            out["board_turnaround_cycles"] = stats(turn)
+            out["board_turnaround_us"] = stats(turn * us)
         if len(sleep) and elapsed.sum() > 0:
             out["board_cpu_load"] = float(1.0 - sleep.sum() / elapsed.sum())
         return out
@@ -247,7 +248,3 @@ class FrameBoardLink:
 def _can(frame: Frame) -> can.Message:
     return can.Message(arbitration_id=frame.arbitration_id, data=frame.data, is_fd=frame.is_fd,
                        bitrate_switch=frame.is_fd, is_extended_id=frame.arbitration_id > 0x7FF)
-
-
-def _stats(values: np.ndarray) -> dict[str, float]:
-    return {"median": float(np.median(values)), "p99": float(np.percentile(values, 99)), "max": float(values.max())}

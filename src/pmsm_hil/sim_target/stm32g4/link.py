@@ -41,6 +41,7 @@ from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.ids import NodeState, Status
 from pmsm_hil.protocol.links.stats import LinkStats
 from pmsm_hil.protocol.messages import Command, ConfigAck, ConfigParam, Heartbeat, Measurement, Setpoint
+from pmsm_hil.sim_target.qemu import stats
 from pmsm_hil.sim_target.stm32g4.board import Board
 from pmsm_hil.sim_target.stm32g4.board_file import BoardDescription
 from pmsm_hil.sim_target.stm32g4.hall import HallSensors, attach_halls
@@ -499,16 +500,16 @@ class BoardLink:
                                "board_configs_acked": self.configs_acked, "board_idle_periods": self.idle_periods,
                                "board_break_trips": tim.break_trips}
         if len(isr):
-            out["board_isr_time_us"] = _stats(isr * us)
+            out["board_isr_time_us"] = stats(isr * us)
             out["board_cpu_load"] = float(1.0 - sleep.sum() / (len(sleep) * self.period_cycles))
         handlers = {}
         for exc, st in sorted(board.isr.items()):
             if not st.cycles:
                 continue
             name = "SysTick" if exc == 15 else f"IRQ{exc - 16}" if exc >= 16 else f"exception {exc}"
-            entry: dict[str, Any] = {"entries": st.entries, "time_us": _stats(np.asarray(st.cycles) * us)}
+            entry: dict[str, Any] = {"entries": st.entries, "time_us": stats(np.asarray(st.cycles) * us)}
             if st.latency:
-                entry["latency_us"] = _stats(np.asarray(st.latency) * us)
+                entry["latency_us"] = stats(np.asarray(st.latency) * us)
             handlers[name] = entry
         out["board_handlers"] = handlers
         samples = []
@@ -517,9 +518,5 @@ class BoardLink:
             for at, _, _ in getattr(adc, "sample_log", [])[-16:]:
                 samples.append(((at - tim.last_update) % self.period_cycles) * us)
         if samples:
-            out["board_adc_sample_us"] = _stats(np.asarray(samples))
+            out["board_adc_sample_us"] = stats(np.asarray(samples))
         return out
-
-
-def _stats(values: np.ndarray) -> dict[str, float]:
-    return {"median": float(np.median(values)), "p99": float(np.percentile(values, 99)), "max": float(values.max())}
