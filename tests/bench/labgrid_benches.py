@@ -52,8 +52,17 @@ class Benches:
                          for name, (host, board) in self.links.items())
         (self.folder / "exporter.yaml").write_text(config, encoding="utf-8")
         deadline = time.monotonic() + 90
-        while subprocess.run([str(BIN / "labgrid-client"), "-x", self.address, "places"], capture_output=True,
-                             timeout=60, check=False).returncode != 0:
+        host, port = self.address.split(":")
+        while True:  # its port first (a connect is cheap; each labgrid-client is ~1 CPU-s of Python start-up)
+            try:
+                socket.create_connection((host, int(port)), timeout=5).close()
+            except OSError:
+                assert time.monotonic() < deadline, (self.folder / "coordinator.log").read_text()
+                time.sleep(0.2)
+                continue
+            if subprocess.run([str(BIN / "labgrid-client"), "-x", self.address, "places"], capture_output=True,
+                              timeout=60, check=False).returncode == 0:
+                break
             assert time.monotonic() < deadline, (self.folder / "coordinator.log").read_text()
             time.sleep(0.5)
         self._start(str(BIN / "labgrid-exporter"), "-c", self.address, "-n", "sim", "--hostname", "127.0.0.1",
@@ -61,7 +70,10 @@ class Benches:
         for name in self.links:
             self.client("-p", name, "create")
             self.client("-p", name, "add-match", f"sim/{name}/*")
-        while any(f"sim/{name}/HilLink" not in self.client("resources") for name in self.links):
+        while True:  # one listing for every place
+            listed = self.client("resources")
+            if all(f"sim/{name}/HilLink" in listed for name in self.links):
+                break
             assert time.monotonic() < deadline, (self.folder / "exporter.log").read_text()
             time.sleep(0.5)
 

@@ -45,11 +45,15 @@ def test_a_malformed_dbc_is_one_line_naming_line_and_field(tmp_path: Path, old: 
 
 
 def test_hil_with_a_malformed_dbc_prints_one_line_exit_2(tmp_path: Path) -> None:
-    """`hil run` in a process whose cantools reads the edited copy in place of hil.dbc: the error raised while
-    the subcommands are imported (the codec compiles its layouts then) is the usual one line."""
+    """`hil run` in a process whose cantools reads the edited copy in place of hil.dbc (and whose compiled layouts
+    are from another hil.dbc, as after an edit: the DBC is then parsed): the error raised while the subcommands
+    are imported (the codec compiles its layouts then) is the usual one line."""
     bad, line = _edited(tmp_path, _SG, _SG.replace("(1,0)", "(abc,0)"))
     code = (
-        "import sys, cantools\n"
+        "import sys, types, cantools\n"
+        "compiled = types.ModuleType('pmsm_hil.protocol.compiled_layouts')\n"
+        "compiled.DBC_SHA256, compiled.LAYOUTS = 'the sha256 of hil.dbc before an edit', {}\n"
+        "sys.modules[compiled.__name__] = compiled\n"
         "real = cantools.database.load_file\n"
         f"cantools.database.load_file = lambda path, *a, **k: real({str(bad)!r}, *a, **k)\n"
         "from pmsm_hil.app.cli.main import main\n"

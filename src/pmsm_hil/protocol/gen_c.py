@@ -3,8 +3,9 @@
 Usage: python -m pmsm_hil.protocol.gen_c [--check] [--output-dir DIR] [--ids-py FILE]
   --check  exit 1 (listing the files) if the committed files differ from a fresh generation.
 Outputs: DIR/hil_protocol.{h,c} (codec), DIR/hil_ids.h and FILE (default src/pmsm_hil/protocol/ids.py; DIR/ids.py
-for another DIR): the ids of the DBC value tables for C and Python (gen_ids.py). The generation date
-cantools writes is removed so the output is reproducible.
+for another DIR): the ids of the DBC value tables for C and Python (gen_ids.py); beside FILE, compiled_layouts.py:
+the frame layouts compiled to Python (gen_layouts.py), which spares every process the DBC's parsing. The generation
+date cantools writes is removed so the output is reproducible.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from pathlib import Path
 from cantools.database.can import Database
 from cantools.database.can.c_source import camel_to_snake_case, generate
 
-from pmsm_hil.protocol import gen_ids
+from pmsm_hil.protocol import gen_ids, gen_layouts
 from pmsm_hil.protocol.layout import DBC_PATH, load_database
 from pmsm_hil.protocol.paths import GENERATED_C_DIR, IDS_PY
 
@@ -97,12 +98,14 @@ def saturate_encoders(source: str, db: Database) -> str:
 
 
 def outputs(out_dir: Path, ids_py: Path | None = None) -> dict[Path, str]:
-    """Path -> content of every generated file: the C files in `out_dir` and the Python ids at `ids_py`
-    (default: src/pmsm_hil/protocol/ids.py for the repository's C directory, else `out_dir`/ids.py)."""
+    """Path -> content of every generated file: the C files in `out_dir`, the Python ids at `ids_py` (default:
+    src/pmsm_hil/protocol/ids.py for the repository's C directory, else `out_dir`/ids.py) and the compiled layouts
+    beside them."""
     if ids_py is None:
         ids_py = IDS_PY if out_dir.resolve() == GENERATED_C_DIR.resolve() else out_dir / "ids.py"
     files = {out_dir / name: text for name, text in render().items()}
     files[ids_py] = gen_ids.render(load_database(DBC_PATH))[1]
+    files[ids_py.with_name("compiled_layouts.py")] = gen_layouts.render(DBC_PATH)
     return files
 
 

@@ -1,13 +1,18 @@
-"""Frame layouts compiled from `hil.dbc` at import: one `struct` format per message.
+"""Frame layouts compiled from `hil.dbc`: one `struct` format per message.
 
 Byte-aligned 8/16/32/64-bit signals become struct fields; runs of packed signals (6-bit states,
 20-bit durations) become byte-aligned groups unpacked as integers and split with precomputed shifts
-and masks. The pack/unpack functions are generated once as Python source (no per-call
-interpretation of the layout), which keeps a frame at ~1 µs.
+and masks. The pack/unpack functions are generated as Python source (no per-call interpretation of
+the layout), which keeps a frame at ~1 µs. The layouts of the bundled `hil.dbc` are that source
+written out (`compiled_layouts.py`, by `python -m pmsm_hil.protocol.gen_c`, checked by its `--check`):
+while `hil.dbc`'s sha256 is the one it was generated from, `load_layouts()` imports it instead of
+parsing the DBC with cantools (cantools' import and the parsing cost ~0.2 CPU-s of every process's start-up);
+an edited `hil.dbc`, or another file, is parsed and compiled as before.
 """
 
 from __future__ import annotations
 
+import hashlib
 import re
 import struct
 from collections.abc import Callable
@@ -15,11 +20,6 @@ from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 from typing import Any
-
-import cantools
-from cantools.database.can import Database as CanDatabase
-from cantools.database.errors import Error as CantoolsError
-from cantools.database.errors import UnsupportedDatabaseFormatError
 
 from pmsm_hil.protocol.errors import DatabaseError
 
@@ -69,6 +69,8 @@ class FrameLayout:
     struct_format: str
     pack: Callable[..., bytes]
     unpack: Callable[[bytes], tuple[Any, ...]]
+    #: the DBC's sending nodes of the message ("Host", "Target")
+    senders: tuple[str, ...] = ()
 
     def signal(self, name: str) -> SignalInfo:
         """The signal called `name`; raises DatabaseError if absent."""
@@ -115,6 +117,18 @@ def _compile(
     name: str, length: int, signals: tuple[SignalInfo, ...]
 ) -> tuple[str, Callable[..., bytes], Callable[[bytes], tuple[Any, ...]]]:
     """Generate pack/unpack source for one message and exec it."""
+    fmt, src = layout_source(name, length, signals)
+    namespace: dict[str, Any] = {"_st": struct.Struct(fmt), "_sx": sign_extend}
+    exec("\n".join(src), namespace)  # generated from the DBC above; no external input
+    return fmt, namespace["pack"], namespace["unpack"]
+
+
+def layout_source(
+    name: str, length: int, signals: tuple[SignalInfo, ...], *, st: str = "_st", pack: str = "pack",
+    unpack: str = "unpack", typed: bool = False,
+) -> tuple[str, list[str]]:
+    """The struct format and the source lines of `def pack(s0, s1, ...)` and `def unpack(data)` of one message:
+    `st` names its `struct.Struct`, `_sx` is `sign_extend`; `typed` annotates the functions (a module's source)."""
     order = sorted(range(len(signals)), key=lambda i: signals[i].start)
     fmt = "<"
     pack_items: list[str] = []  # expressions passed to struct.pack
@@ -169,25 +183,51 @@ def _compile(
     if pos > length:
         raise DatabaseError(f"{name}: signals exceed the {length}-byte frame")
     fmt += "x" * (length - pos)
-    args = ", ".join(f"s{i}" for i in range(len(signals)))
-    src = [f"def pack({args}):", f"    return _st.pack({', '.join(pack_items)})", "def unpack(data):"]
-    src.append(f"    ({', '.join(unpack_names)},) = _st.unpack(data)")
+    args = ", ".join(f"s{i}: Any" if typed else f"s{i}" for i in range(len(signals)))
+    src = [f"def {pack}({args}){' -> bytes' if typed else ''}:", f"    return {st}.pack({', '.join(pack_items)})",
+           f"def {unpack}(data{': bytes) -> tuple[Any, ...]' if typed else ')'}:"]
+    src.append(f"    ({', '.join(unpack_names)},) = {st}.unpack(data)")
     src.extend(unpack_lines)
     src.append(f"    return ({', '.join(result[i] for i in range(len(signals)))},)")
-    namespace: dict[str, Any] = {"_st": struct.Struct(fmt), "_sx": _sign_extend}
-    exec("\n".join(src), namespace)  # generated from the DBC above; no external input
-    return fmt, namespace["pack"], namespace["unpack"]
+    return fmt, src
 
 
-def _sign_extend(value: int, bits: int) -> int:
+def sign_extend(value: int, bits: int) -> int:
+    """`value`, an unsigned `bits`-bit integer, as two's complement."""
     return value - (1 << bits) if value >> (bits - 1) else value
+
+
+def dbc_sha256(path: Path = DBC_PATH) -> str:
+    """The sha256 (hex) of the file `path`'s bytes."""
+    return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 @cache
 def load_layouts(path: Path = DBC_PATH) -> dict[str, FrameLayout]:
-    """Parse the DBC once and compile every message; keyed by DBC message name. A DBC that cantools cannot
-    parse or this codec cannot compile is a DatabaseError of one line naming the file, the line and the
-    message.signal where they can be found."""
+    """Every message of the DBC `path` compiled, keyed by DBC message name: for the bundled `hil.dbc` unchanged
+    since `compiled_layouts.py` was generated, that module's layouts; else the DBC parsed (once) and compiled. A
+    DBC that cantools cannot parse or this codec cannot compile is a DatabaseError of one line naming the file, the
+    line and the message.signal where they can be found."""
+    if path == DBC_PATH:
+        from pmsm_hil.protocol import compiled_layouts
+
+        try:
+            current = dbc_sha256(path)
+        except OSError:
+            current = ""  # parse_layouts names the error
+        if current == compiled_layouts.DBC_SHA256:
+            return dict(compiled_layouts.LAYOUTS)
+    return parse_layouts(path)
+
+
+def parse_layouts(path: Path = DBC_PATH) -> dict[str, FrameLayout]:
+    """The DBC `path` parsed with cantools and every message compiled (what `load_layouts` does but for an
+    unchanged `hil.dbc`, and what `compiled_layouts.py` is generated from)."""
+    import cantools
+    from cantools.database.can import Database as CanDatabase
+    from cantools.database.errors import Error as CantoolsError
+    from cantools.database.errors import UnsupportedDatabaseFormatError
+
     try:
         db = cantools.database.load_file(str(path))
     except OSError as exc:
@@ -206,7 +246,8 @@ def load_layouts(path: Path = DBC_PATH) -> dict[str, FrameLayout]:
         except DatabaseError as exc:
             raise DatabaseError(locate_in_dbc(path, str(exc))) from None
         layouts[msg.name] = FrameLayout(
-            msg.name, int(msg.frame_id), int(msg.length), bool(msg.is_fd), sigs, fmt, pack, unpack
+            msg.name, int(msg.frame_id), int(msg.length), bool(msg.is_fd), sigs, fmt, pack, unpack,
+            tuple(str(node) for node in msg.senders or ()),
         )
     return layouts
 
@@ -306,4 +347,6 @@ def expect_layout(name: str, signals: tuple[str, ...]) -> FrameLayout:
 @cache
 def load_database(path: Path = DBC_PATH) -> Any:
     """The cantools database (for tools and cross-checks; not used on the hot path)."""
+    import cantools
+
     return cantools.database.load_file(str(path))

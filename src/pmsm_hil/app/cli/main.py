@@ -53,18 +53,25 @@ def build_parser() -> argparse.ArgumentParser:
         if module is not None:
             module.add_parser(sub)
     for group, names in _GROUPS.items():
-        group_parser = sub.add_parser(group, help=_GROUP_HELP[group])
-        group_sub = group_parser.add_subparsers(dest=f"{group}_command", metavar="COMMAND")
-        for name in names:
-            module = _load(name)
-            if module is not None:
-                module.add_parser(group_sub)
-        if group == "bench":
-            for name, p in group_sub.choices.items():
-                _with_status_line(p, f"hil bench {name}")
-        group_parser.set_defaults(func=lambda args, p=group_parser: _usage(p))
+        _add_group(sub, group, names)
     _add_debug(sub)
     return parser
+
+
+def _add_group(sub: argparse._SubParsersAction[argparse.ArgumentParser], group: str, names: tuple[str, ...]) -> dict[
+        str, argparse.ArgumentParser]:
+    """The group's parser (`hil bench`, ...) with the subcommands of the modules `names`; returns its choices."""
+    group_parser = sub.add_parser(group, help=_GROUP_HELP[group])
+    group_sub = group_parser.add_subparsers(dest=f"{group}_command", metavar="COMMAND")
+    for name in names:
+        module = _load(name)
+        if module is not None:
+            module.add_parser(group_sub)
+    if group == "bench":
+        for name, p in group_sub.choices.items():
+            _with_status_line(p, f"hil bench {name}")
+    group_parser.set_defaults(func=lambda args, p=group_parser: _usage(p))
+    return group_sub.choices
 
 
 def _with_status_line(p: argparse.ArgumentParser, label: str) -> None:
@@ -95,10 +102,14 @@ def _top_parser() -> tuple[argparse.ArgumentParser, argparse._SubParsersAction[a
 
 def parser_for(argv: list[str]) -> argparse.ArgumentParser:
     """The parser `main` parses `argv` with: when `argv` names a top-level subcommand whose module has its name
-    ("run", "target", ...; nothing but --debug before it), one that knows only that subcommand and imports only
-    its module (a spawned `hil target` imports no runner: ~0.5 CPU-s of each start-up); else `build_parser()`
-    (`hil --help`, a group, a mistyped command)."""
-    command = next((a for a in argv if a != "--debug"), None)
+    ("run", "target", ...; nothing but --debug before it), or a group's subcommand whose module is named after
+    both ("fw build": fw_build, "bench loop": bench_loop), one that knows only that subcommand and imports only its
+    module (a spawned `hil target` imports no runner: ~0.5 CPU-s of each start-up; `hil fw build` none of the
+    other ~25 subcommands: ~0.5 CPU-s); else `build_parser()` (`hil --help`, a group alone, a mistyped command)."""
+    words = [a for a in argv if a != "--debug"]
+    command = words[0] if words else None
+    if command in _GROUPS and len(words) > 1:
+        return _group_parser_for(command, words[1]) or build_parser()
     module = _load(command) if command is not None and command in _TOP_LEVEL else None
     if module is None:
         return build_parser()
@@ -106,6 +117,18 @@ def parser_for(argv: list[str]) -> argparse.ArgumentParser:
     module.add_parser(sub)
     if command not in sub.choices:
         return build_parser()
+    _add_debug(sub)
+    return parser
+
+
+def _group_parser_for(group: str, command: str) -> argparse.ArgumentParser | None:
+    """A parser that knows only `hil GROUP COMMAND`, when the group's module `GROUP_COMMAND` defines it."""
+    name = f"{group}_{command.replace('-', '_')}"
+    if name not in _GROUPS[group]:
+        return None
+    parser, sub = _top_parser()
+    if command not in _add_group(sub, group, (name,)):
+        return None
     _add_debug(sub)
     return parser
 

@@ -20,7 +20,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from pmsm_hil.hil.runner.board_ending import judge_board
 from pmsm_hil.hil.runner.loop_outcome import LoopOutcome
 from pmsm_hil.hil.runner.run_config import QEMU_MAILBOX_LINK, RunConfig
 from pmsm_hil.hil.runner.sil_debug import SilDebugSlot
@@ -415,6 +414,7 @@ def _connect_qemu(cfg: RunConfig, path: str) -> TargetConnection:
 def _connect_board(cfg: RunConfig, path: str) -> TargetConnection:
     """The ELF on the virtual STM32G4 board in this process; the board object is the host's link (each Measurement
     runs one period of the firmware); its metrics (handlers, CPU load, late compares) join metrics.json."""
+    from pmsm_hil.hil.runner.board_ending import judge_board
     from pmsm_hil.hil.runner.board_log import BoardLog
     from pmsm_hil.sim_target.stm32g4.board_file import load_board
     from pmsm_hil.sim_target.stm32g4.frame_link import is_core_image
@@ -453,6 +453,7 @@ def _link_bitrates(cfg: RunConfig) -> tuple[int | None, int | None]:
 def _connect_core_image(cfg: RunConfig, elf: Path, console: TargetConsole, lines: list[str]) -> TargetConnection:
     """A firmware-API image (`hil fw build --board stm32g474 --src DIR`) on the virtual board: the frames go over
     its FDCAN1, in CAN FD frames when the firmware enabled FD operation, else classic ones."""
+    from pmsm_hil.hil.runner.board_ending import judge_board
     from pmsm_hil.sim_target.stm32g4.board_file import load_board
     from pmsm_hil.sim_target.stm32g4.frame_link import FrameBoardLink
 

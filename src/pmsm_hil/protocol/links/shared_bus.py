@@ -19,7 +19,7 @@ from functools import lru_cache
 
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.ids import Mode, Node, Status
-from pmsm_hil.protocol.layout import load_database
+from pmsm_hil.protocol.layout import load_layouts
 from pmsm_hil.protocol.links.kinds import link_kind
 from pmsm_hil.protocol.links.spec import parse_spec
 
@@ -42,23 +42,23 @@ BUS_STARVE_FPS = 500.0
 @lru_cache(maxsize=1)
 def target_ids() -> frozenset[int]:
     """Ids whose sender in hil.dbc is the Target node."""
-    return frozenset(m.frame_id for m in load_database().messages if "Target" in (m.senders or []))
+    return frozenset(m.frame_id for m in load_layouts().values() if "Target" in m.senders)
 
 
 @lru_cache(maxsize=1)
 def command_ids() -> frozenset[int]:
     """The Command frame ids (every part carries `seq` in bytes 0-1, little endian)."""
-    return frozenset(m.frame_id for m in load_database().messages if m.name.startswith("Cmd"))
+    return frozenset(m.frame_id for m in load_layouts().values() if m.name.startswith("Cmd"))
 
 
 @lru_cache(maxsize=1)
 def target_lengths() -> dict[int, int]:
     """The payload length of each id the target sends (hil.dbc): a frame of another length is not its."""
-    return {m.frame_id: m.length for m in load_database().messages if "Target" in (m.senders or [])}
+    return {m.frame_id: m.length for m in load_layouts().values() if "Target" in m.senders}
 
 
 def fault_target_id() -> int:
-    return int(load_database().get_message_by_name("FaultTarget").frame_id)
+    return load_layouts()["FaultTarget"].frame_id
 
 
 def is_shared_bus(spec: str) -> bool:
