@@ -4,10 +4,18 @@ so two runs' link counters compare whatever the wall clock did at start-up (the 
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import time
+from types import SimpleNamespace
+from typing import Any
 
-from pmsm_hil.hil.runner.target_client import TargetClient
+import pytest
+
+from pmsm_hil.hil.runner import run as run_module
+from pmsm_hil.hil.runner.target_client import DutViolationError, TargetClient
 from pmsm_hil.protocol.codec import FrameCodec
+from pmsm_hil.protocol.errors import LinkError
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.ids import ParamId, Status
 from pmsm_hil.protocol.messages import ConfigAck, ConfigParam
@@ -54,3 +62,36 @@ def test_a_prompt_target_gets_no_resend() -> None:
     client = TargetClient(target, FrameCodec("canfd"))  # type: ignore[arg-type]
     client.configure({ParamId.RS: 0.5, ParamId.POLE_PAIRS: 3.0}, timeout_s=5.0, resend_s=10.0)
     assert (client.config_resent, client.config_acks_repeated, target.received) == (0, 0, 2)
+
+
+class _BrokenClient:
+    """A client whose resend meets the closed socket of a target that died."""
+
+    def configure(self, _parameters: object) -> None:
+        raise LinkError("serial:fd:29: cannot send frame 0x210: send failed: Broken pipe")
+
+
+def _conn(proc: subprocess.Popen[bytes] | None) -> Any:
+    return SimpleNamespace(client=_BrokenClient(), process=proc)
+
+
+def test_a_link_error_while_the_target_process_has_ended_is_the_targets_end() -> None:
+    """A SIL firmware that crashed while being configured, on a loaded machine: the resend's broken pipe came before
+    the client's pump saw the death (the whole suite beside load 7); the run must name the crash, not fail."""
+    proc = subprocess.Popen([sys.executable, "-c", "import os, signal; os.kill(os.getpid(), signal.SIGSEGV)"])
+    cfg = SimpleNamespace(target_parameters=dict)
+    with pytest.raises(DutViolationError, match=r"the target process ended \(SIGSEGV\): .*Broken pipe"):
+        run_module._configure(_conn(proc), cfg)  # type: ignore[arg-type]
+
+
+def test_a_link_error_with_the_target_alive_or_in_process_stays_the_links() -> None:
+    cfg = SimpleNamespace(target_parameters=dict)
+    with pytest.raises(LinkError):
+        run_module._configure(_conn(None), cfg)  # type: ignore[arg-type]
+    proc = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(30)"])
+    try:
+        with pytest.raises(LinkError):
+            run_module._configure(_conn(proc), cfg)  # type: ignore[arg-type]
+    finally:
+        proc.kill()
+        proc.wait()

@@ -6,6 +6,7 @@ import contextlib
 import json
 import math
 import signal
+import subprocess
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
@@ -42,7 +43,7 @@ from pmsm_hil.hil.runner.run_limits import check_run_limits
 from pmsm_hil.hil.runner.run_metadata import run_metadata, tap_setup_frames
 from pmsm_hil.hil.runner.safe_stop import SAFE_STOP_TIMEOUT_S, disable_and_confirm, settle_ending
 from pmsm_hil.hil.runner.setpoint_hold import setpoint_verdict
-from pmsm_hil.hil.runner.sil_watch import InterruptGuard, isolated_config
+from pmsm_hil.hil.runner.sil_watch import InterruptGuard, describe_exit, isolated_config
 from pmsm_hil.hil.runner.stop_request import deferred_interrupts
 from pmsm_hil.hil.runner.target_client import BusStarvedError, DutViolationError, TargetError
 from pmsm_hil.hil.runner.target_console import MAX_LINES
@@ -93,6 +94,8 @@ def _open_logger(cfg: RunConfig) -> tuple[Any, Path | None]:
 
 #: what a period can put into the logger's ring at most, besides its trace rows [B]: the period record (234 B)
 #: and 16 frame records (83 B each; a period has 2-6 frames), rounded up
+#: wall time [s] a link error during the configuration waits for the target's process to be seen ended
+TARGET_END_WAIT_S = 0.5
 _RING_BYTES_PER_PERIOD = 2048
 _RING_MIN_BYTES = 4 * 1024 * 1024
 
@@ -152,6 +155,23 @@ def run_from_options(values: Mapping[str, Any], sources: Mapping[str, str] | Non
     return run_closed_loop(RunConfig.from_options(values, sources), live=live)
 
 
+def _configure(conn: TargetConnection, cfg: RunConfig) -> None:
+    """Write the target's parameters. A link error while the target's process has ended is that process's end (a
+    resend can meet the closed socket before the client's pump sees the death): a DutViolationError the ending
+    (`conn.ending`) then names as the crash."""
+    try:
+        conn.client.configure(cfg.target_parameters())
+    except LinkError as exc:
+        proc = conn.process
+        if proc is None:
+            raise
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            proc.wait(TARGET_END_WAIT_S)
+        if proc.poll() is None:
+            raise
+        raise DutViolationError(f"the target process ended ({describe_exit(proc.returncode)}): {exc}") from exc
+
+
 def _run_locked(cfg: RunConfig, cid: int, python_reason: str | None, silent_after: int | None,
                 live: Callable[[np.ndarray], None] | None, phase: Callable[[str], None],
                 counter: Callable[[Callable[[], int]], None] | None) -> RunResult:
@@ -177,7 +197,7 @@ def _run_locked(cfg: RunConfig, cid: int, python_reason: str | None, silent_afte
             phase("configuring target")
             try:
                 with tap_setup_frames(conn.client, logger):
-                    conn.client.configure(cfg.target_parameters())
+                    _configure(conn, cfg)
             except (DutViolationError, BusStarvedError) as exc:  # the bus's: a safety stop naming it, not exit 4
                 bus = isinstance(exc, BusStarvedError)
                 outcome = LoopOutcome(period_records(), frame_records(), np.zeros(0, cfg.machine.layout.trace_dtype),
