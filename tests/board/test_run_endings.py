@@ -34,6 +34,18 @@ def ending(proc: subprocess.CompletedProcess[str], out: Path) -> str:
     return reason
 
 
+
+def _example_firmware() -> tuple[Path, Path]:
+    """The example STM32G474 firmware's ELF (built) and its board file; skips without the ARM toolchain."""
+    from pmsm_hil.sim_target.fw_build import build_firmware, missing_tools
+
+    missing = missing_tools("stm32g474")
+    if missing:
+        pytest.skip(f"firmware board stm32g474: {', '.join(missing)} not installed")
+    examples = Path(__file__).resolve().parents[2] / "examples"
+    return build_firmware("stm32g474").path, examples / "stm32g4_foc" / "board.toml"
+
+
 def test_an_unmodelled_register_in_the_start_up_ends_the_run_in_one_line_naming_it(
         build_fw: Callable[..., Path], tmp_path: Path) -> None:
     out = tmp_path / "run"
@@ -65,13 +77,7 @@ def test_the_first_period_is_the_open_bridge_of_a_board_whose_outputs_are_off(tm
     """The example firmware keeps MOE = 0 until its first enabling Setpoint: on a machine spinning at 1500 rpm the
     host's period 0 is the open bridge (no current), where the zero vector drove ≈ 0.3 A into phases b and c."""
     from pmsm_hil.hil.runlog.reader import read_periods
-    from pmsm_hil.sim_target.fw_build import build_firmware, missing_tools
-
-    missing = missing_tools("stm32g474")
-    if missing:
-        pytest.skip(f"firmware board stm32g474: {', '.join(missing)} not installed")
-    elf = build_firmware("stm32g474").path
-    board = Path(__file__).resolve().parents[2] / "examples" / "stm32g4_foc" / "board.toml"
+    elf, board = _example_firmware()
     out = tmp_path / "run"
     proc = subprocess.run([sys.executable, "-m", "pmsm_hil.app.cli.main", "run", "--target", f"stm32g4:{elf}",
                            "--board", str(board), "--ts", str(TS), "--controller", "external", "--motor",
@@ -111,13 +117,7 @@ def test_the_python_reference_loop_applies_the_same_first_period(tmp_path: Path)
     """`--loop python` (the test suite's reference loop) takes the board's first duties as the C loop does: the same
     records of the first periods."""
     from pmsm_hil.hil.runlog.reader import read_periods
-    from pmsm_hil.sim_target.fw_build import build_firmware, missing_tools
-
-    missing = missing_tools("stm32g474")
-    if missing:
-        pytest.skip(f"firmware board stm32g474: {', '.join(missing)} not installed")
-    elf = build_firmware("stm32g474").path
-    board = Path(__file__).resolve().parents[2] / "examples" / "stm32g4_foc" / "board.toml"
+    elf, board = _example_firmware()
     runs = []
     for loop in ("native", "python"):
         out = tmp_path / loop
@@ -138,13 +138,7 @@ def test_the_example_firmware_confirms_the_safe_stop_at_its_bus_rate(tmp_path: P
     """The example firmware at its true 500 kbit/s (FDCAN1 on the HSE): a controller it does not implement gets a
     FaultTarget, and the safe stop's disabling Setpoint a FaultTarget then the HeartbeatTarget idle — the board
     runs idle periods until both have left the bus."""
-    from pmsm_hil.sim_target.fw_build import build_firmware, missing_tools
-
-    missing = missing_tools("stm32g474")
-    if missing:
-        pytest.skip(f"firmware board stm32g474: {', '.join(missing)} not installed")
-    elf = build_firmware("stm32g474").path
-    board = Path(__file__).resolve().parents[2] / "examples" / "stm32g4_foc" / "board.toml"
+    elf, board = _example_firmware()
     out = tmp_path / "run"
     proc = subprocess.run([sys.executable, "-m", "pmsm_hil.app.cli.main", "run", "--target", f"stm32g4:{elf}",
                            "--board", str(board), "--ts", str(TS), "--motor", "niu2020-ipmsm", "--speed", "1500",
