@@ -127,9 +127,12 @@ def test_a_file_cut_before_its_last_message_index_counts_what_it_holds(tmp_path:
             time.sleep(0.03)
     ends = _chunk_ends(whole)
     assert len(ends) >= 2
-    for end in (ends[0], ends[-1]):
+    held_at = []
+    for end in ends:  # the logger's timer may close a chunk before the first periods arrive: one without periods
         cut = tmp_path / f"cut{end}.mcap"
         cut.write_bytes(whole.read_bytes()[:end + extra])
         held = read_periods(cut).shape[0]
         kept = end_after_last_record(cut, channel=1)
-        assert held > 0 and kept.messages == held == _standard_periods(cut).shape[0]
+        assert kept.messages == held == _standard_periods(cut).shape[0], end
+        held_at.append(held)
+    assert held_at == sorted(held_at) and 0 < held_at[-1] <= 6000, held_at

@@ -17,7 +17,7 @@ from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.protocol.links.wire_bus import free_udp_ports
 from tests.runner.test_loop import SENSORS, _assert_same_metrics, _assert_same_records, _three
-from tests.runner.test_wire_udp import WALL_FIELDS, WALL_METRICS
+from tests.runner.test_wire_udp import WALL_FIELDS, WALL_METRICS, _without_resends
 
 
 def _both(cfg: RunConfig) -> tuple[Any, Any]:
@@ -60,7 +60,18 @@ def test_a_python_can_adapter_to_an_external_target(native_target_ports: tuple[i
     assert py.metrics.keys() == na.metrics.keys()
     for key in py.metrics.keys() - WALL_METRICS:
         assert py.metrics[key] == na.metrics[key], key
-    assert py.metrics["link"] == na.metrics["link"] and na.metrics["link"]["frames_tx"] > 0
+    py_link, na_link = _wire_counters(py.metrics["link"]), _wire_counters(na.metrics["link"])
+    assert py_link == na_link and na.metrics["link"]["frames_tx"] > 0
+
+
+def _wire_counters(link: dict[str, Any]) -> dict[str, Any]:
+    """The link counters less what the host's scheduling decides when two runs share one target: the
+    configuration's resends, and `session_dropped` (datagrams of the target's other session that reach the host's
+    port late: 3 in one run at load 18)."""
+    out = _without_resends(link)
+    dropped = out.pop("session_dropped")
+    assert isinstance(dropped, int) and dropped >= 0
+    return out
 
 
 def test_a_bus_error_in_a_callback_ends_the_run_safely(monkeypatch: pytest.MonkeyPatch) -> None:
