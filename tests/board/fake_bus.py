@@ -51,7 +51,10 @@ class FakeBus:
         self.sram[start:start + len(data)] = data
 
     def peripheral(self, name: str) -> Peripheral:
-        return self.models[name]
+        try:
+            return self.models[name]
+        except KeyError:  # as the board says it
+            raise BoardError(f"the board has no {name} model") from None
 
     @property
     def sysclk_hz(self) -> int:

@@ -234,3 +234,30 @@ def test_the_halls_hold_the_angle_in_idle_periods(build_fw: Callable[..., Path],
     assert link.idle_periods == 10 and word(link, "edges") == edges
     assert link._trajectory(link.board.now)[0] == pytest.approx(last, abs=1e-4)  # the wire's angle resolution
     assert edges == crossings(first, last, 0.0)
+
+
+def test_an_output_pins_own_edge_is_taken_at_the_store_that_makes_it(bus: FakeBus) -> None:
+    """EXTI on a pin the firmware drives itself (PA5 as an output): the pin's input stage follows ODR, so the edge
+    of a BSRR, BRR or ODR store sets PR1 and pends the line at the store's cycle, not at the next sample; MODER
+    switching the pin to an output with ODR high is an edge too."""
+    bus.add("SYSCFG")
+    gpioa = bus.add_model("GPIOA", GpioPort)
+    exti = bus.add_model("EXTI", Exti)
+    pin5 = 1 << 5
+    moder = gpioa.read(0x00, 4, 0)
+    exti.write(0x08, 4, pin5, 0)                                 # RTSR1: rising (EXTICR2 reset: EXTI5 on port A)
+    exti.write(0x00, 4, 0xFF82_0000 | pin5, 0)                   # IMR1
+    gpioa.write(0x14, 4, pin5, 10)                               # ODR high while the pin is analog: no level yet
+    assert exti.read(0x14, 4, 10) == 0 and bus.pended == []
+    gpioa.write(0x00, 4, (moder & ~(3 << 10)) | 1 << 10, 20)      # MODER: PA5 an output, ODR high: a rising edge
+    assert exti.read(0x14, 4, 20) == pin5 and bus.pended == [23] and exti.edges[5] == 1
+    exti.write(0x14, 4, pin5, 30)
+    gpioa.write(0x28, 4, pin5, 40)                               # BRR: falling, not selected
+    assert exti.read(0x14, 4, 40) == 0 and exti.edges[5] == 1
+    gpioa.write(0x18, 4, pin5, 50)                               # BSRR set: rising, at once
+    assert exti.read(0x14, 4, 50) == pin5 and exti.edges[5] == 2 and bus.pended == [23, 23]
+    exti.write(0x14, 4, pin5, 60)
+    exti.write(0x0C, 4, pin5, 60)                                # FTSR1 too
+    gpioa.write(0x18, 4, pin5 << 16, 70)                         # BSRR reset: falling
+    gpioa.write(0x14, 4, 0, 80)                                  # ODR already low: no edge
+    assert exti.edges[5] == 3 and exti.read(0x14, 4, 80) == pin5

@@ -3,7 +3,8 @@ SYSCFG EXTICR puts on each line, an edge sets its PR1 bit (write 1 to clear) and
 interrupt (EXTI0-4: IRQ 6-10, EXTI9_5: 23, EXTI15_10: 40) until PR1 is cleared; SWIER1 sets PR1 by software. The
 edges come from the pins the board drives over time (the hall sensors): the model asks the GPIO port for the next
 change (`next_event`) and compares the levels at each `advance`, so an edge is taken at its cycle (at most one basic
-block late, as every event of the board). Edges of the firmware's own output pins are not seen. EMR1, the lines
+block late, as every event of the board); an edge of the firmware's own output pin is taken at the cycle of the
+GPIO store that makes it (the port brings EXTI up to that cycle). EMR1, the lines
 16-42 (IMR1 upper bits, IMR2, EMR2, RTSR2, FTSR2, SWIER2, PR2) and events are stored without effect."""
 
 from __future__ import annotations

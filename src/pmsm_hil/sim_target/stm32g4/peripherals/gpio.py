@@ -1,15 +1,20 @@
 """GPIO ports A-G (RM0440 chapter 9): MODER/OTYPER/OSPEEDR/PUPDR/AFRL/AFRH as storage with their reset values,
 ODR with BSRR/BRR, IDR = the outputs' levels on output pins and the board's input levels (default: the pull-up/down
 level, else 0) on the others, LCKR accepted. Pins a board drives over time (hall sensors) follow an `InputDriver`
-at the cycle of the read; EXTI asks the port when such a pin changes next (`next_input_change`). The board reads a
+at the cycle of the read; EXTI asks the port when such a pin changes next (`next_input_change`), and a store to
+MODER, ODR, BSRR or BRR brings EXTI up to its cycle before and after it, so an edge of the firmware's own output
+pin (the pin's input stage follows its output, as on the chip) is taken at the store's cycle. The board reads a
 pin through `pin_level`."""
 
 from __future__ import annotations
 
 from typing import Protocol
 
-from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardBus, register
+from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardBus, BoardError, Peripheral, register
 from pmsm_hil.sim_target.stm32g4.peripherals.regs import RegisterFile
+
+#: the registers whose store can change a pin's level: MODER, ODR, BSRR, BRR
+LEVEL_WORDS = frozenset((0x00, 0x14, 0x18, 0x28))
 
 
 class InputDriver(Protocol):
@@ -71,6 +76,20 @@ class GpioPort(RegisterFile):
         return self.regs[word]
 
     def store(self, word: int, value: int, now: int) -> None:
+        exti = self._exti() if word in LEVEL_WORDS else None
+        if exti is not None:
+            exti.advance(now)  # the edges until now, under the levels before the store
+        self._apply(word, value)
+        if exti is not None:
+            exti.advance(now)  # the store's own edge, at its cycle
+
+    def _exti(self) -> Peripheral | None:
+        try:
+            return self.bus.peripheral("EXTI")
+        except BoardError:  # a part or test bench without EXTI
+            return None
+
+    def _apply(self, word: int, value: int) -> None:
         if word == 0x18:  # BSRR: set low half, reset high half (set wins)
             self.regs[0x14] = ((self.regs[0x14] & ~(value >> 16)) | value) & 0xFFFF
         elif word == 0x28:
