@@ -1,6 +1,7 @@
 """The virtual board as the run's target (`--target stm32g4:FW.elf`): the host's end of the link is this object.
 `send` takes the host's frames; a Measurement runs one control period on the board and queues the reply that
-`poll`/`recv` return.
+`poll`/`recv` return. The native loop's C link (src/pmsm_hil/hil/runner/c/links/link_board.c) runs the same period
+through `measurement` with the decoded values and encodes the duty-cycle Command itself.
 
 Per period k (lockstep): the Measurement's phase currents and DC-link voltage become the voltages at the ADC pins
 through the board's analog front end (constant over the period: the host sampled them at its --adc-delay) and, when
