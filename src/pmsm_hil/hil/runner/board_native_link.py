@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 from pmsm_hil.hil.runner.callback_link import NativePyLink
 from pmsm_hil.protocol.codec import L_MEAS_FD
+from pmsm_hil.protocol.frame import Frame
 
 if TYPE_CHECKING:
     from pmsm_hil.sim_target.stm32g4.link import BoardLink
@@ -66,10 +67,18 @@ class NativeBoardLink(NativePyLink):
         self._board_state = st
 
     def detach(self) -> None:
-        """After the run: the Commands the C link returned join the board link's frame count."""
+        """After the run: the Commands the C link returned join the board link's frame count, and one it still
+        holds (a run stopped between a Measurement and its reply) goes back to the front of the board's queue,
+        where the callback link would have left it."""
         st = self._board_state
         if st is not None:
             self.stats.frames_rx += int(st.stats.frames_rx)
+            st.py_pending = 0
+            f = self.ffi.new("hil_core_frame_t *")
+            held = []
+            while self.lib.nl_board_recv(st, f, 0) == 1:
+                held.append(Frame(int(f.id), bytes(self.ffi.buffer(f.data, f.len)), bool(f.fd)))
+            self.board.requeue(held)
             self._board_state = None
         super().detach()
 

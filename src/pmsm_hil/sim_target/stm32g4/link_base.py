@@ -66,6 +66,11 @@ class BoardLinkBase:
         nothing)."""
         return bool(self._rx) or self._idle_due()
 
+    def requeue(self, frames: list[Frame]) -> None:
+        """Frames for the host taken from the queue but not delivered (a C link's, after its run) back at its
+        front, in their order."""
+        self._rx.extendleft(reversed(frames))
+
     def poll(self) -> Frame | None:
         """The board's next frame for the host, after an idle period of the firmware when one is due; None."""
         if not self._rx and self._idle_due():
