@@ -208,8 +208,9 @@ KERNEL_MAY_INCLUDE = {name for name in KERNEL_FILES if name.endswith(".h")}
 #: kernel headers the loop may include: the interface, never a machine's own header
 LOOP_MAY_INCLUDE_OF_KERNELS = {"machine_kernel.h", "gate_edges.h", "dq_segment.h"}
 #: what a link may include besides the link headers: the loop's clock and wait (loop_rt.h, which includes loop.h),
-#: the target core's frame, authentication and serial framing (firmware_stub/target)
-LINK_MAY_INCLUDE = {"loop_rt.h", "loop.h", "hil_target_core.h", "hil_auth.h", "hil_serial.h"}
+#: the target core's frame, authentication and serial framing (firmware_stub/target), the protocol's generated codec
+#: (firmware_stub/generated: the virtual board's link decodes the Measurement and encodes the Command)
+LINK_MAY_INCLUDE = {"loop_rt.h", "loop.h", "hil_target_core.h", "hil_auth.h", "hil_serial.h", "hil_protocol.h"}
 
 
 def c_includes(path: Path) -> list[tuple[int, str]]:

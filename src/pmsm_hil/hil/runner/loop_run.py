@@ -6,6 +6,7 @@ from __future__ import annotations
 import errno
 import os
 from collections.abc import Callable
+from typing import Any
 
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.load_fmu.errors import LoadFmuCrashError
@@ -81,9 +82,25 @@ def connect_native(cfg: RunConfig, silent_after: int | None = None) -> TargetCon
     else:  # an in-process target served in Python, or no descriptor for C (serial:socket://...): through Python
         if cfg.target.startswith("stm32g4:"):  # the firmware's FDCAN1 set-up decides: classic CAN or CAN FD frames
             fd = bool(getattr(conn.host_link, "fd", fd))
-        native = NativePyLink(conn.host_link, ffi, lib, fd=fd, pump=conn.client.pump, inproc_result=conn.inproc_result)
+        native = _board_link(cfg, conn, ffi, lib, fd) or NativePyLink(conn.host_link, ffi, lib, fd=fd,
+                                                                 pump=conn.client.pump,
+                                                                 inproc_result=conn.inproc_result)
     conn.host_link = conn.client.link = native
     return conn
+
+
+def _board_link(cfg: RunConfig, conn: TargetConnection, ffi: Any, lib: Any, fd: bool) -> NativePyLink | None:
+    """The C link to the virtual board with register-level firmware (its Measurements and Commands in C), None for
+    any other target."""
+    if not cfg.target.startswith("stm32g4:"):
+        return None
+    from pmsm_hil.hil.runner.board_native_link import NativeBoardLink
+    from pmsm_hil.sim_target.stm32g4.link import BoardLink
+
+    if not isinstance(conn.host_link, BoardLink) or conn.inproc_result is not None:
+        return None
+
+    return NativeBoardLink(conn.host_link, ffi, lib, fd=fd, pump=conn.client.pump)
 
 
 def in_core(cfg: RunConfig) -> bool:

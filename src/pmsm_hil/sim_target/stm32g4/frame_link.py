@@ -16,7 +16,6 @@ its Command on the bus (the FDCAN interrupt, the target core, the step, the fram
 from __future__ import annotations
 
 import time
-from collections import deque
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -26,21 +25,17 @@ import numpy as np
 
 from pmsm_hil.protocol.codec import FrameDecoder, Profile
 from pmsm_hil.protocol.frame import Frame
-from pmsm_hil.protocol.links.stats import LinkStats
 from pmsm_hil.protocol.messages import Command, Measurement
 from pmsm_hil.sim_target.qemu import stats
 from pmsm_hil.sim_target.stm32g4.board import Board
 from pmsm_hil.sim_target.stm32g4.board_file import BoardDescription
+from pmsm_hil.sim_target.stm32g4.link_base import IDLE_PERIODS, STARTUP_LIMIT_S, STARTUP_STEP, BoardLinkBase
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
 from pmsm_hil.sim_target.stm32g4.peripherals.fdcan import FDOE, Fdcan
 from pmsm_hil.sim_target.stm32g4.peripherals.fdcan import INIT as FDCAN_INIT
 
-#: emulated time the firmware's start-up may take before FDCAN1 is on the bus [s]
-STARTUP_LIMIT_S = 2.0
 #: periods past its own that a Measurement's Command may take before the board stops waiting
 LATE_PERIODS = 20
-#: periods run for a frame that is not a Measurement until the firmware answers
-IDLE_PERIODS = 20
 #: the symbol that marks an image built on the firmware API's board layer (the portable target core)
 CORE_SYMBOL = "hil_core_rx"
 
@@ -55,16 +50,12 @@ def is_core_image(board_or_elf: Board | str | Path) -> bool:
     return CORE_SYMBOL in elf_symbols(Path(board_or_elf))
 
 
-class FrameBoardLink:
+class FrameBoardLink(BoardLinkBase):
     """The host's link to a firmware-API image on the virtual board, over its FDCAN1 (the Link protocol)."""
 
     def __init__(self, elf: str | Path, desc: BoardDescription, *, ts_s: float, skip_periods: int = 0,
                  console: Any = None, can_bitrates: tuple[int | None, int | None] = (None, None)) -> None:
-        self.stats = LinkStats()
-        self.fd = True
-        self.desc = desc
-        self.skip_periods = skip_periods
-        self.board = Board(desc.part, elf, console=console, hse_hz=desc.hse_hz)
+        super().__init__(elf, desc, skip_periods=skip_periods, console=console)
         fdcan = self.board.peripherals.get("FDCAN1")
         if not isinstance(fdcan, Fdcan):
             raise BoardError(f"stm32g4 target: part {desc.part.name} has no FDCAN1 model")
@@ -72,20 +63,13 @@ class FrameBoardLink:
         fdcan.link_bitrates = can_bitrates  # checked against the firmware's bit timing when it joins the bus
         self._host = FrameDecoder(ordered=False)
         self._replies = FrameDecoder(ordered=False)
-        self._rx: deque[Frame] = deque()
-        self.periods = 0
-        self.idle_periods = 0
         self.late_replies = 0
         self.missing_replies = 0
         self.turnaround_cycles: list[int] = []
         self.sleep_cycles: list[int] = []
         self.elapsed_cycles: list[int] = []  # board time per control period (longer than --ts when late)
         self._command_start = 0
-        self._idle_left = 0
-        self.closed = False
-        #: always None: a start-up that fails raises from this constructor (`_start`), before any period
-        self.boot_error: BoardError | None = None
-        self.wall_s = 0.0
+        # boot_error stays None: a start-up that fails raises from this constructor (`_start`), before any period
         self._start()
         self.fd = self.profile == "canfd"
         self.hclk_hz = self.board.hclk_hz
@@ -96,15 +80,11 @@ class FrameBoardLink:
     def _start(self) -> None:
         """Run the firmware's start-up until FDCAN1 leaves initialisation (its board layer is then serving)."""
         board = self.board
-        limit = round(STARTUP_LIMIT_S * 170e6)
-        step = 170_000
-        while self.fdcan.cccr & FDCAN_INIT:
-            if board.now > limit:
-                raise BoardError(f"stm32g4 target: the firmware did not take FDCAN1 out of initialisation within "
-                                 f"{STARTUP_LIMIT_S:g} s of its start-up (at {board.describe_pc()}); an image built "
-                                 "with `hil fw build --board stm32g474 --src DIR` does so in its main()")
-            board.run_until(board.now + step)
-        board.run_until(board.now + step)  # the core initialised, the main loop asleep in WFI
+        self._run_startup(lambda: not self.fdcan.cccr & FDCAN_INIT,
+                          lambda: "stm32g4 target: the firmware did not take FDCAN1 out of initialisation within "
+                                  f"{STARTUP_LIMIT_S:g} s of its start-up (at {board.describe_pc()}); an image built "
+                                  "with `hil fw build --board stm32g474 --src DIR` does so in its main()")
+        board.run_until(board.now + STARTUP_STEP)  # the core initialised, the main loop asleep in WFI
 
     @property
     def profile(self) -> Profile:
@@ -196,23 +176,13 @@ class FrameBoardLink:
             self._collect()
         self.wall_s += time.perf_counter() - t0
 
-    def poll(self) -> Frame | None:
-        if not self._rx and self._idle_left > 0:
-            self._idle_left -= 1
-            self.idle_periods += 1
-            self._idle_period()
-            if self._rx:
-                self._idle_left = 0
+    def _poll_idle_period(self) -> None:
+        """Up to IDLE_PERIODS of them, until the firmware has answered."""
+        self._idle_left -= 1
+        self.idle_periods += 1
+        self._idle_period()
         if self._rx:
-            self.stats.frames_rx += 1
-            return self._rx.popleft()
-        return None
-
-    def recv(self, timeout_s: float) -> Frame | None:
-        return self.poll()
-
-    def close(self) -> None:
-        self.closed = True
+            self._idle_left = 0
 
     # --- what the run says ------------------------------------------------------------------------------------
 

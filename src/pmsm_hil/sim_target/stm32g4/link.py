@@ -1,6 +1,7 @@
 """The virtual board as the run's target (`--target stm32g4:FW.elf`): the host's end of the link is this object.
 `send` takes the host's frames; a Measurement runs one control period on the board and queues the reply that
-`poll`/`recv` return.
+`poll`/`recv` return. The native loop's C link (src/pmsm_hil/hil/runner/c/links/link_board.c) runs the same period
+through `measurement` with the decoded values and encodes the duty-cycle Command itself.
 
 Per period k (lockstep): the Measurement's phase currents and DC-link voltage become the voltages at the ADC pins
 through the board's analog front end (constant over the period: the host sampled them at its --adc-delay) and, when
@@ -39,12 +40,11 @@ import numpy as np
 from pmsm_hil.protocol.codec import FrameCodec, FrameDecoder
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.ids import NodeState, Status
-from pmsm_hil.protocol.links.stats import LinkStats
 from pmsm_hil.protocol.messages import Command, ConfigAck, ConfigParam, Heartbeat, Measurement, Setpoint
 from pmsm_hil.sim_target.qemu import stats
-from pmsm_hil.sim_target.stm32g4.board import Board
-from pmsm_hil.sim_target.stm32g4.board_file import BoardDescription
+from pmsm_hil.sim_target.stm32g4.board_file import SIGNALS, BoardDescription
 from pmsm_hil.sim_target.stm32g4.hall import HallSensors, attach_halls
+from pmsm_hil.sim_target.stm32g4.link_base import IDLE_PERIODS, STARTUP_LIMIT_S, BoardLinkBase
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
 from pmsm_hil.sim_target.stm32g4.peripherals.fdcan import INIT as FDCAN_INIT
 from pmsm_hil.sim_target.stm32g4.peripherals.fdcan import Fdcan
@@ -53,29 +53,20 @@ from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import CCER as TIM1_CCER
 from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import CR2 as TIM1_CR2
 from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import Tim1
 
-#: emulated time the firmware's start-up may take before TIM1 counts [s]
-STARTUP_LIMIT_S = 2.0
-#: idle periods run for frames that reach the firmware outside a control period, until it answers
-IDLE_PERIODS = 20
 #: carrier period mismatch tolerated between the firmware and --ts [s]
 PERIOD_TOLERANCE_S = 1e-9
 
 
-class BoardLink:
+class BoardLink(BoardLinkBase):
     """The host's link to a firmware running on the virtual board (implements the Link protocol)."""
 
     def __init__(self, elf: str | Path, desc: BoardDescription, *, ts_s: float, pole_pairs: int,
                  skip_periods: int = 0, console: Any = None, psi_f_wb: float = 0.0, vdc_v: float = 0.0,
                  can_bitrates: tuple[int | None, int | None] = (None, None)) -> None:
-        self.stats = LinkStats()
-        self.fd = True
-        self.desc = desc
+        super().__init__(elf, desc, skip_periods=skip_periods, console=console)
         self.pole_pairs = pole_pairs
-        self.skip_periods = skip_periods
-        self.board = Board(desc.part, elf, console=console, hse_hz=desc.hse_hz)
         self.codec = FrameCodec("canfd")
         self.decoder = FrameDecoder(ordered=False)
-        self._rx: deque[Frame] = deque()
         self._rng = random.Random(0x5EED)
         #: the machine's magnet flux [Wb]: the open bridge's phase voltages are its back EMF (MOE = 0)
         self.psi_f_wb = psi_f_wb
@@ -90,6 +81,8 @@ class BoardLink:
         self._volts: dict[tuple[str, int], float] = {(a.adc, a.channel): a.offset_v + a.gain * zero[a.signal]
                                                      for a in desc.analog}
         self._noise = {(a.adc, a.channel): a.noise_v for a in desc.analog}
+        #: per analog input: ((adc, channel), offset [V], gain [V per unit], its signal's index in SIGNALS)
+        self._analog_map = [((a.adc, a.channel), a.offset_v, a.gain, SIGNALS.index(a.signal)) for a in desc.analog]
         self.board.analog = self._analog
         self.board.encoder = self._encoder
         self._theta_m = 0.0  # unwrapped mechanical angle at the period start [rad]
@@ -105,7 +98,6 @@ class BoardLink:
             self.halls = attach_halls(self.board, desc.hall, self._trajectory)
         self.setpoints_dropped = 0
         self._heartbeats = 0
-        self._idle_left = 0  # idle periods still to run for frames delivered outside a period
         #: host frames on the firmware's bus: (cycle at which FDCAN1 has received it, frame), in bus order
         self._on_bus: deque[tuple[int, can.Message]] = deque()
         self._bus_free = 0  # the cycle at which the last host frame leaves the bus
@@ -113,9 +105,7 @@ class BoardLink:
         #: idle periods the firmware may still get to finish sending its answer to host frames a Measurement
         #: period delivered (while FDCAN1 has a transmission requested or on the bus)
         self._answer_left = 0
-        self.idle_periods = 0
         self.configs_acked = 0
-        self.periods = 0
         self.isr_cycles: list[int] = []
         self.sleep_cycles: list[int] = []
         #: per control period: late compare values (TIM1's count of them, 0 or 1) and exception entries
@@ -129,12 +119,10 @@ class BoardLink:
         if self.fdcan is not None:  # checked against the firmware's bit timing when it joins the bus
             self.fdcan.link_bitrates = can_bitrates
         self._bus_on = False
-        self.closed = False
-        self.wall_s = 0.0
         #: why the firmware stopped the board before TIM1 counted (a fault, an access the board does not model, a
         #: start-up that never starts TIM1): raised at the first Measurement, so that the run ends as a safety stop
         #: with its outputs written (the reason one line), not as a usage error
-        self.boot_error: BoardError | None = None
+        self.boot_error = None
         self.carrier_s = ts_s
         self.period_cycles = round(ts_s * self.hclk_hz)
         try:
@@ -154,14 +142,10 @@ class BoardLink:
 
     def _boot(self) -> None:
         """Run the firmware's start-up until TIM1 counts and an update has passed."""
-        board, tim = self.board, self.tim1
-        limit = round(STARTUP_LIMIT_S * 170e6)
-        step = 170_000
-        while not tim.running or tim.updates == 0:
-            if board.now > limit:
-                raise BoardError(f"stm32g4 target: TIM1 did not start within {STARTUP_LIMIT_S:g} s of the firmware's "
-                                 f"start-up (at {board.describe_pc()})")
-            board.run_until(board.now + step)
+        tim = self.tim1
+        self._run_startup(lambda: tim.running and tim.updates != 0,
+                          lambda: f"stm32g4 target: TIM1 did not start within {STARTUP_LIMIT_S:g} s of the firmware's "
+                                  f"start-up (at {self.board.describe_pc()})")
 
     def _start(self, ts_s: float) -> None:
         """After the start-up: check the carrier period against the host's (a mismatch is the run's usage error)
@@ -214,27 +198,29 @@ class BoardLink:
         rate = self.pole_pairs * self._omega_m / self.hclk_hz
         return self.pole_pairs * self._theta_m + rate * (now - self._period_start), rate
 
-    def _take(self, m: Measurement) -> None:
-        """The Measurement as the board's inputs for the period."""
-        signals = {"i_a": m.i_a, "i_b": m.i_b, "i_c": m.i_c, "vdc": m.vdc}
+    def _take(self, i_a: float, i_b: float, i_c: float, theta_e: float, omega_m: float, vdc: float) -> None:
+        """A Measurement's values [A, rad, rad/s, V] as the board's inputs for the period."""
         self._hall_held = None
-        for a in self.desc.analog:
-            self._volts[(a.adc, a.channel)] = a.offset_v + a.gain * signals[a.signal]
+        volts = self._volts
+        for key, offset, gain, signal in self._analog_map:
+            volts[key] = offset + gain * (i_a if signal == 0 else i_b if signal == 1 else i_c if signal == 2 else vdc)
         if self._theta_e is not None:
-            d = (m.theta_e - self._theta_e + math.pi) % (2 * math.pi) - math.pi
+            d = (theta_e - self._theta_e + math.pi) % (2 * math.pi) - math.pi
             self._theta_m += d / self.pole_pairs
         else:  # an aligned encoder: its zero where the electrical angle is zero
-            self._theta_m = m.theta_e / self.pole_pairs
-        self._theta_e = m.theta_e
-        self._omega_m = m.omega_m
+            self._theta_m = theta_e / self.pole_pairs
+        self._theta_e = theta_e
+        self._omega_m = omega_m
         limit = self.desc.break_overcurrent_a
         if limit is not None:  # the board's overcurrent comparator on BKIN, judged on the period's sample
-            over = max(abs(m.i_a), abs(m.i_b), abs(m.i_c)) > limit
+            over = max(abs(i_a), abs(i_b), abs(i_c)) > limit
             self.tim1.set_break_pin(over != self.desc.break_active_low, self.board.now)
 
-    def _period(self, m: Measurement) -> Command:
+    def _period(self, i_a: float, i_b: float, i_c: float, theta_e: float, omega_m: float, vdc: float) -> int:
+        """One control period of the firmware for a Measurement's values; the cycles it spent in interrupt handlers
+        as exec_time_ns."""
         board, tim = self.board, self.tim1
-        self._take(m)
+        self._take(i_a, i_b, i_c, theta_e, omega_m, vdc)
         sleep0 = board.sleep_cycles
         isr0 = board.handler_cycles
         late0 = tim.late_writes
@@ -251,7 +237,7 @@ class BoardLink:
         if tim.first_late_update is not None and self.late_first_period is None:
             self.late_first_period = self.periods
         self.periods += 1
-        return self._command(m, round(isr / self.hclk_hz * 1e9))
+        return round(isr / self.hclk_hz * 1e9)
 
     def _idle_legs(self) -> tuple[bool, ...] | None:
         """With TIM1's outputs off (MOE = 0): each leg's level when the timer drives its idle state (OSSI set and
@@ -295,21 +281,49 @@ class BoardLink:
             return self._open_bridge(theta_e, omega_m, self.vdc_v, 0.5)
         return self._compare_duties((0.0, 0.0, 0.0))
 
-    def _command(self, m: Measurement, exec_time_ns: int) -> Command:
-        """The Command of the outputs in force for the next period: the compare values' duties with MOE set; with
-        MOE = 0 the idle levels' switching state for the whole period when the timer drives them (the zero vector
-        for the usual lower switches on), else the open bridge's duties."""
+    def _outputs(self, seq: int, i_a: float, i_b: float, i_c: float, theta_e: float, omega_m: float,
+                 vdc: float) -> tuple[float, ...] | int:
+        """The outputs in force for the next period, answering Measurement `seq`: the compare values' duties with
+        MOE set; with MOE = 0 the idle levels' switching state (an int) for the whole period when the timer drives
+        them (the zero vector for the usual lower switches on), else the open bridge's duties."""
         self._off_seq = None
         if self.tim1.moe:
-            return Command(seq=m.seq, states=(), durations_ns=(), duties=self._compare_duties((m.i_a, m.i_b, m.i_c)),
-                           exec_time_ns=exec_time_ns)
+            return self._compare_duties((i_a, i_b, i_c))
         idle = self._idle_legs()
         if idle is not None:
-            state = sum(1 << (2 - j) for j, upper in enumerate(idle) if upper)
-            return Command(seq=m.seq, states=(state,), durations_ns=(self.ts_ns,), exec_time_ns=exec_time_ns)
-        self._off_seq = m.seq
-        return Command(seq=m.seq, states=(), durations_ns=(),
-                       duties=self._open_bridge(m.theta_e, m.omega_m, m.vdc, 1.5), exec_time_ns=exec_time_ns)
+            return sum(1 << (2 - j) for j, upper in enumerate(idle) if upper)
+        self._off_seq = seq
+        return self._open_bridge(theta_e, omega_m, vdc, 1.5)
+
+    def _command(self, seq: int, outputs: tuple[float, ...] | int, exec_time_ns: int) -> Command:
+        """The Command of `_outputs`."""
+        if isinstance(outputs, int):
+            return Command(seq=seq, states=(outputs,), durations_ns=(self.ts_ns,), exec_time_ns=exec_time_ns)
+        return Command(seq=seq, states=(), durations_ns=(), duties=outputs, exec_time_ns=exec_time_ns)
+
+    def measurement(self, seq: int, i_a: float, i_b: float, i_c: float, theta_e: float, omega_m: float,
+                    vdc: float) -> tuple[tuple[float, ...], int] | None:
+        """One control period for Measurement `seq`'s values (the decoded frame's) [A, rad, rad/s, V], as `send`
+        runs it for a Measurement frame: (duties, exec_time_ns) of the duty-cycle Command that answers it, for the
+        caller to encode and return before the frames queued here; None when the reply is queued here (a
+        switching-state Command, or frames already waiting that it must follow)."""
+        t0 = time.perf_counter()
+        self.stats.frames_tx += 1
+        bus = self.bus  # noqa: F841 - as `send`, which looks at the bus before the frames (it may join it now)
+        if self.boot_error is not None:
+            raise self.boot_error
+        self._idle_left = 0
+        self._answer_left = 0
+        exec_time_ns = self._period(i_a, i_b, i_c, theta_e, omega_m, vdc)
+        outputs = self._outputs(seq, i_a, i_b, i_c, theta_e, omega_m, vdc)
+        out: tuple[tuple[float, ...], int] | None = None
+        if self._rx or isinstance(outputs, int):
+            self._reply(self._command(seq, outputs, exec_time_ns))
+        else:
+            out = (outputs, exec_time_ns)
+        self._collect()
+        self.wall_s += time.perf_counter() - t0
+        return out
 
     def _compare_duties(self, currents: tuple[float, float, float]) -> tuple[float, ...]:
         """The duties of TIM1's compare values in force (PWM mode, polarity), each shortened or lengthened by the
@@ -369,7 +383,9 @@ class BoardLink:
                     raise self.boot_error
                 self._idle_left = 0
                 self._answer_left = 0
-                self._reply(self._period(msg))
+                exec_time_ns = self._period(msg.i_a, msg.i_b, msg.i_c, msg.theta_e, msg.omega_m, msg.vdc)
+                outputs = self._outputs(msg.seq, msg.i_a, msg.i_b, msg.i_c, msg.theta_e, msg.omega_m, msg.vdc)
+                self._reply(self._command(msg.seq, outputs, exec_time_ns))
             elif bus is not None:  # on the bus one after the other, received at the end of its bus time
                 message = can.Message(arbitration_id=frame.arbitration_id, data=frame.data, is_fd=frame.is_fd,
                                       bitrate_switch=frame.is_fd, is_extended_id=frame.arbitration_id > 0x7FF)
@@ -456,19 +472,12 @@ class BoardLink:
         for frame in self.codec.encode(msg):
             self._rx.append(frame)
 
-    def poll(self) -> Frame | None:
-        if not self._rx and (self._idle_left > 0 or self._on_bus or (self._answer_left > 0 and self._sending())):
-            self._idle_period()
-        if self._rx:
-            self.stats.frames_rx += 1
-            return self._rx.popleft()
-        return None
+    def _idle_due(self) -> bool:
+        """Frames for the firmware outside a period, still on the bus, or its answer still being sent."""
+        return self._idle_left > 0 or bool(self._on_bus) or (self._answer_left > 0 and self._sending())
 
-    def recv(self, timeout_s: float) -> Frame | None:
-        return self.poll()
-
-    def close(self) -> None:
-        self.closed = True
+    def _poll_idle_period(self) -> None:
+        self._idle_period()
 
     # --- what the run says ----------------------------------------------------------------------------------------
 

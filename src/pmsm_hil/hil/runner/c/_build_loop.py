@@ -37,9 +37,10 @@ LOOP_FLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-Wdouble-promot
               "-fno-builtin-sin", "-fno-builtin-cos", "-pthread"]
 LOOP_SOURCES = ("loop.c", "loop_frames.c", "loop_rt.c", "target_serve.c", "loop_board.c", "loop_fmu.c",
                 "loop_fmu_box.c", "pwm_duty.c", "loop_stall.c")
-#: the C links (links/): the link interface, the in-process link to the C target core, the UDP, serial and SocketCAN
-#: links, the UDP floor
-LINK_SOURCES = ("nl_link.c", "link_core.c", "loop_udp.c", "loop_serial.c", "loop_socketcan.c", "link_floor.c")
+#: the C links (links/): the link interface, the in-process link to the C target core, the link to the virtual
+#: STM32G4 board, the UDP, serial and SocketCAN links, the UDP floor
+LINK_SOURCES = ("nl_link.c", "link_core.c", "link_board.c", "loop_udp.c", "loop_serial.c", "loop_socketcan.c",
+                "link_floor.c")
 
 
 #: src/pmsm_hil/hil/cdef_extract.py by path (this script runs at build time, before the package is importable)
@@ -97,6 +98,11 @@ LINKS_CDEF = (_decl(_TARGET / "hil_target_core.h", ["hil_core_frame_t", "hil_cor
               + _decl(_LINKS / "link_floor.h", ["nl_udp_floor_t", "nl_udp_floor", "nl_udp_paced_floor_t",
                                                  "nl_udp_paced_floor"])
               + _decl(_LINKS / "link_core.h", ["nl_core_link_t", "nl_core_link"])
+              + _X.cffi_constants(_LINKS / "link_board.h", "NL_BOARD_")
+              + _decl(_LINKS / "link_board.h",
+                      ["nl_board_meas_t", "nl_board_cmd_t", "nl_board_link_t", "nl_board_recv"],
+                      partial={"nl_board_link_t": ["scale_i", "scale_theta", "scale_omega", "scale_vdc",
+                                                   "py_pending", "stats"]})
               + _decl(_LINKS / "loop_udp.h", ["nl_udp_t", "nl_udp_link"])
               + _decl(_TARGET / "hil_serial.h", ["hil_serial_t"], partial={"hil_serial_t": ["tx_seq"]})
               + _decl(_LINKS / "loop_serial.h", ["nl_serial_t", "nl_serial_link", "nl_serial_send", "nl_serial_recv"])
@@ -110,8 +116,9 @@ LINKS_CDEF = (_decl(_TARGET / "hil_target_core.h", ["hil_core_frame_t", "hil_cor
 #: src/pmsm_hil/hil/runner/callback_link.py defines in Python
 PY_CDEF = _decl(_HERE / "loop_py.h", ["nl_sizeof_period", "nl_sizeof_frame", "nl_slot_periods", "nl_slot_frames",
                                       "nl_slot_lateness", "nl_slot_findings", "nl_slot_noise", "nl_py_send",
-                                      "nl_py_recv", "nl_py_diag", "nl_py_period", "nl_py_link"],
-                extern_python=["nl_py_send", "nl_py_recv", "nl_py_diag", "nl_py_period"])
+                                      "nl_py_recv", "nl_py_diag", "nl_py_period", "nl_py_link", "nl_py_board_period",
+                                      "nl_py_board_link"],
+                extern_python=["nl_py_send", "nl_py_recv", "nl_py_diag", "nl_py_period", "nl_py_board_period"])
 
 CDEF = LOOP_H_CDEF + _decl(_HERE / "pwm_duty.h", ["pwm_duty_sequence"]) + LINKS_CDEF + PY_CDEF
 
@@ -125,6 +132,7 @@ PREAMBLE = """
 #include "loop_stall.h"
 #include "hil_target_core.h"
 #include "link_core.h"
+#include "link_board.h"
 #include "loop_udp.h"
 #include "loop_serial.h"
 #include "loop_socketcan.h"

@@ -14,6 +14,7 @@
 
 #include "hil_target_core.h"
 #include "loop.h"
+#include "link_board.h"
 #include "nl_link.h"
 
 static size_t nl_sizeof_period(void) { return sizeof(nl_period_t); }
@@ -29,6 +30,8 @@ static int nl_py_send(void *ctx, const hil_core_frame_t *f);
 static int nl_py_recv(void *ctx, hil_core_frame_t *f, int64_t deadline_ns);
 static int nl_py_diag(void *ctx, uint32_t *split_ns, double *torque_ref, uint8_t *full_miss);
 static void nl_py_period(void *ctx, double t_s);
+/* The board link's period (link_board.h nl_board_period_fn): src/pmsm_hil/hil/runner/board_native_link.py. */
+static int nl_py_board_period(void *ctx, const nl_board_meas_t *m, nl_board_cmd_t *cmd);
 
 /* *l: the callback link on ctx (a cffi handle of the Python link); diag and period only when asked for. */
 static void nl_py_link(nl_link_t *l, void *ctx, int with_diag, int with_period)
@@ -39,6 +42,19 @@ static void nl_py_link(nl_link_t *l, void *ctx, int with_diag, int with_period)
     l->diag = with_diag ? nl_py_diag : NULL;
     l->period = with_period ? nl_py_period : NULL;
     l->flags = 0u;
+}
+
+/* *l: the virtual board's link on *s for the Python board link ctx (its callback link without diag and period);
+ * the caller sets the scales. */
+static void nl_py_board_link(nl_link_t *l, nl_board_link_t *s, void *ctx)
+{
+    nl_py_link(&s->py, ctx, 0, 0);
+    s->period = nl_py_board_period;
+    s->ctx = ctx;
+    s->py_pending = 1;
+    s->q_head = 0;
+    s->q_n = 0;
+    nl_board_link(l, s);
 }
 
 #endif
