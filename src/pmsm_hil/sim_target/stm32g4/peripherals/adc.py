@@ -60,6 +60,8 @@ class Adc(RegisterFile):
 
     size = 0x100
     dma_request = 0  # its DMAMUX request input
+    #: advanced with TIM1, whose triggers start its conversions (tim1.Tim1.EVENT_GROUP)
+    EVENT_GROUP: ClassVar[str] = "TIM1"
     RESET: ClassVar[dict[int, int]] = {
         ISR: 0, IER: 0, CR: DEEPPWD, CFGR: 0x8000_0000, CFGR2: 0, SMPR1: 0, SMPR2: 0, TR1: 0x0FFF_0000,
         TR2: 0x00FF_0000, TR3: 0x00FF_0000, SQR1: 0, SQR2: 0, SQR3: 0, SQR4: 0, DR: 0, JSQR: 0,
@@ -325,6 +327,8 @@ class Adc12Common(RegisterFile):
 
     base = 0x5000_0300
     size = 0x100
+    #: its accesses reach ADC1 and ADC2 (tim1.Tim1.EVENT_GROUP)
+    EVENT_GROUP: ClassVar[str] = "TIM1"
     RESET: ClassVar[dict[int, int]] = {0x00: 0, 0x08: 0, 0x0C: 0}
 
     def reset(self) -> None:

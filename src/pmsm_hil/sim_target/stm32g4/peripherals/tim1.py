@@ -46,6 +46,10 @@ Listener = Callable[[str, bool, int], None]  # (signal, rising edge, cycle)
 class Tim1(RegisterFile):
     base = 0x4001_2C00
     size = 0x400
+    #: the models whose events are exact (nothing changes before `next_event` but through an access to one of them,
+    #: which advances it first) and that drive each other (TIM1's triggers start the ADCs' conversions): the board
+    #: advances them together and skips them while their earliest event is ahead
+    EVENT_GROUP: ClassVar[str] = "TIM1"
     RESET: ClassVar[dict[int, int]] = {
         CR1: 0, CR2: 0, SMCR: 0, DIER: 0, SR: 0, EGR: 0, CCMR1: 0, CCMR2: 0, CCER: 0, CNT: 0, PSC: 0, ARR: 0xFFFF,
         RCR: 0, BDTR: 0, CCMR3: 0, DTR2: 0, ECR: 0, TISEL: 0, AF1: 1, AF2: 1, OR1: 0, DCR: 0, DMAR: 0,
