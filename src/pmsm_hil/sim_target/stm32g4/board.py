@@ -90,6 +90,11 @@ class Board:
     #: the board's C paths (c/exc_frame.c): exception frames and the DWT page's reads (False: the Python reference,
     #: which gives the same records: tests/board/test_native_exc.py)
     NATIVE = True
+    #: the scheduler skips the models that cannot change before their next event but through an access the board
+    #: sees (TIM1 and the ADCs, advanced together while their earliest event is due or one of them was accessed;
+    #: a general-purpose timer that counts encoder edges or is stopped) instead of asking every model at every step
+    #: (False: every model at every step, the reference, which gives the same records: tests/board/test_quiet_skip.py)
+    SKIP_QUIET = True
 
     def __init__(self, part: Part, elf: str | Path, *, console: Callable[[str, str], None] | None = None,
                  hse_hz: int = 24_000_000) -> None:
@@ -122,6 +127,15 @@ class Board:
         #: call but through the models' own accesses, which advance them first): the next call starts there
         self._settled_at = -1
         self._advancing = [p for p in self.peripherals.values() if type(p).advance is not Peripheral.advance]
+        #: the event group (advanced together, skipped while its earliest event is ahead and none was accessed)
+        self._group = [p for p in self.peripherals.values() if getattr(p, "EVENT_GROUP", None) == "TIM1"]
+        self._group_set = frozenset(self._group)
+        self._group_touched = True
+        self._group_due: int | None = None
+        #: models that may be quiet (a `quiet()` method); those quiet now are skipped until accessed
+        self._may_rest = frozenset(p for p in self.peripherals.values() if callable(getattr(p, "quiet", None)))
+        self._resting: set[Peripheral] = set()
+        self._woken: set[Peripheral] = set()  # resting models accessed since the last step
         self.sleeping = False
         self.sleep_cycles = 0
         #: cycles spent in exception handlers so far (nested ones counted once)
@@ -288,6 +302,7 @@ class Board:
         p = self._owner.get(address >> 8)
         if p is None:
             raise self._unmodelled(address, "read")
+        self._touch(p)
         try:
             return p.read(address - p.base, size, self.cpu.count)
         except BoardError as exc:
@@ -301,10 +316,18 @@ class Board:
         p = self._owner.get(address >> 8)
         if p is None:
             raise self._unmodelled(address, "write")
+        self._touch(p)
         try:
             self._store(p, address, size, value, self.cpu.count)
         except BoardError as exc:
             raise self._located(exc) from None
+
+    def _touch(self, p: Peripheral) -> None:
+        """An access reached model `p`: the scheduler asks it (and its event group) again at its next step."""
+        if p in self._group_set:
+            self._group_touched = True
+        elif p in self._resting:
+            self._woken.add(p)
 
     def _store(self, p: Peripheral, address: int, size: int, value: int, now: int) -> None:
         """A write to a model's register (by the CPU or a bus master); a model whose next event moved before the
@@ -324,6 +347,7 @@ class Board:
         addresses are refused naming the address."""
         p = self._owner.get(address >> 8)
         if p is not None:
+            self._touch(p)
             if value is None:
                 return p.read(address - p.base, size, now)
             self._store(p, address, size, value, now)
@@ -415,6 +439,95 @@ class Board:
 
     def run_until(self, end: int) -> None:
         """Run the firmware until cycle `end` (at least; at most one basic block later)."""
+        if self.SKIP_QUIET:
+            self._run_until_skipping(end)
+        else:
+            self._run_until_every(end)
+
+    def _active(self) -> tuple[list[Peripheral], list[Peripheral]]:
+        """The models the scheduler asks at every step (outside the event group and not resting), in the board's
+        order: those with an `advance`, those with a `next_event`."""
+        skip = self._group_set | self._resting
+        return [p for p in self._advancing if p not in skip], [p for p in self._timed if p not in skip]
+
+    def _run_until_skipping(self, end: int) -> None:
+        """`run_until` asking only the models that may have changed: the reference loop (`_run_until_every`) with
+        the event group skipped while its earliest event is ahead and none of it was accessed, and the resting
+        models skipped until accessed. A skipped model's `advance` would do nothing and its `next_event` would
+        answer the same, so the steps, slices and records are the reference's."""
+        nvic, counter = self.nvic, self.cpu.counter
+        pending, enabled = nvic.pending, nvic.enabled
+        systick, advancing, timed_set = self.scs.systick, self._advancing, self._timed_set
+        group_set, resting, woken = self._group_set, self._resting, self._woken
+        group_timed = [p for p in self._group if p in timed_set]
+        # on entry every model is asked again (its owner may have changed any of them between two calls)
+        self._group_touched = True
+        woken.update(self._may_rest)
+        active_adv, active_timed = self._active()
+        settled = self._settled_at
+        while True:
+            now: int = counter.count
+            group_due = self._group_due
+            hot = self._group_touched or (group_due is not None and group_due <= now)
+            if now != settled:
+                systick.advance(now)
+                if hot or woken:
+                    for p in advancing:
+                        if (p in group_set and not hot) or (p in resting and p not in woken):
+                            continue
+                        p.advance(now)
+                else:
+                    for p in active_adv:
+                        p.advance(now)
+            settled = -1
+            if now >= end:
+                self._settled_at = now
+                return
+            if pending:
+                primask, basepri = self._masks()
+                take = nvic.preempting(primask, basepri)
+                if take is not None:
+                    self.sleeping = False
+                    self._enter(take)
+                    continue
+            if woken:  # accessed resting models: resting still, or asked at every step again
+                for p in woken:
+                    if p.quiet():  # type: ignore[attr-defined]
+                        resting.add(p)
+                    else:
+                        resting.discard(p)
+                woken.clear()
+                active_adv, active_timed = self._active()
+            event = systick.next_event(now)
+            for p in active_timed:
+                at = p.next_event(now)
+                if at is not None and (event is None or at < event):
+                    event = at
+            if hot or self._group_touched:
+                self._group_touched = False
+                group_due = None
+                for p in group_timed:
+                    at = p.next_event(now)
+                    if at is not None and (group_due is None or at < group_due):
+                        group_due = at
+                self._group_due = group_due
+            if group_due is not None and (event is None or group_due < event):
+                event = group_due
+            if self.sleeping:
+                if pending and nvic.preempting(False, self._masks()[1]) is not None:  # WFI wakes with PRIMASK
+                    self.sleeping = False
+                else:
+                    until = end if event is None else min(event, end)
+                    self.sleep_cycles += until - now
+                    counter.count = until
+                    continue
+            limit = end if event is None else min(event, end)
+            if pending and any(enabled[e] for e in pending):  # held off: see MASKED_SLICE
+                limit = min(limit, now + MASKED_SLICE)
+            self._slice(max(limit, now + 1))
+
+    def _run_until_every(self, end: int) -> None:
+        """`run_until` asking every model at every step (the reference)."""
         nvic, counter = self.nvic, self.cpu.counter
         pending, enabled = nvic.pending, nvic.enabled
         systick, advancing, timed = self.scs.systick, self._advancing, self._timed

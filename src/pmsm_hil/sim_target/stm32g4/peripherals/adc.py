@@ -60,6 +60,8 @@ class Adc(RegisterFile):
 
     size = 0x100
     dma_request = 0  # its DMAMUX request input
+    #: advanced with TIM1, whose triggers start its conversions (tim1.Tim1.EVENT_GROUP)
+    EVENT_GROUP: ClassVar[str] = "TIM1"
     RESET: ClassVar[dict[int, int]] = {
         ISR: 0, IER: 0, CR: DEEPPWD, CFGR: 0x8000_0000, CFGR2: 0, SMPR1: 0, SMPR2: 0, TR1: 0x0FFF_0000,
         TR2: 0x00FF_0000, TR3: 0x00FF_0000, SQR1: 0, SQR2: 0, SQR3: 0, SQR4: 0, DR: 0, JSQR: 0,
@@ -75,14 +77,24 @@ class Adc(RegisterFile):
         self.sample_log: list[tuple[int, int, int]] = []  # (cycle, channel, code) of injected samples, recent
         self.triggers = 0
         self._subscribed: tuple[str, ...] = ()
+        self._common_model: Adc12Common | None = None  # ADC12_COMMON, looked up on first use
+
+    @property
+    def _common(self) -> Adc12Common:
+        """The pair's common registers (ADC12_COMMON: the clock, the shared interrupt line)."""
+        common = self._common_model
+        if common is None:
+            found = self.bus.peripheral("ADC12_COMMON")
+            assert isinstance(found, Adc12Common)
+            common = self._common_model = found
+        return common
 
     # --- clocks ---------------------------------------------------------------------------------------------------
 
     def cycles_per_adc_clock(self) -> float:
         """HCLK cycles per ADC clock: CKMODE 1-3 (HCLK/1, /2, /4), else the async clock (SYSCLK or PLLP / PRESC,
         taken as HCLK / PRESC)."""
-        common = self.bus.peripheral("ADC12_COMMON")
-        ccr = common.read(0x08, 4, 0)
+        ccr = self._common.regs[0x08]
         ckmode = ccr >> 16 & 3
         if ckmode:
             return float((1, 1, 2, 4)[ckmode])
@@ -167,7 +179,7 @@ class Adc(RegisterFile):
 
     def _set(self, bits: int) -> None:
         self.regs[ISR] |= bits
-        self.bus.peripheral("ADC12_COMMON").line_changed()  # type: ignore[attr-defined]
+        self._common.line_changed()
 
     def irq_asserted(self) -> bool:
         return bool(self.regs[ISR] & self.regs[IER] & 0x7FF)
@@ -243,22 +255,27 @@ class Adc(RegisterFile):
 
     # --- registers ------------------------------------------------------------------------------------------------
 
+    def read(self, offset: int, size: int, now: int) -> int:
+        if size == 4 and offset in self.regs:  # an aligned word (the register file's own path, one call fewer)
+            return self.load(offset, now)
+        return super().read(offset, size, now)
+
     def load(self, word: int, now: int) -> int:
         self.advance(now)
         if word == DR and self.regs[ISR] & EOC:  # reading the data clears EOC
             self.regs[ISR] &= ~EOC
-            self.bus.peripheral("ADC12_COMMON").line_changed()  # type: ignore[attr-defined]
+            self._common.line_changed()
         return self.regs[word]
 
     def store(self, word: int, value: int, now: int) -> None:
         self.advance(now)
         if word == ISR:  # write 1 to clear
             self.regs[ISR] &= ~value
-            self.bus.peripheral("ADC12_COMMON").line_changed()  # type: ignore[attr-defined]
+            self._common.line_changed()
             return
         if word == IER:
             self.regs[IER] = value & 0x7FF
-            self.bus.peripheral("ADC12_COMMON").line_changed()  # type: ignore[attr-defined]
+            self._common.line_changed()
             return
         if word == CR:
             self._control(value, now)
@@ -325,6 +342,8 @@ class Adc12Common(RegisterFile):
 
     base = 0x5000_0300
     size = 0x100
+    #: its accesses reach ADC1 and ADC2 (tim1.Tim1.EVENT_GROUP)
+    EVENT_GROUP: ClassVar[str] = "TIM1"
     RESET: ClassVar[dict[int, int]] = {0x00: 0, 0x08: 0, 0x0C: 0}
 
     def reset(self) -> None:

@@ -59,6 +59,11 @@ class GeneralTimer(RegisterFile):
         ts = smcr >> 4 & 7 | (smcr >> 20 & 3) << 3
         return self.hall_inputs is not None and sms == SMS_RESET and ts == TS_TI1F_ED and bool(self.regs[CR2] & 0x80)
 
+    def quiet(self) -> bool:
+        """Neither `advance` nor `next_event` does anything until an access changes the configuration (an encoder
+        or a stopped counter without hall sensors): the board need not call them meanwhile."""
+        return self.hall_inputs is None and (bool(self._enc) or not self.regs[CR1] & 1)
+
     @property
     def encoder_mode(self) -> int:
         """SMCR.SMS when it is an encoder mode (1-3), else 0 (kept from the last SMCR write)."""
@@ -150,6 +155,11 @@ class GeneralTimer(RegisterFile):
             self.bus.set_pending(self.IRQ_LINE)
         else:
             self.bus.clear_pending(self.IRQ_LINE)
+
+    def read(self, offset: int, size: int, now: int) -> int:
+        if size == 4 and offset in self.regs:  # an aligned word (the register file's own path, one call fewer)
+            return self.load(offset, now)
+        return super().read(offset, size, now)
 
     def load(self, word: int, now: int) -> int:
         if word == CNT:
