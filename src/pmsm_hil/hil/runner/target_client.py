@@ -184,12 +184,16 @@ class TargetClient:
     def configure(self, parameters: Mapping[ParamId, float] | Mapping[ParamId | FirmwareParamId, float],
                   timeout_s: float = 10.0,
                   resend_s: float = 0.25) -> None:
-        """Write every parameter until acknowledged (resending every resend_s, so a target that is
-        still starting up is caught); raises naming a rejected or unacknowledged parameter."""
+        """Write every parameter until acknowledged (resending every resend_s of wall time, so a target that is
+        still starting up is caught); raises naming a rejected or unacknowledged parameter. A target that runs only
+        when polled (the virtual board: `runs_when_polled`, its `pending()` false once it has nothing left to run)
+        is resent to when it has stopped without answering, never by wall time, so that the frames it gets, and
+        so its state at the first period, do not depend on how busy the host is."""
         params: dict[int, float] = dict(parameters.items())  # ParamId or FirmwareParamId keys (named)
         self._acks.clear()
         self._written = {int(p): _F32.unpack(_F32.pack(float(v)))[0] for p, v in params.items()}
         bus_before = self.bus.frames
+        idle = self._stopped_without_answer()
         start = time.perf_counter()
         last_send = -math.inf
         while True:
@@ -206,7 +210,7 @@ class TargetClient:
                     raise BusStarvedError(starved)
                 raise DutViolationError(f"target did not acknowledge parameter(s) {missing} within {timeout_s} s "
                                         f"({self._silence_hint()})")
-            if now - last_send >= resend_s:
+            if last_send == -math.inf or (idle() if idle is not None else now - last_send >= resend_s):
                 for pid in pending:
                     self.link.send(self.codec.encode(ConfigParam(param_id=int(pid), value=float(params[pid]))))
                 if last_send > -math.inf:
@@ -222,6 +226,14 @@ class TargetClient:
             if ack.value != sent:  # the echo must be the float32 written, bit for bit
                 raise DutViolationError(f"target acknowledged parameter '{name}' with value {ack.value!r}, "
                                         f"but {sent!r} was written (ConfigAck echo differs)")
+
+    def _stopped_without_answer(self) -> Callable[[], bool] | None:
+        """For a target that runs only when polled (on the host's virtual time): whether it has nothing left to
+        run (`not link.pending()`); None for any other target."""
+        pending = getattr(self.link, "pending", None)
+        if not getattr(self.link, "runs_when_polled", False) or pending is None:
+            return None
+        return lambda: not pending()
 
     def set_setpoint(self, *, enable: bool, mode: int, reference: float, controller_id: int) -> None:
         """Send a setpoint (enable, mode, reference in rad/s or N·m, controller id)."""

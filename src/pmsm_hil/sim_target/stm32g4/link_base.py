@@ -28,6 +28,9 @@ class BoardLinkBase:
     """The Link protocol's `poll` / `recv` / `close` over the board's queue of frames for the host; a subclass
     says when a poll runs an idle period of the firmware (`_idle_due`, `_poll_idle_period`)."""
 
+    #: the firmware runs only when the host polls or sends (virtual time): TargetClient.configure resends by that
+    runs_when_polled = True
+
     def __init__(self, elf: str | Path, desc: BoardDescription, *, skip_periods: int, console: Any) -> None:
         self.stats = LinkStats()
         self.fd = True
