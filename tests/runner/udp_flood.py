@@ -7,6 +7,7 @@ Usage: python udp_flood.py PORT[,PORT...] RATE SECONDS
 from __future__ import annotations
 
 import contextlib
+import itertools
 import socket
 import sys
 
@@ -19,22 +20,17 @@ def main() -> int:
     ports = [int(p) for p in sys.argv[1].split(",")]
     rate, seconds = float(sys.argv[2]), float(sys.argv[3])
     pacer = Pacer()
-    addrs = [("127.0.0.1", p) for p in ports]
-    sent = 0
+    targets = itertools.cycle([("127.0.0.1", p) for p in ports])  # round robin
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
         sock.bind(("127.0.0.1", 0))
 
-        def step(now: float) -> int:
-            nonlocal sent
-            due = int(now * rate)
-            while sent < due:
+        def send(owed: int) -> int:
+            for _ in range(owed):
                 with contextlib.suppress(OSError):  # an ICMP error reported back: the flood goes on
-                    sock.sendto(JUNK, addrs[sent % len(addrs)])
-                sent += 1
-            return sent
+                    sock.sendto(JUNK, next(targets))
+            return owed
 
-        print("flooding", flush=True)
-        return pacer.run(seconds, 0.0005, step, "sent")
+        return pacer.run(seconds, rate, 0.0005, send, "flooding", "sent")
 
 
 if __name__ == "__main__":

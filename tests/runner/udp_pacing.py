@@ -1,5 +1,5 @@
-"""The pacing the local UDP disturbers (udp_flood.py, udp_spoof.py) share: a step called over and over until
-SIGTERM or a number of seconds, then "VERB N in T s" printed (N: what the last step returned)."""
+"""The pacing the local UDP disturbers (udp_flood.py, udp_spoof.py) share: datagrams at a rate until SIGTERM or a
+number of seconds, then "VERB N in T s" printed."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ from types import FrameType
 
 
 class Pacer:
-    """Installs its SIGTERM handler when made (before the disturber says it is ready), so that a SIGTERM at any
-    later moment ends `run` with its report instead of killing the process."""
+    """Installs its SIGTERM handler when made (before the disturber's set-up), so that a SIGTERM at any later moment
+    ends `run` with its report instead of killing the process."""
 
     def __init__(self) -> None:
         self.stopped = False
@@ -20,12 +20,15 @@ class Pacer:
     def _on_term(self, signum: int, frame: FrameType | None) -> None:
         self.stopped = True
 
-    def run(self, seconds: float, sleep_s: float, step: Callable[[float], int], verb: str) -> int:
-        """Call `step(now)` (now: seconds since the start) with `sleep_s` [s] between calls; returns exit code 0."""
+    def run(self, seconds: float, rate: float, sleep_s: float, send: Callable[[int], int], ready: str,
+            verb: str) -> int:
+        """Print `ready`, then call `send(owed)` (owed: the datagrams due at `rate` [1/s] since the start and not yet
+        sent; it returns how many it sent) with `sleep_s` [s] between calls; returns exit code 0."""
+        print(ready, flush=True)
         count = 0
         t0 = time.perf_counter()
         while not self.stopped and (now := time.perf_counter() - t0) < seconds:
-            count = step(now)
+            count += send(int(now * rate) - count)
             time.sleep(sleep_s)
         print(f"{verb} {count} in {time.perf_counter() - t0:.3f} s", flush=True)
         return 0

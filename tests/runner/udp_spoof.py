@@ -48,10 +48,8 @@ def main() -> int:
     cap.setblocking(False)
     raw = socket.socket(socket.AF_INET, socket.SOCK_RAW, socket.IPPROTO_RAW)
     latest: dict[tuple[int, int], bytes] = {}
-    injected = 0
 
-    def step(now: float) -> int:
-        nonlocal injected
+    def send(owed: int) -> int:
         while True:
             try:
                 pkt = cap.recv(65536)
@@ -66,17 +64,12 @@ def main() -> int:
             ours = struct.unpack_from("!H", ip, ihl + 6)[0] == 0  # what this spoofer sent (no UDP checksum)
             if {src, dst} == {a, b} and not ours and len(payload) > 13 + TRAILER and payload[:4] != b"\0\0\0\0":
                 latest[(src, dst)] = payload
-        due = int(now * rate)
-        for (src, dst), genuine in list(latest.items()):
-            for dgram in _variants(genuine):
-                if injected >= due:
-                    break
-                raw.sendto(_udp(src, dst, dgram), ("127.0.0.1", 0))
-                injected += 1
-        return injected
+        out = [(src, dst, dgram) for (src, dst), genuine in latest.items() for dgram in _variants(genuine)][:owed]
+        for src, dst, dgram in out:
+            raw.sendto(_udp(src, dst, dgram), ("127.0.0.1", 0))
+        return len(out)
 
-    print("capturing", flush=True)
-    return pacer.run(seconds, 0.0002, step, "injected")
+    return pacer.run(seconds, rate, 0.0002, send, "capturing", "injected")
 
 
 if __name__ == "__main__":
