@@ -6,6 +6,7 @@
 #include "hil_fw_dsvm.h"
 #include "hil_fw_inverter.h"
 #include "hil_fw_state.h"
+#include "hil_fw_transforms.h"
 
 const hil_fw_dsvm_vector_t hil_fw_dsvm_vectors[HIL_FW_DSVM_VECTORS] = {
     {0, 0, 0u, 0u},                                                              /* zero */
@@ -48,20 +49,16 @@ void hil_fw_dsvm_prepare(struct hil_fw_state *s)
     const hil_fw_measured_t *me = &s->meas;
     hil_fw_dsvm_state_t *st = &s->ctrl.dsvm;
     const float wts = me->omega_e * m->ts;
-    const float half = 0.5f * wts;
-    const float ch = cosf(half);
-    const float sh = sinf(half);
-    const float c1 = me->cos_th * ch - me->sin_th * sh; /* middle of [k, k+1) */
-    const float s1 = me->sin_th * ch + me->cos_th * sh;
-    const float cw = 1.0f - 2.0f * sh * sh;
-    const float sw = 2.0f * sh * ch;
-    const float c2 = c1 * cw - s1 * sw; /* middle of [k+1, k+2) */
-    const float s2 = s1 * cw + c1 * sw;
     const float e = me->vdc * (1.0f / 3.0f); /* lattice step [V] */
+    float c1; /* cos/sin at the middle of [k, k+1) */
+    float s1;
+    float c2; /* cos/sin at the middle of [k+1, k+2) */
+    float s2;
     float ua;
     float ub;
     float id1;
     float iq1;
+    hil_fw_mid_angles(me->cos_th, me->sin_th, wts, &c1, &s1, &c2, &s2);
     hil_fw_cmd_mean_voltage_ab(s->applied.states, s->applied.durations_ns, s->applied.n_states, me->vdc, &ua,
                                &ub);
     id1 = m->ad * me->i_d + m->lq_ld * wts * me->i_q + m->kd * (ua * c1 + ub * s1);

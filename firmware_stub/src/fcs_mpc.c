@@ -150,26 +150,28 @@ static void dtc_state(struct hil_fw_state *s)
     st->sector = hil_fw_fcs_sector_rot(pa1, pb1, (uint8_t)(reading & HIL_FW_FCS_ROT_MASK));
 }
 
+/* The candidates of the next period: the n vectors of a row of a DSVM neighbourhood table. */
+static void set_candidates(hil_fw_dsvm_state_t *st, const uint8_t *row, uint8_t n)
+{
+    uint8_t i;
+    for (i = 0u; i < n; ++i) {
+        st->cand[i] = row[i];
+    }
+    st->n_cand = n;
+}
+
 void hil_fw_fcs_mpc1_reference(struct hil_fw_state *s)
 {
     hil_fw_dsvm_state_t *st = &s->ctrl.dsvm;
-    uint8_t i;
     dtc_state(s);
     st->ref_vector = hil_fw_fcs_lookup(HIL_FW_FCS_TABLE_VIRTUAL, st->h_psi, st->h_te, st->sector);
-    for (i = 0u; i < 6u; ++i) {
-        st->cand[i] = hil_fw_dsvm_triangle[st->ref_vector - 7u][i];
-    }
-    st->n_cand = 6u;
+    set_candidates(st, hil_fw_dsvm_triangle[st->ref_vector - 7u], 6u);
 }
 
 void hil_fw_fcs_mpc2_reference(struct hil_fw_state *s)
 {
     hil_fw_dsvm_state_t *st = &s->ctrl.dsvm;
-    uint8_t i;
     dtc_state(s);
     st->ref_vector = hil_fw_fcs_lookup(HIL_FW_FCS_TABLE_REAL, st->h_psi, st->h_te, st->sector);
-    for (i = 0u; i < 5u; ++i) {
-        st->cand[i] = hil_fw_dsvm_kite[st->ref_vector - 1u][i];
-    }
-    st->n_cand = 5u;
+    set_candidates(st, hil_fw_dsvm_kite[st->ref_vector - 1u], 5u);
 }

@@ -231,21 +231,13 @@ uint8_t hil_fw_foc_modulate(float u_alpha, float u_beta, float vdc, uint32_t ts_
     uint8_t i;
     uint8_t n = 0u;
     const uint8_t sector = hil_fw_svpwm(u_alpha, u_beta, vdc, ts_ns, &a, &b, t);
-    if (*parity == 0u) {
-        states[0] = a;
-        states[1] = b;
-        states[2] = 7u;
-        durs[0] = t[0];
-        durs[1] = t[1];
-        durs[2] = t[2];
-    } else {
-        states[0] = b;
-        states[1] = a;
-        states[2] = 0u;
-        durs[0] = t[1];
-        durs[1] = t[0];
-        durs[2] = t[2];
-    }
+    const uint8_t odd = (*parity != 0u) ? 1u : 0u; /* the even half a, b, 7; the odd half its mirror b, a, 0 */
+    states[0] = odd ? b : a;
+    states[1] = odd ? a : b;
+    states[2] = odd ? 0u : 7u;
+    durs[0] = t[odd];
+    durs[1] = t[1u - odd];
+    durs[2] = t[2];
     *parity ^= 1u;
     for (i = 0u; i < 3u; ++i) { /* drop empty slots */
         if (durs[i] > 0u) {

@@ -53,15 +53,11 @@ void hil_fw_hv_prepare(const struct hil_fw_state *s, hil_fw_hv_problem_t *p)
     const float lq = v[HIL_FW_P_LQ];
     const float psir = v[HIL_FW_P_PSI_F];
     const float wts = me->omega_e * ts; /* electrical angle advanced per period [rad] */
-    const float ch = cosf(0.5f * wts);
-    const float sh = sinf(0.5f * wts);
-    /* Middle of [k, k+1): theta + wts/2; middle of [k+1, k+2): theta + 3 wts/2. */
-    const float c1 = me->cos_th * ch - me->sin_th * sh;
-    const float s1 = me->sin_th * ch + me->cos_th * sh;
-    const float cw = 1.0f - 2.0f * sh * sh;
-    const float sw = 2.0f * sh * ch;
-    const float cm = c1 * cw - s1 * sw;
-    const float sm = s1 * cw + c1 * sw;
+    /* cos/sin at the middle of [k, k+1): theta + wts/2, and of [k+1, k+2): theta + 3 wts/2 */
+    float c1;
+    float s1;
+    float cm;
+    float sm;
     float ua;
     float ub;
     float ud;
@@ -83,10 +79,10 @@ void hil_fw_hv_prepare(const struct hil_fw_state *s, hil_fw_hv_problem_t *p)
 
     /* Eq. (6) over [k, k+1) with the applied command's mean voltage (q equation with -w psi_d,
      * the sign of eq. (3); eq. (6) as printed has +). */
+    hil_fw_mid_angles(me->cos_th, me->sin_th, wts, &c1, &s1, &cm, &sm);
     hil_fw_cmd_mean_voltage_ab(s->applied.states, s->applied.durations_ns, s->applied.n_states, me->vdc,
                                &ua, &ub);
-    ud = ua * c1 + ub * s1;
-    uq = -ua * s1 + ub * c1;
+    hil_fw_park(ua, ub, c1, s1, &ud, &uq);
     psid = ld * me->i_d + psir;
     psiq = lq * me->i_q;
     psid1 = psid + ts * ud + wts * psiq - ts * rs * me->i_d;

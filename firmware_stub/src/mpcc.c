@@ -11,6 +11,7 @@
 #include "hil_fw_inverter.h"
 #include "hil_fw_mpcc.h"
 #include "hil_fw_state.h"
+#include "hil_fw_transforms.h"
 
 /* Active vectors V1..V6 in alpha/beta per unit of 2/3 Vdc: angle (j - 1) * 60 degrees. */
 static const float unit_alpha[6] = {1.0f, 0.5f, -0.5f, -1.0f, -0.5f, 0.5f};
@@ -23,17 +24,11 @@ void hil_fw_mpcc_predict(struct hil_fw_state *s, hil_fw_cmd_t *cmd)
     const hil_fw_measured_t *me = &s->meas;
     hil_fw_mpcc_state_t *st = &s->ctrl.mpcc;
     const float wts = me->omega_e * m->ts; /* electrical angle advanced per period [rad] */
-    const float half = 0.5f * wts;
-    const float ch = cosf(half);
-    const float sh = sinf(half);
-    /* Angle at the middle of [k, k+1): theta + wts/2. */
-    const float c1 = me->cos_th * ch - me->sin_th * sh;
-    const float s1 = me->sin_th * ch + me->cos_th * sh;
-    /* Angle at the middle of [k+1, k+2): theta + 3 wts/2 = theta1 + wts. */
-    const float cw = 1.0f - 2.0f * sh * sh;
-    const float sw = 2.0f * sh * ch;
-    const float c2 = c1 * cw - s1 * sw;
-    const float s2 = s1 * cw + c1 * sw;
+    /* cos/sin at the middle of [k, k+1): theta + wts/2, and of [k+1, k+2): theta + 3 wts/2 */
+    float c1;
+    float s1;
+    float c2;
+    float s2;
     float ua;
     float ub;
     float vd;
@@ -51,11 +46,11 @@ void hil_fw_mpcc_predict(struct hil_fw_state *s, hil_fw_cmd_t *cmd)
     int best = 0; /* 0: zero vector, 1..6: V1..V6 */
     int j;
 
+    hil_fw_mid_angles(me->cos_th, me->sin_th, wts, &c1, &s1, &c2, &s2);
     /* Step 1: i(k+1) under the command applied during [k, k+1). */
     hil_fw_cmd_mean_voltage_ab(s->applied.states, s->applied.durations_ns, s->applied.n_states, me->vdc,
                                &ua, &ub);
-    vd = ua * c1 + ub * s1;
-    vq = -ua * s1 + ub * c1;
+    hil_fw_park(ua, ub, c1, s1, &vd, &vq);
     id1 = m->ad * me->i_d + m->lq_ld * wts * me->i_q + m->kd * vd;
     iq1 = m->aq * me->i_q - m->ld_lq * wts * me->i_d - m->psi_lq * wts + m->kq * vq;
 

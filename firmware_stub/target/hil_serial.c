@@ -140,11 +140,17 @@ static int packet(hil_serial_t *s, hil_core_frame_t *f)
         s->ignored++;
         return 0;
     }
-    f->id = (uint32_t)raw[0] | ((uint32_t)raw[1] << 8) | ((uint32_t)raw[2] << 16) | ((uint32_t)raw[3] << 24);
-    f->fd = (flags & FLAG_FD) ? 1u : 0u;
-    f->len = len;
-    memcpy(f->data, &raw[HIL_SERIAL_HEADER], len);
+    hil_serial_unpack(raw, f);
     return 1;
+}
+
+void hil_serial_unpack(const uint8_t *body, hil_core_frame_t *f)
+{
+    const uint8_t len = body[6];
+    f->id = (uint32_t)body[0] | ((uint32_t)body[1] << 8) | ((uint32_t)body[2] << 16) | ((uint32_t)body[3] << 24);
+    f->fd = (body[4] & FLAG_FD) ? 1u : 0u;
+    f->len = len;
+    memcpy(f->data, body + HIL_SERIAL_HEADER, len);
 }
 
 int hil_serial_feed(hil_serial_t *s, uint8_t byte, hil_core_frame_t *f)

@@ -47,6 +47,10 @@ size_t hil_serial_encode(hil_serial_t *s, const hil_core_frame_t *f, uint8_t *ou
 size_t hil_serial_body(hil_serial_t *s, const hil_core_frame_t *f, uint8_t *raw);
 size_t hil_serial_packet(uint8_t *raw, size_t n, uint8_t *out);
 
+/* The frame of a checked header and payload (id little-endian at 0..3, flags at 4, sequence number at 5, length at
+ * 6, the payload from HIL_SERIAL_HEADER) into *f: id, fd bit, length and payload. */
+void hil_serial_unpack(const uint8_t *body, hil_core_frame_t *f);
+
 /* Feed one received byte: 1 when it completed a valid data frame (written to *f), else 0. */
 int hil_serial_feed(hil_serial_t *s, uint8_t byte, hil_core_frame_t *f);
 

@@ -55,6 +55,21 @@ static void mean_voltage(const uint8_t *st, const uint32_t *du, uint8_t n, float
     *ub = b / tot;
 }
 
+/* A three-slot sequence under test: its states (codes 4 Sa + 2 Sb + Sc) and its durations [ns]. */
+static void set_states(uint8_t *st, uint8_t a, uint8_t b, uint8_t c)
+{
+    st[0] = a;
+    st[1] = b;
+    st[2] = c;
+}
+
+static void set_durations(uint32_t *du, uint32_t a, uint32_t b, uint32_t c)
+{
+    du[0] = a;
+    du[1] = b;
+    du[2] = c;
+}
+
 static uint32_t sum_ns(const uint32_t *du, uint8_t n)
 {
     uint32_t t = 0u;
@@ -528,25 +543,17 @@ static void test_mirror_packing_and_dt_comp(void)
     CHECK(hil_fw_vseq_expand(st, du, 1u, 1u, xs, xd) == 1u, "one state: mirror is a no-op");
     /* i_a > 0: 000 -> 100 is leg a rising inward (inner pulse high): earlier by t_dead/2, so a's
      * high time grows by 2.5 us; i_b < 0: 100 -> 110 (b rising inward): later by 1.25 us. */
-    du[0] = 25000u;
-    du[1] = 15000u;
-    du[2] = 20000u;
+    set_durations(du, 25000u, 15000u, 20000u);
     CHECK(hil_fw_vseq_dt_comp_mirror(st, du, 3u, i_pos_a, 2500u) == 2u, "two edges moved");
     CHECK(du[0] == 23750u && du[1] == 17500u && du[2] == 17500u, "hand values (%u %u %u)", du[0], du[1], du[2]);
     CHECK(2u * (du[0] + du[1]) + du[2] == TS_NS, "mirrored sum kept");
     /* Clamp: the middle slot cannot become negative. */
-    du[0] = 25000u;
-    du[1] = 24500u;
-    du[2] = 1000u;
+    set_durations(du, 25000u, 24500u, 1000u);
     (void)hil_fw_vseq_dt_comp_mirror(st, du, 3u, i_pos_a, 2500u);
     CHECK(du[2] == 0u && 2u * (du[0] + du[1]) == TS_NS, "clamped at the middle (%u)", du[2]);
     /* A 111 outer zero: 111 -> 110 is leg c falling inward; i_c < 0 -> inner low pulse: edge earlier. */
-    st[0] = 7u;
-    st[1] = 6u;
-    st[2] = 4u;
-    du[0] = 20000u;
-    du[1] = 10000u;
-    du[2] = 40000u;
+    set_states(st, 7u, 6u, 4u);
+    set_durations(du, 20000u, 10000u, 40000u);
     (void)hil_fw_vseq_dt_comp_mirror(st, du, 3u, i_pos_a, 2500u);
     CHECK(du[0] == 18750u, "falling inward, i < 0: earlier (%u)", du[0]);
     for (i = 0u; i < 3u; ++i) {
@@ -568,22 +575,14 @@ static void test_dead_time_compensation(void)
     CHECK(moved == 1u && du[0] == 47500u && du[1] == 32500u && du[2] == 20000u, "rising edge, i > 0");
     /* Reverse order (falling edges): 110 -> 100 (b falls, i_b > 0: immediate), 100 -> 000 (a falls,
      * i_a < 0: delayed -> earlier). */
-    st[0] = 6u;
-    st[1] = 4u;
-    st[2] = 0u;
-    du[0] = 20000u;
-    du[1] = 30000u;
-    du[2] = 50000u;
+    set_states(st, 6u, 4u, 0u);
+    set_durations(du, 20000u, 30000u, 50000u);
     moved = hil_fw_vseq_dt_comp(st, du, 3u, i_neg_a, 2500u);
     CHECK(moved == 1u && du[0] == 20000u && du[1] == 27500u && du[2] == 52500u, "falling edge, i < 0");
     CHECK(sum_ns(du, 3u) == TS_NS, "sum kept");
     /* Too short a segment: the edge moves only as far as the segment allows. */
-    du[0] = 1000u;
-    du[1] = 49000u;
-    du[2] = 50000u;
-    st[0] = 0u;
-    st[1] = 4u;
-    st[2] = 6u;
+    set_durations(du, 1000u, 49000u, 50000u);
+    set_states(st, 0u, 4u, 6u);
     (void)hil_fw_vseq_dt_comp(st, du, 3u, i_pos_a, 2500u);
     CHECK(du[0] == 0u && du[1] == 50000u, "clamped at the period start");
     /* Through the controller: with dt_comp every moved edge pair changes a leg's high time by

@@ -40,6 +40,13 @@ def _duration_s(kind: str, loop: str) -> float:
     return DURATION_S["python" if loop == "python" else kind]
 
 
+def _children_with(marker: bytes) -> list[int]:
+    """The ids of this process's children whose command line holds `marker`."""
+    me = os.getpid()
+    return [int(pid) for pid in Path(f"/proc/{me}/task/{me}/children").read_text().split()
+            if marker in Path(f"/proc/{pid}/cmdline").read_bytes()]
+
+
 def _stopper(marker: bytes, stop_s: float, stopped: list[int]) -> Callable[[np.ndarray], None]:
     """A `live` hook that stops this process's child whose command line holds `marker` after the first block of
     periods and continues it `stop_s` later."""
@@ -47,15 +54,12 @@ def _stopper(marker: bytes, stop_s: float, stopped: list[int]) -> Callable[[np.n
     def live(block: np.ndarray) -> None:
         if stopped:
             return
-        me = os.getpid()
-        for pid in Path(f"/proc/{me}/task/{me}/children").read_text().split():
-            if marker in Path(f"/proc/{pid}/cmdline").read_bytes():
-                os.kill(int(pid), signal.SIGSTOP)
-                stopped.append(int(pid))
-                timer = threading.Timer(stop_s, _continue, (int(pid),))
-                timer.daemon = True
-                timer.start()
-                return
+        for pid in _children_with(marker)[:1]:
+            os.kill(pid, signal.SIGSTOP)
+            stopped.append(pid)
+            timer = threading.Timer(stop_s, _continue, (pid,))
+            timer.daemon = True
+            timer.start()
 
     return live
 
@@ -152,13 +156,11 @@ def _pin_child(marker: bytes, cpu: int, pinned: list[int]) -> Callable[[np.ndarr
     def live(block: np.ndarray) -> None:
         if pinned:
             return
-        me = os.getpid()
-        for pid in Path(f"/proc/{me}/task/{me}/children").read_text().split():
-            if marker in Path(f"/proc/{pid}/cmdline").read_bytes():
-                for tid in os.listdir(f"/proc/{pid}/task"):
-                    with contextlib.suppress(OSError):
-                        os.sched_setaffinity(int(tid), {cpu})
-                pinned.append(int(pid))
+        for pid in _children_with(marker):
+            for tid in os.listdir(f"/proc/{pid}/task"):
+                with contextlib.suppress(OSError):
+                    os.sched_setaffinity(int(tid), {cpu})
+            pinned.append(pid)
 
     return live
 

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from pmsm_hil.hil.motor_params import PmsmParams
+from tests.plant.reference_solver import dq_rhs, integrate_pieces
 
 _H3 = math.sqrt(3.0) / 2.0
 #: VSD rows (alpha, beta, x, y) over phases A B C U V W, without the 1/3 factor (paper eq. (1)).
@@ -35,24 +36,14 @@ def solve_period6(p: PmsmParams, omega_m: float, theta0: float, x0: tuple[float,
                   states: list[int], durations_s: list[float]) -> tuple[np.ndarray, float]:
     """Integrate one period in dyno mode; returns ((i_d, i_q, i_x, i_y), theta_e) at its end."""
     w = p.pole_pairs * omega_m
-    x = np.array(x0, dtype=float)
-    t0 = 0.0
-    for st, du in zip(states, durations_s, strict=True):
-        if du <= 0:
-            continue
+
+    def rhs_of(st: int) -> Callable[[float, np.ndarray], list[float]]:
         va, vb, vx, vy = code_voltage(st, p.vdc)
 
-        def rhs(t: float, y: np.ndarray, va: float = va, vb: float = vb, vx: float = vx,
-                vy: float = vy) -> list[float]:
-            th = theta0 + w * t
-            vd = va * math.cos(th) + vb * math.sin(th)
-            vq = -va * math.sin(th) + vb * math.cos(th)
-            return [(vd - p.rs * y[0] + w * p.lq * y[1]) / p.ld,
-                    (vq - p.rs * y[1] - w * p.ld * y[0] - w * p.psi_f) / p.lq,
-                    (vx - p.rs * y[2]) / p.lls,
-                    (vy - p.rs * y[3]) / p.lls]
+        def rhs(t: float, y: np.ndarray) -> list[float]:
+            return [*dq_rhs(p, theta0, w, va, vb, t, y), (vx - p.rs * y[2]) / p.lls, (vy - p.rs * y[3]) / p.lls]
 
-        sol = solve_ivp(rhs, (t0, t0 + du), x, method="DOP853", rtol=1e-11, atol=1e-12)
-        x = sol.y[:, -1]
-        t0 += du
-    return x, theta0 + w * t0
+        return rhs
+
+    x, t_end = integrate_pieces(x0, states, durations_s, rhs_of)
+    return x, theta0 + w * t_end

@@ -10,12 +10,11 @@ Usage: python udp_spoof.py PORT_A PORT_B RATE SECONDS
 from __future__ import annotations
 
 import binascii
-import signal
 import socket
 import struct
 import sys
-import time
-from types import FrameType
+
+from udp_pacing import Pacer
 
 ETH_P_ALL = 0x0003
 TRAILER = 6  # freshness 2 + MAC 4 (src/pmsm_hil/protocol/links/auth.py)
@@ -43,21 +42,14 @@ def _variants(genuine: bytes) -> list[bytes]:
 def main() -> int:
     a, b = int(sys.argv[1]), int(sys.argv[2])
     rate, seconds = float(sys.argv[3]), float(sys.argv[4])
-    stop = {"flag": False}
-
-    def on_term(signum: int, frame: FrameType | None) -> None:
-        stop["flag"] = True
-
-    signal.signal(signal.SIGTERM, on_term)
+    pacer = Pacer()
     cap = socket.socket(socket.AF_PACKET, socket.SOCK_RAW, socket.htons(ETH_P_ALL))
     cap.bind(("lo", 0))
     cap.setblocking(False)
     raw = socket.socket(socket.AF_INET, socket.SOCK_RAW, socket.IPPROTO_RAW)
     latest: dict[tuple[int, int], bytes] = {}
-    injected = 0
-    print("capturing", flush=True)
-    t0 = time.perf_counter()
-    while not stop["flag"] and (now := time.perf_counter() - t0) < seconds:
+
+    def send(owed: int) -> int:
         while True:
             try:
                 pkt = cap.recv(65536)
@@ -72,16 +64,12 @@ def main() -> int:
             ours = struct.unpack_from("!H", ip, ihl + 6)[0] == 0  # what this spoofer sent (no UDP checksum)
             if {src, dst} == {a, b} and not ours and len(payload) > 13 + TRAILER and payload[:4] != b"\0\0\0\0":
                 latest[(src, dst)] = payload
-        due = int(now * rate)
-        for (src, dst), genuine in list(latest.items()):
-            for dgram in _variants(genuine):
-                if injected >= due:
-                    break
-                raw.sendto(_udp(src, dst, dgram), ("127.0.0.1", 0))
-                injected += 1
-        time.sleep(0.0002)
-    print(f"injected {injected} in {time.perf_counter() - t0:.3f} s", flush=True)
-    return 0
+        out = [(src, dst, dgram) for (src, dst), genuine in latest.items() for dgram in _variants(genuine)][:owed]
+        for src, dst, dgram in out:
+            raw.sendto(_udp(src, dst, dgram), ("127.0.0.1", 0))
+        return len(out)
+
+    return pacer.run(seconds, rate, 0.0002, send, "capturing", "injected")
 
 
 if __name__ == "__main__":

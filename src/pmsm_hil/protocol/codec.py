@@ -484,21 +484,19 @@ class FrameDecoder:
             st.messages += 1
         return msg
 
-    def _meas_a(self, data: bytes) -> Message | None:
-        raw = L_MEAS_A.unpack(data)
-        parts = self._meas.add(0, raw[0], 0xFFFF, raw)
+    def _meas_part(self, part: int, layout: FrameLayout, mask: int, data: bytes) -> Message | None:
+        raw = layout.unpack(data)
+        parts = self._meas.add(part, raw[0], mask, raw)
         if parts is None:
             return None
         a, b = parts
         return _meas(a[0], a[1], a[2], a[3], b[1], b[2], b[3], b[4])
 
+    def _meas_a(self, data: bytes) -> Message | None:
+        return self._meas_part(0, L_MEAS_A, 0xFFFF, data)
+
     def _meas_b(self, data: bytes) -> Message | None:
-        raw = L_MEAS_B.unpack(data)
-        parts = self._meas.add(1, raw[0], 0xFF, raw)
-        if parts is None:
-            return None
-        a, b = parts
-        return _meas(a[0], a[1], a[2], a[3], b[1], b[2], b[3], b[4])
+        return self._meas_part(1, L_MEAS_B, 0xFF, data)
 
     def _meas_fd1(self, data: bytes) -> Message | None:
         raw = L_MEAS_FD.unpack(data)

@@ -19,6 +19,7 @@ from typing import NamedTuple
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.links import Link
 from pmsm_hil.sim_target.firmware import FirmwareError
+from pmsm_hil.sim_target.target import serve_pending
 
 SIL_ABI_VERSION = 1
 MAX_PAYLOAD = 64
@@ -147,16 +148,12 @@ class SilTarget:
 
     def service(self) -> int:
         """Process all frames waiting on the link; returns the number of frames handled."""
-        handled = 0
-        poll, feed, send = self.link.poll, self.firmware.feed, self.link.send
-        while True:
-            frame = poll()
-            if frame is None:
-                return handled
-            handled += 1
-            replies = feed(frame)
-            if replies:
-                send(replies)
+        return serve_pending(self.link.poll, self._on_frame)
+
+    def _on_frame(self, frame: Frame) -> None:
+        replies = self.firmware.feed(frame)
+        if replies:
+            self.link.send(replies)
 
     def last_result(self) -> SilStep | None:
         """The last control step (None before the first)."""

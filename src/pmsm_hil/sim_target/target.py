@@ -8,12 +8,24 @@ from dataclasses import dataclass
 
 from pmsm_hil.protocol import Command, ConfigAck, ConfigParam, Fault, Heartbeat, Measurement, Measurement6, Setpoint
 from pmsm_hil.protocol.codec import MAX_DURATION_NS, FrameCodec
+from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.ids import ControllerId, NodeState, ParamId, Status
 from pmsm_hil.protocol.links import Link
 from pmsm_hil.sim_target.firmware import Firmware, FirmwareCommand, FirmwareConfigError
 
 TARGET_NODE = 1
 _IDLE_STATE = 0  # zero vector (all lower switches on) while disabled
+
+
+def serve_pending(poll: Callable[[], Frame | None], handle: Callable[[Frame], None]) -> int:
+    """Hand every frame waiting on a link (`poll` until it returns None) to `handle`; returns how many there were."""
+    handled = 0
+    while True:
+        frame = poll()
+        if frame is None:
+            return handled
+        handled += 1
+        handle(frame)
 
 
 @dataclass(slots=True)
@@ -50,17 +62,12 @@ class SimTarget:
 
     def service(self) -> int:
         """Process all frames waiting on the link; returns the number of frames handled."""
-        handled = 0
-        poll = self.link.poll
-        feed = self.decoder.feed
-        while True:
-            frame = poll()
-            if frame is None:
-                return handled
-            handled += 1
-            msg = feed(frame)
-            if msg is not None:
-                self._dispatch(msg)
+        return serve_pending(self.link.poll, self._on_frame)
+
+    def _on_frame(self, frame: Frame) -> None:
+        msg = self.decoder.feed(frame)
+        if msg is not None:
+            self._dispatch(msg)
 
     def _dispatch(self, msg: object) -> None:
         if isinstance(msg, Measurement):

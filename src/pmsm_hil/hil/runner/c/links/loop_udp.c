@@ -83,13 +83,26 @@ static void connect_peer(nl_udp_t *u)
     (void)connect(u->fd, (const struct sockaddr *)&to, sizeof to); /* failing, the address filter still applies */
 }
 
+/* Seals (when authenticating) and checksums the `body` bytes that follow the session id in `buf` and counts the
+ * sequence number on; returns the datagram's length [bytes]. */
+static size_t seal_datagram(nl_udp_t *u, uint8_t *buf, size_t body)
+{
+    uint16_t crc;
+    if (u->auth.on) {
+        hil_auth_seal(&u->auth, buf + SESSION_SIZE, body);
+        body += HIL_AUTH_TRAILER;
+    }
+    crc = hil_serial_crc16(buf + SESSION_SIZE, body, 0xFFFFu);
+    buf[SESSION_SIZE + body] = (uint8_t)(crc >> 8);
+    buf[SESSION_SIZE + body + 1] = (uint8_t)(crc & 0xFFu);
+    u->tx_seq = (uint8_t)(u->tx_seq + 1u);
+    return SESSION_SIZE + body + CRC_SIZE;
+}
+
 int nl_udp_send(nl_udp_t *u, const hil_core_frame_t *f)
 {
     uint8_t buf[DATA_MIN + HIL_CORE_MAX_PAYLOAD + HIL_AUTH_TRAILER];
-    uint16_t crc;
     const uint8_t flags = f->fd ? (uint8_t)(FLAG_FD | FLAG_BRS) : 0u;
-    const size_t trailer = u->auth.on ? HIL_AUTH_TRAILER : 0u;
-    size_t body;
     if (!nl_valid_length(f->len, f->fd)) {
         u->stats.send_errors++;
         return -1;
@@ -100,16 +113,7 @@ int nl_udp_send(nl_udp_t *u, const hil_core_frame_t *f)
     buf[SESSION_SIZE + 5] = u->tx_seq;
     buf[SESSION_SIZE + 6] = f->len;
     memcpy(buf + SESSION_SIZE + HEADER_SIZE, f->data, f->len);
-    body = (size_t)(HEADER_SIZE + f->len);
-    if (trailer) {
-        hil_auth_seal(&u->auth, buf + SESSION_SIZE, body);
-        body += trailer;
-    }
-    crc = hil_serial_crc16(buf + SESSION_SIZE, body, 0xFFFFu);
-    buf[SESSION_SIZE + body] = (uint8_t)(crc >> 8);
-    buf[SESSION_SIZE + body + 1] = (uint8_t)(crc & 0xFFu);
-    u->tx_seq = (uint8_t)(u->tx_seq + 1u);
-    if (send_to_peer(u, buf, (size_t)(DATA_MIN + f->len) + trailer) != 0) {
+    if (send_to_peer(u, buf, seal_datagram(u, buf, (size_t)(HEADER_SIZE + f->len))) != 0) {
         return -1;
     }
     u->stats.frames_tx++;
@@ -405,7 +409,6 @@ int nl_udp_send_wire(nl_udp_t *u, const nl_wire_frame_t *m, int64_t deadline_ns)
 {
     uint8_t buf[DATA_MIN + HIL_CORE_MAX_PAYLOAD + HIL_AUTH_TRAILER];
     size_t body;
-    uint16_t crc;
     if (u->session == 0u && u->proposal == 0u) {
         nl_udp_propose(u);
     }
@@ -418,15 +421,7 @@ int nl_udp_send_wire(nl_udp_t *u, const nl_wire_frame_t *m, int64_t deadline_ns)
         return -2;
     }
     put_u32(buf, u->session);
-    if (u->auth.on) {
-        hil_auth_seal(&u->auth, buf + SESSION_SIZE, body);
-        body += HIL_AUTH_TRAILER;
-    }
-    crc = hil_serial_crc16(buf + SESSION_SIZE, body, 0xFFFFu);
-    buf[SESSION_SIZE + body] = (uint8_t)(crc >> 8);
-    buf[SESSION_SIZE + body + 1] = (uint8_t)(crc & 0xFFu);
-    u->tx_seq = (uint8_t)(u->tx_seq + 1u);
-    if (send_waiting(u, buf, SESSION_SIZE + body + CRC_SIZE, deadline_ns) != 0) {
+    if (send_waiting(u, buf, seal_datagram(u, buf, body), deadline_ns) != 0) {
         return -1;
     }
     u->stats.frames_tx++;

@@ -6,6 +6,7 @@
 #include <time.h>
 
 #include "loop_rt.h"
+#include "hil_serial.h"
 #include "nl_link.h"
 
 int nl_seq_accept(int32_t *last, uint8_t seq, nl_link_stats_t *st)
@@ -75,10 +76,7 @@ int nl_accept_framed(const uint8_t *body, int32_t *rx_last, nl_link_stats_t *st,
         st->ignored++;
         return 0;
     }
-    f->id = (uint32_t)body[0] | ((uint32_t)body[1] << 8) | ((uint32_t)body[2] << 16) | ((uint32_t)body[3] << 24);
-    f->fd = (flags & FLAG_FD) ? 1u : 0u;
-    f->len = len;
-    memcpy(f->data, body + HEADER_SIZE, len);
+    hil_serial_unpack(body, f);
     memset(f->data + len, 0, (size_t)(HIL_CORE_MAX_PAYLOAD - len));
     return 1;
 }
