@@ -6,6 +6,8 @@
 #ifndef HIL_GATE_EDGES_H
 #define HIL_GATE_EDGES_H
 
+#include <math.h>
+#include <stddef.h>
 #include <stdint.h>
 
 #include "dq_segment.h"
@@ -28,15 +30,40 @@ typedef struct {
 } ge_period_stats_t;
 
 /* Zero every counter of a period. */
-void ge_stats_reset(ge_period_stats_t *stats);
+static inline void ge_stats_reset(ge_period_stats_t *stats)
+{
+    stats->leg_transitions = 0;
+    stats->boundary_transitions = 0;
+    stats->narrow_pulses = 0;
+    stats->suppressed_pulses = 0;
+    stats->open_phase_events = 0;
+    stats->narrow_pulses_gated = 0;
+    stats->peak_current = 0.0;
+    stats->trace_n = 0;
+    stats->error = 0;
+}
 
 /* The next trace row of the period (row stats->trace_n of `trace`, `columns` doubles each), or NULL when `trace`
- * holds `trace_cap` rows already (the kernel's MK_E_TRACE_FULL). */
-double *ge_trace_row(double *trace, int32_t trace_cap, int32_t columns, const ge_period_stats_t *stats);
+ * holds `trace_cap` rows already (the kernel's MK_E_TRACE_FULL). Inline: it runs once per trace row. */
+static inline double *ge_trace_row(double *trace, int32_t trace_cap, int32_t columns,
+                                   const ge_period_stats_t *stats)
+{
+    return stats->trace_n >= trace_cap ? NULL : trace + (ptrdiff_t)stats->trace_n * columns;
+}
 
 /* A trace row written: its `legs` phase currents `i` [A] count in the period's peak, the period's rows and the
- * kernel's trace sample index (*trace_k) move on. Returns 0. */
-int ge_trace_done(ge_period_stats_t *stats, uint64_t *trace_k, const double *i, int legs);
+ * kernel's trace sample index (*trace_k) move on. Returns 0. Inline: it runs once per trace row. */
+static inline int ge_trace_done(ge_period_stats_t *stats, uint64_t *trace_k, const double *i, int legs)
+{
+    for (int k = 0; k < legs; k++) {
+        if (fabs(i[k]) > stats->peak_current) {
+            stats->peak_current = fabs(i[k]);
+        }
+    }
+    stats->trace_n++;
+    (*trace_k)++;
+    return 0;
+}
 
 /* A period refused before it ran: the counters zeroed, the error (a negative kernel code) in stats->error and
  * returned. */
@@ -77,8 +104,29 @@ typedef struct {
     int open_leg;           /* the last floating leg, or -1 */
 } ge_levels_t;
 
-void ge_levels_at(const ge_run_t *run, int legs, double t0, const double *dead_until, const int32_t *dead_level,
-                  int32_t open_level, ge_levels_t *out);
+static inline void ge_levels_at(const ge_run_t *run, int legs, double t0, const double *dead_until,
+                                const int32_t *dead_level, int32_t open_level, ge_levels_t *out)
+{
+    out->code = 0;
+    out->cond_mask = 0;
+    out->n_open = 0;
+    out->open_leg = -1;
+    for (int leg = 0; leg < legs; leg++) {
+        int lvl = run->gate_level[leg];
+        if (t0 < dead_until[leg] - 0.5e-9) {
+            lvl = dead_level[leg];
+            if (lvl == open_level) {
+                out->n_open++;
+                out->open_leg = leg;
+                lvl = 0;
+            } else {
+                out->cond_mask |= 1 << leg;
+            }
+        }
+        out->level[leg] = lvl;
+        out->code |= lvl << (legs - 1 - leg);
+    }
+}
 
 /* Phase current [A] of `leg` in the kernel's state now (out of the leg > 0): what picks the dead-time diode. */
 typedef double (*ge_leg_current_fn)(const void *ctx, int leg);
