@@ -68,8 +68,8 @@ def set_inverter_pmsm_params(p: Any, params: Any) -> None:
 def reset_gate_edges(s: Any, legs: int) -> None:
     """No gate edge and no dead time yet on any of `legs` legs (the gate_edges.c state of an inverter kernel)."""
     for leg in range(legs):
-        s.last_edge_t[leg] = -1.0
-        s.dead_until[leg] = -1.0
+        s.legs.last_edge_t[leg] = -1.0
+        s.legs.dead_until[leg] = -1.0
 
 
 class PlantBase:
