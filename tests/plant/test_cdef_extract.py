@@ -51,7 +51,8 @@ def test_the_bundled_headers_give_the_structs_the_plant_uses() -> None:
 
     native = Path(__file__).resolve().parents[2] / "src" / "pmsm_hil" / "hil" / "kernels"
     text = declarations(native / "plant.h", ["pl_params_t", "pl_state_t"])
-    assert "int32_t dead_level[3];" in text
+    assert "ge_legs_t legs;" in text
+    assert "int32_t dead_level[6];" in declarations(native / "gate_edges.h", ["ge_legs_t"])
     assert ffi.sizeof("pl_state_t") > 0 and ffi.sizeof("mk_sample_t") == 13 * 8
 
 

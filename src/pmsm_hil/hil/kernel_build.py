@@ -32,7 +32,7 @@ def common_cdef() -> str:
     `mech_state_t`, `mech_load_t`, `mech_step`, `mech_hold`, the MECH_ modes), `mk_sample_t`, and the opaque
     `mk_kernel_t` (the bundled plant extension takes the same from the same headers,
     src/pmsm_hil/hil/kernels/_build_plant.py)."""
-    return (declarations(NATIVE_DIR / "gate_edges.h", ["ge_period_stats_t"])
+    return (declarations(NATIVE_DIR / "gate_edges.h", ["ge_period_stats_t", "ge_legs_t"])
             + cffi_constants(NATIVE_DIR / "mechanics.h", "MECH_")
             + declarations(NATIVE_DIR / "mechanics.h", ["mech_params_t", "mech_state_t", "mech_load_t", "mech_step",
                                                          "mech_hold"])

@@ -80,5 +80,5 @@ class Plant(ThreePhasePlant):
         i_al = i_d * c - i_q * sn
         i_be = i_d * sn + i_q * c
         return PlantSample(int(s.t_ns) / 1e9, i_al, -0.5 * i_al + _SQRT3_2 * i_be, -0.5 * i_al - _SQRT3_2 * i_be,
-                           i_d, i_q, th, s.mech.omega_m, self._torque_k * (self._psi_f + self._dl * i_d) * i_q,
+                           i_d, i_q, th, self._mech_s.omega_m, self._torque_k * (self._psi_f + self._dl * i_d) * i_q,
                            self._vdc)

@@ -95,4 +95,4 @@ class Plant6(PlantBase):
         ph = self._phase
         lib.p6_phase_currents(s.i_d, s.i_q, s.theta_e, s.i_x, s.i_y, ph)
         return PlantSample6(int(s.t_ns) / 1e9, ph[0], ph[1], ph[2], ph[3], ph[4], ph[5], s.i_d, s.i_q, s.i_x,
-                            s.i_y, s.theta_e, s.mech.omega_m, lib.p6_torque(self._p, s.i_d, s.i_q), self._p.vdc)
+                            s.i_y, s.theta_e, self._mech_s.omega_m, lib.p6_torque(self._p, s.i_d, s.i_q), self._p.vdc)

@@ -68,8 +68,8 @@ def set_inverter_pmsm_params(p: Any, params: Any) -> None:
 def reset_gate_edges(s: Any, legs: int) -> None:
     """No gate edge and no dead time yet on any of `legs` legs (the gate_edges.c state of an inverter kernel)."""
     for leg in range(legs):
-        s.last_edge_t[leg] = -1.0
-        s.dead_until[leg] = -1.0
+        s.legs.last_edge_t[leg] = -1.0
+        s.legs.dead_until[leg] = -1.0
 
 
 class PlantBase:
@@ -117,6 +117,8 @@ class PlantBase:
         self._load_bp = ffi.new("double[]", 3 * MAX_LOAD_BREAKPOINTS)
         self._load_c: Any = ffi.new("mech_load_t *")
         self._load_c.bp = self._load_bp
+        #: the kernel state's mechanics (mech_state_t *), kept: sample() reads the speed every period
+        self._mech_s: Any = ffi.addressof(self._s, "mech")
         columns = len(self.TRACE_COLUMNS)
         rows = 0 if trace_dt_s is None else math.ceil(ts_s / trace_dt_s) + 2
         self._trace_cap = rows
@@ -156,6 +158,7 @@ class PlantBase:
         if isinstance(mechanics, DynoMechanics):
             lib.mech_hold(self._p_mech, self._s_mech, mechanics.omega_m)
             self._inertia = False
+            self._load_c.value, self._load_c.slope, self._load_c.n_bp = 0.0, 0.0, 0
         elif isinstance(mechanics, InertiaMechanics):
             mech.mode, mech.j = lib.MECH_INERTIA, self.params.j
             self._inertia = True
@@ -179,7 +182,7 @@ class PlantBase:
     @property
     def _s_mech(self) -> Any:
         """The kernel's mechanics state (mech_state_t *)."""
-        return self._ffi.addressof(self._s, "mech")
+        return self._mech_s
 
     @property
     def load_speed(self) -> float:
@@ -240,17 +243,12 @@ class PlantBase:
             total += du
         if total != self.ts_ns:
             raise SequenceError(f"switching durations sum to {total} ns, expected Ts = {self.ts_ns} ns")
-        n_bp = 0
-        if self._inertia:
+        load = self._load_c
+        if self._inertia:  # under a dyno the load stays zero (the mechanics setter), no breakpoint splits the period
             t0 = int(self._s.t_ns) / 1e9
             load0, slope = self._load.value_and_slope(t0)
             inside = self._load.breakpoints_between(t0, t0 + total * 1e-9)
-            if inside:
-                n_bp = self._set_load_breakpoints(inside)
-        else:
-            load0, slope = 0.0, 0.0
-        load = self._load_c
-        load.value, load.slope, load.n_bp = load0, slope, n_bp
+            load.value, load.slope, load.n_bp = load0, slope, self._set_load_breakpoints(inside) if inside else 0
         rc = self._kernel_advance(self._p, self._s, c_states, c_durations, n, load, self._trace_dt, self._trace_ptr,
                                   self._trace_cap, self._stats)
         if rc != 0:

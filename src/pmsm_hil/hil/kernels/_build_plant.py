@@ -17,7 +17,7 @@ _KERNELS = _HERE
 _X = SimpleNamespace(**runpy.run_path(str(_HERE.parent / "cdef_extract.py")))
 #: what every kernel's extension declares first: the period stats, the mechanics, the sample and the opaque kernel
 #: table (the same as kernel_build.common_cdef: this script cannot import the package)
-CDEF_COMMON = (_X.declarations(_KERNELS / "gate_edges.h", ["ge_period_stats_t"])
+CDEF_COMMON = (_X.declarations(_KERNELS / "gate_edges.h", ["ge_period_stats_t", "ge_legs_t"])
                + _X.cffi_constants(_KERNELS / "mechanics.h", "MECH_")
                + _X.declarations(_KERNELS / "mechanics.h", ["mech_params_t", "mech_state_t", "mech_load_t",
                                                             "mech_step", "mech_hold"])

@@ -244,7 +244,7 @@ static int blocked_leg(const fm_state_t *s, int cond_mask, const double *cur, do
 {
     for (int leg = 0; leg < 3; leg++) {
         if ((cond_mask >> leg) & 1) {
-            const double sign = s->dead_level[leg] == 0 ? 1.0 : -1.0;
+            const double sign = s->legs.dead_level[leg] == 0 ? 1.0 : -1.0;
             if (sign * leg_current(cur[0], cur[1], theta, leg) <= 0.0) {
                 return leg;
             }
@@ -471,7 +471,7 @@ static int piece_cb(void *ctx, double t0, double *piece_io, double omega_m)
     ge_levels_t lv;
     fm_rhs_t c;
     fm_trace_t tr;
-    ge_levels_at(&x->run, 3, t0, s->dead_until, s->dead_level, FM_LEVEL_OPEN, &lv);
+    ge_levels_at(&x->run, 3, t0, &s->legs, FM_LEVEL_OPEN, &lv);
     c.p = p;
     c.v_alpha = p->vdc / 3.0 * (2.0 * lv.level[0] - lv.level[1] - lv.level[2]);
     c.v_beta = p->vdc / FM_SQRT3 * (lv.level[1] - lv.level[2]);
@@ -493,7 +493,7 @@ static int piece_cb(void *ctx, double t0, double *piece_io, double omega_m)
     }
     s->theta_e = dq_wrap_angle(s->theta_e + c.omega_e * piece);
     if (blocked >= 0) {
-        s->dead_level[blocked] = FM_LEVEL_OPEN;
+        s->legs.dead_level[blocked] = FM_LEVEL_OPEN;
         x->run.stats->open_phase_events++;
     }
     *piece_io = piece;
@@ -518,7 +518,7 @@ int fm_advance(const fm_params_t *p, fm_state_t *s, const int32_t *states, const
     c.p = p;
     c.s = s;
     return ge_advance(&FM_GATES, &c, states, durations_ns, n, load, p->t_mpw, p->t_dead, &s->t_ns, &s->gate,
-                      s->last_edge_t, s->dead_until, s->dead_level, stats);
+                      &s->legs, stats);
 }
 
 void fm_sample(const fm_params_t *p, const fm_state_t *s, mk_sample_t *out)

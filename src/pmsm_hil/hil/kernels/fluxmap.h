@@ -58,10 +58,8 @@ typedef struct {
     double h_last;        /* last accepted step [s] (the next step's first try) */
     uint64_t steps;       /* accepted integration steps since the start */
     uint64_t rejected;    /* rejected steps since the start */
-    double last_edge_t[3];/* time of the last gate edge per leg [s] (gate_edges.c) */
-    double dead_until[3]; /* leg in dead time until this absolute time [s] */
+    ge_legs_t legs;       /* the legs' gate edges and dead time (gate_edges.h) */
     int32_t gate;         /* applied gate code 4*Sa + 2*Sb + Sc */
-    int32_t dead_level[3];/* leg level during its dead time (0: low rail, 1: high rail, 2: open) */
 } fm_state_t;
 
 typedef ge_period_stats_t fm_period_stats_t;

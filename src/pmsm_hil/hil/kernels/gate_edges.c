@@ -6,19 +6,6 @@
 
 #include "machine_kernel.h"
 
-void ge_stats_reset(ge_period_stats_t *stats)
-{
-    stats->leg_transitions = 0;
-    stats->boundary_transitions = 0;
-    stats->narrow_pulses = 0;
-    stats->suppressed_pulses = 0;
-    stats->open_phase_events = 0;
-    stats->narrow_pulses_gated = 0;
-    stats->peak_current = 0.0;
-    stats->trace_n = 0;
-    stats->error = 0;
-}
-
 int ge_plan(int legs, int32_t gate, const int32_t *states, const int64_t *durations_ns, int32_t n, double t_start,
             double t_mpw, double t_lim, double *last_edge_t, dq_event_t *ev, int n_ev, int cap, ge_period_stats_t *counts,
             int64_t *total_ns)
@@ -81,52 +68,11 @@ void ge_run_init(ge_run_t *run, const mech_params_t *mech_p, mech_state_t *mech_
     *run = head;
 }
 
-double *ge_trace_row(double *trace, int32_t trace_cap, int32_t columns, const ge_period_stats_t *stats)
-{
-    return stats->trace_n >= trace_cap ? NULL : trace + (ptrdiff_t)stats->trace_n * columns;
-}
-
-int ge_trace_done(ge_period_stats_t *stats, uint64_t *trace_k, const double *i, int legs)
-{
-    for (int k = 0; k < legs; k++) {
-        if (fabs(i[k]) > stats->peak_current) {
-            stats->peak_current = fabs(i[k]);
-        }
-    }
-    stats->trace_n++;
-    (*trace_k)++;
-    return 0;
-}
-
 int ge_reject(ge_period_stats_t *stats, int32_t error)
 {
     ge_stats_reset(stats);
     stats->error = error;
     return error;
-}
-
-void ge_levels_at(const ge_run_t *run, int legs, double t0, const double *dead_until, const int32_t *dead_level,
-                  int32_t open_level, ge_levels_t *out)
-{
-    out->code = 0;
-    out->cond_mask = 0;
-    out->n_open = 0;
-    out->open_leg = -1;
-    for (int leg = 0; leg < legs; leg++) {
-        int lvl = run->gate_level[leg];
-        if (t0 < dead_until[leg] - 0.5e-9) {
-            lvl = dead_level[leg];
-            if (lvl == open_level) {
-                out->n_open++;
-                out->open_leg = leg;
-                lvl = 0;
-            } else {
-                out->cond_mask |= 1 << leg;
-            }
-        }
-        out->level[leg] = lvl;
-        out->code |= lvl << (legs - 1 - leg);
-    }
 }
 
 /* The dead-time level of `leg` switching to `new_level`: the conducting diode's (gate_edges.h, GE_LEVEL_NEW). */
@@ -199,8 +145,8 @@ int ge_run_period(const ge_kind_t *k, double t_start, double t_end, double t_dea
 }
 
 int ge_advance(const ge_kind_t *k, void *ctx, const int32_t *states, const int64_t *durations_ns, int32_t n,
-               const mech_load_t *load, double t_mpw, double t_dead, uint64_t *t_ns, int32_t *gate,
-               double *last_edge_t, double *dead_until, int32_t *dead_level, ge_period_stats_t *stats)
+               const mech_load_t *load, double t_mpw, double t_dead, uint64_t *t_ns, int32_t *gate, ge_legs_t *gl,
+               ge_period_stats_t *stats)
 {
     dq_event_t ev[GE_MAX_EVENTS];
     const double t_start = (double)*t_ns * 1e-9;
@@ -216,14 +162,52 @@ int ge_advance(const ge_kind_t *k, void *ctx, const int32_t *states, const int64
         }
     }
     ge_stats_reset(stats);
-    n_ev = ge_plan(k->legs, *gate, states, durations_ns, n, t_start, t_mpw, 2.0 * t_dead + t_mpw, last_edge_t, ev, 0,
-                   k->max_events, stats, &total_ns);
-    rc = ge_run_period(k, t_start, t_start + (double)total_ns * 1e-9, t_dead, ev, n_ev, load, gate, dead_until,
-                       dead_level, ctx);
+    n_ev = ge_plan(k->legs, *gate, states, durations_ns, n, t_start, t_mpw, 2.0 * t_dead + t_mpw, gl->last_edge_t, ev,
+                   0, k->max_events, stats, &total_ns);
+    rc = ge_run_period(k, t_start, t_start + (double)total_ns * 1e-9, t_dead, ev, n_ev, load, gate, gl->dead_until,
+                       gl->dead_level, ctx);
     if (rc != 0) {
         stats->error = rc;
         return rc;
     }
     *t_ns += (uint64_t)total_ns;
     return 0;
+}
+
+double ge_first_blocking(ge_current_at_fn current_at, const void *ctx, int legs, double piece, int cond_mask,
+                         const int32_t *dead_level, int *leg_out)
+{
+    double best = piece;
+    *leg_out = -1;
+    for (int leg = 0; leg < legs; leg++) {
+        double sign, lo = 0.0, hi = -1.0;
+        if (!((cond_mask >> leg) & 1)) {
+            continue;
+        }
+        sign = dead_level[leg] == 0 ? 1.0 : -1.0; /* low rail: current out of the leg (> 0) */
+        for (int q = 1; q <= 8; q++) {
+            const double tau = piece * (double)q / 8.0;
+            if (sign * current_at(ctx, tau, leg) <= 0.0) {
+                hi = tau;
+                break;
+            }
+            lo = tau;
+        }
+        if (hi < 0.0) {
+            continue;
+        }
+        for (int it = 0; it < 60 && hi - lo > 1e-13; it++) {
+            const double mid = 0.5 * (lo + hi);
+            if (sign * current_at(ctx, mid, leg) <= 0.0) {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        if (hi < best || (*leg_out < 0 && hi <= best)) {
+            best = hi;
+            *leg_out = leg;
+        }
+    }
+    return best;
 }

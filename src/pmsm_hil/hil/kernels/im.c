@@ -115,49 +115,21 @@ static double leg_current_of(const im_params_t *p, double complex psi_s, double 
     return IM_EX[leg] * creal(i_s) + IM_EY[leg] * cimag(i_s);
 }
 
-/* Earliest zero crossing in (0, piece] of the current of a leg conducting through a diode (8-point scan and
- * bisection to 1e-13 s on the closed form), or piece; *leg_out the leg (-1: none). */
-static double first_blocking(const im_params_t *p, const im_seg_t *g, const double complex h0[2], double piece,
-                             int cond_mask, const int32_t *dead_level, int *leg_out)
+/* The closed form of one piece as ge_first_blocking reads it: the machine, the segment and its initial homogeneous
+ * part. */
+typedef struct {
+    const im_params_t *p;
+    const im_seg_t *g;
+    const double complex *h0;
+} im_piece_form_t;
+
+static double im_current_at(const void *ctx, double tau, int leg)
 {
-    double best = piece;
-    *leg_out = -1;
-    for (int leg = 0; leg < 3; leg++) {
-        const double sign = dead_level[leg] == 0 ? 1.0 : -1.0; /* low rail: current out of the leg (> 0) */
-        double lo = 0.0, hi = -1.0;
-        double complex E[2][2], y[2];
-        if (!((cond_mask >> leg) & 1)) {
-            continue;
-        }
-        for (int q = 1; q <= 8; q++) {
-            const double tau = piece * (double)q / 8.0;
-            seg_exp(g, tau, E);
-            mat_vec(E, h0, y);
-            if (sign * leg_current_of(p, g->x_p[0] + y[0], g->x_p[1] + y[1], leg) <= 0.0) {
-                hi = tau;
-                break;
-            }
-            lo = tau;
-        }
-        if (hi < 0.0) {
-            continue;
-        }
-        for (int it = 0; it < 60 && hi - lo > 1e-13; it++) {
-            const double mid = 0.5 * (lo + hi);
-            seg_exp(g, mid, E);
-            mat_vec(E, h0, y);
-            if (sign * leg_current_of(p, g->x_p[0] + y[0], g->x_p[1] + y[1], leg) <= 0.0) {
-                hi = mid;
-            } else {
-                lo = mid;
-            }
-        }
-        if (hi < best || (*leg_out < 0 && hi <= best)) {
-            best = hi;
-            *leg_out = leg;
-        }
-    }
-    return best;
+    const im_piece_form_t *f = (const im_piece_form_t *)ctx;
+    double complex E[2][2], y[2];
+    seg_exp(f->g, tau, E);
+    mat_vec(E, f->h0, y);
+    return leg_current_of(f->p, f->g->x_p[0] + y[0], f->g->x_p[1] + y[1], leg);
 }
 
 /* No phase open: the closed form over *piece (shortened to the first diode blocking: *blocked its leg). */
@@ -175,7 +147,8 @@ static int piece_closed(const im_params_t *p, im_state_t *s, double t0, double *
     h0[0] = x[0] - g.x_p[0];
     h0[1] = x[1] - g.x_p[1];
     if (cond_mask) {
-        *piece = first_blocking(p, &g, h0, *piece, cond_mask, s->dead_level, blocked);
+        const im_piece_form_t form = {p, &g, h0};
+        *piece = ge_first_blocking(im_current_at, &form, 3, *piece, cond_mask, s->legs.dead_level, blocked);
     }
     if (trace_dt > 0.0 && trace != NULL) {
         double complex y[2], E_dt[2][2];
@@ -340,7 +313,7 @@ static int im_piece_cb(void *ctx, double t0, double *piece, double omega_m)
     const double omega_e = (double)p->pole_pairs * omega_m;
     int blocked = -1, rc;
     ge_levels_t lv;
-    ge_levels_at(&c->run, 3, t0, s->dead_until, s->dead_level, IM_LEVEL_OPEN, &lv);
+    ge_levels_at(&c->run, 3, t0, &s->legs, IM_LEVEL_OPEN, &lv);
     if (lv.n_open == 0) {
         rc = piece_closed(p, s, t0, piece, lv.code, lv.cond_mask, omega_e, c->run.trace_dt, c->run.trace, c->run.trace_cap,
                           c->run.stats, &blocked);
@@ -354,7 +327,7 @@ static int im_piece_cb(void *ctx, double t0, double *piece, double omega_m)
         return rc;
     }
     if (blocked >= 0) {
-        s->dead_level[blocked] = IM_LEVEL_OPEN;
+        s->legs.dead_level[blocked] = IM_LEVEL_OPEN;
         c->run.stats->open_phase_events++;
     }
     s->theta_e = dq_wrap_angle(s->theta_e + omega_e * *piece);
@@ -389,7 +362,7 @@ int im_advance(const im_params_t *p, im_state_t *s, const int32_t *states, const
     c.p = p;
     c.s = s;
     return ge_advance(&IM_GATES, &c, states, durations_ns, n, load, p->t_mpw, p->t_dead, &s->t_ns, &s->gate,
-                      s->last_edge_t, s->dead_until, s->dead_level, stats);
+                      &s->legs, stats);
 }
 
 void im_sample(const im_params_t *p, const im_state_t *s, mk_sample_t *out)

@@ -46,10 +46,8 @@ typedef struct {
     double psi_r[2];      /* rotor flux of the inverse-Gamma model, stator frame [Wb] */
     double theta_e;       /* rotor electrical angle n_p * theta_m [rad], wrapped to [0, 2*pi) */
     mech_state_t mech;    /* the shaft's speed (mechanics.h) */
-    double last_edge_t[3];/* time of the last gate edge per leg [s] (absolute) */
-    double dead_until[3]; /* leg in dead time until this absolute time [s] */
+    ge_legs_t legs;       /* the legs' gate edges and dead time (gate_edges.h) */
     int32_t gate;         /* commanded gate code currently applied, 4*Sa + 2*Sb + Sc */
-    int32_t dead_level[3];/* leg level during its dead time (0: low rail, 1: high rail, 2: open) */
 } im_state_t;
 
 typedef ge_period_stats_t im_period_stats_t; /* see gate_edges.h */

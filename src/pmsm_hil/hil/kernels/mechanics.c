@@ -79,13 +79,19 @@ static void step_two_mass(const mech_params_t *p, mech_state_t *s, double piece,
     s->twist = r[2];
 }
 
-void mech_step(const mech_params_t *p, mech_state_t *s, double piece, double te0, double te1, double t_load)
+/* mech_step, inline in mech_integrate's piece loop */
+static inline void step(const mech_params_t *p, mech_state_t *s, double piece, double te0, double te1, double t_load)
 {
     if (p->mode == MECH_INERTIA) {
         step_one_mass(p, s, piece, te0, te1, t_load);
     } else if (p->mode == MECH_TWO_MASS) {
         step_two_mass(p, s, piece, te0, te1, t_load);
     }
+}
+
+void mech_step(const mech_params_t *p, mech_state_t *s, double piece, double te0, double te1, double t_load)
+{
+    step(p, s, piece, te0, te1, t_load);
 }
 
 int mech_integrate(const mech_params_t *p, mech_state_t *s, const mech_segment_t *load, double t_abs, double h,
@@ -110,7 +116,7 @@ int mech_integrate(const mech_params_t *p, mech_state_t *s, const mech_segment_t
         }
         if (moving) {
             const double t_load = load->value + load->slope * (t0 + 0.5 * piece - load->t_ref);
-            mech_step(p, s, piece, te0, torque_fn(ctx), t_load);
+            step(p, s, piece, te0, torque_fn(ctx), t_load);
         }
         done += piece;
     }

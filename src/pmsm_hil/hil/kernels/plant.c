@@ -167,47 +167,19 @@ static int integrate_open(const pl_params_t *p, pl_state_t *s, double t0, double
     return PL_OK;
 }
 
-/* Earliest zero crossing in (0, piece] of the current of a leg conducting through a diode, or piece. */
-static double first_blocking(const dq_segment_t *g, double theta0, double omega_e, double piece, int cond_mask,
-                             const int32_t *dead_level, int *leg_out)
+/* The closed form of one piece as ge_first_blocking reads it: the segment, the rotor angle at its start [rad] and
+ * the electrical speed [rad/s]. */
+typedef struct {
+    const dq_segment_t *g;
+    double theta0, omega_e;
+} pl_piece_form_t;
+
+static double pl_current_at(const void *ctx, double tau, int leg)
 {
-    double best = piece;
-    *leg_out = -1;
-    for (int leg = 0; leg < 3; leg++) {
-        double sign, lo = 0.0, hi = -1.0;
-        if (!((cond_mask >> leg) & 1)) {
-            continue;
-        }
-        sign = dead_level[leg] == 0 ? 1.0 : -1.0; /* low rail: current out of the leg (> 0) */
-        for (int q = 1; q <= 8; q++) {
-            double tau = piece * (double)q / 8.0, id, iq;
-            dq_segment_eval(g, tau, &id, &iq);
-            if (sign * leg_current(id, iq, theta0 + omega_e * tau, leg) <= 0.0) {
-                hi = tau;
-                break;
-            }
-            lo = tau;
-        }
-        if (hi < 0.0) {
-            continue;
-        }
-        for (int it = 0; it < 60 && hi - lo > 1e-13; it++) {
-            double mid = 0.5 * (lo + hi), id, iq;
-            dq_segment_eval(g, mid, &id, &iq);
-            if (sign * leg_current(id, iq, theta0 + omega_e * mid, leg) <= 0.0) {
-                hi = mid;
-            } else {
-                lo = mid;
-            }
-        }
-        if (hi < best || *leg_out < 0) {
-            if (hi <= best) {
-                best = hi;
-                *leg_out = leg;
-            }
-        }
-    }
-    return best;
+    const pl_piece_form_t *f = (const pl_piece_form_t *)ctx;
+    double id, iq;
+    dq_segment_eval(f->g, tau, &id, &iq);
+    return leg_current(id, iq, f->theta0 + f->omega_e * tau, leg);
 }
 
 /* One interval of constant gate levels (gate_edges.c) as the mechanics cuts it into constant-speed pieces
@@ -241,14 +213,15 @@ static int pl_piece_cb(void *ctx, double t0, double *piece_io, double omega_m)
     const double omega_e = (double)p->pole_pairs * omega_m;
     int blocked = -1;
     ge_levels_t lv;
-    ge_levels_at(&c->run, 3, t0, s->dead_until, s->dead_level, PL_LEVEL_OPEN, &lv);
+    ge_levels_at(&c->run, 3, t0, &s->legs, PL_LEVEL_OPEN, &lv);
     if (lv.n_open == 0) {
         dq_segment_t g;
         double v_alpha, v_beta, i_d1, i_q1;
         leg_voltage(p->vdc, lv.code, &v_alpha, &v_beta);
         dq_segment_setup(&c->mc, omega_e, s->theta_e, v_alpha, v_beta, s->i_d, s->i_q, &g);
         if (lv.cond_mask) {
-            piece = first_blocking(&g, s->theta_e, omega_e, piece, lv.cond_mask, s->dead_level, &blocked);
+            const pl_piece_form_t form = {&g, s->theta_e, omega_e};
+            piece = ge_first_blocking(pl_current_at, &form, 3, piece, lv.cond_mask, s->legs.dead_level, &blocked);
         }
         if (trace_dt > 0.0 && trace != NULL) {
             dq_walk_t w;
@@ -304,7 +277,7 @@ static int pl_piece_cb(void *ctx, double t0, double *piece_io, double omega_m)
         s->theta_e = dq_wrap_angle(s->theta_e + omega_e * piece);
     }
     if (blocked >= 0) {
-        s->dead_level[blocked] = PL_LEVEL_OPEN;
+        s->legs.dead_level[blocked] = PL_LEVEL_OPEN;
         stats->open_phase_events++;
     }
     *piece_io = piece;
@@ -331,7 +304,7 @@ int pl_advance(const pl_params_t *p, pl_state_t *s, const int32_t *states, const
     dq_machine_init(p->rs, p->ld, p->lq, p->psi_f, &c.mc);
     c.em_step = trace_dt > 0.0 ? exp(c.mc.m * trace_dt) : 1.0;
     return ge_advance(&PL_GATES, &c, states, durations_ns, n, load, p->t_mpw, p->t_dead, &s->t_ns, &s->gate,
-                      s->last_edge_t, s->dead_until, s->dead_level, stats);
+                      &s->legs, stats);
 }
 
 /* Plant.sample (src/pmsm_hil/hil/plant.py) with the same expressions, so the native loop's records equal the Python

@@ -106,7 +106,7 @@ static int p6_piece_cb(void *ctx, double t0, double *piece_io, double omega_m)
     double v[4], ix_inf, iy_inf, kxy, i_d1, i_q1;
     ge_levels_t lv;
     dq_segment_t g;
-    ge_levels_at(&c->run, P6_LEGS, t0, s->dead_until, s->dead_level, GE_LEVEL_NEW, &lv); /* no leg floats */
+    ge_levels_at(&c->run, P6_LEGS, t0, &s->legs, GE_LEVEL_NEW, &lv); /* no leg floats */
     p6_code_voltage(p->vdc, lv.code, v);
     dq_segment_setup(&c->mc, omega_e, s->theta_e, v[0], v[1], s->i_d, s->i_q, &g);
     ix_inf = v[2] / p->rs;
@@ -183,7 +183,7 @@ int p6_advance(const p6_params_t *p, p6_state_t *s, const int32_t *states, const
     dq_machine_init(p->rs, p->ld, p->lq, p->psi_f, &c.mc);
     c.em_step = trace_dt > 0.0 ? exp(c.mc.m * trace_dt) : 1.0;
     return ge_advance(&P6_GATES, &c, states, durations_ns, n, load, p->t_mpw, p->t_dead, &s->t_ns, &s->gate,
-                      s->last_edge_t, s->dead_until, s->dead_level, stats);
+                      &s->legs, stats);
 }
 
 /* Plant6.sample (src/pmsm_hil/hil/plant6.py): the same kernel functions. */

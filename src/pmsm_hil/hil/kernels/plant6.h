@@ -41,10 +41,8 @@ typedef struct {
     double i_x, i_y;          /* stationary x-y currents [A] */
     double theta_e;           /* electrical angle [rad], [0, 2*pi) */
     mech_state_t mech;        /* the shaft's speed (mechanics.h) */
-    double last_edge_t[P6_LEGS]; /* time of the last gate edge per leg [s] */
-    double dead_until[P6_LEGS];  /* leg in dead time until this absolute time [s] */
+    ge_legs_t legs;              /* the legs' gate edges and dead time (gate_edges.h) */
     int32_t gate;                /* applied gate code (6 bits) */
-    int32_t dead_level[P6_LEGS]; /* leg level during its dead time (0 low rail, 1 high rail) */
 } p6_state_t;
 
 typedef ge_period_stats_t p6_period_stats_t; /* see gate_edges.h */
