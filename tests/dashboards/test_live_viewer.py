@@ -115,7 +115,8 @@ def test_replay_to_a_viewer_that_cannot_start_honours_ctrl_c(tmp_path: Path) -> 
     """No X server behind DISPLAY: the viewer dies, the replay waits for it in short flush steps, and a
     Ctrl-C ends it (it used to hang in one native flush for more than 10 minutes, deaf to Ctrl-C)."""
     run = tmp_path / "run"
-    assert main(["run", "--duration", "0.05", "--settle", "0", "--out", str(run)]) == 0  # the log to replay
+    assert subprocess.run([str(HIL), "run", "--duration", "0.05", "--settle", "0", "--out", str(run)],
+                          capture_output=True, timeout=120).returncode == 0
     port = free_port()
     log = Path(tempfile.gettempdir()) / f"hil-rerun-viewer-{port}.log"
     env = {**os.environ, "DISPLAY": ":987"}  # no such X server
