@@ -5,6 +5,7 @@ from __future__ import annotations
 import fcntl
 import json
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -38,23 +39,33 @@ def test_a_second_run_into_a_locked_out_is_refused(tmp_path: Path, capsys: pytes
 
 
 def test_concurrent_runs_into_one_out(tmp_path: Path) -> None:
-    """Three `hil run` processes into one --out: one writes it, the others exit 2 without touching it."""
+    """Three `hil run` processes into one --out: one writes it, the others exit 2 without touching it. The first
+    is a real-time run (1 ms period: 5 s of wall time for 5000 periods at a few percent of a CPU; a lockstep run
+    that long would be as long in CPU time), stopped (SIGSTOP) once it writes its log so that it still holds the
+    directory however long the others take to start on a busy machine, and continued once they have ended."""
     out = tmp_path / "r"
     cmd = [sys.executable, "-m", "pmsm_hil.app.cli.main", "run", "--out", str(out), "--overwrite",
-           "--duration", "5", "--settle", "0", "--loop", "python"]  # ~10k periods/s: ~5 s
-    first = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    deadline = time.monotonic() + 60
-    while not (out / "run.mcap").exists() and time.monotonic() < deadline:
-        time.sleep(0.02)
-    procs = [subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True) for _ in range(2)]
-    others = [(p.wait(timeout=120), p.communicate()[1]) for p in procs]
+           "--duration", "5", "--settle", "0"]
+    first = subprocess.Popen([*cmd, "--mode", "realtime", "--ts", "1e-3"], stdout=subprocess.DEVNULL,
+                             stderr=subprocess.PIPE, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 60
+        while not (out / "run.mcap").exists() and time.monotonic() < deadline:
+            time.sleep(0.02)
+        os.killpg(first.pid, signal.SIGSTOP)  # the run and its logger
+        assert first.poll() is None, "the first run ended before the others started"
+        procs = [subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                 for _ in range(2)]
+        others = [(p.wait(timeout=120), p.communicate()[1]) for p in procs]
+    finally:
+        os.killpg(first.pid, signal.SIGCONT)
     first_err = first.communicate(timeout=120)[1].decode()
     assert first.returncode == 0, first_err
     for rc, err in others:
         assert rc == 2 and err.startswith(f"hil: error: --out {out}: another run (pid {first.pid})"), err
         assert "Traceback" not in err
     metrics = json.loads((out / "metrics.json").read_text())
-    assert metrics["total_periods"] == read_periods(out / "run.mcap").shape[0] == 50_000
+    assert metrics["total_periods"] == read_periods(out / "run.mcap").shape[0] == 5_000
 
 
 def test_the_lock_nests_in_one_process(tmp_path: Path) -> None:

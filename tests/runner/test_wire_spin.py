@@ -4,7 +4,10 @@ spinning again; a peer with nothing to send is no load."""
 
 from __future__ import annotations
 
+import json
 import socket
+import subprocess
+import sys
 import time
 from collections.abc import Iterator
 
@@ -157,17 +160,41 @@ def test_the_udp_floor_is_a_real_round_trip_between_two_processes() -> None:
         assert out.mean_ns >= 1_000  # two system calls each way and a context switch or a cross-CPU hand-off
 
 
+#: `nl_udp_paced_floor` in a small process: it locks the calling process's memory (mlockall), which in a pytest
+#: worker (gigabytes mapped, pages shared with the forked echo) costs seconds of system time per call; the floor's
+#: pacing and counting are the same in any process
+_PACED_FLOOR = """
+import json, sys
+from pmsm_hil.hil.runner.core_link import native_lib
+ffi, lib = native_lib()
+out = ffi.new("nl_udp_paced_floor_t *")
+rows = []
+for n, period_ns, spin_ns in json.loads(sys.argv[1]):
+    rc = lib.nl_udp_paced_floor(n, period_ns, -1, 0, spin_ns, out)
+    rows.append([rc, out.periods, out.late, out.median_ns, out.max_ns])
+print(json.dumps(rows))
+"""
+
+
+def _paced_floors(*calls: tuple[int, int, int]) -> list[list[int]]:
+    """(rc, periods, late, median_ns, max_ns) of `nl_udp_paced_floor(n, period_ns, spin_ns)` per call."""
+    proc = subprocess.run([sys.executable, "-c", _PACED_FLOOR, json.dumps(calls)], capture_output=True, text=True,
+                          timeout=120, check=False)
+    assert proc.returncode == 0, proc.stderr
+    rows: list[list[int]] = json.loads(proc.stdout)
+    return rows
+
+
 def test_the_paced_udp_floor_paces_every_period_and_counts_late_replies() -> None:
     """`nl_udp_paced_floor` (the floor under `hil bench realtime`'s UDP misses): one datagram per period, each
     reply timed; at 1 µs (shorter than two system calls) nearly all are late — and the schedule goes on after each
     late one. (None late at a long period holds on an idle machine only: the `timing` test below.)"""
-    ffi, lib = native_lib()
-    out = ffi.new("nl_udp_paced_floor_t *")
-    for spin_ns in (50_000, 0):  # the echo spinning as the target on three CPUs, blocking as on fewer
-        assert lib.nl_udp_paced_floor(20, 20_000_000, -1, 0, spin_ns, out) == 0
-        assert out.periods == 20 and 0 <= out.late <= 20 and 0 < out.median_ns <= out.max_ns + 1_000
-    assert lib.nl_udp_paced_floor(200, 1_000, -1, 0, 0, out) == 0
-    assert out.periods == 200 and out.late >= 150 and out.median_ns >= 1_000
+    # the echo spinning as the target on three CPUs, blocking as on fewer; then a period shorter than a round trip
+    spinning, blocking, short = _paced_floors((20, 2_000_000, 50_000), (20, 2_000_000, 0), (200, 1_000, 0))
+    for rc, periods, late, median_ns, max_ns in (spinning, blocking):
+        assert rc == 0 and periods == 20 and 0 <= late <= 20 and 0 < median_ns <= max_ns + 1_000
+    rc, periods, late, median_ns, _ = short
+    assert rc == 0 and periods == 200 and late >= 150 and median_ns >= 1_000
 
 
 @pytest.mark.timing  # a 20 ms period with no late reply: a busy machine leaves the echo unscheduled that long
