@@ -7,6 +7,7 @@ import struct
 import time
 from collections import deque
 from collections.abc import Callable, Mapping
+from typing import Any
 
 from pmsm_hil.hil.errors import HilError
 from pmsm_hil.hil.runner.contract import FRAME, SEQUENCE, describe
@@ -40,6 +41,8 @@ TARGET_NODE = 1
 #: frames one drain takes at most: a bus flooded by other nodes never empties, and the caller's deadline must
 #: still be checked (the C loop's NL_DRAIN_MAX, src/pmsm_hil/hil/runner/c/links/nl_link.h)
 DRAIN_MAX = 256
+#: links wrapped around the target's own at most (the frame recorder, the callback link, a fault injector)
+WRAPPERS_MAX = 3
 
 
 
@@ -228,12 +231,17 @@ class TargetClient:
                                         f"but {sent!r} was written (ConfigAck echo differs)")
 
     def _stopped_without_answer(self) -> Callable[[], bool] | None:
-        """For a target that runs only when polled (on the host's virtual time): whether it has nothing left to
-        run (`not link.pending()`); None for any other target."""
-        pending = getattr(self.link, "pending", None)
-        if not getattr(self.link, "runs_when_polled", False) or pending is None:
-            return None
-        return lambda: not pending()
+        """For a target that runs only when polled (on the host's virtual time), behind the link or the links
+        wrapping it: whether it has nothing left to run (`not pending()`); None for any other target."""
+        link: Any = self.link
+        for _ in range(WRAPPERS_MAX + 1):  # through the wrappers that record or carry its frames (FrameTap, ...)
+            pending = getattr(link, "pending", None)
+            if getattr(link, "runs_when_polled", False) and pending is not None:
+                return lambda: not pending()
+            link = getattr(link, "link", None)
+            if link is None:
+                break
+        return None
 
     def set_setpoint(self, *, enable: bool, mode: int, reference: float, controller_id: int) -> None:
         """Send a setpoint (enable, mode, reference in rad/s or N·m, controller id)."""
