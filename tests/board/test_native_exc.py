@@ -1,5 +1,6 @@
-"""The board's C paths (c/exc_frame.c: exception entry and return, the DWT page's reads as a C MMIO callback)
-against the Python reference (exceptions.py, scs.py): the same records,
+"""The board's fast paths against their references — the C paths (c/exc_frame.c: exception entry and return, the
+DWT page's reads as a C MMIO callback) against the Python ones (exceptions.py, scs.py), and the scheduler that
+skips the quiet models (Board.SKIP_QUIET) against the one that asks every model at every step: the same records,
 bit for bit — every Command's frame, the handler cycles, sleep cycles, entries and late compares per period, each
 exception's handler times and latencies, the core's registers and SRAM at the end — for the example firmware
 (examples/stm32g4_foc and its LATE_ISR variant), the FPU-using test firmwares and the fault variants (the same
@@ -32,11 +33,17 @@ CORE_REGS = (*(getattr(arm, f"UC_ARM_REG_R{i}") for i in range(13)), arm.UC_ARM_
              *(getattr(arm, f"UC_ARM_REG_S{i}") for i in range(32)), arm.UC_ARM_REG_FPSCR)
 
 
+#: the board's fast paths, each against its reference: (Board switch, what differs when a record does)
+FAST_PATHS = {"native_exc": ("NATIVE", "the C and the Python exception frames"),
+              "quiet_skip": ("SKIP_QUIET", "the skipping and the reference scheduler")}
+
+
 def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch: pytest.MonkeyPatch,
-            periods: int = PERIODS) -> dict[str, Any]:
+            periods: int = PERIODS, skip_quiet: bool = True) -> dict[str, Any]:
     """Everything a run of `periods` Measurements leaves, with the board's C paths (exception frames, the DWT page's
-    reads) or the Python reference."""
+    reads) or the Python reference, with the scheduler skipping quiet models or asking every model every step."""
     monkeypatch.setattr(Board, "NATIVE", native)
+    monkeypatch.setattr(Board, "SKIP_QUIET", skip_quiet)
     link = BoardLink(elf, load_board(board_file), ts_s=TS, pole_pairs=4)
     assert (link.board.exceptions._native is not None) == native
     assert hasattr(link.board, "_dwt") == native
@@ -61,12 +68,14 @@ def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch:
             "regs": [board.cpu.reg(r) for r in CORE_REGS], "sram": sram, "boot_error": str(link.boot_error or "")}
 
 
-def same(elf: Path, board_file: str | Path | None, monkeypatch: pytest.MonkeyPatch,
+def same(path: str, elf: Path, board_file: str | Path | None, monkeypatch: pytest.MonkeyPatch,
          periods: int = PERIODS) -> dict[str, Any]:
-    python = records(elf, board_file, False, monkeypatch, periods)
+    """The records of `elf` with the fast path `path` (FAST_PATHS) and with its reference: equal, key by key."""
+    switch, what = FAST_PATHS[path]
+    reference = records(elf, board_file, switch != "NATIVE", monkeypatch, periods, skip_quiet=switch != "SKIP_QUIET")
     native = records(elf, board_file, True, monkeypatch, periods)
-    for key in python:
-        assert native[key] == python[key], f"{key} differs between the C and the Python exception frames"
+    for key in reference:
+        assert native[key] == reference[key], f"{key} differs between {what}"
     return native
 
 
@@ -77,24 +86,27 @@ def example(*defines: str) -> Path:
     return build_firmware("stm32g474", defines=list(defines)).path
 
 
+@pytest.mark.parametrize("path", FAST_PATHS)
 @pytest.mark.parametrize("defines", [(), ("LATE_ISR",)], ids=["example", "late_isr"])
-def test_the_example_firmware_gives_the_same_records(defines: tuple[str, ...],
+def test_the_example_firmware_gives_the_same_records(defines: tuple[str, ...], path: str,
                                                      monkeypatch: pytest.MonkeyPatch) -> None:
-    out = same(example(*defines), EXAMPLE_BOARD, monkeypatch)
+    out = same(path, example(*defines), EXAMPLE_BOARD, monkeypatch)
     assert len(out["frames"]) >= PERIODS and sum(out["entries"]) >= PERIODS and not out["error"]
 
 
-def test_the_example_fault_variant_gives_the_same_fault_report(monkeypatch: pytest.MonkeyPatch) -> None:
-    out = same(example("FAULT"), EXAMPLE_BOARD, monkeypatch, 2100)  # its current loop faults in ISR 2000
+@pytest.mark.parametrize("path", FAST_PATHS)
+def test_the_example_fault_variant_gives_the_same_fault_report(path: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    out = same(path, example("FAULT"), EXAMPLE_BOARD, monkeypatch, 2100)  # its current loop faults in ISR 2000
     assert "CFSR" in out["error"] and len(out["isr"]) < 2100
 
 
+@pytest.mark.parametrize("path", FAST_PATHS)
 @pytest.mark.parametrize(("name", "defines"), [("foc_bench", ()), ("pwm_adc", ("LATE",)),
                                                 ("pwm_adc", ("FAULT_AT=40",))])
-def test_the_test_firmwares_give_the_same_records(name: str, defines: tuple[str, ...],
+def test_the_test_firmwares_give_the_same_records(name: str, defines: tuple[str, ...], path: str,
                                                   build_fw: Callable[..., Path],
                                                   monkeypatch: pytest.MonkeyPatch) -> None:
-    out = same(build_fw(name, *defines), None, monkeypatch)
+    out = same(path, build_fw(name, *defines), None, monkeypatch)
     assert sum(out["entries"]) > 0
 
 
