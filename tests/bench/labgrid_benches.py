@@ -1,8 +1,10 @@
 """Simulated benches behind a labgrid coordinator and exporter on loopback, started and stopped by the tests: each
-place's board is a `hil target` process (started by the place's flash) behind a UDP link on free ports."""
+place's board is a `hil target` process (started by the place's flash) behind a UDP link on free ports. The places
+are made and read through labgrid's client session in this process (no `labgrid-client` process per step)."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import socket
@@ -10,6 +12,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 BIN = Path(sys.executable).parent
 
@@ -32,13 +35,17 @@ class Benches:
             host, board = free_port(socket.SOCK_DGRAM), free_port(socket.SOCK_DGRAM)
             self.links[name] = (f"udp:{host}:{board}@127.0.0.1", f"udp:{board}:{host}@127.0.0.1")
         self.procs: list[subprocess.Popen[bytes]] = []
+        self.session: Any = None
 
-    def client(self, *args: str) -> str:
-        """Run `labgrid-client` against the coordinator; its output."""
-        done = subprocess.run([str(BIN / "labgrid-client"), "-x", self.address, *args], capture_output=True,
-                              text=True, timeout=120, check=False)
-        assert done.returncode == 0, (args, done.stdout, done.stderr)
-        return done.stdout
+    def _call(self, coro: Any) -> Any:
+        import asyncio
+
+        return self.session.loop.run_until_complete(asyncio.wait_for(coro, 120))
+
+    def held(self) -> list[str]:
+        """The places acquired now (as the coordinator tells them)."""
+        self._call(self.session.sync_with_coordinator())
+        return [name for name, place in self.session.places.items() if place.acquired]
 
     def _start(self, *cmd: str, log: str) -> None:
         with (self.folder / log).open("wb") as out:
@@ -53,32 +60,39 @@ class Benches:
         (self.folder / "exporter.yaml").write_text(config, encoding="utf-8")
         deadline = time.monotonic() + 90
         host, port = self.address.split(":")
-        while True:  # its port first (a connect is cheap; each labgrid-client is ~1 CPU-s of Python start-up)
+        while True:  # its port first (a connect is cheap), then the client session
             try:
                 socket.create_connection((host, int(port)), timeout=5).close()
             except OSError:
                 assert time.monotonic() < deadline, (self.folder / "coordinator.log").read_text()
                 time.sleep(0.2)
                 continue
-            if subprocess.run([str(BIN / "labgrid-client"), "-x", self.address, "places"], capture_output=True,
-                              timeout=60, check=False).returncode == 0:
-                break
-            assert time.monotonic() < deadline, (self.folder / "coordinator.log").read_text()
-            time.sleep(0.5)
+            break
+        from labgrid.remote.client import start_session
+        from labgrid.remote.generated import labgrid_coordinator_pb2 as pb2
+
+        self.session = start_session(self.address)
         self._start(str(BIN / "labgrid-exporter"), "-c", self.address, "-n", "sim", "--hostname", "127.0.0.1",
                     str(self.folder / "exporter.yaml"), log="exporter.log")
         for name in self.links:
-            self.client("-p", name, "create")
-            self.client("-p", name, "add-match", f"sim/{name}/*")
-        while True:  # one listing for every place
-            listed = self.client("resources")
-            if all(f"sim/{name}/HilLink" in listed for name in self.links):
+            self._call(self.session.stub.AddPlace(pb2.AddPlaceRequest(name=name)))
+            self._call(self.session.stub.AddPlaceMatch(pb2.AddPlaceMatchRequest(placename=name,
+                                                                                pattern=f"sim/{name}/*")))
+        while True:  # every place's resources exported
+            self._call(self.session.sync_with_coordinator())
+            exported = self.session.resources.get("sim", {})
+            if all("HilLink" in exported.get(name, {}) for name in self.links):
                 break
             assert time.monotonic() < deadline, (self.folder / "exporter.log").read_text()
             time.sleep(0.5)
 
     def stop(self) -> None:
-        """End the exporter and the coordinator."""
+        """End the client session, the exporter and the coordinator."""
+        if self.session is not None:
+            session, self.session = self.session, None
+            for step in (session.stop, session.close):
+                with contextlib.suppress(Exception):  # the coordinator may be gone already
+                    session.loop.run_until_complete(step())
         for proc in reversed(self.procs):
             if proc.poll() is None:
                 os.killpg(proc.pid, signal.SIGTERM)

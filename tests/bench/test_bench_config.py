@@ -30,7 +30,7 @@ def test_env_places_and_coordinator_come_from_the_environment_file(tmp_path: Pat
 
 def test_an_unreachable_coordinator_is_one_error_naming_the_bench() -> None:
     pytest.importorskip("labgrid", reason="labgrid is not installed (the `bench` extra)")
-    with pytest.raises(BenchError, match="bench nowhere: labgrid-client places failed") as caught:
+    with pytest.raises(BenchError, match="bench nowhere: connecting to the coordinator failed") as caught:
         PlaceLease("nowhere", coordinator="127.0.0.1:9").__enter__()
     assert isinstance(caught.value, HilError)
 

@@ -108,12 +108,6 @@ def sessions(benches: Benches, tmp_path_factory: pytest.TempPathFactory) -> dict
     return {name: _interval(folder / f"{name}.xml") for name in procs}
 
 
-def _held(benches: Benches) -> list[str]:
-    """The places' `acquired:` lines that name a holder."""
-    return [line for line in benches.client("-v", "places").splitlines()
-            if line.strip().startswith("acquired:") and line.split(":", 1)[1].strip() != "None"]
-
-
 def _overlap(x: tuple[float, float], y: tuple[float, float]) -> float:
     return min(x[1], y[1]) - max(x[0], y[0])
 
@@ -121,7 +115,7 @@ def _overlap(x: tuple[float, float], y: tuple[float, float]) -> float:
 def test_two_sessions_on_one_place_queue(sessions: dict[str, tuple[float, float]],
                                          benches: Benches) -> None:
     assert _overlap(sessions["a1"], sessions["a2"]) < 0, sessions
-    assert _held(benches) == [], "a place still held"
+    assert benches.held() == [], "a place still held"
 
 
 def test_sessions_on_two_places_overlap(sessions: dict[str, tuple[float, float]]) -> None:
@@ -154,7 +148,7 @@ def test_a_board_that_stops_answering_ends_the_run_naming_the_bench(benches: Ben
     out, err = proc.communicate(timeout=300)
     assert proc.returncode == 3, (out, err)
     assert "bench bench-b" in err and "place bench-b released" in err, err
-    assert _held(benches) == [], "a place still held"
+    assert benches.held() == [], "a place still held"
 
 
 def test_a_session_whose_board_stops_answering_ends_naming_the_bench(benches: Benches, tmp_path: Path) -> None:
@@ -163,7 +157,7 @@ def test_a_session_whose_board_stops_answering_ends_naming_the_bench(benches: Be
     log = (tmp_path / "dies.log").read_text()
     assert code == 3, log
     assert "bench bench-a: the board stopped answering" in log and "place bench-a released" in log, log
-    assert _held(benches) == [], "a place still held"
+    assert benches.held() == [], "a place still held"
 
 
 def test_an_unknown_place_is_one_error_naming_it(benches: Benches, tmp_path: Path) -> None:

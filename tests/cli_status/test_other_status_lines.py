@@ -36,7 +36,7 @@ def test_a_bench_without_a_terminal_prints_only_its_figures(capsys: pytest.Captu
 
 @pytest.mark.skipif(shutil.which("cmake") is None, reason="cmake not installed")
 def test_fw_build_draws_its_steps(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    out = run_on_pty(["fw", "build", "-o", str(tmp_path / "fw.so")], timeout_s=600.0)
+    out = run_on_pty(["fw", "build", "--no-cache", "-o", str(tmp_path / "fw.so")], timeout_s=600.0)
     assert out.code == 0, out.text
     text = out.text
     for phase in ("starting", "configuring", "building", "done"):

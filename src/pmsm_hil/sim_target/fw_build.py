@@ -5,7 +5,9 @@
 on firmware_stub/boards/stm32g474/, or a bare-metal firmware; default source examples/stm32g4_foc).
 
 Builds go to a per-user cache folder (one per source folder, board and set of `--define`s, incremental, locked
-while in use); `build_firmware` copies the artefact to `out` when given. What the compiler said is kept: the
+while in use), and each built firmware into the content-keyed cache (`fw_cache`): the same sources, SDK, board,
+defines and tools found again build nothing, from any folder; `build_firmware` copies the artefact to `out` when
+given. What the compiler said is kept: the
 warnings of a build that succeeded (`BuildResult.warnings`), and of one that failed the key lines
 (`key_lines`: undefined references, the first error with its caret context) in the FwBuildError.
 """
@@ -263,13 +265,16 @@ def elf_sizes(elf: Path) -> Sizes | None:
 
 def build_firmware(board: str = "host", src: Path | None = None, out: Path | None = None,
                    *, jobs: int | None = None, defines: list[str] | tuple[str, ...] = (),
-                   verbose: bool = False, progress: Callable[[str, str], None] | None = None) -> BuildResult:
+                   verbose: bool = False, progress: Callable[[str, str], None] | None = None,
+                   use_cache: bool = True) -> BuildResult:
     """Configure and build `src` (a CMake folder using firmware_stub/target/hil_target.cmake; default: the
     reference firmware; for stm32g474 examples/stm32g4_foc) for `board`; copy the artefact to `out` if given.
     `defines` ("NAME=VALUE") become CMake variables and preprocessor macros of the firmware (hil_target.cmake
     HIL_DEFINES); `verbose` echoes the commands and the whole build output to stderr. Raises FwBuildError.
-    `progress(step, line)` (a status line) is told each step (`configuring`, `building`) and, while building,
-    each line of the output as it comes."""
+    A firmware built before from the same content (`fw_cache`: the sources, the SDK, board, defines, tools) is
+    taken from the cache without running CMake, unless `verbose` or not `use_cache` (then CMake runs, an
+    incremental build, and the cache entry is made again). `progress(step, line)` (a status line) is told each
+    step (`cached`; or `configuring`, `building`) and, while building, each line of the output as it comes."""
     def step(name: str, line: str = "") -> None:
         if progress is not None:
             progress(name, line)
@@ -284,6 +289,31 @@ def build_firmware(board: str = "host", src: Path | None = None, out: Path | Non
     if not (src / "CMakeLists.txt").is_file():
         raise FwBuildError(f"--src {src}: no CMakeLists.txt (see examples/my_firmware/)")
     defs = parse_defines(list(defines))
+    from pmsm_hil.sim_target import fw_cache
+
+    entry = fw_cache.entry_dir(src, board, fw_cache.content_key(src, FIRMWARE_DIR, board, defs,
+                                                                mcu=board in MCU_BOARDS))
+    with fw_cache.lock(entry):
+        found = None if (verbose or not use_cache) else fw_cache.find(entry, ARTEFACT[board], src, FIRMWARE_DIR)
+        if found is not None:
+            step("cached")
+            artefact, warnings = found.artefact, found.warnings
+            sizes = None if found.sizes is None else Sizes(*found.sizes)
+        else:
+            build, artefact, warnings = _cmake_build(board, src, defs, jobs=jobs, verbose=verbose, progress=progress)
+            sizes = elf_sizes(artefact) if board != "host" else None
+            artefact = fw_cache.store(entry, artefact, warnings,
+                                      None if sizes is None else (sizes.text, sizes.data, sizes.bss),
+                                      fw_cache.outside_inputs(build, src, FIRMWARE_DIR), src, FIRMWARE_DIR)
+    if out is not None:
+        artefact = _copy_out(artefact, Path(out), board)
+    return BuildResult(artefact, board, src, sizes, warnings)
+
+
+def _cmake_build(board: str, src: Path, defs: tuple[str, ...], *, jobs: int | None, verbose: bool,
+                 progress: Callable[[str, str], None] | None) -> tuple[Path, Path, tuple[str, ...]]:
+    """Configure and build `src` in its build folder (one per source folder, board and defines: incremental);
+    the folder, the checked artefact in it and the warnings."""
     key = hashlib.sha256("\0".join((str(src), board, str(FIRMWARE_DIR), *defs)).encode()).hexdigest()[:16]
     build = cache_dir() / "fw-build" / f"{src.name}-{board}-{key}"
     cmd = ["cmake", "-S", str(src), "-B", str(build), f"-DHIL_SDK={FIRMWARE_DIR}", f"-DHIL_BOARD={board}",
@@ -294,11 +324,13 @@ def build_firmware(board: str = "host", src: Path | None = None, out: Path | Non
     if verbose:
         build_cmd.append("--verbose")
     with _locked(build.with_suffix(".lock")):
-        step("configuring")
+        if progress is not None:
+            progress("configuring", "")
         _run(cmd, f"cmake configure of {src}", verbose=verbose)
-        step("building")
+        if progress is not None:
+            progress("building", "")
         output = _run(build_cmd, f"build of {src} for {board}", verbose=verbose,
-                      on_line=None if progress is None else lambda line: step("building", line))
+                      on_line=None if progress is None else lambda line: progress("building", line))
         warnings = _remember_warnings(build, output)
         artefact = build / "out" / ARTEFACT[board]
         if not artefact.is_file():
@@ -306,10 +338,7 @@ def build_firmware(board: str = "host", src: Path | None = None, out: Path | Non
             raise FwBuildError(f"build of {src} produced no {ARTEFACT[board]}: does its CMakeLists.txt call "
                                f"{call}?")
         _check_param_table(artefact)
-        if out is not None:
-            artefact = _copy_out(artefact, Path(out), board)
-    sizes = elf_sizes(artefact) if board != "host" else None
-    return BuildResult(artefact, board, src, sizes, warnings)
+    return build, artefact, warnings
 
 
 def _check_param_table(artefact: Path) -> None:

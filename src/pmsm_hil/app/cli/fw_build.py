@@ -36,7 +36,11 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("--define", action="append", default=[], metavar="NAME=VALUE",
                    help="preprocessor macro of the firmware and CMake variable (repeatable), e.g. "
                         "MY_FW_BANDWIDTH=2000.0f or HIL_FP_CONTRACT=fast")
-    p.add_argument("--verbose", action="store_true", help="show the commands and the whole build output")
+    p.add_argument("--verbose", action="store_true",
+                   help="show the commands and the whole build output (CMake runs even when the cache has the build)")
+    p.add_argument("--no-cache", action="store_true",
+                   help="run CMake (an incremental build) even when the build cache has a firmware built from the "
+                        "same sources, SDK, board, defines and tools")
     p.add_argument("--quiet", action="store_true", help="no live status line (drawn only on a terminal)")
     p.set_defaults(func=run)
 
@@ -77,7 +81,8 @@ def run(args: argparse.Namespace) -> int:
     with StatusLine("hil fw build", enabled=status_wanted(args.quiet or args.verbose)) as status:
         status.phase("starting")
         result = build_firmware(args.board, args.src, args.out, defines=args.define, verbose=args.verbose,
-                                progress=_BuildStatus(status) if status.enabled else None)
+                                progress=_BuildStatus(status) if status.enabled else None,
+                                use_cache=not args.no_cache)
         status.close("done")
     if result.warnings:
         n = len(result.warnings)
