@@ -20,8 +20,17 @@ from pmsm_hil.sim_target.stm32g4.frame_link import is_core_image
 from tests.firmware_board._runs import MACHINERY_COLUMNS, MACHINERY_KEYS, assert_holds_rated, metrics, rated
 from tests.firmware_board.conftest import ROOT, TEMPLATE, built, need
 
-#: the machinery's metrics, and the target's authentication counter
-TIMING = MACHINERY_KEYS | {"link_auth_dropped"}
+#: the machinery's metrics, the target's authentication counter, and what the host's timing decides (a QEMU process
+#: left off the CPUs is a host stall, counted and warned, not the firmware's doing)
+TIMING = MACHINERY_KEYS | {"link_auth_dropped", "host_stalls", "host_stall_s"}
+
+
+def _judged(metrics: dict[str, Any], keys: list[str]) -> dict[str, Any]:
+    """`metrics` at `keys`, the host-stall warnings left out."""
+    out = {k: metrics[k] for k in keys}
+    if "warnings" in out:
+        out["warnings"] = [w for w in out["warnings"] if not w.startswith("host stall:")]
+    return out
 
 
 @pytest.fixture(scope="module")
@@ -92,7 +101,7 @@ def test_template_on_the_virtual_board_is_bit_identical_to_qemu(template_g4: Pat
     assert len(rec_qemu) == len(rec_g4) > 450
     assert _first_difference(rec_qemu, rec_g4) == {}
     shared = sorted(set(m_qemu) & set(m_g4) - TIMING - {"mcu_clock_hz"})
-    assert {k: m_qemu[k] for k in shared} == {k: m_g4[k] for k in shared}
+    assert _judged(m_qemu, shared) == _judged(m_g4, shared)
 
 
 def test_cpp_template_without_libm_is_bit_identical_to_sil(tmp_path: Path) -> None:
@@ -111,7 +120,7 @@ def test_cpp_template_without_libm_is_bit_identical_to_sil(tmp_path: Path) -> No
     assert _first_difference(rec_sil, rec_g4) == {}
     shared = sorted(set(m_sil) & set(m_g4) - TIMING)
     assert len(shared) > 30
-    assert {k: m_sil[k] for k in shared} == {k: m_g4[k] for k in shared}
+    assert _judged(m_sil, shared) == _judged(m_g4, shared)
 
 
 def test_link_budget_with_the_board(template_g4: Path, capsys: pytest.CaptureFixture[str]) -> None:
