@@ -456,7 +456,7 @@ class Board:
         models skipped until accessed. A skipped model's `advance` would do nothing and its `next_event` would
         answer the same, so the steps, slices and records are the reference's."""
         nvic, counter = self.nvic, self.cpu.counter
-        pending, enabled = nvic.pending, nvic.enabled
+        pending = nvic.pending
         systick, advancing, timed_set = self.scs.systick, self._advancing, self._timed_set
         group_set, resting, woken = self._group_set, self._resting, self._woken
         group_timed = [p for p in self._group if p in timed_set]
@@ -483,13 +483,8 @@ class Board:
             if now >= end:
                 self._settled_at = now
                 return
-            if pending:
-                primask, basepri = self._masks()
-                take = nvic.preempting(primask, basepri)
-                if take is not None:
-                    self.sleeping = False
-                    self._enter(take)
-                    continue
+            if pending and self._take_pending():
+                continue
             if woken:  # accessed resting models: resting still, or asked at every step again
                 for p in woken:
                     if p.quiet():  # type: ignore[attr-defined]
@@ -513,23 +508,12 @@ class Board:
                 self._group_due = group_due
             if group_due is not None and (event is None or group_due < event):
                 event = group_due
-            if self.sleeping:
-                if pending and nvic.preempting(False, self._masks()[1]) is not None:  # WFI wakes with PRIMASK
-                    self.sleeping = False
-                else:
-                    until = end if event is None else min(event, end)
-                    self.sleep_cycles += until - now
-                    counter.count = until
-                    continue
-            limit = end if event is None else min(event, end)
-            if pending and any(enabled[e] for e in pending):  # held off: see MASKED_SLICE
-                limit = min(limit, now + MASKED_SLICE)
-            self._slice(max(limit, now + 1))
+            self._sleep_or_run(now, end, event)
 
     def _run_until_every(self, end: int) -> None:
         """`run_until` asking every model at every step (the reference)."""
         nvic, counter = self.nvic, self.cpu.counter
-        pending, enabled = nvic.pending, nvic.enabled
+        pending = nvic.pending
         systick, advancing, timed = self.scs.systick, self._advancing, self._timed
         settled = self._settled_at  # the models are up to this cycle already (the last call ended there)
         while True:
@@ -543,31 +527,45 @@ class Board:
             if now >= end:
                 self._settled_at = now
                 return
-            if pending:
-                primask, basepri = self._masks()
-                take = nvic.preempting(primask, basepri)
-                if take is not None:
-                    self.sleeping = False
-                    self._enter(take)
-                    continue
+            if pending and self._take_pending():
+                continue
             # the earliest event of a model or SysTick after now (next_event, inline)
             event = systick.next_event(now)
             for p in timed:
                 at = p.next_event(now)
                 if at is not None and (event is None or at < event):
                     event = at
-            if self.sleeping:
-                if pending and nvic.preempting(False, self._masks()[1]) is not None:  # WFI wakes with PRIMASK
-                    self.sleeping = False
-                else:
-                    until = end if event is None else min(event, end)
-                    self.sleep_cycles += until - now
-                    counter.count = until
-                    continue
-            limit = end if event is None else min(event, end)
-            if pending and any(enabled[e] for e in pending):  # held off: see MASKED_SLICE
-                limit = min(limit, now + MASKED_SLICE)
-            self._slice(max(limit, now + 1))
+            self._sleep_or_run(now, end, event)
+
+    def _take_pending(self) -> bool:
+        """Enter the pending exception that preempts now under PRIMASK/BASEPRI, if any (waking a WFI): True when one
+        was entered."""
+        primask, basepri = self._masks()
+        take = self.nvic.preempting(primask, basepri)
+        if take is None:
+            return False
+        self.sleeping = False
+        self._enter(take)
+        return True
+
+    def _sleep_or_run(self, now: int, end: int, event: int | None) -> None:
+        """One step of `run_until` from cycle `now`: asleep (WFI), skip to the earliest of `event` and `end` unless a
+        pending interrupt wakes the core; awake, run the core up to that cycle (held off by MASKED_SLICE while an
+        enabled interrupt is pending but masked)."""
+        nvic = self.nvic
+        pending = nvic.pending
+        if self.sleeping:
+            if pending and nvic.preempting(False, self._masks()[1]) is not None:  # WFI wakes with PRIMASK
+                self.sleeping = False
+            else:
+                until = end if event is None else min(event, end)
+                self.sleep_cycles += until - now
+                self.cpu.counter.count = until
+                return
+        limit = end if event is None else min(event, end)
+        if pending and any(nvic.enabled[e] for e in pending):  # held off: see MASKED_SLICE
+            limit = min(limit, now + MASKED_SLICE)
+        self._slice(max(limit, now + 1))
 
     def _slice(self, limit: int) -> None:
         cpu = self.cpu
