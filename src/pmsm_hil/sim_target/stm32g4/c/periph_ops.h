@@ -1,0 +1,27 @@
+/* The interface between the virtual board's scheduler and a peripheral model written in C (the C twin of
+ * peripherals/base.py's Peripheral: next_event / advance, and the NVIC lines a model raises). Times are the board's
+ * clock: HCLK cycles since reset (the instruction count, CPI = 1). A model keeps its state in its own fixed-size
+ * struct; its registers are served by its own uc_mmio_map callbacks. */
+#ifndef HIL_PERIPH_OPS_H
+#define HIL_PERIPH_OPS_H
+
+#include <stdint.h>
+
+/* Where a model's interrupt lines go (the NVIC): `irq` is the external interrupt number (0 = WWDG, RM0440 table
+ * 97), level-sensitive as on the chip: asserted while the model's flag and enable are both set. */
+typedef struct hil_irq_sink {
+    void *board;
+    void (*assert_line)(void *board, int irq);
+    void (*withdraw_line)(void *board, int irq);
+} hil_irq_sink_t;
+
+/* One model as the scheduler sees it. */
+typedef struct hil_periph_ops {
+    void *self;
+    /* the earliest cycle after `now` at which the model changes state by itself; -1: none */
+    int64_t (*next_event)(void *self, int64_t now);
+    /* bring the model's state up to cycle `now` (what is due at or before `now` takes effect) */
+    void (*advance)(void *self, int64_t now);
+} hil_periph_ops_t;
+
+#endif
