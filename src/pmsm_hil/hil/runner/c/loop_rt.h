@@ -10,6 +10,9 @@
 
 #include "loop.h"
 
+/* stack of the loop thread touched after the memory lock [bytes] */
+#define NL_STACK_PREFAULT (256 * 1024)
+
 /* What the set-up changed, for nl_rt_restore. */
 typedef struct {
     int32_t locked;            /* mlockall done */
