@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import math
 from pathlib import Path
@@ -9,7 +10,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pmsm_hil.app.bench.gem_pmsm import gem_version
 from pmsm_hil.app.bench.plant_bench import (
     PlantBenchResult,
     format_result,
@@ -24,7 +24,9 @@ PLANT_KEYS = ("periods_per_s_single", "periods_per_s_single_trace", "periods_per
 GEM_RATE_KEYS = ("gem_steps_per_s", "gem_steps_per_s_euler", "ratio_vs_gem", "ratio_vs_gem_trace",
                  "ratio_vs_gem_euler", "ratio_vs_gem_advance_only")
 GEM_DI_KEYS = ("gem_max_abs_di_a", "gem_max_abs_di_abc_a", "gem_euler_max_abs_di_a")
-needs_gem = pytest.mark.skipif(gem_version() is None, reason="gym-electric-motor not installed")
+#: looked up, not imported (GEM and matplotlib cost ≈ 1 CPU-s in every worker that collects this file)
+needs_gem = pytest.mark.skipif(importlib.util.find_spec("gym_electric_motor") is None,
+                               reason="gym-electric-motor not installed")
 
 
 def _positive(d: dict[str, float | int | str | None], keys: tuple[str, ...]) -> None:
