@@ -122,6 +122,17 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object:
     return CostOrderedFileScheduling(config, log)  # type: ignore[arg-type]
 
 
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_auto_num_workers(config: pytest.Config) -> int | None:
+    """`-n auto` (pyproject.toml's addopts): one worker per CPU and one more. The suite's tests wait for what they
+    start (QEMU, SIL and spawned targets, `hil` and pytest processes, the contract tests' deliberate timeouts), so
+    two workers on two cores kept them busy only ≈ 83 % of the wall time at load ≤ 2 (docs/ci.md). xdist's
+    PYTEST_XDIST_AUTO_NUM_WORKERS still decides when set."""
+    if os.environ.get("PYTEST_XDIST_AUTO_NUM_WORKERS"):
+        return None
+    return (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1) + 1
+
+
 #: the pid of the pytest process that saw HIL_CPU_REPORT first: it and its xdist workers write the report
 _CPU_REPORT_OWNER = "HIL_CPU_REPORT_SESSION"
 
