@@ -30,10 +30,12 @@ from tests.firmware_board._runs import rated
 _HOST_TIMED = ("exec_time_ns", "exec_split_ns")
 STOP_S = 3.0
 #: a run longer than the C loop's ring (NL_RING x NL_BLOCK = 8000 periods): the loop cannot have run every period
-#: before the first block reaches `live`, so the target is stopped mid-run; QEMU (~1 ms a period here) cannot
-#: outrun the drain by 2000 periods, and a shorter run keeps the test's time down. The Python loop hands each block
-#: of ClosedLoop.BLOCK periods to `live` from the loop itself: two blocks are enough
-DURATION_S = {"sil": 0.9, "spawn": 0.9, "qemu": 0.3, "python": 0.1}
+#: before the first block reaches `live`, so the target is stopped mid-run. QEMU (~1 ms and ~2.8 CPU-ms a period
+#: here) is stopped when its first block of 1000 periods reaches `live`: 2200 periods leave 1200 (> 1 s of QEMU, a few
+#: CPU-s) for the drain to hand that block over, which takes milliseconds (each QEMU period costs CPU: this is the
+#: test's largest part). The Python loop hands each block of ClosedLoop.BLOCK periods to `live` from the loop itself:
+#: two blocks are enough. A run that ended before the stop fails the test (`host_stalls` 0), never passes it
+DURATION_S = {"sil": 0.9, "spawn": 0.9, "qemu": 0.2, "python": 0.1}
 
 
 def _duration_s(kind: str, loop: str) -> float:
