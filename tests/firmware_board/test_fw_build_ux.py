@@ -10,7 +10,8 @@ from pathlib import Path
 import pytest
 
 from pmsm_hil.app.cli.main import main
-from pmsm_hil.sim_target.fw_build import ARTEFACT, FwBuildError, build_firmware, cache_dir, key_lines, parse_defines
+from pmsm_hil.sim_target import fw_cache
+from pmsm_hil.sim_target.fw_build import ARTEFACT, FIRMWARE_DIR, FwBuildError, build_firmware, key_lines, parse_defines
 from pmsm_hil.sim_target.fw_params import FirmwareParamError, firmware_params
 from tests.firmware_board.conftest import ROOT, need
 
@@ -90,12 +91,13 @@ def test_key_lines_of_a_link_failure() -> None:
 
 
 def _built_artefact(case: str) -> Path:
-    """The library a refused build of fw_cases/`case` left in its build folder (a prebuilt firmware with that
-    table, as a run may be given one)."""
-    found = sorted((cache_dir() / "fw-build").glob(f"{case}-host-*/out/{ARTEFACT['host']}"),
-                   key=lambda p: p.stat().st_mtime)
-    assert found, case
-    return found[-1]
+    """The library of a refused build of fw_cases/`case`, as the content-keyed cache holds it (a prebuilt firmware
+    with that table, as a run may be given one)."""
+    src = (CASES / case).resolve()
+    entry = fw_cache.entry_dir(src, "host", fw_cache.content_key(src, FIRMWARE_DIR, "host", (), mcu=False))
+    lib = entry / ARTEFACT["host"]
+    assert lib.is_file(), lib
+    return lib
 
 
 @pytest.mark.parametrize(("case", "message"), [
@@ -109,6 +111,8 @@ def test_a_malformed_parameter_table_is_refused(case: str, message: str,
     need("host")
     with pytest.raises(FwBuildError, match=message):  # at build time
         build_firmware("host", CASES / case)
+    with pytest.raises(FwBuildError, match=message):  # and found in the cache: refused again
+        build_firmware("host", CASES / case)
     assert main(["fw", "build", "--src", str(CASES / case)]) == 2
     err = capsys.readouterr().err
     assert err.startswith("hil: error: ") and len(err.strip().splitlines()) == 1 and "Traceback" not in err
@@ -118,3 +122,10 @@ def test_a_malformed_parameter_table_is_refused(case: str, message: str,
     assert main(["run", "--target", f"sil:{lib}", "--no-log"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("hil: error: ") and len(err.strip().splitlines()) == 1
+
+
+def test_a_fresh_build_refuses_the_table_too() -> None:
+    """Past the cache (`use_cache=False`: CMake runs): the built library's table is refused as the cached one is."""
+    need("host")
+    with pytest.raises(FwBuildError, match=r"hil_app_params\[1\] 'offset': id 12 outside 128\.\.254"):
+        build_firmware("host", CASES / "bad_params", use_cache=False)

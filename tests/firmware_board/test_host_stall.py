@@ -30,10 +30,13 @@ from tests.firmware_board._runs import rated
 _HOST_TIMED = ("exec_time_ns", "exec_split_ns")
 STOP_S = 3.0
 #: a run longer than the C loop's ring (NL_RING x NL_BLOCK = 8000 periods): the loop cannot have run every period
-#: before the first block reaches `live`, so the target is stopped mid-run; QEMU (~1 ms a period here) cannot
-#: outrun the drain by 2000 periods, and a shorter run keeps the test's time down. The Python loop hands each block
-#: of ClosedLoop.BLOCK periods to `live` from the loop itself: two blocks are enough
-DURATION_S = {"sil": 0.9, "spawn": 0.9, "qemu": 0.3, "python": 0.1}
+#: before the first block reaches `live`, so the target is stopped mid-run. QEMU (~1 ms and ~2.8 CPU-ms a period
+#: here) is stopped when its first block of 1000 periods reaches `live`: 2200 periods leave 1200 (> 1 s of QEMU, a few
+#: CPU-s) for the drain to hand that block over, which takes milliseconds (each QEMU period costs CPU: this is the
+#: test's largest part). The Python loop hands each block of ClosedLoop.BLOCK periods to `live` from the loop itself:
+#: two blocks are enough. The stop must come with a block before the last one (`stopped_at`): a stop that came only
+#: with the run's last block would stall the safe stop, not the periods
+DURATION_S = {"sil": 0.9, "spawn": 0.9, "qemu": 0.2, "python": 0.1}
 
 
 def _duration_s(kind: str, loop: str) -> float:
@@ -47,9 +50,10 @@ def _children_with(marker: bytes) -> list[int]:
             if marker in Path(f"/proc/{pid}/cmdline").read_bytes()]
 
 
-def _stopper(marker: bytes, stop_s: float, stopped: list[int]) -> Callable[[np.ndarray], None]:
+def _stopper(marker: bytes, stop_s: float, stopped: list[int],
+             stopped_at: list[int] | None = None) -> Callable[[np.ndarray], None]:
     """A `live` hook that stops this process's child whose command line holds `marker` after the first block of
-    periods and continues it `stop_s` later."""
+    periods and continues it `stop_s` later; the last period (`seq`) of that block goes to `stopped_at`."""
 
     def live(block: np.ndarray) -> None:
         if stopped:
@@ -57,6 +61,8 @@ def _stopper(marker: bytes, stop_s: float, stopped: list[int]) -> Callable[[np.n
         for pid in _children_with(marker)[:1]:
             os.kill(pid, signal.SIGSTOP)
             stopped.append(pid)
+            if stopped_at is not None:
+                stopped_at.append(int(block["seq"][-1]))
             timer = threading.Timer(stop_s, _continue, (pid,))
             timer.daemon = True
             timer.start()
@@ -94,18 +100,20 @@ def test_a_target_stopped_for_3_s_is_a_host_stall_and_the_run_completes(kind: st
     where, marker = _targets(kind, sil, elf)
     target, link = where["target"], where.get("link", "virtual")
     runs = {}
+    stopped_at: list[int] = []
     for name in ("calm", "stopped"):
         stopped: list[int] = []
         out = tmp_path / name
         res = run_closed_loop(rated(target, link=link, settle_s=0.02, out_dir=out, loop=loop,
                                     duration_s=_duration_s(kind, loop)),
-                              live=_stopper(marker, STOP_S, stopped) if name == "stopped" else None)
+                              live=_stopper(marker, STOP_S, stopped, stopped_at) if name == "stopped" else None)
         assert res.metrics["loop"] == loop
         m = res.metrics
         assert m["end_code"] == 0, m["end_reason"]
         runs[name] = (m, read_periods(out / "run.mcap"), stopped)
     stalled = runs["stopped"][0]
     assert runs["stopped"][2], "the target's process was not found"
+    assert stopped_at[0] < stalled["end_period"], (stopped_at, stalled["end_period"])  # mid-run, not at the end
     assert stalled["host_stalls"] >= 1 and stalled["host_stall_s"] >= 1.0
     assert any(w.startswith("host stall:") for w in stalled["warnings"])
     _same_records(runs["calm"][1], runs["stopped"][1])

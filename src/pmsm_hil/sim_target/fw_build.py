@@ -10,6 +10,11 @@ defines and tools found again build nothing, from any folder; `build_firmware` c
 given. What the compiler said is kept: the
 warnings of a build that succeeded (`BuildResult.warnings`), and of one that failed the key lines
 (`key_lines`: undefined references, the first error with its caret context) in the FwBuildError.
+
+A firmware that built but whose parameter table is refused is cached like any other and refused again when found
+(the check reads the cached bytes). A failed compile or link is not cached: CMake runs again. Its inputs are not all
+known (a missing header may be created outside the keyed folders, where nothing records it was looked for) and a
+failure may be the machine's (a full disk, a killed compiler, a timeout): a replayed failure could outlive its cause.
 """
 
 from __future__ import annotations
@@ -305,6 +310,7 @@ def build_firmware(board: str = "host", src: Path | None = None, out: Path | Non
             artefact = fw_cache.store(entry, artefact, warnings,
                                       None if sizes is None else (sizes.text, sizes.data, sizes.bss),
                                       fw_cache.outside_inputs(build, src, FIRMWARE_DIR), src, FIRMWARE_DIR)
+    _check_param_table(artefact)  # built now or found: the same bytes give the same verdict
     if out is not None:
         artefact = _copy_out(artefact, Path(out), board)
     return BuildResult(artefact, board, src, sizes, warnings)
@@ -313,7 +319,7 @@ def build_firmware(board: str = "host", src: Path | None = None, out: Path | Non
 def _cmake_build(board: str, src: Path, defs: tuple[str, ...], *, jobs: int | None, verbose: bool,
                  progress: Callable[[str, str], None] | None) -> tuple[Path, Path, tuple[str, ...]]:
     """Configure and build `src` in its build folder (one per source folder, board and defines: incremental);
-    the folder, the checked artefact in it and the warnings."""
+    the folder, the artefact in it and the warnings (its parameter table is checked by the caller)."""
     key = hashlib.sha256("\0".join((str(src), board, str(FIRMWARE_DIR), *defs)).encode()).hexdigest()[:16]
     build = cache_dir() / "fw-build" / f"{src.name}-{board}-{key}"
     cmd = ["cmake", "-S", str(src), "-B", str(build), f"-DHIL_SDK={FIRMWARE_DIR}", f"-DHIL_BOARD={board}",
@@ -337,14 +343,13 @@ def _cmake_build(board: str, src: Path, defs: tuple[str, ...], *, jobs: int | No
             call = "hil_add_board_firmware()" if board == "stm32g474" else "hil_add_firmware()"
             raise FwBuildError(f"build of {src} produced no {ARTEFACT[board]}: does its CMakeLists.txt call "
                                f"{call}?")
-        _check_param_table(artefact)
     return build, artefact, warnings
 
 
 def _check_param_table(artefact: Path) -> None:
     """FwBuildError naming the entry if the firmware's parameter table (`hil_app_params`, hil_app_params.h) is
     malformed: a name or unit not NUL-terminated, an id outside 128..254, a non-finite default or range, ...
-    (checked when it is built, not first when a run reads it)."""
+    (checked when it is built or found in the cache, not first when a run reads it)."""
     from pmsm_hil.sim_target.fw_params import FirmwareParamError, firmware_params
 
     try:
