@@ -21,6 +21,7 @@ import pytest
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.hil.plant_base import PlantBase
 from pmsm_hil.hil.runlog.reader import read_faults, read_frames, read_periods
+from tests.runner.foreign_zygote import ForeignTarget, start_target
 
 FOREIGN = Path(__file__).with_name("foreign_target.py")
 #: a dyno run at 100 rpm with the zero vector stays far from every limit;
@@ -61,11 +62,15 @@ def pty() -> Iterator[tuple[int, str]]:
         os.close(master)  # unless the host link closed it
 
 
-def _start_target(port: str, log: Path, rules: tuple[str, ...]) -> subprocess.Popen[bytes]:
-    """The foreign target, once it has opened its port (it makes its log file then): its start-up (an interpreter,
-    python-can, cantools) took more than the host's 10 s ConfigAck wait at load 34, a start-up race, not a finding."""
+def _start_target(port: str, log: Path, rules: tuple[str, ...],
+                  fresh: bool = False) -> ForeignTarget | subprocess.Popen[bytes]:
+    """The foreign target, a process of its own: forked with python-can and cantools already imported
+    (tests/runner/foreign_zygote.py), or with `fresh` started as `python foreign_target.py ...` as a user would;
+    returned once it has opened its port (it makes its log file then): its start-up took more than the host's 10 s
+    ConfigAck wait at load 34, a start-up race, not a finding."""
     log.parent.mkdir(parents=True, exist_ok=True)
-    proc = subprocess.Popen([sys.executable, str(FOREIGN), port, str(log), *rules])
+    proc = (subprocess.Popen([sys.executable, str(FOREIGN), port, str(log), *rules]) if fresh
+            else start_target(port, str(log), *rules))
     deadline = time.monotonic() + 300
     while not log.exists() and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.05)
@@ -73,17 +78,17 @@ def _start_target(port: str, log: Path, rules: tuple[str, ...]) -> subprocess.Po
     return proc
 
 
-def _ended(rc: int, out: Path, log: Path, target: subprocess.Popen[bytes]) -> Ended:
+def _ended(rc: int, out: Path, log: Path, target: ForeignTarget | subprocess.Popen[bytes]) -> Ended:
     target.wait(timeout=60)
     metrics = json.loads((out / "metrics.json").read_text(encoding="utf-8"))
     received = [json.loads(line) for line in log.read_text(encoding="utf-8").splitlines() if line.strip()]
     return Ended(rc, metrics, received, out)
 
 
-def _run(tmp_path: Path, pty: tuple[int, str], *rules: str, extra: tuple[str, ...] = ()) -> Ended:
+def _run(tmp_path: Path, pty: tuple[int, str], *rules: str, extra: tuple[str, ...] = (), fresh: bool = False) -> Ended:
     master, port = pty
     log, out = tmp_path / "target.jsonl", tmp_path / "run"
-    target = _start_target(port, log, rules)
+    target = _start_target(port, log, rules, fresh)
     try:
         rc = main([*RUN, "--link", f"serial:fd:{master}", "--duration", "0.01", "--out", str(out), *extra])
     finally:
@@ -93,7 +98,7 @@ def _run(tmp_path: Path, pty: tuple[int, str], *rules: str, extra: tuple[str, ..
 
 
 def test_a_clean_run_completes_and_disables_the_target(tmp_path: Path, pty: tuple[int, str]) -> None:
-    e = _run(tmp_path, pty)
+    e = _run(tmp_path, pty, fresh=True)  # the target started as its own script (the other tests fork it)
     assert e.rc == 0 and e.metrics["end_reason"] == "completed" and e.metrics["dut_violations"] == 0
     assert e.metrics["loop"] == "native"  # --loop auto: the C loop over the serial port (tests: both loops alike)
     assert e.setpoints() == [1, 0]

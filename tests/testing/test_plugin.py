@@ -15,7 +15,7 @@ import pytest
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.runlog.reader import read_metadata
 from pmsm_hil.testing import PLOT_PROPERTY, HilResult
-from pmsm_hil.testing.plugin import HilSession
+from pmsm_hil.testing.plugin import HilSession, target_problem
 from pmsm_hil.testing.runs import HilSettings, build_config, run_values
 from tests.testing.pytest_session import ROOT, Session
 
@@ -129,14 +129,25 @@ def test_a_result_reads_its_signals_from_the_log(tmp_path: Path) -> None:
     assert np.array_equal(again.signal("i_q").y, r.signal("i_q").y)
 
 
-@pytest.mark.parametrize(("target", "expected"), [
+BAD_TARGETS = [
     ("qemux:fw.elf", "--hil-target 'qemux:fw.elf': not one of inproc, spawn, sil:PATH, qemu:PATH.elf"),
     ("sil:missing.so", "missing.so is not a file"),
     ("external", "--hil-target external needs a link: external:LINKSPEC"),
-])
-def test_a_bad_hil_target_is_one_usage_error(tmp_path: Path, target: str, expected: str) -> None:
+]
+
+
+@pytest.mark.parametrize(("target", "expected"), BAD_TARGETS)
+def test_a_bad_hil_target_is_named_in_one_line(tmp_path: Path, target: str, expected: str) -> None:
+    """What the session's usage error says for each mistyped --hil-target (the test below: how a session ends)."""
+    problem = target_problem(target, tmp_path)
+    assert problem is not None and expected in problem and "\n" not in problem
+
+
+def test_a_bad_hil_target_is_one_usage_error(tmp_path: Path) -> None:
     """A mistyped --hil-target stops the session at start-up with one line (pytest's usage error, exit 4) instead
-    of failing every test that uses `hil` with a traceback."""
+    of failing every test that uses `hil` with a traceback (one pytest process: each mistyped kind's line is the
+    test above's, raised by the same start-up hook)."""
+    target, expected = BAD_TARGETS[0]
     (tmp_path / "test_user.py").write_text("def test_a(hil):\n    hil.run(duration=0.01)\n\n\n"
                                            "def test_b(hil):\n    hil.run(duration=0.01)\n")
     proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--hil-target", target,
@@ -144,6 +155,7 @@ def test_a_bad_hil_target_is_one_usage_error(tmp_path: Path, target: str, expect
     out = (proc.stdout + proc.stderr).strip().splitlines()
     assert proc.returncode == pytest.ExitCode.USAGE_ERROR, out
     assert out == [f"ERROR: {out[0].removeprefix('ERROR: ')}"] and expected in out[0], out
+    assert out[0] == f"ERROR: {target_problem(target, tmp_path)}"
 
 
 def test_an_external_target_runs_without_xdist_workers() -> None:

@@ -1,0 +1,135 @@
+"""Foreign targets (foreign_target.py) forked from one process that has already imported python-can, cantools and the
+`hilserial` link: each target is still a process of its own on its own port, the script run as `__main__` with the
+same command line; only the interpreter's start-up and those imports (≈ 0.6 CPU-s a target) are made once per
+pytest worker instead of once per test.
+
+As a script it is the zygote: it reads commands on stdin, one per line, and answers one line on stdout each:
+`start ARG...` (JSON list) forks a target and answers its pid; `reap PID` waits for that ended target and answers
+its exit code and CPU seconds (user + system, from wait4). End of stdin ends the zygote (the worker has ended).
+`start_target()` is the tests' side: a handle with Popen's poll, wait, send_signal, terminate and kill (a pidfd:
+the target is the zygote's child, not the worker's)."""
+
+from __future__ import annotations
+
+import atexit
+import json
+import os
+import select
+import signal
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+
+
+def _serve() -> int:
+    """The zygote's loop (see the module's docstring)."""
+    import can.interfaces  # noqa: F401  - python-can and its interface table (its entry-point scan)
+    import cantools  # noqa: F401
+
+    from pmsm_hil.protocol.links import wire_bus  # noqa: F401  - the `hilserial` interface's module
+
+    for line in sys.stdin:
+        command, _, arg = line.strip().partition(" ")
+        if command == "start":
+            argv = json.loads(arg)
+            pid = os.fork()
+            if pid == 0:
+                _target(argv)
+            print(pid, flush=True)
+        elif command == "reap":
+            _, status, usage = os.wait4(int(arg), 0)
+            print(os.waitstatus_to_exitcode(status), usage.ru_utime + usage.ru_stime, flush=True)
+    return 0
+
+
+def _target(argv: list[str]) -> None:
+    """In the forked child: foreign_target.py run as `__main__` with `argv`, as `python foreign_target.py ARGV`
+    would (stdin from /dev/null, stdout to the worker's stderr); never returns."""
+    import runpy
+    import traceback
+
+    os.dup2(os.open(os.devnull, os.O_RDONLY), 0)
+    os.dup2(2, 1)
+    script = str(HERE / "foreign_target.py")
+    sys.argv = [script, *argv]
+    code = 1
+    try:
+        runpy.run_path(script, run_name="__main__")
+        code = 0
+    except SystemExit as exc:
+        code = exc.code if isinstance(exc.code, int) else int(exc.code is not None)
+    except BaseException:
+        traceback.print_exc()
+    finally:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+
+
+class _Zygote:
+    """The worker's one zygote process, started on first use, ended with the worker (its stdin closes)."""
+
+    proc: subprocess.Popen[str] | None = None
+    lock = threading.Lock()
+
+    @classmethod
+    def ask(cls, line: str) -> str:
+        with cls.lock:
+            if cls.proc is None or cls.proc.poll() is not None:
+                cls.proc = subprocess.Popen([sys.executable, __file__], stdin=subprocess.PIPE,
+                                            stdout=subprocess.PIPE, text=True)
+                atexit.register(cls.proc.stdin.close)  # type: ignore[union-attr]
+            assert cls.proc.stdin is not None and cls.proc.stdout is not None
+            cls.proc.stdin.write(line + "\n")
+            cls.proc.stdin.flush()
+            answer = cls.proc.stdout.readline()
+            assert answer, "the foreign targets' zygote ended"
+            return answer
+
+
+class ForeignTarget:
+    """A foreign target forked by the zygote: what the tests use of subprocess.Popen."""
+
+    def __init__(self, argv: list[str]) -> None:
+        self.pid = int(_Zygote.ask("start " + json.dumps(argv)))
+        self._pidfd = os.pidfd_open(self.pid)  # the zygote reaps it only when asked: a zombie is still this pid
+        self.returncode: int | None = None
+
+    def poll(self) -> int | None:
+        if self.returncode is None and select.select([self._pidfd], [], [], 0)[0]:
+            from tests import reaped_cpu  # not in the zygote: its script's folder is not the tests' root
+
+            code, cpu = _Zygote.ask(f"reap {self.pid}").split()
+            self.returncode = int(code)
+            reaped_cpu.CPU_S.append(float(cpu))
+            os.close(self._pidfd)
+        return self.returncode
+
+    def wait(self, timeout: float | None = None) -> int:
+        if self.returncode is None and not select.select([self._pidfd], [], [], timeout)[0]:
+            raise subprocess.TimeoutExpired(f"foreign target {self.pid}", timeout or 0.0)
+        code = self.poll()
+        assert code is not None
+        return code
+
+    def send_signal(self, sig: int) -> None:
+        if self.returncode is None:
+            signal.pidfd_send_signal(self._pidfd, sig)
+
+    def terminate(self) -> None:
+        self.send_signal(signal.SIGTERM)
+
+    def kill(self) -> None:
+        self.send_signal(signal.SIGKILL)
+
+
+def start_target(*argv: str) -> ForeignTarget:
+    """foreign_target.py with these arguments (PORT LOGFILE RULE=PERIOD ...), forked from the zygote."""
+    return ForeignTarget(list(argv))
+
+
+if __name__ == "__main__":
+    sys.exit(_serve())
