@@ -6,6 +6,7 @@ ours. GEM is an optional extra (``pip install pmsm-hil[bench]``); everything her
 
 from __future__ import annotations
 
+import importlib.util
 import math
 import warnings
 from importlib import metadata
@@ -19,6 +20,12 @@ GEM_SOLVERS = {
     "euler": "EulerSolver (one explicit Euler step per Ts)",
 }
 _BIG = 1e6  # GEM normalises states by limits; make them irrelevant (values are scaled back)
+
+
+def gem_installed() -> bool:
+    """Whether gym-electric-motor is installed: looked up, not imported (its import, with scipy and matplotlib,
+    costs ≈ 3 CPU-s)."""
+    return importlib.util.find_spec("gym_electric_motor") is not None
 
 
 def gem_version() -> str | None:

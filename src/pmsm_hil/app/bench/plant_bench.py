@@ -14,7 +14,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from pmsm_hil.app.bench.gem_pmsm import GEM_SOLVERS, GemPmsm, gem_version
+from pmsm_hil.app.bench.gem_pmsm import GEM_SOLVERS, GemPmsm, gem_installed, gem_version
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.mechanics import DynoMechanics
 from pmsm_hil.hil.motor_params import PmsmParams
@@ -209,7 +209,7 @@ def format_result(r: PlantBenchResult) -> list[str]:
         f"  single-vector, trace off, advance only:{r.periods_per_s_single_advance_only:12,.0f} periods/s",
     ]
     if r.gem_steps_per_s is None:
-        if gem_version() is None:
+        if not gem_installed():
             lines.append("  gym-electric-motor: not installed (pip install pmsm-hil[bench]); no comparison")
         else:
             lines.append("  gym-electric-motor: comparison skipped (--no-gem)")
