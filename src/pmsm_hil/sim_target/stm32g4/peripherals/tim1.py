@@ -22,8 +22,9 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import ClassVar
 
+from pmsm_hil.sim_target.stm32g4 import periph_native
 from pmsm_hil.sim_target.stm32g4.part import IRQ
-from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError, register
+from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardBus, BoardError, register
 from pmsm_hil.sim_target.stm32g4.peripherals.regs import RegisterFile
 
 CR1, CR2, SMCR, DIER, SR, EGR, CCMR1, CCMR2, CCER, CNT, PSC, ARR, RCR = (
@@ -56,6 +57,14 @@ class Tim1(RegisterFile):
         CR1: 0, CR2: 0, SMCR: 0, DIER: 0, SR: 0, EGR: 0, CCMR1: 0, CCMR2: 0, CCER: 0, CNT: 0, PSC: 0, ARR: 0xFFFF,
         RCR: 0, BDTR: 0, CCMR3: 0, DTR2: 0, ECR: 0, TISEL: 0, AF1: 1, AF2: 1, OR1: 0, DCR: 0, DMAR: 0,
         **dict.fromkeys(CCR_OFFSETS, 0)}
+
+    def __new__(cls, bus: BoardBus) -> Tim1:
+        """The model in C (tim1_native.NativeTim1) while periph_native.NATIVE is set, else this reference."""
+        del bus
+        if cls is Tim1 and periph_native.NATIVE:
+            from pmsm_hil.sim_target.stm32g4.peripherals.tim1_native import NativeTim1
+            cls = NativeTim1
+        return super().__new__(cls)
 
     def reset(self) -> None:
         super().reset()
