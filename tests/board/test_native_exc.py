@@ -54,6 +54,8 @@ def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch:
     link = BoardLink(elf, load_board(board_file), ts_s=TS, pole_pairs=4)
     assert (link.board.exceptions._native is not None) == native
     assert hasattr(link.board, "_dwt") == native
+    assert all(getattr(link.board.peripherals[name], "native_page", None) is not None or name == "ADC2"
+               for name in ("TIM1", "ADC1")) == native_periph
     assert (type(link.board.peripherals["TIM1"]) is not Tim1) == native_periph
     codec = FrameCodec("canfd")
     frames: list[bytes] = []
