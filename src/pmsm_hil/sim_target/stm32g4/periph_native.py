@@ -67,6 +67,7 @@ class Tim1State(ctypes.Structure):
                 ("ocref", ctypes.c_int32 * 6), ("watched", ctypes.c_int32 * 6), ("plan", Match * 6),
                 ("n_listeners", ctypes.c_int32 * 6), ("listeners", (Listener * 4) * 6),
                 ("irq_up", ctypes.c_int32), ("irq_cc", ctypes.c_int32), ("irq_brk", ctypes.c_int32),
+                ("lines_on", ctypes.c_int32 * 3),
                 ("sink", IrqSink), ("count", ctypes.c_void_p), ("fallback_read", ctypes.c_void_p),
                 ("fallback_write", ctypes.c_void_p), ("fallback_user", ctypes.c_void_p), ("ops", PeriphOps)]
 

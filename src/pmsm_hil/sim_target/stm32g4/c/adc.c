@@ -89,6 +89,7 @@ typedef struct hil_adc12 {
     hil_adc_t adc[2];
     uint32_t common_ccr; /* ADC12_COMMON.CCR (the clock) */
     int32_t irq;         /* ADC1_2 */
+    int32_t line_on;     /* ADC1_2 asserted by the pair */
     hil_irq_sink_t sink;
     hil_adc_code_fn code;
     hil_adc_dma_fn dma;
@@ -121,8 +122,10 @@ static void line_changed(hil_adc12_t *p) {
         }
     }
     if (on) {
+        p->line_on = 1;
         p->sink.assert_line(p->sink.board, p->irq);
-    } else {
+    } else if (p->line_on) {
+        p->line_on = 0;
         p->sink.withdraw_line(p->sink.board, p->irq);
     }
 }

@@ -79,6 +79,7 @@ typedef struct hil_tim1 {
     int32_t n_listeners[N_SIGNALS];
     hil_listener_t listeners[N_SIGNALS][MAX_LISTENERS];
     int32_t irq_up, irq_cc, irq_brk;
+    int32_t lines_on[3]; /* which interrupt lines this model asserts */
     hil_irq_sink_t sink;
     const uint64_t *count; /* the core's cycle count (the instruction counter's) */
     hil_mmio_read_fn fallback_read;
@@ -115,14 +116,17 @@ static int preloaded(const hil_tim1_t *t, int ch) {
     return (int)(t->regs[W_CCMR3] >> (8 * (ch - 4) + 3) & 1u);
 }
 
+/* each line asserted while a flag and its enable are set (pending it again), withdrawn when that ends */
 static void irqs(hil_tim1_t *t) {
     uint32_t on = t->regs[W_SR] & t->regs[W_DIER];
     const int lines[3] = {t->irq_up, t->irq_cc, t->irq_brk};
     const uint32_t masks[3] = {1u, 0x1Eu, BIF};
     for (int i = 0; i < 3; ++i) {
         if (on & masks[i]) {
+            t->lines_on[i] = 1;
             t->sink.assert_line(t->sink.board, lines[i]);
-        } else {
+        } else if (t->lines_on[i]) {
+            t->lines_on[i] = 0;
             t->sink.withdraw_line(t->sink.board, lines[i]);
         }
     }

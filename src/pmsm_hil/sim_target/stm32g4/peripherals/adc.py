@@ -360,6 +360,7 @@ class Adc12Common(RegisterFile):
     def reset(self) -> None:
         super().reset()
         self._pair: tuple[Adc, Adc] | None = None  # ADC1 and ADC2, looked up on first use
+        self._line_on = False  # ADC1_2 asserted by the pair
         self._sync_clock()
 
     def _sync_clock(self) -> None:
@@ -387,13 +388,16 @@ class Adc12Common(RegisterFile):
             self.regs[word] = value
 
     def line_changed(self) -> None:
-        """ADC1_2 is asserted while either ADC has an enabled flag set."""
+        """ADC1_2 is asserted while either ADC has an enabled flag set (pending it again), withdrawn when that
+        ends."""
         if self._pair is None:
             adc1, adc2 = self.bus.peripheral("ADC1"), self.bus.peripheral("ADC2")
             assert isinstance(adc1, Adc) and isinstance(adc2, Adc)
             self._pair = (adc1, adc2)
         adc1, adc2 = self._pair
         if adc1.irq_asserted() or adc2.irq_asserted():
+            self._line_on = True
             self.bus.set_pending(ADC1_2_IRQ)
-        else:
+        elif self._line_on:
+            self._line_on = False
             self.bus.clear_pending(ADC1_2_IRQ)

@@ -46,6 +46,7 @@ class Adc12State(ctypes.Structure):
     """Mirror of hil_adc12_t (c/adc.c)."""
 
     _fields_ = [("adc", AdcState * 2), ("common_ccr", ctypes.c_uint32), ("irq", ctypes.c_int32),
+                ("line_on", ctypes.c_int32),
                 ("sink", pn.IrqSink), ("code", CODE_FN), ("dma", DMA_FN), ("callback_user", _P), ("count", _P),
                 ("fallback_read", _P), ("fallback_write", _P), ("fallback_user", _P), ("ops", pn.PeriphOps * 2)]
 

@@ -91,6 +91,7 @@ class Tim1(RegisterFile):
         self._watched: tuple[bool, ...] | None = None  # which channels are observed (until a configuration write)
         self.break_pin: bool | None = None  # the BKIN pin's level (None: nothing drives it, BRK never active)
         self.break_trips = 0  # times BRK went active with BKE set
+        self._lines_on = [False] * len(_LINES)  # which interrupt lines this model asserts
 
     # --- configuration helpers -------------------------------------------------------------------------------------
 
@@ -382,11 +383,14 @@ class Tim1(RegisterFile):
         self._irqs()
 
     def _irqs(self) -> None:
-        sr, dier = self.regs[SR], self.regs[DIER]
-        for line, mask in _LINES:
+        """Each line asserted while a flag and its enable are set (pending it again), withdrawn when that ends."""
+        sr, dier, on = self.regs[SR], self.regs[DIER], self._lines_on
+        for i, (line, mask) in enumerate(_LINES):
             if sr & dier & mask:
+                on[i] = True
                 self.bus.set_pending(line)
-            else:
+            elif on[i]:
+                on[i] = False
                 self.bus.clear_pending(line)
 
     # --- registers ------------------------------------------------------------------------------------------------
