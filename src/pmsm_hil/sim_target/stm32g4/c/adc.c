@@ -10,6 +10,7 @@
 #include "periph_ops.h"
 
 #define ADC_WORDS 64
+#define TABLE_CHANNELS 32
 #define QUEUE_MAX 64
 #define LOG_MAX 64
 #define W_ISR (0x00 / 4)
@@ -90,6 +91,12 @@ typedef struct hil_adc12 {
     uint32_t common_ccr; /* ADC12_COMMON.CCR (the clock) */
     int32_t irq;         /* ADC1_2 */
     int32_t line_on;     /* ADC1_2 asserted by the pair */
+    /* the analog front end as a table the board's link fills once a period (table_on): each input's voltage and
+     * VREF+ [V]; else each conversion's code comes from `code` (the board's analog front end in Python: noise, the
+     * OPAMPs) */
+    int32_t table_on;
+    double vref;
+    double volts[2][TABLE_CHANNELS];
     hil_irq_sink_t sink;
     hil_adc_code_fn code;
     hil_adc_dma_fn dma;
@@ -217,9 +224,32 @@ static void start(hil_adc_t *a, int injected, int64_t at) {
     sort_queue(a);
 }
 
+/* Python's round() of a float: to the nearest integer, halves to even */
+static int64_t round_half_even(double x) {
+    if (x < 0.0) {
+        return -round_even(-x);
+    }
+    return round_even(x);
+}
+
+/* the code of `volts` with VREF+ `vref` at CFGR's resolution and alignment (the Python reference's Adc._code) */
+uint32_t hil_adc_code_of(const hil_adc_t *a, double volts, double vref) {
+    static const int bits_of[4] = {12, 10, 8, 6};
+    int bits = bits_of[a->regs[W_CFGR] >> 3 & 3u];
+    int64_t full = ((int64_t)1 << bits) - 1;
+    int64_t code = round_half_even(volts / vref * (double)full);
+    code = code < 0 ? 0 : code > full ? full : code;
+    if (a->regs[W_CFGR] >> 15 & 1u) { /* ALIGN left */
+        code <<= bits > 6 ? 16 - bits : 8 - bits;
+    }
+    return (uint32_t)code;
+}
+
 static void finish(hil_adc_t *a, hil_conv_t conv) {
     hil_adc12_t *p = a->pair;
-    uint32_t code = p->code(p->callback_user, a->index, conv.channel, conv.sample_at);
+    uint32_t code = p->table_on && conv.channel < TABLE_CHANNELS
+                        ? hil_adc_code_of(a, p->volts[a->index][conv.channel], p->vref)
+                        : p->code(p->callback_user, a->index, conv.channel, conv.sample_at);
     uint32_t flags;
     if (conv.injected) {
         a->regs[W_JDR + conv.rank] = code;

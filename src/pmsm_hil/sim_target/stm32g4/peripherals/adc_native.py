@@ -46,7 +46,8 @@ class Adc12State(ctypes.Structure):
     """Mirror of hil_adc12_t (c/adc.c)."""
 
     _fields_ = [("adc", AdcState * 2), ("common_ccr", ctypes.c_uint32), ("irq", ctypes.c_int32),
-                ("line_on", ctypes.c_int32),
+                ("line_on", ctypes.c_int32), ("table_on", ctypes.c_int32), ("vref", ctypes.c_double),
+                ("volts", (ctypes.c_double * 32) * 2),
                 ("sink", pn.IrqSink), ("code", CODE_FN), ("dma", DMA_FN), ("callback_user", _P), ("count", _P),
                 ("fallback_read", _P), ("fallback_write", _P), ("fallback_user", _P), ("ops", pn.PeriphOps * 2)]
 
@@ -60,6 +61,8 @@ def _typed(lib: ctypes.CDLL) -> ctypes.CDLL:
         lib.hil_adc_on_trigger.argtypes, lib.hil_adc_on_trigger.restype = [_P, _INT, _INT, _I64], None
         lib.hil_adc_cycles_per_clock.argtypes, lib.hil_adc_cycles_per_clock.restype = [_P], ctypes.c_double
         lib.hil_adc_init.argtypes, lib.hil_adc_init.restype = [_P], None
+        lib.hil_adc_code_of.argtypes = [_P, ctypes.c_double, ctypes.c_double]
+        lib.hil_adc_code_of.restype = _U32
         for name, struct in (("hil_adc_size", Adc12State), ("hil_adc_one_size", AdcState)):
             fn = getattr(lib, name)
             fn.argtypes, fn.restype = [], ctypes.c_uint
@@ -83,6 +86,24 @@ class Adc12Pair:
         s.code = cb.keep(CODE_FN(self._code))
         s.dma = cb.keep(DMA_FN(cb.guard(self._dma)))
         self.lib.hil_adc_init(ctypes.addressof(s))
+
+    def set_inputs(self, vref_v: float, volts: dict[tuple[str, int], float]) -> None:
+        """Take each conversion's code from `volts` ((ADC name, channel) -> the pin's voltage [V], 0 V for one not
+        named) and VREF+ `vref_v` [V] in C, with no call into Python: for a front end without noise and without
+        OPAMP inputs, whose values hold for the period (a link calls this, or writes the struct's table, once a
+        period)."""
+        s = self.state
+        ctypes.memset(ctypes.addressof(s.volts), 0, ctypes.sizeof(s.volts))
+        for (adc, channel), v in volts.items():
+            if adc not in ("ADC1", "ADC2") or not 0 <= channel < 32:
+                raise BoardError(f"ADC input {adc} channel {channel}: the table holds ADC1/ADC2 channels 0-31")
+            s.volts[0 if adc == "ADC1" else 1][channel] = v
+        s.vref = vref_v
+        s.table_on = 1
+
+    def clear_inputs(self) -> None:
+        """Take each conversion's code from the board's analog front end again (Adc._code, in Python)."""
+        self.state.table_on = 0
 
     def _code(self, _user: int, index: int, channel: int, at: int) -> int:
         try:
