@@ -1,16 +1,18 @@
 """The ADC pair in C (c/adc.c) beyond what the record comparisons cover (tests/board/test_native_exc.py): its
 codes from the table of pin voltages a link fills once a period equal the Python reference's codes from the board's
-analog front end, at every resolution and alignment, and a conversion started from the table gives the same result
-register as one that asks the front end."""
+analog front end, at every resolution and alignment, a conversion started from the table gives the same result
+register as one that asks the front end, and the models' hil_periph_ops_t (for a scheduler in C) answer as they do."""
 
 from __future__ import annotations
 
 import ctypes
+from typing import Any
 
 import pytest
 
 from pmsm_hil.sim_target.stm32g4 import periph_native
-from pmsm_hil.sim_target.stm32g4.board import load_models
+from pmsm_hil.sim_target.stm32g4.board import Board, load_models
+from pmsm_hil.sim_target.stm32g4.part import PARTS
 from pmsm_hil.sim_target.stm32g4.peripherals.adc_native import NativeAdc, pair_of
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
 from tests.board.test_adc_dma_opamp import ADEN, ADVREGEN, CFGR, CR, AnalogBus, enabled_adc1
@@ -61,3 +63,16 @@ def test_a_table_entry_outside_the_pair_is_named() -> None:
     enabled_adc1(bus)
     with pytest.raises(BoardError, match="ADC3 channel 1"):
         pair_of(bus).set_inputs(3.3, {("ADC3", 1): 1.0})
+
+
+def test_the_ops_for_a_scheduler_in_c_answer_as_the_models(build_fw: Any) -> None:
+    board = Board(PARTS["stm32g474"], build_fw("pwm_adc"))
+    board.analog = lambda adc, channel, now: 3.3 if channel < 0 else 1.0
+    for end in range(200_000, 2_000_000, 137_000):
+        board.run_until(end)
+        for name in ("TIM1", "ADC1", "ADC2"):
+            model = board.peripherals[name]
+            ops = periph_native.PeriphOps.from_address(model.c_ops())  # type: ignore[attr-defined]
+            at = periph_native.NEXT_EVENT_FN(ops.next_event)(ops.self, board.now)
+            assert (None if at < 0 else at) == model.next_event(board.now), name
+    assert board.peripherals["TIM1"].updates > 10  # type: ignore[attr-defined]

@@ -44,6 +44,18 @@ class PeriphOps(ctypes.Structure):
     _fields_ = [("self", ctypes.c_void_p), ("next_event", ctypes.c_void_p), ("advance", ctypes.c_void_p)]
 
 
+NEXT_EVENT_FN = ctypes.CFUNCTYPE(ctypes.c_int64, ctypes.c_void_p, ctypes.c_int64)
+ADVANCE_FN = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_int64)
+
+
+def set_sink(sink: IrqSink, board: int, assert_line: int, withdraw_line: int) -> None:
+    """Point `sink` at C functions (`assert_line(board, irq)`, `withdraw_line(board, irq)`: an NVIC in C) instead
+    of the board's Python."""
+    sink.board = board
+    sink.assert_line = LINE_FN(assert_line)
+    sink.withdraw_line = LINE_FN(withdraw_line)
+
+
 class Listener(ctypes.Structure):
     _fields_ = [("fn", ctypes.c_void_p), ("user", ctypes.c_void_p)]
 

@@ -247,6 +247,16 @@ class NativeAdc(Adc):
         if word in (JSQR, CFGR):
             self._subscribe()
 
+    def c_ops(self) -> int:
+        """Address of this ADC's hil_periph_ops_t (c/periph_ops.h): next_event / advance without Python."""
+        state = self._pair_state.state
+        index = 0 if self._p == ctypes.addressof(state.adc[0]) else 1
+        return ctypes.addressof(state) + Adc12State.ops.offset + index * ctypes.sizeof(pn.PeriphOps)
+
+    def set_irq_sink(self, board: int, assert_line: int, withdraw_line: int) -> None:
+        """Raise ADC1_2 through C functions (an NVIC in C: periph_native.set_sink); the pair shares the line."""
+        pn.set_sink(self._pair_state.state.sink, board, assert_line, withdraw_line)
+
     def map_native(self, cpu: Any, read: Any, write: Any) -> None:
         """Serve the ADC page (ADC1, ADC2; ADC12_COMMON through `read`/`write`, the board's decoder) from the library
         on `cpu`."""

@@ -226,6 +226,16 @@ class NativeTim1(Tim1):
         self._py_listeners[(fn_address, None)] = listener
         return fn_address, None
 
+    # --- for a scheduler in C --------------------------------------------------------------------------------------
+
+    def c_ops(self) -> int:
+        """Address of the model's hil_periph_ops_t (c/periph_ops.h): next_event / advance without Python."""
+        return self._p + pn.Tim1State.ops.offset
+
+    def set_irq_sink(self, board: int, assert_line: int, withdraw_line: int) -> None:
+        """Raise the interrupt lines through C functions (an NVIC in C: periph_native.set_sink)."""
+        pn.set_sink(self._s.sink, board, assert_line, withdraw_line)
+
     # --- the register page ---------------------------------------------------------------------------------------
 
     def map_native(self, cpu: Any, read: Any, write: Any) -> None:
