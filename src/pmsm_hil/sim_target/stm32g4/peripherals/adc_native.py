@@ -73,16 +73,19 @@ def _typed(lib: ctypes.CDLL) -> ctypes.CDLL:
 
 
 class Adc12Pair:
-    """The C struct of one board's ADC1 and ADC2 and the Python functions it calls back."""
+    """The C struct of one board's ADC1 and ADC2 and the Python functions it calls back (holding the board and the
+    models weakly: the pair lives as long as its board, `pair_of`)."""
 
     def __init__(self, bus: BoardBus) -> None:
         self.lib = _typed(pn.library("adc"))
         self.state = Adc12State()
         self.callbacks = pn.Callbacks()
-        self.adcs: list[NativeAdc | None] = [None, None]
+        self.adcs: list[weakref.ReferenceType[NativeAdc] | None] = [None, None]
         s, cb = self.state, self.callbacks
         s.irq = ADC1_2_IRQ
-        s.sink = cb.sink(bus.set_pending, bus.clear_pending)
+        board = weakref.ref(bus)
+        s.sink = cb.sink(lambda irq: board().set_pending(irq),  # type: ignore[union-attr]
+                         lambda irq: board().clear_pending(irq))  # type: ignore[union-attr]
         s.code = cb.keep(CODE_FN(self._code))
         s.dma = cb.keep(DMA_FN(cb.guard(self._dma)))
         self.lib.hil_adc_init(ctypes.addressof(s))
@@ -107,17 +110,21 @@ class Adc12Pair:
 
     def _code(self, _user: int, index: int, channel: int, at: int) -> int:
         try:
-            adc = self.adcs[index]
-            assert adc is not None
-            return adc._code(channel, at)
+            return self._adc(index)._code(channel, at)
         except BaseException as exc:  # raised by the model after the C call (Callbacks.check)
             if self.callbacks.error is None:
                 self.callbacks.error = exc
             return 0
 
+    def _adc(self, index: int) -> NativeAdc:
+        ref = self.adcs[index]
+        adc = None if ref is None else ref()
+        if adc is None:
+            raise BoardError(f"ADC{index + 1} converts but is no longer on its board")
+        return adc
+
     def _dma(self, _user: int, index: int, at: int) -> None:
-        adc = self.adcs[index]
-        assert adc is not None
+        adc = self._adc(index)
         adc.bus.peripheral("DMAMUX1").request(adc.dma_request, at)  # type: ignore[attr-defined]
 
 
@@ -146,7 +153,7 @@ class NativeAdc(Adc):
         pair = self._pair_state = pair_of(self.bus)
         self._lib = pair.lib
         index = 0 if self.base == Adc1.base else 1
-        pair.adcs[index] = self
+        pair.adcs[index] = weakref.ref(self)
         a = self._a = pair.state.adc[index]
         self._p = ctypes.addressof(a)
         self._cb = pair.callbacks
