@@ -8,6 +8,8 @@ peripherals/tim1.py and peripherals/adc.py, which give the same records: tests/b
 from __future__ import annotations
 
 import ctypes
+import hashlib
+import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -16,7 +18,7 @@ from unicorn import UcError
 from unicorn.unicorn_py3.unicorn import MMIO_READ_CFUNC, MMIO_WRITE_CFUNC, uclib
 
 from pmsm_hil.sim_target.firmware import FirmwareError
-from pmsm_hil.sim_target.fw_build import host_library
+from pmsm_hil.sim_target.fw_build import cache_dir, host_library
 
 #: the models of TIM1 and ADC1/ADC2 in C (False: the Python references)
 NATIVE = True
@@ -87,11 +89,23 @@ class Tim1State(ctypes.Structure):
 _LIBS: dict[str, ctypes.CDLL] = {}
 
 
+def _source(name: str) -> Path:
+    """c/NAME.c with c/periph_ops.h inlined, in the cache (the library's cache key then covers the header too)."""
+    header = (C_DIR / "periph_ops.h").read_text()
+    text = (C_DIR / f"{name}.c").read_text().replace('#include "periph_ops.h"', header)
+    out = cache_dir() / f"hil_{name}-{hashlib.sha256(text.encode()).hexdigest()[:16]}.c"
+    if not out.is_file():
+        tmp = out.with_name(f"{out.name}.{os.getpid()}.tmp")
+        tmp.write_text(text)
+        os.replace(tmp, out)
+    return out
+
+
 def library(name: str) -> ctypes.CDLL:
     """The compiled model `name` ("tim1", "adc"; built on first use)."""
     lib = _LIBS.get(name)
     if lib is None:
-        path = host_library(C_DIR / f"{name}.c", f"hil_{name}", f"the stm32g4 board's {name.upper()} model",
+        path = host_library(_source(name), f"hil_{name}", f"the stm32g4 board's {name.upper()} model",
                             PeriphBuildError)
         lib = _LIBS[name] = ctypes.CDLL(str(path))
     return lib
