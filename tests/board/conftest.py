@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import shutil
 import subprocess
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
 
+from pmsm_hil.sim_target.stm32g4 import periph_native
 from tests.board.fake_bus import FakeBus
 
 FW = Path(__file__).with_name("fw")
@@ -21,6 +22,15 @@ CFLAGS = ["-mcpu=cortex-m4", "-mthumb", "-mfloat-abi=hard", "-mfpu=fpv4-sp-d16",
 def bus() -> FakeBus:
     """A fresh fake board (a test module may define its own `bus`)."""
     return FakeBus()
+
+
+@pytest.fixture(scope="module", params=[True, False], ids=["c_models", "python_models"])
+def tim_adc_models(request: pytest.FixtureRequest) -> Iterator[bool]:
+    """TIM1 and the ADCs in C, then their Python reference (periph_native.NATIVE): a module that uses this runs its
+    tests with both."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(periph_native, "NATIVE", request.param)
+        yield bool(request.param)
 
 
 @pytest.fixture(scope="session")

@@ -12,6 +12,9 @@ from pmsm_hil.sim_target.stm32g4.board_file import load_board
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
 from tests.board.fake_bus import SRAM, FakeBus
 
+#: every test with TIM1 and the ADCs in C and with their Python reference
+pytestmark = pytest.mark.usefixtures("tim_adc_models")
+
 load_models()
 
 ISR, CR, CFGR, SMPR1, SQR1, DR = 0x00, 0x08, 0x0C, 0x14, 0x30, 0x40

@@ -19,6 +19,9 @@ from pmsm_hil.sim_target.stm32g4.link import BoardLink
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
 from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import BDTR, BIF, BKE, BKP, DIER, MOE, SR
 
+#: every test with TIM1 and the ADCs in C and with their Python reference
+pytestmark = pytest.mark.usefixtures("tim_adc_models")
+
 TS = 50e-6
 CODEC = FrameCodec("canfd")
 LIMIT_A = 30.0

@@ -11,6 +11,9 @@ from pmsm_hil.sim_target.stm32g4.peripherals.dma import Dma
 from pmsm_hil.sim_target.stm32g4.peripherals.dmamux import REQUEST_IDS, Dmamux
 from tests.board.fake_bus import SRAM, FakeBus
 
+#: every test with TIM1 and the ADCs in C and with their Python reference
+pytestmark = pytest.mark.usefixtures("tim_adc_models")
+
 EN, TCIE, HTIE, TEIE, DIR, CIRC, PINC, MINC = (1 << b for b in range(8))
 MEM2MEM = 1 << 14
 PSIZE16, MSIZE16, PSIZE32, MSIZE32 = 1 << 8, 1 << 10, 2 << 8, 2 << 10

@@ -19,11 +19,13 @@ from unicorn import arm_const as arm
 from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.messages import Measurement
 from pmsm_hil.sim_target.fw_build import build_firmware, missing_tools
+from pmsm_hil.sim_target.stm32g4 import periph_native
 from pmsm_hil.sim_target.stm32g4.board import Board
 from pmsm_hil.sim_target.stm32g4.board_file import load_board
 from pmsm_hil.sim_target.stm32g4.link import BoardLink
 from pmsm_hil.sim_target.stm32g4.part import PARTS
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
+from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import Tim1
 
 TS = 50e-6
 PERIODS = 300
@@ -33,20 +35,28 @@ CORE_REGS = (*(getattr(arm, f"UC_ARM_REG_R{i}") for i in range(13)), arm.UC_ARM_
              *(getattr(arm, f"UC_ARM_REG_S{i}") for i in range(32)), arm.UC_ARM_REG_FPSCR)
 
 
-#: the board's fast paths, each against its reference: (Board switch, what differs when a record does)
-FAST_PATHS = {"native_exc": ("NATIVE", "the C and the Python exception frames"),
-              "quiet_skip": ("SKIP_QUIET", "the skipping and the reference scheduler")}
+#: the board's fast paths, each against its reference: (the switch's owner, the switch, what differs when a record
+#: does)
+FAST_PATHS: dict[str, tuple[Any, str, str]] = {
+    "native_exc": (Board, "NATIVE", "the C and the Python exception frames"),
+    "quiet_skip": (Board, "SKIP_QUIET", "the skipping and the reference scheduler"),
+    "native_periph": (periph_native, "NATIVE", "the C and the Python TIM1 and ADC models")}
 
 
 def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch: pytest.MonkeyPatch,
-            periods: int = PERIODS, skip_quiet: bool = True) -> dict[str, Any]:
+            periods: int = PERIODS, skip_quiet: bool = True, native_periph: bool = True) -> dict[str, Any]:
     """Everything a run of `periods` Measurements leaves, with the board's C paths (exception frames, the DWT page's
-    reads) or the Python reference, with the scheduler skipping quiet models or asking every model every step."""
+    reads) or the Python reference, with the scheduler skipping quiet models or asking every model every step, with
+    TIM1 and the ADCs in C or in Python."""
     monkeypatch.setattr(Board, "NATIVE", native)
     monkeypatch.setattr(Board, "SKIP_QUIET", skip_quiet)
+    monkeypatch.setattr(periph_native, "NATIVE", native_periph)
     link = BoardLink(elf, load_board(board_file), ts_s=TS, pole_pairs=4)
     assert (link.board.exceptions._native is not None) == native
     assert hasattr(link.board, "_dwt") == native
+    assert all(getattr(link.board.peripherals[name], "native_page", None) is not None or name == "ADC2"
+               for name in ("TIM1", "ADC1")) == native_periph
+    assert (type(link.board.peripherals["TIM1"]) is not Tim1) == native_periph
     codec = FrameCodec("canfd")
     frames: list[bytes] = []
     error = ""
@@ -71,8 +81,9 @@ def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch:
 def same(path: str, elf: Path, board_file: str | Path | None, monkeypatch: pytest.MonkeyPatch,
          periods: int = PERIODS) -> dict[str, Any]:
     """The records of `elf` with the fast path `path` (FAST_PATHS) and with its reference: equal, key by key."""
-    switch, what = FAST_PATHS[path]
-    reference = records(elf, board_file, switch != "NATIVE", monkeypatch, periods, skip_quiet=switch != "SKIP_QUIET")
+    what = FAST_PATHS[path][2]
+    reference = records(elf, board_file, path != "native_exc", monkeypatch, periods,
+                        skip_quiet=path != "quiet_skip", native_periph=path != "native_periph")
     native = records(elf, board_file, True, monkeypatch, periods)
     for key in reference:
         assert native[key] == reference[key], f"{key} differs between {what}"

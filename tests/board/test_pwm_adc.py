@@ -13,6 +13,9 @@ from pmsm_hil.sim_target.stm32g4.board import Board
 from pmsm_hil.sim_target.stm32g4.part import IRQ, PARTS
 from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import Tim1
 
+#: every test with TIM1 and the ADCs in C and with their Python reference
+pytestmark = pytest.mark.usefixtures("tim_adc_models")
+
 HCLK = 170_000_000
 ARR = 4250
 ADC_IRQ = 16 + IRQ["ADC1_2"]
@@ -33,7 +36,8 @@ def make(elf: Path) -> Board:
 
 
 @pytest.fixture(scope="module")
-def board(build_fw: Callable[..., Path]) -> Board:
+def board(build_fw: Callable[..., Path], tim_adc_models: bool) -> Board:
+    del tim_adc_models  # made with the models it names
     return make(build_fw("pwm_adc"))
 
 

@@ -164,8 +164,12 @@ class Board:
         if "FDCAN1" in self.part.peripherals:
             self.cpu.map_ram(FDCAN_RAM_BASE, 0xC00)
             pages.discard(FDCAN_RAM_BASE & ~(PAGE - 1))
+        native = {at: p for p in self.peripherals.values() if (at := getattr(p, "native_page", None)) is not None}
         for page in sorted(pages):
-            self.cpu.map_mmio(page, PAGE, self._read, self._write)
+            if page in native:  # a model in C serves its page (the rest of it through the decoder)
+                native[page].map_native(self.cpu, self._read, self._write)  # type: ignore[attr-defined]
+            else:
+                self.cpu.map_mmio(page, PAGE, self._read, self._write)
         scs = self.scs
         self.cpu.map_mmio(0xE000_E000, PAGE, self._core_access(0xE000_E000, scs.read),
                           self._core_store(0xE000_E000, scs.write))

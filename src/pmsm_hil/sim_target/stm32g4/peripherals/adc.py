@@ -18,8 +18,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
+from pmsm_hil.sim_target.stm32g4 import periph_native
 from pmsm_hil.sim_target.stm32g4.part import IRQ
-from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError, register, services
+from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardBus, BoardError, register, services
 from pmsm_hil.sim_target.stm32g4.peripherals.opamp import ADC_CHANNELS, Opamp
 from pmsm_hil.sim_target.stm32g4.peripherals.regs import RegisterFile
 
@@ -67,6 +68,16 @@ class Adc(RegisterFile):
         TR2: 0x00FF_0000, TR3: 0x00FF_0000, SQR1: 0, SQR2: 0, SQR3: 0, SQR4: 0, DR: 0, JSQR: 0,
         **dict.fromkeys(range(OFR, OFR + 16, 4), 0), **dict.fromkeys(range(JDR, JDR + 16, 4), 0), AWD2CR: 0,
         AWD3CR: 0, DIFSEL: 0, CALFACT: 0, GCOMP: 0}
+    #: a model in C (adc_native)
+    IS_NATIVE: ClassVar[bool] = False
+
+    def __new__(cls, bus: BoardBus) -> Adc:
+        """ADC1 and ADC2 in C (adc_native) while periph_native.NATIVE is set, else this reference."""
+        del bus
+        if periph_native.NATIVE and not cls.IS_NATIVE and cls.name in ("ADC1", "ADC2"):
+            from pmsm_hil.sim_target.stm32g4.peripherals.adc_native import NATIVE_CLASSES
+            cls = NATIVE_CLASSES[cls.name]
+        return super().__new__(cls)
 
     def reset(self) -> None:
         super().reset()
@@ -349,6 +360,14 @@ class Adc12Common(RegisterFile):
     def reset(self) -> None:
         super().reset()
         self._pair: tuple[Adc, Adc] | None = None  # ADC1 and ADC2, looked up on first use
+        self._line_on = False  # ADC1_2 asserted by the pair
+        self._sync_clock()
+
+    def _sync_clock(self) -> None:
+        """CCR to the ADCs' C state (their clock) when they run in C."""
+        if periph_native.NATIVE:
+            from pmsm_hil.sim_target.stm32g4.peripherals.adc_native import pair_of
+            pair_of(self.bus).state.common_ccr = self.regs[0x08]
 
     def load(self, word: int, now: int) -> int:
         if word == 0x00:
@@ -364,17 +383,21 @@ class Adc12Common(RegisterFile):
             if value & 0x1F:
                 raise BoardError("ADC12_COMMON.CCR.DUAL: dual ADC modes are not modelled")
             self.regs[0x08] = value
+            self._sync_clock()
         elif word != 0x00 and word != 0x0C:
             self.regs[word] = value
 
     def line_changed(self) -> None:
-        """ADC1_2 is asserted while either ADC has an enabled flag set."""
+        """ADC1_2 is asserted while either ADC has an enabled flag set (pending it again), withdrawn when that
+        ends."""
         if self._pair is None:
             adc1, adc2 = self.bus.peripheral("ADC1"), self.bus.peripheral("ADC2")
             assert isinstance(adc1, Adc) and isinstance(adc2, Adc)
             self._pair = (adc1, adc2)
         adc1, adc2 = self._pair
         if adc1.irq_asserted() or adc2.irq_asserted():
+            self._line_on = True
             self.bus.set_pending(ADC1_2_IRQ)
-        else:
+        elif self._line_on:
+            self._line_on = False
             self.bus.clear_pending(ADC1_2_IRQ)

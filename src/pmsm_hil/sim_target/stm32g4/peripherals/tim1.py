@@ -22,8 +22,9 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import ClassVar
 
+from pmsm_hil.sim_target.stm32g4 import periph_native
 from pmsm_hil.sim_target.stm32g4.part import IRQ
-from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError, register
+from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardBus, BoardError, register
 from pmsm_hil.sim_target.stm32g4.peripherals.regs import RegisterFile
 
 CR1, CR2, SMCR, DIER, SR, EGR, CCMR1, CCMR2, CCER, CNT, PSC, ARR, RCR = (
@@ -57,6 +58,14 @@ class Tim1(RegisterFile):
         RCR: 0, BDTR: 0, CCMR3: 0, DTR2: 0, ECR: 0, TISEL: 0, AF1: 1, AF2: 1, OR1: 0, DCR: 0, DMAR: 0,
         **dict.fromkeys(CCR_OFFSETS, 0)}
 
+    def __new__(cls, bus: BoardBus) -> Tim1:
+        """The model in C (tim1_native.NativeTim1) while periph_native.NATIVE is set, else this reference."""
+        del bus
+        if cls is Tim1 and periph_native.NATIVE:
+            from pmsm_hil.sim_target.stm32g4.peripherals.tim1_native import NativeTim1
+            cls = NativeTim1
+        return super().__new__(cls)
+
     def reset(self) -> None:
         super().reset()
         self.psc = 0  # active prescaler (PSC is always preloaded)
@@ -82,6 +91,7 @@ class Tim1(RegisterFile):
         self._watched: tuple[bool, ...] | None = None  # which channels are observed (until a configuration write)
         self.break_pin: bool | None = None  # the BKIN pin's level (None: nothing drives it, BRK never active)
         self.break_trips = 0  # times BRK went active with BKE set
+        self._lines_on = [False] * len(_LINES)  # which interrupt lines this model asserts
 
     # --- configuration helpers -------------------------------------------------------------------------------------
 
@@ -373,11 +383,14 @@ class Tim1(RegisterFile):
         self._irqs()
 
     def _irqs(self) -> None:
-        sr, dier = self.regs[SR], self.regs[DIER]
-        for line, mask in _LINES:
+        """Each line asserted while a flag and its enable are set (pending it again), withdrawn when that ends."""
+        sr, dier, on = self.regs[SR], self.regs[DIER], self._lines_on
+        for i, (line, mask) in enumerate(_LINES):
             if sr & dier & mask:
+                on[i] = True
                 self.bus.set_pending(line)
-            else:
+            elif on[i]:
+                on[i] = False
                 self.bus.clear_pending(line)
 
     # --- registers ------------------------------------------------------------------------------------------------
