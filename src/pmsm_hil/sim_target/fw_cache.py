@@ -81,10 +81,15 @@ def _tool_version(tool: str) -> str:
     return f"{tool}: {os.path.realpath(found)} {' '.join(proc.stdout.splitlines()[:1])}"
 
 
+#: what an entry may hold and how a hit is used, in the key: a tool whose rules differ (2: artefacts whose parameter
+#: table is refused are cached too, the table checked on every hit) never takes another's entries
+ENTRY_RULES = 2
+
+
 def content_key(src: Path, sdk: Path, board: str, defines: tuple[str, ...], *, mcu: bool) -> str:
     """The entry key (32 hex digits) of building `src` with the SDK `sdk` for `board` with `defines`."""
     h = hashlib.sha256()
-    for part in (tree_digest(src), tree_digest(sdk), board, *defines, "\x01",
+    for part in (f"rules {ENTRY_RULES}", tree_digest(src), tree_digest(sdk), board, *defines, "\x01",
                  *(_tool_version(t) for t in (MCU_TOOLS if mcu else HOST_TOOLS)),
                  *(f"{k}={os.environ.get(k, '')}" for k in COMPILER_ENV)):
         h.update(part.encode() + b"\0")
