@@ -240,7 +240,10 @@ class ThreadTarget(_InThread):
         self.link.close()
 
 
-@pytest.mark.parametrize("flood", [True, False])
+#: the flooded case is a `timing` test: its flood (a thread of this process, beside the target's thread) must reach
+#: the starving rate the host's verdict names; beside load 12 it did not, and the host rightly saw a target that
+#: stopped answering on a bus that was not starved (exit 4, rule `missing`)
+@pytest.mark.parametrize("flood", [pytest.param(True, marks=pytest.mark.timing), False])
 def test_a_silent_target_on_a_flooded_bus_ends_naming_the_bus(flood: bool) -> None:
     """The target stops answering while other nodes flood the bus at full rate: the ending names the bus and its
     rate (exit 3), not the target; on a quiet shared bus the same silence is the target's (rule `missing`)."""
