@@ -35,18 +35,22 @@ CORE_REGS = (*(getattr(arm, f"UC_ARM_REG_R{i}") for i in range(13)), arm.UC_ARM_
 
 #: the board's fast paths, each against its reference: (Board switch, what differs when a record does)
 FAST_PATHS = {"native_exc": ("NATIVE", "the C and the Python exception frames"),
-              "quiet_skip": ("SKIP_QUIET", "the skipping and the reference scheduler")}
+              "quiet_skip": ("SKIP_QUIET", "the skipping and the reference scheduler"),
+              "native_core": ("NATIVE_CORE", "the C and the Python scheduler, NVIC and SysTick")}
 
 
 def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch: pytest.MonkeyPatch,
-            periods: int = PERIODS, skip_quiet: bool = True) -> dict[str, Any]:
+            periods: int = PERIODS, skip_quiet: bool = True, native_core: bool = True) -> dict[str, Any]:
     """Everything a run of `periods` Measurements leaves, with the board's C paths (exception frames, the DWT page's
-    reads) or the Python reference, with the scheduler skipping quiet models or asking every model every step."""
+    reads) or the Python reference, with the scheduler skipping quiet models or asking every model every step, with
+    the scheduler, NVIC and SysTick in C or in Python."""
     monkeypatch.setattr(Board, "NATIVE", native)
     monkeypatch.setattr(Board, "SKIP_QUIET", skip_quiet)
+    monkeypatch.setattr(Board, "NATIVE_CORE", native_core)
     link = BoardLink(elf, load_board(board_file), ts_s=TS, pole_pairs=4)
     assert (link.board.exceptions._native is not None) == native
     assert hasattr(link.board, "_dwt") == native
+    assert link.board._native_core == (native and skip_quiet and native_core)
     codec = FrameCodec("canfd")
     frames: list[bytes] = []
     error = ""
@@ -72,7 +76,8 @@ def same(path: str, elf: Path, board_file: str | Path | None, monkeypatch: pytes
          periods: int = PERIODS) -> dict[str, Any]:
     """The records of `elf` with the fast path `path` (FAST_PATHS) and with its reference: equal, key by key."""
     switch, what = FAST_PATHS[path]
-    reference = records(elf, board_file, switch != "NATIVE", monkeypatch, periods, skip_quiet=switch != "SKIP_QUIET")
+    reference = records(elf, board_file, switch != "NATIVE", monkeypatch, periods, skip_quiet=switch != "SKIP_QUIET",
+                        native_core=switch != "NATIVE_CORE")
     native = records(elf, board_file, True, monkeypatch, periods)
     for key in reference:
         assert native[key] == reference[key], f"{key} differs between {what}"

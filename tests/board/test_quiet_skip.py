@@ -5,6 +5,8 @@ paths in tests/board/test_native_exc.py."""
 
 from __future__ import annotations
 
+from typing import Any
+
 import pytest
 
 from pmsm_hil.sim_target.stm32g4.board import Board
@@ -18,6 +20,7 @@ def test_an_encoder_timer_rests_and_the_group_is_skipped(monkeypatch: pytest.Mon
     from pmsm_hil.sim_target.stm32g4.link import BoardLink
 
     monkeypatch.setattr(Board, "SKIP_QUIET", True)
+    monkeypatch.setattr(Board, "NATIVE_CORE", False)
     link = BoardLink(example(), load_board(EXAMPLE_BOARD), ts_s=50e-6, pole_pairs=4)
     board = link.board
     assert board.peripherals["TIM3"] in board._resting
@@ -40,3 +43,31 @@ def test_an_encoder_timer_rests_and_the_group_is_skipped(monkeypatch: pytest.Mon
     monkeypatch.setattr(board.scs.systick, "advance", step)
     board.run_until(board.now + 20 * link.period_cycles)
     assert 0 < calls["tim1"] < steps["n"]
+
+
+def test_the_c_scheduler_skips_the_same_models(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The scheduler in C (Board.NATIVE_CORE) keeps the skipping: TIM3 rests, and the group's Python models are
+    called (in the batch of the Python models due) at fewer steps than FDCAN1, which is asked at every step; TIM3
+    only when the call starts and after an access."""
+    from pmsm_hil.sim_target.stm32g4.board_file import load_board
+    from pmsm_hil.sim_target.stm32g4.link import BoardLink
+
+    monkeypatch.setattr(Board, "NATIVE_CORE", True)
+    link = BoardLink(example(), load_board(EXAMPLE_BOARD), ts_s=50e-6, pole_pairs=4)
+    board = link.board
+    assert board._native_core
+    tim3 = board.peripherals["TIM3"]
+    assert board._core.models[board._slot[tim3]].resting
+    calls = {"TIM1": 0, "FDCAN1": 0, "TIM3": 0}
+    for name in calls:
+        model = board.peripherals[name]
+        advance = model.advance
+
+        def counted(now: int, name: str = name, advance: Any = advance) -> None:
+            calls[name] += 1
+            advance(now)
+
+        monkeypatch.setattr(model, "advance", counted)
+    board.run_until(board.now + 20 * link.period_cycles)
+    assert 0 < calls["TIM1"] < calls["FDCAN1"]
+    assert calls["TIM3"] < calls["FDCAN1"]  # asked when the call starts and after the firmware read it
