@@ -114,7 +114,15 @@ class Board:
         self._native_core = self.NATIVE_CORE and self.NATIVE and self.SKIP_QUIET
         #: the NVIC's and SysTick's state and the scheduler's counters, read by the C core and the Python objects
         self._core: CoreState = new_core()
+        self._core_lib = core_native.library()
+        self._core_ref = ctypes.byref(self._core)
         self.cpu = Cpu(part, python_stops=not self._native_core)
+        self._core.counter = ctypes.addressof(self.cpu.counter)
+        #: where a model's interrupt lines go (a model in C calls it directly; Python models through set_pending and
+        #: clear_pending: the same C functions on the same state, with either scheduler)
+        self.irq_sink = IrqSink(ctypes.addressof(self._core),
+                                core_native.address(self._core_lib.hil_core_assert_line),
+                                core_native.address(self._core_lib.hil_core_withdraw_line))
         self.nvic = Nvic(part.irq_count, self._core.nvic)
         self.scs = SystemControl(self.nvic, part.idcode, self.describe_pc, self._reset_request, self._pend_systick,
                                  self._core.systick)
@@ -203,10 +211,7 @@ class Board:
         )
         from unicorn.unicorn_py3.unicorn import uclib
 
-        lib = self._core_lib = core_native.library()
-        core, cpu = self._core, self.cpu
-        self._core_ref = ctypes.byref(core)
-        core.counter = ctypes.addressof(cpu.counter)
+        lib, core, cpu = self._core_lib, self._core, self.cpu
         core.uc = ctypes.cast(cpu.uc._uch, ctypes.c_void_p).value
         core.emu_start = core_native.address(uclib.uc_emu_start)
         core.emu_stop = core_native.address(uclib.uc_emu_stop)
@@ -223,9 +228,6 @@ class Board:
         core.exc_leave = core_native.address(exc_lib.hil_exc_leave)
         core.py_error = ctypes.addressof(cpu.hook_error)
         self._mirror_scb()
-        #: where a model in C sends its interrupt lines (the same path as set_pending's)
-        self.irq_sink = IrqSink(ctypes.addressof(core), core_native.address(lib.hil_core_assert_line),
-                                core_native.address(lib.hil_core_withdraw_line))
         models = [p for p in self.peripherals.values()
                   if p in self._timed_set or p in self._advancing or p in self._may_rest]
         if len(models) > core_native.MODELS_MAX:
@@ -391,15 +393,9 @@ class Board:
     # --- BoardBus -----------------------------------------------------------------------------------------------
 
     def set_pending(self, irq: int) -> None:
-        if self._native_core:
-            self._core_lib.hil_core_assert_line(self._core_ref, irq)
-            return
-        exc = 16 + irq
-        if exc not in self.nvic.asserted:
-            self._assert_time[exc] = self.cpu.count
-        self.nvic.assert_line(irq)
-        if self.nvic.enabled[exc]:
-            self.cpu.request_stop()
+        """Assert interrupt line `irq` (c/board_core.c: pending unless active, its latency's start kept, the core
+        stopped at its next block when the line is enabled)."""
+        self._core_lib.hil_core_assert_line(self._core_ref, irq)
 
     def _pend_systick(self, at: int) -> None:
         if SYSTICK not in self.nvic.pending:
@@ -407,7 +403,11 @@ class Board:
         self.nvic.pending.add(SYSTICK)
 
     def clear_pending(self, irq: int) -> None:
-        self.nvic.withdraw_line(irq)
+        exc = 16 + irq
+        if 0 <= exc < self.nvic.size:
+            state = self._core.nvic
+            state.asserted[exc] = 0
+            state.pending[exc] = 0
 
     def read_memory(self, address: int, size: int) -> bytes:
         return bytes(self.cpu.uc.mem_read(address, size))
