@@ -23,7 +23,15 @@ from unicorn import arm_const as arm
 from pmsm_hil.sim_target.elf import ElfError, elf_load_segments, elf_symbols
 from pmsm_hil.sim_target.stm32g4 import core_native
 from pmsm_hil.sim_target.stm32g4 import peripherals as _peripherals_pkg
-from pmsm_hil.sim_target.stm32g4.core_native import PY_ADVANCE, PY_NEXT_EVENT, PY_QUIET, CoreState, IrqSink, new_core
+from pmsm_hil.sim_target.stm32g4.core_native import (
+    PY_ADVANCE,
+    PY_NEXT_EVENT,
+    PY_QUIET,
+    CoreState,
+    IrqSink,
+    ScsState,
+    new_core,
+)
 from pmsm_hil.sim_target.stm32g4.counter import CounterState
 from pmsm_hil.sim_target.stm32g4.cpu import (
     EXCP_BKPT,
@@ -326,7 +334,14 @@ class Board:
             if self._native_core:
                 self._mirror_scb()
 
-        self.cpu.map_mmio(0xE000_E000, PAGE, self._core_access(0xE000_E000, scs.read), scs_write)
+        if self._native_core:  # the NVIC's and SysTick's registers in C, the rest of the page in Python
+            lib = self._core_lib
+            self._scs_state = ScsState(ctypes.addressof(self._core))
+            self.cpu.map_mmio(0xE000_E000, PAGE, self._core_access(0xE000_E000, scs.read), scs_write,
+                              native_read=(core_native.address(lib.hil_core_scs_read), self._scs_state),
+                              native_write=(core_native.address(lib.hil_core_scs_write), self._scs_state))
+        else:
+            self.cpu.map_mmio(0xE000_E000, PAGE, self._core_access(0xE000_E000, scs.read), scs_write)
         dwt_read, dwt_store = self._core_access(0xE000_1000, scs.dwt_read), self._core_store(0xE000_1000, scs.dwt_write)
         if self.NATIVE:  # the reads in C (CYCCNT in a timed ISR: no Python per access), the writes in Python
             dwt = self._dwt = DwtState()

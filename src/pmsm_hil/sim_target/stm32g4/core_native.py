@@ -96,6 +96,13 @@ class CoreState(ctypes.Structure):
                 ("idle_pc", ctypes.c_uint32 * IDLE_CACHE), ("idle_hit", ctypes.c_int8 * IDLE_CACHE)]
 
 
+class ScsState(ctypes.Structure):
+    """Mirror of hil_scs_t: the System Control Space page's C callbacks and their Python fallbacks."""
+
+    _fields_ = [("core", ctypes.c_void_p), ("fallback", ctypes.c_void_p), ("fallback_user", ctypes.c_void_p),
+                ("fallback_write", ctypes.c_void_p), ("fallback_write_user", ctypes.c_void_p)]
+
+
 def new_core() -> CoreState:
     """A zeroed core state with no event due, nothing settled and an empty idle-loop cache."""
     core = CoreState()

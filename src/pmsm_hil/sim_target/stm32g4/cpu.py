@@ -140,12 +140,13 @@ class Cpu:
         self.extra_ram.append(buf)
 
     def map_mmio(self, base: int, size: int, read: MmioRead, write: MmioWrite, *,
-                 native_read: tuple[int, Any] | None = None) -> None:
+                 native_read: tuple[int, Any] | None = None, native_write: tuple[int, Any] | None = None) -> None:
         """Route every access to [base, base + size) to `read(address, size)` / `write(address, size, value)`.
         The callbacks are Unicorn's C callbacks straight (not the binding's layered wrappers); an exception in
         one stops the core and is raised by `run`, as the binding does. `native_read` (a C uc_cb_mmio_read_t's
         address and its state, a ctypes Structure whose `fallback` field it calls for what it does not handle)
-        takes the reads instead, `read` as its fallback."""
+        takes the reads instead, `read` as its fallback; `native_write` (a uc_cb_mmio_write_t and its state, whose
+        `fallback_write` field it calls) the writes, `write` as its fallback."""
         uch = self._uch
 
         def on_read(_handle: int, offset: int, nbytes: int, _user: int) -> int:
@@ -169,7 +170,13 @@ class Cpu:
             state.fallback = ctypes.cast(read_fn, ctypes.c_void_p).value
             self._mmio_callbacks.append((MMIO_READ_CFUNC(function), state))
             read_fn, user = self._mmio_callbacks[-1][0], ctypes.addressof(state)
-        status = uclib.uc_mmio_map(uch, base, size, read_fn, user, write_fn, None)
+        write_user: int | None = None
+        if native_write is not None:
+            function, state = native_write
+            state.fallback_write = ctypes.cast(write_fn, ctypes.c_void_p).value
+            self._mmio_callbacks.append((MMIO_WRITE_CFUNC(function), state))
+            write_fn, write_user = self._mmio_callbacks[-1][0], ctypes.addressof(state)
+        status = uclib.uc_mmio_map(uch, base, size, read_fn, user, write_fn, write_user)
         if status != 0:
             raise UcError(status)
 

@@ -688,5 +688,151 @@ int hil_core_run(hil_core_t *c, int64_t end, int fresh) {
     }
 }
 
+/* --- the NVIC's and SysTick's registers (0xE000E000 page) ---------------------------------------------------- */
+
+typedef uint64_t (*hil_mmio_read_fn)(void *uc, uint64_t offset, unsigned size, void *user);
+typedef void (*hil_mmio_write_fn)(void *uc, uint64_t offset, unsigned size, uint64_t value, void *user);
+
+/* The System Control Space page as Unicorn MMIO callbacks: the NVIC's registers (ISER/ICER/ISPR/ICPR/IABR/IPR,
+ * STIR) and SysTick's (CTRL/LOAD/VAL/CALIB) in C on the core's state, every other register through `fallback` /
+ * `fallback_write` (the Python SystemControl, scs.py: the same steps, which name an unmodelled register). */
+typedef struct {
+    hil_core_t *core;
+    hil_mmio_read_fn fallback;
+    void *fallback_user;
+    hil_mmio_write_fn fallback_write;
+    void *fallback_write_user;
+} hil_scs_t;
+
+static int64_t floor_div(int64_t a, int64_t b) {
+    int64_t q = a / b;
+    return (a % b != 0 && ((a < 0) != (b < 0))) ? q - 1 : q;
+}
+
+static int64_t systick_value(const hil_systick_t *s, int64_t now) {
+    if (!(s->ctrl & 1u)) {
+        return s->anchor_val;
+    }
+    int64_t ticks = floor_div(now - s->anchor, systick_divider(s));
+    if (ticks <= s->anchor_val) {
+        return s->anchor_val - ticks;
+    }
+    int64_t m = (int64_t)s->load + 1;
+    int64_t r = (ticks - s->anchor_val - 1) % m;
+    return (int64_t)s->load - (r < 0 ? r + m : r);
+}
+
+static int nvic_group_offset(uint64_t offset, uint64_t top) {
+    return offset >= 0x100u && offset < top && (offset & 0x7Fu) < 0x20u;
+}
+
+uint64_t hil_core_scs_read(void *uc, uint64_t offset, unsigned size, void *user) {
+    hil_scs_t *m = (hil_scs_t *)user;
+    hil_core_t *c = m->core;
+    const hil_nvic_t *n = &c->nvic;
+    int irqs = n->size - 16;
+    if (offset >= 0x400u && offset < 0x400u + (uint64_t)irqs) {
+        uint64_t value = 0;
+        int first = 16 + (int)(offset - 0x400u);
+        for (unsigned i = 0; i < size; ++i) {
+            if (first + (int)i < n->size) {
+                value |= (uint64_t)n->priority[first + (int)i] << (8u * i);
+            }
+        }
+        return value;
+    }
+    if (nvic_group_offset(offset, 0x320u)) {
+        int group = (int)((offset - 0x100u) >> 7), word = (int)((offset & 0x7Fu) >> 2);
+        uint64_t bits = 0;
+        for (int bit = 0; bit < 32; ++bit) {
+            int exc = 16 + 32 * word + bit;
+            if (exc >= n->size) {
+                break;
+            }
+            int on = group <= 1 ? n->enabled[exc] : group <= 3 ? n->pending[exc] : is_active(c, exc);
+            bits |= (uint64_t)(on != 0) << bit;
+        }
+        return bits;
+    }
+    if (offset >= 0x10u && offset < 0x20u) {
+        hil_systick_t *s = &c->systick;
+        uint64_t reg = offset & ~3ull;
+        if (reg == 0x10u) {
+            uint64_t value = s->ctrl | (s->countflag ? 0x10000u : 0u);
+            s->countflag = 0;
+            return value;
+        }
+        if (reg == 0x14u) {
+            return s->load;
+        }
+        if (reg == 0x18u) {
+            return (uint64_t)systick_value(s, (int64_t)c->counter->count);
+        }
+        return 0x40000000u; /* CALIB: NOREF, no TENMS figure */
+    }
+    return m->fallback(uc, offset, size, m->fallback_user);
+}
+
+void hil_core_scs_write(void *uc, uint64_t offset, unsigned size, uint64_t value, void *user) {
+    hil_scs_t *m = (hil_scs_t *)user;
+    hil_core_t *c = m->core;
+    hil_nvic_t *n = &c->nvic;
+    int irqs = n->size - 16;
+    int64_t now = (int64_t)c->counter->count;
+    if (offset >= 0x400u && offset < 0x400u + (uint64_t)irqs) {
+        for (unsigned i = 0; i < size; ++i) {
+            int exc = 16 + (int)(offset - 0x400u) + (int)i;
+            if (exc < n->size) {
+                n->priority[exc] = (uint8_t)((value >> (8u * i)) & PRIO_MASK);
+            }
+        }
+    } else if (nvic_group_offset(offset, 0x300u)) {
+        int group = (int)((offset - 0x100u) >> 7), word = (int)((offset & 0x7Fu) >> 2);
+        for (int bit = 0; bit < 32; ++bit) {
+            if (!(value >> bit & 1u)) {
+                continue;
+            }
+            int exc = 16 + 32 * word + bit;
+            if (exc >= n->size) {
+                break;
+            }
+            if (group == 0) {
+                n->enabled[exc] = 1;
+            } else if (group == 1) {
+                n->enabled[exc] = 0;
+            } else if (group == 2) {
+                n->pending[exc] = 1;
+            } else {
+                n->pending[exc] = 0;
+            }
+        }
+    } else if (offset >= 0x10u && offset < 0x20u) {
+        hil_systick_t *s = &c->systick;
+        uint64_t reg = offset & ~3ull;
+        if (reg == 0x10u) {
+            s->anchor_val = systick_value(s, now);
+            s->ctrl = (uint32_t)(value & 7u);
+            s->anchor = now;
+        } else if (reg == 0x14u) {
+            s->anchor_val = systick_value(s, now);
+            s->anchor = now;
+            s->load = (uint32_t)(value & 0xFFFFFFu);
+        } else if (reg == 0x18u) { /* any write clears VAL and COUNTFLAG */
+            s->anchor = now;
+            s->anchor_val = 0;
+            s->countflag = 0;
+        }
+    } else if (offset == 0xF00u) { /* STIR */
+        int exc = 16 + (int)(value & 0x1FFu);
+        if (exc < n->size) {
+            n->pending[exc] = 1;
+        }
+    } else {
+        m->fallback_write(uc, offset, size, value, m->fallback_write_user);
+        return;
+    }
+    c->counter->limit = c->counter->count; /* the schedule is re-made after this block */
+}
+
 /* The size of hil_core_t (the Python mirror checks its own against it). */
 int64_t hil_core_size(void) { return (int64_t)sizeof(hil_core_t); }
