@@ -124,3 +124,22 @@ def test_an_unmodelled_dwt_register_is_named_in_one_line(native: bool, build_fw:
         board.run_until(1_000_000)
     text = str(info.value)
     assert "0xe0001200" in text.lower() and "touch_dwt_reserved" in text and "\n" not in text
+
+
+@pytest.mark.parametrize("names", [("FDCAN1",), ("TIM1", "ADC2")], ids=["fdcan1", "tim1_group"])
+def test_models_behind_the_c_ops_give_the_same_records(names: tuple[str, ...], monkeypatch: pytest.MonkeyPatch) -> None:
+    """A model in the C scheduler's ops list (hil_periph_ops_t, as a model written in C sits there: called directly,
+    between the batches of the Python models) — here Python models behind trampolines of that signature, one outside
+    the TIM1/ADC group, and TIM1 and ADC2 with ADC1 in a batch between them — leaves the Python scheduler's records."""
+    from pmsm_hil.sim_target.stm32g4.core_native import trampoline_ops
+    from pmsm_hil.sim_target.stm32g4.peripherals.base import REGISTRY
+
+    elf = example()
+    reference = records(elf, EXAMPLE_BOARD, True, monkeypatch, native_core=False)
+    for name in names:
+        monkeypatch.setattr(REGISTRY[name], "native_ops", property(
+            lambda self: trampoline_ops(self, self.bus.cpu.hook_failed)), raising=False)
+    out = records(elf, EXAMPLE_BOARD, True, monkeypatch)
+    for key in reference:
+        assert out[key] == reference[key], f"{key} differs with {names} behind the C ops"
+    assert len(out["frames"]) >= PERIODS

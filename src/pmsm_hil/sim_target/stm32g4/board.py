@@ -29,6 +29,7 @@ from pmsm_hil.sim_target.stm32g4.core_native import (
     PY_QUIET,
     CoreState,
     IrqSink,
+    PeriphOps,
     ScsState,
     new_core,
 )
@@ -242,10 +243,12 @@ class Board:
             raise BoardError(f"the board's core holds {core_native.MODELS_MAX} timed models, the part has "
                              f"{len(models)}")
         self._models = models
+        self._native_ops: list[PeriphOps] = []
         for i, p in enumerate(models):
             slot = core.models[i]
             ops = getattr(p, "native_ops", None)
             if ops is not None:
+                self._native_ops.append(ops)  # kept alive with whatever it holds (a trampoline's callbacks)
                 slot.ops = ops
                 slot.has_advance, slot.has_next = bool(ops.advance), bool(ops.next_event)
             else:

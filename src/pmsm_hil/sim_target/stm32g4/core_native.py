@@ -6,6 +6,7 @@ is."""
 from __future__ import annotations
 
 import ctypes
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -101,6 +102,36 @@ class ScsState(ctypes.Structure):
 
     _fields_ = [("core", ctypes.c_void_p), ("fallback", ctypes.c_void_p), ("fallback_user", ctypes.c_void_p),
                 ("fallback_write", ctypes.c_void_p), ("fallback_write_user", ctypes.c_void_p)]
+
+
+OPS_NEXT_EVENT = ctypes.CFUNCTYPE(ctypes.c_int64, ctypes.c_void_p, ctypes.c_int64)
+OPS_ADVANCE = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_int64)
+
+
+def trampoline_ops(model: Any, on_error: Callable[[BaseException], None]) -> PeriphOps:
+    """A Python model behind hil_periph_ops_t (c/periph_ops.h): its `next_event` and `advance` through callbacks of
+    that signature (None as -1), an exception handed to `on_error` (which stops the core). The board calls its Python
+    models in batches instead (one call for every Python model due); this is the single-model form, for a model
+    that must sit in the ops list as a C one does (the trampolines are kept on the returned structure)."""
+
+    def next_event(_self: int | None, now: int) -> int:
+        try:
+            at = model.next_event(now)
+        except BaseException as exc:
+            on_error(exc)
+            return -1
+        return -1 if at is None else int(at)
+
+    def advance(_self: int | None, now: int) -> None:
+        try:
+            model.advance(now)
+        except BaseException as exc:
+            on_error(exc)
+
+    callbacks = (OPS_NEXT_EVENT(next_event), OPS_ADVANCE(advance))
+    ops = PeriphOps(None, address(callbacks[0]), address(callbacks[1]))
+    ops.__dict__["keep"] = callbacks
+    return ops
 
 
 def new_core() -> CoreState:
