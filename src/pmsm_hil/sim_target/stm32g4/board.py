@@ -16,6 +16,7 @@ import pkgutil
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from unicorn import UcError
 from unicorn import arm_const as arm
@@ -287,13 +288,21 @@ class Board:
         except BaseException as exc:  # raised by run_until once the C loop returned
             self.cpu.hook_failed(exc)
 
-    def _py_next_event(self, mask: int, now: int) -> int:
-        best = -1
+    def _py_next_event(self, active: int, group: int, now: int, group_out: Any) -> int:
+        """The earliest next event of the Python models in `active`; the group's (`group`) into `group_out[0]`."""
+        best = gbest = -1
         try:
-            for p in self._batch(mask):
-                at = p.next_event(now)
-                if at is not None and (best < 0 or at < best):
-                    best = at
+            if active:
+                for p in self._batch(active):
+                    at = p.next_event(now)
+                    if at is not None and (best < 0 or at < best):
+                        best = at
+            if group:
+                for p in self._batch(group):
+                    at = p.next_event(now)
+                    if at is not None and (gbest < 0 or at < gbest):
+                        gbest = at
+                group_out[0] = gbest
         except BaseException as exc:
             self.cpu.hook_failed(exc)
         return best
@@ -674,10 +683,12 @@ class Board:
         n = core.n_log
         if not n:
             return
-        excs, kinds, values = core.log_exc[:n], core.log_kind[:n], core.log_value[:n]
+        excs, kinds, values = core.log_exc, core.log_kind, core.log_value
+        records = [(excs[i], kinds[i], values[i]) for i in range(n)] if n < 16 else \
+            list(zip(excs[:n], kinds[:n], values[:n], strict=True))
         core.n_log = 0
         isr = self.isr
-        for exc, kind, value in zip(excs, kinds, values, strict=True):
+        for exc, kind, value in records:
             if kind == 0:
                 stats = isr.get(exc)
                 if stats is None:

@@ -24,7 +24,8 @@ IDLE_CACHE = 64
 DONE, PY_ERROR, UC_ERROR, INTERRUPT, UNMAPPED, BAD_RETURN, LOG_FULL = 0, 2, 3, 4, 5, 6, 7
 
 PY_ADVANCE = ctypes.CFUNCTYPE(None, ctypes.c_uint64, ctypes.c_int64)
-PY_NEXT_EVENT = ctypes.CFUNCTYPE(ctypes.c_int64, ctypes.c_uint64, ctypes.c_int64)
+PY_NEXT_EVENT = ctypes.CFUNCTYPE(ctypes.c_int64, ctypes.c_uint64, ctypes.c_uint64, ctypes.c_int64,
+                                 ctypes.POINTER(ctypes.c_int64))
 PY_QUIET = ctypes.CFUNCTYPE(ctypes.c_uint64, ctypes.c_uint64)
 
 

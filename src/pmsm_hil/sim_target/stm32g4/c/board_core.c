@@ -81,7 +81,7 @@ typedef int (*hil_emu_stop_fn)(void *uc);
 typedef int (*hil_exc_enter_fn)(const void *x, int in_thread, int fp, uint32_t ccr, uint32_t ipsr, uint32_t vector);
 typedef int (*hil_exc_leave_fn)(const void *x, int use_psp, int fp);
 typedef void (*hil_py_advance_fn)(uint64_t mask, int64_t now);
-typedef int64_t (*hil_py_next_fn)(uint64_t mask, int64_t now);
+typedef int64_t (*hil_py_next_fn)(uint64_t active, uint64_t group, int64_t now, int64_t *group_out);
 typedef uint64_t (*hil_py_quiet_fn)(uint64_t mask);
 
 typedef struct {
@@ -569,34 +569,45 @@ static int advance_models(hil_core_t *c, int64_t now, int hot) {
     return HIL_CONTINUE;
 }
 
-/* The earliest next event of the timed models selected by `group` (the group's, or the active ones outside it). */
-static int earliest(hil_core_t *c, int64_t now, int group, int64_t *out) {
-    int64_t best = -1;
-    uint64_t mask = 0;
+static void earlier(int64_t *best, int64_t at) {
+    if (at >= 0 && (*best < 0 || at < *best)) {
+        *best = at;
+    }
+}
+
+/* The earliest next event of the active timed models (outside the group, not resting) into `active`, and when
+ * `group` the group's into `group_due`: the Python models of both in one batch call. */
+static int earliest(hil_core_t *c, int64_t now, int group, int64_t *active, int64_t *group_due) {
+    int64_t best = -1, gbest = -1;
+    uint64_t mask = 0, gmask = 0;
     for (int i = 0; i < c->n_models; ++i) {
         hil_model_t *m = &c->models[i];
-        if (!m->has_next || m->in_group != group || (!group && m->resting)) {
+        if (!m->has_next || (m->in_group ? !group : m->resting)) {
             continue;
         }
         if (m->python) {
-            mask |= 1ull << i;
+            if (m->in_group) {
+                gmask |= 1ull << i;
+            } else {
+                mask |= 1ull << i;
+            }
             continue;
         }
-        int64_t at = m->ops.next_event(m->ops.self, now);
-        if (at >= 0 && (best < 0 || at < best)) {
-            best = at;
-        }
+        earlier(m->in_group ? &gbest : &best, m->ops.next_event(m->ops.self, now));
     }
-    if (mask) {
-        int64_t at = c->py_next_event(mask, now);
+    if (mask || gmask) {
+        int64_t gat = -1;
+        int64_t at = c->py_next_event(mask, gmask, now, &gat);
         if (*c->py_error) {
             return HIL_PY_ERROR;
         }
-        if (at >= 0 && (best < 0 || at < best)) {
-            best = at;
-        }
+        earlier(&best, at);
+        earlier(&gbest, gat);
     }
-    *out = best;
+    *active = best;
+    if (group) {
+        *group_due = gbest;
+    }
     return HIL_CONTINUE;
 }
 
@@ -661,21 +672,17 @@ int hil_core_run(hil_core_t *c, int64_t end, int fresh) {
                 }
             }
         }
+        /* the group asked when its event is due or it was accessed (next_event changes nothing: one batch) */
         int64_t event = hil_core_systick_next(c, now);
         int64_t at;
-        rc = earliest(c, now, 0, &at);
+        int group = hot || c->group_touched;
+        rc = earliest(c, now, group, &at, &group_due);
         if (rc != HIL_CONTINUE) {
             return rc;
         }
-        if (at >= 0 && (event < 0 || at < event)) {
-            event = at;
-        }
-        if (hot || c->group_touched) {
+        earlier(&event, at);
+        if (group) {
             c->group_touched = 0;
-            rc = earliest(c, now, 1, &group_due);
-            if (rc != HIL_CONTINUE) {
-                return rc;
-            }
             c->group_due = group_due;
         }
         if (group_due >= 0 && (event < 0 || group_due < event)) {
