@@ -132,7 +132,8 @@ class Board:
         #: clear_pending: the same C functions on the same state, with either scheduler)
         self.irq_sink = IrqSink(ctypes.addressof(self._core),
                                 core_native.address(self._core_lib.hil_core_assert_line),
-                                core_native.address(self._core_lib.hil_core_withdraw_line))
+                                core_native.address(self._core_lib.hil_core_withdraw_line),
+                                core_native.address(self._core_lib.hil_core_touched))
         self.nvic = Nvic(part.irq_count, self._core.nvic)
         self.scs = SystemControl(self.nvic, part.idcode, self.describe_pc, self._reset_request, self._pend_systick,
                                  self._core.systick)

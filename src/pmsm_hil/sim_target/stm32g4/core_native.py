@@ -60,7 +60,8 @@ class PeriphOps(ctypes.Structure):
 class IrqSink(ctypes.Structure):
     """Mirror of hil_irq_sink_t (c/periph_ops.h)."""
 
-    _fields_ = [("board", ctypes.c_void_p), ("assert_line", ctypes.c_void_p), ("withdraw_line", ctypes.c_void_p)]
+    _fields_ = [("board", ctypes.c_void_p), ("assert_line", ctypes.c_void_p), ("withdraw_line", ctypes.c_void_p),
+                ("touched", ctypes.c_void_p)]
 
 
 class ModelSlot(ctypes.Structure):

@@ -268,6 +268,30 @@ void hil_core_withdraw_line(void *board, int irq) {
     c->nvic.pending[exc] = 0;
 }
 
+/* A model in C saw a register access (hil_irq_sink_t.touched): as Board._touch and Board._store do for the Python
+ * models. */
+void hil_core_touched(void *board, void *self, int write) {
+    hil_core_t *c = (hil_core_t *)board;
+    for (int i = 0; i < c->n_models; ++i) {
+        hil_model_t *m = &c->models[i];
+        if (m->python || m->ops.self != self) {
+            continue;
+        }
+        if (m->in_group) {
+            c->group_touched = 1;
+        } else if (m->resting) {
+            m->woken = 1;
+        }
+        if (write && m->has_next) {
+            int64_t at = m->ops.next_event(m->ops.self, (int64_t)c->counter->count);
+            if (at >= 0 && (uint64_t)at < c->counter->limit) {
+                c->counter->limit = c->counter->count;
+            }
+        }
+        return;
+    }
+}
+
 /* --- SysTick ------------------------------------------------------------------------------------------------- */
 
 static int64_t systick_divider(const hil_systick_t *s) { return (s->ctrl & 4u) ? 1 : 8; }
