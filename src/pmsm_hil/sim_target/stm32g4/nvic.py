@@ -27,6 +27,7 @@ class Flags:
 
     def __init__(self, array: Any, size: int) -> None:
         self._a, self._size = array, size
+        self._none = bytes(len(array))
 
     def add(self, exc: int) -> None:
         if 0 <= exc < self._size:  # an exception the part does not have (STIR beyond its lines): ignored
@@ -40,11 +41,15 @@ class Flags:
         return isinstance(exc, int) and 0 <= exc < self._size and bool(self._a[exc])
 
     def __iter__(self) -> Iterator[int]:
-        raw = bytes(self._a)[:self._size]
-        return iter([i for i, v in enumerate(raw) if v])
+        raw = bytes(self._a)
+        found, i = [], raw.find(1)
+        while i >= 0:
+            found.append(i)
+            i = raw.find(1, i + 1)
+        return iter(found)
 
     def __bool__(self) -> bool:
-        return any(bytes(self._a)[:self._size])
+        return bytes(self._a) != self._none  # entries past `size` are never set
 
     def __len__(self) -> int:
         return sum(1 for v in bytes(self._a)[:self._size] if v)
