@@ -143,3 +143,22 @@ def test_models_behind_the_c_ops_give_the_same_records(names: tuple[str, ...], m
     for key in reference:
         assert out[key] == reference[key], f"{key} differs with {names} behind the C ops"
     assert len(out["frames"]) >= PERIODS
+
+
+def test_one_long_call_fills_and_drains_the_cores_sample_log(monkeypatch: pytest.MonkeyPatch) -> None:
+    """One run_until over 3000 periods takes more exception entries and returns than the C core's sample log holds
+    (core_native.LOG_MAX): the loop hands back, the samples move into Board.isr and it resumes — the Python
+    scheduler's statistics, cycle and sleep counts."""
+    from pmsm_hil.sim_target.stm32g4.core_native import LOG_MAX
+    from pmsm_hil.sim_target.stm32g4.link import BoardLink
+
+    elf, seen = example(), []
+    for native_core in (False, True):
+        monkeypatch.setattr(Board, "NATIVE_CORE", native_core)
+        link = BoardLink(elf, load_board(EXAMPLE_BOARD), ts_s=TS, pole_pairs=4)
+        board = link.board
+        board.run_until(board.now + 3000 * link.period_cycles)
+        seen.append(({e: (s.entries, s.cycles, s.latency) for e, s in board.isr.items()}, board.now,
+                     board.sleep_cycles, board.handler_cycles))
+    assert seen[1] == seen[0]
+    assert 2 * sum(entries for entries, _, _ in seen[1][0].values()) > LOG_MAX
