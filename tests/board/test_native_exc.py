@@ -40,20 +40,24 @@ CORE_REGS = (*(getattr(arm, f"UC_ARM_REG_R{i}") for i in range(13)), arm.UC_ARM_
 FAST_PATHS: dict[str, tuple[Any, str, str]] = {
     "native_exc": (Board, "NATIVE", "the C and the Python exception frames"),
     "quiet_skip": (Board, "SKIP_QUIET", "the skipping and the reference scheduler"),
+    "native_core": (Board, "NATIVE_CORE", "the C and the Python scheduler, NVIC and SysTick"),
     "native_periph": (periph_native, "NATIVE", "the C and the Python TIM1 and ADC models")}
 
 
 def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch: pytest.MonkeyPatch,
-            periods: int = PERIODS, skip_quiet: bool = True, native_periph: bool = True) -> dict[str, Any]:
+            periods: int = PERIODS, skip_quiet: bool = True, native_core: bool = True,
+            native_periph: bool = True) -> dict[str, Any]:
     """Everything a run of `periods` Measurements leaves, with the board's C paths (exception frames, the DWT page's
     reads) or the Python reference, with the scheduler skipping quiet models or asking every model every step, with
-    TIM1 and the ADCs in C or in Python."""
+    the scheduler, NVIC and SysTick in C or in Python, with TIM1 and the ADCs in C or in Python."""
     monkeypatch.setattr(Board, "NATIVE", native)
     monkeypatch.setattr(Board, "SKIP_QUIET", skip_quiet)
+    monkeypatch.setattr(Board, "NATIVE_CORE", native_core)
     monkeypatch.setattr(periph_native, "NATIVE", native_periph)
     link = BoardLink(elf, load_board(board_file), ts_s=TS, pole_pairs=4)
     assert (link.board.exceptions._native is not None) == native
     assert hasattr(link.board, "_dwt") == native
+    assert link.board._native_core == (native and skip_quiet and native_core)
     assert all(getattr(link.board.peripherals[name], "native_page", None) is not None or name == "ADC2"
                for name in ("TIM1", "ADC1")) == native_periph
     assert (type(link.board.peripherals["TIM1"]) is not Tim1) == native_periph
@@ -83,7 +87,8 @@ def same(path: str, elf: Path, board_file: str | Path | None, monkeypatch: pytes
     """The records of `elf` with the fast path `path` (FAST_PATHS) and with its reference: equal, key by key."""
     what = FAST_PATHS[path][2]
     reference = records(elf, board_file, path != "native_exc", monkeypatch, periods,
-                        skip_quiet=path != "quiet_skip", native_periph=path != "native_periph")
+                        skip_quiet=path != "quiet_skip", native_core=path != "native_core",
+                        native_periph=path != "native_periph")
     native = records(elf, board_file, True, monkeypatch, periods)
     for key in reference:
         assert native[key] == reference[key], f"{key} differs between {what}"
@@ -130,3 +135,41 @@ def test_an_unmodelled_dwt_register_is_named_in_one_line(native: bool, build_fw:
         board.run_until(1_000_000)
     text = str(info.value)
     assert "0xe0001200" in text.lower() and "touch_dwt_reserved" in text and "\n" not in text
+
+
+@pytest.mark.parametrize("names", [("FDCAN1",), ("TIM1", "ADC2")], ids=["fdcan1", "tim1_group"])
+def test_models_behind_the_c_ops_give_the_same_records(names: tuple[str, ...], monkeypatch: pytest.MonkeyPatch) -> None:
+    """A model in the C scheduler's ops list (hil_periph_ops_t, as a model written in C sits there: called directly,
+    between the batches of the Python models) — here Python models behind trampolines of that signature, one outside
+    the TIM1/ADC group, and TIM1 and ADC2 with ADC1 in a batch between them — leaves the Python scheduler's records."""
+    from pmsm_hil.sim_target.stm32g4.core_native import trampoline_ops
+    from pmsm_hil.sim_target.stm32g4.peripherals.base import REGISTRY
+
+    elf = example()
+    reference = records(elf, EXAMPLE_BOARD, True, monkeypatch, native_core=False)
+    for name in names:
+        monkeypatch.setattr(REGISTRY[name], "native_ops", property(
+            lambda self: trampoline_ops(self, self.bus.cpu.hook_failed)), raising=False)
+    out = records(elf, EXAMPLE_BOARD, True, monkeypatch)
+    for key in reference:
+        assert out[key] == reference[key], f"{key} differs with {names} behind the C ops"
+    assert len(out["frames"]) >= PERIODS
+
+
+def test_one_long_call_fills_and_drains_the_cores_sample_log(monkeypatch: pytest.MonkeyPatch) -> None:
+    """One run_until over 3000 periods takes more exception entries and returns than the C core's sample log holds
+    (core_native.LOG_MAX): the loop hands back, the samples move into Board.isr and it resumes — the Python
+    scheduler's statistics, cycle and sleep counts."""
+    from pmsm_hil.sim_target.stm32g4.core_native import LOG_MAX
+    from pmsm_hil.sim_target.stm32g4.link import BoardLink
+
+    elf, seen = example(), []
+    for native_core in (False, True):
+        monkeypatch.setattr(Board, "NATIVE_CORE", native_core)
+        link = BoardLink(elf, load_board(EXAMPLE_BOARD), ts_s=TS, pole_pairs=4)
+        board = link.board
+        board.run_until(board.now + 3000 * link.period_cycles)
+        seen.append(({e: (s.entries, s.cycles, s.latency) for e, s in board.isr.items()}, board.now,
+                     board.sleep_cycles, board.handler_cycles))
+    assert seen[1] == seen[0]
+    assert 2 * sum(entries for entries, _, _ in seen[1][0].values()) > LOG_MAX

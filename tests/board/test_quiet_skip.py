@@ -5,6 +5,8 @@ paths in tests/board/test_native_exc.py."""
 
 from __future__ import annotations
 
+from typing import Any
+
 import pytest
 
 from pmsm_hil.sim_target.stm32g4.board import Board
@@ -18,6 +20,7 @@ def test_an_encoder_timer_rests_and_the_group_is_skipped(monkeypatch: pytest.Mon
     from pmsm_hil.sim_target.stm32g4.link import BoardLink
 
     monkeypatch.setattr(Board, "SKIP_QUIET", True)
+    monkeypatch.setattr(Board, "NATIVE_CORE", False)
     link = BoardLink(example(), load_board(EXAMPLE_BOARD), ts_s=50e-6, pole_pairs=4)
     board = link.board
     assert board.peripherals["TIM3"] in board._resting
@@ -40,3 +43,66 @@ def test_an_encoder_timer_rests_and_the_group_is_skipped(monkeypatch: pytest.Mon
     monkeypatch.setattr(board.scs.systick, "advance", step)
     board.run_until(board.now + 20 * link.period_cycles)
     assert 0 < calls["tim1"] < steps["n"]
+
+
+def test_the_c_scheduler_skips_the_same_models(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The scheduler in C (Board.NATIVE_CORE) keeps the skipping: TIM3 rests, and the group's Python models are
+    called (in the batch of the Python models due) at fewer steps than FDCAN1, which is asked at every step; TIM3
+    only when the call starts and after an access."""
+    from pmsm_hil.sim_target.stm32g4.board_file import load_board
+    from pmsm_hil.sim_target.stm32g4.link import BoardLink
+
+    monkeypatch.setattr(Board, "NATIVE_CORE", True)
+    link = BoardLink(example(), load_board(EXAMPLE_BOARD), ts_s=50e-6, pole_pairs=4)
+    board = link.board
+    assert board._native_core
+    tim3 = board.peripherals["TIM3"]
+    assert board._core.models[board._slot[tim3]].resting
+    calls = {"TIM1": 0, "FDCAN1": 0, "TIM3": 0}
+    for name in calls:
+        model = board.peripherals[name]
+        advance = model.advance
+
+        def counted(now: int, name: str = name, advance: Any = advance) -> None:
+            calls[name] += 1
+            advance(now)
+
+        monkeypatch.setattr(model, "advance", counted)
+    board.run_until(board.now + 20 * link.period_cycles)
+    assert 0 < calls["TIM1"] < calls["FDCAN1"]
+    assert calls["TIM3"] < calls["FDCAN1"]  # asked when the call starts and after the firmware read it
+
+
+def test_a_model_in_c_reports_its_own_register_accesses(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A model in C serves its registers itself, so it reports an access through its irq sink's `touched`
+    (c/periph_ops.h): a group member's access makes the scheduler ask the group again, and a store that moves the
+    model's next event before the running slice's end stops the core at its next block, as Board._touch and
+    Board._store do for the Python models."""
+    import ctypes
+
+    from pmsm_hil.sim_target.stm32g4.board_file import load_board
+    from pmsm_hil.sim_target.stm32g4.core_native import trampoline_ops
+    from pmsm_hil.sim_target.stm32g4.link import BoardLink
+    from pmsm_hil.sim_target.stm32g4.peripherals.base import REGISTRY
+
+    monkeypatch.setattr(Board, "NATIVE_CORE", True)
+    monkeypatch.setattr(REGISTRY["TIM1"], "native_ops", property(
+        lambda self: trampoline_ops(self, self.bus.cpu.hook_failed)), raising=False)
+    link = BoardLink(example(), load_board(EXAMPLE_BOARD), ts_s=50e-6, pole_pairs=4)
+    board = link.board
+    core, tim1 = board._core, board.peripherals["TIM1"]
+    slot = core.models[board._slot[tim1]]
+    assert not slot.python and slot.in_group
+    slot.ops.self = 0x1234  # the model's own state pointer, as a model in C has
+    sink = board.irq_sink
+    touched = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int)(sink.touched)
+    core.group_touched = 0
+    counter = board.cpu.counter
+    counter.limit = 1 << 62
+    touched(sink.board, 0x1234, 0)  # a read: the group is asked again, the slice runs on
+    assert core.group_touched == 1 and counter.limit == 1 << 62
+    touched(sink.board, 0x1234, 1)  # a store: TIM1's next event is before the slice's end
+    assert tim1.next_event(board.now) is not None and counter.limit == counter.count
+    core.group_touched = 0
+    touched(sink.board, 0x9999, 1)  # no model of the board: nothing
+    assert core.group_touched == 0

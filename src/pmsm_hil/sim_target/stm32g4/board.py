@@ -16,12 +16,24 @@ import pkgutil
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from unicorn import UcError
 from unicorn import arm_const as arm
 
 from pmsm_hil.sim_target.elf import ElfError, elf_load_segments, elf_symbols
+from pmsm_hil.sim_target.stm32g4 import core_native
 from pmsm_hil.sim_target.stm32g4 import peripherals as _peripherals_pkg
+from pmsm_hil.sim_target.stm32g4.core_native import (
+    PY_ADVANCE,
+    PY_NEXT_EVENT,
+    PY_QUIET,
+    CoreState,
+    IrqSink,
+    PeriphOps,
+    ScsState,
+    new_core,
+)
 from pmsm_hil.sim_target.stm32g4.counter import CounterState
 from pmsm_hil.sim_target.stm32g4.cpu import (
     EXCP_BKPT,
@@ -36,6 +48,7 @@ from pmsm_hil.sim_target.stm32g4.cpu import (
     RegBatch,
 )
 from pmsm_hil.sim_target.stm32g4.exc_native import DwtState, dwt_read_function
+from pmsm_hil.sim_target.stm32g4.exc_native import library as exc_library
 from pmsm_hil.sim_target.stm32g4.exceptions import ExceptionReturnError, ExceptionUnit
 from pmsm_hil.sim_target.stm32g4.fault import (
     BFARVALID,
@@ -51,7 +64,7 @@ from pmsm_hil.sim_target.stm32g4.fault import (
     BoardFaultError,
     where,
 )
-from pmsm_hil.sim_target.stm32g4.nvic import HARDFAULT, SVCALL, SYSTICK, Nvic
+from pmsm_hil.sim_target.stm32g4.nvic import HARDFAULT, SVCALL, SYSTICK, AssertTimes, Nvic
 from pmsm_hil.sim_target.stm32g4.part import FDCAN_RAM_BASE, Part, block_name
 from pmsm_hil.sim_target.stm32g4.peripherals.base import REGISTRY, BoardError, Peripheral
 from pmsm_hil.sim_target.stm32g4.scs import SystemControl
@@ -95,6 +108,10 @@ class Board:
     #: a general-purpose timer that counts encoder edges or is stopped) instead of asking every model at every step
     #: (False: every model at every step, the reference, which gives the same records: tests/board/test_quiet_skip.py)
     SKIP_QUIET = True
+    #: the scheduler, the NVIC and SysTick in C (c/board_core.c): one call into C per run_until, the Python models
+    #: called from it in batches (needs NATIVE and SKIP_QUIET; False: the Python scheduler above, the reference, which
+    #: gives the same records: tests/board/test_native_exc.py)
+    NATIVE_CORE = True
 
     def __init__(self, part: Part, elf: str | Path, *, console: Callable[[str, str], None] | None = None,
                  hse_hz: int = 24_000_000) -> None:
@@ -104,9 +121,22 @@ class Board:
         self.elf = Path(elf)
         self._console = console
         self.console_lines: list[tuple[str, str]] = []
-        self.cpu = Cpu(part)
-        self.nvic = Nvic(part.irq_count)
-        self.scs = SystemControl(self.nvic, part.idcode, self.describe_pc, self._reset_request, self._pend_systick)
+        self._native_core = self.NATIVE_CORE and self.NATIVE and self.SKIP_QUIET
+        #: the NVIC's and SysTick's state and the scheduler's counters, read by the C core and the Python objects
+        self._core: CoreState = new_core()
+        self._core_lib = core_native.library()
+        self._core_ref = ctypes.byref(self._core)
+        self.cpu = Cpu(part, python_stops=not self._native_core)
+        self._core.counter = ctypes.addressof(self.cpu.counter)
+        #: where a model's interrupt lines go (a model in C calls it directly; Python models through set_pending and
+        #: clear_pending: the same C functions on the same state, with either scheduler)
+        self.irq_sink = IrqSink(ctypes.addressof(self._core),
+                                core_native.address(self._core_lib.hil_core_assert_line),
+                                core_native.address(self._core_lib.hil_core_withdraw_line),
+                                core_native.address(self._core_lib.hil_core_touched))
+        self.nvic = Nvic(part.irq_count, self._core.nvic)
+        self.scs = SystemControl(self.nvic, part.idcode, self.describe_pc, self._reset_request, self._pend_systick,
+                                 self._core.systick)
         self.exceptions = ExceptionUnit(self.cpu, self.nvic, self.scs, native=self.NATIVE)
         self.hclk_hz = RESET_HCLK_HZ
         self.peripherals: dict[str, Peripheral] = {}
@@ -136,12 +166,8 @@ class Board:
         self._may_rest = frozenset(p for p in self.peripherals.values() if callable(getattr(p, "quiet", None)))
         self._resting: set[Peripheral] = set()
         self._woken: set[Peripheral] = set()  # resting models accessed since the last step
-        self.sleeping = False
-        self.sleep_cycles = 0
-        #: cycles spent in exception handlers so far (nested ones counted once)
-        self.handler_cycles = 0
         self.isr: dict[int, IsrStats] = {}  # by exception number
-        self._assert_time: dict[int, int] = {}
+        self._assert_time = AssertTimes(self._core.nvic)
         self._entry_stack: list[tuple[int, int]] = []  # (exception, cycle of entry)
         #: the analog front end: (adc, channel, cycle) -> volts; channel -1 is VREF+ (the board description's)
         self.analog: Callable[[str, int, int], float] = lambda adc, channel, now: 3.3 if channel < 0 else 0.0
@@ -149,6 +175,153 @@ class Board:
         self.encoder: Callable[[str, int], int] = lambda timer, now: 0
         self._load()
         self._symbols: dict[str, int] | None = None
+        self._slot: dict[Peripheral, int] = {}
+        if self._native_core:
+            self._setup_core()
+
+    # --- the scheduler's counters (in the core's state) -----------------------------------------------------------
+
+    @property
+    def sleeping(self) -> bool:
+        """The core sleeps (WFI, or sleep-on-exit) until a pending interrupt wakes it."""
+        return bool(self._core.sleeping)
+
+    @sleeping.setter
+    def sleeping(self, value: bool) -> None:
+        self._core.sleeping = int(value)
+
+    @property
+    def sleep_cycles(self) -> int:
+        """Cycles the core slept so far."""
+        return int(self._core.sleep_cycles)
+
+    @sleep_cycles.setter
+    def sleep_cycles(self, value: int) -> None:
+        self._core.sleep_cycles = value
+
+    @property
+    def handler_cycles(self) -> int:
+        """Cycles spent in exception handlers so far (nested ones counted once)."""
+        return int(self._core.handler_cycles)
+
+    @handler_cycles.setter
+    def handler_cycles(self, value: int) -> None:
+        self._core.handler_cycles = value
+
+    # --- the C core ---------------------------------------------------------------------------------------------
+
+    def _setup_core(self) -> None:
+        """Hand the C core Unicorn's functions, the exception frames, the counter, the models (a model with a
+        `native_ops` attribute, a core_native.PeriphOps, is called directly; the others through the batches below)
+        and the stop hooks."""
+        from unicorn import (
+            UC_HOOK_INTR,
+            UC_HOOK_MEM_FETCH_UNMAPPED,
+            UC_HOOK_MEM_READ_UNMAPPED,
+            UC_HOOK_MEM_WRITE_UNMAPPED,
+        )
+        from unicorn.unicorn_py3.unicorn import uclib
+
+        lib, core, cpu = self._core_lib, self._core, self.cpu
+        core.uc = ctypes.cast(cpu.uc._uch, ctypes.c_void_p).value
+        core.emu_start = core_native.address(uclib.uc_emu_start)
+        core.emu_stop = core_native.address(uclib.uc_emu_stop)
+        core.reg_read_batch = core_native.address(uclib.uc_reg_read_batch)
+        core.reg_write_batch = core_native.address(uclib.uc_reg_write_batch)
+        core.mem_read = core_native.address(uclib.uc_mem_read)
+        core.reg_pc, core.reg_primask, core.reg_basepri = arm.UC_ARM_REG_PC, arm.UC_ARM_REG_PRIMASK, \
+            arm.UC_ARM_REG_BASEPRI
+        native = self.exceptions._native
+        assert native is not None
+        exc_lib = exc_library()
+        core.exc = ctypes.addressof(native[1])
+        core.exc_enter = core_native.address(exc_lib.hil_exc_enter)
+        core.exc_leave = core_native.address(exc_lib.hil_exc_leave)
+        core.py_error = ctypes.addressof(cpu.hook_error)
+        self._mirror_scb()
+        models = [p for p in self.peripherals.values()
+                  if p in self._timed_set or p in self._advancing or p in self._may_rest]
+        if len(models) > core_native.MODELS_MAX:
+            raise BoardError(f"the board's core holds {core_native.MODELS_MAX} timed models, the part has "
+                             f"{len(models)}")
+        self._models = models
+        self._native_ops: list[PeriphOps] = []
+        for i, p in enumerate(models):
+            slot = core.models[i]
+            ops = getattr(p, "native_ops", None)
+            if ops is not None:
+                self._native_ops.append(ops)  # kept alive with whatever it holds (a trampoline's callbacks)
+                slot.ops = ops
+                slot.has_advance, slot.has_next = bool(ops.advance), bool(ops.next_event)
+            else:
+                slot.python = 1
+                slot.has_advance, slot.has_next = p in self._advancing, p in self._timed_set
+            slot.in_group = p in self._group_set
+            slot.may_rest = p in self._may_rest
+            self._slot[p] = i
+        core.n_models = len(models)
+        self._batches: dict[int, tuple[Peripheral, ...]] = {}
+        self._callbacks = (PY_ADVANCE(self._py_advance), PY_NEXT_EVENT(self._py_next_event),
+                           PY_QUIET(self._py_quiet))
+        core.py_advance, core.py_next_event, core.py_quiet = (core_native.address(f) for f in self._callbacks)
+        self._hook_handles: list[ctypes.c_size_t] = []
+        for kind, fn in ((UC_HOOK_INTR, lib.hil_core_on_interrupt),
+                         (UC_HOOK_MEM_READ_UNMAPPED | UC_HOOK_MEM_WRITE_UNMAPPED | UC_HOOK_MEM_FETCH_UNMAPPED,
+                          lib.hil_core_on_unmapped)):
+            handle = ctypes.c_size_t()
+            status = uclib.uc_hook_add(cpu.uc._uch, ctypes.byref(handle), kind, ctypes.c_void_p(
+                core_native.address(fn)), ctypes.c_void_p(ctypes.addressof(core)), ctypes.c_uint64(1),
+                ctypes.c_uint64(0))
+            if status != 0:
+                raise UcError(status)
+            self._hook_handles.append(handle)
+
+    def _batch(self, mask: int) -> tuple[Peripheral, ...]:
+        batch = self._batches.get(mask)
+        if batch is None:
+            batch = self._batches[mask] = tuple(p for i, p in enumerate(self._models) if mask >> i & 1)
+        return batch
+
+    def _py_advance(self, mask: int, now: int) -> None:
+        try:
+            for p in self._batch(mask):
+                p.advance(now)
+        except BaseException as exc:  # raised by run_until once the C loop returned
+            self.cpu.hook_failed(exc)
+
+    def _py_next_event(self, active: int, group: int, now: int, group_out: Any) -> int:
+        """The earliest next event of the Python models in `active`; the group's (`group`) into `group_out[0]`."""
+        best = gbest = -1
+        try:
+            if active:
+                for p in self._batch(active):
+                    at = p.next_event(now)
+                    if at is not None and (best < 0 or at < best):
+                        best = at
+            if group:
+                for p in self._batch(group):
+                    at = p.next_event(now)
+                    if at is not None and (gbest < 0 or at < gbest):
+                        gbest = at
+                group_out[0] = gbest
+        except BaseException as exc:
+            self.cpu.hook_failed(exc)
+        return best
+
+    def _py_quiet(self, mask: int) -> int:
+        quiet = 0
+        try:
+            for p in self._batch(mask):
+                if p.quiet():  # type: ignore[attr-defined]
+                    quiet |= 1 << self._slot[p]
+        except BaseException as exc:
+            self.cpu.hook_failed(exc)
+        return quiet
+
+    def _mirror_scb(self) -> None:
+        """The SCB's state the C core's exception entry and return use."""
+        core, scs = self._core, self.scs
+        core.vtor, core.ccr, core.fp, core.sleep_on_exit = scs.vtor, scs.ccr, scs.fpu_enabled, scs.sleep_on_exit
 
     # --- set-up -------------------------------------------------------------------------------------------------
 
@@ -171,8 +344,21 @@ class Board:
             else:
                 self.cpu.map_mmio(page, PAGE, self._read, self._write)
         scs = self.scs
-        self.cpu.map_mmio(0xE000_E000, PAGE, self._core_access(0xE000_E000, scs.read),
-                          self._core_store(0xE000_E000, scs.write))
+        scs_store = self._core_store(0xE000_E000, scs.write)
+
+        def scs_write(address: int, size: int, value: int) -> None:
+            scs_store(address, size, value)
+            if self._native_core:
+                self._mirror_scb()
+
+        if self._native_core:  # the NVIC's and SysTick's registers in C, the rest of the page in Python
+            lib = self._core_lib
+            self._scs_state = ScsState(ctypes.addressof(self._core))
+            self.cpu.map_mmio(0xE000_E000, PAGE, self._core_access(0xE000_E000, scs.read), scs_write,
+                              native_read=(core_native.address(lib.hil_core_scs_read), self._scs_state),
+                              native_write=(core_native.address(lib.hil_core_scs_write), self._scs_state))
+        else:
+            self.cpu.map_mmio(0xE000_E000, PAGE, self._core_access(0xE000_E000, scs.read), scs_write)
         dwt_read, dwt_store = self._core_access(0xE000_1000, scs.dwt_read), self._core_store(0xE000_1000, scs.dwt_write)
         if self.NATIVE:  # the reads in C (CYCCNT in a timed ISR: no Python per access), the writes in Python
             dwt = self._dwt = DwtState()
@@ -239,12 +425,9 @@ class Board:
     # --- BoardBus -----------------------------------------------------------------------------------------------
 
     def set_pending(self, irq: int) -> None:
-        exc = 16 + irq
-        if exc not in self.nvic.asserted:
-            self._assert_time[exc] = self.cpu.count
-        self.nvic.assert_line(irq)
-        if self.nvic.enabled[exc]:
-            self.cpu.request_stop()
+        """Assert interrupt line `irq` (c/board_core.c: pending unless active, its latency's start kept, the core
+        stopped at its next block when the line is enabled)."""
+        self._core_lib.hil_core_assert_line(self._core_ref, irq)
 
     def _pend_systick(self, at: int) -> None:
         if SYSTICK not in self.nvic.pending:
@@ -252,7 +435,11 @@ class Board:
         self.nvic.pending.add(SYSTICK)
 
     def clear_pending(self, irq: int) -> None:
-        self.nvic.withdraw_line(irq)
+        exc = 16 + irq
+        if 0 <= exc < self.nvic.size:
+            state = self._core.nvic
+            state.asserted[exc] = 0
+            state.pending[exc] = 0
 
     def read_memory(self, address: int, size: int) -> bytes:
         return bytes(self.cpu.uc.mem_read(address, size))
@@ -328,7 +515,14 @@ class Board:
 
     def _touch(self, p: Peripheral) -> None:
         """An access reached model `p`: the scheduler asks it (and its event group) again at its next step."""
-        if p in self._group_set:
+        if self._native_core:
+            if p in self._group_set:
+                self._core.group_touched = 1
+            elif p in self._slot:
+                slot = self._core.models[self._slot[p]]
+                if slot.resting:
+                    slot.woken = 1
+        elif p in self._group_set:
             self._group_touched = True
         elif p in self._resting:
             self._woken.add(p)
@@ -443,10 +637,79 @@ class Board:
 
     def run_until(self, end: int) -> None:
         """Run the firmware until cycle `end` (at least; at most one basic block later)."""
-        if self.SKIP_QUIET:
+        if self._native_core:
+            self._run_until_native(end)
+        elif self.SKIP_QUIET:
             self._run_until_skipping(end)
         else:
             self._run_until_every(end)
+
+    def _run_until_native(self, end: int) -> None:
+        """`run_until` in C (c/board_core.c): the skipping scheduler's steps; what the C loop hands back (a fault, an
+        unmapped access, a Python error, a full sample log) is handled here as the Python scheduler does."""
+        run, ref = self._core_lib.hil_core_run, self._core_ref
+        fresh = 1
+        try:
+            while True:
+                rc = run(ref, end, fresh)
+                fresh = 0
+                if rc == core_native.DONE:
+                    return
+                if rc != core_native.LOG_FULL:
+                    self._native_stop(rc)
+                self._drain()
+        finally:
+            self._drain()
+
+    def _native_stop(self, rc: int) -> None:
+        """Raise what the C loop stopped for."""
+        core = self._core
+        if rc == core_native.PY_ERROR:
+            exc = self.cpu.take_hook_error()
+            if exc is not None:
+                raise exc
+            raise BoardError("the board's core stopped for a Python error that left no exception")
+        if rc == core_native.UC_ERROR:
+            raise UcError(core.uc_error)
+        if rc == core_native.INTERRUPT:
+            self._interrupt(core.intno)
+        elif rc == core_native.UNMAPPED:
+            self._unmapped({19: "read", 20: "write", 21: "fetch"}.get(core.access, "access"), core.address)
+        elif rc == core_native.BAD_RETURN:
+            try:
+                self.exceptions.leave(self.cpu.pc | 1)
+            except ExceptionReturnError as exc:
+                raise self._fault(INVPC, str(exc)) from None
+        raise BoardError(f"the board's core stopped with code {rc} at {self.describe_pc()}")
+
+    def _drain(self) -> None:
+        """The C core's entries and returns since the last call into the ISR statistics."""
+        core = self._core
+        n = core.n_log
+        if not n:
+            return
+        excs, kinds, values = core.log_exc, core.log_kind, core.log_value
+        records = [(excs[i], kinds[i], values[i]) for i in range(n)] if n < 16 else \
+            list(zip(excs[:n], kinds[:n], values[:n], strict=True))
+        core.n_log = 0
+        isr = self.isr
+        for exc, kind, value in records:
+            if kind == 0:
+                stats = isr.get(exc)
+                if stats is None:
+                    stats = isr[exc] = IsrStats()
+                stats.entries += 1
+                if value >= 0:
+                    samples = stats.latency
+                    samples.append(value)
+                    if len(samples) > KEEP_SAMPLES:
+                        del samples[:KEEP_SAMPLES // 2]
+            else:
+                samples = isr[exc].cycles
+                samples.append(value)
+                if len(samples) > KEEP_SAMPLES:
+                    del samples[:KEEP_SAMPLES // 2]
+        self.exceptions.entries = int(core.exc_entries)
 
     def _active(self) -> tuple[list[Peripheral], list[Peripheral]]:
         """The models the scheduler asks at every step (outside the event group and not resting), in the board's
@@ -587,13 +850,16 @@ class Board:
         elif stop.kind == "interrupt":
             self._interrupt(stop.intno)
         elif stop.kind == "unmapped":
-            address = stop.address
-            if (0x4000_0000 <= address < 0x6000_0000 or address >= 0xE000_0000) and stop.access != "fetch":
-                raise self._unmodelled(address, stop.access)
-            if stop.access == "fetch":
-                raise self._fault(IBUSERR, f"instruction fetch from {address:#010x}")
-            self.scs.bfar = address
-            raise self._fault(PRECISERR | BFARVALID, f"{stop.access} of unmapped address {address:#010x}")
+            self._unmapped(stop.access, stop.address)
+
+    def _unmapped(self, access: str, address: int) -> None:
+        """Raise the error of an access to unmapped memory."""
+        if (0x4000_0000 <= address < 0x6000_0000 or address >= 0xE000_0000) and access != "fetch":
+            raise self._unmodelled(address, access)
+        if access == "fetch":
+            raise self._fault(IBUSERR, f"instruction fetch from {address:#010x}")
+        self.scs.bfar = address
+        raise self._fault(PRECISERR | BFARVALID, f"{access} of unmapped address {address:#010x}")
 
     def _interrupt(self, intno: int) -> None:
         if intno == EXCP_SWI:

@@ -81,7 +81,9 @@ MmioWrite = Callable[[int, int, int], None]
 class Cpu:
     """Unicorn set up as the part's Cortex-M4F with its memories mapped; `run` executes one slice."""
 
-    def __init__(self, part: Part) -> None:
+    def __init__(self, part: Part, *, python_stops: bool = True) -> None:
+        """`python_stops` False: the slice's stops (interrupts, unmapped accesses) are left to hooks the board's C
+        core registers (`run` is then not used)."""
         self.part = part
         uc: Any = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
         uc.ctl_set_cpu_model(arm.UC_CPU_ARM_CORTEX_M4)
@@ -120,9 +122,13 @@ class Cpu:
         self._reg_ref = ctypes.byref(self._reg_buf)
         self._mmio_callbacks: list[tuple[Any, Any]] = []
         self._word = (ctypes.c_char * 4)()
-        uc.hook_add(UC_HOOK_INTR, self._on_interrupt)
-        uc.hook_add(UC_HOOK_MEM_READ_UNMAPPED | UC_HOOK_MEM_WRITE_UNMAPPED | UC_HOOK_MEM_FETCH_UNMAPPED,
-                    self._on_unmapped)
+        #: set to 1 by an MMIO callback that raised (its exception is the binding's `_hook_exception`): the board's C
+        #: core checks it after each slice
+        self.hook_error = ctypes.c_int32(0)
+        if python_stops:
+            uc.hook_add(UC_HOOK_INTR, self._on_interrupt)
+            uc.hook_add(UC_HOOK_MEM_READ_UNMAPPED | UC_HOOK_MEM_WRITE_UNMAPPED | UC_HOOK_MEM_FETCH_UNMAPPED,
+                        self._on_unmapped)
 
     # --- memory -------------------------------------------------------------------------------------------------
 
@@ -134,30 +140,27 @@ class Cpu:
         self.extra_ram.append(buf)
 
     def map_mmio(self, base: int, size: int, read: MmioRead, write: MmioWrite, *,
-                 native_read: tuple[int, Any] | None = None) -> None:
+                 native_read: tuple[int, Any] | None = None, native_write: tuple[int, Any] | None = None) -> None:
         """Route every access to [base, base + size) to `read(address, size)` / `write(address, size, value)`.
         The callbacks are Unicorn's C callbacks straight (not the binding's layered wrappers); an exception in
         one stops the core and is raised by `run`, as the binding does. `native_read` (a C uc_cb_mmio_read_t's
         address and its state, a ctypes Structure whose `fallback` field it calls for what it does not handle)
-        takes the reads instead, `read` as its fallback."""
-        uc, uch = self.uc, self._uch
+        takes the reads instead, `read` as its fallback; `native_write` (a uc_cb_mmio_write_t and its state, whose
+        `fallback_write` field it calls) the writes, `write` as its fallback."""
+        uch = self._uch
 
         def on_read(_handle: int, offset: int, nbytes: int, _user: int) -> int:
             try:
                 return read(base + offset, nbytes)
             except BaseException as exc:  # re-raised by run() once the core stopped
-                if uc._hook_exception is None:
-                    uc._hook_exception = exc
-                uclib.uc_emu_stop(uch)
+                self.hook_failed(exc)
                 return 0
 
         def on_write(_handle: int, offset: int, nbytes: int, value: int, _user: int) -> None:
             try:
                 write(base + offset, nbytes, value)
             except BaseException as exc:  # re-raised by run() once the core stopped
-                if uc._hook_exception is None:
-                    uc._hook_exception = exc
-                uclib.uc_emu_stop(uch)
+                self.hook_failed(exc)
 
         read_fn, write_fn = MMIO_READ_CFUNC(on_read), MMIO_WRITE_CFUNC(on_write)
         self._mmio_callbacks.append((read_fn, write_fn))
@@ -167,9 +170,29 @@ class Cpu:
             state.fallback = ctypes.cast(read_fn, ctypes.c_void_p).value
             self._mmio_callbacks.append((MMIO_READ_CFUNC(function), state))
             read_fn, user = self._mmio_callbacks[-1][0], ctypes.addressof(state)
-        status = uclib.uc_mmio_map(uch, base, size, read_fn, user, write_fn, None)
+        write_user: int | None = None
+        if native_write is not None:
+            function, state = native_write
+            state.fallback_write = ctypes.cast(write_fn, ctypes.c_void_p).value
+            self._mmio_callbacks.append((MMIO_WRITE_CFUNC(function), state))
+            write_fn, write_user = self._mmio_callbacks[-1][0], ctypes.addressof(state)
+        status = uclib.uc_mmio_map(uch, base, size, read_fn, user, write_fn, write_user)
         if status != 0:
             raise UcError(status)
+
+    def hook_failed(self, exc: BaseException) -> None:
+        """A callback of the running core raised `exc`: keep it (the first one) for the caller and stop the core."""
+        if self.uc._hook_exception is None:
+            self.uc._hook_exception = exc
+        self.hook_error.value = 1
+        uclib.uc_emu_stop(self._uch)
+
+    def take_hook_error(self) -> BaseException | None:
+        """The exception a callback raised since the last call (None: none), cleared."""
+        exc = self.uc._hook_exception
+        self.uc._hook_exception = None
+        self.hook_error.value = 0
+        return exc  # type: ignore[no-any-return]
 
     def load(self, address: int, data: bytes) -> None:
         """Program bytes into flash or RAM (ELF loading)."""
@@ -235,6 +258,7 @@ class Cpu:
         """Execute from `pc` until the instruction count reaches `limit` (at a block's end) or something stops the
         core; a hook's exception (a BoardError of a peripheral access) propagates."""
         self._stop = None
+        self.hook_error.value = 0
         self.counter.limit = limit
         begun = self.counter.count
         try:

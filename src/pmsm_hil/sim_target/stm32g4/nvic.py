@@ -8,6 +8,11 @@ and withdraws it when its flag or enable clears; a line still asserted when its 
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from typing import Any
+
+from pmsm_hil.sim_target.stm32g4.core_native import NvicState
+
 NMI, HARDFAULT, MEMMANAGE, BUSFAULT, USAGEFAULT, SVCALL, PENDSV, SYSTICK = 2, 3, 4, 5, 6, 11, 14, 15
 EXCEPTION_NAMES = {2: "NMI", 3: "HardFault", 4: "MemManage", 5: "BusFault", 6: "UsageFault", 11: "SVCall",
                    12: "DebugMonitor", 14: "PendSV", 15: "SysTick"}
@@ -17,20 +22,108 @@ PRIO_MASK = 0xF0
 BASE_PRIORITY = 0x100
 
 
-class Nvic:
-    """Exception state of the core: `irq_count` interrupt lines after the 16 system exceptions."""
+class Flags:
+    """A set of exception numbers kept as one byte per exception in a C array (the core's state, c/board_core.c)."""
 
-    def __init__(self, irq_count: int) -> None:
+    def __init__(self, array: Any, size: int) -> None:
+        self._a, self._size = array, size
+        self._none = bytes(len(array))
+
+    def add(self, exc: int) -> None:
+        if 0 <= exc < self._size:  # an exception the part does not have (STIR beyond its lines): ignored
+            self._a[exc] = 1
+
+    def discard(self, exc: int) -> None:
+        if 0 <= exc < self._size:
+            self._a[exc] = 0
+
+    def __contains__(self, exc: object) -> bool:
+        return isinstance(exc, int) and 0 <= exc < self._size and bool(self._a[exc])
+
+    def __iter__(self) -> Iterator[int]:
+        raw = bytes(self._a)
+        found, i = [], raw.find(1)
+        while i >= 0:
+            found.append(i)
+            i = raw.find(1, i + 1)
+        return iter(found)
+
+    def __bool__(self) -> bool:
+        return bytes(self._a) != self._none  # entries past `size` are never set
+
+    def __len__(self) -> int:
+        return sum(1 for v in bytes(self._a)[:self._size] if v)
+
+
+class Stack:
+    """The active exceptions in the order taken, kept in a C array and its length (the core's state)."""
+
+    def __init__(self, state: NvicState) -> None:
+        self._s = state
+
+    def __len__(self) -> int:
+        return int(self._s.n_active)
+
+    def __bool__(self) -> bool:
+        return bool(self._s.n_active > 0)
+
+    def __getitem__(self, index: int) -> int:
+        return int(list(self)[index])
+
+    def __iter__(self) -> Iterator[int]:
+        return iter(self._s.active[:self._s.n_active])
+
+    def __contains__(self, exc: object) -> bool:
+        return exc in list(self)
+
+    def __eq__(self, other: object) -> bool:
+        return list(self) == other
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def __repr__(self) -> str:
+        return repr(list(self))
+
+    def append(self, exc: int) -> None:
+        n = self._s.n_active
+        if n >= len(self._s.active):
+            raise OverflowError(f"more than {n} exceptions active")
+        self._s.active[n] = exc
+        self._s.n_active = n + 1
+
+    def remove(self, exc: int) -> None:
+        items = list(self)
+        items.remove(exc)
+        self._s.active[:len(items)] = items
+        self._s.n_active = len(items)
+
+
+class Nvic:
+    """Exception state of the core: `irq_count` interrupt lines after the 16 system exceptions. The state is `state`
+    (the C core's hil_nvic_t: the Python scheduler and the C one see the same)."""
+
+    def __init__(self, irq_count: int, state: NvicState | None = None) -> None:
         self.irq_count = irq_count
         self.size = 16 + irq_count
-        self.enabled = bytearray(self.size)
-        self.priority = bytearray(self.size)
-        self.pending: set[int] = set()
-        self.active: list[int] = []
-        self.asserted: set[int] = set()
-        self.prigroup = 0
+        self.state = state if state is not None else NvicState()
+        if self.size > len(self.state.enabled):
+            raise ValueError(f"{irq_count} interrupt lines: the core holds {len(self.state.enabled) - 16}")
+        self.state.size = self.size
+        self.enabled = self.state.enabled
+        self.priority = self.state.priority
+        self.pending = Flags(self.state.pending, self.size)
+        self.active = Stack(self.state)
+        self.asserted = Flags(self.state.asserted, self.size)
         for exc in (SVCALL, PENDSV, SYSTICK):
             self.enabled[exc] = 1  # system exceptions need no enable (SysTick is gated by its TICKINT)
+
+    @property
+    def prigroup(self) -> int:
+        return int(self.state.prigroup)
+
+    @prigroup.setter
+    def prigroup(self, value: int) -> None:
+        self.state.prigroup = value
 
     def group_priority(self, exc: int) -> int:
         """The group (preemption) priority of exception `exc`: -3..-1 for the fixed ones."""
@@ -38,7 +131,7 @@ class Nvic:
             return -2
         if exc == HARDFAULT:
             return -1
-        return self.priority[exc] & ((0xFF << (self.prigroup + 1)) & 0xFF)
+        return int(self.priority[exc]) & ((0xFF << (self.prigroup + 1)) & 0xFF)
 
     def execution_priority(self, primask: bool, basepri: int) -> int:
         """The current execution priority: the highest (lowest value) of the active exceptions' group
@@ -147,3 +240,29 @@ class Nvic:
                     self.pending.discard(exc)
             return True
         return False
+
+
+class AssertTimes:
+    """The cycle each exception's line (or SysTick) asked, until the exception is entered (its latency's start): a
+    mapping kept in the core's C arrays (has_assert, assert_at)."""
+
+    def __init__(self, state: NvicState) -> None:
+        self._s = state
+
+    def __contains__(self, exc: object) -> bool:
+        return isinstance(exc, int) and bool(self._s.has_assert[exc])
+
+    def __setitem__(self, exc: int, at: int) -> None:
+        self._s.assert_at[exc] = at
+        self._s.has_assert[exc] = 1
+
+    def pop(self, exc: int, default: int | None = None) -> int | None:
+        if not self._s.has_assert[exc]:
+            return default
+        self._s.has_assert[exc] = 0
+        return int(self._s.assert_at[exc])
+
+    def setdefault(self, exc: int, at: int) -> int:
+        if not self._s.has_assert[exc]:
+            self[exc] = at
+        return int(self._s.assert_at[exc])

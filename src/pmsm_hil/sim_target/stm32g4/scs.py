@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from pmsm_hil.sim_target.stm32g4.core_native import SysTickState
 from pmsm_hil.sim_target.stm32g4.nvic import PENDSV, SYSTICK, Nvic
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
 from pmsm_hil.sim_target.stm32g4.systick import SysTick
@@ -18,12 +19,12 @@ class SystemControl:
     """SCB, NVIC registers, SysTick and the debug blocks; `where()` names the firmware's pc for errors."""
 
     def __init__(self, nvic: Nvic, idcode: int, where: Callable[[], str], on_reset: Callable[[], None],
-                 pend_systick: Callable[[int], None]) -> None:
+                 pend_systick: Callable[[int], None], systick: SysTickState | None = None) -> None:
         self.nvic = nvic
         self.idcode = idcode
         self._where = where
         self._on_reset = on_reset
-        self.systick = SysTick(pend_systick)
+        self.systick = SysTick(pend_systick, systick)
         self.vtor = 0
         self.scr = 0
         self.ccr = 0x200  # STKALIGN

@@ -5,18 +5,64 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from pmsm_hil.sim_target.stm32g4.core_native import SysTickState
+
 
 class SysTick:
     """CTRL/LOAD/VAL/CALIB at 0xE000E010..0xE000E01C."""
 
-    def __init__(self, pend: Callable[[int], None]) -> None:
+    def __init__(self, pend: Callable[[int], None], state: SysTickState | None = None) -> None:
         self._pend = pend
-        self.ctrl = 0
-        self.load = 0
-        self.countflag = False
-        self.anchor = 0  # cycle at which VAL was `anchor_val`
-        self.anchor_val = 0
-        self.wraps = 0  # wraps so far (for the tick-rate test and metrics)
+        #: the state (the C core's hil_systick_t: anchor, the cycle at which VAL was anchor_val; wraps so far)
+        self.state = state if state is not None else SysTickState()
+
+    @property
+    def ctrl(self) -> int:
+        return int(self.state.ctrl)
+
+    @ctrl.setter
+    def ctrl(self, value: int) -> None:
+        self.state.ctrl = value
+
+    @property
+    def load(self) -> int:
+        return int(self.state.load)
+
+    @load.setter
+    def load(self, value: int) -> None:
+        self.state.load = value
+
+    @property
+    def countflag(self) -> bool:
+        return bool(self.state.countflag)
+
+    @countflag.setter
+    def countflag(self, value: bool) -> None:
+        self.state.countflag = int(value)
+
+    @property
+    def anchor(self) -> int:
+        return int(self.state.anchor)
+
+    @anchor.setter
+    def anchor(self, value: int) -> None:
+        self.state.anchor = value
+
+    @property
+    def anchor_val(self) -> int:
+        return int(self.state.anchor_val)
+
+    @anchor_val.setter
+    def anchor_val(self, value: int) -> None:
+        self.state.anchor_val = value
+
+    @property
+    def wraps(self) -> int:
+        return int(self.state.wraps)
+
+    @wraps.setter
+    def wraps(self, value: int) -> None:
+        self.state.wraps = value
 
     @property
     def enabled(self) -> bool:

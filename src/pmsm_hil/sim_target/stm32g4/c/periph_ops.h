@@ -13,6 +13,10 @@ typedef struct hil_irq_sink {
     void *board;
     void (*assert_line)(void *board, int irq);
     void (*withdraw_line)(void *board, int irq);
+    /* a register access reached model `self` through its own MMIO callback (`write`: a store), which the board does
+     * not see: the scheduler asks the model (and its event group) again at its next step, and after a store whose
+     * model's next event moved before the running slice's end the core stops at its next block */
+    void (*touched)(void *board, void *self, int write);
 } hil_irq_sink_t;
 
 /* One model as the scheduler sees it. */
