@@ -72,7 +72,7 @@ def test_the_mcap_export_formats_are_the_writers() -> None:
     from pmsm_hil.app.cli.mcap_export import FORMAT_NAMES
     from pmsm_hil.hil.runlog.can_log import FORMATS
 
-    assert FORMAT_NAMES == tuple(FORMATS)
+    assert tuple(FORMATS) == FORMAT_NAMES
 
 
 def test_the_logger_process_imports_the_writer_only() -> None:
@@ -85,7 +85,8 @@ def test_the_logger_process_imports_the_writer_only() -> None:
     modules = json.loads(proc.stdout)
     assert "mcap.writer" in modules and "numpy" in modules  # what writing MCAP needs
     heavy = (*[h for h in HEAVY if h not in ("numpy", "mcap")], "mcap.stream_reader", "pmsm_hil.hil.runlog.reader",
-             "pmsm_hil.hil.runlog.repair", "pmsm_hil.hil.runner", "pmsm_hil.protocol.links")
+             "pmsm_hil.hil.runlog.repair", "pmsm_hil.hil.runner", "pmsm_hil.protocol.links",
+             "multiprocessing.forkserver")
     assert _loaded(heavy, modules) == []
 
 
