@@ -10,11 +10,12 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from pmsm_hil.dashboards.recording import RerunTargets
+
+if TYPE_CHECKING:
+    import numpy as np
 
 
 def add_rerun_arguments(p: argparse.ArgumentParser) -> None:

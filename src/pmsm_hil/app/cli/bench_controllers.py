@@ -28,13 +28,11 @@ from pmsm_hil.app.cli.bench_machines import (
     six_phase_machine,
 )
 from pmsm_hil.app.cli.bench_mcu import STEP_SHARE, McuFigures, fits_ts, shortest_ts_us
-from pmsm_hil.app.cli.bench_mcu import measure as measure_mcu
 from pmsm_hil.app.cli.parsing import positive_int
 from pmsm_hil.hil.atomic_write import write_text_atomic
 from pmsm_hil.hil.errors import HilError
 from pmsm_hil.protocol.ids import ParamId
 from pmsm_hil.sim_target.fw_build import Sizes
-from pmsm_hil.sim_target.qemu import CPI
 
 FIRMWARE_DIR = Path(__file__).resolve().parents[4] / "firmware_stub"
 STAGES = ("hil_fw_stage_measure", "hil_fw_stage_reference", "hil_fw_stage_predict")
@@ -291,6 +289,8 @@ FITS_TS_US = (25.0, 50.0, 100.0)
 
 def format_mcu(figures: list[McuFigures], sizes: Sizes | None, mcu_clock_hz: float, steps: int) -> list[str]:
     """Printable table of the emulated-MCU figures beside the paper's Table 4."""
+    from pmsm_hil.sim_target.qemu import CPI  # numpy: imported when the figures are printed, not for the parser
+
     mhz = mcu_clock_hz / 1e6
     lines = [f"reference firmware on the emulated Cortex-M4F (QEMU mps2-an386), {steps} steps per controller; "
              f"time is an ESTIMATE at {mhz:g} MHz ({CPI:g} cycle/instruction, zero-wait-state lower bound)",
@@ -322,7 +322,9 @@ def format_mcu(figures: list[McuFigures], sizes: Sizes | None, mcu_clock_hz: flo
 
 def run_mcu(args: argparse.Namespace, ids: list[int]) -> int:
     """`hil bench controllers --board mps2-an386`."""
+    from pmsm_hil.app.cli.bench_mcu import measure as measure_mcu
     from pmsm_hil.sim_target.firmware import CONTROLLERS
+    from pmsm_hil.sim_target.qemu import CPI
 
     names = {c.id: c.name for c in CONTROLLERS}
     figures, sizes, per_file = measure_mcu(ids, names, args.mcu_steps, args.mcu_clock)

@@ -11,17 +11,18 @@ import sys
 import time
 import tty
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.protocol.codec import PROFILES, FrameCodec
 from pmsm_hil.protocol.errors import ProtocolError
 from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.layout import load_database
-from pmsm_hil.protocol.links.echo import STOP_ID
-from pmsm_hil.protocol.links.link import Link, open_link
 from pmsm_hil.protocol.links.peer import EchoPeer
 from pmsm_hil.protocol.messages import Command, Measurement
+
+if TYPE_CHECKING:  # the links (python-can) are imported where one is opened, not for the parser
+    from pmsm_hil.protocol.links.link import Link
 
 _BENCH_FRAME = Frame(0x108, bytes(range(16)), True)  # CAN FD, 16 bytes: the round-trip payload
 
@@ -141,6 +142,8 @@ def _round_trips(link: Link, count: int, echo: Link | None = None) -> dict[str, 
 
 
 def _virtual(count: int) -> dict[str, float]:
+    from pmsm_hil.protocol.links.link import open_link
+
     host = open_link("virtual:bench_link", "host")
     target = open_link("virtual:bench_link", "target")
     try:
@@ -151,6 +154,9 @@ def _virtual(count: int) -> dict[str, float]:
 
 
 def _with_peer(spec_local: str, spec_peer: str, count: int, pass_fds: tuple[int, ...] = ()) -> dict[str, float]:
+    from pmsm_hil.protocol.links.echo import STOP_ID
+    from pmsm_hil.protocol.links.link import open_link
+
     with EchoPeer(spec_peer, pass_fds=pass_fds):
         link = open_link(spec_local, "host")
         try:

@@ -16,20 +16,19 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from pmsm_hil.app.bench.logger_limit import logger_limit
 from pmsm_hil.app.cli.parsing import non_negative_int, positive_float
 from pmsm_hil.app.cli.run_options_cli import add_option
 from pmsm_hil.errors import HilError
 from pmsm_hil.hil.atomic_write import write_text_atomic
-from pmsm_hil.hil.runlog.reader import read_periods
 from pmsm_hil.hil.runner.contract import EndCode
 from pmsm_hil.hil.runner.option_values import coerce
 from pmsm_hil.hil.runner.reference_loop import reference_loop
-from pmsm_hil.hil.runner.run import run_closed_loop
-from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.run_options import DEFAULTS, OPTIONS
+
+if TYPE_CHECKING:  # the runner (numpy, python-can) is imported where a bench runs, not for its parser
+    from pmsm_hil.hil.runner.run_config import RunConfig
 
 #: how an error names a value of the bench's own run (not an option of the command line)
 BENCH_SOURCES = {"motor": "hil bench", "controller": "hil bench", "loop": "hil bench", "settle": "hil bench",
@@ -84,6 +83,8 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 def _base(duration: float, ts: float = 100e-6, loop: str = "python", **options: Any) -> RunConfig:
     """The measured run: niu2020 IPMSM, MPCC, steady without settling, `duration` [s], control period `ts` [s],
     the `loop` (the Python reference loop: the native loop's figures are put beside it), further run `options`."""
+    from pmsm_hil.hil.runner.run_config import RunConfig
+
     return RunConfig.from_options({"motor": "niu2020-ipmsm", "controller": "mpcc", "loop": loop, "ts": ts,
                                    "settle": 0.0, "duration": duration, "no_log": True, **options}, BENCH_SOURCES)
 
@@ -102,6 +103,9 @@ def _log_off_and_on(cfg: RunConfig, repeats: int,
 
 
 def _median_rate(make: Callable[[], RunConfig], repeats: int, exclude_safe_stop: bool = False) -> dict[str, Any]:
+    from pmsm_hil.hil.runlog.reader import read_periods
+    from pmsm_hil.hil.runner.run import run_closed_loop
+
     rates: list[float] = []
     extra: dict[str, Any] = {}
     ring_waits = 0
@@ -243,6 +247,9 @@ def measure(duration: float, repeats: int, cross: list[str], realtime: bool,
     """All loop figures; keys documented in docs/benchmarks.md. `progress` gets one line per stage. The Python
     loop's rows (and the native/python ratios) need the test suite's reference loop (tests/oracle; not part of
     the product): without it they are left out and `python_loop` says so."""
+    from pmsm_hil.app.bench.logger_limit import logger_limit
+    from pmsm_hil.hil.runner.run import run_closed_loop
+
     python = reference_loop() is not None
     base = _base(duration, ts, "python" if python else "native")
     out: dict[str, Any] = {"duration_s": duration, "repeats": repeats, "ts_s": ts}
@@ -334,6 +341,8 @@ def _board_rates(elf: Path, board_file: str | None, ts: float, duration: float, 
     """The virtual STM32G4 board's figures: the board alone (`_board_only_rate`) and the closed loop, the firmware
     as the controller (`--controller external`) at the example's operating point, each the median over `repeats`.
     A closed-loop run that does not complete gives no figure: lockstep_stm32g4_error names its ending."""
+    from pmsm_hil.hil.runner.run import run_closed_loop
+
     out: dict[str, Any] = {}
     progress(f"lockstep, {elf.name} alone on the virtual STM32G4 board, fed Measurements ({runs})")
     try:

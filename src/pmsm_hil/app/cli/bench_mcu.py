@@ -12,17 +12,19 @@ import re
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from pmsm_hil.app.cli.bench_machines import OMEGA_M, TS, BenchMachine, inputs, machine_for
 from pmsm_hil.hil.errors import HilError
 from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.ids import ParamId
-from pmsm_hil.protocol.links import open_link
 from pmsm_hil.protocol.messages import Command, ConfigAck, ConfigParam, Fault, Measurement, Measurement6, Setpoint
 from pmsm_hil.sim_target.fw_build import Sizes, build_firmware
-from pmsm_hil.sim_target.qemu import CPI, QemuTarget, stats
+
+if TYPE_CHECKING:  # numpy, QEMU's target and the links (python-can) are imported when the bench runs
+    import numpy as np
+
+    from pmsm_hil.sim_target.qemu import QemuTarget
 
 #: each controller's own source files (shared helpers named too; the core, codec, state, step, transforms
 #: and libm are the common part of the image)
@@ -95,6 +97,8 @@ def map_sizes(map_file: Path) -> dict[str, dict[str, int]]:
 
 def _serve(qemu: QemuTarget, machine: BenchMachine, ids: list[int], steps: int) -> None:
     """Configure, enable each controller in turn and run `steps` measurements through it."""
+    from pmsm_hil.protocol.links import open_link
+
     link = open_link(qemu.link_spec, "host")
     codec = FrameCodec("canfd")
     dec = codec.decoder(ordered=False)
@@ -143,6 +147,8 @@ def _serve(qemu: QemuTarget, machine: BenchMachine, ids: list[int], steps: int) 
 def measure(ids: list[int], names: dict[int, str], steps: int, mcu_clock_hz: float
             ) -> tuple[list[McuFigures], Sizes | None, dict[str, dict[str, int]]]:
     """Figures of every controller id on the emulated MCU, the image sizes and the per-file sizes."""
+    from pmsm_hil.sim_target.qemu import CPI, QemuTarget, stats
+
     build = build_firmware("mps2-an386")
     groups: dict[str, list[int]] = {}
     machines: dict[str, BenchMachine] = {}

@@ -6,7 +6,6 @@ import argparse
 import json
 from pathlib import Path
 
-from pmsm_hil.app.bench.plant_bench import format_result, run_plant_bench
 from pmsm_hil.app.cli.parsing import positive_int
 from pmsm_hil.hil.atomic_write import write_text_atomic
 
@@ -31,6 +30,8 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 def run(args: argparse.Namespace) -> int:
     """Execute `hil bench plant`."""
+    from pmsm_hil.app.bench.plant_bench import format_result, run_plant_bench  # numpy, the plant: when it runs
+
     result = run_plant_bench(args.periods, args.repeats, accuracy_periods=args.accuracy_periods,
                              include_gem=not args.no_gem)
     for line in format_result(result):

@@ -7,15 +7,15 @@ The machine's load average is printed with the figures (a shared machine makes t
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import math
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pmsm_hil.app.bench.latency_report import write_report
 from pmsm_hil.app.bench.load_process import load_beside
-from pmsm_hil.app.bench.realtime import GOAL_FLOOR_RATIO, GOAL_P99_US, LINKS, gap_floor, measure
 from pmsm_hil.app.cli.parsing import non_negative_int, positive_float
 from pmsm_hil.app.cli.run_options_cli import add_option
 from pmsm_hil.hil.atomic_write import write_text_atomic
@@ -23,7 +23,17 @@ from pmsm_hil.hil.errors import ParameterError
 from pmsm_hil.hil.runner.option_values import coerce
 from pmsm_hil.hil.runner.run_options import DEFAULTS, OPTIONS
 
+if TYPE_CHECKING:
+    from pmsm_hil.app.bench.realtime import gap_floor
+
 __all__ = ["add_parser", "gap_floor", "run"]
+
+
+def __getattr__(name: str) -> Any:
+    """`gap_floor`, from the measurement's module (the runner: imported when a bench runs, not for its parser)."""
+    if name == "gap_floor":
+        return importlib.import_module("pmsm_hil.app.bench.realtime").gap_floor
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -56,6 +66,8 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 
 def _links(text: str) -> list[str]:
+    from pmsm_hil.app.bench.realtime import LINKS
+
     links = [name.strip() for name in text.split(",") if name.strip()]
     bad = [name for name in links if name not in LINKS]
     if bad or not links:
@@ -100,6 +112,8 @@ def _print_point(point: dict[str, Any], links: list[str], duration: float) -> No
               f"start ({miss_floor['late_pct']:.2f} %), round trip median {miss_floor['median_us']:.1f} µs, max "
               f"{miss_floor['max_us']:.1f} µs; the C loop's misses: {udp['misses_per_100k'] / 1e3:.2f} % "
               f"({_num(udp['miss_floor_ratio'], '.2f')}× that)")
+    from pmsm_hil.app.bench.realtime import GOAL_FLOOR_RATIO, GOAL_P99_US
+
     for link in links:
         for loop, f in point[link].items():
             if loop == "native" and "error" not in f:
@@ -137,6 +151,8 @@ def run(args: argparse.Namespace) -> int:
     links = _links(args.links)
     def progress(msg: str) -> None:
         print(f"bench realtime: {msg} ...", file=sys.stderr, flush=True)
+
+    from pmsm_hil.app.bench.realtime import measure
 
     with load_beside(args.load_cmd) as load:
         figures = measure(ts_list, links, args.duration, args.repeats, args.rt_priority, args.cpu,

@@ -5,7 +5,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from pmsm_hil.hil.runlog.can_log import FORMATS
+#: the --format names: the keys of `pmsm_hil.hil.runlog.can_log.FORMATS` (python-can's writers, imported when a log
+#: is exported, not for the parser)
+FORMAT_NAMES = ("candump", "asc", "blf", "csv")
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -16,7 +18,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
                                              BLF (CANalyzer-style tools), python-can CSV. Host-sent frames are written
                                              as Tx, received ones as Rx.""")
     p.add_argument("mcap", type=Path, metavar="RUN.mcap", help="run log written by `hil run`")
-    p.add_argument("--format", choices=tuple(FORMATS), required=True, help="log format")
+    p.add_argument("--format", choices=FORMAT_NAMES, required=True, help="log format")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="FILE", help="the log to write")
     p.add_argument("--overwrite", action="store_true", help="replace an existing -o file (refused without it)")
     p.set_defaults(func=run)

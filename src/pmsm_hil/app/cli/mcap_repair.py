@@ -8,7 +8,6 @@ from typing import Any
 
 from pmsm_hil.hil.atomic_write import refuse_inputs
 from pmsm_hil.hil.errors import InputFileError
-from pmsm_hil.hil.runlog.repair import repair_mcap
 
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
@@ -36,6 +35,8 @@ def run(args: argparse.Namespace) -> int:
     if not src.is_file():
         raise InputFileError(f"IN.mcap {src}: is not a file")
     refuse_inputs(dst, [src], option="-o")
+    from pmsm_hil.hil.runlog.repair import repair_mcap  # numpy and mcap: imported when a file is repaired
+
     report = repair_mcap(src, dst, overwrite=args.overwrite)
     state = "complete" if report.source_complete else f"cut ({report.stop_reason})"
     topics = ", ".join(f"{t}: {n}" for t, n in sorted(report.messages_per_topic.items())) or "none"

@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from pmsm_hil.hil.errors import InputFileError
-from pmsm_hil.hil.fluxmap import Interpolant, MapChecks, load_interpolant
-from pmsm_hil.hil.fluxmap_params import KIND, FluxMapParams
 from pmsm_hil.hil.presets_loader import load_motor
+
+if TYPE_CHECKING:  # the flux map's modules (numpy) are imported when a map is checked
+    from pmsm_hil.hil.fluxmap import Interpolant, MapChecks
+    from pmsm_hil.hil.fluxmap_params import FluxMapParams
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -75,6 +78,9 @@ def _plot(interp: Interpolant, out: Path) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Execute `hil plant fluxmap`."""
+    from pmsm_hil.hil.fluxmap import load_interpolant
+    from pmsm_hil.hil.fluxmap_params import KIND, FluxMapParams
+
     path = Path(args.path)
     motor = None
     if path.suffix.lower() in (".csv", ".mat"):

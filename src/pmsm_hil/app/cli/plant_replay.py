@@ -8,7 +8,6 @@ from pathlib import Path
 from pmsm_hil.app.cli.motor_args import add_motor_arguments, motor_from_args
 from pmsm_hil.app.cli.parsing import finite_float
 from pmsm_hil.hil.errors import ParameterError
-from pmsm_hil.hil.replay import replay
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -32,6 +31,8 @@ def run(args: argparse.Namespace) -> int:
     """Execute `hil plant replay`."""
     if args.motor is None:
         raise ParameterError("--motor is required (a preset name or a TOML file)")
+    from pmsm_hil.hil.replay import replay  # the plant and numpy: imported when a replay runs
+
     params = motor_from_args(args)
     result = replay(params, rpm=args.rpm, ts_s=args.ts, input_path=args.input, output_path=args.output,
                theta0_rad=args.theta0)

@@ -8,14 +8,17 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from pmsm_hil.app.cli.motor_args import add_motor_arguments
 from pmsm_hil.app.cli.parsing import finite_float, positive_float
 from pmsm_hil.hil.errors import ParameterError
-from pmsm_hil.hil.machine_params import MachineParams
 from pmsm_hil.hil.pwm import PWM_UPDATES
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from pmsm_hil.hil.machine_params import MachineParams
 
 #: a replay within this of the logged phase currents [A] reproduces the run
 REPRODUCED_A = 1e-6

@@ -5,27 +5,53 @@ from __future__ import annotations
 import argparse
 import contextlib
 import functools
+import importlib
 import json
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from pmsm_hil.app.cli.config_file import ConfigKey, load_config
-from pmsm_hil.app.cli.report_table import format_metrics
 from pmsm_hil.app.cli.run_options_cli import add_options, config_keys
-from pmsm_hil.app.cli.run_status import RunStatus
 from pmsm_hil.app.cli.status_line import StatusLine, status_wanted
-from pmsm_hil.dashboards.cli_live import add_rerun_arguments, live_dashboard
+from pmsm_hil.dashboards.cli_live import add_rerun_arguments
 from pmsm_hil.hil.atomic_write import prepare_output_dir, refuse_inputs, write_text_atomic
 from pmsm_hil.hil.runner.option_values import layer, option_of
-from pmsm_hil.hil.runner.run import run_closed_loop
-from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.run_dir_lock import run_dir_lock
-from pmsm_hil.hil.runner.run_metadata import RUN_FILES
 from pmsm_hil.hil.runner.run_options import RUN_OPTIONS, Scope
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from pmsm_hil.app.cli.run_status import RunStatus
+    from pmsm_hil.hil.runner.run_config import RunConfig
+
+#: what only a run needs (the runner, numpy, the metrics table, the live dashboard), imported when `run` runs:
+#: `hil run --help`, a usage error and `hil sweep`'s parser import none of it. Kept as names of this module
+#: (`_lazy`, `__getattr__`), where a test may replace one.
+_LAZY = {
+    "run_closed_loop": "pmsm_hil.hil.runner.run",
+    "RunConfig": "pmsm_hil.hil.runner.run_config",
+    "RUN_FILES": "pmsm_hil.hil.runner.run_metadata",
+    "RunStatus": "pmsm_hil.app.cli.run_status",
+    "format_metrics": "pmsm_hil.app.cli.report_table",
+    "live_dashboard": "pmsm_hil.dashboards.cli_live",
+}
+
+
+def _lazy(name: str) -> Any:
+    """The `_LAZY` name `name`, imported on first use and kept in this module's namespace."""
+    if name not in globals():
+        globals()[name] = getattr(importlib.import_module(_LAZY[name]), name)
+    return globals()[name]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return _lazy(name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 #: `hil run` exit codes (= metrics `end_code`), printed by --help.
 EXIT_CODES = ("exit codes: 0 completed, 1 internal error, 2 usage/config error, 3 safety stop (watchdog, plant "
@@ -97,10 +123,11 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
     """Merge defaults < --config file < command line into a validated RunConfig (`RunConfig.from_options`); the
     outputs used after the run (--json, --overwrite, --expect-hold) are taken from the config file unless given."""
     values, sources = options_from_args(args)
+    run_config: type[RunConfig] = _lazy("RunConfig")
     for name in ("json", "overwrite", "expect_hold"):
         if getattr(args, name, None) is None and name in values:
             setattr(args, name, values[name])
-    return RunConfig.from_options(values, sources)
+    return run_config.from_options(values, sources)
 
 
 def _check_outputs(args: argparse.Namespace, cfg: RunConfig, held: contextlib.ExitStack) -> None:
@@ -109,13 +136,13 @@ def _check_outputs(args: argparse.Namespace, cfg: RunConfig, held: contextlib.Ex
     unless --overwrite (which removes it first)."""
     inputs = [Path(p) for p in (args.config, args.motor, args.scenario) if p is not None and Path(p).is_file()]
     if cfg.out_dir is not None:
-        inputs += [cfg.out_dir / name for name in RUN_FILES]
+        inputs += [cfg.out_dir / name for name in _lazy("RUN_FILES")]
     for option, path in (("--json", args.json), ("--rerun-save", getattr(args, "rerun_save", None))):
         if path is not None:
             refuse_inputs(path, inputs, option=option)
     if cfg.out_dir is not None:
         held.enter_context(run_dir_lock(cfg.out_dir, option="--out"))
-        prepare_output_dir(cfg.out_dir, RUN_FILES, overwrite=bool(args.overwrite), option="--out")
+        prepare_output_dir(cfg.out_dir, _lazy("RUN_FILES"), overwrite=bool(args.overwrite), option="--out")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -173,12 +200,12 @@ def _run_here(args: argparse.Namespace) -> int:
         cfg = config_from_args(args)
         with contextlib.ExitStack() as held:
             _check_outputs(args, cfg, held)
-            return _run_checked(args, cfg, RunStatus(line, cfg))
+            return _run_checked(args, cfg, _lazy("RunStatus")(line, cfg))
 
 
 def _run_checked(args: argparse.Namespace, cfg: RunConfig, status: RunStatus) -> int:
     try:
-        with live_dashboard(args, cfg) as live:
+        with _lazy("live_dashboard")(args, cfg) as live:
             return _run_and_report(args, cfg, live, status)
     except KeyboardInterrupt:  # before the target was connected (from then on the run ends itself on Ctrl-C)
         if cfg.out_dir is None or not (cfg.out_dir / "run.mcap").exists():
@@ -216,13 +243,13 @@ def _run_and_report(args: argparse.Namespace, cfg: RunConfig, live: Callable[[np
     """One run (blocks also to the live dashboard if any, and to the status line); prints the metrics, writes
     --json."""
     blocks = status.block if live is None else _both(live, status.block)
-    result = run_closed_loop(cfg, live=blocks if status.line.enabled else live, phase=status.phase,
+    result = _lazy("run_closed_loop")(cfg, live=blocks if status.line.enabled else live, phase=status.phase,
                              counter=status.counter if status.line.enabled else None)
     status.line.close(f"ended (exit {result.metrics['end_code']})" if result.metrics["end_code"] else "completed")
     end_code = int(result.metrics["end_code"])
     if end_code == 0 and getattr(args, "expect_hold", False) and result.metrics.get("setpoint_held") is False:
         end_code = _setpoint_missed(result.metrics, cfg)
-    print(format_metrics(result.metrics))
+    print(_lazy("format_metrics")(result.metrics))
     for line in result.metrics.get("warnings", []):
         print(f"hil: warning: {line}", file=sys.stderr)
     if result.outcome.error is not None and args.debug:

@@ -8,7 +8,6 @@ from typing import Any
 
 from pmsm_hil.hil.errors import InputFileError, ParameterError
 from pmsm_hil.hil.resources import bundled_names, load_toml
-from pmsm_hil.hil.runner.run_config import PARAM_VALUE_NAMES, param_id
 
 _PACKAGE = "pmsm_hil.app.compare.presets"
 FIGURES = ("none", "bars", "thd_vs_load", "ripple_vs_speed", "accel")
@@ -181,6 +180,8 @@ def _params(value: object, where: str, origin: str) -> dict[str, float]:
     """Controller parameters: numbers, or named values such as zero_select = "min_transitions"."""
     if not isinstance(value, dict):
         raise InputFileError(f"compare preset {origin}: '{where}' must map parameter names to values")
+    from pmsm_hil.hil.runner.run_config import PARAM_VALUE_NAMES, param_id  # the runner: when a preset is read
+
     out: dict[str, float] = {}
     for name, v in value.items():
         names = PARAM_VALUE_NAMES.get(str(name), {})

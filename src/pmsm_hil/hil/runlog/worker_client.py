@@ -16,7 +16,7 @@ import signal
 import sys
 import time
 from collections.abc import Callable
-from multiprocessing import forkserver, resource_tracker
+from multiprocessing import resource_tracker
 from multiprocessing.process import BaseProcess
 from pathlib import Path
 from typing import Any
@@ -81,6 +81,8 @@ class WorkerClient:
         self._stall_timeout_s = stall_timeout_s
         resource_tracker.ensure_running()  # started first: starting it unblocks the signals again
         if start_method == "forkserver":
+            from multiprocessing import forkserver  # not in the spawned logger process, which imports this module
+
             forkserver.ensure_running()
         mask = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD)
         try:

@@ -11,16 +11,15 @@ from __future__ import annotations
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Literal
-
-import can
-from can import CanProtocol
+from typing import TYPE_CHECKING, Any, Literal
 
 from pmsm_hil.protocol.errors import LinkSpecError
 from pmsm_hil.protocol.links.auth import key_of_options
 from pmsm_hil.protocol.links.budget import LinkBudget, link_budget
 from pmsm_hil.protocol.links.spec import LinkSpec, Role, parse_spec
-from pmsm_hil.protocol.links.wire_bus import HilSerialBus, HilUdpBus, free_udp_ports, parse_udp_channel
+
+if TYPE_CHECKING:  # python-can and the wire buses are imported where a bus is opened (a `--help` needs neither)
+    import can
 
 Profile = Literal["can", "canfd"]
 #: What limits one period's wire time: nothing (in-process, loopback), a serial line or a CAN bus.
@@ -51,6 +50,8 @@ def _same_spec(spec: str, ls: LinkSpec) -> SpawnSpecs:
 
 
 def _python_can_bus(ls: LinkSpec, role: Role) -> tuple[can.BusABC, str]:
+    import can
+
     opts = dict(ls.options)
     if ls.channel is not None:
         opts["channel"] = ls.channel
@@ -131,6 +132,9 @@ def link_profile(spec: str) -> Profile:
 
 # --- the built-in kinds -------------------------------------------------------------------------------
 def _open_virtual(ls: LinkSpec, role: Role) -> tuple[can.BusABC, str]:
+    import can
+    from can import CanProtocol
+
     opts = dict(ls.options)
     fd = bool(opts.pop("fd", True))
     opts.setdefault("receive_own_messages", False)
@@ -140,6 +144,8 @@ def _open_virtual(ls: LinkSpec, role: Role) -> tuple[can.BusABC, str]:
 
 
 def _open_udp(ls: LinkSpec, role: Role) -> tuple[can.BusABC, str]:
+    from pmsm_hil.protocol.links.wire_bus import HilUdpBus, parse_udp_channel
+
     if ls.channel is None:
         local, remote = DEFAULT_UDP_PORTS[role]
         channel = f"{local}:{remote}"
@@ -160,6 +166,8 @@ def _mirror_udp(spec: str, ls: LinkSpec) -> SpawnSpecs:
     head, sep, opts = spec.partition(",")
     _, _, channel = head.strip().partition(":")
     if not channel:
+        from pmsm_hil.protocol.links.wire_bus import free_udp_ports
+
         a, b = free_udp_ports(2)
         return SpawnSpecs(f"udp:{a}:{b}{sep}{opts}", f"udp:{b}:{a}{sep}{opts}")
     ports, at, host = channel.partition("@")
@@ -168,6 +176,8 @@ def _mirror_udp(spec: str, ls: LinkSpec) -> SpawnSpecs:
 
 
 def _open_serial(ls: LinkSpec, role: Role) -> tuple[can.BusABC, str]:
+    from pmsm_hil.protocol.links.wire_bus import HilSerialBus
+
     if ls.channel is None:
         raise LinkSpecError("link spec serial: needs a port, e.g. serial:/dev/ttyACM0,baudrate=3000000")
     opts = dict(ls.options)
@@ -187,6 +197,8 @@ def _mirror_serial(spec: str, ls: LinkSpec) -> SpawnSpecs:
 
 
 def _open_can_config(ls: LinkSpec, role: Role) -> tuple[can.BusABC, str]:
+    import can
+
     opts: dict[str, Any] = dict(ls.options)
     if ls.channel is not None:
         opts["channel"] = ls.channel

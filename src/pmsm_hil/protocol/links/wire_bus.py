@@ -31,7 +31,6 @@ from collections import deque
 from typing import Any
 
 import can
-import serial
 from can import CanProtocol
 
 from pmsm_hil.protocol.errors import LinkError
@@ -467,6 +466,8 @@ class HilSerialBus(WireBus):
                  write_timeout: float = DEFAULT_WRITE_TIMEOUT_S, **kwargs: Any) -> None:
         if channel is None:
             raise can.CanInitializationError("hilserial needs channel=PORT, URL or fd:N")
+        import serial  # pyserial: where a serial link is opened, not in every process that imports the links
+
         chan = str(channel)
         self._port: Any = None
         try:

@@ -37,7 +37,8 @@ LINE_FN = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_int)
 class IrqSink(ctypes.Structure):
     """Mirror of hil_irq_sink_t (c/periph_ops.h)."""
 
-    _fields_ = [("board", ctypes.c_void_p), ("assert_line", LINE_FN), ("withdraw_line", LINE_FN)]
+    _fields_ = [("board", ctypes.c_void_p), ("assert_line", LINE_FN), ("withdraw_line", LINE_FN),
+                ("touched", ctypes.c_void_p)]
 
 
 class PeriphOps(ctypes.Structure):

@@ -1,0 +1,110 @@
+"""What a process imports before it does its job: `hil --help`, a subcommand's `--help` and a usage error build a
+parser only (no numpy, python-can, cantools, MCAP, plotting or the runner); the MCAP logger process imports the
+writer's modules, not the reader's, the links' or the runner's. Checked by the modules a fresh interpreter holds
+(`sys.modules`), not by timing: each of these imports costs ~0.05-0.35 CPU-s of every such process."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+#: third-party packages and package modules that only doing the job needs
+HEAVY = ("numpy", "can", "cantools", "serial", "mcap", "matplotlib", "rerun", "unicorn", "fmpy", "cffi", "scipy",
+         "labgrid", "pmsm_hil.hil.runner.run", "pmsm_hil.hil.runner.run_config", "pmsm_hil.hil.runner.loop",
+         "pmsm_hil.hil.runlog.logger", "pmsm_hil.protocol.links.link")
+
+_MAIN = """
+import contextlib, io, json, sys
+from pmsm_hil.app.cli.main import main
+out = io.StringIO()
+with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):
+    try:
+        code = main({argv!r})
+    except SystemExit as exc:
+        code = exc.code
+print(json.dumps({{"code": code, "modules": sorted(sys.modules), "out": out.getvalue()}}))
+"""
+
+
+def _loaded(heavy: tuple[str, ...], modules: list[str]) -> list[str]:
+    """The names of `heavy` present in `modules` (a package counts with any of its submodules)."""
+    return [h for h in heavy if any(m == h or m.startswith(h + ".") for m in modules)]
+
+
+def _run_main(argv: list[str]) -> dict[str, object]:
+    proc = subprocess.run([sys.executable, "-c", _MAIN.format(argv=argv)], capture_output=True, text=True,
+                          timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    result: dict[str, object] = json.loads(proc.stdout.splitlines()[-1])
+    return result
+
+
+@pytest.mark.parametrize(("argv", "code", "says"), [
+    (["--help"], 0, "hardware-in-the-loop"),
+    (["run", "--help"], 0, "exit codes"),
+    (["run", "--no-such-option"], 2, "unrecognized arguments: --no-such-option"),
+    (["run", "--speed", "fast"], 2, "--speed"),
+    (["nosuch"], 2, "invalid choice"),
+    (["sweep", "--help"], 0, "sweep"),
+    (["compare", "--help"], 0, "Presets:"),
+    (["bench", "--help"], 0, "plant periods per second"),
+    (["bench", "loop", "--help"], 0, "--cross-process"),
+    (["bench", "realtime", "--help"], 0, "--links"),
+    (["bench", "controllers", "--help"], 0, "controller"),
+    (["mcap", "export", "--help"], 0, "candump"),
+    (["mcap-repair", "--help"], 0, "IN.mcap"),
+    (["plant", "fluxmap", "--help"], 0, "flux map"),
+    (["link-budget", "--help"], 0, "link"),
+    (["target", "--help"], 0, "target"),
+])
+def test_help_and_usage_errors_import_no_heavy_module(argv: list[str], code: int, says: str) -> None:
+    result = _run_main(argv)
+    assert result["code"] == code and says in str(result["out"]), result["out"]
+    modules = result["modules"]
+    assert isinstance(modules, list)
+    assert _loaded(HEAVY, modules) == []
+
+
+def test_the_mcap_export_formats_are_the_writers() -> None:
+    from pmsm_hil.app.cli.mcap_export import FORMAT_NAMES
+    from pmsm_hil.hil.runlog.can_log import FORMATS
+
+    assert tuple(FORMATS) == FORMAT_NAMES
+
+
+def test_the_logger_process_imports_the_writer_only() -> None:
+    """The modules the spawned MCAP logger loads to find its entry point and its target (`_worker_entry`,
+    `run_worker`): numpy and mcap's writer, not its reader, python-can, the links or the runner."""
+    code = ("import json, sys\nimport pmsm_hil.hil.runlog.worker_client, pmsm_hil.hil.runlog.worker\n"
+            "print(json.dumps(sorted(sys.modules)))\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    modules = json.loads(proc.stdout)
+    assert "mcap.writer" in modules and "numpy" in modules  # what writing MCAP needs
+    heavy = (*[h for h in HEAVY if h not in ("numpy", "mcap")], "mcap.stream_reader", "pmsm_hil.hil.runlog.reader",
+             "pmsm_hil.hil.runlog.repair", "pmsm_hil.hil.runner", "pmsm_hil.protocol.links",
+             "multiprocessing.forkserver")
+    assert _loaded(heavy, modules) == []
+
+
+def test_the_lazy_package_names_still_import() -> None:
+    """`pmsm_hil.protocol.links`, `pmsm_hil.hil.runlog`, `pmsm_hil.app.compare` and `hil run`'s module load their
+    public names on first use; each name is the defining module's."""
+    from pmsm_hil.app import compare
+    from pmsm_hil.app.cli import run as run_cli
+    from pmsm_hil.hil import runlog
+    from pmsm_hil.hil.runlog.logger import RunLogger
+    from pmsm_hil.hil.runner.run import run_closed_loop
+    from pmsm_hil.protocol import links
+    from pmsm_hil.protocol.links.link import open_link
+
+    for package in (compare, runlog, links):
+        for name in package.__all__:
+            assert getattr(package, name) is not None, name
+    assert links.open_link is open_link and runlog.RunLogger is RunLogger
+    assert run_cli.run_closed_loop is run_closed_loop
+    with pytest.raises(AttributeError):
+        _ = links.no_such_name
