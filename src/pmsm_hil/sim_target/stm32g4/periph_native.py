@@ -157,24 +157,20 @@ def map_page(cpu: Any, page: int, size: int, read: Callable[[int, int], int],
     fallback_user) as their user data: what they leave goes to `read(address, size)` / `write(address, size,
     value)` (the board's decoder), whose exceptions stop the core and are raised by `cpu.run`, as `Cpu.map_mmio`
     does. Returns the callbacks to keep alive."""
-    uc, uch = cpu.uc, cpu._uch
+    uch = cpu._uch
 
     def on_read(_handle: int, offset: int, nbytes: int, _user: int) -> int:
         try:
             return read(page + offset, nbytes)
-        except BaseException as exc:  # re-raised by run() once the core stopped
-            if uc._hook_exception is None:
-                uc._hook_exception = exc
-            uclib.uc_emu_stop(uch)
+        except BaseException as exc:  # re-raised once the core stopped (by run(), or the board's C core)
+            cpu.hook_failed(exc)
             return 0
 
     def on_write(_handle: int, offset: int, nbytes: int, value: int, _user: int) -> None:
         try:
             write(page + offset, nbytes, value)
-        except BaseException as exc:  # re-raised by run() once the core stopped
-            if uc._hook_exception is None:
-                uc._hook_exception = exc
-            uclib.uc_emu_stop(uch)
+        except BaseException as exc:  # re-raised once the core stopped (by run(), or the board's C core)
+            cpu.hook_failed(exc)
 
     fallback_read, fallback_write = MMIO_READ_CFUNC(on_read), MMIO_WRITE_CFUNC(on_write)
     state.fallback_read = address(fallback_read)
