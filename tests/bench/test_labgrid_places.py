@@ -1,8 +1,6 @@
 """Two simulated benches behind a local labgrid coordinator and exporter (loopback, free ports): two pytest sessions
-on one place queue (their JUnit suites do not overlap), on two places run at once, a session whose board stops
-answering ends with exit 3 naming the bench (the second session of the queue: the place is released for the other),
-and `hil run --place` on a place whose board stops answering ends with exit 3 naming the bench, the place
-released."""
+on one place queue (their JUnit suites do not overlap), on two places run at once, and `hil run --place` on a place
+whose board stops answering ends with exit 3 naming the bench, the place released."""
 
 from __future__ import annotations
 
@@ -13,7 +11,6 @@ import sys
 import time
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator
-from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 
@@ -64,11 +61,9 @@ def benches(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Benches]:
 KILLED_BOARD_TEST = """\
 import os
 import signal
-import time
 from pathlib import Path
 
 def test_a_run_after_the_board_died(hil):
-    time.sleep(2.0)  # the place held a while, as SESSION_TEST: sessions that overlap do so visibly
     me = os.getpid()
     kids = [int(c) for task in Path(f"/proc/{me}/task").iterdir() for c in (task / "children").read_text().split()]
     boards = [c for c in kids if b"target" in Path(f"/proc/{c}/cmdline").read_bytes().split(b"\\0")]
@@ -85,10 +80,9 @@ def _session(benches: Benches, folder: Path, name: str, place: str,
     env_file = folder / f"{name}.yaml"
     env_file.write_text(ENV.format(place=place, address=benches.address), encoding="utf-8")
     (folder / "test_bench_session.py").write_text(test, encoding="utf-8")
-    # hypothesis's plugin imports hypothesis at the session's end (~0.5 CPU-s) for tests that do not use it
-    cmd = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-p", "no:hypothesispytest", "-n", "0", "-q",
-           "--lg-env", str(env_file), "--junitxml", str(folder / f"{name}.xml"),
-           "--hil-out", str(folder / f"out-{name}"), str(folder / "test_bench_session.py")]
+    cmd = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-n", "0", "-q", "--lg-env", str(env_file),
+           "--junitxml", str(folder / f"{name}.xml"), "--hil-out", str(folder / f"out-{name}"),
+           str(folder / "test_bench_session.py")]
     env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTEST_", "LG_"))}
     return subprocess.Popen(cmd, cwd=folder, env=env, stdout=(folder / f"{name}.log").open("wb"),
                             stderr=subprocess.STDOUT)
@@ -103,47 +97,30 @@ def _interval(xml: Path) -> tuple[float, float]:
     return start, start + float(suite.attrib["time"])
 
 
-@dataclass(frozen=True)
-class Sessions:
-    """The sessions' JUnit intervals [s since the epoch], and the exit code and output of the one whose board
-    died."""
-
-    intervals: dict[str, tuple[float, float]]
-    died_code: int
-    died_log: str
-
-
 @pytest.fixture(scope="module")
-def sessions(benches: Benches, tmp_path_factory: pytest.TempPathFactory) -> Sessions:
-    """Three sessions started at once, each in its own folder: a1 and a2 on bench-a (a2 kills its board and runs:
-    KILLED_BOARD_TEST), b1 on bench-b. Each one's JUnit interval; a2's exit code and output."""
+def sessions(benches: Benches, tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[float, float]]:
+    """Three sessions started at once: a1 and a2 on bench-a, b1 on bench-b; each one's JUnit interval."""
     folder = tmp_path_factory.mktemp("sessions")
-    plan = (("a1", "bench-a", SESSION_TEST), ("a2", "bench-a", KILLED_BOARD_TEST), ("b1", "bench-b", SESSION_TEST))
-    procs = {}
-    for name, place, test in plan:
-        (folder / name).mkdir()
-        procs[name] = _session(benches, folder / name, name, place, test)
-    codes = {name: proc.wait(600) for name, proc in procs.items()}
-    logs = {name: (folder / name / f"{name}.log").read_text() for name in procs}
-    for name in ("a1", "b1"):
-        assert codes[name] == 0, logs[name]
-    return Sessions({name: _interval(folder / name / f"{name}.xml") for name in procs}, codes["a2"], logs["a2"])
+    procs = {name: _session(benches, folder, name, place)
+             for name, place in (("a1", "bench-a"), ("a2", "bench-a"), ("b1", "bench-b"))}
+    for name, proc in procs.items():
+        assert proc.wait(600) == 0, (folder / f"{name}.log").read_text()
+    return {name: _interval(folder / f"{name}.xml") for name in procs}
 
 
 def _overlap(x: tuple[float, float], y: tuple[float, float]) -> float:
     return min(x[1], y[1]) - max(x[0], y[0])
 
 
-def test_two_sessions_on_one_place_queue(sessions: Sessions, benches: Benches) -> None:
-    intervals = sessions.intervals
-    assert _overlap(intervals["a1"], intervals["a2"]) < 0, intervals
+def test_two_sessions_on_one_place_queue(sessions: dict[str, tuple[float, float]],
+                                         benches: Benches) -> None:
+    assert _overlap(sessions["a1"], sessions["a2"]) < 0, sessions
     assert benches.held() == [], "a place still held"
 
 
-def test_sessions_on_two_places_overlap(sessions: Sessions) -> None:
-    intervals = sessions.intervals
-    first = min(("a1", "a2"), key=lambda name: intervals[name][0])
-    assert _overlap(intervals["b1"], intervals[first]) > 0.5, intervals
+def test_sessions_on_two_places_overlap(sessions: dict[str, tuple[float, float]]) -> None:
+    first = min(("a1", "a2"), key=lambda name: sessions[name][0])
+    assert _overlap(sessions["b1"], sessions[first]) > 0.5, sessions
 
 
 def _children(pid: int) -> list[int]:
@@ -174,8 +151,10 @@ def test_a_board_that_stops_answering_ends_the_run_naming_the_bench(benches: Ben
     assert benches.held() == [], "a place still held"
 
 
-def test_a_session_whose_board_stops_answering_ends_naming_the_bench(sessions: Sessions, benches: Benches) -> None:
-    code, log = sessions.died_code, sessions.died_log
+def test_a_session_whose_board_stops_answering_ends_naming_the_bench(benches: Benches, tmp_path: Path) -> None:
+    proc = _session(benches, tmp_path, "dies", "bench-a", KILLED_BOARD_TEST)
+    code = proc.wait(600)
+    log = (tmp_path / "dies.log").read_text()
     assert code == 3, log
     assert "bench bench-a: the board stopped answering" in log and "place bench-a released" in log, log
     assert benches.held() == [], "a place still held"
