@@ -64,6 +64,7 @@ def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch:
     if link.board._native_core:  # the models in C are called by the C core directly, not in its Python batches
         assert all(bool(link.board._core.models[link.board._slot[link.board.peripherals[name]]].python)
                    != native_periph for name in ("TIM1", "ADC1", "ADC2"))
+    assert (link._adc_table is not None) == native_periph  # the ADC codes from the pin-voltage table
     codec = FrameCodec("canfd")
     frames: list[bytes] = []
     error = ""
