@@ -76,3 +76,19 @@ def test_the_ops_for_a_scheduler_in_c_answer_as_the_models(build_fw: Any) -> Non
             at = periph_native.NEXT_EVENT_FN(ops.next_event)(ops.self, board.now)
             assert (None if at < 0 else at) == model.next_event(board.now), name
     assert board.peripherals["TIM1"].updates > 10  # type: ignore[attr-defined]
+
+
+def test_the_c_core_calls_the_models_in_c_and_raises_what_they_held(build_fw: Any) -> None:
+    """Under the board's C core TIM1 and the ADCs are called without Python (their `native_ops`); an error an ADC
+    held meanwhile (here its full-queue flag, set by hand) is raised when the core's call returns."""
+    board = Board(PARTS["stm32g474"], build_fw("pwm_adc"))
+    board.analog = lambda adc, channel, now: 3.3 if channel < 0 else 1.0
+    board.run_until(400_000)
+    assert board._native_core
+    for name in ("TIM1", "ADC1", "ADC2"):
+        assert not board._core.models[board._slot[board.peripherals[name]]].python, name
+    adc = board.peripherals["ADC1"]
+    assert isinstance(adc, NativeAdc)
+    adc._a.error = 1
+    with pytest.raises(BoardError, match=r"ADC1: more than .* conversions queued"):
+        board.run_until(800_000)

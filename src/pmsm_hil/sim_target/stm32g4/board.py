@@ -246,12 +246,19 @@ class Board:
                              f"{len(models)}")
         self._models = models
         self._native_ops: list[PeriphOps] = []
+        #: what the models in C held while the core called them directly (raised once its loop returned)
+        self._held: list[Callable[[], None]] = []
         for i, p in enumerate(models):
             slot = core.models[i]
             ops = getattr(p, "native_ops", None)
             if ops is not None:
                 self._native_ops.append(ops)  # kept alive with whatever it holds (a trampoline's callbacks)
                 slot.ops = ops
+                set_sink = getattr(p, "set_irq_sink", None)
+                if ops.self and set_sink is not None:  # a model in C: its lines and accesses go to the core directly
+                    sink = self.irq_sink
+                    set_sink(sink.board, sink.assert_line, sink.withdraw_line, sink.touched)
+                    self._held.append(p.raise_held)  # type: ignore[attr-defined]
                 slot.has_advance, slot.has_next = bool(ops.advance), bool(ops.next_event)
             else:
                 slot.python = 1
@@ -653,6 +660,8 @@ class Board:
             while True:
                 rc = run(ref, end, fresh)
                 fresh = 0
+                for raise_held in self._held:
+                    raise_held()
                 if rc == core_native.DONE:
                     return
                 if rc != core_native.LOG_FULL:

@@ -42,12 +42,16 @@ from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.ids import NodeState, Status
 from pmsm_hil.protocol.messages import Command, ConfigAck, ConfigParam, Heartbeat, Measurement, Setpoint
 from pmsm_hil.sim_target.qemu import stats
+from pmsm_hil.sim_target.stm32g4.board import VREFINT_V
 from pmsm_hil.sim_target.stm32g4.board_file import SIGNALS, BoardDescription
 from pmsm_hil.sim_target.stm32g4.hall import HallSensors, attach_halls
 from pmsm_hil.sim_target.stm32g4.link_base import IDLE_PERIODS, STARTUP_LIMIT_S, BoardLinkBase
+from pmsm_hil.sim_target.stm32g4.peripherals.adc_native import Adc12Pair, NativeAdc, pair_of
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
 from pmsm_hil.sim_target.stm32g4.peripherals.fdcan import INIT as FDCAN_INIT
 from pmsm_hil.sim_target.stm32g4.peripherals.fdcan import Fdcan
+from pmsm_hil.sim_target.stm32g4.peripherals.opamp import ADC_CHANNELS as OPAMP_CHANNELS
+from pmsm_hil.sim_target.stm32g4.peripherals.opamp import OPAINTOEN, Opamp
 from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import BDTR as TIM1_BDTR
 from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import CCER as TIM1_CCER
 from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import CR2 as TIM1_CR2
@@ -55,6 +59,9 @@ from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import Tim1
 
 #: carrier period mismatch tolerated between the firmware and --ts [s]
 PERIOD_TOLERANCE_S = 1e-9
+#: the ADCs whose conversions can take their codes from a table (c/adc.c), and its channels per ADC
+PAIR = ("ADC1", "ADC2")
+TABLE_CHANNELS = 32
 
 
 class BoardLink(BoardLinkBase):
@@ -84,6 +91,9 @@ class BoardLink(BoardLinkBase):
         #: per analog input: ((adc, channel), offset [V], gain [V per unit], its signal's index in SIGNALS)
         self._analog_map = [((a.adc, a.channel), a.offset_v, a.gain, SIGNALS.index(a.signal)) for a in desc.analog]
         self.board.analog = self._analog
+        #: the ADC pair in C behind a noiseless front end of its own pins: their voltages go into the pair's table
+        #: once a period (no call into Python per conversion); None: each conversion asks `_analog`
+        self._adc_table = self._table_pair(desc)
         self.board.encoder = self._encoder
         self._theta_m = 0.0  # unwrapped mechanical angle at the period start [rad]
         self._theta_e: float | None = None
@@ -183,6 +193,26 @@ class BoardLink(BoardLinkBase):
         noise = self._noise.get((adc, channel), 0.0)
         return volts + self._rng.gauss(0.0, noise) if noise else volts
 
+    def _table_pair(self, desc: BoardDescription) -> Adc12Pair | None:
+        """The ADC pair whose codes can come from a table of pin voltages (the models in C, every analog input an
+        ADC1/ADC2 pin without noise), else None."""
+        adc1 = self.board.peripherals.get("ADC1")
+        if not isinstance(adc1, NativeAdc) or any(
+                a.noise_v or a.adc not in ("ADC1", "ADC2") or not 0 <= a.channel < TABLE_CHANNELS
+                for a in desc.analog):
+            return None
+        return pair_of(self.board)
+
+    def _fill_table(self, pair: Adc12Pair) -> None:
+        """The period's pin voltages, VREF+ and VREFINT (ADC1 IN18) into the pair's table; while an amplifier's
+        output is routed to ADC1 or ADC2 the conversions ask `_analog` (and the OPAMP model) instead."""
+        opamp = self.board.peripherals.get("OPAMP")
+        if isinstance(opamp, Opamp) and any(opamp.csr[number - 1] & OPAINTOEN
+                                            for (adc, _), number in OPAMP_CHANNELS.items() if adc in PAIR):
+            pair.clear_inputs()
+            return
+        pair.set_inputs(self.desc.vref_v, {**self._volts, ("ADC1", 18): VREFINT_V})
+
     def _encoder(self, timer: str, now: int) -> int:
         if timer != self.desc.encoder_timer:
             return 0
@@ -204,6 +234,8 @@ class BoardLink(BoardLinkBase):
         volts = self._volts
         for key, offset, gain, signal in self._analog_map:
             volts[key] = offset + gain * (i_a if signal == 0 else i_b if signal == 1 else i_c if signal == 2 else vdc)
+        if self._adc_table is not None:
+            self._fill_table(self._adc_table)
         if self._theta_e is not None:
             d = (theta_e - self._theta_e + math.pi) % (2 * math.pi) - math.pi
             self._theta_m += d / self.pole_pairs

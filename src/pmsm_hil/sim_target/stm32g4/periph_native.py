@@ -51,12 +51,14 @@ NEXT_EVENT_FN = ctypes.CFUNCTYPE(ctypes.c_int64, ctypes.c_void_p, ctypes.c_int64
 ADVANCE_FN = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_int64)
 
 
-def set_sink(sink: IrqSink, board: int, assert_line: int, withdraw_line: int) -> None:
+def set_sink(sink: IrqSink, board: int, assert_line: int, withdraw_line: int, touched: int = 0) -> None:
     """Point `sink` at C functions (`assert_line(board, irq)`, `withdraw_line(board, irq)`: an NVIC in C) instead
-    of the board's Python."""
+    of the board's Python; `touched(board, self, write)` (a scheduler in C) hears of the accesses the model's own
+    MMIO callbacks serve (0: none)."""
     sink.board = board
     sink.assert_line = LINE_FN(assert_line)
     sink.withdraw_line = LINE_FN(withdraw_line)
+    sink.touched = touched or None
 
 
 class Listener(ctypes.Structure):

@@ -425,7 +425,8 @@ int hil_adc_store(hil_adc_t *a, int word, uint32_t value, int64_t now) {
 }
 
 /* The page 0x50000000 as Unicorn MMIO callbacks (`user` the pair): ADC1 at 0x000, ADC2 at 0x100; every read of a
- * modelled register and the writes of ISR (which cannot move an event) in C, every other access (ADC12_COMMON, a
+ * modelled register and the writes of ISR (which cannot move an event) in C (each reported to the sink's `touched`
+ * when it has one: a scheduler in C), every other access (ADC12_COMMON, a
  * control or configuration register, an unmodelled offset) through the fallback: the board's decoder and the
  * Python side of the model. */
 static uint32_t lane(uint32_t word, unsigned offset, unsigned size) {
@@ -451,7 +452,11 @@ uint64_t hil_adc_mmio_read(void *uc, uint64_t offset, unsigned size, void *user)
         unsigned off = (unsigned)(offset & 0xFFu);
         int word = (int)(off >> 2);
         if (a->present[word] && !a->error) {
-            return lane(hil_adc_load(a, word, (int64_t)*p->count), off, size);
+            uint32_t value = hil_adc_load(a, word, (int64_t)*p->count);
+            if (p->sink.touched) {
+                p->sink.touched(p->sink.board, a, 0);
+            }
+            return lane(value, off, size);
         }
     }
     return p->fallback_read(uc, offset, size, p->fallback_user);
@@ -465,6 +470,9 @@ void hil_adc_mmio_write(void *uc, uint64_t offset, unsigned size, uint64_t value
             int64_t now = (int64_t)*p->count;
             uint32_t old = hil_adc_load(a, W_ISR, now);
             hil_adc_store(a, W_ISR, merge(old, (unsigned)(offset & 0xFFu), size, (uint32_t)value), now);
+            if (p->sink.touched) {
+                p->sink.touched(p->sink.board, a, 1);
+            }
             return;
         }
     }

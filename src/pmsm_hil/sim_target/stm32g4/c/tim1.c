@@ -604,7 +604,8 @@ void hil_tim1_unsubscribe(hil_tim1_t *t, hil_listener_fn fn, void *user) {
 }
 
 /* The register page as Unicorn MMIO callbacks (`user` the model, offsets from the page's base 0x40012000): every
- * read of a modelled register, and the writes that cannot move the model's events (SR, a preloaded CCRx), in C;
+ * read of a modelled register, and the writes that cannot move the model's events (SR, a preloaded CCRx), in C,
+ * each reported to the sink's `touched` when it has one (a scheduler in C);
  * every other access through the fallback (the Python model behind the board's decoder, which names an unmodelled
  * register and re-makes the schedule). */
 #define TIM1_PAGE_OFFSET 0xC00u
@@ -631,7 +632,11 @@ uint64_t hil_tim1_mmio_read(void *uc, uint64_t offset, unsigned size, void *user
         unsigned off = (unsigned)(offset - TIM1_PAGE_OFFSET);
         int word = (int)(off >> 2);
         if (word < TIM1_WORDS && t->present[word]) {
-            return lane(hil_tim1_load(t, word, (int64_t)*t->count), off, size);
+            uint32_t value = hil_tim1_load(t, word, (int64_t)*t->count);
+            if (t->sink.touched) {
+                t->sink.touched(t->sink.board, t, 0);
+            }
+            return lane(value, off, size);
         }
     }
     return t->fallback_read(uc, offset, size, t->fallback_user);
@@ -647,6 +652,9 @@ void hil_tim1_mmio_write(void *uc, uint64_t offset, unsigned size, uint64_t valu
             int64_t now = (int64_t)*t->count;
             uint32_t old = hil_tim1_load(t, word, now);
             hil_tim1_store(t, word, merge(old, off, size, (uint32_t)value), now);
+            if (t->sink.touched) {
+                t->sink.touched(t->sink.board, t, 1);
+            }
             return;
         }
     }

@@ -11,6 +11,7 @@ import weakref
 from typing import Any, ClassVar
 
 from pmsm_hil.sim_target.stm32g4 import periph_native as pn
+from pmsm_hil.sim_target.stm32g4.core_native import PeriphOps
 from pmsm_hil.sim_target.stm32g4.counter import CounterState
 from pmsm_hil.sim_target.stm32g4.peripherals.adc import ADC1_2_IRQ, CFGR, JSQR, Adc, Adc1, Adc2, Conversion
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardBus, BoardError
@@ -260,9 +261,21 @@ class NativeAdc(Adc):
         index = 0 if self._p == ctypes.addressof(state.adc[0]) else 1
         return ctypes.addressof(state) + Adc12State.ops.offset + index * ctypes.sizeof(pn.PeriphOps)
 
-    def set_irq_sink(self, board: int, assert_line: int, withdraw_line: int) -> None:
-        """Raise ADC1_2 through C functions (an NVIC in C: periph_native.set_sink); the pair shares the line."""
-        pn.set_sink(self._pair_state.state.sink, board, assert_line, withdraw_line)
+    @property
+    def native_ops(self) -> PeriphOps:
+        """This ADC's hil_periph_ops_t as the board's C core holds it (called without Python)."""
+        return PeriphOps.from_address(self.c_ops())
+
+    def set_irq_sink(self, board: int, assert_line: int, withdraw_line: int, touched: int = 0) -> None:
+        """Raise ADC1_2 through C functions (an NVIC in C: periph_native.set_sink); the pair shares the line;
+        `touched`: the scheduler in C that hears of the accesses the library's MMIO callbacks serve."""
+        pn.set_sink(self._pair_state.state.sink, board, assert_line, withdraw_line, touched)
+
+    def raise_held(self) -> None:
+        """Raise what happened while the C core called the model directly (a full conversion queue, a Python
+        listener's exception)."""
+        if self._cb.error is not None or self._a.error:
+            self._raise()
 
     def map_native(self, cpu: Any, read: Any, write: Any) -> None:
         """Serve the ADC page (ADC1, ADC2; ADC12_COMMON through `read`/`write`, the board's decoder) from the library

@@ -9,6 +9,7 @@ from collections.abc import Iterator, MutableMapping
 from typing import Any
 
 from pmsm_hil.sim_target.stm32g4 import periph_native as pn
+from pmsm_hil.sim_target.stm32g4.core_native import PeriphOps
 from pmsm_hil.sim_target.stm32g4.counter import CounterState
 from pmsm_hil.sim_target.stm32g4.part import IRQ
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
@@ -232,9 +233,19 @@ class NativeTim1(Tim1):
         """Address of the model's hil_periph_ops_t (c/periph_ops.h): next_event / advance without Python."""
         return self._p + pn.Tim1State.ops.offset
 
-    def set_irq_sink(self, board: int, assert_line: int, withdraw_line: int) -> None:
-        """Raise the interrupt lines through C functions (an NVIC in C: periph_native.set_sink)."""
-        pn.set_sink(self._s.sink, board, assert_line, withdraw_line)
+    @property
+    def native_ops(self) -> PeriphOps:
+        """The model's hil_periph_ops_t as the board's C core holds it (called without Python)."""
+        return PeriphOps.from_address(self.c_ops())
+
+    def set_irq_sink(self, board: int, assert_line: int, withdraw_line: int, touched: int = 0) -> None:
+        """Raise the interrupt lines through C functions (an NVIC in C: periph_native.set_sink); `touched`: the
+        scheduler in C that hears of the accesses the library's MMIO callbacks serve."""
+        pn.set_sink(self._s.sink, board, assert_line, withdraw_line, touched)
+
+    def raise_held(self) -> None:
+        """Raise what a Python listener raised while the C core called the model directly."""
+        self._cb.check()
 
     # --- the register page ---------------------------------------------------------------------------------------
 
