@@ -21,6 +21,7 @@ PACKAGE = ROOT / "src" / "pmsm_hil"
 FOLDER_LAYERS = {
     "__init__.py": "base",
     "errors.py": "base",
+    "lazy_names.py": "base",
     "protocol": "protocol",
     "sim_target": "target",
     "hil": "model",

@@ -15,9 +15,9 @@ The assertions, numpy and the runner load on first use (the plugin is imported b
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
+from pmsm_hil.lazy_names import lazy_getattr
 from pmsm_hil.testing.plugin import hil, hil_session, pytest_addoption, pytest_configure
 
 if TYPE_CHECKING:
@@ -46,14 +46,7 @@ _LAZY = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    """Load the assertions and result types on first use."""
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
+__getattr__ = lazy_getattr(__name__, _LAZY, globals())
 
 
 __all__ = ["PLOT_PROPERTY", "HilResult", "HilRunError", "SetpointNotHeldError", "Signal", "SignalAssertionError",

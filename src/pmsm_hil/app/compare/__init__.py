@@ -4,8 +4,9 @@ The names below load on first use (`hil compare --help` lists the presets withou
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from pmsm_hil.lazy_names import lazy_getattr
 
 if TYPE_CHECKING:
     from pmsm_hil.app.compare.preset import ComparePreset, load_preset, preset_names
@@ -17,14 +18,7 @@ _LAZY = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    """Load a compare name on first use."""
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
+__getattr__ = lazy_getattr(__name__, _LAZY, globals())
 
 
 __all__ = ["ComparePreset", "CompareResult", "load_preset", "preset_names", "run_preset"]

@@ -5,8 +5,9 @@ the repair's (numpy and mcap's reader stay out of a process that does not read).
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from pmsm_hil.lazy_names import lazy_getattr
 
 if TYPE_CHECKING:
     from pmsm_hil.hil.runlog.errors import LoggerDiedError, McapFormatError, RunLogError
@@ -22,14 +23,7 @@ _LAZY = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    """Load a run-log name on first use."""
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
+__getattr__ = lazy_getattr(__name__, _LAZY, globals())
 
 
 __all__ = [

@@ -5,8 +5,9 @@ The names below load on first use: importing one module of this package (the lin
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from pmsm_hil.lazy_names import lazy_getattr
 
 if TYPE_CHECKING:
     from pmsm_hil.protocol.links.faults import DirectionFaults, FaultEvent, FaultSpec, FaultyLink, parse_fault_spec
@@ -33,14 +34,7 @@ _LAZY = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    """Load a link name on first use."""
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
+__getattr__ = lazy_getattr(__name__, _LAZY, globals())
 
 
 __all__ = ["LINK_KINDS", "BusLink", "DirectionFaults", "FaultEvent", "FaultSpec", "FaultyLink", "Link", "LinkKind",
