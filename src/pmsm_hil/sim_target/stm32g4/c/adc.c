@@ -429,22 +429,6 @@ int hil_adc_store(hil_adc_t *a, int word, uint32_t value, int64_t now) {
  * when it has one: a scheduler in C), every other access (ADC12_COMMON, a
  * control or configuration register, an unmodelled offset) through the fallback: the board's decoder and the
  * Python side of the model. */
-static uint32_t lane(uint32_t word, unsigned offset, unsigned size) {
-    if (size == 4u) {
-        return word;
-    }
-    return (word >> (8u * (offset & 3u))) & ((1u << (8u * size)) - 1u);
-}
-
-static uint32_t merge(uint32_t old, unsigned offset, unsigned size, uint32_t value) {
-    if (size == 4u) {
-        return value;
-    }
-    unsigned shift = 8u * (offset & 3u);
-    uint32_t mask = ((1u << (8u * size)) - 1u) << shift;
-    return (old & ~mask) | ((value << shift) & mask);
-}
-
 uint64_t hil_adc_mmio_read(void *uc, uint64_t offset, unsigned size, void *user) {
     hil_adc12_t *p = (hil_adc12_t *)user;
     if (offset < 0x200u && size <= 4u) {
@@ -456,7 +440,7 @@ uint64_t hil_adc_mmio_read(void *uc, uint64_t offset, unsigned size, void *user)
             if (p->sink.touched) {
                 p->sink.touched(p->sink.board, a, 0);
             }
-            return lane(value, off, size);
+            return hil_reg_lane(value, off, size);
         }
     }
     return p->fallback_read(uc, offset, size, p->fallback_user);
@@ -469,7 +453,7 @@ void hil_adc_mmio_write(void *uc, uint64_t offset, unsigned size, uint64_t value
         if (!a->error) {
             int64_t now = (int64_t)*p->count;
             uint32_t old = hil_adc_load(a, W_ISR, now);
-            hil_adc_store(a, W_ISR, merge(old, (unsigned)(offset & 0xFFu), size, (uint32_t)value), now);
+            hil_adc_store(a, W_ISR, hil_reg_merge(old, (unsigned)(offset & 0xFFu), size, (uint32_t)value), now);
             if (p->sink.touched) {
                 p->sink.touched(p->sink.board, a, 1);
             }

@@ -28,4 +28,22 @@ typedef struct hil_periph_ops {
     void (*advance)(void *self, int64_t now);
 } hil_periph_ops_t;
 
+/* The `size`-byte lane at byte `offset` of the 32-bit register value `word` (a byte or halfword access). */
+static inline uint32_t hil_reg_lane(uint32_t word, unsigned offset, unsigned size) {
+    if (size == 4u) {
+        return word;
+    }
+    return (word >> (8u * (offset & 3u))) & ((1u << (8u * size)) - 1u);
+}
+
+/* `old` with its `size`-byte lane at byte `offset` replaced by `value` (a byte or halfword write). */
+static inline uint32_t hil_reg_merge(uint32_t old, unsigned offset, unsigned size, uint32_t value) {
+    if (size == 4u) {
+        return value;
+    }
+    unsigned shift = 8u * (offset & 3u);
+    uint32_t mask = ((1u << (8u * size)) - 1u) << shift;
+    return (old & ~mask) | ((value << shift) & mask);
+}
+
 #endif

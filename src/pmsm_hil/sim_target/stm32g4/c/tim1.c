@@ -610,22 +610,6 @@ void hil_tim1_unsubscribe(hil_tim1_t *t, hil_listener_fn fn, void *user) {
  * register and re-makes the schedule). */
 #define TIM1_PAGE_OFFSET 0xC00u
 
-static uint32_t lane(uint32_t word, unsigned offset, unsigned size) {
-    if (size == 4u) {
-        return word;
-    }
-    return (word >> (8u * (offset & 3u))) & ((1u << (8u * size)) - 1u);
-}
-
-static uint32_t merge(uint32_t old, unsigned offset, unsigned size, uint32_t value) {
-    if (size == 4u) {
-        return value;
-    }
-    unsigned shift = 8u * (offset & 3u);
-    uint32_t mask = ((1u << (8u * size)) - 1u) << shift;
-    return (old & ~mask) | ((value << shift) & mask);
-}
-
 uint64_t hil_tim1_mmio_read(void *uc, uint64_t offset, unsigned size, void *user) {
     hil_tim1_t *t = (hil_tim1_t *)user;
     if (offset >= TIM1_PAGE_OFFSET && size <= 4u) {
@@ -636,7 +620,7 @@ uint64_t hil_tim1_mmio_read(void *uc, uint64_t offset, unsigned size, void *user
             if (t->sink.touched) {
                 t->sink.touched(t->sink.board, t, 0);
             }
-            return lane(value, off, size);
+            return hil_reg_lane(value, off, size);
         }
     }
     return t->fallback_read(uc, offset, size, t->fallback_user);
@@ -651,7 +635,7 @@ void hil_tim1_mmio_write(void *uc, uint64_t offset, unsigned size, uint64_t valu
         if (word == W_SR || (ch >= 0 && preloaded(t, ch))) {
             int64_t now = (int64_t)*t->count;
             uint32_t old = hil_tim1_load(t, word, now);
-            hil_tim1_store(t, word, merge(old, off, size, (uint32_t)value), now);
+            hil_tim1_store(t, word, hil_reg_merge(old, off, size, (uint32_t)value), now);
             if (t->sink.touched) {
                 t->sink.touched(t->sink.board, t, 1);
             }
