@@ -4,6 +4,8 @@ Python loop's, bit for bit."""
 
 from __future__ import annotations
 
+import contextlib
+import socket
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -15,6 +17,7 @@ import pytest
 from pmsm_hil.hil.runner.callback_link import NativePyLink
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
+from pmsm_hil.protocol.links.kinds import DEFAULT_UDP_PORTS
 from pmsm_hil.protocol.links.wire_bus import free_udp_ports
 from tests.runner.test_loop import SENSORS, _assert_same_metrics, _assert_same_records, _three
 from tests.runner.test_wire_udp import WALL_FIELDS, WALL_METRICS, _without_resends
@@ -24,6 +27,24 @@ def _both(cfg: RunConfig) -> tuple[Any, Any]:
     runs = [run_closed_loop(replace(cfg, loop=loop)) for loop in ("python", "native")]
     assert [r.metrics["loop"] for r in runs] == ["python", "native"]
     return runs[0], runs[1]
+
+
+def test_an_in_process_target_on_udp_takes_free_ports_not_the_fixed_defaults() -> None:
+    """`--link udp` without ports and an in-process target: both ends are this process's, so the run takes two ports
+    free now (as a spawned target's does); the fixed defaults may be held by another run on the machine (two suites
+    at once failed here with "cannot bind UDP port 47311")."""
+    held = []
+    for port in DEFAULT_UDP_PORTS["host"]:
+        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        with contextlib.suppress(OSError):  # already held by someone else: held all the same
+            sock.bind(("127.0.0.1", port))
+        held.append(sock)
+    try:
+        res = run_closed_loop(replace(_three(link="udp", target="inproc"), loop="native"))
+    finally:
+        for sock in held:
+            sock.close()
+    assert res.metrics["end_code"] == 0, res.metrics["end_reason"]
 
 
 def test_an_in_process_python_target_on_a_udp_link() -> None:

@@ -482,8 +482,12 @@ def connect_target(cfg: RunConfig, *, silent_after: int | None = None, native_ta
     if kind == "inproc":
         from pmsm_hil.sim_target.target import SimTarget
 
-        target_link = open_link(cfg.link, "target")
-        host_link = open_link(cfg.link, "host")
+        host_spec = target_spec = cfg.link
+        if spec.kind == "udp" and spec.channel is None:  # both ends here: two ports free now, not the fixed
+            mirrored = link.mirror(cfg.link, spec)  # defaults another run or target on this machine may hold
+            host_spec, target_spec = mirrored.host, mirrored.target
+        target_link = open_link(target_spec, "target")
+        host_link = open_link(host_spec, "host")
         target = SimTarget(target_link, codec, silent_after=silent_after)
         client = TargetClient(host_link, codec, pump=target.service)
         return TargetConnection(client, host_link, target_link=target_link,
