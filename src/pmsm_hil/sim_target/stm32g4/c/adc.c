@@ -436,11 +436,7 @@ uint64_t hil_adc_mmio_read(void *uc, uint64_t offset, unsigned size, void *user)
         unsigned off = (unsigned)(offset & 0xFFu);
         int word = (int)(off >> 2);
         if (a->present[word] && !a->error) {
-            uint32_t value = hil_adc_load(a, word, (int64_t)*p->count);
-            if (p->sink.touched) {
-                p->sink.touched(p->sink.board, a, 0);
-            }
-            return hil_reg_lane(value, off, size);
+            return hil_served_read(&p->sink, a, hil_adc_load(a, word, (int64_t)*p->count), off, size);
         }
     }
     return p->fallback_read(uc, offset, size, p->fallback_user);

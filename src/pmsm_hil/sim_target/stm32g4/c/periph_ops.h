@@ -46,4 +46,14 @@ static inline uint32_t hil_reg_merge(uint32_t old, unsigned offset, unsigned siz
     return (old & ~mask) | ((value << shift) & mask);
 }
 
+/* A read a model served itself: reported to the sink's `touched` (a scheduler in C that must know the model was
+ * accessed) and the accessed lane of the register's value returned. */
+static inline uint64_t hil_served_read(const hil_irq_sink_t *sink, void *self, uint32_t value, unsigned offset,
+                                       unsigned size) {
+    if (sink->touched) {
+        sink->touched(sink->board, self, 0);
+    }
+    return hil_reg_lane(value, offset, size);
+}
+
 #endif

@@ -616,11 +616,7 @@ uint64_t hil_tim1_mmio_read(void *uc, uint64_t offset, unsigned size, void *user
         unsigned off = (unsigned)(offset - TIM1_PAGE_OFFSET);
         int word = (int)(off >> 2);
         if (word < TIM1_WORDS && t->present[word]) {
-            uint32_t value = hil_tim1_load(t, word, (int64_t)*t->count);
-            if (t->sink.touched) {
-                t->sink.touched(t->sink.board, t, 0);
-            }
-            return hil_reg_lane(value, off, size);
+            return hil_served_read(&t->sink, t, hil_tim1_load(t, word, (int64_t)*t->count), off, size);
         }
     }
     return t->fallback_read(uc, offset, size, t->fallback_user);
