@@ -3,8 +3,11 @@ CRC errors, fuzzing — packets written by the reference of docs/protocol.md (wi
 
 from __future__ import annotations
 
+import fcntl
 import os
 import socket
+import struct
+import termios
 import time
 
 from hypothesis import given, settings
@@ -24,24 +27,32 @@ from tests.protocol.wire_oracle import (
 )
 
 
+def _unread(sock: socket.socket) -> int:
+    """Bytes written to `sock` that its peer has not read yet (SIOCOUTQ of a Unix stream socket)."""
+    return int(struct.unpack("i", fcntl.ioctl(sock.fileno(), termios.TIOCOUTQ, b"\0" * 4))[0])
+
+
 def _received(chunks: list[bytes]) -> tuple[list[tuple[int, bytes, bool]], LinkStats]:
     """The frames (id, payload, FD) and counters of a hilserial bus reading `chunks` from its port, each written
-    once the bus read the one before."""
+    once the bus has read the one before and has no frame left to give: a poll that finds nothing after every
+    byte written had been read (the socket's out-queue empty before it) ends the chunk, so no wait is a guess."""
     a, b = socket.socketpair()
     with a:
         bus = HilSerialBus(f"fd:{b.detach()}")
         got = []
         try:
-            for chunk in [*chunks, b""]:
-                if chunk:
-                    a.sendall(chunk)
-                deadline = time.monotonic() + (0.05 if chunk else 0.2)
+            for chunk in chunks:
+                a.sendall(chunk)
+                deadline = time.monotonic() + 30.0  # a bus that stopped reading: the comparison then fails
                 while time.monotonic() < deadline:
+                    unread = _unread(a)
                     fr = bus.poll_frame()
-                    if fr is None:
-                        time.sleep(0.001)
-                        continue
-                    got.append((fr.arbitration_id, fr.data, fr.is_fd))
+                    if fr is not None:
+                        got.append((fr.arbitration_id, fr.data, fr.is_fd))
+                    elif unread == 0:
+                        break
+                    else:
+                        time.sleep(0.0005)
             return got, LinkStats(**bus.link_stats.as_dict())
         finally:
             bus.shutdown()
