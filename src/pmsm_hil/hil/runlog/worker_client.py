@@ -19,12 +19,13 @@ from collections.abc import Callable
 from multiprocessing import resource_tracker
 from multiprocessing.process import BaseProcess
 from pathlib import Path
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from pmsm_hil.hil.runlog.channel import NOTICE
 from pmsm_hil.hil.runlog.ring import RingProducer
+
+if TYPE_CHECKING:
+    import numpy as np
 
 _HELD = {signal.SIGINT, signal.SIGTERM}
 
@@ -171,6 +172,8 @@ class WorkerClient:
     def _push(self, kind: int, block: np.ndarray, itemsize: int) -> None:
         """Copy `block` into the ring in whole records (≤ a quarter of the ring each) and send a notice of
         `kind` per piece. Raises RunLogError if the ring stays full, OSError if the notice pipe broke."""
+        import numpy as np  # not at the module's top: the worker process imports this module for `_worker_entry`
+
         payload = np.ascontiguousarray(block).view(np.uint8)
         step = max(1, self._ring.capacity // (4 * itemsize)) * itemsize
         for start in range(0, payload.shape[0], step):
