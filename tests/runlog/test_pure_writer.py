@@ -64,9 +64,16 @@ def _odd_blocks(k: int) -> tuple[np.ndarray, np.ndarray]:
     return periods, frames
 
 
-def _write(path: Path, budgets: list[float], trace: np.dtype = TRACE_DTYPE) -> bytes:
-    """Six rounds of periods, frames, trace (and a fault and a console line): round k with encoder budget
-    `budgets[k]` (s of CPU; 0 = numpy, inf = numpy-free)."""
+def _write(path: Path, budgets: list[float], trace: np.dtype = TRACE_DTYPE, numpy_only: bool = False) -> bytes:
+    """Rounds of periods, frames, trace (and a fault and a console line): round k with encoder budget `budgets[k]`
+    (s of CPU; 0 = numpy, inf = numpy-free); `numpy_only`: every block through numpy's encoders (the trace's too)."""
+    with pytest.MonkeyPatch.context() as mp:
+        if numpy_only:
+            mp.setattr(pure_writer, "LITTLE_ENDIAN", False)
+        return _write_rounds(path, budgets, trace)
+
+
+def _write_rounds(path: Path, budgets: list[float], trace: np.dtype) -> bytes:
     sink = McapSink(path, {"run": "pure"}, "lz4", trace.names)
     assert sink._bulk is not None
     for k, budget in enumerate(budgets):
@@ -96,13 +103,13 @@ def _write(path: Path, budgets: list[float], trace: np.dtype = TRACE_DTYPE) -> b
 def test_the_numpy_free_encoders_write_the_file_numpy_writes(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                                              chunk_bytes: int) -> None:
     monkeypatch.setattr(sink_module, "CHUNK_BYTES", chunk_bytes)
-    numpy_only = _write(tmp_path / "numpy.mcap", [0.0] * 6)
+    numpy_only = _write(tmp_path / "numpy.mcap", [0.0] * 6, numpy_only=True)
     assert _write(tmp_path / "pure.mcap", [math.inf] * 6) == numpy_only
     assert _write(tmp_path / "switch.mcap", [math.inf, math.inf, 0.0, math.inf, 0.0, 0.0]) == numpy_only
 
 
 def test_a_six_phase_trace_is_the_same_file(tmp_path: Path) -> None:
-    numpy_only = _write(tmp_path / "numpy.mcap", [0.0] * 3, TRACE_DTYPE6)
+    numpy_only = _write(tmp_path / "numpy.mcap", [0.0] * 3, TRACE_DTYPE6, numpy_only=True)
     assert _write(tmp_path / "pure.mcap", [math.inf] * 3, TRACE_DTYPE6) == numpy_only
 
 
@@ -123,12 +130,13 @@ def test_a_short_run_is_logged_without_numpy_and_writes_the_old_bytes(tmp_path: 
               for k in range(2)]
     stats = _logged(tmp_path / "run.mcap", blocks)
     assert stats["periods"] == 2000 and stats["numpy"] is False
-    sink = McapSink(tmp_path / "old.mcap", {"run": "x"}, "lz4")
-    sink.pure_cpu_s = 0.0
-    for periods, frames, trace in blocks:
-        sink.write_periods(periods.tobytes())
-        sink.write_frames(frames.tobytes())
-        sink.write_trace(trace.tobytes())
-    sink.close()
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(pure_writer, "LITTLE_ENDIAN", False)  # the numpy encoders, as before
+        sink = McapSink(tmp_path / "old.mcap", {"run": "x"}, "lz4")
+        for periods, frames, trace in blocks:
+            sink.write_periods(periods.tobytes())
+            sink.write_frames(frames.tobytes())
+            sink.write_trace(trace.tobytes())
+        sink.close()
     assert (tmp_path / "run.mcap").read_bytes() == (tmp_path / "old.mcap").read_bytes()
 
