@@ -4,8 +4,8 @@
 `PURE_CPU_S` of CPU time in the run, then by the numpy encoders (`cdr`, `encoding`), imported then: a short run
 never pays numpy's import (≈ 0.15–0.2 CPU-s), a long one pays it once and then encodes at numpy's speed (≈ 3×
 faster). /trace is always encoded by `pure_writer` on a little-endian host (as fast: mcap's `add_message` writes
-it either way). Both write the same bytes. /link_faults, /target/console and /board/periods and the message-by-message path (an mcap
-whose Writer `BulkMessages` cannot use) always use numpy."""
+it either way). Both write the same bytes. /link_faults, /target/console and /board/periods and the
+message-by-message path (an mcap whose Writer `BulkMessages` cannot use) always use numpy."""
 
 from __future__ import annotations
 
