@@ -21,7 +21,7 @@ from tests.runlog._blocks import frame_block, period_block, trace_block
 
 
 def _dtype(fields: tuple[layouts.Field, ...]) -> np.dtype:
-    return np.dtype([(f.name, f.code, (f.count,)) if f.count else (f.name, f.code) for f in fields])
+    return np.dtype([(f.name, f.code, (f.length,)) if f.length else (f.name, f.code) for f in fields])
 
 
 def test_the_layouts_are_the_record_dtypes_and_the_cdr_messages() -> None:

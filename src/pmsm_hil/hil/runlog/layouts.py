@@ -16,11 +16,11 @@ from typing import Any, Final, NamedTuple
 
 
 class Field(NamedTuple):
-    """One field of a record: name, type code (`f8`, `u4`, `u2`, `u1`) and fixed array length (0: a scalar)."""
+    """One field of a record: name, type code (`f8`, `u4`, `u2`, `u1`) and fixed array `length` (0: a scalar)."""
 
     name: str
     code: str
-    count: int = 0
+    length: int = 0
 
 
 #: bytes of each type code
@@ -78,7 +78,7 @@ UNITS: Final = {
 
 def field_bytes(field: Field) -> int:
     """Bytes of `field` in a record."""
-    return SIZES[field.code] * max(field.count, 1)
+    return SIZES[field.code] * max(field.length, 1)
 
 
 def offsets(fields: Sequence[Field]) -> dict[str, int]:
@@ -96,12 +96,12 @@ def record_size(fields: Sequence[Field]) -> int:
 
 
 class MsgSlot(NamedTuple):
-    """One field of a fixed-size CDR message: name, ROS 2 primitive, fixed array length (0: a scalar), byte
+    """One field of a fixed-size CDR message: name, ROS 2 primitive, fixed array `length` (0: a scalar), byte
     offset in the message (the 4-byte encapsulation header included) and size [bytes]."""
 
     name: str
     ros_type: str
-    count: int
+    length: int
     offset: int
     size: int
 
@@ -129,7 +129,7 @@ def cdr_message(fields: Sequence[tuple[str, str, int]], title: str, notes: Mappi
     return CdrLayout(tuple(slots), 4 + pos, ("\n".join(lines) + "\n").encode())
 
 
-PERIOD_MSG: Final = cdr_message([(f.name, ROS_TYPES[f.code], f.count) for f in PERIOD_FIELDS],
+PERIOD_MSG: Final = cdr_message([(f.name, ROS_TYPES[f.code], f.length) for f in PERIOD_FIELDS],
                                 "pmsm_hil control period (PERIOD_DTYPE), SI units")
 #: frame message field → FRAME_FIELDS field, where the names differ
 FRAME_RENAMES: Final = {"dir": "direction", "id": "arbitration_id", "fd": "is_fd", "len": "length"}
@@ -149,7 +149,7 @@ def json_schema(fields: Sequence[Field], title: str) -> bytes:
         base: dict[str, Any] = {"type": ["number", "null"] if f.code[0] == "f" else "integer"}
         if f.name in UNITS:
             base["description"] = UNITS[f.name]
-        if f.count:
+        if f.length:
             props[f.name] = {
                 "type": "array",
                 "items": {"type": base["type"]},

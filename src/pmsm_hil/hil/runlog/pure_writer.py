@@ -20,6 +20,7 @@ from typing import Final
 from mcap.opcode import Opcode
 
 from pmsm_hil.hil.runlog import layouts
+from pmsm_hil.hil.runlog.errors import RunLogError
 
 LITTLE_ENDIAN: Final = sys.byteorder == "little"
 #: MCAP Message record header: opcode, record length (after these 9 bytes), channel id, sequence, log time,
@@ -51,7 +52,7 @@ class FixedMessages:
                  renames: Mapping[str, str] | None = None, tables: Mapping[str, bytes] | None = None) -> None:
         renames, tables = dict(renames or {}), dict(tables or {})
         if [f[:2] for f in fields[:2]] != [("t", "f8"), ("seq", "u4")]:
-            raise ValueError("records must start with t (f8) and seq (u4)")
+            raise RunLogError("records must start with t (f8) and seq (u4)")
         src_at = layouts.offsets(fields)
         src_size = {f.name: layouts.field_bytes(f) for f in fields}
         self.record_bytes = layouts.record_size(fields)
@@ -61,7 +62,7 @@ class FixedMessages:
         for slot in msg.slots:
             name = renames.get(slot.name, slot.name)
             if src_size[name] != slot.size:
-                raise ValueError(f"{slot.name}: {slot.size} bytes in the message, {src_size[name]} in the record")
+                raise RunLogError(f"{slot.name}: {slot.size} bytes in the message, {src_size[name]} in the record")
             table = tables.get(slot.name, AS_BOOL if slot.ros_type == "bool" else None)
             if table is not None:
                 self._tables.append((MESSAGE_HEADER.size + slot.offset, table))
@@ -73,7 +74,7 @@ class FixedMessages:
         src, out, src_pos, out_pos = ["<"], ["<BQHIQQ4s"], 0, 4
         for rec_at, msg_at, n in runs:
             if rec_at < src_pos:
-                raise ValueError("message fields must be in record order")
+                raise RunLogError("message fields must be in record order")
             src.append(f"{rec_at - src_pos}x{n}s" if rec_at > src_pos else f"{n}s")
             out.append(f"{msg_at - out_pos}x{n}s" if msg_at > out_pos else f"{n}s")
             src_pos, out_pos = rec_at + n, msg_at + n
@@ -83,7 +84,7 @@ class FixedMessages:
         self._out = struct.Struct("".join(out))
         self._t_seq = struct.Struct(f"<dI{self.record_bytes - 12}x")
         if self._out.size != self.size:
-            raise ValueError(f"message record of {self._out.size} bytes, expected {self.size}")
+            raise RunLogError(f"message record of {self._out.size} bytes, expected {self.size}")
 
     def encode(self, raw: bytes, channel: int) -> tuple[bytes | bytearray, list[int]]:
         """The Message records on `channel` of the records in `raw` (concatenated, `size` bytes each) and their
