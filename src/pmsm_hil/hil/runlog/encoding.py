@@ -27,6 +27,7 @@ CDR_LE_HEADER: Final = b"\x00\x01\x00\x00"
 UNITS: Final = layouts.UNITS
 METADATA_JSON_SCHEMA: Final = layouts.METADATA_JSON_SCHEMA
 
+
 def _json_type(kind: str) -> Any:
     if kind == "f":
         return ["number", "null"]

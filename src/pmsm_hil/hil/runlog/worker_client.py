@@ -49,8 +49,8 @@ _SPAWN_LOCK = threading.Lock()
 @contextlib.contextmanager
 def _main_not_rerun(target: Callable[..., None]) -> Iterator[None]:
     """While a worker starts: its start-up data do not name the parent's `__main__` script or module, so the new
-    interpreter does not run it again (multiprocessing's spawn re-runs it for targets defined there). The worker's
-    targets are module functions: the `hil` console script's re-run imported the CLI, `pytest`'s all of pytest,
+    interpreter does not run it again (multiprocessing's spawn re-runs it, for a target defined there). The workers'
+    targets are module functions: the `hil` console script's re-run imported the CLI, `pytest`'s `_pytest.config`,
     in every logger process. A target defined in `__main__` starts as multiprocessing does it."""
     original = getattr(spawn, "get_preparation_data", None)
     if original is None or getattr(target, "__module__", "__main__") == "__main__":
