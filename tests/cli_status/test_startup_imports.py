@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -77,17 +78,42 @@ def test_the_mcap_export_formats_are_the_writers() -> None:
 
 def test_the_logger_process_imports_the_writer_only() -> None:
     """The modules the spawned MCAP logger loads to find its entry point and its target (`_worker_entry`,
-    `run_worker`): numpy and mcap's writer, not its reader, python-can, the links or the runner."""
+    `run_worker`): mcap's writer and the numpy-free encoders, not numpy (a long run's logger imports it later, once
+    its writes have used `sink.PURE_CPU_S`), mcap's reader, python-can, the links, the runner or the record dtypes."""
     code = ("import json, sys\nimport pmsm_hil.hil.runlog.worker_client, pmsm_hil.hil.runlog.worker\n"
             "print(json.dumps(sorted(sys.modules)))\n")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     modules = json.loads(proc.stdout)
-    assert "mcap.writer" in modules and "numpy" in modules  # what writing MCAP needs
-    heavy = (*[h for h in HEAVY if h not in ("numpy", "mcap")], "mcap.stream_reader", "pmsm_hil.hil.runlog.reader",
+    assert "mcap.writer" in modules and "pmsm_hil.hil.runlog.pure_writer" in modules  # what writing MCAP needs
+    heavy = (*[h for h in HEAVY if h != "mcap"], "mcap.stream_reader", "pmsm_hil.hil.runlog.reader",
              "pmsm_hil.hil.runlog.repair", "pmsm_hil.hil.runner", "pmsm_hil.protocol.links",
-             "multiprocessing.forkserver")
+             "multiprocessing.forkserver", "pmsm_hil.hil.records", "pmsm_hil.hil.runlog.cdr",
+             "pmsm_hil.hil.runlog.encoding", "pmsm_hil.app")
     assert _loaded(heavy, modules) == []
+
+
+_SCRIPT_LOGGER = """
+import json, sys
+from pathlib import Path
+from pmsm_hil.hil.runlog.logger import RunLogger
+with RunLogger(Path(sys.argv[1]), metadata={{}}) as lg:
+    pass
+print(json.dumps(lg.final_stats))
+"""
+
+
+def test_a_logger_started_from_a_script_does_not_run_the_script_again(tmp_path: Path) -> None:
+    """A `hil`, `pytest` or user script without a `__main__` guard: the spawned logger does not run it again
+    (multiprocessing's spawn would, for a target defined there: the CLI's or pytest's whole import, or here a
+    second logger started from inside the first one's start)."""
+    script = tmp_path / "script.py"
+    script.write_text(_SCRIPT_LOGGER.format())
+    proc = subprocess.run([sys.executable, str(script), str(tmp_path / "run.mcap")], capture_output=True,
+                          text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    stats = json.loads(proc.stdout.splitlines()[-1])
+    assert stats["reason"] == "close" and stats["numpy"] is False
 
 
 def test_the_lazy_package_names_still_import() -> None:

@@ -12,20 +12,13 @@ from typing import Final
 
 import numpy as np
 
+from pmsm_hil.hil.runlog import layouts
+
 #: seq: the control period (the message's sequence number)
 BOARD_DTYPE: Final = np.dtype([("t", "f8"), ("seq", "u4"), ("isr_us", "f8"), ("isr_entries", "u4"),
                                ("cpu_load", "f8"), ("late_compares", "u4")])
 
-BOARD_JSON_SCHEMA: Final = json.dumps({
-    "$schema": "http://json-schema.org/draft-07/schema#",
-    "title": "virtual board period",
-    "type": "object",
-    "properties": {"period": {"type": "integer"}, "t": {"type": "number", "description": "s (period start)"},
-                   "isr_us": {"type": "number", "description": "µs in interrupt handlers"},
-                   "isr_entries": {"type": "integer", "description": "exception entries"},
-                   "cpu_load": {"type": "number", "description": "share of cycles not asleep"},
-                   "late_compares": {"type": "integer", "description": "1: compare values a period late"}},
-}).encode()
+BOARD_JSON_SCHEMA: Final = layouts.BOARD_JSON_SCHEMA
 
 
 def encode_board(block: np.ndarray) -> list[bytes]:

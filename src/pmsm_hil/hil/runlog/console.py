@@ -9,6 +9,8 @@ from typing import Final
 
 import numpy as np
 
+from pmsm_hil.hil.runlog import layouts
+
 #: longest line kept [bytes] (the rest of a longer line is cut)
 MAX_LINE_BYTES: Final = 240
 STREAM_STDOUT: Final = 1
@@ -18,13 +20,7 @@ STREAM_NAMES: Final = {STREAM_STDOUT: "stdout", STREAM_STDERR: "stderr"}
 CONSOLE_DTYPE: Final = np.dtype([("t", "f8"), ("seq", "u4"), ("stream", "u1"), ("length", "u2"),
                                  ("text", f"S{MAX_LINE_BYTES}")])
 
-CONSOLE_JSON_SCHEMA: Final = json.dumps({
-    "$schema": "http://json-schema.org/draft-07/schema#",
-    "title": "target console line",
-    "type": "object",
-    "properties": {"t": {"type": "number", "description": "s (wall time since the target process started)"},
-                   "seq": {"type": "integer"}, "stream": {"type": "string"}, "text": {"type": "string"}},
-}).encode()
+CONSOLE_JSON_SCHEMA: Final = layouts.CONSOLE_JSON_SCHEMA
 
 
 def encode_console(block: np.ndarray) -> list[bytes]:

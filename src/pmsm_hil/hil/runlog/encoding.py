@@ -20,34 +20,12 @@ from typing import Any, Final
 import numpy as np
 
 from pmsm_hil.hil.records import FAULT_DTYPE, FRAME_DTYPE, TRACE_DTYPE
+from pmsm_hil.hil.runlog import layouts
 from pmsm_hil.hil.runlog.errors import McapFormatError
 
 CDR_LE_HEADER: Final = b"\x00\x01\x00\x00"
-
-UNITS: Final = {
-    "t": "s (sim time, period start)",
-    "i_a": "A",
-    "i_b": "A",
-    "i_c": "A",
-    "i_d": "A",
-    "i_q": "A",
-    "i_u": "A (second three-phase set)",
-    "i_v": "A (second three-phase set)",
-    "i_w": "A (second three-phase set)",
-    "i_x": "A (x-y harmonic subspace)",
-    "i_y": "A (x-y harmonic subspace)",
-    "torque": "N·m",
-    "torque_ref": "N·m",
-    "load_torque": "N·m",
-    "omega_m": "rad/s (mechanical)",
-    "speed_ref": "rad/s (mechanical)",
-    "theta_e": "rad (electrical)",
-    "durations_ns": "ns",
-    "exec_time_ns": "ns",
-    "exec_split_ns": "ns (measure, reference, predict)",
-    "states": "switching state codes 4·Sa+2·Sb+Sc (first n_states valid)",
-    "duties": "duty 0..1 per leg of a duty-cycle Command (first n_duties valid, NaN beyond)",
-}
+UNITS: Final = layouts.UNITS
+METADATA_JSON_SCHEMA: Final = layouts.METADATA_JSON_SCHEMA
 
 
 def _json_type(kind: str) -> Any:
@@ -145,21 +123,9 @@ def make_json_encoder(dtype: np.dtype) -> Callable[[np.ndarray], list[bytes]]:
 encode_faults: Final = make_json_encoder(FAULT_DTYPE)
 
 
-METADATA_JSON_SCHEMA: Final = json.dumps(
-    {
-        "$schema": "http://json-schema.org/draft-07/schema#",
-        "title": "pmsm_hil run metadata",
-        "type": "object",
-        "additionalProperties": {"type": "string"},
-    }
-).encode()
-
-
 def ros2msg_schema(dtype: np.dtype) -> bytes:
     """ROS 2 .msg text of a trace block: one `float64[]` per field of `dtype` (all fields float64)."""
-    lines = ["# Plant trace block, SI units (t s, currents A, torque N·m, omega_m rad/s mechanical)"]
-    lines += [f"float64[] {name}" for name in dtype.names or ()]
-    return ("\n".join(lines) + "\n").encode()
+    return layouts.ros2msg_schema(dtype.names or ())
 
 
 def ros2msg_fields(schema: bytes) -> tuple[str, ...]:

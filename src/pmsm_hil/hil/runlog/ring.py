@@ -1,9 +1,10 @@
 """Single-producer single-consumer byte ring in shared memory (a file in /dev/shm mapped by both processes).
 
-The producer (runner) copies a block into the ring and sends a small notice (kind, position, length) over
+The producer (runner, numpy arrays) copies a block into the ring and sends a small notice (kind, position, length) over
 a pipe; the consumer (logger process) copies the block out and publishes its consumed position in the
 8-byte control word at the start of the mapping. Positions are monotonically increasing byte counts;
-a block never wraps (the producer skips the tail end of the ring instead). The backing file is unlinked
+a block never wraps (the producer skips the tail end of the ring instead). The consumer uses `memoryview`s
+only: the logger process does not import numpy to take its blocks. The backing file is unlinked
 as soon as both sides have mapped it, so nothing is left behind if either process is killed.
 """
 
@@ -16,11 +17,12 @@ import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Final
-
-import numpy as np
+from typing import TYPE_CHECKING, Final
 
 from pmsm_hil.hil.runlog.errors import RunLogError
+
+if TYPE_CHECKING:
+    import numpy as np
 
 HEADER_BYTES: Final = 64
 _SHM_DIR: Final = Path("/dev/shm")
@@ -49,6 +51,8 @@ class RingProducer:
             os.close(fd)
             self.unlink()
             raise RunLogError(f"ring_bytes: cannot size the shared ring ({exc})") from None
+        import numpy as np  # the runner's side: numpy is loaded there anyway
+
         self._mm = _map_fd(fd, HEADER_BYTES + capacity)
         self._ctrl = np.frombuffer(self._mm, dtype=np.uint64, count=1)
         self._data = np.frombuffer(self._mm, dtype=np.uint8, count=capacity, offset=HEADER_BYTES)
@@ -106,8 +110,9 @@ class RingConsumer:
         self._mm = _map_fd(os.open(path, os.O_RDWR), HEADER_BYTES + capacity)
         with contextlib.suppress(FileNotFoundError):
             os.unlink(path)
-        self._ctrl = np.frombuffer(self._mm, dtype=np.uint64, count=1)
-        self._data = np.frombuffer(self._mm, dtype=np.uint8, count=capacity, offset=HEADER_BYTES)
+        view = memoryview(self._mm)
+        self._ctrl = view[:8].cast("Q")  # native uint64, as the producer reads it
+        self._data = view[HEADER_BYTES : HEADER_BYTES + capacity]
 
     def take(self, pos: int, n: int) -> bytes:
         """Copy out the block at `pos` (`n` bytes) and release its space to the producer."""
@@ -120,5 +125,6 @@ class RingConsumer:
 
     def close(self) -> None:
         """Unmap the ring."""
-        del self._ctrl, self._data
+        self._ctrl.release()
+        self._data.release()
         self._mm.close()

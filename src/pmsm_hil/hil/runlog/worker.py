@@ -13,13 +13,13 @@ from __future__ import annotations
 import json
 import os
 import signal
+import sys
 import time
 from multiprocessing.connection import Connection
 from pathlib import Path
 from types import FrameType
 from typing import Any, Final
 
-from pmsm_hil.hil.records import trace_dtype
 from pmsm_hil.hil.runlog import topics
 from pmsm_hil.hil.runlog.channel import NOTICE, send_status
 from pmsm_hil.hil.runlog.errors import RunLogError
@@ -54,7 +54,7 @@ def run_worker(
     signal.signal(signal.SIGTERM, on_term)
     try:
         ring = RingConsumer(Path(ring_path), ring_bytes)
-        sink = McapSink(Path(path), metadata, compression, trace_dtype(tuple(trace_fields)))
+        sink = McapSink(Path(path), metadata, compression, tuple(trace_fields))
     except Exception as exc:  # report any setup failure to the runner instead of a traceback
         send_status(status, b"E" + f"run logger: cannot open {path}: {exc}".encode())
         return
@@ -111,4 +111,5 @@ def run_worker(
         finally:
             ring.close()
     stats.update(sink.counts)
+    stats["numpy"] = "numpy" in sys.modules  # whether this run's writes needed it (`sink.PURE_CPU_S`)
     send_status(status, b"D" + json.dumps(stats).encode())

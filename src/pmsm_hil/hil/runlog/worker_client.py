@@ -14,17 +14,19 @@ import multiprocessing
 import os
 import signal
 import sys
+import threading
 import time
-from collections.abc import Callable
-from multiprocessing import resource_tracker
+from collections.abc import Callable, Iterator
+from multiprocessing import resource_tracker, spawn
 from multiprocessing.process import BaseProcess
 from pathlib import Path
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from pmsm_hil.hil.runlog.channel import NOTICE
 from pmsm_hil.hil.runlog.ring import RingProducer
+
+if TYPE_CHECKING:
+    import numpy as np
 
 _HELD = {signal.SIGINT, signal.SIGTERM}
 
@@ -39,6 +41,34 @@ def _worker_entry(target: Callable[..., None], *args: Any) -> None:
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(0)
+
+
+_SPAWN_LOCK = threading.Lock()
+
+
+@contextlib.contextmanager
+def _main_not_rerun(target: Callable[..., None]) -> Iterator[None]:
+    """While a worker starts: its start-up data do not name the parent's `__main__` script or module, so the new
+    interpreter does not run it again (multiprocessing's spawn re-runs it, for a target defined there). The workers'
+    targets are module functions: the `hil` console script's re-run imported the CLI, `pytest`'s `_pytest.config`,
+    in every logger process. A target defined in `__main__` starts as multiprocessing does it."""
+    original = getattr(spawn, "get_preparation_data", None)
+    if original is None or getattr(target, "__module__", "__main__") == "__main__":
+        yield
+        return
+
+    def without_main(name: str) -> dict[str, Any]:
+        data: dict[str, Any] = original(name)
+        data.pop("init_main_from_path", None)
+        data.pop("init_main_from_name", None)
+        return data
+
+    with _SPAWN_LOCK:
+        spawn.get_preparation_data = without_main
+        try:
+            yield
+        finally:
+            spawn.get_preparation_data = original
 
 
 #: how many start timeouts a worker that keeps using CPU may take to report ready
@@ -105,7 +135,8 @@ class WorkerClient:
             target=_worker_entry, name=name, daemon=True,
             args=(target, notice_r, status_w, str(self._ring.path), ring_bytes, *args))
         try:
-            self._proc.start()
+            with _main_not_rerun(target):
+                self._proc.start()
         finally:
             notice_r.close()
             status_w.close()
@@ -171,6 +202,8 @@ class WorkerClient:
     def _push(self, kind: int, block: np.ndarray, itemsize: int) -> None:
         """Copy `block` into the ring in whole records (≤ a quarter of the ring each) and send a notice of
         `kind` per piece. Raises RunLogError if the ring stays full, OSError if the notice pipe broke."""
+        import numpy as np  # not at the module's top: the worker process imports this module for `_worker_entry`
+
         payload = np.ascontiguousarray(block).view(np.uint8)
         step = max(1, self._ring.capacity // (4 * itemsize)) * itemsize
         for start in range(0, payload.shape[0], step):
