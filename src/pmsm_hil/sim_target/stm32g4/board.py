@@ -115,8 +115,10 @@ class Board:
     NATIVE_CORE = True
     #: the C core caches the next event of each event-driven model (Peripheral.EVENT_DRIVEN: FDCAN1, the watchdogs,
     #: CORDIC) and advances and asks it only when that event is due, after an access to it, a core clock change or a
-    #: run-side input (Peripheral.inputs_changed), instead of at every step (needs NATIVE_CORE; False: asked at every
-    #: step, the reference, which gives the same records: tests/board/test_native_exc.py)
+    #: run-side input (Peripheral.inputs_changed), instead of at every step; and a resting model (`quiet()`: whether
+    #: it rests changes only through a register write or a run-side input) is asked again only after one of those,
+    #: not after a read nor at each run_until (needs NATIVE_CORE; False: asked at every step, the reference, which
+    #: gives the same records: tests/board/test_native_exc.py)
     EVENT_DRIVEN = True
 
     def __init__(self, part: Part, elf: str | Path, *, console: Callable[[str, str], None] | None = None,
@@ -274,8 +276,10 @@ class Board:
             slot.event_driven = self._event_driven(p)
             slot.touched = 1
             slot.due = -1
+            slot.woken = p in self._may_rest  # asked whether it rests at the first step
             self._slot[p] = i
         core.n_models = len(models)
+        core.rest_on_entry = self.EVENT_DRIVEN
         self._batches: dict[int, tuple[Peripheral, ...]] = {}
         self._callbacks = (PY_ADVANCE(self._py_advance), PY_NEXT_EVENT(self._py_next_event),
                            PY_QUIET(self._py_quiet), PY_NEXT_EACH(self._py_next_each))
@@ -534,7 +538,7 @@ class Board:
         p = self._owner.get(address >> 8)
         if p is None:
             raise self._unmodelled(address, "read")
-        self._touch(p)
+        self._touch(p, write=False)
         try:
             return p.read(address - p.base, size, self.cpu.count)
         except BoardError as exc:
@@ -554,8 +558,9 @@ class Board:
         except BoardError as exc:
             raise self._located(exc) from None
 
-    def _touch(self, p: Peripheral) -> None:
-        """An access reached model `p`: the scheduler asks it (and its event group) again at its next step."""
+    def _touch(self, p: Peripheral, write: bool = True) -> None:
+        """An access reached model `p`: the scheduler asks it (and its event group) again at its next step (a resting
+        model, with EVENT_DRIVEN, after a write only: a read leaves its configuration as it is)."""
         if self._native_core:
             if p in self._group_set:
                 self._core.group_touched = 1
@@ -563,7 +568,7 @@ class Board:
                 slot = self._core.models[self._slot[p]]
                 if slot.event_driven:
                     slot.touched = 1
-                elif slot.resting:
+                elif slot.resting and (write or not self.EVENT_DRIVEN):
                     slot.woken = 1
         elif p in self._group_set:
             self._group_touched = True
@@ -588,7 +593,7 @@ class Board:
         addresses are refused naming the address."""
         p = self._owner.get(address >> 8)
         if p is not None:
-            self._touch(p)
+            self._touch(p, write=value is not None)
             if value is None:
                 return p.read(address - p.base, size, now)
             self._store(p, address, size, value, now)

@@ -89,7 +89,7 @@ class CoreState(ctypes.Structure):
                 ("py_advance", ctypes.c_void_p), ("py_next_event", ctypes.c_void_p), ("py_quiet", ctypes.c_void_p),
                 ("py_next_each", ctypes.c_void_p), ("py_error", ctypes.c_void_p),
                 ("n_models", ctypes.c_int32), ("group_touched", ctypes.c_uint8), ("sleeping", ctypes.c_uint8),
-                ("pad1", ctypes.c_uint8 * 2), ("models", ModelSlot * MODELS_MAX),
+                ("rest_on_entry", ctypes.c_uint8), ("pad1", ctypes.c_uint8), ("models", ModelSlot * MODELS_MAX),
                 ("group_due", ctypes.c_int64), ("settled_at", ctypes.c_int64), ("sleep_cycles", ctypes.c_int64),
                 ("handler_cycles", ctypes.c_int64), ("exc_entries", ctypes.c_int64),
                 ("entry_exc", ctypes.c_int32 * ACTIVE_MAX), ("entry_at", ctypes.c_int64 * ACTIVE_MAX),

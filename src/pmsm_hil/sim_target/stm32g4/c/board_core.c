@@ -129,7 +129,8 @@ typedef struct {
     int32_t n_models;
     uint8_t group_touched;
     uint8_t sleeping;
-    uint8_t pad1[2];
+    uint8_t rest_on_entry;  /* a resting model stays resting when run is called (woken only by a write or an input) */
+    uint8_t pad1;
     hil_model_t models[HIL_MODELS_MAX];
     int64_t group_due;     /* -1: none */
     int64_t settled_at;    /* the models are up to this cycle (-1: not known) */
@@ -286,7 +287,7 @@ void hil_core_touched(void *board, void *self, int write) {
             c->group_touched = 1;
         } else if (m->event_driven) {
             m->touched = 1;
-        } else if (m->resting) {
+        } else if (m->resting && (write || !c->rest_on_entry)) {
             m->woken = 1;
         }
         if (write && m->has_next) {
@@ -690,7 +691,7 @@ int hil_core_run(hil_core_t *c, int64_t end, int fresh) {
     if (fresh) {
         c->group_touched = 1;
         for (int i = 0; i < c->n_models; ++i) {
-            if (c->models[i].may_rest) {
+            if (c->models[i].may_rest && !c->rest_on_entry) {
                 c->models[i].woken = 1;
             }
         }
