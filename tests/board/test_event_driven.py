@@ -135,3 +135,32 @@ def test_a_watchdog_that_expires_resets_the_board_at_the_reference_cycle(
                            bytes(board.read_memory(0x2000_0000, board.part.sram_size)))
     assert seen["event_driven"] == seen["python"] and seen["every_step"] == seen["python"]
     assert 0 < len(advances["event_driven"]) <= len(advances["every_step"])
+
+
+@pytest.mark.parametrize("event_driven", [True, False], ids=["event_driven", "every_step"])
+def test_the_example_board_calls_no_python_model_between_its_events(event_driven: bool,
+                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """The example firmware's periods, one run_until each: with the event-driven models cached and the resting
+    ones (the encoder timer TIM3, TIM4, EXTI without edges) left resting across calls and the current loop's reads
+    of TIM3, the C core calls none of the Python models' batches; asking at every step calls them several times a
+    period."""
+    monkeypatch.setattr(Board, "EVENT_DRIVEN", event_driven)
+    calls: list[str] = []
+    for name in ("_py_advance", "_py_next_event", "_py_quiet", "_py_next_each"):
+        method = getattr(Board, name)
+
+        def counted(self: Board, *args: Any, name: str = name, method: Any = method) -> Any:
+            calls.append(name)
+            return method(self, *args)
+
+        monkeypatch.setattr(Board, name, counted)
+    link = BoardLink(example(), load_board(EXAMPLE_BOARD), ts_s=TS, pole_pairs=4)
+    board = link.board
+    assert board._core.models[board._slot[board.peripherals["TIM3"]]].resting
+    calls.clear()
+    for _ in range(50):
+        board.run_until(board.now + link.period_cycles)
+    if event_driven:
+        assert calls == []
+    else:
+        assert len(calls) > 4 * 50
