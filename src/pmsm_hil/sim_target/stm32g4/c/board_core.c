@@ -8,7 +8,9 @@
  *
  * Peripheral models plug in through periph_ops.h: a model in C is called directly; the models in Python are
  * called in batches (one call for every Python model due in a row, by a bit mask) through `py_advance`,
- * `py_next_event` and `py_quiet`. Unicorn's functions, the exception frames (c/exc_frame.c) and the instruction
+ * `py_next_event`, `py_quiet` and `py_next_each`. An event-driven model (Board.EVENT_DRIVEN) keeps its next event in
+ * its slot and is advanced and asked again only when that cycle is reached or it was touched (an access, a core
+ * clock change, a run-side input); a resting model stays resting across calls and reads (`rest_on_entry`). Unicorn's functions, the exception frames (c/exc_frame.c) and the instruction
  * counter (c/insn_count.c) are handed in as pointers. Built on first use (board_native.py). */
 #include <stdint.h>
 #include <string.h>
