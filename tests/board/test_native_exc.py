@@ -41,18 +41,21 @@ FAST_PATHS: dict[str, tuple[Any, str, str]] = {
     "native_exc": (Board, "NATIVE", "the C and the Python exception frames"),
     "quiet_skip": (Board, "SKIP_QUIET", "the skipping and the reference scheduler"),
     "native_core": (Board, "NATIVE_CORE", "the C and the Python scheduler, NVIC and SysTick"),
+    "event_driven": (Board, "EVENT_DRIVEN", "the C scheduler caching the event-driven models' next events and the "
+                     "one asking them at every step"),
     "native_periph": (periph_native, "NATIVE", "the C and the Python TIM1 and ADC models")}
 
 
 def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch: pytest.MonkeyPatch,
             periods: int = PERIODS, skip_quiet: bool = True, native_core: bool = True,
-            native_periph: bool = True) -> dict[str, Any]:
+            native_periph: bool = True, event_driven: bool = True) -> dict[str, Any]:
     """Everything a run of `periods` Measurements leaves, with the board's C paths (exception frames, the DWT page's
     reads) or the Python reference, with the scheduler skipping quiet models or asking every model every step, with
     the scheduler, NVIC and SysTick in C or in Python, with TIM1 and the ADCs in C or in Python."""
     monkeypatch.setattr(Board, "NATIVE", native)
     monkeypatch.setattr(Board, "SKIP_QUIET", skip_quiet)
     monkeypatch.setattr(Board, "NATIVE_CORE", native_core)
+    monkeypatch.setattr(Board, "EVENT_DRIVEN", event_driven)
     monkeypatch.setattr(periph_native, "NATIVE", native_periph)
     link = BoardLink(elf, load_board(board_file), ts_s=TS, pole_pairs=4)
     assert (link.board.exceptions._native is not None) == native
@@ -64,6 +67,8 @@ def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch:
     if link.board._native_core:  # the models in C are called by the C core directly, not in its Python batches
         assert all(bool(link.board._core.models[link.board._slot[link.board.peripherals[name]]].python)
                    != native_periph for name in ("TIM1", "ADC1", "ADC2"))
+        assert all(bool(link.board._core.models[link.board._slot[link.board.peripherals[name]]].event_driven)
+                   == event_driven for name in ("FDCAN1", "IWDG"))
     assert (link._adc_table is not None) == native_periph  # the ADC codes from the pin-voltage table
     codec = FrameCodec("canfd")
     frames: list[bytes] = []
@@ -92,7 +97,7 @@ def same(path: str, elf: Path, board_file: str | Path | None, monkeypatch: pytes
     what = FAST_PATHS[path][2]
     reference = records(elf, board_file, path != "native_exc", monkeypatch, periods,
                         skip_quiet=path != "quiet_skip", native_core=path != "native_core",
-                        native_periph=path != "native_periph")
+                        native_periph=path != "native_periph", event_driven=path != "event_driven")
     native = records(elf, board_file, True, monkeypatch, periods)
     for key in reference:
         assert native[key] == reference[key], f"{key} differs between {what}"

@@ -47,14 +47,16 @@ def test_an_encoder_timer_rests_and_the_group_is_skipped(monkeypatch: pytest.Mon
 
 def test_the_c_scheduler_skips_the_same_models(monkeypatch: pytest.MonkeyPatch) -> None:
     """The scheduler in C (Board.NATIVE_CORE) keeps the skipping: TIM3 rests, and the group's Python models are
-    called (in the batch of the Python models due) at fewer steps than FDCAN1, which is asked at every step; TIM3
-    only when the call starts and after an access (the group's Python references: the models in C are called by the
-    C core without Python)."""
+    called (in the batch of the Python models due) at fewer steps than FDCAN1, which is asked at every step without
+    the event-driven caching (Board.EVENT_DRIVEN, tests/board/test_event_driven.py); TIM3 only when the call starts
+    and after an access (the group's Python references: the models in C are called by the C core without
+    Python)."""
     from pmsm_hil.sim_target.stm32g4 import periph_native
     from pmsm_hil.sim_target.stm32g4.board_file import load_board
     from pmsm_hil.sim_target.stm32g4.link import BoardLink
 
     monkeypatch.setattr(Board, "NATIVE_CORE", True)
+    monkeypatch.setattr(Board, "EVENT_DRIVEN", False)
     monkeypatch.setattr(periph_native, "NATIVE", False)
     link = BoardLink(example(), load_board(EXAMPLE_BOARD), ts_s=50e-6, pole_pairs=4)
     board = link.board

@@ -26,6 +26,7 @@ from pmsm_hil.sim_target.stm32g4 import core_native
 from pmsm_hil.sim_target.stm32g4 import peripherals as _peripherals_pkg
 from pmsm_hil.sim_target.stm32g4.core_native import (
     PY_ADVANCE,
+    PY_NEXT_EACH,
     PY_NEXT_EVENT,
     PY_QUIET,
     CoreState,
@@ -112,6 +113,13 @@ class Board:
     #: called from it in batches (needs NATIVE and SKIP_QUIET; False: the Python scheduler above, the reference, which
     #: gives the same records: tests/board/test_native_exc.py)
     NATIVE_CORE = True
+    #: the C core caches the next event of each event-driven model (Peripheral.EVENT_DRIVEN: FDCAN1, the watchdogs,
+    #: CORDIC) and advances and asks it only when that event is due, after an access to it, a core clock change or a
+    #: run-side input (Peripheral.inputs_changed), instead of at every step; and a resting model (`quiet()`: whether
+    #: it rests changes only through a register write or a run-side input) is asked again only after one of those,
+    #: not after a read nor at each run_until (needs NATIVE_CORE; False: asked at every step, the reference, which
+    #: gives the same records: tests/board/test_native_exc.py)
+    EVENT_DRIVEN = True
 
     def __init__(self, part: Part, elf: str | Path, *, console: Callable[[str, str], None] | None = None,
                  hse_hz: int = 24_000_000) -> None:
@@ -265,12 +273,18 @@ class Board:
                 slot.has_advance, slot.has_next = p in self._advancing, p in self._timed_set
             slot.in_group = p in self._group_set
             slot.may_rest = p in self._may_rest
+            slot.event_driven = self._event_driven(p)
+            slot.touched = 1
+            slot.due = -1
+            slot.woken = p in self._may_rest  # asked whether it rests at the first step
             self._slot[p] = i
         core.n_models = len(models)
+        core.rest_on_entry = self.EVENT_DRIVEN
         self._batches: dict[int, tuple[Peripheral, ...]] = {}
         self._callbacks = (PY_ADVANCE(self._py_advance), PY_NEXT_EVENT(self._py_next_event),
-                           PY_QUIET(self._py_quiet))
-        core.py_advance, core.py_next_event, core.py_quiet = (core_native.address(f) for f in self._callbacks)
+                           PY_QUIET(self._py_quiet), PY_NEXT_EACH(self._py_next_each))
+        core.py_advance, core.py_next_event, core.py_quiet, core.py_next_each = (
+            core_native.address(f) for f in self._callbacks)
         self._hook_handles: list[ctypes.c_size_t] = []
         for kind, fn in ((UC_HOOK_INTR, lib.hil_core_on_interrupt),
                          (UC_HOOK_MEM_READ_UNMAPPED | UC_HOOK_MEM_WRITE_UNMAPPED | UC_HOOK_MEM_FETCH_UNMAPPED,
@@ -282,6 +296,10 @@ class Board:
             if status != 0:
                 raise UcError(status)
             self._hook_handles.append(handle)
+
+    def _event_driven(self, p: Peripheral) -> bool:
+        """The C core caches `p`'s next event (EVENT_DRIVEN, outside the event group, without a `quiet`)."""
+        return self.EVENT_DRIVEN and type(p).EVENT_DRIVEN and p not in self._group_set and p not in self._may_rest
 
     def _batch(self, mask: int) -> tuple[Peripheral, ...]:
         batch = self._batches.get(mask)
@@ -314,6 +332,16 @@ class Board:
         except BaseException as exc:
             self.cpu.hook_failed(exc)
         return best
+
+    def _py_next_each(self, mask: int, now: int) -> None:
+        """Each event-driven Python model's next event in `mask` into its slot's `due` (-1: none)."""
+        try:
+            slots = self._core.models
+            for p in self._batch(mask):
+                at = p.next_event(now)
+                slots[self._slot[p]].due = -1 if at is None else at
+        except BaseException as exc:
+            self.cpu.hook_failed(exc)
 
     def _py_quiet(self, mask: int) -> int:
         quiet = 0
@@ -470,6 +498,16 @@ class Board:
 
     def set_hclk(self, hz: int) -> None:
         self.hclk_hz = hz
+        core = self._core  # the event-driven models count in core cycles: their next events move
+        for i in range(core.n_models):
+            slot = core.models[i]
+            if slot.event_driven:
+                slot.touched = 1
+
+    def model_changed(self, p: Peripheral) -> None:
+        """The run side changed model `p` outside a register access (Peripheral.inputs_changed): the scheduler asks
+        it again at its next step."""
+        self._touch(p)
 
     def analog_voltage(self, adc: str, channel: int, now: int) -> float:
         if adc == "ADC1" and channel == 18:
@@ -500,7 +538,7 @@ class Board:
         p = self._owner.get(address >> 8)
         if p is None:
             raise self._unmodelled(address, "read")
-        self._touch(p)
+        self._touch(p, write=False)
         try:
             return p.read(address - p.base, size, self.cpu.count)
         except BoardError as exc:
@@ -520,14 +558,17 @@ class Board:
         except BoardError as exc:
             raise self._located(exc) from None
 
-    def _touch(self, p: Peripheral) -> None:
-        """An access reached model `p`: the scheduler asks it (and its event group) again at its next step."""
+    def _touch(self, p: Peripheral, write: bool = True) -> None:
+        """An access reached model `p`: the scheduler asks it (and its event group) again at its next step (a resting
+        model, with EVENT_DRIVEN, after a write only: a read leaves its configuration as it is)."""
         if self._native_core:
             if p in self._group_set:
                 self._core.group_touched = 1
             elif p in self._slot:
                 slot = self._core.models[self._slot[p]]
-                if slot.resting:
+                if slot.event_driven:
+                    slot.touched = 1
+                elif slot.resting and (write or not self.EVENT_DRIVEN):
                     slot.woken = 1
         elif p in self._group_set:
             self._group_touched = True
@@ -552,7 +593,7 @@ class Board:
         addresses are refused naming the address."""
         p = self._owner.get(address >> 8)
         if p is not None:
-            self._touch(p)
+            self._touch(p, write=value is not None)
             if value is None:
                 return p.read(address - p.base, size, now)
             self._store(p, address, size, value, now)

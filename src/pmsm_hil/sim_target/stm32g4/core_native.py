@@ -27,6 +27,7 @@ PY_ADVANCE = ctypes.CFUNCTYPE(None, ctypes.c_uint64, ctypes.c_int64)
 PY_NEXT_EVENT = ctypes.CFUNCTYPE(ctypes.c_int64, ctypes.c_uint64, ctypes.c_uint64, ctypes.c_int64,
                                  ctypes.POINTER(ctypes.c_int64))
 PY_QUIET = ctypes.CFUNCTYPE(ctypes.c_uint64, ctypes.c_uint64)
+PY_NEXT_EACH = ctypes.CFUNCTYPE(None, ctypes.c_uint64, ctypes.c_int64)
 
 
 class CoreBuildError(FirmwareError):
@@ -69,7 +70,8 @@ class ModelSlot(ctypes.Structure):
 
     _fields_ = [("ops", PeriphOps), ("python", ctypes.c_uint8), ("has_advance", ctypes.c_uint8),
                 ("has_next", ctypes.c_uint8), ("in_group", ctypes.c_uint8), ("may_rest", ctypes.c_uint8),
-                ("resting", ctypes.c_uint8), ("woken", ctypes.c_uint8), ("pad", ctypes.c_uint8)]
+                ("resting", ctypes.c_uint8), ("woken", ctypes.c_uint8), ("event_driven", ctypes.c_uint8),
+                ("touched", ctypes.c_uint8), ("pad", ctypes.c_uint8 * 7), ("due", ctypes.c_int64)]
 
 
 class CoreState(ctypes.Structure):
@@ -85,9 +87,9 @@ class CoreState(ctypes.Structure):
                 ("vtor", ctypes.c_uint32), ("ccr", ctypes.c_uint32), ("fp", ctypes.c_int32),
                 ("sleep_on_exit", ctypes.c_int32),
                 ("py_advance", ctypes.c_void_p), ("py_next_event", ctypes.c_void_p), ("py_quiet", ctypes.c_void_p),
-                ("py_error", ctypes.c_void_p),
+                ("py_next_each", ctypes.c_void_p), ("py_error", ctypes.c_void_p),
                 ("n_models", ctypes.c_int32), ("group_touched", ctypes.c_uint8), ("sleeping", ctypes.c_uint8),
-                ("pad1", ctypes.c_uint8 * 2), ("models", ModelSlot * MODELS_MAX),
+                ("rest_on_entry", ctypes.c_uint8), ("pad1", ctypes.c_uint8), ("models", ModelSlot * MODELS_MAX),
                 ("group_due", ctypes.c_int64), ("settled_at", ctypes.c_int64), ("sleep_cycles", ctypes.c_int64),
                 ("handler_cycles", ctypes.c_int64), ("exc_entries", ctypes.c_int64),
                 ("entry_exc", ctypes.c_int32 * ACTIVE_MAX), ("entry_at", ctypes.c_int64 * ACTIVE_MAX),
@@ -141,6 +143,8 @@ def new_core() -> CoreState:
     core = CoreState()
     core.group_due = -1
     core.settled_at = -1
+    for slot in core.models:
+        slot.due = -1
     for i in range(IDLE_CACHE):
         core.idle_hit[i] = -1
     return core

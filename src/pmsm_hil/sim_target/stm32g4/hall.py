@@ -102,4 +102,5 @@ def attach_halls(board: BoardBus, desc: HallInputs, trajectory: Trajectory) -> H
         if not isinstance(timer, GeneralTimer):
             raise BoardError(f"board [hall]: 'timer' = {desc.timer!r} is not modelled on this part")
         timer.hall_inputs = halls
+        timer.inputs_changed()  # it no longer rests (GeneralTimer.quiet)
     return halls

@@ -8,7 +8,9 @@
  *
  * Peripheral models plug in through periph_ops.h: a model in C is called directly; the models in Python are
  * called in batches (one call for every Python model due in a row, by a bit mask) through `py_advance`,
- * `py_next_event` and `py_quiet`. Unicorn's functions, the exception frames (c/exc_frame.c) and the instruction
+ * `py_next_event`, `py_quiet` and `py_next_each`. An event-driven model (Board.EVENT_DRIVEN) keeps its next event in
+ * its slot and is advanced and asked again only when that cycle is reached or it was touched (an access, a core
+ * clock change, a run-side input); a resting model stays resting across calls and reads (`rest_on_entry`). Unicorn's functions, the exception frames (c/exc_frame.c) and the instruction
  * counter (c/insn_count.c) are handed in as pointers. Built on first use (board_native.py). */
 #include <stdint.h>
 #include <string.h>
@@ -83,6 +85,7 @@ typedef int (*hil_exc_leave_fn)(const void *x, int use_psp, int fp);
 typedef void (*hil_py_advance_fn)(uint64_t mask, int64_t now);
 typedef int64_t (*hil_py_next_fn)(uint64_t active, uint64_t group, int64_t now, int64_t *group_out);
 typedef uint64_t (*hil_py_quiet_fn)(uint64_t mask);
+typedef void (*hil_py_next_each_fn)(uint64_t mask, int64_t now);
 
 typedef struct {
     hil_periph_ops_t ops;  /* ops.advance / ops.next_event NULL: the model has none (a Python model: see `python`) */
@@ -93,7 +96,10 @@ typedef struct {
     uint8_t may_rest;      /* has a quiet() */
     uint8_t resting;
     uint8_t woken;         /* a resting model accessed since the last step */
-    uint8_t pad;
+    uint8_t event_driven;  /* asked only when its next event (`due`) is reached or it was touched */
+    uint8_t touched;       /* an event-driven model accessed (or changed from outside) since it was last asked */
+    uint8_t pad[7];
+    int64_t due;           /* an event-driven model's next event as it last answered (-1: none) */
 } hil_model_t;
 
 typedef struct {
@@ -119,12 +125,14 @@ typedef struct {
     hil_py_advance_fn py_advance;
     hil_py_next_fn py_next_event;
     hil_py_quiet_fn py_quiet;
+    hil_py_next_each_fn py_next_each;  /* each Python event-driven model's next event into its slot's `due` */
     int32_t *py_error;     /* set by a Python callback or MMIO access that raised */
     /* the models, in the board's order */
     int32_t n_models;
     uint8_t group_touched;
     uint8_t sleeping;
-    uint8_t pad1[2];
+    uint8_t rest_on_entry;  /* a resting model stays resting when run is called (woken only by a write or an input) */
+    uint8_t pad1;
     hil_model_t models[HIL_MODELS_MAX];
     int64_t group_due;     /* -1: none */
     int64_t settled_at;    /* the models are up to this cycle (-1: not known) */
@@ -279,7 +287,9 @@ void hil_core_touched(void *board, void *self, int write) {
         }
         if (m->in_group) {
             c->group_touched = 1;
-        } else if (m->resting) {
+        } else if (m->event_driven) {
+            m->touched = 1;
+        } else if (m->resting && (write || !c->rest_on_entry)) {
             m->woken = 1;
         }
         if (write && m->has_next) {
@@ -562,13 +572,19 @@ static int sleep_or_run(hil_core_t *c, int64_t now, int64_t end, int64_t event) 
     return slice(c, limit > now + 1 ? limit : now + 1);
 }
 
-/* Advance every model due (group only when `hot`, resting ones only when woken), in the board's order: a run of
- * Python models in one batch call. */
+/* An event-driven model whose next event is reached or that was touched: advanced and asked again this step. */
+static int model_due(const hil_model_t *m, int64_t now) {
+    return m->touched || (m->due >= 0 && m->due <= now);
+}
+
+/* Advance every model due (group only when `hot`, resting ones only when woken, event-driven ones only when due),
+ * in the board's order: a run of Python models in one batch call. */
 static int advance_models(hil_core_t *c, int64_t now, int hot) {
     uint64_t mask = 0;
     for (int i = 0; i < c->n_models; ++i) {
         hil_model_t *m = &c->models[i];
-        if (!m->has_advance || (m->in_group && !hot) || (m->resting && !m->woken)) {
+        if (!m->has_advance || (m->in_group && !hot) || (m->resting && !m->woken) ||
+            (m->event_driven && !model_due(m, now))) {
             continue;
         }
         if (m->python) {
@@ -599,14 +615,49 @@ static void earlier(int64_t *best, int64_t at) {
     }
 }
 
-/* The earliest next event of the active timed models (outside the group, not resting) into `active`, and when
- * `group` the group's into `group_due`: the Python models of both in one batch call. */
+/* The event-driven models' next events: those due or touched asked again (the Python ones in one batch call),
+ * the others' as they last answered; the earliest into `best`. */
+static int event_driven_due(hil_core_t *c, int64_t now, int64_t *best) {
+    uint64_t mask = 0;
+    for (int i = 0; i < c->n_models; ++i) {
+        hil_model_t *m = &c->models[i];
+        if (!m->event_driven || !model_due(m, now)) {
+            continue;
+        }
+        m->touched = 0;
+        if (m->python) {
+            mask |= 1ull << i;
+        } else {
+            m->due = m->has_next ? m->ops.next_event(m->ops.self, now) : -1;
+        }
+    }
+    if (mask) {
+        c->py_next_each(mask, now);
+        if (*c->py_error) {
+            return HIL_PY_ERROR;
+        }
+    }
+    for (int i = 0; i < c->n_models; ++i) {
+        if (c->models[i].event_driven) {
+            earlier(best, c->models[i].due);
+        }
+    }
+    return HIL_CONTINUE;
+}
+
+/* The earliest next event of the active timed models (outside the group, not resting, not event-driven) and of
+ * the event-driven ones into `active`, and when `group` the group's into `group_due`: the Python models of both in
+ * one batch call. */
 static int earliest(hil_core_t *c, int64_t now, int group, int64_t *active, int64_t *group_due) {
     int64_t best = -1, gbest = -1;
     uint64_t mask = 0, gmask = 0;
+    int rc = event_driven_due(c, now, &best);
+    if (rc != HIL_CONTINUE) {
+        return rc;
+    }
     for (int i = 0; i < c->n_models; ++i) {
         hil_model_t *m = &c->models[i];
-        if (!m->has_next || (m->in_group ? !group : m->resting)) {
+        if (!m->has_next || m->event_driven || (m->in_group ? !group : m->resting)) {
             continue;
         }
         if (m->python) {
@@ -642,7 +693,7 @@ int hil_core_run(hil_core_t *c, int64_t end, int fresh) {
     if (fresh) {
         c->group_touched = 1;
         for (int i = 0; i < c->n_models; ++i) {
-            if (c->models[i].may_rest) {
+            if (c->models[i].may_rest && !c->rest_on_entry) {
                 c->models[i].woken = 1;
             }
         }

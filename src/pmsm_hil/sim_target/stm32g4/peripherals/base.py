@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from typing import Protocol, cast
+from typing import ClassVar, Protocol, cast
 
 from pmsm_hil.sim_target.firmware import FirmwareError
 
@@ -79,6 +79,10 @@ class Peripheral(ABC):
     name: str = ""
     base: int = 0
     size: int = 0x400
+    #: `advance` does nothing before `next_event`'s cycle, and both change only through the model's register
+    #: accesses, a core clock change (`BoardBus.sysclk_hz`) or a run-side input that calls `inputs_changed`: a
+    #: board may then cache its next event and call it only when that event is due or after one of those
+    EVENT_DRIVEN: ClassVar[bool] = False
 
     def __init__(self, bus: BoardBus) -> None:
         self.bus = bus
@@ -107,6 +111,13 @@ class Peripheral(ABC):
         """Bring the model's state up to cycle `now`, raising the interrupts whose events fell in between (a
         model without events of its own has nothing to do)."""
         del now
+
+    def inputs_changed(self) -> None:
+        """The run side changed the model outside a register access (a frame received from the bus): a board that
+        caches the model's next event (EVENT_DRIVEN) asks it again (a bus without `model_changed` caches none)."""
+        notify = getattr(self.bus, "model_changed", None)
+        if notify is not None:
+            notify(self)
 
 
 class BusMaster(BoardBus, Protocol):

@@ -151,6 +151,8 @@ class Cordic(Peripheral):
 
     base = 0x4002_0C00
     size = 0x400
+    #: a computation's end is its only event
+    EVENT_DRIVEN = True
 
     def reset(self) -> None:
         self.csr = CSR_RESET

@@ -91,6 +91,12 @@ class Exti(RegisterFile):
 
     # --- Peripheral ---------------------------------------------------------------------------------------------
 
+    def quiet(self) -> bool:
+        """No GPIO line has an edge selected: neither `advance` nor `next_event` does anything until an RTSR1 or
+        FTSR1 write selects one (SYSCFG's re-selection keeps the set of lines): the board need not call them
+        meanwhile."""
+        return not self.edge_lines
+
     def next_event(self, now: int) -> int | None:
         if not self.edge_lines:
             return None

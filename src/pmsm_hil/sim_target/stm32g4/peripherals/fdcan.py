@@ -120,6 +120,8 @@ class Fdcan(Peripheral):
     link_bitrates: tuple[int | None, int | None] = (None, None)
     #: relative bit-rate difference to the run's link tolerated (CAN's oscillator tolerance is of this order)
     BITRATE_TOLERANCE = 0.005
+    #: a frame's end and the timestamp counter's wrap are its only events; `deliver` reports itself
+    EVENT_DRIVEN = True
 
     def reset(self) -> None:
         self.regs = {offset: RESET_VALUES.get(offset, 0) for offset in WRITABLE}
@@ -150,6 +152,7 @@ class Fdcan(Peripheral):
         """A frame from the bus, received completely at cycle `now`: filtered, stored in RX FIFO 0/1 (or counted
         lost when that FIFO is full in blocking mode), its interrupts raised. BoardError for a frame no CAN
         controller could receive (an identifier or payload length its format cannot carry)."""
+        self.inputs_changed()
         self.advance(now)
         if frame.is_error_frame:
             self._drop("error frame")

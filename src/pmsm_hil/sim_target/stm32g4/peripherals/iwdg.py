@@ -29,6 +29,8 @@ class Iwdg(Peripheral):
 
     base = 0x4000_3000
     size = 0x400
+    #: its expiry is its only event
+    EVENT_DRIVEN = True
 
     def reset(self) -> None:
         self.pr, self.rlr, self.winr = 0, RESET_COUNT, RESET_COUNT

@@ -28,6 +28,8 @@ class Wwdg(Peripheral):
 
     base = 0x4000_2C00
     size = 0x400
+    #: the early wakeup and the reset are its only events
+    EVENT_DRIVEN = True
 
     def reset(self) -> None:
         self.cfr = 0x7F
