@@ -59,21 +59,26 @@ def _warm_up() -> None:
     points) and the package are imported as a session imports them (through pytest's assertion rewriting, so a
     session after it finds them rewritten and silent); the test modules and conftest files it imported are
     forgotten (each session imports its own)."""
+    import shutil
+    import tempfile
     import threading
 
     import pytest
 
     saved = os.dup(1), os.dup(2)
     null = os.open(os.devnull, os.O_WRONLY)
+    basetemp = tempfile.mkdtemp(prefix="hil-pytest-zygote-")  # never pytest's numbered folders (nor their pruning)
     try:
         for fd in (1, 2):
             os.dup2(null, fd)
-        pytest.main(["-p", "no:cacheprovider", "-q", "-n", "0", "--co", "--pyargs", "pmsm_hil.conformance"])
+        pytest.main(["-p", "no:cacheprovider", "-q", "-n", "0", "--co", f"--basetemp={basetemp}/t", "--pyargs",
+                     "pmsm_hil.conformance"])
     finally:
         for fd, old in zip((1, 2), saved, strict=True):
             os.dup2(old, fd)
             os.close(old)
         os.close(null)
+        shutil.rmtree(basetemp, ignore_errors=True)
     for name in [n for n in sys.modules if n.rpartition(".")[2].startswith(("test_", "conftest"))]:
         del sys.modules[name]
     assert threading.active_count() == 1, threading.enumerate()  # a fork keeps only the thread that forks
