@@ -106,8 +106,8 @@ def _start_logged_run(out: Path, min_bytes: int) -> tuple[subprocess.Popen[bytes
 
 
 def test_sigkill_of_a_run_leaves_a_readable_mcap(tmp_path: Path) -> None:
-    proc, mcap = _start_logged_run(tmp_path / "run", 200_000)
-    time.sleep(1.5)
+    # ≈ 220 bytes a period on disk: the kill comes once the file holds more than the 5000 periods checked
+    proc, mcap = _start_logged_run(tmp_path / "run", 1_500_000)
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
     time.sleep(1.0)  # the logger process notices its parent died and finalises the file

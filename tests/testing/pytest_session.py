@@ -11,6 +11,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from tests.testing.pytest_zygote import run_session
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
@@ -47,14 +49,22 @@ class Session:
 def run_pytest(args: Sequence[str], tmp_path: Path, *, timeout_s: float = 240.0,
                pass_fds: Sequence[int] = ()) -> Session:
     """`python -m pytest ARGS --junitxml` from the repository root (HIL_CI unset: the inner session is a user's), in
-    one process (`-n 0`: the repository's addopts ask for pytest-xdist workers)."""
-    junit = tmp_path / f"junit-{len(list(tmp_path.glob('junit-*.xml')))}.xml"
+    one process (`-n 0`: the repository's addopts ask for pytest-xdist workers), forked from the worker's pytest
+    zygote (tests/testing/pytest_zygote.py: a process of its own without the interpreter's start-up); a session
+    given file descriptors (`pass_fds`) is started as a new `python -m pytest` process."""
+    n = len(list(tmp_path.glob('junit-*.xml')))
+    junit = tmp_path / f"junit-{n}.xml"
     env = {k: v for k, v in os.environ.items() if k not in ("HIL_CI", "PYTEST_ADDOPTS")}
-    proc = subprocess.run([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-q", "-n", "0",
-                           f"--junitxml={junit}",
-                           f"--basetemp={tmp_path / 'inner'}", *args], cwd=ROOT, env=env, capture_output=True,
-                          text=True, timeout=timeout_s, pass_fds=tuple(pass_fds))
-    output = proc.stdout + proc.stderr
+    argv = ["-p", "no:cacheprovider", "-q", "-n", "0", f"--junitxml={junit}", f"--basetemp={tmp_path / 'inner'}",
+            *args]
+    if pass_fds:
+        proc = subprocess.run([sys.executable, "-m", "pytest", *argv], cwd=ROOT, env=env, capture_output=True,
+                              text=True, timeout=timeout_s, pass_fds=tuple(pass_fds))
+        rc, output = proc.returncode, proc.stdout + proc.stderr
+    else:
+        out, err = tmp_path / f"pytest-{n}.out", tmp_path / f"pytest-{n}.err"
+        rc = run_session(argv, env, out, err, timeout_s)
+        output = out.read_text(encoding="utf-8", errors="replace") + err.read_text(encoding="utf-8", errors="replace")
     cases: dict[str, Case] = {}
     if junit.exists():
         for tc in ET.parse(junit).getroot().iter("testcase"):
@@ -67,4 +77,4 @@ def run_pytest(args: Sequence[str], tmp_path: Path, *, timeout_s: float = 240.0,
             name = tc.get("name", "")
             assert name not in cases, f"two tests named {name}: the checks key cases by name"
             cases[name] = Case(name, tc.get("classname", ""), outcome, message, props)
-    return Session(proc.returncode, output, cases)
+    return Session(rc, output, cases)
