@@ -76,11 +76,13 @@ def test_a_run_after_the_board_died(hil):
 
 def _session(benches: Benches, folder: Path, name: str, place: str,
              test: str = SESSION_TEST) -> subprocess.Popen[bytes]:
-    """A pytest session on `place` under labgrid's plugin (`--lg-env`), its JUnit XML in folder/name.xml."""
+    """A pytest session on `place` under labgrid's plugin (`--lg-env`), its JUnit XML in folder/name.xml; without
+    hypothesis's plugin (≈ 0.4 CPU-s a session, for tests that do not use it)."""
     env_file = folder / f"{name}.yaml"
     env_file.write_text(ENV.format(place=place, address=benches.address), encoding="utf-8")
     (folder / "test_bench_session.py").write_text(test, encoding="utf-8")
-    cmd = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-n", "0", "-q", "--lg-env", str(env_file),
+    cmd = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-p", "no:hypothesispytest", "-n", "0", "-q",
+           "--lg-env", str(env_file),
            "--junitxml", str(folder / f"{name}.xml"), "--hil-out", str(folder / f"out-{name}"),
            str(folder / "test_bench_session.py")]
     env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTEST_", "LG_"))}

@@ -3,6 +3,7 @@ of the reading on the restricted set (docs/algorithms/fcs_mpc_regions.md)."""
 
 from __future__ import annotations
 
+import functools
 import tempfile
 from pathlib import Path
 from typing import Any
@@ -18,7 +19,13 @@ from pmsm_hil.sim_target.firmware import PARAM_IDS, Firmware
 
 
 def _run(controller: str, reading: int | None, load_nm: float = 7.0, band_nm: float = 0.2) -> dict[str, Any]:
-    """Steady run; reading None leaves fcs_reading at its power-on value (the controller's default)."""
+    """Steady run; reading None leaves fcs_reading at its power-on value (the controller's default). A run of the
+    same inputs is made once per process (lockstep and in process: it repeats exactly); each caller gets a copy."""
+    return dict(_run_once(controller, reading, load_nm, band_nm))
+
+
+@functools.cache
+def _run_once(controller: str, reading: int | None, load_nm: float, band_nm: float) -> dict[str, Any]:
     sc = load_scenario("steady").with_overrides(settle_s=0.05, duration_s=0.05, load_nm=load_nm)
     params = {"torque_band": band_nm} if reading is None else {"fcs_reading": float(reading), "torque_band": band_nm}
     with tempfile.TemporaryDirectory(prefix="hil-fcs-") as tmp:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import resource
 import signal
 import subprocess
 import sys
@@ -37,6 +38,10 @@ STOP_S = 3.0
 #: two blocks are enough. The stop must come with a block before the last one (`stopped_at`): a stop that came only
 #: with the run's last block would stall the safe stop, not the periods
 DURATION_S = {"sil": 0.9, "spawn": 0.9, "qemu": 0.2, "python": 0.1}
+#: the most CPU the host may use while the target is stopped, as a share of the stop: a host that waits asleep
+#: uses 0.02-0.07 (the Python loop's looks between its sleeps included), one that spins 0.3-0.5 on this 2-core
+#: machine at load 5 (less the busier the machine: the bound catches a spin up to load ~8)
+HOST_CPU_SHARE = 0.2
 
 
 def _duration_s(kind: str, loop: str) -> float:
@@ -50,27 +55,37 @@ def _children_with(marker: bytes) -> list[int]:
             if marker in Path(f"/proc/{pid}/cmdline").read_bytes()]
 
 
-def _stopper(marker: bytes, stop_s: float, stopped: list[int],
-             stopped_at: list[int] | None = None) -> Callable[[np.ndarray], None]:
+def _cpu_s() -> float:
+    """CPU time of this process so far (every thread: the loop's, the drain's, the logger's) [s]."""
+    use = resource.getrusage(resource.RUSAGE_SELF)
+    return use.ru_utime + use.ru_stime
+
+
+def _stopper(marker: bytes, stop_s: float, stopped: list[int], stopped_at: list[int] | None = None,
+             host_cpu_s: list[float] | None = None) -> Callable[[np.ndarray], None]:
     """A `live` hook that stops this process's child whose command line holds `marker` after the first block of
-    periods and continues it `stop_s` later; the last period (`seq`) of that block goes to `stopped_at`."""
+    periods and continues it `stop_s` later; the last period (`seq`) of that block goes to `stopped_at`, the CPU
+    time this process (the host) used while the target was stopped to `host_cpu_s`."""
 
     def live(block: np.ndarray) -> None:
         if stopped:
             return
         for pid in _children_with(marker)[:1]:
+            cpu0 = _cpu_s()
             os.kill(pid, signal.SIGSTOP)
             stopped.append(pid)
             if stopped_at is not None:
                 stopped_at.append(int(block["seq"][-1]))
-            timer = threading.Timer(stop_s, _continue, (pid,))
+            timer = threading.Timer(stop_s, _continue, (pid, cpu0, host_cpu_s))
             timer.daemon = True
             timer.start()
 
     return live
 
 
-def _continue(pid: int) -> None:
+def _continue(pid: int, cpu0: float, host_cpu_s: list[float] | None) -> None:
+    if host_cpu_s is not None:
+        host_cpu_s.append(_cpu_s() - cpu0)
     with contextlib.suppress(ProcessLookupError):  # a run that ended meanwhile stopped it
         os.kill(pid, signal.SIGCONT)
 
@@ -101,12 +116,14 @@ def test_a_target_stopped_for_3_s_is_a_host_stall_and_the_run_completes(kind: st
     target, link = where["target"], where.get("link", "virtual")
     runs = {}
     stopped_at: list[int] = []
+    host_cpu_s: list[float] = []
     for name in ("calm", "stopped"):
         stopped: list[int] = []
         out = tmp_path / name
         res = run_closed_loop(rated(target, link=link, settle_s=0.02, out_dir=out, loop=loop,
                                     duration_s=_duration_s(kind, loop)),
-                              live=_stopper(marker, STOP_S, stopped, stopped_at) if name == "stopped" else None)
+                              live=_stopper(marker, STOP_S, stopped, stopped_at, host_cpu_s)
+                              if name == "stopped" else None)
         assert res.metrics["loop"] == loop
         m = res.metrics
         assert m["end_code"] == 0, m["end_reason"]
@@ -116,6 +133,8 @@ def test_a_target_stopped_for_3_s_is_a_host_stall_and_the_run_completes(kind: st
     assert stopped_at[0] < stalled["end_period"], (stopped_at, stalled["end_period"])  # mid-run, not at the end
     assert stalled["host_stalls"] >= 1 and stalled["host_stall_s"] >= 1.0
     assert any(w.startswith("host stall:") for w in stalled["warnings"])
+    # the host waits for the stopped target asleep, not spinning (a spin takes the CPU a starved target needs)
+    assert host_cpu_s[0] < HOST_CPU_SHARE * STOP_S, host_cpu_s
     _same_records(runs["calm"][1], runs["stopped"][1])
 
 

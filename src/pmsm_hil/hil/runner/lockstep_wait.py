@@ -18,6 +18,14 @@ from pmsm_hil.hil.runner.target_time import TargetTime
 
 _T = TypeVar("_T")
 
+#: a wait looks for the answer without pause this long [ns] (a reply on an idle machine comes well inside it),
+#: then sleeps between looks, IDLE_FIRST_S at first and twice as long each time up to IDLE_MAX_S [s]: a host that
+#: spins while it waits takes the CPU from a starved or stopped target it waits for (the judgement reads the
+#: target's own time by the clock, not per look)
+SPIN_NS = 500_000
+IDLE_FIRST_S = 50e-6
+IDLE_MAX_S = 1e-3
+
 
 class WaitEnd(Enum):
     """How one wait ended."""
@@ -88,9 +96,14 @@ class LockstepWait:
         """What `look` found (None: nothing) within the wait, and how the wait ended."""
         self.begin()
         got = look()
+        spin_end = self._t0 + SPIN_NS
+        idle_s = 0.0
         while got is None:
             end = self.judge(stop)
             if end is None:
+                if idle_s or time.perf_counter_ns() >= spin_end:
+                    idle_s = min(IDLE_MAX_S, 2 * idle_s or IDLE_FIRST_S)
+                    time.sleep(idle_s)
                 got = look()
                 continue
             if end is WaitEnd.MISSING:  # one more look: the answer may have come while this thread was off the CPU

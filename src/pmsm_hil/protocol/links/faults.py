@@ -52,6 +52,7 @@ from __future__ import annotations
 
 import math
 import random
+import time
 from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, fields
@@ -60,7 +61,7 @@ from typing import Literal, NamedTuple
 
 from pmsm_hil.protocol.errors import LinkSpecError
 from pmsm_hil.protocol.frame import Frame
-from pmsm_hil.protocol.links.link import Link, poll_until
+from pmsm_hil.protocol.links.link import Link
 from pmsm_hil.protocol.links.stats import LinkStats
 
 Direction = Literal["up", "down"]
@@ -442,8 +443,24 @@ class FaultyLink:
         return None
 
     def recv(self, timeout_s: float) -> Frame | None:
-        """Busy-poll up to `timeout_s` seconds of wall time (held frames need the run clock to pass)."""
-        return poll_until(self.poll, timeout_s)
+        """The next frame coming down within `timeout_s` seconds of wall time: busy-polling while frames are held
+        (they need the run clock to pass), else waiting in the wrapped link's `recv` (which may block) and passing
+        what it gives through the faults."""
+        deadline = time.perf_counter() + timeout_s
+        while True:
+            fr = self.poll()
+            left = deadline - time.perf_counter()
+            if fr is not None or left <= 0:
+                return fr
+            up, down = self._up, self._down
+            if (up is not None and up.pending) or (down is not None and down.pending):
+                continue
+            fr = self.link.recv(left)
+            if fr is None or down is None:
+                return fr
+            down.push(fr, self.clock(), self._down_out)
+            if self._down_out:
+                return self._down_out.popleft()
 
     def close(self) -> None:
         """Close the wrapped link and forget held frames (idempotent)."""

@@ -276,6 +276,12 @@ class WireBus(can.BusABC):
     def poll_frame(self) -> Frame | None:
         """The next 11-bit data frame received, or None at once; extended and remote frames are counted as
         ignored (frames queued while waiting for a session come first)."""
+        return self.next_frame(0)
+
+    def next_frame(self, deadline_ns: int) -> Frame | None:
+        """The next 11-bit data frame received before `deadline_ns` (CLOCK_MONOTONIC [ns]; 0: None at once), waited
+        for in the wire's own receive (blocked in ppoll, not spinning); None after the deadline or when the peer
+        closed the link. Extended and remote frames are counted as ignored (poll_frame)."""
         m = self._rx_frame
         while True:
             if self._queued:
@@ -284,7 +290,7 @@ class WireBus(can.BusABC):
                     self._state.stats.ignored += 1
                     continue
                 return Frame(msg.arbitration_id, bytes(msg.data), msg.is_fd)
-            if self._recv_wire(m, 0) != 1:
+            if self._recv_wire(m, deadline_ns) != 1:
                 return None
             flags = int(m.flags)
             if flags & (lib.NL_WIRE_EXTENDED | lib.NL_WIRE_REMOTE):
