@@ -71,6 +71,7 @@ class BoardLink(BoardLinkBase):
                  skip_periods: int = 0, console: Any = None, psi_f_wb: float = 0.0, vdc_v: float = 0.0,
                  can_bitrates: tuple[int | None, int | None] = (None, None)) -> None:
         super().__init__(elf, desc, skip_periods=skip_periods, console=console)
+        self._tim1 = self.tim1
         self.pole_pairs = pole_pairs
         self.codec = FrameCodec("canfd")
         self.decoder = FrameDecoder(ordered=False)
@@ -94,6 +95,16 @@ class BoardLink(BoardLinkBase):
         #: the ADC pair in C behind a noiseless front end of its own pins: their voltages go into the pair's table
         #: once a period (no call into Python per conversion); None: each conversion asks `_analog`
         self._adc_table = self._table_pair(desc)
+        #: the period's signal values (SIGNALS' order) while `_volts` has not been brought up to them (the table
+        #: took them in C); None: `_volts` is current
+        self._stale_signals: tuple[float, float, float, float] | None = None
+        opamp = self.board.peripherals.get("OPAMP")
+        #: the amplifiers whose outputs can be routed to ADC1 or ADC2 (the table is off while one is)
+        self._pair_opamps = (opamp, sorted({number - 1 for (adc, _), number in OPAMP_CHANNELS.items() if adc in PAIR})
+                             ) if isinstance(opamp, Opamp) else None
+        if self._adc_table is not None:
+            self._adc_table.set_front_end([(a, ch, off, gain, sig) for (a, ch), off, gain, sig in self._analog_map],
+                                          len(SIGNALS), desc.vref_v, VREFINT_V)
         self.board.encoder = self._encoder
         self._theta_m = 0.0  # unwrapped mechanical angle at the period start [rad]
         self._theta_e: float | None = None
@@ -184,6 +195,8 @@ class BoardLink(BoardLinkBase):
     def _analog(self, adc: str, channel: int, now: int) -> float:
         if channel < 0:
             return self.desc.vref_v
+        if self._stale_signals is not None:
+            self._update_volts(*self._stale_signals)
         volts = self._volts.get((adc, channel))
         if volts is None:
             if adc.startswith("OPAMP"):
@@ -203,15 +216,26 @@ class BoardLink(BoardLinkBase):
             return None
         return pair_of(self.board)
 
-    def _fill_table(self, pair: Adc12Pair) -> None:
-        """The period's pin voltages, VREF+ and VREFINT (ADC1 IN18) into the pair's table; while an amplifier's
-        output is routed to ADC1 or ADC2 the conversions ask `_analog` (and the OPAMP model) instead."""
-        opamp = self.board.peripherals.get("OPAMP")
-        if isinstance(opamp, Opamp) and any(opamp.csr[number - 1] & OPAINTOEN
-                                            for (adc, _), number in OPAMP_CHANNELS.items() if adc in PAIR):
-            pair.clear_inputs()
-            return
-        pair.set_inputs(self.desc.vref_v, {**self._volts, ("ADC1", 18): VREFINT_V})
+    def _fill_table(self, pair: Adc12Pair, i_a: float, i_b: float, i_c: float, vdc: float) -> None:
+        """The period's pin voltages, VREF+ and VREFINT (ADC1 IN18) into the pair's table (in C); while an
+        amplifier's output is routed to ADC1 or ADC2 the conversions ask `_analog` (and the OPAMP model) instead."""
+        opamps = self._pair_opamps
+        if opamps is not None:
+            opamp, numbers = opamps
+            csr = opamp.csr
+            if any(csr[k] & OPAINTOEN for k in numbers):
+                self._update_volts(i_a, i_b, i_c, vdc)
+                pair.clear_inputs()
+                return
+        pair.take((i_a, i_b, i_c, vdc))
+        self._stale_signals = (i_a, i_b, i_c, vdc)
+
+    def _update_volts(self, i_a: float, i_b: float, i_c: float, vdc: float) -> None:
+        """Each analog input's pin voltage for the signal values [A, V] into `_volts`."""
+        self._stale_signals = None
+        volts = self._volts
+        for key, offset, gain, signal in self._analog_map:
+            volts[key] = offset + gain * (i_a if signal == 0 else i_b if signal == 1 else i_c if signal == 2 else vdc)
 
     def _encoder(self, timer: str, now: int) -> int:
         if timer != self.desc.encoder_timer:
@@ -231,11 +255,10 @@ class BoardLink(BoardLinkBase):
     def _take(self, i_a: float, i_b: float, i_c: float, theta_e: float, omega_m: float, vdc: float) -> None:
         """A Measurement's values [A, rad, rad/s, V] as the board's inputs for the period."""
         self._hall_held = None
-        volts = self._volts
-        for key, offset, gain, signal in self._analog_map:
-            volts[key] = offset + gain * (i_a if signal == 0 else i_b if signal == 1 else i_c if signal == 2 else vdc)
         if self._adc_table is not None:
-            self._fill_table(self._adc_table)
+            self._fill_table(self._adc_table, i_a, i_b, i_c, vdc)
+        else:
+            self._update_volts(i_a, i_b, i_c, vdc)
         if self._theta_e is not None:
             d = (theta_e - self._theta_e + math.pi) % (2 * math.pi) - math.pi
             self._theta_m += d / self.pole_pairs
@@ -246,27 +269,33 @@ class BoardLink(BoardLinkBase):
         limit = self.desc.break_overcurrent_a
         if limit is not None:  # the board's overcurrent comparator on BKIN, judged on the period's sample
             over = max(abs(i_a), abs(i_b), abs(i_c)) > limit
-            self.tim1.set_break_pin(over != self.desc.break_active_low, self.board.now)
+            self._tim1.set_break_pin(over != self.desc.break_active_low, self.board.now)
 
     def _period(self, i_a: float, i_b: float, i_c: float, theta_e: float, omega_m: float, vdc: float) -> int:
         """One control period of the firmware for a Measurement's values; the cycles it spent in interrupt handlers
         as exec_time_ns."""
-        board, tim = self.board, self.tim1
+        board, tim = self.board, self._tim1
         self._take(i_a, i_b, i_c, theta_e, omega_m, vdc)
         sleep0 = board.sleep_cycles
         isr0 = board.handler_cycles
         late0 = tim.late_writes
         entries0 = sum(st.entries for st in board.isr.values())
         end = self._period_start + self.period_cycles
-        self._deliver_queued()
-        self._run_to(end)
+        if self._on_bus:
+            self._deliver_queued()
+            self._run_to(end)
+        else:  # as _deliver_queued and _run_to with no host frame on the bus
+            now = board.now
+            if self._bus_free > now:
+                self._bus_free = now
+            board.run_until(end)
         self._period_start = end
         isr = board.handler_cycles - isr0
         self.sleep_cycles.append(board.sleep_cycles - sleep0)
         self.late_per_period.append(tim.late_writes - late0)
         self.entries_per_period.append(sum(st.entries for st in board.isr.values()) - entries0)
         self.isr_cycles.append(isr)  # last: a period counts as recorded once this list has it (period_records)
-        if tim.first_late_update is not None and self.late_first_period is None:
+        if self.late_first_period is None and tim.first_late_update is not None:
             self.late_first_period = self.periods
         self.periods += 1
         return round(isr / self.hclk_hz * 1e9)
@@ -319,8 +348,9 @@ class BoardLink(BoardLinkBase):
         MOE set; with MOE = 0 the idle levels' switching state (an int) for the whole period when the timer drives
         them (the zero vector for the usual lower switches on), else the open bridge's duties."""
         self._off_seq = None
-        if self.tim1.moe:
-            return self._compare_duties((i_a, i_b, i_c))
+        duties = self._tim1.compare_duties(self.desc.pwm_channels, (i_a, i_b, i_c), self.hclk_hz, self.carrier_s)
+        if duties is not None:  # MOE set
+            return duties
         idle = self._idle_legs()
         if idle is not None:
             return sum(1 << (2 - j) for j, upper in enumerate(idle) if upper)
@@ -359,17 +389,10 @@ class BoardLink(BoardLinkBase):
 
     def _compare_duties(self, currents: tuple[float, float, float]) -> tuple[float, ...]:
         """The duties of TIM1's compare values in force (PWM mode, polarity), each shortened or lengthened by the
-        dead time according to its phase current's sign when its complementary output is on."""
-        tim = self.tim1
-        dead = tim.dead_time_s(self.hclk_hz) / self.carrier_s
-        out = []
-        for ch, current in zip(self.desc.pwm_channels, currents, strict=True):
-            d = tim.duty(ch) if tim.output_enabled(ch) else 0.5
-            complementary = bool(tim.regs[0x20] >> (4 * ch + 2) & 1)
-            if complementary and dead and current != 0.0:
-                d -= math.copysign(dead, current)
-            out.append(min(max(d, 0.0), 1.0))
-        return tuple(out)
+        dead time according to its phase current's sign when its complementary output is on (MOE set)."""
+        duties = self.tim1.compare_duties(self.desc.pwm_channels, currents, self.hclk_hz, self.carrier_s)
+        assert duties is not None
+        return duties
 
     def _open_bridge(self, theta_e: float, omega_m: float, vdc: float, ahead: float) -> tuple[float, float, float]:
         """MOE = 0 (OSSI set: every switch off): the duties whose average phase voltages are those of an open

@@ -459,6 +459,27 @@ void hil_adc_mmio_write(void *uc, uint64_t offset, unsigned size, uint64_t value
     p->fallback_write(uc, offset, size, value, p->fallback_user);
 }
 
+/* The pair's inputs for a period in one call (a board link's, in place of filling the table from Python): every
+ * pin at 0 V, then input k (k < n, in order: a later one on the same pin wins) on ADC adc[k] (0 ADC1, 1 ADC2)
+ * channel channel[k] at offset[k] + gain[k] x values[signal[k]] [V], then VREFINT `vrefint` [V] on ADC1 IN18;
+ * VREF+ `vref` [V]; the table on. -1 (nothing changed) for an input outside ADC1/ADC2 channels 0-31. */
+int hil_adc_take(hil_adc12_t *p, int n, const int32_t *adc, const int32_t *channel, const double *offset,
+                 const double *gain, const int32_t *signal, const double *values, double vref, double vrefint) {
+    for (int k = 0; k < n; ++k) {
+        if (adc[k] < 0 || adc[k] > 1 || channel[k] < 0 || channel[k] >= TABLE_CHANNELS) {
+            return -1;
+        }
+    }
+    memset(p->volts, 0, sizeof p->volts);
+    for (int k = 0; k < n; ++k) {
+        p->volts[adc[k]][channel[k]] = offset[k] + gain[k] * values[signal[k]];
+    }
+    p->volts[0][18] = vrefint;
+    p->vref = vref;
+    p->table_on = 1;
+    return 0;
+}
+
 void hil_adc_init(hil_adc12_t *p) {
     for (int i = 0; i < 2; ++i) {
         p->adc[i].pair = p;

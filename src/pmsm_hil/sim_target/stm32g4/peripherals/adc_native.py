@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import ctypes
 import weakref
+from collections.abc import Sequence
 from typing import Any, ClassVar
 
 from pmsm_hil.sim_target.stm32g4 import periph_native as pn
@@ -64,6 +65,8 @@ def _typed(lib: ctypes.CDLL) -> ctypes.CDLL:
         lib.hil_adc_init.argtypes, lib.hil_adc_init.restype = [_P], None
         lib.hil_adc_code_of.argtypes = [_P, ctypes.c_double, ctypes.c_double]
         lib.hil_adc_code_of.restype = _U32
+        lib.hil_adc_take.argtypes = [_P, _INT, _P, _P, _P, _P, _P, _P, ctypes.c_double, ctypes.c_double]
+        lib.hil_adc_take.restype = _INT
         for name, struct in (("hil_adc_size", Adc12State), ("hil_adc_one_size", AdcState)):
             fn = getattr(lib, name)
             fn.argtypes, fn.restype = [], ctypes.c_uint
@@ -90,6 +93,7 @@ class Adc12Pair:
         s.code = cb.keep(CODE_FN(self._code))
         s.dma = cb.keep(DMA_FN(cb.guard(self._dma)))
         self.lib.hil_adc_init(ctypes.addressof(s))
+        self._front_end: tuple[Any, ...] | None = None
 
     def set_inputs(self, vref_v: float, volts: dict[tuple[str, int], float]) -> None:
         """Take each conversion's code from `volts` ((ADC name, channel) -> the pin's voltage [V], 0 V for one not
@@ -104,6 +108,34 @@ class Adc12Pair:
             s.volts[0 if adc == "ADC1" else 1][channel] = v
         s.vref = vref_v
         s.table_on = 1
+
+    def set_front_end(self, inputs: Sequence[tuple[str, int, float, float, int]], n_signals: int, vref_v: float,
+                      vrefint_v: float) -> None:
+        """The noiseless front end `take` computes the table from: per input (ADC name, channel, offset [V], gain [V
+        per unit], the index of its signal among `take`'s `n_signals` values), later inputs on the same pin
+        winning; VREF+ `vref_v` and VREFINT (ADC1 IN18) `vrefint_v` [V]."""
+        n = len(inputs)
+        for adc, channel, _, _, signal in inputs:
+            if adc not in ("ADC1", "ADC2") or not 0 <= channel < 32:
+                raise BoardError(f"ADC input {adc} channel {channel}: the table holds ADC1/ADC2 channels 0-31")
+            if not 0 <= signal < n_signals:
+                raise BoardError(f"ADC input {adc} channel {channel}: signal index {signal} outside 0-{n_signals - 1}")
+        ints, doubles = ctypes.c_int32 * n, ctypes.c_double * n
+        self._front_end = (n, ints(*(0 if a[0] == "ADC1" else 1 for a in inputs)), ints(*(a[1] for a in inputs)),
+                           doubles(*(a[2] for a in inputs)), doubles(*(a[3] for a in inputs)),
+                           ints(*(a[4] for a in inputs)), (ctypes.c_double * n_signals)(), vref_v, vrefint_v)
+
+    def take(self, values: Sequence[float]) -> None:
+        """The period's pin voltages from the front end (`set_front_end`) at signal values `values` into the table,
+        in one call (as `set_inputs` with each input's offset + gain x value)."""
+        front = self._front_end
+        if front is None:
+            raise BoardError("Adc12Pair.take before set_front_end")
+        n, adc, channel, offset, gain, signal, table, vref, vrefint = front
+        table[:] = values
+        if self.lib.hil_adc_take(ctypes.addressof(self.state), n, adc, channel, offset, gain, signal, table, vref,
+                                 vrefint):
+            raise BoardError("ADC inputs: the table holds ADC1/ADC2 channels 0-31")
 
     def clear_inputs(self) -> None:
         """Take each conversion's code from the board's analog front end again (Adc._code, in Python)."""
