@@ -46,7 +46,7 @@ from pmsm_hil.sim_target.stm32g4.board import VREFINT_V
 from pmsm_hil.sim_target.stm32g4.board_file import SIGNALS, BoardDescription
 from pmsm_hil.sim_target.stm32g4.hall import HallSensors, attach_halls
 from pmsm_hil.sim_target.stm32g4.link_base import IDLE_PERIODS, STARTUP_LIMIT_S, BoardLinkBase
-from pmsm_hil.sim_target.stm32g4.peripherals.adc_native import Adc12Pair, NativeAdc, pair_of
+from pmsm_hil.sim_target.stm32g4.peripherals.adc_native import FRONT_MAX, Adc12Pair, NativeAdc, pair_of
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
 from pmsm_hil.sim_target.stm32g4.peripherals.fdcan import INIT as FDCAN_INIT
 from pmsm_hil.sim_target.stm32g4.peripherals.fdcan import Fdcan
@@ -98,6 +98,10 @@ class BoardLink(BoardLinkBase):
         #: the period's signal values (SIGNALS' order) while `_volts` has not been brought up to them (the table
         #: took them in C); None: `_volts` is current
         self._stale_signals: tuple[float, float, float, float] | None = None
+        #: the period's table was filled by the caller in C (`measurement(native=True)`, `native_io`)
+        self._table_in_c = False
+        #: a caller in C computes TIM1's compare duties (`native_io` gave it the function)
+        self._duties_in_c = False
         opamp = self.board.peripherals.get("OPAMP")
         #: the amplifiers whose outputs can be routed to ADC1 or ADC2 (the table is off while one is)
         self._pair_opamps = (opamp, sorted({number - 1 for (adc, _), number in OPAMP_CHANNELS.items() if adc in PAIR})
@@ -210,7 +214,7 @@ class BoardLink(BoardLinkBase):
         """The ADC pair whose codes can come from a table of pin voltages (the models in C, every analog input an
         ADC1/ADC2 pin without noise), else None."""
         adc1 = self.board.peripherals.get("ADC1")
-        if not isinstance(adc1, NativeAdc) or any(
+        if not isinstance(adc1, NativeAdc) or len(desc.analog) > FRONT_MAX or any(
                 a.noise_v or a.adc not in ("ADC1", "ADC2") or not 0 <= a.channel < TABLE_CHANNELS
                 for a in desc.analog):
             return None
@@ -227,7 +231,8 @@ class BoardLink(BoardLinkBase):
                 self._update_volts(i_a, i_b, i_c, vdc)
                 pair.clear_inputs()
                 return
-        pair.take((i_a, i_b, i_c, vdc))
+        if not self._table_in_c:
+            pair.take((i_a, i_b, i_c, vdc))
         self._stale_signals = (i_a, i_b, i_c, vdc)
 
     def _update_volts(self, i_a: float, i_b: float, i_c: float, vdc: float) -> None:
@@ -364,11 +369,13 @@ class BoardLink(BoardLinkBase):
         return Command(seq=seq, states=(), durations_ns=(), duties=outputs, exec_time_ns=exec_time_ns)
 
     def measurement(self, seq: int, i_a: float, i_b: float, i_c: float, theta_e: float, omega_m: float,
-                    vdc: float) -> tuple[tuple[float, ...], int] | None:
+                    vdc: float, native: bool = False) -> tuple[tuple[float, ...] | None, int] | None:
         """One control period for Measurement `seq`'s values (the decoded frame's) [A, rad, rad/s, V], as `send`
         runs it for a Measurement frame: (duties, exec_time_ns) of the duty-cycle Command that answers it, for the
         caller to encode and return before the frames queued here; None when the reply is queued here (a
-        switching-state Command, or frames already waiting that it must follow)."""
+        switching-state Command, or frames already waiting that it must follow). `native`: the caller holds
+        `native_io`'s functions, has filled the ADC table with the inputs function (when it got one) and takes
+        TIM1's compare duties (MOE set) from the outputs function (when it got one): duties None then."""
         t0 = time.perf_counter()
         self.stats.frames_tx += 1
         bus = self.bus  # noqa: F841 - as `send`, which looks at the bus before the frames (it may join it now)
@@ -376,16 +383,36 @@ class BoardLink(BoardLinkBase):
             raise self.boot_error
         self._idle_left = 0
         self._answer_left = 0
+        self._table_in_c = native
         exec_time_ns = self._period(i_a, i_b, i_c, theta_e, omega_m, vdc)
-        outputs = self._outputs(seq, i_a, i_b, i_c, theta_e, omega_m, vdc)
-        out: tuple[tuple[float, ...], int] | None = None
-        if self._rx or isinstance(outputs, int):
-            self._reply(self._command(seq, outputs, exec_time_ns))
+        out: tuple[tuple[float, ...] | None, int] | None = None
+        if native and self._duties_in_c and not self._rx and self._tim1.moe:  # `_outputs` in C, by the caller
+            self._off_seq = None
+            out = (None, exec_time_ns)
         else:
-            out = (outputs, exec_time_ns)
+            outputs = self._outputs(seq, i_a, i_b, i_c, theta_e, omega_m, vdc)
+            if self._rx or isinstance(outputs, int):
+                self._reply(self._command(seq, outputs, exec_time_ns))
+            else:
+                out = (outputs, exec_time_ns)
         self._collect()
         self.wall_s += time.perf_counter() - t0
         return out
+
+    def native_io(self) -> tuple[tuple[int, int] | None, tuple[int, int] | None]:
+        """For a caller in C (the native loop's board link): (the inputs function, its argument) that fills the ADC
+        pair's table from a Measurement's (i_a, i_b, i_c, vdc) [A, V] before `measurement(native=True)` — None when
+        the conversions take their codes in Python (noise, amplifiers, the Python models) —, and (the outputs
+        function, its argument) that computes the duties `measurement(native=True)` leaves to the caller from
+        (i_a, i_b, i_c) — None when TIM1 is the Python model."""
+        inputs = outputs = None
+        if self._adc_table is not None:
+            inputs = self._adc_table.take_function()
+        function = getattr(self._tim1, "outputs_function", None)
+        if function is not None and self.boot_error is None:
+            outputs = function(self.desc.pwm_channels, self.hclk_hz, self.carrier_s)
+            self._duties_in_c = True
+        return inputs, outputs
 
     def _compare_duties(self, currents: tuple[float, float, float]) -> tuple[float, ...]:
         """The duties of TIM1's compare values in force (PWM mode, polarity), each shortened or lengthened by the
@@ -438,6 +465,7 @@ class BoardLink(BoardLinkBase):
                     raise self.boot_error
                 self._idle_left = 0
                 self._answer_left = 0
+                self._table_in_c = False
                 exec_time_ns = self._period(msg.i_a, msg.i_b, msg.i_c, msg.theta_e, msg.omega_m, msg.vdc)
                 outputs = self._outputs(msg.seq, msg.i_a, msg.i_b, msg.i_c, msg.theta_e, msg.omega_m, msg.vdc)
                 self._reply(self._command(msg.seq, outputs, exec_time_ns))

@@ -459,26 +459,34 @@ void hil_adc_mmio_write(void *uc, uint64_t offset, unsigned size, uint64_t value
     p->fallback_write(uc, offset, size, value, p->fallback_user);
 }
 
-/* The pair's inputs for a period in one call (a board link's, in place of filling the table from Python): every
- * pin at 0 V, then input k (k < n, in order: a later one on the same pin wins) on ADC adc[k] (0 ADC1, 1 ADC2)
- * channel channel[k] at offset[k] + gain[k] x values[signal[k]] [V], then VREFINT `vrefint` [V] on ADC1 IN18;
- * VREF+ `vref` [V]; the table on. -1 (nothing changed) for an input outside ADC1/ADC2 channels 0-31. */
-int hil_adc_take(hil_adc12_t *p, int n, const int32_t *adc, const int32_t *channel, const double *offset,
-                 const double *gain, const int32_t *signal, const double *values, double vref, double vrefint) {
-    for (int k = 0; k < n; ++k) {
-        if (adc[k] < 0 || adc[k] > 1 || channel[k] < 0 || channel[k] >= TABLE_CHANNELS) {
-            return -1;
-        }
-    }
+/* A board's analog front end without noise, for the pair's table (a board link's, once a period): input k < n on
+ * ADC adc[k] (0 ADC1, 1 ADC2) channel channel[k] (< TABLE_CHANNELS, checked by the caller that fills this) at
+ * offset[k] + gain[k] x the value of signal signal[k]; VREF+ vref and VREFINT (ADC1 IN18) vrefint [V]. */
+#define FRONT_MAX 32
+typedef struct {
+    hil_adc12_t *pair;
+    int32_t n;
+    int32_t adc[FRONT_MAX], channel[FRONT_MAX], signal[FRONT_MAX];
+    double offset[FRONT_MAX], gain[FRONT_MAX];
+    double vref, vrefint;
+} hil_adc_front_t;
+
+/* The pair's inputs for a period at the signal values `values` (the front end `user`'s signals), in place of
+ * filling the table from Python: every pin at 0 V, then each input in order (a later one on the same pin wins),
+ * then VREFINT on ADC1 IN18; VREF+; the table on. */
+void hil_adc_front_take(void *user, const double *values) {
+    const hil_adc_front_t *f = (const hil_adc_front_t *)user;
+    hil_adc12_t *p = f->pair;
     memset(p->volts, 0, sizeof p->volts);
-    for (int k = 0; k < n; ++k) {
-        p->volts[adc[k]][channel[k]] = offset[k] + gain[k] * values[signal[k]];
+    for (int k = 0; k < f->n; ++k) {
+        p->volts[f->adc[k]][f->channel[k]] = f->offset[k] + f->gain[k] * values[f->signal[k]];
     }
-    p->volts[0][18] = vrefint;
-    p->vref = vref;
+    p->volts[0][18] = f->vrefint;
+    p->vref = f->vref;
     p->table_on = 1;
-    return 0;
 }
+
+unsigned hil_adc_front_size(void) { return (unsigned)sizeof(hil_adc_front_t); }
 
 void hil_adc_init(hil_adc12_t *p) {
     for (int i = 0; i < 2; ++i) {

@@ -703,6 +703,22 @@ int hil_tim1_compare_duties(const hil_tim1_t *t, int n, const int32_t *channels,
     return 1;
 }
 
+/* hil_tim1_compare_duties' arguments but the currents, for a board link that calls it without Python */
+typedef struct {
+    const hil_tim1_t *tim;
+    int32_t n;
+    int32_t channels[6];
+    double hclk_hz, carrier_s;
+} hil_tim1_outputs_t;
+
+/* hil_tim1_compare_duties for the outputs `user` (a hil_tim1_outputs_t): 1 with out filled, 0 with MOE clear */
+int hil_tim1_outputs(void *user, const double *currents, double *out) {
+    const hil_tim1_outputs_t *o = (const hil_tim1_outputs_t *)user;
+    return hil_tim1_compare_duties(o->tim, o->n, o->channels, currents, o->hclk_hz, o->carrier_s, out);
+}
+
+unsigned hil_tim1_outputs_size(void) { return (unsigned)sizeof(hil_tim1_outputs_t); }
+
 /* set-up: reset values, the sink, the counter; `ops` for a scheduler in C */
 void hil_tim1_init(hil_tim1_t *t) {
     t->ops.self = t;
