@@ -163,7 +163,8 @@ class GeneralTimer(RegisterFile):
 
     def load(self, word: int, now: int) -> int:
         if word == CNT:
-            self.advance(now)
+            if not self._enc:  # an encoder's count has no events of its own (`advance` does nothing then)
+                self.advance(now)
             return self.counter(now)
         if word == CR1:
             self.counter(now)
