@@ -459,6 +459,13 @@ void hil_adc_mmio_write(void *uc, uint64_t offset, unsigned size, uint64_t value
     p->fallback_write(uc, offset, size, value, p->fallback_user);
 }
 
+/* offset + gain x value rounded twice, as Python computes it (no fused multiply-add on a target that has one) */
+#if defined(__clang__)
+#pragma STDC FP_CONTRACT OFF
+#elif defined(__GNUC__)
+#pragma GCC optimize("fp-contract=off")
+#endif
+
 /* A board's analog front end without noise, for the pair's table (a board link's, once a period): input k < n on
  * ADC adc[k] (0 ADC1, 1 ADC2) channel channel[k] (< TABLE_CHANNELS, checked by the caller that fills this) at
  * offset[k] + gain[k] x the value of signal signal[k]; VREF+ vref and VREFINT (ADC1 IN18) vrefint [V]. */
