@@ -120,3 +120,25 @@ def test_a_front_end_outside_the_table_is_named(monkeypatch: pytest.MonkeyPatch)
         pair.set_front_end([("ADC1", 1, 0.0, 1.0, 4)], 4, 3.3, 1.212)
     with pytest.raises(BoardError, match="before set_front_end"):
         pair.take((0.0, 0.0, 0.0, 0.0))
+
+
+@pytest.mark.parametrize("native", [True, False], ids=["c", "python"])
+def test_the_encoder_timers_cnt_is_read_in_c(native: bool, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The example firmware reads TIM3's CNT (its encoder) every period: with the C read armed no such read reaches
+    the Python model (tests/board/test_native_exc.py's `native_encoder` path: the same records)."""
+    from pmsm_hil.sim_target.stm32g4.peripherals import tim_gp
+    from tests.board.test_native_exc import EXAMPLE_BOARD, example, records
+
+    monkeypatch.setattr(tim_gp, "NATIVE_ENCODER", native)
+    reads: list[int] = []
+    read = tim_gp.GeneralTimer.read
+
+    def counted(self: tim_gp.GeneralTimer, offset: int, size: int, now: int) -> int:
+        if self.name == "TIM3" and offset == tim_gp.CNT and self.encoder_mode:  # the reads of the encoder
+            reads.append(now)
+        return read(self, offset, size, now)
+
+    monkeypatch.setattr(tim_gp.GeneralTimer, "read", counted)
+    out = records(example(), EXAMPLE_BOARD, True, monkeypatch, 200, native_encoder=native)  # asserts the arming
+    assert sum(out["entries"]) >= 200 and out["encoder"][0][0] != 0  # the encoder turned
+    assert reads == [] if native else len(reads) > 200

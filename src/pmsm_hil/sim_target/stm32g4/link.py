@@ -56,6 +56,7 @@ from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import BDTR as TIM1_BDTR
 from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import CCER as TIM1_CCER
 from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import CR2 as TIM1_CR2
 from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import Tim1
+from pmsm_hil.sim_target.stm32g4.peripherals.tim_gp import GeneralTimer
 
 #: carrier period mismatch tolerated between the firmware and --ts [s]
 PERIOD_TOLERANCE_S = 1e-9
@@ -115,6 +116,10 @@ class BoardLink(BoardLinkBase):
         self._omega_m = 0.0
         self._period_start = 0
         self.hclk_hz = self.board.hclk_hz
+        timer = self.board.peripherals.get(desc.encoder_timer or "")
+        #: the encoder timer whose CNT reads are answered in C from `_encoder`'s values (`_sync_encoder`), or None
+        self._c_encoder = timer if isinstance(timer, GeneralTimer) and timer.arm_encoder(desc.encoder_lines) else None
+        self._sync_encoder()
         #: the hall sensors of the board description on their GPIO pins (None: the board has none)
         self.halls: HallSensors | None = None
         #: the electrical angle the hall sensors hold in idle periods (the plant does not advance then) [rad]
@@ -195,6 +200,7 @@ class BoardLink(BoardLinkBase):
         self._period_start = tim.last_update
         self.carrier_s = carrier_s
         self.hclk_hz = hz
+        self._sync_encoder()
 
     def _analog(self, adc: str, channel: int, now: int) -> float:
         if channel < 0:
@@ -249,6 +255,12 @@ class BoardLink(BoardLinkBase):
         theta = self._theta_m + self._omega_m * dt
         return math.floor(theta / (2 * math.pi) * 4 * self.desc.encoder_lines)
 
+    def _sync_encoder(self) -> None:
+        """`_encoder`'s values into the encoder timer's C read (when it has one)."""
+        timer = self._c_encoder
+        if timer is not None:
+            timer.sync_encoder(self._theta_m, self._omega_m, self._period_start, self.hclk_hz)
+
     def _trajectory(self, now: int) -> tuple[float, float]:
         """The rotor's electrical angle at cycle `now` [rad] (unwrapped, advanced at the measured speed inside the
         period, as the encoder's) and its electrical speed [rad per cycle]."""
@@ -271,6 +283,7 @@ class BoardLink(BoardLinkBase):
             self._theta_m = theta_e / self.pole_pairs
         self._theta_e = theta_e
         self._omega_m = omega_m
+        self._sync_encoder()
         limit = self.desc.break_overcurrent_a
         if limit is not None:  # the board's overcurrent comparator on BKIN, judged on the period's sample
             over = max(abs(i_a), abs(i_b), abs(i_c)) > limit
@@ -295,6 +308,7 @@ class BoardLink(BoardLinkBase):
                 self._bus_free = now
             board.run_until(end)
         self._period_start = end
+        self._sync_encoder()
         isr = board.handler_cycles - isr0
         self.sleep_cycles.append(board.sleep_cycles - sleep0)
         self.late_per_period.append(tim.late_writes - late0)
@@ -506,6 +520,7 @@ class BoardLink(BoardLinkBase):
         if self._run_to(end):
             self._idle_left = IDLE_PERIODS  # from each frame's arrival
         self._period_start = end
+        self._sync_encoder()
         self.idle_periods += 1
         if self._collect() and not self._on_bus and not self._sending():  # the firmware answered the last frame
             self._idle_left = self._answer_left = 0
