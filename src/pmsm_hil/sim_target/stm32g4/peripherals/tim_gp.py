@@ -5,7 +5,9 @@ interrupt (UIF/UIE) for a time base; and the hall-sensor interface on a board wh
 (`hall_inputs`): CR2.TI1S puts the XOR of the three hall inputs on TI1, reset mode (SMCR.SMS 100) triggered by
 TI1F_ED (SMCR.TS 00100) captures CNT into CCR1 (CCMR1.CC1S 11, TRC; CC1IF, CC1OF) and restarts the counter at each
 hall edge (TIF, and UIF unless CR1.URS), with their interrupts (CC1IE, TIE, UIE). Other capture/compare uses, other
-slave modes, DMA and one-pulse mode are not modelled (a write enabling one is refused naming the field)."""
+slave modes, DMA and one-pulse mode are not modelled (a write enabling one is refused naming the field). TIM3's page
+is served by c/tim_gp.c, which answers a CNT read in C while the timer counts the board link's encoder (`arm_encoder`,
+`sync_encoder`; `NATIVE_ENCODER`) and hands every other access to this model."""
 
 from __future__ import annotations
 
