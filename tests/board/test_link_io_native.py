@@ -2,7 +2,8 @@
 c/adc.c hil_adc_front_take) against their Python references, bit for bit, on states the example firmware does not
 reach: TIM1's compare duties with the dead-time correction over random PWM modes, polarities, enables, dead times,
 clock divisions, counting modes and currents (zero, negative zero, NaN, infinities), and the ADC pair's table filled
-from a front end equal to the table `Adc12Pair.set_inputs` fills from the pin voltages computed in Python."""
+from a front end equal to the table `Adc12Pair.set_inputs` fills from the pin voltages computed in Python; and the
+encoder timer's CNT read (c/tim_gp.c) against GeneralTimer.counter, and never reaching Python in the example's run."""
 
 from __future__ import annotations
 
@@ -142,3 +143,113 @@ def test_the_encoder_timers_cnt_is_read_in_c(native: bool, monkeypatch: pytest.M
     out = records(example(), EXAMPLE_BOARD, True, monkeypatch, 200, native_encoder=native)  # asserts the arming
     assert sum(out["entries"]) >= 200 and out["encoder"][0][0] != 0  # the encoder turned
     assert reads == [] if native else len(reads) > 200
+
+
+class _EncoderBus(AnalogBus):
+    """The fake board with the board link's encoder (BoardLink._encoder's formula) on TIM3."""
+
+    def __init__(self) -> None:
+        super().__init__({})
+        self.theta_m, self.omega_m, self.period_start, self.hclk_hz, self.lines = 0.0, 0.0, 0, HCLK_HZ, 2048
+
+    def encoder_position(self, timer: str, now: int) -> int:
+        dt = (now - self.period_start) / self.hclk_hz
+        theta = self.theta_m + self.omega_m * dt
+        return math.floor(theta / (2 * math.pi) * 4 * self.lines)
+
+
+ANGLES = (0.0, -0.0, 1e-9, -1e-9, 3.0, -3.0, 1234.5, -98765.4, 1e12, -1e12, math.nan, math.inf, -math.inf)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_encoders_cnt_read_in_c_equals_the_model(seed: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    """c/tim_gp.c's CNT read against GeneralTimer.counter on random encoder modes (x2 on either input, x4), counting
+    or stopped, ARR, CNT writes and angles both ways (negative counts: floor division and modulo as Python's),
+    not finite or beyond 2^61 edges (handed to Python, which raises or takes the big integers)."""
+    from unicorn.unicorn_py3.unicorn import MMIO_READ_CFUNC
+
+    from pmsm_hil.sim_target.stm32g4.peripherals import tim_gp
+
+    rng = random.Random(seed)
+    ref_bus, nat_bus = _EncoderBus(), _EncoderBus()
+    ref, nat = ref_bus.add("TIM3"), nat_bus.add("TIM3")
+    assert isinstance(ref, tim_gp.Tim3) and isinstance(nat, tim_gp.Tim3)
+    lib = tim_gp._typed(periph_native.library("tim_gp"))
+    lib.hil_tim_gp_mmio_read.argtypes = [ctypes.c_void_p, ctypes.c_uint64, ctypes.c_uint, ctypes.c_void_p]
+    lib.hil_tim_gp_mmio_read.restype = ctypes.c_uint64
+    count = ctypes.c_uint64(0)
+    state = tim_gp.TimGpState()
+    state.count = ctypes.addressof(count)
+    state.cnt_offset = nat.base + tim_gp.CNT - 0x4000_0000
+    fallbacks: list[object] = []
+
+    def fallback(_uc: int, offset: int, size: int, _user: int) -> int:
+        try:  # as the board's decoder: Python's answer, or its error (the board raises it once the core stopped)
+            value = nat.read(offset - (nat.base - 0x4000_0000), size, int(count.value))
+        except (ValueError, OverflowError) as exc:
+            fallbacks.append(type(exc))
+            return 0
+        fallbacks.append(value)
+        return value
+
+    keep = MMIO_READ_CFUNC(fallback)
+    state.fallback_read = ctypes.cast(keep, ctypes.c_void_p).value
+    nat._c = state
+    nat._push()
+    assert nat.arm_encoder(2048)
+    for tim in (ref, nat):  # x4 encoder mode, counting
+        tim.write(tim_gp.SMCR, 4, 3, 0)
+        tim.write(tim_gp.CR1, 4, 1, 0)
+    served = 0
+    now = 1000
+    for _ in range(800):
+        now += rng.randrange(0, 20_000)
+        count.value = now
+        kind = rng.random()
+        if kind < 0.08:
+            word, value = rng.choice(((tim_gp.SMCR, rng.choice((0, 1, 2, 3, 3, 3))),
+                                      (tim_gp.CR1, rng.choice((0, 1, 1))),
+                                      (tim_gp.ARR, rng.choice((0xFFFF, 8191, 1000, 0))),
+                                      (tim_gp.CNT, rng.randrange(1 << 16))))
+            outcomes = []
+            for tim in (ref, nat):
+                try:
+                    tim.write(word, 4, value, now)
+                    outcomes.append(None)
+                except (ValueError, OverflowError) as exc:  # the angle not finite: Python's error, in both
+                    outcomes.append(type(exc))
+            assert outcomes[0] == outcomes[1]
+        elif kind < 0.4:
+            theta = rng.choice(ANGLES) if rng.random() < 0.3 else rng.uniform(-1e4, 1e4)
+            omega = math.nan if rng.random() < 0.05 else rng.choice((0.0, 157.0, -157.0, rng.uniform(-2e3, 2e3)))
+            for bus in (ref_bus, nat_bus):
+                bus.theta_m, bus.omega_m, bus.period_start = theta, omega, now - rng.randrange(0, 9000)
+                bus.period_start = ref_bus.period_start
+            nat.sync_encoder(theta, omega, ref_bus.period_start, HCLK_HZ)
+        want: object
+        got: object
+        try:
+            want = ref.read(tim_gp.CNT, 4, now)
+        except (ValueError, OverflowError) as exc:
+            want = type(exc)
+        before = len(fallbacks)
+        got = int(lib.hil_tim_gp_mmio_read(None, state.cnt_offset, 4, ctypes.addressof(state)))
+        served += len(fallbacks) == before
+        if len(fallbacks) > before:  # handed to Python: its answer or its error
+            got = fallbacks[-1]
+        assert got == want
+        if want in (ValueError, OverflowError):
+            continue
+        assert (ref.read(tim_gp.CR1, 4, now), ref.last_edges) == (nat.read(tim_gp.CR1, 4, now), nat.last_edges)
+    assert served > 200 and len(fallbacks) > 20
+    # edges beyond 2^61 anchored by a CNT write: the C read hands the timer back to Python for good
+    for bus in (ref_bus, nat_bus):
+        bus.theta_m, bus.omega_m = 1e30, 0.0
+    nat.sync_encoder(1e30, 0.0, ref_bus.period_start, HCLK_HZ)
+    for tim in (ref, nat):
+        tim.write(tim_gp.CNT, 4, 7, now)
+    assert nat._c is None and state.armed == 0
+    before = len(fallbacks)
+    assert int(lib.hil_tim_gp_mmio_read(None, state.cnt_offset, 4, ctypes.addressof(state))) == \
+        ref.read(tim_gp.CNT, 4, now) == 7 and len(fallbacks) == before + 1
+    assert ref.read(tim_gp.CR1, 4, now) == nat.read(tim_gp.CR1, 4, now)

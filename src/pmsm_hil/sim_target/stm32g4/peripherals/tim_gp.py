@@ -238,9 +238,11 @@ class GeneralTimer(RegisterFile):
         self.anchor = self._counts_now(now) if self.encoder_mode else now
 
     def store(self, word: int, value: int, now: int) -> None:
-        self._store(word, value, now)
-        if self._c is not None:
-            self._push()
+        try:
+            self._store(word, value, now)
+        finally:  # what the store changed, also when it raised half-way
+            if self._c is not None:
+                self._push()
 
     def _store(self, word: int, value: int, now: int) -> None:
         self.advance(now)
