@@ -1,7 +1,9 @@
 """The native loop's C link to the virtual board (c/links/link_board.h, hil/runner/board_native_link.py): a run of
 the example firmware through it — the Measurement decoded and the duty-cycle Command encoded in C, the board called
-once a period with plain numbers — logs the same periods and frames, bit for bit, and the same board metrics as
-the same run through the callback link alone (every frame through Python's codec)."""
+once a period with plain numbers, the ADC table filled and TIM1's duties read by the C link through the models' C
+functions — logs the same periods and frames, bit for bit, and the same board metrics as the same run through the
+callback link alone (every frame through Python's codec) and as the C link leaving the table and the duties to the
+board's Python (NativeBoardLink.NATIVE_IO off)."""
 
 from __future__ import annotations
 
@@ -13,6 +15,7 @@ import pytest
 
 from pmsm_hil.hil.runlog.reader import read_frames, read_periods
 from pmsm_hil.hil.runner import loop_run
+from pmsm_hil.hil.runner.board_native_link import NativeBoardLink
 from pmsm_hil.hil.runner.run import run_from_options
 from pmsm_hil.sim_target.stm32g4.link import BoardLink
 from tests.board.test_run_endings import TS, _example_firmware
@@ -23,37 +26,46 @@ BOARD_KEYS = ("board_isr_time_us", "board_cpu_load", "board_late_compares", "boa
               "end_period")
 
 
-def _run(out: Path, monkeypatch: pytest.MonkeyPatch, *, c_link: bool) -> tuple[dict[str, Any], int]:
+def _run(out: Path, monkeypatch: pytest.MonkeyPatch, *, c_link: bool, native_io: bool = True
+         ) -> tuple[dict[str, Any], int, int]:
+    """The run's metrics, its calls of `measurement` and how many of them left the duties to the C link."""
     elf, board = _example_firmware()
-    calls = 0
+    calls = in_c = 0
     measurement = BoardLink.measurement
 
     def counted(self: BoardLink, *args: Any) -> Any:
-        nonlocal calls
+        nonlocal calls, in_c
         calls += 1
-        return measurement(self, *args)
+        out = measurement(self, *args)
+        in_c += out is not None and out[0] is None
+        return out
 
     with monkeypatch.context() as m:
         m.setattr(BoardLink, "measurement", counted)
+        m.setattr(NativeBoardLink, "NATIVE_IO", native_io)
         if not c_link:
             m.setattr(loop_run, "_board_link", lambda *args: None)
         res = run_from_options({"target": f"stm32g4:{elf}", "board": str(board), "ts": TS, "link": "virtual",
                                 "controller": "external", "motor": "niu2020-ipmsm", "speed": 1500, "load": 7,
                                 "duration": 0.01, "settle": 0.002, "out": str(out)})
-    return res.metrics, calls
+    return res.metrics, calls, in_c
 
 
 def test_the_c_board_link_logs_what_the_callback_link_logs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    fast, fast_calls = _run(tmp_path / "c", monkeypatch, c_link=True)
-    slow, slow_calls = _run(tmp_path / "py", monkeypatch, c_link=False)
+    fast, fast_calls, fast_in_c = _run(tmp_path / "c", monkeypatch, c_link=True)
+    py_io, py_io_calls, py_io_in_c = _run(tmp_path / "py_io", monkeypatch, c_link=True, native_io=False)
+    slow, slow_calls, _ = _run(tmp_path / "py", monkeypatch, c_link=False)
     assert fast["end_code"] == 0, fast["end_reason"]
     periods = round(0.012 / TS)
     assert fast_calls >= periods - 1 and slow_calls == 0  # the C link took the Measurements, the other did not
-    for name in ("c", "py"):
+    assert fast_in_c >= periods // 2 and py_io_calls == fast_calls and py_io_in_c == 0  # the duties from C or not
+    for name in ("c", "py_io", "py"):
         assert len(read_periods(tmp_path / name / "run.mcap")) >= periods - 1
-    assert read_periods(tmp_path / "c" / "run.mcap").tobytes() == read_periods(tmp_path / "py" / "run.mcap").tobytes()
-    fast_frames, slow_frames = read_frames(tmp_path / "c" / "run.mcap"), read_frames(tmp_path / "py" / "run.mcap")
-    assert len(fast_frames) > 2 * periods
-    assert np.array_equal(fast_frames, slow_frames)
-    for key in BOARD_KEYS:
-        assert fast.get(key) == slow.get(key), key
+    reference = read_periods(tmp_path / "py" / "run.mcap").tobytes()
+    slow_frames = read_frames(tmp_path / "py" / "run.mcap")
+    assert len(slow_frames) > 2 * periods
+    for name, metrics in (("c", fast), ("py_io", py_io)):
+        assert read_periods(tmp_path / name / "run.mcap").tobytes() == reference, name
+        assert np.array_equal(read_frames(tmp_path / name / "run.mcap"), slow_frames), name
+        for key in BOARD_KEYS:
+            assert metrics.get(key) == slow.get(key), (name, key)

@@ -24,6 +24,7 @@ from pmsm_hil.sim_target.stm32g4.board import Board
 from pmsm_hil.sim_target.stm32g4.board_file import load_board
 from pmsm_hil.sim_target.stm32g4.link import BoardLink
 from pmsm_hil.sim_target.stm32g4.part import PARTS
+from pmsm_hil.sim_target.stm32g4.peripherals import tim_gp
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
 from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import Tim1
 
@@ -43,12 +44,14 @@ FAST_PATHS: dict[str, tuple[Any, str, str]] = {
     "native_core": (Board, "NATIVE_CORE", "the C and the Python scheduler, NVIC and SysTick"),
     "event_driven": (Board, "EVENT_DRIVEN", "the C scheduler caching the event-driven models' next events and the "
                      "one asking them at every step"),
-    "native_periph": (periph_native, "NATIVE", "the C and the Python TIM1 and ADC models")}
+    "native_periph": (periph_native, "NATIVE", "the C and the Python TIM1 and ADC models"),
+    "native_encoder": (tim_gp, "NATIVE_ENCODER", "the encoder timer's CNT read in C and in Python")}
 
 
 def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch: pytest.MonkeyPatch,
             periods: int = PERIODS, skip_quiet: bool = True, native_core: bool = True,
-            native_periph: bool = True, event_driven: bool = True) -> dict[str, Any]:
+            native_periph: bool = True, event_driven: bool = True,
+            native_encoder: bool = True) -> dict[str, Any]:
     """Everything a run of `periods` Measurements leaves, with the board's C paths (exception frames, the DWT page's
     reads) or the Python reference, with the scheduler skipping quiet models or asking every model every step, with
     the scheduler, NVIC and SysTick in C or in Python, with TIM1 and the ADCs in C or in Python."""
@@ -57,7 +60,9 @@ def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch:
     monkeypatch.setattr(Board, "NATIVE_CORE", native_core)
     monkeypatch.setattr(Board, "EVENT_DRIVEN", event_driven)
     monkeypatch.setattr(periph_native, "NATIVE", native_periph)
+    monkeypatch.setattr(tim_gp, "NATIVE_ENCODER", native_encoder)
     link = BoardLink(elf, load_board(board_file), ts_s=TS, pole_pairs=4)
+    assert (link._c_encoder is not None) == (native_encoder and link.desc.encoder_timer == "TIM3")
     assert (link.board.exceptions._native is not None) == native
     assert hasattr(link.board, "_dwt") == native
     assert link.board._native_core == (native and skip_quiet and native_core)
@@ -88,7 +93,9 @@ def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch:
     return {"frames": frames, "error": error, "isr": link.isr_cycles, "sleep": link.sleep_cycles,
             "late": link.late_per_period, "entries": link.entries_per_period, "now": board.now,
             "handlers": {e: (s.entries, s.cycles, s.latency) for e, s in board.isr.items()},
-            "regs": [board.cpu.reg(r) for r in CORE_REGS], "sram": sram, "boot_error": str(link.boot_error or "")}
+            "regs": [board.cpu.reg(r) for r in CORE_REGS], "sram": sram, "boot_error": str(link.boot_error or ""),
+            "encoder": [(t.last_edges, t.down, t.anchor, t.anchor_cnt) for t in board.peripherals.values()
+                        if isinstance(t, tim_gp.GeneralTimer)]}
 
 
 def same(path: str, elf: Path, board_file: str | Path | None, monkeypatch: pytest.MonkeyPatch,
@@ -97,7 +104,8 @@ def same(path: str, elf: Path, board_file: str | Path | None, monkeypatch: pytes
     what = FAST_PATHS[path][2]
     reference = records(elf, board_file, path != "native_exc", monkeypatch, periods,
                         skip_quiet=path != "quiet_skip", native_core=path != "native_core",
-                        native_periph=path != "native_periph", event_driven=path != "event_driven")
+                        native_periph=path != "native_periph", event_driven=path != "event_driven",
+                        native_encoder=path != "native_encoder")
     native = records(elf, board_file, True, monkeypatch, periods)
     for key in reference:
         assert native[key] == reference[key], f"{key} differs between {what}"

@@ -46,7 +46,7 @@ from pmsm_hil.sim_target.stm32g4.board import VREFINT_V
 from pmsm_hil.sim_target.stm32g4.board_file import SIGNALS, BoardDescription
 from pmsm_hil.sim_target.stm32g4.hall import HallSensors, attach_halls
 from pmsm_hil.sim_target.stm32g4.link_base import IDLE_PERIODS, STARTUP_LIMIT_S, BoardLinkBase
-from pmsm_hil.sim_target.stm32g4.peripherals.adc_native import Adc12Pair, NativeAdc, pair_of
+from pmsm_hil.sim_target.stm32g4.peripherals.adc_native import FRONT_MAX, Adc12Pair, NativeAdc, pair_of
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
 from pmsm_hil.sim_target.stm32g4.peripherals.fdcan import INIT as FDCAN_INIT
 from pmsm_hil.sim_target.stm32g4.peripherals.fdcan import Fdcan
@@ -56,6 +56,7 @@ from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import BDTR as TIM1_BDTR
 from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import CCER as TIM1_CCER
 from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import CR2 as TIM1_CR2
 from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import Tim1
+from pmsm_hil.sim_target.stm32g4.peripherals.tim_gp import GeneralTimer
 
 #: carrier period mismatch tolerated between the firmware and --ts [s]
 PERIOD_TOLERANCE_S = 1e-9
@@ -71,6 +72,7 @@ class BoardLink(BoardLinkBase):
                  skip_periods: int = 0, console: Any = None, psi_f_wb: float = 0.0, vdc_v: float = 0.0,
                  can_bitrates: tuple[int | None, int | None] = (None, None)) -> None:
         super().__init__(elf, desc, skip_periods=skip_periods, console=console)
+        self._tim1 = self.tim1
         self.pole_pairs = pole_pairs
         self.codec = FrameCodec("canfd")
         self.decoder = FrameDecoder(ordered=False)
@@ -94,12 +96,30 @@ class BoardLink(BoardLinkBase):
         #: the ADC pair in C behind a noiseless front end of its own pins: their voltages go into the pair's table
         #: once a period (no call into Python per conversion); None: each conversion asks `_analog`
         self._adc_table = self._table_pair(desc)
+        #: the period's signal values (SIGNALS' order) while `_volts` has not been brought up to them (the table
+        #: took them in C); None: `_volts` is current
+        self._stale_signals: tuple[float, float, float, float] | None = None
+        #: the period's table was filled by the caller in C (`measurement(native=True)`, `native_io`)
+        self._table_in_c = False
+        #: a caller in C computes TIM1's compare duties (`native_io` gave it the function)
+        self._duties_in_c = False
+        opamp = self.board.peripherals.get("OPAMP")
+        #: the amplifiers whose outputs can be routed to ADC1 or ADC2 (the table is off while one is)
+        self._pair_opamps = (opamp, sorted({number - 1 for (adc, _), number in OPAMP_CHANNELS.items() if adc in PAIR})
+                             ) if isinstance(opamp, Opamp) else None
+        if self._adc_table is not None:
+            self._adc_table.set_front_end([(a, ch, off, gain, sig) for (a, ch), off, gain, sig in self._analog_map],
+                                          len(SIGNALS), desc.vref_v, VREFINT_V)
         self.board.encoder = self._encoder
         self._theta_m = 0.0  # unwrapped mechanical angle at the period start [rad]
         self._theta_e: float | None = None
         self._omega_m = 0.0
         self._period_start = 0
         self.hclk_hz = self.board.hclk_hz
+        timer = self.board.peripherals.get(desc.encoder_timer or "")
+        #: the encoder timer whose CNT reads are answered in C from `_encoder`'s values (`_sync_encoder`), or None
+        self._c_encoder = timer if isinstance(timer, GeneralTimer) and timer.arm_encoder(desc.encoder_lines) else None
+        self._sync_encoder()
         #: the hall sensors of the board description on their GPIO pins (None: the board has none)
         self.halls: HallSensors | None = None
         #: the electrical angle the hall sensors hold in idle periods (the plant does not advance then) [rad]
@@ -180,10 +200,13 @@ class BoardLink(BoardLinkBase):
         self._period_start = tim.last_update
         self.carrier_s = carrier_s
         self.hclk_hz = hz
+        self._sync_encoder()
 
     def _analog(self, adc: str, channel: int, now: int) -> float:
         if channel < 0:
             return self.desc.vref_v
+        if self._stale_signals is not None:
+            self._update_volts(*self._stale_signals)
         volts = self._volts.get((adc, channel))
         if volts is None:
             if adc.startswith("OPAMP"):
@@ -197,21 +220,33 @@ class BoardLink(BoardLinkBase):
         """The ADC pair whose codes can come from a table of pin voltages (the models in C, every analog input an
         ADC1/ADC2 pin without noise), else None."""
         adc1 = self.board.peripherals.get("ADC1")
-        if not isinstance(adc1, NativeAdc) or any(
+        if not isinstance(adc1, NativeAdc) or len(desc.analog) > FRONT_MAX or any(
                 a.noise_v or a.adc not in ("ADC1", "ADC2") or not 0 <= a.channel < TABLE_CHANNELS
                 for a in desc.analog):
             return None
         return pair_of(self.board)
 
-    def _fill_table(self, pair: Adc12Pair) -> None:
-        """The period's pin voltages, VREF+ and VREFINT (ADC1 IN18) into the pair's table; while an amplifier's
-        output is routed to ADC1 or ADC2 the conversions ask `_analog` (and the OPAMP model) instead."""
-        opamp = self.board.peripherals.get("OPAMP")
-        if isinstance(opamp, Opamp) and any(opamp.csr[number - 1] & OPAINTOEN
-                                            for (adc, _), number in OPAMP_CHANNELS.items() if adc in PAIR):
-            pair.clear_inputs()
-            return
-        pair.set_inputs(self.desc.vref_v, {**self._volts, ("ADC1", 18): VREFINT_V})
+    def _fill_table(self, pair: Adc12Pair, i_a: float, i_b: float, i_c: float, vdc: float) -> None:
+        """The period's pin voltages, VREF+ and VREFINT (ADC1 IN18) into the pair's table (in C); while an
+        amplifier's output is routed to ADC1 or ADC2 the conversions ask `_analog` (and the OPAMP model) instead."""
+        opamps = self._pair_opamps
+        if opamps is not None:
+            opamp, numbers = opamps
+            csr = opamp.csr
+            if any(csr[k] & OPAINTOEN for k in numbers):
+                self._update_volts(i_a, i_b, i_c, vdc)
+                pair.clear_inputs()
+                return
+        if not self._table_in_c:
+            pair.take((i_a, i_b, i_c, vdc))
+        self._stale_signals = (i_a, i_b, i_c, vdc)
+
+    def _update_volts(self, i_a: float, i_b: float, i_c: float, vdc: float) -> None:
+        """Each analog input's pin voltage for the signal values [A, V] into `_volts`."""
+        self._stale_signals = None
+        volts = self._volts
+        for key, offset, gain, signal in self._analog_map:
+            volts[key] = offset + gain * (i_a if signal == 0 else i_b if signal == 1 else i_c if signal == 2 else vdc)
 
     def _encoder(self, timer: str, now: int) -> int:
         if timer != self.desc.encoder_timer:
@@ -219,6 +254,12 @@ class BoardLink(BoardLinkBase):
         dt = (now - self._period_start) / self.hclk_hz
         theta = self._theta_m + self._omega_m * dt
         return math.floor(theta / (2 * math.pi) * 4 * self.desc.encoder_lines)
+
+    def _sync_encoder(self) -> None:
+        """`_encoder`'s values into the encoder timer's C read (when it has one)."""
+        timer = self._c_encoder
+        if timer is not None:
+            timer.sync_encoder(self._theta_m, self._omega_m, self._period_start, self.hclk_hz)
 
     def _trajectory(self, now: int) -> tuple[float, float]:
         """The rotor's electrical angle at cycle `now` [rad] (unwrapped, advanced at the measured speed inside the
@@ -231,11 +272,10 @@ class BoardLink(BoardLinkBase):
     def _take(self, i_a: float, i_b: float, i_c: float, theta_e: float, omega_m: float, vdc: float) -> None:
         """A Measurement's values [A, rad, rad/s, V] as the board's inputs for the period."""
         self._hall_held = None
-        volts = self._volts
-        for key, offset, gain, signal in self._analog_map:
-            volts[key] = offset + gain * (i_a if signal == 0 else i_b if signal == 1 else i_c if signal == 2 else vdc)
         if self._adc_table is not None:
-            self._fill_table(self._adc_table)
+            self._fill_table(self._adc_table, i_a, i_b, i_c, vdc)
+        else:
+            self._update_volts(i_a, i_b, i_c, vdc)
         if self._theta_e is not None:
             d = (theta_e - self._theta_e + math.pi) % (2 * math.pi) - math.pi
             self._theta_m += d / self.pole_pairs
@@ -243,30 +283,38 @@ class BoardLink(BoardLinkBase):
             self._theta_m = theta_e / self.pole_pairs
         self._theta_e = theta_e
         self._omega_m = omega_m
+        self._sync_encoder()
         limit = self.desc.break_overcurrent_a
         if limit is not None:  # the board's overcurrent comparator on BKIN, judged on the period's sample
             over = max(abs(i_a), abs(i_b), abs(i_c)) > limit
-            self.tim1.set_break_pin(over != self.desc.break_active_low, self.board.now)
+            self._tim1.set_break_pin(over != self.desc.break_active_low, self.board.now)
 
     def _period(self, i_a: float, i_b: float, i_c: float, theta_e: float, omega_m: float, vdc: float) -> int:
         """One control period of the firmware for a Measurement's values; the cycles it spent in interrupt handlers
         as exec_time_ns."""
-        board, tim = self.board, self.tim1
+        board, tim = self.board, self._tim1
         self._take(i_a, i_b, i_c, theta_e, omega_m, vdc)
         sleep0 = board.sleep_cycles
         isr0 = board.handler_cycles
         late0 = tim.late_writes
         entries0 = sum(st.entries for st in board.isr.values())
         end = self._period_start + self.period_cycles
-        self._deliver_queued()
-        self._run_to(end)
+        if self._on_bus:
+            self._deliver_queued()
+            self._run_to(end)
+        else:  # as _deliver_queued and _run_to with no host frame on the bus
+            now = board.now
+            if self._bus_free > now:
+                self._bus_free = now
+            board.run_until(end)
         self._period_start = end
+        self._sync_encoder()
         isr = board.handler_cycles - isr0
         self.sleep_cycles.append(board.sleep_cycles - sleep0)
         self.late_per_period.append(tim.late_writes - late0)
         self.entries_per_period.append(sum(st.entries for st in board.isr.values()) - entries0)
         self.isr_cycles.append(isr)  # last: a period counts as recorded once this list has it (period_records)
-        if tim.first_late_update is not None and self.late_first_period is None:
+        if self.late_first_period is None and tim.first_late_update is not None:
             self.late_first_period = self.periods
         self.periods += 1
         return round(isr / self.hclk_hz * 1e9)
@@ -319,8 +367,9 @@ class BoardLink(BoardLinkBase):
         MOE set; with MOE = 0 the idle levels' switching state (an int) for the whole period when the timer drives
         them (the zero vector for the usual lower switches on), else the open bridge's duties."""
         self._off_seq = None
-        if self.tim1.moe:
-            return self._compare_duties((i_a, i_b, i_c))
+        duties = self._tim1.compare_duties(self.desc.pwm_channels, (i_a, i_b, i_c), self.hclk_hz, self.carrier_s)
+        if duties is not None:  # MOE set
+            return duties
         idle = self._idle_legs()
         if idle is not None:
             return sum(1 << (2 - j) for j, upper in enumerate(idle) if upper)
@@ -334,11 +383,13 @@ class BoardLink(BoardLinkBase):
         return Command(seq=seq, states=(), durations_ns=(), duties=outputs, exec_time_ns=exec_time_ns)
 
     def measurement(self, seq: int, i_a: float, i_b: float, i_c: float, theta_e: float, omega_m: float,
-                    vdc: float) -> tuple[tuple[float, ...], int] | None:
+                    vdc: float, native: bool = False) -> tuple[tuple[float, ...] | None, int] | None:
         """One control period for Measurement `seq`'s values (the decoded frame's) [A, rad, rad/s, V], as `send`
         runs it for a Measurement frame: (duties, exec_time_ns) of the duty-cycle Command that answers it, for the
         caller to encode and return before the frames queued here; None when the reply is queued here (a
-        switching-state Command, or frames already waiting that it must follow)."""
+        switching-state Command, or frames already waiting that it must follow). `native`: the caller holds
+        `native_io`'s functions, has filled the ADC table with the inputs function (when it got one) and takes
+        TIM1's compare duties (MOE set) from the outputs function (when it got one): duties None then."""
         t0 = time.perf_counter()
         self.stats.frames_tx += 1
         bus = self.bus  # noqa: F841 - as `send`, which looks at the bus before the frames (it may join it now)
@@ -346,30 +397,43 @@ class BoardLink(BoardLinkBase):
             raise self.boot_error
         self._idle_left = 0
         self._answer_left = 0
+        self._table_in_c = native
         exec_time_ns = self._period(i_a, i_b, i_c, theta_e, omega_m, vdc)
-        outputs = self._outputs(seq, i_a, i_b, i_c, theta_e, omega_m, vdc)
-        out: tuple[tuple[float, ...], int] | None = None
-        if self._rx or isinstance(outputs, int):
-            self._reply(self._command(seq, outputs, exec_time_ns))
+        out: tuple[tuple[float, ...] | None, int] | None = None
+        if native and self._duties_in_c and not self._rx and self._tim1.moe:  # `_outputs` in C, by the caller
+            self._off_seq = None
+            out = (None, exec_time_ns)
         else:
-            out = (outputs, exec_time_ns)
+            outputs = self._outputs(seq, i_a, i_b, i_c, theta_e, omega_m, vdc)
+            if self._rx or isinstance(outputs, int):
+                self._reply(self._command(seq, outputs, exec_time_ns))
+            else:
+                out = (outputs, exec_time_ns)
         self._collect()
         self.wall_s += time.perf_counter() - t0
         return out
 
+    def native_io(self) -> tuple[tuple[int, int] | None, tuple[int, int] | None]:
+        """For a caller in C (the native loop's board link): (the inputs function, its argument) that fills the ADC
+        pair's table from a Measurement's (i_a, i_b, i_c, vdc) [A, V] before `measurement(native=True)` — None when
+        the conversions take their codes in Python (noise, amplifiers, the Python models) —, and (the outputs
+        function, its argument) that computes the duties `measurement(native=True)` leaves to the caller from
+        (i_a, i_b, i_c) — None when TIM1 is the Python model."""
+        inputs = outputs = None
+        if self._adc_table is not None:
+            inputs = self._adc_table.take_function()
+        function = getattr(self._tim1, "outputs_function", None)
+        if function is not None and self.boot_error is None:
+            outputs = function(self.desc.pwm_channels, self.hclk_hz, self.carrier_s)
+            self._duties_in_c = True
+        return inputs, outputs
+
     def _compare_duties(self, currents: tuple[float, float, float]) -> tuple[float, ...]:
         """The duties of TIM1's compare values in force (PWM mode, polarity), each shortened or lengthened by the
-        dead time according to its phase current's sign when its complementary output is on."""
-        tim = self.tim1
-        dead = tim.dead_time_s(self.hclk_hz) / self.carrier_s
-        out = []
-        for ch, current in zip(self.desc.pwm_channels, currents, strict=True):
-            d = tim.duty(ch) if tim.output_enabled(ch) else 0.5
-            complementary = bool(tim.regs[0x20] >> (4 * ch + 2) & 1)
-            if complementary and dead and current != 0.0:
-                d -= math.copysign(dead, current)
-            out.append(min(max(d, 0.0), 1.0))
-        return tuple(out)
+        dead time according to its phase current's sign when its complementary output is on (MOE set)."""
+        duties = self.tim1.compare_duties(self.desc.pwm_channels, currents, self.hclk_hz, self.carrier_s)
+        assert duties is not None
+        return duties
 
     def _open_bridge(self, theta_e: float, omega_m: float, vdc: float, ahead: float) -> tuple[float, float, float]:
         """MOE = 0 (OSSI set: every switch off): the duties whose average phase voltages are those of an open
@@ -415,6 +479,7 @@ class BoardLink(BoardLinkBase):
                     raise self.boot_error
                 self._idle_left = 0
                 self._answer_left = 0
+                self._table_in_c = False
                 exec_time_ns = self._period(msg.i_a, msg.i_b, msg.i_c, msg.theta_e, msg.omega_m, msg.vdc)
                 outputs = self._outputs(msg.seq, msg.i_a, msg.i_b, msg.i_c, msg.theta_e, msg.omega_m, msg.vdc)
                 self._reply(self._command(msg.seq, outputs, exec_time_ns))
@@ -455,6 +520,7 @@ class BoardLink(BoardLinkBase):
         if self._run_to(end):
             self._idle_left = IDLE_PERIODS  # from each frame's arrival
         self._period_start = end
+        self._sync_encoder()
         self.idle_periods += 1
         if self._collect() and not self._on_bus and not self._sending():  # the firmware answered the last frame
             self._idle_left = self._answer_left = 0

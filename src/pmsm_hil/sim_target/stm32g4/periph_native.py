@@ -1,9 +1,10 @@
-"""The board's motor-control peripherals in C (c/tim1.c, c/adc.c): each library compiled with the host C compiler on
-first use into the firmware cache (keyed by its source, as the instruction counter is), their fixed-size state
-structs mirrored here, the interrupt sink and Python listeners as C callbacks, and their register pages mapped as
-Unicorn MMIO callbacks of the libraries themselves (the Python model behind the board's decoder as the fallback for
-what the C side leaves to it). `NATIVE` switches the models to C (False: the Python references in
-peripherals/tim1.py and peripherals/adc.py, which give the same records: tests/board/test_native_exc.py)."""
+"""The board's motor-control peripherals in C (c/tim1.c, c/adc.c; c/tim_gp.c the encoder timer's CNT read): each
+library compiled with the host C compiler on first use into the firmware cache (keyed by its source, as the
+instruction counter is), their fixed-size state structs mirrored here, the interrupt sink and Python listeners as C
+callbacks, and their register pages mapped as Unicorn MMIO callbacks of the libraries themselves (the Python model
+behind the board's decoder as the fallback for what the C side leaves to it). `NATIVE` switches the models to C
+(False: the Python references in peripherals/tim1.py and peripherals/adc.py, which give the same records:
+tests/board/test_native_exc.py)."""
 
 from __future__ import annotations
 

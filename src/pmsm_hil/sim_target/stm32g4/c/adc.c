@@ -459,6 +459,42 @@ void hil_adc_mmio_write(void *uc, uint64_t offset, unsigned size, uint64_t value
     p->fallback_write(uc, offset, size, value, p->fallback_user);
 }
 
+/* offset + gain x value rounded twice, as Python computes it (no fused multiply-add on a target that has one) */
+#if defined(__clang__)
+#pragma STDC FP_CONTRACT OFF
+#elif defined(__GNUC__)
+#pragma GCC optimize("fp-contract=off")
+#endif
+
+/* A board's analog front end without noise, for the pair's table (a board link's, once a period): input k < n on
+ * ADC adc[k] (0 ADC1, 1 ADC2) channel channel[k] (< TABLE_CHANNELS, checked by the caller that fills this) at
+ * offset[k] + gain[k] x the value of signal signal[k]; VREF+ vref and VREFINT (ADC1 IN18) vrefint [V]. */
+#define FRONT_MAX 32
+typedef struct {
+    hil_adc12_t *pair;
+    int32_t n;
+    int32_t adc[FRONT_MAX], channel[FRONT_MAX], signal[FRONT_MAX];
+    double offset[FRONT_MAX], gain[FRONT_MAX];
+    double vref, vrefint;
+} hil_adc_front_t;
+
+/* The pair's inputs for a period at the signal values `values` (the front end `user`'s signals), in place of
+ * filling the table from Python: every pin at 0 V, then each input in order (a later one on the same pin wins),
+ * then VREFINT on ADC1 IN18; VREF+; the table on. */
+void hil_adc_front_take(void *user, const double *values) {
+    const hil_adc_front_t *f = (const hil_adc_front_t *)user;
+    hil_adc12_t *p = f->pair;
+    memset(p->volts, 0, sizeof p->volts);
+    for (int k = 0; k < f->n; ++k) {
+        p->volts[f->adc[k]][f->channel[k]] = f->offset[k] + f->gain[k] * values[f->signal[k]];
+    }
+    p->volts[0][18] = f->vrefint;
+    p->vref = f->vref;
+    p->table_on = 1;
+}
+
+unsigned hil_adc_front_size(void) { return (unsigned)sizeof(hil_adc_front_t); }
+
 void hil_adc_init(hil_adc12_t *p) {
     for (int i = 0; i < 2; ++i) {
         p->adc[i].pair = p;

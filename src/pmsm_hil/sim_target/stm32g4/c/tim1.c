@@ -4,6 +4,7 @@
  * access of a hot register), its trigger outputs (TRGO, TRGO2, CC1-4) delivered to listeners in C (the ADCs, so no
  * Python runs between an update event and a conversion's start), its interrupt lines through a hil_irq_sink_t.
  * Built on first use by src/pmsm_hil/sim_target/stm32g4/periph_native.py. */
+#include <math.h>
 #include <stdint.h>
 #include <string.h>
 
@@ -640,6 +641,83 @@ void hil_tim1_mmio_write(void *uc, uint64_t offset, unsigned size, uint64_t valu
     }
     t->fallback_write(uc, offset, size, value, t->fallback_user);
 }
+
+/* BDTR.DTG as seconds with tDTS from CR1.CKD (the Python reference's Tim1.dead_time_s, operation for operation) */
+static double dead_time_s(const hil_tim1_t *t, double hclk_hz) {
+    static const double ckd[4] = {1.0, 2.0, 4.0, 4.0};
+    const uint32_t dtg = t->regs[W_BDTR] & 0xFFu;
+    const double t_dts = ckd[t->regs[W_CR1] >> 8 & 3u] / hclk_hz;
+    if (dtg >> 7 == 0u) {
+        return (double)dtg * t_dts;
+    }
+    if (dtg >> 6 == 2u) {
+        return (double)((64u + (dtg & 0x3Fu)) * 2u) * t_dts;
+    }
+    if (dtg >> 5 == 6u) {
+        return (double)((32u + (dtg & 0x1Fu)) * 8u) * t_dts;
+    }
+    return (double)((32u + (dtg & 0x1Fu)) * 16u) * t_dts;
+}
+
+/* OCx's active-high share of a carrier period with the compare value in force (Tim1.duty) */
+static double duty(const hil_tim1_t *t, int ch) {
+    const int mode = oc_mode(t, ch);
+    const int64_t span = cms(t) ? t->arr : t->arr + 1;
+    double ref_high = 0.0;
+    if (span) {
+        ref_high = (double)t->ccr[ch] / (double)span;
+        ref_high = ref_high < 0.0 ? 0.0 : ref_high;
+        ref_high = ref_high > 1.0 ? 1.0 : ref_high;
+    }
+    if (mode == PWM2) {
+        ref_high = 1.0 - ref_high;
+    } else if (mode != PWM1) {
+        ref_high = mode == 5 ? 1.0 : 0.0; /* forced active / anything else inactive */
+    }
+    if (t->regs[W_CCER] >> (4 * ch + 1) & 1u) { /* CCxP: active low */
+        ref_high = 1.0 - ref_high;
+    }
+    return ref_high;
+}
+
+/* The outputs a board link reads once a period (Tim1.compare_duties, the Python reference): with MOE set, the
+ * duties of channels[0..n) (0-based) with the compare values in force, each shortened or lengthened by the dead
+ * time by the sign of currents[k] [A] when its complementary output is on, clamped to 0..1, into out: 1; MOE clear:
+ * 0, out untouched. hclk_hz [Hz], carrier_s [s]. */
+int hil_tim1_compare_duties(const hil_tim1_t *t, int n, const int32_t *channels, const double *currents,
+                            double hclk_hz, double carrier_s, double *out) {
+    double dead;
+    if (!(t->regs[W_BDTR] & MOE)) {
+        return 0;
+    }
+    dead = dead_time_s(t, hclk_hz) / carrier_s;
+    for (int k = 0; k < n; ++k) {
+        const int ch = channels[k];
+        double d = t->regs[W_CCER] >> (4 * ch) & 1u ? duty(t, ch) : 0.5;
+        if ((t->regs[W_CCER] >> (4 * ch + 2) & 1u) && dead != 0.0 && currents[k] != 0.0) {
+            d -= signbit(currents[k]) ? -dead : dead;
+        }
+        d = d < 0.0 ? 0.0 : d;
+        out[k] = d > 1.0 ? 1.0 : d;
+    }
+    return 1;
+}
+
+/* hil_tim1_compare_duties' arguments but the currents, for a board link that calls it without Python */
+typedef struct {
+    const hil_tim1_t *tim;
+    int32_t n;
+    int32_t channels[6];
+    double hclk_hz, carrier_s;
+} hil_tim1_outputs_t;
+
+/* hil_tim1_compare_duties for the outputs `user` (a hil_tim1_outputs_t): 1 with out filled, 0 with MOE clear */
+int hil_tim1_outputs(void *user, const double *currents, double *out) {
+    const hil_tim1_outputs_t *o = (const hil_tim1_outputs_t *)user;
+    return hil_tim1_compare_duties(o->tim, o->n, o->channels, currents, o->hclk_hz, o->carrier_s, out);
+}
+
+unsigned hil_tim1_outputs_size(void) { return (unsigned)sizeof(hil_tim1_outputs_t); }
 
 /* set-up: reset values, the sink, the counter; `ops` for a scheduler in C */
 void hil_tim1_init(hil_tim1_t *t) {

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import ctypes
 import weakref
+from collections.abc import Sequence
 from typing import Any, ClassVar
 
 from pmsm_hil.sim_target.stm32g4 import periph_native as pn
@@ -53,6 +54,19 @@ class Adc12State(ctypes.Structure):
                 ("fallback_read", _P), ("fallback_write", _P), ("fallback_user", _P), ("ops", pn.PeriphOps * 2)]
 
 
+#: the inputs a front end in C holds (FRONT_MAX of c/adc.c)
+FRONT_MAX = 32
+
+
+class FrontEnd(ctypes.Structure):
+    """Mirror of hil_adc_front_t (c/adc.c): a noiseless analog front end of ADC1/ADC2 pins."""
+
+    _fields_ = [("pair", _P), ("n", ctypes.c_int32), ("adc", ctypes.c_int32 * FRONT_MAX),
+                ("channel", ctypes.c_int32 * FRONT_MAX), ("signal", ctypes.c_int32 * FRONT_MAX),
+                ("offset", ctypes.c_double * FRONT_MAX), ("gain", ctypes.c_double * FRONT_MAX),
+                ("vref", ctypes.c_double), ("vrefint", ctypes.c_double)]
+
+
 def _typed(lib: ctypes.CDLL) -> ctypes.CDLL:
     if not getattr(lib, "_hil_typed", False):
         lib.hil_adc_next_event.argtypes, lib.hil_adc_next_event.restype = [_P, _I64], _I64
@@ -64,7 +78,9 @@ def _typed(lib: ctypes.CDLL) -> ctypes.CDLL:
         lib.hil_adc_init.argtypes, lib.hil_adc_init.restype = [_P], None
         lib.hil_adc_code_of.argtypes = [_P, ctypes.c_double, ctypes.c_double]
         lib.hil_adc_code_of.restype = _U32
-        for name, struct in (("hil_adc_size", Adc12State), ("hil_adc_one_size", AdcState)):
+        lib.hil_adc_front_take.argtypes, lib.hil_adc_front_take.restype = [_P, _P], None
+        for name, struct in (("hil_adc_size", Adc12State), ("hil_adc_one_size", AdcState),
+                             ("hil_adc_front_size", FrontEnd)):
             fn = getattr(lib, name)
             fn.argtypes, fn.restype = [], ctypes.c_uint
             if fn() != ctypes.sizeof(struct):
@@ -90,6 +106,7 @@ class Adc12Pair:
         s.code = cb.keep(CODE_FN(self._code))
         s.dma = cb.keep(DMA_FN(cb.guard(self._dma)))
         self.lib.hil_adc_init(ctypes.addressof(s))
+        self._front_end: tuple[FrontEnd, Any] | None = None
 
     def set_inputs(self, vref_v: float, volts: dict[tuple[str, int], float]) -> None:
         """Take each conversion's code from `volts` ((ADC name, channel) -> the pin's voltage [V], 0 V for one not
@@ -104,6 +121,40 @@ class Adc12Pair:
             s.volts[0 if adc == "ADC1" else 1][channel] = v
         s.vref = vref_v
         s.table_on = 1
+
+    def set_front_end(self, inputs: Sequence[tuple[str, int, float, float, int]], n_signals: int, vref_v: float,
+                      vrefint_v: float) -> None:
+        """The noiseless front end `take` computes the table from: per input (ADC name, channel, offset [V], gain [V
+        per unit], the index of its signal among `take`'s `n_signals` values; at most FRONT_MAX), later inputs on the
+        same pin winning; VREF+ `vref_v` and VREFINT (ADC1 IN18) `vrefint_v` [V]."""
+        if len(inputs) > FRONT_MAX:
+            raise BoardError(f"ADC inputs: {len(inputs)} analog inputs, the table's front end holds {FRONT_MAX}")
+        front = FrontEnd()
+        front.pair, front.n, front.vref, front.vrefint = ctypes.addressof(self.state), len(inputs), vref_v, vrefint_v
+        for k, (adc, channel, offset, gain, signal) in enumerate(inputs):
+            if adc not in ("ADC1", "ADC2") or not 0 <= channel < 32:
+                raise BoardError(f"ADC input {adc} channel {channel}: the table holds ADC1/ADC2 channels 0-31")
+            if not 0 <= signal < n_signals:
+                raise BoardError(f"ADC input {adc} channel {channel}: signal index {signal} outside 0-{n_signals - 1}")
+            front.adc[k], front.channel[k], front.offset[k], front.gain[k], front.signal[k] = (
+                0 if adc == "ADC1" else 1, channel, offset, gain, signal)
+        self._front_end = (front, (ctypes.c_double * n_signals)())
+
+    def take(self, values: Sequence[float]) -> None:
+        """The period's pin voltages from the front end (`set_front_end`) at signal values `values` into the table,
+        in one call (as `set_inputs` with each input's offset + gain x value)."""
+        if self._front_end is None:
+            raise BoardError("Adc12Pair.take before set_front_end")
+        front, table = self._front_end
+        table[:] = values
+        self.lib.hil_adc_front_take(ctypes.addressof(front), table)
+
+    def take_function(self) -> tuple[int, int]:
+        """(address of hil_adc_front_take, its front end) for a caller in C that fills the table itself (`take`
+        without Python)."""
+        if self._front_end is None:
+            raise BoardError("Adc12Pair.take_function before set_front_end")
+        return pn.address(self.lib.hil_adc_front_take), ctypes.addressof(self._front_end[0])
 
     def clear_inputs(self) -> None:
         """Take each conversion's code from the board's analog front end again (Adc._code, in Python)."""

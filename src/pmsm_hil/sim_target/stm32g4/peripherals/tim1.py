@@ -19,7 +19,8 @@ BRK2, COM events and dithering are not modelled (a write that enables one is ref
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import math
+from collections.abc import Callable, Sequence
 from typing import ClassVar
 
 from pmsm_hil.sim_target.stm32g4 import periph_native
@@ -158,6 +159,24 @@ class Tim1(RegisterFile):
         if self.regs[CCER] >> (4 * ch + 1) & 1:  # CCxP: active low
             ref_high = 1.0 - ref_high
         return ref_high
+
+    def compare_duties(self, channels: Sequence[int], currents: Sequence[float], hclk_hz: int,
+                       carrier_s: float) -> tuple[float, ...] | None:
+        """The outputs a board link reads once a period: with MOE set, the duties of `channels` (0-based) with the
+        compare values in force (PWM mode, polarity; 0.5 for a disabled output), each shortened or lengthened by the
+        dead time according to the sign of its phase current in `currents` [A] when its complementary output is
+        on, clamped to 0..1 (`hclk_hz` [Hz] the timer's clock, `carrier_s` [s] its period); None with MOE clear."""
+        if not self.moe:
+            return None
+        dead = self.dead_time_s(hclk_hz) / carrier_s
+        ccer = self.regs[CCER]
+        out = []
+        for ch, current in zip(channels, currents, strict=True):
+            d = self.duty(ch) if ccer >> (4 * ch) & 1 else 0.5
+            if ccer >> (4 * ch + 2) & 1 and dead and current != 0.0:
+                d -= math.copysign(dead, current)
+            out.append(min(max(d, 0.0), 1.0))
+        return tuple(out)
 
     def trip_break(self) -> None:
         """The break input went active: MOE cleared, BIF set (its interrupt on TIM1_BRK when BIE)."""

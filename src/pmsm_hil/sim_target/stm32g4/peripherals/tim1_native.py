@@ -5,7 +5,7 @@ served by the library's MMIO callbacks (the board maps them: `native_page`, `map
 from __future__ import annotations
 
 import ctypes
-from collections.abc import Iterator, MutableMapping
+from collections.abc import Iterator, MutableMapping, Sequence
 from typing import Any
 
 from pmsm_hil.sim_target.stm32g4 import periph_native as pn
@@ -38,10 +38,22 @@ def _typed(lib: ctypes.CDLL) -> ctypes.CDLL:
         lib.hil_tim1_unsubscribe.argtypes, lib.hil_tim1_unsubscribe.restype = [_P, _P, _P], None
         lib.hil_tim1_init.argtypes, lib.hil_tim1_init.restype = [_P], None
         lib.hil_tim1_size.argtypes, lib.hil_tim1_size.restype = [], ctypes.c_uint
+        lib.hil_tim1_compare_duties.argtypes = [_P, _INT, _P, _P, ctypes.c_double, ctypes.c_double, _P]
+        lib.hil_tim1_compare_duties.restype = _INT
+        lib.hil_tim1_outputs_size.argtypes, lib.hil_tim1_outputs_size.restype = [], ctypes.c_uint
+        if lib.hil_tim1_outputs_size() != ctypes.sizeof(OutputsState):
+            raise pn.PeriphBuildError("c/tim1.c's hil_tim1_outputs_t and tim1_native.OutputsState differ in size")
         if lib.hil_tim1_size() != ctypes.sizeof(pn.Tim1State):
             raise pn.PeriphBuildError("c/tim1.c's hil_tim1_t and periph_native.Tim1State differ in size")
         lib._hil_typed = True  # type: ignore[attr-defined]
     return lib
+
+
+class OutputsState(ctypes.Structure):
+    """Mirror of hil_tim1_outputs_t (c/tim1.c)."""
+
+    _fields_ = [("tim", _P), ("n", ctypes.c_int32), ("channels", ctypes.c_int32 * 6), ("hclk_hz", ctypes.c_double),
+                ("carrier_s", ctypes.c_double)]
 
 
 class CRegs(MutableMapping[int, int]):
@@ -102,6 +114,8 @@ class NativeTim1(Tim1):
         s.sink = self._cb.sink(self.bus.set_pending, self.bus.clear_pending)
         lib.hil_tim1_init(self._p)
         self._keep: list[Any] = []
+        #: compare_duties' arrays: (channels, channels in C, currents, duties)
+        self._duty_buffers: tuple[tuple[int, ...], Any, Any, Any] | None = None
 
     # --- the state the reference keeps in attributes (read by the board link and the metrics) ---------------------
 
@@ -165,6 +179,36 @@ class NativeTim1(Tim1):
         value = int(self._lib.hil_tim1_counter(self._p, now))
         self._cb.check()
         return value
+
+    def compare_duties(self, channels: Sequence[int], currents: Sequence[float], hclk_hz: int,
+                       carrier_s: float) -> tuple[float, ...] | None:
+        """The reference's, in one call into the library (hil_tim1_compare_duties)."""
+        buffers = self._duty_buffers
+        if buffers is None or (buffers[0] is not channels and buffers[0] != tuple(channels)):
+            n = len(channels)
+            buffers = self._duty_buffers = (tuple(channels), (ctypes.c_int32 * n)(*channels), (ctypes.c_double * n)(),
+                                            (ctypes.c_double * n)())
+        _, ch, cur, out = buffers
+        cur[:] = currents
+        if not self._lib.hil_tim1_compare_duties(self._p, len(ch), ch, cur, hclk_hz, carrier_s, out):
+            return None
+        return tuple(out)
+
+    def outputs_function(self, channels: Sequence[int], hclk_hz: int, carrier_s: float) -> tuple[int, int]:
+        """(address of hil_tim1_outputs, its arguments) for a caller in C: `compare_duties` for these channels,
+        clock and carrier period without Python (`int fn(void *user, const double *currents, double *duties)`)."""
+        if not 0 < len(channels) <= 6:
+            raise BoardError(f"TIM1 outputs: {len(channels)} channels (1 to 6)")
+        o = OutputsState()
+        o.tim, o.n, o.hclk_hz, o.carrier_s = self._p, len(channels), hclk_hz, carrier_s
+        for k, ch in enumerate(channels):
+            o.channels[k] = ch
+        self._outputs_args = o  # kept alive with the model
+        return pn.address(self._lib.hil_tim1_outputs), ctypes.addressof(o)
+
+    @property
+    def moe(self) -> bool:
+        return bool(self._s.regs[0x11] >> 15 & 1)  # BDTR
 
     def trip_break(self) -> None:
         self._lib.hil_tim1_trip_break(self._p)

@@ -61,8 +61,19 @@ int nl_board_send(nl_board_link_t *s, const hil_core_frame_t *f)
     m.vdc = (double)raw.vdc * s->scale_vdc;
     memset(&cmd, 0, sizeof cmd);
     s->stats.frames_tx++;
+    if (s->inputs) {
+        const double values[4] = {m.i_a, m.i_b, m.i_c, m.vdc};
+        s->inputs(s->inputs_user, values);
+    }
     if (s->period(s->ctx, &m, &cmd) != 0) {
         return -1;
+    }
+    if (cmd.form == NL_BOARD_OUTPUTS) { /* the board answered only after checking that `outputs` has duties */
+        const double currents[3] = {m.i_a, m.i_b, m.i_c};
+        if (!s->outputs || !s->outputs(s->outputs_user, currents, cmd.duties)) {
+            return -1;
+        }
+        cmd.form = NL_BOARD_DUTIES;
     }
     if (cmd.form == NL_BOARD_DUTIES) {
         queue_command(s, raw.seq, &cmd);

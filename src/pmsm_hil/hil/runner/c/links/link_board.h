@@ -29,6 +29,7 @@ typedef struct {
 /* What the board answered (nl_board_cmd_t.form). */
 #define NL_BOARD_HELD 0        /* nothing here: the board queued its reply (if any) in Python */
 #define NL_BOARD_DUTIES 1      /* a three-phase duty-cycle Command: duties, exec_time_ns */
+#define NL_BOARD_OUTPUTS 2     /* a three-phase duty-cycle Command with exec_time_ns, its duties from `outputs` */
 
 typedef struct {
     uint8_t form;              /* NL_BOARD_* */
@@ -40,6 +41,12 @@ typedef struct {
  * link's error: the loop stops). */
 typedef int (*nl_board_period_fn)(void *ctx, const nl_board_meas_t *m, nl_board_cmd_t *cmd);
 
+/* The board's models in C, called here without Python (null: the board does it in `period`): `inputs(inputs_user,
+ * {i_a, i_b, i_c, vdc})` before `period` (the ADC pair's table of pin voltages), `outputs(outputs_user, {i_a, i_b,
+ * i_c}, duties)` after a `period` that answered NL_BOARD_OUTPUTS (TIM1's compare duties: 1, 0 when it has none). */
+typedef void (*nl_board_inputs_fn)(void *user, const double *values);
+typedef int (*nl_board_outputs_fn)(void *user, const double *currents, double *duties);
+
 #define NL_BOARD_QUEUE 2
 
 typedef struct {
@@ -47,6 +54,10 @@ typedef struct {
     nl_board_period_fn period;
     void *ctx;                 /* the board's Python end (`period`'s ctx) */
     double scale_i, scale_theta, scale_omega, scale_vdc; /* MeasFd's signal scales (the Python codec's) */
+    nl_board_inputs_fn inputs;
+    void *inputs_user;
+    nl_board_outputs_fn outputs;
+    void *outputs_user;
     int32_t py_pending;        /* 0: a receive in Python would find nothing and do nothing (set by Python) */
     int32_t q_head, q_n;
     hil_core_frame_t q[NL_BOARD_QUEUE];
