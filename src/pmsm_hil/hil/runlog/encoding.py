@@ -28,35 +28,15 @@ UNITS: Final = layouts.UNITS
 METADATA_JSON_SCHEMA: Final = layouts.METADATA_JSON_SCHEMA
 
 
-def _json_type(kind: str) -> Any:
-    if kind == "f":
-        return ["number", "null"]
-    return "integer"
-
-
 def json_schema(dtype: np.dtype, title: str) -> bytes:
-    """JSON schema (draft 7) describing one record of the structured `dtype` as a JSON object."""
-    props: dict[str, Any] = {}
+    """JSON schema (draft 7) describing one record of the structured `dtype` as a JSON object (`layouts.json_schema`
+    of its fields)."""
+    fields = []
     for name in dtype.names or ():
         field = dtype[name]
-        base: dict[str, Any] = {"type": _json_type(field.base.kind)}
-        if name in UNITS:
-            base["description"] = UNITS[name]
-        if field.shape:
-            props[name] = {
-                "type": "array",
-                "items": {"type": base["type"]},
-                **({"description": base["description"]} if "description" in base else {}),
-            }
-        else:
-            props[name] = base
-    schema = {
-        "$schema": "http://json-schema.org/draft-07/schema#",
-        "title": title,
-        "type": "object",
-        "properties": props,
-    }
-    return json.dumps(schema).encode()
+        fields.append(layouts.Field(name, f"{field.base.kind}{field.base.itemsize}",
+                                    int(np.prod(field.shape)) if field.shape else 0))
+    return layouts.json_schema(fields, title)
 
 
 def _template(dtype: np.dtype, names: Sequence[str]) -> str:
