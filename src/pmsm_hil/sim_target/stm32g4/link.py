@@ -297,7 +297,7 @@ class BoardLink(BoardLinkBase):
         sleep0 = board.sleep_cycles
         isr0 = board.handler_cycles
         late0 = tim.late_writes
-        entries0 = sum(st.entries for st in board.isr.values())
+        entries0 = board.exception_entries
         end = self._period_start + self.period_cycles
         if self._on_bus:
             self._deliver_queued()
@@ -312,7 +312,7 @@ class BoardLink(BoardLinkBase):
         isr = board.handler_cycles - isr0
         self.sleep_cycles.append(board.sleep_cycles - sleep0)
         self.late_per_period.append(tim.late_writes - late0)
-        self.entries_per_period.append(sum(st.entries for st in board.isr.values()) - entries0)
+        self.entries_per_period.append(board.exception_entries - entries0)
         self.isr_cycles.append(isr)  # last: a period counts as recorded once this list has it (period_records)
         if self.late_first_period is None and tim.first_late_update is not None:
             self.late_first_period = self.periods
