@@ -120,6 +120,11 @@ class BoardLink(BoardLinkBase):
         #: the encoder timer whose CNT reads are answered in C from `_encoder`'s values (`_sync_encoder`), or None
         self._c_encoder = timer if isinstance(timer, GeneralTimer) and timer.arm_encoder(desc.encoder_lines) else None
         self._sync_encoder()
+        #: the C read's encoder struct, set field by field once a period (the angle and speed before it, its start
+        #: after it: `_sync_encoder` at every other change), or None
+        self._encoder_state = self._c_encoder.encoder_state() if self._c_encoder is not None else None
+        #: the C core's counters, read directly once a period (Board.LAZY_STATS), or None: through the board
+        self._core_counts = self.board._core if self.board._lazy_stats else None
         #: the hall sensors of the board description on their GPIO pins (None: the board has none)
         self.halls: HallSensors | None = None
         #: the electrical angle the hall sensors hold in idle periods (the plant does not advance then) [rad]
@@ -283,7 +288,11 @@ class BoardLink(BoardLinkBase):
             self._theta_m = theta_e / self.pole_pairs
         self._theta_e = theta_e
         self._omega_m = omega_m
-        self._sync_encoder()
+        state = self._encoder_state
+        if state is not None:  # the period's start and the clock are those of the last `_sync_encoder`
+            state.theta_m, state.omega_m = self._theta_m, omega_m
+        else:
+            self._sync_encoder()
         limit = self.desc.break_overcurrent_a
         if limit is not None:  # the board's overcurrent comparator on BKIN, judged on the period's sample
             over = max(abs(i_a), abs(i_b), abs(i_c)) > limit
@@ -294,10 +303,12 @@ class BoardLink(BoardLinkBase):
         as exec_time_ns."""
         board, tim = self.board, self._tim1
         self._take(i_a, i_b, i_c, theta_e, omega_m, vdc)
-        sleep0 = board.sleep_cycles
-        isr0 = board.handler_cycles
+        core = self._core_counts
+        if core is not None:
+            sleep0, isr0, entries0 = core.sleep_cycles, core.handler_cycles, core.exc_entries
+        else:
+            sleep0, isr0, entries0 = board.sleep_cycles, board.handler_cycles, board.exception_entries
         late0 = tim.late_writes
-        entries0 = board.exception_entries
         end = self._period_start + self.period_cycles
         if self._on_bus:
             self._deliver_queued()
@@ -308,11 +319,19 @@ class BoardLink(BoardLinkBase):
                 self._bus_free = now
             board.run_until(end)
         self._period_start = end
-        self._sync_encoder()
-        isr = board.handler_cycles - isr0
-        self.sleep_cycles.append(board.sleep_cycles - sleep0)
+        state = self._encoder_state
+        if state is not None:  # the angle, the speed and the clock as `_take` left them
+            state.period_start = end
+        if core is not None:
+            isr = core.handler_cycles - isr0
+            self.sleep_cycles.append(core.sleep_cycles - sleep0)
+            entries = core.exc_entries - entries0
+        else:
+            isr = board.handler_cycles - isr0
+            self.sleep_cycles.append(board.sleep_cycles - sleep0)
+            entries = board.exception_entries - entries0
         self.late_per_period.append(tim.late_writes - late0)
-        self.entries_per_period.append(board.exception_entries - entries0)
+        self.entries_per_period.append(entries)
         self.isr_cycles.append(isr)  # last: a period counts as recorded once this list has it (period_records)
         if self.late_first_period is None and tim.first_late_update is not None:
             self.late_first_period = self.periods
