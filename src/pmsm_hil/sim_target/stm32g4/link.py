@@ -238,10 +238,11 @@ class BoardLink(BoardLinkBase):
         if opamps is not None:
             opamp, numbers = opamps
             csr = opamp.csr
-            if any(csr[k] & OPAINTOEN for k in numbers):
-                self._update_volts(i_a, i_b, i_c, vdc)
-                pair.clear_inputs()
-                return
+            for k in numbers:
+                if csr[k] & OPAINTOEN:
+                    self._update_volts(i_a, i_b, i_c, vdc)
+                    pair.clear_inputs()
+                    return
         if not self._table_in_c:
             pair.take((i_a, i_b, i_c, vdc))
         self._stale_signals = (i_a, i_b, i_c, vdc)
@@ -314,9 +315,10 @@ class BoardLink(BoardLinkBase):
             self._deliver_queued()
             self._run_to(end)
         else:  # as _deliver_queued and _run_to with no host frame on the bus
-            now = board.now
-            if self._bus_free > now:
-                self._bus_free = now
+            if self._bus_free > self._period_start:  # (the board is at the period's start or past it)
+                now = board.now
+                if self._bus_free > now:
+                    self._bus_free = now
             board.run_until(end)
         self._period_start = end
         state = self._encoder_state
