@@ -305,6 +305,9 @@ class BoardLink(BoardLinkBase):
         board, tim = self.board, self._tim1
         self._take(i_a, i_b, i_c, theta_e, omega_m, vdc)
         core = self._core_counts
+        sleep0: int
+        isr0: int
+        entries0: int
         if core is not None:
             sleep0, isr0, entries0 = core.sleep_cycles, core.handler_cycles, core.exc_entries
         else:
@@ -324,6 +327,8 @@ class BoardLink(BoardLinkBase):
         state = self._encoder_state
         if state is not None:  # the angle, the speed and the clock as `_take` left them
             state.period_start = end
+        isr: int
+        entries: int
         if core is not None:
             isr = core.handler_cycles - isr0
             self.sleep_cycles.append(core.sleep_cycles - sleep0)
