@@ -56,6 +56,7 @@ from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import BDTR as TIM1_BDTR
 from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import CCER as TIM1_CCER
 from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import CR2 as TIM1_CR2
 from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import Tim1
+from pmsm_hil.sim_target.stm32g4.peripherals.tim1_native import NativeTim1
 from pmsm_hil.sim_target.stm32g4.peripherals.tim_gp import GeneralTimer
 
 #: carrier period mismatch tolerated between the firmware and --ts [s]
@@ -73,6 +74,8 @@ class BoardLink(BoardLinkBase):
                  can_bitrates: tuple[int | None, int | None] = (None, None)) -> None:
         super().__init__(elf, desc, skip_periods=skip_periods, console=console)
         self._tim1 = self.tim1
+        #: TIM1 when it is the model in C (its counters read from `native_state`), else None
+        self._tim1_c = self._tim1 if isinstance(self._tim1, NativeTim1) else None
         self.pole_pairs = pole_pairs
         self.codec = FrameCodec("canfd")
         self.decoder = FrameDecoder(ordered=False)
@@ -312,7 +315,10 @@ class BoardLink(BoardLinkBase):
             sleep0, isr0, entries0 = core.sleep_cycles, core.handler_cycles, core.exc_entries
         else:
             sleep0, isr0, entries0 = board.sleep_cycles, board.handler_cycles, board.exception_entries
-        late0 = tim.late_writes
+        # TIM1's C state (the model in C: its counters read directly), else None
+        tim_c = self._tim1_c
+        ts = tim_c.native_state if tim_c is not None else None
+        late0: int = ts.late_writes if ts is not None else tim.late_writes
         end = self._period_start + self.period_cycles
         if self._on_bus:
             self._deliver_queued()
@@ -337,10 +343,16 @@ class BoardLink(BoardLinkBase):
             isr = board.handler_cycles - isr0
             self.sleep_cycles.append(board.sleep_cycles - sleep0)
             entries = board.exception_entries - entries0
-        self.late_per_period.append(tim.late_writes - late0)
+        if tim_c is not None:
+            ts = tim_c.native_state  # again: a reset during the period gives the model a new struct
+            self.late_per_period.append(ts.late_writes - late0)
+            late_seen = ts.first_late_update >= 0
+        else:
+            self.late_per_period.append(tim.late_writes - late0)
+            late_seen = tim.first_late_update is not None
         self.entries_per_period.append(entries)
         self.isr_cycles.append(isr)  # last: a period counts as recorded once this list has it (period_records)
-        if self.late_first_period is None and tim.first_late_update is not None:
+        if self.late_first_period is None and late_seen:
             self.late_first_period = self.periods
         self.periods += 1
         return round(isr / self.hclk_hz * 1e9)
