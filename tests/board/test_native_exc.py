@@ -45,13 +45,15 @@ FAST_PATHS: dict[str, tuple[Any, str, str]] = {
     "event_driven": (Board, "EVENT_DRIVEN", "the C scheduler caching the event-driven models' next events and the "
                      "one asking them at every step"),
     "native_periph": (periph_native, "NATIVE", "the C and the Python TIM1 and ADC models"),
-    "native_encoder": (tim_gp, "NATIVE_ENCODER", "the encoder timer's CNT read in C and in Python")}
+    "native_encoder": (tim_gp, "NATIVE_ENCODER", "the encoder timer's CNT read in C and in Python"),
+    "lazy_stats": (Board, "LAZY_STATS", "the ISR statistics taken from the C core's log when read with the entries "
+                   "counted in C and the log drained after every run_until with the entries summed")}
 
 
 def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch: pytest.MonkeyPatch,
             periods: int = PERIODS, skip_quiet: bool = True, native_core: bool = True,
             native_periph: bool = True, event_driven: bool = True,
-            native_encoder: bool = True) -> dict[str, Any]:
+            native_encoder: bool = True, lazy_stats: bool = True) -> dict[str, Any]:
     """Everything a run of `periods` Measurements leaves, with the board's C paths (exception frames, the DWT page's
     reads) or the Python reference, with the scheduler skipping quiet models or asking every model every step, with
     the scheduler, NVIC and SysTick in C or in Python, with TIM1 and the ADCs in C or in Python."""
@@ -61,9 +63,11 @@ def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch:
     monkeypatch.setattr(Board, "EVENT_DRIVEN", event_driven)
     monkeypatch.setattr(periph_native, "NATIVE", native_periph)
     monkeypatch.setattr(tim_gp, "NATIVE_ENCODER", native_encoder)
+    monkeypatch.setattr(Board, "LAZY_STATS", lazy_stats)
     link = BoardLink(elf, load_board(board_file), ts_s=TS, pole_pairs=4)
     assert (link._c_encoder is not None) == (native_encoder and link.desc.encoder_timer == "TIM3")
     assert (link.board.exceptions._native is not None) == native
+    assert link.board._lazy_stats == (lazy_stats and link.board._native_core)
     assert hasattr(link.board, "_dwt") == native
     assert link.board._native_core == (native and skip_quiet and native_core)
     assert all(getattr(link.board.peripherals[name], "native_page", None) is not None or name == "ADC2"
@@ -105,7 +109,7 @@ def same(path: str, elf: Path, board_file: str | Path | None, monkeypatch: pytes
     reference = records(elf, board_file, path != "native_exc", monkeypatch, periods,
                         skip_quiet=path != "quiet_skip", native_core=path != "native_core",
                         native_periph=path != "native_periph", event_driven=path != "event_driven",
-                        native_encoder=path != "native_encoder")
+                        native_encoder=path != "native_encoder", lazy_stats=path != "lazy_stats")
     native = records(elf, board_file, True, monkeypatch, periods)
     for key in reference:
         assert native[key] == reference[key], f"{key} differs between {what}"

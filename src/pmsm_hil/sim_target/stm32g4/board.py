@@ -120,6 +120,11 @@ class Board:
     #: not after a read nor at each run_until (needs NATIVE_CORE; False: asked at every step, the reference, which
     #: gives the same records: tests/board/test_native_exc.py)
     EVENT_DRIVEN = True
+    #: the ISR statistics (`isr`) taken from the C core's log when it is full or when they are read, and the
+    #: exception entries counted by the core (`exception_entries`), instead of the log drained after every run_until
+    #: and the entries summed over the statistics (needs NATIVE_CORE; False: the reference, which gives the same
+    #: records: tests/board/test_native_exc.py)
+    LAZY_STATS = True
 
     def __init__(self, part: Part, elf: str | Path, *, console: Callable[[str, str], None] | None = None,
                  hse_hz: int = 24_000_000) -> None:
@@ -130,6 +135,8 @@ class Board:
         self._console = console
         self.console_lines: list[tuple[str, str]] = []
         self._native_core = self.NATIVE_CORE and self.NATIVE and self.SKIP_QUIET
+        #: the C core's log goes into `isr` when full or read (LAZY_STATS), not after every run_until
+        self._lazy_stats = self._native_core and self.LAZY_STATS
         #: the NVIC's and SysTick's state and the scheduler's counters, read by the C core and the Python objects
         self._core: CoreState = new_core()
         self._core_lib = core_native.library()
@@ -174,7 +181,7 @@ class Board:
         self._may_rest = frozenset(p for p in self.peripherals.values() if callable(getattr(p, "quiet", None)))
         self._resting: set[Peripheral] = set()
         self._woken: set[Peripheral] = set()  # resting models accessed since the last step
-        self.isr: dict[int, IsrStats] = {}  # by exception number
+        self._isr: dict[int, IsrStats] = {}  # by exception number
         self._assert_time = AssertTimes(self._core.nvic)
         self._entry_stack: list[tuple[int, int]] = []  # (exception, cycle of entry)
         #: the analog front end: (adc, channel, cycle) -> volts; channel -1 is VREF+ (the board description's)
@@ -215,6 +222,20 @@ class Board:
     @handler_cycles.setter
     def handler_cycles(self, value: int) -> None:
         self._core.handler_cycles = value
+
+    @property
+    def isr(self) -> dict[int, IsrStats]:
+        """What the board saw of each exception so far, by exception number."""
+        if self._lazy_stats and self._core.n_log:
+            self._drain()
+        return self._isr
+
+    @property
+    def exception_entries(self) -> int:
+        """Exception entries so far (of every exception: the sum of `isr`'s entries)."""
+        if self._lazy_stats:
+            return int(self._core.exc_entries)
+        return sum(st.entries for st in self.isr.values())
 
     # --- the C core ---------------------------------------------------------------------------------------------
 
@@ -640,7 +661,7 @@ class Board:
         return bool(primask & 1), basepri
 
     def _enter(self, exc: int) -> None:
-        stats = self.isr.setdefault(exc, IsrStats())
+        stats = self._isr.setdefault(exc, IsrStats())
         stats.entries += 1
         asserted = self._assert_time.pop(exc, None)
         self.exceptions.enter(exc)
@@ -654,7 +675,7 @@ class Board:
         exc = self.exceptions.leave(exc_return)
         entered_exc, at = self._entry_stack.pop()
         spent = self.cpu.count - at
-        cycles = self.isr[entered_exc].cycles
+        cycles = self._isr[entered_exc].cycles
         cycles.append(spent)
         if len(cycles) > KEEP_SAMPLES:
             del cycles[:KEEP_SAMPLES // 2]
@@ -709,7 +730,8 @@ class Board:
                     self._native_stop(rc)
                 self._drain()
         finally:
-            self._drain()
+            if not self._lazy_stats:
+                self._drain()
 
     def _native_stop(self, rc: int) -> None:
         """Raise what the C loop stopped for."""
@@ -742,7 +764,7 @@ class Board:
         records = [(excs[i], kinds[i], values[i]) for i in range(n)] if n < 16 else \
             list(zip(excs[:n], kinds[:n], values[:n], strict=True))
         core.n_log = 0
-        isr = self.isr
+        isr = self._isr
         for exc, kind, value in records:
             if kind == 0:
                 stats = isr.get(exc)

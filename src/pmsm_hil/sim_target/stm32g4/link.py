@@ -56,6 +56,7 @@ from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import BDTR as TIM1_BDTR
 from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import CCER as TIM1_CCER
 from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import CR2 as TIM1_CR2
 from pmsm_hil.sim_target.stm32g4.peripherals.tim1 import Tim1
+from pmsm_hil.sim_target.stm32g4.peripherals.tim1_native import NativeTim1
 from pmsm_hil.sim_target.stm32g4.peripherals.tim_gp import GeneralTimer
 
 #: carrier period mismatch tolerated between the firmware and --ts [s]
@@ -73,6 +74,8 @@ class BoardLink(BoardLinkBase):
                  can_bitrates: tuple[int | None, int | None] = (None, None)) -> None:
         super().__init__(elf, desc, skip_periods=skip_periods, console=console)
         self._tim1 = self.tim1
+        #: TIM1 when it is the model in C (its counters read from `native_state`), else None
+        self._tim1_c = self._tim1 if isinstance(self._tim1, NativeTim1) else None
         self.pole_pairs = pole_pairs
         self.codec = FrameCodec("canfd")
         self.decoder = FrameDecoder(ordered=False)
@@ -120,6 +123,11 @@ class BoardLink(BoardLinkBase):
         #: the encoder timer whose CNT reads are answered in C from `_encoder`'s values (`_sync_encoder`), or None
         self._c_encoder = timer if isinstance(timer, GeneralTimer) and timer.arm_encoder(desc.encoder_lines) else None
         self._sync_encoder()
+        #: the C read's encoder struct, set field by field once a period (the angle and speed before it, its start
+        #: after it: `_sync_encoder` at every other change), or None
+        self._encoder_state = self._c_encoder.encoder_state() if self._c_encoder is not None else None
+        #: the C core's counters, read directly once a period (Board.LAZY_STATS), or None: through the board
+        self._core_counts = self.board._core if self.board._lazy_stats else None
         #: the hall sensors of the board description on their GPIO pins (None: the board has none)
         self.halls: HallSensors | None = None
         #: the electrical angle the hall sensors hold in idle periods (the plant does not advance then) [rad]
@@ -233,10 +241,11 @@ class BoardLink(BoardLinkBase):
         if opamps is not None:
             opamp, numbers = opamps
             csr = opamp.csr
-            if any(csr[k] & OPAINTOEN for k in numbers):
-                self._update_volts(i_a, i_b, i_c, vdc)
-                pair.clear_inputs()
-                return
+            for k in numbers:
+                if csr[k] & OPAINTOEN:
+                    self._update_volts(i_a, i_b, i_c, vdc)
+                    pair.clear_inputs()
+                    return
         if not self._table_in_c:
             pair.take((i_a, i_b, i_c, vdc))
         self._stale_signals = (i_a, i_b, i_c, vdc)
@@ -283,7 +292,11 @@ class BoardLink(BoardLinkBase):
             self._theta_m = theta_e / self.pole_pairs
         self._theta_e = theta_e
         self._omega_m = omega_m
-        self._sync_encoder()
+        state = self._encoder_state
+        if state is not None:  # the period's start and the clock are those of the last `_sync_encoder`
+            state.theta_m, state.omega_m = self._theta_m, omega_m
+        else:
+            self._sync_encoder()
         limit = self.desc.break_overcurrent_a
         if limit is not None:  # the board's overcurrent comparator on BKIN, judged on the period's sample
             over = max(abs(i_a), abs(i_b), abs(i_c)) > limit
@@ -294,27 +307,52 @@ class BoardLink(BoardLinkBase):
         as exec_time_ns."""
         board, tim = self.board, self._tim1
         self._take(i_a, i_b, i_c, theta_e, omega_m, vdc)
-        sleep0 = board.sleep_cycles
-        isr0 = board.handler_cycles
-        late0 = tim.late_writes
-        entries0 = sum(st.entries for st in board.isr.values())
+        core = self._core_counts
+        sleep0: int
+        isr0: int
+        entries0: int
+        if core is not None:
+            sleep0, isr0, entries0 = core.sleep_cycles, core.handler_cycles, core.exc_entries
+        else:
+            sleep0, isr0, entries0 = board.sleep_cycles, board.handler_cycles, board.exception_entries
+        # TIM1's C state (the model in C: its counters read directly), else None
+        tim_c = self._tim1_c
+        ts = tim_c.native_state if tim_c is not None else None
+        late0: int = ts.late_writes if ts is not None else tim.late_writes
         end = self._period_start + self.period_cycles
         if self._on_bus:
             self._deliver_queued()
             self._run_to(end)
         else:  # as _deliver_queued and _run_to with no host frame on the bus
-            now = board.now
-            if self._bus_free > now:
-                self._bus_free = now
+            if self._bus_free > self._period_start:  # (the board is at the period's start or past it)
+                now = board.now
+                if self._bus_free > now:
+                    self._bus_free = now
             board.run_until(end)
         self._period_start = end
-        self._sync_encoder()
-        isr = board.handler_cycles - isr0
-        self.sleep_cycles.append(board.sleep_cycles - sleep0)
-        self.late_per_period.append(tim.late_writes - late0)
-        self.entries_per_period.append(sum(st.entries for st in board.isr.values()) - entries0)
+        state = self._encoder_state
+        if state is not None:  # the angle, the speed and the clock as `_take` left them
+            state.period_start = end
+        isr: int
+        entries: int
+        if core is not None:
+            isr = core.handler_cycles - isr0
+            self.sleep_cycles.append(core.sleep_cycles - sleep0)
+            entries = core.exc_entries - entries0
+        else:
+            isr = board.handler_cycles - isr0
+            self.sleep_cycles.append(board.sleep_cycles - sleep0)
+            entries = board.exception_entries - entries0
+        if tim_c is not None:
+            ts = tim_c.native_state  # again: a reset during the period gives the model a new struct
+            self.late_per_period.append(ts.late_writes - late0)
+            late_seen = ts.first_late_update >= 0
+        else:
+            self.late_per_period.append(tim.late_writes - late0)
+            late_seen = tim.first_late_update is not None
+        self.entries_per_period.append(entries)
         self.isr_cycles.append(isr)  # last: a period counts as recorded once this list has it (period_records)
-        if self.late_first_period is None and tim.first_late_update is not None:
+        if self.late_first_period is None and late_seen:
             self.late_first_period = self.periods
         self.periods += 1
         return round(isr / self.hclk_hz * 1e9)

@@ -146,6 +146,12 @@ class NativeTim1(Tim1):
         return [bool(v) for v in self._s.ocref]
 
     @property
+    def native_state(self) -> pn.Tim1State:
+        """The model's C state (a new struct after each reset): its late-compare counters read directly once a
+        period by the board link."""
+        return self._s
+
+    @property
     def first_late_update(self) -> int | None:  # type: ignore[override]
         value = int(self._s.first_late_update)
         return None if value < 0 else value

@@ -336,6 +336,11 @@ class GeneralTimer(RegisterFile):
         if c is not None:
             c.theta_m, c.omega_m, c.period_start, c.hclk_hz = theta_m, omega_m, period_start, hclk_hz
 
+    def encoder_state(self) -> TimGpState | None:
+        """The C read's struct whose encoder fields (theta_m, omega_m, period_start, hclk_hz) `sync_encoder` sets, for
+        a caller that keeps them current and sets only those that changed (None: no C read)."""
+        return self._c
+
     def _push(self) -> None:
         """The model's state after a store into the C read's struct, armed while the encoder is (the C read's state
         given back to Python for good when a count leaves the range it takes: `_detach`)."""
