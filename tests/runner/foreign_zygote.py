@@ -11,15 +11,17 @@ the target is the zygote's child, not the worker's)."""
 
 from __future__ import annotations
 
-import atexit
 import json
 import os
 import select
 import signal
 import subprocess
 import sys
-import threading
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from tests.zygote_client import ZygoteClient
 
 HERE = Path(__file__).resolve().parent
 
@@ -69,32 +71,24 @@ def _target(argv: list[str]) -> None:
         os._exit(code)
 
 
-class _Zygote:
-    """The worker's one zygote process, started on first use, ended with the worker (its stdin closes)."""
+def _zygote() -> ZygoteClient:
+    """The worker's one zygote process (tests/zygote_client.py)."""
+    global _CLIENT
+    if _CLIENT is None:
+        from tests.zygote_client import ZygoteClient  # the worker's side only: the zygote runs this file as a script
 
-    proc: subprocess.Popen[str] | None = None
-    lock = threading.Lock()
+        _CLIENT = ZygoteClient(__file__, "foreign targets")
+    return _CLIENT
 
-    @classmethod
-    def ask(cls, line: str) -> str:
-        with cls.lock:
-            if cls.proc is None or cls.proc.poll() is not None:
-                cls.proc = subprocess.Popen([sys.executable, __file__], stdin=subprocess.PIPE,
-                                            stdout=subprocess.PIPE, text=True)
-                atexit.register(cls.proc.stdin.close)  # type: ignore[union-attr]
-            assert cls.proc.stdin is not None and cls.proc.stdout is not None
-            cls.proc.stdin.write(line + "\n")
-            cls.proc.stdin.flush()
-            answer = cls.proc.stdout.readline()
-            assert answer, "the foreign targets' zygote ended"
-            return answer
+
+_CLIENT: ZygoteClient | None = None
 
 
 class ForeignTarget:
     """A foreign target forked by the zygote: what the tests use of subprocess.Popen."""
 
     def __init__(self, argv: list[str]) -> None:
-        self.pid = int(_Zygote.ask("start " + json.dumps(argv)))
+        self.pid = int(_zygote().ask("start " + json.dumps(argv)))
         self._pidfd = os.pidfd_open(self.pid)  # the zygote reaps it only when asked: a zombie is still this pid
         self.returncode: int | None = None
 
@@ -102,7 +96,7 @@ class ForeignTarget:
         if self.returncode is None and select.select([self._pidfd], [], [], 0)[0]:
             from tests import reaped_cpu  # not in the zygote: its script's folder is not the tests' root
 
-            code, cpu = _Zygote.ask(f"reap {self.pid}").split()
+            code, cpu = _zygote().ask(f"reap {self.pid}").split()
             self.returncode = int(code)
             reaped_cpu.CPU_S.append(float(cpu))
             os.close(self._pidfd)

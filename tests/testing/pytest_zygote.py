@@ -16,7 +16,6 @@ session and every process it waited for). End of stdin ends the zygote (the work
 
 from __future__ import annotations
 
-import atexit
 import json
 import os
 import select
@@ -25,7 +24,10 @@ import subprocess
 import sys
 import threading
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from tests.zygote_client import ZygoteClient
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -61,7 +63,6 @@ def _warm_up() -> None:
     forgotten (each session imports its own)."""
     import shutil
     import tempfile
-    import threading
 
     import pytest
 
@@ -99,32 +100,17 @@ def _session(request: dict[str, Any]) -> int | str:
     return _console_main()
 
 
-class _Zygote:
-    """The worker's one zygote process, started on first use, ended with the worker (its stdin closes)."""
+def _zygote() -> ZygoteClient:
+    """The worker's one zygote process (tests/zygote_client.py)."""
+    global _CLIENT
+    if _CLIENT is None:
+        from tests.zygote_client import ZygoteClient  # the worker's side only: the zygote runs this file as a script
 
-    proc: subprocess.Popen[str] | None = None
-    lock = threading.Lock()
+        _CLIENT = ZygoteClient(__file__, "pytest sessions", cwd=ROOT)
+    return _CLIENT
 
-    @classmethod
-    def end(cls) -> None:
-        """Close its stdin and reap it: its CPU and its sessions' then count as the worker's children's."""
-        if cls.proc is not None and cls.proc.stdin is not None:
-            cls.proc.stdin.close()
-            cls.proc.wait(timeout=60)
 
-    @classmethod
-    def ask(cls, line: str, env: dict[str, str]) -> str:
-        with cls.lock:
-            if cls.proc is None or cls.proc.poll() is not None:
-                cls.proc = subprocess.Popen([sys.executable, __file__], cwd=ROOT, env=env, stdin=subprocess.PIPE,
-                                            stdout=subprocess.PIPE, text=True)
-                atexit.register(cls.end)
-            assert cls.proc.stdin is not None and cls.proc.stdout is not None
-            cls.proc.stdin.write(line + "\n")
-            cls.proc.stdin.flush()
-            answer = cls.proc.stdout.readline()
-            assert answer, "the pytest sessions' zygote ended"
-            return answer
+_CLIENT: ZygoteClient | None = None
 
 
 def run_session(argv: list[str], env: dict[str, str], stdout: Path, stderr: Path, timeout_s: float) -> int:
@@ -134,13 +120,13 @@ def run_session(argv: list[str], env: dict[str, str], stdout: Path, stderr: Path
     from tests import reaped_cpu
 
     request = {"argv": argv, "env": env, "stdout": str(stdout), "stderr": str(stderr)}
-    pid = int(_Zygote.ask("start " + json.dumps(request), env))
+    pid = int(_zygote().ask("start " + json.dumps(request), env))
     pidfd = os.pidfd_open(pid)  # the zygote reaps it only when asked: a zombie is still this pid
     try:
         ended = bool(select.select([pidfd], [], [], timeout_s)[0])
         if not ended:
             signal.pidfd_send_signal(pidfd, signal.SIGKILL)
-        code, cpu = _Zygote.ask(f"reap {pid}", env).split()
+        code, cpu = _zygote().ask(f"reap {pid}", env).split()
         reaped_cpu.CPU_S.append(float(cpu))
     finally:
         os.close(pidfd)
