@@ -47,13 +47,14 @@ FAST_PATHS: dict[str, tuple[Any, str, str]] = {
     "native_periph": (periph_native, "NATIVE", "the C and the Python TIM1 and ADC models"),
     "native_encoder": (tim_gp, "NATIVE_ENCODER", "the encoder timer's CNT read in C and in Python"),
     "lazy_stats": (Board, "LAZY_STATS", "the ISR statistics taken from the C core's log when read with the entries "
-                   "counted in C and the log drained after every run_until with the entries summed")}
+                   "counted in C and the log drained after every run_until with the entries summed"),
+    "native_period": (BoardLink, "NATIVE_PERIOD", "the board link's common period in C and in Python")}
 
 
 def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch: pytest.MonkeyPatch,
             periods: int = PERIODS, skip_quiet: bool = True, native_core: bool = True,
             native_periph: bool = True, event_driven: bool = True,
-            native_encoder: bool = True, lazy_stats: bool = True) -> dict[str, Any]:
+            native_encoder: bool = True, lazy_stats: bool = True, native_period: bool = True) -> dict[str, Any]:
     """Everything a run of `periods` Measurements leaves, with the board's C paths (exception frames, the DWT page's
     reads) or the Python reference, with the scheduler skipping quiet models or asking every model every step, with
     the scheduler, NVIC and SysTick in C or in Python, with TIM1 and the ADCs in C or in Python."""
@@ -64,7 +65,10 @@ def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch:
     monkeypatch.setattr(periph_native, "NATIVE", native_periph)
     monkeypatch.setattr(tim_gp, "NATIVE_ENCODER", native_encoder)
     monkeypatch.setattr(Board, "LAZY_STATS", lazy_stats)
+    monkeypatch.setattr(BoardLink, "NATIVE_PERIOD", native_period)
     link = BoardLink(elf, load_board(board_file), ts_s=TS, pole_pairs=4)
+    assert bool(link._ps.enabled) == (native_period and link.board._lazy_stats and native_periph
+                                      and link.boot_error is None and link.halls is None)
     assert (link._c_encoder is not None) == (native_encoder and link.desc.encoder_timer == "TIM3")
     assert (link.board.exceptions._native is not None) == native
     assert link.board._lazy_stats == (lazy_stats and link.board._native_core)
@@ -94,7 +98,9 @@ def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch:
         error = str(exc)
     board = link.board
     sram = board.read_memory(0x2000_0000, board.part.sram_size)
-    return {"frames": frames, "error": error, "isr": link.isr_cycles, "sleep": link.sleep_cycles,
+    return {"frames": frames, "error": error, "first_late": link.late_first_period, "periods": link.periods,
+            "wall": link.wall_s > 0, "in_c": int(link._ps.in_c), "frames_tx": link.stats.frames_tx,
+            "isr": link.isr_cycles, "sleep": link.sleep_cycles,
             "late": link.late_per_period, "entries": link.entries_per_period, "now": board.now,
             "handlers": {e: (s.entries, s.cycles, s.latency) for e, s in board.isr.items()},
             "regs": [board.cpu.reg(r) for r in CORE_REGS], "sram": sram, "boot_error": str(link.boot_error or ""),
@@ -109,8 +115,11 @@ def same(path: str, elf: Path, board_file: str | Path | None, monkeypatch: pytes
     reference = records(elf, board_file, path != "native_exc", monkeypatch, periods,
                         skip_quiet=path != "quiet_skip", native_core=path != "native_core",
                         native_periph=path != "native_periph", event_driven=path != "event_driven",
-                        native_encoder=path != "native_encoder", lazy_stats=path != "lazy_stats")
+                        native_encoder=path != "native_encoder", lazy_stats=path != "lazy_stats",
+                        native_period=path != "native_period")
     native = records(elf, board_file, True, monkeypatch, periods)
+    in_c = reference.pop("in_c")  # the periods the C period ran (none with it off)
+    assert in_c == 0 or path != "native_period"
     for key in reference:
         assert native[key] == reference[key], f"{key} differs between {what}"
     return native
@@ -145,6 +154,7 @@ def test_the_test_firmwares_give_the_same_records(name: str, defines: tuple[str,
                                                   monkeypatch: pytest.MonkeyPatch) -> None:
     out = same(path, build_fw(name, *defines), None, monkeypatch)
     assert sum(out["entries"]) > 0
+    assert out["in_c"] > 0 and (out["in_c"] == PERIODS or out["error"])  # TIM1's outputs on: the period in C
 
 
 @pytest.mark.parametrize("native", [True, False], ids=["c", "python"])
@@ -200,3 +210,12 @@ def test_one_long_call_fills_and_drains_the_cores_sample_log(monkeypatch: pytest
                      board.sleep_cycles, board.handler_cycles))
     assert seen[1] == seen[0]
     assert 2 * sum(entries for entries, _, _ in seen[1][0].values()) > LOG_MAX
+
+
+def test_the_period_in_c_hands_back_and_resumes_over_a_long_run(build_fw: Callable[..., Path],
+                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    """Over 3000 periods the C core's sample log fills (the period in C hands its run back to Python, which drains
+    the log and finishes the period) and the C period's rings are read into the lists several times: the records of
+    the Python reference."""
+    out = same("native_period", build_fw("foc_bench"), None, monkeypatch, 3000)
+    assert 0 < out["in_c"] < 3000 and len(out["isr"]) == 3000

@@ -4,7 +4,8 @@ src/pmsm_hil/sim_target/stm32g4/link.py): the C link of src/pmsm_hil/hil/runner/
 Per period the C loop's Measurement frame is decoded in C and reaches the board through one call with plain numbers
 (`on_board_period`); the duty-cycle Command the board answers with comes back as numbers and is encoded in C. The
 period's pin voltages go into the ADC pair's table, and TIM1's compare duties come out of the timer's model, through
-the models' own C functions called by the C link (`BoardLink.native_io`), not through Python. Every other frame, and
+the models' own C functions called by the C link (`BoardLink.native_io`), not through Python; and the common period
+itself runs in C (`BoardLink.period_function`, c/board_period.c) with no Python call. Every other frame, and
 a reply the board keeps in its own queue (a switching-state Command, its FDCAN1 frames, configuration answers), goes
 through the callback link as before; a receive calls Python only while the board says it may have something
 (`BoardLink.pending`). With link faults injected (`--fault`), which act on each frame in Python, it is the callback
@@ -79,6 +80,10 @@ class NativeBoardLink(NativePyLink):
         if outputs is not None:
             st.outputs = self.ffi.cast("nl_board_outputs_fn", outputs[0])
             st.outputs_user = self.ffi.cast("void *", outputs[1])
+        fast = self.board.period_function() if inputs is not None and outputs is not None else None
+        if fast is not None:  # the common period without Python (c/board_period.c)
+            st.fast = self.ffi.cast("nl_board_fast_fn", fast[0])
+            st.fast_user = self.ffi.cast("void *", fast[1])
         st.py_pending = 1 if self.board.pending() else 0
         self._board_state = st
 

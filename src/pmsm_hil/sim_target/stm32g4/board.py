@@ -716,12 +716,14 @@ class Board:
     def _run_until_native(self, end: int) -> None:
         """`run_until` in C (c/board_core.c): the skipping scheduler's steps; what the C loop hands back (a fault, an
         unmapped access, a Python error, a full sample log) is handled here as the Python scheduler does."""
+        self.finish_native(end, self._core_lib.hil_core_run(self._core_ref, end, 1))
+
+    def finish_native(self, end: int, rc: int) -> None:
+        """`run_until(end)` in C after its first call into the C loop returned `rc` (the board link's period in C
+        hands its run back here when it did not end cleanly)."""
         run, ref = self._core_lib.hil_core_run, self._core_ref
-        fresh = 1
         try:
             while True:
-                rc = run(ref, end, fresh)
-                fresh = 0
                 for raise_held in self._held:
                     raise_held()
                 if rc == core_native.DONE:
@@ -729,6 +731,7 @@ class Board:
                 if rc != core_native.LOG_FULL:
                     self._native_stop(rc)
                 self._drain()
+                rc = run(ref, end, 0)
         finally:
             if not self._lazy_stats:
                 self._drain()

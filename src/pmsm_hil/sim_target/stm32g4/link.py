@@ -26,6 +26,7 @@ host frames still on it are received at the start of its period.
 
 from __future__ import annotations
 
+import ctypes
 import math
 import random
 import time
@@ -42,10 +43,14 @@ from pmsm_hil.protocol.frame import Frame
 from pmsm_hil.protocol.ids import NodeState, Status
 from pmsm_hil.protocol.messages import Command, ConfigAck, ConfigParam, Heartbeat, Measurement, Setpoint
 from pmsm_hil.sim_target.qemu import stats
+from pmsm_hil.sim_target.stm32g4 import core_native, period_native
+from pmsm_hil.sim_target.stm32g4 import periph_native as pn
 from pmsm_hil.sim_target.stm32g4.board import VREFINT_V
 from pmsm_hil.sim_target.stm32g4.board_file import SIGNALS, BoardDescription
+from pmsm_hil.sim_target.stm32g4.counter import CounterState
 from pmsm_hil.sim_target.stm32g4.hall import HallSensors, attach_halls
 from pmsm_hil.sim_target.stm32g4.link_base import IDLE_PERIODS, STARTUP_LIMIT_S, BoardLinkBase
+from pmsm_hil.sim_target.stm32g4.link_shared import PeriodShared
 from pmsm_hil.sim_target.stm32g4.peripherals.adc_native import FRONT_MAX, Adc12Pair, NativeAdc, pair_of
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError
 from pmsm_hil.sim_target.stm32g4.peripherals.fdcan import INIT as FDCAN_INIT
@@ -66,12 +71,18 @@ PAIR = ("ADC1", "ADC2")
 TABLE_CHANNELS = 32
 
 
-class BoardLink(BoardLinkBase):
+class BoardLink(PeriodShared, BoardLinkBase):
     """The host's link to a firmware running on the virtual board (implements the Link protocol)."""
+
+    #: the common control period in C (c/board_period.c: the inputs, the core's run and the counters of a
+    #: Measurement's period without Python, which it hands back for the rare legs; False: the Python reference,
+    #: which gives the same records: tests/board/test_native_exc.py)
+    NATIVE_PERIOD = True
 
     def __init__(self, elf: str | Path, desc: BoardDescription, *, ts_s: float, pole_pairs: int,
                  skip_periods: int = 0, console: Any = None, psi_f_wb: float = 0.0, vdc_v: float = 0.0,
                  can_bitrates: tuple[int | None, int | None] = (None, None)) -> None:
+        self._init_shared()
         super().__init__(elf, desc, skip_periods=skip_periods, console=console)
         self._tim1 = self.tim1
         #: TIM1 when it is the model in C (its counters read from `native_state`), else None
@@ -114,10 +125,6 @@ class BoardLink(BoardLinkBase):
             self._adc_table.set_front_end([(a, ch, off, gain, sig) for (a, ch), off, gain, sig in self._analog_map],
                                           len(SIGNALS), desc.vref_v, VREFINT_V)
         self.board.encoder = self._encoder
-        self._theta_m = 0.0  # unwrapped mechanical angle at the period start [rad]
-        self._theta_e: float | None = None
-        self._omega_m = 0.0
-        self._period_start = 0
         self.hclk_hz = self.board.hclk_hz
         timer = self.board.peripherals.get(desc.encoder_timer or "")
         #: the encoder timer whose CNT reads are answered in C from `_encoder`'s values (`_sync_encoder`), or None
@@ -144,12 +151,6 @@ class BoardLink(BoardLinkBase):
         #: period delivered (while FDCAN1 has a transmission requested or on the bus)
         self._answer_left = 0
         self.configs_acked = 0
-        self.isr_cycles: list[int] = []
-        self.sleep_cycles: list[int] = []
-        #: per control period: late compare values (TIM1's count of them, 0 or 1) and exception entries
-        self.late_per_period: list[int] = []
-        self.entries_per_period: list[int] = []
-        self.late_first_period: int | None = None
         fdcan = self.board.peripherals.get("FDCAN1")
         self.fdcan = fdcan if isinstance(fdcan, Fdcan) else None
         if desc.break_overcurrent_a is not None:  # BKIN at its idle level: no overcurrent
@@ -169,6 +170,7 @@ class BoardLink(BoardLinkBase):
             self.boot_error = exc
             return
         self._start(ts_s)
+        self._setup_period()
 
     # --- start-up and period --------------------------------------------------------------------------------------
 
@@ -305,20 +307,9 @@ class BoardLink(BoardLinkBase):
     def _period(self, i_a: float, i_b: float, i_c: float, theta_e: float, omega_m: float, vdc: float) -> int:
         """One control period of the firmware for a Measurement's values; the cycles it spent in interrupt handlers
         as exec_time_ns."""
-        board, tim = self.board, self._tim1
+        board = self.board
         self._take(i_a, i_b, i_c, theta_e, omega_m, vdc)
-        core = self._core_counts
-        sleep0: int
-        isr0: int
-        entries0: int
-        if core is not None:
-            sleep0, isr0, entries0 = core.sleep_cycles, core.handler_cycles, core.exc_entries
-        else:
-            sleep0, isr0, entries0 = board.sleep_cycles, board.handler_cycles, board.exception_entries
-        # TIM1's C state (the model in C: its counters read directly), else None
-        tim_c = self._tim1_c
-        ts = tim_c.native_state if tim_c is not None else None
-        late0: int = ts.late_writes if ts is not None else tim.late_writes
+        snapshot = self._snapshot()
         end = self._period_start + self.period_cycles
         if self._on_bus:
             self._deliver_queued()
@@ -329,6 +320,22 @@ class BoardLink(BoardLinkBase):
                 if self._bus_free > now:
                     self._bus_free = now
             board.run_until(end)
+        return self._period_end(end, snapshot)
+
+    def _snapshot(self) -> tuple[int, int, int, int]:
+        """The counters a period's records are differences of: (sleep, handler cycles, exception entries, TIM1's
+        late compare values)."""
+        core, board, tim_c = self._core_counts, self.board, self._tim1_c
+        late0 = tim_c.native_state.late_writes if tim_c is not None else self._tim1.late_writes
+        if core is not None:  # the C core's counters, read directly
+            return core.sleep_cycles, core.handler_cycles, core.exc_entries, late0
+        return board.sleep_cycles, board.handler_cycles, board.exception_entries, late0
+
+    def _period_end(self, end: int, snapshot: tuple[int, int, int, int]) -> int:
+        """After the core ran a period to cycle `end`: its records from `snapshot` (`_snapshot` at its start); the
+        cycles it spent in interrupt handlers as exec_time_ns."""
+        board, tim, core, tim_c = self.board, self._tim1, self._core_counts, self._tim1_c
+        sleep0, isr0, entries0, late0 = snapshot
         self._period_start = end
         state = self._encoder_state
         if state is not None:  # the angle, the speed and the clock as `_take` left them
@@ -356,6 +363,106 @@ class BoardLink(BoardLinkBase):
             self.late_first_period = self.periods
         self.periods += 1
         return round(isr / self.hclk_hz * 1e9)
+
+    # --- the period in C (c/board_period.c) -----------------------------------------------------------------------
+
+    def _setup_period(self) -> None:
+        """Hand the period in C what it reads and calls (the board's core, TIM1, the encoder's C read, the models'
+        held errors), when every model of the common period is in C (NATIVE_PERIOD; else it stays off)."""
+        ps, board, tim = self._ps, self.board, self._tim1_c
+        core = self._core_counts
+        if not (self.NATIVE_PERIOD and core is not None and tim is not None and self._adc_table is not None
+                and self.halls is None):
+            return
+        period_native.library()  # built (and its size checked) before the state is used
+        at = ctypes.addressof(core)
+        ps.core, ps.run = at, core_native.address(board._core_lib.hil_core_run)
+        ps.count = ctypes.addressof(board.cpu.counter) + CounterState.count.offset
+        ps.sleep_cycles = at + core_native.CoreState.sleep_cycles.offset
+        ps.handler_cycles = at + core_native.CoreState.handler_cycles.offset
+        ps.exc_entries = at + core_native.CoreState.exc_entries.offset
+        ts = ctypes.addressof(tim.native_state)
+        ps.tim, ps.set_break_pin = ts, pn.address(pn.library("tim1").hil_tim1_set_break_pin)
+        ps.late_writes = ts + pn.Tim1State.late_writes.offset
+        ps.first_late_update = ts + pn.Tim1State.first_late_update.offset
+        ps.bdtr = ts + pn.Tim1State.regs.offset + TIM1_BDTR
+        enc = self._encoder_state
+        if enc is not None:
+            e = ctypes.addressof(enc)
+            fields = type(enc)
+            ps.enc_theta_m, ps.enc_omega_m = e + fields.theta_m.offset, e + fields.omega_m.offset
+            ps.enc_period_start = e + fields.period_start.offset
+        adcs = [p for p in board.peripherals.values() if isinstance(p, NativeAdc)]
+        if len(adcs) > period_native.HELD_MAX:
+            return
+        for k, adc in enumerate(adcs):
+            ps.held[k] = ctypes.addressof(adc._a) + type(adc._a).error.offset
+        ps.n_held = len(adcs)
+        ps.py_held = ctypes.addressof(pn.HELD)
+        ps.gil_ensure = core_native.address(ctypes.pythonapi.PyGILState_Ensure)
+        ps.gil_release = core_native.address(ctypes.pythonapi.PyGILState_Release)
+        ps.pole_pairs, ps.hclk_hz, ps.period_cycles = self.pole_pairs, self.hclk_hz, self.period_cycles
+        limit = self.desc.break_overcurrent_a
+        ps.has_break, ps.break_limit_a = limit is not None, limit or 0.0
+        ps.break_active_low = self.desc.break_active_low
+        for model in (self.fdcan, self._pair_opamps[0] if self._pair_opamps is not None else None):
+            if model is not None:
+                model.on_change = self._wake
+        ps.enabled = 1
+        self._sync_wake()
+
+    def _wake(self) -> None:
+        """Python takes the next period (and finishes the one running in C): something it handles changed."""
+        self._ps.wake = 1
+
+    def _sync_wake(self) -> None:
+        """Whether the next period is Python's (frames to or from the host, FDCAN1 joining the bus or sending, an
+        amplifier routed to the ADC pair, the open bridge's Command just sent), into the period in C."""
+        fdcan, opamps = self.fdcan, self._pair_opamps
+        self._ps.wake = bool(
+            self.boot_error is not None or self._rx or self._on_bus or self._idle_left or self._answer_left
+            or self._bus_free > self._period_start or self._off_seq is not None or self._hall_held is not None
+            or (fdcan is not None and (fdcan.transmitted or (not self._bus_on and not fdcan.cccr & FDCAN_INIT)))
+            or (opamps is not None and any(opamps[0].csr[k] & OPAINTOEN for k in opamps[1])))
+
+    def _period_c(self, values: Any, exec_time: Any) -> int | None:
+        """The period in C for `values` (a ctypes double[6]: i_a, i_b, i_c, theta_e, omega_m, vdc): its
+        exec_time_ns, or None when Python runs it (and finishes it when the C period began it: `_period_resume`)."""
+        ps = self._ps
+        if not ps.enabled or ps.wake:
+            return None
+        assert self._adc_table is not None
+        self._adc_table.take(values[0:3] + values[5:6])
+        self._table_in_c = True
+        if period_native.library().hil_board_period(ctypes.byref(ps), values, ctypes.byref(exec_time)):
+            return int(exec_time.value)
+        return None
+
+    def _period_resume(self) -> int:
+        """Finish the period the C period began and handed back (its inputs taken, its run begun: `resume`)."""
+        ps = self._ps
+        ps.resume = 0
+        end = self._period_start + self.period_cycles
+        if ps.resume_rc == period_native.BEFORE_RUN:  # a Python listener raised in the break comparator's call
+            tim = self._tim1_c
+            assert tim is not None
+            tim.raise_held()
+            snapshot = self._snapshot()
+            self.board.run_until(end)
+        else:
+            snapshot = (ps.sleep0, ps.isr0, ps.entries0, ps.late0)
+            self.board.finish_native(end, ps.resume_rc)
+        return self._period_end(end, snapshot)
+
+    def period_function(self) -> tuple[int, int] | None:
+        """For a caller in C (the native loop's board link, after `native_io`'s inputs function filled the ADC
+        table): (address of hil_board_period, its state) — `int fn(void *state, const double *values, int64_t
+        *exec_time_ns)`, values i_a, i_b, i_c [A], theta_e [rad], omega_m [rad/s], vdc [V]; 1: the period ran,
+        TIM1's outputs on; 0: call `measurement(native=True)`, which runs or finishes it —, or None (NATIVE_PERIOD
+        off, or a model of the period in Python)."""
+        if not self._ps.enabled:
+            return None
+        return core_native.address(period_native.library().hil_board_period), ctypes.addressof(self._ps)
 
     def _idle_legs(self) -> tuple[bool, ...] | None:
         """With TIM1's outputs off (MOE = 0): each leg's level when the timer drives its idle state (OSSI set and
@@ -436,7 +543,8 @@ class BoardLink(BoardLinkBase):
         self._idle_left = 0
         self._answer_left = 0
         self._table_in_c = native
-        exec_time_ns = self._period(i_a, i_b, i_c, theta_e, omega_m, vdc)
+        # the period in C (link_board.c) may have taken the inputs and begun the run: `resume`
+        exec_time_ns = self._period_resume() if self._ps.resume else self._period(i_a, i_b, i_c, theta_e, omega_m, vdc)
         out: tuple[tuple[float, ...] | None, int] | None = None
         if native and self._duties_in_c and not self._rx and self._tim1.moe:  # `_outputs` in C, by the caller
             self._off_seq = None
@@ -448,6 +556,7 @@ class BoardLink(BoardLinkBase):
             else:
                 out = (outputs, exec_time_ns)
         self._collect()
+        self._sync_wake()
         self.wall_s += time.perf_counter() - t0
         return out
 
@@ -518,7 +627,7 @@ class BoardLink(BoardLinkBase):
                 self._idle_left = 0
                 self._answer_left = 0
                 self._table_in_c = False
-                exec_time_ns = self._period(msg.i_a, msg.i_b, msg.i_c, msg.theta_e, msg.omega_m, msg.vdc)
+                exec_time_ns = self._measured(msg)
                 outputs = self._outputs(msg.seq, msg.i_a, msg.i_b, msg.i_c, msg.theta_e, msg.omega_m, msg.vdc)
                 self._reply(self._command(msg.seq, outputs, exec_time_ns))
             elif bus is not None:  # on the bus one after the other, received at the end of its bus time
@@ -533,7 +642,29 @@ class BoardLink(BoardLinkBase):
             elif isinstance(msg, Setpoint):
                 self._setpoint(msg)
         self._collect()
+        self._sync_wake()
         self.wall_s += time.perf_counter() - t0
+
+    def _measured(self, msg: Measurement) -> int:
+        """`send`'s period for Measurement `msg`: in C when it can be (`_period_c`, as the native loop's board link
+        calls it), else in Python; its exec_time_ns."""
+        values = (ctypes.c_double * 6)(msg.i_a, msg.i_b, msg.i_c, msg.theta_e, msg.omega_m, msg.vdc)
+        exec_time_ns = self._period_c(values, ctypes.c_int64())
+        if exec_time_ns is not None:
+            self._ps.frames_tx -= 1  # `send` counted the frame already
+            return exec_time_ns
+        if self._ps.resume:
+            return self._period_resume()
+        return self._period(msg.i_a, msg.i_b, msg.i_c, msg.theta_e, msg.omega_m, msg.vdc)
+
+    def poll(self) -> Frame | None:
+        frame = super().poll()
+        self._sync_wake()
+        return frame
+
+    def requeue(self, frames: list[Frame]) -> None:
+        super().requeue(frames)
+        self._sync_wake()
 
     def _collect(self) -> bool:
         """The frames the firmware sent on FDCAN1, into the host's queue; whether one of them started after the

@@ -120,6 +120,10 @@ def address(fn: Any) -> int:
     return int(ctypes.cast(fn, ctypes.c_void_p).value or 0)
 
 
+#: nonzero while a Callbacks object holds an exception (read by the board link's period in C, c/board_period.c)
+HELD = ctypes.c_int32(0)
+
+
 class Callbacks:
     """Python functions the C side calls (interrupt lines, Python listeners): kept alive with their model; an
     exception inside one is held and raised by `check` once the C call returns (ctypes would drop it)."""
@@ -139,11 +143,13 @@ class Callbacks:
             except BaseException as exc:  # raised by check() after the C call
                 if self.error is None:
                     self.error = exc
+                HELD.value = 1
         return call
 
     def check(self) -> None:
         if self.error is not None:
             error, self.error = self.error, None
+            HELD.value = 0
             raise error
 
     def sink(self, assert_line: Callable[[int], None], withdraw_line: Callable[[int], None]) -> IrqSink:

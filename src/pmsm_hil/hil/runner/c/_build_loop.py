@@ -101,9 +101,10 @@ LINKS_CDEF = (_decl(_TARGET / "hil_target_core.h", ["hil_core_frame_t", "hil_cor
               + _X.cffi_constants(_LINKS / "link_board.h", "NL_BOARD_")
               + _decl(_LINKS / "link_board.h",
                       ["nl_board_meas_t", "nl_board_cmd_t", "nl_board_inputs_fn", "nl_board_outputs_fn",
-                       "nl_board_link_t", "nl_board_recv"],
+                       "nl_board_fast_fn", "nl_board_link_t", "nl_board_recv"],
                       partial={"nl_board_link_t": ["scale_i", "scale_theta", "scale_omega", "scale_vdc", "inputs",
-                                                   "inputs_user", "outputs", "outputs_user", "py_pending", "stats"]})
+                                                   "inputs_user", "outputs", "outputs_user", "fast", "fast_user",
+                                                   "py_pending", "stats"]})
               + _decl(_LINKS / "loop_udp.h", ["nl_udp_t", "nl_udp_link"])
               + _decl(_TARGET / "hil_serial.h", ["hil_serial_t"], partial={"hil_serial_t": ["tx_seq"]})
               + _decl(_LINKS / "loop_serial.h", ["nl_serial_t", "nl_serial_link", "nl_serial_send", "nl_serial_recv"])

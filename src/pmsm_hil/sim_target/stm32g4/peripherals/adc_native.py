@@ -166,6 +166,7 @@ class Adc12Pair:
         except BaseException as exc:  # raised by the model after the C call (Callbacks.check)
             if self.callbacks.error is None:
                 self.callbacks.error = exc
+            pn.HELD.value = 1
             return 0
 
     def _adc(self, index: int) -> NativeAdc:

@@ -9,6 +9,7 @@ the frame's bits (dynamic stuff bits left out) at the bit rates of NBTP/DBTP; th
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
@@ -122,6 +123,9 @@ class Fdcan(Peripheral):
     BITRATE_TOLERANCE = 0.005
     #: a frame's end and the timestamp counter's wrap are its only events; `deliver` reports itself
     EVENT_DRIVEN = True
+    #: called when a frame joins `transmitted` or CCCR is written (the board link's period in C then hands the
+    #: period to Python), or None
+    on_change: Callable[[], None] | None = None
 
     def reset(self) -> None:
         self.regs = {offset: RESET_VALUES.get(offset, 0) for offset in WRITABLE}
@@ -297,6 +301,8 @@ class Fdcan(Peripheral):
         self.regs[reg] = new
 
     def _write_cccr(self, new: int, now: int) -> None:
+        if self.on_change is not None:
+            self.on_change()
         old = self.cccr
         if new & CSR:
             new |= INIT | CSA  # clock stop: no transfer is ever half done here, so it is acknowledged at once
@@ -596,6 +602,8 @@ class Fdcan(Peripheral):
                 is_remote_frame=element.remote, is_fd=element.fd, bitrate_switch=element.brs,
                 error_state_indicator=element.esi, dlc=len(element.data) if not element.remote else element.dlc,
                 data=element.data, channel=self.name))
+            if self.on_change is not None:
+                self.on_change()
         if loopback:
             self._receive(element, end)
         if not self._queue_mode():

@@ -13,6 +13,8 @@ change, so the drivers' dichotomy search converges.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from pmsm_hil.sim_target.stm32g4.peripherals.base import BoardError, Peripheral, register
 
 COUNT = 6
@@ -45,6 +47,8 @@ class Opamp(Peripheral):
 
     base = 0x4001_0300
     size = 0x100
+    #: called when a CSR is written (the board link's period in C then hands the period to Python), or None
+    on_change: Callable[[], None] | None = None
 
     def reset(self) -> None:
         part = str(getattr(getattr(self.bus, "part", None), "name", "")).lower()
@@ -92,6 +96,8 @@ class Opamp(Peripheral):
             return
         self._calout_at(i, now)
         self.csr[i] = value & CSR_WRITABLE
+        if self.on_change is not None:
+            self.on_change()
         target = self._calout_target(i)
         pending = self._settling[i]
         if target != (pending[0] if pending is not None else self._calout[i]):

@@ -65,7 +65,13 @@ int nl_board_send(nl_board_link_t *s, const hil_core_frame_t *f)
         const double values[4] = {m.i_a, m.i_b, m.i_c, m.vdc};
         s->inputs(s->inputs_user, values);
     }
-    if (s->period(s->ctx, &m, &cmd) != 0) {
+    if (s->fast && s->outputs && !s->py_pending) {
+        const double values[6] = {m.i_a, m.i_b, m.i_c, m.theta_e, m.omega_m, m.vdc};
+        if (s->fast(s->fast_user, values, &cmd.exec_time_ns)) {
+            cmd.form = NL_BOARD_OUTPUTS;
+        }
+    }
+    if (cmd.form != NL_BOARD_OUTPUTS && s->period(s->ctx, &m, &cmd) != 0) {
         return -1;
     }
     if (cmd.form == NL_BOARD_OUTPUTS) { /* the board answered only after checking that `outputs` has duties */

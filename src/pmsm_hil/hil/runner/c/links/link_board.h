@@ -47,6 +47,12 @@ typedef int (*nl_board_period_fn)(void *ctx, const nl_board_meas_t *m, nl_board_
 typedef void (*nl_board_inputs_fn)(void *user, const double *values);
 typedef int (*nl_board_outputs_fn)(void *user, const double *currents, double *duties);
 
+/* The board's common period in C (src/pmsm_hil/sim_target/stm32g4/c/board_period.c; null: every period through
+ * `period`): `fast(fast_user, {i_a, i_b, i_c, theta_e, omega_m, vdc}, &exec_time_ns)` after `inputs`, while Python
+ * has nothing pending: 1 the period ran and TIM1's outputs are on (the duties from `outputs`), 0 `period` runs it
+ * (or finishes what `fast` began). */
+typedef int (*nl_board_fast_fn)(void *user, const double *values, int64_t *exec_time_ns);
+
 #define NL_BOARD_QUEUE 2
 
 typedef struct {
@@ -58,6 +64,8 @@ typedef struct {
     void *inputs_user;
     nl_board_outputs_fn outputs;
     void *outputs_user;
+    nl_board_fast_fn fast;
+    void *fast_user;
     int32_t py_pending;        /* 0: a receive in Python would find nothing and do nothing (set by Python) */
     int32_t q_head, q_n;
     hil_core_frame_t q[NL_BOARD_QUEUE];

@@ -1,0 +1,166 @@
+"""What the board link (link.py) shares with its common control period in C (c/board_period.c): the rotor's angle
+and speed, the period's start and signal values, held in the C period's state (period_native.PeriodState), and the
+per-period counters, which the C period leaves in rings that are read into the lists here when Python reads them.
+Either path — the Python reference or the period in C — reads and writes the same values through these properties.
+"""
+
+from __future__ import annotations
+
+from pmsm_hil.protocol.links.stats import LinkStats
+from pmsm_hil.sim_target.stm32g4.period_native import PeriodState, new_state
+
+
+class PeriodShared:
+    """The board link's period state, in C (call `_init_shared` before anything else of the link)."""
+
+    _ps: PeriodState
+
+    def _init_shared(self) -> None:
+        self._ps = new_state()
+        self._isr_cycles: list[int] = []
+        self._sleep_cycles: list[int] = []
+        self._late_per_period: list[int] = []
+        self._entries_per_period: list[int] = []
+        self._stats = LinkStats()
+        self._wall_s = 0.0
+
+    def _flush(self) -> None:
+        """The C period's counters so far into the lists (in period order)."""
+        ps = self._ps
+        n = ps.n
+        if n:
+            self._isr_cycles.extend(ps.isr[:n])
+            self._sleep_cycles.extend(ps.sleep[:n])
+            self._late_per_period.extend(ps.late[:n])
+            self._entries_per_period.extend(ps.entries[:n])
+            ps.n = 0
+
+    # --- the per-period counters --------------------------------------------------------------------------------
+
+    @property
+    def isr_cycles(self) -> list[int]:
+        """Per control period: cycles in interrupt handlers."""
+        self._flush()
+        return self._isr_cycles
+
+    @property
+    def sleep_cycles(self) -> list[int]:
+        """Per control period: cycles the core slept."""
+        self._flush()
+        return self._sleep_cycles
+
+    @property
+    def late_per_period(self) -> list[int]:
+        """Per control period: late compare values (TIM1's count of them, 0 or 1)."""
+        self._flush()
+        return self._late_per_period
+
+    @property
+    def entries_per_period(self) -> list[int]:
+        """Per control period: exception entries."""
+        self._flush()
+        return self._entries_per_period
+
+    @property
+    def late_first_period(self) -> int | None:
+        """The first control period whose compare values landed late (None: none did)."""
+        value = int(self._ps.late_first_period)
+        return None if value < 0 else value
+
+    @late_first_period.setter
+    def late_first_period(self, value: int | None) -> None:
+        self._ps.late_first_period = -1 if value is None else value
+
+    @property
+    def periods(self) -> int:
+        """Control periods run."""
+        return int(self._ps.periods)
+
+    @periods.setter
+    def periods(self, value: int) -> None:
+        self._ps.periods = value
+
+    @property
+    def stats(self) -> LinkStats:
+        """The link's frame counts (the Measurements the C period took included)."""
+        ps = self._ps
+        if ps.frames_tx:
+            self._stats.frames_tx += int(ps.frames_tx)
+            ps.frames_tx = 0
+        return self._stats
+
+    @stats.setter
+    def stats(self, value: LinkStats) -> None:
+        self._stats = value
+
+    @property
+    def wall_s(self) -> float:
+        """Wall time spent in the board's periods [s]."""
+        ps = self._ps
+        if ps.wall_ns:
+            self._wall_s += ps.wall_ns * 1e-9
+            ps.wall_ns = 0
+        return self._wall_s
+
+    @wall_s.setter
+    def wall_s(self, value: float) -> None:
+        self._ps.wall_ns = 0
+        self._wall_s = value
+
+    # --- the inputs -----------------------------------------------------------------------------------------------
+
+    @property
+    def _theta_m(self) -> float:
+        """Unwrapped mechanical angle at the period start [rad]."""
+        return float(self._ps.theta_m)
+
+    @_theta_m.setter
+    def _theta_m(self, value: float) -> None:
+        self._ps.theta_m = value
+
+    @property
+    def _theta_e(self) -> float | None:
+        """The last Measurement's electrical angle [rad] (None: none yet)."""
+        ps = self._ps
+        return float(ps.theta_e) if ps.has_theta_e else None
+
+    @_theta_e.setter
+    def _theta_e(self, value: float | None) -> None:
+        ps = self._ps
+        ps.has_theta_e = value is not None
+        ps.theta_e = 0.0 if value is None else value
+
+    @property
+    def _omega_m(self) -> float:
+        """Mechanical speed [rad/s]."""
+        return float(self._ps.omega_m)
+
+    @_omega_m.setter
+    def _omega_m(self, value: float) -> None:
+        self._ps.omega_m = value
+
+    @property
+    def _period_start(self) -> int:
+        """The control period's first cycle."""
+        return int(self._ps.period_start)
+
+    @_period_start.setter
+    def _period_start(self, value: int) -> None:
+        self._ps.period_start = value
+
+    @property
+    def _stale_signals(self) -> tuple[float, float, float, float] | None:
+        """The period's signal values (SIGNALS' order) while the pin voltages in Python have not been brought up to
+        them (the table took them in C); None: they are current."""
+        ps = self._ps
+        if not ps.stale:
+            return None
+        a, b, c, d = ps.signals
+        return (a, b, c, d)
+
+    @_stale_signals.setter
+    def _stale_signals(self, value: tuple[float, float, float, float] | None) -> None:
+        ps = self._ps
+        ps.stale = value is not None
+        if value is not None:
+            ps.signals[:] = value
