@@ -336,6 +336,7 @@ class BoardLink(PeriodShared, BoardLinkBase):
         cycles it spent in interrupt handlers as exec_time_ns."""
         board, tim, core, tim_c = self.board, self._tim1, self._core_counts, self._tim1_c
         sleep0, isr0, entries0, late0 = snapshot
+        self._flush()  # the C period's records first, then this one's (into the lists directly)
         self._period_start = end
         state = self._encoder_state
         if state is not None:  # the angle, the speed and the clock as `_take` left them
@@ -344,21 +345,21 @@ class BoardLink(PeriodShared, BoardLinkBase):
         entries: int
         if core is not None:
             isr = core.handler_cycles - isr0
-            self.sleep_cycles.append(core.sleep_cycles - sleep0)
+            self._sleep_cycles.append(core.sleep_cycles - sleep0)
             entries = core.exc_entries - entries0
         else:
             isr = board.handler_cycles - isr0
-            self.sleep_cycles.append(board.sleep_cycles - sleep0)
+            self._sleep_cycles.append(board.sleep_cycles - sleep0)
             entries = board.exception_entries - entries0
         if tim_c is not None:
             ts = tim_c.native_state  # again: a reset during the period gives the model a new struct
-            self.late_per_period.append(ts.late_writes - late0)
+            self._late_per_period.append(ts.late_writes - late0)
             late_seen = ts.first_late_update >= 0
         else:
-            self.late_per_period.append(tim.late_writes - late0)
+            self._late_per_period.append(tim.late_writes - late0)
             late_seen = tim.first_late_update is not None
-        self.entries_per_period.append(entries)
-        self.isr_cycles.append(isr)  # last: a period counts as recorded once this list has it (period_records)
+        self._entries_per_period.append(entries)
+        self._isr_cycles.append(isr)  # last: a period counts as recorded once this list has it (period_records)
         if self.late_first_period is None and late_seen:
             self.late_first_period = self.periods
         self.periods += 1
@@ -399,8 +400,6 @@ class BoardLink(PeriodShared, BoardLinkBase):
             ps.held[k] = ctypes.addressof(adc._a) + type(adc._a).error.offset
         ps.n_held = len(adcs)
         ps.py_held = ctypes.addressof(pn.HELD)
-        ps.gil_ensure = core_native.address(ctypes.pythonapi.PyGILState_Ensure)
-        ps.gil_release = core_native.address(ctypes.pythonapi.PyGILState_Release)
         ps.pole_pairs, ps.hclk_hz, ps.period_cycles = self.pole_pairs, self.hclk_hz, self.period_cycles
         limit = self.desc.break_overcurrent_a
         ps.has_break, ps.break_limit_a = limit is not None, limit or 0.0
@@ -408,6 +407,8 @@ class BoardLink(PeriodShared, BoardLinkBase):
         for model in (self.fdcan, self._pair_opamps[0] if self._pair_opamps is not None else None):
             if model is not None:
                 model.on_change = self._wake
+        #: `_period_c`'s arguments (the Measurement's values, its exec_time_ns)
+        self._c_args = ((ctypes.c_double * 6)(), ctypes.c_int64())
         ps.enabled = 1
         self._sync_wake()
 
@@ -418,23 +419,29 @@ class BoardLink(PeriodShared, BoardLinkBase):
     def _sync_wake(self) -> None:
         """Whether the next period is Python's (frames to or from the host, FDCAN1 joining the bus or sending, an
         amplifier routed to the ADC pair, the open bridge's Command just sent), into the period in C."""
+        ps = self._ps
+        if not ps.enabled:
+            return
         fdcan, opamps = self.fdcan, self._pair_opamps
-        self._ps.wake = bool(
-            self.boot_error is not None or self._rx or self._on_bus or self._idle_left or self._answer_left
-            or self._bus_free > self._period_start or self._off_seq is not None or self._hall_held is not None
+        ps.wake = bool(
+            self._off_seq is not None or self._rx or self._on_bus or self._idle_left or self._answer_left
+            or self._bus_free > self._period_start or self._hall_held is not None or self.boot_error is not None
             or (fdcan is not None and (fdcan.transmitted or (not self._bus_on and not fdcan.cccr & FDCAN_INIT)))
             or (opamps is not None and any(opamps[0].csr[k] & OPAINTOEN for k in opamps[1])))
 
-    def _period_c(self, values: Any, exec_time: Any) -> int | None:
-        """The period in C for `values` (a ctypes double[6]: i_a, i_b, i_c, theta_e, omega_m, vdc): its
-        exec_time_ns, or None when Python runs it (and finishes it when the C period began it: `_period_resume`)."""
+    def _period_c(self, msg: Measurement) -> int | None:
+        """The period in C for Measurement `msg`: its exec_time_ns, or None when Python runs it (and finishes it
+        when the C period began it: `_period_resume`)."""
         ps = self._ps
         if not ps.enabled or ps.wake:
             return None
         assert self._adc_table is not None
-        self._adc_table.take(values[0:3] + values[5:6])
+        self._adc_table.take((msg.i_a, msg.i_b, msg.i_c, msg.vdc))
         self._table_in_c = True
+        values, exec_time = self._c_args
+        values[:] = [msg.i_a, msg.i_b, msg.i_c, msg.theta_e, msg.omega_m, msg.vdc]
         if period_native.library().hil_board_period(ctypes.byref(ps), values, ctypes.byref(exec_time)):
+            self._frames_taken += 1  # `send` counted the frame already
             return int(exec_time.value)
         return None
 
@@ -648,16 +655,17 @@ class BoardLink(PeriodShared, BoardLinkBase):
     def _measured(self, msg: Measurement) -> int:
         """`send`'s period for Measurement `msg`: in C when it can be (`_period_c`, as the native loop's board link
         calls it), else in Python; its exec_time_ns."""
-        values = (ctypes.c_double * 6)(msg.i_a, msg.i_b, msg.i_c, msg.theta_e, msg.omega_m, msg.vdc)
-        exec_time_ns = self._period_c(values, ctypes.c_int64())
+        exec_time_ns = self._period_c(msg)
         if exec_time_ns is not None:
-            self._ps.frames_tx -= 1  # `send` counted the frame already
             return exec_time_ns
         if self._ps.resume:
             return self._period_resume()
         return self._period(msg.i_a, msg.i_b, msg.i_c, msg.theta_e, msg.omega_m, msg.vdc)
 
     def poll(self) -> Frame | None:
+        ps = self._ps
+        if ps.enabled and not ps.wake:  # nothing queued, no idle period due (`_sync_wake`): nothing to do
+            return None
         frame = super().poll()
         self._sync_wake()
         return frame

@@ -1,13 +1,15 @@
 """What the board link (link.py) shares with its common control period in C (c/board_period.c): the rotor's angle
 and speed, the period's start and signal values, held in the C period's state (period_native.PeriodState), and the
-per-period counters, which the C period leaves in rings that are read into the lists here when Python reads them.
-Either path — the Python reference or the period in C — reads and writes the same values through these properties.
+per-period counters, which the C period leaves in a ring that is read into the lists here when Python reads them
+(the C period runs without the GIL, maybe while another thread reads: the ring's `head` and the running sums are
+its alone, `tail` and what was taken of the sums Python's). Either path — the Python reference or the period in C —
+reads and writes the same values through these properties.
 """
 
 from __future__ import annotations
 
 from pmsm_hil.protocol.links.stats import LinkStats
-from pmsm_hil.sim_target.stm32g4.period_native import PeriodState, new_state
+from pmsm_hil.sim_target.stm32g4.period_native import RING, PeriodState, new_state
 
 
 class PeriodShared:
@@ -23,17 +25,21 @@ class PeriodShared:
         self._entries_per_period: list[int] = []
         self._stats = LinkStats()
         self._wall_s = 0.0
+        #: the C period's frame count and wall time [ns] already added to `_stats` and `_wall_s`
+        self._frames_taken = 0
+        self._wall_taken = 0
 
     def _flush(self) -> None:
         """The C period's counters so far into the lists (in period order)."""
         ps = self._ps
-        n = ps.n
-        if n:
-            self._isr_cycles.extend(ps.isr[:n])
-            self._sleep_cycles.extend(ps.sleep[:n])
-            self._late_per_period.extend(ps.late[:n])
-            self._entries_per_period.extend(ps.entries[:n])
-            ps.n = 0
+        head, tail = int(ps.head), int(ps.tail)
+        if head == tail:
+            return
+        i, j = tail % RING, head % RING
+        for ring, out in ((ps.sleep, self._sleep_cycles), (ps.late, self._late_per_period),
+                          (ps.entries, self._entries_per_period), (ps.isr, self._isr_cycles)):
+            out.extend(ring[i:j] if i < j else ring[i:] + ring[:j])
+        ps.tail = head
 
     # --- the per-period counters --------------------------------------------------------------------------------
 
@@ -83,10 +89,10 @@ class PeriodShared:
     @property
     def stats(self) -> LinkStats:
         """The link's frame counts (the Measurements the C period took included)."""
-        ps = self._ps
-        if ps.frames_tx:
-            self._stats.frames_tx += int(ps.frames_tx)
-            ps.frames_tx = 0
+        n = int(self._ps.frames_tx)
+        if n != self._frames_taken:
+            self._stats.frames_tx += n - self._frames_taken
+            self._frames_taken = n
         return self._stats
 
     @stats.setter
@@ -96,15 +102,15 @@ class PeriodShared:
     @property
     def wall_s(self) -> float:
         """Wall time spent in the board's periods [s]."""
-        ps = self._ps
-        if ps.wall_ns:
-            self._wall_s += ps.wall_ns * 1e-9
-            ps.wall_ns = 0
+        n = int(self._ps.wall_ns)
+        if n != self._wall_taken:
+            self._wall_s += (n - self._wall_taken) * 1e-9
+            self._wall_taken = n
         return self._wall_s
 
     @wall_s.setter
     def wall_s(self, value: float) -> None:
-        self._ps.wall_ns = 0
+        self._wall_taken = int(self._ps.wall_ns)
         self._wall_s = value
 
     # --- the inputs -----------------------------------------------------------------------------------------------

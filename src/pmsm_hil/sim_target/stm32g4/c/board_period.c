@@ -11,7 +11,10 @@
  * Python finishes it from the snapshot here) when the run did not end cleanly (a stop code, an error a model holds),
  * something woke Python during it, or TIM1's outputs are off (MOE = 0: the idle legs). The same steps and the same
  * floating-point operations as the Python reference, compared record for record by tests/board/test_native_exc.py.
- * No allocation; the GIL is taken for the call (the core calls Python models back). */
+ * No allocation. It runs without the GIL (a Python model the core calls back takes it through its ctypes callback):
+ * the counters' ring is single-producer (here), single-consumer (Python, under the GIL, possibly on another
+ * thread: `head` published after its entries, `tail` Python's), and the running sums only grow (Python keeps what
+ * it took). */
 #define _POSIX_C_SOURCE 199309L
 #include <math.h>
 #include <stdint.h>
@@ -27,8 +30,6 @@
 
 typedef int (*hil_run_fn)(void *core, int64_t end, int fresh);
 typedef void (*hil_break_fn)(void *tim, int level, int64_t now);
-typedef int (*hil_gil_ensure_fn)(void);
-typedef void (*hil_gil_release_fn)(int);
 
 typedef struct {
     /* set once by Python */
@@ -44,19 +45,18 @@ typedef struct {
     int64_t *enc_period_start;
     const int32_t *held[HIL_PERIOD_HELD]; /* a model in C holds an error when nonzero */
     const int32_t *py_held;        /* a Python callback of a model in C raised (periph_native.Callbacks) */
-    hil_gil_ensure_fn gil_ensure;
-    hil_gil_release_fn gil_release;
     int32_t n_held, pole_pairs, has_break, break_active_low, enabled, pad0;
     double hclk_hz, break_limit_a;
     int64_t period_cycles;
     /* shared with Python */
-    int32_t wake, resume, resume_rc, has_theta_e, stale, n;
+    int32_t wake, resume, resume_rc, has_theta_e, stale, pad1;
     double theta_m, theta_e, omega_m;  /* [rad, rad, rad/s] */
     int64_t period_start;
     double signals[4];             /* i_a, i_b, i_c [A], vdc [V] of the period (stale: not in Python's volts) */
     int64_t sleep0, isr0, entries0, late0;
     int64_t periods, late_first_period, frames_tx, wall_ns;
     int64_t in_c;                  /* periods this function ran to the end */
+    int64_t head, tail;            /* the ring's entries written (here) and read (by Python) */
     int64_t isr[HIL_PERIOD_RING], sleep[HIL_PERIOD_RING], late[HIL_PERIOD_RING], entries[HIL_PERIOD_RING];
 } hil_board_period_t;
 
@@ -131,10 +131,10 @@ static int take(hil_board_period_t *p, const double *v) {
  * 1 with *exec_time_ns (TIM1's outputs on: the duties are the compare values'), 0 when Python runs it (`resume`
  * set: Python finishes the period begun here). */
 int hil_board_period(hil_board_period_t *p, const double *v, int64_t *exec_time_ns) {
-    if (!p->enabled || p->wake || p->resume || p->n >= HIL_PERIOD_RING) {
+    const int64_t tail = __atomic_load_n(&p->tail, __ATOMIC_ACQUIRE);
+    if (!p->enabled || p->wake || p->resume || p->head - tail >= HIL_PERIOD_RING) {
         return 0;
     }
-    const int gil = p->gil_ensure ? p->gil_ensure() : 0;
     const int64_t t0 = now_ns();
     int rc = HIL_PERIOD_BEFORE_RUN;
     int done = 0;
@@ -151,11 +151,12 @@ int hil_board_period(hil_board_period_t *p, const double *v, int64_t *exec_time_
                 *p->enc_period_start = end;
             }
             const int64_t isr = *p->handler_cycles - p->isr0;
-            const int k = p->n++;
+            const int64_t k = p->head % HIL_PERIOD_RING;
             p->isr[k] = isr;
             p->sleep[k] = *p->sleep_cycles - p->sleep0;
             p->late[k] = *p->late_writes - p->late0;
             p->entries[k] = *p->exc_entries - p->entries0;
+            __atomic_store_n(&p->head, p->head + 1, __ATOMIC_RELEASE); /* after its entries */
             if (p->late_first_period < 0 && *p->first_late_update >= 0) {
                 p->late_first_period = p->periods;
             }
@@ -171,9 +172,6 @@ int hil_board_period(hil_board_period_t *p, const double *v, int64_t *exec_time_
         p->resume_rc = rc;
     }
     p->wall_ns += now_ns() - t0;
-    if (p->gil_release) {
-        p->gil_release(gil);
-    }
     return done;
 }
 
