@@ -167,12 +167,17 @@ def library() -> ctypes.PyDLL:
         lib.hil_core_withdraw_line.restype = None
         lib.hil_core_best_pending.argtypes = [ctypes.c_void_p]
         lib.hil_core_best_pending.restype = ctypes.c_int
-        lib.hil_core_size.restype = ctypes.c_int64
-        if lib.hil_core_size() != ctypes.sizeof(CoreState):
-            raise CoreBuildError(f"the board's core: hil_core_t is {lib.hil_core_size()} bytes, its mirror "
-                                 f"{ctypes.sizeof(CoreState)}")
+        check_size(lib.hil_core_size, "the board's core: hil_core_t", CoreState)
         _LIB = lib
     return _LIB
+
+
+def check_size(size_fn: Any, what: str, mirror: type[ctypes.Structure]) -> None:
+    """CoreBuildError naming `what` when the C struct's size (`size_fn()`, an int64 function of the library) is not
+    its ctypes mirror's."""
+    size_fn.restype = ctypes.c_int64
+    if size_fn() != ctypes.sizeof(mirror):
+        raise CoreBuildError(f"{what} is {size_fn()} bytes, its mirror {ctypes.sizeof(mirror)}")
 
 
 def address(fn: Any) -> int:

@@ -12,6 +12,17 @@ from pmsm_hil.protocol.links.stats import LinkStats
 from pmsm_hil.sim_target.stm32g4.period_native import RING, PeriodState, new_state
 
 
+def _counts(name: str, doc: str) -> property:
+    """A per-period counter list `name` of PeriodShared, read after the C period's ring (`_flush`)."""
+
+    def get(self: PeriodShared) -> list[int]:
+        self._flush()
+        out: list[int] = getattr(self, name)
+        return out
+
+    return property(get, doc=doc)
+
+
 class PeriodShared:
     """The board link's period state, in C (call `_init_shared` before anything else of the link)."""
 
@@ -43,29 +54,10 @@ class PeriodShared:
 
     # --- the per-period counters --------------------------------------------------------------------------------
 
-    @property
-    def isr_cycles(self) -> list[int]:
-        """Per control period: cycles in interrupt handlers."""
-        self._flush()
-        return self._isr_cycles
-
-    @property
-    def sleep_cycles(self) -> list[int]:
-        """Per control period: cycles the core slept."""
-        self._flush()
-        return self._sleep_cycles
-
-    @property
-    def late_per_period(self) -> list[int]:
-        """Per control period: late compare values (TIM1's count of them, 0 or 1)."""
-        self._flush()
-        return self._late_per_period
-
-    @property
-    def entries_per_period(self) -> list[int]:
-        """Per control period: exception entries."""
-        self._flush()
-        return self._entries_per_period
+    isr_cycles = _counts("_isr_cycles", "Per control period: cycles in interrupt handlers.")
+    sleep_cycles = _counts("_sleep_cycles", "Per control period: cycles the core slept.")
+    late_per_period = _counts("_late_per_period", "Per control period: late compare values (TIM1's count, 0 or 1).")
+    entries_per_period = _counts("_entries_per_period", "Per control period: exception entries.")
 
     @property
     def late_first_period(self) -> int | None:

@@ -8,7 +8,7 @@ import ctypes
 from pathlib import Path
 
 from pmsm_hil.sim_target.fw_build import host_library
-from pmsm_hil.sim_target.stm32g4.core_native import CoreBuildError
+from pmsm_hil.sim_target.stm32g4.core_native import CoreBuildError, check_size
 
 SOURCE = Path(__file__).with_name("c") / "board_period.c"
 #: the periods' counters the C period holds until Python reads them
@@ -60,9 +60,6 @@ def library() -> ctypes.PyDLL:
                                             CoreBuildError)))
         lib.hil_board_period.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p]
         lib.hil_board_period.restype = ctypes.c_int
-        lib.hil_board_period_size.restype = ctypes.c_int64
-        if lib.hil_board_period_size() != ctypes.sizeof(PeriodState):
-            raise CoreBuildError(f"the board's period: hil_board_period_t is {lib.hil_board_period_size()} bytes, "
-                                 f"its mirror {ctypes.sizeof(PeriodState)}")
+        check_size(lib.hil_board_period_size, "the board's period: hil_board_period_t", PeriodState)
         _LIB = lib
     return _LIB
