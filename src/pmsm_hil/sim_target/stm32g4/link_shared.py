@@ -39,6 +39,11 @@ class PeriodShared:
         #: the C period's frame count and wall time [ns] already added to `_stats` and `_wall_s`
         self._frames_taken = 0
         self._wall_taken = 0
+        ps = self._ps
+        #: (the C ring, its list) per counter, the ring as int64 memory (slices read in one call)
+        self._rings = [(memoryview(ring).cast("B").cast("q"), out) for ring, out in (
+            (ps.sleep, self._sleep_cycles), (ps.late, self._late_per_period), (ps.entries, self._entries_per_period),
+            (ps.isr, self._isr_cycles))]
 
     def _flush(self) -> None:
         """The C period's counters so far into the lists (in period order)."""
@@ -47,9 +52,12 @@ class PeriodShared:
         if head == tail:
             return
         i, j = tail % RING, head % RING
-        for ring, out in ((ps.sleep, self._sleep_cycles), (ps.late, self._late_per_period),
-                          (ps.entries, self._entries_per_period), (ps.isr, self._isr_cycles)):
-            out.extend(ring[i:j] if i < j else ring[i:] + ring[:j])
+        for ring, out in self._rings:  # `isr_cycles` last: a period counts as recorded once it has it
+            if i < j:
+                out.extend(ring[i:j].tolist())
+            else:
+                out.extend(ring[i:].tolist())
+                out.extend(ring[:j].tolist())
         ps.tail = head
 
     # --- the per-period counters --------------------------------------------------------------------------------
