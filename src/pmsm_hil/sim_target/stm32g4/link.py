@@ -250,7 +250,9 @@ class BoardLink(PeriodShared, BoardLinkBase):
                     return
         if not self._table_in_c:
             pair.take((i_a, i_b, i_c, vdc))
-        self._stale_signals = (i_a, i_b, i_c, vdc)
+        ps = self._ps  # `_stale_signals` (link_shared.py)
+        signals = ps.signals
+        signals[0], signals[1], signals[2], signals[3], ps.stale = i_a, i_b, i_c, vdc, 1
 
     def _update_volts(self, i_a: float, i_b: float, i_c: float, vdc: float) -> None:
         """Each analog input's pin voltage for the signal values [A, V] into `_volts`."""
@@ -287,16 +289,17 @@ class BoardLink(PeriodShared, BoardLinkBase):
             self._fill_table(self._adc_table, i_a, i_b, i_c, vdc)
         else:
             self._update_volts(i_a, i_b, i_c, vdc)
-        if self._theta_e is not None:
-            d = (theta_e - self._theta_e + math.pi) % (2 * math.pi) - math.pi
-            self._theta_m += d / self.pole_pairs
+        ps = self._ps  # `_theta_e`, `_theta_m`, `_omega_m` (link_shared.py), without the properties' calls
+        if ps.has_theta_e:
+            d = (theta_e - ps.theta_e + math.pi) % (2 * math.pi) - math.pi
+            ps.theta_m += d / self.pole_pairs
         else:  # an aligned encoder: its zero where the electrical angle is zero
-            self._theta_m = theta_e / self.pole_pairs
-        self._theta_e = theta_e
-        self._omega_m = omega_m
+            ps.theta_m = theta_e / self.pole_pairs
+        ps.theta_e, ps.has_theta_e = theta_e, 1
+        ps.omega_m = omega_m
         state = self._encoder_state
         if state is not None:  # the period's start and the clock are those of the last `_sync_encoder`
-            state.theta_m, state.omega_m = self._theta_m, omega_m
+            state.theta_m, state.omega_m = ps.theta_m, omega_m
         else:
             self._sync_encoder()
         limit = self.desc.break_overcurrent_a
@@ -310,12 +313,13 @@ class BoardLink(PeriodShared, BoardLinkBase):
         board = self.board
         self._take(i_a, i_b, i_c, theta_e, omega_m, vdc)
         snapshot = self._snapshot()
-        end = self._period_start + self.period_cycles
+        start = self._ps.period_start  # `_period_start`
+        end = start + self.period_cycles
         if self._on_bus:
             self._deliver_queued()
             self._run_to(end)
         else:  # as _deliver_queued and _run_to with no host frame on the bus
-            if self._bus_free > self._period_start:  # (the board is at the period's start or past it)
+            if self._bus_free > start:  # (the board is at the period's start or past it)
                 now = board.now
                 if self._bus_free > now:
                     self._bus_free = now
@@ -337,7 +341,8 @@ class BoardLink(PeriodShared, BoardLinkBase):
         board, tim, core, tim_c = self.board, self._tim1, self._core_counts, self._tim1_c
         sleep0, isr0, entries0, late0 = snapshot
         self._flush()  # the C period's records first, then this one's (into the lists directly)
-        self._period_start = end
+        ps = self._ps  # `_period_start`, `periods`, `late_first_period` (link_shared.py)
+        ps.period_start = end
         state = self._encoder_state
         if state is not None:  # the angle, the speed and the clock as `_take` left them
             state.period_start = end
@@ -360,9 +365,9 @@ class BoardLink(PeriodShared, BoardLinkBase):
             late_seen = tim.first_late_update is not None
         self._entries_per_period.append(entries)
         self._isr_cycles.append(isr)  # last: a period counts as recorded once this list has it (period_records)
-        if self.late_first_period is None and late_seen:
-            self.late_first_period = self.periods
-        self.periods += 1
+        if ps.late_first_period < 0 and late_seen:
+            ps.late_first_period = ps.periods
+        ps.periods += 1
         return round(isr / self.hclk_hz * 1e9)
 
     # --- the period in C (c/board_period.c) -----------------------------------------------------------------------
@@ -425,7 +430,7 @@ class BoardLink(PeriodShared, BoardLinkBase):
         fdcan, opamps = self.fdcan, self._pair_opamps
         ps.wake = bool(
             self._off_seq is not None or self._rx or self._on_bus or self._idle_left or self._answer_left
-            or self._bus_free > self._period_start or self._hall_held is not None or self.boot_error is not None
+            or self._bus_free > ps.period_start or self._hall_held is not None or self.boot_error is not None
             or (fdcan is not None and (fdcan.transmitted or (not self._bus_on and not fdcan.cccr & FDCAN_INIT)))
             or (opamps is not None and any(opamps[0].csr[k] & OPAINTOEN for k in opamps[1])))
 
@@ -543,7 +548,7 @@ class BoardLink(PeriodShared, BoardLinkBase):
         `native_io`'s functions, has filled the ADC table with the inputs function (when it got one) and takes
         TIM1's compare duties (MOE set) from the outputs function (when it got one): duties None then."""
         t0 = time.perf_counter()
-        self.stats.frames_tx += 1
+        self._stats.frames_tx += 1  # `stats` (link_shared.py: the C period's count added when read)
         bus = self.bus  # noqa: F841 - as `send`, which looks at the bus before the frames (it may join it now)
         if self.boot_error is not None:
             raise self.boot_error
@@ -564,7 +569,7 @@ class BoardLink(PeriodShared, BoardLinkBase):
                 out = (outputs, exec_time_ns)
         self._collect()
         self._sync_wake()
-        self.wall_s += time.perf_counter() - t0
+        self._wall_s += time.perf_counter() - t0  # `wall_s` (link_shared.py: the C period's time added when read)
         return out
 
     def native_io(self) -> tuple[tuple[int, int] | None, tuple[int, int] | None]:
@@ -626,7 +631,7 @@ class BoardLink(PeriodShared, BoardLinkBase):
         t0 = time.perf_counter()
         bus = self.bus
         for frame in frames:
-            self.stats.frames_tx += 1
+            self._stats.frames_tx += 1
             msg = self.decoder.feed(frame)
             if isinstance(msg, Measurement):
                 if self.boot_error is not None:
@@ -650,7 +655,7 @@ class BoardLink(PeriodShared, BoardLinkBase):
                 self._setpoint(msg)
         self._collect()
         self._sync_wake()
-        self.wall_s += time.perf_counter() - t0
+        self._wall_s += time.perf_counter() - t0  # `wall_s` (link_shared.py: the C period's time added when read)
 
     def _measured(self, msg: Measurement) -> int:
         """`send`'s period for Measurement `msg`: in C when it can be (`_period_c`, as the native loop's board link
