@@ -89,3 +89,26 @@ def test_the_c_board_link_logs_what_the_callback_link_logs(tmp_path: Path, monke
             [m.data for m in board_reference], name
         for key in BOARD_KEYS:
             assert metrics.get(key) == slow.get(key), (name, key)
+
+
+def test_the_period_in_c_logs_what_python_logs_over_a_longer_run(tmp_path: Path,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """Over 2000 periods (the C core's ISR log fills: the period in C hands its run back to Python, which finishes it;
+    the main thread reads the C period's ring while it runs), the logged run with the period in C and without it:
+    the same `/periods`, `/board/periods`, `/frames` and board metrics."""
+    elf, board = _example_firmware()
+    metrics = []
+    for name, native_period in (("c", True), ("py", False)):
+        with monkeypatch.context() as m:
+            m.setattr(BoardLink, "NATIVE_PERIOD", native_period)
+            res = run_from_options({"target": f"stm32g4:{elf}", "board": str(board), "ts": TS, "link": "virtual",
+                                    "controller": "external", "motor": "niu2020-ipmsm", "speed": 1500, "load": 7,
+                                    "duration": 0.1, "settle": 0.002, "out": str(tmp_path / name)})
+        assert res.metrics["end_code"] == 0, res.metrics["end_reason"]
+        metrics.append({k: v for k, v in res.metrics.items() if k.startswith("board_") and "wall" not in k})
+    c, py = tmp_path / "c" / "run.mcap", tmp_path / "py" / "run.mcap"
+    assert len(read_periods(c)) >= 2000 and read_periods(c).tobytes() == read_periods(py).tobytes()
+    assert np.array_equal(read_frames(c), read_frames(py))
+    board_c, board_py = (read_topic_messages(path, TOPIC_BOARD) for path in (c, py))
+    assert [m.data for m in board_c] == [m.data for m in board_py]
+    assert metrics[0] == metrics[1] and "board_isr_time_us" in metrics[0]
