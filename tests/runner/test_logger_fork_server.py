@@ -112,3 +112,31 @@ def test_a_forked_logger_finalises_its_file_when_the_runner_is_killed(tmp_path: 
     while Path(f"/proc/{logger}").exists() and time.monotonic() < deadline:
         time.sleep(0.02)
     assert len(read_periods(tmp_path / "second.mcap")) == 250
+
+
+def _environ_and_umask_worker(*args: object) -> None:
+    """`run_worker`, the file it writes named after the worker's HIL_TEST_WORKER_ENV and umask."""
+    from pmsm_hil.hil.runlog.worker import run_worker
+
+    mask = os.umask(0)
+    os.umask(mask)
+    path = Path(str(args[4]))
+    path.with_name(f"{os.environ.get('HIL_TEST_WORKER_ENV')}-{mask:o}").touch()
+    run_worker(*args)
+
+
+def test_a_forked_logger_has_the_runners_environment_and_umask_of_its_start(tmp_path: Path,
+                                                                           monkeypatch: pytest.MonkeyPatch) -> None:
+    """As a spawned one: not those the fork server had when it started (a runner that changed them since)."""
+    from pmsm_hil.hil.runlog import logger as logger_module
+
+    _write(tmp_path / "a.mcap", "forkserver")  # the fork server runs
+    monkeypatch.setattr(logger_module, "run_worker", _environ_and_umask_worker)
+    for method, value, mask in (("spawn", "one", 0o27), ("forkserver", "two", 0o77)):
+        monkeypatch.setenv("HIL_TEST_WORKER_ENV", value)
+        old = os.umask(mask)
+        try:
+            _write(tmp_path / f"{method}.mcap", method)
+        finally:
+            os.umask(old)
+        assert (tmp_path / f"{value}-{mask:o}").exists(), sorted(p.name for p in tmp_path.iterdir())

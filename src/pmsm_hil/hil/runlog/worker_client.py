@@ -43,6 +43,25 @@ def _worker_entry(target: Callable[..., None], *args: Any) -> None:
     os._exit(0)
 
 
+def _forked_worker_entry(environ: dict[str, str], umask: int, target: Callable[..., None], *args: Any) -> None:
+    """`_worker_entry` for a worker forked from the fork server: first the runner's environment and umask of now, as
+    a spawned worker inherits them (the fork server has those of its own start)."""
+    os.environ.clear()
+    os.environ.update(environ)
+    os.umask(umask)
+    _worker_entry(target, *args)
+
+
+def _umask() -> int:
+    """This process's umask, read without setting it (Linux ≥ 4.7; else set and put back)."""
+    with contextlib.suppress(OSError, StopIteration, ValueError):
+        status = Path("/proc/self/status").read_text().splitlines()
+        return int(next(line for line in status if line.startswith("Umask:")).split()[1], 8)
+    mask = os.umask(0o22)
+    os.umask(mask)
+    return mask
+
+
 _SPAWN_LOCK = threading.Lock()
 #: how many workers this process has started (`start_method="auto"`: the first is spawned)
 _started = 0
@@ -156,14 +175,16 @@ class WorkerClient:
         ctx = multiprocessing.get_context(start_method)
         notice_r, self._notices = ctx.Pipe(duplex=False)
         self._status, status_w = ctx.Pipe(duplex=False)
-        self._proc: BaseProcess = ctx.Process(  # type: ignore[attr-defined]
-            target=_worker_entry, name=name, daemon=True,
-            args=(target, notice_r, status_w, str(self._ring.path), ring_bytes, *args))
+        entry: Callable[..., None] = _worker_entry
+        head: tuple[Any, ...] = ()
         serving: contextlib.AbstractContextManager[None] = contextlib.nullcontext()
         if start_method == "forkserver":
             from pmsm_hil.hil.runlog import fork_server
 
-            serving = fork_server.serving()
+            entry, head, serving = _forked_worker_entry, (dict(os.environ), _umask()), fork_server.serving()
+        self._proc: BaseProcess = ctx.Process(  # type: ignore[attr-defined]
+            target=entry, name=name, daemon=True,
+            args=(*head, target, notice_r, status_w, str(self._ring.path), ring_bytes, *args))
         try:
             with _main_not_rerun(target), serving:
                 self._proc.start()
