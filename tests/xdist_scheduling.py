@@ -110,6 +110,7 @@ COST_S: dict[str, float] = {
     "tests/runner/test_closed_loop.py": 11,
     "tests/plant/test_replay_cli.py": 10,
     "tests/runner/test_adc_delay.py": 10,
+    "tests/runner/test_logger_fork_server.py": 12,  # a runner killed with a forked logger open (2026-11-29, load 10)
     "tests/runner/test_run_options.py": 10,
 }
 
