@@ -41,7 +41,7 @@ COST_S: dict[str, float] = {
     "tests/firmware_board/test_sil_isolation.py": 462,
     "tests/bench/test_labgrid_places.py": 150,
     "tests/firmware/test_c_unit.py": 356,
-    "tests/runner/test_dut_contract.py": 353,
+    "tests/runner/test_dut_contract.py": 233,  # 353 before the forked loggers (h-suite9a: wall × 0.66)
     "tests/load_fmu:fan-fmus": 316,
     "tests/runner/test_operating_range.py": 263,
     "tests/runner/test_wire_serial.py": 246,
@@ -73,10 +73,10 @@ COST_S: dict[str, float] = {
     "tests/firmware_board/test_template.py": 64,
     "tests/test_layers.py": 62,
     "tests/plant/test_fluxmap.py": 62,
-    "tests/runner/test_replay_run.py": 60,  # 22 short logged runs replayed (measured alone, load ≈ 13)
+    "tests/runner/test_replay_run.py": 33,  # 22 short logged runs replayed: 60 before the forked loggers
     "tests/runner/test_links_and_modes.py": 59,
     "tests/runlog/test_durability.py": 54,
-    "tests/runner/test_cli_inputs_outputs.py": 46,
+    "tests/runner/test_cli_inputs_outputs.py": 19,  # 46 before the forked loggers
     "tests/sweep/test_engines.py": 45,
     "tests/sweep/test_compare_engines.py": 43,
     "tests/compare/test_compare.py": 43,
@@ -110,6 +110,7 @@ COST_S: dict[str, float] = {
     "tests/runner/test_closed_loop.py": 11,
     "tests/plant/test_replay_cli.py": 10,
     "tests/runner/test_adc_delay.py": 10,
+    "tests/runner/test_logger_fork_server.py": 12,  # a runner killed with a forked logger open (2026-11-29, load 10)
     "tests/runner/test_run_options.py": 10,
 }
 

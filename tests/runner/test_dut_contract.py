@@ -89,12 +89,8 @@ def _run(tmp_path: Path, pty: tuple[int, str], *rules: str, extra: tuple[str, ..
     master, port = pty
     log, out = tmp_path / "target.jsonl", tmp_path / "run"
     target = _start_target(port, log, rules, fresh)
-    try:
-        rc = main([*RUN, "--link", f"serial:fd:{master}", "--duration", "0.01", "--out", str(out), *extra])
-    finally:
-        if target.poll() is None:
-            time.sleep(0.2)
-    return _ended(rc, out, log, target)
+    rc = main([*RUN, "--link", f"serial:fd:{master}", "--duration", "0.01", "--out", str(out), *extra])
+    return _ended(rc, out, log, target)  # waits for the target: it ends once the host has closed the port
 
 
 def test_a_clean_run_completes_and_disables_the_target(tmp_path: Path, pty: tuple[int, str]) -> None:

@@ -105,12 +105,25 @@ def _start_logged_run(out: Path, min_bytes: int) -> tuple[subprocess.Popen[bytes
     return proc, mcap
 
 
+def _ppid(stat: Path) -> int:
+    """The parent pid in a /proc/PID/stat, 0 if the process is gone or a zombie."""
+    try:
+        fields = stat.read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return 0
+    return 0 if fields[0] == "Z" else int(fields[1])
+
+
 def test_sigkill_of_a_run_leaves_a_readable_mcap(tmp_path: Path) -> None:
     # ≈ 220 bytes a period on disk: the kill comes once the file holds more than the 5000 periods checked
     proc, mcap = _start_logged_run(tmp_path / "run", 1_500_000)
+    children = [stat.parent.name for stat in Path("/proc").glob("[0-9]*/stat")  # the logger, resource tracker
+                if _ppid(stat) == proc.pid]
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
-    time.sleep(1.0)  # the logger process notices its parent died and finalises the file
+    deadline = time.monotonic() + 60  # the logger notices its parent died and finalises the file, then ends
+    while any(_ppid(Path(f"/proc/{pid}/stat")) for pid in children) and time.monotonic() < deadline:
+        time.sleep(0.02)
     periods = read_periods(mcap)
     assert len(periods) > 5000
     assert (periods["seq"][:100] == range(100)).all()

@@ -43,7 +43,49 @@ def _worker_entry(target: Callable[..., None], *args: Any) -> None:
     os._exit(0)
 
 
+def _forked_worker_entry(environ: dict[str, str], umask: int, target: Callable[..., None], *args: Any) -> None:
+    """`_worker_entry` for a worker forked from the fork server: first the runner's environment and umask of now, as
+    a spawned worker inherits them (the fork server has those of its own start)."""
+    os.environ.clear()
+    os.environ.update(environ)
+    os.umask(umask)
+    _worker_entry(target, *args)
+
+
+def _umask() -> int:
+    """This process's umask, read without setting it (Linux ≥ 4.7; else set and put back)."""
+    with contextlib.suppress(OSError, StopIteration, ValueError):
+        status = Path("/proc/self/status").read_text().splitlines()
+        return int(next(line for line in status if line.startswith("Umask:")).split()[1], 8)
+    mask = os.umask(0o22)
+    os.umask(mask)
+    return mask
+
+
 _SPAWN_LOCK = threading.Lock()
+#: how many workers this process has started (`start_method="auto"`: the first is spawned)
+_started = 0
+START_METHODS = ("auto", "spawn", "forkserver")
+
+
+def resolve_start_method(start_method: str) -> str:
+    """"spawn" or "forkserver" for a worker about to start: "auto" spawns a process's first worker (a `hil run`
+    makes one: a fork server would only add a process) and forks the later ones from the logger's own fork server
+    (`fork_server`)."""
+    if start_method not in START_METHODS:
+        raise ValueError(f"start_method: expected one of {', '.join(START_METHODS)}, got {start_method!r}")
+    if start_method == "auto":
+        return "forkserver" if _started else "spawn"
+    return start_method
+
+
+def _count_in_child() -> None:  # pragma: no cover - runs in a forked child
+    """A forked child is a new process: its first worker is spawned again ("auto")."""
+    global _started
+    _started = 0
+
+
+os.register_at_fork(after_in_child=_count_in_child)
 
 
 @contextlib.contextmanager
@@ -109,13 +151,14 @@ class WorkerClient:
         start-up data left a half-started child (an EOFError traceback); the child starts with both blocked,
         so a terminal's Ctrl-C never reaches its imports either (`_worker_entry`)."""
         self._stall_timeout_s = stall_timeout_s
+        start_method = resolve_start_method(start_method)
         resource_tracker.ensure_running()  # started first: starting it unblocks the signals again
-        if start_method == "forkserver":
-            from multiprocessing import forkserver  # not in the spawned logger process, which imports this module
-
-            forkserver.ensure_running()
         mask = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD)
         try:
+            if start_method == "forkserver":  # started with the signals blocked: so are the workers it forks
+                from pmsm_hil.hil.runlog import fork_server  # not in the spawned worker (it imports this module)
+
+                fork_server.ensure_running()
             self._ring = RingProducer(ring_bytes)
             try:
                 self._spawn(target, args, name=name, start_method=start_method, ring_bytes=ring_bytes)
@@ -128,15 +171,24 @@ class WorkerClient:
 
     def _spawn(self, target: Callable[..., None], args: tuple[Any, ...], *, name: str, start_method: str,
                ring_bytes: int) -> None:
+        global _started
         ctx = multiprocessing.get_context(start_method)
         notice_r, self._notices = ctx.Pipe(duplex=False)
         self._status, status_w = ctx.Pipe(duplex=False)
+        entry: Callable[..., None] = _worker_entry
+        head: tuple[Any, ...] = ()
+        serving: contextlib.AbstractContextManager[None] = contextlib.nullcontext()
+        if start_method == "forkserver":
+            from pmsm_hil.hil.runlog import fork_server
+
+            entry, head, serving = _forked_worker_entry, (dict(os.environ), _umask()), fork_server.serving()
         self._proc: BaseProcess = ctx.Process(  # type: ignore[attr-defined]
-            target=_worker_entry, name=name, daemon=True,
-            args=(target, notice_r, status_w, str(self._ring.path), ring_bytes, *args))
+            target=entry, name=name, daemon=True,
+            args=(*head, target, notice_r, status_w, str(self._ring.path), ring_bytes, *args))
         try:
-            with _main_not_rerun(target):
+            with _main_not_rerun(target), serving:
                 self._proc.start()
+            _started += 1
         finally:
             notice_r.close()
             status_w.close()
