@@ -22,6 +22,7 @@ from pmsm_hil.sim_target.fw_build import build_firmware, missing_tools
 from pmsm_hil.sim_target.stm32g4 import periph_native
 from pmsm_hil.sim_target.stm32g4.board import Board
 from pmsm_hil.sim_target.stm32g4.board_file import load_board
+from pmsm_hil.sim_target.stm32g4.cpu import Cpu
 from pmsm_hil.sim_target.stm32g4.link import BoardLink
 from pmsm_hil.sim_target.stm32g4.part import PARTS
 from pmsm_hil.sim_target.stm32g4.peripherals import tim_gp
@@ -47,13 +48,15 @@ FAST_PATHS: dict[str, tuple[Any, str, str]] = {
     "native_periph": (periph_native, "NATIVE", "the C and the Python TIM1 and ADC models"),
     "native_encoder": (tim_gp, "NATIVE_ENCODER", "the encoder timer's CNT read in C and in Python"),
     "lazy_stats": (Board, "LAZY_STATS", "the ISR statistics taken from the C core's log when read with the entries "
-                   "counted in C and the log drained after every run_until with the entries summed")}
+                   "counted in C and the log drained after every run_until with the entries summed"),
+    "count_cache": (Cpu, "COUNT_CACHE", "the instruction counter keeping each flash block's count and the one "
+                    "decoding every block it runs")}
 
 
 def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch: pytest.MonkeyPatch,
             periods: int = PERIODS, skip_quiet: bool = True, native_core: bool = True,
             native_periph: bool = True, event_driven: bool = True,
-            native_encoder: bool = True, lazy_stats: bool = True) -> dict[str, Any]:
+            native_encoder: bool = True, lazy_stats: bool = True, count_cache: bool = True) -> dict[str, Any]:
     """Everything a run of `periods` Measurements leaves, with the board's C paths (exception frames, the DWT page's
     reads) or the Python reference, with the scheduler skipping quiet models or asking every model every step, with
     the scheduler, NVIC and SysTick in C or in Python, with TIM1 and the ADCs in C or in Python."""
@@ -64,12 +67,14 @@ def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch:
     monkeypatch.setattr(periph_native, "NATIVE", native_periph)
     monkeypatch.setattr(tim_gp, "NATIVE_ENCODER", native_encoder)
     monkeypatch.setattr(Board, "LAZY_STATS", lazy_stats)
+    monkeypatch.setattr(Cpu, "COUNT_CACHE", count_cache)
     link = BoardLink(elf, load_board(board_file), ts_s=TS, pole_pairs=4)
     assert (link._c_encoder is not None) == (native_encoder and link.desc.encoder_timer == "TIM3")
     assert (link.board.exceptions._native is not None) == native
     assert link.board._lazy_stats == (lazy_stats and link.board._native_core)
     assert hasattr(link.board, "_dwt") == native
     assert link.board._native_core == (native and skip_quiet and native_core)
+    assert link.board.cpu.counter.n_fixed == (2 if count_cache else 0)
     assert all(getattr(link.board.peripherals[name], "native_page", None) is not None or name == "ADC2"
                for name in ("TIM1", "ADC1")) == native_periph
     assert (type(link.board.peripherals["TIM1"]) is not Tim1) == native_periph
@@ -109,7 +114,8 @@ def same(path: str, elf: Path, board_file: str | Path | None, monkeypatch: pytes
     reference = records(elf, board_file, path != "native_exc", monkeypatch, periods,
                         skip_quiet=path != "quiet_skip", native_core=path != "native_core",
                         native_periph=path != "native_periph", event_driven=path != "event_driven",
-                        native_encoder=path != "native_encoder", lazy_stats=path != "lazy_stats")
+                        native_encoder=path != "native_encoder", lazy_stats=path != "lazy_stats",
+                        count_cache=path != "count_cache")
     native = records(elf, board_file, True, monkeypatch, periods)
     for key in reference:
         assert native[key] == reference[key], f"{key} differs between {what}"

@@ -81,6 +81,10 @@ MmioWrite = Callable[[int, int, int], None]
 class Cpu:
     """Unicorn set up as the part's Cortex-M4F with its memories mapped; `run` executes one slice."""
 
+    #: the instruction counter keeps the count of each flash block it decoded (c/insn_count.c) instead of decoding
+    #: the block at every execution (the reference)
+    COUNT_CACHE = True
+
     def __init__(self, part: Part, *, python_stops: bool = True) -> None:
         """`python_stops` False: the slice's stops (interrupts, unmapped accesses) are left to hooks the board's C
         core registers (`run` is then not used)."""
@@ -109,6 +113,8 @@ class Cpu:
         for i, (base, size, host) in enumerate(regions[:REGIONS]):
             self.counter.base[i], self.counter.size[i], self.counter.host[i] = base, size, host
         self.counter.n_regions = len(regions)
+        self.counter.n_fixed = 2 if self.COUNT_CACHE else 0  # the flash and its alias
+        self._fixed = regions[:2]
         self._hook = ctypes.c_size_t()
         status = uclib.uc_hook_add(uc._uch, ctypes.byref(self._hook), UC_HOOK_BLOCK,
                                    ctypes.c_void_p(hook_function()), ctypes.cast(ctypes.pointer(self.counter),
@@ -197,6 +203,13 @@ class Cpu:
     def load(self, address: int, data: bytes) -> None:
         """Program bytes into flash or RAM (ELF loading)."""
         self.uc.mem_write(address, data)
+        self._code_written(address, len(data))
+
+    def _code_written(self, address: int, size: int) -> None:
+        """Bytes at [address, address + size) were written: the counter forgets its decoded blocks if they may
+        hold some of them (the flash or its alias)."""
+        if any(address < base + span and base < address + size for base, span, _ in self._fixed):
+            self.counter.forget_blocks()
 
     def read_u32(self, address: int) -> int:
         status = uclib.uc_mem_read(self._uch, address, self._word, 4)
@@ -209,6 +222,7 @@ class Cpu:
         status = uclib.uc_mem_write(self._uch, address, data, len(data))
         if status != 0:
             raise UcError(status)
+        self._code_written(address, len(data))
 
     def read_bytes(self, address: int, size: int) -> bytes:
         buf = ctypes.create_string_buffer(size)

@@ -194,17 +194,37 @@ static int execution_priority(const hil_core_t *c, int primask, uint32_t basepri
     return prio;
 }
 
-/* The pending, enabled exception taken first (lowest group priority, then sub-priority, then number); -1: none. */
+/* The 8 flags of `flags` from index 8 * w, as one word (0: none set); past the NVIC's size read as clear. */
+static uint64_t flag_word(const hil_core_t *c, const uint8_t *flags, int w) {
+    uint64_t word;
+    memcpy(&word, flags + 8 * w, sizeof word);
+    int past = 8 * w + 8 - c->nvic.size;
+    if (past > 0) {
+        word = past >= 8 ? 0 : word & (~0ull >> (8 * past));  /* little-endian: the low bytes are the low indices */
+    }
+    return word;
+}
+
+static int flag_words(const hil_core_t *c) { return (c->nvic.size + 7) / 8; }
+
+/* The pending, enabled exception taken first (lowest group priority, then sub-priority, then number); -1: none.
+ * Only the words of `pending` with a flag set are looked at, in ascending order. */
 int hil_core_best_pending(const hil_core_t *c) {
     int best = -1, bg = 0, bs = 0;
-    for (int exc = 0; exc < c->nvic.size; ++exc) {
-        if (!c->nvic.pending[exc] || !c->nvic.enabled[exc]) {
+    for (int w = 0; w < flag_words(c); ++w) {
+        if (!flag_word(c, c->nvic.pending, w)) {
             continue;
         }
-        int g = group_priority(c, exc);
-        int s = exc > HARDFAULT ? c->nvic.priority[exc] : 0;
-        if (best < 0 || g < bg || (g == bg && s < bs)) {
-            best = exc, bg = g, bs = s;
+        int top = 8 * w + 8 < c->nvic.size ? 8 * w + 8 : c->nvic.size;
+        for (int exc = 8 * w; exc < top; ++exc) {
+            if (!c->nvic.pending[exc] || !c->nvic.enabled[exc]) {
+                continue;
+            }
+            int g = group_priority(c, exc);
+            int s = exc > HARDFAULT ? c->nvic.priority[exc] : 0;
+            if (best < 0 || g < bg || (g == bg && s < bs)) {
+                best = exc, bg = g, bs = s;
+            }
         }
     }
     return best;
@@ -219,8 +239,8 @@ static int preempting(const hil_core_t *c, int primask, uint32_t basepri) {
 }
 
 static int any_pending(const hil_core_t *c) {
-    for (int exc = 0; exc < c->nvic.size; ++exc) {
-        if (c->nvic.pending[exc]) {
+    for (int w = 0; w < flag_words(c); ++w) {
+        if (flag_word(c, c->nvic.pending, w)) {
             return 1;
         }
     }
@@ -228,9 +248,14 @@ static int any_pending(const hil_core_t *c) {
 }
 
 static int enabled_pending(const hil_core_t *c) {
-    for (int exc = 0; exc < c->nvic.size; ++exc) {
-        if (c->nvic.pending[exc] && c->nvic.enabled[exc]) {
-            return 1;
+    for (int w = 0; w < flag_words(c); ++w) {
+        if (!flag_word(c, c->nvic.pending, w) || !flag_word(c, c->nvic.enabled, w)) {
+            continue;
+        }
+        for (int exc = 8 * w; exc < 8 * w + 8 && exc < c->nvic.size; ++exc) {
+            if (c->nvic.pending[exc] && c->nvic.enabled[exc]) {
+                return 1;
+            }
         }
     }
     return 0;

@@ -2,11 +2,15 @@
  * instructions of each block about to execute to a running count, and stops the CPU at the first block that
  * begins at or after the slice's limit (a block begun before it runs whole) (the next peripheral event). Blocks are decoded from the memory the board maps (flash, SRAM,
  * CCM-SRAM), whose host addresses the board hands in; a halfword whose top five bits are 0b11101, 0b11110 or
- * 0b11111 starts a 32-bit instruction (Armv7-M ARM A5.1). Built on first use (src/pmsm_hil/sim_target/stm32g4/counter.py). */
+ * 0b11111 starts a 32-bit instruction (Armv7-M ARM A5.1). A block of the first `n_fixed` regions (the flash and
+ * its alias: code the core cannot change) is decoded once: its count is kept in a direct-mapped table by address
+ * and size, emptied by the board whenever it writes those regions (ELF loading). Built on first use
+ * (src/pmsm_hil/sim_target/stm32g4/counter.py). */
 #include <stdint.h>
 #include <stddef.h>
 
 #define HIL_COUNTER_REGIONS 6
+#define HIL_COUNTER_CACHE 1024 /* a power of two */
 
 typedef struct {
     uint64_t count;                 /* instructions begun so far */
@@ -17,9 +21,18 @@ typedef struct {
     uint32_t size[HIL_COUNTER_REGIONS];
     const uint8_t *host[HIL_COUNTER_REGIONS];
     uint64_t unknown_blocks;        /* blocks outside every region (counted as one instruction per halfword) */
+    uint32_t n_fixed;               /* regions [0, n_fixed) hold code that does not change while running: cached */
+    uint32_t pad;
+    uint32_t cache_address[HIL_COUNTER_CACHE];
+    uint32_t cache_size[HIL_COUNTER_CACHE];   /* 0: empty */
+    uint32_t cache_count[HIL_COUNTER_CACHE];
 } hil_counter_t;
 
-static uint32_t block_instructions(const hil_counter_t *c, uint64_t address, uint32_t size) {
+static uint32_t block_instructions(hil_counter_t *c, uint64_t address, uint32_t size) {
+    uint32_t slot = (uint32_t)(address >> 1) & (HIL_COUNTER_CACHE - 1u);
+    if (c->cache_size[slot] == size && size != 0 && c->cache_address[slot] == address) {
+        return c->cache_count[slot];
+    }
     for (uint32_t r = 0; r < c->n_regions; ++r) {
         if (address >= c->base[r] && address + size <= (uint64_t)c->base[r] + c->size[r]) {
             const uint8_t *p = c->host[r] + (address - c->base[r]);
@@ -29,6 +42,11 @@ static uint32_t block_instructions(const hil_counter_t *c, uint64_t address, uin
                 uint32_t top = (uint32_t)p[pos + 1] >> 3;
                 pos += (top == 0x1D || top == 0x1E || top == 0x1F) ? 4u : 2u;
                 ++n;
+            }
+            if (r < c->n_fixed && n != 0) {
+                c->cache_address[slot] = (uint32_t)address;
+                c->cache_size[slot] = size;
+                c->cache_count[slot] = n;
             }
             return n;
         }
