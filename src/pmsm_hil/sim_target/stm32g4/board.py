@@ -258,6 +258,10 @@ class Board:
         core.reg_read_batch = core_native.address(uclib.uc_reg_read_batch)
         core.reg_write_batch = core_native.address(uclib.uc_reg_write_batch)
         core.mem_read = core_native.address(uclib.uc_mem_read)
+        core.mem_protect = core_native.address(uclib.uc_mem_protect)
+        for i, (base, span) in enumerate(cpu.ram):
+            core.ram_base[i], core.ram_span[i] = base, span
+        core.ram_exec = ctypes.addressof(cpu.ram_exec)
         core.reg_pc, core.reg_primask, core.reg_basepri = arm.UC_ARM_REG_PC, arm.UC_ARM_REG_PRIMASK, \
             arm.UC_ARM_REG_BASEPRI
         native = self.exceptions._native

@@ -16,6 +16,7 @@ from typing import Any
 
 from unicorn import (
     UC_ARCH_ARM,
+    UC_ERR_FETCH_PROT,
     UC_HOOK_BLOCK,
     UC_HOOK_INTR,
     UC_HOOK_MEM_FETCH_UNMAPPED,
@@ -25,6 +26,7 @@ from unicorn import (
     UC_MODE_THUMB,
     UC_PROT_ALL,
     UC_PROT_READ,
+    UC_PROT_WRITE,
     Uc,
     UcError,
 )
@@ -84,6 +86,11 @@ class Cpu:
     #: the instruction counter keeps the count of each flash block it decoded (c/insn_count.c) instead of decoding
     #: the block at every execution (the reference)
     COUNT_CACHE = True
+    #: SRAM and CCM-SRAM mapped without execute permission until the core first fetches from them: Unicorn then
+    #: skips the translated-code check of every store to them (its notdirty path). The first fetch stops the core
+    #: (UC_ERR_FETCH_PROT) before any instruction there ran; `grant_ram_exec` makes them executable and the slice
+    #: is run again from the same pc. False: mapped executable from the start (the reference).
+    LAZY_RAM_EXEC = True
 
     def __init__(self, part: Part, *, python_stops: bool = True) -> None:
         """`python_stops` False: the slice's stops (interrupts, unmapped accesses) are left to hooks the board's C
@@ -99,9 +106,14 @@ class Cpu:
         sram_span = _round_page(part.sram_size + part.ccm_size)
         ccm_span = _round_page(part.ccm_size)
         self.sram = (ctypes.c_uint8 * (part.sram_size + ccm_span + PAGE))()
-        uc.mem_map_ptr(SRAM_BASE, sram_span, UC_PROT_ALL, self.sram)
+        #: 1 once the SRAMs are executable (see LAZY_RAM_EXEC; the board's C core sets it too)
+        self.ram_exec = ctypes.c_int32(0 if self.LAZY_RAM_EXEC else 1)
+        ram_prot = UC_PROT_ALL if self.ram_exec.value else UC_PROT_READ | UC_PROT_WRITE
+        #: the SRAM (with CCM-SRAM's alias) and CCM-SRAM: (base, span)
+        self.ram = ((SRAM_BASE, sram_span), (CCM_BASE, ccm_span))
+        uc.mem_map_ptr(SRAM_BASE, sram_span, ram_prot, self.sram)
         ccm_ptr = ctypes.cast(ctypes.addressof(self.sram) + part.sram_size, ctypes.c_void_p).value
-        uc.mem_map_ptr(CCM_BASE, ccm_span, UC_PROT_ALL, ccm_ptr)
+        uc.mem_map_ptr(CCM_BASE, ccm_span, ram_prot, ccm_ptr)
         self.extra_ram: list[Any] = []
         self.counter = CounterState()
         self.counter.limit = 1 << 63
@@ -185,6 +197,19 @@ class Cpu:
         status = uclib.uc_mmio_map(uch, base, size, read_fn, user, write_fn, write_user)
         if status != 0:
             raise UcError(status)
+
+    def grant_ram_exec(self, error: int) -> bool:
+        """A slice ended with Unicorn's `error`: if it is the first fetch from the SRAMs (LAZY_RAM_EXEC), make them
+        executable and say so (run the slice again from the pc, where the core stopped before the fetch)."""
+        if error != UC_ERR_FETCH_PROT or self.ram_exec.value:
+            return False
+        pc = self.pc
+        if not any(base <= pc < base + span for base, span in self.ram):
+            return False
+        for base, span in self.ram:
+            self.uc.mem_protect(base, span, UC_PROT_ALL)
+        self.ram_exec.value = 1
+        return True
 
     def hook_failed(self, exc: BaseException) -> None:
         """A callback of the running core raised `exc`: keep it (the first one) for the caller and stop the core."""
@@ -276,7 +301,12 @@ class Cpu:
         self.counter.limit = limit
         begun = self.counter.count
         try:
-            self.uc.emu_start(pc | 1, 0xFFFF_FFFF_FFFF)
+            try:
+                self.uc.emu_start(pc | 1, 0xFFFF_FFFF_FFFF)
+            except UcError as exc:
+                if self._stop is not None or not self.grant_ram_exec(exc.errno):
+                    raise
+                self.uc.emu_start(self.pc | 1, 0xFFFF_FFFF_FFFF)  # nothing ran at the pc: the same slice goes on
         except UcError:
             if self._stop is None:
                 raise
