@@ -52,14 +52,15 @@ FAST_PATHS: dict[str, tuple[Any, str, str]] = {
     "count_cache": (Cpu, "COUNT_CACHE", "the instruction counter keeping each flash block's count and the one "
                     "decoding every block it runs"),
     "lazy_ram_exec": (Cpu, "LAZY_RAM_EXEC", "the SRAMs made executable at the first fetch from them and executable "
-                      "from the start")}
+                      "from the start"),
+    "virtual_tlb": (Cpu, "VIRTUAL_TLB", "Unicorn's virtual TLB with the board's fill and the CPU's own TLB fill")}
 
 
 def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch: pytest.MonkeyPatch,
             periods: int = PERIODS, skip_quiet: bool = True, native_core: bool = True,
             native_periph: bool = True, event_driven: bool = True,
             native_encoder: bool = True, lazy_stats: bool = True, count_cache: bool = True,
-            lazy_ram_exec: bool = True) -> dict[str, Any]:
+            lazy_ram_exec: bool = True, virtual_tlb: bool = True) -> dict[str, Any]:
     """Everything a run of `periods` Measurements leaves, with the board's C paths (exception frames, the DWT page's
     reads) or the Python reference, with the scheduler skipping quiet models or asking every model every step, with
     the scheduler, NVIC and SysTick in C or in Python, with TIM1 and the ADCs in C or in Python."""
@@ -72,6 +73,7 @@ def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch:
     monkeypatch.setattr(Board, "LAZY_STATS", lazy_stats)
     monkeypatch.setattr(Cpu, "COUNT_CACHE", count_cache)
     monkeypatch.setattr(Cpu, "LAZY_RAM_EXEC", lazy_ram_exec)
+    monkeypatch.setattr(Cpu, "VIRTUAL_TLB", virtual_tlb)
     link = BoardLink(elf, load_board(board_file), ts_s=TS, pole_pairs=4)
     assert (link._c_encoder is not None) == (native_encoder and link.desc.encoder_timer == "TIM3")
     assert (link.board.exceptions._native is not None) == native
@@ -80,6 +82,7 @@ def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch:
     assert link.board._native_core == (native and skip_quiet and native_core)
     assert link.board.cpu.counter.n_fixed == (2 if count_cache else 0)
     assert link.board.cpu.ram_exec.value == (0 if lazy_ram_exec else 1)
+    assert (link.board.cpu.unmapped_ranges() == [(1, 0)]) != virtual_tlb
     assert all(getattr(link.board.peripherals[name], "native_page", None) is not None or name == "ADC2"
                for name in ("TIM1", "ADC1")) == native_periph
     assert (type(link.board.peripherals["TIM1"]) is not Tim1) == native_periph
@@ -120,7 +123,8 @@ def same(path: str, elf: Path, board_file: str | Path | None, monkeypatch: pytes
                         skip_quiet=path != "quiet_skip", native_core=path != "native_core",
                         native_periph=path != "native_periph", event_driven=path != "event_driven",
                         native_encoder=path != "native_encoder", lazy_stats=path != "lazy_stats",
-                        count_cache=path != "count_cache", lazy_ram_exec=path != "lazy_ram_exec")
+                        count_cache=path != "count_cache", lazy_ram_exec=path != "lazy_ram_exec",
+                        virtual_tlb=path != "virtual_tlb")
     native = records(elf, board_file, True, monkeypatch, periods)
     for key in reference:
         assert native[key] == reference[key], f"{key} differs between {what}"

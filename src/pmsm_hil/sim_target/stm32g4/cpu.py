@@ -16,29 +16,32 @@ from typing import Any
 
 from unicorn import (
     UC_ARCH_ARM,
+    UC_ERR_EXCEPTION,
     UC_ERR_FETCH_PROT,
     UC_HOOK_BLOCK,
     UC_HOOK_INTR,
     UC_HOOK_MEM_FETCH_UNMAPPED,
     UC_HOOK_MEM_READ_UNMAPPED,
     UC_HOOK_MEM_WRITE_UNMAPPED,
+    UC_HOOK_TLB_FILL,
     UC_MODE_MCLASS,
     UC_MODE_THUMB,
     UC_PROT_ALL,
     UC_PROT_READ,
     UC_PROT_WRITE,
+    UC_TLB_VIRTUAL,
     Uc,
     UcError,
 )
 from unicorn import arm_const as arm
 from unicorn.unicorn_py3.unicorn import MMIO_READ_CFUNC, MMIO_WRITE_CFUNC, uclib
 
-from pmsm_hil.sim_target.stm32g4.counter import REGIONS, CounterState, hook_function
+from pmsm_hil.sim_target.stm32g4.counter import REGIONS, CounterState, hook_function, tlb_fill_function
 from pmsm_hil.sim_target.stm32g4.part import CCM_BASE, FLASH_BASE, SRAM_BASE, Part
 
 PAGE = 0x1000
 #: QEMU's internal exception numbers (target/arm/cpu.h) that reach the interrupt hook
-EXCP_UDEF, EXCP_SWI, EXCP_BKPT, EXCP_EXCEPTION_EXIT = 1, 2, 7, 8
+EXCP_UDEF, EXCP_SWI, EXCP_PREFETCH_ABORT, EXCP_BKPT, EXCP_EXCEPTION_EXIT = 1, 2, 3, 7, 8
 EXCP_NOCP, EXCP_INVSTATE, EXCP_UNALIGNED, EXCP_DIVBYZERO = 17, 18, 22, 23
 WFI, WFE = 0xBF30, 0xBF20
 
@@ -91,6 +94,12 @@ class Cpu:
     #: (UC_ERR_FETCH_PROT) before any instruction there ran; `grant_ram_exec` makes them executable and the slice
     #: is run again from the same pc. False: mapped executable from the start (the reference).
     LAZY_RAM_EXEC = True
+    #: Unicorn's virtual TLB with the board's fill (c/insn_count.c, hil_counter_tlb_fill: the Armv7-M default memory
+    #: map, as the CPU's own fill with the MPU off) instead of the CPU's: an SRAM page written while no code ran from
+    #: the SRAMs loses its slow-store flag at its first store. The stop-on-unmapped hooks then leave the SRAMs out
+    #: (Unicorn keeps the flag of a page a memory hook covers). A fetch from an execute-never region stops the core
+    #: as the CPU's prefetch abort does (interrupt 3). False: the CPU's TLB fill (the reference).
+    VIRTUAL_TLB = True
 
     def __init__(self, part: Part, *, python_stops: bool = True) -> None:
         """`python_stops` False: the slice's stops (interrupts, unmapped accesses) are left to hooks the board's C
@@ -134,6 +143,18 @@ class Cpu:
                                    ctypes.c_uint64(1), ctypes.c_uint64(0))
         if status != 0:
             raise UcError(status)
+        self.counter.ram_exec = ctypes.addressof(self.ram_exec)
+        for i, (base, span) in enumerate(self.ram):
+            self.counter.ram_base[i], self.counter.ram_span[i] = base, span
+        if self.VIRTUAL_TLB:
+            uc.ctl_set_tlb_mode(UC_TLB_VIRTUAL)
+            self._tlb_hook = ctypes.c_size_t()
+            status = uclib.uc_hook_add(uc._uch, ctypes.byref(self._tlb_hook), UC_HOOK_TLB_FILL,
+                                       ctypes.c_void_p(tlb_fill_function()),
+                                       ctypes.c_void_p(ctypes.addressof(self.counter)), ctypes.c_uint64(1),
+                                       ctypes.c_uint64(0))
+            if status != 0:
+                raise UcError(status)
         self._stop: Stop | None = None
         self._uch = uc._uch
         self._reg_buf = ctypes.c_uint64(0)
@@ -145,8 +166,20 @@ class Cpu:
         self.hook_error = ctypes.c_int32(0)
         if python_stops:
             uc.hook_add(UC_HOOK_INTR, self._on_interrupt)
-            uc.hook_add(UC_HOOK_MEM_READ_UNMAPPED | UC_HOOK_MEM_WRITE_UNMAPPED | UC_HOOK_MEM_FETCH_UNMAPPED,
-                        self._on_unmapped)
+            for begin, end in self.unmapped_ranges():
+                uc.hook_add(UC_HOOK_MEM_READ_UNMAPPED | UC_HOOK_MEM_WRITE_UNMAPPED | UC_HOOK_MEM_FETCH_UNMAPPED,
+                            self._on_unmapped, begin=begin, end=end)
+
+    def unmapped_ranges(self) -> list[tuple[int, int]]:
+        """The [begin, end] ranges the stop-on-unmapped hooks cover: everything (1, 0) with the CPU's TLB, all but
+        the SRAMs with the virtual one (nothing there is unmapped)."""
+        if not self.VIRTUAL_TLB:
+            return [(1, 0)]
+        out, at = [], 0
+        for base, span in sorted(self.ram):
+            out.append((at, base - 1))
+            at = base + span
+        return [*out, (at, 0xFFFF_FFFF_FFFF_FFFF)]
 
     # --- memory -------------------------------------------------------------------------------------------------
 
@@ -307,7 +340,9 @@ class Cpu:
                 if self._stop is not None or not self.grant_ram_exec(exc.errno):
                     raise
                 self.uc.emu_start(self.pc | 1, 0xFFFF_FFFF_FFFF)  # nothing ran at the pc: the same slice goes on
-        except UcError:
+        except UcError as exc:
+            if self._stop is None and exc.errno == UC_ERR_EXCEPTION:  # the virtual TLB refused a fetch
+                self._stop = Stop("interrupt", intno=EXCP_PREFETCH_ABORT)
             if self._stop is None:
                 raise
         stop = self._stop

@@ -35,6 +35,8 @@
 #define EXCP_SWI 2
 #define EXCP_EXCEPTION_EXIT 8
 #define UC_ERR_FETCH_PROT 14
+#define UC_ERR_EXCEPTION 21
+#define EXCP_PREFETCH_ABORT 3
 #define UC_PROT_ALL 7
 
 /* run's results */
@@ -567,6 +569,11 @@ static int slice(hil_core_t *c, int64_t limit) {
     int err = c->emu_start(c->uc, pc | 1u, 0xFFFFFFFFFFFFull, 0, 0);
     if (grant_ram_exec(c, err)) { /* nothing ran at the pc: the same slice goes on from there */
         err = c->emu_start(c->uc, read_reg(c, c->reg_pc) | 1u, 0xFFFFFFFFFFFFull, 0, 0);
+    }
+    if (err == UC_ERR_EXCEPTION && c->stop_kind == 0) { /* the virtual TLB refused a fetch (Cpu.VIRTUAL_TLB): the
+                                                        * prefetch abort the CPU's own fill raises */
+        c->stop_kind = 1;
+        c->intno = EXCP_PREFETCH_ABORT;
     }
     if (err && c->stop_kind == 0) {
         c->uc_error = err;

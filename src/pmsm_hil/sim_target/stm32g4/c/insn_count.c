@@ -26,7 +26,19 @@ typedef struct {
     uint32_t cache_address[HIL_COUNTER_CACHE];
     uint32_t cache_size[HIL_COUNTER_CACHE];   /* 0: empty */
     uint32_t cache_count[HIL_COUNTER_CACHE];
+    /* the TLB fill (Cpu.VIRTUAL_TLB): the SRAMs, and whether they are executable yet (Cpu.ram_exec) */
+    const int32_t *ram_exec;
+    uint32_t ram_base[2];
+    uint32_t ram_span[2];
 } hil_counter_t;
+
+typedef struct {
+    uint64_t paddr;
+    uint32_t perms;  /* UC_PROT_READ 1, UC_PROT_WRITE 2, UC_PROT_EXEC 4 */
+} hil_tlb_entry_t;
+
+#define HIL_MEM_FETCH 18
+#define HIL_MEM_FETCH_UNMAPPED 21
 
 static uint32_t block_instructions(hil_counter_t *c, uint64_t address, uint32_t size) {
     uint32_t slot = (uint32_t)(address >> 1) & (HIL_COUNTER_CACHE - 1u);
@@ -66,4 +78,29 @@ void hil_counter_block(void *uc, uint64_t address, uint32_t size, void *user) {
         ++c->unknown_blocks;
     }
     c->count += n;
+}
+
+/* Unicorn's TLB fill in its virtual-TLB mode (UC_HOOK_TLB_FILL; Cpu.VIRTUAL_TLB): the page at `vaddr` maps to itself,
+ * readable and writable, executable as the Armv7-M default memory map says (B3.1: the peripheral, device and system
+ * regions are execute-never), as the CPU's own fill with the MPU off. A fetch from an execute-never page is refused
+ * (Unicorn stops with UC_ERR_EXCEPTION: the board takes it for the prefetch abort the CPU's fill raises; the
+ * exception-return addresses at the top never get here). A data access to the SRAMs while no code ran there gets no
+ * execute right: Unicorn then clears the page's slow-store flag at its first store (with it, every store takes the
+ * slow path). */
+int hil_counter_tlb_fill(void *uc, uint64_t vaddr, int type, hil_tlb_entry_t *e, void *user) {
+    const hil_counter_t *c = (const hil_counter_t *)user;
+    (void)uc;
+    int xn = (vaddr >= 0x40000000u && vaddr < 0x60000000u) || vaddr >= 0xA0000000u;
+    int fetch = type == HIL_MEM_FETCH || type == HIL_MEM_FETCH_UNMAPPED;
+    e->paddr = vaddr;
+    if (fetch) {
+        e->perms = 7u;
+        return !(xn && vaddr < 0xFFFFFC00u);
+    }
+    int in_ram = 0;
+    for (int i = 0; i < 2; ++i) {
+        in_ram |= vaddr >= c->ram_base[i] && vaddr - c->ram_base[i] < c->ram_span[i];
+    }
+    e->perms = 3u | ((xn || (in_ram && !*c->ram_exec)) ? 0u : 4u);
+    return 1;
 }
