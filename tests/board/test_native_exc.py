@@ -22,6 +22,7 @@ from pmsm_hil.sim_target.fw_build import build_firmware, missing_tools
 from pmsm_hil.sim_target.stm32g4 import periph_native
 from pmsm_hil.sim_target.stm32g4.board import Board
 from pmsm_hil.sim_target.stm32g4.board_file import load_board
+from pmsm_hil.sim_target.stm32g4.cpu import Cpu
 from pmsm_hil.sim_target.stm32g4.link import BoardLink
 from pmsm_hil.sim_target.stm32g4.part import PARTS
 from pmsm_hil.sim_target.stm32g4.peripherals import tim_gp
@@ -48,13 +49,19 @@ FAST_PATHS: dict[str, tuple[Any, str, str]] = {
     "native_encoder": (tim_gp, "NATIVE_ENCODER", "the encoder timer's CNT read in C and in Python"),
     "lazy_stats": (Board, "LAZY_STATS", "the ISR statistics taken from the C core's log when read with the entries "
                    "counted in C and the log drained after every run_until with the entries summed"),
-    "native_period": (BoardLink, "NATIVE_PERIOD", "the board link's common period in C and in Python")}
+    "native_period": (BoardLink, "NATIVE_PERIOD", "the board link's common period in C and in Python"),
+    "count_cache": (Cpu, "COUNT_CACHE", "the instruction counter keeping each flash block's count and the one "
+                    "decoding every block it runs"),
+    "lazy_ram_exec": (Cpu, "LAZY_RAM_EXEC", "the SRAMs made executable at the first fetch from them and executable "
+                      "from the start"),
+    "virtual_tlb": (Cpu, "VIRTUAL_TLB", "Unicorn's virtual TLB with the board's fill and the CPU's own TLB fill")}
 
 
 def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch: pytest.MonkeyPatch,
             periods: int = PERIODS, skip_quiet: bool = True, native_core: bool = True,
             native_periph: bool = True, event_driven: bool = True,
-            native_encoder: bool = True, lazy_stats: bool = True, native_period: bool = True) -> dict[str, Any]:
+            native_encoder: bool = True, lazy_stats: bool = True, native_period: bool = True,
+            count_cache: bool = True, lazy_ram_exec: bool = True, virtual_tlb: bool = True) -> dict[str, Any]:
     """Everything a run of `periods` Measurements leaves, with the board's C paths (exception frames, the DWT page's
     reads) or the Python reference, with the scheduler skipping quiet models or asking every model every step, with
     the scheduler, NVIC and SysTick in C or in Python, with TIM1 and the ADCs in C or in Python."""
@@ -66,6 +73,9 @@ def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch:
     monkeypatch.setattr(tim_gp, "NATIVE_ENCODER", native_encoder)
     monkeypatch.setattr(Board, "LAZY_STATS", lazy_stats)
     monkeypatch.setattr(BoardLink, "NATIVE_PERIOD", native_period)
+    monkeypatch.setattr(Cpu, "COUNT_CACHE", count_cache)
+    monkeypatch.setattr(Cpu, "LAZY_RAM_EXEC", lazy_ram_exec)
+    monkeypatch.setattr(Cpu, "VIRTUAL_TLB", virtual_tlb)
     link = BoardLink(elf, load_board(board_file), ts_s=TS, pole_pairs=4)
     assert bool(link._ps.enabled) == (native_period and link.board._lazy_stats and native_periph
                                       and link.boot_error is None and link.halls is None)
@@ -74,6 +84,9 @@ def records(elf: Path, board_file: str | Path | None, native: bool, monkeypatch:
     assert link.board._lazy_stats == (lazy_stats and link.board._native_core)
     assert hasattr(link.board, "_dwt") == native
     assert link.board._native_core == (native and skip_quiet and native_core)
+    assert link.board.cpu.counter.n_fixed == (2 if count_cache else 0)
+    assert link.board.cpu.ram_exec.value == (0 if lazy_ram_exec else 1)
+    assert (link.board.cpu.unmapped_ranges() == [(1, 0)]) != virtual_tlb
     assert all(getattr(link.board.peripherals[name], "native_page", None) is not None or name == "ADC2"
                for name in ("TIM1", "ADC1")) == native_periph
     assert (type(link.board.peripherals["TIM1"]) is not Tim1) == native_periph
@@ -116,7 +129,9 @@ def same(path: str, elf: Path, board_file: str | Path | None, monkeypatch: pytes
                         skip_quiet=path != "quiet_skip", native_core=path != "native_core",
                         native_periph=path != "native_periph", event_driven=path != "event_driven",
                         native_encoder=path != "native_encoder", lazy_stats=path != "lazy_stats",
-                        native_period=path != "native_period")
+                        native_period=path != "native_period",
+                        count_cache=path != "count_cache", lazy_ram_exec=path != "lazy_ram_exec",
+                        virtual_tlb=path != "virtual_tlb")
     native = records(elf, board_file, True, monkeypatch, periods)
     in_c = reference.pop("in_c")  # the periods the C period ran (none with it off)
     assert in_c == 0 or path != "native_period"

@@ -13,6 +13,14 @@ static void note(uint32_t v) { if (n_order < 8) { order[n_order++] = v; } }
 void IRQ0_Handler(void) { note(0); NVIC_ISPR0 = (1u << 1) | (1u << 2); note(10); } /* 1 preempts, 2 tail-chains */
 void IRQ1_Handler(void) { note(1); }
 void IRQ2_Handler(void) { note(2); }
+#ifdef RAM_CODE
+/* copied to SRAM with .data by the start-up code: the core first fetches from SRAM when main calls it, and SysTick
+ * interrupts it there */
+__attribute__((section(".data.ram_code"), noinline, long_call)) static uint32_t ram_twice(uint32_t v) {
+  return 2u * v;
+}
+volatile uint32_t ram_sum;
+#endif
 static void puts2(const char *s) { while (*s) { while (!(USART2_ISR & (1u << 7))) { } USART2_TDR = (uint8_t)*s++; } }
 
 int main(void) {
@@ -40,6 +48,9 @@ int main(void) {
     x += 0.25f;
     if (x != 0.25f * (float)(i + 1u)) { ++fp_errors; }
   }
+#ifdef RAM_CODE
+  for (uint32_t i = 0; i < 100000u; ++i) { ram_sum += ram_twice(i); }
+#endif
   done = 1;
   for (;;) { __asm volatile("wfi"); }
 }

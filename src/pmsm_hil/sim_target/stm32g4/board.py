@@ -258,6 +258,10 @@ class Board:
         core.reg_read_batch = core_native.address(uclib.uc_reg_read_batch)
         core.reg_write_batch = core_native.address(uclib.uc_reg_write_batch)
         core.mem_read = core_native.address(uclib.uc_mem_read)
+        core.mem_protect = core_native.address(uclib.uc_mem_protect)
+        for i, (base, span) in enumerate(cpu.ram):
+            core.ram_base[i], core.ram_span[i] = base, span
+        core.ram_exec = ctypes.addressof(cpu.ram_exec)
         core.reg_pc, core.reg_primask, core.reg_basepri = arm.UC_ARM_REG_PC, arm.UC_ARM_REG_PRIMASK, \
             arm.UC_ARM_REG_BASEPRI
         native = self.exceptions._native
@@ -307,16 +311,17 @@ class Board:
         core.py_advance, core.py_next_event, core.py_quiet, core.py_next_each = (
             core_native.address(f) for f in self._callbacks)
         self._hook_handles: list[ctypes.c_size_t] = []
-        for kind, fn in ((UC_HOOK_INTR, lib.hil_core_on_interrupt),
-                         (UC_HOOK_MEM_READ_UNMAPPED | UC_HOOK_MEM_WRITE_UNMAPPED | UC_HOOK_MEM_FETCH_UNMAPPED,
-                          lib.hil_core_on_unmapped)):
-            handle = ctypes.c_size_t()
-            status = uclib.uc_hook_add(cpu.uc._uch, ctypes.byref(handle), kind, ctypes.c_void_p(
-                core_native.address(fn)), ctypes.c_void_p(ctypes.addressof(core)), ctypes.c_uint64(1),
-                ctypes.c_uint64(0))
-            if status != 0:
-                raise UcError(status)
-            self._hook_handles.append(handle)
+        for kind, fn, ranges in ((UC_HOOK_INTR, lib.hil_core_on_interrupt, [(1, 0)]),
+                                 (UC_HOOK_MEM_READ_UNMAPPED | UC_HOOK_MEM_WRITE_UNMAPPED | UC_HOOK_MEM_FETCH_UNMAPPED,
+                                  lib.hil_core_on_unmapped, cpu.unmapped_ranges())):
+            for begin, end in ranges:
+                handle = ctypes.c_size_t()
+                status = uclib.uc_hook_add(cpu.uc._uch, ctypes.byref(handle), kind, ctypes.c_void_p(
+                    core_native.address(fn)), ctypes.c_void_p(ctypes.addressof(core)), ctypes.c_uint64(begin),
+                    ctypes.c_uint64(end))
+                if status != 0:
+                    raise UcError(status)
+                self._hook_handles.append(handle)
 
     def _event_driven(self, p: Peripheral) -> bool:
         """The C core caches `p`'s next event (EVENT_DRIVEN, outside the event group, without a `quiet`)."""

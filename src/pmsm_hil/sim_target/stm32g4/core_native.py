@@ -98,7 +98,9 @@ class CoreState(ctypes.Structure):
                 ("log_value", ctypes.c_int64 * LOG_MAX),
                 ("stop_kind", ctypes.c_int32), ("intno", ctypes.c_int32), ("access", ctypes.c_int32),
                 ("uc_error", ctypes.c_int32), ("address", ctypes.c_uint64),
-                ("idle_pc", ctypes.c_uint32 * IDLE_CACHE), ("idle_hit", ctypes.c_int8 * IDLE_CACHE)]
+                ("idle_pc", ctypes.c_uint32 * IDLE_CACHE), ("idle_hit", ctypes.c_int8 * IDLE_CACHE),
+                ("mem_protect", ctypes.c_void_p), ("ram_base", ctypes.c_uint64 * 2), ("ram_span", ctypes.c_uint64 * 2),
+                ("ram_exec", ctypes.c_void_p)]
 
 
 class ScsState(ctypes.Structure):

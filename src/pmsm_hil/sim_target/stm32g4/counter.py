@@ -12,6 +12,7 @@ from pmsm_hil.sim_target.fw_build import host_library
 
 SOURCE = Path(__file__).with_name("c") / "insn_count.c"
 REGIONS = 6
+CACHE = 1024
 
 
 class CounterBuildError(FirmwareError):
@@ -24,7 +25,14 @@ class CounterState(ctypes.Structure):
     _fields_ = [("count", ctypes.c_uint64), ("limit", ctypes.c_uint64), ("stop", ctypes.c_void_p),
                 ("n_regions", ctypes.c_uint32), ("base", ctypes.c_uint32 * REGIONS),
                 ("size", ctypes.c_uint32 * REGIONS), ("host", ctypes.c_void_p * REGIONS),
-                ("unknown_blocks", ctypes.c_uint64)]
+                ("unknown_blocks", ctypes.c_uint64), ("n_fixed", ctypes.c_uint32), ("pad", ctypes.c_uint32),
+                ("cache_address", ctypes.c_uint32 * CACHE), ("cache_size", ctypes.c_uint32 * CACHE),
+                ("cache_count", ctypes.c_uint32 * CACHE), ("ram_exec", ctypes.c_void_p),
+                ("ram_base", ctypes.c_uint32 * 2), ("ram_span", ctypes.c_uint32 * 2)]
+
+    def forget_blocks(self) -> None:
+        """Empty the table of decoded blocks (the code of the fixed regions was written)."""
+        ctypes.memset(ctypes.addressof(self.cache_size), 0, ctypes.sizeof(self.cache_size))
 
 
 def library_path() -> Path:
@@ -35,9 +43,18 @@ def library_path() -> Path:
 _LIB: ctypes.CDLL | None = None
 
 
-def hook_function() -> int:
-    """Address of hil_counter_block (a uc_cb_hookcode_t)."""
+def _library() -> ctypes.CDLL:
     global _LIB
     if _LIB is None:
         _LIB = ctypes.CDLL(str(library_path()))
-    return int(ctypes.cast(_LIB.hil_counter_block, ctypes.c_void_p).value or 0)
+    return _LIB
+
+
+def hook_function() -> int:
+    """Address of hil_counter_block (a uc_cb_hookcode_t)."""
+    return int(ctypes.cast(_library().hil_counter_block, ctypes.c_void_p).value or 0)
+
+
+def tlb_fill_function() -> int:
+    """Address of hil_counter_tlb_fill (a uc_cb_tlbevent_t whose user data is the CounterState)."""
+    return int(ctypes.cast(_library().hil_counter_tlb_fill, ctypes.c_void_p).value or 0)

@@ -16,27 +16,32 @@ from typing import Any
 
 from unicorn import (
     UC_ARCH_ARM,
+    UC_ERR_EXCEPTION,
+    UC_ERR_FETCH_PROT,
     UC_HOOK_BLOCK,
     UC_HOOK_INTR,
     UC_HOOK_MEM_FETCH_UNMAPPED,
     UC_HOOK_MEM_READ_UNMAPPED,
     UC_HOOK_MEM_WRITE_UNMAPPED,
+    UC_HOOK_TLB_FILL,
     UC_MODE_MCLASS,
     UC_MODE_THUMB,
     UC_PROT_ALL,
     UC_PROT_READ,
+    UC_PROT_WRITE,
+    UC_TLB_VIRTUAL,
     Uc,
     UcError,
 )
 from unicorn import arm_const as arm
 from unicorn.unicorn_py3.unicorn import MMIO_READ_CFUNC, MMIO_WRITE_CFUNC, uclib
 
-from pmsm_hil.sim_target.stm32g4.counter import REGIONS, CounterState, hook_function
+from pmsm_hil.sim_target.stm32g4.counter import REGIONS, CounterState, hook_function, tlb_fill_function
 from pmsm_hil.sim_target.stm32g4.part import CCM_BASE, FLASH_BASE, SRAM_BASE, Part
 
 PAGE = 0x1000
 #: QEMU's internal exception numbers (target/arm/cpu.h) that reach the interrupt hook
-EXCP_UDEF, EXCP_SWI, EXCP_BKPT, EXCP_EXCEPTION_EXIT = 1, 2, 7, 8
+EXCP_UDEF, EXCP_SWI, EXCP_PREFETCH_ABORT, EXCP_BKPT, EXCP_EXCEPTION_EXIT = 1, 2, 3, 7, 8
 EXCP_NOCP, EXCP_INVSTATE, EXCP_UNALIGNED, EXCP_DIVBYZERO = 17, 18, 22, 23
 WFI, WFE = 0xBF30, 0xBF20
 
@@ -81,6 +86,21 @@ MmioWrite = Callable[[int, int, int], None]
 class Cpu:
     """Unicorn set up as the part's Cortex-M4F with its memories mapped; `run` executes one slice."""
 
+    #: the instruction counter keeps the count of each flash block it decoded (c/insn_count.c) instead of decoding
+    #: the block at every execution (the reference)
+    COUNT_CACHE = True
+    #: SRAM and CCM-SRAM mapped without execute permission until the core first fetches from them: Unicorn then
+    #: skips the translated-code check of every store to them (its notdirty path). The first fetch stops the core
+    #: (UC_ERR_FETCH_PROT) before any instruction there ran; `grant_ram_exec` makes them executable and the slice
+    #: is run again from the same pc. False: mapped executable from the start (the reference).
+    LAZY_RAM_EXEC = True
+    #: Unicorn's virtual TLB with the board's fill (c/insn_count.c, hil_counter_tlb_fill: the Armv7-M default memory
+    #: map, as the CPU's own fill with the MPU off) instead of the CPU's: an SRAM page written while no code ran from
+    #: the SRAMs loses its slow-store flag at its first store. The stop-on-unmapped hooks then leave the SRAMs out
+    #: (Unicorn keeps the flag of a page a memory hook covers). A fetch from an execute-never region stops the core
+    #: as the CPU's prefetch abort does (interrupt 3). False: the CPU's TLB fill (the reference).
+    VIRTUAL_TLB = True
+
     def __init__(self, part: Part, *, python_stops: bool = True) -> None:
         """`python_stops` False: the slice's stops (interrupts, unmapped accesses) are left to hooks the board's C
         core registers (`run` is then not used)."""
@@ -95,9 +115,14 @@ class Cpu:
         sram_span = _round_page(part.sram_size + part.ccm_size)
         ccm_span = _round_page(part.ccm_size)
         self.sram = (ctypes.c_uint8 * (part.sram_size + ccm_span + PAGE))()
-        uc.mem_map_ptr(SRAM_BASE, sram_span, UC_PROT_ALL, self.sram)
+        #: 1 once the SRAMs are executable (see LAZY_RAM_EXEC; the board's C core sets it too)
+        self.ram_exec = ctypes.c_int32(0 if self.LAZY_RAM_EXEC else 1)
+        ram_prot = UC_PROT_ALL if self.ram_exec.value else UC_PROT_READ | UC_PROT_WRITE
+        #: the SRAM (with CCM-SRAM's alias) and CCM-SRAM: (base, span)
+        self.ram = ((SRAM_BASE, sram_span), (CCM_BASE, ccm_span))
+        uc.mem_map_ptr(SRAM_BASE, sram_span, ram_prot, self.sram)
         ccm_ptr = ctypes.cast(ctypes.addressof(self.sram) + part.sram_size, ctypes.c_void_p).value
-        uc.mem_map_ptr(CCM_BASE, ccm_span, UC_PROT_ALL, ccm_ptr)
+        uc.mem_map_ptr(CCM_BASE, ccm_span, ram_prot, ccm_ptr)
         self.extra_ram: list[Any] = []
         self.counter = CounterState()
         self.counter.limit = 1 << 63
@@ -109,6 +134,8 @@ class Cpu:
         for i, (base, size, host) in enumerate(regions[:REGIONS]):
             self.counter.base[i], self.counter.size[i], self.counter.host[i] = base, size, host
         self.counter.n_regions = len(regions)
+        self.counter.n_fixed = 2 if self.COUNT_CACHE else 0  # the flash and its alias
+        self._fixed = regions[:2]
         self._hook = ctypes.c_size_t()
         status = uclib.uc_hook_add(uc._uch, ctypes.byref(self._hook), UC_HOOK_BLOCK,
                                    ctypes.c_void_p(hook_function()), ctypes.cast(ctypes.pointer(self.counter),
@@ -116,6 +143,18 @@ class Cpu:
                                    ctypes.c_uint64(1), ctypes.c_uint64(0))
         if status != 0:
             raise UcError(status)
+        self.counter.ram_exec = ctypes.addressof(self.ram_exec)
+        for i, (base, span) in enumerate(self.ram):
+            self.counter.ram_base[i], self.counter.ram_span[i] = base, span
+        if self.VIRTUAL_TLB:
+            uc.ctl_set_tlb_mode(UC_TLB_VIRTUAL)
+            self._tlb_hook = ctypes.c_size_t()
+            status = uclib.uc_hook_add(uc._uch, ctypes.byref(self._tlb_hook), UC_HOOK_TLB_FILL,
+                                       ctypes.c_void_p(tlb_fill_function()),
+                                       ctypes.c_void_p(ctypes.addressof(self.counter)), ctypes.c_uint64(1),
+                                       ctypes.c_uint64(0))
+            if status != 0:
+                raise UcError(status)
         self._stop: Stop | None = None
         self._uch = uc._uch
         self._reg_buf = ctypes.c_uint64(0)
@@ -127,8 +166,20 @@ class Cpu:
         self.hook_error = ctypes.c_int32(0)
         if python_stops:
             uc.hook_add(UC_HOOK_INTR, self._on_interrupt)
-            uc.hook_add(UC_HOOK_MEM_READ_UNMAPPED | UC_HOOK_MEM_WRITE_UNMAPPED | UC_HOOK_MEM_FETCH_UNMAPPED,
-                        self._on_unmapped)
+            for begin, end in self.unmapped_ranges():
+                uc.hook_add(UC_HOOK_MEM_READ_UNMAPPED | UC_HOOK_MEM_WRITE_UNMAPPED | UC_HOOK_MEM_FETCH_UNMAPPED,
+                            self._on_unmapped, begin=begin, end=end)
+
+    def unmapped_ranges(self) -> list[tuple[int, int]]:
+        """The [begin, end] ranges the stop-on-unmapped hooks cover: everything (1, 0) with the CPU's TLB, all but
+        the SRAMs with the virtual one (nothing there is unmapped)."""
+        if not self.VIRTUAL_TLB:
+            return [(1, 0)]
+        out, at = [], 0
+        for base, span in sorted(self.ram):
+            out.append((at, base - 1))
+            at = base + span
+        return [*out, (at, 0xFFFF_FFFF_FFFF_FFFF)]
 
     # --- memory -------------------------------------------------------------------------------------------------
 
@@ -180,6 +231,19 @@ class Cpu:
         if status != 0:
             raise UcError(status)
 
+    def grant_ram_exec(self, error: int) -> bool:
+        """A slice ended with Unicorn's `error`: if it is the first fetch from the SRAMs (LAZY_RAM_EXEC), make them
+        executable and say so (run the slice again from the pc, where the core stopped before the fetch)."""
+        if error != UC_ERR_FETCH_PROT or self.ram_exec.value:
+            return False
+        pc = self.pc
+        if not any(base <= pc < base + span for base, span in self.ram):
+            return False
+        for base, span in self.ram:
+            self.uc.mem_protect(base, span, UC_PROT_ALL)
+        self.ram_exec.value = 1
+        return True
+
     def hook_failed(self, exc: BaseException) -> None:
         """A callback of the running core raised `exc`: keep it (the first one) for the caller and stop the core."""
         if self.uc._hook_exception is None:
@@ -197,6 +261,13 @@ class Cpu:
     def load(self, address: int, data: bytes) -> None:
         """Program bytes into flash or RAM (ELF loading)."""
         self.uc.mem_write(address, data)
+        self._code_written(address, len(data))
+
+    def _code_written(self, address: int, size: int) -> None:
+        """Bytes at [address, address + size) were written: the counter forgets its decoded blocks if they may
+        hold some of them (the flash or its alias)."""
+        if any(address < base + span and base < address + size for base, span, _ in self._fixed):
+            self.counter.forget_blocks()
 
     def read_u32(self, address: int) -> int:
         status = uclib.uc_mem_read(self._uch, address, self._word, 4)
@@ -209,6 +280,7 @@ class Cpu:
         status = uclib.uc_mem_write(self._uch, address, data, len(data))
         if status != 0:
             raise UcError(status)
+        self._code_written(address, len(data))
 
     def read_bytes(self, address: int, size: int) -> bytes:
         buf = ctypes.create_string_buffer(size)
@@ -262,8 +334,15 @@ class Cpu:
         self.counter.limit = limit
         begun = self.counter.count
         try:
-            self.uc.emu_start(pc | 1, 0xFFFF_FFFF_FFFF)
-        except UcError:
+            try:
+                self.uc.emu_start(pc | 1, 0xFFFF_FFFF_FFFF)
+            except UcError as exc:
+                if self._stop is not None or not self.grant_ram_exec(exc.errno):
+                    raise
+                self.uc.emu_start(self.pc | 1, 0xFFFF_FFFF_FFFF)  # nothing ran at the pc: the same slice goes on
+        except UcError as exc:
+            if self._stop is None and exc.errno == UC_ERR_EXCEPTION:  # the virtual TLB refused a fetch
+                self._stop = Stop("interrupt", intno=EXCP_PREFETCH_ABORT)
             if self._stop is None:
                 raise
         stop = self._stop

@@ -34,6 +34,10 @@
 #define RETURN_CYCLES 10
 #define EXCP_SWI 2
 #define EXCP_EXCEPTION_EXIT 8
+#define UC_ERR_FETCH_PROT 14
+#define UC_ERR_EXCEPTION 21
+#define EXCP_PREFETCH_ABORT 3
+#define UC_PROT_ALL 7
 
 /* run's results */
 enum {
@@ -80,6 +84,7 @@ typedef int (*hil_reg_batch_fn)(void *uc, const int *regs, void **vals, int coun
 typedef int (*hil_mem_read_fn)(void *uc, uint64_t address, void *bytes, uint64_t size);
 typedef int (*hil_emu_start_fn)(void *uc, uint64_t begin, uint64_t until, uint64_t timeout, uint64_t count);
 typedef int (*hil_emu_stop_fn)(void *uc);
+typedef int (*hil_mem_protect_fn)(void *uc, uint64_t address, size_t size, uint32_t perms);
 typedef int (*hil_exc_enter_fn)(const void *x, int in_thread, int fp, uint32_t ccr, uint32_t ipsr, uint32_t vector);
 typedef int (*hil_exc_leave_fn)(const void *x, int use_psp, int fp);
 typedef void (*hil_py_advance_fn)(uint64_t mask, int64_t now);
@@ -158,6 +163,11 @@ typedef struct {
     /* idle-loop shortcut: pc -> hit (1), miss (0) */
     uint32_t idle_pc[HIL_IDLE_CACHE];
     int8_t idle_hit[HIL_IDLE_CACHE];  /* -1: empty */
+    /* the SRAMs mapped without execute permission until the core first fetches from them (Cpu.LAZY_RAM_EXEC) */
+    hil_mem_protect_fn mem_protect;   /* uc_mem_protect */
+    uint64_t ram_base[2];
+    uint64_t ram_span[2];
+    int32_t *ram_exec;                /* Cpu's flag: 1 once they are executable */
 } hil_core_t;
 
 /* --- NVIC ---------------------------------------------------------------------------------------------------- */
@@ -194,17 +204,37 @@ static int execution_priority(const hil_core_t *c, int primask, uint32_t basepri
     return prio;
 }
 
-/* The pending, enabled exception taken first (lowest group priority, then sub-priority, then number); -1: none. */
+/* The 8 flags of `flags` from index 8 * w, as one word (0: none set); past the NVIC's size read as clear. */
+static uint64_t flag_word(const hil_core_t *c, const uint8_t *flags, int w) {
+    uint64_t word;
+    memcpy(&word, flags + 8 * w, sizeof word);
+    int past = 8 * w + 8 - c->nvic.size;
+    if (past > 0) {
+        word = past >= 8 ? 0 : word & (~0ull >> (8 * past));  /* little-endian: the low bytes are the low indices */
+    }
+    return word;
+}
+
+static int flag_words(const hil_core_t *c) { return (c->nvic.size + 7) / 8; }
+
+/* The pending, enabled exception taken first (lowest group priority, then sub-priority, then number); -1: none.
+ * Only the words of `pending` with a flag set are looked at, in ascending order. */
 int hil_core_best_pending(const hil_core_t *c) {
     int best = -1, bg = 0, bs = 0;
-    for (int exc = 0; exc < c->nvic.size; ++exc) {
-        if (!c->nvic.pending[exc] || !c->nvic.enabled[exc]) {
+    for (int w = 0; w < flag_words(c); ++w) {
+        if (!flag_word(c, c->nvic.pending, w)) {
             continue;
         }
-        int g = group_priority(c, exc);
-        int s = exc > HARDFAULT ? c->nvic.priority[exc] : 0;
-        if (best < 0 || g < bg || (g == bg && s < bs)) {
-            best = exc, bg = g, bs = s;
+        int top = 8 * w + 8 < c->nvic.size ? 8 * w + 8 : c->nvic.size;
+        for (int exc = 8 * w; exc < top; ++exc) {
+            if (!c->nvic.pending[exc] || !c->nvic.enabled[exc]) {
+                continue;
+            }
+            int g = group_priority(c, exc);
+            int s = exc > HARDFAULT ? c->nvic.priority[exc] : 0;
+            if (best < 0 || g < bg || (g == bg && s < bs)) {
+                best = exc, bg = g, bs = s;
+            }
         }
     }
     return best;
@@ -219,8 +249,8 @@ static int preempting(const hil_core_t *c, int primask, uint32_t basepri) {
 }
 
 static int any_pending(const hil_core_t *c) {
-    for (int exc = 0; exc < c->nvic.size; ++exc) {
-        if (c->nvic.pending[exc]) {
+    for (int w = 0; w < flag_words(c); ++w) {
+        if (flag_word(c, c->nvic.pending, w)) {
             return 1;
         }
     }
@@ -228,9 +258,14 @@ static int any_pending(const hil_core_t *c) {
 }
 
 static int enabled_pending(const hil_core_t *c) {
-    for (int exc = 0; exc < c->nvic.size; ++exc) {
-        if (c->nvic.pending[exc] && c->nvic.enabled[exc]) {
-            return 1;
+    for (int w = 0; w < flag_words(c); ++w) {
+        if (!flag_word(c, c->nvic.pending, w) || !flag_word(c, c->nvic.enabled, w)) {
+            continue;
+        }
+        for (int exc = 8 * w; exc < 8 * w + 8 && exc < c->nvic.size; ++exc) {
+            if (c->nvic.pending[exc] && c->nvic.enabled[exc]) {
+                return 1;
+            }
         }
     }
     return 0;
@@ -503,12 +538,43 @@ int hil_core_on_unmapped(void *uc, int type, uint64_t address, int size, int64_t
 
 /* --- the loop ------------------------------------------------------------------------------------------------ */
 
+/* The core stopped with `err` before fetching at the pc: if it is the first fetch from the SRAMs, make them
+ * executable (Cpu.grant_ram_exec's steps) and say so: the caller goes on from the pc. */
+static int grant_ram_exec(hil_core_t *c, int err) {
+    if (err != UC_ERR_FETCH_PROT || c->stop_kind != 0 || !c->ram_exec || *c->ram_exec) {
+        return 0;
+    }
+    uint32_t pc = read_reg(c, c->reg_pc);
+    int inside = 0;
+    for (int i = 0; i < 2; ++i) {
+        inside |= pc >= c->ram_base[i] && pc - c->ram_base[i] < c->ram_span[i];
+    }
+    if (!inside) {
+        return 0;
+    }
+    for (int i = 0; i < 2; ++i) {
+        if (c->mem_protect(c->uc, c->ram_base[i], (size_t)c->ram_span[i], UC_PROT_ALL) != 0) {
+            return 0;
+        }
+    }
+    *c->ram_exec = 1;
+    return 1;
+}
+
 static int slice(hil_core_t *c, int64_t limit) {
     c->stop_kind = 0;
     c->counter->limit = (uint64_t)limit;
     uint64_t begun = c->counter->count;
     uint32_t pc = read_reg(c, c->reg_pc);
     int err = c->emu_start(c->uc, pc | 1u, 0xFFFFFFFFFFFFull, 0, 0);
+    if (grant_ram_exec(c, err)) { /* nothing ran at the pc: the same slice goes on from there */
+        err = c->emu_start(c->uc, read_reg(c, c->reg_pc) | 1u, 0xFFFFFFFFFFFFull, 0, 0);
+    }
+    if (err == UC_ERR_EXCEPTION && c->stop_kind == 0) { /* the virtual TLB refused a fetch (Cpu.VIRTUAL_TLB): the
+                                                        * prefetch abort the CPU's own fill raises */
+        c->stop_kind = 1;
+        c->intno = EXCP_PREFETCH_ABORT;
+    }
     if (err && c->stop_kind == 0) {
         c->uc_error = err;
         return HIL_UC_ERROR;
