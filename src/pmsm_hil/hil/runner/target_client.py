@@ -120,6 +120,7 @@ class TargetClient:
             self.pump()
         poll, feed, shared = self.link.poll, self.decoder.feed, self.shared
         self.backlog = True  # until the queue is seen empty
+        frame: Frame | None
         for _ in range(DRAIN_MAX):
             if first is not None:
                 frame, first = first, None
