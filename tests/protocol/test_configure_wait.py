@@ -17,6 +17,7 @@ from pmsm_hil.protocol.links import open_link
 from pmsm_hil.protocol.links.link import BusLink
 from pmsm_hil.protocol.links.wire_bus import free_udp_ports
 from pmsm_hil.protocol.messages import ConfigAck, ConfigParam
+from tests.protocol.test_link_auth import _agree
 
 PARAMS = {ParamId.RS: 0.5, ParamId.LD: 1e-4}
 
@@ -27,13 +28,7 @@ def udp_pair() -> Iterator[tuple[BusLink, BusLink]]:
     a, b = free_udp_ports()
     host, target = open_link(f"udp:{a}:{b}", "host"), open_link(f"udp:{b}:{a}", "target")
     try:
-        host.bus.propose()  # type: ignore[attr-defined]
-        deadline = time.monotonic() + 30
-        while not (host.bus.established and target.bus.established):  # type: ignore[attr-defined]
-            assert time.monotonic() < deadline, "no session agreed"
-            host.bus.poll_frame()  # type: ignore[attr-defined]
-            target.bus.poll_frame()  # type: ignore[attr-defined]
-            time.sleep(0.001)
+        _agree(host, target)
         yield host, target
     finally:
         host.close()
