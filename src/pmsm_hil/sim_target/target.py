@@ -169,3 +169,5 @@ class SimTarget:
                     frame = recv(block_s)
                     if frame is not None:
                         self._on_frame(frame)
+                    else:  # still idle: the next empty poll checks and waits again
+                        spins = 999
