@@ -1,4 +1,5 @@
-"""The virtual target as its own process: busy-polls its link and serves the firmware stub.
+"""The virtual target as its own process: polls its link (waits in its receive when idle) and serves the firmware
+stub.
 
 A spawned target (`hil run --target spawn`) must not outlive its host: `serve(parent_pid=...)` asks Linux for
 SIGKILL when the parent dies (prctl PR_SET_PDEATHSIG) and also stops once `os.getppid()` changes (other
@@ -25,6 +26,9 @@ from pmsm_hil.sim_target.target import SimTarget
 
 #: idle timeout [s] of a target spawned by the runner (`hil target --idle-timeout`); a run sends every period
 SPAWNED_IDLE_TIMEOUT_S = 30.0
+#: how long an idle target waits in its link's receive between its stop checks [s] (SIGTERM, the parent's death
+#: and the idle timeout are seen within it); a target that answers frames polls between them
+IDLE_BLOCK_S = 0.05
 #: `hil target` prints "ready SPEC" once its link is open (the runner waits for it) and, when it stops,
 #: "link stats: {json}" with its link counters (the runner reads it after stopping a spawned target)
 READY_LINE = "ready"
@@ -106,7 +110,7 @@ def serve(link_spec: str, controller: str | None = None, *, role: str = "target"
         if on_ready is not None:
             on_ready()
         if not orphaned():
-            target.run_forever(should_stop)
+            target.run_forever(should_stop, block_s=IDLE_BLOCK_S)
         stats = {**link.stats.as_dict(), **link_socket_drops(link), **link_kernel_drops(link)}
         return Served(target, stats, reason or "parent exited")
     finally:

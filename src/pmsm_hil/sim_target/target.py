@@ -148,9 +148,12 @@ class SimTarget:
         self.enabled = False
         self._send(Fault(node=TARGET_NODE, code=int(code), detail=detail))
 
-    def run_forever(self, should_stop: Callable[[], bool], idle_sleep_s: float = 0.0) -> None:
-        """Busy-poll the link until should_stop() is true (checked every ~1000 empty polls)."""
+    def run_forever(self, should_stop: Callable[[], bool], idle_sleep_s: float = 0.0, block_s: float = 0.0) -> None:
+        """Poll the link until should_stop() is true (checked every ~1000 empty polls); after each check a sleep of
+        `idle_sleep_s` [s], and (`block_s` > 0) a wait of up to `block_s` [s] in the link's receive (blocked on the
+        wire buses): a target idle between runs leaves the CPU to others, and polls again from its next frame on."""
         spins = 0
+        recv = self.link.recv if block_s > 0 else None
         while True:
             if self.service():
                 spins = 0
@@ -162,3 +165,9 @@ class SimTarget:
                     return
                 if idle_sleep_s:
                     time.sleep(idle_sleep_s)
+                if recv is not None:
+                    frame = recv(block_s)
+                    if frame is not None:
+                        self._on_frame(frame)
+                    else:  # still idle: the next empty poll checks and waits again
+                        spins = 999

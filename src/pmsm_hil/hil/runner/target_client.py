@@ -114,13 +114,18 @@ class TargetClient:
         self._malformed = 0  # decoder rejects seen so far: bad length/value
         self._out_of_seq = 0  # and old/repeated seq parts
 
-    def _drain(self) -> None:
+    def _drain(self, first: Frame | None = None) -> None:
+        """Take every frame waiting on the link (`first`: one received already, taken before them)."""
         if self.pump is not None:
             self.pump()
         poll, feed, shared = self.link.poll, self.decoder.feed, self.shared
         self.backlog = True  # until the queue is seen empty
+        frame: Frame | None
         for _ in range(DRAIN_MAX):
-            frame = poll()
+            if first is not None:
+                frame, first = first, None
+            else:
+                frame = poll()
             if frame is None:
                 self.backlog = False
                 return
@@ -197,6 +202,10 @@ class TargetClient:
         self._written = {int(p): _F32.unpack(_F32.pack(float(v)))[0] for p, v in params.items()}
         bus_before = self.bus.frames
         idle = self._stopped_without_answer()
+        # a target behind a link of its own (no in-process pump, not run only when polled) is waited for in the
+        # link's receive between sends (blocked, on the wire buses), not by polling: a host that spins while a
+        # target starts, or while a silent one is given its timeout_s, takes a core from it
+        recv = getattr(self.link, "recv", None) if self.pump is None and idle is None else None
         start = time.perf_counter()
         last_send = -math.inf
         while True:
@@ -220,6 +229,11 @@ class TargetClient:
                     self.config_resent += len(pending)
                 last_send = now
             self._drain()
+            if recv is not None and not self.backlog and any(int(p) not in self._acks for p in pending):
+                wait = min(last_send + resend_s, start + timeout_s) - time.perf_counter()
+                frame = recv(wait) if wait > 0 else None
+                if frame is not None:
+                    self._drain(frame)
         for pid in params:
             ack = self._acks[int(pid)]
             name = _param_name(pid)
