@@ -6,6 +6,7 @@ writer's modules, not the reader's, the links' or the runner's. Checked by the m
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -99,21 +100,22 @@ from pathlib import Path
 from pmsm_hil.hil.runlog.logger import RunLogger
 with RunLogger(Path(sys.argv[1]), metadata={{}}) as lg:
     pass
-print(json.dumps(lg.final_stats))
+print(json.dumps({{**lg.final_stats, "parent_mcap": sorted(m for m in sys.modules if m.split(".")[0] == "mcap")}}))
 """
 
 
 def test_a_logger_started_from_a_script_does_not_run_the_script_again(tmp_path: Path) -> None:
     """A `hil`, `pytest` or user script without a `__main__` guard: the spawned logger does not run it again
     (multiprocessing's spawn would, for a target defined there: the CLI's or pytest's whole import, or here a
-    second logger started from inside the first one's start)."""
+    second logger started from inside the first one's start). The script itself, which only starts the logger,
+    imports none of mcap (the logger's writer is imported in the logger process: `WorkerTarget`)."""
     script = tmp_path / "script.py"
     script.write_text(_SCRIPT_LOGGER.format())
     proc = subprocess.run([sys.executable, str(script), str(tmp_path / "run.mcap")], capture_output=True,
                           text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     stats = json.loads(proc.stdout.splitlines()[-1])
-    assert stats["reason"] == "close" and stats["numpy"] is False
+    assert stats["reason"] == "close" and stats["numpy"] is False and stats["parent_mcap"] == []
 
 
 def test_the_lazy_package_names_still_import() -> None:
@@ -134,3 +136,53 @@ def test_the_lazy_package_names_still_import() -> None:
     assert run_cli.run_closed_loop is run_closed_loop
     with pytest.raises(AttributeError):
         _ = links.no_such_name
+
+
+_NO_PYTHON_CAN = """
+import os, sys
+class _NoPythonCan:
+    def find_spec(self, name, path=None, target=None):
+        if name == "can" or name.startswith("can."):
+            with open(os.environ["NO_PYTHON_CAN_LOG"], "a") as log:
+                log.write(f"{name} in {sys.argv}\\n")
+            raise ImportError(f"python-can imported: {name}")
+        return None
+sys.meta_path.insert(0, _NoPythonCan())
+"""
+
+_UDP_RUN_AND_PTY = """
+import json, os, sys, tty
+from pmsm_hil.app.cli.main import main
+from pmsm_hil.protocol.frame import Frame
+from pmsm_hil.protocol.links import open_link
+from pmsm_hil.protocol.links.kernel_drops import link_kernel_drops
+from pmsm_hil.protocol.links.wire_core import link_socket_drops
+code = main(["run", "--duration", "0.005", "--settle", "0", "--link", "udp", "--target", "spawn", "--no-log",
+             "--quiet", "--json", sys.argv[1]])
+master, slave = os.openpty()
+tty.setraw(master)
+tty.setraw(slave)
+with open_link(f"serial:fd:{master}", "host") as host, open_link(f"serial:fd:{slave}", "target") as target:
+    host.send([Frame(0x101, b"pty", True)])
+    got = target.recv(5.0)
+    extras = {**link_socket_drops(host), **link_kernel_drops(host)}
+print(json.dumps({"code": code, "got": got.data.hex() if got else None, "extras": extras,
+                  "can": sorted(m for m in sys.modules if m == "can" or m.startswith("can."))}))
+"""
+
+
+def test_a_run_over_udp_and_a_pty_link_need_no_python_can(tmp_path: Path) -> None:
+    """`hil run --link udp --target spawn` (the host, its spawned `hil target` and the logger) and a serial link's
+    two ends run without python-can's package (≈ 0.3 CPU-s of every such process): an import of it is refused and
+    logged in each of these processes."""
+    (tmp_path / "sitecustomize.py").write_text(_NO_PYTHON_CAN)
+    log = tmp_path / "python-can.log"
+    env = {**os.environ, "PYTHONPATH": str(tmp_path), "NO_PYTHON_CAN_LOG": str(log)}
+    proc = subprocess.run([sys.executable, "-c", _UDP_RUN_AND_PTY, str(tmp_path / "metrics.json")], env=env,
+                          capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    result = json.loads(proc.stdout.splitlines()[-1])
+    assert result == {"code": 0, "got": b"pty".hex(), "extras": {}, "can": []}
+    assert not log.exists(), log.read_text()
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    assert metrics["link"]["frames_rx"] > 0 and "socket_drops" in metrics["link"]

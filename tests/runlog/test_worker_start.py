@@ -4,9 +4,12 @@ timeout is given up with the reason in one line, and nothing is left behind."""
 
 from __future__ import annotations
 
+import pickle
 import time
 
-from pmsm_hil.hil.runlog.worker_client import START_CEILING, WorkerClient
+from pmsm_hil.hil.runlog.sink import COMPRESSION_TYPES
+from pmsm_hil.hil.runlog.topics import COMPRESSIONS
+from pmsm_hil.hil.runlog.worker_client import START_CEILING, WorkerClient, WorkerTarget
 from tests.runlog import _slow_workers
 
 RING_BYTES = 1 << 16
@@ -40,3 +43,21 @@ def test_a_worker_that_uses_no_cpu_is_given_up_after_the_timeout() -> None:
     assert waited < START_CEILING * 0.5 + 30  # the ceiling bounds it even if the child's imports ran long
     assert not client._alive()  # aborted: no process left
 
+
+
+def test_a_worker_named_by_module_and_function_starts_as_the_function_does() -> None:
+    """`WorkerTarget`: the parent pickles two names (not the function, whose module it need not import); the worker
+    imports the module and runs the function with its arguments."""
+    target = WorkerTarget("tests.runlog._slow_workers", "spin_then_ready")
+    assert pickle.loads(pickle.dumps(target)) == target and len(pickle.dumps(target)) < 200
+    client = _Client()
+    ready = client.start(target, 0.0, timeout_s=30.0)
+    try:
+        assert ready == b"" and client._alive()
+    finally:
+        client._abort()
+
+
+def test_the_logger_takes_the_compressions_its_writer_writes() -> None:
+    """`RunLogger` checks a compression by its name (without mcap's writer); the sink writes each of them."""
+    assert sorted(COMPRESSIONS) == sorted(COMPRESSION_TYPES)

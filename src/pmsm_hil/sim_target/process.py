@@ -20,7 +20,7 @@ from types import FrameType
 from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.links import Link, link_profile, open_link
 from pmsm_hil.protocol.links.kernel_drops import link_kernel_drops
-from pmsm_hil.protocol.links.wire_bus import link_socket_drops
+from pmsm_hil.protocol.links.wire_core import link_socket_drops
 from pmsm_hil.sim_target.firmware import controller_by_name
 from pmsm_hil.sim_target.target import SimTarget
 

@@ -179,7 +179,7 @@ def _adapter_pair(base: RunConfig, name: str, repeats: int, runs: str,
     registered link kind: the C loop drives it through its callback link). socketcan: python-can's socketcan
     interface (`SOCKETCAN_BENCH_SPEC`; Linux's route to PEAK, Kvaser, gs_usb, ... adapters), which the C loop
     drives through its native SocketCAN wire."""
-    from pmsm_hil.protocol.links.wire_bus import free_udp_ports
+    from pmsm_hil.protocol.links.wire_core import free_udp_ports
 
     if name == "pycan":
         host, target = free_udp_ports(2)

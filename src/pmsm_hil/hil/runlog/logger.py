@@ -20,11 +20,12 @@ from pmsm_hil.hil.runlog import topics
 from pmsm_hil.hil.runlog.board_records import BOARD_DTYPE
 from pmsm_hil.hil.runlog.console import CONSOLE_DTYPE
 from pmsm_hil.hil.runlog.errors import LoggerDiedError, RunLogError
-from pmsm_hil.hil.runlog.sink import COMPRESSIONS
-from pmsm_hil.hil.runlog.worker import run_worker
-from pmsm_hil.hil.runlog.worker_client import START_METHODS, WorkerClient, start_failure
+from pmsm_hil.hil.runlog.topics import COMPRESSIONS
+from pmsm_hil.hil.runlog.worker_client import START_METHODS, WorkerClient, WorkerTarget, start_failure
 
 DEFAULT_RING_BYTES = 64 * 1024 * 1024
+#: the logger process's target (`pmsm_hil.hil.runlog.worker.run_worker`), imported in the logger process only
+run_worker = WorkerTarget("pmsm_hil.hil.runlog.worker", "run_worker")
 
 
 class RunLogger(WorkerClient):

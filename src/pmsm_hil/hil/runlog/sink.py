@@ -24,13 +24,15 @@ from pmsm_hil.hil.runlog import layouts, pure_writer, topics
 from pmsm_hil.hil.runlog.bulk_messages import BulkMessages
 from pmsm_hil.hil.runlog.errors import RunLogError
 from pmsm_hil.hil.runlog.salvage import end_after_last_record
+from pmsm_hil.hil.runlog.topics import COMPRESSIONS
 
 if TYPE_CHECKING:
     import numpy as np
 
     from pmsm_hil.hil.runlog.cdr import CdrMessage
 
-COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
+#: mcap's compression of each name of `topics.COMPRESSIONS`
+COMPRESSION_TYPES = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
 CHUNK_BYTES = 8 * 1024 * 1024
 LIBRARY = "pmsm-hil runlog"
 #: CPU time [s] the numpy-free encoders may use in a run before the numpy ones take over (numpy's import)
@@ -45,11 +47,11 @@ class McapSink:
 
     def __init__(self, path: Path, metadata: Mapping[str, str], compression: str = "lz4",
                  trace_fields: Sequence[str] = layouts.TRACE_FIELDS) -> None:
-        if compression not in COMPRESSIONS:
+        if compression not in COMPRESSION_TYPES:
             raise RunLogError(f"compression: expected one of {sorted(COMPRESSIONS)}, got {compression!r}")
         self._path = Path(path)
         self._file: BinaryIO = open(path, "wb", buffering=1024 * 1024)  # noqa: SIM115 - closed in close()
-        self._writer = Writer(self._file, chunk_size=CHUNK_BYTES, compression=COMPRESSIONS[compression])
+        self._writer = Writer(self._file, chunk_size=CHUNK_BYTES, compression=COMPRESSION_TYPES[compression])
         self._writer.start(profile="", library=LIBRARY)
         w = self._writer
         json_enc = SchemaEncoding.JSONSchema

@@ -28,3 +28,6 @@ KIND_FAULTS: Final = 4
 KIND_CONSOLE: Final = 5
 KIND_BOARD: Final = 6
 KIND_CLOSE: Final = 9
+
+#: the chunk compressions a run log may be written with (`RunLogger(compression=...)`; mcap's types: sink.py)
+COMPRESSIONS: Final = ("zstd", "lz4", "none")

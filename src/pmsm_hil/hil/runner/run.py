@@ -51,7 +51,7 @@ from pmsm_hil.hil.runner.target_setup import TargetConnection, connect_target
 from pmsm_hil.protocol.errors import LinkError
 from pmsm_hil.protocol.links.kernel_drops import link_kernel_drops
 from pmsm_hil.protocol.links.spec import redact_spec
-from pmsm_hil.protocol.links.wire_bus import link_socket_drops
+from pmsm_hil.protocol.links.wire_core import link_end, link_socket_drops
 
 
 @dataclass(slots=True)
@@ -284,7 +284,7 @@ def summarize(cfg: RunConfig, out: LoopOutcome, conn: TargetConnection, sink: Ru
     metrics["link"].update({k: v for k, v in stats.items() if k not in metrics["link"]})
     metrics["link"].update(link_socket_drops(conn.host_link))
     metrics["link"].update(link_kernel_drops(conn.host_link))
-    metrics["link_authenticated"] = getattr(getattr(conn.host_link, "bus", None), "authenticated", False) is True
+    metrics["link_authenticated"] = getattr(link_end(conn.host_link), "authenticated", False) is True
     metrics["end_reason"] = out.end_reason
     metrics["end_code"] = out.end_code
     metrics["end_period"] = out.completed_periods - 1

@@ -23,6 +23,7 @@ from pmsm_hil.protocol.links.shared_bus import (
     fault_target_id,
     target_lengths,
 )
+from pmsm_hil.protocol.links.wire_core import link_end
 from pmsm_hil.protocol.messages import (
     Command,
     ConfigAck,
@@ -178,7 +179,7 @@ class TargetClient:
     def _silence_hint(self) -> str:
         """Why a target may not answer at all: none on the link, or (authenticated frames) another key."""
         stats = getattr(self.link, "stats", None)
-        if not getattr(getattr(self.link, "bus", None), "authenticated", False):
+        if not getattr(link_end(self.link), "authenticated", False):
             return "is a target running on this link?"
         failed = int(getattr(stats, "auth_failed", 0) or 0) + int(getattr(stats, "auth_replayed", 0) or 0)
         seen = f"; {failed} frame(s) from it failed authentication here" if failed else ""

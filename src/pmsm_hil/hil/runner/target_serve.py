@@ -26,7 +26,7 @@ from pmsm_hil.hil.runner.wire import WireHandle
 from pmsm_hil.hil.runner.wire_kinds import NATIVE_WIRES
 from pmsm_hil.protocol.links import open_link, parse_spec
 from pmsm_hil.protocol.links.kernel_drops import link_kernel_drops
-from pmsm_hil.protocol.links.wire_bus import link_socket_drops
+from pmsm_hil.protocol.links.wire_core import link_socket_drops
 from pmsm_hil.sim_target.process import SIL_INIT_LINE, die_with_parent
 from pmsm_hil.sim_target.sil import SilFirmware
 

@@ -39,7 +39,7 @@ from pmsm_hil.hil.runner.target_time import TargetTime, target_time
 from pmsm_hil.protocol.codec import FrameCodec
 from pmsm_hil.protocol.links import Link, link_kind, open_link
 from pmsm_hil.protocol.links.spawn_auth import spawn_auth
-from pmsm_hil.protocol.links.wire_bus import HilUdpBus
+from pmsm_hil.protocol.links.wire_core import UdpEnd, link_end
 from pmsm_hil.sim_target.process import LINK_STATS_LINE, READY_LINE, SPAWNED_IDLE_TIMEOUT_S
 
 #: how long a spawned target may take to open its link (interpreter start and imports on a loaded machine)
@@ -221,9 +221,9 @@ def _spawn_target(spec: str, native: bool = False, sil: str | None = None,
 
 def _await_session(link: Link) -> None:
     """Agree the session of a UDP link with its peer before the run (LinkError naming the peer if none)."""
-    bus = getattr(link, "bus", None)
-    if isinstance(bus, HilUdpBus):
-        bus.wait_session(SESSION_TIMEOUT_S)
+    end = link_end(link)
+    if isinstance(end, UdpEnd):
+        end.wait_session(SESSION_TIMEOUT_S)
 
 
 def _slots(obj: object) -> list[tuple[str, object]]:

@@ -115,7 +115,8 @@ class NativeWireLink(LinkFacade):
     by the C loop itself (`attach`, `detach`); `fd`: the host's frame profile is CAN FD."""
 
     def __init__(self, link: Link, bus: Any, wire: Wire, ffi: Any, lib: Any, fd: bool) -> None:
-        self.link, self.bus, self.wire = link, bus, wire
+        #: the end this wire drives (a C wire end, or a python-can SocketCAN bus): `link_end` reads it
+        self.link, self.end, self.wire = link, bus, wire
         self.ffi, self.lib = ffi, lib
         self.fd = fd
         self.stats: LinkStats = link.stats
@@ -128,13 +129,18 @@ class NativeWireLink(LinkFacade):
         self.sil_debug: Any = None
 
     @property
+    def bus(self) -> Any:
+        """The python-can bus under the link (a C wire end's python-can face, made on first use: `BusLink.bus`)."""
+        return getattr(self.link, "bus", self.end)
+
+    @property
     def other_process(self) -> bool:
         """The target runs in another process or on a board: replies take wall time (True)."""
         return True
 
     def attach(self, c: Any, lockstep_timeout_s: float) -> None:
         """Give the loop's nl_config_t `c` the link as it is now."""
-        self.handle = WireHandle(self.wire, self.ffi, self.lib, self.bus, target_role=False)
+        self.handle = WireHandle(self.wire, self.ffi, self.lib, self.end, target_role=False)
         c.target_link.link = self.handle.link
         c.target_link.lockstep_timeout_ns = int(lockstep_timeout_s * 1e9)
         c.target_link.sil_debug = self.sil_debug if self.sil_debug is not None else self.ffi.NULL

@@ -6,13 +6,13 @@ from __future__ import annotations
 
 from pmsm_hil.hil.runner.wire import Wire
 from pmsm_hil.protocol.links import Link
-from pmsm_hil.protocol.links.wire_bus import HilSerialBus
+from pmsm_hil.protocol.links.wire_core import SerialEnd, link_end
 
 
-def serial_bus(link: Link) -> HilSerialBus | None:
-    """The hilserial bus under `link`, or None."""
-    bus = getattr(link, "bus", None)
-    return bus if isinstance(bus, HilSerialBus) else None
+def serial_bus(link: Link) -> SerialEnd | None:
+    """The hilserial end (or bus) under `link`, or None."""
+    end = link_end(link)
+    return end if isinstance(end, SerialEnd) else None
 
 
 SERIAL_WIRE = Wire("nl_serial_t", "nl_serial_link", serial_bus)

@@ -5,27 +5,28 @@ the kernel's drop count C read on the socket (SO_RXQ_OVFL, src/pmsm_hil/protocol
 
 from __future__ import annotations
 
-from typing import Any
-
-import can
-from can import CanProtocol
+import sys
+from typing import TYPE_CHECKING, Any
 
 from pmsm_hil.hil.runner.wire import Wire
 from pmsm_hil.protocol.links import Link
+from pmsm_hil.protocol.links.wire_core import link_end
+
+if TYPE_CHECKING:
+    import can
 
 
 def socketcan_bus(link: Link) -> can.BusABC | None:
-    """The python-can SocketCAN bus under `link`, or None."""
-    try:
-        from can.interfaces.socketcan import SocketcanBus
-    except ImportError:  # not Linux
-        return None
-    bus = getattr(link, "bus", None)
-    return bus if isinstance(bus, SocketcanBus) else None
+    """The python-can SocketCAN bus under `link`, or None (a link opened without python-can has none)."""
+    socketcan = sys.modules.get("can.interfaces.socketcan.socketcan")  # a SocketcanBus was opened: imported
+    bus = link_end(link)
+    return bus if socketcan is not None and isinstance(bus, socketcan.SocketcanBus) else None
 
 
 def fill_socketcan(ffi: Any, s: Any, bus: can.BusABC, target_role: bool) -> None:
     """nl_socketcan_t `s` on `bus`'s socket (any python-can bus whose descriptor carries SocketCAN frames)."""
+    from can import CanProtocol
+
     s.fd = bus.fileno()
     s.fd_frames = 1 if bus.protocol in (CanProtocol.CAN_FD, CanProtocol.CAN_FD_NON_ISO) else 0
 

@@ -21,13 +21,15 @@ from pmsm_hil.protocol.links.spec import LinkSpec, Role, parse_spec
 if TYPE_CHECKING:  # python-can and the wire buses are imported where a bus is opened (a `--help` needs neither)
     import can
 
+    from pmsm_hil.protocol.links.wire_core import WireEnd
+
 Profile = Literal["can", "canfd"]
 #: What limits one period's wire time: nothing (in-process, loopback), a serial line or a CAN bus.
 Wire = Literal["none", "serial", "can"]
 #: Target kind `--target auto` picks: the in-process sim target, a spawned `hil target`, or a board.
 AutoTarget = Literal["inproc", "spawn", "external"]
-#: (bus, description) of an opened link end.
-BusFactory = Callable[[LinkSpec, Role], "tuple[can.BusABC, str]"]
+#: (bus, description) of an opened link end: a python-can bus, or a C wire end (wire_core.py: no python-can)
+BusFactory = Callable[[LinkSpec, Role], "tuple[can.BusABC | WireEnd, str]"]
 
 DEFAULT_VIRTUAL_CHANNEL = "pmsm_hil"
 DEFAULT_UDP_PORTS: dict[str, tuple[int, int]] = {"host": (47310, 47311), "target": (47311, 47310)}
@@ -143,8 +145,8 @@ def _open_virtual(ls: LinkSpec, role: Role) -> tuple[can.BusABC, str]:
     return can.Bus(interface="virtual", channel=channel, protocol=proto, **opts), f"virtual:{channel}"
 
 
-def _open_udp(ls: LinkSpec, role: Role) -> tuple[can.BusABC, str]:
-    from pmsm_hil.protocol.links.wire_bus import HilUdpBus, parse_udp_channel
+def _open_udp(ls: LinkSpec, role: Role) -> tuple[WireEnd, str]:
+    from pmsm_hil.protocol.links.wire_core import UdpEnd, parse_udp_channel
 
     if ls.channel is None:
         local, remote = DEFAULT_UDP_PORTS[role]
@@ -157,7 +159,7 @@ def _open_udp(ls: LinkSpec, role: Role) -> tuple[can.BusABC, str]:
             raise LinkSpecError(str(exc)) from exc
     opts = dict(ls.options)
     key = key_of_options(opts)
-    return HilUdpBus(channel=channel, auth_key=key, auth_role=role, **opts), f"udp:{channel}"
+    return UdpEnd(channel=channel, auth_key=key, auth_role=role, **opts), f"udp:{channel}"
 
 
 def _mirror_udp(spec: str, ls: LinkSpec) -> SpawnSpecs:
@@ -166,7 +168,7 @@ def _mirror_udp(spec: str, ls: LinkSpec) -> SpawnSpecs:
     head, sep, opts = spec.partition(",")
     _, _, channel = head.strip().partition(":")
     if not channel:
-        from pmsm_hil.protocol.links.wire_bus import free_udp_ports
+        from pmsm_hil.protocol.links.wire_core import free_udp_ports
 
         a, b = free_udp_ports(2)
         return SpawnSpecs(f"udp:{a}:{b}{sep}{opts}", f"udp:{b}:{a}{sep}{opts}")
@@ -175,14 +177,14 @@ def _mirror_udp(spec: str, ls: LinkSpec) -> SpawnSpecs:
     return SpawnSpecs(spec, f"udp:{remote}:{local}{at}{host}{sep}{opts}")
 
 
-def _open_serial(ls: LinkSpec, role: Role) -> tuple[can.BusABC, str]:
-    from pmsm_hil.protocol.links.wire_bus import HilSerialBus
+def _open_serial(ls: LinkSpec, role: Role) -> tuple[WireEnd, str]:
+    from pmsm_hil.protocol.links.wire_core import SerialEnd
 
     if ls.channel is None:
         raise LinkSpecError("link spec serial: needs a port, e.g. serial:/dev/ttyACM0,baudrate=3000000")
     opts = dict(ls.options)
     key = key_of_options(opts)
-    return HilSerialBus(channel=ls.channel, auth_key=key, auth_role=role, **opts), f"serial:{ls.channel}"
+    return SerialEnd(channel=ls.channel, auth_key=key, auth_role=role, **opts), f"serial:{ls.channel}"
 
 
 def _mirror_serial(spec: str, ls: LinkSpec) -> SpawnSpecs:

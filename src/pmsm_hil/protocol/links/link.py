@@ -13,13 +13,10 @@ Options are passed to can.Bus (bitrate=1000000,fd=true,data_bitrate=5000000, ...
 from __future__ import annotations
 
 import queue
+import sys
 import time
 from collections.abc import Callable, Sequence
-from typing import Protocol, runtime_checkable
-
-import can
-from can import CanProtocol
-from can.interfaces.virtual import VirtualBus
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 from pmsm_hil.protocol.errors import LinkError, LinkSpecError
 from pmsm_hil.protocol.frame import Frame
@@ -27,7 +24,11 @@ from pmsm_hil.protocol.links.kinds import link_kind
 from pmsm_hil.protocol.links.shared_bus import SHARED_OPTION, is_shared_bus
 from pmsm_hil.protocol.links.spec import Role, parse_spec, redact_spec
 from pmsm_hil.protocol.links.stats import LinkStats
-from pmsm_hil.protocol.links.wire_bus import WireBus
+from pmsm_hil.protocol.links.wire_core import WireEnd, WireInitError
+
+if TYPE_CHECKING:  # python-can is imported where a python-can bus is opened or asked for, not for the C wires
+    import can
+    from can.interfaces.virtual import VirtualBus
 
 _perf = time.perf_counter
 _TRUE = ("true", "1", "yes", "on")
@@ -71,31 +72,55 @@ def poll_until(poll: Callable[[], Frame | None], timeout_s: float) -> Frame | No
 
 
 class BusLink:
-    """Link over a python-can bus; on the hiludp / hilserial buses (wire_bus.py) through their fast path (no
-    can.Message) and with their C counters as `stats`."""
+    """Link over a python-can bus, or over a C wire end (hiludp / hilserial: wire_core.py) through its fast path with
+    its C counters as `stats`, without python-can (its python-can bus made on first use of `bus`)."""
 
-    def __init__(self, bus: can.BusABC, description: str) -> None:
-        self.bus = bus
+    def __init__(self, bus: can.BusABC | WireEnd, description: str) -> None:
+        #: what the link was opened on, as it is (a C wire end or a python-can bus): `link_end` reads it
+        self.end: Any = bus
         self.description = description
-        self._fast: WireBus | None = bus if isinstance(bus, WireBus) else None
+        self._fast: WireEnd | None = bus if isinstance(bus, WireEnd) else None
         self.stats: LinkStats = self._fast.link_stats if self._fast is not None else LinkStats()
-        self.fd = bus.protocol in (CanProtocol.CAN_FD, CanProtocol.CAN_FD_NON_ISO) or bool(getattr(bus, "fd", False))
         self._closed = False
         #: other nodes may share this bus (src/pmsm_hil/protocol/links/shared_bus.py): frames that cannot be the
         #: target's are bus traffic, not findings; set by open_link from the SPEC
         self.shared = False
+        self._virtual: VirtualBus | None = None
+        self._can_error: type[Exception] = LinkError  # python-can's CanError on a python-can bus
+        if self._fast is not None:
+            self.fd = self._fast.fd
+            return
+        import can
+        from can import CanProtocol
+        from can.interfaces.virtual import VirtualBus
+
+        self._can_error = can.CanError
+        self._message = can.Message
+        protocol = getattr(bus, "protocol", None)
+        self.fd = protocol in (CanProtocol.CAN_FD, CanProtocol.CAN_FD_NON_ISO) or bool(getattr(bus, "fd", False))
         # python-can's virtual bus deep-copies every Message per receiver (~10 µs); in-process we hand each
         # receiver queue its own freshly built Message instead: same semantics, a fraction of the cost.
-        self._virtual: VirtualBus | None = bus if type(bus) is VirtualBus else None
+        self._virtual = bus if type(bus) is VirtualBus else None
+
+    @property
+    def bus(self) -> can.BusABC:
+        """The python-can bus of the link: a C wire end becomes its python-can bus (`HilUdpBus`, `HilSerialBus`:
+        the same end, python-can imported now)."""
+        if self._fast is not None and self.end is self._fast:
+            from pmsm_hil.protocol.links.wire_bus import python_can_face
+
+            self.end = python_can_face(self._fast)
+        bus: can.BusABC = self.end
+        return bus
 
     def _send_virtual(self, bus: VirtualBus, fr: Frame) -> None:
         now = time.time()
         for q in bus.channel:
             if q is bus.queue and not bus.receive_own_messages:
                 continue
-            q.put_nowait(can.Message(timestamp=now, arbitration_id=fr.arbitration_id, data=fr.data,
-                                     is_fd=fr.is_fd, bitrate_switch=fr.is_fd, is_extended_id=False,
-                                     channel=bus.channel_id, is_rx=q is not bus.queue))
+            q.put_nowait(self._message(timestamp=now, arbitration_id=fr.arbitration_id, data=fr.data,
+                                      is_fd=fr.is_fd, bitrate_switch=fr.is_fd, is_extended_id=False,
+                                      channel=bus.channel_id, is_rx=q is not bus.queue))
         self.stats.frames_tx += 1
 
     def send(self, frames: Sequence[Frame]) -> None:
@@ -108,20 +133,16 @@ class BusLink:
                 elif self._virtual is not None:
                     self._send_virtual(self._virtual, fr)
                 else:
-                    self.bus.send(
-                        can.Message(
-                            arbitration_id=fr.arbitration_id,
-                            data=fr.data,
-                            is_fd=fr.is_fd,
-                            bitrate_switch=fr.is_fd,
-                            is_extended_id=False,
-                        )
-                    )
-                    self.stats.frames_tx += 1
-            except (can.CanError, ValueError, TypeError) as exc:
+                    self._send_message(fr)
+            except (self._can_error, LinkError, ValueError, TypeError) as exc:
                 if fast is None:
                     self.stats.send_errors += 1
                 raise LinkError(f"{self.description}: cannot send frame 0x{fr.arbitration_id:03X}: {exc}") from exc
+
+    def _send_message(self, fr: Frame) -> None:
+        self.end.send(self._message(arbitration_id=fr.arbitration_id, data=fr.data, is_fd=fr.is_fd,
+                                  bitrate_switch=fr.is_fd, is_extended_id=False))
+        self.stats.frames_tx += 1
 
     def _next_message(self) -> can.Message | None:
         """The next raw message, or None at once (virtual: straight from its queue, no BusABC layers)."""
@@ -135,10 +156,11 @@ class BusLink:
                 return None
             return msg
         try:
-            return self.bus.recv(0.0)
-        except can.CanError:
+            received: can.Message | None = self.end.recv(0.0)
+        except self._can_error:
             self.stats.framing_errors += 1
             return None
+        return received
 
     def poll(self) -> Frame | None:
         """The next received 11-bit data frame, or None at once."""
@@ -165,13 +187,20 @@ class BusLink:
         """Shut the bus down (idempotent)."""
         if not self._closed:
             self._closed = True
-            self.bus.shutdown()
+            self.end.shutdown()
 
     def __enter__(self) -> BusLink:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _open_errors() -> tuple[type[Exception], ...]:
+    """What opening a bus may raise: python-can's errors where python-can is imported (else no bus raised one)."""
+    base: tuple[type[Exception], ...] = (OSError, ValueError, TypeError, ImportError, KeyError)
+    can = sys.modules.get("can")
+    return base if can is None else (can.CanError, can.CanInterfaceNotImplementedError, *base)
 
 
 def open_link(spec: str = "virtual", role: Role = "host") -> BusLink:
@@ -182,17 +211,11 @@ def open_link(spec: str = "virtual", role: Role = "host") -> BusLink:
     shared = ls.options.pop(SHARED_OPTION, None)  # how the host reads the bus (shared_bus.py): not python-can's
     try:
         bus, description = link_kind(ls).open_bus(ls, role)
-    except LinkError:
-        raise
-    except (
-        can.CanError,
-        can.CanInterfaceNotImplementedError,
-        OSError,
-        ValueError,
-        TypeError,
-        ImportError,
-        KeyError,
-    ) as exc:
+    except LinkError as exc:
+        if not isinstance(exc, WireInitError):  # a C wire end's refusal is worded as python-can's is
+            raise
+        raise LinkError(f"cannot open link {redact_spec(spec)!r}: {exc}") from exc
+    except _open_errors() as exc:
         raise LinkError(f"cannot open link {redact_spec(spec)!r}: {exc}") from exc
     link = BusLink(bus, description)
     link.shared = is_shared_bus(spec) if shared is None else shared is True or str(shared).lower() in _TRUE
