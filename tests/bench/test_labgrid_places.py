@@ -134,6 +134,19 @@ def _children(pid: int) -> list[int]:
     return found
 
 
+def _periods_logged(path: Path) -> bool:
+    """Whether the run's log holds a period (its first chunk flushed): the host and the board agreed their session
+    and periods flow. `run.mcap` alone exists before the handshake: a board killed then is met by the session's
+    agreement ("no session agreed", exit 2), not by the run."""
+    from pmsm_hil.hil.runlog import read_periods
+    from pmsm_hil.hil.runlog.errors import McapFormatError
+
+    try:
+        return path.exists() and read_periods(path).shape[0] > 0
+    except McapFormatError:  # its header not written yet
+        return False
+
+
 def test_a_board_that_stops_answering_ends_the_run_naming_the_bench(benches: Benches, tmp_path: Path) -> None:
     cmd = [sys.executable, "-m", "pmsm_hil.app.cli.main", "run", "--place", "bench-b", "--coordinator",
            benches.address, "--duration", "30", "--lockstep-timeout", "2", "--out", str(tmp_path / "run")]
@@ -142,7 +155,7 @@ def test_a_board_that_stops_answering_ends_the_run_naming_the_bench(benches: Ben
     deadline = time.monotonic() + 300
     while board is None and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.5)
-        if (tmp_path / "run" / "run.mcap").exists():  # the run has started: the board has answered
+        if _periods_logged(tmp_path / "run" / "run.mcap"):  # the run has started: the board agreed its session
             board = next((c for c in _children(proc.pid)
                           if b"target" in Path(f"/proc/{c}/cmdline").read_bytes().split(b"\0")), None)
     assert board is not None, proc.communicate()
