@@ -91,6 +91,15 @@ def _expected(n: int) -> np.ndarray:
     return np.concatenate([period_block(k, 200) for k in range(0, n, 200)])[:n]
 
 
+def _assert_repairs(out: Path, repaired: Path, periods: np.ndarray) -> None:
+    """The cut file `out` (its valid prefix: `periods`) repairs into `repaired`, finalised, with the same periods."""
+    report = repair_mcap(out, repaired)
+    assert not report.source_complete and report.chunks >= 2
+    assert report.messages_per_topic["/periods"] == periods.shape[0]
+    assert repaired.read_bytes()[-len(MAGIC) :] == MAGIC
+    np.testing.assert_array_equal(read_periods(repaired)["seq"], periods["seq"])
+
+
 def test_sigkill_of_loop_and_logger_keeps_what_the_logger_had_written(tmp_path: Path) -> None:
     """Both killed (no footer): every period the file held before the kill is still read, and the repair
     finalises a file with them; the kill comes once the logger has flushed at least twice, whatever the load."""
@@ -102,12 +111,7 @@ def test_sigkill_of_loop_and_logger_keeps_what_the_logger_had_written(tmp_path: 
     periods = read_periods(out)  # tolerant reader (valid prefix)
     assert len(set(on_disk) - {0}) >= 2 and periods.shape[0] >= max(on_disk)
     np.testing.assert_array_equal(periods["seq"], np.arange(periods.shape[0]))
-    repaired = tmp_path / "repaired.mcap"
-    report = repair_mcap(out, repaired)
-    assert not report.source_complete and report.chunks >= 2
-    assert report.messages_per_topic["/periods"] == periods.shape[0]
-    assert repaired.read_bytes()[-len(MAGIC) :] == MAGIC
-    np.testing.assert_array_equal(read_periods(repaired)["seq"], periods["seq"])
+    _assert_repairs(out, tmp_path / "repaired.mcap", periods)
 
 
 @pytest.mark.timing  # the logger must have written a block within 1 s of its submit: beside a burner it falls behind
@@ -119,12 +123,7 @@ def test_sigkill_of_loop_and_logger_keeps_all_but_last_second(tmp_path: Path) ->
     assert older, "no block was submitted more than 1 s before the kill"
     periods = read_periods(out)  # tolerant reader (valid prefix)
     assert periods.shape[0] >= older[-1] + 1
-    repaired = tmp_path / "repaired.mcap"
-    report = repair_mcap(out, repaired)
-    assert not report.source_complete and report.chunks >= 2
-    assert report.messages_per_topic["/periods"] == periods.shape[0]
-    assert repaired.read_bytes()[-len(MAGIC) :] == MAGIC
-    np.testing.assert_array_equal(read_periods(repaired)["seq"], periods["seq"])
+    _assert_repairs(out, tmp_path / "repaired.mcap", periods)
 
 
 def test_logger_death_is_reported_on_next_submit(tmp_path: Path) -> None:
