@@ -118,3 +118,21 @@ def test_a_link_other_than_the_boards_rates_is_a_usage_error(build_fw: Callable[
     assert proc.returncode == 2, proc.stderr[-2000:]
     last = proc.stderr.strip().splitlines()[-1]
     assert "--link" in last and "Traceback" not in proc.stderr
+
+
+def test_a_clock_change_after_the_controller_joined_the_bus_is_followed(build_fw: Callable[..., Path]) -> None:
+    """PCLK1 halved (APB1 /2) once FDCAN1 is on the bus at PCLK1: its bit times double from then on, as on the chip;
+    with the run's link stating 1 Mbit/s the firmware no longer hears the bus: one line naming NBTP, both rates."""
+    elf = build_fw("fdcan_clock", "SEL=2", "PPRE1_AFTER")
+    board, fdcan = board_with(elf, (None, None))
+    board.run_until(RUN)
+    assert on_bus(board) == 2
+    assert fdcan.kernel_clock_hz == 85_000_000
+    classic = [can.Message(arbitration_id=1, data=bytes(n), is_extended_id=False) for n in (8, 0)]
+    assert fdcan.frame_cycles(classic[0]) - fdcan.frame_cycles(classic[1]) == pytest.approx(64 * 34 * 5 * 2, abs=1)
+    board, _ = board_with(elf, (1_000_000, None))
+    with pytest.raises(BoardError) as info:
+        board.run_until(RUN)
+    assert str(info.value).startswith("FDCAN1 NBTP 0x0a041a05: 500000 bit/s (170 kernel clock periods per bit at "
+                                      "PCLK1 85 MHz), the run's link is 1000000 bit/s (link option bitrate)")
+    assert on_bus(board) == 1  # joined at 1 Mbit/s; the prescaler's write is where it stops

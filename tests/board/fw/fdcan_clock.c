@@ -1,7 +1,8 @@
 /* FDCAN kernel clock test: 170 MHz from HSE 24 MHz, FDCAN1's kernel clock from RCC CCIPR.FDCANSEL = SEL (0 HSE,
  * 1 PLL Q: PLLQEN set with QEN, Q = /2 -> 170 MHz, 2 PCLK1 = 170 MHz), nominal bit timing NBRP/34 time quanta
  * (NBRP 4: 1 Mbit/s at 170 MHz), data bit timing DBRP/34 time quanta (DBRP 0: 5 Mbit/s) with FD and bit-rate
- * switching when FD is defined (NO_HSE: the core stays on HSI16, the HSE off); then the controller leaves initialisation and the core sleeps. */
+ * switching when FD is defined (NO_HSE: the core stays on HSI16, the HSE off); then the controller leaves initialisation and the core sleeps.
+ * PPRE1_AFTER: once on the bus, the APB1 prescaler goes to /2 (PCLK1 85 MHz: with SEL 2 FDCAN1's kernel clock halves). */
 #include "regs.h"
 #define FDCAN1_DBTP REG(0x4000640Cu)
 #define FDCAN1_CCCR REG(0x40006418u)
@@ -35,5 +36,9 @@ int main(void) {
 #endif
   FDCAN1_CCCR &= ~1u;                         /* leave INIT: on the bus */
   on_bus = 1;
+#ifdef PPRE1_AFTER
+  RCC_CFGR = (RCC_CFGR & ~(7u << 8)) | 4u << 8; /* PPRE1 = /2 */
+  on_bus = 2;
+#endif
   for (;;) { __asm volatile("wfi"); }
 }

@@ -360,6 +360,19 @@ class Fdcan(Peripheral):
                                  f"per bit at {source}{ckdiv}), the run's link is {want} bit/s (link option "
                                  f"{option}): the firmware would not hear the bus")
 
+    def clock_changed(self, now: int) -> None:
+        """The RCC changed a clock FDCAN's kernel clock may come from (CCIPR, the oscillators, the PLL, the
+        prescalers): out of initialisation the controller follows it as the chip does — its bit times and the
+        timestamp counter at the new kernel clock from now on, the bit timing checked against the run's link again
+        (BoardError naming NBTP/DBTP and both rates: the firmware would no longer hear the bus), a source that stopped
+        named as at the start."""
+        if self.cccr & INIT:
+            return
+        before = self.kernel_clock_hz
+        self._join_bus(self.cccr, now)
+        if self.kernel_clock_hz != before:
+            self.inputs_changed()  # the next timestamp wrap moves with the clock
+
     def _rcc(self) -> _KernelClock | None:
         """The board's RCC model, when it names FDCAN's kernel clock (a bare bus has none)."""
         try:

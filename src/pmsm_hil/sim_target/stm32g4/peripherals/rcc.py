@@ -82,6 +82,18 @@ class Rcc(RegisterFile):
             self._enable("LSI", bool(value & 1), OSC_SETTLE, now)
         elif word == 0x98:
             self._enable("HSI48", bool(value & 1), OSC_SETTLE, now)
+        if word in (0x00, 0x08, 0x0C, 0x88):  # CR, CFGR, PLLCFGR, CCIPR: FDCAN's kernel clock may have changed
+            self._fdcan_follows(now)
+
+    def _fdcan_follows(self, now: int) -> None:
+        """FDCAN1, when the board has it, follows a change of its kernel clock (`Fdcan.clock_changed`)."""
+        try:
+            fdcan = self.bus.peripheral("FDCAN1")
+        except (BoardError, KeyError):
+            return
+        follow = getattr(fdcan, "clock_changed", None)
+        if follow is not None:
+            follow(now)
 
     def _switch(self, now: int) -> None:
         """SWS follows SW once the selected source is ready; the board hears of the new core clock."""
@@ -89,6 +101,9 @@ class Rcc(RegisterFile):
         source = {1: "HSI", 2: "HSE", 3: "PLL"}.get(sw)
         if source is not None and self._ready(source, now) and sw != self.sws:
             self.sws = sw
+            self._report()
+            self._fdcan_follows(now)  # PCLK1 follows the core clock
+            return
         self._report()
 
     def pll_hz(self) -> int:
