@@ -83,6 +83,35 @@ def test_a_forked_child_neither_uses_its_parents_fork_server_nor_counts_its_work
     assert os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]) == 0
 
 
+_LONG_TMPDIR_RUNNER = """
+import sys
+from pathlib import Path
+from pmsm_hil.hil.runlog import fork_server
+from pmsm_hil.hil.runlog.logger import RunLogger
+for name in ("a", "b"):  # the second would be forked: its server's socket cannot be made in this TMPDIR
+    with RunLogger(Path(sys.argv[1]) / (name + ".mcap"), metadata={}, ring_bytes=4 << 20) as lg:
+        pid = lg._proc.pid
+print(fork_server.pid(), flush=True)
+"""
+
+
+def test_auto_spawns_the_logger_when_the_fork_server_cannot_start(tmp_path: Path) -> None:
+    """A TMPDIR too long for an AF_UNIX address (108 bytes) keeps the fork server from starting: "auto" spawns the
+    later loggers as the first (it failed every later run with "AF_UNIX path too long" before)."""
+    long_tmp = tmp_path / ("t" * 60) / ("u" * 60)
+    long_tmp.mkdir(parents=True)
+    done = subprocess.run([sys.executable, "-c", _LONG_TMPDIR_RUNNER, str(tmp_path)], capture_output=True, text=True,
+                          timeout=120, env={**os.environ, "TMPDIR": str(long_tmp)}, check=False)
+    assert done.returncode == 0, done.stderr[-3000:]
+    for name in ("a", "b"):
+        assert read_periods(tmp_path / f"{name}.mcap").shape[0] == 0
+    (tmp_path / "named").mkdir()
+    named = _LONG_TMPDIR_RUNNER.replace("ring_bytes=4 << 20", "ring_bytes=4 << 20, start_method='forkserver'")
+    done = subprocess.run([sys.executable, "-c", named, str(tmp_path / "named")], capture_output=True, text=True,
+                          timeout=120, env={**os.environ, "TMPDIR": str(long_tmp)}, check=False)
+    assert done.returncode != 0 and "AF_UNIX path too long" in done.stderr  # asked for by name: the caller's error
+
+
 _KILLED_RUNNER = """
 import sys, time
 from pathlib import Path

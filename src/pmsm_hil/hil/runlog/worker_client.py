@@ -166,6 +166,7 @@ class WorkerClient:
         start-up data left a half-started child (an EOFError traceback); the child starts with both blocked,
         so a terminal's Ctrl-C never reaches its imports either (`_worker_entry`)."""
         self._stall_timeout_s = stall_timeout_s
+        auto = start_method == "auto"
         start_method = resolve_start_method(start_method)
         resource_tracker.ensure_running()  # started first: starting it unblocks the signals again
         mask = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD)
@@ -173,7 +174,12 @@ class WorkerClient:
             if start_method == "forkserver":  # started with the signals blocked: so are the workers it forks
                 from pmsm_hil.hil.runlog import fork_server  # not in the spawned worker (it imports this module)
 
-                fork_server.ensure_running()
+                try:
+                    fork_server.ensure_running()
+                except OSError:  # e.g. a TMPDIR too long for the server's AF_UNIX address
+                    if not auto:
+                        raise
+                    start_method = "spawn"  # "auto" only saves CPU: the logger is spawned as a first one is
             self._ring = RingProducer(ring_bytes)
             try:
                 self._spawn(target, args, name=name, start_method=start_method, ring_bytes=ring_bytes)
