@@ -7,6 +7,7 @@ settings are one-line endings / errors; `--load-fmu-isolation none` is the expli
 from __future__ import annotations
 
 import json
+import multiprocessing.util
 import os
 import signal
 import subprocess
@@ -126,6 +127,9 @@ def fmu_temp(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     FMU folders in the shared TMPDIR are not this run's)."""
     folder = tmp_path / "tmp"
     folder.mkdir()
+    # multiprocessing's own folder (its AF_UNIX sockets: the logger's and the sweeps' fork servers) is made once per
+    # process, at its first use: made now, in the usual TMPDIR, not below this test's (too long for a socket address)
+    multiprocessing.util.get_temp_dir()
     monkeypatch.setattr(tempfile, "tempdir", str(folder))
     return folder
 
