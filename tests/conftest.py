@@ -40,6 +40,20 @@ CI_ALLOWED_SKIPS = (
 _unexpected: list[str] = []
 
 
+def _hypothesis_without_wall_clock_limits() -> None:
+    """Hypothesis's per-example deadline (200 ms) and its too-slow health check measure wall time: beside load 11
+    one example of tests/protocol/test_codec.py::test_command_exact took 1001 ms once (0.29 ms on the retry) and
+    failed the suite. What the properties check does not depend on time, so the suite's profile has no deadline
+    and no too-slow check (a test's own @settings still sets the rest)."""
+    from hypothesis import HealthCheck, settings
+
+    settings.register_profile("hil-suite", deadline=None, suppress_health_check=[HealthCheck.too_slow])
+    settings.load_profile("hil-suite")
+
+
+_hypothesis_without_wall_clock_limits()
+
+
 def pytest_configure(config: pytest.Config) -> None:
     """Give the session Python's own Ctrl-C handling when its launcher ignored SIGINT (a background job of a
     non-interactive shell, `cmd &` in a script, starts with SIGINT ignored, and Python then installs no handler).
