@@ -26,20 +26,21 @@ from pmsm_hil.hil.runlog.reader import read_periods
 from pmsm_hil.hil.runner.run import RunResult, run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.target_client import HostStallError
+from tests.firmware_board._at_period import at_period
 from tests.firmware_board._runs import rated
 
 #: record fields that are the host's own wall-clock measurements (a SIL step's execution time on the host)
 _HOST_TIMED = ("exec_time_ns", "exec_split_ns")
 STOP_S = 3.0
 #: run lengths [s] after the settle. The C loop's runs stop the target from a watcher of the loop's own period
-#: counter (`_stop_at`) at STOP_PERIOD, long before the run's end: the stall comes mid-run whatever the C loop's
+#: counter (`at_period`) at STOP_PERIOD, long before the run's end: the stall comes mid-run whatever the C loop's
 #: ring and block sizes, and the run needs only periods enough to outlast the watcher's reaction (a SIL or spawned
 #: target runs ~5000 periods/s here, QEMU ~1000 and ~1.5 CPU-ms each: its periods are the test's largest part).
 #: The Python loop hands each block of ClosedLoop.BLOCK periods to `live` from the loop itself: two blocks are
 #: enough. The stop must come with a block before the last one (`stopped_at`): a stop that came only with the
 #: run's last block would stall the safe stop, not the periods
 DURATION_S = {"sil": 0.1, "spawn": 0.1, "qemu": 0.05, "python": 0.1}
-#: the C loop's period at which the watcher stops the target (~1 % of QEMU's run, ~10 % of the others)
+#: the C loop's period at which `at_period` stops the target (~1 % of QEMU's run, ~10 % of the others)
 STOP_PERIOD = 100
 #: the most CPU the host may use while the target is stopped, as a share of the stop: a host that waits asleep
 #: uses 0.02-0.07 (the Python loop's looks between its sleeps included), one that spins 0.3-0.5 on this 2-core
@@ -92,38 +93,17 @@ def _stopper(marker: bytes, stop_s: float, stopped: list[int], stopped_at: list[
     return live
 
 
-def _stop_at(marker: bytes, stop_s: float, stopped: list[int], ended: threading.Event,
-             stopped_at: list[int] | None = None,
-             host_cpu_s: list[float] | None = None) -> Callable[[Callable[[], int]], None]:
-    """A `counter` hook for the C loop: a thread that watches the loop's own period count (asleep, 1 ms at a time)
-    and stops the target (`_stop_child`) once the loop has run STOP_PERIOD periods; it gives up when `ended` is
-    set (the run is over). The C loop's blocks reach `live` only every 1000 periods, and the loop may run up to its
-    ring (8000 periods) ahead of them: a run stopped from `live` had to be ~10 times longer."""
-
-    def start(periods: Callable[[], int]) -> None:
-        def watch() -> None:
-            while not ended.wait(0.001):
-                done = periods()
-                if done >= STOP_PERIOD:
-                    _stop_child(marker, stop_s, stopped, done - 1, stopped_at, host_cpu_s)
-                    return
-
-        threading.Thread(target=watch, name="stop-at", daemon=True).start()
-
-    return start
-
-
 def _run_stopped(cfg: RunConfig, marker: bytes, stopped: list[int], stopped_at: list[int] | None = None,
                  host_cpu_s: list[float] | None = None) -> RunResult:
     """`cfg`'s run with its target stopped for STOP_S in mid-run: from the first block (`live`) in the Python loop,
     at STOP_PERIOD (`counter`) in the C loop."""
     if cfg.loop == "python":
         return run_closed_loop(cfg, live=_stopper(marker, STOP_S, stopped, stopped_at, host_cpu_s))
-    ended = threading.Event()
-    try:
-        return run_closed_loop(cfg, counter=_stop_at(marker, STOP_S, stopped, ended, stopped_at, host_cpu_s))
-    finally:
-        ended.set()
+    def stop(done: int) -> None:
+        _stop_child(marker, STOP_S, stopped, done - 1, stopped_at, host_cpu_s)
+
+    with at_period(STOP_PERIOD, stop) as counter:
+        return run_closed_loop(cfg, counter=counter)
 
 
 def _continue(pid: int, cpu0: float, host_cpu_s: list[float] | None) -> None:
