@@ -36,11 +36,11 @@ STOP_S = 3.0
 #: counter (`at_period`) at STOP_PERIOD, long before the run's end: the stall comes mid-run whatever the C loop's
 #: ring and block sizes, and the run needs only periods enough to outlast the watcher's reaction (a SIL or spawned
 #: target runs ~5000 periods/s here, QEMU ~1000 and ~1.5 CPU-ms each: its periods are the test's largest part).
-#: The Python loop hands each block of ClosedLoop.BLOCK periods to `live` from the loop itself: two blocks are
-#: enough. The stop must come with a block before the last one (`stopped_at`): a stop that came only with the
-#: run's last block would stall the safe stop, not the periods
-DURATION_S = {"sil": 0.1, "spawn": 0.1, "qemu": 0.05, "python": 0.1}
-#: the C loop's period at which `at_period` stops the target (~1 % of QEMU's run, ~10 % of the others)
+#: The Python loop hands each block of ClosedLoop.BLOCK (1000) periods to `live` from the loop itself: the first
+#: block and 100 periods after it are enough. The stop must come with a block before the last one (`stopped_at`):
+#: a stop that came only with the run's last block would stall the safe stop, not the periods
+DURATION_S = {"sil": 0.1, "spawn": 0.1, "qemu": 0.05, "python": 0.09}
+#: the C loop's period at which `at_period` stops the target (of QEMU's 700 periods, of the others' 1200)
 STOP_PERIOD = 100
 #: the most CPU the host may use while the target is stopped, as a share of the stop: a host that waits asleep
 #: uses 0.02-0.07 (the Python loop's looks between its sleeps included), one that spins 0.3-0.5 on this 2-core
