@@ -23,21 +23,25 @@ import numpy as np
 import pytest
 
 from pmsm_hil.hil.runlog.reader import read_periods
-from pmsm_hil.hil.runner.run import run_closed_loop
+from pmsm_hil.hil.runner.run import RunResult, run_closed_loop
+from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.target_client import HostStallError
+from tests.firmware_board._at_period import at_period
 from tests.firmware_board._runs import rated
 
 #: record fields that are the host's own wall-clock measurements (a SIL step's execution time on the host)
 _HOST_TIMED = ("exec_time_ns", "exec_split_ns")
 STOP_S = 3.0
-#: a run longer than the C loop's ring (NL_RING x NL_BLOCK = 8000 periods): the loop cannot have run every period
-#: before the first block reaches `live`, so the target is stopped mid-run. QEMU (~1 ms and ~2.8 CPU-ms a period
-#: here) is stopped when its first block of 1000 periods reaches `live`: 2200 periods leave 1200 (> 1 s of QEMU, a few
-#: CPU-s) for the drain to hand that block over, which takes milliseconds (each QEMU period costs CPU: this is the
-#: test's largest part). The Python loop hands each block of ClosedLoop.BLOCK periods to `live` from the loop itself:
-#: two blocks are enough. The stop must come with a block before the last one (`stopped_at`): a stop that came only
-#: with the run's last block would stall the safe stop, not the periods
-DURATION_S = {"sil": 0.9, "spawn": 0.9, "qemu": 0.2, "python": 0.1}
+#: run lengths [s] after the settle. The C loop's runs stop the target from a watcher of the loop's own period
+#: counter (`at_period`) at STOP_PERIOD, long before the run's end: the stall comes mid-run whatever the C loop's
+#: ring and block sizes, and the run needs only periods enough to outlast the watcher's reaction (a SIL or spawned
+#: target runs ~5000 periods/s here, QEMU ~1000 and ~1.5 CPU-ms each: its periods are the test's largest part).
+#: The Python loop hands each block of ClosedLoop.BLOCK (1000) periods to `live` from the loop itself: the first
+#: block and 100 periods after it are enough. The stop must come with a block before the last one (`stopped_at`):
+#: a stop that came only with the run's last block would stall the safe stop, not the periods
+DURATION_S = {"sil": 0.1, "spawn": 0.1, "qemu": 0.05, "python": 0.09}
+#: the C loop's period at which `at_period` stops the target (of QEMU's 700 periods, of the others' 1200)
+STOP_PERIOD = 100
 #: the most CPU the host may use while the target is stopped, as a share of the stop: a host that waits asleep
 #: uses 0.02-0.07 (the Python loop's looks between its sleeps included), one that spins 0.3-0.5 on this 2-core
 #: machine at load 5 (less the busier the machine: the bound catches a spin up to load ~8)
@@ -61,26 +65,45 @@ def _cpu_s() -> float:
     return use.ru_utime + use.ru_stime
 
 
+def _stop_child(marker: bytes, stop_s: float, stopped: list[int], period: int, stopped_at: list[int] | None,
+                host_cpu_s: list[float] | None) -> None:
+    """Stop this process's child whose command line holds `marker` and continue it `stop_s` later; `period` (the
+    last one run) goes to `stopped_at`, the CPU time this process (the host) used while the target was stopped to
+    `host_cpu_s`."""
+    for pid in _children_with(marker)[:1]:
+        cpu0 = _cpu_s()
+        os.kill(pid, signal.SIGSTOP)
+        stopped.append(pid)
+        if stopped_at is not None:
+            stopped_at.append(period)
+        timer = threading.Timer(stop_s, _continue, (pid, cpu0, host_cpu_s))
+        timer.daemon = True
+        timer.start()
+
+
 def _stopper(marker: bytes, stop_s: float, stopped: list[int], stopped_at: list[int] | None = None,
              host_cpu_s: list[float] | None = None) -> Callable[[np.ndarray], None]:
-    """A `live` hook that stops this process's child whose command line holds `marker` after the first block of
-    periods and continues it `stop_s` later; the last period (`seq`) of that block goes to `stopped_at`, the CPU
-    time this process (the host) used while the target was stopped to `host_cpu_s`."""
+    """A `live` hook that stops the target (`_stop_child`) after the first block of periods (the Python loop hands
+    it over from the loop itself)."""
 
     def live(block: np.ndarray) -> None:
-        if stopped:
-            return
-        for pid in _children_with(marker)[:1]:
-            cpu0 = _cpu_s()
-            os.kill(pid, signal.SIGSTOP)
-            stopped.append(pid)
-            if stopped_at is not None:
-                stopped_at.append(int(block["seq"][-1]))
-            timer = threading.Timer(stop_s, _continue, (pid, cpu0, host_cpu_s))
-            timer.daemon = True
-            timer.start()
+        if not stopped:
+            _stop_child(marker, stop_s, stopped, int(block["seq"][-1]), stopped_at, host_cpu_s)
 
     return live
+
+
+def _run_stopped(cfg: RunConfig, marker: bytes, stopped: list[int], stopped_at: list[int] | None = None,
+                 host_cpu_s: list[float] | None = None) -> RunResult:
+    """`cfg`'s run with its target stopped for STOP_S in mid-run: from the first block (`live`) in the Python loop,
+    at STOP_PERIOD (`counter`) in the C loop."""
+    if cfg.loop == "python":
+        return run_closed_loop(cfg, live=_stopper(marker, STOP_S, stopped, stopped_at, host_cpu_s))
+    def stop(done: int) -> None:
+        _stop_child(marker, STOP_S, stopped, done - 1, stopped_at, host_cpu_s)
+
+    with at_period(STOP_PERIOD, stop) as counter:
+        return run_closed_loop(cfg, counter=counter)
 
 
 def _continue(pid: int, cpu0: float, host_cpu_s: list[float] | None) -> None:
@@ -120,10 +143,9 @@ def test_a_target_stopped_for_3_s_is_a_host_stall_and_the_run_completes(kind: st
     for name in ("calm", "stopped"):
         stopped: list[int] = []
         out = tmp_path / name
-        res = run_closed_loop(rated(target, link=link, settle_s=0.02, out_dir=out, loop=loop,
-                                    duration_s=_duration_s(kind, loop)),
-                              live=_stopper(marker, STOP_S, stopped, stopped_at, host_cpu_s)
-                              if name == "stopped" else None)
+        cfg = rated(target, link=link, settle_s=0.02, out_dir=out, loop=loop, duration_s=_duration_s(kind, loop))
+        res = (_run_stopped(cfg, marker, stopped, stopped_at, host_cpu_s) if name == "stopped"
+               else run_closed_loop(cfg))
         assert res.metrics["loop"] == loop
         m = res.metrics
         assert m["end_code"] == 0, m["end_reason"]
@@ -142,9 +164,8 @@ def test_a_target_stopped_for_3_s_is_a_host_stall_and_the_run_completes(kind: st
 def test_a_stall_past_the_limit_is_the_hosts_error_not_the_firmwares(loop: str, reference_sil: Path,
                                                                      tmp_path: Path) -> None:
     stopped: list[int] = []
-    res = run_closed_loop(rated(f"sil:{reference_sil}", settle_s=0.02, duration_s=_duration_s("sil", loop),
-                                out_dir=tmp_path, host_stall_limit_s=1.0, loop=loop),
-                          live=_stopper(b"--sil", STOP_S, stopped))
+    res = _run_stopped(rated(f"sil:{reference_sil}", settle_s=0.02, duration_s=_duration_s("sil", loop),
+                             out_dir=tmp_path, host_stall_limit_s=1.0, loop=loop), b"--sil", stopped)
     m = res.metrics
     assert stopped
     assert m["end_code"] == 1, m["end_reason"]

@@ -10,13 +10,13 @@ import re
 import signal
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from pmsm_hil.hil.runlog.reader import read_periods
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.sim_target.fw_build import build_firmware
 from pmsm_hil.sim_target.qemu import fault_name
+from tests.firmware_board._at_period import at_period
 from tests.firmware_board._runs import rated
 from tests.firmware_board.conftest import need
 
@@ -54,17 +54,16 @@ def test_a_hang_is_named(elf: dict[str, Path], tmp_path: Path) -> None:
 def test_a_dead_qemu_is_named(reference_elf: Path, tmp_path: Path) -> None:
     killed: list[int] = []
 
-    def kill_qemu(block: np.ndarray) -> None:  # after the first block of periods
-        if killed:
-            return
+    def kill_qemu(done: int) -> None:  # in mid-run, at period 100 of 700
         me = os.getpid()
         for pid in Path(f"/proc/{me}/task/{me}/children").read_text().split():
             if b"qemu-system-arm" in Path(f"/proc/{pid}/cmdline").read_bytes():
                 os.kill(int(pid), signal.SIGKILL)
                 killed.append(int(pid))
 
-    res = run_closed_loop(rated(f"qemu:{reference_elf}", settle_s=0.02, duration_s=0.2, out_dir=tmp_path),
-                          live=kill_qemu)
+    with at_period(100, kill_qemu) as counter:
+        res = run_closed_loop(rated(f"qemu:{reference_elf}", settle_s=0.02, duration_s=0.05, out_dir=tmp_path),
+                              counter=counter)
     assert killed
     m = res.metrics
     assert m["end_code"] == 3 and res.outcome.error is None
