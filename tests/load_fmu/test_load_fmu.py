@@ -10,6 +10,7 @@ import json
 import math
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -190,8 +191,19 @@ def test_a_bad_fmu_file_is_one_line_exit_2_without_outputs(tmp_path: Path, capsy
     assert not (out / "metrics.json").exists()
 
 
-def test_a_sweep_varies_the_fmu_and_its_parameters(fan_fmus: dict[int, Path], tmp_path: Path) -> None:
+def test_a_sweep_varies_the_fmu_and_its_parameters(fan_fmus: dict[int, Path], tmp_path: Path,
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:
     """`load_fmu` and `load_fmu_set.NAME` are sweep keys; the base options stay untouched by a point."""
+    from pmsm_hil.app.sweep import report
+
+    reported: list[list[dict[str, Any]]] = []
+
+    def write_html(path: Path, rows: list[dict[str, Any]], *args: Any, **kw: Any) -> Path:
+        """The report's rows, kept (its matplotlib figure, ≈ 3.5 of this test's 4.6 CPU-s, is tests/sweep's)."""
+        reported.append(rows)
+        return path
+
+    monkeypatch.setattr(report, "write_html", write_html)
     base = base_options({"load_fmu": str(fan_fmus[2]), "load_fmu_set": ["tau=0.01"]})
     cfg = build_config(base, (("load_fmu_set.k", "3e-4"),))
     assert cfg.load_fmu is not None and dict(cfg.load_fmu.params) == {"tau": 0.01, "k": 3e-4}
@@ -205,6 +217,7 @@ def test_a_sweep_varies_the_fmu_and_its_parameters(fan_fmus: dict[int, Path], tm
     assert sorted(r["load_fmu_set.k"] for r in rows) == [1e-4, 2e-4]
     low, high = sorted(rows, key=lambda r: r["load_fmu_set.k"])
     assert all(r["end_code"] == 0 for r in rows) and high["load_torque_mean_nm"] > low["load_torque_mean_nm"] > 0
+    assert len(reported) == 1 and sorted(r["load_fmu_set.k"] for r in reported[0]) == [1e-4, 2e-4]
 
 
 @pytest.mark.parametrize("fmi", [2, 3])
