@@ -184,9 +184,10 @@ def test_the_example_firmware_gives_the_same_records(defines: tuple[str, ...], p
 @pytest.mark.parametrize("path", FAST_PATHS)
 def test_the_example_fault_variant_gives_the_same_fault_report(path: str, monkeypatch: pytest.MonkeyPatch,
                                                                native_runs: Runs) -> None:
-    # its current loop faults in ISR 2000
-    out = same(path, example("FAULT"), EXAMPLE_BOARD, monkeypatch, native_runs, 2100)
-    assert "CFSR" in out["error"] and len(out["isr"]) < 2100
+    # its current loop faults in ISR 300 (FAULT_AT_ISR; the variant's default, ISR 2000, only adds periods the
+    # example firmware's comparisons above already make: the Python references' 2100 periods were most of the file)
+    out = same(path, example("FAULT", "FAULT_AT_ISR=300u"), EXAMPLE_BOARD, monkeypatch, native_runs, 400)
+    assert "CFSR" in out["error"] and len(out["isr"]) < 400
 
 
 @pytest.mark.parametrize("path", FAST_PATHS)
