@@ -22,6 +22,7 @@ from pmsm_hil.hil.load_fmu.build import build_fmu
 from pmsm_hil.hil.load_fmu.headers import fmi_include_dir
 from pmsm_hil.sim_target.fw_build import cache_dir
 from pmsm_hil.sim_target.fw_cache import tree_digest
+from tests.cache_prune import remove_stale
 
 SRC = Path(__file__).resolve().parent / "fmu_src"
 #: the example load FMU's sources: its FMI glue (fmi_glue.h) and the rest of the FMI API (fmi_unused.c)
@@ -63,6 +64,9 @@ def build_fan_fmu(out_dir: Path, fmi: int = 2, *, name: str = "fan_load",
                   extra_flags=(f"-I{EXAMPLE_SRC}",), defines=defines,
                   resources={"README.txt": "fan load test FMU\n"}, facts=(fmi, "fan_load"))
         part.replace(cached)  # whole or absent for a concurrent worker
+        remove_stale(cached.parent, "*.fmu")
+    else:
+        cached.touch()  # used: not stale
     out_dir.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(cached, out)
     return out

@@ -283,3 +283,22 @@ def test_an_fmu_that_refuses_to_instantiate_is_a_one_line_error(tmp_path: Path,
     assert main(["run", "--load-fmu", str(fmu), "--no-log", "--duration", "0.01", "--settle", "0"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "load FMU 'FanLoad'" in err[0] and "fmi2Instantiate at t = 0 s returned NULL" in err[0]
+
+
+def test_a_cached_fan_fmu_is_the_one_its_inputs_ask_for(tmp_path: Path) -> None:
+    """tests/load_fmu/fan_fmu.py's cache: the key changes with each input of the build, and a copy holds the model
+    description asked for (two variants that differ only there are two entries)."""
+    import zipfile
+
+    from tests.load_fmu.fan_fmu import SRC, fmu_cache_key
+
+    xml = (SRC / "modelDescription_fmi2.xml").read_text(encoding="utf-8")
+    defines = {"LOAD_FMI": 2, "FAN_BAD": 0, "FAN_BAD_IN_INIT": 0}
+    keys = {fmu_cache_key(2, xml, defines, True), fmu_cache_key(3, xml, defines, True),
+            fmu_cache_key(2, xml + " ", defines, True), fmu_cache_key(2, xml, {**defines, "FAN_BAD": 1}, True),
+            fmu_cache_key(2, xml, defines, False)}
+    assert len(keys) == 5
+    for tag in ("a", "b"):
+        fmu = build_fan_fmu(tmp_path / tag, 2, xml=lambda x, tag=tag: x.replace("fan law", f"fan law {tag}"))
+        with zipfile.ZipFile(fmu) as zf:
+            assert f"fan law {tag}" in zf.read("modelDescription.xml").decode()

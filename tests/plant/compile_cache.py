@@ -18,6 +18,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from pmsm_hil.sim_target.fw_build import cache_dir
+from tests.cache_prune import remove_stale
 
 
 @functools.cache
@@ -55,6 +56,7 @@ def compile_ok(cmd: Sequence[str], obj: Path) -> subprocess.CompletedProcess[str
     except (OSError, ValueError):
         files = None
     if isinstance(files, dict) and files and _digests(sorted(files)) == files:
+        entry.touch()  # used: not stale
         return None
     dep = obj.with_suffix(".d")
     result = subprocess.run([*cmd, "-MD", "-MF", str(dep)], capture_output=True, text=True, check=False)
@@ -65,4 +67,6 @@ def compile_ok(cmd: Sequence[str], obj: Path) -> subprocess.CompletedProcess[str
             part = entry.with_name(f"{entry.stem}.{os.getpid()}.partial")
             part.write_text(json.dumps(files), encoding="utf-8")
             part.replace(entry)
+            remove_stale(entry.parent, "*.json")  # a test's own sources below its tmp path make one a session
     return result
+
