@@ -97,13 +97,14 @@ def test_the_run_link_checks_the_firmware_api_image_too(build_fw: Callable[..., 
         FrameBoardLink(build_fw("fdcan_clock", "SEL=2"), load_board(), ts_s=50e-6, can_bitrates=(500_000, None))
 
 
-def test_hil_run_names_the_bit_rate_the_link_states(build_fw: Callable[..., Path], tmp_path: Path) -> None:
+def test_hil_run_names_the_bit_rate_the_link_states(build_fw: Callable[..., Path], tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
     """`hil run --link virtual,bitrate=500000`: the firmware's 1 Mbit/s ends the run in its start-up (exit 3, the
     one line in metrics.json)."""
     from tests.board.test_run_endings import ending, hil_run
 
     out = tmp_path / "run"
-    reason = ending(hil_run(build_fw("fdcan_clock", "SEL=2"), out, "--link", "virtual,bitrate=500000"), out)
+    reason = ending(hil_run(capsys, build_fw("fdcan_clock", "SEL=2"), out, "--link", "virtual,bitrate=500000"), out)
     assert reason.startswith("target stopped in its start-up, before the first period: FDCAN1 NBTP 0x0a041a05: "
                              "1e+06 bit/s (170 kernel clock periods per bit at PCLK1 170 MHz), the run's link is "
                              "500000 bit/s (link option bitrate)")
@@ -111,10 +112,10 @@ def test_hil_run_names_the_bit_rate_the_link_states(build_fw: Callable[..., Path
 
 @pytest.mark.parametrize("link", ["vcan0", "virtual,bitrate=500000,key=00", "virtual,bitrate=fast"])
 def test_a_link_other_than_the_boards_rates_is_a_usage_error(build_fw: Callable[..., Path], tmp_path: Path,
-                                                             link: str) -> None:
+                                                             link: str, capsys: pytest.CaptureFixture[str]) -> None:
     from tests.board.test_run_endings import hil_run
 
-    proc = hil_run(build_fw("fdcan_clock", "SEL=2"), tmp_path / "run", "--link", link)
+    proc = hil_run(capsys, build_fw("fdcan_clock", "SEL=2"), tmp_path / "run", "--link", link)
     assert proc.returncode == 2, proc.stderr[-2000:]
     last = proc.stderr.strip().splitlines()[-1]
     assert "--link" in last and "Traceback" not in proc.stderr

@@ -10,6 +10,7 @@ import json
 import math
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -190,8 +191,19 @@ def test_a_bad_fmu_file_is_one_line_exit_2_without_outputs(tmp_path: Path, capsy
     assert not (out / "metrics.json").exists()
 
 
-def test_a_sweep_varies_the_fmu_and_its_parameters(fan_fmus: dict[int, Path], tmp_path: Path) -> None:
+def test_a_sweep_varies_the_fmu_and_its_parameters(fan_fmus: dict[int, Path], tmp_path: Path,
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:
     """`load_fmu` and `load_fmu_set.NAME` are sweep keys; the base options stay untouched by a point."""
+    from pmsm_hil.app.sweep import report
+
+    reported: list[list[dict[str, Any]]] = []
+
+    def write_html(path: Path, rows: list[dict[str, Any]], *args: Any, **kw: Any) -> Path:
+        """The report's rows, kept (its matplotlib figure, ≈ 3.5 of this test's 4.6 CPU-s, is tests/sweep's)."""
+        reported.append(rows)
+        return path
+
+    monkeypatch.setattr(report, "write_html", write_html)
     base = base_options({"load_fmu": str(fan_fmus[2]), "load_fmu_set": ["tau=0.01"]})
     cfg = build_config(base, (("load_fmu_set.k", "3e-4"),))
     assert cfg.load_fmu is not None and dict(cfg.load_fmu.params) == {"tau": 0.01, "k": 3e-4}
@@ -205,6 +217,7 @@ def test_a_sweep_varies_the_fmu_and_its_parameters(fan_fmus: dict[int, Path], tm
     assert sorted(r["load_fmu_set.k"] for r in rows) == [1e-4, 2e-4]
     low, high = sorted(rows, key=lambda r: r["load_fmu_set.k"])
     assert all(r["end_code"] == 0 for r in rows) and high["load_torque_mean_nm"] > low["load_torque_mean_nm"] > 0
+    assert len(reported) == 1 and sorted(r["load_fmu_set.k"] for r in reported[0]) == [1e-4, 2e-4]
 
 
 @pytest.mark.parametrize("fmi", [2, 3])
@@ -270,3 +283,22 @@ def test_an_fmu_that_refuses_to_instantiate_is_a_one_line_error(tmp_path: Path,
     assert main(["run", "--load-fmu", str(fmu), "--no-log", "--duration", "0.01", "--settle", "0"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "load FMU 'FanLoad'" in err[0] and "fmi2Instantiate at t = 0 s returned NULL" in err[0]
+
+
+def test_a_cached_fan_fmu_is_the_one_its_inputs_ask_for(tmp_path: Path) -> None:
+    """tests/load_fmu/fan_fmu.py's cache: the key changes with each input of the build, and a copy holds the model
+    description asked for (two variants that differ only there are two entries)."""
+    import zipfile
+
+    from tests.load_fmu.fan_fmu import SRC, fmu_cache_key
+
+    xml = (SRC / "modelDescription_fmi2.xml").read_text(encoding="utf-8")
+    defines = {"LOAD_FMI": 2, "FAN_BAD": 0, "FAN_BAD_IN_INIT": 0}
+    keys = {fmu_cache_key(2, xml, defines, True), fmu_cache_key(3, xml, defines, True),
+            fmu_cache_key(2, xml + " ", defines, True), fmu_cache_key(2, xml, {**defines, "FAN_BAD": 1}, True),
+            fmu_cache_key(2, xml, defines, False)}
+    assert len(keys) == 5
+    for tag in ("a", "b"):
+        fmu = build_fan_fmu(tmp_path / tag, 2, xml=lambda x, tag=tag: x.replace("fan law", f"fan law {tag}"))
+        with zipfile.ZipFile(fmu) as zf:
+            assert f"fan law {tag}" in zf.read("modelDescription.xml").decode()

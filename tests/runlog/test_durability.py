@@ -77,7 +77,9 @@ def _wait_gone(pid: int, timeout_s: float) -> bool:
 
 
 def test_sigkill_of_loop_logger_finalises_file(tmp_path: Path) -> None:
-    out, logger_pid, _kill_time, rows = _run_and_kill(tmp_path, flush_s=1.0, run_s=2.5)
+    # 1.2 s of submitting: past the first flush (1 s), so the logger finalises a file it had already written to;
+    # a longer run only adds blocks to the same checks
+    out, logger_pid, _kill_time, rows = _run_and_kill(tmp_path, flush_s=1.0, run_s=1.2)
     assert _wait_gone(logger_pid, 30.0), "logger did not exit after the loop was killed"
     assert out.read_bytes()[-len(MAGIC) :] == MAGIC  # footer magic: finalised by the logger
     periods = read_periods(out)

@@ -75,13 +75,20 @@ def test_a_logger_on_a_full_disk_says_so_on_close(tmp_path: Path, limited_logger
     assert seq.shape[0] > 0 and (seq == np.arange(seq.shape[0])).all()
 
 
-@pytest.mark.parametrize("fraction", [0.3, 0.55, 0.8, 0.999])
-def test_a_cut_file_ends_as_a_valid_mcap(tmp_path: Path, fraction: float) -> None:
-    whole = tmp_path / "whole.mcap"
-    with RunLogger(whole, metadata={"run": "cut"}, flush_interval_s=0.01) as lg:
+@pytest.fixture(scope="module")
+def whole(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A logged file of 6000 periods in several chunks (flushed every 10 ms, blocks 30 ms apart), shared by the
+    tests that cut copies of it (read only)."""
+    path = tmp_path_factory.mktemp("whole") / "whole.mcap"
+    with RunLogger(path, metadata={"run": "cut"}, flush_interval_s=0.01) as lg:
         for k in range(0, 6000, 500):
             lg.submit_periods(period_block(k, 500))
             time.sleep(0.03)
+    return path
+
+
+@pytest.mark.parametrize("fraction", [0.3, 0.55, 0.8, 0.999])
+def test_a_cut_file_ends_as_a_valid_mcap(tmp_path: Path, whole: Path, fraction: float) -> None:
     cut = tmp_path / "cut.mcap"
     shutil.copyfile(whole, cut)
     with cut.open("r+b") as f:
@@ -117,14 +124,10 @@ def _chunk_ends(path: Path) -> list[int]:
 
 
 @pytest.mark.parametrize("extra", [0, 5])
-def test_a_file_cut_before_its_last_message_index_counts_what_it_holds(tmp_path: Path, extra: int) -> None:
+def test_a_file_cut_before_its_last_message_index_counts_what_it_holds(tmp_path: Path, whole: Path,
+                                                                      extra: int) -> None:
     """A disk that fills right after a chunk (its Message Index records cut or missing): the count said is the
     periods the file holds, not those the surviving indexes list (never "the first 0 periods" of 16 000)."""
-    whole = tmp_path / "whole.mcap"
-    with RunLogger(whole, metadata={"run": "cut"}, flush_interval_s=0.01) as lg:
-        for k in range(0, 6000, 500):
-            lg.submit_periods(period_block(k, 500))
-            time.sleep(0.03)
     ends = _chunk_ends(whole)
     assert len(ends) >= 2
     held_at = []
