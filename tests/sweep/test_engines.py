@@ -61,9 +61,12 @@ def test_dask_local_cluster(reference: dict[str, dict[str, Any]], tmp_path: Path
 
 @pytest.fixture(scope="module")
 def ray_local() -> Iterator[None]:
-    """One local Ray instance for this module (the engine reuses an instance it finds)."""
+    """One local Ray instance for this module (the engine reuses an instance it finds), started as the engine starts
+    its own: its workers inherit the BLAS environment, so the tasks run on the workers Ray started with it."""
     ray = pytest.importorskip("ray", reason="ray not installed (pip install -e '.[ray]')")
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    from pmsm_hil.app.sweep.engines import init_local_ray
+
+    init_local_ray(ray, 2, include_dashboard=False, log_to_driver=False)
     yield
     ray.shutdown()
 
@@ -73,3 +76,8 @@ def test_ray_local(reference: dict[str, dict[str, Any]], ray_local: None, tmp_pa
     import ray
 
     assert ray.is_initialized()  # the engine left the instance it did not start running
+    from pmsm_hil.app.sweep.engines import blas_env, ray_workers_inherit
+
+    # the rows above came from workers without a per-task environment; any other environment would get one
+    assert ray_workers_inherit(ray, blas_env())
+    assert not ray_workers_inherit(ray, {**blas_env(), "OPENBLAS_NUM_THREADS": "99"})
