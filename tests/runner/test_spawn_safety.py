@@ -35,6 +35,7 @@ from pmsm_hil.protocol.ids import ControllerId, ParamId
 from pmsm_hil.protocol.links.wire_bus import HilUdpBus, free_udp_ports
 from pmsm_hil.protocol.messages import Command, ConfigParam, Setpoint
 from tests.oracle import closed_loop as python_loop
+from tests.runner.interrupt_runs import cpu_seconds
 
 #: period-record fields measured on the wall clock (everything else of a lockstep run is deterministic)
 WALL_FIELDS = {"exec_time_ns", "exec_split_ns", "late", "missed"}
@@ -207,7 +208,11 @@ def test_kill_9_of_the_host_leaves_no_target(loop: str) -> None:
         assert targets and _has_socket(targets[0]), "the host did not spawn a target"
         argv = Path(f"/proc/{targets[0]}/cmdline").read_bytes().split(b"\0")
         assert (b"--native" in argv) == (loop == "auto")
-        time.sleep(0.5)  # the run is under way
+        # the run is under way: the target served 0.1 CPU-s since it opened its socket (a fixed 0.5 s sleep was
+        # up to 1 CPU-s of host and target in lockstep on an idle machine, and on a busy one maybe no period yet)
+        cpu0 = cpu_seconds(targets[0])
+        while cpu_seconds(targets[0]) - cpu0 < 0.1 and _alive(targets[0]) and time.monotonic() < deadline:
+            time.sleep(0.01)
         host.send_signal(signal.SIGKILL)
         host.wait()
         gone_by = time.monotonic() + 2.0
