@@ -85,10 +85,12 @@ _CLIENT: ZygoteClient | None = None
 
 
 class ForeignTarget:
-    """A foreign target forked by the zygote: what the tests use of subprocess.Popen."""
+    """A foreign target forked by the zygote: what the tests use of subprocess.Popen. (`client`, `start`: another
+    zygote of the same protocol and the line that starts its child, tests/runner/hil_zygote.py.)"""
 
-    def __init__(self, argv: list[str]) -> None:
-        self.pid = int(_zygote().ask("start " + json.dumps(argv)))
+    def __init__(self, argv: list[str], client: ZygoteClient | None = None, start: str | None = None) -> None:
+        self._client = client or _zygote()
+        self.pid = int(self._client.ask(start or "start " + json.dumps(argv)))
         self._pidfd = os.pidfd_open(self.pid)  # the zygote reaps it only when asked: a zombie is still this pid
         self.returncode: int | None = None
 
@@ -96,7 +98,7 @@ class ForeignTarget:
         if self.returncode is None and select.select([self._pidfd], [], [], 0)[0]:
             from tests import reaped_cpu  # not in the zygote: its script's folder is not the tests' root
 
-            code, cpu = _zygote().ask(f"reap {self.pid}").split()
+            code, cpu = self._client.ask(f"reap {self.pid}").split()
             self.returncode = int(code)
             reaped_cpu.CPU_S.append(float(cpu))
             os.close(self._pidfd)

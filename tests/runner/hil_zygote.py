@@ -1,0 +1,102 @@
+"""`hil` commands forked from one process that has already imported the package (its CLI, the runner, the logger
+and numpy): each command is still a process of its own, run as `python -m pmsm_hil.app.cli.main ARGV` would be,
+with its own session when asked (a terminal's Ctrl-C to its process group), stderr to a file; only the
+interpreter's start-up and those imports (≈ 0.6 CPU-s a command) are made once per pytest worker. For the tests
+that signal a run mid-way (tests/runner/test_interrupt_log.py): the first second of `hil`, when its imports run,
+is still tested with fresh processes.
+
+As a script it is the zygote (the protocol of tests/runner/foreign_zygote.py): `start JSON` ({"argv", "stderr",
+"session"}) forks a command and answers its pid; `reap PID` waits for it and answers its exit code and CPU seconds.
+`start_hil()` is the tests' side: a handle with what the tests use of Popen (tests/runner/foreign_zygote.py)."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from tests.runner.foreign_zygote import ForeignTarget
+    from tests.zygote_client import ZygoteClient
+
+
+def _serve() -> int:
+    """The zygote's loop (see the module's docstring)."""
+    import numpy  # noqa: F401
+
+    import pmsm_hil.app.cli.main
+    import pmsm_hil.hil.runlog.logger
+    import pmsm_hil.hil.runner.run  # noqa: F401
+
+    for line in sys.stdin:
+        command, _, arg = line.strip().partition(" ")
+        if command == "start":
+            spec = json.loads(arg)
+            pid = os.fork()
+            if pid == 0:
+                _command(spec["argv"], spec["stderr"], spec["session"])
+            print(pid, flush=True)
+        elif command == "reap":
+            _, status, usage = os.wait4(int(arg), 0)
+            print(os.waitstatus_to_exitcode(status), usage.ru_utime + usage.ru_stime, flush=True)
+    return 0
+
+
+def _command(argv: list[str], stderr: str, session: bool) -> None:
+    """In the forked child: `hil ARGV` as `python -m pmsm_hil.app.cli.main` runs it (SIGINT and SIGTERM as a fresh
+    interpreter has them, stdin and stdout /dev/null, stderr to the file `stderr`, its exit handlers run at the
+    end); never returns."""
+    import atexit
+    import traceback
+
+    from pmsm_hil.app.cli.main import main
+
+    if session:
+        os.setsid()
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    os.dup2(os.open(os.devnull, os.O_RDONLY), 0)
+    os.dup2(os.open(os.devnull, os.O_WRONLY), 1)
+    os.dup2(os.open(stderr, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644), 2)
+    sys.argv = ["hil", *argv]
+    code = 1
+    try:
+        code = main(argv)
+    except SystemExit as exc:
+        code = exc.code if isinstance(exc.code, int) else int(exc.code is not None)
+    except BaseException:
+        traceback.print_exc()
+    finally:
+        atexit._run_exitfuncs()
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+
+
+def _zygote() -> ZygoteClient:
+    """The worker's one `hil` zygote process (tests/zygote_client.py)."""
+    global _CLIENT
+    if _CLIENT is None:
+        from tests.zygote_client import ZygoteClient  # the worker's side only: the zygote runs this file as a script
+
+        _CLIENT = ZygoteClient(__file__, "hil commands", cwd=Path(__file__).resolve().parents[2])
+    return _CLIENT
+
+
+_CLIENT: ZygoteClient | None = None
+
+
+def start_hil(argv: list[str], stderr: Path, *, session: bool = False) -> ForeignTarget:
+    """`hil ARGV` forked from the zygote, its stderr to the file `stderr`, in a session of its own with `session`
+    (its pid is then its process group's id)."""
+    from tests.runner.foreign_zygote import ForeignTarget
+
+    spec = {"argv": argv, "stderr": str(stderr), "session": session}
+    return ForeignTarget(argv, _zygote(), "start " + json.dumps(spec))
+
+
+if __name__ == "__main__":
+    sys.exit(_serve())
