@@ -35,6 +35,7 @@ from pmsm_hil.protocol.ids import ControllerId, ParamId
 from pmsm_hil.protocol.links.wire_bus import HilUdpBus, free_udp_ports
 from pmsm_hil.protocol.messages import Command, ConfigParam, Setpoint
 from tests.oracle import closed_loop as python_loop
+from tests.runner.hil_zygote import start_hil
 from tests.runner.interrupt_runs import cpu_seconds
 
 #: period-record fields measured on the wall clock (everything else of a lockstep run is deterministic)
@@ -193,12 +194,11 @@ def _has_socket(pid: int) -> bool:
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 @pytest.mark.parametrize("loop", ["auto", "python"])
-def test_kill_9_of_the_host_leaves_no_target(loop: str) -> None:
+def test_kill_9_of_the_host_leaves_no_target(loop: str, tmp_path: Path) -> None:
     """`--loop auto` spawns the native target (`hil target --native`, a C serve loop), `--loop python` the
     Python one: neither outlives its host."""
-    host = subprocess.Popen([sys.executable, "-m", "pmsm_hil.app.cli.main", "run", "--link", "udp", "--target",
-                             "spawn", "--loop", loop, "--duration", "60", "--no-log"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    host = start_hil(["run", "--link", "udp", "--target", "spawn", "--loop", loop, "--duration", "60", "--no-log"],
+                     tmp_path / "host.err")  # forked with its imports made (tests/runner/hil_zygote.py)
     try:
         deadline = time.monotonic() + 60
         targets: list[int] = []
