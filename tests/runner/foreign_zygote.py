@@ -17,8 +17,9 @@ import select
 import signal
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from tests.zygote_client import ZygoteClient
@@ -33,13 +34,19 @@ def _serve() -> int:
 
     from pmsm_hil.protocol.links import wire_bus  # noqa: F401  - the `hilserial` interface's module
 
+    return serve(_target)
+
+
+def serve(child: Callable[[Any], None]) -> int:
+    """A zygote's loop on stdin: `start JSON` forks `child(decoded JSON)` (it never returns) and answers its pid,
+    `reap PID` its exit code and CPU seconds (also tests/runner/hil_zygote.py's)."""
     for line in sys.stdin:
         command, _, arg = line.strip().partition(" ")
         if command == "start":
-            argv = json.loads(arg)
+            spec = json.loads(arg)
             pid = os.fork()
             if pid == 0:
-                _target(argv)
+                child(spec)
             print(pid, flush=True)
         elif command == "reap":
             _, status, usage = os.wait4(int(arg), 0)

@@ -26,23 +26,13 @@ if TYPE_CHECKING:
 def _serve() -> int:
     """The zygote's loop (see the module's docstring)."""
     import numpy  # noqa: F401
+    from foreign_zygote import serve  # the zygote runs as a script: this folder is on its path
 
     import pmsm_hil.app.cli.main
     import pmsm_hil.hil.runlog.logger
     import pmsm_hil.hil.runner.run  # noqa: F401
 
-    for line in sys.stdin:
-        command, _, arg = line.strip().partition(" ")
-        if command == "start":
-            spec = json.loads(arg)
-            pid = os.fork()
-            if pid == 0:
-                _command(spec["argv"], spec["stderr"], spec["session"])
-            print(pid, flush=True)
-        elif command == "reap":
-            _, status, usage = os.wait4(int(arg), 0)
-            print(os.waitstatus_to_exitcode(status), usage.ru_utime + usage.ru_stime, flush=True)
-    return 0
+    return serve(lambda spec: _command(spec["argv"], spec["stderr"], spec["session"]))
 
 
 def _command(argv: list[str], stderr: str, session: bool) -> None:
