@@ -19,7 +19,7 @@ import subprocess
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NoReturn
 
 if TYPE_CHECKING:
     from tests.zygote_client import ZygoteClient
@@ -58,21 +58,35 @@ def _target(argv: list[str]) -> None:
     """In the forked child: foreign_target.py run as `__main__` with `argv`, as `python foreign_target.py ARGV`
     would (stdin from /dev/null, stdout to the worker's stderr); never returns."""
     import runpy
-    import traceback
 
     os.dup2(os.open(os.devnull, os.O_RDONLY), 0)
     os.dup2(2, 1)
     script = str(HERE / "foreign_target.py")
     sys.argv = [script, *argv]
+
+    def run() -> int:
+        runpy.run_path(script, run_name="__main__")
+        return 0
+
+    exit_after(run)
+
+
+def exit_after(run: Callable[[], int], *, exit_funcs: bool = False) -> NoReturn:
+    """In a forked child: `run()`, then end the process with its exit code (a SystemExit's; 1 and the traceback on
+    stderr for any other exception), the exit handlers run first with `exit_funcs`, the streams flushed."""
+    import atexit
+    import traceback
+
     code = 1
     try:
-        runpy.run_path(script, run_name="__main__")
-        code = 0
+        code = run()
     except SystemExit as exc:
         code = exc.code if isinstance(exc.code, int) else int(exc.code is not None)
     except BaseException:
         traceback.print_exc()
     finally:
+        if exit_funcs:
+            atexit._run_exitfuncs()
         sys.stdout.flush()
         sys.stderr.flush()
         os._exit(code)

@@ -16,7 +16,7 @@ import os
 import signal
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NoReturn
 
 if TYPE_CHECKING:
     from tests.runner.foreign_zygote import ForeignTarget
@@ -35,12 +35,11 @@ def _serve() -> int:
     return serve(lambda spec: _command(spec["argv"], spec["stderr"], spec["session"]))
 
 
-def _command(argv: list[str], stderr: str, session: bool) -> None:
+def _command(argv: list[str], stderr: str, session: bool) -> NoReturn:
     """In the forked child: `hil ARGV` as `python -m pmsm_hil.app.cli.main` runs it (SIGINT and SIGTERM as a fresh
     interpreter has them, stdin and stdout /dev/null, stderr to the file `stderr`, its exit handlers run at the
     end); never returns."""
-    import atexit
-    import traceback
+    from foreign_zygote import exit_after  # in the zygote: this folder is on its path
 
     from pmsm_hil.app.cli.main import main
 
@@ -52,18 +51,7 @@ def _command(argv: list[str], stderr: str, session: bool) -> None:
     os.dup2(os.open(os.devnull, os.O_WRONLY), 1)
     os.dup2(os.open(stderr, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644), 2)
     sys.argv = ["hil", *argv]
-    code = 1
-    try:
-        code = main(argv)
-    except SystemExit as exc:
-        code = exc.code if isinstance(exc.code, int) else int(exc.code is not None)
-    except BaseException:
-        traceback.print_exc()
-    finally:
-        atexit._run_exitfuncs()
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(code)
+    exit_after(lambda: main(argv), exit_funcs=True)
 
 
 def _zygote() -> ZygoteClient:
