@@ -43,7 +43,7 @@ COST_S: dict[str, float] = {
     "tests/firmware/test_c_unit.py": 356,
     "tests/runner/test_dut_contract.py": 233,  # 353 before the forked loggers (h-suite9a: wall × 0.66)
     "tests/load_fmu:fan-fmus": 190,  # 316 before the FMUs cached by content and the sweep's figure (h-suite10e)
-    "tests/runner/test_operating_range.py": 263,
+    "tests/runner/test_operating_range.py": 232,  # 263 before the flux-map fit cached (h-suite10c: wall × 0.88)
     "tests/runner/test_wire_serial.py": 246,
     "tests/runner/test_machine_matrix.py": 235,
     "tests/testing:pytest-sessions": 220,
@@ -53,7 +53,7 @@ COST_S: dict[str, float] = {
     "tests/runner/test_link_auth_runs.py": 145,
     "tests/runner/test_bench_realtime.py": 141,
     "tests/plant/test_pwm_duty.py": 131,
-    "tests/runner/test_interrupt_log.py": 130,
+    "tests/runner/test_interrupt_log.py": 100,  # 130 before the hil zygote (h-suite10c: wall × 0.77)
     "tests/firmware_board/test_qemu.py": 80,  # 124 before its QEMU runs were shortened (h-suite10b: CPU × 0.6)
     "tests/firmware_board/test_host_stall.py": 60,  # five 3-s stops, each beside a calm run (h-suite10b, load 10-18)
     "tests/runner/test_wire_spin.py": 118,
@@ -67,7 +67,7 @@ COST_S: dict[str, float] = {
     "tests/firmware_board/test_template_cpp.py": 89,
     "tests/runlog/test_full_disk.py": 83,
     "tests/runner/test_small_ts.py": 79,
-    "tests/runner/test_run_dir_lock.py": 74,
+    "tests/runner/test_run_dir_lock.py": 50,  # 74 before the hil zygote (h-suite10c)
     "tests/runner/test_wire_udp.py": 72,
     "tests/runner/test_callback_link.py": 68,
     "tests/sweep/test_outputs.py": 66,
@@ -95,7 +95,7 @@ COST_S: dict[str, float] = {
     "tests/runlog/test_bulk_messages.py": 25,
     "tests/runlog/test_roundtrip.py": 25,
     "tests/plant/test_accuracy.py": 24,
-    "tests/runner/test_new_machine_kind.py": 22,
+    "tests/runner/test_new_machine_kind.py": 3,  # 22 while its kernel was compiled in every session
     "tests/protocol/test_link_faults.py": 20,
     "tests/runner/test_bench_adapters.py": 20,
     "tests/runner/test_bench_memory.py": 20,

@@ -280,6 +280,29 @@ def test_the_preset_and_its_controller_model() -> None:
     assert m.with_overrides({"rs": 5.0}).rs == 5.0
 
 
+def _reference_operating_point(m: FluxMapParams) -> float:
+    """The rated-point bisection as it was written before the cached one: 60 halvings of `torque_nm`."""
+    target, lo, hi = m.torque_rating_nm, 0.0, m.checks.iq_range_a[1]
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if m.torque_nm(0.0, mid) < target else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+def test_the_cached_operating_point_is_the_bisection_bit_for_bit(linear_toml: Path) -> None:
+    """The fit is cached per map and torque (each run asks for it twice): the same float as the plain bisection,
+    for the shipped map and a linear one, a changed rated torque is a new fit, and a map too weak is refused."""
+    for m in (load_motor("niu2020-ipmsm-sat"), load_motor(str(linear_toml)),
+              load_motor("niu2020-ipmsm-sat", {"rated_torque_nm": 5.0})):
+        assert isinstance(m, FluxMapParams)
+        assert m.operating_point() == _reference_operating_point(m) == m.operating_point()
+    assert load_motor("niu2020-ipmsm-sat", {"rated_torque_nm": 5.0}).operating_point() < load_motor(
+        "niu2020-ipmsm-sat").operating_point()
+    weak = load_motor(str(linear_toml), {"rated_torque_nm": 1e4})
+    with pytest.raises(ParameterError, match="stays below the rated 10000 N·m"):
+        weak.model_parameters()
+
+
 def test_the_fluxmap_cli(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     """`hil plant fluxmap` prints the checks of a preset (with trip coverage and the controllers' model) or a map
     file, writes a PNG, and names a missing file in one line."""

@@ -17,8 +17,9 @@ import select
 import signal
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, NoReturn
 
 if TYPE_CHECKING:
     from tests.zygote_client import ZygoteClient
@@ -33,13 +34,19 @@ def _serve() -> int:
 
     from pmsm_hil.protocol.links import wire_bus  # noqa: F401  - the `hilserial` interface's module
 
+    return serve(_target)
+
+
+def serve(child: Callable[[Any], None]) -> int:
+    """A zygote's loop on stdin: `start JSON` forks `child(decoded JSON)` (it never returns) and answers its pid,
+    `reap PID` its exit code and CPU seconds (also tests/runner/hil_zygote.py's)."""
     for line in sys.stdin:
         command, _, arg = line.strip().partition(" ")
         if command == "start":
-            argv = json.loads(arg)
+            spec = json.loads(arg)
             pid = os.fork()
             if pid == 0:
-                _target(argv)
+                child(spec)
             print(pid, flush=True)
         elif command == "reap":
             _, status, usage = os.wait4(int(arg), 0)
@@ -51,21 +58,35 @@ def _target(argv: list[str]) -> None:
     """In the forked child: foreign_target.py run as `__main__` with `argv`, as `python foreign_target.py ARGV`
     would (stdin from /dev/null, stdout to the worker's stderr); never returns."""
     import runpy
-    import traceback
 
     os.dup2(os.open(os.devnull, os.O_RDONLY), 0)
     os.dup2(2, 1)
     script = str(HERE / "foreign_target.py")
     sys.argv = [script, *argv]
+
+    def run() -> int:
+        runpy.run_path(script, run_name="__main__")
+        return 0
+
+    exit_after(run)
+
+
+def exit_after(run: Callable[[], int], *, exit_funcs: bool = False) -> NoReturn:
+    """In a forked child: `run()`, then end the process with its exit code (a SystemExit's; 1 and the traceback on
+    stderr for any other exception), the exit handlers run first with `exit_funcs`, the streams flushed."""
+    import atexit
+    import traceback
+
     code = 1
     try:
-        runpy.run_path(script, run_name="__main__")
-        code = 0
+        code = run()
     except SystemExit as exc:
         code = exc.code if isinstance(exc.code, int) else int(exc.code is not None)
     except BaseException:
         traceback.print_exc()
     finally:
+        if exit_funcs:
+            atexit._run_exitfuncs()
         sys.stdout.flush()
         sys.stderr.flush()
         os._exit(code)
@@ -85,10 +106,12 @@ _CLIENT: ZygoteClient | None = None
 
 
 class ForeignTarget:
-    """A foreign target forked by the zygote: what the tests use of subprocess.Popen."""
+    """A foreign target forked by the zygote: what the tests use of subprocess.Popen. (`client`, `start`: another
+    zygote of the same protocol and the line that starts its child, tests/runner/hil_zygote.py.)"""
 
-    def __init__(self, argv: list[str]) -> None:
-        self.pid = int(_zygote().ask("start " + json.dumps(argv)))
+    def __init__(self, argv: list[str], client: ZygoteClient | None = None, start: str | None = None) -> None:
+        self._client = client or _zygote()
+        self.pid = int(self._client.ask(start or "start " + json.dumps(argv)))
         self._pidfd = os.pidfd_open(self.pid)  # the zygote reaps it only when asked: a zombie is still this pid
         self.returncode: int | None = None
 
@@ -96,7 +119,7 @@ class ForeignTarget:
         if self.returncode is None and select.select([self._pidfd], [], [], 0)[0]:
             from tests import reaped_cpu  # not in the zygote: its script's folder is not the tests' root
 
-            code, cpu = _zygote().ask(f"reap {self.pid}").split()
+            code, cpu = self._client.ask(f"reap {self.pid}").split()
             self.returncode = int(code)
             reaped_cpu.CPU_S.append(float(cpu))
             os.close(self._pidfd)

@@ -21,8 +21,12 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from pmsm_hil.hil.runlog.reader import read_periods
+
+if TYPE_CHECKING:
+    from tests.runner.foreign_zygote import ForeignTarget
 
 #: the run variants: name -> `hil run` options (long enough that a signal lands mid-run)
 VARIANTS: dict[str, tuple[str, ...]] = {
@@ -107,21 +111,34 @@ def wait_cpu(proc: subprocess.Popen[bytes], cpu_s: float, timeout_s: float, mark
 
 
 def interrupt_once(out: Path, variant: str, sig: signal.Signals, delay_s: float, *, group: bool = False,
-                   after_bytes: int = 0, timeout_s: float = 120.0, cpu_clock: bool = False) -> Try:
+                   after_bytes: int = 0, timeout_s: float = 120.0, cpu_clock: bool = False,
+                   forked: bool = False) -> Try:
     """Start `hil` with `variant` into `out`, send `sig` after `delay_s` (s) to it, or to its whole process group
     (`group`: as a terminal's Ctrl-C or `kill -- -PGID`; the logger and a spawned target get it too), wait for
     it and compare the files. `after_bytes`: count the delay from when run.mcap holds that many bytes (the
     loop runs). `cpu_clock`: the delay is `hil`'s own CPU time (its start-up is CPU-bound: on an idle machine
-    about the wall time; on a busy one, the wall time would end while Python itself still starts)."""
-    cmd = [sys.executable, "-m", "pmsm_hil.app.cli.main", "run", *VARIANTS[variant], "--out", str(out)]
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=group,
-                            preexec_fn=_default_sigint)
+    about the wall time; on a busy one, the wall time would end while Python itself still starts). `forked`:
+    `hil` forked from a process that has made its imports (tests/runner/hil_zygote.py), for a signal mid-run."""
+    argv = ["run", *VARIANTS[variant], "--out", str(out)]
+    stderr = out.with_name(out.name + ".stderr")
+    stderr.parent.mkdir(parents=True, exist_ok=True)
+    proc: subprocess.Popen[bytes] | ForeignTarget
+    if forked:
+        from tests.runner.hil_zygote import start_hil
+
+        proc = start_hil(argv, stderr, session=group)
+    else:
+        with stderr.open("wb") as err_file:
+            proc = subprocess.Popen([sys.executable, "-m", "pmsm_hil.app.cli.main", *argv],
+                                    stdout=subprocess.DEVNULL, stderr=err_file, start_new_session=group,
+                                    preexec_fn=_default_sigint)
     mcap = out / "run.mcap"
     deadline = time.monotonic() + timeout_s
     while after_bytes and proc.poll() is None and time.monotonic() < deadline and not (
             mcap.exists() and mcap.stat().st_size >= after_bytes):
         time.sleep(0.01)
     if cpu_clock:
+        assert isinstance(proc, subprocess.Popen), "the CPU clock counts from the exec of a fresh process"
         wait_cpu(proc, delay_s, timeout_s)
     else:
         time.sleep(delay_s)
@@ -131,16 +148,17 @@ def interrupt_once(out: Path, variant: str, sig: signal.Signals, delay_s: float,
         else:
             proc.send_signal(sig)
     try:
-        _, err = proc.communicate(timeout=timeout_s)
+        proc.wait(timeout=timeout_s)
     except subprocess.TimeoutExpired:
         proc.kill()
-        _, err = proc.communicate()
-    text = err.decode(errors="replace")
+        proc.wait()
+    text = stderr.read_bytes().decode(errors="replace")
     metrics_file = out / "metrics.json"
     periods = read_periods(mcap) if mcap.exists() else None
     metrics = json.loads(metrics_file.read_text()) if metrics_file.exists() else None
     n = None if periods is None else int(periods.shape[0])
     seq_ok = periods is not None and bool((periods["seq"] == range(n or 0)).all())
+    assert proc.returncode is not None
     return Try(variant, sig.name, group, delay_s, int(proc.returncode), n,
                None if metrics is None else int(metrics["total_periods"]),
                None if metrics is None else int(metrics["end_period"]), seq_ok, text[-2000:], out.exists())

@@ -24,7 +24,9 @@ CASES = [("inproc", signal.SIGINT, False), ("inproc", signal.SIGTERM, True), ("p
 def test_an_interrupted_run_logs_every_period_it_counts(tmp_path: Path, variant: str, sig: signal.Signals,
                                                         group: bool) -> None:
     delay = random.Random(f"{variant}{sig}").uniform(0.0, 0.3)
-    t = interrupt_once(tmp_path / "run", variant, sig, delay, group=group, after_bytes=100_000)
+    # forked with its imports made (tests/runner/hil_zygote.py): the signal comes mid-run, the start-up is the
+    # next test's (fresh processes)
+    t = interrupt_once(tmp_path / "run", variant, sig, delay, group=group, after_bytes=100_000, forked=True)
     assert "Traceback" not in t.stderr_tail
     assert t.rc == 130, t.stderr_tail
     assert t.mcap_periods is not None and t.mcap_periods > 0  # it was stopped mid-run

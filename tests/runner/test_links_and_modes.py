@@ -5,8 +5,6 @@ from __future__ import annotations
 import os
 import signal
 import socket
-import subprocess
-import sys
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -19,6 +17,8 @@ from pmsm_hil.hil.runlog.reader import read_periods
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import load_scenario
+from tests.runner.foreign_zygote import ForeignTarget
+from tests.runner.hil_zygote import start_hil
 
 
 def _free_udp_port() -> int:
@@ -93,11 +93,10 @@ def test_realtime_refuses_a_link_that_cannot_carry_the_rate() -> None:
         run_closed_loop(_cfg(mode="realtime", link="socketcan:can0,bitrate=1000000"))
 
 
-def _start_logged_run(out: Path, min_bytes: int) -> tuple[subprocess.Popen[bytes], Path]:
-    """A long `hil run` in a child process, returned once its MCAP holds min_bytes."""
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "pmsm_hil.app.cli.main", "run", "--duration", "30", "--settle", "0",
-         "--out", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+def _start_logged_run(out: Path, min_bytes: int) -> tuple[ForeignTarget, Path]:
+    """A long `hil run` in a process of its own (forked with its imports made: tests/runner/hil_zygote.py; the
+    signal comes mid-run), returned once its MCAP holds min_bytes."""
+    proc = start_hil(["run", "--duration", "30", "--settle", "0", "--out", str(out)], out.with_name("stderr"))
     mcap = out / "run.mcap"
     deadline = time.monotonic() + 60
     while (not mcap.exists() or mcap.stat().st_size < min_bytes) and time.monotonic() < deadline:

@@ -5,6 +5,7 @@ loop, never run as a PMSM."""
 
 from __future__ import annotations
 
+import fcntl
 import math
 import sys
 from collections.abc import Iterator
@@ -22,6 +23,7 @@ from pmsm_hil.hil.mechanics import DynoMechanics
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
 from pmsm_hil.hil.runner.scenario import load_scenario
+from pmsm_hil.sim_target.fw_build import cache_dir
 from tests.runner.loop_pairs import assert_bit_identical, reference_and_c_records
 
 KIND_DIR = Path(__file__).with_name("rl_kind")
@@ -29,12 +31,19 @@ REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
-def rl(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ModuleType]:
+def rl() -> Iterator[ModuleType]:
+    """The kind registered, its kernel built into the user's cache (`build_kernel_module` keys the build by the
+    hash of the C file, the cdef and the kernel headers: a compile of ~2.5 CPU-s once, not in every session),
+    under a lock: a second pytest session may build it at the same moment."""
     sys.path.insert(0, str(KIND_DIR))
     try:
         import rl_load
 
-        rl_load.register_rl_load(tmp_path_factory.mktemp("rl_kernel"))
+        build_dir = cache_dir() / "test_kernels"
+        build_dir.mkdir(exist_ok=True)
+        with (build_dir / "rl_load.lock").open("w") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            rl_load.register_rl_load(build_dir)
         yield rl_load
     finally:
         unregister_layout("rl-load")

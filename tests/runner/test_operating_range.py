@@ -10,6 +10,7 @@ removed) and reports it as XFAIL with the measured miss, so nothing is skipped s
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -18,10 +19,11 @@ import pytest
 
 from pmsm_hil.hil.errors import HilError
 from pmsm_hil.hil.im_params import ImParams
+from pmsm_hil.hil.machine_params import MachineParams
 from pmsm_hil.hil.presets_loader import load_motor
 from pmsm_hil.hil.runner.run import run_closed_loop
 from pmsm_hil.hil.runner.run_config import RunConfig
-from pmsm_hil.hil.runner.scenario import load_scenario
+from pmsm_hil.hil.runner.scenario import Scenario, load_scenario
 from pmsm_hil.protocol.ids import ParamId
 from pmsm_hil.sim_target.firmware import CONTROLLERS
 
@@ -140,12 +142,24 @@ def expected_failure(p: Point) -> tuple[str, str] | None:
     return None
 
 
+@functools.cache
+def _motor(name: str) -> MachineParams:
+    """The bundled preset, parsed once per worker (frozen; its TOML parse was ~15 % of a grid point's CPU)."""
+    return load_motor(name)
+
+
+@functools.cache
+def _steady() -> Scenario:
+    """The steady scenario as bundled, parsed once (frozen; each point takes `with_overrides` of it)."""
+    return load_scenario("steady")
+
+
 def miss(p: Point, params: dict[str, float] | None = None) -> tuple[str, str] | None:
     """Run point p with the defaults (plus `params`, controller parameters); None if it holds, else
     (kind, figures) with kind "trip" or "tracking"."""
-    sc = load_scenario("steady").with_overrides(speed_rpm=p.speed_rpm, load_nm=p.load_nm, settle_s=p.grid.settle_s,
-                                                duration_s=p.grid.window_s)
-    cfg = RunConfig(motor=load_motor(p.grid.motor), scenario=sc, controller=p.controller,
+    sc = _steady().with_overrides(speed_rpm=p.speed_rpm, load_nm=p.load_nm, settle_s=p.grid.settle_s,
+                                  duration_s=p.grid.window_s)
+    cfg = RunConfig(motor=_motor(p.grid.motor), scenario=sc, controller=p.controller,
                     controller_params=params or {}, trace_dt_s=TRACE_DT_S)
     try:
         m = run_closed_loop(cfg).metrics
@@ -259,6 +273,8 @@ def max_torque_nm(motor_name: str, speed_rpm: float) -> float:
     motor = load_motor(motor_name)
     vlim, p, imax = FW_MARGIN * motor.vdc / math.sqrt(3.0), motor.pole_pairs, 0.8 * motor.i_trip
     w_e = speed_rpm * math.pi / 30.0 * p
+    # the controller's linear model, fitted once (the flux-map machine's fit costs ~10 ms: 200 fits were 2 CPU-s)
+    m = None if isinstance(motor, ImParams) else motor.model_parameters()
     best = 0.0
     for k in range(1, 201):
         if isinstance(motor, ImParams):
@@ -268,7 +284,7 @@ def max_torque_nm(motor_name: str, speed_rpm: float) -> float:
             def volt(iq: float, psi: float = psi, im: ImParams = motor) -> float:
                 return _im_voltage(im, w_e, psi, iq)
         else:
-            m = motor.model_parameters()
+            assert m is not None
             i_d = -min(imax, m[ParamId.PSI_F] / m[ParamId.LD]) * k / 200
             flux = m[ParamId.PSI_F] + (m[ParamId.LD] - m[ParamId.LQ]) * i_d
 

@@ -6,8 +6,6 @@ import fcntl
 import json
 import os
 import signal
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -16,6 +14,7 @@ import pytest
 from pmsm_hil.app.cli.main import main
 from pmsm_hil.hil.runlog.reader import read_periods
 from pmsm_hil.hil.runner.run_dir_lock import LOCK_NAME, RunDirLockedError, run_dir_lock
+from tests.runner.hil_zygote import start_hil
 
 SHORT = ["--duration", "0.05", "--settle", "0"]
 
@@ -44,23 +43,21 @@ def test_concurrent_runs_into_one_out(tmp_path: Path) -> None:
     that long would be as long in CPU time), stopped (SIGSTOP) once it writes its log so that it still holds the
     directory however long the others take to start on a busy machine, and continued once they have ended."""
     out = tmp_path / "r"
-    cmd = [sys.executable, "-m", "pmsm_hil.app.cli.main", "run", "--out", str(out), "--overwrite",
-           "--duration", "5", "--settle", "0"]
-    first = subprocess.Popen([*cmd, "--mode", "realtime", "--ts", "1e-3"], stdout=subprocess.DEVNULL,
-                             stderr=subprocess.PIPE, start_new_session=True)
+    cmd = ["run", "--out", str(out), "--overwrite", "--duration", "5", "--settle", "0"]
+    # forked with their imports made (tests/runner/hil_zygote.py): processes of their own, as the lock needs
+    first = start_hil([*cmd, "--mode", "realtime", "--ts", "1e-3"], tmp_path / "first.err", session=True)
     try:
         deadline = time.monotonic() + 60
         while not (out / "run.mcap").exists() and time.monotonic() < deadline:
             time.sleep(0.02)
         os.killpg(first.pid, signal.SIGSTOP)  # the run and its logger
         assert first.poll() is None, "the first run ended before the others started"
-        procs = [subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-                 for _ in range(2)]
-        others = [(p.wait(timeout=120), p.communicate()[1]) for p in procs]
+        procs = [start_hil(cmd, tmp_path / f"other{k}.err") for k in range(2)]
+        others = [(p.wait(timeout=120), (tmp_path / f"other{k}.err").read_text()) for k, p in enumerate(procs)]
     finally:
         os.killpg(first.pid, signal.SIGCONT)
-    first_err = first.communicate(timeout=120)[1].decode()
-    assert first.returncode == 0, first_err
+    first.wait(timeout=120)
+    assert first.returncode == 0, (tmp_path / "first.err").read_text()
     for rc, err in others:
         assert rc == 2 and err.startswith(f"hil: error: --out {out}: another run (pid {first.pid})"), err
         assert "Traceback" not in err

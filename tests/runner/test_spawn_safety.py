@@ -35,6 +35,8 @@ from pmsm_hil.protocol.ids import ControllerId, ParamId
 from pmsm_hil.protocol.links.wire_bus import HilUdpBus, free_udp_ports
 from pmsm_hil.protocol.messages import Command, ConfigParam, Setpoint
 from tests.oracle import closed_loop as python_loop
+from tests.runner.hil_zygote import start_hil
+from tests.runner.interrupt_runs import cpu_seconds
 
 #: period-record fields measured on the wall clock (everything else of a lockstep run is deterministic)
 WALL_FIELDS = {"exec_time_ns", "exec_split_ns", "late", "missed"}
@@ -192,12 +194,11 @@ def _has_socket(pid: int) -> bool:
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 @pytest.mark.parametrize("loop", ["auto", "python"])
-def test_kill_9_of_the_host_leaves_no_target(loop: str) -> None:
+def test_kill_9_of_the_host_leaves_no_target(loop: str, tmp_path: Path) -> None:
     """`--loop auto` spawns the native target (`hil target --native`, a C serve loop), `--loop python` the
     Python one: neither outlives its host."""
-    host = subprocess.Popen([sys.executable, "-m", "pmsm_hil.app.cli.main", "run", "--link", "udp", "--target",
-                             "spawn", "--loop", loop, "--duration", "60", "--no-log"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    host = start_hil(["run", "--link", "udp", "--target", "spawn", "--loop", loop, "--duration", "60", "--no-log"],
+                     tmp_path / "host.err")  # forked with its imports made (tests/runner/hil_zygote.py)
     try:
         deadline = time.monotonic() + 60
         targets: list[int] = []
@@ -207,7 +208,11 @@ def test_kill_9_of_the_host_leaves_no_target(loop: str) -> None:
         assert targets and _has_socket(targets[0]), "the host did not spawn a target"
         argv = Path(f"/proc/{targets[0]}/cmdline").read_bytes().split(b"\0")
         assert (b"--native" in argv) == (loop == "auto")
-        time.sleep(0.5)  # the run is under way
+        # the run is under way: the target served 0.1 CPU-s since it opened its socket (a fixed 0.5 s sleep was
+        # up to 1 CPU-s of host and target in lockstep on an idle machine, and on a busy one maybe no period yet)
+        cpu0 = cpu_seconds(targets[0])
+        while cpu_seconds(targets[0]) - cpu0 < 0.1 and _alive(targets[0]) and time.monotonic() < deadline:
+            time.sleep(0.01)
         host.send_signal(signal.SIGKILL)
         host.wait()
         gone_by = time.monotonic() + 2.0

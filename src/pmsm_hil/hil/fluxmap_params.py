@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any, ClassVar
 
 from pmsm_hil.hil.drive_params import DriveParams, WithDrive
@@ -82,8 +83,7 @@ class FluxMapParams(WithDrive):
 
     def torque_nm(self, i_d: float, i_q: float) -> float:
         """Electromagnetic torque 1.5·p·(ψd·iq − ψq·id) [N·m] at currents [A]."""
-        psi_d, psi_q, _ = self.interpolant.flux(i_d, i_q)
-        return 1.5 * self.pole_pairs * (psi_d * i_q - psi_q * i_d)
+        return _torque_nm(self.interpolant, self.pole_pairs, i_d, i_q)
 
     @property
     def torque_rating_nm(self) -> float:
@@ -92,14 +92,12 @@ class FluxMapParams(WithDrive):
 
     def operating_point(self) -> float:
         """iq_r [A]: the q current at id = 0 giving the rated torque (bisection on the map, 60 halvings)."""
-        target, lo, hi = self.torque_rating_nm, 0.0, self.checks.iq_range_a[1]
-        if self.torque_nm(0.0, hi) < target:
+        target, hi = self.torque_rating_nm, self.checks.iq_range_a[1]
+        iq_r = _operating_point(self.interpolant, self.pole_pairs, target, hi)
+        if iq_r is None:
             raise ParameterError(f"flux_map {self.flux_map}: the map's torque at id = 0 stays below the rated "
                                  f"{target:g} N·m up to iq = {hi:g} A")
-        for _ in range(60):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if self.torque_nm(0.0, mid) < target else (lo, mid)
-        return 0.5 * (lo + hi)
+        return iq_r
 
     def linear_model(self) -> tuple[float, float, float]:
         """(Ld [H], Lq [H], ψf [Wb]) the controllers are told (module docstring)."""
@@ -119,6 +117,27 @@ class FluxMapParams(WithDrive):
             raise ParameterError(f"unknown motor parameter(s) {', '.join(sorted(unknown))} for a pmsm-fluxmap "
                                  f"machine (known: {', '.join(sorted(_SETTABLE))})")
         return self.with_values(**{k: _clean(k, v) for k, v in overrides.items()})
+
+
+def _torque_nm(interp: Interpolant, pole_pairs: int, i_d: float, i_q: float) -> float:
+    """1.5·p·(ψd·iq − ψq·id) [N·m] on the map's interpolant at currents [A]."""
+    psi_d, psi_q, _ = interp.flux(i_d, i_q)
+    return 1.5 * pole_pairs * (psi_d * i_q - psi_q * i_d)
+
+
+@lru_cache(maxsize=16)
+def _operating_point(interp: Interpolant, pole_pairs: int, target: float, hi: float) -> float | None:
+    """The bisection of `FluxMapParams.operating_point` on one interpolant (a map's, cached per file: the key is
+    that object), None when the torque at iq = hi stays below target [N·m]. Cached: every run asks for the model
+    twice (the checks, the ConfigParams), and each fit is 62 interpolations (it was also 62 reads of the file's
+    path and status through `load_interpolant`, ~10 ms of CPU a fit)."""
+    if _torque_nm(interp, pole_pairs, 0.0, hi) < target:
+        return None
+    lo = 0.0
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if _torque_nm(interp, pole_pairs, 0.0, mid) < target else (lo, mid)
+    return 0.5 * (lo + hi)
 
 
 def _clean(key: str, value: Any) -> Any:
