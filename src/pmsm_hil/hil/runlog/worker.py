@@ -1,9 +1,10 @@
 """Main function of the logger process: take notices from the runner, write MCAP, flush periodically.
 
 Ends on a close notice, on EOF of the notice pipe or a change of parent process (the runner died: the
-file is finalised anyway). SIGTERM ends it too, once the notices have been idle for `SIGTERM_IDLE_S`: a
-SIGTERM sent to the whole process group (`kill -- -PGID`, a job scheduler) reaches the runner as well, which
-drains its loop into the logger and closes it; the blocks still on their way are written, not dropped.
+file is finalised anyway). SIGTERM ends it too, once the notices have been idle for `SIGTERM_IDLE_S` while the
+runner slept (`runner_watch`): a SIGTERM sent to the whole process group (`kill -- -PGID`, a job scheduler)
+reaches the runner as well, which drains its loop into the logger and closes it; the blocks still on their way
+are written, not dropped, however long a busy machine keeps the runner from a CPU.
 SIGINT is ignored: the runner owns Ctrl-C and calls `RunLogger.close()`.
 Status messages to the runner: b"R" ready, b"E" + text fatal error, b"D" + JSON final statistics.
 """
@@ -24,10 +25,10 @@ from pmsm_hil.hil.runlog import topics
 from pmsm_hil.hil.runlog.channel import NOTICE, send_status
 from pmsm_hil.hil.runlog.errors import RunLogError
 from pmsm_hil.hil.runlog.ring import RingConsumer
+from pmsm_hil.hil.runlog.runner_watch import RunnerIdle, runner_pid
 from pmsm_hil.hil.runlog.sink import McapSink
 
 MAX_POLL_S: Final = 0.2
-SIGTERM_IDLE_S: Final = 1.0  # after SIGTERM: end once no notice came for this long [s]
 
 
 def run_worker(
@@ -44,12 +45,11 @@ def run_worker(
     """Logger process entry point (see module docstring)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     stop: list[str] = []
-    idle_since = time.monotonic()  # the last notice, or SIGTERM if later
+    idle = RunnerIdle(runner_pid())  # since the last notice, or SIGTERM if later
 
     def on_term(signum: int, frame: FrameType | None) -> None:
-        nonlocal idle_since
         stop.append("sigterm")
-        idle_since = time.monotonic()
+        idle.reset()
 
     signal.signal(signal.SIGTERM, on_term)
     try:
@@ -71,14 +71,14 @@ def run_worker(
     next_flush = time.monotonic() + flush_interval_s
     parent = os.getppid()
     try:
-        while not stop or time.monotonic() - idle_since < SIGTERM_IDLE_S:
+        while not stop or not idle.over():
             timeout = min(max(next_flush - time.monotonic(), 0.0), MAX_POLL_S)
             if not notices.poll(timeout):
                 if os.getppid() != parent:  # runner gone but a forked process still holds the pipe
                     stats["reason"] = "parent gone"
                     break
             else:
-                idle_since = time.monotonic()
+                idle.reset()
                 try:
                     raw = notices.recv_bytes()
                 except (EOFError, OSError):

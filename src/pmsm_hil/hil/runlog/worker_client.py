@@ -24,6 +24,7 @@ from multiprocessing.process import BaseProcess
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from pmsm_hil.hil.runlog import runner_watch
 from pmsm_hil.hil.runlog.channel import NOTICE
 from pmsm_hil.hil.runlog.ring import RingProducer
 
@@ -52,15 +53,19 @@ def _worker_entry(target: Callable[..., None], *args: Any) -> None:
     process ends at once, stdio flushed: the interpreter's teardown (0.5 s and more of wall time on a loaded
     machine) would only delay the runner's `close`, which waits for this process to end."""
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGTERM})
+    if runner_watch.runner_pid() is None:  # spawned: the runner is the parent
+        runner_watch.set_runner(os.getppid())
     target(*args)
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(0)
 
 
-def _forked_worker_entry(environ: dict[str, str], umask: int, target: Callable[..., None], *args: Any) -> None:
+def _forked_worker_entry(environ: dict[str, str], umask: int, runner: int, target: Callable[..., None],
+                         *args: Any) -> None:
     """`_worker_entry` for a worker forked from the fork server: first the runner's environment and umask of now, as
-    a spawned worker inherits them (the fork server has those of its own start)."""
+    a spawned worker inherits them (the fork server has those of its own start), and the runner's process id."""
+    runner_watch.set_runner(runner)
     os.environ.clear()
     os.environ.update(environ)
     os.umask(umask)
@@ -202,7 +207,8 @@ class WorkerClient:
         if start_method == "forkserver":
             from pmsm_hil.hil.runlog import fork_server
 
-            entry, head, serving = _forked_worker_entry, (dict(os.environ), _umask()), fork_server.serving()
+            entry, serving = _forked_worker_entry, fork_server.serving()
+            head = (dict(os.environ), _umask(), os.getpid())
         self._proc: BaseProcess = ctx.Process(  # type: ignore[attr-defined]
             target=entry, name=name, daemon=True,
             args=(*head, target, notice_r, status_w, str(self._ring.path), ring_bytes, *args))
