@@ -90,8 +90,30 @@ def test_the_logger_process_imports_the_writer_only() -> None:
     heavy = (*[h for h in HEAVY if h != "mcap"], "mcap.stream_reader", "pmsm_hil.hil.runlog.reader",
              "pmsm_hil.hil.runlog.repair", "pmsm_hil.hil.runner", "pmsm_hil.protocol.links",
              "multiprocessing.forkserver", "pmsm_hil.hil.records", "pmsm_hil.hil.runlog.cdr",
-             "pmsm_hil.hil.runlog.encoding", "pmsm_hil.app")
+             "pmsm_hil.hil.runlog.encoding", "pmsm_hil.app", "importlib.metadata", "email")
     assert _loaded(heavy, modules) == []
+
+
+_SHORT_RUN = """
+import contextlib, io, json, sys
+from pmsm_hil.app.cli.main import main
+with contextlib.redirect_stdout(io.StringIO()):
+    code = main(["run", "--duration", "0.005", "--settle", "0", "--no-log", "--quiet", "--json", sys.argv[1]])
+print(json.dumps({"code": code, "modules": sorted(sys.modules)}))
+"""
+
+
+def test_a_short_run_imports_neither_package_metadata_nor_the_fmu_reader(tmp_path: Path) -> None:
+    """`hil run`'s own process: the package version without `importlib.metadata` (email, csv...: ≈ 0.08 CPU-s,
+    `pmsm_hil.dist_version`), and without --load-fmu no FMU description reader (zipfile's use, xml)."""
+    proc = subprocess.run([sys.executable, "-c", _SHORT_RUN, str(tmp_path / "metrics.json")], capture_output=True,
+                          text=True, timeout=300, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    result = json.loads(proc.stdout.splitlines()[-1])
+    assert result["code"] == 0
+    assert _loaded(("importlib.metadata", "email", "xml", "pmsm_hil.hil.load_fmu.description",
+                    "pmsm_hil.hil.load_fmu.checks"), result["modules"]) == []
+    assert json.loads((tmp_path / "metrics.json").read_text())["end_code"] == 0
 
 
 _SCRIPT_LOGGER = """
