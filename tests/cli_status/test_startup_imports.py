@@ -122,7 +122,9 @@ from pathlib import Path
 from pmsm_hil.hil.runlog.logger import RunLogger
 with RunLogger(Path(sys.argv[1]), metadata={{}}) as lg:
     pass
-print(json.dumps({{**lg.final_stats, "parent_mcap": sorted(m for m in sys.modules if m.split(".")[0] == "mcap")}}))
+from multiprocessing import resource_tracker
+print(json.dumps({{**lg.final_stats, "parent_mcap": sorted(m for m in sys.modules if m.split(".")[0] == "mcap"),
+                  "tracker": resource_tracker._resource_tracker._pid}}))
 """
 
 
@@ -130,7 +132,8 @@ def test_a_logger_started_from_a_script_does_not_run_the_script_again(tmp_path: 
     """A `hil`, `pytest` or user script without a `__main__` guard: the spawned logger does not run it again
     (multiprocessing's spawn would, for a target defined there: the CLI's or pytest's whole import, or here a
     second logger started from inside the first one's start). The script itself, which only starts the logger,
-    imports none of mcap (the logger's writer is imported in the logger process: `WorkerTarget`)."""
+    imports none of mcap (the logger's writer is imported in the logger process: `WorkerTarget`) and starts no
+    multiprocessing resource tracker (a process of its own)."""
     script = tmp_path / "script.py"
     script.write_text(_SCRIPT_LOGGER.format())
     proc = subprocess.run([sys.executable, str(script), str(tmp_path / "run.mcap")], capture_output=True,
@@ -138,6 +141,7 @@ def test_a_logger_started_from_a_script_does_not_run_the_script_again(tmp_path: 
     assert proc.returncode == 0, proc.stderr
     stats = json.loads(proc.stdout.splitlines()[-1])
     assert stats["reason"] == "close" and stats["numpy"] is False and stats["parent_mcap"] == []
+    assert stats["tracker"] is None  # no resource tracker process started for the logger (`_no_tracker_started`)
 
 
 def test_the_lazy_package_names_still_import() -> None:
