@@ -105,14 +105,15 @@ print(json.dumps({"code": code, "modules": sorted(sys.modules)}))
 
 def test_a_short_run_imports_neither_package_metadata_nor_the_fmu_reader(tmp_path: Path) -> None:
     """`hil run`'s own process: the package version without `importlib.metadata` (email, csv...: ≈ 0.08 CPU-s,
-    `pmsm_hil.dist_version`), and without --load-fmu no FMU description reader (zipfile's use, xml)."""
+    `pmsm_hil.dist_version`), without --load-fmu no FMU description reader (zipfile's use, xml), without sensor
+    noise no numpy.random (`SensorModel`'s generator is made at its first draw)."""
     proc = subprocess.run([sys.executable, "-c", _SHORT_RUN, str(tmp_path / "metrics.json")], capture_output=True,
                           text=True, timeout=300, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     result = json.loads(proc.stdout.splitlines()[-1])
     assert result["code"] == 0
     assert _loaded(("importlib.metadata", "email", "xml", "pmsm_hil.hil.load_fmu.description",
-                    "pmsm_hil.hil.load_fmu.checks"), result["modules"]) == []
+                    "pmsm_hil.hil.load_fmu.checks", "numpy.random"), result["modules"]) == []
     assert json.loads((tmp_path / "metrics.json").read_text())["end_code"] == 0
 
 
