@@ -22,6 +22,7 @@ FOLDER_LAYERS = {
     "__init__.py": "base",
     "errors.py": "base",
     "lazy_names.py": "base",
+    "dist_version.py": "base",
     "protocol": "protocol",
     "sim_target": "target",
     "hil": "model",

@@ -90,8 +90,31 @@ def test_the_logger_process_imports_the_writer_only() -> None:
     heavy = (*[h for h in HEAVY if h != "mcap"], "mcap.stream_reader", "pmsm_hil.hil.runlog.reader",
              "pmsm_hil.hil.runlog.repair", "pmsm_hil.hil.runner", "pmsm_hil.protocol.links",
              "multiprocessing.forkserver", "pmsm_hil.hil.records", "pmsm_hil.hil.runlog.cdr",
-             "pmsm_hil.hil.runlog.encoding", "pmsm_hil.app")
+             "pmsm_hil.hil.runlog.encoding", "pmsm_hil.app", "importlib.metadata", "email")
     assert _loaded(heavy, modules) == []
+
+
+_SHORT_RUN = """
+import contextlib, io, json, sys
+from pmsm_hil.app.cli.main import main
+with contextlib.redirect_stdout(io.StringIO()):
+    code = main(["run", "--duration", "0.005", "--settle", "0", "--no-log", "--quiet", "--json", sys.argv[1]])
+print(json.dumps({"code": code, "modules": sorted(sys.modules)}))
+"""
+
+
+def test_a_short_run_imports_neither_package_metadata_nor_the_fmu_reader(tmp_path: Path) -> None:
+    """`hil run`'s own process: the package version without `importlib.metadata` (email, csv...: ≈ 0.08 CPU-s,
+    `pmsm_hil.dist_version`), without --load-fmu no FMU description reader (zipfile's use, xml), without sensor
+    noise no numpy.random (`SensorModel`'s generator is made at its first draw)."""
+    proc = subprocess.run([sys.executable, "-c", _SHORT_RUN, str(tmp_path / "metrics.json")], capture_output=True,
+                          text=True, timeout=300, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    result = json.loads(proc.stdout.splitlines()[-1])
+    assert result["code"] == 0
+    assert _loaded(("importlib.metadata", "email", "xml", "pmsm_hil.hil.load_fmu.description",
+                    "pmsm_hil.hil.load_fmu.checks", "numpy.random"), result["modules"]) == []
+    assert json.loads((tmp_path / "metrics.json").read_text())["end_code"] == 0
 
 
 _SCRIPT_LOGGER = """
@@ -100,7 +123,9 @@ from pathlib import Path
 from pmsm_hil.hil.runlog.logger import RunLogger
 with RunLogger(Path(sys.argv[1]), metadata={{}}) as lg:
     pass
-print(json.dumps({{**lg.final_stats, "parent_mcap": sorted(m for m in sys.modules if m.split(".")[0] == "mcap")}}))
+from multiprocessing import resource_tracker
+print(json.dumps({{**lg.final_stats, "parent_mcap": sorted(m for m in sys.modules if m.split(".")[0] == "mcap"),
+                  "tracker": resource_tracker._resource_tracker._pid}}))
 """
 
 
@@ -108,7 +133,8 @@ def test_a_logger_started_from_a_script_does_not_run_the_script_again(tmp_path: 
     """A `hil`, `pytest` or user script without a `__main__` guard: the spawned logger does not run it again
     (multiprocessing's spawn would, for a target defined there: the CLI's or pytest's whole import, or here a
     second logger started from inside the first one's start). The script itself, which only starts the logger,
-    imports none of mcap (the logger's writer is imported in the logger process: `WorkerTarget`)."""
+    imports none of mcap (the logger's writer is imported in the logger process: `WorkerTarget`) and starts no
+    multiprocessing resource tracker (a process of its own)."""
     script = tmp_path / "script.py"
     script.write_text(_SCRIPT_LOGGER.format())
     proc = subprocess.run([sys.executable, str(script), str(tmp_path / "run.mcap")], capture_output=True,
@@ -116,6 +142,7 @@ def test_a_logger_started_from_a_script_does_not_run_the_script_again(tmp_path: 
     assert proc.returncode == 0, proc.stderr
     stats = json.loads(proc.stdout.splitlines()[-1])
     assert stats["reason"] == "close" and stats["numpy"] is False and stats["parent_mcap"] == []
+    assert stats["tracker"] is None  # no resource tracker process started for the logger (`_no_tracker_started`)
 
 
 def test_the_lazy_package_names_still_import() -> None:

@@ -35,6 +35,18 @@ def test_noise_is_seeded_and_has_the_requested_spread() -> None:
     assert not np.array_equal(xa[:10], np.array([c.currents(0.0, 0.0, 0.0) for _ in range(10)]))
 
 
+def test_the_noise_is_the_seeded_generators_draws_in_order() -> None:
+    """The generator is made at the first draw (numpy.random imported only then): the draws are those of
+    `default_rng(seed)` made up front, block by block, each block used from its end."""
+    model = SensorModel(SensorConfig(noise_std_a=0.05, seed=11), pole_pairs=3)
+    block = SensorModel._BLOCK
+    draws = np.random.default_rng(11).standard_normal(2 * block) * 0.05
+    expected = np.concatenate([draws[:block][::-1], draws[block:][::-1]])
+    first = [model.currents(0.0, 0.0, 0.0) for _ in range(5)]
+    assert [v for triple in first for v in triple] == expected[:15].tolist()
+    assert model.take_noise(2 * block - 15).tolist() == expected[15:].tolist()
+
+
 def test_encoder_quantises_the_electrical_angle() -> None:
     model = SensorModel(SensorConfig(encoder_counts=1024), pole_pairs=4)
     step = 2 * math.pi * 4 / 1024

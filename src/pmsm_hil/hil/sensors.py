@@ -44,10 +44,14 @@ class SensorModel:
     def __init__(self, cfg: SensorConfig, pole_pairs: int) -> None:
         self.cfg = cfg
         self.pole_pairs = pole_pairs
-        self._rng = np.random.default_rng(cfg.seed)
+        #: made at the first draw (the same draws): numpy.random's import (a dozen extension modules) only where
+        #: noise is drawn
+        self._rng: np.random.Generator | None = None
         self._noise: list[float] = []
 
     def _refill(self) -> None:
+        if self._rng is None:
+            self._rng = np.random.default_rng(self.cfg.seed)
         self._noise = (self._rng.standard_normal(self._BLOCK) * self.cfg.noise_std_a).tolist()
 
     def _next_noise(self) -> float:

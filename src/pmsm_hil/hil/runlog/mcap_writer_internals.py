@@ -12,11 +12,11 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from importlib.metadata import PackageNotFoundError, version
 from typing import Any, Final
 
 from mcap.writer import Writer
 
+from pmsm_hil.dist_version import installed_version
 from pmsm_hil.hil.runlog.errors import RunLogError
 
 #: the mcap versions whose private Writer state this module was checked against (pyproject.toml's pin)
@@ -47,10 +47,7 @@ class WriterInternals:
 
 def mcap_version() -> str:
     """The installed mcap's version ("unknown" when its metadata is missing)."""
-    try:
-        return version("mcap")
-    except PackageNotFoundError:
-        return "unknown"
+    return installed_version("mcap", "unknown")
 
 
 def missing_fields(writer: Writer) -> list[str]:

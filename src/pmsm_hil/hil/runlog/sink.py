@@ -18,7 +18,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING, BinaryIO, Final
 
 from mcap.well_known import MessageEncoding, SchemaEncoding
-from mcap.writer import CompressionType, Writer
+
+from pmsm_hil.dist_version import light_metadata
+
+with light_metadata():  # mcap's writer asks its version at import: not importlib.metadata's ≈ 0.08 CPU-s for that
+    from mcap.writer import CompressionType, Writer
 
 from pmsm_hil.hil.runlog import layouts, pure_writer, topics
 from pmsm_hil.hil.runlog.bulk_messages import BulkMessages

@@ -12,12 +12,14 @@ import threading
 import zipfile
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from pmsm_hil.hil.load_fmu.description import LoadFmuModel
 from pmsm_hil.hil.load_fmu.errors import LoadFmuCrashError, LoadFmuStepError
 from pmsm_hil.hil.runner.load_fmu_process import LoadFmuProcess, describe_exit
 from pmsm_hil.hil.runner.stop_request import deferred_interrupts
+
+if TYPE_CHECKING:
+    from pmsm_hil.hil.load_fmu.description import LoadFmuModel
 
 #: |torque output| [N·m] beyond which the FMU's output is taken as absurd: the call fails, the run ends (far
 #: above any machine this tool models: a bound on nonsense such as 1e30, not a rating check)

@@ -5,11 +5,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pmsm_hil.hil.errors import ParameterError
-from pmsm_hil.hil.load_fmu.checks import check_load_fmu, read_load_fmu_cached
-from pmsm_hil.hil.load_fmu.description import LoadFmuModel
 from pmsm_hil.hil.load_fmu.spec import LoadFmuSpec
 from pmsm_hil.hil.machine import Machine, machine_for
 from pmsm_hil.hil.machine_params import MachineParams
@@ -36,6 +34,9 @@ from pmsm_hil.protocol.links.faults import FaultSpec, parse_fault_spec
 from pmsm_hil.protocol.links.spec import LinkSpec, parse_spec
 from pmsm_hil.sim_target.firmware import CONTROLLERS, controller_phases
 from pmsm_hil.sim_target.fw_params import FirmwareParamError, FirmwareParamId, firmware_params
+
+if TYPE_CHECKING:  # the FMU's description reader (zipfile, xml) is imported by a run with --load-fmu only
+    from pmsm_hil.hil.load_fmu.description import LoadFmuModel
 
 TARGET_KINDS = ("auto", "inproc", "spawn", "external")
 #: targets that carry a path: a firmware of the HIL target core built for the host (SIL library, or a source
@@ -289,6 +290,8 @@ class RunConfig:
                 raise ParameterError(f"--fault: {exc}", key="fault") from None
         self.resolved_params()  # firmware-declared names and ranges too
         if self.load_fmu is not None:  # the load FMU
+            from pmsm_hil.hil.load_fmu.checks import check_load_fmu
+
             try:
                 check_load_fmu(self)
             except ParameterError as exc:
@@ -371,7 +374,11 @@ class RunConfig:
     @property
     def load_fmu_model(self) -> LoadFmuModel | None:
         """The checked model description of the load FMU (read once per file version), None without one."""
-        return None if self.load_fmu is None else read_load_fmu_cached(self.load_fmu)
+        if self.load_fmu is None:
+            return None
+        from pmsm_hil.hil.load_fmu.checks import read_load_fmu_cached
+
+        return read_load_fmu_cached(self.load_fmu)
 
     @property
     def adc_delay_ns(self) -> int:

@@ -16,9 +16,9 @@ import dataclasses
 import json
 from collections.abc import Iterator
 from contextlib import contextmanager
-from importlib import metadata as importlib_metadata
 from typing import Any
 
+from pmsm_hil.dist_version import installed_version
 from pmsm_hil.hil.drive_params import flat_values
 from pmsm_hil.hil.errors import HilError
 from pmsm_hil.hil.machine_params import MachineParams
@@ -33,10 +33,7 @@ RUN_FILES = ("run.mcap", "metrics.json")
 
 def package_version() -> str:
     """Installed pmsm-hil version ('unknown' when run from a tree that is not installed)."""
-    try:
-        return importlib_metadata.version("pmsm-hil")
-    except importlib_metadata.PackageNotFoundError:
-        return "unknown"
+    return installed_version("pmsm-hil", "unknown")
 
 
 def _params_dict(motor: MachineParams) -> dict[str, Any]:
