@@ -16,6 +16,8 @@ import types
 from collections.abc import Iterator
 from importlib.machinery import PathFinder
 
+from pmsm_hil.errors import HilError
+
 _SEPARATORS = re.compile(r"[-_.]+")
 #: a line the email parser reads as (part of) a header: `email.feedparser.headerRE`
 _HEADER_LINE = re.compile(r"^(From |[\041-\071\073-\176]*:|[\t ])")
@@ -107,7 +109,7 @@ def installed_version(name: str, missing: str) -> str:
         return missing
 
 
-class _PackageNotFoundError(ModuleNotFoundError):
+class _PackageNotFoundError(HilError, ModuleNotFoundError):
     """`importlib.metadata.PackageNotFoundError` as `light_metadata`'s stand-in raises it."""
 
 
