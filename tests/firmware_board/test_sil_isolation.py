@@ -27,6 +27,10 @@ from tests.testing.pytest_session import run_pytest
 
 MISBEHAVE = Path(__file__).with_name("misbehave")
 RUN = ["--controller=external", "--settle=0.02", "--duration=0.1"]  # 1200 periods; the firmware fails at 500
+#: marks the `hil` processes this test process starts, and the SIL targets they start (they inherit it): the built
+#: firmware is shared by content across checkouts (the per-user cache), so a second suite running at the same time
+#: runs SIL targets of the same library path — a check by path alone saw those as left behind by this test
+RUN_MARK = f"HIL_TEST_SIL_ISOLATION={os.getpid()}"
 
 
 @pytest.fixture(scope="module")
@@ -37,8 +41,9 @@ def firmware() -> dict[str, Path]:
 
 
 def _hil_run(args: list[str], **kw: Any) -> subprocess.Popen[str]:
+    name, value = RUN_MARK.split("=")
     return subprocess.Popen([sys.executable, "-m", "pmsm_hil.app.cli.main", "run", *args], cwd=ROOT, text=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, **kw)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env={**os.environ, name: value}, **kw)
 
 
 def _outputs(out: Path) -> tuple[dict[str, Any], np.ndarray]:
@@ -47,15 +52,16 @@ def _outputs(out: Path) -> tuple[dict[str, Any], np.ndarray]:
 
 
 def _sil_processes(library: Path) -> list[int]:
-    """Pids of live `hil target --sil LIBRARY` processes."""
+    """Pids of live `hil target --sil LIBRARY` processes started by this test process's `hil run`s (`RUN_MARK`)."""
     pids = []
     for proc in Path("/proc").iterdir():
         try:
             cmd = (proc / "cmdline").read_bytes().split(b"\0")
+            if b"--sil" in cmd and str(library).encode() in cmd \
+                    and RUN_MARK.encode() in (proc / "environ").read_bytes().split(b"\0"):
+                pids.append(int(proc.name))
         except OSError:
             continue
-        if b"--sil" in cmd and str(library).encode() in cmd:
-            pids.append(int(proc.name))
     return pids
 
 
